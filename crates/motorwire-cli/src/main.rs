@@ -1,0 +1,35 @@
+#![doc = include_str!("../README.md")]
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod demo;
+mod input;
+mod validate;
+
+/// Typed, validated, safe messages between the software that decides a
+/// motion and the motors that make it.
+#[derive(Debug, Parser)]
+#[command(name = "motorwire", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Validate WIA JSON messages against the JSON Schemas and WIA §10.
+    Validate(validate::Args),
+    /// Walk through the WIA document's example messages, validating each.
+    Demo(demo::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let status = match cli.command {
+        Command::Validate(args) => validate::run(&args),
+        Command::Demo(args) => demo::run(&args),
+    };
+    ExitCode::from(status)
+}

@@ -1,0 +1,273 @@
+//! The `motorwire` binary, run as a user runs it.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+use serde_json::Value;
+
+fn motorwire(args: &[&str], stdin: Option<&[u8]>) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args(args)
+        .current_dir(root())
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut pipe = child.stdin.take().unwrap();
+    if let Some(input) = stdin {
+        // A writer that the child stops reading from early is fine.
+        let _ = pipe.write_all(input);
+    }
+    drop(pipe);
+    child.wait_with_output().unwrap()
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn fixture_files(dir: &str) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(root().join(dir))
+        .unwrap()
+        .map(|e| format!("{dir}/{}", e.unwrap().file_name().to_str().unwrap()))
+        .filter(|p| p.ends_with(".json"))
+        .collect();
+    v.sort();
+    v
+}
+
+fn json_lines(out: &Output) -> Vec<Value> {
+    String::from_utf8(out.stdout.clone())
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn every_valid_fixture_passes_auto() {
+    let files = fixture_files("fixtures/wia/valid");
+    let mut args = vec!["validate", "--kind", "auto"];
+    args.extend(files.iter().map(String::as_str));
+    let out = motorwire(&args, None);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(text.lines().count(), files.len());
+    assert!(text.lines().all(|l| l.ends_with("(auto): valid")), "{text}");
+}
+
+#[test]
+fn every_invalid_fixture_exits_1_naming_its_pointer_and_rule() {
+    let manifest: Value = serde_json::from_str(
+        &std::fs::read_to_string(root().join("fixtures/wia/invalid.expected.json")).unwrap(),
+    )
+    .unwrap();
+    for file in fixture_files("fixtures/wia/invalid") {
+        let name = file.rsplit('/').next().unwrap();
+        let expect = &manifest[name];
+        let kind = expect["kind"].as_str().unwrap_or("auto");
+        let mut args = vec!["validate", "--kind", kind, "--format", "json"];
+        if let Some(extra) = expect.get("args") {
+            args.extend(
+                extra
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|a| a.as_str().unwrap()),
+            );
+        }
+        args.push(&file);
+        let out = motorwire(&args, None);
+        assert_eq!(out.status.code(), Some(1), "{file}");
+        let lines = json_lines(&out);
+        assert_eq!(lines.len(), 1);
+        assert_eq!(lines[0]["file"], file.as_str());
+        assert_eq!(lines[0]["valid"], false);
+        let mut got: Vec<(String, String)> = lines[0]["errors"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| {
+                (
+                    e["rule"].as_str().unwrap().into(),
+                    e["pointer"].as_str().unwrap().into(),
+                )
+            })
+            .collect();
+        let mut want: Vec<(String, String)> = expect["violations"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| {
+                (
+                    e["rule"].as_str().unwrap().into(),
+                    e["pointer"].as_str().unwrap().into(),
+                )
+            })
+            .collect();
+        got.sort();
+        want.sort();
+        assert_eq!(got, want, "{file}");
+
+        // The text format names the same pointers and rules.
+        let mut text_args: Vec<&str> = args
+            .iter()
+            .filter(|a| **a != "json" && **a != "--format")
+            .copied()
+            .collect();
+        text_args.retain(|a| *a != "--format");
+        let out = motorwire(&text_args, None);
+        assert_eq!(out.status.code(), Some(1), "{file}");
+        let text = String::from_utf8(out.stdout).unwrap();
+        for (rule, pointer) in &want {
+            let pointer = if pointer.is_empty() {
+                "(document)"
+            } else {
+                pointer
+            };
+            assert!(
+                text.contains(&format!("  {pointer}  [{rule}]  ")),
+                "{file}: {text}"
+            );
+        }
+    }
+}
+
+#[test]
+fn json_lines_from_stdin_report_line_numbers() {
+    let input =
+        b"{\"motor_id\":\"m\",\"timestamp\":1,\"control_mode\":\"position\",\"setpoint\":1}\n\n\
+{\"motor_id\":\"m\",\"timestamp\":1,\"control_mode\":\"position\",\"setpoint\":\"x\"}\nnot json\n";
+    let out = motorwire(
+        &["validate", "--lines", "--format", "json", "-"],
+        Some(input),
+    );
+    assert_eq!(out.status.code(), Some(1));
+    let lines = json_lines(&out);
+    assert_eq!(lines.len(), 3);
+    assert_eq!(
+        lines[0],
+        serde_json::json!({"file": "-", "line": 1, "kind": "motor-command", "auto": true, "valid": true, "errors": []})
+    );
+    assert_eq!(lines[1]["line"], 3);
+    assert_eq!(
+        lines[1]["errors"],
+        serde_json::json!([{"pointer": "/setpoint", "rule": "type", "message": "\"x\" is not of type \"number\""}])
+    );
+    assert_eq!(lines[2]["line"], 4);
+    assert_eq!(lines[2]["kind"], Value::Null);
+    assert_eq!(lines[2]["errors"][0]["rule"], "json-syntax");
+}
+
+#[test]
+fn explicit_kind_omits_auto_and_schema_only_skips_semantics() {
+    let file = "fixtures/wia/invalid/kp-positive-zero.json";
+    let out = motorwire(
+        &[
+            "validate",
+            "--kind",
+            "motor-command",
+            "--format",
+            "json",
+            file,
+        ],
+        None,
+    );
+    assert_eq!(out.status.code(), Some(1));
+    let line = &json_lines(&out)[0];
+    assert!(line.get("auto").is_none());
+    assert!(line.get("line").is_none());
+    let out = motorwire(&["validate", "--schema-only", file], None);
+    assert_eq!(out.status.code(), Some(0));
+    assert_eq!(
+        String::from_utf8(out.stdout).unwrap(),
+        format!("{file}: motor-command (auto): valid\n")
+    );
+}
+
+#[test]
+fn usage_and_io_errors_exit_2() {
+    let out = motorwire(&["validate", "no/such/file.json"], None);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no/such/file.json"));
+    // The other files are still judged.
+    let out = motorwire(
+        &[
+            "validate",
+            "no/such/file.json",
+            "fixtures/wia/valid/motor-command.json",
+        ],
+        None,
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stdout)
+            .contains("motor-command.json: motor-command (auto): valid")
+    );
+    assert_eq!(
+        motorwire(&["validate", "--kind", "bogus", "x"], None)
+            .status
+            .code(),
+        Some(2)
+    );
+    assert_eq!(motorwire(&["validate"], None).status.code(), Some(2));
+    assert_eq!(
+        motorwire(&["validate", "--max-depth", "500", "-"], None)
+            .status
+            .code(),
+        Some(2)
+    );
+}
+
+#[test]
+fn hostile_input_is_refused_without_a_crash() {
+    // A million brackets: refused by depth before any parser sees them.
+    let deep = "[".repeat(1_000_000);
+    let out = motorwire(
+        &["validate", "--max-size", "2000000", "--format", "json", "-"],
+        Some(deep.as_bytes()),
+    );
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        json_lines(&out)[0]["errors"][0]["rule"],
+        "document-too-deep"
+    );
+    // Over the size limit, from stdin, without reading it all into memory.
+    let big = vec![b' '; 3 << 20];
+    let out = motorwire(&["validate", "--format", "json", "-"], Some(&big));
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        json_lines(&out)[0]["errors"][0]["rule"],
+        "document-too-large"
+    );
+    // Not UTF-8.
+    let out = motorwire(
+        &["validate", "--format", "json", "-"],
+        Some(b"{\"motor_id\": \"\xff\"}"),
+    );
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(json_lines(&out)[0]["errors"][0]["rule"], "json-syntax");
+}
+
+#[test]
+fn demo_holds_every_expectation() {
+    let out = motorwire(&["demo"], None);
+    assert_eq!(out.status.code(), Some(0));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(text.matches("] ok   ").count(), 7, "{text}");
+    assert!(text.contains("/pid_gains/kp    [kp-positive]"), "{text}");
+    assert!(text.contains("all expectations held"), "{text}");
+}

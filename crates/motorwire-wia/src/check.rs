@@ -1,0 +1,253 @@
+//! The checking sink: collects violations, renders pointers only on failure.
+
+use motorwire_core::{CoreError, MotorId};
+
+use crate::path::Path;
+use crate::{Rule, Violation};
+
+/// Five minutes: the WIA §10.1 clock-skew tolerance.
+pub(crate) const STALE_AFTER_MS: f64 = 300_000.0;
+
+pub(crate) struct Sink {
+    pub(crate) now_ms: Option<f64>,
+    pub(crate) list: Vec<Violation>,
+}
+
+impl Sink {
+    pub(crate) fn new(now_ms: Option<f64>) -> Self {
+        Self {
+            now_ms,
+            list: Vec::new(),
+        }
+    }
+
+    pub(crate) fn push(&mut self, path: &Path<'_>, rule: Rule, message: String) {
+        self.list.push(Violation {
+            pointer: path.render(),
+            rule,
+            message,
+        });
+    }
+
+    /// Records a `motorwire-core` check's failure under `rule`.
+    pub(crate) fn core<T>(&mut self, path: &Path<'_>, rule: Rule, result: Result<T, CoreError>) {
+        if let Err(e) = result {
+            let rule = match e {
+                CoreError::NonFinite { .. } => Rule::NonFinite,
+                _ => rule,
+            };
+            self.push(path, rule, e.to_string());
+        }
+    }
+
+    /// Every number is checked for finiteness once; returns whether it is finite.
+    pub(crate) fn num(&mut self, path: &Path<'_>, v: f64) -> bool {
+        if v.is_finite() {
+            true
+        } else {
+            self.push(path, Rule::NonFinite, format!("{v} is not a finite number"));
+            false
+        }
+    }
+
+    pub(crate) fn opt_num(&mut self, path: &Path<'_>, v: Option<f64>) -> Option<f64> {
+        match v {
+            Some(v) if self.num(path, v) => Some(v),
+            _ => None,
+        }
+    }
+
+    // --- JSON Schema keywords, as the typed path enforces them ----------
+
+    pub(crate) fn minimum(&mut self, path: &Path<'_>, v: f64, limit: f64) {
+        if self.num(path, v) && v < limit {
+            self.push(
+                path,
+                Rule::Minimum,
+                format!("{v} is less than the minimum of {limit}"),
+            );
+        }
+    }
+
+    pub(crate) fn opt_minimum(&mut self, path: &Path<'_>, v: Option<f64>, limit: f64) {
+        if let Some(v) = v {
+            self.minimum(path, v, limit);
+        }
+    }
+
+    pub(crate) fn range(&mut self, path: &Path<'_>, v: f64, min: f64, max: f64) {
+        if !self.num(path, v) {
+            return;
+        }
+        if v < min {
+            self.push(
+                path,
+                Rule::Minimum,
+                format!("{v} is less than the minimum of {min}"),
+            );
+        } else if v > max {
+            self.push(
+                path,
+                Rule::Maximum,
+                format!("{v} is greater than the maximum of {max}"),
+            );
+        }
+    }
+
+    pub(crate) fn int_range(&mut self, path: &Path<'_>, v: i64, min: i64, max: Option<i64>) {
+        if v < min {
+            self.push(
+                path,
+                Rule::Minimum,
+                format!("{v} is less than the minimum of {min}"),
+            );
+        } else if let Some(max) = max.filter(|m| v > *m) {
+            self.push(
+                path,
+                Rule::Maximum,
+                format!("{v} is greater than the maximum of {max}"),
+            );
+        }
+    }
+
+    pub(crate) fn exclusive_minimum(&mut self, path: &Path<'_>, v: f64, limit: f64) {
+        if self.num(path, v) && v <= limit {
+            self.push(
+                path,
+                Rule::ExclusiveMinimum,
+                format!("{v} is less than or equal to the minimum of {limit}"),
+            );
+        }
+    }
+
+    /// The schema pattern `^[a-zA-Z0-9_-]+$`.
+    pub(crate) fn id_pattern(&mut self, path: &Path<'_>, id: &str) {
+        if id.is_empty() || !id.chars().all(MotorId::is_id_char) {
+            self.push(
+                path,
+                Rule::Pattern,
+                format!("{id:?} does not match \"^[a-zA-Z0-9_-]+$\""),
+            );
+        }
+    }
+
+    pub(crate) fn min_items(&mut self, path: &Path<'_>, len: usize, limit: usize) {
+        if len < limit {
+            self.push(
+                path,
+                Rule::MinItems,
+                format!("has {len} item(s); at least {limit} are required"),
+            );
+        }
+    }
+
+    pub(crate) fn one_of_names(&mut self, path: &Path<'_>, name: &str, allowed: &[&str]) {
+        if !allowed.contains(&name) {
+            self.push(
+                path,
+                Rule::Enum,
+                format!("{name:?} is not one of {allowed:?}"),
+            );
+        }
+    }
+
+    // --- semantic rules shared by several messages ------------------------
+
+    /// WIA §10.1: a whole number of Unix milliseconds, not older than
+    /// `now - 5 min` (future timestamps are allowed).
+    pub(crate) fn timestamp(&mut self, path: &Path<'_>, t: f64) {
+        if !self.num(path, t) {
+            return;
+        }
+        if t.fract() != 0.0 {
+            self.push(
+                path,
+                Rule::TimestampInteger,
+                format!("timestamp {t} is not a whole number of Unix milliseconds"),
+            );
+        }
+        if let Some(now) = self.now_ms
+            && t < now - STALE_AFTER_MS
+        {
+            self.push(
+                    path,
+                    Rule::TimestampStale,
+                    format!(
+                        "timestamp {t} is {} ms older than now ({now}); at most {STALE_AFTER_MS} ms is tolerated",
+                        now - t
+                    ),
+                );
+        }
+    }
+
+    /// motorwire's motor-id rules (the schema pattern plus a maximum length).
+    pub(crate) fn motor_id(&mut self, path: &Path<'_>, id: &str) {
+        if let Err(e) = MotorId::validate(id) {
+            self.push(path, Rule::MotorId, e.to_string());
+        }
+    }
+
+    /// `lower <= upper`, both present.
+    pub(crate) fn ordered(
+        &mut self,
+        rule: Rule,
+        lower: (&Path<'_>, &'static str, Option<f64>),
+        upper: (&'static str, Option<f64>),
+    ) {
+        if let (Some(lo), Some(hi)) = (lower.2, upper.1)
+            && lo.is_finite()
+            && hi.is_finite()
+            && lo > hi
+        {
+            self.push(
+                lower.0,
+                rule,
+                format!("{} ({lo}) must be <= {} ({hi})", lower.1, upper.0),
+            );
+        }
+    }
+
+    /// Semantic non-negativity (for quantities the schema leaves open).
+    pub(crate) fn non_negative(&mut self, path: &Path<'_>, name: &'static str, v: Option<f64>) {
+        if let Some(v) = v
+            && v.is_finite()
+        {
+            self.core(
+                path,
+                Rule::NonNegative,
+                motorwire_core::check::non_negative(name, v),
+            );
+        }
+    }
+
+    /// Semantic positivity.
+    pub(crate) fn positive(&mut self, path: &Path<'_>, name: &'static str, v: Option<f64>) {
+        if let Some(v) = v
+            && v.is_finite()
+        {
+            self.core(
+                path,
+                Rule::Positive,
+                motorwire_core::check::positive(name, v),
+            );
+        }
+    }
+
+    /// Removes semantic violations at a pointer that already has a schema
+    /// violation: `kp: -1` is a `minimum` violation, not also `kp-positive`.
+    pub(crate) fn finish(mut self) -> Vec<Violation> {
+        use crate::rule::Level;
+        let schema_pointers: Vec<String> = self
+            .list
+            .iter()
+            .filter(|v| v.rule.level() == Level::Schema)
+            .map(|v| v.pointer.clone())
+            .collect();
+        if !schema_pointers.is_empty() {
+            self.list.retain(|v| {
+                v.rule.level() != Level::Semantic || !schema_pointers.contains(&v.pointer)
+            });
+        }
+        self.list
+    }
+}

@@ -1,0 +1,41 @@
+#![doc = include_str!("../README.md")]
+#![cfg_attr(docsrs, feature(doc_cfg))]
+
+mod check;
+mod command;
+mod error;
+mod feedback;
+mod kind;
+mod mode_config;
+mod path;
+mod pid;
+mod rule;
+mod safety;
+mod schema;
+mod serde_util;
+mod trajectory;
+mod validate;
+
+pub use command::{
+    AccelerationProfile, AxisCommand, CommandSafetyLimits, Coordination, CoordinationType,
+    FilterConfig, ImpedanceParams, MotorCommand, MultiAxisCommand, PidGains, SyncMode,
+};
+pub use error::{Error, Report};
+pub use feedback::{MotorFeedback, MotorHealth, MotorStatus};
+pub use kind::{Message, MessageKind, UnknownKindName, WiaMessage};
+pub use mode_config::{ControlModeConfig, ModeLimits, ModeParameters};
+pub use pid::{OutputLimits, PidConfig, PidConfigGains, SetpointFilter};
+pub use rule::{Level, Rule, Violation};
+pub use safety::{
+    CollisionDetection, CurrentLimits, PositionLimits, SafetyLimits, ThermalLimits, TorqueLimits,
+    VelocityLimits,
+};
+pub use schema::schema_validator;
+pub use trajectory::{
+    DURATION_TOLERANCE_MS, Interpolation, LoopConfig, Timing, Trajectory, TrajectoryConstraints,
+    TrajectoryType, Waypoint,
+};
+pub use validate::Validator;
+
+/// Re-exported so users name the shared vocabulary through one crate.
+pub use motorwire_core as core;

@@ -1,0 +1,391 @@
+//! The validation pipeline: limits, typed parse, schema-level and semantic
+//! checks, and the JSON Schema as the fallback that explains type errors.
+
+use serde::Serialize;
+
+use crate::error::{Error, Report};
+use crate::kind::{Message, MessageKind, WiaMessage};
+use crate::{
+    ControlModeConfig, MotorCommand, MotorFeedback, MultiAxisCommand, PidConfig, Rule,
+    SafetyLimits, Trajectory, Violation, schema,
+};
+
+/// Validates WIA JSON documents and typed messages.
+///
+/// A `Validator` holds the limits on hostile input and the clock used by the
+/// staleness rule; it is cheap to create and to clone, and the schemas it
+/// uses are compiled once per process.
+///
+/// ```
+/// use motorwire_wia::{MessageKind, Rule, Validator};
+///
+/// let v = Validator::new().now_ms(1_704_067_200_000.0);
+/// let report = v.validate(MessageKind::MotorCommand, r#"{
+///     "motor_id": "elbow", "timestamp": 1704067200000, "control_mode": "position",
+///     "setpoint": 95.0, "pid_gains": {"kp": 0, "ki": 0.1, "kd": 1},
+///     "safety_limits": {"min_position": 0, "max_position": 90}
+/// }"#);
+/// let found: Vec<(&str, Rule)> = report.violations.iter().map(|v| (v.pointer.as_str(), v.rule)).collect();
+/// assert_eq!(found, [("/pid_gains/kp", Rule::KpPositive), ("/setpoint", Rule::SetpointWithinLimits)]);
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct Validator {
+    max_document_size: usize,
+    max_depth: usize,
+    now_ms: Option<f64>,
+}
+
+impl Default for Validator {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Validator {
+    /// The default maximum document size: 1 MiB.
+    pub const DEFAULT_MAX_DOCUMENT_SIZE: usize = 1 << 20;
+    /// The default maximum nesting depth (the top-level object is depth 1).
+    pub const DEFAULT_MAX_DEPTH: usize = 32;
+    /// The deepest nesting any setting allows: `serde_json`'s own recursion
+    /// limit, which keeps parsing off the end of the stack.
+    pub const MAX_DEPTH_CEILING: usize = 128;
+
+    /// Default limits (1 MiB, depth 32) and no clock (no staleness check).
+    pub const fn new() -> Self {
+        Self {
+            max_document_size: Self::DEFAULT_MAX_DOCUMENT_SIZE,
+            max_depth: Self::DEFAULT_MAX_DEPTH,
+            now_ms: None,
+        }
+    }
+
+    /// Sets the largest document accepted, in bytes.
+    #[must_use]
+    pub const fn max_document_size(mut self, bytes: usize) -> Self {
+        self.max_document_size = bytes;
+        self
+    }
+
+    /// Sets the deepest nesting accepted. Values above
+    /// [`MAX_DEPTH_CEILING`](Self::MAX_DEPTH_CEILING) (128) act as 128.
+    #[must_use]
+    pub const fn max_depth(mut self, depth: usize) -> Self {
+        self.max_depth = if depth > Self::MAX_DEPTH_CEILING {
+            Self::MAX_DEPTH_CEILING
+        } else {
+            depth
+        };
+        self
+    }
+
+    /// Sets the current time (Unix milliseconds) for the staleness rule: a
+    /// timestamp more than 5 minutes older than `now_ms` is stale. Future
+    /// timestamps are allowed (WIA §10.1).
+    #[must_use]
+    pub const fn now_ms(mut self, now_ms: f64) -> Self {
+        self.now_ms = Some(now_ms);
+        self
+    }
+
+    /// The configured clock, if any.
+    pub const fn clock(&self) -> Option<f64> {
+        self.now_ms
+    }
+
+    /// Parses and fully validates a document as `T`.
+    ///
+    /// ```
+    /// use motorwire_wia::{MotorCommand, Rule, Validator};
+    ///
+    /// let err = Validator::new()
+    ///     .parse::<MotorCommand>(r#"{"motor_id": "m", "timestamp": 0, "control_mode": "warp", "setpoint": 1}"#)
+    ///     .unwrap_err();
+    /// assert_eq!(err.violations()[0].pointer, "/control_mode");
+    /// assert_eq!(err.violations()[0].rule, Rule::Enum);
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] with every violation found.
+    pub fn parse<T: WiaMessage>(&self, json: &str) -> Result<T, Error> {
+        let (msg, violations) = self.run::<T>(json);
+        match msg {
+            Some(msg) if violations.is_empty() => Ok(msg),
+            _ => Err(Error::Invalid(Report {
+                kind: Some(T::KIND),
+                violations,
+            })),
+        }
+    }
+
+    /// Parses and validates a document of any kind, inferring the kind as
+    /// [`MessageKind::infer`] does.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`]; `kind` in its report is `None` when the kind could
+    /// not be inferred.
+    pub fn parse_any(&self, json: &str) -> Result<Message, Error> {
+        let kind = self.infer(json).map_err(|v| {
+            Error::Invalid(Report {
+                kind: None,
+                violations: vec![v],
+            })
+        })?;
+        Ok(match kind {
+            MessageKind::MotorCommand => Message::MotorCommand(self.parse(json)?),
+            MessageKind::MultiAxisCommand => Message::MultiAxisCommand(self.parse(json)?),
+            MessageKind::MotorFeedback => Message::MotorFeedback(self.parse(json)?),
+            MessageKind::Trajectory => Message::Trajectory(self.parse(json)?),
+            MessageKind::PidConfig => Message::PidConfig(self.parse(json)?),
+            MessageKind::SafetyLimits => Message::SafetyLimits(self.parse(json)?),
+            MessageKind::ControlModeConfig => Message::ControlModeConfig(self.parse(json)?),
+        })
+    }
+
+    /// Validates a document as `kind`, returning every violation.
+    pub fn validate(&self, kind: MessageKind, json: &str) -> Report {
+        let violations = match kind {
+            MessageKind::MotorCommand => self.run::<MotorCommand>(json).1,
+            MessageKind::MultiAxisCommand => self.run::<MultiAxisCommand>(json).1,
+            MessageKind::MotorFeedback => self.run::<MotorFeedback>(json).1,
+            MessageKind::Trajectory => self.run::<Trajectory>(json).1,
+            MessageKind::PidConfig => self.run::<PidConfig>(json).1,
+            MessageKind::SafetyLimits => self.run::<SafetyLimits>(json).1,
+            MessageKind::ControlModeConfig => self.run::<ControlModeConfig>(json).1,
+        };
+        Report {
+            kind: Some(kind),
+            violations,
+        }
+    }
+
+    /// Validates a document of whatever kind it is ([`MessageKind::infer`]);
+    /// the report says which kind was chosen.
+    ///
+    /// ```
+    /// use motorwire_wia::{MessageKind, Validator};
+    /// let r = Validator::new().validate_auto(r#"{"mode": "position"}"#);
+    /// assert_eq!((r.kind, r.is_valid()), (Some(MessageKind::ControlModeConfig), true));
+    /// ```
+    pub fn validate_auto(&self, json: &str) -> Report {
+        match self.infer(json) {
+            Ok(kind) => self.validate(kind, json),
+            Err(v) => Report {
+                kind: None,
+                violations: vec![v],
+            },
+        }
+    }
+
+    /// Judges a document by the JSON Schema alone (no semantic rules), still
+    /// within the size and depth limits.
+    ///
+    /// ```
+    /// use motorwire_wia::{MessageKind, Validator};
+    /// // kp = 0 satisfies the schema (minimum 0) but not WIA §10.4.
+    /// let doc = r#"{"motor_id": "m", "control_mode": "position", "gains": {"kp": 0, "ki": 0, "kd": 0}}"#;
+    /// assert!(Validator::new().validate_schema_only(MessageKind::PidConfig, doc).is_valid());
+    /// assert!(!Validator::new().validate(MessageKind::PidConfig, doc).is_valid());
+    /// ```
+    pub fn validate_schema_only(&self, kind: MessageKind, json: &str) -> Report {
+        let violations = match self.precheck(json) {
+            Err(v) => vec![v],
+            Ok(()) => match serde_json::from_str::<serde_json::Value>(json) {
+                Ok(value) => schema::violations(kind, &value),
+                Err(e) => vec![json_error(&e)],
+            },
+        };
+        Report {
+            kind: Some(kind),
+            violations,
+        }
+    }
+
+    /// Every violation of a typed value (see [`WiaMessage::violations`]),
+    /// judged with this validator's clock.
+    pub fn check<T: WiaMessage>(&self, msg: &T) -> Vec<Violation> {
+        msg.violations(self.now_ms)
+    }
+
+    /// Serializes a message to JSON after checking it: a value that breaks a
+    /// rule (a NaN would silently become `null`) is refused.
+    ///
+    /// ```
+    /// use motorwire_wia::{MotorCommand, Validator};
+    /// let v = Validator::new();
+    /// let json = r#"{"motor_id":"m","timestamp":1704067200000,"control_mode":"velocity","setpoint":2.5}"#;
+    /// let cmd: MotorCommand = v.parse(json)?;
+    /// assert_eq!(v.to_json(&cmd)?, json);
+    /// # Ok::<(), motorwire_wia::Error>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] with the value's violations.
+    pub fn to_json<T: WiaMessage>(&self, msg: &T) -> Result<String, Error> {
+        let violations = self.check(msg);
+        if !violations.is_empty() {
+            return Err(Error::Invalid(Report {
+                kind: Some(T::KIND),
+                violations,
+            }));
+        }
+        to_string(msg)
+    }
+
+    fn infer(&self, json: &str) -> Result<MessageKind, Violation> {
+        self.precheck(json)?;
+        match MessageKind::infer(json) {
+            Ok(Some(kind)) => Ok(kind),
+            Ok(None) => Err(Violation::new(
+                "",
+                Rule::UnknownKind,
+                "cannot tell the message kind: no member names one (see MessageKind::infer)",
+            )),
+            Err(e) if e.is_data() => Err(Violation::new(
+                "",
+                Rule::UnknownKind,
+                "cannot tell the message kind: the document is not a JSON object",
+            )),
+            Err(e) => Err(json_error(&e)),
+        }
+    }
+
+    /// Size and depth, before any parser sees the text.
+    fn precheck(&self, json: &str) -> Result<(), Violation> {
+        if json.len() > self.max_document_size {
+            return Err(Violation::new(
+                "",
+                Rule::DocumentTooLarge,
+                format!(
+                    "the document is {} bytes; the maximum is {}",
+                    json.len(),
+                    self.max_document_size
+                ),
+            ));
+        }
+        if let Some(depth) = depth_exceeding(json.as_bytes(), self.max_depth) {
+            return Err(Violation::new(
+                "",
+                Rule::DocumentTooDeep,
+                format!(
+                    "the document nests at least {depth} levels deep; the maximum is {}",
+                    self.max_depth
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn run<T: WiaMessage>(&self, json: &str) -> (Option<T>, Vec<Violation>) {
+        if let Err(v) = self.precheck(json) {
+            return (None, vec![v]);
+        }
+        match serde_json::from_str::<T>(json) {
+            Ok(msg) => {
+                let violations = msg.violations(self.now_ms);
+                (Some(msg), violations)
+            }
+            Err(e) if e.is_data() => (None, explain_data_error(T::KIND, json, &e)),
+            Err(e) => (None, vec![json_error(&e)]),
+        }
+    }
+}
+
+/// The typed parse refused a well-formed document: the JSON Schema says
+/// where and why, with every violation; what it accepts is something
+/// motorwire cannot represent (an integer beyond 64 bits, a repeated key).
+fn explain_data_error(kind: MessageKind, json: &str, error: &serde_json::Error) -> Vec<Violation> {
+    let value: serde_json::Value = match serde_json::from_str(json) {
+        Ok(v) => v,
+        Err(e) => return vec![json_error(&e)],
+    };
+    let violations = schema::violations(kind, &value);
+    if violations.is_empty() {
+        vec![Violation::new(
+            "",
+            Rule::Unrepresentable,
+            format!(
+                "the document satisfies the {kind} schema but motorwire cannot represent it: {error}"
+            ),
+        )]
+    } else {
+        violations
+    }
+}
+
+fn json_error(e: &serde_json::Error) -> Violation {
+    Violation::new("", Rule::JsonSyntax, format!("not valid JSON: {e}"))
+}
+
+/// Scans the text for `[`/`{` nesting outside strings; returns the depth
+/// reached once it exceeds `max`, without parsing anything.
+fn depth_exceeding(bytes: &[u8], max: usize) -> Option<usize> {
+    // Fast path: a document with no more opening brackets than `max` cannot
+    // nest deeper than `max`. `[` (0x5B) and `{` (0x7B) differ only in bit
+    // 0x20, so one comparison finds both, in a loop the compiler vectorizes.
+    let openings: usize = bytes.iter().map(|&b| usize::from(b | 0x20 == b'{')).sum();
+    if openings <= max {
+        return None;
+    }
+    let mut depth = 0usize;
+    let mut in_string = false;
+    let mut escaped = false;
+    for &b in bytes {
+        if in_string {
+            if escaped {
+                escaped = false;
+            } else if b == b'\\' {
+                escaped = true;
+            } else if b == b'"' {
+                in_string = false;
+            }
+            continue;
+        }
+        match b {
+            b'"' => in_string = true,
+            b'{' | b'[' => {
+                depth += 1;
+                if depth > max {
+                    return Some(depth);
+                }
+            }
+            b'}' | b']' => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+    }
+    None
+}
+
+/// Serializes any WIA message to compact JSON, without checking it.
+fn to_string<T: Serialize>(msg: &T) -> Result<String, Error> {
+    serde_json::to_string(msg).map_err(|e| {
+        Error::Invalid(Report {
+            kind: None,
+            violations: vec![Violation::new("", Rule::Unrepresentable, e.to_string())],
+        })
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_document_that_is_not_an_object_is_a_type_violation() {
+        let r = Validator::new().validate(MessageKind::MotorCommand, r#"[{"motor_id": "m"}]"#);
+        assert_eq!(r.violations.len(), 1);
+        assert_eq!(
+            (r.violations[0].pointer.as_str(), r.violations[0].rule),
+            ("", Rule::Type)
+        );
+        let r = Validator::new().validate_auto("[1]");
+        assert_eq!((r.kind, r.violations[0].rule), (None, Rule::UnknownKind));
+    }
+
+    #[test]
+    fn depth_scan_ignores_brackets_in_strings() {
+        assert_eq!(depth_exceeding(br#"{"a":"[[[[{{{{"}"#, 1), None);
+        assert_eq!(depth_exceeding(br#"{"a":"\"[[["}"#, 1), None);
+        assert_eq!(depth_exceeding(br#"{"a":[{"b":1}]}"#, 2), Some(3));
+        assert_eq!(depth_exceeding(br#"{"a":[{"b":1}]}"#, 3), None);
+    }
+}
