@@ -1,0 +1,19 @@
+#![doc = include_str!("../README.md")]
+#![no_std]
+
+mod error;
+mod message;
+mod payload;
+mod version;
+mod wire;
+
+pub use error::Error;
+pub use message::{CAN_FD_LENGTHS, Header, MAX_FRAME_LEN, Message, Payload, can_fd_len};
+pub use payload::{
+    AdaptiveStatusPayload, CalibrationConfidence, CalibrationPhase, CalibrationRequest,
+    CalibrationResult, CalibrationStatus, ConfigureAdaptivePayload, ConfigureTelemetryPayload,
+    EmergencyReason, EmergencyStop, EncoderTelemetry, FaultCounters, FaultHistory, FaultRecord,
+    LifecycleState, MotionProfile, MotorParameters, PowerConfig, PowerMetrics, SetTargetPayload,
+    SetTargetPayloadV2, StallStatus, TelemetryMode, TelemetryStream,
+};
+pub use version::{PayloadKind, UnknownWireVersion, WireVersion};

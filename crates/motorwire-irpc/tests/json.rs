@@ -1,0 +1,101 @@
+//! The JSON form: serde's externally tagged enums with the wire field names.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+mod common;
+
+use motorwire_irpc::*;
+use proptest::prelude::*;
+
+const DOC_EXAMPLE: &str = r#"{"header":{"source_id":0,"target_id":16,"msg_id":42},"payload":{"SetTargetV2":{"target_angle":90.0,"max_velocity":100.0,"target_velocity":0.0,"max_acceleration":500.0,"max_deceleration":500.0,"max_jerk":2000.0,"profile":"SCurve","max_current":0.0,"max_temperature":0.0}}}"#;
+
+fn header(source_id: u16, target_id: u16, msg_id: u32) -> Header {
+    Header {
+        source_id,
+        target_id,
+        msg_id,
+    }
+}
+
+#[test]
+fn the_documents_example() {
+    let msg: Message = serde_json::from_str(DOC_EXAMPLE).unwrap();
+    assert_eq!(serde_json::to_string(&msg).unwrap(), DOC_EXAMPLE);
+    let mut buf = [0u8; 64];
+    let n = msg.encode(WireVersion::V2_0, &mut buf).unwrap();
+    assert_eq!(n, 37);
+}
+
+#[test]
+fn unit_ack_nack_and_joint_status_forms() {
+    let cases = [
+        (
+            Message {
+                header: header(0, 16, 1),
+                payload: Payload::Configure,
+            },
+            r#"{"header":{"source_id":0,"target_id":16,"msg_id":1},"payload":"Configure"}"#,
+        ),
+        (
+            Message {
+                header: header(16, 0, 42),
+                payload: Payload::Ack(42),
+            },
+            r#"{"header":{"source_id":16,"target_id":0,"msg_id":42},"payload":{"Ack":42}}"#,
+        ),
+        (
+            Message {
+                header: header(16, 0, 42),
+                payload: Payload::Nack { id: 42, error: 255 },
+            },
+            r#"{"header":{"source_id":16,"target_id":0,"msg_id":42},"payload":{"Nack":{"id":42,"error":255}}}"#,
+        ),
+        (
+            Message {
+                header: header(16, 0, 7),
+                payload: Payload::JointStatus {
+                    state: LifecycleState::Active,
+                    error_code: 0,
+                },
+            },
+            r#"{"header":{"source_id":16,"target_id":0,"msg_id":7},"payload":{"JointStatus":{"state":"Active","error_code":0}}}"#,
+        ),
+    ];
+    for (msg, json) in cases {
+        assert_eq!(serde_json::to_string(&msg).unwrap(), json);
+        assert_eq!(serde_json::from_str::<Message>(json).unwrap(), msg);
+    }
+}
+
+#[test]
+fn json_that_does_not_fit_is_refused() {
+    for bad in [
+        // unknown field (a typo must not be ignored)
+        r#"{"header":{"source_id":0,"target_id":16,"msg_id":1,"extra":1},"payload":"Configure"}"#,
+        // unknown payload
+        r#"{"header":{"source_id":0,"target_id":16,"msg_id":1},"payload":"Explode"}"#,
+        // u16 out of range
+        r#"{"header":{"source_id":70000,"target_id":16,"msg_id":1},"payload":"Configure"}"#,
+        // missing field
+        r#"{"header":{"source_id":0,"target_id":16},"payload":"Configure"}"#,
+        // wrong enum name
+        r#"{"header":{"source_id":0,"target_id":16,"msg_id":1},"payload":{"JointStatus":{"state":"Dancing","error_code":0}}}"#,
+    ] {
+        assert!(serde_json::from_str::<Message>(bad).is_err(), "{bad}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+
+    #[test]
+    fn json_round_trips((_v, msg) in common::versioned_message()) {
+        let json = serde_json::to_string(&msg).unwrap();
+        let back: Message = serde_json::from_str(&json).unwrap();
+        prop_assert_eq!(back, msg);
+    }
+}
