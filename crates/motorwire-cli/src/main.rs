@@ -4,8 +4,11 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod compact;
 mod demo;
 mod input;
+mod irpc;
+mod lines;
 mod validate;
 
 /// Typed, validated, safe messages between the software that decides a
@@ -21,6 +24,10 @@ struct Cli {
 enum Command {
     /// Validate WIA JSON messages against the JSON Schemas and WIA §10.
     Validate(validate::Args),
+    /// Encode and decode iRPC messages (JSON lines <-> hex lines).
+    Irpc(irpc::Args),
+    /// Encode and decode the 24-byte WIA compact command.
+    Compact(compact::Args),
     /// Walk through the WIA document's example messages, validating each.
     Demo(demo::Args),
 }
@@ -29,6 +36,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let status = match cli.command {
         Command::Validate(args) => validate::run(&args),
+        Command::Irpc(args) => irpc::run(&args),
+        Command::Compact(args) => compact::run(&args),
         Command::Demo(args) => demo::run(&args),
     };
     ExitCode::from(status)

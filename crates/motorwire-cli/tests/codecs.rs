@@ -1,0 +1,202 @@
+//! `motorwire irpc` and `motorwire compact`, run as a user runs them.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use std::io::Write;
+use std::process::{Command, Output, Stdio};
+
+fn run(args: &[&str], stdin: &str) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args(args)
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(stdin.as_bytes())
+        .unwrap();
+    child.wait_with_output().unwrap()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8(o.stdout.clone()).unwrap()
+}
+
+const DOC_JSON: &str = r#"{"header":{"source_id":0,"target_id":16,"msg_id":42},"payload":{"SetTargetV2":{"target_angle":90.0,"max_velocity":100.0,"target_velocity":0.0,"max_acceleration":500.0,"max_deceleration":500.0,"max_jerk":2000.0,"profile":"SCurve","max_current":0.0,"max_temperature":0.0}}}"#;
+const DOC_HEX: &str = "00102a050000b4420000c842000000000000fa430000fa430000fa44010000000000000000";
+
+#[test]
+fn irpc_encode_prints_the_documents_37_bytes_and_decode_returns_the_json() {
+    let o = run(
+        &["irpc", "encode", "--wire", "v2.0"],
+        &format!("{DOC_JSON}\n"),
+    );
+    assert_eq!(o.status.code(), Some(0));
+    assert_eq!(stdout(&o), format!("{DOC_HEX}\n"));
+    assert_eq!(DOC_HEX.len(), 74);
+    let o = run(
+        &["irpc", "decode", "--wire", "v2.0"],
+        &format!("{DOC_HEX}\n"),
+    );
+    assert_eq!(o.status.code(), Some(0));
+    assert_eq!(stdout(&o), format!("{DOC_JSON}\n"));
+}
+
+#[test]
+fn irpc_failed_lines_are_replaced_and_processing_goes_on() {
+    let input = "00 10 01 01\nnot hex\n\n00 10 01 0b\n10 00 2a 12 2a\n";
+    let o = run(&["irpc", "decode", "--wire", "v2.1"], input);
+    assert_eq!(o.status.code(), Some(1));
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 4);
+    assert_eq!(
+        lines[0],
+        r#"{"header":{"source_id":0,"target_id":16,"msg_id":1},"payload":"Configure"}"#
+    );
+    assert_eq!(lines[1], r#"{"error":"'n' is not a hex digit","line":2}"#);
+    assert_eq!(
+        lines[2],
+        r#"{"error":"the input ends at byte 4, inside ConfigureAdaptive.coolstep_enable","line":4}"#
+    );
+    assert_eq!(
+        lines[3],
+        r#"{"header":{"source_id":16,"target_id":0,"msg_id":42},"payload":{"Ack":42}}"#
+    );
+}
+
+#[test]
+fn irpc_encode_refuses_what_the_version_lacks_and_bad_json() {
+    let input = format!("{DOC_JSON}\n{{\"header\":1}}\n");
+    let o = run(&["irpc", "encode", "--wire", "v1"], &input);
+    assert_eq!(o.status.code(), Some(1));
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(
+        lines[0],
+        r#"{"error":"SetTargetV2 does not exist in iRPC v1","line":1}"#
+    );
+    assert!(
+        lines[1].starts_with(r#"{"error":"not an iRPC message: "#),
+        "{}",
+        lines[1]
+    );
+    assert!(lines[1].ends_with(r#","line":2}"#));
+}
+
+#[test]
+fn irpc_frames_accept_padding_only_with_frame() {
+    let padded = "00 10 01 01 00 00 00 00\n";
+    let o = run(&["irpc", "decode", "--wire", "v2.0"], padded);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stdout(&o),
+        "{\"error\":\"4 byte(s) follow the message, which ends at byte 4\",\"line\":1}\n"
+    );
+    let o = run(&["irpc", "decode", "--wire", "v2.0", "--frame"], padded);
+    assert_eq!(o.status.code(), Some(0));
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    assert_eq!(
+        run(&["irpc", "encode", "--wire", "v3"], "").status.code(),
+        Some(2)
+    );
+    assert_eq!(run(&["irpc", "encode"], "").status.code(), Some(2));
+    assert_eq!(
+        run(&["compact", "decode", "--names", "no/such/file"], "")
+            .status
+            .code(),
+        Some(2)
+    );
+}
+
+#[test]
+fn compact_encode_and_decode_with_names() {
+    let cmd = r#"{"motor_id":"shoulder_pitch","timestamp":1704067200000,"control_mode":"position","setpoint":45.0,"velocity_limit":60.0,"pid_gains":{"kp":50,"ki":0.1,"kd":2.5}}"#;
+    let o = run(&["compact", "encode"], &format!("{cmd}\n"));
+    assert_eq!(o.status.code(), Some(0));
+    assert_eq!(
+        stdout(&o),
+        "cf433bf300f451c28c01000001000000000034425802ffff\n"
+    );
+    assert_eq!(
+        String::from_utf8(o.stderr).unwrap(),
+        "motorwire compact encode: shoulder_pitch: the compact command has no place for pid_gains\n"
+    );
+    let names = std::env::temp_dir().join(format!("motorwire-names-{}", std::process::id()));
+    std::fs::write(&names, "shoulder_pitch\nelbow\n").unwrap();
+    let o = run(
+        &["compact", "decode", "--names", names.to_str().unwrap()],
+        "cf433bf300f451c28c01000001000000000034425802ffff\n0000000000f451c28c01000001000000000034425802ffff\n",
+    );
+    std::fs::remove_file(&names).unwrap();
+    assert_eq!(o.status.code(), Some(0));
+    assert_eq!(
+        stdout(&o),
+        concat!(
+            r#"{"motor":4080747471,"timestamp_ms":1704067200000,"control_mode":"position","flags":0,"setpoint":45.0,"velocity_limit":600,"torque_limit":null,"motor_id":"shoulder_pitch"}"#,
+            "\n",
+            r#"{"motor":0,"timestamp_ms":1704067200000,"control_mode":"position","flags":0,"setpoint":45.0,"velocity_limit":600,"torque_limit":null,"motor_id":null}"#,
+            "\n"
+        )
+    );
+}
+
+#[test]
+fn compact_encode_refuses_invalid_and_unfitting_commands() {
+    let input = concat!(
+        // outside its own safety limits: never encoded
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":200,"safety_limits":{"max_position":150}}"#,
+        "\n",
+        // a velocity limit the u16 cannot carry
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"velocity","setpoint":1,"velocity_limit":7000}"#,
+        "\n",
+        // emergency stop and high priority become flags
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"disabled","setpoint":0,"priority":90,"safety_limits":{"emergency_stop":true}}"#,
+        "\n",
+    );
+    let o = run(&["compact", "encode"], input);
+    assert_eq!(o.status.code(), Some(1));
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert!(
+        lines[0].contains("setpoint-within-limits") && lines[0].ends_with(r#""line":1}"#),
+        "{}",
+        lines[0]
+    );
+    assert_eq!(
+        lines[1],
+        r#"{"error":"velocity_limit 7000 does not fit the wire; the maximum is 6553.4","line":2}"#
+    );
+    // flags 0x81 = PRIORITY_HIGH | EMERGENCY_STOP, mode 0.
+    assert_eq!(lines[2], "22cb578101000000000000000081000000000000ffffffff");
+}
+
+#[test]
+fn compact_decode_refuses_what_the_codec_refuses() {
+    let o = run(
+        &["compact", "decode"],
+        "cf433bf300f451c28c01000001100000000034425802ffff\ncf433b\n",
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stdout(&o),
+        concat!(
+            r#"{"error":"the ENCRYPTED flag is set, and motorwire has no encryption layer to decrypt it","line":1}"#,
+            "\n",
+            r#"{"error":"a compact command is exactly 24 bytes, not 3","line":2}"#,
+            "\n"
+        )
+    );
+}
