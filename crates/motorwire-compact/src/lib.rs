@@ -294,6 +294,7 @@ impl CompactCommand {
     /// encryption layer), [`Error::ReservedFlags`] for reserved flag bits, and
     /// [`Error::LimitTooLarge`] for a raw limit of 0xFFFF (that value means
     /// "no limit"; use `None`).
+    #[inline]
     pub fn encode(&self) -> Result<[u8; LEN], Error> {
         let mut out = [0u8; LEN];
         self.encode_into(&mut out)?;
@@ -305,6 +306,7 @@ impl CompactCommand {
     /// # Errors
     /// As [`CompactCommand::encode`], and [`Error::WrongLength`] when `buf`
     /// is shorter than 24 bytes.
+    #[inline]
     pub fn encode_into(&self, buf: &mut [u8]) -> Result<(), Error> {
         let len = buf.len();
         let out: &mut [u8; LEN] = buf
@@ -367,6 +369,7 @@ impl CompactCommand {
     ///
     /// # Errors
     /// The first problem found, in wire order.
+    #[inline]
     pub fn decode(bytes: &[u8]) -> Result<Self, Error> {
         let b: &[u8; LEN] = bytes
             .try_into()

@@ -39,7 +39,7 @@ pub enum Error {
     NonFinite {
         /// The field.
         field: &'static str,
-        /// Offset of the float on the wire (0 when encoding).
+        /// Offset of the float in the message.
         offset: usize,
     },
     /// The input ends inside a field.

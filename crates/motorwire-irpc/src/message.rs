@@ -1,7 +1,7 @@
 //! `Header`, `Payload`, `Message`, and CAN-FD framing.
 
 use crate::payload::*;
-use crate::wire::{Counter, Out, Reader, SliceWriter, Wire, put_varint, wire_struct};
+use crate::wire::{Counter, Out, Reader, SliceWriter, Stop, Wire, put_varint, wire_struct};
 use crate::{Error, PayloadKind, WireVersion};
 
 /// The largest CAN-FD frame payload.
@@ -146,12 +146,14 @@ impl Payload {
         }
     }
 
-    fn put<O: Out>(&self, o: &mut O, v: WireVersion) -> Result<(), Error> {
+    fn put<O: Out>(&self, o: &mut O, v: WireVersion) -> Result<(), Stop> {
         let kind = self.kind();
-        let tag = v.tag_of(kind).ok_or(Error::PayloadNotInVersion {
-            payload: kind,
-            version: v,
-        })?;
+        let Some(tag) = v.tag_of(kind) else {
+            return Err(o.fail(Error::PayloadNotInVersion {
+                payload: kind,
+                version: v,
+            }));
+        };
         put_varint(o, u64::from(tag))?;
         match self {
             Self::SetTarget(p) => p.put(o, "SetTarget", v),
@@ -190,15 +192,18 @@ impl Payload {
         }
     }
 
-    fn take(r: &mut Reader<'_>, v: WireVersion) -> Result<Self, Error> {
+    #[inline]
+    fn take(r: &mut Reader<'_>, v: WireVersion) -> Result<Self, Stop> {
         let offset = r.position();
         let raw = r.varint("payload", 5, u64::from(u32::MAX))?;
         let tag = u32::try_from(raw).unwrap_or(u32::MAX);
-        let kind = v.kind_of(tag).ok_or(Error::UnknownTag {
-            tag,
-            version: v,
-            offset,
-        })?;
+        let Some(kind) = v.kind_of(tag) else {
+            return Err(r.fail(Error::UnknownTag {
+                tag,
+                version: v,
+                offset,
+            }));
+        };
         Ok(match kind {
             PayloadKind::SetTarget => Self::SetTarget(Wire::take(r, "SetTarget", v)?),
             PayloadKind::Configure => Self::Configure,
@@ -289,7 +294,7 @@ pub struct Message {
 }
 
 impl Message {
-    fn put<O: Out>(&self, o: &mut O, v: WireVersion) -> Result<(), Error> {
+    fn put<O: Out>(&self, o: &mut O, v: WireVersion) -> Result<(), Stop> {
         self.header.put(o, "header", v)?;
         self.payload.put(o, v)
     }
@@ -307,8 +312,10 @@ impl Message {
     /// As [`Message::encode`], except for buffer size.
     pub fn encoded_len(&self, v: WireVersion) -> Result<usize, Error> {
         let mut c = Counter::default();
-        self.put(&mut c, v)?;
-        Ok(c.0)
+        match self.put(&mut c, v) {
+            Ok(()) => Ok(c.len),
+            Err(Stop { .. }) => Err(c.into_error()),
+        }
     }
 
     /// Encodes into `buf`, returning the number of bytes written. Messages
@@ -318,16 +325,24 @@ impl Message {
     /// # Errors
     /// [`Error::PayloadNotInVersion`], [`Error::ValueNotInVersion`],
     /// [`Error::NonFinite`] (naming the field), [`Error::BufferTooSmall`].
+    #[inline]
     pub fn encode(&self, v: WireVersion, buf: &mut [u8]) -> Result<usize, Error> {
         let available = buf.len();
         let mut w = SliceWriter::new(buf);
         match self.put(&mut w, v) {
+            // A non-finite float: the strict pass names it (and never succeeds).
+            Ok(()) if w.non_finite => Err(self.encoded_len(v).err().unwrap_or(Error::NonFinite {
+                field: "message",
+                offset: 0,
+            })),
             Ok(()) => Ok(w.position()),
-            Err(Error::BufferTooSmall { .. }) => Err(Error::BufferTooSmall {
-                needed: self.encoded_len(v)?,
-                available,
-            }),
-            Err(e) => Err(e),
+            Err(Stop { .. }) => match w.into_error() {
+                Error::BufferTooSmall { .. } => Err(Error::BufferTooSmall {
+                    needed: self.encoded_len(v)?,
+                    available,
+                }),
+                e => Err(e),
+            },
         }
     }
 
@@ -381,6 +396,7 @@ impl Message {
     ///
     /// # Errors
     /// The first problem, naming the field and byte offset.
+    #[inline]
     pub fn decode(v: WireVersion, bytes: &[u8]) -> Result<Self, Error> {
         let (msg, used) = Self::decode_prefix(v, bytes)?;
         if used == bytes.len() {
@@ -398,11 +414,15 @@ impl Message {
     ///
     /// # Errors
     /// As [`Message::decode`], but what follows the message is not examined.
+    #[inline]
     pub fn decode_prefix(v: WireVersion, bytes: &[u8]) -> Result<(Self, usize), Error> {
         let mut r = Reader::new(bytes);
-        let header = Header::take(&mut r, "header", v)?;
-        let payload = Payload::take(&mut r, v)?;
-        Ok((Self { header, payload }, r.position()))
+        let parsed = Header::take(&mut r, "header", v)
+            .and_then(|header| Payload::take(&mut r, v).map(|payload| Self { header, payload }));
+        match parsed {
+            Ok(msg) => Ok((msg, r.position())),
+            Err(Stop { .. }) => Err(r.into_error()),
+        }
     }
 
     /// Decodes a CAN-FD frame: a valid CAN-FD length, one message, then

@@ -1,6 +1,6 @@
 //! Every payload struct and enum of iRPC v1 to v2.2, fields in wire order.
 
-use crate::wire::{Out, Reader, Wire, put_varint, wire_enum, wire_struct};
+use crate::wire::{Out, Reader, Stop, Wire, put_varint, wire_enum, wire_struct};
 use crate::{Error, WireVersion};
 
 wire_struct! {
@@ -98,14 +98,14 @@ impl LifecycleState {
 }
 
 impl Wire for LifecycleState {
-    fn put<O: Out>(&self, o: &mut O, field: &'static str, v: WireVersion) -> Result<(), Error> {
-        let index = self
-            .index(v)
-            .ok_or(Error::ValueNotInVersion { field, version: v })?;
-        put_varint(o, u64::from(index))
+    fn put<O: Out>(&self, o: &mut O, field: &'static str, v: WireVersion) -> Result<(), Stop> {
+        match self.index(v) {
+            Some(index) => put_varint(o, u64::from(index)),
+            None => Err(o.fail(Error::ValueNotInVersion { field, version: v })),
+        }
     }
 
-    fn take(r: &mut Reader<'_>, field: &'static str, v: WireVersion) -> Result<Self, Error> {
+    fn take(r: &mut Reader<'_>, field: &'static str, v: WireVersion) -> Result<Self, Stop> {
         let offset = r.position();
         let index = r.varint(field, 5, u64::from(u32::MAX))?;
         let calibrating = v.has_calibrating_state();
@@ -116,11 +116,11 @@ impl Wire for LifecycleState {
             (3, true) => Self::Calibrating,
             (3, false) | (4, true) => Self::Error,
             _ => {
-                return Err(Error::InvalidEnum {
+                return Err(r.fail(Error::InvalidEnum {
                     field,
                     index: u32::try_from(index).unwrap_or(u32::MAX),
                     offset,
-                });
+                }));
             }
         })
     }

@@ -243,19 +243,20 @@ fn non_finite_floats_are_refused_both_ways() {
             velocity: f32::NEG_INFINITY,
         }),
     };
+    // 3 header bytes, the tag, then position: velocity starts at byte 8.
     let mut buf = [0u8; 64];
     assert_eq!(
         m.encode(V2_0, &mut buf),
         Err(Error::NonFinite {
             field: "Encoder.velocity",
-            offset: 0
+            offset: 8
         })
     );
     assert_eq!(
         m.encoded_len(V2_0),
         Err(Error::NonFinite {
             field: "Encoder.velocity",
-            offset: 0
+            offset: 8
         })
     );
 }
@@ -477,5 +478,46 @@ fn errors_display_the_field_and_offset() {
         }
         .to_string(),
         "payload tag 11 at byte 3 is not a payload of iRPC v2.0"
+    );
+}
+
+#[test]
+fn a_non_finite_float_is_refused_wherever_it_is_and_in_frames_too() {
+    let mut m = Message {
+        header: Header {
+            source_id: 0,
+            target_id: 0x10,
+            msg_id: 1,
+        },
+        payload: Payload::SetTargetV2(SetTargetPayloadV2 {
+            target_angle: 1.0,
+            max_velocity: 1.0,
+            target_velocity: 0.0,
+            max_acceleration: 1.0,
+            max_deceleration: 1.0,
+            max_jerk: 0.0,
+            profile: MotionProfile::SCurve,
+            max_current: 0.0,
+            max_temperature: f32::NAN,
+        }),
+    };
+    let mut frame = [0u8; 64];
+    let expected = Err(Error::NonFinite {
+        field: "SetTargetV2.max_temperature",
+        // header 3, tag 1, six floats 24, profile 1, max_current 4.
+        offset: 33,
+    });
+    assert_eq!(m.encode_frame(V2_0, &mut frame), expected);
+    assert_eq!(m.encode(V2_0, &mut frame), expected);
+    // The first non-finite field is the one named.
+    if let Payload::SetTargetV2(p) = &mut m.payload {
+        p.max_velocity = f32::INFINITY;
+    }
+    assert_eq!(
+        m.encode(V2_0, &mut frame),
+        Err(Error::NonFinite {
+            field: "SetTargetV2.max_velocity",
+            offset: 8
+        })
     );
 }

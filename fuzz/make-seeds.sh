@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Writes the seed corpora from the golden vectors: WIRE-FACTS §1.4, the
+# per-variant goldens of motorwire-irpc, the compact goldens and the WIA
+# fixtures. Run from the repository root; writes fuzz/corpus/<target>/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=fuzz/corpus
+rm -rf "$out"
+mkdir -p "$out"/{compact_decode,irpc_decode_v1,irpc_decode_v2_0,irpc_decode_v2_1,irpc_decode_v2_2,irpc_decode_frame,wia_validate}
+# Hex digits (spaces allowed) to bytes, with bash's printf alone.
+unhex() { local h; h=$(printf '%s' "$1" | tr -d ' \n' | sed 's/../\\x&/g'); printf '%b' "$h"; }
+i=0
+# Per-variant goldens: "v2.0 SetTargetV2: 00 10 ..."
+while IFS= read -r line; do
+    case "$line" in '#'*|'') continue ;; esac
+    label=${line%%:*}; bytes=${line#*:}
+    version=${label%% *}
+    target=irpc_decode_$(printf '%s' "$version" | tr . _)
+    i=$((i + 1))
+    unhex "$bytes" > "$out/$target/golden-$i"
+    unhex "$bytes" > "$out/irpc_decode_frame/golden-$i"
+done < crates/motorwire-irpc/tests/every_variant.golden
+# WIRE-FACTS §1.4 (v2.0 and v2.1).
+for h in \
+    "00 10 2a 05 00 00 b4 42 00 00 c8 42 00 00 00 00 00 00 fa 43 00 00 fa 43 00 00 fa 44 01 00 00 00 00 00 00 00 00" \
+    "00 10 05 00 00 00 b4 42 00 00 16 43" "00 10 01 01" "10 00 2a 08 2a" "10 00 2a 09 2a ff 01" "00 ff ff 03 00 0a"; do
+    i=$((i + 1)); unhex "$h" > "$out/irpc_decode_v2_0/facts-$i"
+done
+unhex "00 10 2a 05 00 00 b4 42 00 00 c8 42 00 00 00 00 00 00 fa 43 00 00 fa 43 00 00 fa 44 01 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00" \
+    > "$out/irpc_decode_frame/doc-example-48"
+unhex "10 00 2a 12 2a" > "$out/irpc_decode_v2_1/facts-ack"
+unhex "00 ff ff 03 00 14" > "$out/irpc_decode_v2_1/facts-armready"
+# Compact goldens.
+unhex "cf 43 3b f3 00 f4 51 c2 8c 01 00 00 01 00 00 00 00 00 34 42 58 02 ff ff" > "$out/compact_decode/shoulder-pitch"
+unhex "22 cb 57 81 08 07 06 05 04 03 02 01 03 e1 00 00 00 00 20 c0 fe ff d2 04" > "$out/compact_decode/elbow-flags"
+# WIA fixtures.
+for f in fixtures/wia/valid/*.json fixtures/wia/invalid/*.json; do
+    cp "$f" "$out/wia_validate/$(basename "$f")"
+done
+echo "seeds: $(find "$out" -type f | wc -l) files"
