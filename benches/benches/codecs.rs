@@ -3,7 +3,12 @@
 //! compact command against copying 24 bytes.
 //!
 //! `cargo bench -p motorwire-benches --bench codecs`
-#![allow(missing_docs, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+#![allow(
+    missing_docs,
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing
+)]
 
 use std::hint::black_box;
 

@@ -2,7 +2,12 @@
 //! typed parse alone and against jsonschema, measured in the same run.
 //!
 //! `cargo bench -p motorwire-benches --bench wia`
-#![allow(missing_docs, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+#![allow(
+    missing_docs,
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing
+)]
 
 use std::hint::black_box;
 
