@@ -400,20 +400,19 @@ impl CompactCommand {
             q0,
             q1,
         ] = *b;
-        let control_mode =
-            ControlMode::from_code(mode).map_err(|_| Error::UnknownControlMode { code: mode })?;
-        let flags = Flags::from_bits(flags)?;
-        if flags.contains(Flags::ENCRYPTED) {
-            return Err(Error::Encrypted);
-        }
-        let reserved = u16::from_le_bytes([r0, r1]);
-        if reserved != 0 {
-            return Err(Error::ReservedBytes { value: reserved });
-        }
         let setpoint = f32::from_le_bytes([s0, s1, s2, s3]);
-        if !setpoint.is_finite() {
-            return Err(Error::NonFinite { field: "setpoint" });
+        // One branch for every check on the hot path; the cold path finds
+        // which one failed, in wire order.
+        let accepted_flags = Flags::DEFINED & !Flags::ENCRYPTED.0;
+        let valid =
+            mode <= 9 && flags & !accepted_flags == 0 && (r0 | r1) == 0 && setpoint.is_finite();
+        if !valid {
+            return Err(Self::refusal(mode, flags, u16::from_le_bytes([r0, r1])));
         }
+        let Ok(control_mode) = ControlMode::from_code(mode) else {
+            return Err(Error::UnknownControlMode { code: mode });
+        };
+        let flags = Flags(flags);
         let limit = |raw: u16| (raw != NO_LIMIT).then_some(raw);
         Ok(Self {
             motor: MotorHash(u32::from_le_bytes([m0, m1, m2, m3])),
@@ -424,6 +423,24 @@ impl CompactCommand {
             velocity_limit: limit(u16::from_le_bytes([v0, v1])).map(VelocityLimit),
             torque_limit: limit(u16::from_le_bytes([q0, q1])).map(TorqueLimit),
         })
+    }
+
+    /// Why a command that failed the combined check is refused, checking
+    /// the fields in wire order.
+    #[cold]
+    fn refusal(mode: u8, flags: u8, reserved: u16) -> Error {
+        if ControlMode::from_code(mode).is_err() {
+            return Error::UnknownControlMode { code: mode };
+        }
+        match Flags::from_bits(flags) {
+            Err(e) => return e,
+            Ok(f) if f.contains(Flags::ENCRYPTED) => return Error::Encrypted,
+            Ok(_) => {}
+        }
+        if reserved != 0 {
+            return Error::ReservedBytes { value: reserved };
+        }
+        Error::NonFinite { field: "setpoint" }
     }
 
     /// Converts a setpoint to the wire's f32, refusing what f32 cannot hold
