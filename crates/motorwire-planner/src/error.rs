@@ -1,0 +1,59 @@
+use core::fmt;
+
+/// Everything the planner refuses. Fields are named as in
+/// [`Request`](crate::Request); values are given as `f64` whatever the
+/// float type planned in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub enum PlanError {
+    /// An input is NaN or infinite.
+    NonFinite {
+        /// The field.
+        field: &'static str,
+    },
+    /// A limit is zero or negative.
+    NotPositive {
+        /// The field.
+        field: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// The target velocity is faster than `max_velocity`: the move could
+    /// never end within its limits.
+    TargetVelocityTooHigh {
+        /// |target_velocity|.
+        value: f64,
+        /// max_velocity.
+        max: f64,
+    },
+    /// The target cannot be reached without passing it, and the request
+    /// forbids overshoot.
+    OvershootForbidden {
+        /// How far past the target the time-optimal profile would go.
+        overshoot: f64,
+    },
+    /// The numbers are finite but so extreme that the profile's durations or
+    /// positions are not (for example a distance of 1e300 at 1e-300 per second).
+    Unrepresentable,
+}
+
+impl fmt::Display for PlanError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Self::NonFinite { field } => write!(f, "{field} must be a finite number"),
+            Self::NotPositive { field, value } => write!(f, "{field} must be > 0 (got {value})"),
+            Self::TargetVelocityTooHigh { value, max } => {
+                write!(f, "|target_velocity| {value} exceeds max_velocity {max}")
+            }
+            Self::OvershootForbidden { overshoot } => write!(
+                f,
+                "the target cannot be reached without passing it by {overshoot}, and overshoot is forbidden"
+            ),
+            Self::Unrepresentable => {
+                f.write_str("the profile's durations or positions are not finite numbers")
+            }
+        }
+    }
+}
+
+impl core::error::Error for PlanError {}

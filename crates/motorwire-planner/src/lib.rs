@@ -1,0 +1,14 @@
+#![doc = include_str!("../README.md")]
+#![no_std]
+
+mod error;
+mod float;
+mod profile;
+mod request;
+mod trapezoid;
+
+pub use error::PlanError;
+pub use float::Float;
+pub use profile::{MAX_PHASES, Phase, Profile, State, Ticks};
+pub use request::{Overshoot, Request};
+pub use trapezoid::plan_trapezoidal;

@@ -1,0 +1,412 @@
+//! A planned motion: up to seven constant-jerk phases, sampled analytically.
+
+use core::num::NonZeroU64;
+
+use crate::Float;
+
+/// The most phases a profile has (a jerk-limited profile's seven).
+pub const MAX_PHASES: usize = 7;
+
+/// Position, velocity, acceleration and jerk at one instant.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct State<F> {
+    /// Position.
+    pub position: F,
+    /// Velocity (position units per second).
+    pub velocity: F,
+    /// Acceleration (units/s²).
+    pub acceleration: F,
+    /// Jerk (units/s³); 0 in a trapezoidal profile, whose acceleration steps.
+    pub jerk: F,
+}
+
+/// One phase of a profile, as [`Profile::phases`] yields it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Phase<F> {
+    /// When the phase starts (s).
+    pub start_time: F,
+    /// How long it lasts (s).
+    pub duration: F,
+    /// The state at its start (jerk included: constant over the phase).
+    pub start: State<F>,
+}
+
+/// A planned 1-D motion: a sequence of constant-jerk phases.
+///
+/// Every phase stores its start state, so [`Profile::sample`] is a lookup
+/// and one Horner evaluation, `p + t(v + t(a/2 + t j/6))`, from the start of
+/// the phase the time falls in: no accumulated error. At and after the end
+/// it returns the target state exactly.
+///
+/// The layout is packed so that `Profile<f32>` is at most 128 bytes and
+/// `Profile<f64>` at most 256.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Profile<F> {
+    /// Each phase's own duration, kept exactly (not as end times, whose
+    /// differences would lose a short phase after a long one in f32).
+    durations: [F; MAX_PHASES],
+    p: [F; MAX_PHASES],
+    v: [F; MAX_PHASES],
+    a: [F; MAX_PHASES],
+    /// Jerk magnitude; each phase's jerk is -1, 0 or +1 times it.
+    jerk: F,
+    /// Two bits per phase: 0 no jerk, 1 positive, 2 negative.
+    jerk_signs: u16,
+    count: u8,
+    end_position: F,
+    end_velocity: F,
+}
+
+impl<F: Float> Profile<F> {
+    /// A profile that stays at rest at `position`.
+    pub fn at_rest(position: F) -> Self {
+        Self {
+            durations: [F::ZERO; MAX_PHASES],
+            p: [F::ZERO; MAX_PHASES],
+            v: [F::ZERO; MAX_PHASES],
+            a: [F::ZERO; MAX_PHASES],
+            jerk: F::ZERO,
+            jerk_signs: 0,
+            count: 0,
+            end_position: position,
+            end_velocity: F::ZERO,
+        }
+    }
+
+    /// How many phases the profile has (0 for a move of zero length).
+    pub fn phase_count(&self) -> usize {
+        usize::from(self.count)
+    }
+
+    fn phase_durations(&self) -> &[F] {
+        self.durations.get(..usize::from(self.count)).unwrap_or(&[])
+    }
+
+    /// The duration (s).
+    pub fn duration(&self) -> F {
+        self.phase_durations().iter().fold(F::ZERO, |t, d| t + *d)
+    }
+
+    /// The state at the end: the target position and velocity, at rest in
+    /// acceleration.
+    pub fn end_state(&self) -> State<F> {
+        State {
+            position: self.end_position,
+            velocity: self.end_velocity,
+            acceleration: F::ZERO,
+            jerk: F::ZERO,
+        }
+    }
+
+    fn jerk_of(&self, i: usize) -> F {
+        match (self.jerk_signs >> (2 * i)) & 0b11 {
+            1 => self.jerk,
+            2 => -self.jerk,
+            _ => F::ZERO,
+        }
+    }
+
+    /// The state at time `t` seconds after the start. Before the start (and
+    /// for a NaN `t`) it is the start state; at and after the end, exactly
+    /// the end state.
+    #[inline]
+    pub fn sample(&self, t: F) -> State<F> {
+        let mut t0 = F::ZERO;
+        for (i, d) in self.phase_durations().iter().enumerate() {
+            let end = t0 + *d;
+            if t < end {
+                let dt = if t > t0 { t - t0 } else { F::ZERO };
+                return self.eval(i, dt);
+            }
+            t0 = end;
+        }
+        if self.count == 0 || t >= t0 {
+            return self.end_state();
+        }
+        // Only a NaN `t` gets here: it compares false with every phase end.
+        self.eval(0, F::ZERO)
+    }
+
+    #[inline]
+    fn eval(&self, i: usize, dt: F) -> State<F> {
+        let (p, v, a) = (
+            self.p.get(i).copied().unwrap_or(F::ZERO),
+            self.v.get(i).copied().unwrap_or(F::ZERO),
+            self.a.get(i).copied().unwrap_or(F::ZERO),
+        );
+        let j = self.jerk_of(i);
+        let sixth = F::from_f64(1.0 / 6.0);
+        State {
+            position: p + dt * (v + dt * (a * F::HALF + dt * j * sixth)),
+            velocity: v + dt * (a + dt * j * F::HALF),
+            acceleration: a + dt * j,
+            jerk: j,
+        }
+    }
+
+    /// The phases, in order.
+    pub fn phases(&self) -> impl Iterator<Item = Phase<F>> + '_ {
+        self.phase_durations()
+            .iter()
+            .enumerate()
+            .scan(F::ZERO, move |t0, (i, d)| {
+                let start_time = *t0;
+                *t0 = start_time + *d;
+                Some(Phase {
+                    start_time,
+                    duration: *d,
+                    start: self.eval(i, F::ZERO),
+                })
+            })
+    }
+
+    /// The largest |velocity| reached, and when.
+    pub fn peak_velocity(&self) -> (F, F) {
+        let mut best = (self.end_velocity.abs(), self.duration());
+        for ph in self.phases() {
+            let mut consider = |t: F| {
+                if t >= F::ZERO && t <= ph.duration {
+                    let v = self.eval_phase(&ph, t).velocity.abs();
+                    if v > best.0 {
+                        best = (v, ph.start_time + t);
+                    }
+                }
+            };
+            consider(F::ZERO);
+            consider(ph.duration);
+            // Velocity is extreme inside a phase where acceleration crosses 0.
+            if ph.start.jerk != F::ZERO {
+                consider(-ph.start.acceleration / ph.start.jerk);
+            }
+        }
+        best
+    }
+
+    /// The largest |acceleration| reached.
+    pub fn peak_acceleration(&self) -> F {
+        let mut best = F::ZERO;
+        for ph in self.phases() {
+            let a0 = ph.start.acceleration.abs();
+            let a1 = (ph.start.acceleration + ph.start.jerk * ph.duration).abs();
+            best = best.max(a0).max(a1);
+        }
+        best
+    }
+
+    fn eval_phase(&self, ph: &Phase<F>, t: F) -> State<F> {
+        let s = ph.start;
+        let sixth = F::from_f64(1.0 / 6.0);
+        State {
+            position: s.position
+                + t * (s.velocity + t * (s.acceleration * F::HALF + t * s.jerk * sixth)),
+            velocity: s.velocity + t * (s.acceleration + t * s.jerk * F::HALF),
+            acceleration: s.acceleration + t * s.jerk,
+            jerk: s.jerk,
+        }
+    }
+
+    /// The lowest and highest positions the motion reaches, each with the
+    /// time it is reached: `((min, t_min), (max, t_max))`.
+    pub fn position_extremes(&self) -> ((F, F), (F, F)) {
+        let end = (self.end_position, self.duration());
+        let mut lo = end;
+        let mut hi = end;
+        for ph in self.phases() {
+            let mut consider = |t: F| {
+                if t >= F::ZERO && t <= ph.duration {
+                    let p = self.eval_phase(&ph, t).position;
+                    let at = ph.start_time + t;
+                    if p < lo.0 {
+                        lo = (p, at);
+                    }
+                    if p > hi.0 {
+                        hi = (p, at);
+                    }
+                }
+            };
+            consider(F::ZERO);
+            consider(ph.duration);
+            // Position is extreme where velocity crosses 0:
+            // v + a t + j t²/2 = 0.
+            let (v, a, j) = (ph.start.velocity, ph.start.acceleration, ph.start.jerk);
+            if j == F::ZERO {
+                if a != F::ZERO {
+                    consider(-v / a);
+                }
+            } else {
+                let disc = a * a - F::TWO * j * v;
+                if disc >= F::ZERO {
+                    let r = disc.sqrt();
+                    consider((-a + r) / j);
+                    consider((-a - r) / j);
+                }
+            }
+        }
+        (lo, hi)
+    }
+
+    /// How far the motion passes the target in the direction of travel
+    /// before it arrives (`None` when it does not; a move of zero length
+    /// counts any excursion from the target). Rounding-level excursions are
+    /// not overshoot.
+    ///
+    /// ```
+    /// use motorwire_planner::{Request, plan_trapezoidal};
+    /// // 10 units/s towards a target 1 unit away, braking at 1 unit/s²: 49 past it.
+    /// let p = plan_trapezoidal(&Request::new(0.0f64, 1.0, 10.0, 1.0).with_velocities(10.0, 0.0))?;
+    /// assert!((p.overshoot().unwrap() - 49.0).abs() < 1e-9);
+    /// # Ok::<(), motorwire_planner::PlanError>(())
+    /// ```
+    pub fn overshoot(&self) -> Option<F> {
+        let start = match self.count {
+            0 => self.end_position,
+            _ => self.p.first().copied().unwrap_or(self.end_position),
+        };
+        let target = self.end_position;
+        let ((lo, _), (hi, _)) = self.position_extremes();
+        let past = if target > start {
+            hi - target
+        } else if target < start {
+            target - lo
+        } else {
+            (hi - target).max(target - lo)
+        };
+        let scale = start.abs().max(target.abs()).max((target - start).abs());
+        let tol = F::from_f64(1024.0) * F::EPSILON * scale.max(F::EPSILON);
+        (past > tol).then_some(past)
+    }
+
+    /// Samples on an integer tick: the state every `tick_us` microseconds
+    /// from 0 until the first tick at or after the end (which is the end
+    /// state). Time is computed from the tick count, so long moves do not
+    /// drift.
+    ///
+    /// ```
+    /// use core::num::NonZeroU64;
+    /// use motorwire_planner::{Request, plan_trapezoidal};
+    /// let p = plan_trapezoidal(&Request::new(0.0f64, 1.0, 1.0, 1.0))?; // 2 s
+    /// let ticks: Vec<u64> = p.ticks(NonZeroU64::new(500_000).unwrap()).map(|(t, _)| t).collect();
+    /// assert_eq!(ticks, [0, 500_000, 1_000_000, 1_500_000, 2_000_000]);
+    /// # Ok::<(), motorwire_planner::PlanError>(())
+    /// ```
+    pub fn ticks(&self, tick_us: NonZeroU64) -> Ticks<'_, F> {
+        Ticks {
+            profile: self,
+            tick_us: tick_us.get(),
+            next: 0,
+            done: false,
+        }
+    }
+}
+
+/// The iterator of [`Profile::ticks`].
+#[derive(Debug, Clone)]
+pub struct Ticks<'a, F> {
+    profile: &'a Profile<F>,
+    tick_us: u64,
+    next: u64,
+    done: bool,
+}
+
+impl<F: Float> Iterator for Ticks<'_, F> {
+    type Item = (u64, State<F>);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        let t_us = self.next.checked_mul(self.tick_us)?;
+        #[allow(clippy::cast_precision_loss)] // exact below 2^53 µs (285 years)
+        let t = F::from_f64(t_us as f64 / 1e6);
+        if t_us as f64 / 1e6 >= self.profile.duration().to_f64() {
+            self.done = true;
+        }
+        self.next += 1;
+        Some((t_us, self.profile.sample(t)))
+    }
+}
+
+/// Builds a profile phase by phase from a start state, integrating each
+/// phase's end state as the next one's start.
+pub(crate) struct Builder<F> {
+    profile: Profile<F>,
+    state: State<F>,
+}
+
+impl<F: Float> Builder<F> {
+    pub(crate) fn new(position: F, velocity: F, jerk: F) -> Self {
+        let mut profile = Profile::at_rest(position);
+        profile.jerk = jerk;
+        Self {
+            profile,
+            state: State {
+                position,
+                velocity,
+                acceleration: F::ZERO,
+                jerk: F::ZERO,
+            },
+        }
+    }
+
+    /// Appends a phase of `duration` with start acceleration `a` and jerk
+    /// sign `sign` (-1, 0, 1); phases of zero duration are dropped.
+    pub(crate) fn phase(&mut self, duration: F, a: F, sign: i8) {
+        // Drops zero, negative and NaN durations alike.
+        if duration.partial_cmp(&F::ZERO) != Some(core::cmp::Ordering::Greater) {
+            return;
+        }
+        let i = usize::from(self.profile.count);
+        let (Some(d_slot), Some(p), Some(v), Some(a_slot)) = (
+            self.profile.durations.get_mut(i),
+            self.profile.p.get_mut(i),
+            self.profile.v.get_mut(i),
+            self.profile.a.get_mut(i),
+        ) else {
+            // The planners never build more than MAX_PHASES phases.
+            return;
+        };
+        *d_slot = duration;
+        *p = self.state.position;
+        *v = self.state.velocity;
+        *a_slot = a;
+        let code: u16 = match sign {
+            1 => 1,
+            -1 => 2,
+            _ => 0,
+        };
+        self.profile.jerk_signs |= code << (2 * i);
+        self.profile.count += 1;
+        let j = self.profile.jerk_of(i);
+        let sixth = F::from_f64(1.0 / 6.0);
+        let s = self.state;
+        self.state = State {
+            position: s.position
+                + duration * (s.velocity + duration * (a * F::HALF + duration * j * sixth)),
+            velocity: s.velocity + duration * (a + duration * j * F::HALF),
+            acceleration: a + duration * j,
+            jerk: j,
+        };
+    }
+
+    /// Appends a constant-acceleration phase that ends at `end_velocity` as
+    /// planned. The next phase starts from that velocity and from the
+    /// position `p + duration (v + end_velocity) / 2`, exact for constant
+    /// acceleration, rather than from re-integrated, rounded products.
+    pub(crate) fn constant_acceleration(&mut self, duration: F, a: F, end_velocity: F) {
+        let before = self.profile.count;
+        let start = self.state;
+        self.phase(duration, a, 0);
+        if self.profile.count != before {
+            self.state.position =
+                start.position + duration * (start.velocity + end_velocity) * F::HALF;
+            self.state.velocity = end_velocity;
+        }
+    }
+
+    /// Finishes with the exact end state the planner was asked for.
+    pub(crate) fn finish(mut self, position: F, velocity: F) -> Profile<F> {
+        self.profile.end_position = position;
+        self.profile.end_velocity = velocity;
+        self.profile
+    }
+}
