@@ -32,6 +32,19 @@ pub enum PlanError {
         /// How far past the target the time-optimal profile would go.
         overshoot: f64,
     },
+    /// A multi-axis call got a different number of output slots than requests.
+    AxisCountMismatch {
+        /// How many requests.
+        requests: usize,
+        /// How many output profiles.
+        profiles: usize,
+    },
+    /// Phase synchronization is for rest-to-rest moves; this axis has a
+    /// non-zero start or target velocity.
+    NotAtRest {
+        /// The axis's index in the request slice.
+        axis: usize,
+    },
     /// The numbers are finite but so extreme that the profile's durations or
     /// positions are not (for example a distance of 1e300 at 1e-300 per second).
     Unrepresentable,
@@ -48,6 +61,14 @@ impl fmt::Display for PlanError {
             Self::OvershootForbidden { overshoot } => write!(
                 f,
                 "the target cannot be reached without passing it by {overshoot}, and overshoot is forbidden"
+            ),
+            Self::AxisCountMismatch { requests, profiles } => write!(
+                f,
+                "{requests} request(s) but room for {profiles} profile(s)"
+            ),
+            Self::NotAtRest { axis } => write!(
+                f,
+                "axis {axis} does not start and end at rest; phase synchronization needs rest-to-rest moves"
             ),
             Self::Unrepresentable => {
                 f.write_str("the profile's durations or positions are not finite numbers")
