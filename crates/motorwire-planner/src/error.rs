@@ -45,8 +45,9 @@ pub enum PlanError {
         /// The axis's index in the request slice.
         axis: usize,
     },
-    /// The numbers are finite but so extreme that the profile's durations or
-    /// positions are not (for example a distance of 1e300 at 1e-300 per second).
+    /// The numbers are finite but so extreme that the profile's durations,
+    /// positions or velocities would not be, at some instant (for example a
+    /// distance of 1e300 at 1e-300 per second).
     Unrepresentable,
 }
 

@@ -276,6 +276,29 @@ impl<F: Float> Profile<F> {
         (past > tol).then_some(past)
     }
 
+    /// Whether every value the profile can produce is finite, with headroom:
+    /// phase start states, the position extremes (a phase's position is
+    /// largest in magnitude at its ends or where its velocity is zero), the
+    /// peak velocity and acceleration all within a quarter of the float's
+    /// range, so evaluating any instant cannot overflow.
+    pub(crate) fn representable(&self) -> bool {
+        let limit = F::from_f64(f64::MAX) * F::from_f64(0.25);
+        let ok = |v: F| v.is_finite() && v.abs() <= limit;
+        if !ok(self.duration()) || !ok(self.end_position) || !ok(self.end_velocity) {
+            return false;
+        }
+        if !self.phases().all(|ph| {
+            ok(ph.duration)
+                && ok(ph.start.position)
+                && ok(ph.start.velocity)
+                && ok(ph.start.acceleration)
+        }) {
+            return false;
+        }
+        let ((lo, _), (hi, _)) = self.position_extremes();
+        ok(lo) && ok(hi) && ok(self.peak_velocity().0) && ok(self.peak_acceleration())
+    }
+
     /// Samples on an integer tick: the state every `tick_us` microseconds
     /// from 0 until the first tick at or after the end (which is the end
     /// state). Time is computed from the tick count, so long moves do not

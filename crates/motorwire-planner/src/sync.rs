@@ -105,7 +105,11 @@ pub fn synchronize_phases<F: Float>(
             // The last phase ends at rest, exactly.
             builder.constant_acceleration(last.duration, last.start.acceleration * d, F::ZERO);
         }
-        *slot = builder.finish(req.target, F::ZERO);
+        let profile = builder.finish(req.target, F::ZERO);
+        if !profile.representable() {
+            return Err(PlanError::Unrepresentable);
+        }
+        *slot = profile;
     }
     Ok(unit.duration())
 }

@@ -200,7 +200,7 @@ pub fn plan_trapezoidal<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanEr
         b.constant_acceleration(*d, *a * sign, *v * sign);
     }
     let profile = b.finish(req.target, req.target_velocity);
-    if !profile.duration().is_finite() {
+    if !profile.representable() {
         return Err(PlanError::Unrepresentable);
     }
     if req.overshoot == Overshoot::Forbid
