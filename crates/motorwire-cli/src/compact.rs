@@ -51,14 +51,8 @@ struct DecodeArgs {
 pub(crate) fn run(args: &Args) -> u8 {
     match &args.command {
         Command::Encode(a) => {
-            #[allow(clippy::cast_precision_loss)] // Unix ms are exact in f64
-            let validator = match a.now {
-                Some(now) => Validator::new().now_ms(now as f64),
-                None => Validator::new(),
-            };
-            let mut line_no = 0usize;
+            let validator = crate::validate::with_clock(Validator::new(), a.now);
             filter(|line| {
-                line_no += 1;
                 let cmd: MotorCommand = validator.parse(line).map_err(|e| e.to_string())?;
                 let (compact, dropped) = to_compact(&cmd)?;
                 if !dropped.is_empty() {

@@ -90,16 +90,22 @@ struct JsonResult<'a> {
     errors: &'a [Violation],
 }
 
+/// `v` with `--now` (Unix ms) as its clock, when given.
+pub(crate) fn with_clock(v: Validator, now: Option<u64>) -> Validator {
+    match now {
+        // Unix ms are exact in f64 until the year 285,000.
+        #[allow(clippy::cast_precision_loss)]
+        Some(now) => v.now_ms(now as f64),
+        None => v,
+    }
+}
+
 pub(crate) fn run(args: &Args) -> u8 {
-    #[allow(clippy::cast_precision_loss)] // Unix ms are exact in f64 until year 285,000
     let validator = {
         let v = Validator::new()
             .max_document_size(args.max_size)
             .max_depth(usize::from(args.max_depth));
-        match args.now {
-            Some(now) => v.now_ms(now as f64),
-            None => v,
-        }
+        with_clock(v, args.now)
     };
     let stdout = io::stdout();
     let mut out = io::BufWriter::new(stdout.lock());

@@ -107,7 +107,10 @@ impl Validator {
     /// # Errors
     /// [`Error::Invalid`] with every violation found.
     pub fn parse<T: WiaMessage>(&self, json: &str) -> Result<T, Error> {
-        let (msg, violations) = self.run::<T>(json);
+        let (msg, violations) = match self.precheck(json) {
+            Ok(()) => self.run::<T>(json),
+            Err(v) => (None, vec![v]),
+        };
         match msg {
             Some(msg) if violations.is_empty() => Ok(msg),
             _ => Err(Error::Invalid(Report {
@@ -124,26 +127,46 @@ impl Validator {
     /// [`Error::Invalid`]; `kind` in its report is `None` when the kind could
     /// not be inferred.
     pub fn parse_any(&self, json: &str) -> Result<Message, Error> {
-        let kind = self.infer(json).map_err(|v| {
-            Error::Invalid(Report {
-                kind: None,
-                violations: vec![v],
-            })
-        })?;
+        let invalid = |kind, violations| Error::Invalid(Report { kind, violations });
+        let kind = self
+            .precheck(json)
+            .and_then(|()| infer(json))
+            .map_err(|v| invalid(None, vec![v]))?;
+        fn typed<T: WiaMessage>(v: &Validator, json: &str) -> Result<T, Error> {
+            match v.run::<T>(json) {
+                (Some(msg), violations) if violations.is_empty() => Ok(msg),
+                (_, violations) => Err(Error::Invalid(Report {
+                    kind: Some(T::KIND),
+                    violations,
+                })),
+            }
+        }
         Ok(match kind {
-            MessageKind::MotorCommand => Message::MotorCommand(self.parse(json)?),
-            MessageKind::MultiAxisCommand => Message::MultiAxisCommand(self.parse(json)?),
-            MessageKind::MotorFeedback => Message::MotorFeedback(self.parse(json)?),
-            MessageKind::Trajectory => Message::Trajectory(self.parse(json)?),
-            MessageKind::PidConfig => Message::PidConfig(self.parse(json)?),
-            MessageKind::SafetyLimits => Message::SafetyLimits(self.parse(json)?),
-            MessageKind::ControlModeConfig => Message::ControlModeConfig(self.parse(json)?),
+            MessageKind::MotorCommand => Message::MotorCommand(typed(self, json)?),
+            MessageKind::MultiAxisCommand => Message::MultiAxisCommand(typed(self, json)?),
+            MessageKind::MotorFeedback => Message::MotorFeedback(typed(self, json)?),
+            MessageKind::Trajectory => Message::Trajectory(typed(self, json)?),
+            MessageKind::PidConfig => Message::PidConfig(typed(self, json)?),
+            MessageKind::SafetyLimits => Message::SafetyLimits(typed(self, json)?),
+            MessageKind::ControlModeConfig => Message::ControlModeConfig(typed(self, json)?),
         })
     }
 
     /// Validates a document as `kind`, returning every violation.
     pub fn validate(&self, kind: MessageKind, json: &str) -> Report {
-        let violations = match kind {
+        let violations = match self.precheck(json) {
+            Ok(()) => self.checked(kind, json),
+            Err(v) => vec![v],
+        };
+        Report {
+            kind: Some(kind),
+            violations,
+        }
+    }
+
+    /// Every violation of a document that passed the size and depth limits.
+    fn checked(&self, kind: MessageKind, json: &str) -> Vec<Violation> {
+        match kind {
             MessageKind::MotorCommand => self.run::<MotorCommand>(json).1,
             MessageKind::MultiAxisCommand => self.run::<MultiAxisCommand>(json).1,
             MessageKind::MotorFeedback => self.run::<MotorFeedback>(json).1,
@@ -151,10 +174,6 @@ impl Validator {
             MessageKind::PidConfig => self.run::<PidConfig>(json).1,
             MessageKind::SafetyLimits => self.run::<SafetyLimits>(json).1,
             MessageKind::ControlModeConfig => self.run::<ControlModeConfig>(json).1,
-        };
-        Report {
-            kind: Some(kind),
-            violations,
         }
     }
 
@@ -167,8 +186,11 @@ impl Validator {
     /// assert_eq!((r.kind, r.is_valid()), (Some(MessageKind::ControlModeConfig), true));
     /// ```
     pub fn validate_auto(&self, json: &str) -> Report {
-        match self.infer(json) {
-            Ok(kind) => self.validate(kind, json),
+        match self.precheck(json).and_then(|()| infer(json)) {
+            Ok(kind) => Report {
+                kind: Some(kind),
+                violations: self.checked(kind, json),
+            },
             Err(v) => Report {
                 kind: None,
                 violations: vec![v],
@@ -231,24 +253,6 @@ impl Validator {
         to_string(msg)
     }
 
-    fn infer(&self, json: &str) -> Result<MessageKind, Violation> {
-        self.precheck(json)?;
-        match MessageKind::infer(json) {
-            Ok(Some(kind)) => Ok(kind),
-            Ok(None) => Err(Violation::new(
-                "",
-                Rule::UnknownKind,
-                "cannot tell the message kind: no member names one (see MessageKind::infer)",
-            )),
-            Err(e) if e.is_data() => Err(Violation::new(
-                "",
-                Rule::UnknownKind,
-                "cannot tell the message kind: the document is not a JSON object",
-            )),
-            Err(e) => Err(json_error(&e)),
-        }
-    }
-
     /// Size and depth, before any parser sees the text.
     fn precheck(&self, json: &str) -> Result<(), Violation> {
         if json.len() > self.max_document_size {
@@ -275,10 +279,8 @@ impl Validator {
         Ok(())
     }
 
+    /// Parses and checks a document that passed [`Validator::precheck`].
     fn run<T: WiaMessage>(&self, json: &str) -> (Option<T>, Vec<Violation>) {
-        if let Err(v) = self.precheck(json) {
-            return (None, vec![v]);
-        }
         match serde_json::from_str::<T>(json) {
             Ok(msg) => {
                 let violations = msg.violations(self.now_ms);
@@ -287,6 +289,24 @@ impl Validator {
             Err(e) if e.is_data() => (None, explain_data_error(T::KIND, json, &e)),
             Err(e) => (None, vec![json_error(&e)]),
         }
+    }
+}
+
+/// The kind of a document that passed the size and depth limits.
+fn infer(json: &str) -> Result<MessageKind, Violation> {
+    match MessageKind::infer(json) {
+        Ok(Some(kind)) => Ok(kind),
+        Ok(None) => Err(Violation::new(
+            "",
+            Rule::UnknownKind,
+            "cannot tell the message kind: no member names one (see MessageKind::infer)",
+        )),
+        Err(e) if e.is_data() => Err(Violation::new(
+            "",
+            Rule::UnknownKind,
+            "cannot tell the message kind: the document is not a JSON object",
+        )),
+        Err(e) => Err(json_error(&e)),
     }
 }
 
