@@ -11,6 +11,11 @@ pub enum PlanError {
         /// The field.
         field: &'static str,
     },
+    /// A field the chosen profile needs is absent (`max_jerk` for an S-curve).
+    Missing {
+        /// The field.
+        field: &'static str,
+    },
     /// A limit is zero or negative.
     NotPositive {
         /// The field.
@@ -55,6 +60,7 @@ impl fmt::Display for PlanError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             Self::NonFinite { field } => write!(f, "{field} must be a finite number"),
+            Self::Missing { field } => write!(f, "{field} is required for an S-curve profile"),
             Self::NotPositive { field, value } => write!(f, "{field} must be > 0 (got {value})"),
             Self::TargetVelocityTooHigh { value, max } => {
                 write!(f, "|target_velocity| {value} exceeds max_velocity {max}")

@@ -41,6 +41,8 @@ pub trait Float:
     fn to_f64(self) -> f64;
     /// Square root.
     fn sqrt(self) -> Self;
+    /// Cube root.
+    fn cbrt(self) -> Self;
     /// Absolute value.
     fn abs(self) -> Self;
     /// Whether the value is neither NaN nor infinite.
@@ -74,6 +76,9 @@ impl Float for f32 {
     fn sqrt(self) -> Self {
         libm::sqrtf(self)
     }
+    fn cbrt(self) -> Self {
+        libm::cbrtf(self)
+    }
     fn abs(self) -> Self {
         libm::fabsf(self)
     }
@@ -97,6 +102,9 @@ impl Float for f64 {
     }
     fn sqrt(self) -> Self {
         libm::sqrt(self)
+    }
+    fn cbrt(self) -> Self {
+        libm::cbrt(self)
     }
     fn abs(self) -> Self {
         libm::fabs(self)

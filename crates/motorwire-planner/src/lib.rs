@@ -3,14 +3,18 @@
 
 mod error;
 mod float;
+mod plan;
 mod profile;
 mod request;
+mod scurve;
 mod sync;
 mod trapezoid;
 
 pub use error::PlanError;
 pub use float::Float;
+pub use plan::plan;
 pub use profile::{MAX_PHASES, Phase, Profile, State, Ticks};
-pub use request::{Overshoot, Request};
+pub use request::{MotionProfile, Overshoot, Request};
+pub use scurve::{MAX_ROOT_ITERATIONS, SCAN_POINTS, plan_scurve};
 pub use sync::synchronize_phases;
 pub use trapezoid::plan_trapezoidal;

@@ -349,6 +349,15 @@ impl<F: Float> Iterator for Ticks<'_, F> {
     }
 }
 
+/// The three phase durations of a jerk-limited velocity change.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RampShape<F> {
+    pub(crate) t_jerk: F,
+    pub(crate) t_flat: F,
+    pub(crate) peak: F,
+    pub(crate) sign: i8,
+}
+
 /// Builds a profile phase by phase from a start state, integrating each
 /// phase's end state as the next one's start.
 pub(crate) struct Builder<F> {
@@ -423,6 +432,27 @@ impl<F: Float> Builder<F> {
             self.state.position =
                 start.position + duration * (start.velocity + end_velocity) * F::HALF;
             self.state.velocity = end_velocity;
+        }
+    }
+
+    /// Appends a jerk-limited velocity change from `va` to `vb` starting and
+    /// ending at zero acceleration: jerk for `t_jerk`, constant acceleration
+    /// `peak` for `t_flat`, jerk back to zero for `t_jerk` (`sign` is the
+    /// direction of the change). The next phase starts from `vb` and from
+    /// the position `p + (va + vb) T / 2`, exact for this point-symmetric
+    /// shape, rather than from re-integrated, rounded products.
+    pub(crate) fn jerk_ramp(&mut self, shape: RampShape<F>, vb: F) {
+        let start = self.state;
+        let before = self.profile.count;
+        let s = F::from_f64(f64::from(shape.sign));
+        self.phase(shape.t_jerk, F::ZERO, shape.sign);
+        self.phase(shape.t_flat, s * shape.peak, 0);
+        self.phase(shape.t_jerk, s * shape.peak, -shape.sign);
+        if self.profile.count != before {
+            let total = shape.t_jerk + shape.t_flat + shape.t_jerk;
+            self.state.position = start.position + total * (start.velocity + vb) * F::HALF;
+            self.state.velocity = vb;
+            self.state.acceleration = F::ZERO;
         }
     }
 

@@ -13,6 +13,25 @@ pub enum Overshoot {
     Forbid,
 }
 
+/// Which kind of profile [`plan`](crate::plan) builds, as iRPC's
+/// `SetTargetV2.profile` names them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MotionProfile {
+    /// Acceleration steps between `+max_acceleration`, 0 and
+    /// `-max_deceleration`; jerk is unbounded and `max_jerk` ignored.
+    Trapezoidal,
+    /// Jerk-limited: at most seven phases of jerk `+max_jerk`, 0 or
+    /// `-max_jerk`; acceleration is continuous. Needs a positive `max_jerk`.
+    SCurve,
+    /// The iRPC document reserves `Adaptive` for "load-adaptive" motion it
+    /// does not define. motorwire plans it as [`SCurve`](Self::SCurve) when
+    /// `max_jerk` is given and positive, and as
+    /// [`Trapezoidal`](Self::Trapezoidal) otherwise (the document: "max_jerk
+    /// <= 0 disables jerk limiting"). It never adapts to load.
+    #[default]
+    Adaptive,
+}
+
 /// A 1-D move: where from and to, how fast it starts and ends, and the
 /// limits it must respect. Units are the caller's (degrees or radians, and
 /// per second, per second squared); time is in seconds.
@@ -43,12 +62,18 @@ pub struct Request<F> {
     /// Largest deceleration while slowing down, `> 0`; `None` is
     /// `max_acceleration`.
     pub max_deceleration: Option<F>,
+    /// Largest jerk, `> 0`; needed by [`MotionProfile::SCurve`], ignored
+    /// by [`MotionProfile::Trapezoidal`].
+    pub max_jerk: Option<F>,
+    /// The kind of profile [`plan`](crate::plan) builds.
+    pub profile: MotionProfile,
     /// What to do when the target cannot be reached without passing it.
     pub overshoot: Overshoot,
 }
 
 impl<F: Float> Request<F> {
-    /// A rest-to-rest move with symmetric limits, overshoot allowed.
+    /// A rest-to-rest move with symmetric limits, no jerk limit (so
+    /// [`MotionProfile::Adaptive`] plans it trapezoidal), overshoot allowed.
     pub fn new(start: F, target: F, max_velocity: F, max_acceleration: F) -> Self {
         Self {
             start,
@@ -58,6 +83,8 @@ impl<F: Float> Request<F> {
             max_velocity,
             max_acceleration,
             max_deceleration: None,
+            max_jerk: None,
+            profile: MotionProfile::Adaptive,
             overshoot: Overshoot::Allow,
         }
     }
@@ -74,6 +101,21 @@ impl<F: Float> Request<F> {
     #[must_use]
     pub fn with_max_deceleration(mut self, max_deceleration: F) -> Self {
         self.max_deceleration = Some(max_deceleration);
+        self
+    }
+
+    /// Sets the jerk limit and asks for an S-curve.
+    #[must_use]
+    pub fn with_jerk(mut self, max_jerk: F) -> Self {
+        self.max_jerk = Some(max_jerk);
+        self.profile = MotionProfile::SCurve;
+        self
+    }
+
+    /// Sets the kind of profile.
+    #[must_use]
+    pub fn with_profile(mut self, profile: MotionProfile) -> Self {
+        self.profile = profile;
         self
     }
 
@@ -124,5 +166,22 @@ impl<F: Float> Request<F> {
             });
         }
         Ok((self.max_velocity, self.max_acceleration, decel))
+    }
+
+    /// The jerk limit, checked: present, finite and positive.
+    pub(crate) fn jerk(&self) -> Result<F, PlanError> {
+        let Some(j) = self.max_jerk else {
+            return Err(PlanError::Missing { field: "max_jerk" });
+        };
+        if !j.is_finite() {
+            return Err(PlanError::NonFinite { field: "max_jerk" });
+        }
+        if j.partial_cmp(&F::ZERO) != Some(core::cmp::Ordering::Greater) {
+            return Err(PlanError::NotPositive {
+                field: "max_jerk",
+                value: j.to_f64(),
+            });
+        }
+        Ok(j)
     }
 }

@@ -70,3 +70,33 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(20_000))]
+
+    #[test]
+    fn any_finite_scurve_request_plans_or_refuses(
+        start in any_finite(), target in any_finite(), v0 in any_finite(), v1 in any_finite(),
+        vmax in any_finite(), acc in any_finite(), dec in any_finite(), jerk in any_finite(),
+        forbid in any::<bool>(),
+    ) {
+        let req = Request::new(start, target, vmax, acc)
+            .with_max_deceleration(dec)
+            .with_velocities(v0, v1)
+            .with_jerk(jerk)
+            .with_overshoot(if forbid { Overshoot::Forbid } else { Overshoot::Allow });
+        if let Ok(p) = plan_scurve(&req) {
+            check(&p);
+        }
+        let req32 = Request::<f32>::new(start as f32, target as f32, vmax as f32, acc as f32)
+            .with_max_deceleration(dec as f32)
+            .with_velocities(v0 as f32, v1 as f32)
+            .with_jerk(jerk as f32);
+        if let Ok(p) = plan_scurve(&req32) {
+            assert!(p.duration().is_finite());
+            for ph in p.phases() {
+                assert!(ph.duration.is_finite() && ph.start.position.is_finite() && ph.start.velocity.is_finite());
+            }
+        }
+    }
+}

@@ -401,6 +401,8 @@ fn f32_profiles_end_within_relative_1e_5() {
             max_velocity: r.max_velocity as f32,
             max_acceleration: r.max_acceleration as f32,
             max_deceleration: r.max_deceleration.map(|d| d as f32),
+            max_jerk: None,
+            profile: MotionProfile::Trapezoidal,
             overshoot: Overshoot::Allow,
         };
         let p = plan_trapezoidal(&req).unwrap();

@@ -2,6 +2,8 @@
 //! sweep is reproducible from its seed.
 #![allow(dead_code, unreachable_pub, missing_docs)]
 
+use motorwire_planner::{Profile, Request, State};
+
 /// SplitMix64.
 pub struct Rng(pub u64);
 
@@ -33,4 +35,106 @@ impl Rng {
     pub fn signed(&mut self) -> f64 {
         if self.next() & 1 == 0 { 1.0 } else { -1.0 }
     }
+}
+
+/// Checks a jerk-limited profile against its request, phase by phase,
+/// analytically: jerk in {-J, 0, J}; acceleration within max_acceleration
+/// towards the target and max_deceleration away from it (and, where the
+/// velocity is not zero, within the speeding-up or slowing-down limit);
+/// velocity within max_velocity (after braking from a start above it);
+/// continuity; and the integrated end equal to the target.
+pub fn check_scurve(req: &Request<f64>, p: &Profile<f64>) {
+    let (vmax, acc) = (req.max_velocity, req.max_acceleration);
+    let dec = req.max_deceleration.unwrap_or(acc);
+    let jerk = req.max_jerk.unwrap();
+    let rel = 1e-9;
+    let dir = if req.target < req.start { -1.0 } else { 1.0 };
+    let scale = req.start.abs().max(req.target.abs()).max(1.0);
+    let ((lo, _), (hi, _)) = p.position_extremes();
+    let extent = scale.max(lo.abs()).max(hi.abs());
+    let vscale = vmax.max(req.start_velocity.abs());
+    let mut state = State {
+        position: req.start,
+        velocity: req.start_velocity,
+        ..State::default()
+    };
+    let mut above = req.start_velocity.abs() > vmax;
+    assert!(p.phase_count() <= 7, "{req:?}");
+    for ph in p.phases() {
+        let s = ph.start;
+        let d = ph.duration;
+        assert!(d > 0.0 && d.is_finite(), "{req:?}");
+        assert!(s.jerk == 0.0 || s.jerk.abs() == jerk, "{req:?} {s:?}");
+        assert!(
+            (s.position - state.position).abs() <= 1e-11 * extent,
+            "{req:?} {s:?} vs {state:?}"
+        );
+        assert!(
+            (s.velocity - state.velocity).abs() <= 1e-9 * vscale,
+            "{req:?} {s:?} vs {state:?}"
+        );
+        assert!(
+            (s.acceleration - state.acceleration).abs() <= 1e-9 * acc.max(dec),
+            "{req:?} {s:?} vs {state:?}"
+        );
+        let end = State {
+            position: s.position + d * (s.velocity + d * (s.acceleration / 2.0 + d * s.jerk / 6.0)),
+            velocity: s.velocity + d * (s.acceleration + d * s.jerk / 2.0),
+            acceleration: s.acceleration + d * s.jerk,
+            jerk: s.jerk,
+        };
+        // Acceleration is linear in a phase: its ends bound it.
+        for (a, v) in [
+            (s.acceleration, s.velocity),
+            (end.acceleration, end.velocity),
+        ] {
+            let towards = if a * dir >= 0.0 { acc } else { dec };
+            assert!(a.abs() <= towards * (1.0 + rel), "{req:?} {s:?}: a = {a}");
+            if a * v > 0.0 {
+                assert!(a.abs() <= acc * (1.0 + rel), "{req:?} speeding up at {a}");
+            } else if a * v < 0.0 {
+                assert!(a.abs() <= dec * (1.0 + rel), "{req:?} slowing down at {a}");
+            }
+        }
+        // Velocity is extreme at the ends or where acceleration crosses 0.
+        let mut vs = vec![s.velocity, end.velocity];
+        if s.jerk != 0.0 {
+            let t = -s.acceleration / s.jerk;
+            if t > 0.0 && t < d {
+                vs.push(s.velocity + t * (s.acceleration + t * s.jerk / 2.0));
+            }
+        }
+        for v in vs {
+            let bound = if above {
+                req.start_velocity.abs()
+            } else {
+                vmax
+            };
+            assert!(
+                v.abs() <= bound * (1.0 + rel) + 1e-12,
+                "{req:?} {s:?}: v = {v}"
+            );
+        }
+        if above && end.velocity.abs() <= vmax * (1.0 + rel) {
+            above = false;
+        }
+        state = end;
+    }
+    assert!(
+        (state.position - req.target).abs() <= 1e-8 * extent,
+        "{req:?}: ends at {} not {}",
+        state.position,
+        req.target
+    );
+    assert!(
+        (state.velocity - req.target_velocity).abs() <= 1e-8 * vscale,
+        "{req:?}: ends at velocity {}",
+        state.velocity
+    );
+    assert!(state.acceleration.abs() <= 1e-8 * acc.max(dec), "{req:?}");
+    let end = p.sample(p.duration());
+    assert_eq!(
+        (end.position, end.velocity, end.acceleration),
+        (req.target, req.target_velocity, 0.0)
+    );
 }

@@ -1,0 +1,460 @@
+//! Time-optimal jerk-limited (S-curve) profiles.
+//!
+//! Both boundary accelerations are zero (iRPC's `SetTargetV2` has none), so
+//! a time-optimal profile is: change velocity from `v0` to a peak `x` (an
+//! *S-ramp*: jerk `±J`, then constant acceleration if the change is large
+//! enough to reach the limit, then jerk back to zero acceleration), cruise
+//! at `x` if `x` is `±max_velocity`, and change velocity from `x` to `v1`.
+//! That is at most 3 + 1 + 3 = 7 constant-jerk phases.
+//!
+//! An S-ramp of a velocity change `Δ` with acceleration limit `L` lasts
+//! `T(Δ) = Δ/L + L/J` when `Δ >= L²/J` (it reaches the limit) and
+//! `T(Δ) = 2 sqrt(Δ/J)` otherwise; its velocity is point-symmetric about
+//! its midpoint, so it covers `(va + vb)/2 · T(Δ)`. The distance `d(x)` the
+//! two ramps cover is therefore explicit, and the time-optimal peak is the
+//! largest `x` in `[-max_velocity, max_velocity]` with `d(x) = D` (the
+//! higher the peak, the sooner the arrival):
+//!
+//! 1. `d(max_velocity) <= D`: peak at `max_velocity`, cruise for the rest
+//!    (closed form).
+//! 2. Otherwise, from `b = max(v0, v1, 0)` up, `d` increases. Rest-to-rest,
+//!    the root is closed form in each saturation regime: both ramps short
+//!    (`x = cbrt(D² J / 4)`), both reaching the limits (a quadratic, solved
+//!    without cancellation); a mixed regime and non-zero velocities use the
+//!    bounded root search below, bracketed by the two closed forms.
+//! 3. Below `b` (the target is too close for the boundary velocities: brake
+//!    to a lower velocity, or back up, or pass the target), the largest
+//!    root is found by scanning at most [`SCAN_POINTS`] points downwards,
+//!    then the root search in the first bracket. If even `-max_velocity`
+//!    covers too much distance, the profile cruises backwards at it.
+//!
+//! The root search is Newton's method safeguarded by bisection: each step
+//! keeps a bracket `[lo, hi]` with `d(lo) <= D < d(hi)`, takes the Newton
+//! step when it lands inside the bracket, and bisects otherwise and on
+//! every fourth step. It stops when the bracket or the step is within a
+//! few ulps, and after at most [`MAX_ROOT_ITERATIONS`] steps whatever
+//! happens (typically it takes 3 to 8).
+//!
+//! **Acceleration limits.** Acceleration towards the target is bounded by
+//! `max_acceleration` and away from it by `max_deceleration`. While the
+//! velocity points at the target (or is zero) these are exactly "speeding
+//! up" and "slowing down". When some part of the motion moves away from the
+//! target (a start or target velocity pointing away, or the way back after
+//! an overshoot) and the two limits differ, the profile uses the smaller
+//! of the two for both: it is then within both limits whichever way one
+//! reads them, at some cost in time.
+
+use crate::profile::{Builder, RampShape};
+use crate::{Float, Overshoot, PlanError, Profile, Request};
+
+/// The most steps the S-curve root search takes (it stops as soon as the
+/// root is known to a few ulps; usually after 3 to 8 steps).
+pub const MAX_ROOT_ITERATIONS: u32 = 128;
+
+/// The most points the S-curve planner evaluates when it scans for the
+/// peak velocity below `max(v0, v1, 0)`.
+pub const SCAN_POINTS: usize = 12;
+
+/// The move, in the frame where it goes forward, and its limits.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Model<F> {
+    pub(crate) vmax: F,
+    pub(crate) acc: F,
+    pub(crate) dec: F,
+    pub(crate) jerk: F,
+    pub(crate) v0: F,
+    pub(crate) v1: F,
+}
+
+/// A planned peak velocity `base + offset` and how long to cruise at it.
+/// The peak is kept as an offset from a velocity the ramps' changes are
+/// known exactly from, so a small change of a large velocity keeps its
+/// precision (in f32 especially).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Peak<F> {
+    pub(crate) base: F,
+    pub(crate) offset: F,
+    pub(crate) cruise: F,
+}
+
+impl<F: Float> Peak<F> {
+    pub(crate) fn at(x: F, cruise: F) -> Self {
+        Self {
+            base: x,
+            offset: F::ZERO,
+            cruise,
+        }
+    }
+
+    pub(crate) fn x(&self) -> F {
+        self.base + self.offset
+    }
+}
+
+fn infinity<F: Float>() -> F {
+    F::from_f64(f64::INFINITY)
+}
+
+impl<F: Float> Model<F> {
+    fn limit(&self, delta: F) -> F {
+        if delta >= F::ZERO { self.acc } else { self.dec }
+    }
+
+    /// The duration of an S-ramp changing velocity by `delta`, and its
+    /// derivative with respect to `|delta|`.
+    fn ramp_time(&self, delta: F) -> (F, F) {
+        let lim = self.limit(delta);
+        let d = delta.abs();
+        if d * self.jerk >= lim * lim {
+            (d / lim + lim / self.jerk, F::ONE / lim)
+        } else {
+            let r = (d / self.jerk).sqrt();
+            let slope = if r > F::ZERO {
+                F::ONE / (r * self.jerk)
+            } else {
+                infinity()
+            };
+            (r + r, slope)
+        }
+    }
+
+    pub(crate) fn shape(&self, delta: F, dir: F) -> RampShape<F> {
+        let lim = self.limit(delta);
+        let d = delta.abs();
+        let sign = if delta * dir > F::ZERO {
+            1
+        } else if delta * dir < F::ZERO {
+            -1
+        } else {
+            0
+        };
+        if d * self.jerk >= lim * lim {
+            let t_jerk = lim / self.jerk;
+            let t_flat = d / lim - t_jerk;
+            // At the boundary between the two shapes, a flat phase of a
+            // rounding error's length is no phase at all.
+            let t_flat = if t_flat <= F::from_f64(4.0) * F::EPSILON * t_jerk {
+                F::ZERO
+            } else {
+                t_flat
+            };
+            RampShape {
+                t_jerk,
+                t_flat,
+                peak: lim,
+                sign,
+            }
+        } else {
+            let t = (d / self.jerk).sqrt();
+            RampShape {
+                t_jerk: t,
+                t_flat: F::ZERO,
+                peak: self.jerk * t,
+                sign,
+            }
+        }
+    }
+
+    /// The distance the two ramps through peak `x` cover, and its
+    /// derivative in `x`.
+    pub(crate) fn distance(&self, x: F) -> (F, F) {
+        self.distance_from(x, F::ZERO)
+    }
+
+    /// [`Self::distance`] at the peak `base + y`, with the ramps' velocity
+    /// changes computed from `base` and `y` separately.
+    pub(crate) fn distance_from(&self, base: F, y: F) -> (F, F) {
+        let x = base + y;
+        let (d1, d2) = ((base - self.v0) + y, (self.v1 - base) - y);
+        let (t1, s1) = self.ramp_time(d1);
+        let (t2, s2) = self.ramp_time(d2);
+        let (m1, m2) = ((self.v0 + x) * F::HALF, (x + self.v1) * F::HALF);
+        let term = |m: F, s: F, sign: F| {
+            if m == F::ZERO { F::ZERO } else { m * s * sign }
+        };
+        let sgn = |d: F| {
+            if d > F::ZERO {
+                F::ONE
+            } else if d < F::ZERO {
+                -F::ONE
+            } else {
+                F::ONE
+            }
+        };
+        let slope = (t1 + t2) * F::HALF + term(m1, s1, sgn(d1)) - term(m2, s2, sgn(d2));
+        (m1 * t1 + m2 * t2, slope)
+    }
+
+    /// The offset `x` in `[lo, hi]` with `d(base + x) = target`, given
+    /// `d(base + lo) <= target < d(base + hi)` (or within rounding of it).
+    fn root(&self, base: F, mut lo: F, mut hi: F, start: F, target: F) -> F {
+        let eps = F::EPSILON * F::TWO;
+        let mut x = start;
+        for i in 0..MAX_ROOT_ITERATIONS {
+            let (y, slope) = self.distance_from(base, x);
+            let g = y - target;
+            if g == F::ZERO {
+                return x;
+            }
+            if g > F::ZERO {
+                hi = x;
+            } else {
+                lo = x;
+            }
+            let scale = lo.abs().max(hi.abs());
+            if hi - lo <= eps * scale {
+                return x;
+            }
+            let newton = x - g / slope;
+            let next = if i % 4 != 3 && newton.is_finite() && newton > lo && newton < hi {
+                if (newton - x).abs() <= eps * scale {
+                    return newton;
+                }
+                newton
+            } else {
+                lo + (hi - lo) * F::HALF
+            };
+            x = next;
+        }
+        x
+    }
+
+    /// The rest-to-rest peak below `max_velocity`: closed form unless the
+    /// two ramps are in different regimes.
+    fn rest_to_rest_peak(&self, dist: F) -> F {
+        let (s_acc, s_dec) = (
+            self.acc * self.acc / self.jerk,
+            self.dec * self.dec / self.jerk,
+        );
+        let (s_lo, s_hi) = (s_acc.min(s_dec), s_acc.max(s_dec));
+        // Both ramps short: d = 2 x sqrt(x / J).
+        let short = (dist * dist * self.jerk * F::from_f64(0.25)).cbrt();
+        if short <= s_lo {
+            return short;
+        }
+        let long = self.saturated_peak(dist);
+        if long >= s_hi {
+            return long;
+        }
+        // The two closed forms bracket the root; rounding could move them
+        // past it, so each is checked before it narrows the bracket.
+        let mut lo = long.max(s_lo).min(self.vmax);
+        if self.distance(lo).0 > dist {
+            lo = F::ZERO;
+        }
+        let mut hi = short.min(s_hi).min(self.vmax).max(lo);
+        if self.distance(hi).0 < dist {
+            hi = self.vmax;
+        }
+        self.root(F::ZERO, lo, hi, hi, dist)
+    }
+
+    /// The peak if both ramps reached their acceleration limits:
+    /// `(x² - v0²)/2A + (x + v0) A/2J + (x² - v1²)/2D + (x + v1) D/2J = dist`.
+    /// It is a lower bound of the true peak when `v0, v1 >= 0` (a ramp
+    /// that does not reach its limit is shorter).
+    fn saturated_peak(&self, dist: F) -> F {
+        let (a, d, j) = (self.acc, self.dec, self.jerk);
+        let qa = F::HALF / a + F::HALF / d;
+        let qb = (a + d) * F::HALF / j;
+        let qc = -(dist + self.v0 * self.v0 * F::HALF / a + self.v1 * self.v1 * F::HALF / d
+            - self.v0 * a * F::HALF / j
+            - self.v1 * d * F::HALF / j);
+        // qa x² + qb x + qc = 0, qa > 0, qb > 0: the positive root without
+        // cancellation.
+        let disc = (qb * qb - F::from_f64(4.0) * qa * qc).max(F::ZERO);
+        if qc <= F::ZERO {
+            -F::TWO * qc / (qb + disc.sqrt())
+        } else {
+            (-qb + disc.sqrt()) / (F::TWO * qa)
+        }
+    }
+
+    /// The time-optimal peak velocity and cruise for a forward distance
+    /// `dist >= 0`.
+    pub(crate) fn peak(&self, dist: F) -> Peak<F> {
+        let vmax = self.vmax;
+        // `d(x)` covers no more than `dist`, up to its rounding error.
+        let covers = |d: F| d <= dist + F::from_f64(64.0) * F::EPSILON * (dist.abs() + d.abs());
+        let (d_top, _) = self.distance(vmax);
+        if covers(d_top) {
+            return Peak::at(vmax, ((dist - d_top) / vmax).max(F::ZERO));
+        }
+        let (v0, v1) = (self.v0, self.v1);
+        let b = if v0 > vmax {
+            vmax
+        } else {
+            v0.max(v1).max(F::ZERO)
+        };
+        if b < vmax && covers(self.distance(b).0) {
+            if v0 == F::ZERO && v1 == F::ZERO {
+                return Peak::at(self.rest_to_rest_peak(dist), F::ZERO);
+            }
+            let room = vmax - b;
+            // The saturated peak bounds the root from below; rounding
+            // (cancellation in its quadratic) could put it above, so it
+            // is checked before it narrows the bracket.
+            let mut lo = F::ZERO;
+            if v0 >= F::ZERO && v1 >= F::ZERO {
+                let guess = (self.saturated_peak(dist) - b).max(F::ZERO).min(room);
+                if self.distance_from(b, guess).0 <= dist {
+                    lo = guess;
+                }
+            }
+            return Peak {
+                base: b,
+                offset: self.root(b, lo, room, room, dist),
+                cruise: F::ZERO,
+            };
+        }
+        // Below b: scan down for the first point that covers no more than
+        // `dist`, through the places where d changes shape.
+        let mut anchors = [b, vmax, vmax, -vmax];
+        let mut n = 1;
+        for p in [v0.min(v1), F::ZERO] {
+            let last = anchors.get(n - 1).copied().unwrap_or(b);
+            if p < last && p > -vmax {
+                if let Some(slot) = anchors.get_mut(n) {
+                    *slot = p;
+                }
+                n += 1;
+            }
+        }
+        if let Some(slot) = anchors.get_mut(n) {
+            *slot = -vmax;
+        }
+        let mut prev = b;
+        let pieces = (SCAN_POINTS / n).max(1);
+        for w in 0..n {
+            let (Some(&top), Some(&bottom)) = (anchors.get(w), anchors.get(w + 1)) else {
+                break;
+            };
+            for k in 1..=pieces {
+                #[allow(clippy::cast_precision_loss)]
+                let f = F::from_f64(k as f64 / pieces as f64);
+                let p = if k == pieces {
+                    bottom
+                } else {
+                    top + (bottom - top) * f
+                };
+                if covers(self.distance(p).0) {
+                    let room = prev - p;
+                    return Peak {
+                        base: p,
+                        offset: self.root(p, F::ZERO, room, room, dist),
+                        cruise: F::ZERO,
+                    };
+                }
+                prev = p;
+            }
+        }
+        // Even at -max_velocity the ramps cover too much: cruise backwards.
+        let (d_bottom, _) = self.distance(-vmax);
+        Peak::at(-vmax, ((d_bottom - dist) / vmax).max(F::ZERO))
+    }
+}
+
+/// Plans the time-optimal jerk-limited profile for `req`, whatever its
+/// [`MotionProfile`](crate::MotionProfile): velocity, acceleration,
+/// deceleration and jerk limits, non-zero start and target velocities, a
+/// start velocity above the limit (braked first), and moves that must pass
+/// the target (planned with overshoot, or refused under
+/// [`Overshoot::Forbid`]). See the [module documentation](crate#s-curve)
+/// for the method.
+///
+/// ```
+/// use motorwire_planner::{Request, plan_scurve};
+///
+/// // The iRPC document's SetTargetV2 example: 0 -> 90 deg at 100 deg/s,
+/// // 500 deg/s², 2000 deg/s³.
+/// let req = Request::new(0.0f64, 90.0, 100.0, 500.0).with_jerk(2000.0);
+/// let p = plan_scurve(&req)?;
+/// // 100 deg/s is reached before 500 deg/s² (500²/2000 > 100): each ramp
+/// // is 2 sqrt(100/2000) s of pure jerk, and the cruise covers the rest.
+/// assert!((p.duration() - (0.9 + 0.2f64.sqrt())).abs() < 1e-12);
+/// assert_eq!(p.phase_count(), 5);
+/// assert!(p.peak_velocity().0 <= 100.0);
+/// assert_eq!(p.sample(p.duration()).position, 90.0);
+/// # Ok::<(), motorwire_planner::PlanError>(())
+/// ```
+///
+/// # Errors
+/// [`PlanError::Missing`], [`PlanError::NonFinite`] or
+/// [`PlanError::NotPositive`] naming the field for bad input (`max_jerk`
+/// included); [`PlanError::TargetVelocityTooHigh`];
+/// [`PlanError::OvershootForbidden`]; [`PlanError::Unrepresentable`] when
+/// finite inputs give a non-finite profile.
+pub fn plan_scurve<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> {
+    let (vmax, acc, dec) = req.limits()?;
+    let jerk = req.jerk()?;
+    let distance = req.target - req.start;
+    let dir = if distance < F::ZERO { -F::ONE } else { F::ONE };
+    let (dist, v0, v1) = (
+        distance * dir,
+        req.start_velocity * dir,
+        req.target_velocity * dir,
+    );
+    if !dist.is_finite() {
+        return Err(PlanError::Unrepresentable);
+    }
+    if dist == F::ZERO && v0 == F::ZERO && v1 == F::ZERO {
+        return Ok(Profile::at_rest(req.target));
+    }
+    let mut model = Model {
+        vmax,
+        acc,
+        dec,
+        jerk,
+        v0,
+        v1,
+    };
+    let mut peak = model.peak(dist);
+    if acc != dec && (v0 < F::ZERO || v1 < F::ZERO || peak.x() < F::ZERO) {
+        // Part of the motion moves away from the target: use the smaller
+        // limit both ways (see the module documentation).
+        let m = acc.min(dec);
+        model.acc = m;
+        model.dec = m;
+        peak = model.peak(dist);
+    }
+    let profile = build(req, &model, peak, dir)?;
+    if req.overshoot == Overshoot::Forbid
+        && let Some(by) = profile.overshoot()
+    {
+        return Err(PlanError::OvershootForbidden {
+            overshoot: by.to_f64(),
+        });
+    }
+    Ok(profile)
+}
+
+/// Turns a peak into phases, in the caller's frame.
+pub(crate) fn build<F: Float>(
+    req: &Request<F>,
+    model: &Model<F>,
+    peak: Peak<F>,
+    dir: F,
+) -> Result<Profile<F>, PlanError> {
+    let first = model.shape((peak.base - model.v0) + peak.offset, dir);
+    let second = model.shape((model.v1 - peak.base) - peak.offset, dir);
+    for t in [
+        first.t_jerk,
+        first.t_flat,
+        second.t_jerk,
+        second.t_flat,
+        peak.cruise,
+    ] {
+        if !t.is_finite() {
+            return Err(PlanError::Unrepresentable);
+        }
+    }
+    let mut b = Builder::new(req.start, req.start_velocity, model.jerk);
+    b.jerk_ramp(first, peak.x() * dir);
+    b.constant_acceleration(peak.cruise, F::ZERO, peak.x() * dir);
+    b.jerk_ramp(second, req.target_velocity);
+    let profile = b.finish(req.target, req.target_velocity);
+    if !profile.representable() {
+        return Err(PlanError::Unrepresentable);
+    }
+    Ok(profile)
+}

@@ -1,0 +1,392 @@
+//! The S-curve planner: named cases (the iRPC document's examples, the
+//! public firmware's failures, tiny and huge inputs), and a seeded random
+//! sweep that checks every limit per phase analytically, continuity, the
+//! exact end state and the overshoot policy.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+mod common;
+
+use common::Rng;
+use motorwire_planner::*;
+
+fn close(a: f64, b: f64, tol: f64) -> bool {
+    (a - b).abs() <= tol * (1.0 + a.abs().max(b.abs()))
+}
+
+fn scurve(start: f64, target: f64, v: f64, a: f64, j: f64) -> Request<f64> {
+    Request::new(start, target, v, a).with_jerk(j)
+}
+
+fn plan_checked(req: &Request<f64>) -> Profile<f64> {
+    let p = plan_scurve(req).unwrap_or_else(|e| panic!("{req:?}: {e}"));
+    common::check_scurve(req, &p);
+    p
+}
+
+#[test]
+fn zero_move() {
+    let p = plan_checked(&scurve(3.0, 3.0, 1.0, 1.0, 1.0));
+    assert_eq!(p.phase_count(), 0);
+    assert_eq!(p.duration(), 0.0);
+    assert_eq!(p.sample(0.0).position, 3.0);
+}
+
+#[test]
+fn the_tiny_move_ruckig_fails() {
+    // 0.0049921875 -> 0.005 with vmax 0.1, amax 2.5, jmax 2000: rest-to-rest,
+    // neither ramp reaches 2.5 (2.5²/2000 = 0.003 > peak), so the peak is
+    // cbrt(D² J / 4) and the duration 4 sqrt(peak / J).
+    let req = scurve(0.004_992_187_5, 0.005, 0.1, 2.5, 2000.0);
+    let p = plan_checked(&req);
+    let d: f64 = 0.005 - 0.004_992_187_5;
+    let peak = (d * d * 2000.0 / 4.0).cbrt();
+    assert!(
+        close(p.duration(), 4.0 * (peak / 2000.0).sqrt(), 1e-14),
+        "{}",
+        p.duration()
+    );
+    assert!(close(p.peak_velocity().0, peak, 1e-12));
+    assert_eq!(p.phase_count(), 4);
+}
+
+#[test]
+fn huge_jerk_and_tiny_limits() {
+    // Jerk 3.2e7: the ramps' jerk phases last microseconds.
+    let p = plan_checked(&scurve(0.0, 1.0, 2.0, 100.0, 3.2e7));
+    // Close to the trapezoidal 0.5 + 0.02 + (1 - 0.04)/2... : 2/100 s up, cruise, down.
+    let trap = plan_trapezoidal(&Request::new(0.0, 1.0, 2.0, 100.0)).unwrap();
+    assert!(p.duration() > trap.duration());
+    assert!(
+        close(p.duration(), trap.duration() + 100.0 / 3.2e7, 1e-12),
+        "{}",
+        p.duration()
+    );
+    plan_checked(&scurve(-1e-9, 1e-9, 1e-6, 1e-3, 3.2e7));
+    plan_checked(&scurve(0.0, 1e6, 1e4, 1e5, 3.2e7));
+    plan_checked(&scurve(0.0, 1e-12, 1e3, 1e4, 1e-3));
+}
+
+#[test]
+fn the_irpc_documents_examples() {
+    // Example 1 (trapezoidal; jerk 0 ignored): 1.1 s.
+    let ex1 = Request::new(0.0, 90.0, 100.0, 500.0).with_profile(MotionProfile::Trapezoidal);
+    assert!(close(plan(&ex1).unwrap().duration(), 1.1, 1e-14));
+    // The SetTargetV2 example: 0 -> 90, 100 deg/s, 500 deg/s², 2000 deg/s³.
+    // 100 deg/s is reached before 500 deg/s² (500²/2000 = 125 > 100): each
+    // ramp is pure jerk, 2 sqrt(100/2000) s, the cruise covers the rest.
+    let p = plan_checked(&scurve(0.0, 90.0, 100.0, 500.0, 2000.0));
+    assert!(
+        close(p.duration(), 0.9 + 0.2f64.sqrt(), 1e-14),
+        "{}",
+        p.duration()
+    );
+    assert_eq!(p.peak_velocity().0, 100.0);
+    // Example 2: 0 -> 45 at 80 deg/s, 400 deg/s², 2000 deg/s³: 400²/2000 = 80,
+    // so each ramp is exactly at the boundary: 0.4 s covering 16; cruise (45 - 32)/80.
+    let p = plan_checked(&scurve(0.0, 45.0, 80.0, 400.0, 2000.0));
+    assert!(
+        close(p.duration(), 0.8 + 13.0 / 80.0, 1e-14),
+        "{}",
+        p.duration()
+    );
+    // Example 3: 0 -> 180 at 200 deg/s, 1000 deg/s², 5000 deg/s³: 1000²/5000 =
+    // 200, again at the boundary: ramps 0.4 s, cruise (180 - 80)/200.
+    let p = plan_checked(&scurve(0.0, 180.0, 200.0, 1000.0, 5000.0));
+    assert!(close(p.duration(), 0.8 + 0.5, 1e-14), "{}", p.duration());
+    // Example 4: waypoints 30, 60, 90, 45 (trapezoidal), each from the last.
+    let mut at = 0.0;
+    let mut total = 0.0;
+    for target in [30.0, 60.0, 90.0, 45.0] {
+        let r = Request::new(at, target, 100.0, 500.0).with_profile(MotionProfile::Trapezoidal);
+        let p = plan(&r).unwrap();
+        assert_eq!(p.sample(p.duration()).position, target);
+        total += p.duration();
+        at = target;
+    }
+    // 30 at 100/500: 0.2 + 0.1 + 0.2 = 0.5 s; three times, then 45 -> 0.65 s.
+    assert!(close(total, 3.0 * 0.5 + 0.65, 1e-12), "{total}");
+}
+
+#[test]
+fn the_public_firmwares_failures_do_not_happen_here() {
+    // Its 0 -> 90 S-curve went backwards for 200 steps and jumped 0.25 rad
+    // at the end: here velocity never goes negative and the end is exact.
+    let p = plan_checked(&scurve(0.0, 90.0, 100.0, 500.0, 2000.0));
+    let tick = core::num::NonZeroU64::new(1000).unwrap();
+    let mut last = 0.0;
+    for (_, s) in p.ticks(tick) {
+        assert!(s.velocity >= 0.0 && s.position >= last - 1e-12);
+        last = s.position;
+    }
+    assert_eq!(last, 90.0);
+    // Its 10 -> 0 move overshot by 1.77 rad.
+    let p = plan_checked(&scurve(10.0, 0.0, 100.0, 500.0, 2000.0));
+    assert_eq!(p.overshoot(), None);
+    assert!(p.position_extremes().0.0 >= -1e-12);
+    // With a²/j > v it broke the velocity limit: a = 500, j = 100, v = 10.
+    let p = plan_checked(&scurve(0.0, 90.0, 10.0, 500.0, 100.0));
+    assert!(p.peak_velocity().0 <= 10.0 * (1.0 + 1e-12));
+    // And it ignored max_deceleration and target_velocity.
+    let req = scurve(0.0, 90.0, 100.0, 500.0, 2000.0)
+        .with_max_deceleration(100.0)
+        .with_velocities(0.0, 20.0);
+    let p = plan_checked(&req);
+    assert!(p.phases().all(|ph| ph.start.acceleration >= -100.0 - 1e-9));
+    assert_eq!(p.sample(p.duration()).velocity, 20.0);
+}
+
+#[test]
+fn asymmetric_limits() {
+    // Rest-to-rest, both ramps saturated: 0 -> 100, vmax 10, A 2, D 1, J 1:
+    // up: 10/2 + 2 = 7 s covering 35; down: 10 + 1 = 11 s covering 55;
+    // cruise 10/10 = 1 s.
+    let p = plan_checked(&scurve(0.0, 100.0, 10.0, 2.0, 1.0).with_max_deceleration(1.0));
+    assert!(close(p.duration(), 19.0, 1e-14), "{}", p.duration());
+    assert_eq!(p.phase_count(), 7);
+    let accs: Vec<f64> = p.phases().map(|ph| ph.start.acceleration).collect();
+    assert!(
+        close(accs[1], 2.0, 1e-14) && close(accs[5], -1.0, 1e-14),
+        "{accs:?}"
+    );
+}
+
+#[test]
+fn a_start_velocity_above_the_limit_brakes_first() {
+    let req = scurve(0.0, 100.0, 10.0, 5.0, 20.0).with_velocities(30.0, 0.0);
+    let p = plan_checked(&req);
+    let first = p.phases().next().unwrap();
+    assert_eq!(first.start.velocity, 30.0);
+    assert!(first.start.jerk < 0.0);
+    assert!(p.phases().all(|ph| ph.start.acceleration <= 1e-12));
+}
+
+#[test]
+fn overshoot_is_planned_or_refused() {
+    // 10 units/s towards a target 1 unit away, braking at 1 unit/s², jerk 1:
+    // braking alone takes 10 + 1 s and 55 units.
+    let req = scurve(0.0, 1.0, 10.0, 1.0, 1.0).with_velocities(10.0, 0.0);
+    let p = plan_checked(&req);
+    let by = p.overshoot().unwrap();
+    assert!(by > 50.0, "{by}");
+    assert_eq!(
+        plan_scurve(&req.with_overshoot(Overshoot::Forbid)),
+        Err(PlanError::OvershootForbidden { overshoot: by })
+    );
+    // A run-up: arrive at 10 from a standstill 0.05 away; it backs up first.
+    let req = scurve(0.0, 0.05, 100.0, 500.0, 5000.0).with_velocities(0.0, 10.0);
+    let p = plan_checked(&req);
+    assert!(p.position_extremes().0.0 < 0.0);
+    assert_eq!(p.overshoot(), None);
+}
+
+#[test]
+fn invalid_requests_name_the_field() {
+    let ok = scurve(0.0, 1.0, 1.0, 1.0, 1.0);
+    let mut missing = ok;
+    missing.max_jerk = None;
+    assert_eq!(
+        plan_scurve(&missing),
+        Err(PlanError::Missing { field: "max_jerk" })
+    );
+    assert_eq!(
+        plan_scurve(&ok.with_jerk(0.0)),
+        Err(PlanError::NotPositive {
+            field: "max_jerk",
+            value: 0.0
+        })
+    );
+    assert_eq!(
+        plan_scurve(&ok.with_jerk(f64::NAN)),
+        Err(PlanError::NonFinite { field: "max_jerk" })
+    );
+    assert_eq!(
+        plan(
+            &ok.with_jerk(f64::INFINITY)
+                .with_profile(MotionProfile::Adaptive)
+        ),
+        Err(PlanError::NonFinite { field: "max_jerk" })
+    );
+    // Adaptive with jerk <= 0 is trapezoidal, as the iRPC document says.
+    let adaptive = ok.with_jerk(-1.0).with_profile(MotionProfile::Adaptive);
+    assert_eq!(plan(&adaptive), plan_trapezoidal(&ok));
+    assert_eq!(
+        plan_scurve(&Request::new(-1e300f64, 1e300, 1e-300, 1.0).with_jerk(1.0)),
+        Err(PlanError::Unrepresentable)
+    );
+    assert_eq!(
+        PlanError::Missing { field: "max_jerk" }.to_string(),
+        "max_jerk is required for an S-curve profile"
+    );
+}
+
+// ---- a seeded random sweep ------------------------------------------------
+
+fn random_request(rng: &mut Rng) -> Request<f64> {
+    let vmax = rng.log_uniform(-3.0, 3.0);
+    let acc = rng.log_uniform(-2.0, 5.0);
+    let dec = if rng.next().is_multiple_of(3) {
+        acc
+    } else {
+        rng.log_uniform(-2.0, 5.0)
+    };
+    let jerk = rng.log_uniform(-1.0, 7.5);
+    let start = rng.signed() * rng.log_uniform(-3.0, 3.0);
+    let dist = match rng.next() % 10 {
+        0 => 0.0,
+        _ => rng.signed() * rng.log_uniform(-6.0, 4.0),
+    };
+    let v0 = match rng.next() % 4 {
+        0 => 0.0,
+        1 => rng.signed() * vmax * 2.0 * rng.unit(),
+        _ => rng.signed() * vmax * rng.unit(),
+    };
+    let v1 = match rng.next() % 3 {
+        0 => 0.0,
+        _ => rng.signed() * vmax * rng.unit(),
+    };
+    Request::new(start, start + dist, vmax, acc)
+        .with_max_deceleration(dec)
+        .with_velocities(v0, v1)
+        .with_jerk(jerk)
+}
+
+fn cases() -> usize {
+    std::env::var("MOTORWIRE_PLANNER_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(100_000)
+}
+
+#[test]
+fn random_requests_respect_every_limit_and_end_exactly() {
+    let mut rng = Rng(0x5343_7572_7665_2121);
+    let n = cases();
+    let (mut overshoots, mut rest) = (0, 0);
+    for _ in 0..n {
+        let req = random_request(&mut rng);
+        let p = plan_checked(&req);
+        let forbid = plan_scurve(&req.with_overshoot(Overshoot::Forbid));
+        match p.overshoot() {
+            Some(by) => {
+                overshoots += 1;
+                assert_eq!(forbid, Err(PlanError::OvershootForbidden { overshoot: by }));
+            }
+            None => assert_eq!(forbid, Ok(p)),
+        }
+        if req.start_velocity == 0.0 && req.target_velocity == 0.0 {
+            rest += 1;
+            assert_eq!(p.overshoot(), None, "{req:?}");
+            // Never slower than the same move without a jerk limit, by
+            // more than the jerk phases can cost.
+            let trap = plan_trapezoidal(&req).unwrap().duration();
+            assert!(p.duration() >= trap * (1.0 - 1e-12), "{req:?}");
+        }
+    }
+    eprintln!("{n} random S-curve requests: {overshoots} overshoot, {rest} rest-to-rest");
+    assert!(overshoots > n / 50 && rest > n / 20);
+}
+
+#[test]
+fn f32_profiles_end_within_relative_1e_5() {
+    let mut rng = Rng(0x6633_3220_5343_7276);
+    for _ in 0..20_000 {
+        let r = random_request(&mut rng);
+        let req = Request::<f32> {
+            start: r.start as f32,
+            target: r.target as f32,
+            start_velocity: r.start_velocity as f32,
+            target_velocity: r.target_velocity as f32,
+            max_velocity: r.max_velocity as f32,
+            max_acceleration: r.max_acceleration as f32,
+            max_deceleration: r.max_deceleration.map(|d| d as f32),
+            max_jerk: r.max_jerk.map(|j| j as f32),
+            profile: MotionProfile::SCurve,
+            overshoot: Overshoot::Allow,
+        };
+        let p = match plan_scurve(&req) {
+            Ok(p) => p,
+            Err(PlanError::TargetVelocityTooHigh { .. }) => continue, // rounding to f32
+            Err(e) => panic!("{req:?}: {e}"),
+        };
+        let ((lo, _), (hi, _)) = p.position_extremes();
+        let extent = f64::from(
+            req.start
+                .abs()
+                .max(req.target.abs())
+                .max(lo.abs())
+                .max(hi.abs()),
+        )
+        .max(1.0);
+        let vscale = f64::from(req.max_velocity.max(req.start_velocity.abs()));
+        let phases: Vec<Phase<f32>> = p.phases().collect();
+        for (i, ph) in phases.iter().enumerate() {
+            let (d, s) = (f64::from(ph.duration), ph.start);
+            let (p0, v0, a0, j) = (
+                f64::from(s.position),
+                f64::from(s.velocity),
+                f64::from(s.acceleration),
+                f64::from(s.jerk),
+            );
+            let end_p = p0 + d * (v0 + d * (a0 / 2.0 + d * j / 6.0));
+            let end_v = v0 + d * (a0 + d * j / 2.0);
+            let (want_p, want_v) = match phases.get(i + 1) {
+                Some(next) => (
+                    f64::from(next.start.position),
+                    f64::from(next.start.velocity),
+                ),
+                None => (f64::from(req.target), f64::from(req.target_velocity)),
+            };
+            assert!(
+                (end_p - want_p).abs() <= 1e-5 * extent,
+                "{req:?} phase {i}: {end_p} vs {want_p}"
+            );
+            assert!(
+                (end_v - want_v).abs() <= 1e-5 * vscale,
+                "{req:?} phase {i}: {end_v} vs {want_v}"
+            );
+        }
+    }
+}
+
+#[test]
+fn moves_the_reference_planner_gets_wrong() {
+    // rsruckig 3.0.1 returns an error for this rest-to-rest move (very
+    // unequal acceleration limits); it has a profile, checked here.
+    let req = Request::new(
+        -33.47599350154104,
+        -33.47668431377233,
+        892.1024611959537,
+        0.10522673305223196,
+    )
+    .with_max_deceleration(4519.3199097638935)
+    .with_jerk(852790.2084828274);
+    let p = plan_checked(&req);
+    assert!(
+        close(p.duration(), 0.114_705_075_505_991_8, 1e-12),
+        "{}",
+        p.duration()
+    );
+    // rsruckig plans 0.010686999 s for this one; 0.009504833 s is enough,
+    // within every limit (the checker integrates each phase).
+    let req = Request::new(
+        -56.33782826130227,
+        -56.33771818075011,
+        0.02415884619424766,
+        0.3920767928736592,
+    )
+    .with_max_deceleration(147.5721108544881)
+    .with_velocities(0.009723210079647293, 0.01238789652321827)
+    .with_jerk(545972.1619277433);
+    let p = plan_checked(&req);
+    assert!(
+        close(p.duration(), 0.009_504_833_177_627_032, 1e-12),
+        "{}",
+        p.duration()
+    );
+    assert!(p.duration() < 0.010_686_999);
+}
