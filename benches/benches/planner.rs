@@ -1,5 +1,7 @@
 //! The planner: `sample` against a bare cubic (the arithmetic any sampler
-//! must do) in the same run, and `plan_trapezoidal` on seeded random inputs.
+//! must do) in the same run; `plan_trapezoidal` on seeded random inputs; and
+//! `plan_scurve` against rsruckig (the pure-Rust port of Ruckig) on the same
+//! random inputs, rest-to-rest and full-state sets separately.
 //!
 //! `cargo bench -p motorwire-benches --bench planner`
 #![allow(
@@ -12,7 +14,8 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use motorwire_planner::{Request, plan_trapezoidal};
+use motorwire_planner::{Request, plan_scurve, plan_trapezoidal};
+use rsruckig::prelude::*;
 
 struct Rng(u64);
 
@@ -86,7 +89,54 @@ fn planner(c: &mut Criterion) {
             plan_trapezoidal(black_box(&full[i])).unwrap()
         })
     });
+    for (name, set) in [("rest_to_rest", &rest), ("full_state", &full)] {
+        let jerky: Vec<Request<f64>> = set
+            .iter()
+            .enumerate()
+            .map(|(i, r)| r.with_jerk(1000.0 + 19.0 * i as f64))
+            .collect();
+        let inputs: Vec<InputParameter<1>> = jerky.iter().map(ruckig_input).collect();
+        g.bench_function(format!("plan_scurve_{name}"), |b| {
+            let mut i = 0usize;
+            b.iter(|| {
+                i = (i + 1) & 1023;
+                plan_scurve(black_box(&jerky[i])).unwrap()
+            })
+        });
+        let mut otg = Ruckig::<1, IgnoreErrorHandler>::new(None, 0.001);
+        let mut traj = Trajectory::new(None);
+        g.bench_function(format!("rsruckig_{name}"), |b| {
+            let mut i = 0usize;
+            b.iter(|| {
+                i = (i + 1) & 1023;
+                let r = otg.calculate(black_box(&inputs[i]), &mut traj);
+                black_box(traj.get_duration());
+                r
+            })
+        });
+    }
     g.finish();
+}
+
+/// The same move for Ruckig: acceleration towards the target is
+/// `max_acceleration`, away from it `max_deceleration`.
+fn ruckig_input(r: &Request<f64>) -> InputParameter<1> {
+    let mut input = InputParameter::new(None);
+    input.current_position[0] = r.start;
+    input.target_position[0] = r.target;
+    input.current_velocity[0] = r.start_velocity;
+    input.target_velocity[0] = r.target_velocity;
+    input.max_velocity[0] = r.max_velocity;
+    let dec = r.max_deceleration.unwrap_or(r.max_acceleration);
+    let (up, down) = if r.target >= r.start {
+        (r.max_acceleration, dec)
+    } else {
+        (dec, r.max_acceleration)
+    };
+    input.max_acceleration[0] = up;
+    input.min_acceleration = Some(daov_stack![-down]);
+    input.max_jerk[0] = r.max_jerk.unwrap();
+    input
 }
 
 criterion_group!(benches, planner);

@@ -34,6 +34,10 @@ pub trait Float:
     const HALF: Self;
     /// Machine epsilon.
     const EPSILON: Self;
+    /// Inputs whose magnitudes all lie in `[1/MODERATE, MODERATE]` (or are
+    /// zero) give profiles whose every value is far from overflow, so the
+    /// planners skip the full check (1e40 for f64, 1e6 for f32).
+    const MODERATE: Self;
 
     /// From an `f64` (rounding to nearest for `f32`).
     fn from_f64(v: f64) -> Self;
@@ -65,6 +69,7 @@ impl Float for f32 {
     const TWO: Self = 2.0;
     const HALF: Self = 0.5;
     const EPSILON: Self = f32::EPSILON;
+    const MODERATE: Self = 1e6;
 
     #[allow(clippy::cast_possible_truncation)]
     fn from_f64(v: f64) -> Self {
@@ -93,6 +98,7 @@ impl Float for f64 {
     const TWO: Self = 2.0;
     const HALF: Self = 0.5;
     const EPSILON: Self = f64::EPSILON;
+    const MODERATE: Self = 1e40;
 
     fn from_f64(v: f64) -> Self {
         v

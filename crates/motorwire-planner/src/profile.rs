@@ -277,26 +277,35 @@ impl<F: Float> Profile<F> {
     }
 
     /// Whether every value the profile can produce is finite, with headroom:
-    /// phase start states, the position extremes (a phase's position is
-    /// largest in magnitude at its ends or where its velocity is zero), the
-    /// peak velocity and acceleration all within a quarter of the float's
-    /// range, so evaluating any instant cannot overflow.
+    /// each phase's duration and start state, and a bound on the magnitude
+    /// of its position, velocity and acceleration over the whole phase
+    /// (`|p| + d(|v| + d(|a|/2 + d|j|/6))` and the like), within a quarter
+    /// of the float's range, so evaluating any instant cannot overflow.
     pub(crate) fn representable(&self) -> bool {
         let limit = F::from_f64(f64::MAX) * F::from_f64(0.25);
         let ok = |v: F| v.is_finite() && v.abs() <= limit;
-        if !ok(self.duration()) || !ok(self.end_position) || !ok(self.end_velocity) {
-            return false;
+        let sixth = F::from_f64(1.0 / 6.0);
+        let mut total = F::ZERO;
+        for i in 0..usize::from(self.count).min(MAX_PHASES) {
+            let (Some(&d), Some(&p), Some(&v), Some(&a)) = (
+                self.durations.get(i),
+                self.p.get(i),
+                self.v.get(i),
+                self.a.get(i),
+            ) else {
+                return false;
+            };
+            let j = self.jerk_of(i).abs();
+            let (v, a) = (v.abs(), a.abs());
+            let bound_p = p.abs() + d * (v + d * (a * F::HALF + d * j * sixth));
+            let bound_v = v + d * (a + d * j * F::HALF);
+            let bound_a = a + d * j;
+            total = total + d;
+            if !(ok(d) && ok(bound_p) && ok(bound_v) && ok(bound_a)) {
+                return false;
+            }
         }
-        if !self.phases().all(|ph| {
-            ok(ph.duration)
-                && ok(ph.start.position)
-                && ok(ph.start.velocity)
-                && ok(ph.start.acceleration)
-        }) {
-            return false;
-        }
-        let ((lo, _), (hi, _)) = self.position_extremes();
-        ok(lo) && ok(hi) && ok(self.peak_velocity().0) && ok(self.peak_acceleration())
+        ok(total) && ok(self.end_position) && ok(self.end_velocity)
     }
 
     /// Samples on an integer tick: the state every `tick_us` microseconds
@@ -382,6 +391,7 @@ impl<F: Float> Builder<F> {
 
     /// Appends a phase of `duration` with start acceleration `a` and jerk
     /// sign `sign` (-1, 0, 1); phases of zero duration are dropped.
+    #[inline]
     pub(crate) fn phase(&mut self, duration: F, a: F, sign: i8) {
         // Drops zero, negative and NaN durations alike.
         if duration.partial_cmp(&F::ZERO) != Some(core::cmp::Ordering::Greater) {
@@ -441,6 +451,7 @@ impl<F: Float> Builder<F> {
     /// direction of the change). The next phase starts from `vb` and from
     /// the position `p + (va + vb) T / 2`, exact for this point-symmetric
     /// shape, rather than from re-integrated, rounded products.
+    #[inline]
     pub(crate) fn jerk_ramp(&mut self, shape: RampShape<F>, vb: F) {
         let start = self.state;
         let before = self.profile.count;

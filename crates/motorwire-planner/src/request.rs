@@ -168,6 +168,31 @@ impl<F: Float> Request<F> {
         Ok((self.max_velocity, self.max_acceleration, decel))
     }
 
+    /// Whether every input is zero or within `[1/MODERATE, MODERATE]` in
+    /// magnitude (see [`Float::MODERATE`]): then durations are at most
+    /// `~MODERATE²`, positions `~MODERATE³` and jerk terms `~MODERATE⁵`,
+    /// all far below the float's range.
+    pub(crate) fn moderate(&self) -> bool {
+        let hi = F::MODERATE;
+        let lo = F::ONE / hi;
+        let in_range = |v: F| {
+            let m = v.abs();
+            m == F::ZERO || (m >= lo && m <= hi)
+        };
+        let limit = |v: F| {
+            let m = v.abs();
+            m >= lo && m <= hi
+        };
+        in_range(self.start)
+            && in_range(self.target)
+            && in_range(self.start_velocity)
+            && in_range(self.target_velocity)
+            && limit(self.max_velocity)
+            && limit(self.max_acceleration)
+            && self.max_deceleration.is_none_or(limit)
+            && self.max_jerk.is_none_or(limit)
+    }
+
     /// The jerk limit, checked: present, finite and positive.
     pub(crate) fn jerk(&self) -> Result<F, PlanError> {
         let Some(j) = self.max_jerk else {

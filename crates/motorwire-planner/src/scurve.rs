@@ -64,6 +64,9 @@ pub(crate) struct Model<F> {
     pub(crate) jerk: F,
     pub(crate) v0: F,
     pub(crate) v1: F,
+    inv_acc: F,
+    inv_dec: F,
+    inv_jerk: F,
 }
 
 /// A planned peak velocity `base + offset` and how long to cruise at it.
@@ -96,19 +99,42 @@ fn infinity<F: Float>() -> F {
 }
 
 impl<F: Float> Model<F> {
-    fn limit(&self, delta: F) -> F {
-        if delta >= F::ZERO { self.acc } else { self.dec }
+    /// The model of a move; divisions by the limits become multiplications
+    /// by reciprocals computed once here.
+    pub(crate) fn new(vmax: F, acc: F, dec: F, jerk: F, v0: F, v1: F) -> Self {
+        Self {
+            vmax,
+            acc,
+            dec,
+            jerk,
+            v0,
+            v1,
+            inv_acc: F::ONE / acc,
+            inv_dec: F::ONE / dec,
+            inv_jerk: F::ONE / jerk,
+        }
+    }
+
+    /// The acceleration limit of a velocity change of sign `delta`, and its
+    /// reciprocal.
+    #[inline]
+    fn limit(&self, delta: F) -> (F, F) {
+        if delta >= F::ZERO {
+            (self.acc, self.inv_acc)
+        } else {
+            (self.dec, self.inv_dec)
+        }
     }
 
     /// The duration of an S-ramp changing velocity by `delta`, and its
     /// derivative with respect to `|delta|`.
     fn ramp_time(&self, delta: F) -> (F, F) {
-        let lim = self.limit(delta);
+        let (lim, inv) = self.limit(delta);
         let d = delta.abs();
         if d * self.jerk >= lim * lim {
-            (d / lim + lim / self.jerk, F::ONE / lim)
+            (d * inv + lim * self.inv_jerk, inv)
         } else {
-            let r = (d / self.jerk).sqrt();
+            let r = (d * self.inv_jerk).sqrt();
             let slope = if r > F::ZERO {
                 F::ONE / (r * self.jerk)
             } else {
@@ -119,7 +145,7 @@ impl<F: Float> Model<F> {
     }
 
     pub(crate) fn shape(&self, delta: F, dir: F) -> RampShape<F> {
-        let lim = self.limit(delta);
+        let (lim, inv) = self.limit(delta);
         let d = delta.abs();
         let sign = if delta * dir > F::ZERO {
             1
@@ -129,8 +155,8 @@ impl<F: Float> Model<F> {
             0
         };
         if d * self.jerk >= lim * lim {
-            let t_jerk = lim / self.jerk;
-            let t_flat = d / lim - t_jerk;
+            let t_jerk = lim * self.inv_jerk;
+            let t_flat = d * inv - t_jerk;
             // At the boundary between the two shapes, a flat phase of a
             // rounding error's length is no phase at all.
             let t_flat = if t_flat <= F::from_f64(4.0) * F::EPSILON * t_jerk {
@@ -145,7 +171,7 @@ impl<F: Float> Model<F> {
                 sign,
             }
         } else {
-            let t = (d / self.jerk).sqrt();
+            let t = (d * self.inv_jerk).sqrt();
             RampShape {
                 t_jerk: t,
                 t_flat: F::ZERO,
@@ -155,10 +181,25 @@ impl<F: Float> Model<F> {
         }
     }
 
-    /// The distance the two ramps through peak `x` cover, and its
-    /// derivative in `x`.
-    pub(crate) fn distance(&self, x: F) -> (F, F) {
-        self.distance_from(x, F::ZERO)
+    /// The duration of an S-ramp changing velocity by `delta`.
+    #[inline]
+    fn ramp_duration(&self, delta: F) -> F {
+        let (lim, inv) = self.limit(delta);
+        let d = delta.abs();
+        if d * self.jerk >= lim * lim {
+            d * inv + lim * self.inv_jerk
+        } else {
+            F::TWO * (d * self.inv_jerk).sqrt()
+        }
+    }
+
+    /// The distance the two ramps through peak `x` cover (without the
+    /// derivative [`Self::distance_from`] also gives).
+    #[inline]
+    pub(crate) fn distance(&self, x: F) -> F {
+        let t1 = self.ramp_duration(x - self.v0);
+        let t2 = self.ramp_duration(self.v1 - x);
+        ((self.v0 + x) * t1 + (x + self.v1) * t2) * F::HALF
     }
 
     /// [`Self::distance`] at the peak `base + y`, with the ramps' velocity
@@ -223,8 +264,8 @@ impl<F: Float> Model<F> {
     /// two ramps are in different regimes.
     fn rest_to_rest_peak(&self, dist: F) -> F {
         let (s_acc, s_dec) = (
-            self.acc * self.acc / self.jerk,
-            self.dec * self.dec / self.jerk,
+            self.acc * self.acc * self.inv_jerk,
+            self.dec * self.dec * self.inv_jerk,
         );
         let (s_lo, s_hi) = (s_acc.min(s_dec), s_acc.max(s_dec));
         // Both ramps short: d = 2 x sqrt(x / J).
@@ -239,11 +280,11 @@ impl<F: Float> Model<F> {
         // The two closed forms bracket the root; rounding could move them
         // past it, so each is checked before it narrows the bracket.
         let mut lo = long.max(s_lo).min(self.vmax);
-        if self.distance(lo).0 > dist {
+        if self.distance(lo) > dist {
             lo = F::ZERO;
         }
         let mut hi = short.min(s_hi).min(self.vmax).max(lo);
-        if self.distance(hi).0 < dist {
+        if self.distance(hi) < dist {
             hi = self.vmax;
         }
         self.root(F::ZERO, lo, hi, hi, dist)
@@ -254,12 +295,12 @@ impl<F: Float> Model<F> {
     /// It is a lower bound of the true peak when `v0, v1 >= 0` (a ramp
     /// that does not reach its limit is shorter).
     fn saturated_peak(&self, dist: F) -> F {
-        let (a, d, j) = (self.acc, self.dec, self.jerk);
-        let qa = F::HALF / a + F::HALF / d;
-        let qb = (a + d) * F::HALF / j;
-        let qc = -(dist + self.v0 * self.v0 * F::HALF / a + self.v1 * self.v1 * F::HALF / d
-            - self.v0 * a * F::HALF / j
-            - self.v1 * d * F::HALF / j);
+        let (a, d) = (self.acc, self.dec);
+        let (ia, id, ij) = (self.inv_acc, self.inv_dec, self.inv_jerk);
+        let qa = (ia + id) * F::HALF;
+        let qb = (a + d) * F::HALF * ij;
+        let qc = -(dist + (self.v0 * self.v0 * ia + self.v1 * self.v1 * id) * F::HALF
+            - (self.v0 * a + self.v1 * d) * F::HALF * ij);
         // qa x² + qb x + qc = 0, qa > 0, qb > 0: the positive root without
         // cancellation.
         let disc = (qb * qb - F::from_f64(4.0) * qa * qc).max(F::ZERO);
@@ -276,7 +317,7 @@ impl<F: Float> Model<F> {
         let vmax = self.vmax;
         // `d(x)` covers no more than `dist`, up to its rounding error.
         let covers = |d: F| d <= dist + F::from_f64(64.0) * F::EPSILON * (dist.abs() + d.abs());
-        let (d_top, _) = self.distance(vmax);
+        let d_top = self.distance(vmax);
         if covers(d_top) {
             return Peak::at(vmax, ((dist - d_top) / vmax).max(F::ZERO));
         }
@@ -286,8 +327,10 @@ impl<F: Float> Model<F> {
         } else {
             v0.max(v1).max(F::ZERO)
         };
-        if b < vmax && covers(self.distance(b).0) {
-            if v0 == F::ZERO && v1 == F::ZERO {
+        // Rest-to-rest, b = 0 and d(0) = 0.
+        let at_rest = v0 == F::ZERO && v1 == F::ZERO;
+        if b < vmax && (at_rest || covers(self.distance(b))) {
+            if at_rest {
                 return Peak::at(self.rest_to_rest_peak(dist), F::ZERO);
             }
             let room = vmax - b;
@@ -337,7 +380,7 @@ impl<F: Float> Model<F> {
                 } else {
                     top + (bottom - top) * f
                 };
-                if covers(self.distance(p).0) {
+                if covers(self.distance(p)) {
                     let room = prev - p;
                     return Peak {
                         base: p,
@@ -349,7 +392,7 @@ impl<F: Float> Model<F> {
             }
         }
         // Even at -max_velocity the ramps cover too much: cruise backwards.
-        let (d_bottom, _) = self.distance(-vmax);
+        let d_bottom = self.distance(-vmax);
         Peak::at(-vmax, ((d_bottom - dist) / vmax).max(F::ZERO))
     }
 }
@@ -400,21 +443,13 @@ pub fn plan_scurve<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> 
     if dist == F::ZERO && v0 == F::ZERO && v1 == F::ZERO {
         return Ok(Profile::at_rest(req.target));
     }
-    let mut model = Model {
-        vmax,
-        acc,
-        dec,
-        jerk,
-        v0,
-        v1,
-    };
+    let mut model = Model::new(vmax, acc, dec, jerk, v0, v1);
     let mut peak = model.peak(dist);
     if acc != dec && (v0 < F::ZERO || v1 < F::ZERO || peak.x() < F::ZERO) {
         // Part of the motion moves away from the target: use the smaller
         // limit both ways (see the module documentation).
         let m = acc.min(dec);
-        model.acc = m;
-        model.dec = m;
+        model = Model::new(vmax, m, m, jerk, v0, v1);
         peak = model.peak(dist);
     }
     let profile = build(req, &model, peak, dir)?;
@@ -429,6 +464,7 @@ pub fn plan_scurve<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> 
 }
 
 /// Turns a peak into phases, in the caller's frame.
+#[inline]
 pub(crate) fn build<F: Float>(
     req: &Request<F>,
     model: &Model<F>,
@@ -453,7 +489,7 @@ pub(crate) fn build<F: Float>(
     b.constant_acceleration(peak.cruise, F::ZERO, peak.x() * dir);
     b.jerk_ramp(second, req.target_velocity);
     let profile = b.finish(req.target, req.target_velocity);
-    if !profile.representable() {
+    if !req.moderate() && !profile.representable() {
         return Err(PlanError::Unrepresentable);
     }
     Ok(profile)
