@@ -37,6 +37,33 @@ pub enum PlanError {
         /// How far past the target the time-optimal profile would go.
         overshoot: f64,
     },
+    /// The requested duration is shorter than the fastest profile.
+    DurationTooShort {
+        /// The duration asked for (s).
+        requested: f64,
+        /// The time-optimal duration (s).
+        minimum: f64,
+    },
+    /// The requested duration lies in an interval no profile can take:
+    /// longer than the longest profile that cruises towards the target, and
+    /// shorter than the shortest that passes the target and comes back.
+    DurationBlocked {
+        /// The duration asked for (s).
+        requested: f64,
+        /// The blocked interval's start (s).
+        from: f64,
+        /// The blocked interval's end: the shortest feasible duration above it (s).
+        to: f64,
+    },
+    /// The exact-duration search did not find a profile of the requested
+    /// duration. Its grid scan should always find one (none was missed in
+    /// the tests' random sweeps), but the result is checked rather than
+    /// trusted: nothing is returned rather than a profile of another
+    /// duration.
+    DurationNotFound {
+        /// The duration asked for (s).
+        requested: f64,
+    },
     /// A multi-axis call got a different number of output slots than requests.
     AxisCountMismatch {
         /// How many requests.
@@ -69,6 +96,21 @@ impl fmt::Display for PlanError {
                 f,
                 "the target cannot be reached without passing it by {overshoot}, and overshoot is forbidden"
             ),
+            Self::DurationTooShort { requested, minimum } => write!(
+                f,
+                "a duration of {requested} s is shorter than the fastest profile, {minimum} s"
+            ),
+            Self::DurationBlocked {
+                requested,
+                from,
+                to,
+            } => write!(
+                f,
+                "no profile takes {requested} s: durations between {from} s and {to} s are infeasible for this move"
+            ),
+            Self::DurationNotFound { requested } => {
+                write!(f, "no profile of {requested} s was found for this move")
+            }
             Self::AxisCountMismatch { requests, profiles } => write!(
                 f,
                 "{requests} request(s) but room for {profiles} profile(s)"

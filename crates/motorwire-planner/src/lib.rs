@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 #![no_std]
 
+mod duration;
 mod error;
 mod float;
 mod plan;
@@ -10,6 +11,9 @@ mod scurve;
 mod sync;
 mod trapezoid;
 
+pub use duration::{
+    MAX_DURATION_ITERATIONS, minimum_duration, plan_with_duration, synchronize_time,
+};
 pub use error::PlanError;
 pub use float::Float;
 pub use plan::plan;

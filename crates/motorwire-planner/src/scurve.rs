@@ -193,6 +193,11 @@ impl<F: Float> Model<F> {
         }
     }
 
+    /// The time of the two ramps through peak `x`, without cruise.
+    pub(crate) fn ramps_duration(&self, x: F) -> F {
+        self.ramp_duration(x - self.v0) + self.ramp_duration(self.v1 - x)
+    }
+
     /// The distance the two ramps through peak `x` cover (without the
     /// derivative [`Self::distance_from`] also gives).
     #[inline]
@@ -443,15 +448,7 @@ pub fn plan_scurve<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> 
     if dist == F::ZERO && v0 == F::ZERO && v1 == F::ZERO {
         return Ok(Profile::at_rest(req.target));
     }
-    let mut model = Model::new(vmax, acc, dec, jerk, v0, v1);
-    let mut peak = model.peak(dist);
-    if acc != dec && (v0 < F::ZERO || v1 < F::ZERO || peak.x() < F::ZERO) {
-        // Part of the motion moves away from the target: use the smaller
-        // limit both ways (see the module documentation).
-        let m = acc.min(dec);
-        model = Model::new(vmax, m, m, jerk, v0, v1);
-        peak = model.peak(dist);
-    }
+    let (model, peak) = solve(dist, v0, v1, vmax, acc, dec, jerk);
     let profile = build(req, &model, peak, dir)?;
     if req.overshoot == Overshoot::Forbid
         && let Some(by) = profile.overshoot()
@@ -461,6 +458,30 @@ pub fn plan_scurve<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> 
         });
     }
     Ok(profile)
+}
+
+/// The model and time-optimal peak of a forward move: with `acc` and `dec`
+/// as given, unless part of the motion moves away from the target and they
+/// differ; then with the smaller of the two both ways (see the module
+/// documentation). `jerk` may be infinite (trapezoidal ramps).
+pub(crate) fn solve<F: Float>(
+    dist: F,
+    v0: F,
+    v1: F,
+    vmax: F,
+    acc: F,
+    dec: F,
+    jerk: F,
+) -> (Model<F>, Peak<F>) {
+    let model = Model::new(vmax, acc, dec, jerk, v0, v1);
+    let peak = model.peak(dist);
+    if acc != dec && (v0 < F::ZERO || v1 < F::ZERO || peak.x() < F::ZERO) {
+        let m = acc.min(dec);
+        let model = Model::new(vmax, m, m, jerk, v0, v1);
+        let peak = model.peak(dist);
+        return (model, peak);
+    }
+    (model, peak)
 }
 
 /// Turns a peak into phases, in the caller's frame.
@@ -484,7 +505,13 @@ pub(crate) fn build<F: Float>(
             return Err(PlanError::Unrepresentable);
         }
     }
-    let mut b = Builder::new(req.start, req.start_velocity, model.jerk);
+    // A model with unbounded jerk (trapezoidal) builds no jerk phases.
+    let jerk = if model.jerk.is_finite() {
+        model.jerk
+    } else {
+        F::ZERO
+    };
+    let mut b = Builder::new(req.start, req.start_velocity, jerk);
     b.jerk_ramp(first, peak.x() * dir);
     b.constant_acceleration(peak.cruise, F::ZERO, peak.x() * dir);
     b.jerk_ramp(second, req.target_velocity);
