@@ -9,6 +9,7 @@ mod demo;
 mod input;
 mod irpc;
 mod lines;
+mod plan;
 mod validate;
 
 /// Typed, validated, safe messages between the software that decides a
@@ -28,6 +29,9 @@ enum Command {
     Irpc(irpc::Args),
     /// Encode and decode the 24-byte WIA compact command.
     Compact(compact::Args),
+    /// Plan motion profiles: JSON move requests in, one JSON line (or CSV
+    /// samples, or an SVG plot) out per move.
+    Plan(plan::Args),
     /// Walk through the WIA document's example messages, validating each.
     Demo(demo::Args),
 }
@@ -38,6 +42,7 @@ fn main() -> ExitCode {
         Command::Validate(args) => validate::run(&args),
         Command::Irpc(args) => irpc::run(&args),
         Command::Compact(args) => compact::run(&args),
+        Command::Plan(args) => plan::run(&args),
         Command::Demo(args) => demo::run(&args),
     };
     ExitCode::from(status)

@@ -407,8 +407,8 @@ impl<F: Float> Model<F> {
 /// deceleration and jerk limits, non-zero start and target velocities, a
 /// start velocity above the limit (braked first), and moves that must pass
 /// the target (planned with overshoot, or refused under
-/// [`Overshoot::Forbid`]). See the [module documentation](crate#s-curve)
-/// for the method.
+/// [`Overshoot::Forbid`]). The crate README's "S-curve method" section
+/// describes how.
 ///
 /// ```
 /// use motorwire_planner::{Request, plan_scurve};
