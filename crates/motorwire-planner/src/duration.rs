@@ -16,7 +16,7 @@
 //! ulps wide.
 
 use crate::scurve::{Model, Peak, build, solve};
-use crate::{Float, MotionProfile, PlanError, Profile, Request};
+use crate::{Float, PlanError, Profile, Request};
 
 /// The most bisection steps exact-duration planning takes per search.
 pub const MAX_DURATION_ITERATIONS: u32 = 200;
@@ -31,12 +31,7 @@ fn model<F: Float>(
     v1: F,
 ) -> Result<(Model<F>, Peak<F>), PlanError> {
     let (vmax, acc, dec) = req.limits()?;
-    let scurve = match req.profile {
-        MotionProfile::Trapezoidal => false,
-        MotionProfile::SCurve => true,
-        MotionProfile::Adaptive => req.max_jerk.is_some_and(|j| j > F::ZERO || !j.is_finite()),
-    };
-    let jerk = if scurve {
+    let jerk = if req.wants_scurve() {
         req.jerk()?
     } else {
         F::from_f64(f64::INFINITY)
@@ -53,13 +48,7 @@ fn model<F: Float>(
 /// # Errors
 /// The request's own errors.
 pub fn minimum_duration<F: Float>(req: &Request<F>) -> Result<F, PlanError> {
-    let distance = req.target - req.start;
-    let dir = if distance < F::ZERO { -F::ONE } else { F::ONE };
-    let (dist, v0, v1) = (
-        distance * dir,
-        req.start_velocity * dir,
-        req.target_velocity * dir,
-    );
+    let (_, dist, v0, v1) = req.forward_frame();
     let (m, peak) = model(req, dist, v0, v1)?;
     if dist == F::ZERO && v0 == F::ZERO && v1 == F::ZERO {
         return Ok(F::ZERO);
@@ -269,13 +258,7 @@ pub fn plan_with_duration<F: Float>(
     if !duration.is_finite() {
         return Err(PlanError::NonFinite { field: "duration" });
     }
-    let distance = req.target - req.start;
-    let dir = if distance < F::ZERO { -F::ONE } else { F::ONE };
-    let (dist, v0, v1) = (
-        distance * dir,
-        req.start_velocity * dir,
-        req.target_velocity * dir,
-    );
+    let (dir, dist, v0, v1) = req.forward_frame();
     let (m, peak) = model(req, dist, v0, v1)?;
     if dist == F::ZERO && v0 == F::ZERO && v1 == F::ZERO {
         // Nothing moves: at rest for as long as asked.

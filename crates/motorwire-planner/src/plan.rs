@@ -1,6 +1,6 @@
 //! One entry point for every kind of profile.
 
-use crate::{Float, MotionProfile, PlanError, Profile, Request, plan_scurve, plan_trapezoidal};
+use crate::{Float, PlanError, Profile, Request, plan_scurve, plan_trapezoidal};
 
 /// Plans `req` with the profile it asks for: [`plan_trapezoidal`] or
 /// [`plan_scurve`]; [`MotionProfile::Adaptive`] is an S-curve when
@@ -18,12 +18,9 @@ use crate::{Float, MotionProfile, PlanError, Profile, Request, plan_scurve, plan
 /// # Errors
 /// Those of [`plan_trapezoidal`] or [`plan_scurve`].
 pub fn plan<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> {
-    match req.profile {
-        MotionProfile::Trapezoidal => plan_trapezoidal(req),
-        MotionProfile::SCurve => plan_scurve(req),
-        MotionProfile::Adaptive => match req.max_jerk {
-            Some(j) if j > F::ZERO => plan_scurve(req),
-            _ => plan_trapezoidal(req),
-        },
+    if req.wants_scurve() {
+        plan_scurve(req)
+    } else {
+        plan_trapezoidal(req)
     }
 }

@@ -193,6 +193,31 @@ impl<F: Float> Request<F> {
             && self.max_jerk.is_none_or(limit)
     }
 
+    /// Whether [`plan`](crate::plan) builds an S-curve: asked for, or
+    /// `Adaptive` with a jerk limit that is positive (or not finite, so that
+    /// the S-curve planner refuses it by name rather than it being ignored).
+    pub(crate) fn wants_scurve(&self) -> bool {
+        match self.profile {
+            MotionProfile::Trapezoidal => false,
+            MotionProfile::SCurve => true,
+            MotionProfile::Adaptive => self.max_jerk.is_some_and(|j| j > F::ZERO || !j.is_finite()),
+        }
+    }
+
+    /// The move in the frame where it goes forward: `(dir, distance,
+    /// start_velocity, target_velocity)` with `dir = ±1` and `distance >= 0`
+    /// (a zero-length move counts as forward).
+    pub(crate) fn forward_frame(&self) -> (F, F, F, F) {
+        let distance = self.target - self.start;
+        let dir = if distance < F::ZERO { -F::ONE } else { F::ONE };
+        (
+            dir,
+            distance * dir,
+            self.start_velocity * dir,
+            self.target_velocity * dir,
+        )
+    }
+
     /// The jerk limit, checked: present, finite and positive.
     pub(crate) fn jerk(&self) -> Result<F, PlanError> {
         let Some(j) = self.max_jerk else {

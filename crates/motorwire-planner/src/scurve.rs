@@ -435,13 +435,7 @@ impl<F: Float> Model<F> {
 pub fn plan_scurve<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> {
     let (vmax, acc, dec) = req.limits()?;
     let jerk = req.jerk()?;
-    let distance = req.target - req.start;
-    let dir = if distance < F::ZERO { -F::ONE } else { F::ONE };
-    let (dist, v0, v1) = (
-        distance * dir,
-        req.start_velocity * dir,
-        req.target_velocity * dir,
-    );
+    let (dir, dist, v0, v1) = req.forward_frame();
     if !dist.is_finite() {
         return Err(PlanError::Unrepresentable);
     }

@@ -165,14 +165,7 @@ fn forward<F: Float>(
 /// [`PlanError::Unrepresentable`] when finite inputs give a non-finite profile.
 pub fn plan_trapezoidal<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> {
     let (vmax, acc, dec) = req.limits()?;
-    let distance = req.target - req.start;
-    // Work in the frame where the move goes forward.
-    let dir = if distance < F::ZERO { -F::ONE } else { F::ONE };
-    let (dist, v0, v1) = (
-        distance * dir,
-        req.start_velocity * dir,
-        req.target_velocity * dir,
-    );
+    let (dir, dist, v0, v1) = req.forward_frame();
     let (pieces, sign) = match forward(dist, v0, v1, vmax, acc, dec, false) {
         Some(p) => (p, dir),
         None => match forward(-dist, -v0, -v1, vmax, acc, dec, false) {

@@ -11,7 +11,7 @@
 
 mod common;
 
-use common::Rng;
+use common::{Rng, cases};
 use motorwire_planner::*;
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
@@ -226,6 +226,9 @@ fn invalid_requests_name_the_field() {
 
 // ---- a seeded random sweep ------------------------------------------------
 
+/// Like the trapezoidal sweep's moves, with a jerk limit from 0.1 to 3e7
+/// drawn after the deceleration (this draw order is the seeded sequence the
+/// f32 sweep below was validated on; see `an_f32_valley_root_found_loosely`).
 fn random_request(rng: &mut Rng) -> Request<f64> {
     let vmax = rng.log_uniform(-3.0, 3.0);
     let acc = rng.log_uniform(-2.0, 5.0);
@@ -255,11 +258,24 @@ fn random_request(rng: &mut Rng) -> Request<f64> {
         .with_jerk(jerk)
 }
 
-fn cases() -> usize {
-    std::env::var("MOTORWIRE_PLANNER_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(100_000)
+/// Found in review: in f32 this move (its start velocity needs an
+/// overshoot; the peak is a valley root) ends 4.2e-5 from the target, over
+/// the 1e-5 the f32 sweep allows; f64 is exact. Known defect, kept here
+/// until the f32 valley root search is tightened.
+#[test]
+#[ignore = "known f32 precision defect in the valley root search"]
+fn an_f32_valley_root_found_loosely() {
+    let req = Request::new(-0.937_203_2f32, -0.774_314_17, 760.7563, 12.356_769)
+        .with_max_deceleration(0.447_968_75)
+        .with_velocities(0.666_196_7, 0.0)
+        .with_jerk(2.528_546_8);
+    let p = plan_scurve(&req).unwrap();
+    let last = p.phases().last().unwrap();
+    let (d, s) = (f64::from(last.duration), last.start);
+    let end = f64::from(s.position)
+        + d * (f64::from(s.velocity)
+            + d * (f64::from(s.acceleration) / 2.0 + d * f64::from(s.jerk) / 6.0));
+    assert!((end - f64::from(req.target)).abs() <= 1e-5, "{end}");
 }
 
 #[test]
@@ -296,18 +312,7 @@ fn f32_profiles_end_within_relative_1e_5() {
     let mut rng = Rng(0x6633_3220_5343_7276);
     for _ in 0..20_000 {
         let r = random_request(&mut rng);
-        let req = Request::<f32> {
-            start: r.start as f32,
-            target: r.target as f32,
-            start_velocity: r.start_velocity as f32,
-            target_velocity: r.target_velocity as f32,
-            max_velocity: r.max_velocity as f32,
-            max_acceleration: r.max_acceleration as f32,
-            max_deceleration: r.max_deceleration.map(|d| d as f32),
-            max_jerk: r.max_jerk.map(|j| j as f32),
-            profile: MotionProfile::SCurve,
-            overshoot: Overshoot::Allow,
-        };
+        let req = common::to_f32(&r);
         let p = match plan_scurve(&req) {
             Ok(p) => p,
             Err(PlanError::TargetVelocityTooHigh { .. }) => continue, // rounding to f32

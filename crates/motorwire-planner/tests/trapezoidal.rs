@@ -10,7 +10,7 @@
 
 mod common;
 
-use common::Rng;
+use common::{Rng, cases, random_request};
 use motorwire_planner::*;
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
@@ -238,33 +238,6 @@ fn ticks_cover_the_move_without_drift() {
 
 // ---- a seeded random sweep ------------------------------------------------
 
-fn random_request(rng: &mut Rng) -> Request<f64> {
-    let vmax = rng.log_uniform(-3.0, 3.0);
-    let acc = rng.log_uniform(-2.0, 5.0);
-    let dec = if rng.next().is_multiple_of(3) {
-        acc
-    } else {
-        rng.log_uniform(-2.0, 5.0)
-    };
-    let start = rng.signed() * rng.log_uniform(-3.0, 3.0);
-    let dist = match rng.next() % 10 {
-        0 => 0.0,
-        _ => rng.signed() * rng.log_uniform(-6.0, 4.0),
-    };
-    let v0 = match rng.next() % 4 {
-        0 => 0.0,
-        1 => rng.signed() * vmax * 2.0 * rng.unit(),
-        _ => rng.signed() * vmax * rng.unit(),
-    };
-    let v1 = match rng.next() % 3 {
-        0 => 0.0,
-        _ => rng.signed() * vmax * rng.unit(),
-    };
-    Request::new(start, start + dist, vmax, acc)
-        .with_max_deceleration(dec)
-        .with_velocities(v0, v1)
-}
-
 /// The time-optimal rest-to-rest duration, derived independently.
 fn rest_to_rest_duration(dist: f64, vmax: f64, acc: f64, dec: f64) -> f64 {
     let c = 0.5 / acc + 0.5 / dec;
@@ -340,13 +313,6 @@ fn check(req: &Request<f64>, p: &Profile<f64>) {
     );
 }
 
-fn cases() -> usize {
-    std::env::var("MOTORWIRE_PLANNER_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(100_000)
-}
-
 #[test]
 fn random_requests_respect_every_limit_and_end_exactly() {
     let mut rng = Rng(0x7472_6170_657a_6f69);
@@ -393,18 +359,7 @@ fn f32_profiles_end_within_relative_1e_5() {
     let mut rng = Rng(0x6633_3220_7461_7065);
     for _ in 0..20_000 {
         let r = random_request(&mut rng);
-        let req = Request::<f32> {
-            start: r.start as f32,
-            target: r.target as f32,
-            start_velocity: r.start_velocity as f32,
-            target_velocity: r.target_velocity as f32,
-            max_velocity: r.max_velocity as f32,
-            max_acceleration: r.max_acceleration as f32,
-            max_deceleration: r.max_deceleration.map(|d| d as f32),
-            max_jerk: None,
-            profile: MotionProfile::Trapezoidal,
-            overshoot: Overshoot::Allow,
-        };
+        let req = common::to_f32(&r);
         let p = plan_trapezoidal(&req).unwrap();
         let ((lo, _), (hi, _)) = p.position_extremes();
         let extent = f64::from(

@@ -37,6 +37,61 @@ impl Rng {
     }
 }
 
+/// How many random cases a sweep runs: `MOTORWIRE_PLANNER_CASES`, or
+/// 100,000 (CI runs a million in release).
+pub fn cases() -> usize {
+    std::env::var("MOTORWIRE_PLANNER_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(100_000)
+}
+
+/// A random move: limits over many decades, separate deceleration two
+/// times in three, a zero move one time in ten, start velocities up to
+/// twice the limit, either direction.
+pub fn random_request(rng: &mut Rng) -> Request<f64> {
+    let vmax = rng.log_uniform(-3.0, 3.0);
+    let acc = rng.log_uniform(-2.0, 5.0);
+    let dec = if rng.next().is_multiple_of(3) {
+        acc
+    } else {
+        rng.log_uniform(-2.0, 5.0)
+    };
+    let start = rng.signed() * rng.log_uniform(-3.0, 3.0);
+    let dist = match rng.next() % 10 {
+        0 => 0.0,
+        _ => rng.signed() * rng.log_uniform(-6.0, 4.0),
+    };
+    let v0 = match rng.next() % 4 {
+        0 => 0.0,
+        1 => rng.signed() * vmax * 2.0 * rng.unit(),
+        _ => rng.signed() * vmax * rng.unit(),
+    };
+    let v1 = match rng.next() % 3 {
+        0 => 0.0,
+        _ => rng.signed() * vmax * rng.unit(),
+    };
+    Request::new(start, start + dist, vmax, acc)
+        .with_max_deceleration(dec)
+        .with_velocities(v0, v1)
+}
+
+/// The same request in f32 (each field rounded to nearest).
+pub fn to_f32(r: &Request<f64>) -> Request<f32> {
+    Request {
+        start: r.start as f32,
+        target: r.target as f32,
+        start_velocity: r.start_velocity as f32,
+        target_velocity: r.target_velocity as f32,
+        max_velocity: r.max_velocity as f32,
+        max_acceleration: r.max_acceleration as f32,
+        max_deceleration: r.max_deceleration.map(|d| d as f32),
+        max_jerk: r.max_jerk.map(|j| j as f32),
+        profile: r.profile,
+        overshoot: r.overshoot,
+    }
+}
+
 /// Checks a jerk-limited profile against its request, phase by phase,
 /// analytically: jerk in {-J, 0, J}; acceleration within max_acceleration
 /// towards the target and max_deceleration away from it (and, where the
