@@ -3,7 +3,7 @@
 use crate::{Float, PlanError, Profile, Request, plan_scurve, plan_trapezoidal};
 
 /// Plans `req` with the profile it asks for: [`plan_trapezoidal`] or
-/// [`plan_scurve`]; [`MotionProfile::Adaptive`] is an S-curve when
+/// [`plan_scurve`]; [`MotionProfile::Adaptive`](crate::MotionProfile::Adaptive) is an S-curve when
 /// `max_jerk` is given and positive, trapezoidal otherwise.
 ///
 /// ```
