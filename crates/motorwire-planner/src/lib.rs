@@ -3,6 +3,8 @@
 
 mod duration;
 mod error;
+#[cfg(feature = "fixed")]
+pub mod fixed_point;
 mod float;
 mod plan;
 mod profile;
