@@ -274,7 +274,9 @@ pub fn plan_with_duration<F: Float>(
         });
     }
     if duration <= minimum + tol {
-        return finish(req, build(req, &m, peak, dir)?);
+        let mut profile = Profile::at_rest(req.target);
+        build(req, &m, peak, dir, &mut profile)?;
+        return finish(req, profile);
     }
     // Cruising backwards moves away from the target: with different
     // acceleration and deceleration limits, the smaller bounds both ways.
@@ -301,7 +303,8 @@ pub fn plan_with_duration<F: Float>(
     };
     let m = if vc < F::ZERO { m_backward } else { m };
     let cruise = ((dist - m.distance(vc)) / vc).max(F::ZERO);
-    let profile = build(req, &m, Peak::at(vc, cruise), dir)?;
+    let mut profile = Profile::at_rest(req.target);
+    build(req, &m, Peak::at(vc, cruise), dir, &mut profile)?;
     // The search assumes the duration is monotone in the cruise velocity
     // within each family; where it is not (some moves starting away from
     // the target), the result is checked rather than trusted.

@@ -59,6 +59,7 @@ pub struct Profile<F> {
 
 impl<F: Float> Profile<F> {
     /// A profile that stays at rest at `position`.
+    #[inline]
     pub fn at_rest(position: F) -> Self {
         Self {
             durations: [F::ZERO; MAX_PHASES],
@@ -369,14 +370,17 @@ pub(crate) struct RampShape<F> {
 
 /// Builds a profile phase by phase from a start state, integrating each
 /// phase's end state as the next one's start.
-pub(crate) struct Builder<F> {
-    profile: Profile<F>,
+pub(crate) struct Builder<'a, F> {
+    profile: &'a mut Profile<F>,
     state: State<F>,
 }
 
-impl<F: Float> Builder<F> {
-    pub(crate) fn new(position: F, velocity: F, jerk: F) -> Self {
-        let mut profile = Profile::at_rest(position);
+impl<'a, F: Float> Builder<'a, F> {
+    /// Starts writing `profile` in place (a profile is 256 bytes in f64:
+    /// building it where it will be returned saves copying it).
+    #[inline]
+    pub(crate) fn new(profile: &'a mut Profile<F>, position: F, velocity: F, jerk: F) -> Self {
+        *profile = Profile::at_rest(position);
         profile.jerk = jerk;
         Self {
             profile,
@@ -391,7 +395,7 @@ impl<F: Float> Builder<F> {
 
     /// Appends a phase of `duration` with start acceleration `a` and jerk
     /// sign `sign` (-1, 0, 1); phases of zero duration are dropped.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn phase(&mut self, duration: F, a: F, sign: i8) {
         // Drops zero, negative and NaN durations alike.
         if duration.partial_cmp(&F::ZERO) != Some(core::cmp::Ordering::Greater) {
@@ -451,7 +455,7 @@ impl<F: Float> Builder<F> {
     /// direction of the change). The next phase starts from `vb` and from
     /// the position `p + (va + vb) T / 2`, exact for this point-symmetric
     /// shape, rather than from re-integrated, rounded products.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn jerk_ramp(&mut self, shape: RampShape<F>, vb: F) {
         let start = self.state;
         let before = self.profile.count;
@@ -468,9 +472,9 @@ impl<F: Float> Builder<F> {
     }
 
     /// Finishes with the exact end state the planner was asked for.
-    pub(crate) fn finish(mut self, position: F, velocity: F) -> Profile<F> {
+    #[inline]
+    pub(crate) fn finish(self, position: F, velocity: F) {
         self.profile.end_position = position;
         self.profile.end_velocity = velocity;
-        self.profile
     }
 }

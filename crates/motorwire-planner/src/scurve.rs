@@ -19,9 +19,12 @@
 //!    (closed form).
 //! 2. Otherwise, from `b = max(v0, v1, 0)` up, `d` increases. Rest-to-rest,
 //!    the root is closed form in each saturation regime: both ramps short
-//!    (`x = cbrt(D² J / 4)`), both reaching the limits (a quadratic, solved
-//!    without cancellation); a mixed regime and non-zero velocities use the
-//!    bounded root search below, bracketed by the two closed forms.
+//!    (`x = cbrt(D² J / 4)`), both reaching the limits (a quadratic), one
+//!    reaching its limit `L` and the other not (`d` is then a perfect
+//!    square in `u = sqrt(x)`, which leaves the quadratic
+//!    `u² + u L/sqrt(J) = sqrt(2 L D)`); quadratics are solved without
+//!    cancellation. Non-zero velocities use the bounded root search below,
+//!    bracketed by the saturated closed form.
 //! 3. Below `b` (the target is too close for the boundary velocities: brake
 //!    to a lower velocity, or back up, or pass the target), the largest
 //!    root is found by scanning at most [`SCAN_POINTS`] points downwards,
@@ -265,8 +268,7 @@ impl<F: Float> Model<F> {
         x
     }
 
-    /// The rest-to-rest peak below `max_velocity`: closed form unless the
-    /// two ramps are in different regimes.
+    /// The rest-to-rest peak below `max_velocity`, in closed form.
     fn rest_to_rest_peak(&self, dist: F) -> F {
         let (s_acc, s_dec) = (
             self.acc * self.acc * self.inv_jerk,
@@ -282,17 +284,15 @@ impl<F: Float> Model<F> {
         if long >= s_hi {
             return long;
         }
-        // The two closed forms bracket the root; rounding could move them
-        // past it, so each is checked before it narrows the bracket.
-        let mut lo = long.max(s_lo).min(self.vmax);
-        if self.distance(lo) > dist {
-            lo = F::ZERO;
-        }
-        let mut hi = short.min(s_hi).min(self.vmax).max(lo);
-        if self.distance(hi) < dist {
-            hi = self.vmax;
-        }
-        self.root(F::ZERO, lo, hi, hi, dist)
+        // Mixed: the ramp with the smaller limit L reaches it, the other
+        // does not. With u = sqrt(x), d = u⁴/2L + u³/sqrt(J) + u² L/2J =
+        // (u²/sqrt(2L) + u sqrt(L/2J))², so u² + u L/sqrt(J) = sqrt(2 L d):
+        // a quadratic, solved without cancellation.
+        let lim = self.acc.min(self.dec);
+        let p = lim * self.inv_jerk.sqrt();
+        let q = (F::TWO * lim * dist).sqrt();
+        let u = F::TWO * q / (p + (p * p + F::from_f64(4.0) * q).sqrt());
+        (u * u).max(s_lo).min(s_hi).min(self.vmax)
     }
 
     /// The peak if both ramps reached their acceleration limits:
@@ -385,11 +385,29 @@ impl<F: Float> Model<F> {
                 } else {
                     top + (bottom - top) * f
                 };
-                if covers(self.distance(p)) {
-                    let room = prev - p;
+                // Between anchors, strictly: a scan point a rounding
+                // error's worth too far would be taken as the root.
+                let d = self.distance(p);
+                if d <= dist || (k == pieces && covers(d)) {
+                    // The peak is kept relative to the nearest exactly
+                    // known velocity (the segment's top or bottom: b,
+                    // min(v0, v1), 0 or -max_velocity), never to a scan
+                    // point in between: a root close to one of them then
+                    // keeps its precision (in f32 above all), whichever
+                    // end it is near.
+                    let (lo, hi) = (p - top, prev - top);
+                    let y = self.root(top, lo, hi, hi, dist);
+                    if k == pieces && y - lo < -y {
+                        let (hi, start) = (prev - bottom, y - lo);
+                        return Peak {
+                            base: bottom,
+                            offset: self.root(bottom, F::ZERO, hi, start.min(hi), dist),
+                            cruise: F::ZERO,
+                        };
+                    }
                     return Peak {
-                        base: p,
-                        offset: self.root(p, F::ZERO, room, room, dist),
+                        base: top,
+                        offset: y,
                         cruise: F::ZERO,
                     };
                 }
@@ -443,7 +461,8 @@ pub fn plan_scurve<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> 
         return Ok(Profile::at_rest(req.target));
     }
     let (model, peak) = solve(dist, v0, v1, vmax, acc, dec, jerk);
-    let profile = build(req, &model, peak, dir)?;
+    let mut profile = Profile::at_rest(req.target);
+    build(req, &model, peak, dir, &mut profile)?;
     if req.overshoot == Overshoot::Forbid
         && let Some(by) = profile.overshoot()
     {
@@ -478,14 +497,15 @@ pub(crate) fn solve<F: Float>(
     (model, peak)
 }
 
-/// Turns a peak into phases, in the caller's frame.
-#[inline]
+/// Turns a peak into phases, in the caller's frame, written into `profile`.
+#[inline(always)]
 pub(crate) fn build<F: Float>(
     req: &Request<F>,
     model: &Model<F>,
     peak: Peak<F>,
     dir: F,
-) -> Result<Profile<F>, PlanError> {
+    profile: &mut Profile<F>,
+) -> Result<(), PlanError> {
     let first = model.shape((peak.base - model.v0) + peak.offset, dir);
     let second = model.shape((model.v1 - peak.base) - peak.offset, dir);
     for t in [
@@ -505,13 +525,13 @@ pub(crate) fn build<F: Float>(
     } else {
         F::ZERO
     };
-    let mut b = Builder::new(req.start, req.start_velocity, jerk);
+    let mut b = Builder::new(profile, req.start, req.start_velocity, jerk);
     b.jerk_ramp(first, peak.x() * dir);
     b.constant_acceleration(peak.cruise, F::ZERO, peak.x() * dir);
     b.jerk_ramp(second, req.target_velocity);
-    let profile = b.finish(req.target, req.target_velocity);
+    b.finish(req.target, req.target_velocity);
     if !req.moderate() && !profile.representable() {
         return Err(PlanError::Unrepresentable);
     }
-    Ok(profile)
+    Ok(())
 }

@@ -87,7 +87,7 @@ pub fn synchronize_phases<F: Float>(
             *slot = Profile::at_rest(req.start);
             continue;
         }
-        let mut builder = Builder::new(req.start, F::ZERO, F::ZERO);
+        let mut builder = Builder::new(slot, req.start, F::ZERO, F::ZERO);
         let phases = unit.phases();
         let mut previous: Option<crate::Phase<F>> = None;
         for ph in phases {
@@ -105,11 +105,10 @@ pub fn synchronize_phases<F: Float>(
             // The last phase ends at rest, exactly.
             builder.constant_acceleration(last.duration, last.start.acceleration * d, F::ZERO);
         }
-        let profile = builder.finish(req.target, F::ZERO);
-        if !profile.representable() {
+        builder.finish(req.target, F::ZERO);
+        if !slot.representable() {
             return Err(PlanError::Unrepresentable);
         }
-        *slot = profile;
     }
     Ok(unit.duration())
 }

@@ -178,7 +178,8 @@ pub fn plan_trapezoidal<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanEr
             },
         },
     };
-    let mut b = Builder::new(req.start, req.start_velocity, F::ZERO);
+    let mut profile = Profile::at_rest(req.target);
+    let mut b = Builder::new(&mut profile, req.start, req.start_velocity, F::ZERO);
     for i in 0..pieces.len.min(PIECES) {
         let (Some(a), Some(d), Some(v)) = (
             pieces.accel.get(i),
@@ -192,7 +193,7 @@ pub fn plan_trapezoidal<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanEr
         }
         b.constant_acceleration(*d, *a * sign, *v * sign);
     }
-    let profile = b.finish(req.target, req.target_velocity);
+    b.finish(req.target, req.target_velocity);
     if !profile.representable() {
         return Err(PlanError::Unrepresentable);
     }
