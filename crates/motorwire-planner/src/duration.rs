@@ -95,14 +95,179 @@ enum Search<F> {
 /// without bound.
 const GRID: i32 = 64;
 
+/// The number of equal sub-cells a cell is cut into when its durations
+/// span the request but bisection across it misses (the duration is not
+/// monotone there, or the cruise is infeasible inside it).
+const SUB_CELLS: i32 = 32;
+
+/// The relative tolerance a found duration must meet.
+fn met<F: Float>(t: F, duration: F) -> bool {
+    (t - duration).abs() <= F::from_f64(1e-9) * duration
+}
+
+/// The scan over one family of profiles (forward or backward cruises).
+struct Scan<'a, F> {
+    m: &'a Model<F>,
+    dist: F,
+    duration: F,
+    forward: bool,
+    /// The longest duration reached so far by the durations scanned, in
+    /// order: a request above it and below the next feasible duration is
+    /// blocked.
+    reached: F,
+}
+
+impl<F: Float> Scan<'_, F> {
+    fn duration_at(&self, vc: F) -> Option<F> {
+        if vc == F::ZERO {
+            None
+        } else {
+            duration_at(self.m, self.dist, vc)
+        }
+    }
+
+    /// Whether cruising at `vc` takes the requested duration, as
+    /// [`plan_with_duration`] builds it: a cruise negative by a rounding
+    /// error (at the feasibility boundary) counts as none. The ramps'
+    /// distance is a sum of terms up to the largest speed times their
+    /// duration, which may cancel, so its rounding error scales with
+    /// those, not with the distance.
+    fn found(&self, vc: F) -> bool {
+        if vc == F::ZERO {
+            return false;
+        }
+        let ramps = self.m.ramps_duration(vc);
+        let gap = self.dist - self.m.distance(vc);
+        let speed = vc.abs() + self.m.v0.abs() + self.m.v1.abs();
+        let rounding = F::from_f64(64.0) * F::EPSILON * (self.dist.abs() + speed * ramps);
+        let cruise = gap / vc;
+        (cruise >= F::ZERO || gap.abs() <= rounding)
+            && met(ramps + cruise.max(F::ZERO), self.duration)
+    }
+
+    /// A blocked interval, if `duration` lies between what was reached and
+    /// `lo`, the shortest duration of the cell at hand.
+    fn blocked(&self, lo: F) -> Option<Search<F>> {
+        (lo > self.reached && self.duration > self.reached && self.duration < lo).then_some(
+            Search::Blocked {
+                from: self.reached,
+                to: lo,
+            },
+        )
+    }
+
+    /// The cell between `prev` and `next` (`|next| < |prev|`), with the
+    /// durations at both ends (`None`: the cruise is infeasible there).
+    /// `refine` cuts a cell that spans the request but whose bisection
+    /// misses into [`SUB_CELLS`] cells, once.
+    fn cell(
+        &mut self,
+        (prev, t_prev): (F, Option<F>),
+        (next, t_next): (F, Option<F>),
+        refine: bool,
+    ) -> Option<Search<F>> {
+        let (m, dist, duration) = (self.m, self.dist, self.duration);
+        let (lo, hi, vc) = match (t_prev, t_next) {
+            (Some(a), Some(b)) => {
+                let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+                if let Some(b) = self.blocked(lo) {
+                    return Some(b);
+                }
+                if duration < lo || duration > hi {
+                    self.reached = self.reached.max(hi);
+                    return None;
+                }
+                let g = |vc: F| self.duration_at(vc).map(|t| t - duration);
+                let vc = if self.forward {
+                    bisect(next, prev, a > b, g)
+                } else {
+                    bisect(prev, next, a < b, g)
+                };
+                (lo, hi, vc)
+            }
+            (Some(a), None) | (None, Some(a)) => {
+                // The feasibility boundary, where the cruise vanishes.
+                let (lo_v, hi_v) = if prev < next {
+                    (prev, next)
+                } else {
+                    (next, prev)
+                };
+                let feasible_low = lo_v != F::ZERO && duration_at(m, dist, lo_v).is_some();
+                // Forward, the cruise is feasible where d <= dist; backward,
+                // where d >= dist.
+                let c = bisect(lo_v, hi_v, feasible_low == self.forward, |vc| {
+                    Some(m.distance(vc) - dist)
+                });
+                let tc = m.ramps_duration(c);
+                let (lo, hi) = if a <= tc { (a, tc) } else { (tc, a) };
+                if let Some(b) = self.blocked(lo) {
+                    return Some(b);
+                }
+                if duration < lo || duration > hi {
+                    self.reached = self.reached.max(hi);
+                    return None;
+                }
+                let g = |vc: F| {
+                    Some(
+                        m.ramps_duration(vc) + ((dist - m.distance(vc)) / vc).max(F::ZERO)
+                            - duration,
+                    )
+                };
+                let feasible = if t_prev.is_some() { prev } else { next };
+                let (x0, x1) = if feasible < c {
+                    (feasible, c)
+                } else {
+                    (c, feasible)
+                };
+                let rising = g(x1).unwrap_or(F::ZERO) > g(x0).unwrap_or(F::ZERO);
+                (lo, hi, bisect(x0, x1, rising, g))
+            }
+            (None, None) => {
+                if !refine {
+                    return None;
+                }
+                // An island of feasible cruises may lie inside (where the
+                // ramps change direction); only a finer scan can tell.
+                (self.reached, self.reached, F::ZERO)
+            }
+        };
+        if vc != F::ZERO && self.found(vc) {
+            return Some(Search::Found(vc));
+        }
+        if refine {
+            let mut p = (prev, t_prev);
+            for i in 1..=SUB_CELLS {
+                let n = if i == SUB_CELLS {
+                    (next, t_next)
+                } else {
+                    #[allow(clippy::cast_precision_loss)]
+                    let f = F::from_f64(f64::from(i) / f64::from(SUB_CELLS));
+                    let v = prev + (next - prev) * f;
+                    (v, self.duration_at(v))
+                };
+                if let Some(s) = self.cell(p, n, false) {
+                    return Some(s);
+                }
+                p = n;
+            }
+            return None;
+        }
+        self.reached = self.reached.max(hi).max(lo);
+        None
+    }
+}
+
 /// Finds the cruise velocity for `duration`. The durations the profiles
 /// take, in order of increasing duration, are: forward cruises from the
 /// optimal peak `x_opt` down towards 0, then backward cruises from
 /// `-max_velocity` up towards 0. Each family is scanned on a geometric grid
 /// (the cruise is feasible where the ramps cover no more than the
-/// distance); the first cell whose durations span `duration` is bisected.
-/// A gap between the durations reached so far and the next feasible ones
-/// that contains `duration` is a blocked interval.
+/// distance); the first cell whose durations span `duration` is bisected,
+/// and the result checked. Where the duration is not monotone in a cell,
+/// or the cruise is infeasible inside it, the check fails and the cell is
+/// scanned again in [`SUB_CELLS`] equal parts. A gap between the durations
+/// reached so far and the next feasible ones that contains `duration` is a
+/// blocked interval.
 fn search<F: Float>(
     m_forward: &Model<F>,
     m_backward: &Model<F>,
@@ -118,6 +283,13 @@ fn search<F: Float>(
             continue;
         }
         let m = if forward { m_forward } else { m_backward };
+        let mut scan = Scan {
+            m,
+            dist,
+            duration,
+            forward,
+            reached,
+        };
         // Backwards from -max_velocity, or from the optimum when it
         // cruises backwards itself.
         let top = if forward || x_opt < F::ZERO {
@@ -126,12 +298,13 @@ fn search<F: Float>(
             -m.vmax
         };
         // Walk cells [next, prev] with |next| < |prev|, towards 0.
-        let mut prev = top;
-        let mut t_prev = duration_at(m, dist, prev)
-            .or_else(|| (m.distance(prev) == dist).then(|| m.ramps_duration(prev)));
+        let mut prev = (
+            top,
+            duration_at(m, dist, top)
+                .or_else(|| (m.distance(top) == dist).then(|| m.ramps_duration(top))),
+        );
         for k in 1..=GRID {
-            let next = if k == GRID { F::ZERO } else { prev * ratio };
-            let t_next = if k == GRID {
+            let next = if k == GRID {
                 // Towards 0 the duration grows without bound if the cruise
                 // stays feasible: stopping and starting again covers no
                 // more than the distance (forward), or no less (backward).
@@ -141,84 +314,17 @@ fn search<F: Float>(
                 } else {
                     stop_and_go <= F::ZERO
                 };
-                feasible.then(|| F::from_f64(f64::INFINITY))
+                (F::ZERO, feasible.then(|| F::from_f64(f64::INFINITY)))
             } else {
-                duration_at(m, dist, next)
+                let v = prev.0 * ratio;
+                (v, duration_at(m, dist, v))
             };
-            match (t_prev, t_next) {
-                (Some(a), Some(b)) => {
-                    let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
-                    if lo > reached && duration > reached && duration < lo {
-                        return Search::Blocked {
-                            from: reached,
-                            to: lo,
-                        };
-                    }
-                    if duration >= lo && duration <= hi {
-                        let g = |vc: F| {
-                            if vc == F::ZERO {
-                                None
-                            } else {
-                                duration_at(m, dist, vc).map(|t| t - duration)
-                            }
-                        };
-                        // T grows towards 0 velocity in these cells.
-                        let vc = if forward {
-                            bisect(next, prev, a > b, g)
-                        } else {
-                            bisect(prev, next, a < b, g)
-                        };
-                        return Search::Found(vc);
-                    }
-                    reached = reached.max(hi);
-                }
-                (Some(a), None) | (None, Some(a)) => {
-                    // The feasibility boundary, where the cruise vanishes.
-                    let (lo_v, hi_v) = if prev < next {
-                        (prev, next)
-                    } else {
-                        (next, prev)
-                    };
-                    let feasible_low = duration_at(m, dist, lo_v).is_some() && lo_v != F::ZERO;
-                    // Forward, the cruise is feasible where d <= dist; backward,
-                    // where d >= dist.
-                    let c = bisect(lo_v, hi_v, feasible_low == forward, |vc| {
-                        Some(m.distance(vc) - dist)
-                    });
-                    let tc = m.ramps_duration(c);
-                    let (lo, hi) = if a <= tc { (a, tc) } else { (tc, a) };
-                    if lo > reached && duration > reached && duration < lo {
-                        return Search::Blocked {
-                            from: reached,
-                            to: lo,
-                        };
-                    }
-                    if duration >= lo && duration <= hi {
-                        let g = |vc: F| {
-                            Some(
-                                m.ramps_duration(vc) + ((dist - m.distance(vc)) / vc).max(F::ZERO)
-                                    - duration,
-                            )
-                        };
-                        let feasible = if t_prev.is_some() { prev } else { next };
-                        let (x0, x1) = if feasible < c {
-                            (feasible, c)
-                        } else {
-                            (c, feasible)
-                        };
-                        let rising = g(x1).unwrap_or(F::ZERO) > g(x0).unwrap_or(F::ZERO);
-                        return Search::Found(bisect(x0, x1, rising, g));
-                    }
-                    reached = reached.max(hi);
-                }
-                (None, None) => {}
-            }
-            if k == GRID {
-                break;
+            if let Some(s) = scan.cell(prev, next, true) {
+                return s;
             }
             prev = next;
-            t_prev = t_next;
         }
+        reached = scan.reached;
     }
     Search::NotFound
 }

@@ -141,7 +141,9 @@ fn random_durations_are_met_exactly_within_the_limits() {
             Err(PlanError::DurationBlocked { from, to, .. }) => {
                 blocked += 1;
                 assert!(from < t && t < to, "{req:?}: {t} not in ({from}, {to})");
-                let p = plan_with_duration(&req, to).unwrap();
+                let p = plan_with_duration(&req, to).unwrap_or_else(|e| {
+                    panic!("{req:?}: {t} blocked in ({from}, {to}); {to}: {e}")
+                });
                 assert!((p.duration() - to).abs() <= 1e-9 * to);
             }
             Err(PlanError::DurationNotFound { .. }) => {
@@ -191,4 +193,34 @@ fn time_synchronization_finishes_every_axis_together() {
             profiles: 1
         })
     );
+}
+
+/// Found by the random sweep: a fast start (45.9) 10 units from a target
+/// to arrive at 13.2. Cruising just below 45.9 is feasible (durations
+/// 0.3216 to 0.3235), then the ramps cover too much until about 38.3
+/// (0.3285 and up): the island and the gap both lie inside one grid cell,
+/// where bisection alone missed them and gave up (`DurationNotFound`).
+#[test]
+fn an_island_of_feasible_cruises_inside_one_grid_cell() {
+    let req = Request::new(
+        61.840_624_004_799_54,
+        71.879_428_084_425_23,
+        52.233_704_837_910_47,
+        131.282_475_422_712_57,
+    )
+    .with_velocities(45.902_465_852_795_37, 13.151_496_046_487_283)
+    .with_jerk(3_324.035_774_318_906_5);
+    let island = plan_with_duration(&req, 0.3225).unwrap();
+    assert!((island.duration() - 0.3225).abs() < 1e-12);
+    common::check_scurve(&req, &island);
+    match plan_with_duration(&req, 0.3257) {
+        Err(PlanError::DurationBlocked { from, to, .. }) => {
+            assert!(0.3235 < from && from < 0.3236, "{from}");
+            assert!(0.3284 < to && to < 0.3285, "{to}");
+            let p = plan_with_duration(&req, to).unwrap();
+            assert!((p.duration() - to).abs() <= 1e-9 * to);
+            common::check_scurve(&req, &p);
+        }
+        other => panic!("{other:?}"),
+    }
 }
