@@ -10,6 +10,7 @@ mod input;
 mod irpc;
 mod lines;
 mod plan;
+mod sim;
 mod validate;
 
 /// Typed, validated, safe messages between the software that decides a
@@ -32,6 +33,8 @@ enum Command {
     /// Plan motion profiles: JSON move requests in, one JSON line (or CSV
     /// samples, or an SVG plot) out per move.
     Plan(plan::Args),
+    /// Run a simulated device.
+    Sim(sim::Args),
     /// Walk through the WIA document's example messages, validating each.
     Demo(demo::Args),
 }
@@ -43,6 +46,7 @@ fn main() -> ExitCode {
         Command::Irpc(args) => irpc::run(&args),
         Command::Compact(args) => compact::run(&args),
         Command::Plan(args) => plan::run(&args),
+        Command::Sim(args) => sim::run(&args),
         Command::Demo(args) => demo::run(&args),
     };
     ExitCode::from(status)

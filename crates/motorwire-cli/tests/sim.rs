@@ -1,0 +1,135 @@
+//! `motorwire sim orion`, run as a user runs it.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use std::io::{BufRead, BufReader, Write};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn sim(args: &[&str], stdin: &str) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args(["sim", "orion"])
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut pipe = child.stdin.take().unwrap();
+    let _ = pipe.write_all(stdin.as_bytes());
+    drop(pipe);
+    child.wait_with_output().unwrap()
+}
+
+fn lines(bytes: &[u8]) -> Vec<String> {
+    String::from_utf8(bytes.to_vec())
+        .unwrap()
+        .lines()
+        .map(str::to_owned)
+        .collect()
+}
+
+#[test]
+fn answers_each_command_line_and_ignores_what_is_not_one() {
+    let input = [
+        r#"{"ID":32,"MODE":1,"DATA":{"TRM":200,"LAA":1,"UAA":1,"AEM":400}}"#,
+        "this is not JSON",
+        r#"{"ID":32,"MODE":1,"DATA":{"TRM":5,"XYZ":1}}"#,
+        r#"{"ID":32,"MODE":1,"DATA":{"GHS":-999}}"#,
+        r#"{"ID":32,"MODE":2,"DATA":3}"#,
+        r#"{"ID":32,"MODE":2,"DATA":0}"#,
+        r#"{"ID":32,"MODE":1,"DATA":{}}"#,
+    ]
+    .join("\n");
+    let out = sim(&["--beacon-interval", "0"], &format!("{input}\n"));
+    assert_eq!(out.status.code(), Some(0));
+    assert_eq!(
+        lines(&out.stdout),
+        [
+            r#"{"ID":32}"#,
+            r#"{"ID":32,"MODE":1,"DATA":{"TRMF":[200,35,0],"LAAF":[1,50,0],"UAAF":[1,50,0],"AEMF":[400,65,0],"GVMF":[0,0,0],"GRMF":[0,0,0],"GHSF":[0,0,0]}}"#,
+            r#"{"ID":32,"MODE":1,"DATA":{"TRMF":[200,35,0],"LAAF":[1,50,0],"UAAF":[1,50,0],"AEMF":[400,65,0],"GVMF":[0,0,0],"GRMF":[0,0,0],"GHSF":[-180,10,0]}}"#,
+            r#"{"ID":32,"MODE":2,"DATA":{"CMDF":1}}"#,
+            r#"{"ID":32,"MODE":2,"DATA":{"CMDF":0}}"#,
+            r#"{"ID":32,"MODE":1,"DATA":{"TRMF":[0,0,0],"LAAF":[0,0,0],"UAAF":[0,0,0],"AEMF":[0,0,0],"GVMF":[0,0,0],"GRMF":[0,0,0],"GHSF":[0,0,0]}}"#,
+        ]
+    );
+    assert_eq!(
+        lines(&out.stderr),
+        [
+            "motorwire sim orion: line 2: not valid JSON: expected ident at line 1 column 2; ignored",
+            r#"motorwire sim orion: line 3: unknown key "XYZ" in DATA; ignored"#,
+            "motorwire sim orion: line 4: GHS -999 is outside [-180, 180]; clamped to -180",
+        ]
+    );
+}
+
+#[test]
+fn example_keys_on_request() {
+    let out = sim(
+        &["--beacon-interval", "0", "--feedback-keys", "example"],
+        "{\"ID\":32,\"MODE\":1,\"DATA\":{\"GRM\":-20}}\n",
+    );
+    assert_eq!(
+        lines(&out.stdout),
+        [
+            r#"{"ID":32}"#,
+            r#"{"ID":32,"MODE":1,"DATA":{"TRM":[0,0,0],"LAA":[0,0,0],"UAA":[0,0,0],"AEM":[0,0,0],"GVM":[0,0,0],"GRM":[-20,8,0],"GHS":[0,0,0]}}"#,
+        ]
+    );
+}
+
+#[test]
+fn the_beacon_repeats_until_the_first_command_and_stops_after_it() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args(["sim", "orion", "--beacon-interval", "20"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    let mut read_line = || {
+        let mut s = String::new();
+        stdout.read_line(&mut s).unwrap();
+        s.trim_end().to_owned()
+    };
+    // Three beacons arrive on their own; an invalid line does not stop them.
+    for _ in 0..3 {
+        assert_eq!(read_line(), r#"{"ID":32}"#);
+    }
+    writeln!(stdin, "{{\"ID\":7}}").unwrap();
+    for _ in 0..2 {
+        assert_eq!(read_line(), r#"{"ID":32}"#);
+    }
+    writeln!(stdin, r#"{{"ID":32,"MODE":2,"DATA":1}}"#).unwrap();
+    // Beacons sent before the command was read may still be in the pipe.
+    let answer = loop {
+        let line = read_line();
+        if line != r#"{"ID":32}"# {
+            break line;
+        }
+    };
+    assert_eq!(answer, r#"{"ID":32,"MODE":2,"DATA":{"CMDF":1}}"#);
+    // No beacon after the first command: the next line is the next answer.
+    let quiet = Instant::now();
+    std::thread::sleep(Duration::from_millis(100));
+    writeln!(stdin, r#"{{"ID":32,"MODE":2,"DATA":2}}"#).unwrap();
+    assert_eq!(read_line(), r#"{"ID":32,"MODE":2,"DATA":{"CMDF":1}}"#);
+    assert!(quiet.elapsed() >= Duration::from_millis(100));
+    drop(stdin);
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    assert!(out.stdout.is_empty());
+    assert_eq!(
+        lines(&out.stderr),
+        [
+            "motorwire sim orion: line 1: ID 7 is not the arm controller's 32 (7 is in the drive controllers' 0-31 range); ignored"
+        ]
+    );
+}
