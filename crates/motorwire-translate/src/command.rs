@@ -1,0 +1,391 @@
+//! WIA commands to iRPC, the compact command and Orion.
+
+use motorwire_compact::{CompactCommand, Flags, MotorHash, TorqueLimit, VelocityLimit};
+use motorwire_core::ControlMode;
+use motorwire_irpc::{MotionProfile, Payload, SetTargetPayload, SetTargetPayloadV2, WireVersion};
+use motorwire_orion::{MotorValues, Quantity};
+use motorwire_wia::{MotorCommand, MultiAxisCommand};
+
+use crate::gate::{Effective, gate};
+use crate::report::{LossKind, Report, Translated};
+use crate::{BusMap, MappedMotor, Refusal, Target};
+
+/// WIA `priority` from which the compact command's `PRIORITY_HIGH` is set.
+pub const HIGH_PRIORITY: i64 = 75;
+
+/// What to send to one iRPC joint for one WIA command, in order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IrpcCommand {
+    /// The joint's node id.
+    pub node: u16,
+    /// Its wire version.
+    pub wire: WireVersion,
+    /// The payloads, in the order to send them.
+    pub payloads: Vec<Payload>,
+}
+
+fn emergency(cmd: &MotorCommand) -> bool {
+    cmd.safety_limits.as_ref().and_then(|l| l.emergency_stop) == Some(true)
+}
+
+/// Reports every member of `cmd` that is present and not in `used`.
+fn report_unused(cmd: &MotorCommand, used: &[&str], dialect: &str, report: &mut Report) {
+    let present = [
+        ("velocity_limit", cmd.velocity_limit.is_some()),
+        ("acceleration_limit", cmd.acceleration_limit.is_some()),
+        ("torque_limit", cmd.torque_limit.is_some()),
+        ("pid_gains", cmd.pid_gains.is_some()),
+        ("impedance_params", cmd.impedance_params.is_some()),
+        ("filter_config", cmd.filter_config.is_some()),
+        ("priority", cmd.priority.is_some()),
+        ("metadata", cmd.metadata.is_some()),
+    ];
+    for (name, is) in present {
+        if is && !used.contains(&name) {
+            report.push(name, LossKind::Dropped, format!("{dialect} has no place for it"));
+        }
+    }
+    for key in cmd.extra.keys() {
+        report.push(key.clone(), LossKind::Dropped, format!("an unknown member; {dialect} has no place for it"));
+    }
+}
+
+fn f32_of(motor: &str, field: &'static str, v: f64, report: &mut Report) -> Result<f32, Refusal> {
+    #[allow(clippy::cast_possible_truncation)]
+    let x = v as f32;
+    if !x.is_finite() {
+        return Err(Refusal::NotRepresentable {
+            motor: motor.to_owned(),
+            field,
+            problem: format!("{v} does not fit an f32"),
+        });
+    }
+    if f64::from(x) != v {
+        report.push(field, LossKind::Converted, format!("{v} rounded to the f32 {x}"));
+    }
+    Ok(x)
+}
+
+/// Translates a WIA MotorCommand for an iRPC joint, after the safety gate.
+///
+/// - `position` becomes `SetTargetV2` (wire v2.0 and later) or `SetTarget`
+///   (v1), positions converted to degrees. Velocity and acceleration limits
+///   come from the command or, failing that, the bus map; deceleration and
+///   jerk from the bus map; the profile from the bus map (an S-curve without
+///   a `max_jerk` in the map is trapezoidal, and reported).
+/// - `disabled` becomes `Deactivate`.
+/// - `safety_limits.emergency_stop: true` becomes `Deactivate`, whatever the
+///   mode: iRPC executes motion only in the Active state, so leaving it is
+///   the one stop every joint obeys (a joint brakes to rest within its own
+///   deceleration limit). The bridge sends it to every joint.
+/// - Any other mode is refused ([`Refusal::ModeNotExpressible`]).
+///
+/// # Errors
+/// [`gate`]'s refusals; [`Refusal::ModeNotExpressible`];
+/// [`Refusal::MissingLimit`] when a move has no velocity or acceleration
+/// limit; [`Refusal::NotRepresentable`] for a value beyond f32.
+pub fn to_irpc(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<IrpcCommand>, Refusal> {
+    let (motor, effective) = gate(map, cmd)?;
+    let Target::Irpc { node, wire } = motor.target else {
+        return Err(not_for(motor, cmd, "iRPC"));
+    };
+    let mut report = Report::default();
+    let name = motor.name.as_str();
+    let payload = if emergency(cmd) {
+        report.push(
+            "setpoint",
+            LossKind::Dropped,
+            "emergency stop: the joint is deactivated instead of moved",
+        );
+        report_unused(cmd, &[], "an emergency stop", &mut report);
+        Payload::Deactivate
+    } else {
+        match cmd.control_mode {
+            ControlMode::Disabled => {
+                report_unused(cmd, &[], "Deactivate", &mut report);
+                Payload::Deactivate
+            }
+            ControlMode::Position => set_target(motor, cmd, &effective, wire, &mut report)?,
+            mode => {
+                return Err(Refusal::ModeNotExpressible {
+                    motor: name.to_owned(),
+                    mode: mode.name(),
+                    dialect: "iRPC",
+                });
+            }
+        }
+    };
+    Ok(Translated {
+        value: IrpcCommand {
+            node,
+            wire,
+            payloads: vec![payload],
+        },
+        report,
+    })
+}
+
+fn not_for(motor: &MappedMotor, cmd: &MotorCommand, dialect: &'static str) -> Refusal {
+    Refusal::ModeNotExpressible {
+        motor: motor.name.clone(),
+        mode: cmd.control_mode.name(),
+        dialect: match dialect {
+            "iRPC" => "iRPC (the bus map says this motor is not an iRPC joint)",
+            "compact" => "the compact command (the bus map says this motor does not take it)",
+            _ => "Orion (the bus map says this motor is not an Orion motor)",
+        },
+    }
+}
+
+fn set_target(
+    motor: &MappedMotor,
+    cmd: &MotorCommand,
+    e: &Effective,
+    wire: WireVersion,
+    report: &mut Report,
+) -> Result<Payload, Refusal> {
+    let name = motor.name.as_str();
+    let unit = motor.unit;
+    let deg = |v: f64| unit.to_degrees(v);
+    if unit != crate::AngleUnit::Degrees {
+        report.push("setpoint", LossKind::Converted, "radians to degrees (iRPC's unit)");
+    }
+    let velocity = match (cmd.velocity_limit, e.max_velocity) {
+        (Some(v), _) => v,
+        (None, Some(b)) => {
+            report.push("max_velocity", LossKind::Defaulted, format!("{} from the {}", b.value, b.source));
+            b.value
+        }
+        (None, None) => {
+            return Err(Refusal::MissingLimit {
+                motor: name.to_owned(),
+                dialect: "iRPC",
+                field: "max_velocity",
+            });
+        }
+    };
+    let target = f32_of(name, "setpoint", deg(cmd.setpoint), report)?;
+    let velocity = f32_of(name, "velocity_limit", deg(velocity), report)?;
+    if wire == WireVersion::V1 {
+        report_unused(cmd, &["velocity_limit"], "SetTarget (iRPC v1)", report);
+        return Ok(Payload::SetTarget(SetTargetPayload {
+            target_angle: target,
+            velocity_limit: velocity,
+        }));
+    }
+    let acceleration = match (cmd.acceleration_limit, e.max_acceleration) {
+        (Some(a), _) => a,
+        (None, Some(b)) => {
+            report.push("max_acceleration", LossKind::Defaulted, format!("{} from the {}", b.value, b.source));
+            b.value
+        }
+        (None, None) => {
+            return Err(Refusal::MissingLimit {
+                motor: name.to_owned(),
+                dialect: "iRPC",
+                field: "max_acceleration",
+            });
+        }
+    };
+    // The command's acceleration_limit bounds slowing down too.
+    let deceleration = match motor.limits.max_deceleration {
+        Some(d) => {
+            let d = cmd.acceleration_limit.map_or(d, |a| a.min(d));
+            report.push("max_deceleration", LossKind::Defaulted, format!("{d} from the bus map"));
+            d
+        }
+        None => acceleration,
+    };
+    let (profile, jerk) = match (motor.profile, motor.limits.max_jerk) {
+        (MotionProfile::Trapezoidal, _) => (MotionProfile::Trapezoidal, 0.0),
+        (p, Some(j)) => {
+            report.push("max_jerk", LossKind::Defaulted, format!("{j} from the bus map"));
+            (p, j)
+        }
+        (_, None) => {
+            report.push(
+                "profile",
+                LossKind::Defaulted,
+                "trapezoidal: the bus map gives no max_jerk for an S-curve",
+            );
+            (MotionProfile::Trapezoidal, 0.0)
+        }
+    };
+    report_unused(cmd, &["velocity_limit", "acceleration_limit"], "SetTargetV2", report);
+    Ok(Payload::SetTargetV2(SetTargetPayloadV2 {
+        target_angle: target,
+        max_velocity: velocity,
+        target_velocity: 0.0,
+        max_acceleration: f32_of(name, "acceleration_limit", deg(acceleration), report)?,
+        max_deceleration: f32_of(name, "max_deceleration", deg(deceleration), report)?,
+        max_jerk: f32_of(name, "max_jerk", deg(jerk), report)?,
+        profile,
+        max_current: 0.0,
+        max_temperature: 0.0,
+    }))
+}
+
+/// The compact command for a WIA MotorCommand, with no bus map (and so no
+/// safety gate): every field the 24 bytes can carry, and a report of the
+/// rest. [`to_compact`] is the same behind the gate.
+///
+/// # Errors
+/// [`Refusal::NotRepresentable`] for a timestamp that is not a whole number
+/// of milliseconds fitting 64 bits, or a value the compact fields cannot
+/// hold.
+pub fn compact_command(cmd: &MotorCommand) -> Result<Translated<CompactCommand>, Refusal> {
+    let name = cmd.motor_id.as_str();
+    let not_rep = |field: &'static str, problem: String| Refusal::NotRepresentable {
+        motor: name.to_owned(),
+        field,
+        problem,
+    };
+    let t = cmd.timestamp;
+    if !(t >= 0.0 && t.fract() == 0.0 && t < 18_446_744_073_709_551_616.0) {
+        return Err(not_rep(
+            "timestamp",
+            format!("{t} is not a whole number of ms that fits 64 bits"),
+        ));
+    }
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // checked just above
+    let timestamp_ms = t as u64;
+    let setpoint = CompactCommand::setpoint_from_f64(cmd.setpoint)
+        .map_err(|e| not_rep("setpoint", e.to_string()))?;
+    let velocity_limit = cmd
+        .velocity_limit
+        .map(VelocityLimit::from_units_per_s)
+        .transpose()
+        .map_err(|e| not_rep("velocity_limit", e.to_string()))?;
+    let torque_limit = cmd
+        .torque_limit
+        .map(TorqueLimit::from_nm)
+        .transpose()
+        .map_err(|e| not_rep("torque_limit", e.to_string()))?;
+    let mut flags = Flags::NONE;
+    if emergency(cmd) {
+        flags = flags.union(Flags::EMERGENCY_STOP);
+    }
+    if cmd.priority.is_some_and(|p| p >= HIGH_PRIORITY) {
+        flags = flags.union(Flags::PRIORITY_HIGH);
+    }
+    let mut report = Report::default();
+    report_unused(
+        cmd,
+        &["velocity_limit", "torque_limit"],
+        "the compact command",
+        &mut report,
+    );
+    if cmd.priority.is_some() {
+        if let Some(loss) = report.losses.iter_mut().find(|l| l.field == "priority") {
+            loss.kind = LossKind::Converted;
+            loss.detail = format!("to the PRIORITY_HIGH flag (set from {HIGH_PRIORITY})");
+        }
+    }
+    if let Some(l) = &cmd.safety_limits {
+        let others = l.min_position.is_some()
+            || l.max_position.is_some()
+            || l.max_velocity.is_some()
+            || l.max_torque.is_some()
+            || !l.extra.is_empty();
+        if others {
+            report.push(
+                "safety_limits",
+                LossKind::Dropped,
+                "only emergency_stop has a place (the EMERGENCY_STOP flag)",
+            );
+        }
+    }
+    Ok(Translated {
+        value: CompactCommand {
+            motor: MotorHash::of(&cmd.motor_id),
+            timestamp_ms,
+            control_mode: cmd.control_mode,
+            flags,
+            setpoint,
+            velocity_limit,
+            torque_limit,
+        },
+        report,
+    })
+}
+
+/// [`compact_command`] for a motor the bus map gives the compact dialect,
+/// behind the safety gate.
+///
+/// # Errors
+/// [`gate`]'s refusals, a motor of another dialect, and
+/// [`compact_command`]'s.
+pub fn to_compact(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<CompactCommand>, Refusal> {
+    let (motor, _) = gate(map, cmd)?;
+    if motor.target != Target::Compact {
+        return Err(not_for(motor, cmd, "compact"));
+    }
+    compact_command(cmd)
+}
+
+/// A WIA multi-axis command for Orion motors, as direct-control `DATA`,
+/// each axis behind the safety gate (which holds Orion motors to the
+/// document's ranges, so nothing is left for the controller to clamp).
+/// Speed motors and actuators take `velocity` setpoints, the servo a
+/// `position` setpoint (converted to degrees); `disabled` sends 0 to a
+/// speed motor or actuator. An axis with `emergency_stop` makes the whole
+/// command Orion's stop command (`MODE` 2, `DATA` 1).
+///
+/// # Errors
+/// The first axis's refusal, naming it.
+pub fn to_orion(map: &BusMap, cmd: &MultiAxisCommand) -> Result<Translated<motorwire_orion::Input>, Refusal> {
+    let mut values = MotorValues::new();
+    let mut report = Report::default();
+    let mut stop = false;
+    for axis in &cmd.motors {
+        let single = axis.to_motor_command(cmd.timestamp);
+        let (motor, _) = gate(map, &single)?;
+        let Target::Orion { motor: orion } = motor.target else {
+            return Err(not_for(motor, &single, "orion"));
+        };
+        if emergency(&single) {
+            stop = true;
+            continue;
+        }
+        let value = match (orion.quantity(), single.control_mode) {
+            (Quantity::Speed | Quantity::Actuator, ControlMode::Velocity) => single.setpoint,
+            (Quantity::Speed | Quantity::Actuator, ControlMode::Disabled) => 0.0,
+            (Quantity::PositionDegrees, ControlMode::Position) => {
+                if motor.unit != crate::AngleUnit::Degrees {
+                    report.push(format!("{}.setpoint", motor.name), LossKind::Converted, "radians to degrees (GHS's unit)");
+                }
+                motor.unit.to_degrees(single.setpoint)
+            }
+            (_, mode) => {
+                return Err(Refusal::ModeNotExpressible {
+                    motor: motor.name.clone(),
+                    mode: mode.name(),
+                    dialect: "Orion",
+                });
+            }
+        };
+        let mut axis_report = Report::default();
+        report_unused(&single, &[], "Orion direct control", &mut axis_report);
+        for mut loss in axis_report.losses {
+            loss.field = format!("{}.{}", motor.name, loss.field);
+            report.losses.push(loss);
+        }
+        values.set(orion, value);
+    }
+    for (field, present) in [
+        ("sync_mode", cmd.sync_mode.is_some()),
+        ("coordination", cmd.coordination.is_some()),
+        ("metadata", cmd.metadata.is_some()),
+    ] {
+        if present {
+            report.push(field, LossKind::Dropped, "Orion direct control has no place for it");
+        }
+    }
+    let input = if stop {
+        report.push("motors", LossKind::Converted, "an emergency stop: Orion's stop command (MODE 2, DATA 1) replaces the values");
+        motorwire_orion::Input::Command(motorwire_orion::ArmCommand::Stop.into())
+    } else {
+        motorwire_orion::Input::DirectControl(values)
+    };
+    Ok(Translated { value: input, report })
+}

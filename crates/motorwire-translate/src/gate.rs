@@ -1,0 +1,264 @@
+//! The safety gate: nothing outside a motor's limits gets past it.
+
+use motorwire_core::ControlMode;
+use motorwire_wia::MotorCommand;
+
+use crate::{BusMap, Limits, MappedMotor, Target};
+
+/// Why a command was refused before any bytes existed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum Refusal {
+    /// The motor is not in the bus map.
+    #[error("motor {motor:?} is not in the bus map")]
+    UnknownMotor {
+        /// The `motor_id`.
+        motor: String,
+    },
+    /// A value is NaN or infinite.
+    #[error("{motor}: {field} is not a finite number")]
+    NonFinite {
+        /// The motor.
+        motor: String,
+        /// The field.
+        field: &'static str,
+    },
+    /// A value outside a limit.
+    #[error("{motor}: {field} {value} is outside {limit} {bound}")]
+    OutsideLimit {
+        /// The motor.
+        motor: String,
+        /// The command's field.
+        field: &'static str,
+        /// The value.
+        value: f64,
+        /// The limit broken (`max_position`, `max_velocity` ...), with where
+        /// it came from.
+        limit: String,
+        /// The limit's value.
+        bound: f64,
+    },
+    /// The target dialect cannot express the control mode.
+    #[error("{motor}: {dialect} cannot express control mode {mode}")]
+    ModeNotExpressible {
+        /// The motor.
+        motor: String,
+        /// The mode.
+        mode: &'static str,
+        /// The target dialect.
+        dialect: &'static str,
+    },
+    /// The target needs a limit neither the command nor the bus map gives.
+    #[error("{motor}: {dialect} needs {field}, and neither the command nor the bus map gives it")]
+    MissingLimit {
+        /// The motor.
+        motor: String,
+        /// The target dialect.
+        dialect: &'static str,
+        /// The limit (`max_velocity` ...).
+        field: &'static str,
+    },
+    /// A value the target format cannot hold.
+    #[error("{motor}: {field}: {problem}")]
+    NotRepresentable {
+        /// The motor.
+        motor: String,
+        /// The field.
+        field: &'static str,
+        /// Why.
+        problem: String,
+    },
+    /// A multi-axis move whose axes cannot arrive together.
+    #[error("{problem}")]
+    Unsynchronizable {
+        /// Why.
+        problem: String,
+    },
+}
+
+/// A limit and where it came from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bound {
+    /// The value.
+    pub value: f64,
+    /// `"bus map"`, `"command"` or `"Orion range"`.
+    pub source: &'static str,
+}
+
+/// The limits a command is held to: the bus map's, tightened by the
+/// command's own `safety_limits` and, for Orion motors, by the document's
+/// value range.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Effective {
+    /// Lowest position.
+    pub min_position: Option<Bound>,
+    /// Highest position.
+    pub max_position: Option<Bound>,
+    /// Largest speed.
+    pub max_velocity: Option<Bound>,
+    /// Largest torque.
+    pub max_torque: Option<Bound>,
+    /// Largest acceleration (bus map only).
+    pub max_acceleration: Option<Bound>,
+}
+
+fn tighter(a: Option<Bound>, b: Option<Bound>, lower_wins: bool) -> Option<Bound> {
+    match (a, b) {
+        (Some(x), Some(y)) => Some(if (y.value < x.value) == lower_wins { y } else { x }),
+        (x, None) => x,
+        (None, y) => y,
+    }
+}
+
+fn from_map(v: Option<f64>) -> Option<Bound> {
+    v.map(|value| Bound {
+        value,
+        source: "bus map",
+    })
+}
+
+impl Effective {
+    fn new(limits: &Limits, cmd: &MotorCommand, target: Target) -> Self {
+        let own = cmd.safety_limits.as_ref();
+        let from_cmd = |v: Option<f64>| {
+            v.map(|value| Bound {
+                value,
+                source: "command",
+            })
+        };
+        let mut e = Effective {
+            min_position: tighter(
+                from_map(limits.min_position),
+                from_cmd(own.and_then(|l| l.min_position)),
+                false,
+            ),
+            max_position: tighter(
+                from_map(limits.max_position),
+                from_cmd(own.and_then(|l| l.max_position)),
+                true,
+            ),
+            max_velocity: tighter(
+                from_map(limits.max_velocity),
+                from_cmd(own.and_then(|l| l.max_velocity)),
+                true,
+            ),
+            max_torque: tighter(
+                from_map(limits.max_torque),
+                from_cmd(own.and_then(|l| l.max_torque)),
+                true,
+            ),
+            max_acceleration: from_map(limits.max_acceleration),
+        };
+        if let Target::Orion { motor } = target {
+            let (lo, hi) = motor.range();
+            let range = |value| Some(Bound { value, source: "Orion range" });
+            match motor.quantity() {
+                motorwire_orion::Quantity::PositionDegrees => {
+                    e.min_position = tighter(e.min_position, range(lo), false);
+                    e.max_position = tighter(e.max_position, range(hi), true);
+                }
+                _ => e.max_velocity = tighter(e.max_velocity, range(hi), true),
+            }
+        }
+        e
+    }
+}
+
+fn outside(motor: &str, field: &'static str, value: f64, name: &str, b: Bound) -> Refusal {
+    Refusal::OutsideLimit {
+        motor: motor.to_owned(),
+        field,
+        value,
+        limit: format!("{name} ({})", b.source),
+        bound: b.value,
+    }
+}
+
+/// Checks `cmd` against its motor's limits and returns the motor and the
+/// effective limits. Positions are compared in the motor's own unit (the
+/// bus map's `unit`), before any conversion. Orion motors are held to the
+/// document's value ranges too, so the controller never has to clamp.
+///
+/// ```
+/// use motorwire_translate::{BusMap, Refusal, gate};
+/// let map = BusMap::from_toml(r#"
+///     [motors.elbow]
+///     dialect = "irpc"
+///     node = 0x12
+///     limits = { min_position = 0, max_position = 150, max_velocity = 120, max_acceleration = 500 }
+/// "#)?;
+/// let cmd: motorwire_wia::MotorCommand = serde_json::from_str(r#"{
+///     "motor_id": "elbow", "timestamp": 0, "control_mode": "position", "setpoint": 170
+/// }"#)?;
+/// let err = gate(&map, &cmd).unwrap_err();
+/// assert_eq!(err.to_string(), "elbow: setpoint 170 is outside max_position (bus map) 150");
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// A [`Refusal`] naming the motor, the field, the value and the limit.
+pub fn gate<'m>(map: &'m BusMap, cmd: &MotorCommand) -> Result<(&'m MappedMotor, Effective), Refusal> {
+    let motor = map.motor(&cmd.motor_id).ok_or_else(|| Refusal::UnknownMotor {
+        motor: cmd.motor_id.clone(),
+    })?;
+    let name = motor.name.as_str();
+    let finite = |field: &'static str, v: Option<f64>| match v {
+        Some(x) if !x.is_finite() => Err(Refusal::NonFinite {
+            motor: name.to_owned(),
+            field,
+        }),
+        _ => Ok(()),
+    };
+    finite("setpoint", Some(cmd.setpoint))?;
+    finite("velocity_limit", cmd.velocity_limit)?;
+    finite("acceleration_limit", cmd.acceleration_limit)?;
+    finite("torque_limit", cmd.torque_limit)?;
+    if let Some(l) = &cmd.safety_limits {
+        finite("safety_limits.min_position", l.min_position)?;
+        finite("safety_limits.max_position", l.max_position)?;
+        finite("safety_limits.max_velocity", l.max_velocity)?;
+        finite("safety_limits.max_torque", l.max_torque)?;
+    }
+    let e = Effective::new(&motor.limits, cmd, motor.target);
+    let sp = cmd.setpoint;
+    match cmd.control_mode {
+        ControlMode::Disabled => {}
+        ControlMode::Position => {
+            if let Some(b) = e.min_position.filter(|b| sp < b.value) {
+                return Err(outside(name, "setpoint", sp, "min_position", b));
+            }
+            if let Some(b) = e.max_position.filter(|b| sp > b.value) {
+                return Err(outside(name, "setpoint", sp, "max_position", b));
+            }
+        }
+        ControlMode::Velocity => {
+            if let Some(b) = e.max_velocity.filter(|b| sp.abs() > b.value) {
+                return Err(outside(name, "setpoint", sp, "max_velocity", b));
+            }
+        }
+        ControlMode::Torque => {
+            if let Some(b) = e.max_torque.filter(|b| sp.abs() > b.value) {
+                return Err(outside(name, "setpoint", sp, "max_torque", b));
+            }
+        }
+        // The other modes carry a setpoint whose unit the limits do not
+        // describe; the dialects refuse the ones they cannot express.
+        _ => {}
+    }
+    if let (Some(v), Some(b)) = (cmd.velocity_limit, e.max_velocity)
+        && v > b.value
+    {
+        return Err(outside(name, "velocity_limit", v, "max_velocity", b));
+    }
+    if let (Some(v), Some(b)) = (cmd.acceleration_limit, e.max_acceleration)
+        && v > b.value
+    {
+        return Err(outside(name, "acceleration_limit", v, "max_acceleration", b));
+    }
+    if let (Some(v), Some(b)) = (cmd.torque_limit, e.max_torque)
+        && v > b.value
+    {
+        return Err(outside(name, "torque_limit", v, "max_torque", b));
+    }
+    Ok((motor, e))
+}

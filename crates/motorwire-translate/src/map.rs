@@ -1,0 +1,426 @@
+//! The bus map: which motor speaks which dialect, where it is, its angle
+//! unit, its safety limits and its motion defaults.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::str::FromStr;
+
+use motorwire_irpc::{MotionProfile, WireVersion};
+use serde::Deserialize;
+
+/// A bus map that could not be read.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum MapError {
+    /// Not valid TOML, or a key the map does not have, or a value of the
+    /// wrong type (toml's message, with line and column).
+    #[error("bus map: {message}")]
+    Toml {
+        /// What the TOML parser reported.
+        message: String,
+    },
+    /// A motor name WIA cannot address (`^[a-zA-Z0-9_-]+$`, at most 64
+    /// bytes).
+    #[error("bus map: motor name {name:?} is not a WIA motor_id (letters, digits, _ and -, at most 64 bytes)")]
+    BadName {
+        /// The name.
+        name: String,
+    },
+    /// A field with an invalid value.
+    #[error("bus map: motors.{motor}.{field}: {problem}")]
+    Invalid {
+        /// The motor.
+        motor: String,
+        /// The field.
+        field: &'static str,
+        /// What is wrong with it.
+        problem: String,
+    },
+    /// A field the motor's dialect needs is absent.
+    #[error("bus map: motors.{motor} speaks {dialect} and needs {field}")]
+    Missing {
+        /// The motor.
+        motor: String,
+        /// Its dialect.
+        dialect: &'static str,
+        /// The field.
+        field: &'static str,
+    },
+    /// A field that means nothing for the motor's dialect.
+    #[error("bus map: motors.{motor}.{field} means nothing for a {dialect} motor")]
+    NotForDialect {
+        /// The motor.
+        motor: String,
+        /// Its dialect.
+        dialect: &'static str,
+        /// The field.
+        field: &'static str,
+    },
+    /// Two motors at the same address.
+    #[error("bus map: motors.{first} and motors.{second} are both {address}")]
+    SharedAddress {
+        /// The first motor (in name order).
+        first: String,
+        /// The second.
+        second: String,
+        /// The address they share.
+        address: String,
+    },
+}
+
+/// How a motor is reached.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Target {
+    /// An iRPC joint on CAN-FD.
+    Irpc {
+        /// Its node id (not 0x0000 or 0xFFFF, the broadcast ids).
+        node: u16,
+        /// The wire version it speaks.
+        wire: WireVersion,
+    },
+    /// A device taking the WIA compact command.
+    Compact,
+    /// One of the Orion arm controller's motors.
+    Orion {
+        /// Which.
+        motor: motorwire_orion::Motor,
+    },
+}
+
+impl Target {
+    /// The dialect's name as the bus map spells it.
+    pub const fn dialect(&self) -> &'static str {
+        match self {
+            Target::Irpc { .. } => "irpc",
+            Target::Compact => "compact",
+            Target::Orion { .. } => "orion",
+        }
+    }
+}
+
+/// The unit a motor's WIA positions are in (velocities per second,
+/// accelerations per second squared).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AngleUnit {
+    /// Degrees (iRPC's unit).
+    #[default]
+    Degrees,
+    /// Radians.
+    Radians,
+}
+
+impl AngleUnit {
+    /// `value` in this unit, in degrees.
+    pub fn to_degrees(self, value: f64) -> f64 {
+        match self {
+            AngleUnit::Degrees => value,
+            AngleUnit::Radians => value.to_degrees(),
+        }
+    }
+
+    /// `degrees` in this unit.
+    pub fn from_degrees(self, degrees: f64) -> f64 {
+        match self {
+            AngleUnit::Degrees => degrees,
+            AngleUnit::Radians => degrees.to_radians(),
+        }
+    }
+
+    /// `"deg"` or `"rad"`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            AngleUnit::Degrees => "deg",
+            AngleUnit::Radians => "rad",
+        }
+    }
+}
+
+/// A motor's safety limits, in its [`AngleUnit`] (and newton-metres).
+/// `None` is "no limit from the map".
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Limits {
+    /// Lowest position.
+    pub min_position: Option<f64>,
+    /// Highest position.
+    pub max_position: Option<f64>,
+    /// Largest speed.
+    pub max_velocity: Option<f64>,
+    /// Largest acceleration (speeding up).
+    pub max_acceleration: Option<f64>,
+    /// Largest deceleration (slowing down); `None` is `max_acceleration`.
+    pub max_deceleration: Option<f64>,
+    /// Largest jerk.
+    pub max_jerk: Option<f64>,
+    /// Largest torque magnitude (Nm).
+    pub max_torque: Option<f64>,
+}
+
+/// One motor of the map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MappedMotor {
+    /// The WIA `motor_id`.
+    pub name: String,
+    /// How it is reached.
+    pub target: Target,
+    /// The unit its WIA positions are in.
+    pub unit: AngleUnit,
+    /// Its safety limits.
+    pub limits: Limits,
+    /// The motion profile its iRPC moves use.
+    pub profile: MotionProfile,
+}
+
+/// The bus map, read from TOML.
+///
+/// ```
+/// use motorwire_translate::{BusMap, Target};
+/// let map = BusMap::from_toml(r#"
+///     [motors.elbow]
+///     dialect = "irpc"
+///     node = 0x12
+///     limits = { min_position = 0, max_position = 150, max_velocity = 120, max_acceleration = 500 }
+///
+///     [motors.turntable]
+///     dialect = "orion"
+///     key = "TRM"
+/// "#)?;
+/// assert!(matches!(map.motor("elbow").unwrap().target, Target::Irpc { node: 0x12, .. }));
+/// assert_eq!(map.motors().count(), 2);
+/// # Ok::<(), motorwire_translate::MapError>(())
+/// ```
+///
+/// Per motor: `dialect` (`irpc`, `compact` or `orion`); for iRPC `node`
+/// and optionally `wire` (`v1`, `v2.0` the default, `v2.1`, `v2.2`) and
+/// `profile` (`trapezoidal`, `scurve` the default, `adaptive`); for Orion
+/// `key` (`TRM` ...); `unit` (`deg` the default, or `rad`); and `limits`
+/// (`min_position`, `max_position`, `max_velocity`, `max_acceleration`,
+/// `max_deceleration`, `max_jerk`, `max_torque`), all in the motor's unit.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BusMap {
+    motors: BTreeMap<String, MappedMotor>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMap {
+    #[serde(default)]
+    motors: BTreeMap<String, RawMotor>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMotor {
+    dialect: String,
+    node: Option<i64>,
+    wire: Option<String>,
+    key: Option<String>,
+    unit: Option<String>,
+    profile: Option<String>,
+    #[serde(default)]
+    limits: RawLimits,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawLimits {
+    min_position: Option<f64>,
+    max_position: Option<f64>,
+    max_velocity: Option<f64>,
+    max_acceleration: Option<f64>,
+    max_deceleration: Option<f64>,
+    max_jerk: Option<f64>,
+    max_torque: Option<f64>,
+}
+
+fn invalid(motor: &str, field: &'static str, problem: impl fmt::Display) -> MapError {
+    MapError::Invalid {
+        motor: motor.to_owned(),
+        field,
+        problem: problem.to_string(),
+    }
+}
+
+fn valid_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= 64
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+}
+
+impl BusMap {
+    /// Reads a bus map.
+    ///
+    /// # Errors
+    /// A [`MapError`] naming the motor and field.
+    pub fn from_toml(text: &str) -> Result<BusMap, MapError> {
+        let raw: RawMap = toml::from_str(text).map_err(|e| MapError::Toml {
+            message: e.to_string().trim_end().to_owned(),
+        })?;
+        let mut motors = BTreeMap::new();
+        for (name, m) in raw.motors {
+            if !valid_name(&name) {
+                return Err(MapError::BadName { name });
+            }
+            let motor = Self::motor_from(&name, m)?;
+            motors.insert(name, motor);
+        }
+        let map = BusMap { motors };
+        map.check_addresses()?;
+        Ok(map)
+    }
+
+    fn motor_from(name: &str, m: RawMotor) -> Result<MappedMotor, MapError> {
+        let not_for = |field: &'static str, dialect: &'static str| MapError::NotForDialect {
+            motor: name.to_owned(),
+            dialect,
+            field,
+        };
+        let target = match m.dialect.as_str() {
+            "irpc" => {
+                let node = m.node.ok_or(MapError::Missing {
+                    motor: name.to_owned(),
+                    dialect: "irpc",
+                    field: "node",
+                })?;
+                let node = u16::try_from(node)
+                    .ok()
+                    .filter(|n| *n != 0 && *n != 0xFFFF)
+                    .ok_or_else(|| {
+                        invalid(name, "node", format!("{node} is not a node id in 0x0001..=0xFFFE (0x0000 and 0xFFFF are broadcast)"))
+                    })?;
+                let wire = match &m.wire {
+                    None => WireVersion::V2_0,
+                    Some(w) => WireVersion::from_str(w).map_err(|e| invalid(name, "wire", e))?,
+                };
+                if m.key.is_some() {
+                    return Err(not_for("key", "irpc"));
+                }
+                Target::Irpc { node, wire }
+            }
+            "compact" | "orion" => {
+                let dialect = if m.dialect == "compact" { "compact" } else { "orion" };
+                for (field, present) in [("node", m.node.is_some()), ("wire", m.wire.is_some()), ("profile", m.profile.is_some())] {
+                    if present {
+                        return Err(not_for(field, dialect));
+                    }
+                }
+                if dialect == "compact" {
+                    if m.key.is_some() {
+                        return Err(not_for("key", "compact"));
+                    }
+                    Target::Compact
+                } else {
+                    let key = m.key.as_deref().ok_or(MapError::Missing {
+                        motor: name.to_owned(),
+                        dialect: "orion",
+                        field: "key",
+                    })?;
+                    let motor = motorwire_orion::Motor::from_key(key).ok_or_else(|| {
+                        invalid(name, "key", format!("{key:?} is not an Orion motor key (TRM, LAA, UAA, AEM, GVM, GRM, GHS)"))
+                    })?;
+                    Target::Orion { motor }
+                }
+            }
+            other => {
+                return Err(invalid(name, "dialect", format!("{other:?} is not irpc, compact or orion")));
+            }
+        };
+        let unit = match m.unit.as_deref() {
+            None | Some("deg") => AngleUnit::Degrees,
+            Some("rad") => AngleUnit::Radians,
+            Some(other) => return Err(invalid(name, "unit", format!("{other:?} is not deg or rad"))),
+        };
+        let profile = match m.profile.as_deref() {
+            None | Some("scurve") => MotionProfile::SCurve,
+            Some("trapezoidal") => MotionProfile::Trapezoidal,
+            Some("adaptive") => MotionProfile::Adaptive,
+            Some(other) => {
+                return Err(invalid(name, "profile", format!("{other:?} is not trapezoidal, scurve or adaptive")));
+            }
+        };
+        let l = m.limits;
+        for (field, value, positive) in [
+            ("limits.min_position", l.min_position, false),
+            ("limits.max_position", l.max_position, false),
+            ("limits.max_velocity", l.max_velocity, true),
+            ("limits.max_acceleration", l.max_acceleration, true),
+            ("limits.max_deceleration", l.max_deceleration, true),
+            ("limits.max_jerk", l.max_jerk, true),
+            ("limits.max_torque", l.max_torque, true),
+        ] {
+            if let Some(v) = value {
+                if !v.is_finite() {
+                    return Err(invalid(name, field, format!("{v} is not a finite number")));
+                }
+                if positive && v <= 0.0 {
+                    return Err(invalid(name, field, format!("{v} is not > 0")));
+                }
+            }
+        }
+        if let (Some(lo), Some(hi)) = (l.min_position, l.max_position)
+            && lo > hi
+        {
+            return Err(invalid(name, "limits", format!("min_position {lo} is above max_position {hi}")));
+        }
+        Ok(MappedMotor {
+            name: name.to_owned(),
+            target,
+            unit,
+            limits: Limits {
+                min_position: l.min_position,
+                max_position: l.max_position,
+                max_velocity: l.max_velocity,
+                max_acceleration: l.max_acceleration,
+                max_deceleration: l.max_deceleration,
+                max_jerk: l.max_jerk,
+                max_torque: l.max_torque,
+            },
+            profile,
+        })
+    }
+
+    fn check_addresses(&self) -> Result<(), MapError> {
+        let mut seen: BTreeMap<String, &str> = BTreeMap::new();
+        for m in self.motors.values() {
+            let address = match m.target {
+                Target::Irpc { node, .. } => format!("iRPC node 0x{node:02X}"),
+                Target::Orion { motor } => format!("Orion {}", motor.key()),
+                Target::Compact => continue,
+            };
+            if let Some(first) = seen.get(&address) {
+                return Err(MapError::SharedAddress {
+                    first: (*first).to_owned(),
+                    second: m.name.clone(),
+                    address,
+                });
+            }
+            seen.insert(address, &m.name);
+        }
+        Ok(())
+    }
+
+    /// The motor named `name`.
+    pub fn motor(&self, name: &str) -> Option<&MappedMotor> {
+        self.motors.get(name)
+    }
+
+    /// Every motor, in name order.
+    pub fn motors(&self) -> impl Iterator<Item = &MappedMotor> {
+        self.motors.values()
+    }
+
+    /// The iRPC motor at `node`.
+    pub fn irpc_node(&self, node: u16) -> Option<&MappedMotor> {
+        self.motors
+            .values()
+            .find(|m| matches!(m.target, Target::Irpc { node: n, .. } if n == node))
+    }
+
+    /// The motor mapped to Orion `motor`.
+    pub fn orion_motor(&self, motor: motorwire_orion::Motor) -> Option<&MappedMotor> {
+        self.motors
+            .values()
+            .find(|m| m.target == Target::Orion { motor })
+    }
+}
