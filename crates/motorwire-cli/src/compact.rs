@@ -11,13 +11,11 @@
 use std::collections::HashMap;
 
 use clap::{Args as ClapArgs, Subcommand};
-use motorwire_compact::{CompactCommand, Flags, MotorHash, TorqueLimit, VelocityLimit};
+use motorwire_compact::{CompactCommand, MotorHash};
+use motorwire_translate::compact_command;
 use motorwire_wia::{MotorCommand, Validator};
 
 use crate::lines::{filter, from_hex, to_hex};
-
-/// WIA priority from which PRIORITY_HIGH is set.
-pub(crate) const HIGH_PRIORITY: i64 = 75;
 
 /// Encode and decode the 24-byte WIA compact command.
 #[derive(Debug, ClapArgs)]
@@ -54,15 +52,12 @@ pub(crate) fn run(args: &Args) -> u8 {
             let validator = crate::validate::with_clock(Validator::new(), a.now);
             filter(|line| {
                 let cmd: MotorCommand = validator.parse(line).map_err(|e| e.to_string())?;
-                let (compact, dropped) = to_compact(&cmd)?;
-                if !dropped.is_empty() {
-                    eprintln!(
-                        "motorwire compact encode: {}: the compact command has no place for {}",
-                        cmd.motor_id,
-                        dropped.join(", ")
-                    );
+                let translated = compact_command(&cmd).map_err(|e| e.to_string())?;
+                for loss in &translated.report.losses {
+                    eprintln!("motorwire compact encode: {}: {loss}", cmd.motor_id);
                 }
-                compact
+                translated
+                    .value
                     .encode()
                     .map(|b| to_hex(&b))
                     .map_err(|e| e.to_string())
@@ -82,74 +77,6 @@ pub(crate) fn run(args: &Args) -> u8 {
             filter(|line| decode(line, names.as_ref()))
         }
     }
-}
-
-/// The compact command for a valid WIA MotorCommand, and the names of the
-/// members it had to leave out.
-pub(crate) fn to_compact(
-    cmd: &MotorCommand,
-) -> Result<(CompactCommand, Vec<&'static str>), String> {
-    let t = cmd.timestamp;
-    if !(t >= 0.0 && t.fract() == 0.0 && t < 18_446_744_073_709_551_616.0) {
-        return Err(format!(
-            "timestamp {t} is not a whole number of ms that fits 64 bits"
-        ));
-    }
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // checked just above
-    let timestamp_ms = t as u64;
-    let setpoint = CompactCommand::setpoint_from_f64(cmd.setpoint).map_err(|e| e.to_string())?;
-    let velocity_limit = cmd
-        .velocity_limit
-        .map(VelocityLimit::from_units_per_s)
-        .transpose()
-        .map_err(|e| e.to_string())?;
-    let torque_limit = cmd
-        .torque_limit
-        .map(TorqueLimit::from_nm)
-        .transpose()
-        .map_err(|e| e.to_string())?;
-    let mut flags = Flags::NONE;
-    let estop = cmd.safety_limits.as_ref().and_then(|l| l.emergency_stop) == Some(true);
-    if estop {
-        flags = flags.union(Flags::EMERGENCY_STOP);
-    }
-    if cmd.priority.is_some_and(|p| p >= HIGH_PRIORITY) {
-        flags = flags.union(Flags::PRIORITY_HIGH);
-    }
-    let mut dropped = Vec::new();
-    for (name, present) in [
-        ("acceleration_limit", cmd.acceleration_limit.is_some()),
-        ("pid_gains", cmd.pid_gains.is_some()),
-        ("impedance_params", cmd.impedance_params.is_some()),
-        ("filter_config", cmd.filter_config.is_some()),
-        (
-            "safety_limits (other than emergency_stop)",
-            cmd.safety_limits.as_ref().is_some_and(|l| {
-                l.min_position.is_some()
-                    || l.max_position.is_some()
-                    || l.max_velocity.is_some()
-                    || l.max_torque.is_some()
-                    || !l.extra.is_empty()
-            }),
-        ),
-        ("priority (beyond PRIORITY_HIGH)", cmd.priority.is_some()),
-        ("metadata", cmd.metadata.is_some()),
-        ("unknown members", !cmd.extra.is_empty()),
-    ] {
-        if present {
-            dropped.push(name);
-        }
-    }
-    let compact = CompactCommand {
-        motor: MotorHash::of(&cmd.motor_id),
-        timestamp_ms,
-        control_mode: cmd.control_mode,
-        flags,
-        setpoint,
-        velocity_limit,
-        torque_limit,
-    };
-    Ok((compact, dropped))
 }
 
 fn read_names(path: &str) -> std::io::Result<HashMap<MotorHash, String>> {

@@ -132,7 +132,7 @@ fn compact_encode_and_decode_with_names() {
     );
     assert_eq!(
         String::from_utf8(o.stderr).unwrap(),
-        "motorwire compact encode: shoulder_pitch: the compact command has no place for pid_gains\n"
+        "motorwire compact encode: shoulder_pitch: pid_gains: dropped: the compact command has no place for it\n"
     );
     let names = std::env::temp_dir().join(format!("motorwire-names-{}", std::process::id()));
     std::fs::write(&names, "shoulder_pitch\nelbow\n").unwrap();
@@ -177,7 +177,7 @@ fn compact_encode_refuses_invalid_and_unfitting_commands() {
     );
     assert_eq!(
         lines[1],
-        r#"{"error":"velocity_limit 7000 does not fit the wire; the maximum is 6553.4","line":2}"#
+        r#"{"error":"elbow: velocity_limit 7000 does not fit the wire; the maximum is 6553.4","line":2}"#
     );
     // flags 0x81 = PRIORITY_HIGH | EMERGENCY_STOP, mode 0.
     assert_eq!(lines[2], "22cb578101000000000000000081000000000000ffffffff");

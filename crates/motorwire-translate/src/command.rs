@@ -42,11 +42,19 @@ fn report_unused(cmd: &MotorCommand, used: &[&str], dialect: &str, report: &mut 
     ];
     for (name, is) in present {
         if is && !used.contains(&name) {
-            report.push(name, LossKind::Dropped, format!("{dialect} has no place for it"));
+            report.push(
+                name,
+                LossKind::Dropped,
+                format!("{dialect} has no place for it"),
+            );
         }
     }
     for key in cmd.extra.keys() {
-        report.push(key.clone(), LossKind::Dropped, format!("an unknown member; {dialect} has no place for it"));
+        report.push(
+            key.clone(),
+            LossKind::Dropped,
+            format!("an unknown member; {dialect} has no place for it"),
+        );
     }
 }
 
@@ -57,16 +65,22 @@ fn f32_of(motor: &str, field: &'static str, v: f64, report: &mut Report) -> Resu
         return Err(Refusal::NotRepresentable {
             motor: motor.to_owned(),
             field,
-            problem: format!("{v} does not fit an f32"),
+            problem: format!("{field} {v} does not fit an f32"),
         });
     }
     if f64::from(x) != v {
-        report.push(field, LossKind::Converted, format!("{v} rounded to the f32 {x}"));
+        report.push(
+            field,
+            LossKind::Converted,
+            format!("{v} rounded to the f32 {x}"),
+        );
     }
     Ok(x)
 }
 
-/// Translates a WIA MotorCommand for an iRPC joint, after the safety gate.
+/// Translates a WIA MotorCommand for an iRPC joint, after the safety gate
+/// (an emergency stop passes it whatever it carries: stopping is always
+/// safe).
 ///
 /// - `position` becomes `SetTargetV2` (wire v2.0 and later) or `SetTarget`
 ///   (v1), positions converted to degrees. Velocity and acceleration limits
@@ -85,7 +99,7 @@ fn f32_of(motor: &str, field: &'static str, v: f64, report: &mut Report) -> Resu
 /// [`Refusal::MissingLimit`] when a move has no velocity or acceleration
 /// limit; [`Refusal::NotRepresentable`] for a value beyond f32.
 pub fn to_irpc(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<IrpcCommand>, Refusal> {
-    let (motor, effective) = gate(map, cmd)?;
+    let (motor, effective) = gate_unless_emergency(map, cmd)?;
     let Target::Irpc { node, wire } = motor.target else {
         return Err(not_for(motor, cmd, "iRPC"));
     };
@@ -125,6 +139,24 @@ pub fn to_irpc(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<IrpcComman
     })
 }
 
+/// The gate, except for an emergency stop: a stop is never refused for
+/// the sake of the setpoint or limits it carries (only an unknown motor
+/// refuses it).
+fn gate_unless_emergency<'m>(
+    map: &'m BusMap,
+    cmd: &MotorCommand,
+) -> Result<(&'m MappedMotor, Effective), Refusal> {
+    if emergency(cmd) {
+        let motor = map
+            .motor(&cmd.motor_id)
+            .ok_or_else(|| Refusal::UnknownMotor {
+                motor: cmd.motor_id.clone(),
+            })?;
+        return Ok((motor, Effective::default()));
+    }
+    gate(map, cmd)
+}
+
 fn not_for(motor: &MappedMotor, cmd: &MotorCommand, dialect: &'static str) -> Refusal {
     Refusal::ModeNotExpressible {
         motor: motor.name.clone(),
@@ -148,12 +180,20 @@ fn set_target(
     let unit = motor.unit;
     let deg = |v: f64| unit.to_degrees(v);
     if unit != crate::AngleUnit::Degrees {
-        report.push("setpoint", LossKind::Converted, "radians to degrees (iRPC's unit)");
+        report.push(
+            "setpoint",
+            LossKind::Converted,
+            "radians to degrees (iRPC's unit)",
+        );
     }
     let velocity = match (cmd.velocity_limit, e.max_velocity) {
         (Some(v), _) => v,
         (None, Some(b)) => {
-            report.push("max_velocity", LossKind::Defaulted, format!("{} from the {}", b.value, b.source));
+            report.push(
+                "max_velocity",
+                LossKind::Defaulted,
+                format!("{} from the {}", b.value, b.source),
+            );
             b.value
         }
         (None, None) => {
@@ -176,7 +216,11 @@ fn set_target(
     let acceleration = match (cmd.acceleration_limit, e.max_acceleration) {
         (Some(a), _) => a,
         (None, Some(b)) => {
-            report.push("max_acceleration", LossKind::Defaulted, format!("{} from the {}", b.value, b.source));
+            report.push(
+                "max_acceleration",
+                LossKind::Defaulted,
+                format!("{} from the {}", b.value, b.source),
+            );
             b.value
         }
         (None, None) => {
@@ -191,7 +235,11 @@ fn set_target(
     let deceleration = match motor.limits.max_deceleration {
         Some(d) => {
             let d = cmd.acceleration_limit.map_or(d, |a| a.min(d));
-            report.push("max_deceleration", LossKind::Defaulted, format!("{d} from the bus map"));
+            report.push(
+                "max_deceleration",
+                LossKind::Defaulted,
+                format!("{d} from the bus map"),
+            );
             d
         }
         None => acceleration,
@@ -199,7 +247,11 @@ fn set_target(
     let (profile, jerk) = match (motor.profile, motor.limits.max_jerk) {
         (MotionProfile::Trapezoidal, _) => (MotionProfile::Trapezoidal, 0.0),
         (p, Some(j)) => {
-            report.push("max_jerk", LossKind::Defaulted, format!("{j} from the bus map"));
+            report.push(
+                "max_jerk",
+                LossKind::Defaulted,
+                format!("{j} from the bus map"),
+            );
             (p, j)
         }
         (_, None) => {
@@ -211,7 +263,12 @@ fn set_target(
             (MotionProfile::Trapezoidal, 0.0)
         }
     };
-    report_unused(cmd, &["velocity_limit", "acceleration_limit"], "SetTargetV2", report);
+    report_unused(
+        cmd,
+        &["velocity_limit", "acceleration_limit"],
+        "SetTargetV2",
+        report,
+    );
     Ok(Payload::SetTargetV2(SetTargetPayloadV2 {
         target_angle: target,
         max_velocity: velocity,
@@ -275,11 +332,9 @@ pub fn compact_command(cmd: &MotorCommand) -> Result<Translated<CompactCommand>,
         "the compact command",
         &mut report,
     );
-    if cmd.priority.is_some() {
-        if let Some(loss) = report.losses.iter_mut().find(|l| l.field == "priority") {
-            loss.kind = LossKind::Converted;
-            loss.detail = format!("to the PRIORITY_HIGH flag (set from {HIGH_PRIORITY})");
-        }
+    if let Some(loss) = report.losses.iter_mut().find(|l| l.field == "priority") {
+        loss.kind = LossKind::Converted;
+        loss.detail = format!("to the PRIORITY_HIGH flag (set from {HIGH_PRIORITY})");
     }
     if let Some(l) = &cmd.safety_limits {
         let others = l.min_position.is_some()
@@ -316,7 +371,7 @@ pub fn compact_command(cmd: &MotorCommand) -> Result<Translated<CompactCommand>,
 /// [`gate`]'s refusals, a motor of another dialect, and
 /// [`compact_command`]'s.
 pub fn to_compact(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<CompactCommand>, Refusal> {
-    let (motor, _) = gate(map, cmd)?;
+    let (motor, _) = gate_unless_emergency(map, cmd)?;
     if motor.target != Target::Compact {
         return Err(not_for(motor, cmd, "compact"));
     }
@@ -333,13 +388,16 @@ pub fn to_compact(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<Compact
 ///
 /// # Errors
 /// The first axis's refusal, naming it.
-pub fn to_orion(map: &BusMap, cmd: &MultiAxisCommand) -> Result<Translated<motorwire_orion::Input>, Refusal> {
+pub fn to_orion(
+    map: &BusMap,
+    cmd: &MultiAxisCommand,
+) -> Result<Translated<motorwire_orion::Input>, Refusal> {
     let mut values = MotorValues::new();
     let mut report = Report::default();
     let mut stop = false;
     for axis in &cmd.motors {
         let single = axis.to_motor_command(cmd.timestamp);
-        let (motor, _) = gate(map, &single)?;
+        let (motor, _) = gate_unless_emergency(map, &single)?;
         let Target::Orion { motor: orion } = motor.target else {
             return Err(not_for(motor, &single, "orion"));
         };
@@ -352,7 +410,11 @@ pub fn to_orion(map: &BusMap, cmd: &MultiAxisCommand) -> Result<Translated<motor
             (Quantity::Speed | Quantity::Actuator, ControlMode::Disabled) => 0.0,
             (Quantity::PositionDegrees, ControlMode::Position) => {
                 if motor.unit != crate::AngleUnit::Degrees {
-                    report.push(format!("{}.setpoint", motor.name), LossKind::Converted, "radians to degrees (GHS's unit)");
+                    report.push(
+                        format!("{}.setpoint", motor.name),
+                        LossKind::Converted,
+                        "radians to degrees (GHS's unit)",
+                    );
                 }
                 motor.unit.to_degrees(single.setpoint)
             }
@@ -378,14 +440,25 @@ pub fn to_orion(map: &BusMap, cmd: &MultiAxisCommand) -> Result<Translated<motor
         ("metadata", cmd.metadata.is_some()),
     ] {
         if present {
-            report.push(field, LossKind::Dropped, "Orion direct control has no place for it");
+            report.push(
+                field,
+                LossKind::Dropped,
+                "Orion direct control has no place for it",
+            );
         }
     }
     let input = if stop {
-        report.push("motors", LossKind::Converted, "an emergency stop: Orion's stop command (MODE 2, DATA 1) replaces the values");
+        report.push(
+            "motors",
+            LossKind::Converted,
+            "an emergency stop: Orion's stop command (MODE 2, DATA 1) replaces the values",
+        );
         motorwire_orion::Input::Command(motorwire_orion::ArmCommand::Stop.into())
     } else {
         motorwire_orion::Input::DirectControl(values)
     };
-    Ok(Translated { value: input, report })
+    Ok(Translated {
+        value: input,
+        report,
+    })
 }

@@ -59,13 +59,13 @@ pub enum Refusal {
         field: &'static str,
     },
     /// A value the target format cannot hold.
-    #[error("{motor}: {field}: {problem}")]
+    #[error("{motor}: {problem}")]
     NotRepresentable {
         /// The motor.
         motor: String,
         /// The field.
         field: &'static str,
-        /// Why.
+        /// Why, naming the field.
         problem: String,
     },
     /// A multi-axis move whose axes cannot arrive together.
@@ -104,7 +104,11 @@ pub struct Effective {
 
 fn tighter(a: Option<Bound>, b: Option<Bound>, lower_wins: bool) -> Option<Bound> {
     match (a, b) {
-        (Some(x), Some(y)) => Some(if (y.value < x.value) == lower_wins { y } else { x }),
+        (Some(x), Some(y)) => Some(if (y.value < x.value) == lower_wins {
+            y
+        } else {
+            x
+        }),
         (x, None) => x,
         (None, y) => y,
     }
@@ -151,7 +155,12 @@ impl Effective {
         };
         if let Target::Orion { motor } = target {
             let (lo, hi) = motor.range();
-            let range = |value| Some(Bound { value, source: "Orion range" });
+            let range = |value| {
+                Some(Bound {
+                    value,
+                    source: "Orion range",
+                })
+            };
             match motor.quantity() {
                 motorwire_orion::Quantity::PositionDegrees => {
                     e.min_position = tighter(e.min_position, range(lo), false);
@@ -197,10 +206,15 @@ fn outside(motor: &str, field: &'static str, value: f64, name: &str, b: Bound) -
 ///
 /// # Errors
 /// A [`Refusal`] naming the motor, the field, the value and the limit.
-pub fn gate<'m>(map: &'m BusMap, cmd: &MotorCommand) -> Result<(&'m MappedMotor, Effective), Refusal> {
-    let motor = map.motor(&cmd.motor_id).ok_or_else(|| Refusal::UnknownMotor {
-        motor: cmd.motor_id.clone(),
-    })?;
+pub fn gate<'m>(
+    map: &'m BusMap,
+    cmd: &MotorCommand,
+) -> Result<(&'m MappedMotor, Effective), Refusal> {
+    let motor = map
+        .motor(&cmd.motor_id)
+        .ok_or_else(|| Refusal::UnknownMotor {
+            motor: cmd.motor_id.clone(),
+        })?;
     let name = motor.name.as_str();
     let finite = |field: &'static str, v: Option<f64>| match v {
         Some(x) if !x.is_finite() => Err(Refusal::NonFinite {
@@ -253,7 +267,13 @@ pub fn gate<'m>(map: &'m BusMap, cmd: &MotorCommand) -> Result<(&'m MappedMotor,
     if let (Some(v), Some(b)) = (cmd.acceleration_limit, e.max_acceleration)
         && v > b.value
     {
-        return Err(outside(name, "acceleration_limit", v, "max_acceleration", b));
+        return Err(outside(
+            name,
+            "acceleration_limit",
+            v,
+            "max_acceleration",
+            b,
+        ));
     }
     if let (Some(v), Some(b)) = (cmd.torque_limit, e.max_torque)
         && v > b.value

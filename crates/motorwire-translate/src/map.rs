@@ -21,7 +21,9 @@ pub enum MapError {
     },
     /// A motor name WIA cannot address (`^[a-zA-Z0-9_-]+$`, at most 64
     /// bytes).
-    #[error("bus map: motor name {name:?} is not a WIA motor_id (letters, digits, _ and -, at most 64 bytes)")]
+    #[error(
+        "bus map: motor name {name:?} is not a WIA motor_id (letters, digits, _ and -, at most 64 bytes)"
+    )]
     BadName {
         /// The name.
         name: String,
@@ -299,8 +301,16 @@ impl BusMap {
                 Target::Irpc { node, wire }
             }
             "compact" | "orion" => {
-                let dialect = if m.dialect == "compact" { "compact" } else { "orion" };
-                for (field, present) in [("node", m.node.is_some()), ("wire", m.wire.is_some()), ("profile", m.profile.is_some())] {
+                let dialect = if m.dialect == "compact" {
+                    "compact"
+                } else {
+                    "orion"
+                };
+                for (field, present) in [
+                    ("node", m.node.is_some()),
+                    ("wire", m.wire.is_some()),
+                    ("profile", m.profile.is_some()),
+                ] {
                     if present {
                         return Err(not_for(field, dialect));
                     }
@@ -323,20 +333,34 @@ impl BusMap {
                 }
             }
             other => {
-                return Err(invalid(name, "dialect", format!("{other:?} is not irpc, compact or orion")));
+                return Err(invalid(
+                    name,
+                    "dialect",
+                    format!("{other:?} is not irpc, compact or orion"),
+                ));
             }
         };
         let unit = match m.unit.as_deref() {
             None | Some("deg") => AngleUnit::Degrees,
             Some("rad") => AngleUnit::Radians,
-            Some(other) => return Err(invalid(name, "unit", format!("{other:?} is not deg or rad"))),
+            Some(other) => {
+                return Err(invalid(
+                    name,
+                    "unit",
+                    format!("{other:?} is not deg or rad"),
+                ));
+            }
         };
         let profile = match m.profile.as_deref() {
             None | Some("scurve") => MotionProfile::SCurve,
             Some("trapezoidal") => MotionProfile::Trapezoidal,
             Some("adaptive") => MotionProfile::Adaptive,
             Some(other) => {
-                return Err(invalid(name, "profile", format!("{other:?} is not trapezoidal, scurve or adaptive")));
+                return Err(invalid(
+                    name,
+                    "profile",
+                    format!("{other:?} is not trapezoidal, scurve or adaptive"),
+                ));
             }
         };
         let l = m.limits;
@@ -361,7 +385,11 @@ impl BusMap {
         if let (Some(lo), Some(hi)) = (l.min_position, l.max_position)
             && lo > hi
         {
-            return Err(invalid(name, "limits", format!("min_position {lo} is above max_position {hi}")));
+            return Err(invalid(
+                name,
+                "limits",
+                format!("min_position {lo} is above max_position {hi}"),
+            ));
         }
         Ok(MappedMotor {
             name: name.to_owned(),

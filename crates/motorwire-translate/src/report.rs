@@ -47,7 +47,12 @@ pub struct Report {
 }
 
 impl Report {
-    pub(crate) fn push(&mut self, field: impl Into<String>, kind: LossKind, detail: impl Into<String>) {
+    pub(crate) fn push(
+        &mut self,
+        field: impl Into<String>,
+        kind: LossKind,
+        detail: impl Into<String>,
+    ) {
         self.losses.push(Loss {
             field: field.into(),
             kind,

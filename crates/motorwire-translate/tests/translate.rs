@@ -1,0 +1,394 @@
+//! The bus map, the safety gate and the command translations, on the demo
+//! arm's map.
+#![allow(clippy::unwrap_used, clippy::panic, clippy::indexing_slicing)]
+
+use motorwire_irpc::{MotionProfile, Payload, SetTargetPayload, SetTargetPayloadV2, WireVersion};
+use motorwire_translate::*;
+use motorwire_wia::{MotorCommand, MultiAxisCommand};
+
+fn demo() -> BusMap {
+    BusMap::from_toml(include_str!("../../../fixtures/maps/demo-arm.toml")).unwrap()
+}
+
+fn cmd(json: &str) -> MotorCommand {
+    serde_json::from_str(json).unwrap()
+}
+
+#[test]
+fn the_demo_map_has_every_motor_where_the_issue_puts_it() {
+    let map = demo();
+    let names: Vec<&str> = map.motors().map(|m| m.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "arm_extension",
+            "elbow",
+            "grasper_horizontal_servo",
+            "grasper_rotation",
+            "grasper_vertical",
+            "gripper_axis",
+            "lower_arm_actuator",
+            "shoulder_pitch",
+            "shoulder_roll",
+            "turntable",
+            "upper_arm_actuator"
+        ]
+    );
+    let pitch = map.motor("shoulder_pitch").unwrap();
+    assert_eq!(
+        pitch.target,
+        Target::Irpc {
+            node: 0x10,
+            wire: WireVersion::V2_0
+        }
+    );
+    assert_eq!(pitch.limits.min_position, Some(-90.0));
+    assert_eq!(pitch.limits.max_velocity, Some(120.0));
+    assert_eq!(map.irpc_node(0x12).unwrap().name, "elbow");
+    assert_eq!(map.motor("gripper_axis").unwrap().target, Target::Compact);
+    assert_eq!(
+        map.orion_motor(motorwire_orion::Motor::Turntable)
+            .unwrap()
+            .name,
+        "turntable"
+    );
+    for m in motorwire_orion::Motor::ALL {
+        assert_eq!(map.orion_motor(m).unwrap().name, m.name());
+    }
+}
+
+#[test]
+fn bad_maps_are_refused_naming_motor_and_field() {
+    let cases = [
+        (
+            "[motors.a]\ndialect = \"canopen\"",
+            "bus map: motors.a.dialect: \"canopen\" is not irpc, compact or orion",
+        ),
+        (
+            "[motors.a]\ndialect = \"irpc\"",
+            "bus map: motors.a speaks irpc and needs node",
+        ),
+        (
+            "[motors.a]\ndialect = \"irpc\"\nnode = 0",
+            "bus map: motors.a.node: 0 is not a node id in 0x0001..=0xFFFE (0x0000 and 0xFFFF are broadcast)",
+        ),
+        (
+            "[motors.a]\ndialect = \"irpc\"\nnode = 70000",
+            "bus map: motors.a.node: 70000 is not a node id in 0x0001..=0xFFFE (0x0000 and 0xFFFF are broadcast)",
+        ),
+        (
+            "[motors.a]\ndialect = \"irpc\"\nnode = 1\nwire = \"v3\"",
+            "bus map: motors.a.wire: unknown iRPC wire version; expected v1, v2.0, v2.1 or v2.2",
+        ),
+        (
+            "[motors.a]\ndialect = \"orion\"\nkey = \"XYZ\"",
+            "bus map: motors.a.key: \"XYZ\" is not an Orion motor key (TRM, LAA, UAA, AEM, GVM, GRM, GHS)",
+        ),
+        (
+            "[motors.a]\ndialect = \"orion\"\nkey = \"TRM\"\nnode = 3",
+            "bus map: motors.a.node means nothing for a orion motor",
+        ),
+        (
+            "[motors.a]\ndialect = \"compact\"\nunit = \"grad\"",
+            "bus map: motors.a.unit: \"grad\" is not deg or rad",
+        ),
+        (
+            "[motors.a]\ndialect = \"compact\"\nlimits = { max_velocity = -1 }",
+            "bus map: motors.a.limits.max_velocity: -1 is not > 0",
+        ),
+        (
+            "[motors.a]\ndialect = \"compact\"\nlimits = { max_velocity = nan }",
+            "bus map: motors.a.limits.max_velocity: NaN is not a finite number",
+        ),
+        (
+            "[motors.a]\ndialect = \"compact\"\nlimits = { min_position = 5, max_position = 1 }",
+            "bus map: motors.a.limits: min_position 5 is above max_position 1",
+        ),
+        (
+            "[motors.a]\ndialect = \"irpc\"\nnode = 3\n[motors.b]\ndialect = \"irpc\"\nnode = 3",
+            "bus map: motors.a and motors.b are both iRPC node 0x03",
+        ),
+        (
+            "[motors.\"a b\"]\ndialect = \"compact\"",
+            "bus map: motor name \"a b\" is not a WIA motor_id (letters, digits, _ and -, at most 64 bytes)",
+        ),
+    ];
+    for (text, message) in cases {
+        let err = BusMap::from_toml(text).unwrap_err();
+        assert_eq!(err.to_string(), message, "{text}");
+    }
+    // Typos and wrong types come from the TOML reader, with the place.
+    let typo = BusMap::from_toml("[motors.a]\ndialect = \"compact\"\nlimit = {}").unwrap_err();
+    assert!(
+        matches!(&typo, MapError::Toml { message } if message.contains("unknown field `limit`")),
+        "{typo}"
+    );
+    let wrong = BusMap::from_toml("[motors.a]\ndialect = 5").unwrap_err();
+    assert!(
+        matches!(&wrong, MapError::Toml { message } if message.contains("line 2")),
+        "{wrong}"
+    );
+}
+
+#[test]
+fn position_commands_become_set_target_v2_with_the_maps_limits() {
+    let map = demo();
+    let t = to_irpc(
+        &map,
+        &cmd(r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":90,"velocity_limit":60}"#),
+    )
+    .unwrap();
+    assert_eq!(t.value.node, 0x12);
+    assert_eq!(
+        t.value.payloads,
+        [Payload::SetTargetV2(SetTargetPayloadV2 {
+            target_angle: 90.0,
+            max_velocity: 60.0,
+            target_velocity: 0.0,
+            max_acceleration: 500.0,
+            max_deceleration: 400.0,
+            max_jerk: 2000.0,
+            profile: MotionProfile::SCurve,
+            max_current: 0.0,
+            max_temperature: 0.0,
+        })]
+    );
+    let fields: Vec<(&str, LossKind)> = t
+        .report
+        .losses
+        .iter()
+        .map(|l| (l.field.as_str(), l.kind))
+        .collect();
+    assert_eq!(
+        fields,
+        [
+            ("max_acceleration", LossKind::Defaulted),
+            ("max_deceleration", LossKind::Defaulted),
+            ("max_jerk", LossKind::Defaulted)
+        ]
+    );
+    // Radians are converted to degrees, and said so; v1 gets SetTarget and
+    // drops what it has no place for.
+    let rad = BusMap::from_toml(
+        "[motors.j]\ndialect = \"irpc\"\nnode = 5\nwire = \"v1\"\nunit = \"rad\"\nlimits = { max_velocity = 2 }",
+    )
+    .unwrap();
+    let t = to_irpc(
+        &rad,
+        &cmd(r#"{"motor_id":"j","timestamp":1,"control_mode":"position","setpoint":1.5,"acceleration_limit":3,"pid_gains":{"kp":1}}"#),
+    )
+    .unwrap();
+    assert_eq!(
+        t.value.payloads,
+        [Payload::SetTarget(SetTargetPayload {
+            target_angle: 1.5f64.to_degrees() as f32,
+            velocity_limit: 2f64.to_degrees() as f32,
+        })]
+    );
+    let text: Vec<String> = t.report.losses.iter().map(ToString::to_string).collect();
+    assert_eq!(
+        text,
+        [
+            "setpoint: converted: radians to degrees (iRPC's unit)",
+            "max_velocity: defaulted: 2 from the bus map",
+            format!(
+                "setpoint: converted: {} rounded to the f32 {}",
+                1.5f64.to_degrees(),
+                1.5f64.to_degrees() as f32
+            )
+            .as_str(),
+            format!(
+                "velocity_limit: converted: {} rounded to the f32 {}",
+                2f64.to_degrees(),
+                2f64.to_degrees() as f32
+            )
+            .as_str(),
+            "acceleration_limit: dropped: SetTarget (iRPC v1) has no place for it",
+            "pid_gains: dropped: SetTarget (iRPC v1) has no place for it",
+        ]
+    );
+}
+
+#[test]
+fn the_gate_refuses_naming_limit_and_value() {
+    let map = demo();
+    let refusals = [
+        (
+            r#"{"motor_id":"shoulder_pitch","timestamp":1,"control_mode":"position","setpoint":95}"#,
+            "shoulder_pitch: setpoint 95 is outside max_position (bus map) 90",
+        ),
+        (
+            r#"{"motor_id":"shoulder_roll","timestamp":1,"control_mode":"position","setpoint":-50}"#,
+            "shoulder_roll: setpoint -50 is outside min_position (bus map) -45",
+        ),
+        (
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":100,"safety_limits":{"max_position":80}}"#,
+            "elbow: setpoint 100 is outside max_position (command) 80",
+        ),
+        (
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":100,"safety_limits":{"max_position":200}}"#,
+            "",
+        ),
+        (
+            r#"{"motor_id":"shoulder_pitch","timestamp":1,"control_mode":"position","setpoint":10,"velocity_limit":150}"#,
+            "shoulder_pitch: velocity_limit 150 is outside max_velocity (bus map) 120",
+        ),
+        (
+            r#"{"motor_id":"shoulder_pitch","timestamp":1,"control_mode":"position","setpoint":10,"acceleration_limit":501}"#,
+            "shoulder_pitch: acceleration_limit 501 is outside max_acceleration (bus map) 500",
+        ),
+        (
+            r#"{"motor_id":"wrist","timestamp":1,"control_mode":"position","setpoint":10}"#,
+            "motor \"wrist\" is not in the bus map",
+        ),
+        (
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"velocity","setpoint":10}"#,
+            "elbow: iRPC cannot express control mode velocity",
+        ),
+        (
+            r#"{"motor_id":"gripper_axis","timestamp":1,"control_mode":"position","setpoint":10}"#,
+            "gripper_axis: iRPC (the bus map says this motor is not an iRPC joint) cannot express control mode position",
+        ),
+    ];
+    for (json, message) in refusals {
+        match to_irpc(&map, &cmd(json)) {
+            Err(e) => assert_eq!(e.to_string(), message, "{json}"),
+            Ok(t) => assert_eq!(message, "", "{json} passed: {t:?}"),
+        }
+    }
+    // Non-finite values cannot come from JSON, but can from Rust.
+    let mut nan =
+        cmd(r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":10}"#);
+    nan.setpoint = f64::NAN;
+    assert_eq!(
+        gate(&map, &nan).unwrap_err(),
+        Refusal::NonFinite {
+            motor: "elbow".into(),
+            field: "setpoint"
+        }
+    );
+    // The limits are in the refusal for a program to read.
+    let err = to_irpc(
+        &map,
+        &cmd(r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":151}"#),
+    )
+    .unwrap_err();
+    assert_eq!(
+        err,
+        Refusal::OutsideLimit {
+            motor: "elbow".into(),
+            field: "setpoint",
+            value: 151.0,
+            limit: "max_position (bus map)".into(),
+            bound: 150.0
+        }
+    );
+}
+
+#[test]
+fn disabled_and_emergency_stop_deactivate_the_joint() {
+    let map = demo();
+    let off = to_irpc(
+        &map,
+        &cmd(r#"{"motor_id":"elbow","timestamp":1,"control_mode":"disabled","setpoint":0}"#),
+    )
+    .unwrap();
+    assert_eq!(off.value.payloads, [Payload::Deactivate]);
+    assert!(off.report.is_exact());
+    // An emergency stop is never refused for what it carries: stopping is
+    // always safe (here a setpoint far outside the elbow's limits).
+    let stop = to_irpc(
+        &map,
+        &cmd(r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":1000,"safety_limits":{"emergency_stop":true}}"#),
+    )
+    .unwrap();
+    assert_eq!(stop.value.payloads, [Payload::Deactivate]);
+    assert_eq!(
+        stop.report.losses[0].to_string(),
+        "setpoint: dropped: emergency stop: the joint is deactivated instead of moved"
+    );
+}
+
+#[test]
+fn compact_commands_carry_what_24_bytes_can() {
+    let map = demo();
+    let t = to_compact(
+        &map,
+        &cmd(r#"{"motor_id":"gripper_axis","timestamp":1704067200000,"control_mode":"position","setpoint":45.5,"velocity_limit":30,"torque_limit":2,"priority":90,"safety_limits":{"emergency_stop":true,"max_torque":4}}"#),
+    )
+    .unwrap();
+    let c = t.value;
+    assert_eq!(c.motor, motorwire_compact::MotorHash::of("gripper_axis"));
+    assert_eq!(c.timestamp_ms, 1_704_067_200_000);
+    assert_eq!(
+        c.flags,
+        motorwire_compact::Flags::EMERGENCY_STOP.union(motorwire_compact::Flags::PRIORITY_HIGH)
+    );
+    let text: Vec<String> = t.report.losses.iter().map(ToString::to_string).collect();
+    assert_eq!(
+        text,
+        [
+            "priority: converted: to the PRIORITY_HIGH flag (set from 75)",
+            "safety_limits: dropped: only emergency_stop has a place (the EMERGENCY_STOP flag)",
+        ]
+    );
+    assert_eq!(
+        to_compact(
+            &map,
+            &cmd(
+                r#"{"motor_id":"gripper_axis","timestamp":1,"control_mode":"torque","setpoint":6}"#
+            )
+        )
+        .unwrap_err()
+        .to_string(),
+        "gripper_axis: setpoint 6 is outside max_torque (bus map) 5"
+    );
+}
+
+#[test]
+fn multi_axis_commands_become_orion_direct_control() {
+    let map = demo();
+    let multi: MultiAxisCommand = serde_json::from_str(
+        r#"{"command_id":"c1","timestamp":1,"sync_mode":"independent","motors":[
+            {"motor_id":"turntable","control_mode":"velocity","setpoint":200},
+            {"motor_id":"lower_arm_actuator","control_mode":"velocity","setpoint":-1},
+            {"motor_id":"grasper_horizontal_servo","control_mode":"position","setpoint":-30},
+            {"motor_id":"arm_extension","control_mode":"disabled","setpoint":0}
+        ]}"#,
+    )
+    .unwrap();
+    let t = to_orion(&map, &multi).unwrap();
+    assert_eq!(
+        t.value.to_json(),
+        r#"{"ID":32,"MODE":1,"DATA":{"TRM":200,"LAA":-1,"AEM":0,"GHS":-30}}"#
+    );
+    assert_eq!(
+        t.report.losses[0].to_string(),
+        "sync_mode: dropped: Orion direct control has no place for it"
+    );
+    // Beyond the document's range is refused, not left to the controller to clamp.
+    let too_fast: MultiAxisCommand = serde_json::from_str(
+        r#"{"command_id":"c2","timestamp":1,"motors":[{"motor_id":"turntable","control_mode":"velocity","setpoint":-500}]}"#,
+    )
+    .unwrap();
+    assert_eq!(
+        to_orion(&map, &too_fast).unwrap_err().to_string(),
+        "turntable: setpoint -500 is outside max_velocity (Orion range) 400"
+    );
+    let servo: MultiAxisCommand = serde_json::from_str(
+        r#"{"command_id":"c3","timestamp":1,"motors":[{"motor_id":"grasper_horizontal_servo","control_mode":"position","setpoint":120}]}"#,
+    )
+    .unwrap();
+    assert_eq!(
+        to_orion(&map, &servo).unwrap_err().to_string(),
+        "grasper_horizontal_servo: setpoint 120 is outside max_position (bus map) 90"
+    );
+    let estop: MultiAxisCommand = serde_json::from_str(
+        r#"{"command_id":"c4","timestamp":1,"motors":[{"motor_id":"turntable","control_mode":"velocity","setpoint":10,"safety_limits":{"emergency_stop":true}}]}"#,
+    )
+    .unwrap();
+    assert_eq!(
+        to_orion(&map, &estop).unwrap().value.to_json(),
+        r#"{"ID":32,"MODE":2,"DATA":1}"#
+    );
+}
