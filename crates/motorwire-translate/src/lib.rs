@@ -1,11 +1,13 @@
 #![doc = include_str!("../README.md")]
 
 mod command;
+mod feedback;
 mod gate;
 mod map;
 mod report;
 
 pub use command::{HIGH_PRIORITY, IrpcCommand, compact_command, to_compact, to_irpc, to_orion};
+pub use feedback::{FeedbackError, feedback_from_irpc, feedback_from_orion};
 pub use gate::{Bound, Effective, Refusal, gate};
 pub use map::{AngleUnit, BusMap, Limits, MapError, MappedMotor, Target};
 pub use report::{Loss, LossKind, Report, Translated};
