@@ -68,6 +68,13 @@ pub enum Refusal {
         /// Why, naming the field.
         problem: String,
     },
+    /// A synchronized move needs a joint's current position, and it is
+    /// not known (no feedback yet).
+    #[error("{motor}: its current position is not known, so its move cannot be synchronized")]
+    UnknownPosition {
+        /// The motor.
+        motor: String,
+    },
     /// A multi-axis move whose axes cannot arrive together.
     #[error("{problem}")]
     Unsynchronizable {

@@ -5,9 +5,11 @@ mod feedback;
 mod gate;
 mod map;
 mod report;
+mod sync;
 
 pub use command::{HIGH_PRIORITY, IrpcCommand, compact_command, to_compact, to_irpc, to_orion};
 pub use feedback::{FeedbackError, feedback_from_irpc, feedback_from_orion};
 pub use gate::{Bound, Effective, Refusal, gate};
 pub use map::{AngleUnit, BusMap, Limits, MapError, MappedMotor, Target};
 pub use report::{Loss, LossKind, Report, Translated};
+pub use sync::{MultiAxisMove, SYNC_TOLERANCE_S, multi_axis_to_irpc};
