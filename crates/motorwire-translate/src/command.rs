@@ -139,6 +139,44 @@ pub fn to_irpc(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<IrpcComman
     })
 }
 
+/// `Activate` (`enable: true`) or `Deactivate` for the iRPC joint named
+/// `motor`. WIA has no "enable" command (a `disabled` command disables);
+/// a bridge activates a joint before its first motion command and after a
+/// `disabled` one.
+///
+/// ```
+/// use motorwire_irpc::Payload;
+/// use motorwire_translate::{BusMap, lifecycle};
+/// let map = BusMap::from_toml("[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12")?;
+/// assert_eq!(lifecycle(&map, "elbow", true)?.payloads, [Payload::Activate]);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// [`Refusal::UnknownMotor`], or [`Refusal::ModeNotExpressible`] for a
+/// motor that is not an iRPC joint.
+pub fn lifecycle(map: &BusMap, motor: &str, enable: bool) -> Result<IrpcCommand, Refusal> {
+    let m = map.motor(motor).ok_or_else(|| Refusal::UnknownMotor {
+        motor: motor.to_owned(),
+    })?;
+    let Target::Irpc { node, wire } = m.target else {
+        return Err(Refusal::ModeNotExpressible {
+            motor: m.name.clone(),
+            mode: if enable { "enable" } else { "disabled" },
+            dialect: "iRPC (the bus map says this motor is not an iRPC joint)",
+        });
+    };
+    Ok(IrpcCommand {
+        node,
+        wire,
+        payloads: vec![if enable {
+            Payload::Activate
+        } else {
+            Payload::Deactivate
+        }],
+    })
+}
+
 /// The gate, except for an emergency stop: a stop is never refused for
 /// the sake of the setpoint or limits it carries (only an unknown motor
 /// refuses it).

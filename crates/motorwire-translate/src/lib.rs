@@ -7,7 +7,9 @@ mod map;
 mod report;
 mod sync;
 
-pub use command::{HIGH_PRIORITY, IrpcCommand, compact_command, to_compact, to_irpc, to_orion};
+pub use command::{
+    HIGH_PRIORITY, IrpcCommand, compact_command, lifecycle, to_compact, to_irpc, to_orion,
+};
 pub use feedback::{FeedbackError, feedback_from_irpc, feedback_from_orion};
 pub use gate::{Bound, Effective, Refusal, gate};
 pub use map::{AngleUnit, BusMap, Limits, MapError, MappedMotor, Target};

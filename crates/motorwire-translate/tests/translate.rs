@@ -392,3 +392,58 @@ fn multi_axis_commands_become_orion_direct_control() {
         r#"{"ID":32,"MODE":2,"DATA":1}"#
     );
 }
+
+mod gate_property {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Whatever a command asks, what passes the gate is within every
+        /// limit of the map, and nothing panics.
+        #[test]
+        fn nothing_outside_the_limits_passes(
+            motor in prop::sample::select(vec!["shoulder_pitch", "shoulder_roll", "elbow", "gripper_axis", "turntable", "nobody"]),
+            mode in prop::sample::select(vec!["position", "velocity", "torque", "disabled", "impedance"]),
+            setpoint in -1e4f64..1e4,
+            velocity in proptest::option::of(0.0f64..500.0),
+            own_max in proptest::option::of(-200.0f64..200.0),
+        ) {
+            let map = demo();
+            let mut json = serde_json::json!({
+                "motor_id": motor, "timestamp": 1, "control_mode": mode, "setpoint": setpoint,
+            });
+            if let Some(v) = velocity {
+                json["velocity_limit"] = v.into();
+            }
+            if let Some(m) = own_max {
+                json["safety_limits"] = serde_json::json!({ "max_position": m });
+            }
+            let cmd: MotorCommand = serde_json::from_value(json).unwrap();
+            if let Ok((m, _)) = gate(&map, &cmd) {
+                let l = m.limits;
+                if mode == "position" {
+                    prop_assert!(l.min_position.is_none_or(|lo| setpoint >= lo));
+                    prop_assert!(l.max_position.is_none_or(|hi| setpoint <= hi));
+                    prop_assert!(own_max.is_none_or(|hi| setpoint <= hi));
+                }
+                if mode == "velocity" {
+                    prop_assert!(l.max_velocity.is_none_or(|v| setpoint.abs() <= v));
+                }
+                if mode == "torque" {
+                    prop_assert!(l.max_torque.is_none_or(|t| setpoint.abs() <= t));
+                }
+                prop_assert!(velocity.is_none_or(|v| l.max_velocity.is_none_or(|max| v <= max)));
+            }
+            if let Ok(t) = to_irpc(&map, &cmd) {
+                for p in &t.value.payloads {
+                    if let Payload::SetTargetV2(p) = p {
+                        let l = map.irpc_node(t.value.node).unwrap().limits;
+                        prop_assert!(f64::from(p.target_angle) >= l.min_position.unwrap() - 1e-4);
+                        prop_assert!(f64::from(p.target_angle) <= l.max_position.unwrap() + 1e-4);
+                        prop_assert!(f64::from(p.max_velocity) <= l.max_velocity.unwrap() + 1e-4);
+                    }
+                }
+            }
+        }
+    }
+}
