@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out=fuzz/corpus
 rm -rf "$out"
-mkdir -p "$out"/{compact_decode,irpc_decode_v1,irpc_decode_v2_0,irpc_decode_v2_1,irpc_decode_v2_2,irpc_decode_frame,wia_validate}
+mkdir -p "$out"/{compact_decode,irpc_decode_v1,irpc_decode_v2_0,irpc_decode_v2_1,irpc_decode_v2_2,irpc_decode_frame,wia_validate,orion_parse}
 # Hex digits (spaces allowed) to bytes, with bash's printf alone.
 unhex() { local h; h=$(printf '%s' "$1" | tr -d ' \n' | sed 's/../\\x&/g'); printf '%b' "$h"; }
 i=0
@@ -37,4 +37,10 @@ unhex "22 cb 57 81 08 07 06 05 04 03 02 01 03 e1 00 00 00 00 20 c0 fe ff d2 04" 
 for f in fixtures/wia/valid/*.json fixtures/wia/invalid/*.json; do
     cp "$f" "$out/wia_validate/$(basename "$f")"
 done
+# The Orion document's examples.
+printf '%s' '{"ID":32,"MODE":1,"DATA":{"TRM":200,"LAA":1,"UAA":1,"AEM":400}}' > "$out/orion_parse/direct"
+printf '%s' '{"ID":32,"MODE":2,"DATA":3}' > "$out/orion_parse/unfold"
+printf '%s' '{"ID":32,"MODE":1,"DATA":{"TRM":[200,65,0],"LAA":[1,50,0],"UAA":[1,45,0],"AEM":[400,35,0]}}' > "$out/orion_parse/feedback"
+printf '%s' '{"ID":32,"MODE":2,"DATA":{"CMDF":1}}' > "$out/orion_parse/cmdf"
+printf '%s' '{"ID":32}' > "$out/orion_parse/beacon"
 echo "seeds: $(find "$out" -type f | wc -l) files"
