@@ -447,3 +447,22 @@ mod gate_property {
         }
     }
 }
+
+#[test]
+fn hostile_maps_are_errors_not_crashes() {
+    let deep = format!("x = {}1{}", "[".repeat(100_000), "]".repeat(100_000));
+    assert!(matches!(
+        BusMap::from_toml(&deep),
+        Err(MapError::Toml { .. })
+    ));
+    let inline = format!("x = {}1{}", "{a = ".repeat(100_000), "}".repeat(100_000));
+    assert!(matches!(
+        BusMap::from_toml(&inline),
+        Err(MapError::Toml { .. })
+    ));
+    assert!(matches!(
+        BusMap::from_toml("\u{0}"),
+        Err(MapError::Toml { .. })
+    ));
+    assert_eq!(BusMap::from_toml("").unwrap().motors().count(), 0);
+}
