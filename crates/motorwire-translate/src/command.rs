@@ -207,6 +207,33 @@ fn not_for(motor: &MappedMotor, cmd: &MotorCommand, dialect: &'static str) -> Re
     }
 }
 
+/// A limit from the command, or else from the effective limits (said so),
+/// or else a refusal: iRPC needs it.
+fn resolve(
+    motor: &str,
+    field: &'static str,
+    own: Option<f64>,
+    fallback: Option<crate::Bound>,
+    report: &mut Report,
+) -> Result<f64, Refusal> {
+    match (own, fallback) {
+        (Some(v), _) => Ok(v),
+        (None, Some(b)) => {
+            report.push(
+                field,
+                LossKind::Defaulted,
+                format!("{} from the {}", b.value, b.source),
+            );
+            Ok(b.value)
+        }
+        (None, None) => Err(Refusal::MissingLimit {
+            motor: motor.to_owned(),
+            dialect: "iRPC",
+            field,
+        }),
+    }
+}
+
 fn set_target(
     motor: &MappedMotor,
     cmd: &MotorCommand,
@@ -224,24 +251,13 @@ fn set_target(
             "radians to degrees (iRPC's unit)",
         );
     }
-    let velocity = match (cmd.velocity_limit, e.max_velocity) {
-        (Some(v), _) => v,
-        (None, Some(b)) => {
-            report.push(
-                "max_velocity",
-                LossKind::Defaulted,
-                format!("{} from the {}", b.value, b.source),
-            );
-            b.value
-        }
-        (None, None) => {
-            return Err(Refusal::MissingLimit {
-                motor: name.to_owned(),
-                dialect: "iRPC",
-                field: "max_velocity",
-            });
-        }
-    };
+    let velocity = resolve(
+        name,
+        "max_velocity",
+        cmd.velocity_limit,
+        e.max_velocity,
+        report,
+    )?;
     let target = f32_of(name, "setpoint", deg(cmd.setpoint), report)?;
     let velocity = f32_of(name, "velocity_limit", deg(velocity), report)?;
     if wire == WireVersion::V1 {
@@ -251,24 +267,13 @@ fn set_target(
             velocity_limit: velocity,
         }));
     }
-    let acceleration = match (cmd.acceleration_limit, e.max_acceleration) {
-        (Some(a), _) => a,
-        (None, Some(b)) => {
-            report.push(
-                "max_acceleration",
-                LossKind::Defaulted,
-                format!("{} from the {}", b.value, b.source),
-            );
-            b.value
-        }
-        (None, None) => {
-            return Err(Refusal::MissingLimit {
-                motor: name.to_owned(),
-                dialect: "iRPC",
-                field: "max_acceleration",
-            });
-        }
-    };
+    let acceleration = resolve(
+        name,
+        "max_acceleration",
+        cmd.acceleration_limit,
+        e.max_acceleration,
+        report,
+    )?;
     // The command's acceleration_limit bounds slowing down too.
     let deceleration = match motor.limits.max_deceleration {
         Some(d) => {
