@@ -10,6 +10,6 @@ pub use controller::{ArmController, Posture, Response};
 pub use error::Error;
 pub use message::{
     ArmCommand, CONTROLLER_ID, Clamp, CommandNumber, Feedback, FeedbackKeys, Input, MotorFeedback,
-    MotorValues, Output,
+    MotorValues, Output, PerMotor,
 };
 pub use motor::{Motor, Quantity};

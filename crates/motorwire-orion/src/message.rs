@@ -12,41 +12,42 @@ pub const CONTROLLER_ID: u64 = 32;
 const MESSAGE: &str = "the message";
 const DATA: &str = "DATA";
 
-/// A value for any subset of the seven motors (direct-control `DATA`, or
-/// the controller's remembered state).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct MotorValues([Option<f64>; 7]);
+/// Something for any subset of the seven motors: a value each
+/// ([`MotorValues`], direct-control `DATA`) or a feedback each
+/// ([`Feedback`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PerMotor<T>([Option<T>; 7]);
 
-impl MotorValues {
+/// A value for any subset of the seven motors (direct-control `DATA`).
+pub type MotorValues = PerMotor<f64>;
+
+/// Direct-control feedback for any subset of the motors.
+pub type Feedback = PerMotor<MotorFeedback>;
+
+impl<T> Default for PerMotor<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T> PerMotor<T> {
     /// No motor set.
     pub const fn new() -> Self {
-        Self([None; 7])
-    }
-
-    /// The value for `motor`, if set.
-    pub fn get(&self, motor: Motor) -> Option<f64> {
-        self.0.get(motor.index()).copied().flatten()
-    }
-
-    /// Sets `motor` (builder style).
-    #[must_use]
-    pub fn with(mut self, motor: Motor, value: f64) -> Self {
-        self.set(motor, value);
-        self
+        Self([const { None }; 7])
     }
 
     /// Sets `motor`.
-    pub fn set(&mut self, motor: Motor, value: f64) {
+    pub fn set(&mut self, motor: Motor, value: T) {
         if let Some(slot) = self.0.get_mut(motor.index()) {
             *slot = Some(value);
         }
     }
 
-    /// The motors set, in the document's order.
-    pub fn iter(&self) -> impl Iterator<Item = (Motor, f64)> + '_ {
-        Motor::ALL
-            .into_iter()
-            .filter_map(|m| self.get(m).map(|v| (m, v)))
+    /// Sets `motor` (builder style).
+    #[must_use]
+    pub fn with(mut self, motor: Motor, value: T) -> Self {
+        self.set(motor, value);
+        self
     }
 
     /// How many motors are set.
@@ -58,7 +59,23 @@ impl MotorValues {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+}
 
+impl<T: Copy> PerMotor<T> {
+    /// `motor`'s entry, if set.
+    pub fn get(&self, motor: Motor) -> Option<T> {
+        self.0.get(motor.index()).copied().flatten()
+    }
+
+    /// The motors set, in the document's order.
+    pub fn iter(&self) -> impl Iterator<Item = (Motor, T)> + '_ {
+        Motor::ALL
+            .into_iter()
+            .filter_map(|m| self.get(m).map(|v| (m, v)))
+    }
+}
+
+impl MotorValues {
     /// The values clamped to each motor's range, as the document demands
     /// ("values out of bounds will be treated like marginal values"), and
     /// one [`Clamp`] for every value that changed.
@@ -189,36 +206,6 @@ pub struct MotorFeedback {
     pub current: f64,
     /// Error flag; 0 is no error.
     pub error: u64,
-}
-
-/// Direct-control feedback for any subset of the motors.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Feedback([Option<MotorFeedback>; 7]);
-
-impl Feedback {
-    /// No motor.
-    pub const fn new() -> Self {
-        Self([None; 7])
-    }
-
-    /// `motor`'s feedback, if present.
-    pub fn get(&self, motor: Motor) -> Option<MotorFeedback> {
-        self.0.get(motor.index()).copied().flatten()
-    }
-
-    /// Sets `motor`'s feedback.
-    pub fn set(&mut self, motor: Motor, feedback: MotorFeedback) {
-        if let Some(slot) = self.0.get_mut(motor.index()) {
-            *slot = Some(feedback);
-        }
-    }
-
-    /// The motors present, in the document's order.
-    pub fn iter(&self) -> impl Iterator<Item = (Motor, MotorFeedback)> + '_ {
-        Motor::ALL
-            .into_iter()
-            .filter_map(|m| self.get(m).map(|f| (m, f)))
-    }
 }
 
 /// A message from the arm controller.
