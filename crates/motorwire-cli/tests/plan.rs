@@ -6,24 +6,14 @@
     clippy::indexing_slicing
 )]
 
-use std::io::Write;
-use std::process::{Command, Output, Stdio};
+mod common;
+
+use std::process::Output;
 
 use serde_json::Value;
 
 fn motorwire(args: &[&str], stdin: &str) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_motorwire"))
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut pipe = child.stdin.take().unwrap();
-    // A command that refuses its arguments exits without reading stdin.
-    let _ = pipe.write_all(stdin.as_bytes());
-    drop(pipe);
-    child.wait_with_output().unwrap()
+    common::run(args, stdin.as_bytes())
 }
 
 const EXAMPLE: &str = r#"{"start":0,"target":90,"start_velocity":0,"target_velocity":0,"max_velocity":100,"max_acceleration":500,"max_deceleration":500,"max_jerk":2000,"profile":"scurve"}"#;

@@ -6,23 +6,16 @@
     clippy::indexing_slicing
 )]
 
+mod common;
+
 use std::io::{BufRead, BufReader, Write};
-use std::process::{Command, Output, Stdio};
+use std::process::Output;
 use std::time::{Duration, Instant};
 
 fn sim(args: &[&str], stdin: &str) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_motorwire"))
-        .args(["sim", "orion"])
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut pipe = child.stdin.take().unwrap();
-    let _ = pipe.write_all(stdin.as_bytes());
-    drop(pipe);
-    child.wait_with_output().unwrap()
+    let mut all = vec!["sim", "orion"];
+    all.extend_from_slice(args);
+    common::run(&all, stdin.as_bytes())
 }
 
 fn lines(bytes: &[u8]) -> Vec<String> {
@@ -85,13 +78,7 @@ fn example_keys_on_request() {
 
 #[test]
 fn the_beacon_repeats_until_the_first_command_and_stops_after_it() {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_motorwire"))
-        .args(["sim", "orion", "--beacon-interval", "20"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = common::spawn(&["sim", "orion", "--beacon-interval", "20"]);
     let mut stdin = child.stdin.take().unwrap();
     let mut stdout = BufReader::new(child.stdout.take().unwrap());
     let mut read_line = || {
