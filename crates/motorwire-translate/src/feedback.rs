@@ -35,10 +35,7 @@ pub enum FeedbackError {
 
 /// A feedback with nothing known yet: zero position, velocity and torque,
 /// every status flag absent (unknown).
-fn blank(motor: &MappedMotor, timestamp_ms: f64, report: &mut Report) -> MotorFeedback {
-    for field in ["position", "velocity", "torque"] {
-        report.push(field, LossKind::Filled, "not reported yet; 0");
-    }
+fn blank(motor: &MappedMotor, timestamp_ms: f64) -> MotorFeedback {
     MotorFeedback {
         motor_id: motor.name.clone(),
         timestamp: timestamp_ms,
@@ -98,7 +95,12 @@ pub fn feedback_from_irpc(
     let mut report = Report::default();
     let mut fb = match previous {
         Some(p) => p.clone(),
-        None => blank(motor, timestamp_ms, &mut report),
+        None => {
+            for field in ["position", "velocity", "torque"] {
+                report.push(field, LossKind::Filled, "not reported yet; 0");
+            }
+            blank(motor, timestamp_ms)
+        }
     };
     fb.timestamp = timestamp_ms;
     let unit = motor.unit;
@@ -207,8 +209,7 @@ pub fn feedback_from_orion(
             }
         }
         let mut report = Report::default();
-        let mut fb = blank(motor, timestamp_ms, &mut report);
-        report.losses.clear();
+        let mut fb = blank(motor, timestamp_ms);
         report.push("torque", LossKind::Filled, "Orion reports no torque; 0");
         match orion.quantity() {
             Quantity::Speed | Quantity::Actuator => {
