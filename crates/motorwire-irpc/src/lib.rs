@@ -3,12 +3,14 @@
 
 mod error;
 mod message;
+mod nack;
 mod payload;
 mod version;
 mod wire;
 
 pub use error::Error;
 pub use message::{CAN_FD_LENGTHS, Header, MAX_FRAME_LEN, Message, Payload, can_fd_len};
+pub use nack::NackCode;
 pub use payload::{
     AdaptiveStatusPayload, CalibrationConfidence, CalibrationPhase, CalibrationRequest,
     CalibrationResult, CalibrationStatus, ConfigureAdaptivePayload, ConfigureTelemetryPayload,

@@ -35,6 +35,34 @@ wire_struct! {
     }
 }
 
+impl Header {
+    /// Decodes only the header at the start of `bytes`, returning it and the
+    /// number of bytes it took. A receiver uses it to answer a message whose
+    /// payload it refuses (a non-finite float, an unknown tag) with a `Nack`
+    /// carrying the right `msg_id`.
+    ///
+    /// ```
+    /// use motorwire_irpc::{Error, Header, Message, WireVersion};
+    /// // SetTarget whose target_angle is NaN: the message is refused, its header is not.
+    /// let bytes = [0x00, 0x10, 0x05, 0x00, 0x00, 0x00, 0xc0, 0x7f, 0x00, 0x00, 0x16, 0x43];
+    /// assert!(matches!(Message::decode(WireVersion::V2_0, &bytes), Err(Error::NonFinite { .. })));
+    /// let (header, used) = Header::decode_prefix(WireVersion::V2_0, &bytes)?;
+    /// assert_eq!(header, Header { source_id: 0, target_id: 0x10, msg_id: 5 });
+    /// assert_eq!(used, 3);
+    /// # Ok::<(), motorwire_irpc::Error>(())
+    /// ```
+    ///
+    /// # Errors
+    /// A truncated or malformed varint, naming the field and offset.
+    pub fn decode_prefix(v: WireVersion, bytes: &[u8]) -> Result<(Self, usize), Error> {
+        let mut r = Reader::new(bytes);
+        match Self::take(&mut r, "header", v) {
+            Ok(h) => Ok((h, r.position())),
+            Err(Stop { .. }) => Err(r.into_error()),
+        }
+    }
+}
+
 /// The payload of an iRPC message: every variant of every wire version.
 /// Which ones exist, and their tags, depend on the [`WireVersion`].
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,0 +1,546 @@
+//! The iRPC client: the arm's side of the conversation with its joints.
+//!
+//! Sans-IO, after quinn: it never touches a bus or a clock. Give it frames
+//! ([`Client::handle_frame`]) and the time ([`Client::handle_timeout`]); take
+//! frames to send ([`Client::poll_transmit`]), results and feedback
+//! ([`Client::poll_event`]) and its next deadline ([`Client::poll_timeout`]).
+//! [`Client::drive`] does all of that on a blocking [`CanBus`].
+//!
+//! Every request gets a fresh `msg_id`; the joint answers `Ack(msg_id)` or
+//! `Nack { id: msg_id, error }`. A request unanswered after
+//! [`ClientConfig::timeout`] is sent again **with the same msg_id** (so the
+//! joint can discard the duplicate and answer again), at most
+//! [`ClientConfig::retries`] times, then reported timed out.
+//!
+//! ```
+//! use std::time::Duration;
+//! use motorwire_can::{CanBus, SimBus, client::{Client, ClientConfig, Event, Outcome}};
+//! use motorwire_irpc::{Header, Message, Payload, WireVersion};
+//!
+//! let bus = SimBus::default();
+//! let (mut arm, mut joint) = (bus.port(), bus.port());
+//! let mut client = Client::new(ClientConfig::default())?;
+//! let id = client.configure(bus.now(), 0x10)?;
+//! arm.send(&client.poll_transmit().unwrap())?;
+//!
+//! // The joint (here by hand) answers Ack(msg_id) from node 0x10.
+//! let got = Message::decode_frame(WireVersion::V2_0, joint.recv(Duration::ZERO)?.frame.data())?;
+//! assert_eq!(got.payload, Payload::Configure);
+//! let ack = Message { header: Header { source_id: 0x10, target_id: 0, msg_id: id }, payload: Payload::Ack(id) };
+//! let mut buf = [0u8; 64];
+//! let n = ack.encode_frame(WireVersion::V2_0, &mut buf)?;
+//! joint.send(&motorwire_can::Frame::fd(motorwire_can::CanId::standard(0x10)?, &buf[..n])?)?;
+//!
+//! let r = arm.recv(Duration::ZERO)?;
+//! client.handle_frame(r.timestamp, &r.frame);
+//! match client.poll_event() {
+//!     Some(Event::Completed(c)) => assert_eq!((c.msg_id, c.outcome, c.attempts), (id, Outcome::Acked, 1)),
+//!     other => panic!("{other:?}"),
+//! }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+use std::collections::{BTreeMap, VecDeque};
+use std::fmt;
+use std::time::Duration;
+
+use motorwire_irpc::{
+    ConfigureTelemetryPayload, Header, MAX_FRAME_LEN, Message, NackCode, Payload, PayloadKind,
+    SetTargetPayload, SetTargetPayloadV2, TelemetryMode, WireVersion,
+};
+
+use crate::{CanBus, CanId, Error, Frame};
+
+/// The node id iRPC gives the arm.
+pub const ARM_NODE: u16 = 0x0000;
+/// The broadcast target ArmReady is sent to (0x0000 is also accepted as broadcast).
+pub const BROADCAST: u16 = 0xFFFF;
+
+/// How a [`Client`] behaves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ClientConfig {
+    /// This node's id: the header's source and the CAN id of its frames.
+    pub node_id: u16,
+    /// The wire version spoken.
+    pub wire: WireVersion,
+    /// How long to wait for an Ack or Nack before sending again.
+    pub timeout: Duration,
+    /// How many times to send again before giving up.
+    pub retries: u8,
+}
+
+impl Default for ClientConfig {
+    /// The arm (node 0x0000), v2.0, 100 ms, 3 retries (WIA Phase 3's defaults).
+    fn default() -> Self {
+        Self {
+            node_id: ARM_NODE,
+            wire: WireVersion::V2_0,
+            timeout: Duration::from_millis(100),
+            retries: 3,
+        }
+    }
+}
+
+/// How a request ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    /// The joint accepted it.
+    Acked,
+    /// The joint refused it, saying why.
+    Nacked(NackCode),
+    /// No answer after every try.
+    TimedOut,
+}
+
+impl fmt::Display for Outcome {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Acked => write!(f, "acked"),
+            Self::Nacked(code) => write!(f, "nacked: {code}"),
+            Self::TimedOut => write!(f, "timed out"),
+        }
+    }
+}
+
+/// A finished request.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Completion {
+    /// Its msg_id.
+    pub msg_id: u32,
+    /// The node it was sent to.
+    pub target: u16,
+    /// What it asked.
+    pub kind: PayloadKind,
+    /// How it ended.
+    pub outcome: Outcome,
+    /// How many times it was sent.
+    pub attempts: u8,
+    /// When it was first handed out to send.
+    pub sent_at: Duration,
+    /// When it ended.
+    pub finished_at: Duration,
+}
+
+/// What the client has to tell.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// A request ended.
+    Completed(Completion),
+    /// A message from a joint that is not an answer (Encoder, JointStatus,
+    /// TelemetryStream...).
+    Feedback {
+        /// The message.
+        message: Message,
+        /// When it arrived.
+        at: Duration,
+    },
+    /// An Ack or Nack for no request in flight (a late answer to a retried
+    /// request, or a joint's answer to another node).
+    StrayReply {
+        /// The message.
+        message: Message,
+    },
+    /// A frame that is not a valid iRPC message.
+    Undecodable {
+        /// Its CAN id.
+        can_id: CanId,
+        /// Why.
+        error: motorwire_irpc::Error,
+    },
+    /// A frame whose CAN id is not its header's source (WIRE-FACTS §1.5:
+    /// the CAN id is the sender's node id), dropped.
+    Misaddressed {
+        /// Its CAN id.
+        can_id: CanId,
+        /// The message it carried.
+        message: Message,
+    },
+}
+
+/// Counters for what the client has seen.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ClientStats {
+    /// Requests made.
+    pub requests: u64,
+    /// Frames sent again after a timeout.
+    pub retransmissions: u64,
+    /// Requests acked.
+    pub acked: u64,
+    /// Requests nacked.
+    pub nacked: u64,
+    /// Requests timed out.
+    pub timed_out: u64,
+    /// Stray replies.
+    pub stray_replies: u64,
+    /// Undecodable or misaddressed frames.
+    pub bad_frames: u64,
+}
+
+#[derive(Debug)]
+struct Pending {
+    target: u16,
+    kind: PayloadKind,
+    frame: Frame,
+    attempts: u8,
+    sent_at: Duration,
+    deadline: Duration,
+}
+
+/// The sans-IO iRPC client.
+#[derive(Debug)]
+pub struct Client {
+    config: ClientConfig,
+    can_id: CanId,
+    next_id: u32,
+    pending: BTreeMap<u32, Pending>,
+    out: VecDeque<Frame>,
+    events: VecDeque<Event>,
+    stats: ClientStats,
+}
+
+impl Client {
+    /// A client.
+    ///
+    /// # Errors
+    /// [`Error::InvalidId`] for a node id above 0x7FF (it is the frames'
+    /// standard CAN id).
+    pub fn new(config: ClientConfig) -> Result<Self, Error> {
+        Ok(Self {
+            can_id: CanId::standard(config.node_id)?,
+            config,
+            next_id: 1,
+            pending: BTreeMap::new(),
+            out: VecDeque::new(),
+            events: VecDeque::new(),
+            stats: ClientStats::default(),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ClientConfig {
+        &self.config
+    }
+
+    /// The counters.
+    pub fn stats(&self) -> ClientStats {
+        self.stats
+    }
+
+    /// Requests still waiting for an answer.
+    pub fn in_flight(&self) -> usize {
+        self.pending.len()
+    }
+
+    fn allocate_id(&mut self) -> u32 {
+        loop {
+            let id = self.next_id;
+            self.next_id = self.next_id.wrapping_add(1).max(1);
+            if !self.pending.contains_key(&id) {
+                return id;
+            }
+        }
+    }
+
+    fn frame(&self, message: &Message) -> Result<Frame, Error> {
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let len = message.encode_frame(self.config.wire, &mut buf)?;
+        Frame::fd(self.can_id, buf.get(..len).unwrap_or(&buf))
+    }
+
+    /// Sends `payload` to `target` and awaits its Ack or Nack. Returns the
+    /// msg_id; the answer comes as [`Event::Completed`].
+    ///
+    /// # Errors
+    /// [`Error::Irpc`]: the payload is not in the wire version, holds a
+    /// non-finite value, or does not fit a frame.
+    pub fn request(&mut self, now: Duration, target: u16, payload: Payload) -> Result<u32, Error> {
+        let msg_id = self.allocate_id();
+        let message = Message {
+            header: Header {
+                source_id: self.config.node_id,
+                target_id: target,
+                msg_id,
+            },
+            payload,
+        };
+        let frame = self.frame(&message)?;
+        self.out.push_back(frame);
+        self.pending.insert(
+            msg_id,
+            Pending {
+                target,
+                kind: payload.kind(),
+                frame,
+                attempts: 1,
+                sent_at: now,
+                deadline: now.saturating_add(self.config.timeout),
+            },
+        );
+        self.stats.requests += 1;
+        Ok(msg_id)
+    }
+
+    /// Sends `payload` to `target` expecting no answer (broadcasts).
+    ///
+    /// # Errors
+    /// As [`Client::request`].
+    pub fn send(&mut self, target: u16, payload: Payload) -> Result<u32, Error> {
+        let msg_id = self.allocate_id();
+        let message = Message {
+            header: Header {
+                source_id: self.config.node_id,
+                target_id: target,
+                msg_id,
+            },
+            payload,
+        };
+        let frame = self.frame(&message)?;
+        self.out.push_back(frame);
+        Ok(msg_id)
+    }
+
+    /// Lifecycle: configure `target` (Unconfigured to Inactive).
+    ///
+    /// # Errors
+    /// As [`Client::request`].
+    pub fn configure(&mut self, now: Duration, target: u16) -> Result<u32, Error> {
+        self.request(now, target, Payload::Configure)
+    }
+
+    /// Lifecycle: activate `target` (Inactive to Active: it moves on command).
+    ///
+    /// # Errors
+    /// As [`Client::request`].
+    pub fn activate(&mut self, now: Duration, target: u16) -> Result<u32, Error> {
+        self.request(now, target, Payload::Activate)
+    }
+
+    /// Lifecycle: deactivate `target` (Active to Inactive: it stops).
+    ///
+    /// # Errors
+    /// As [`Client::request`].
+    pub fn deactivate(&mut self, now: Duration, target: u16) -> Result<u32, Error> {
+        self.request(now, target, Payload::Deactivate)
+    }
+
+    /// Lifecycle: reset `target` (back to Unconfigured).
+    ///
+    /// # Errors
+    /// As [`Client::request`].
+    pub fn reset(&mut self, now: Duration, target: u16) -> Result<u32, Error> {
+        self.request(now, target, Payload::Reset)
+    }
+
+    /// Motion: a v2 target with a motion profile.
+    ///
+    /// # Errors
+    /// As [`Client::request`]; `PayloadNotInVersion` on v1.
+    pub fn set_target_v2(
+        &mut self,
+        now: Duration,
+        target: u16,
+        command: SetTargetPayloadV2,
+    ) -> Result<u32, Error> {
+        self.request(now, target, Payload::SetTargetV2(command))
+    }
+
+    /// Motion: a v1 target.
+    ///
+    /// # Errors
+    /// As [`Client::request`].
+    pub fn set_target(
+        &mut self,
+        now: Duration,
+        target: u16,
+        command: SetTargetPayload,
+    ) -> Result<u32, Error> {
+        self.request(now, target, Payload::SetTarget(command))
+    }
+
+    /// Subscribes to `target`'s telemetry (v2.1 on): the samples then arrive
+    /// as [`Event::Feedback`].
+    ///
+    /// # Errors
+    /// As [`Client::request`]; `PayloadNotInVersion` before v2.1.
+    pub fn subscribe_telemetry(
+        &mut self,
+        now: Duration,
+        target: u16,
+        mode: TelemetryMode,
+        rate_hz: u16,
+        change_threshold: f32,
+    ) -> Result<u32, Error> {
+        self.request(
+            now,
+            target,
+            Payload::ConfigureTelemetry(ConfigureTelemetryPayload {
+                mode,
+                rate_hz,
+                change_threshold,
+            }),
+        )
+    }
+
+    /// Broadcasts ArmReady (to 0xFFFF; no answer expected).
+    ///
+    /// # Errors
+    /// As [`Client::request`].
+    pub fn arm_ready(&mut self) -> Result<u32, Error> {
+        self.send(BROADCAST, Payload::ArmReady)
+    }
+
+    /// Takes a frame from the bus.
+    pub fn handle_frame(&mut self, now: Duration, frame: &Frame) {
+        if frame.id().is_extended() {
+            return;
+        }
+        match Message::decode_frame(self.config.wire, frame.data()) {
+            Ok(message) if u32::from(message.header.source_id) != frame.id().raw() => {
+                self.stats.bad_frames += 1;
+                self.events.push_back(Event::Misaddressed {
+                    can_id: frame.id(),
+                    message,
+                });
+            }
+            Ok(message) => self.handle_message(now, message),
+            Err(error) => {
+                self.stats.bad_frames += 1;
+                self.events.push_back(Event::Undecodable {
+                    can_id: frame.id(),
+                    error,
+                });
+            }
+        }
+    }
+
+    /// Takes a message that arrived by other means (ISO-TP reassembly).
+    pub fn handle_message(&mut self, now: Duration, message: Message) {
+        let to = message.header.target_id;
+        if to != self.config.node_id && to != BROADCAST && to != ARM_NODE {
+            return; // for another node
+        }
+        let (id, outcome) = match message.payload {
+            Payload::Ack(id) => (id, Outcome::Acked),
+            Payload::Nack { id, error } => (id, Outcome::Nacked(NackCode(error))),
+            _ => {
+                self.events.push_back(Event::Feedback { message, at: now });
+                return;
+            }
+        };
+        // The answer names its request twice (header and payload) and comes
+        // from the node asked: a single flipped bit cannot fake one.
+        let matches = message.header.msg_id == id
+            && self
+                .pending
+                .get(&id)
+                .is_some_and(|p| p.target == message.header.source_id);
+        if !matches {
+            self.stats.stray_replies += 1;
+            self.events.push_back(Event::StrayReply { message });
+            return;
+        }
+        if let Some(p) = self.pending.remove(&id) {
+            match outcome {
+                Outcome::Acked => self.stats.acked += 1,
+                Outcome::Nacked(_) => self.stats.nacked += 1,
+                Outcome::TimedOut => {}
+            }
+            self.events.push_back(Event::Completed(Completion {
+                msg_id: id,
+                target: p.target,
+                kind: p.kind,
+                outcome,
+                attempts: p.attempts,
+                sent_at: p.sent_at,
+                finished_at: now,
+            }));
+        }
+    }
+
+    /// Sends again, or gives up on, every request whose deadline is `now` or earlier.
+    pub fn handle_timeout(&mut self, now: Duration) {
+        let due: Vec<u32> = self
+            .pending
+            .iter()
+            .filter(|(_, p)| p.deadline <= now)
+            .map(|(id, _)| *id)
+            .collect();
+        for id in due {
+            let Some(p) = self.pending.get_mut(&id) else {
+                continue;
+            };
+            if p.attempts <= self.config.retries {
+                p.attempts += 1;
+                p.deadline = now.saturating_add(self.config.timeout);
+                self.out.push_back(p.frame);
+                self.stats.retransmissions += 1;
+            } else if let Some(p) = self.pending.remove(&id) {
+                self.stats.timed_out += 1;
+                self.events.push_back(Event::Completed(Completion {
+                    msg_id: id,
+                    target: p.target,
+                    kind: p.kind,
+                    outcome: Outcome::TimedOut,
+                    attempts: p.attempts,
+                    sent_at: p.sent_at,
+                    finished_at: now,
+                }));
+            }
+        }
+    }
+
+    /// The next frame to put on the bus.
+    pub fn poll_transmit(&mut self) -> Option<Frame> {
+        self.out.pop_front()
+    }
+
+    /// The next event.
+    pub fn poll_event(&mut self) -> Option<Event> {
+        self.events.pop_front()
+    }
+
+    /// The earliest deadline of a request in flight.
+    pub fn poll_timeout(&self) -> Option<Duration> {
+        self.pending.values().map(|p| p.deadline).min()
+    }
+
+    /// Drives the client on a blocking bus until `msg_id` completes,
+    /// returning its completion; other events stay queued for
+    /// [`Client::poll_event`]. `clock` gives the time (for SocketCAN, an
+    /// `Instant`'s elapsed time; for a [`SimBus`](crate::SimBus), its `now`).
+    ///
+    /// # Errors
+    /// The bus's errors other than timeouts.
+    pub fn drive(
+        &mut self,
+        bus: &mut impl CanBus,
+        clock: impl Fn() -> Duration,
+        msg_id: u32,
+    ) -> Result<Completion, Error> {
+        loop {
+            while let Some(f) = self.poll_transmit() {
+                bus.send(&f)?;
+            }
+            let found = self
+                .events
+                .iter()
+                .position(|e| matches!(e, Event::Completed(c) if c.msg_id == msg_id));
+            if let Some(Event::Completed(c)) = found.and_then(|i| self.events.remove(i)) {
+                return Ok(c);
+            }
+            if !self.pending.contains_key(&msg_id) {
+                // Never requested, or its completion was already taken.
+                return Err(Error::UnknownRequest { msg_id });
+            }
+            let now = clock();
+            let wait = self
+                .poll_timeout()
+                .map_or(Duration::ZERO, |t| t.saturating_sub(now));
+            match bus.recv(wait) {
+                Ok(r) => self.handle_frame(clock(), &r.frame),
+                Err(Error::Timeout(_)) => self.handle_timeout(clock()),
+                Err(e) => return Err(e),
+            }
+        }
+    }
+}
