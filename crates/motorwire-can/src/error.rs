@@ -10,7 +10,7 @@ use thiserror::Error;
 #[non_exhaustive]
 pub enum Error {
     /// A CAN identifier too large for its kind.
-    #[error("CAN id {id:#X} is too large for an {} identifier", if *extended { "extended (29-bit)" } else { "standard (11-bit)" })]
+    #[error("CAN id {id:#X} is too large for {}", if *extended { "an extended (29-bit) identifier" } else { "a standard (11-bit) identifier" })]
     InvalidId {
         /// The value.
         id: u32,

@@ -325,3 +325,37 @@ impl crate::AsyncCanBus for AsyncSocketCanBus {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use socketcan::CanErrorFrame;
+
+    fn mapped(class: u32, data: [u8; 8]) -> Error {
+        error_frame(&CanErrorFrame::new_error(class, &data).unwrap().into_error())
+    }
+
+    #[test]
+    fn error_frames_become_typed_errors() {
+        // Class bits and data bytes of linux/can/error.h.
+        assert_eq!(mapped(0x40, [0; 8]), Error::BusOff);
+        assert_eq!(
+            mapped(0x02, [7, 0, 0, 0, 0, 0, 0, 0]),
+            Error::LostArbitration { bit: 7 }
+        );
+        assert_eq!(mapped(0x20, [0; 8]), Error::NoAck);
+        assert_eq!(
+            mapped(0x04 | 0x200, [0, 0x20, 0, 0, 0, 0, 130, 4]),
+            Error::ErrorPassive { tx: 130, rx: 4 }
+        );
+        assert_eq!(
+            mapped(0x04 | 0x200, [0, 0x04, 0, 0, 0, 0, 0, 97]),
+            Error::ErrorWarning { tx: 0, rx: 97 }
+        );
+        assert!(matches!(
+            mapped(0x08, [0, 0, 0x02, 0x08, 0, 0, 0, 0]),
+            Error::ErrorFrame(_)
+        ));
+    }
+}

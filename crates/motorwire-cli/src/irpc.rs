@@ -36,7 +36,7 @@ struct DecodeArgs {
     frame: bool,
 }
 
-fn parse_wire(s: &str) -> Result<WireVersion, String> {
+pub(crate) fn parse_wire(s: &str) -> Result<WireVersion, String> {
     s.parse()
         .map_err(|e: motorwire_irpc::UnknownWireVersion| e.to_string())
 }

@@ -4,6 +4,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod bus;
+mod candump;
 mod compact;
 mod demo;
 mod input;
@@ -35,6 +37,8 @@ enum Command {
     Plan(plan::Args),
     /// Run a simulated device.
     Sim(sim::Args),
+    /// Decode `candump -L` logs.
+    Candump(candump::Args),
     /// Walk through the WIA document's example messages, validating each.
     Demo(demo::Args),
 }
@@ -47,6 +51,7 @@ fn main() -> ExitCode {
         Command::Compact(args) => compact::run(&args),
         Command::Plan(args) => plan::run(&args),
         Command::Sim(args) => sim::run(&args),
+        Command::Candump(args) => candump::run(&args),
         Command::Demo(args) => demo::run(&args),
     };
     ExitCode::from(status)

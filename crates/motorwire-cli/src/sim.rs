@@ -25,6 +25,60 @@ enum Device {
     /// on stdout and one message on stderr; every clamp is reported on
     /// stderr.
     Orion(OrionArgs),
+    /// A simulated iRPC joint on a CAN bus, in real time, until interrupted:
+    /// the document's lifecycle, Ack for SetTargetV2, planned motion,
+    /// Encoder and JointStatus feedback, a watchdog. Each request it acts
+    /// on is logged on stderr.
+    Joint(JointArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct JointArgs {
+    /// The bus: `socketcan:IFACE` (a Linux CAN-FD interface, e.g. vcan0).
+    #[arg(long, value_name = "BUS")]
+    bus: String,
+    /// The joint's node id (hex with 0x, or decimal), at most 0x7FF.
+    #[arg(long, value_parser = parse_node)]
+    node: u16,
+    /// The iRPC wire version: v1, v2.0, v2.1 or v2.2.
+    #[arg(long, value_parser = crate::irpc::parse_wire, default_value = "v2.0")]
+    wire: motorwire_irpc::WireVersion,
+    /// Lowest position (degrees).
+    #[arg(long, default_value_t = -180.0, allow_negative_numbers = true)]
+    min_angle: f32,
+    /// Highest position (degrees).
+    #[arg(long, default_value_t = 180.0, allow_negative_numbers = true)]
+    max_angle: f32,
+    /// Fastest speed (deg/s).
+    #[arg(long, default_value_t = 360.0)]
+    max_velocity: f32,
+    /// Largest acceleration (deg/s²).
+    #[arg(long, default_value_t = 5000.0)]
+    max_acceleration: f32,
+    /// Brake when nothing is heard for this many ms while moving (0: never).
+    #[arg(long, value_name = "MS", default_value_t = 200)]
+    watchdog: u64,
+    /// Encoder feedback period in ms (0: none).
+    #[arg(long, value_name = "MS", default_value_t = 10)]
+    encoder_period: u64,
+    /// JointStatus period in ms (0: only on changes).
+    #[arg(long, value_name = "MS", default_value_t = 100)]
+    status_period: u64,
+}
+
+/// `0x10`, `0X10` or `16`.
+pub(crate) fn parse_node(s: &str) -> Result<u16, String> {
+    let n = match s.strip_prefix("0x").or_else(|| s.strip_prefix("0X")) {
+        Some(hex) => u16::from_str_radix(hex, 16),
+        None => s.parse(),
+    }
+    .map_err(|_| format!("{s:?} is not a node id (0x10 or 16)"))?;
+    if n > 0x7FF {
+        return Err(format!(
+            "node id {n:#x} is above 0x7FF (it is the frames' 11-bit CAN id)"
+        ));
+    }
+    Ok(n)
 }
 
 #[derive(Debug, clap::Args)]
@@ -48,6 +102,7 @@ enum Keys {
 pub(crate) fn run(args: &Args) -> u8 {
     match &args.device {
         Device::Orion(a) => orion(a),
+        Device::Joint(a) => joint(a),
     }
 }
 
@@ -141,6 +196,61 @@ fn orion(args: &OrionArgs) -> u8 {
                 }
             }
             Err(e) => eprintln!("motorwire sim orion: line {n}: {e}; ignored"),
+        }
+    }
+}
+
+fn joint(args: &JointArgs) -> u8 {
+    use motorwire_sim::{JointConfig, JointLimits, SimJoint};
+    let config = JointConfig {
+        wire: args.wire,
+        limits: JointLimits {
+            min_angle: args.min_angle,
+            max_angle: args.max_angle,
+            max_velocity: args.max_velocity,
+            max_acceleration: args.max_acceleration,
+            ..JointLimits::default()
+        },
+        watchdog: Duration::from_millis(args.watchdog),
+        encoder_period: Duration::from_millis(args.encoder_period),
+        status_period: Duration::from_millis(args.status_period),
+        ..JointConfig::new(args.node)
+    };
+    let mut joint = match SimJoint::new(config) {
+        Ok(j) => j,
+        Err(e) => {
+            eprintln!("motorwire: {e}");
+            return 2;
+        }
+    };
+    let mut bus = match crate::bus::open(&args.bus) {
+        Ok(b) => b,
+        Err(e) => {
+            eprintln!("motorwire: {e}");
+            return 2;
+        }
+    };
+    eprintln!(
+        "motorwire sim joint: node {:#05x} on {} ({}), limits [{}, {}] deg",
+        args.node, args.bus, args.wire, args.min_angle, args.max_angle
+    );
+    // Runs until the process is interrupted (SIGINT's default action).
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let log = |e: &motorwire_sim::Execution| {
+        eprintln!(
+            "t={:.3}s from {:#05x} msg_id {}: {:?} -> {:?}",
+            e.at.as_secs_f64(),
+            e.source,
+            e.msg_id,
+            e.payload,
+            e.answer
+        );
+    };
+    match joint.run(&mut bus, &stop, log) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("motorwire: {e}");
+            1
         }
     }
 }

@@ -477,11 +477,12 @@ impl SimJoint {
         }
     }
 
-    /// Takes a frame from the bus at `now`.
-    pub fn handle_frame(&mut self, now: Duration, frame: &Frame) {
+    /// Takes a frame from the bus at `now`. Returns the request it acted on
+    /// for the first time (executed or refused), if the frame was one.
+    pub fn handle_frame(&mut self, now: Duration, frame: &Frame) -> Option<Execution> {
         self.update(now);
         if frame.id().is_extended() {
-            return;
+            return None;
         }
         let wire = self.config.wire;
         let message = match Message::decode_frame(wire, frame.data()) {
@@ -501,46 +502,48 @@ impl SimJoint {
                     }
                     _ => self.stats.bad_frames += 1,
                 }
-                return;
+                return None;
             }
             Err(_) => {
                 self.stats.bad_frames += 1;
-                return;
+                return None;
             }
         };
         let h = message.header;
         if !self.is_for_me(h.target_id) {
-            return;
+            return None;
         }
         if !valid_source(&h, frame) {
             self.stats.bad_frames += 1;
-            return;
+            return None;
         }
         if matches!(message.payload, Payload::ArmReady) {
             self.last_heard = self.now;
-            return;
+            return None;
         }
         if h.source_id == self.config.node_id {
-            return;
+            return None;
         }
         self.last_heard = self.now;
         if let Some(answer) = self.answers.get(&(h.source_id, h.msg_id)).copied() {
             self.stats.duplicates += 1;
             self.emit(h.source_id, h.msg_id, answer);
-            return;
+            return None;
         }
         self.host = h.source_id;
         let answer = self.execute(&message);
+        let execution = Execution {
+            source: h.source_id,
+            msg_id: h.msg_id,
+            payload: message.payload,
+            answer,
+            at: self.now,
+        };
         if let Some(log) = self.log.as_mut() {
-            log.push(Execution {
-                source: h.source_id,
-                msg_id: h.msg_id,
-                payload: message.payload,
-                answer,
-                at: self.now,
-            });
+            log.push(execution);
         }
         self.answer(h, answer);
+        Some(execution)
     }
 
     fn is_for_me(&self, target: u16) -> bool {
@@ -783,11 +786,17 @@ impl SimJoint {
     }
 
     /// Runs the joint on `bus` in real time until `stop` is set, handling
-    /// frames as they arrive and its timers when due.
+    /// frames as they arrive and its timers when due; `on_request` sees each
+    /// request acted on.
     ///
     /// # Errors
     /// The bus's errors, other than receive timeouts.
-    pub fn run(&mut self, bus: &mut impl CanBus, stop: &AtomicBool) -> Result<(), SimError> {
+    pub fn run(
+        &mut self,
+        bus: &mut impl CanBus,
+        stop: &AtomicBool,
+        mut on_request: impl FnMut(&Execution),
+    ) -> Result<(), SimError> {
         let start = Instant::now();
         let tick = Duration::from_millis(10);
         while !stop.load(Ordering::Relaxed) {
@@ -801,7 +810,11 @@ impl SimJoint {
                 .map_or(tick, |t| t.saturating_sub(start.elapsed()))
                 .min(tick);
             match bus.recv(wait) {
-                Ok(r) => self.handle_frame(start.elapsed(), &r.frame),
+                Ok(r) => {
+                    if let Some(e) = self.handle_frame(start.elapsed(), &r.frame) {
+                        on_request(&e);
+                    }
+                }
                 Err(motorwire_can::Error::Timeout(_)) => {}
                 Err(e) => return Err(e.into()),
             }

@@ -1,0 +1,404 @@
+//! motorwire on a real Linux CAN stack: a `vcan0` with CAN-FD (MTU 72),
+//! can-utils on the PATH, and the right to take the interface down.
+//!
+//! CI kernels have no CAN, so these tests are ignored by `cargo test`;
+//! `.ci/kernel-test` builds them as a static binary and runs them with
+//! `--ignored` inside a virtual machine whose kernel has vcan and can-isotp
+//! (WIRE-FACTS §5). Set `MOTORWIRE_BIN` to the `motorwire` binary there, and
+//! `MOTORWIRE_CAPTURE` to a file to keep the session capture in.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use std::io::{Read, Write};
+use std::process::{Child, Command, Stdio};
+use std::thread::sleep;
+use std::time::{Duration, Instant};
+
+use motorwire_can::candump::LogEntry;
+use motorwire_can::client::{Client, ClientConfig, Event, Outcome};
+use motorwire_can::isotp::{self, IsoTpConfig};
+use motorwire_can::socketcan::{Filter, SocketCanBus};
+use motorwire_can::{CanBus, CanId, Error, Frame};
+use motorwire_irpc::{
+    FaultHistory, FaultRecord, Header, Message, MotionProfile, Payload, SetTargetPayloadV2,
+    WireVersion,
+};
+
+const IFACE: &str = "vcan0";
+
+fn motorwire() -> Command {
+    Command::new(
+        std::env::var("MOTORWIRE_BIN")
+            .unwrap_or_else(|_| env!("CARGO_BIN_EXE_motorwire").to_owned()),
+    )
+}
+
+/// A child process killed when dropped.
+struct Killed(Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn candump() -> Killed {
+    let child = Command::new("candump")
+        .args(["-L", IFACE])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("candump on the PATH");
+    // candump binds its socket within a moment of starting.
+    sleep(Duration::from_millis(300));
+    Killed(child)
+}
+
+/// Stops candump and returns what it logged.
+fn finish(mut dump: Killed) -> String {
+    sleep(Duration::from_millis(300));
+    let _ = dump.0.kill();
+    let mut out = String::new();
+    dump.0
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut out)
+        .unwrap();
+    out
+}
+
+fn v2(target: f32) -> SetTargetPayloadV2 {
+    SetTargetPayloadV2 {
+        target_angle: target,
+        max_velocity: 100.0,
+        target_velocity: 0.0,
+        max_acceleration: 500.0,
+        max_deceleration: 500.0,
+        max_jerk: 2000.0,
+        profile: MotionProfile::SCurve,
+        max_current: 0.0,
+        max_temperature: 0.0,
+    }
+}
+
+fn frame_of(source: u16, target: u16, msg_id: u32, payload: Payload) -> Frame {
+    let m = Message {
+        header: Header {
+            source_id: source,
+            target_id: target,
+            msg_id,
+        },
+        payload,
+    };
+    let mut buf = [0u8; 64];
+    let n = m.encode_frame(WireVersion::V2_0, &mut buf).unwrap();
+    Frame::fd(CanId::standard(source).unwrap(), &buf[..n]).unwrap()
+}
+
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn set_target_frames_reach_candump_byte_exact() {
+    let dump = candump();
+    let mut bus = SocketCanBus::open(IFACE).unwrap();
+    bus.send(&frame_of(0, 0x10, 42, Payload::SetTargetV2(v2(90.0))))
+        .unwrap();
+    bus.send(&frame_of(0, 0x10, 1, Payload::Configure)).unwrap();
+    let log = finish(dump);
+    let frames: Vec<Frame> = log
+        .lines()
+        .map(|l| LogEntry::parse(l).unwrap().frame)
+        .collect();
+    assert_eq!(frames.len(), 2, "{log}");
+    // WIRE-FACTS §1.4: the document's example, 37 bytes padded to 48.
+    let golden = "00102a050000b4420000c842000000000000fa430000fa430000fa44010000000000000000";
+    let expected = format!("000##1{}{}", golden.to_uppercase(), "00".repeat(48 - 37));
+    assert_eq!(frames[0].to_string(), expected);
+    assert_eq!(frames[1].to_string(), "000##100100101");
+}
+
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn cansend_frames_reach_motorwire_decoded() {
+    let mut bus = SocketCanBus::open(IFACE).unwrap();
+    bus.set_filters(&[Filter::standard(0x010, 0x7FF)]).unwrap();
+    // An FD frame, and a classic one with the same message (5 bytes).
+    for frame in ["010##110002A082A", "010#10002A082A", "011#0102"] {
+        let ok = Command::new("cansend")
+            .args([IFACE, frame])
+            .status()
+            .unwrap();
+        assert!(ok.success());
+    }
+    let fd = bus.recv(Duration::from_secs(2)).unwrap();
+    assert!(fd.frame.is_fd() && fd.frame.brs());
+    assert!(
+        fd.timestamp > Duration::from_secs(1),
+        "a kernel receive timestamp"
+    );
+    let m = Message::decode_frame(WireVersion::V2_0, fd.frame.data()).unwrap();
+    assert_eq!(
+        m.header,
+        Header {
+            source_id: 0x10,
+            target_id: 0,
+            msg_id: 42
+        }
+    );
+    assert_eq!(m.payload, Payload::Ack(42));
+    let classic = bus.recv(Duration::from_secs(2)).unwrap();
+    assert!(!classic.frame.is_fd());
+    assert_eq!(
+        Message::decode(WireVersion::V2_0, classic.frame.data()).unwrap(),
+        m
+    );
+    // 0x011 is filtered out in the kernel.
+    assert!(matches!(
+        bus.recv(Duration::from_millis(300)),
+        Err(Error::Timeout(_))
+    ));
+}
+
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn the_client_configures_activates_and_moves_the_simulated_joint() {
+    let joint = motorwire()
+        .args(["sim", "joint", "--bus", "socketcan:vcan0", "--node", "0x10"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let _joint = Killed(joint);
+    let dump = candump();
+    sleep(Duration::from_millis(300));
+    let mut bus = SocketCanBus::open(IFACE).unwrap();
+    let start = Instant::now();
+    let clock = || start.elapsed();
+    // Under emulation a joint can be slow to answer: a longer timeout than 100 ms.
+    let mut client = Client::new(ClientConfig {
+        timeout: Duration::from_millis(500),
+        ..ClientConfig::default()
+    })
+    .unwrap();
+    client.arm_ready().unwrap();
+    for payload in [
+        Payload::Configure,
+        Payload::Activate,
+        Payload::SetTargetV2(v2(45.0)),
+    ] {
+        let id = client.request(clock(), 0x10, payload).unwrap();
+        let done = client.drive(&mut bus, clock, id).unwrap();
+        assert_eq!(done.outcome, Outcome::Acked, "{payload:?}");
+    }
+    // Keep the move alive (the joint's watchdog brakes after 200 ms of
+    // silence): the same command again is acked without replanning.
+    let mut position = f32::NAN;
+    let deadline = clock() + Duration::from_secs(20);
+    let arrived = |p: f32| (p - 45.0).abs() <= 1e-3;
+    while clock() < deadline && !arrived(position) {
+        let id = client.set_target_v2(clock(), 0x10, v2(45.0)).unwrap();
+        assert_eq!(
+            client.drive(&mut bus, clock, id).unwrap().outcome,
+            Outcome::Acked
+        );
+        while let Some(e) = client.poll_event() {
+            if let Event::Feedback { message, .. } = e
+                && let Payload::Encoder(enc) = message.payload
+            {
+                position = enc.position;
+            }
+        }
+        sleep(Duration::from_millis(50));
+    }
+    assert!(
+        (position - 45.0).abs() <= 1e-3,
+        "the joint reports {position}"
+    );
+    // A command outside the joint's limits is refused with its reason.
+    let id = client.set_target_v2(clock(), 0x10, v2(400.0)).unwrap();
+    assert_eq!(
+        client.drive(&mut bus, clock, id).unwrap().outcome,
+        Outcome::Nacked(16.into())
+    );
+    // A malformed frame from another node: the joint survives it.
+    assert!(
+        Command::new("cansend")
+            .args([IFACE, "000##1001001FF"])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let id = client.deactivate(clock(), 0x10).unwrap();
+    assert_eq!(
+        client.drive(&mut bus, clock, id).unwrap().outcome,
+        Outcome::Acked
+    );
+    let log = finish(dump);
+    assert!(log.lines().count() > 10, "{log}");
+    if let Ok(path) = std::env::var("MOTORWIRE_CAPTURE") {
+        std::fs::write(path, &log).unwrap();
+    }
+}
+
+fn fault_history() -> Message {
+    let mut records = [FaultRecord::default(); 10];
+    for (i, r) in records.iter_mut().enumerate() {
+        *r = FaultRecord {
+            fault_type: i as u8 + 1,
+            timestamp_sec: 1_700_000_000 + i as u32,
+            vbus_mv: 24_000 + i as u16,
+            current_ma: 1500,
+            temp_c: 40,
+        };
+    }
+    Message {
+        header: Header {
+            source_id: 0x10,
+            target_id: 0,
+            msg_id: 7,
+        },
+        payload: Payload::FaultHistory(FaultHistory {
+            records,
+            total_faults: 12,
+            valid_count: 10,
+        }),
+    }
+}
+
+fn hex_spaced(bytes: &[u8]) -> String {
+    bytes
+        .iter()
+        .map(|b| format!("{b:02X}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn isotp_to_kernel(fd: bool) {
+    let mut buf = [0u8; 512];
+    let n = fault_history().encode(WireVersion::V2_2, &mut buf).unwrap();
+    assert!(n > 64, "FaultHistory needs ISO-TP: {n} bytes");
+    let mut args = vec!["-s", "321", "-d", "123"];
+    if fd {
+        args.extend(["-L", "72:64:0"]);
+    }
+    args.push(IFACE);
+    let recv = Command::new("isotprecv")
+        .args(&args)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut recv = Killed(recv);
+    sleep(Duration::from_millis(300));
+    let mut bus = SocketCanBus::open(IFACE).unwrap();
+    let (tx, rx) = (
+        CanId::standard(0x123).unwrap(),
+        CanId::standard(0x321).unwrap(),
+    );
+    let cfg = if fd {
+        IsoTpConfig::fd(tx, rx)
+    } else {
+        IsoTpConfig::classic(tx, rx)
+    };
+    isotp::send(&mut bus, &cfg, &buf[..n]).unwrap();
+    let mut out = String::new();
+    let mut stdout = recv.0.stdout.take().unwrap();
+    let _ = recv.0.wait();
+    stdout.read_to_string(&mut out).unwrap();
+    assert_eq!(out.trim(), hex_spaced(&buf[..n]));
+}
+
+fn isotp_from_kernel(fd: bool) {
+    let mut buf = [0u8; 512];
+    let n = fault_history().encode(WireVersion::V2_2, &mut buf).unwrap();
+    let mut bus = SocketCanBus::open(IFACE).unwrap();
+    let (tx, rx) = (
+        CanId::standard(0x321).unwrap(),
+        CanId::standard(0x123).unwrap(),
+    );
+    let cfg = if fd {
+        IsoTpConfig::fd(tx, rx)
+    } else {
+        IsoTpConfig::classic(tx, rx)
+    };
+    let receiver = std::thread::spawn(move || isotp::recv(&mut bus, &cfg, Duration::from_secs(10)));
+    sleep(Duration::from_millis(300));
+    let mut args = vec!["-s", "123", "-d", "321"];
+    if fd {
+        args.extend(["-L", "72:64:0"]);
+    }
+    args.push(IFACE);
+    let mut send = Command::new("isotpsend")
+        .args(&args)
+        .stdin(Stdio::piped())
+        .spawn()
+        .unwrap();
+    send.stdin
+        .take()
+        .unwrap()
+        .write_all(hex_spaced(&buf[..n]).as_bytes())
+        .unwrap();
+    assert!(send.wait().unwrap().success());
+    let got = receiver.join().unwrap().unwrap();
+    assert_eq!(got, &buf[..n]);
+    assert_eq!(
+        Message::decode(WireVersion::V2_2, &got).unwrap(),
+        fault_history()
+    );
+}
+
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn isotp_fd_motorwire_to_isotprecv() {
+    isotp_to_kernel(true);
+}
+
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn isotp_fd_isotpsend_to_motorwire() {
+    isotp_from_kernel(true);
+}
+
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn isotp_classic_motorwire_to_isotprecv() {
+    isotp_to_kernel(false);
+}
+
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn isotp_classic_isotpsend_to_motorwire() {
+    isotp_from_kernel(false);
+}
+
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn a_downed_or_missing_interface_is_a_typed_error() {
+    assert_eq!(
+        SocketCanBus::open("nosuch0").unwrap_err(),
+        Error::NoSuchInterface {
+            iface: "nosuch0".into()
+        }
+    );
+    let mut bus = SocketCanBus::open(IFACE).unwrap();
+    let ip = |state: &str| {
+        Command::new("ip")
+            .args(["link", "set", IFACE, state])
+            .status()
+            .unwrap()
+    };
+    assert!(ip("down").success());
+    let sent = bus.send(&frame_of(0, 0x10, 1, Payload::Configure));
+    assert!(ip("up").success());
+    assert_eq!(
+        sent,
+        Err(Error::InterfaceDown {
+            iface: IFACE.into()
+        })
+    );
+    // Up again, it works again.
+    bus.send(&frame_of(0, 0x10, 2, Payload::Configure)).unwrap();
+}
