@@ -757,32 +757,33 @@ impl SimJoint {
     /// When [`SimJoint::handle_timeout`] next has work: feedback, the
     /// watchdog, or the end of a motion.
     pub fn poll_timeout(&self) -> Option<Duration> {
-        let mut t: Vec<Duration> = Vec::with_capacity(5);
-        if !self.config.encoder_period.is_zero() {
-            t.push(self.next_encoder);
-        }
-        if !self.config.status_period.is_zero() {
-            t.push(self.next_status);
-        }
-        if self.telemetry_period.is_some() {
-            t.push(self.next_telemetry);
-        }
-        match self.motion {
-            Motion::Profile { profile, start, .. } => {
-                t.push(after(start, profile.duration()));
-                if !self.config.watchdog.is_zero() {
-                    t.push(self.last_heard.saturating_add(self.config.watchdog));
-                }
-            }
+        let on = |period: Duration, at: Duration| (!period.is_zero()).then_some(at);
+        let (motion_end, watchdog) = match self.motion {
+            Motion::Profile { profile, start, .. } => (
+                Some(after(start, profile.duration())),
+                on(
+                    self.config.watchdog,
+                    self.last_heard.saturating_add(self.config.watchdog),
+                ),
+            ),
             Motion::Braking {
                 start,
                 velocity,
                 deceleration,
                 ..
-            } => t.push(after(start, velocity.abs() / deceleration)),
-            Motion::Holding => {}
-        }
-        t.into_iter().min()
+            } => (Some(after(start, velocity.abs() / deceleration)), None),
+            Motion::Holding => (None, None),
+        };
+        [
+            on(self.config.encoder_period, self.next_encoder),
+            on(self.config.status_period, self.next_status),
+            self.telemetry_period.map(|_| self.next_telemetry),
+            motion_end,
+            watchdog,
+        ]
+        .into_iter()
+        .flatten()
+        .min()
     }
 
     /// Runs the joint on `bus` in real time until `stop` is set, handling
