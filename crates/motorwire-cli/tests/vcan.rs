@@ -402,3 +402,39 @@ fn a_downed_or_missing_interface_is_a_typed_error() {
     // Up again, it works again.
     bus.send(&frame_of(0, 0x10, 2, Payload::Configure)).unwrap();
 }
+
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn the_async_bus_on_socketcan() {
+    use motorwire_can::AsyncCanBus;
+    use motorwire_can::socketcan::AsyncSocketCanBus;
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let mut bus = AsyncSocketCanBus::open(IFACE).unwrap();
+        let dump = candump();
+        assert!(
+            Command::new("cansend")
+                .args([IFACE, "010##110002A082A"])
+                .status()
+                .unwrap()
+                .success()
+        );
+        let got = tokio::time::timeout(Duration::from_secs(2), bus.recv())
+            .await
+            .expect("a frame within 2 s")
+            .unwrap();
+        assert_eq!(got.frame.data(), &[0x10, 0x00, 0x2A, 0x08, 0x2A]);
+        bus.send(&frame_of(0, 0x10, 3, Payload::Activate))
+            .await
+            .unwrap();
+        let log = finish(dump);
+        assert!(
+            log.lines()
+                .any(|l| l.ends_with(" 000##100100302") || l.ends_with(" 000##500100302")),
+            "{log}"
+        );
+    });
+}
