@@ -254,17 +254,7 @@ impl Client {
     /// [`Error::Irpc`]: the payload is not in the wire version, holds a
     /// non-finite value, or does not fit a frame.
     pub fn request(&mut self, now: Duration, target: u16, payload: Payload) -> Result<u32, Error> {
-        let msg_id = self.allocate_id();
-        let message = Message {
-            header: Header {
-                source_id: self.config.node_id,
-                target_id: target,
-                msg_id,
-            },
-            payload,
-        };
-        let frame = self.frame(&message)?;
-        self.out.push_back(frame);
+        let (msg_id, frame) = self.enqueue(target, payload)?;
         self.pending.insert(
             msg_id,
             Pending {
@@ -285,6 +275,11 @@ impl Client {
     /// # Errors
     /// As [`Client::request`].
     pub fn send(&mut self, target: u16, payload: Payload) -> Result<u32, Error> {
+        self.enqueue(target, payload).map(|(msg_id, _)| msg_id)
+    }
+
+    /// Encodes `payload` to `target` under a fresh msg_id and queues its frame.
+    fn enqueue(&mut self, target: u16, payload: Payload) -> Result<(u32, Frame), Error> {
         let msg_id = self.allocate_id();
         let message = Message {
             header: Header {
@@ -296,7 +291,7 @@ impl Client {
         };
         let frame = self.frame(&message)?;
         self.out.push_back(frame);
-        Ok(msg_id)
+        Ok((msg_id, frame))
     }
 
     /// Lifecycle: configure `target` (Unconfigured to Inactive).

@@ -87,6 +87,40 @@ fn open_error(iface: &str, e: &io::Error) -> Error {
     }
 }
 
+/// Receive timestamps on, and every error frame delivered.
+fn prepare(socket: &impl SocketOptions) -> Result<(), Error> {
+    socket
+        .set_recv_timestamp(true)
+        .map_err(|e| Error::io("enabling receive timestamps", &e))?;
+    socket
+        .set_error_filter_accept_all()
+        .map_err(|e| Error::io("enabling error frames", &e))
+}
+
+/// An error of an open interface.
+fn io_error(iface: &str, op: &'static str, e: &io::Error) -> Error {
+    match e.raw_os_error() {
+        Some(100) => Error::InterfaceDown {
+            iface: iface.to_owned(),
+        },
+        Some(19) => Error::NoSuchInterface {
+            iface: iface.to_owned(),
+        },
+        _ => Error::io(op, e),
+    }
+}
+
+/// An error sending `frame`: an FD frame on a classic interface is EINVAL.
+fn send_error(iface: &str, frame: &Frame, e: &io::Error) -> Error {
+    if e.raw_os_error() == Some(22) && frame.is_fd() {
+        Error::FdNotSupported {
+            iface: iface.to_owned(),
+        }
+    } else {
+        io_error(iface, "sending a CAN frame", e)
+    }
+}
+
 impl SocketCanBus {
     /// Opens `iface` (`can0`, `vcan0`) for CAN-FD, with receive timestamps
     /// and every error frame delivered as an error.
@@ -96,12 +130,7 @@ impl SocketCanBus {
     /// MTU is 16), or [`Error::Io`].
     pub fn open(iface: &str) -> Result<Self, Error> {
         let socket = socketcan::CanFdSocket::open(iface).map_err(|e| open_error(iface, &e))?;
-        socket
-            .set_recv_timestamp(true)
-            .map_err(|e| Error::io("enabling receive timestamps", &e))?;
-        socket
-            .set_error_filter_accept_all()
-            .map_err(|e| Error::io("enabling error frames", &e))?;
+        prepare(&socket)?;
         Ok(Self {
             iface: iface.to_owned(),
             socket,
@@ -133,18 +162,6 @@ impl SocketCanBus {
         self.socket
             .set_filter_accept_all()
             .map_err(|e| Error::io("clearing receive filters", &e))
-    }
-
-    fn io_error(&self, op: &'static str, e: &io::Error) -> Error {
-        match e.raw_os_error() {
-            Some(100) => Error::InterfaceDown {
-                iface: self.iface.clone(),
-            },
-            Some(19) => Error::NoSuchInterface {
-                iface: self.iface.clone(),
-            },
-            _ => Error::io(op, e),
-        }
     }
 }
 
@@ -228,16 +245,9 @@ fn error_frame(e: &socketcan::CanError) -> Error {
 impl CanBus for SocketCanBus {
     fn send(&mut self, frame: &Frame) -> Result<(), Error> {
         let k = to_kernel(frame)?;
-        self.socket.write_frame(&k).map_err(|e| {
-            // An FD frame on a classic interface: the kernel says EINVAL.
-            if e.raw_os_error() == Some(22) && frame.is_fd() {
-                Error::FdNotSupported {
-                    iface: self.iface.clone(),
-                }
-            } else {
-                self.io_error("sending a CAN frame", &e)
-            }
-        })
+        self.socket
+            .write_frame(&k)
+            .map_err(|e| send_error(&self.iface, frame, &e))
     }
 
     fn recv(&mut self, timeout: Duration) -> Result<Received, Error> {
@@ -256,7 +266,7 @@ impl CanBus for SocketCanBus {
             {
                 return Err(Error::Timeout(timeout));
             }
-            Err(e) => return Err(self.io_error("receiving a CAN frame", &e)),
+            Err(e) => return Err(io_error(&self.iface, "receiving a CAN frame", &e)),
         };
         let timestamp = at.duration_since(UNIX_EPOCH).unwrap_or_default();
         Ok(Received {
@@ -284,12 +294,7 @@ impl AsyncSocketCanBus {
     pub fn open(iface: &str) -> Result<Self, Error> {
         let socket =
             socketcan::tokio::CanFdSocket::open(iface).map_err(|e| open_error(iface, &e))?;
-        socket
-            .set_recv_timestamp(true)
-            .map_err(|e| Error::io("enabling receive timestamps", &e))?;
-        socket
-            .set_error_filter_accept_all()
-            .map_err(|e| Error::io("enabling error frames", &e))?;
+        prepare(&socket)?;
         Ok(Self {
             iface: iface.to_owned(),
             socket,
@@ -304,12 +309,7 @@ impl crate::AsyncCanBus for AsyncSocketCanBus {
         self.socket
             .write_frame(&k)
             .await
-            .map_err(|e| match e.raw_os_error() {
-                Some(100) => Error::InterfaceDown {
-                    iface: self.iface.clone(),
-                },
-                _ => Error::io("sending a CAN frame", &e),
-            })
+            .map_err(|e| send_error(&self.iface, frame, &e))
     }
 
     async fn recv(&mut self) -> Result<Received, Error> {
@@ -317,7 +317,7 @@ impl crate::AsyncCanBus for AsyncSocketCanBus {
             .socket
             .read_frame_with_timestamp()
             .await
-            .map_err(|e| Error::io("receiving a CAN frame", &e))?;
+            .map_err(|e| io_error(&self.iface, "receiving a CAN frame", &e))?;
         let timestamp = at.duration_since(UNIX_EPOCH).unwrap_or_default();
         Ok(Received {
             frame: from_kernel(k)?,
