@@ -35,7 +35,8 @@
 //!   limit and reports [`WATCHDOG_STOP`] in `JointStatus.error_code` until
 //!   the next motion command. Any frame addressed to it counts, so a host
 //!   keeps a long move alive by re-sending it (an identical `SetTargetV2`
-//!   during its own motion is acked and does not replan).
+//!   during its own motion, or after it completed with nothing since, is
+//!   acked and does not replan).
 //! - **Feedback**: `Encoder` every [`JointConfig::encoder_period`] once
 //!   configured, `JointStatus` every [`JointConfig::status_period`] and on
 //!   every state change, and from v2.1 `TelemetryStream` at the rate a
@@ -213,7 +214,6 @@ enum Motion {
     Profile {
         profile: Profile<f64>,
         start: Duration,
-        command: Option<SetTargetPayloadV2>,
     },
     Braking {
         start: Duration,
@@ -231,6 +231,8 @@ pub struct SimJoint {
     state: LifecycleState,
     error_code: u16,
     motion: Motion,
+    /// The motion command being executed, or completed with nothing since.
+    current: Option<SetTargetPayloadV2>,
     position: f64,
     velocity: f64,
     acceleration: f64,
@@ -295,6 +297,7 @@ impl SimJoint {
             state: LifecycleState::Unconfigured,
             error_code: 0,
             motion: Motion::Holding,
+            current: None,
             position: f64::from(config.initial_position),
             velocity: 0.0,
             acceleration: 0.0,
@@ -400,6 +403,7 @@ impl SimJoint {
     }
 
     fn brake(&mut self) {
+        self.current = None;
         if matches!(self.motion, Motion::Holding) {
             return;
         }
@@ -645,13 +649,9 @@ impl SimJoint {
         if self.state != LifecycleState::Active {
             return nack(NackCode::SET_TARGET_WRONG_STATE);
         }
-        // A keep-alive: the motion in progress, asked again.
-        if let Motion::Profile {
-            command: Some(current),
-            ..
-        } = self.motion
-            && current == cmd
-        {
+        // A keep-alive: the motion in progress (or completed undisturbed),
+        // asked again.
+        if self.current == Some(cmd) {
             return Payload::Ack(id);
         }
         let l = self.config.limits;
@@ -702,8 +702,8 @@ impl SimJoint {
         self.motion = Motion::Profile {
             profile: planned,
             start: self.now,
-            command: Some(cmd),
         };
+        self.current = Some(cmd);
         self.error_code = 0;
         self.stats.executed += 1;
         Payload::Ack(id)

@@ -1,0 +1,257 @@
+//! The simulated joint's behaviour, request by request, on the rig.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use std::time::Duration;
+
+use motorwire_can::client::{ClientConfig, Event, Outcome};
+use motorwire_can::{CanId, Frame, SimConfig};
+use motorwire_irpc::{
+    LifecycleState, MotionProfile, NackCode, Payload, SetTargetPayloadV2, TelemetryMode,
+    WireVersion,
+};
+use motorwire_sim::rig::Rig;
+use motorwire_sim::{JointConfig, WATCHDOG_STOP};
+
+const J: u16 = 0x10;
+
+fn rig(wire: WireVersion) -> Rig {
+    let client = ClientConfig {
+        wire,
+        ..ClientConfig::default()
+    };
+    let joint = JointConfig {
+        wire,
+        ..JointConfig::new(J)
+    };
+    Rig::new(SimConfig::default(), client, [joint]).unwrap()
+}
+
+fn outcome(rig: &mut Rig, p: Payload) -> Outcome {
+    rig.request(J, p).unwrap().outcome
+}
+
+fn nack(code: NackCode) -> Outcome {
+    Outcome::Nacked(code)
+}
+
+fn to(target: f32) -> Payload {
+    Payload::SetTargetV2(SetTargetPayloadV2 {
+        target_angle: target,
+        max_velocity: 100.0,
+        target_velocity: 0.0,
+        max_acceleration: 500.0,
+        max_deceleration: 500.0,
+        max_jerk: 2000.0,
+        profile: MotionProfile::SCurve,
+        max_current: 0.0,
+        max_temperature: 0.0,
+    })
+}
+
+#[test]
+fn the_lifecycle_and_its_nack_codes() {
+    let mut r = rig(WireVersion::V2_0);
+    assert_eq!(
+        outcome(&mut r, Payload::Activate),
+        nack(NackCode::ACTIVATE_WRONG_STATE)
+    );
+    assert_eq!(
+        outcome(&mut r, Payload::Deactivate),
+        nack(NackCode::DEACTIVATE_WRONG_STATE)
+    );
+    assert_eq!(
+        outcome(&mut r, to(10.0)),
+        nack(NackCode::SET_TARGET_WRONG_STATE)
+    );
+    assert_eq!(outcome(&mut r, Payload::Configure), Outcome::Acked);
+    assert_eq!(r.joint(J).unwrap().state(), LifecycleState::Inactive);
+    assert_eq!(
+        outcome(&mut r, to(10.0)),
+        nack(NackCode::SET_TARGET_WRONG_STATE)
+    );
+    assert_eq!(outcome(&mut r, Payload::Activate), Outcome::Acked);
+    assert_eq!(
+        outcome(&mut r, Payload::Configure),
+        nack(NackCode::CONFIGURE_WRONG_STATE)
+    );
+    assert_eq!(
+        outcome(&mut r, Payload::ArmReady),
+        Outcome::TimedOut,
+        "a broadcast gets no answer"
+    );
+    assert_eq!(
+        outcome(
+            &mut r,
+            Payload::Encoder(motorwire_irpc::EncoderTelemetry {
+                position: 0.0,
+                velocity: 0.0
+            })
+        ),
+        nack(NackCode::UNKNOWN_PAYLOAD)
+    );
+    assert_eq!(outcome(&mut r, Payload::Reset), Outcome::Acked);
+    assert_eq!(r.joint(J).unwrap().state(), LifecycleState::Unconfigured);
+}
+
+#[test]
+fn moves_are_acked_planned_and_refused_outside_the_limits() {
+    let mut r = rig(WireVersion::V2_0);
+    r.joint_mut(J).unwrap().set_watchdog(Duration::ZERO);
+    for p in [Payload::Configure, Payload::Activate] {
+        assert_eq!(outcome(&mut r, p), Outcome::Acked);
+    }
+    assert_eq!(outcome(&mut r, to(90.0)), Outcome::Acked);
+    let t0 = r.bus().now();
+    r.run_until(t0 + Duration::from_millis(700)).unwrap();
+    let mid = r.joint(J).unwrap().position();
+    assert!(mid > 10.0 && mid < 80.0, "{mid}");
+    r.run_until(t0 + Duration::from_secs(2)).unwrap();
+    assert_eq!(r.joint(J).unwrap().position(), 90.0);
+    assert!(!r.joint(J).unwrap().is_moving());
+    // Outside ±180, faster than 360 deg/s, a zero acceleration: Nack 16.
+    assert_eq!(outcome(&mut r, to(181.0)), nack(NackCode::OUT_OF_LIMITS));
+    let Payload::SetTargetV2(mut fast) = to(0.0) else {
+        unreachable!()
+    };
+    fast.max_velocity = 400.0;
+    assert_eq!(
+        outcome(&mut r, Payload::SetTargetV2(fast)),
+        nack(NackCode::OUT_OF_LIMITS)
+    );
+    fast.max_velocity = 100.0;
+    fast.max_acceleration = 0.0;
+    assert_eq!(
+        outcome(&mut r, Payload::SetTargetV2(fast)),
+        nack(NackCode::OUT_OF_LIMITS)
+    );
+    assert_eq!(r.joint(J).unwrap().stats().executed, 1);
+}
+
+#[test]
+fn a_nan_target_is_nacked_by_its_msg_id() {
+    let mut joint = motorwire_sim::SimJoint::new(JointConfig::new(J)).unwrap();
+    // SetTarget {NaN, 150} from the arm, msg_id 5 (WIRE-FACTS' vector with the angle made NaN).
+    let bytes = [
+        0x00, 0x10, 0x05, 0x00, 0x00, 0x00, 0xc0, 0x7f, 0x00, 0x00, 0x16, 0x43,
+    ];
+    let frame = Frame::fd(CanId::standard(0).unwrap(), &bytes).unwrap();
+    assert_eq!(joint.handle_frame(Duration::ZERO, &frame), None);
+    // Nack {5, 17} from 0x10 to the arm.
+    assert_eq!(
+        joint.poll_transmit().unwrap().data(),
+        &[0x10, 0x00, 0x05, 0x09, 0x05, 0x11]
+    );
+    // A frame that does not decode at all is dropped and counted.
+    let junk = Frame::fd(CanId::standard(0).unwrap(), &[0x00, 0x10, 0x06, 0x7f]).unwrap();
+    assert_eq!(joint.handle_frame(Duration::ZERO, &junk), None);
+    assert!(joint.poll_transmit().is_none());
+    assert_eq!(joint.stats().bad_frames, 1);
+}
+
+#[test]
+fn a_repeated_msg_id_is_answered_again_and_not_executed_again() {
+    let mut joint = motorwire_sim::SimJoint::new(JointConfig::new(J)).unwrap();
+    let arm = CanId::standard(0).unwrap();
+    let frame = |bytes: &[u8]| Frame::fd(arm, bytes).unwrap();
+    // Configure (msg_id 1) twice: one state change, two identical Acks.
+    let first = joint.handle_frame(Duration::ZERO, &frame(&[0x00, 0x10, 0x01, 0x01]));
+    assert_eq!(first.map(|e| e.answer), Some(Payload::Ack(1)));
+    let out: Vec<Frame> = std::iter::from_fn(|| joint.poll_transmit()).collect();
+    assert_eq!(out.len(), 2, "JointStatus (state changed) and the Ack");
+    assert_eq!(
+        joint.handle_frame(Duration::ZERO, &frame(&[0x00, 0x10, 0x01, 0x01])),
+        None
+    );
+    assert_eq!(
+        joint.poll_transmit().unwrap().data(),
+        &[0x10, 0x00, 0x01, 0x08, 0x01]
+    );
+    assert!(joint.poll_transmit().is_none());
+    assert_eq!(joint.stats().duplicates, 1);
+    assert_eq!(joint.stats().acked, 1);
+}
+
+#[test]
+fn the_watchdog_brakes_a_move_the_host_stopped_feeding() {
+    let mut r = rig(WireVersion::V2_0);
+    for p in [Payload::Configure, Payload::Activate] {
+        assert_eq!(outcome(&mut r, p), Outcome::Acked);
+    }
+    let moved = r.request(J, to(150.0)).unwrap();
+    assert_eq!(moved.outcome, Outcome::Acked);
+    // The joint heard the command when it acked it.
+    let t0 = moved.finished_at;
+    r.run_until(t0 + Duration::from_millis(199)).unwrap();
+    assert_eq!(r.joint(J).unwrap().stats().watchdog_stops, 0);
+    r.run_until(t0 + Duration::from_millis(400)).unwrap();
+    let j = r.joint(J).unwrap();
+    assert_eq!(j.stats().watchdog_stops, 1);
+    assert!(!j.is_moving(), "stopped within 200 ms of braking");
+    let stopped_at = j.position();
+    assert!(stopped_at > 0.0 && stopped_at < 30.0, "{stopped_at}");
+    let statuses: Vec<u16> = r
+        .take_events()
+        .into_iter()
+        .filter_map(|e| match e {
+            Event::Feedback { message, .. } => match message.payload {
+                Payload::JointStatus { error_code, .. } => Some(error_code),
+                _ => None,
+            },
+            _ => None,
+        })
+        .collect();
+    assert!(statuses.contains(&WATCHDOG_STOP), "{statuses:?}");
+    // Re-sending the move in progress is the keep-alive: a fed move arrives.
+    assert_eq!(outcome(&mut r, to(20.0)), Outcome::Acked);
+    let t1 = r.bus().now();
+    while r.bus().now() < t1 + Duration::from_secs(2) {
+        assert_eq!(outcome(&mut r, to(20.0)), Outcome::Acked);
+        let next = r.bus().now() + Duration::from_millis(100);
+        r.run_until(next).unwrap();
+    }
+    assert_eq!(r.joint(J).unwrap().position(), 20.0);
+    assert_eq!(r.joint(J).unwrap().stats().watchdog_stops, 1);
+    assert_eq!(
+        r.joint(J).unwrap().stats().executed,
+        2,
+        "keep-alives do not replan"
+    );
+}
+
+#[test]
+fn telemetry_streams_at_the_subscribed_rate_from_v2_1() {
+    let mut r = rig(WireVersion::V2_1);
+    for p in [Payload::Configure, Payload::Activate] {
+        assert_eq!(outcome(&mut r, p), Outcome::Acked);
+    }
+    let now = r.bus().now();
+    let id = r
+        .client
+        .subscribe_telemetry(now, J, TelemetryMode::Periodic, 100, 0.0)
+        .unwrap();
+    r.run_until(now + Duration::from_millis(500)).unwrap();
+    let events = r.take_events();
+    assert!(events.iter().any(
+        |e| matches!(e, Event::Completed(c) if c.msg_id == id && c.outcome == Outcome::Acked)
+    ));
+    let samples = events
+        .iter()
+        .filter(|e| matches!(e, Event::Feedback { message, .. } if matches!(message.payload, Payload::TelemetryStream(_))))
+        .count();
+    assert!(
+        (49..=51).contains(&samples),
+        "{samples} samples in 500 ms at 100 Hz"
+    );
+    assert_eq!(outcome(&mut r, Payload::RequestTelemetry), Outcome::Acked);
+    let rate = Payload::ConfigureTelemetry(motorwire_irpc::ConfigureTelemetryPayload {
+        mode: TelemetryMode::Streaming,
+        rate_hz: 5000,
+        change_threshold: 0.0,
+    });
+    assert_eq!(outcome(&mut r, rate), nack(NackCode::OUT_OF_LIMITS));
+}
