@@ -4,6 +4,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod bridge;
 mod bus;
 mod candump;
 mod compact;
@@ -39,6 +40,10 @@ enum Command {
     Sim(sim::Args),
     /// Decode `candump -L` logs.
     Candump(candump::Args),
+    /// Bridge WIA JSON commands onto iRPC joints on a CAN bus (or a
+    /// simulated arm): one result line per input line, feedback and events
+    /// as they come.
+    Bridge(bridge::Args),
     /// Walk through the WIA document's example messages, validating each.
     Demo(demo::Args),
 }
@@ -52,6 +57,7 @@ fn main() -> ExitCode {
         Command::Plan(args) => plan::run(&args),
         Command::Sim(args) => sim::run(&args),
         Command::Candump(args) => candump::run(&args),
+        Command::Bridge(args) => bridge::run(&args),
         Command::Demo(args) => demo::run(&args),
     };
     ExitCode::from(status)

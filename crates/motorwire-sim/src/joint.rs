@@ -528,6 +528,12 @@ impl SimJoint {
         if h.source_id == self.config.node_id {
             return None;
         }
+        // Answers and telemetry are never requests: on a shared bus other
+        // joints send them to the arm (node 0x0000), which a joint also
+        // takes as broadcast. Answering them would start a Nack storm.
+        if !is_request(&message.payload) {
+            return None;
+        }
         self.last_heard = self.now;
         if let Some(answer) = self.answers.get(&(h.source_id, h.msg_id)).copied() {
             self.stats.duplicates += 1;
@@ -825,6 +831,26 @@ impl SimJoint {
         }
         Ok(())
     }
+}
+
+/// Whether a joint is asked something by `payload` (not an answer, not
+/// telemetry).
+fn is_request(payload: &Payload) -> bool {
+    !matches!(
+        payload,
+        Payload::Ack(_)
+            | Payload::Nack { .. }
+            | Payload::Encoder(_)
+            | Payload::JointStatus { .. }
+            | Payload::TelemetryStream(_)
+            | Payload::AdaptiveStatus(_)
+            | Payload::CalibrationStatus(_)
+            | Payload::CalibrationResult(_)
+            | Payload::PowerMetrics(_)
+            | Payload::EmergencyStop(_)
+            | Payload::PowerConfigResponse(_)
+            | Payload::FaultHistory(_)
+    )
 }
 
 /// WIRE-FACTS §1.5: a frame's CAN id is its sender's node id.

@@ -92,10 +92,17 @@ fn the_lifecycle_and_its_nack_codes() {
                 velocity: 0.0
             })
         ),
-        nack(NackCode::UNKNOWN_PAYLOAD)
+        Outcome::TimedOut,
+        "telemetry is not a request: no answer"
     );
     assert_eq!(outcome(&mut r, Payload::Reset), Outcome::Acked);
     assert_eq!(r.joint(J).unwrap().state(), LifecycleState::Unconfigured);
+    // A request the joint does not implement (v2.1's adaptive status).
+    let mut r = rig(WireVersion::V2_1);
+    assert_eq!(
+        outcome(&mut r, Payload::RequestAdaptiveStatus),
+        nack(NackCode::UNKNOWN_PAYLOAD)
+    );
 }
 
 #[test]
@@ -254,4 +261,35 @@ fn telemetry_streams_at_the_subscribed_rate_from_v2_1() {
         change_threshold: 0.0,
     });
     assert_eq!(outcome(&mut r, rate), nack(NackCode::OUT_OF_LIMITS));
+}
+
+/// Two joints on one bus: each one's Acks and Encoder frames go to the arm
+/// (node 0x0000), which the other also takes as broadcast. Neither answers
+/// them (an earlier version Nacked them with 255, and the two joints then
+/// Nacked each other's Nacks without end).
+#[test]
+fn joints_never_answer_each_others_answers_or_telemetry() {
+    let joints = [JointConfig::new(0x10), JointConfig::new(0x11)];
+    let mut r = Rig::new(SimConfig::default(), ClientConfig::default(), joints).unwrap();
+    for node in [0x10, 0x11] {
+        assert_eq!(
+            r.request(node, Payload::Configure).unwrap().outcome,
+            Outcome::Acked
+        );
+        assert_eq!(
+            r.request(node, Payload::Activate).unwrap().outcome,
+            Outcome::Acked
+        );
+    }
+    r.run_until(Duration::from_millis(500)).unwrap();
+    for node in [0x10, 0x11] {
+        let stats = r.joint(node).unwrap().stats();
+        assert_eq!((stats.acked, stats.nacked), (2, 0), "node {node:#x}");
+    }
+    let strays = r
+        .take_events()
+        .into_iter()
+        .filter(|e| matches!(e, Event::StrayReply { .. }))
+        .count();
+    assert_eq!(strays, 0);
 }

@@ -1,0 +1,320 @@
+//! Running a [`Bridge`] in real time on a blocking bus.
+
+use std::io::{self, BufRead};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use motorwire_can::{CanBus, Error as CanError, Frame};
+use serde_json::json;
+
+use crate::{Bridge, BridgeError, Origin, Output};
+
+/// The longest input line accepted (bytes, without the newline).
+pub const MAX_LINE: usize = 64 * 1024;
+
+#[derive(Debug)]
+enum Msg {
+    Line {
+        origin: Origin,
+        text: String,
+        at: Instant,
+    },
+    Refused {
+        origin: Origin,
+        reason: String,
+    },
+    Finish,
+    Interrupt,
+    Frame {
+        frame: Frame,
+        at: Instant,
+    },
+    BusError(String),
+}
+
+/// Hands input to a running [`Runner`]; clone it for each input.
+#[derive(Debug, Clone)]
+pub struct InputSender {
+    tx: Sender<Msg>,
+}
+
+impl InputSender {
+    /// One line from `origin`, received now.
+    pub fn line(&self, origin: Origin, text: impl Into<String>) {
+        let _ = self.tx.send(Msg::Line {
+            origin,
+            text: text.into(),
+            at: Instant::now(),
+        });
+    }
+
+    /// A line that could not be taken (too long, not UTF-8): answered with
+    /// an error, never sent.
+    pub fn refused(&self, origin: Origin, reason: impl Into<String>) {
+        let _ = self.tx.send(Msg::Refused {
+            origin,
+            reason: reason.into(),
+        });
+    }
+
+    /// End of input: finish and stop the joints.
+    pub fn finish(&self) {
+        let _ = self.tx.send(Msg::Finish);
+    }
+
+    /// Interrupted: stop the joints now.
+    pub fn interrupt(&self) {
+        let _ = self.tx.send(Msg::Interrupt);
+    }
+}
+
+/// A line read by [`read_line`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ReadLine {
+    /// A whole line (without its newline).
+    Line(String),
+    /// A line over [`MAX_LINE`] bytes, skipped to its end.
+    TooLong,
+    /// A line that is not UTF-8.
+    NotUtf8,
+    /// Bytes at the end of input with no newline after them.
+    Partial(String),
+    /// End of input.
+    End,
+}
+
+/// Reads one line of at most [`MAX_LINE`] bytes, never holding more.
+///
+/// # Errors
+/// The reader's errors.
+pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
+    let mut bytes = Vec::new();
+    let mut too_long = false;
+    loop {
+        let (consumed, done) = {
+            let buf = match reader.fill_buf() {
+                Ok(b) => b,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(e),
+            };
+            if buf.is_empty() {
+                return Ok(if too_long {
+                    ReadLine::TooLong
+                } else if bytes.is_empty() {
+                    ReadLine::End
+                } else {
+                    ReadLine::Partial(String::from_utf8_lossy(&bytes).into_owned())
+                });
+            }
+            match buf.iter().position(|&b| b == b'\n') {
+                Some(i) => {
+                    if !too_long {
+                        bytes.extend_from_slice(buf.get(..i).unwrap_or_default());
+                    }
+                    (i + 1, true)
+                }
+                None => {
+                    if !too_long {
+                        bytes.extend_from_slice(buf);
+                    }
+                    (buf.len(), false)
+                }
+            }
+        };
+        reader.consume(consumed);
+        if bytes.len() > MAX_LINE {
+            too_long = true;
+            bytes.clear();
+        }
+        if done {
+            if too_long {
+                return Ok(ReadLine::TooLong);
+            }
+            return Ok(match String::from_utf8(bytes) {
+                Ok(mut s) => {
+                    if s.ends_with('\r') {
+                        s.pop();
+                    }
+                    ReadLine::Line(s)
+                }
+                Err(_) => ReadLine::NotUtf8,
+            });
+        }
+    }
+}
+
+/// Feeds `reader`'s lines to `input` as `origin` until it ends. With
+/// `partial_is_line` a last line without a newline is taken (a file);
+/// otherwise it is dropped, and reported (a client that went away
+/// mid-line). Returns how the input ended.
+pub fn feed(
+    input: &InputSender,
+    origin: Origin,
+    reader: &mut impl BufRead,
+    partial_is_line: bool,
+) -> io::Result<()> {
+    loop {
+        match read_line(reader)? {
+            ReadLine::Line(s) => input.line(origin, s),
+            ReadLine::TooLong => {
+                input.refused(origin, format!("the line is over {MAX_LINE} bytes"))
+            }
+            ReadLine::NotUtf8 => input.refused(origin, "the line is not UTF-8"),
+            ReadLine::Partial(s) if partial_is_line => {
+                input.line(origin, s);
+                return Ok(());
+            }
+            ReadLine::Partial(s) => {
+                input.refused(
+                    origin,
+                    format!(
+                        "the input ended in the middle of a line ({} bytes without a newline); it was not taken",
+                        s.len()
+                    ),
+                );
+                return Ok(());
+            }
+            ReadLine::End => return Ok(()),
+        }
+    }
+}
+
+/// Runs a [`Bridge`] in real time: `tx` sends its frames, a thread
+/// receives on `rx` (a second handle on the same bus). Lines come from
+/// [`Runner::input`] senders.
+#[derive(Debug)]
+pub struct Runner {
+    tx: Sender<Msg>,
+    rx: Receiver<Msg>,
+}
+
+impl Default for Runner {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Runner {
+    /// A runner with no input yet.
+    pub fn new() -> Self {
+        let (tx, rx) = mpsc::channel();
+        Self { tx, rx }
+    }
+
+    /// A handle to give input with.
+    pub fn input(&self) -> InputSender {
+        InputSender {
+            tx: self.tx.clone(),
+        }
+    }
+
+    /// Runs `bridge` until it has stopped the joints (after
+    /// [`InputSender::finish`] or [`InputSender::interrupt`]), giving each
+    /// output line to `sink` as it comes. `clock_start` is the bridge's
+    /// time zero.
+    ///
+    /// # Errors
+    /// [`BridgeError::Bus`] when sending on the bus fails for good (bus off,
+    /// interface down).
+    pub fn run<T, R>(
+        self,
+        mut bridge: Bridge,
+        mut tx: T,
+        mut rx: R,
+        mut sink: impl FnMut(&Output),
+    ) -> Result<Bridge, BridgeError>
+    where
+        T: CanBus,
+        R: CanBus + Send + 'static,
+    {
+        let start = Instant::now();
+        let since = |at: Instant| at.saturating_duration_since(start);
+        let stop = Arc::new(AtomicBool::new(false));
+        let reader = {
+            let stop = Arc::clone(&stop);
+            let frames = self.tx.clone();
+            thread::spawn(move || {
+                while !stop.load(Ordering::Relaxed) {
+                    match rx.recv(Duration::from_millis(20)) {
+                        Ok(r) => {
+                            let _ = frames.send(Msg::Frame {
+                                frame: r.frame,
+                                at: Instant::now(),
+                            });
+                        }
+                        Err(CanError::Timeout(_)) => {}
+                        Err(e) => {
+                            let _ = frames.send(Msg::BusError(e.to_string()));
+                            if fatal(&e) {
+                                break;
+                            }
+                        }
+                    }
+                }
+            })
+        };
+        bridge.start(since(Instant::now()));
+        let result = loop {
+            let mut failed = None;
+            while let Some(f) = bridge.poll_transmit() {
+                if let Err(e) = tx.send(&f) {
+                    failed = Some(e);
+                    break;
+                }
+            }
+            bridge.flushed(since(Instant::now()));
+            while let Some(o) = bridge.poll_output() {
+                sink(&o);
+            }
+            if let Some(e) = failed {
+                break Err(BridgeError::Bus(e));
+            }
+            if bridge.is_finished() {
+                break Ok(());
+            }
+            let now = since(Instant::now());
+            let wait = bridge
+                .poll_timeout()
+                .map_or(Duration::from_millis(100), |t| t.saturating_sub(now));
+            match self.rx.recv_timeout(wait) {
+                Ok(Msg::Line { origin, text, at }) => bridge.handle_line(since(at), origin, &text),
+                Ok(Msg::Refused { origin, reason }) => {
+                    sink(&Output::Result {
+                        origin,
+                        json: json!({"ok": false, "error": {"kind": "unreadable", "message": reason}}),
+                    });
+                }
+                Ok(Msg::Frame { frame, at }) => bridge.handle_frame(since(at), &frame),
+                Ok(Msg::Finish) => bridge.finish(since(Instant::now())),
+                Ok(Msg::Interrupt) => bridge.interrupt(since(Instant::now())),
+                Ok(Msg::BusError(e)) => {
+                    sink(&Output::Event(json!({"event": "bus_error", "error": e})))
+                }
+                Err(RecvTimeoutError::Timeout) => bridge.handle_timeout(since(Instant::now())),
+                Err(RecvTimeoutError::Disconnected) => bridge.finish(since(Instant::now())),
+            }
+            // Timers that fell due while a message was handled.
+            let now = since(Instant::now());
+            if bridge.poll_timeout().is_some_and(|t| t <= now) {
+                bridge.handle_timeout(now);
+            }
+        };
+        stop.store(true, Ordering::Relaxed);
+        let _ = reader.join();
+        result.map(|()| bridge)
+    }
+}
+
+/// A receive error after which the handle will never receive again.
+fn fatal(e: &CanError) -> bool {
+    matches!(
+        e,
+        CanError::Closed
+            | CanError::NoSuchInterface { .. }
+            | CanError::InterfaceDown { .. }
+            | CanError::Io { .. }
+    )
+}

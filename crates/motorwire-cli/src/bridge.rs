@@ -1,0 +1,298 @@
+//! `motorwire bridge`: WIA JSON lines in, iRPC frames on a CAN bus out.
+
+use std::collections::BTreeMap;
+use std::io::{self, BufReader, Write};
+use std::net::{TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use motorwire_bridge::{Bridge, BridgeConfig, InputSender, Origin, Output, Runner, feed};
+use motorwire_can::client::ClientConfig;
+use motorwire_can::{Clock, SimBus, SimConfig, SimPort};
+use motorwire_sim::{JointConfig, SimJoint};
+use motorwire_translate::{BusMap, Target};
+
+/// The origin of stdin's lines.
+const STDIN: Origin = Origin(0);
+
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// The bus map (TOML): which motor is which joint, and its limits.
+    #[arg(long, value_name = "FILE")]
+    map: String,
+    /// `sim` (the map's iRPC joints simulated on an in-memory bus, in real
+    /// time) or `socketcan:IFACE` (a Linux CAN-FD interface, e.g. vcan0).
+    #[arg(long, value_name = "BUS")]
+    bus: String,
+    /// Where lines come from: `-` (stdin; the bridge stops at its end) or
+    /// `tcp:ADDR` (clients on a loopback address, e.g. tcp:127.0.0.1:7878;
+    /// the bridge runs until interrupted).
+    #[arg(long, value_name = "INPUT", default_value = "-")]
+    input: String,
+    /// Feedback lines per joint per second (0: none).
+    #[arg(long, value_name = "N", default_value_t = 10.0)]
+    feedback_hz: f64,
+    /// Do not configure and activate the joints on startup.
+    #[arg(long)]
+    no_activate: bool,
+    /// A joint silent for this many ms is reported offline.
+    #[arg(long, value_name = "MS", default_value_t = 500)]
+    offline_after: u64,
+    /// The bridge's own iRPC node id (its frames' CAN id).
+    #[arg(long, value_parser = crate::sim::parse_node, default_value = "0x0000")]
+    node: u16,
+}
+
+pub(crate) fn run(args: &Args) -> u8 {
+    match bridge(args) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("motorwire bridge: {e}");
+            2
+        }
+    }
+}
+
+/// The feedback period for `hz` lines per second (`None` for 0).
+pub(crate) fn feedback_period(hz: f64) -> Result<Option<Duration>, String> {
+    if hz == 0.0 {
+        return Ok(None);
+    }
+    if !(hz.is_finite() && hz > 0.0 && hz <= 1000.0) {
+        return Err(format!(
+            "--feedback-hz {hz}: expected 0 (none) or a rate up to 1000"
+        ));
+    }
+    Duration::try_from_secs_f64(1.0 / hz)
+        .map(Some)
+        .map_err(|e| e.to_string())
+}
+
+pub(crate) fn load_map(path: &str) -> Result<BusMap, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("--map {path}: {e}"))?;
+    BusMap::from_toml(&text).map_err(|e| format!("--map {path}: {e}"))
+}
+
+/// Milliseconds since the Unix epoch, now.
+pub(crate) fn unix_ms() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64() * 1000.0)
+}
+
+/// The map's iRPC joints, simulated on `bus` in real time, each on its own
+/// thread until `stop` is set.
+pub(crate) struct SimArm {
+    pub(crate) bus: SimBus,
+    stop: Arc<AtomicBool>,
+    threads: Vec<JoinHandle<()>>,
+}
+
+impl SimArm {
+    pub(crate) fn start(map: &BusMap) -> Result<Self, String> {
+        let bus = SimBus::new(SimConfig {
+            clock: Clock::Real,
+            ..SimConfig::default()
+        })
+        .map_err(|e| e.to_string())?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut threads = Vec::new();
+        for m in map.motors() {
+            let Target::Irpc { node, wire } = m.target else {
+                continue;
+            };
+            let mut config = JointConfig::new(node);
+            config.wire = wire;
+            // Start inside the map's range (a joint whose range excludes 0
+            // would otherwise start outside it).
+            let lo = m
+                .limits
+                .min_position
+                .map_or(f64::MIN, |p| m.unit.to_degrees(p));
+            let hi = m
+                .limits
+                .max_position
+                .map_or(f64::MAX, |p| m.unit.to_degrees(p));
+            #[allow(clippy::cast_possible_truncation)]
+            let start = 0.0f64.max(lo).min(hi) as f32;
+            config.initial_position = start;
+            let mut joint = SimJoint::new(config).map_err(|e| format!("{}: {e}", m.name))?;
+            let mut port = bus.port();
+            let stop = Arc::clone(&stop);
+            threads.push(thread::spawn(move || {
+                let _ = joint.run(&mut port, &stop, |_| {});
+            }));
+        }
+        Ok(Self { bus, stop, threads })
+    }
+
+    pub(crate) fn port(&self) -> SimPort {
+        self.bus.port()
+    }
+}
+
+impl Drop for SimArm {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Sends SIGINT (Ctrl-C) to `input` as an interrupt.
+fn on_interrupt(input: InputSender) {
+    thread::spawn(move || {
+        let Ok(rt) = tokio::runtime::Builder::new_current_thread()
+            .enable_io()
+            .build()
+        else {
+            return;
+        };
+        rt.block_on(async {
+            loop {
+                if tokio::signal::ctrl_c().await.is_err() {
+                    return;
+                }
+                input.interrupt();
+            }
+        });
+    });
+}
+
+type Clients = Arc<Mutex<BTreeMap<u64, TcpStream>>>;
+
+fn bridge(args: &Args) -> Result<u8, String> {
+    let map = load_map(&args.map)?;
+    let config = BridgeConfig {
+        client: ClientConfig {
+            node_id: args.node,
+            ..ClientConfig::default()
+        },
+        activate_on_start: !args.no_activate,
+        feedback_period: feedback_period(args.feedback_hz)?,
+        offline_after: Duration::from_millis(args.offline_after.max(1)),
+        epoch_unix_ms: unix_ms(),
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
+    let runner = Runner::new();
+    let input = runner.input();
+    on_interrupt(input.clone());
+
+    let clients: Clients = Arc::default();
+    let tcp = match args.input.as_str() {
+        "-" => {
+            let input = input.clone();
+            thread::spawn(move || {
+                let mut reader = BufReader::new(io::stdin());
+                if let Err(e) = feed(&input, STDIN, &mut reader, true) {
+                    eprintln!("motorwire bridge: reading standard input: {e}");
+                }
+                input.finish();
+            });
+            false
+        }
+        spec => {
+            let addr = spec.strip_prefix("tcp:").ok_or_else(|| {
+                format!(
+                    "--input {spec:?}: expected - (stdin) or tcp:ADDR (e.g. tcp:127.0.0.1:7878)"
+                )
+            })?;
+            let listener = TcpListener::bind(addr).map_err(|e| format!("--input {spec}: {e}"))?;
+            if !listener.local_addr().is_ok_and(|a| a.ip().is_loopback()) {
+                return Err(format!(
+                    "--input {spec}: the bridge listens on loopback addresses only (127.0.0.1, ::1)"
+                ));
+            }
+            if let Ok(a) = listener.local_addr() {
+                eprintln!("motorwire bridge: listening on tcp:{a}");
+            }
+            accept(listener, input.clone(), Arc::clone(&clients));
+            true
+        }
+    };
+
+    let stdout = io::stdout();
+    let sink = |o: &Output| {
+        let line = o.json().to_string();
+        match o {
+            Output::Result { origin, .. } if tcp => {
+                let mut c = clients.lock().unwrap_or_else(PoisonError::into_inner);
+                if let Some(s) = c.get_mut(&origin.0)
+                    && writeln!(s, "{line}").is_err()
+                {
+                    c.remove(&origin.0);
+                }
+            }
+            Output::Result { .. } => {
+                let _ = writeln!(stdout.lock(), "{line}");
+            }
+            Output::Feedback(_) | Output::Event(_) if tcp => {
+                let mut c = clients.lock().unwrap_or_else(PoisonError::into_inner);
+                c.retain(|_, s| writeln!(s, "{line}").is_ok());
+                if matches!(o, Output::Event(_)) {
+                    let _ = writeln!(stdout.lock(), "{line}");
+                }
+            }
+            Output::Feedback(_) | Output::Event(_) => {
+                let _ = writeln!(stdout.lock(), "{line}");
+            }
+        }
+    };
+    let result = match args.bus.as_str() {
+        "sim" => {
+            let arm = SimArm::start(bridge.map())?;
+            let (tx, rx) = (arm.port(), arm.port());
+            runner.run(bridge, tx, rx, sink)
+        }
+        spec => {
+            let tx = crate::bus::open(spec)?;
+            let rx = crate::bus::open(spec)?;
+            runner.run(bridge, tx, rx, sink)
+        }
+    };
+    let bridge = result.map_err(|e| e.to_string())?;
+    let s = bridge.stats();
+    eprintln!(
+        "motorwire bridge: {} lines, {} ok, {} failed, {} frames sent, {} bad frames received",
+        s.lines, s.ok, s.failed, s.frames_sent, s.bad_frames
+    );
+    Ok(0)
+}
+
+/// Accepts TCP clients; each one's lines are fed as its own origin (from
+/// 1), and it gets its results, the feedback and the events.
+fn accept(listener: TcpListener, input: InputSender, clients: Clients) {
+    thread::spawn(move || {
+        let mut next = 1u64;
+        for stream in listener.incoming() {
+            let Ok(stream) = stream else {
+                continue;
+            };
+            let id = next;
+            next += 1;
+            let Ok(writer) = stream.try_clone() else {
+                continue;
+            };
+            let _ = writer.set_write_timeout(Some(Duration::from_millis(200)));
+            clients
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .insert(id, writer);
+            let input = input.clone();
+            let clients = Arc::clone(&clients);
+            thread::spawn(move || {
+                let mut reader = BufReader::new(stream);
+                // A client that goes away mid-line: its partial line is not taken.
+                let _ = feed(&input, Origin(id), &mut reader, false);
+                clients
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .remove(&id);
+            });
+        }
+    });
+}
