@@ -193,18 +193,29 @@ enum Phase {
 /// use motorwire_bridge::{Bridge, BridgeConfig, Origin};
 /// use motorwire_translate::BusMap;
 ///
-/// let map = BusMap::from_toml("[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12")?;
-/// let mut bridge = Bridge::new(map, BridgeConfig::default())?;
+/// let map = BusMap::from_toml(
+///     "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n\
+///      limits = { max_velocity = 120, max_acceleration = 500 }",
+/// )?;
+/// let config = BridgeConfig { activate_on_start: false, ..BridgeConfig::default() };
+/// let mut bridge = Bridge::new(map, config)?;
 /// bridge.start(Duration::ZERO);
-/// // Configure, for node 0x12: `00 12 01 01` (source 0x0000, msg_id 1).
-/// assert_eq!(bridge.poll_transmit().map(|f| f.data().to_vec()), Some(vec![0x00, 0x12, 0x01, 0x01]));
-/// bridge.flushed(Duration::ZERO);
 /// // A line that is not JSON never reaches the bus: it is answered at once.
 /// bridge.handle_line(Duration::ZERO, Origin(0), "{oops");
-/// let out = bridge.poll_output().map(|o| o.json().clone()).unwrap();
-/// assert_eq!(out["ok"], false);
-/// assert_eq!(out["error"]["kind"], "invalid");
+/// let out = loop {
+///     let o = bridge.poll_output().unwrap();
+///     if o.json()["ok"] == false { break o; }
+/// };
+/// assert_eq!(out.json()["error"]["kind"], "invalid");
 /// assert!(bridge.poll_transmit().is_none());
+/// // A move: SetTargetV2 (variant 5) from 0x0000 to 0x12, msg_id 1.
+/// bridge.handle_line(
+///     Duration::ZERO,
+///     Origin(0),
+///     r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":90}"#,
+/// );
+/// let frame = bridge.poll_transmit().unwrap();
+/// assert_eq!(frame.data()[..4], [0x00, 0x12, 0x01, 0x05]);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 #[derive(Debug)]

@@ -13,4 +13,7 @@ pub enum BridgeError {
     /// The bus failed (sending, or the client's configuration).
     #[error("bus: {0}")]
     Bus(#[from] motorwire_can::Error),
+    /// A simulated joint could not be made.
+    #[error("simulated joint: {0}")]
+    Sim(#[from] motorwire_sim::SimError),
 }

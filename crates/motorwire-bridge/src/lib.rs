@@ -3,6 +3,7 @@
 mod engine;
 mod error;
 mod runtime;
+pub mod sim;
 
 pub use engine::{Bridge, BridgeConfig, BridgeStats, JointView, Origin, Output};
 pub use error::BridgeError;

@@ -3,16 +3,14 @@
 use std::collections::BTreeMap;
 use std::io::{self, BufReader, Write};
 use std::net::{TcpListener, TcpStream};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::thread::{self, JoinHandle};
+use std::thread;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
+use motorwire_bridge::sim::RealTimeArm;
 use motorwire_bridge::{Bridge, BridgeConfig, InputSender, Origin, Output, Runner, feed};
 use motorwire_can::client::ClientConfig;
-use motorwire_can::{Clock, SimBus, SimConfig, SimPort};
-use motorwire_sim::{JointConfig, SimJoint};
-use motorwire_translate::{BusMap, Target};
+use motorwire_translate::BusMap;
 
 /// The origin of stdin's lines.
 const STDIN: Origin = Origin(0);
@@ -80,66 +78,6 @@ pub(crate) fn unix_ms() -> f64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64() * 1000.0)
-}
-
-/// The map's iRPC joints, simulated on `bus` in real time, each on its own
-/// thread until `stop` is set.
-pub(crate) struct SimArm {
-    pub(crate) bus: SimBus,
-    stop: Arc<AtomicBool>,
-    threads: Vec<JoinHandle<()>>,
-}
-
-impl SimArm {
-    pub(crate) fn start(map: &BusMap) -> Result<Self, String> {
-        let bus = SimBus::new(SimConfig {
-            clock: Clock::Real,
-            ..SimConfig::default()
-        })
-        .map_err(|e| e.to_string())?;
-        let stop = Arc::new(AtomicBool::new(false));
-        let mut threads = Vec::new();
-        for m in map.motors() {
-            let Target::Irpc { node, wire } = m.target else {
-                continue;
-            };
-            let mut config = JointConfig::new(node);
-            config.wire = wire;
-            // Start inside the map's range (a joint whose range excludes 0
-            // would otherwise start outside it).
-            let lo = m
-                .limits
-                .min_position
-                .map_or(f64::MIN, |p| m.unit.to_degrees(p));
-            let hi = m
-                .limits
-                .max_position
-                .map_or(f64::MAX, |p| m.unit.to_degrees(p));
-            #[allow(clippy::cast_possible_truncation)]
-            let start = 0.0f64.max(lo).min(hi) as f32;
-            config.initial_position = start;
-            let mut joint = SimJoint::new(config).map_err(|e| format!("{}: {e}", m.name))?;
-            let mut port = bus.port();
-            let stop = Arc::clone(&stop);
-            threads.push(thread::spawn(move || {
-                let _ = joint.run(&mut port, &stop, |_| {});
-            }));
-        }
-        Ok(Self { bus, stop, threads })
-    }
-
-    pub(crate) fn port(&self) -> SimPort {
-        self.bus.port()
-    }
-}
-
-impl Drop for SimArm {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
-        }
-    }
 }
 
 /// Sends SIGINT (Ctrl-C) to `input` as an interrupt.
@@ -244,7 +182,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
     };
     let result = match args.bus.as_str() {
         "sim" => {
-            let arm = SimArm::start(bridge.map())?;
+            let arm = RealTimeArm::start(bridge.map()).map_err(|e| e.to_string())?;
             let (tx, rx) = (arm.port(), arm.port());
             runner.run(bridge, tx, rx, sink)
         }

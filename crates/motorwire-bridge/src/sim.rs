@@ -1,0 +1,314 @@
+//! The bridge on simulated joints: in real time ([`RealTimeArm`], what
+//! `motorwire bridge --bus sim` runs) or stepped in simulated time
+//! ([`SimulatedArm`], exact and as fast as the machine, for tests and
+//! benchmarks).
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::{self, JoinHandle};
+use std::time::Duration;
+
+use motorwire_can::{CanBus, Clock, SimBus, SimConfig, SimPort};
+use motorwire_sim::{JointConfig, SimError, SimJoint};
+use motorwire_translate::{BusMap, MappedMotor, Target};
+
+use crate::{Bridge, BridgeError, Origin, Output};
+
+/// A joint for `motor` if it is an iRPC joint: the map's wire version, and
+/// a start at 0° or, when 0 is outside the map's range, its nearest end.
+pub fn joint_config(motor: &MappedMotor) -> Option<JointConfig> {
+    let Target::Irpc { node, wire } = motor.target else {
+        return None;
+    };
+    let mut config = JointConfig::new(node);
+    config.wire = wire;
+    let lo = motor
+        .limits
+        .min_position
+        .map_or(f64::MIN, |p| motor.unit.to_degrees(p));
+    let hi = motor
+        .limits
+        .max_position
+        .map_or(f64::MAX, |p| motor.unit.to_degrees(p));
+    #[allow(clippy::cast_possible_truncation)]
+    let start = 0.0f64.max(lo).min(hi) as f32;
+    config.initial_position = start;
+    Some(config)
+}
+
+/// The map's iRPC joints on an in-memory bus in real time, each on its own
+/// thread, until dropped.
+#[derive(Debug)]
+pub struct RealTimeArm {
+    bus: SimBus,
+    stop: Arc<AtomicBool>,
+    threads: Vec<JoinHandle<()>>,
+}
+
+impl RealTimeArm {
+    /// Starts a simulated joint for every iRPC joint of `map`.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidConfig`] for a joint the simulator cannot be
+    /// (a start outside its own ±180° range).
+    pub fn start(map: &BusMap) -> Result<Self, SimError> {
+        let bus = SimBus::new(SimConfig {
+            clock: Clock::Real,
+            ..SimConfig::default()
+        })?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut threads = Vec::new();
+        for config in map.motors().filter_map(joint_config) {
+            let mut joint = SimJoint::new(config)?;
+            let mut port = bus.port();
+            let stop = Arc::clone(&stop);
+            threads.push(thread::spawn(move || {
+                let _ = joint.run(&mut port, &stop, |_| {});
+            }));
+        }
+        Ok(Self { bus, stop, threads })
+    }
+
+    /// A new port on the arm's bus (the bridge takes two: one to send, one
+    /// to receive).
+    pub fn port(&self) -> SimPort {
+        self.bus.port()
+    }
+}
+
+impl Drop for RealTimeArm {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+/// A bridge and the simulated joints of its map on one in-memory bus,
+/// stepped together in simulated time.
+///
+/// ```
+/// use std::time::Duration;
+/// use motorwire_bridge::{Bridge, BridgeConfig, Origin};
+/// use motorwire_bridge::sim::SimulatedArm;
+/// use motorwire_can::SimConfig;
+/// use motorwire_translate::BusMap;
+///
+/// let map = BusMap::from_toml(
+///     "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n\
+///      limits = { max_velocity = 120, max_acceleration = 500 }",
+/// )?;
+/// let bridge = Bridge::new(map, BridgeConfig::default())?;
+/// let mut arm = SimulatedArm::new(bridge, SimConfig::default())?;
+/// arm.run_until(Duration::from_millis(50))?; // configured and activated
+/// arm.line(Origin(1), r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":30}"#);
+/// arm.run_until(Duration::from_secs(2))?;
+/// let result = arm.take_results().remove(0);
+/// assert_eq!(result["ok"], true);
+/// assert!((arm.joint(0x12).unwrap().position() - 30.0).abs() < 1e-3);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug)]
+pub struct SimulatedArm {
+    bus: SimBus,
+    port: SimPort,
+    bridge: Bridge,
+    joints: Vec<(SimJoint, Option<SimPort>)>,
+    outputs: Vec<Output>,
+}
+
+impl SimulatedArm {
+    /// The bridge, a simulated joint for each iRPC joint of its map, on a
+    /// bus made with `config` (its clock is made simulated); the bridge is
+    /// started at time zero.
+    ///
+    /// # Errors
+    /// The bus's and the joints' configuration errors.
+    pub fn new(mut bridge: Bridge, config: SimConfig) -> Result<Self, BridgeError> {
+        let bus = SimBus::new(SimConfig {
+            clock: Clock::Simulated,
+            ..config
+        })?;
+        let port = bus.port();
+        let mut joints = Vec::new();
+        for c in bridge.map().motors().filter_map(joint_config) {
+            let mut joint = SimJoint::new(c)?;
+            joint.keep_log();
+            joints.push((joint, Some(bus.port())));
+        }
+        bridge.start(Duration::ZERO);
+        Ok(Self {
+            bus,
+            port,
+            bridge,
+            joints,
+            outputs: Vec::new(),
+        })
+    }
+
+    /// The simulated time.
+    pub fn now(&self) -> Duration {
+        self.bus.now()
+    }
+
+    /// The bus (for its fault statistics).
+    pub fn bus(&self) -> &SimBus {
+        &self.bus
+    }
+
+    /// The bridge.
+    pub fn bridge(&self) -> &Bridge {
+        &self.bridge
+    }
+
+    /// The bridge, to call directly.
+    pub fn bridge_mut(&mut self) -> &mut Bridge {
+        &mut self.bridge
+    }
+
+    /// The joint with node id `node`.
+    pub fn joint(&self, node: u16) -> Option<&SimJoint> {
+        self.joints
+            .iter()
+            .map(|(j, _)| j)
+            .find(|j| j.config().node_id == node)
+    }
+
+    /// Cuts the joint with node id `node` off the bus (a cable pulled): it
+    /// neither hears nor is heard any more.
+    pub fn disconnect(&mut self, node: u16) {
+        for (j, port) in &mut self.joints {
+            if j.config().node_id == node {
+                *port = None;
+            }
+        }
+    }
+
+    /// One input line from `origin`, now.
+    pub fn line(&mut self, origin: Origin, text: &str) {
+        let now = self.bus.now();
+        self.bridge.handle_line(now, origin, text);
+    }
+
+    /// Every output so far, oldest first, taken.
+    pub fn take_outputs(&mut self) -> Vec<Output> {
+        self.pump_outputs();
+        std::mem::take(&mut self.outputs)
+    }
+
+    /// The result lines so far, taken (other outputs are dropped).
+    pub fn take_results(&mut self) -> Vec<serde_json::Value> {
+        self.take_outputs()
+            .into_iter()
+            .filter_map(|o| match o {
+                Output::Result { json, .. } => Some(json),
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn pump_outputs(&mut self) {
+        while let Some(o) = self.bridge.poll_output() {
+            self.outputs.push(o);
+        }
+    }
+
+    /// Handles everything due now, then moves the clock to the next thing
+    /// anyone has to do (by at most `max`).
+    ///
+    /// # Errors
+    /// The bus's errors.
+    pub fn step(&mut self, max: Duration) -> Result<(), BridgeError> {
+        let now = self.bus.now();
+        loop {
+            let mut busy = false;
+            let mut sent = false;
+            while let Some(f) = self.bridge.poll_transmit() {
+                self.port.send(&f)?;
+                sent = true;
+            }
+            if sent {
+                self.bridge.flushed(now);
+                busy = true;
+            }
+            for (joint, port) in &mut self.joints {
+                let Some(port) = port else {
+                    continue;
+                };
+                while let Some(r) = port.try_recv() {
+                    joint.handle_frame(now, &r.frame);
+                    busy = true;
+                }
+                if joint.poll_timeout().is_some_and(|t| t <= now) {
+                    joint.handle_timeout(now);
+                }
+                while let Some(f) = joint.poll_transmit() {
+                    port.send(&f)?;
+                    busy = true;
+                }
+            }
+            while let Some(r) = self.port.try_recv() {
+                self.bridge.handle_frame(now, &r.frame);
+                busy = true;
+            }
+            if self.bridge.poll_timeout().is_some_and(|t| t <= now) {
+                self.bridge.handle_timeout(now);
+                busy = true;
+            }
+            self.pump_outputs();
+            if !busy {
+                break;
+            }
+        }
+        let next = [
+            self.bridge.poll_timeout(),
+            self.bus.next_delivery(),
+            self.joints
+                .iter()
+                .filter(|(_, p)| p.is_some())
+                .filter_map(|(j, _)| j.poll_timeout())
+                .min(),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+        .map_or(now.saturating_add(max), |t| t.min(now.saturating_add(max)));
+        self.bus
+            .advance_to(next.max(now.saturating_add(Duration::from_nanos(1))));
+        Ok(())
+    }
+
+    /// Runs until the clock reaches `t`.
+    ///
+    /// # Errors
+    /// The bus's errors.
+    pub fn run_until(&mut self, t: Duration) -> Result<(), BridgeError> {
+        while self.bus.now() < t {
+            let left = t.saturating_sub(self.bus.now());
+            self.step(left)?;
+        }
+        Ok(())
+    }
+
+    /// Runs until `done` holds or `limit` of simulated time has passed;
+    /// returns whether `done` held.
+    ///
+    /// # Errors
+    /// The bus's errors.
+    pub fn run_while(
+        &mut self,
+        limit: Duration,
+        mut done: impl FnMut(&Self) -> bool,
+    ) -> Result<bool, BridgeError> {
+        let end = self.bus.now().saturating_add(limit);
+        while self.bus.now() < end {
+            if done(self) {
+                return Ok(true);
+            }
+            let left = end.saturating_sub(self.bus.now());
+            self.step(left)?;
+        }
+        Ok(done(self))
+    }
+}

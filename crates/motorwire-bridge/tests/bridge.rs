@@ -1,0 +1,384 @@
+//! The bridge end to end on simulated joints, in simulated time: results,
+//! faults on the bus, the emergency stop, liveness, shutdown.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+use motorwire_bridge::sim::SimulatedArm;
+use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output};
+use motorwire_can::{Faults, SimConfig};
+use motorwire_irpc::{LifecycleState, Payload};
+use motorwire_translate::BusMap;
+use serde_json::Value;
+
+const MAP: &str = include_str!("../../../fixtures/maps/demo-arm.toml");
+const MULTI: &str = include_str!("../../../fixtures/wia/valid/doc-3.2-multi-axis-command.json");
+const PITCH: u16 = 0x10;
+const ROLL: u16 = 0x11;
+const ELBOW: u16 = 0x12;
+
+fn arm(faults: Faults, seed: u64) -> SimulatedArm {
+    let map = BusMap::from_toml(MAP).unwrap();
+    let bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
+    let config = SimConfig {
+        seed,
+        faults,
+        ..SimConfig::default()
+    };
+    let mut arm = SimulatedArm::new(bridge, config).unwrap();
+    assert!(
+        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
+            .unwrap()
+    );
+    arm
+}
+
+fn command(motor: &str, setpoint: f64) -> String {
+    format!(
+        r#"{{"motor_id":"{motor}","timestamp":1704067200000,"control_mode":"position","setpoint":{setpoint}}}"#
+    )
+}
+
+/// Runs until `n` results are in (at most `limit`), returning them.
+fn results(arm: &mut SimulatedArm, n: usize, limit: Duration) -> Vec<Value> {
+    let mut got = Vec::new();
+    let end = arm.now() + limit;
+    while got.len() < n && arm.now() < end {
+        arm.step(Duration::from_millis(10)).unwrap();
+        got.extend(arm.take_results());
+    }
+    got
+}
+
+#[test]
+fn startup_configures_and_activates_every_joint() {
+    let arm = arm(Faults::default(), 0);
+    for node in [PITCH, ROLL, ELBOW] {
+        assert_eq!(arm.joint(node).unwrap().state(), LifecycleState::Active);
+    }
+}
+
+#[test]
+fn a_move_is_acked_and_the_joint_gets_there() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.line(Origin(3), &command("elbow", 60.0));
+    let r = results(&mut arm, 1, Duration::from_secs(1));
+    assert_eq!(r.len(), 1);
+    assert_eq!(r[0]["ok"], true, "{}", r[0]);
+    assert_eq!(r[0]["motor_id"], "elbow");
+    assert_eq!(r[0]["acked"], serde_json::json!(["elbow"]));
+    assert_eq!(
+        r[0]["latency_us"], 0,
+        "no latency on this bus, in simulated time"
+    );
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    assert!((arm.joint(ELBOW).unwrap().position() - 60.0).abs() < 1e-3);
+}
+
+#[test]
+fn the_documents_multi_axis_command_arrives_together() {
+    let mut arm = arm(Faults::default(), 0);
+    // Feedback first: a synchronized move is planned from the positions.
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    let line: String = MULTI.lines().map(str::trim).collect();
+    arm.line(Origin(1), &line);
+    let r = results(&mut arm, 1, Duration::from_secs(1));
+    assert_eq!(r[0]["ok"], true, "{}", r[0]);
+    assert_eq!(r[0]["command_id"], "cmd_1234567890");
+    let start = arm.now();
+    // total_duration_ms 2000: every joint arrives at 2 s, none before 1.9 s.
+    arm.run_until(start + Duration::from_millis(1900)).unwrap();
+    for node in [PITCH, ROLL, ELBOW] {
+        assert!(arm.joint(node).unwrap().is_moving(), "node {node:#x}");
+    }
+    arm.run_until(start + Duration::from_millis(2100)).unwrap();
+    for (node, target) in [(PITCH, 45.0), (ROLL, 15.0), (ELBOW, 90.0)] {
+        let j = arm.joint(node).unwrap();
+        assert!(!j.is_moving(), "node {node:#x}");
+        assert!(
+            (j.position() - target).abs() < 1e-3,
+            "node {node:#x}: {}",
+            j.position()
+        );
+    }
+}
+
+#[test]
+fn bad_lines_are_answered_and_never_reach_the_bus() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.run_until(arm.now() + Duration::from_millis(20))
+        .unwrap();
+    let sent = arm.bridge().stats().frames_sent;
+    let deep = format!("{}{}", "[".repeat(10_000), "]".repeat(10_000));
+    let lines = [
+        ("{oops", "invalid"),
+        ("[1,2]", "invalid"),
+        (deep.as_str(), "invalid"),
+        (
+            r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":NaN}"#,
+            "invalid",
+        ),
+        (&command("elbow", 1e300), "refused"),
+        (&command("elbow", 170.0), "refused"),
+        (&command("nobody", 1.0), "refused"),
+        (&command("turntable", 1.0), "refused"),
+        (
+            r#"{"motor_id":"elbow","timestamp":0,"control_mode":"torque","setpoint":1}"#,
+            "refused",
+        ),
+        (r#"{"motor_id":"m","kp":1.0,"ki":0.0,"kd":0.0}"#, "invalid"),
+        (
+            include_str!("../../../fixtures/wia/valid/doc-4.2-motor-feedback.json"),
+            "unsupported_kind",
+        ),
+        (r#"{"emergency_stop": false}"#, "not_latched"),
+    ];
+    for (i, (line, _)) in lines.iter().enumerate() {
+        arm.line(Origin(i as u64), &line.replace('\n', " "));
+    }
+    arm.run_until(arm.now() + Duration::from_millis(1)).unwrap();
+    let outs = arm.take_outputs();
+    let mut by_origin = BTreeMap::new();
+    for o in outs {
+        if let Output::Result { origin, json } = o {
+            assert!(
+                by_origin.insert(origin.0, json).is_none(),
+                "one result per line"
+            );
+        }
+    }
+    for (i, (line, kind)) in lines.iter().enumerate() {
+        let r = &by_origin[&(i as u64)];
+        assert_eq!(r["ok"], false, "{line}");
+        assert_eq!(r["error"]["kind"], *kind, "{line}: {r}");
+    }
+    // Only the bridge's own heartbeat-free idle traffic: nothing sent.
+    assert_eq!(arm.bridge().stats().frames_sent, sent);
+    assert_eq!(arm.bridge().stats().failed, lines.len() as u64);
+}
+
+/// 10 % of frames dropped, 5 % duplicated, 5 % delayed up to 30 ms, 5 %
+/// reordered: every command gets exactly one result, acked or failed, and
+/// no joint executes one command twice.
+#[test]
+fn under_faults_every_command_is_acked_or_failed_and_never_executed_twice() {
+    let faults = Faults {
+        drop: 0.10,
+        duplicate: 0.05,
+        delay: 0.05,
+        reorder: 0.05,
+        max_delay: Duration::from_millis(30),
+        ..Faults::default()
+    };
+    let mut arm = arm(faults, 7);
+    let motors = [
+        ("shoulder_pitch", PITCH),
+        ("shoulder_roll", ROLL),
+        ("elbow", ELBOW),
+    ];
+    let n = 300;
+    let mut answered = 0;
+    let mut acked: BTreeMap<&str, u64> = BTreeMap::new();
+    let mut failed = 0;
+    for i in 0..n {
+        let (motor, _) = motors[i % 3];
+        let setpoint = if (i / 3) % 2 == 0 { 20.0 } else { 30.0 } + (i % 7) as f64;
+        arm.line(Origin(i as u64), &command(motor, setpoint));
+        for r in results(&mut arm, 1, Duration::from_secs(2)) {
+            answered += 1;
+            if r["ok"] == true {
+                *acked.entry(motor).or_default() += 1;
+            } else {
+                failed += 1;
+                let kind = r["error"]["kind"].as_str().unwrap();
+                assert!(matches!(kind, "joint_failed" | "offline"), "{r}");
+            }
+        }
+        // Joints that were called offline after a lost answer come back
+        // with their next feedback; give them the time.
+        arm.run_until(arm.now() + Duration::from_millis(20))
+            .unwrap();
+    }
+    assert_eq!(answered, n, "one result per line");
+    assert!(
+        acked.values().sum::<u64>() >= (n as u64) * 8 / 10,
+        "{acked:?}, {failed} failed"
+    );
+    for (motor, node) in motors {
+        let log = arm.joint(node).unwrap().log();
+        let mut seen = BTreeMap::new();
+        for e in log {
+            assert!(
+                seen.insert((e.source, e.msg_id), ()).is_none(),
+                "{motor}: msg_id {} executed twice",
+                e.msg_id
+            );
+        }
+        let moves = log
+            .iter()
+            .filter(|e| matches!(e.payload, Payload::SetTargetV2(_)))
+            .count() as u64;
+        // Every acked move was executed; a move can also be executed with
+        // its every Ack lost (then reported failed, never acked).
+        assert!(
+            moves >= acked[motor],
+            "{motor}: {moves} executed, {} acked",
+            acked[motor]
+        );
+    }
+    let stats = arm.bus().stats();
+    assert!(
+        stats.dropped > 0 && stats.duplicated > 0 && stats.reordered > 0,
+        "{stats:?}"
+    );
+}
+
+#[test]
+fn the_emergency_stop_stops_latches_and_releases() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.line(Origin(1), &command("elbow", 140.0));
+    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    arm.run_until(arm.now() + Duration::from_millis(500))
+        .unwrap();
+    assert!(arm.joint(ELBOW).unwrap().is_moving());
+    arm.line(Origin(2), r#"{"emergency_stop": true}"#);
+    let r = results(&mut arm, 1, Duration::from_secs(1));
+    assert_eq!(r[0]["ok"], true, "{}", r[0]);
+    assert_eq!(r[0]["emergency_stop"], true);
+    assert!(r[0]["stop_latency_us"].is_u64());
+    assert_eq!(r[0]["acked"].as_array().unwrap().len(), 3);
+    arm.run_until(arm.now() + Duration::from_millis(500))
+        .unwrap();
+    for node in [PITCH, ROLL, ELBOW] {
+        let j = arm.joint(node).unwrap();
+        assert_eq!(j.state(), LifecycleState::Inactive);
+        assert!(!j.is_moving());
+    }
+    let stopped_at = arm.joint(ELBOW).unwrap().position();
+    assert!(stopped_at < 140.0);
+    // Latched: motion refused, on every path.
+    arm.line(Origin(3), &command("elbow", 10.0));
+    arm.line(Origin(4), &MULTI.replace('\n', " "));
+    let r = results(&mut arm, 2, Duration::from_millis(100));
+    for x in &r {
+        assert_eq!(x["error"]["kind"], "emergency_stop_latched", "{x}");
+    }
+    // A command carrying the emergency stop in its safety limits is one too.
+    arm.line(
+        Origin(5),
+        r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":10,"safety_limits":{"emergency_stop":true}}"#,
+    );
+    let r = results(&mut arm, 1, Duration::from_secs(1));
+    assert_eq!(r[0]["emergency_stop"], true, "{}", r[0]);
+    assert_eq!(
+        r[0]["ok"], true,
+        "a joint already stopped is stopped: {}",
+        r[0]
+    );
+    // Release: the joints are active again, where they stopped.
+    arm.line(Origin(6), r#"{"emergency_stop": false}"#);
+    let r = results(&mut arm, 1, Duration::from_secs(1));
+    assert_eq!(r[0]["released"], true, "{}", r[0]);
+    assert_eq!(arm.joint(ELBOW).unwrap().state(), LifecycleState::Active);
+    assert_eq!(arm.joint(ELBOW).unwrap().position(), stopped_at);
+    arm.line(Origin(7), &command("elbow", 10.0));
+    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+}
+
+#[test]
+fn a_silent_joint_is_reported_offline_and_the_others_are_served() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.disconnect(ROLL);
+    arm.run_until(arm.now() + Duration::from_millis(600))
+        .unwrap();
+    let outs = arm.take_outputs();
+    let offline: Vec<&Value> = outs
+        .iter()
+        .map(Output::json)
+        .filter(|j| j["event"] == "offline")
+        .collect();
+    assert_eq!(offline.len(), 1, "{offline:?}");
+    assert_eq!(offline[0]["motor_id"], "shoulder_roll");
+    let fb = outs
+        .iter()
+        .map(Output::json)
+        .filter(|j| j["motor_id"] == "shoulder_roll" && j.get("feedback").is_some())
+        .last()
+        .unwrap();
+    assert_eq!(fb["online"], false);
+    assert_eq!(fb["feedback"]["status"]["fault"], true);
+    arm.line(Origin(1), &command("shoulder_roll", 10.0));
+    arm.line(Origin(2), &command("elbow", 10.0));
+    let r = results(&mut arm, 2, Duration::from_secs(1));
+    let roll = r.iter().find(|x| x["motor_id"] == "shoulder_roll").unwrap();
+    let elbow = r.iter().find(|x| x["motor_id"] == "elbow").unwrap();
+    assert_eq!(roll["error"]["kind"], "offline");
+    assert_eq!(elbow["ok"], true);
+}
+
+#[test]
+fn end_of_input_lets_moves_finish_then_deactivates_every_joint() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.line(Origin(1), &command("elbow", 50.0));
+    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    let now = arm.now();
+    arm.bridge_mut().finish(now);
+    arm.line(Origin(2), &command("elbow", 10.0));
+    assert!(
+        arm.run_while(Duration::from_secs(5), |a| a.bridge().is_finished())
+            .unwrap()
+    );
+    let outs = arm.take_outputs();
+    let late = outs
+        .iter()
+        .map(Output::json)
+        .find(|j| j["ok"] == false)
+        .unwrap();
+    assert_eq!(late["error"]["kind"], "shutting_down");
+    let stopped = outs
+        .iter()
+        .map(Output::json)
+        .find(|j| j["event"] == "stopped")
+        .unwrap();
+    assert_eq!(stopped["failures"], serde_json::json!([]));
+    let elbow = arm.joint(ELBOW).unwrap();
+    assert!(
+        (elbow.position() - 50.0).abs() < 1e-3,
+        "the move finished first"
+    );
+    for node in [PITCH, ROLL, ELBOW] {
+        assert_eq!(arm.joint(node).unwrap().state(), LifecycleState::Inactive);
+    }
+}
+
+#[test]
+fn an_interrupt_stops_the_joints_at_once() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.line(Origin(1), &command("elbow", 140.0));
+    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    arm.run_until(arm.now() + Duration::from_millis(300))
+        .unwrap();
+    let now = arm.now();
+    arm.bridge_mut().interrupt(now);
+    assert!(
+        arm.run_while(Duration::from_secs(1), |a| a.bridge().is_finished())
+            .unwrap()
+    );
+    arm.run_until(arm.now() + Duration::from_millis(500))
+        .unwrap();
+    let elbow = arm.joint(ELBOW).unwrap();
+    assert_eq!(elbow.state(), LifecycleState::Inactive);
+    assert!(!elbow.is_moving());
+    assert!(
+        elbow.position() < 100.0,
+        "stopped early: {}",
+        elbow.position()
+    );
+}
