@@ -309,8 +309,7 @@ fn a_silent_joint_is_reported_offline_and_the_others_are_served() {
     let fb = outs
         .iter()
         .map(Output::json)
-        .filter(|j| j["motor_id"] == "shoulder_roll" && j.get("feedback").is_some())
-        .last()
+        .rfind(|j| j["motor_id"] == "shoulder_roll" && j.get("feedback").is_some())
         .unwrap();
     assert_eq!(fb["online"], false);
     assert_eq!(fb["feedback"]["status"]["fault"], true);
