@@ -157,6 +157,7 @@ enum LineKind {
 #[derive(Debug)]
 struct PendingLine {
     origin: Option<Origin>,
+    number: u64,
     /// `("motor_id"|"command_id", value)`, when the line had one.
     label: Option<(&'static str, String)>,
     kind: LineKind,
@@ -228,7 +229,10 @@ pub struct Bridge {
     lines: BTreeMap<u64, PendingLine>,
     next_line: u64,
     by_msg: BTreeMap<u32, (u64, usize)>,
-    waiting: VecDeque<(Duration, Origin, String)>,
+    waiting: VecDeque<(Duration, Origin, u64, String)>,
+    line_numbers: BTreeMap<Origin, u64>,
+    /// The number of the line being handled.
+    line: u64,
     latched: bool,
     phase: Phase,
     out: VecDeque<Output>,
@@ -295,6 +299,8 @@ impl Bridge {
             next_line: 0,
             by_msg: BTreeMap::new(),
             waiting: VecDeque::new(),
+            line_numbers: BTreeMap::new(),
+            line: 0,
             latched: false,
             phase: Phase::Starting,
             out: VecDeque::new(),
@@ -366,26 +372,67 @@ impl Bridge {
     }
 
     fn become_ready(&mut self) {
+        // The input may have ended during startup: its lines are still
+        // served, then the drain goes on.
+        let after = match self.phase {
+            Phase::Starting => Phase::Running,
+            other => other,
+        };
         self.phase = Phase::Running;
         let joints: Vec<&str> = self.joints.iter().map(|j| j.name.as_str()).collect();
         self.out
             .push_back(Output::Event(json!({"event": "ready", "joints": joints})));
-        while let Some((at, origin, text)) = self.waiting.pop_front() {
-            self.handle_line(at, origin, &text);
+        while let Some((at, origin, number, text)) = self.waiting.pop_front() {
+            self.take_line(at, origin, number, &text);
+        }
+        if self.phase == Phase::Running {
+            self.phase = after;
         }
     }
 
     /// Takes one input line received at `now` from `origin`. Blank lines
     /// are ignored; every other line gets exactly one result.
+    ///
+    /// Results carry `"line"`: the line's number among its origin's
+    /// non-blank lines (from 1), so a reader can pair every result, an
+    /// unlabelled refusal included, with what it sent.
     pub fn handle_line(&mut self, now: Duration, origin: Origin, line: &str) {
         self.now = self.now.max(now);
         let line = line.trim();
         if line.is_empty() {
             return;
         }
+        let number = self.number(origin);
+        if self.phase == Phase::Starting {
+            self.waiting
+                .push_back((now, origin, number, line.to_owned()));
+            return;
+        }
+        self.take_line(now, origin, number, line);
+    }
+
+    /// A line that could not be read as text (not UTF-8, too long): it
+    /// counts as a line of `origin` and is answered
+    /// `{"ok":false,"error":{"kind":"unreadable",...}}`.
+    pub fn handle_unreadable(&mut self, now: Duration, origin: Origin, reason: &str) {
+        self.now = self.now.max(now);
+        self.stats.lines += 1;
+        self.line = self.number(origin);
+        self.refuse(origin, None, error("unreadable", reason));
+    }
+
+    fn number(&mut self, origin: Origin) -> u64 {
+        let n = self.line_numbers.entry(origin).or_insert(0);
+        *n += 1;
+        *n
+    }
+
+    fn take_line(&mut self, now: Duration, origin: Origin, number: u64, line: &str) {
+        self.line = number;
         match self.phase {
             Phase::Starting => {
-                self.waiting.push_back((now, origin, line.to_owned()));
+                self.waiting
+                    .push_back((now, origin, number, line.to_owned()));
                 return;
             }
             Phase::Running => {}
@@ -435,7 +482,7 @@ impl Bridge {
 
     fn refuse(&mut self, origin: Origin, label: Option<(&'static str, String)>, err: Value) {
         self.stats.failed += 1;
-        let mut v = json!({"ok": false, "error": err});
+        let mut v = json!({"ok": false, "error": err, "line": self.line});
         if let (Some((key, value)), Some(obj)) = (label, v.as_object_mut()) {
             obj.insert(key.to_owned(), Value::String(value));
         }
@@ -618,6 +665,7 @@ impl Bridge {
             id,
             PendingLine {
                 origin,
+                number: self.line,
                 label,
                 kind,
                 received: now,
@@ -728,6 +776,7 @@ impl Bridge {
             })
         };
         if let Some(obj) = v.as_object_mut() {
+            obj.insert("line".to_owned(), Value::from(line.number));
             if let Some((key, value)) = line.label {
                 obj.insert(key.to_owned(), Value::String(value));
             }

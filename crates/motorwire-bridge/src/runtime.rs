@@ -282,10 +282,7 @@ impl Runner {
             match self.rx.recv_timeout(wait) {
                 Ok(Msg::Line { origin, text, at }) => bridge.handle_line(since(at), origin, &text),
                 Ok(Msg::Refused { origin, reason }) => {
-                    sink(&Output::Result {
-                        origin,
-                        json: json!({"ok": false, "error": {"kind": "unreadable", "message": reason}}),
-                    });
+                    bridge.handle_unreadable(since(Instant::now()), origin, &reason);
                 }
                 Ok(Msg::Frame { frame, at }) => bridge.handle_frame(since(at), &frame),
                 Ok(Msg::Finish) => bridge.finish(since(Instant::now())),

@@ -381,3 +381,27 @@ fn an_interrupt_stops_the_joints_at_once() {
         elbow.position()
     );
 }
+
+/// Input that ends before the joints are ready (a short file on stdin):
+/// its lines are still served, then the joints are stopped.
+#[test]
+fn input_ending_during_startup_is_served_then_stopped() {
+    let map = BusMap::from_toml(MAP).unwrap();
+    let bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
+    let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
+    arm.line(Origin(1), &command("elbow", 5.0));
+    arm.bridge_mut().finish(Duration::ZERO);
+    assert!(
+        arm.run_while(Duration::from_secs(5), |a| a.bridge().is_finished())
+            .unwrap()
+    );
+    let outs = arm.take_outputs();
+    let result = outs
+        .iter()
+        .map(Output::json)
+        .find(|j| j.get("ok").is_some())
+        .unwrap();
+    assert_eq!(result["ok"], true, "{result}");
+    assert!((arm.joint(ELBOW).unwrap().position() - 5.0).abs() < 1e-3);
+    assert_eq!(arm.joint(ELBOW).unwrap().state(), LifecycleState::Inactive);
+}

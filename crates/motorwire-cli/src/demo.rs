@@ -1,117 +1,445 @@
-//! `motorwire demo`: the WIA document's example messages, validated one by
-//! one, then a broken command and every rule it breaks.
+//! `motorwire demo`: the bridge on a simulated arm, end to end.
 
-use motorwire_wia::{MessageKind, Rule, Validator};
+// Only `serde_json::Value` is indexed here: a missing key or a non-object
+// gives `Null`, never a panic.
+#![allow(clippy::indexing_slicing)]
 
-/// Walk through the WIA document's example messages.
-///
-/// Exits 0 only if every expectation held: each example is valid and the
-/// broken command is refused for exactly the expected reasons.
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use motorwire_bridge::sim::RealTimeArm;
+use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output, Runner};
+use motorwire_translate::BusMap;
+use serde_json::Value;
+
+/// Runs the bridge on the simulated arm of `fixtures/maps/demo-arm.toml`:
+/// the WIA document's multi-axis example, a move, a synchronized move, an
+/// unsafe command refused, an emergency stop and its release. Prints each
+/// step, a summary, and writes an SVG of the joints' positions and
+/// velocities from their feedback. Exits 0 only if every expectation held.
 #[derive(Debug, clap::Args)]
-pub(crate) struct Args {}
-
-struct Example {
-    title: &'static str,
-    json: &'static str,
+pub(crate) struct Args {
+    /// Where to write the plot of positions and velocities against time.
+    #[arg(long, value_name = "FILE", default_value = "motorwire-demo.svg")]
+    svg: PathBuf,
 }
 
-const EXAMPLES: [Example; 7] = [
-    Example {
-        title: "§2.2 control-mode configuration",
-        json: include_str!("../../../fixtures/wia/valid/doc-2.2-control-mode-config.json"),
-    },
-    Example {
-        title: "§3.2 multi-axis command (3-joint arm)",
-        json: include_str!("../../../fixtures/wia/valid/doc-3.2-multi-axis-command.json"),
-    },
-    Example {
-        title: "§4.2 motor feedback",
-        json: include_str!("../../../fixtures/wia/valid/doc-4.2-motor-feedback.json"),
-    },
-    Example {
-        title: "§5.2 trajectory (pick and place)",
-        json: include_str!("../../../fixtures/wia/valid/doc-5.2-trajectory.json"),
-    },
-    Example {
-        title: "§3.1 motor command (from §3.2's shoulder_pitch)",
-        json: include_str!("../../../fixtures/wia/valid/motor-command.json"),
-    },
-    Example {
-        title: "§6 PID configuration (from §3.2's elbow gains)",
-        json: include_str!("../../../fixtures/wia/valid/pid-config.json"),
-    },
-    Example {
-        title: "§7 safety limits (motorwire's, shoulder_pitch)",
-        json: include_str!("../../../fixtures/wia/valid/safety-limits.json"),
-    },
-];
+const MAP: &str = include_str!("../../../fixtures/maps/demo-arm.toml");
+const MULTI: &str = include_str!("../../../fixtures/wia/valid/doc-3.2-multi-axis-command.json");
+const ORIGIN: Origin = Origin(1);
+/// How close a joint must come to its target (degrees).
+const AT_TARGET: f64 = 0.05;
 
-/// A command an AI controller might get wrong in three ways at once.
-const BROKEN: &str = r#"{
-  "motor_id": "shoulder_pitch",
-  "timestamp": 1704067200000,
-  "control_mode": "position",
-  "setpoint": 120.0,
-  "velocity_limit": 150.0,
-  "pid_gains": {"kp": 0, "ki": 0.1, "kd": 2.5},
-  "safety_limits": {"min_position": -90, "max_position": 90, "max_velocity": 120}
-}"#;
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Expect {
+    /// Acked; then every listed joint reaches its target (deg) in time.
+    Arrive(&'static [(&'static str, f64)]),
+    /// Acked; the next step follows after this long.
+    AckedThenWait(Duration),
+    /// Refused with this `error.kind`.
+    Refused(&'static str),
+    /// The emergency stop: acked by every joint; they come to rest.
+    Stop,
+    /// The release: acked by every joint.
+    Release,
+}
 
-const BROKEN_EXPECTED: [(Rule, &str); 3] = [
-    (Rule::KpPositive, "/pid_gains/kp"),
-    (Rule::SetpointWithinLimits, "/setpoint"),
-    (Rule::LimitWithinSafety, "/velocity_limit"),
-];
+struct Step {
+    title: &'static str,
+    line: String,
+    expect: Expect,
+}
 
-pub(crate) fn run(_args: &Args) -> u8 {
-    let validator = Validator::new();
-    let mut held = true;
-    println!(
-        "motorwire demo: the WIA Phase 1 example messages (and motorwire's for the kinds the document shows only as schemas)\n"
-    );
-    for (i, ex) in EXAMPLES.iter().enumerate() {
-        let report = validator.validate_auto(ex.json);
-        let kind = report.kind.map_or("unknown kind", MessageKind::name);
-        let mark = if report.is_valid() { "ok  " } else { "FAIL" };
-        println!(
-            "[{}/{}] {mark} {:<45} as {kind}",
-            i + 1,
-            EXAMPLES.len(),
-            ex.title
-        );
-        for v in &report.violations {
-            println!("          {v}");
+fn command(motor: &str, setpoint: f64, velocity: f64) -> String {
+    format!(
+        r#"{{"motor_id":"{motor}","timestamp":1704067200000,"control_mode":"position","setpoint":{setpoint},"velocity_limit":{velocity}}}"#
+    )
+}
+
+fn script() -> Vec<Step> {
+    let multi: String = MULTI.lines().map(str::trim).collect();
+    vec![
+        Step {
+            title: "WIA §3.2 multi-axis example: 3 joints, synchronized, 2 s",
+            line: multi,
+            expect: Expect::Arrive(&[("shoulder_pitch", 45.0), ("shoulder_roll", 15.0), ("elbow", 90.0)]),
+        },
+        Step {
+            title: "move: elbow to 30° at up to 120°/s",
+            line: command("elbow", 30.0, 120.0),
+            expect: Expect::Arrive(&[("elbow", 30.0)]),
+        },
+        Step {
+            title: "synchronized move: pitch -30°, roll 20°, elbow 60°",
+            line: r#"{"command_id":"demo-sync","timestamp":1704067200000,"sync_mode":"simultaneous","motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":-30},{"motor_id":"shoulder_roll","control_mode":"position","setpoint":20},{"motor_id":"elbow","control_mode":"position","setpoint":60}]}"#.to_owned(),
+            expect: Expect::Arrive(&[("shoulder_pitch", -30.0), ("shoulder_roll", 20.0), ("elbow", 60.0)]),
+        },
+        Step {
+            title: "unsafe: elbow to 170° (its limit is 150°)",
+            line: command("elbow", 170.0, 60.0),
+            expect: Expect::Refused("refused"),
+        },
+        Step {
+            title: "move: shoulder_pitch to 80°, interrupted...",
+            line: command("shoulder_pitch", 80.0, 120.0),
+            expect: Expect::AckedThenWait(Duration::from_millis(400)),
+        },
+        Step {
+            title: "...by an emergency stop",
+            line: r#"{"emergency_stop": true}"#.to_owned(),
+            expect: Expect::Stop,
+        },
+        Step {
+            title: "while latched: elbow to 10°",
+            line: command("elbow", 10.0, 60.0),
+            expect: Expect::Refused("emergency_stop_latched"),
+        },
+        Step {
+            title: "release the emergency stop",
+            line: r#"{"emergency_stop": false}"#.to_owned(),
+            expect: Expect::Release,
+        },
+        Step {
+            title: "move: shoulder_pitch back to 0°",
+            line: command("shoulder_pitch", 0.0, 120.0),
+            expect: Expect::Arrive(&[("shoulder_pitch", 0.0)]),
+        },
+    ]
+}
+
+/// One feedback sample: seconds since the start, position, velocity.
+type Sample = (f64, f64, f64);
+
+struct Watch {
+    rx: Receiver<Output>,
+    epoch_ms: f64,
+    latest: BTreeMap<String, (f64, f64)>,
+    samples: BTreeMap<String, Vec<Sample>>,
+    events: Vec<Value>,
+}
+
+impl Watch {
+    fn take(&mut self, o: Output) -> Option<Value> {
+        match o {
+            Output::Result { json, .. } => return Some(json),
+            Output::Feedback(v) => {
+                let (Some(motor), Some(pos), Some(vel), Some(ts)) = (
+                    v["motor_id"].as_str(),
+                    v["feedback"]["position"].as_f64(),
+                    v["feedback"]["velocity"].as_f64(),
+                    v["feedback"]["timestamp"].as_f64(),
+                ) else {
+                    return None;
+                };
+                self.latest.insert(motor.to_owned(), (pos, vel));
+                self.samples.entry(motor.to_owned()).or_default().push((
+                    (ts - self.epoch_ms) / 1000.0,
+                    pos,
+                    vel,
+                ));
+            }
+            Output::Event(v) => self.events.push(v),
         }
-        held &= report.is_valid();
+        None
     }
 
-    println!("\nA broken command:\n{BROKEN}\n");
-    let report = validator.validate(MessageKind::MotorCommand, BROKEN);
-    println!("refused with {} violation(s):", report.violations.len());
-    for v in &report.violations {
-        println!("  {:<16} [{}] {}", v.pointer, v.rule, v.message);
+    /// The next result, within `limit`.
+    fn result(&mut self, limit: Duration) -> Option<Value> {
+        let end = Instant::now() + limit;
+        loop {
+            let left = end.saturating_duration_since(Instant::now());
+            match self.rx.recv_timeout(left) {
+                Ok(o) => {
+                    if let Some(r) = self.take(o) {
+                        return Some(r);
+                    }
+                }
+                Err(_) => return None,
+            }
+        }
     }
-    let mut found: Vec<(Rule, &str)> = report
-        .violations
-        .iter()
-        .map(|v| (v.rule, v.pointer.as_str()))
-        .collect();
-    found.sort();
-    let mut expected = BROKEN_EXPECTED.to_vec();
-    expected.sort();
-    let broken_ok = found == expected;
-    held &= broken_ok;
 
-    println!();
-    if held {
+    /// Consumes output until `done` holds on the latest feedback, or `limit`.
+    fn until(
+        &mut self,
+        limit: Duration,
+        done: impl Fn(&BTreeMap<String, (f64, f64)>) -> bool,
+    ) -> bool {
+        let end = Instant::now() + limit;
+        while !done(&self.latest) {
+            let left = end.saturating_duration_since(Instant::now());
+            match self.rx.recv_timeout(left) {
+                Ok(o) => {
+                    let _ = self.take(o);
+                }
+                Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => return false,
+            }
+        }
+        true
+    }
+
+    /// Consumes output for `d`.
+    fn wait(&mut self, d: Duration) {
+        let end = Instant::now() + d;
+        while let Ok(o) = self
+            .rx
+            .recv_timeout(end.saturating_duration_since(Instant::now()))
+        {
+            let _ = self.take(o);
+        }
+    }
+}
+
+fn at(latest: &BTreeMap<String, (f64, f64)>, targets: &[(&str, f64)]) -> bool {
+    targets.iter().all(|(m, t)| {
+        latest
+            .get(*m)
+            .is_some_and(|(p, v)| (p - t).abs() < AT_TARGET && v.abs() < 1e-3)
+    })
+}
+
+pub(crate) fn run(args: &Args) -> u8 {
+    match demo(args) {
+        Ok(true) => 0,
+        Ok(false) => 1,
+        Err(e) => {
+            eprintln!("motorwire demo: {e}");
+            2
+        }
+    }
+}
+
+#[allow(clippy::too_many_lines)]
+fn demo(args: &Args) -> Result<bool, String> {
+    let started = Instant::now();
+    let map = BusMap::from_toml(MAP).map_err(|e| e.to_string())?;
+    let epoch_ms = crate::bridge::unix_ms();
+    let config = BridgeConfig {
+        feedback_period: Some(Duration::from_millis(20)),
+        epoch_unix_ms: epoch_ms,
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
+    let arm = RealTimeArm::start(bridge.map()).map_err(|e| e.to_string())?;
+    println!("motorwire demo: the bridge on a simulated 3-joint arm (fixtures/maps/demo-arm.toml)");
+    println!(
+        "  shoulder_pitch 0x10, shoulder_roll 0x11, elbow 0x12: iRPC v2.0 over an in-memory CAN-FD bus, in real time\n"
+    );
+    let runner = Runner::new();
+    let input = runner.input();
+    let (tx, rx) = mpsc::channel();
+    let (port_tx, port_rx) = (arm.port(), arm.port());
+    let handle = thread::spawn(move || {
+        runner.run(bridge, port_tx, port_rx, |o| {
+            let _ = tx.send(o.clone());
+        })
+    });
+    let mut watch = Watch {
+        rx,
+        epoch_ms,
+        latest: BTreeMap::new(),
+        samples: BTreeMap::new(),
+        events: Vec::new(),
+    };
+    let steps = script();
+    let mut held = true;
+    let mut rows = Vec::new();
+    let mut targets: BTreeMap<&str, f64> = BTreeMap::new();
+    for (i, step) in steps.iter().enumerate() {
+        input.line(ORIGIN, step.line.clone());
+        let result = watch.result(Duration::from_secs(3));
+        let (ok, detail) = match (&result, step.expect) {
+            (None, _) => (false, "no result within 3 s".to_owned()),
+            (Some(r), Expect::Refused(kind)) => (
+                r["ok"] == false && r["error"]["kind"] == kind,
+                format!(
+                    "refused ({}): {}",
+                    r["error"]["kind"].as_str().unwrap_or("?"),
+                    r["error"]["message"].as_str().unwrap_or("")
+                ),
+            ),
+            (Some(r), Expect::Arrive(ts)) => {
+                let acked = r["ok"] == true;
+                let arrived = acked && watch.until(Duration::from_secs(4), |l| at(l, ts));
+                for (m, t) in ts {
+                    targets.insert(m, *t);
+                }
+                (
+                    acked && arrived,
+                    format!(
+                        "acked by {} in {} µs ({} µs to the bus){}",
+                        r["acked"].as_array().map_or(0, Vec::len),
+                        r["ack_us"],
+                        r["latency_us"],
+                        if arrived {
+                            ", arrived"
+                        } else {
+                            ", DID NOT ARRIVE"
+                        }
+                    ),
+                )
+            }
+            (Some(r), Expect::AckedThenWait(d)) => {
+                watch.wait(d);
+                (
+                    r["ok"] == true,
+                    format!("acked in {} µs; moving", r["ack_us"]),
+                )
+            }
+            (Some(r), Expect::Stop) => {
+                let acked = r["ok"] == true && r["acked"].as_array().is_some_and(|a| a.len() == 3);
+                let rest = watch.until(Duration::from_secs(2), |l| {
+                    l.len() == 3 && l.values().all(|(_, v)| v.abs() < 1e-3)
+                });
+                if let Some((p, _)) = watch.latest.get("shoulder_pitch") {
+                    targets.insert("shoulder_pitch", *p);
+                }
+                (
+                    acked && rest,
+                    format!(
+                        "latched; stop frames on the bus {} µs after the line; every joint at rest: {rest}",
+                        r["stop_latency_us"]
+                    ),
+                )
+            }
+            (Some(r), Expect::Release) => (
+                r["ok"] == true && r["released"] == true,
+                format!(
+                    "released; {} joints active again",
+                    r["acked"].as_array().map_or(0, Vec::len)
+                ),
+            ),
+        };
+        held &= ok;
+        let mark = if ok { "ok  " } else { "FAIL" };
         println!(
-            "summary: {} examples valid, the broken command refused for the {} expected reasons: all expectations held",
-            EXAMPLES.len(),
-            BROKEN_EXPECTED.len()
+            "[{}/{}] {mark} {}\n          {detail}",
+            i + 1,
+            steps.len(),
+            step.title
         );
-        0
-    } else {
-        println!("summary: an expectation did not hold (see FAIL above)");
-        1
+        rows.push((step.title, ok));
     }
+    input.finish();
+    let bridge = handle
+        .join()
+        .map_err(|_| "the bridge thread failed".to_owned())?
+        .map_err(|e| e.to_string())?;
+    while let Ok(o) = watch.rx.try_recv() {
+        let _ = watch.take(o);
+    }
+    drop(arm);
+    let stopped = watch
+        .events
+        .iter()
+        .any(|e| e["event"] == "stopped" && e["failures"] == serde_json::json!([]));
+    held &= stopped;
+
+    println!("\nsummary:");
+    let passed = rows.iter().filter(|(_, ok)| *ok).count();
+    println!("  {passed} of {} steps as expected", rows.len());
+    println!(
+        "  {:<16} {:>10} {:>10} {:>8}",
+        "joint", "final (°)", "target (°)", ""
+    );
+    for j in bridge.joints() {
+        let pos = j.feedback.as_ref().map(|f| f.position);
+        let target = targets.get(j.name.as_str()).copied();
+        let ok = matches!((pos, target), (Some(p), Some(t)) if (p - t).abs() < AT_TARGET);
+        held &= ok;
+        println!(
+            "  {:<16} {:>10} {:>10} {:>8}",
+            j.name,
+            pos.map_or("?".to_owned(), |p| format!("{p:.3}")),
+            target.map_or("?".to_owned(), |t| format!("{t:.3}")),
+            if ok { "ok" } else { "FAIL" }
+        );
+    }
+    let s = bridge.stats();
+    println!(
+        "  bridge: {} lines ({} ok, {} refused or failed), {} frames sent, {} feedback lines; joints stopped and deactivated: {stopped}",
+        s.lines, s.ok, s.failed, s.frames_sent, s.feedback_lines
+    );
+    match plot(&watch.samples, &args.svg) {
+        Ok(()) => println!("  plot of positions and velocities: {}", args.svg.display()),
+        Err(e) => {
+            held = false;
+            println!("  plot FAILED: {e}");
+        }
+    }
+    println!("  {:.1} s", started.elapsed().as_secs_f64());
+    if held {
+        println!("all expectations held");
+    } else {
+        println!("an expectation did not hold (see FAIL above)");
+    }
+    Ok(held)
+}
+
+/// Two panels (position, velocity) against time, one line per joint.
+fn plot(samples: &BTreeMap<String, Vec<Sample>>, path: &Path) -> Result<(), String> {
+    use plotters::prelude::*;
+    let end = samples
+        .values()
+        .flatten()
+        .map(|s| s.0)
+        .fold(0.0f64, f64::max)
+        .max(1e-3);
+    let root = SVGBackend::new(path, (1000, 700)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let panels = root.split_evenly((2, 1));
+    let colors = [BLUE, RED, GREEN, MAGENTA, CYAN, BLACK];
+    for (k, (area, name)) in panels
+        .iter()
+        .zip(["position (°)", "velocity (°/s)"])
+        .enumerate()
+    {
+        let pick = |s: &Sample| if k == 0 { s.1 } else { s.2 };
+        let (lo, hi) = samples
+            .values()
+            .flatten()
+            .map(pick)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            });
+        let (lo, hi) = if lo.is_finite() {
+            (lo, hi)
+        } else {
+            (-1.0, 1.0)
+        };
+        let pad = ((hi - lo) * 0.08).max(1.0);
+        let mut chart = ChartBuilder::on(area)
+            .margin(12)
+            .caption(name, ("sans-serif", 22))
+            .x_label_area_size(32)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..end, (lo - pad)..(hi + pad))
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("time (s)")
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for (i, (motor, s)) in samples.iter().enumerate() {
+            let color = colors.get(i).copied().unwrap_or(BLACK);
+            chart
+                .draw_series(LineSeries::new(
+                    s.iter().map(|x| (x.0, pick(x))),
+                    color.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?
+                .label(motor.as_str())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| e.to_string())?;
+    }
+    root.present().map_err(|e| e.to_string())
 }

@@ -247,11 +247,27 @@ fn hostile_input_is_refused_without_a_crash() {
 }
 
 #[test]
-fn demo_holds_every_expectation() {
-    let out = motorwire(&["demo"], None);
-    assert_eq!(out.status.code(), Some(0));
+fn demo_holds_every_expectation_and_plots_the_feedback() {
+    let svg = std::env::temp_dir().join(format!("motorwire-demo-{}.svg", std::process::id()));
+    let out = motorwire(&["demo", "--svg", svg.to_str().unwrap()], None);
     let text = String::from_utf8(out.stdout).unwrap();
-    assert_eq!(text.matches("] ok   ").count(), 7, "{text}");
-    assert!(text.contains("/pid_gains/kp    [kp-positive]"), "{text}");
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert_eq!(text.matches("] ok   ").count(), 9, "{text}");
+    assert!(
+        text.contains("refused (refused): elbow: setpoint 170 is outside max_position"),
+        "{text}"
+    );
+    assert!(text.contains("refused (emergency_stop_latched)"), "{text}");
+    assert!(
+        text.contains("joints stopped and deactivated: true"),
+        "{text}"
+    );
     assert!(text.contains("all expectations held"), "{text}");
+    let plot = std::fs::read_to_string(&svg).unwrap();
+    let _ = std::fs::remove_file(&svg);
+    // Two panels, three joints each.
+    assert!(plot.matches("<polyline").count() >= 6, "{plot}");
+    for motor in ["shoulder_pitch", "shoulder_roll", "elbow"] {
+        assert!(plot.contains(motor), "{motor}");
+    }
 }

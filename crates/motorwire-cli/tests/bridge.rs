@@ -1,0 +1,209 @@
+//! `motorwire bridge` as a user runs it: on the simulated arm, fed by stdin
+//! or by TCP clients.
+#![allow(clippy::unwrap_used, clippy::panic, clippy::indexing_slicing)]
+
+mod common;
+
+use std::io::{BufRead, BufReader, Write};
+use std::net::TcpStream;
+use std::process::Command;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+const MAP: &str = "fixtures/maps/demo-arm.toml";
+
+fn command(motor: &str, setpoint: f64) -> String {
+    format!(
+        r#"{{"motor_id":"{motor}","timestamp":1704067200000,"control_mode":"position","setpoint":{setpoint}}}"#
+    )
+}
+
+fn lines(bytes: &[u8]) -> Vec<Value> {
+    String::from_utf8_lossy(bytes)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l:?}: {e}")))
+        .collect()
+}
+
+#[test]
+fn stdin_lines_get_one_result_each_then_the_joints_are_stopped() {
+    let input = format!(
+        "{}\nnot json\n{}\n\n{}\n",
+        command("elbow", 20.0),
+        command("elbow", 170.0),
+        command("shoulder_pitch", -10.0)
+    );
+    let out = common::run(
+        &[
+            "bridge",
+            "--map",
+            MAP,
+            "--bus",
+            "sim",
+            "--feedback-hz",
+            "20",
+        ],
+        input.as_bytes(),
+    );
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let all = lines(&out.stdout);
+    // Results come as their lines complete; "line" pairs them with input.
+    let mut results: Vec<&Value> = all
+        .iter()
+        .filter(|v| v.get("ok").is_some() && v.get("event").is_none())
+        .collect();
+    results.sort_by_key(|v| v["line"].as_u64());
+    assert_eq!(results.len(), 4, "{all:?}");
+    for (i, r) in results.iter().enumerate() {
+        assert_eq!(r["line"], i + 1, "blank lines are not counted");
+    }
+    assert_eq!(results[0]["motor_id"], "elbow");
+    assert_eq!(results[0]["ok"], true);
+    assert_eq!(results[1]["error"]["kind"], "invalid");
+    assert_eq!(results[2]["error"]["kind"], "refused");
+    assert_eq!(results[3]["motor_id"], "shoulder_pitch");
+    assert_eq!(results[3]["ok"], true);
+    // Feedback is marked, and the moves finished before the stop.
+    let last_elbow = all
+        .iter()
+        .rfind(|v| v["motor_id"] == "elbow" && v.get("feedback").is_some())
+        .unwrap();
+    assert!((last_elbow["feedback"]["position"].as_f64().unwrap() - 20.0).abs() < 0.05);
+    let stopped = all.iter().find(|v| v["event"] == "stopped").unwrap();
+    assert_eq!(stopped["deactivated"].as_array().unwrap().len(), 3);
+    assert_eq!(all.last().unwrap()["event"], "stopped");
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn connect(port: u16) -> TcpStream {
+    let end = Instant::now() + Duration::from_secs(10);
+    loop {
+        match TcpStream::connect(("127.0.0.1", port)) {
+            Ok(s) => return s,
+            Err(_) if Instant::now() < end => thread::sleep(Duration::from_millis(20)),
+            Err(e) => panic!("connect: {e}"),
+        }
+    }
+}
+
+/// The next result line a client gets (skipping feedback and events).
+fn next_result(reader: &mut BufReader<TcpStream>) -> Value {
+    loop {
+        let mut line = String::new();
+        assert!(
+            reader.read_line(&mut line).unwrap() > 0,
+            "connection closed"
+        );
+        let v: Value = serde_json::from_str(&line).unwrap();
+        if v.get("ok").is_some() && v.get("event").is_none() {
+            return v;
+        }
+    }
+}
+
+#[test]
+fn tcp_clients_at_once_garbage_and_a_client_leaving_mid_line() {
+    let port = free_port();
+    let addr = format!("tcp:127.0.0.1:{port}");
+    let mut child = common::spawn(&["bridge", "--map", MAP, "--bus", "sim", "--input", &addr]);
+    let motors = ["shoulder_pitch", "shoulder_roll", "elbow"];
+    let clients: Vec<_> = motors
+        .iter()
+        .enumerate()
+        .map(|(i, motor)| {
+            let motor = (*motor).to_owned();
+            thread::spawn(move || {
+                let s = connect(port);
+                s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+                let mut w = s.try_clone().unwrap();
+                let mut r = BufReader::new(s);
+                let mut got = Vec::new();
+                for k in 0..5 {
+                    let setpoint = 5.0 * (k as f64) + i as f64;
+                    writeln!(w, "{}", command(&motor, setpoint)).unwrap();
+                    got.push(next_result(&mut r));
+                }
+                (motor, got)
+            })
+        })
+        .collect();
+    // A client sending garbage gets its own errors; others are not disturbed.
+    let garbage = thread::spawn(move || {
+        let s = connect(port);
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        let mut w = s.try_clone().unwrap();
+        let mut r = BufReader::new(s);
+        w.write_all(b"\xff\xfe\x00garbage\n{\"motor_id\":\n")
+            .unwrap();
+        w.write_all(&vec![b'x'; 70_000]).unwrap();
+        w.write_all(b"\n").unwrap();
+        let mut got: Vec<Value> = (0..3).map(|_| next_result(&mut r)).collect();
+        got.sort_by_key(|v| v["line"].as_u64());
+        got
+    });
+    for c in clients {
+        let (motor, got) = c.join().unwrap();
+        for r in &got {
+            assert_eq!(r["ok"], true, "{r}");
+            assert_eq!(r["motor_id"], motor.as_str(), "results go to their sender");
+        }
+    }
+    let g = garbage.join().unwrap();
+    assert_eq!(g[0]["error"]["kind"], "unreadable", "not UTF-8: {}", g[0]);
+    assert_eq!(g[1]["error"]["kind"], "invalid", "{}", g[1]);
+    assert_eq!(g[2]["error"]["kind"], "unreadable", "too long: {}", g[2]);
+    // A client leaving in the middle of a line: the part is not taken,
+    // even though it would be a valid emergency stop.
+    {
+        let mut s = connect(port);
+        s.write_all(br#"{"emergency_stop": true}"#).unwrap();
+    }
+    thread::sleep(Duration::from_millis(300));
+    let s = connect(port);
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let mut w = s.try_clone().unwrap();
+    let mut r = BufReader::new(s);
+    writeln!(w, "{}", command("elbow", 40.0)).unwrap();
+    let after = next_result(&mut r);
+    assert_eq!(after["ok"], true, "not latched: {after}");
+    // SIGINT: the joints are stopped and deactivated, and the bridge ends.
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let end = Instant::now() + Duration::from_secs(10);
+    while child.try_wait().unwrap().is_none() {
+        assert!(Instant::now() < end, "the bridge did not stop on SIGINT");
+        thread::sleep(Duration::from_millis(20));
+    }
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let events = lines(&out.stdout);
+    assert!(
+        events
+            .iter()
+            .any(|e| e["event"] == "stopping" && e["reason"] == "interrupted"),
+        "{events:?}"
+    );
+    let stopped = events.iter().find(|e| e["event"] == "stopped").unwrap();
+    assert_eq!(
+        stopped["deactivated"].as_array().unwrap().len(),
+        3,
+        "{stopped}"
+    );
+}
