@@ -38,6 +38,12 @@ pub(crate) struct Args {
     /// A joint silent for this many ms is reported offline.
     #[arg(long, value_name = "MS", default_value_t = 500)]
     offline_after: u64,
+    /// How long to wait for a joint's Ack or Nack before sending again (ms).
+    #[arg(long, value_name = "MS", default_value_t = 100)]
+    ack_timeout: u64,
+    /// How many times to send again before reporting a command failed.
+    #[arg(long, value_name = "N", default_value_t = 3)]
+    retries: u8,
     /// The bridge's own iRPC node id (its frames' CAN id).
     #[arg(long, value_parser = crate::sim::parse_node, default_value = "0x0000")]
     node: u16,
@@ -107,6 +113,8 @@ fn bridge(args: &Args) -> Result<u8, String> {
     let config = BridgeConfig {
         client: ClientConfig {
             node_id: args.node,
+            timeout: Duration::from_millis(args.ack_timeout.max(1)),
+            retries: args.retries,
             ..ClientConfig::default()
         },
         activate_on_start: !args.no_activate,

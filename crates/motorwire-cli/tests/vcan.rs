@@ -438,3 +438,127 @@ fn the_async_bus_on_socketcan() {
         );
     });
 }
+
+/// `motorwire bridge` on the real kernel: three simulated joint processes
+/// on vcan0, WIA commands on stdin, a malformed frame injected with
+/// cansend in the middle. The bridge reports the frame and goes on.
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
+    let joints: Vec<Killed> = ["0x10", "0x11", "0x12"]
+        .iter()
+        .map(|node| {
+            Killed(
+                motorwire()
+                    .args(["sim", "joint", "--bus", "socketcan:vcan0", "--node", node])
+                    .stderr(Stdio::null())
+                    .spawn()
+                    .unwrap(),
+            )
+        })
+        .collect();
+    sleep(Duration::from_millis(300));
+    let map = std::env::temp_dir().join("motorwire-vcan-bridge-map.toml");
+    std::fs::write(&map, include_str!("../../../fixtures/maps/demo-arm.toml")).unwrap();
+    // Under emulation a joint can be slow to answer: longer timeouts.
+    let mut bridge = motorwire()
+        .args([
+            "bridge",
+            "--map",
+            map.to_str().unwrap(),
+            "--bus",
+            "socketcan:vcan0",
+            "--ack-timeout",
+            "500",
+            "--offline-after",
+            "5000",
+            "--feedback-hz",
+            "5",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = bridge.stdin.take().unwrap();
+    let cmd = |motor: &str, setpoint: f64| {
+        format!(
+            "{{\"motor_id\":\"{motor}\",\"timestamp\":1704067200000,\"control_mode\":\"position\",\"setpoint\":{setpoint}}}\n"
+        )
+    };
+    stdin.write_all(cmd("elbow", 20.0).as_bytes()).unwrap();
+    sleep(Duration::from_millis(1500));
+    // CAN id 0x12 (the elbow's), header 12 00 01, then variant 0xFF: no
+    // such payload.
+    assert!(
+        Command::new("cansend")
+            .args([IFACE, "012##1120001FF"])
+            .status()
+            .unwrap()
+            .success()
+    );
+    sleep(Duration::from_millis(300));
+    stdin.write_all(b"{\"emergency_stop\": true}\n").unwrap();
+    stdin
+        .write_all(cmd("shoulder_pitch", 10.0).as_bytes())
+        .unwrap();
+    stdin.write_all(b"{\"emergency_stop\": false}\n").unwrap();
+    stdin
+        .write_all(cmd("shoulder_pitch", 10.0).as_bytes())
+        .unwrap();
+    drop(stdin);
+    let start = Instant::now();
+    while bridge.try_wait().unwrap().is_none() {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "the bridge did not finish"
+        );
+        sleep(Duration::from_millis(50));
+    }
+    let out = bridge.wait_with_output().unwrap();
+    drop(joints);
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let mut results: Vec<&serde_json::Value> = lines
+        .iter()
+        .filter(|v| v.get("ok").is_some() && v.get("event").is_none())
+        .collect();
+    results.sort_by_key(|v| v["line"].as_u64());
+    assert_eq!(results.len(), 5, "{text}");
+    assert_eq!(results[0]["ok"], true, "{text}");
+    assert_eq!(results[1]["emergency_stop"], true, "{text}");
+    assert_eq!(
+        results[2]["error"]["kind"], "emergency_stop_latched",
+        "{text}"
+    );
+    assert_eq!(results[3]["released"], true, "{text}");
+    assert_eq!(results[4]["ok"], true, "{text}");
+    let bad = lines
+        .iter()
+        .find(|v| v["event"] == "bad_frame")
+        .unwrap_or_else(|| panic!("no bad_frame event: {text}"));
+    assert_eq!(bad["can_id"], "012", "{bad}");
+    let elbow = lines
+        .iter()
+        .rfind(|v| v["motor_id"] == "elbow" && v.get("feedback").is_some())
+        .unwrap();
+    assert!(
+        (elbow["feedback"]["position"].as_f64().unwrap() - 20.0).abs() < 0.05,
+        "{elbow}"
+    );
+    let stopped = lines.iter().find(|v| v["event"] == "stopped").unwrap();
+    assert_eq!(
+        stopped["deactivated"].as_array().unwrap().len(),
+        3,
+        "{stopped}"
+    );
+}
