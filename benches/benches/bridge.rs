@@ -1,0 +1,197 @@
+//! The bridge: a WIA MotorCommand line in, its result out.
+//!
+//! - In simulated time (criterion): the whole path, line -> validate ->
+//!   gate -> translate -> iRPC client -> in-memory bus -> simulated joint
+//!   (which plans the move) -> Ack -> result line, against the same exchange
+//!   without the bridge (the client asking the joint directly), in the same
+//!   run. Its inverse is the sustained commands per second.
+//! - In real time (printed after criterion): the `Runner` on the real-time
+//!   simulated arm (`motorwire bridge --bus sim`), each line's latency from
+//!   its arrival to its frame on the bus, as its result reports it (median,
+//!   p99), and the sustained rate with 16 lines in flight.
+//!
+//! `cargo bench -p motorwire-benches --bench bridge`
+#![allow(
+    missing_docs,
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing
+)]
+
+use std::hint::black_box;
+use std::sync::mpsc;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use criterion::{Criterion, Throughput};
+use motorwire_bridge::sim::{RealTimeArm, SimulatedArm};
+use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output, Runner};
+use motorwire_can::SimConfig;
+use motorwire_can::client::{ClientConfig, Outcome};
+use motorwire_irpc::{MotionProfile, Payload, SetTargetPayloadV2};
+use motorwire_sim::JointConfig;
+use motorwire_sim::rig::Rig;
+use motorwire_translate::BusMap;
+
+const MAP: &str = include_str!("../../fixtures/maps/demo-arm.toml");
+
+fn line(i: u64) -> String {
+    format!(
+        r#"{{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"position","setpoint":{},"velocity_limit":100}}"#,
+        10 + (i % 100)
+    )
+}
+
+fn simulated_arm() -> SimulatedArm {
+    let map = BusMap::from_toml(MAP).unwrap();
+    let config = BridgeConfig {
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    let mut arm =
+        SimulatedArm::new(Bridge::new(map, config).unwrap(), SimConfig::default()).unwrap();
+    assert!(
+        arm.run_while(Duration::from_secs(1), |a| a.bridge().is_ready())
+            .unwrap()
+    );
+    arm.take_outputs();
+    arm
+}
+
+fn benches(c: &mut Criterion) {
+    let mut g = c.benchmark_group("bridge");
+    g.throughput(Throughput::Elements(1));
+    let mut arm = simulated_arm();
+    let mut i = 0u64;
+    g.bench_function("a_bridge_line_to_result", |b| {
+        b.iter(|| {
+            i += 1;
+            arm.line(Origin(1), &line(i));
+            loop {
+                arm.step(Duration::from_millis(1)).unwrap();
+                if let Some(r) = arm.take_results().pop() {
+                    assert_eq!(r["ok"], true);
+                    black_box(r);
+                    break;
+                }
+            }
+        });
+    });
+    // Baseline: the same move asked of the same joint by the client alone.
+    let mut joint = JointConfig::new(0x12);
+    joint.limits.max_velocity = 120.0;
+    let mut rig = Rig::new(SimConfig::default(), ClientConfig::default(), [joint]).unwrap();
+    for p in [Payload::Configure, Payload::Activate] {
+        assert_eq!(rig.request(0x12, p).unwrap().outcome, Outcome::Acked);
+    }
+    let mut k = 0u32;
+    g.bench_function("b_client_request_to_ack_without_bridge", |b| {
+        b.iter(|| {
+            k += 1;
+            let p = SetTargetPayloadV2 {
+                target_angle: 10.0 + (k % 100) as f32,
+                max_velocity: 100.0,
+                target_velocity: 0.0,
+                max_acceleration: 500.0,
+                max_deceleration: 400.0,
+                max_jerk: 2000.0,
+                profile: MotionProfile::SCurve,
+                max_current: 0.0,
+                max_temperature: 0.0,
+            };
+            let done = rig.request(0x12, Payload::SetTargetV2(p)).unwrap();
+            assert_eq!(done.outcome, Outcome::Acked);
+            black_box(done);
+        });
+    });
+    g.finish();
+}
+
+fn percentile(sorted: &[u64], p: f64) -> u64 {
+    let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+/// The Runner in real time: `n` lines, each sent when the previous result
+/// came (latency), then `n` lines with up to 16 in flight (rate).
+fn real_time(n: u64) {
+    let map = BusMap::from_toml(MAP).unwrap();
+    let config = BridgeConfig {
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(map, config).unwrap();
+    let arm = RealTimeArm::start(bridge.map()).unwrap();
+    let runner = Runner::new();
+    let input = runner.input();
+    let (tx, rx) = mpsc::channel();
+    let (a, b) = (arm.port(), arm.port());
+    let handle = thread::spawn(move || {
+        runner.run(bridge, a, b, |o| {
+            if let Output::Result { json, .. } = o {
+                let _ = tx.send(json.clone());
+            }
+        })
+    });
+    let mut latencies = Vec::new();
+    for i in 0..n {
+        input.line(Origin(1), line(i));
+        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+        assert_eq!(r["ok"], true, "{r}");
+        latencies.push(r["latency_us"].as_u64().unwrap());
+    }
+    // Sustained: up to WINDOW lines in flight, as a controller pipelining
+    // its commands would keep (thousands at once only queue up on the bus).
+    const WINDOW: u64 = 16;
+    let start = Instant::now();
+    let (mut sent, mut done, mut failed) = (0, 0, 0);
+    while done < n {
+        while sent < n && sent - done < WINDOW {
+            input.line(Origin(1), line(sent));
+            sent += 1;
+        }
+        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+        done += 1;
+        if r["ok"] != true {
+            failed += 1;
+        }
+    }
+    let rate = n as f64 / start.elapsed().as_secs_f64();
+    assert_eq!(failed, 0, "{failed} of {n} lines failed");
+    // The emergency stop: from its line to the last of its three
+    // Deactivate frames on the bus; released after each.
+    let mut stops = Vec::new();
+    for _ in 0..n.min(500) {
+        input.line(Origin(1), r#"{"emergency_stop": true}"#);
+        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+        assert_eq!(r["emergency_stop"], true, "{r}");
+        stops.push(r["stop_latency_us"].as_u64().unwrap());
+        input.line(Origin(1), r#"{"emergency_stop": false}"#);
+        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+        assert_eq!(r["released"], true, "{r}");
+    }
+    stops.sort_unstable();
+    input.interrupt();
+    handle.join().unwrap().unwrap();
+    latencies.sort_unstable();
+    println!(
+        "bridge/real_time: {} emergency stops; line to the last stop frame on the bus: median {} us, p99 {} us",
+        stops.len(),
+        percentile(&stops, 0.5),
+        percentile(&stops, 0.99)
+    );
+    println!(
+        "bridge/real_time: {n} lines; line to frame on the bus: median {} us, p99 {} us, max {} us; sustained ({WINDOW} in flight): {rate:.0} commands/s",
+        percentile(&latencies, 0.5),
+        percentile(&latencies, 0.99),
+        latencies.last().unwrap()
+    );
+}
+
+fn main() {
+    let test_mode = std::env::args().any(|a| a == "--test");
+    let mut c = Criterion::default().configure_from_args();
+    benches(&mut c);
+    c.final_summary();
+    real_time(if test_mode { 20 } else { 5000 });
+}
