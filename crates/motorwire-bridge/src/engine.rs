@@ -358,16 +358,7 @@ impl Bridge {
             self.become_ready();
             return;
         }
-        let axes = self
-            .joints
-            .iter()
-            .map(|j| Axis {
-                motor: j.name.clone(),
-                node: j.node,
-                queue: VecDeque::from([Payload::Configure, Payload::Activate]),
-                in_flight: None,
-            })
-            .collect();
+        let axes = self.every_joint(&[Payload::Configure, Payload::Activate]);
         self.open_line(None, None, LineKind::Startup, now, axes, Report::default());
     }
 
@@ -607,12 +598,17 @@ impl Bridge {
     /// Active, so leaving it is the stop every joint obeys, braking at its
     /// own deceleration limit.
     fn stop_axes(&self) -> Vec<Axis> {
+        self.every_joint(&[Payload::Deactivate])
+    }
+
+    /// `payloads`, in order, for every joint.
+    fn every_joint(&self, payloads: &[Payload]) -> Vec<Axis> {
         self.joints
             .iter()
             .map(|j| Axis {
                 motor: j.name.clone(),
                 node: j.node,
-                queue: VecDeque::from([Payload::Deactivate]),
+                queue: payloads.iter().copied().collect(),
                 in_flight: None,
             })
             .collect()
@@ -630,16 +626,7 @@ impl Bridge {
         self.latched = false;
         self.out
             .push_back(Output::Event(json!({"event": "released"})));
-        let axes = self
-            .joints
-            .iter()
-            .map(|j| Axis {
-                motor: j.name.clone(),
-                node: j.node,
-                queue: VecDeque::from([Payload::Activate]),
-                in_flight: None,
-            })
-            .collect();
+        let axes = self.every_joint(&[Payload::Activate]);
         self.open_line(
             Some(origin),
             None,

@@ -233,19 +233,8 @@ impl SimulatedArm {
                 busy = true;
             }
             for (joint, port) in &mut self.joints {
-                let Some(port) = port else {
-                    continue;
-                };
-                while let Some(r) = port.try_recv() {
-                    joint.handle_frame(now, &r.frame);
-                    busy = true;
-                }
-                if joint.poll_timeout().is_some_and(|t| t <= now) {
-                    joint.handle_timeout(now);
-                }
-                while let Some(f) = joint.poll_transmit() {
-                    port.send(&f)?;
-                    busy = true;
+                if let Some(port) = port {
+                    busy |= joint.serve(port, now)?;
                 }
             }
             while let Some(r) = self.port.try_recv() {

@@ -93,7 +93,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use motorwire_can::client::ARM_NODE;
-use motorwire_can::{CanBus, CanId, Frame};
+use motorwire_can::{CanBus, CanId, Frame, SimPort};
 use motorwire_irpc::{
     EncoderTelemetry, Error as WireError, Header, LifecycleState, MAX_FRAME_LEN, Message,
     MotionProfile, NackCode, Payload, SetTargetPayloadV2, TelemetryMode, TelemetryStream,
@@ -790,6 +790,29 @@ impl SimJoint {
         .into_iter()
         .flatten()
         .min()
+    }
+
+    /// One pass on a simulated bus at simulated time `now`: takes every
+    /// frame already due on `port`, handles the timers that are due, and
+    /// sends what it has to. Returns whether it received or sent anything
+    /// (a stepper runs passes until none is busy, then moves the clock).
+    ///
+    /// # Errors
+    /// The bus's errors.
+    pub fn serve(&mut self, port: &mut SimPort, now: Duration) -> Result<bool, SimError> {
+        let mut busy = false;
+        while let Some(r) = port.try_recv() {
+            self.handle_frame(now, &r.frame);
+            busy = true;
+        }
+        if self.poll_timeout().is_some_and(|t| t <= now) {
+            self.handle_timeout(now);
+        }
+        while let Some(f) = self.poll_transmit() {
+            port.send(&f)?;
+            busy = true;
+        }
+        Ok(busy)
     }
 
     /// Runs the joint on `bus` in real time until `stop` is set, handling

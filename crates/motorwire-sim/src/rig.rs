@@ -104,17 +104,7 @@ impl Rig {
                 busy = true;
             }
             for (port, joint) in &mut self.joints {
-                while let Some(r) = port.try_recv() {
-                    joint.handle_frame(now, &r.frame);
-                    busy = true;
-                }
-                if joint.poll_timeout().is_some_and(|t| t <= now) {
-                    joint.handle_timeout(now);
-                }
-                while let Some(f) = joint.poll_transmit() {
-                    port.send(&f)?;
-                    busy = true;
-                }
+                busy |= joint.serve(port, now)?;
             }
             while let Some(r) = self.arm.try_recv() {
                 self.client.handle_frame(now, &r.frame);
