@@ -28,7 +28,7 @@ use motorwire_bridge::sim::{RealTimeArm, SimulatedArm};
 use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output, Runner};
 use motorwire_can::SimConfig;
 use motorwire_can::client::{ClientConfig, Outcome};
-use motorwire_irpc::{MotionProfile, Payload, SetTargetPayloadV2};
+use motorwire_irpc::{Payload, SetTargetPayloadV2};
 use motorwire_sim::JointConfig;
 use motorwire_sim::rig::Rig;
 use motorwire_translate::BusMap;
@@ -88,17 +88,8 @@ fn benches(c: &mut Criterion) {
     g.bench_function("b_client_request_to_ack_without_bridge", |b| {
         b.iter(|| {
             k += 1;
-            let p = SetTargetPayloadV2 {
-                target_angle: 10.0 + (k % 100) as f32,
-                max_velocity: 100.0,
-                target_velocity: 0.0,
-                max_acceleration: 500.0,
-                max_deceleration: 400.0,
-                max_jerk: 2000.0,
-                profile: MotionProfile::SCurve,
-                max_current: 0.0,
-                max_temperature: 0.0,
-            };
+            let p = SetTargetPayloadV2::scurve(10.0 + (k % 100) as f32, 100.0, 500.0, 2000.0)
+                .with_deceleration(400.0);
             let done = rig.request(0x12, Payload::SetTargetV2(p)).unwrap();
             assert_eq!(done.outcome, Outcome::Acked);
             black_box(done);
@@ -189,7 +180,8 @@ fn real_time(n: u64) {
 }
 
 fn main() {
-    let test_mode = std::env::args().any(|a| a == "--test");
+    // `cargo bench` passes --bench; `cargo test --benches` does not (test mode).
+    let test_mode = !std::env::args().any(|a| a == "--bench");
     let mut c = Criterion::default().configure_from_args();
     benches(&mut c);
     c.final_summary();

@@ -15,22 +15,12 @@ use std::hint::black_box;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use motorwire_can::client::{ClientConfig, Outcome};
 use motorwire_can::{Faults, SimConfig};
-use motorwire_irpc::{Header, Message, MotionProfile, Payload, SetTargetPayloadV2, WireVersion};
+use motorwire_irpc::{Header, Message, Payload, SetTargetPayloadV2, WireVersion};
 use motorwire_sim::JointConfig;
 use motorwire_sim::rig::Rig;
 
 fn command(i: u32) -> SetTargetPayloadV2 {
-    SetTargetPayloadV2 {
-        target_angle: (i % 180) as f32 - 90.0,
-        max_velocity: 100.0,
-        target_velocity: 0.0,
-        max_acceleration: 500.0,
-        max_deceleration: 500.0,
-        max_jerk: 2000.0,
-        profile: MotionProfile::SCurve,
-        max_current: 0.0,
-        max_temperature: 0.0,
-    }
+    SetTargetPayloadV2::scurve((i % 180) as f32 - 90.0, 100.0, 500.0, 2000.0)
 }
 
 fn ready_rig(faults: Faults) -> Rig {

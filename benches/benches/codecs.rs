@@ -14,7 +14,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use motorwire_compact::{CompactCommand, ControlMode, Flags, MotorHash, VelocityLimit};
-use motorwire_irpc::{Header, Message, MotionProfile, Payload, SetTargetPayloadV2, WireVersion};
+use motorwire_irpc::{Header, Message, Payload, SetTargetPayloadV2, WireVersion};
 use serde::{Deserialize, Serialize};
 
 /// The same message as plain serde types in v2.0's variant order: what a
@@ -69,17 +69,7 @@ fn irpc(c: &mut Criterion) {
             target_id: 0x0010,
             msg_id: 42,
         },
-        payload: Payload::SetTargetV2(SetTargetPayloadV2 {
-            target_angle: 90.0,
-            max_velocity: 100.0,
-            target_velocity: 0.0,
-            max_acceleration: 500.0,
-            max_deceleration: 500.0,
-            max_jerk: 2000.0,
-            profile: MotionProfile::SCurve,
-            max_current: 0.0,
-            max_temperature: 0.0,
-        }),
+        payload: Payload::SetTargetV2(SetTargetPayloadV2::scurve(90.0, 100.0, 500.0, 2000.0)),
     };
     let plain = PlainMessage {
         header: PlainHeader {

@@ -24,8 +24,7 @@ use motorwire_can::isotp::{self, IsoTpConfig};
 use motorwire_can::socketcan::{Filter, SocketCanBus};
 use motorwire_can::{CanBus, CanId, Error, Frame};
 use motorwire_irpc::{
-    FaultHistory, FaultRecord, Header, Message, MotionProfile, Payload, SetTargetPayloadV2,
-    WireVersion,
+    FaultHistory, FaultRecord, Header, Message, Payload, SetTargetPayloadV2, WireVersion,
 };
 
 const IFACE: &str = "vcan0";
@@ -74,17 +73,7 @@ fn finish(mut dump: Killed) -> String {
 }
 
 fn v2(target: f32) -> SetTargetPayloadV2 {
-    SetTargetPayloadV2 {
-        target_angle: target,
-        max_velocity: 100.0,
-        target_velocity: 0.0,
-        max_acceleration: 500.0,
-        max_deceleration: 500.0,
-        max_jerk: 2000.0,
-        profile: MotionProfile::SCurve,
-        max_current: 0.0,
-        max_temperature: 0.0,
-    }
+    SetTargetPayloadV2::scurve(target, 100.0, 500.0, 2000.0)
 }
 
 fn frame_of(source: u16, target: u16, msg_id: u32, payload: Payload) -> Frame {

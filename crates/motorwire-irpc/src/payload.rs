@@ -52,6 +52,65 @@ wire_struct! {
     }
 }
 
+impl SetTargetPayloadV2 {
+    /// A jerk-limited (S-curve) move to `target_angle` coming to rest there,
+    /// decelerating as fast as it accelerates, with no current or
+    /// temperature limit. The iRPC document's example:
+    ///
+    /// ```
+    /// use motorwire_irpc::{Header, Message, Payload, SetTargetPayloadV2, WireVersion};
+    ///
+    /// let p = SetTargetPayloadV2::scurve(90.0, 100.0, 500.0, 2000.0);
+    /// let m = Message { header: Header { source_id: 0, target_id: 0x10, msg_id: 42 }, payload: Payload::SetTargetV2(p) };
+    /// let mut buf = [0u8; 64];
+    /// let n = m.encode_frame(WireVersion::V2_0, &mut buf)?;
+    /// assert_eq!(&buf[..n], &[
+    ///     0x00, 0x10, 0x2a, 0x05, 0x00, 0x00, 0xb4, 0x42, 0x00, 0x00, 0xc8, 0x42, 0x00, 0x00, 0x00, 0x00,
+    ///     0x00, 0x00, 0xfa, 0x43, 0x00, 0x00, 0xfa, 0x43, 0x00, 0x00, 0xfa, 0x44, 0x01, 0x00, 0x00, 0x00,
+    ///     0x00, 0x00, 0x00, 0x00, 0x00,
+    /// ]);
+    /// # Ok::<(), motorwire_irpc::Error>(())
+    /// ```
+    pub const fn scurve(
+        target_angle: f32,
+        max_velocity: f32,
+        max_acceleration: f32,
+        max_jerk: f32,
+    ) -> Self {
+        Self {
+            target_angle,
+            max_velocity,
+            target_velocity: 0.0,
+            max_acceleration,
+            max_deceleration: max_acceleration,
+            max_jerk,
+            profile: MotionProfile::SCurve,
+            max_current: 0.0,
+            max_temperature: 0.0,
+        }
+    }
+
+    /// A trapezoidal move (jerk 0), otherwise as [`SetTargetPayloadV2::scurve`].
+    ///
+    /// ```
+    /// use motorwire_irpc::{MotionProfile, SetTargetPayloadV2};
+    /// let p = SetTargetPayloadV2::trapezoidal(90.0, 100.0, 500.0).with_deceleration(400.0);
+    /// assert_eq!((p.profile, p.max_jerk, p.max_deceleration), (MotionProfile::Trapezoidal, 0.0, 400.0));
+    /// ```
+    pub const fn trapezoidal(target_angle: f32, max_velocity: f32, max_acceleration: f32) -> Self {
+        let mut p = Self::scurve(target_angle, max_velocity, max_acceleration, 0.0);
+        p.profile = MotionProfile::Trapezoidal;
+        p
+    }
+
+    /// The same move with its own deceleration limit (deg/s²).
+    #[must_use]
+    pub const fn with_deceleration(mut self, max_deceleration: f32) -> Self {
+        self.max_deceleration = max_deceleration;
+        self
+    }
+}
+
 wire_struct! {
     /// Encoder reading.
     pub struct EncoderTelemetry as "Encoder" {

@@ -11,8 +11,7 @@ use std::time::Duration;
 use motorwire_can::client::{ClientConfig, Event, Outcome};
 use motorwire_can::{CanId, Frame, SimConfig};
 use motorwire_irpc::{
-    LifecycleState, MotionProfile, NackCode, Payload, SetTargetPayloadV2, TelemetryMode,
-    WireVersion,
+    LifecycleState, NackCode, Payload, SetTargetPayloadV2, TelemetryMode, WireVersion,
 };
 use motorwire_sim::rig::Rig;
 use motorwire_sim::{JointConfig, WATCHDOG_STOP};
@@ -40,17 +39,7 @@ fn nack(code: NackCode) -> Outcome {
 }
 
 fn to(target: f32) -> Payload {
-    Payload::SetTargetV2(SetTargetPayloadV2 {
-        target_angle: target,
-        max_velocity: 100.0,
-        target_velocity: 0.0,
-        max_acceleration: 500.0,
-        max_deceleration: 500.0,
-        max_jerk: 2000.0,
-        profile: MotionProfile::SCurve,
-        max_current: 0.0,
-        max_temperature: 0.0,
-    })
+    Payload::SetTargetV2(SetTargetPayloadV2::scurve(target, 100.0, 500.0, 2000.0))
 }
 
 #[test]
