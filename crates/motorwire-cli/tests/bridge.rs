@@ -81,23 +81,8 @@ fn stdin_lines_get_one_result_each_then_the_joints_are_stopped() {
     assert_eq!(all.last().unwrap()["event"], "stopped");
 }
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 fn connect(port: u16) -> TcpStream {
-    let end = Instant::now() + Duration::from_secs(10);
-    loop {
-        match TcpStream::connect(("127.0.0.1", port)) {
-            Ok(s) => return s,
-            Err(_) if Instant::now() < end => thread::sleep(Duration::from_millis(20)),
-            Err(e) => panic!("connect: {e}"),
-        }
-    }
+    TcpStream::connect(("127.0.0.1", port)).unwrap()
 }
 
 /// The next result line a client gets (skipping feedback and events).
@@ -117,9 +102,26 @@ fn next_result(reader: &mut BufReader<TcpStream>) -> Value {
 
 #[test]
 fn tcp_clients_at_once_garbage_and_a_client_leaving_mid_line() {
-    let port = free_port();
-    let addr = format!("tcp:127.0.0.1:{port}");
-    let mut child = common::spawn(&["bridge", "--map", MAP, "--bus", "sim", "--input", &addr]);
+    // Port 0: the bridge binds a free port and says which; clients connect
+    // only once it listens (no race for a port, no connect before bind).
+    let mut child = common::spawn(&[
+        "bridge",
+        "--map",
+        MAP,
+        "--bus",
+        "sim",
+        "--input",
+        "tcp:127.0.0.1:0",
+    ]);
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut said = String::new();
+    stderr.read_line(&mut said).unwrap();
+    let port: u16 = said
+        .trim()
+        .rsplit(':')
+        .next()
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("no port in {said:?}"));
     let motors = ["shoulder_pitch", "shoulder_roll", "elbow"];
     let clients: Vec<_> = motors
         .iter()
