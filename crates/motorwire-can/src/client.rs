@@ -12,6 +12,19 @@
 //! joint can discard the duplicate and answer again), at most
 //! [`ClientConfig::retries`] times, then reported timed out.
 //!
+//! **Exactly once.** A joint remembers the answers to a bounded number of
+//! each sender's last requests (motorwire's simulated joint: 256). The
+//! client keeps at most [`ClientConfig::max_in_flight`] requests (default 1)
+//! in flight to each node, so between a request's first send and its last
+//! resend no other new request reaches that node: every resend falls
+//! inside the joint's memory and is answered, never executed again. A
+//! request the caller gives up on ([`Client::cancel`]) is never sent again.
+//!
+//! **Wire versions.** Each node is spoken to in its own wire version
+//! ([`Client::set_wire`]; [`ClientConfig::wire`] for the rest): requests are
+//! encoded in the target's version and frames decoded in the sender's (the
+//! CAN id is the sender's node id).
+//!
 //! ```
 //! use std::time::Duration;
 //! use motorwire_can::{CanBus, SimBus, client::{Client, ClientConfig, Event, Outcome}};
@@ -67,16 +80,27 @@ pub struct ClientConfig {
     pub timeout: Duration,
     /// How many times to send again before giving up.
     pub retries: u8,
+    /// The most requests in flight to one node at once (default 1; at least
+    /// 1). More than one lets a joint's duplicate memory fall behind a
+    /// resend and a bus that reorders run requests out of order.
+    pub max_in_flight: usize,
+    /// The msg_id of the first request (default 1). A new client talking to
+    /// joints that heard an earlier one should start past that one's ids:
+    /// `motorwire bridge` starts from the clock's microseconds.
+    pub first_msg_id: u32,
 }
 
 impl Default for ClientConfig {
-    /// The arm (node 0x0000), v2.0, 100 ms, 3 retries (WIA Phase 3's defaults).
+    /// The arm (node 0x0000), v2.0, 100 ms, 3 retries, one request in
+    /// flight per node, msg_ids from 1.
     fn default() -> Self {
         Self {
             node_id: ARM_NODE,
             wire: WireVersion::V2_0,
             timeout: Duration::from_millis(100),
             retries: 3,
+            max_in_flight: 1,
+            first_msg_id: 1,
         }
     }
 }
@@ -193,6 +217,10 @@ pub struct Client {
     can_id: CanId,
     next_id: u32,
     pending: BTreeMap<u32, Pending>,
+    /// Requests in flight per node.
+    in_flight: BTreeMap<u16, usize>,
+    /// Wire versions of nodes that do not speak `config.wire`.
+    wires: BTreeMap<u16, WireVersion>,
     out: VecDeque<Frame>,
     events: VecDeque<Event>,
     stats: ClientStats,
@@ -207,9 +235,11 @@ impl Client {
     pub fn new(config: ClientConfig) -> Result<Self, Error> {
         Ok(Self {
             can_id: CanId::standard(config.node_id)?,
+            next_id: config.first_msg_id.max(1),
             config,
-            next_id: 1,
             pending: BTreeMap::new(),
+            in_flight: BTreeMap::new(),
+            wires: BTreeMap::new(),
             out: VecDeque::new(),
             events: VecDeque::new(),
             stats: ClientStats::default(),
@@ -231,6 +261,71 @@ impl Client {
         self.pending.len()
     }
 
+    /// Requests still waiting for an answer from `node`.
+    pub fn in_flight_to(&self, node: u16) -> usize {
+        self.in_flight.get(&node).copied().unwrap_or(0)
+    }
+
+    /// Whether a request to `node` would be taken now
+    /// ([`ClientConfig::max_in_flight`]).
+    pub fn can_request(&self, node: u16) -> bool {
+        self.in_flight_to(node) < self.config.max_in_flight.max(1)
+    }
+
+    /// Speaks `wire` to `node` from now on (requests to it are encoded, and
+    /// its frames decoded, in that version).
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use motorwire_can::client::{Client, ClientConfig};
+    /// use motorwire_irpc::{Payload, WireVersion};
+    ///
+    /// let mut client = Client::new(ClientConfig::default())?;
+    /// client.set_wire(0x11, WireVersion::V2_1);
+    /// client.request(Duration::ZERO, 0x10, Payload::Reset)?; // v2.0: Reset is tag 4
+    /// client.request(Duration::ZERO, 0x11, Payload::Reset)?; // v2.1: also 4
+    /// client.send(0xFFFF, Payload::ArmReady)?;               // broadcast, v2.0: tag 10
+    /// assert_eq!(client.poll_transmit().unwrap().data(), [0x00, 0x10, 0x01, 0x04]);
+    /// assert_eq!(client.poll_transmit().unwrap().data(), [0x00, 0x11, 0x02, 0x04]);
+    /// assert_eq!(client.poll_transmit().unwrap().data()[..6], [0x00, 0xff, 0xff, 0x03, 0x03, 0x0a]);
+    /// assert_eq!(client.wire_of(0x11), WireVersion::V2_1);
+    /// # Ok::<(), motorwire_can::Error>(())
+    /// ```
+    pub fn set_wire(&mut self, node: u16, wire: WireVersion) {
+        if wire == self.config.wire {
+            self.wires.remove(&node);
+        } else {
+            self.wires.insert(node, wire);
+        }
+    }
+
+    /// The wire version spoken to `node`.
+    pub fn wire_of(&self, node: u16) -> WireVersion {
+        self.wires.get(&node).copied().unwrap_or(self.config.wire)
+    }
+
+    /// Forgets the request `msg_id`: it is never sent again and completes
+    /// with no event (a late answer to it is a [`Event::StrayReply`]).
+    /// Returns whether it was in flight. An emergency stop cancels what it
+    /// supersedes this way.
+    pub fn cancel(&mut self, msg_id: u32) -> bool {
+        let Some(p) = self.pending.remove(&msg_id) else {
+            return false;
+        };
+        self.release(p.target);
+        self.out.retain(|f| *f != p.frame);
+        true
+    }
+
+    fn release(&mut self, target: u16) {
+        if let Some(n) = self.in_flight.get_mut(&target) {
+            *n = n.saturating_sub(1);
+            if *n == 0 {
+                self.in_flight.remove(&target);
+            }
+        }
+    }
+
     fn allocate_id(&mut self) -> u32 {
         loop {
             let id = self.next_id;
@@ -241,9 +336,9 @@ impl Client {
         }
     }
 
-    fn frame(&self, message: &Message) -> Result<Frame, Error> {
+    fn frame(&self, wire: WireVersion, message: &Message) -> Result<Frame, Error> {
         let mut buf = [0u8; MAX_FRAME_LEN];
-        let len = message.encode_frame(self.config.wire, &mut buf)?;
+        let len = message.encode_frame(wire, &mut buf)?;
         Frame::fd(self.can_id, buf.get(..len).unwrap_or(&buf))
     }
 
@@ -251,10 +346,19 @@ impl Client {
     /// msg_id; the answer comes as [`Event::Completed`].
     ///
     /// # Errors
-    /// [`Error::Irpc`]: the payload is not in the wire version, holds a
-    /// non-finite value, or does not fit a frame.
+    /// [`Error::Irpc`]: the payload is not in the target's wire version,
+    /// holds a non-finite value, or does not fit a frame;
+    /// [`Error::InFlightLimit`] when `target` already has
+    /// [`ClientConfig::max_in_flight`] requests in flight.
     pub fn request(&mut self, now: Duration, target: u16, payload: Payload) -> Result<u32, Error> {
-        let (msg_id, frame) = self.enqueue(target, payload)?;
+        if !self.can_request(target) {
+            return Err(Error::InFlightLimit {
+                target,
+                in_flight: self.in_flight_to(target),
+            });
+        }
+        let (msg_id, frame) = self.enqueue(self.wire_of(target), target, payload)?;
+        *self.in_flight.entry(target).or_insert(0) += 1;
         self.pending.insert(
             msg_id,
             Pending {
@@ -270,16 +374,37 @@ impl Client {
         Ok(msg_id)
     }
 
-    /// Sends `payload` to `target` expecting no answer (broadcasts).
+    /// Sends `payload` to `target` expecting no answer (broadcasts), in
+    /// [`ClientConfig::wire`].
     ///
     /// # Errors
     /// As [`Client::request`].
     pub fn send(&mut self, target: u16, payload: Payload) -> Result<u32, Error> {
-        self.enqueue(target, payload).map(|(msg_id, _)| msg_id)
+        self.send_in(self.config.wire, target, payload)
+    }
+
+    /// Sends `payload` to `target` in `wire`, expecting no answer (a
+    /// broadcast to the joints of one wire version).
+    ///
+    /// # Errors
+    /// As [`Client::request`].
+    pub fn send_in(
+        &mut self,
+        wire: WireVersion,
+        target: u16,
+        payload: Payload,
+    ) -> Result<u32, Error> {
+        self.enqueue(wire, target, payload)
+            .map(|(msg_id, _)| msg_id)
     }
 
     /// Encodes `payload` to `target` under a fresh msg_id and queues its frame.
-    fn enqueue(&mut self, target: u16, payload: Payload) -> Result<(u32, Frame), Error> {
+    fn enqueue(
+        &mut self,
+        wire: WireVersion,
+        target: u16,
+        payload: Payload,
+    ) -> Result<(u32, Frame), Error> {
         let msg_id = self.allocate_id();
         let message = Message {
             header: Header {
@@ -289,7 +414,7 @@ impl Client {
             },
             payload,
         };
-        let frame = self.frame(&message)?;
+        let frame = self.frame(wire, &message)?;
         self.out.push_back(frame);
         Ok((msg_id, frame))
     }
@@ -376,11 +501,18 @@ impl Client {
         )
     }
 
-    /// Broadcasts ArmReady (to 0xFFFF; no answer expected).
+    /// Broadcasts ArmReady (to 0xFFFF; no answer expected), once in every
+    /// wire version spoken (its tag differs between versions).
     ///
     /// # Errors
     /// As [`Client::request`].
     pub fn arm_ready(&mut self) -> Result<u32, Error> {
+        let mut wires: Vec<WireVersion> = self.wires.values().copied().collect();
+        wires.sort();
+        wires.dedup();
+        for w in wires {
+            self.send_in(w, BROADCAST, Payload::ArmReady)?;
+        }
         self.send(BROADCAST, Payload::ArmReady)
     }
 
@@ -389,7 +521,8 @@ impl Client {
         if frame.id().is_extended() {
             return;
         }
-        match Message::decode_frame(self.config.wire, frame.data()) {
+        let wire = u16::try_from(frame.id().raw()).map_or(self.config.wire, |n| self.wire_of(n));
+        match Message::decode_frame(wire, frame.data()) {
             Ok(message) if u32::from(message.header.source_id) != frame.id().raw() => {
                 self.stats.bad_frames += 1;
                 self.events.push_back(Event::Misaddressed {
@@ -435,6 +568,7 @@ impl Client {
             return;
         }
         if let Some(p) = self.pending.remove(&id) {
+            self.release(p.target);
             match outcome {
                 Outcome::Acked => self.stats.acked += 1,
                 Outcome::Nacked(_) => self.stats.nacked += 1,
@@ -470,6 +604,7 @@ impl Client {
                 self.out.push_back(p.frame);
                 self.stats.retransmissions += 1;
             } else if let Some(p) = self.pending.remove(&id) {
+                self.release(p.target);
                 self.stats.timed_out += 1;
                 self.events.push_back(Event::Completed(Completion {
                     msg_id: id,

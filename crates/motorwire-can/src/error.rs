@@ -103,6 +103,16 @@ pub enum Error {
         /// The msg_id asked about.
         msg_id: u32,
     },
+    /// A request to a node that already has as many requests in flight as
+    /// [`crate::client::ClientConfig::max_in_flight`] allows: the joint's
+    /// duplicate memory could not cover another one's retries.
+    #[error("node 0x{target:02X} already has {in_flight} request(s) in flight")]
+    InFlightLimit {
+        /// The node.
+        target: u16,
+        /// How many are in flight to it.
+        in_flight: usize,
+    },
     /// A fault-injection rate outside 0..=1.
     #[error("fault rate {name} = {value} is outside 0..=1")]
     InvalidFaultRate {

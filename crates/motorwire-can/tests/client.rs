@@ -40,10 +40,18 @@ fn ms(n: u64) -> Duration {
 fn requests_get_fresh_ids_and_exact_bytes() {
     let mut c = Client::new(ClientConfig::default()).unwrap();
     assert_eq!(c.configure(ms(0), 0x10).unwrap(), 1);
-    assert_eq!(c.activate(ms(0), 0x10).unwrap(), 2);
+    // One request in flight per node: the joint's duplicate memory covers its retries.
+    assert_eq!(
+        c.activate(ms(0), 0x10),
+        Err(motorwire_can::Error::InFlightLimit {
+            target: 0x10,
+            in_flight: 1
+        })
+    );
+    assert_eq!(c.activate(ms(0), 0x11).unwrap(), 2);
     assert_eq!(c.arm_ready().unwrap(), 3);
     assert_eq!(c.poll_transmit().unwrap().data(), &[0x00, 0x10, 0x01, 0x01]);
-    assert_eq!(c.poll_transmit().unwrap().data(), &[0x00, 0x10, 0x02, 0x02]);
+    assert_eq!(c.poll_transmit().unwrap().data(), &[0x00, 0x11, 0x02, 0x02]);
     // WIRE-FACTS §1.4 has ArmReady with msg_id 0: `00 ff ff 03 00 0a`; here msg_id 3.
     assert_eq!(
         c.poll_transmit().unwrap().data(),
@@ -211,4 +219,62 @@ fn drive_runs_a_request_to_its_end_on_a_blocking_bus() {
         c.drive(&mut arm, clock, id),
         Err(Error::UnknownRequest { msg_id: id })
     );
+}
+
+#[test]
+fn a_cancelled_request_is_never_sent_again_and_its_answer_is_stray() {
+    let mut c = Client::new(ClientConfig::default()).unwrap();
+    let id = c.reset(ms(0), 0x10).unwrap();
+    assert!(c.cancel(id));
+    assert!(!c.cancel(id), "cancelled once");
+    assert!(c.poll_transmit().is_none(), "its queued frame is gone too");
+    c.handle_timeout(ms(1000));
+    assert!(c.poll_transmit().is_none(), "never resent");
+    assert!(c.poll_event().is_none(), "and never completed");
+    assert!(c.can_request(0x10), "the node's slot is free again");
+    let ack = Message {
+        header: Header {
+            source_id: 0x10,
+            target_id: 0,
+            msg_id: id,
+        },
+        payload: Payload::Ack(id),
+    };
+    c.handle_message(ms(1001), ack);
+    assert!(matches!(c.poll_event(), Some(Event::StrayReply { .. })));
+}
+
+#[test]
+fn each_node_is_spoken_to_and_heard_in_its_own_wire_version() {
+    let mut c = Client::new(ClientConfig::default()).unwrap();
+    c.set_wire(0x11, WireVersion::V2_1);
+    c.set_wire(0x13, WireVersion::V1);
+    let a = c.request(ms(0), 0x11, Payload::Activate).unwrap();
+    // v1 has no SetTargetV2: refused before anything is queued.
+    assert!(
+        c.request(
+            ms(0),
+            0x13,
+            Payload::SetTargetV2(motorwire_irpc::SetTargetPayloadV2::trapezoidal(
+                1.0, 1.0, 1.0
+            ))
+        )
+        .is_err()
+    );
+    assert_eq!(c.poll_transmit().unwrap().data(), &[0x00, 0x11, 0x01, 0x02]);
+    // Ack(1) from 0x11 in v2.1 (tag 18, WIRE-FACTS §1.4: `10 00 2a 12 2a` for 0x10).
+    let frame = Frame::fd(
+        CanId::standard(0x11).unwrap(),
+        &[0x11, 0x00, 0x01, 0x12, 0x01],
+    )
+    .unwrap();
+    c.handle_frame(ms(1), &frame);
+    let done = completion(&mut c);
+    assert_eq!((done.msg_id, done.outcome), (a, Outcome::Acked));
+    // ArmReady goes out once per version spoken: v1 (tag 9), v2.1 (tag 20), then v2.0 (tag 10).
+    c.arm_ready().unwrap();
+    let tags: Vec<u8> = std::iter::from_fn(|| c.poll_transmit())
+        .map(|f| f.data()[5])
+        .collect();
+    assert_eq!(tags, [0x09, 0x14, 0x0a]);
 }

@@ -5,6 +5,8 @@ mod error;
 mod message;
 mod nack;
 mod payload;
+#[cfg(feature = "planner")]
+mod plan;
 mod version;
 mod wire;
 

@@ -36,6 +36,10 @@ impl NackCode {
     pub const NON_FINITE: Self = Self(17);
     /// A message whose header decoded but whose payload did not (motorwire).
     pub const MALFORMED: Self = Self(18);
+    /// A motion request older than the sender's last lifecycle request
+    /// (its msg_id comes before the Activate or Deactivate that followed it):
+    /// a late copy from before an emergency stop, never executed (motorwire).
+    pub const STALE_REQUEST: Self = Self(19);
     /// A payload the joint does not handle.
     pub const UNKNOWN_PAYLOAD: Self = Self(255);
 
@@ -49,6 +53,7 @@ impl NackCode {
             16 => "target outside the joint's limits",
             17 => "non-finite value",
             18 => "malformed payload",
+            19 => "a motion request from before the last lifecycle change",
             255 => "unknown payload",
             _ => return None,
         })

@@ -27,9 +27,19 @@
 //!   payload the joint does not handle is `Nack 255`. A frame that does not
 //!   decode at all is dropped and counted in [`JointStats::bad_frames`]: its
 //!   msg_id cannot be trusted, and the client will send it again.
-//! - **Duplicates**: the answer to each of the last 256 requests is kept by
-//!   (source, msg_id); a repeat is answered the same way and never executed
-//!   again.
+//! - **Duplicates**: the answers to the last [`DEDUP_WINDOW`] (256)
+//!   requests of each sender (up to [`MAX_SENDERS`], the longest silent
+//!   forgotten first) are kept by msg_id; a repeat is answered the same way
+//!   and never executed again. A client that keeps at most one request in
+//!   flight per joint (motorwire's does) can only resend a request within
+//!   that window, so no resend is ever executed twice.
+//! - **Stale requests**: a request whose msg_id comes before the sender's
+//!   last lifecycle request (Configure, Activate, Deactivate, Reset) is
+//!   refused `Nack 19` and not executed: a late copy of a move sent before
+//!   an emergency stop cannot run after the stop or after its release.
+//!   msg_ids are compared as serial numbers (RFC 1982); one more than
+//!   [`RESTART_SPAN`] behind the last lifecycle request is a sender that
+//!   started again, whose memory is forgotten.
 //! - **Watchdog**: while moving, a joint that hears nothing from its host for
 //!   [`JointConfig::watchdog`] (200 ms) brakes to a stop at its acceleration
 //!   limit and reports [`WATCHDOG_STOP`] in `JointStatus.error_code` until
@@ -99,15 +109,48 @@ use motorwire_irpc::{
     MotionProfile, NackCode, Payload, SetTargetPayloadV2, TelemetryMode, TelemetryStream,
     WireVersion,
 };
-use motorwire_planner::{Overshoot, Profile, Request};
+use motorwire_planner::Profile;
 
 use crate::SimError;
 
 /// `JointStatus.error_code` after the watchdog braked a motion.
 pub const WATCHDOG_STOP: u16 = 1;
 
-/// How many answered requests are remembered for duplicate suppression.
-const DEDUP_WINDOW: usize = 256;
+/// How many answered requests of each sender are remembered for duplicate
+/// suppression.
+pub const DEDUP_WINDOW: usize = 256;
+
+/// How many senders' answers are remembered (the longest silent is
+/// forgotten first).
+pub const MAX_SENDERS: usize = 8;
+
+/// How far (in msg_ids) behind its last lifecycle request a sender's
+/// request may be before it counts as a sender that started again rather
+/// than a late copy.
+pub const RESTART_SPAN: u32 = 1 << 16;
+
+/// What the joint remembers of one sender.
+#[derive(Debug, Default)]
+struct Sender {
+    answers: HashMap<u32, Payload>,
+    order: VecDeque<u32>,
+    /// The msg_id of its last lifecycle request.
+    epoch: Option<u32>,
+    last_heard: Duration,
+}
+
+/// `a` comes before `b` as serial numbers (RFC 1982).
+fn serial_before(a: u32, b: u32) -> bool {
+    let d = b.wrapping_sub(a);
+    d != 0 && d < (1 << 31)
+}
+
+fn is_lifecycle(p: &Payload) -> bool {
+    matches!(
+        p,
+        Payload::Configure | Payload::Activate | Payload::Deactivate | Payload::Reset
+    )
+}
 
 /// The joint's own limits (degrees, deg/s, deg/s², deg/s³).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -183,6 +226,9 @@ pub struct JointStats {
     pub executed: u64,
     /// Repeated requests answered again without executing.
     pub duplicates: u64,
+    /// Requests from before their sender's last lifecycle request, refused
+    /// (Nack 19) without executing.
+    pub stale: u64,
     /// Frames that did not decode, dropped.
     pub bad_frames: u64,
     /// Motions braked by the watchdog.
@@ -239,8 +285,7 @@ pub struct SimJoint {
     now: Duration,
     host: u16,
     last_heard: Duration,
-    answers: HashMap<(u16, u32), Payload>,
-    answer_order: VecDeque<(u16, u32)>,
+    senders: HashMap<u16, Sender>,
     out: VecDeque<Frame>,
     next_msg_id: u32,
     next_encoder: Duration,
@@ -304,8 +349,7 @@ impl SimJoint {
             now: Duration::ZERO,
             host: ARM_NODE,
             last_heard: Duration::ZERO,
-            answers: HashMap::new(),
-            answer_order: VecDeque::new(),
+            senders: HashMap::new(),
             out: VecDeque::new(),
             next_msg_id: 1,
             next_encoder: Duration::ZERO,
@@ -535,10 +579,36 @@ impl SimJoint {
             return None;
         }
         self.last_heard = self.now;
-        if let Some(answer) = self.answers.get(&(h.source_id, h.msg_id)).copied() {
+        if let Some(answer) = self.sender(h.source_id).answers.get(&h.msg_id).copied() {
             self.stats.duplicates += 1;
             self.emit(h.source_id, h.msg_id, answer);
             return None;
+        }
+        let lifecycle = is_lifecycle(&message.payload);
+        let sender = self.sender(h.source_id);
+        if let Some(epoch) = sender.epoch
+            && serial_before(h.msg_id, epoch)
+        {
+            if epoch.wrapping_sub(h.msg_id) > RESTART_SPAN {
+                // Not a late copy: the sender started again.
+                *sender = Sender {
+                    last_heard: sender.last_heard,
+                    ..Sender::default()
+                };
+            } else {
+                self.stats.stale += 1;
+                self.answer(
+                    h,
+                    Payload::Nack {
+                        id: h.msg_id,
+                        error: NackCode::STALE_REQUEST.0,
+                    },
+                );
+                return None;
+            }
+        }
+        if lifecycle {
+            self.sender(h.source_id).epoch = Some(h.msg_id);
         }
         self.host = h.source_id;
         let answer = self.execute(&message);
@@ -556,6 +626,25 @@ impl SimJoint {
         Some(execution)
     }
 
+    /// What the joint remembers of `source`, made (forgetting the longest
+    /// silent sender when [`MAX_SENDERS`] are known) if new.
+    fn sender(&mut self, source: u16) -> &mut Sender {
+        if !self.senders.contains_key(&source) && self.senders.len() >= MAX_SENDERS {
+            let oldest = self
+                .senders
+                .iter()
+                .min_by_key(|(_, s)| s.last_heard)
+                .map(|(id, _)| *id);
+            if let Some(id) = oldest {
+                self.senders.remove(&id);
+            }
+        }
+        let now = self.now;
+        let s = self.senders.entry(source).or_default();
+        s.last_heard = now;
+        s
+    }
+
     fn is_for_me(&self, target: u16) -> bool {
         target == self.config.node_id || target == 0xFFFF || target == ARM_NODE
     }
@@ -565,13 +654,13 @@ impl SimJoint {
             Payload::Ack(_) => self.stats.acked += 1,
             _ => self.stats.nacked += 1,
         }
-        let key = (h.source_id, h.msg_id);
-        if self.answers.insert(key, answer).is_none() {
-            self.answer_order.push_back(key);
+        let sender = self.sender(h.source_id);
+        if sender.answers.insert(h.msg_id, answer).is_none() {
+            sender.order.push_back(h.msg_id);
         }
-        while self.answer_order.len() > DEDUP_WINDOW {
-            if let Some(old) = self.answer_order.pop_front() {
-                self.answers.remove(&old);
+        while sender.order.len() > DEDUP_WINDOW {
+            if let Some(old) = sender.order.pop_front() {
+                sender.answers.remove(&old);
             }
         }
         self.emit(h.source_id, h.msg_id, answer);
@@ -678,26 +767,7 @@ impl SimJoint {
         if !within {
             return nack(NackCode::OUT_OF_LIMITS);
         }
-        let profile = match cmd.profile {
-            MotionProfile::Trapezoidal => motorwire_planner::MotionProfile::Trapezoidal,
-            MotionProfile::SCurve => motorwire_planner::MotionProfile::SCurve,
-            MotionProfile::Adaptive => motorwire_planner::MotionProfile::Adaptive,
-        };
-        let mut req = Request::new(
-            self.position,
-            f64::from(cmd.target_angle),
-            f64::from(cmd.max_velocity),
-            f64::from(cmd.max_acceleration),
-        )
-        .with_velocities(self.velocity, f64::from(cmd.target_velocity))
-        .with_max_deceleration(f64::from(decel))
-        .with_profile(profile)
-        .with_overshoot(Overshoot::Allow);
-        if jerk_limited {
-            req = req.with_jerk(f64::from(cmd.max_jerk));
-        } else {
-            req.profile = motorwire_planner::MotionProfile::Trapezoidal;
-        }
+        let req = cmd.planner_request(self.position, self.velocity);
         let Ok(planned) = motorwire_planner::plan(&req) else {
             return nack(NackCode::OUT_OF_LIMITS);
         };

@@ -3,7 +3,10 @@
 pub mod joint;
 pub mod rig;
 
-pub use joint::{Execution, JointConfig, JointLimits, JointStats, SimJoint, WATCHDOG_STOP};
+pub use joint::{
+    DEDUP_WINDOW, Execution, JointConfig, JointLimits, JointStats, MAX_SENDERS, RESTART_SPAN,
+    SimJoint, WATCHDOG_STOP,
+};
 
 use thiserror::Error;
 

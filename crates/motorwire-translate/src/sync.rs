@@ -1,10 +1,8 @@
 //! Synchronized multi-axis moves on iRPC joints.
 
 use motorwire_core::ControlMode;
-use motorwire_irpc::{MotionProfile, Payload, SetTargetPayloadV2};
-use motorwire_planner::{
-    Float, MotionProfile as Shape, Request, minimum_duration, plan, plan_with_duration,
-};
+use motorwire_irpc::{Payload, SetTargetPayloadV2};
+use motorwire_planner::{Request, minimum_duration, plan, plan_with_duration};
 use motorwire_wia::{MultiAxisCommand, SyncMode};
 
 use crate::command::to_irpc;
@@ -210,42 +208,13 @@ pub fn multi_axis_to_irpc(
     })
 }
 
-fn shape(profile: MotionProfile, jerk: f32) -> Shape {
-    match profile {
-        MotionProfile::Trapezoidal => Shape::Trapezoidal,
-        MotionProfile::SCurve if jerk > 0.0 => Shape::SCurve,
-        MotionProfile::SCurve => Shape::Trapezoidal,
-        MotionProfile::Adaptive => Shape::Adaptive,
-    }
-}
-
-/// The planner's request for the move a joint makes on `p` from `start`
-/// (degrees), in f64.
+/// The planner's request for the move a joint makes on `p` from rest at
+/// `start` (degrees), in f64: the joint's own reading of a `SetTargetV2`.
 fn joint_request(start: f64, p: &SetTargetPayloadV2) -> Request<f64> {
-    let r = Request::new(
-        start,
-        f64::from(p.target_angle),
-        f64::from(p.max_velocity),
-        f64::from(p.max_acceleration),
-    )
-    .with_max_deceleration(f64::from(p.max_deceleration))
-    .with_profile(shape(p.profile, p.max_jerk));
-    with_positive_jerk(r, f64::from(p.max_jerk))
+    p.planner_request(start, 0.0)
 }
 
 /// The same request as the joint sees it, in f32.
 fn joint_request_f32(start: f32, p: &SetTargetPayloadV2) -> Request<f32> {
-    let r = Request::new(start, p.target_angle, p.max_velocity, p.max_acceleration)
-        .with_max_deceleration(p.max_deceleration)
-        .with_profile(shape(p.profile, p.max_jerk));
-    with_positive_jerk(r, p.max_jerk)
-}
-
-/// Sets `max_jerk` when positive (iRPC: `<= 0` is no jerk limit), keeping
-/// the profile as chosen.
-fn with_positive_jerk<F: Float>(mut r: Request<F>, jerk: F) -> Request<F> {
-    if jerk > F::ZERO {
-        r.max_jerk = Some(jerk);
-    }
-    r
+    p.planner_request(start, 0.0)
 }
