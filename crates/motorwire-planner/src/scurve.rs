@@ -256,6 +256,7 @@ impl<F: Float> Model<F> {
 
     /// [`Self::distance`] at the peak `base + y`, with the ramps' velocity
     /// changes computed from `base` and `y` separately.
+    #[inline(always)]
     pub(crate) fn distance_from(&self, base: F, y: F) -> (F, F) {
         let x = base + y;
         let (d1, d2) = ((base - self.v0) + y, (self.v1 - base) - y);
@@ -280,6 +281,7 @@ impl<F: Float> Model<F> {
 
     /// The offset `x` in `[lo, hi]` with `d(base + x) = target`, given
     /// `d(base + lo) <= target < d(base + hi)` (or within rounding of it).
+    #[inline(always)]
     fn root(&self, base: F, mut lo: F, mut hi: F, start: F, target: F) -> F {
         let eps = F::EPSILON * F::TWO;
         let mut x = start;
@@ -370,6 +372,7 @@ impl<F: Float> Model<F> {
     /// holds exactly one root (`d` rises then falls along it, and
     /// `d(lo) > dist`). With unbounded jerk (trapezoidal ramps) `d` is
     /// smooth in `x` and the search runs there.
+    #[inline(never)]
     fn peak_below(&self, dist: F) -> Peak<F> {
         let lo = self.v0.min(self.v1);
         let span = (lo + self.vmax).max(F::ZERO);
@@ -392,7 +395,11 @@ impl<F: Float> Model<F> {
         } else {
             s_hi
         };
-        for i in 0..MAX_ROOT_ITERATIONS {
+        // Newton while it stays inside the bracket and at least halves
+        // the residual each step (it converges from one side, so the
+        // bracket need not shrink), bisection otherwise.
+        let mut last = infinity::<F>();
+        for _ in 0..MAX_ROOT_ITERATIONS {
             let (y, slope_x) = self.distance_from(lo, -depth(s));
             let g = y - dist;
             if g == F::ZERO {
@@ -409,11 +416,14 @@ impl<F: Float> Model<F> {
             // dd/ds = d'(x) dx/ds = -2 J s d'(x).
             let slope = -F::TWO * self.jerk * s * slope_x;
             let newton = s - g / slope;
-            s = if i % 4 != 3 && newton.is_finite() && newton > s_lo && newton < s_hi {
-                if (newton - s).abs() <= eps * s_hi {
-                    s = newton;
-                    break;
-                }
+            let stalled = g.abs() > last * F::HALF;
+            last = g.abs();
+            if (newton - s).abs() <= eps * s {
+                // Converged (the step may not even leave `s`, the end of
+                // the bracket it just set).
+                break;
+            }
+            s = if !stalled && newton > s_lo && newton < s_hi {
                 newton
             } else {
                 s_lo + (s_hi - s_lo) * F::HALF
@@ -468,15 +478,23 @@ impl<F: Float> Model<F> {
         if v0.abs() <= vmax {
             // Here D < d(b) = d(min(v0, v1)) (module docs, case 3): the
             // largest root below min(v0, v1), or a backward cruise.
-            if covers(self.distance(-vmax)) {
+            let d_bottom = self.distance(-vmax);
+            if covers(d_bottom) {
                 return self.peak_below(dist);
             }
-            let d_bottom = self.distance(-vmax);
             return Peak::at(-vmax, ((d_bottom - dist) / vmax).max(F::ZERO));
         }
-        // A start above the limit: scan down for the first point that
-        // covers no more than `dist`, through the places where d changes
-        // shape.
+        self.peak_scan(dist, b)
+    }
+
+    /// A start above the limit: scans down from `b` for the first point
+    /// that covers no more than `dist`, through the places where d changes
+    /// shape, then searches the root in that bracket. Kept out of line, as
+    /// [`Self::peak_below`] is, so the common cases stay small.
+    #[inline(never)]
+    fn peak_scan(&self, dist: F, b: F) -> Peak<F> {
+        let (vmax, v0, v1) = (self.vmax, self.v0, self.v1);
+        let covers = |d: F| d <= dist + F::from_f64(64.0) * F::EPSILON * (dist.abs() + d.abs());
         let mut anchors = [b, vmax, vmax, -vmax];
         let mut n = 1;
         for p in [v0.min(v1), F::ZERO] {
