@@ -19,7 +19,7 @@ pub use duration::{
 pub use error::PlanError;
 pub use float::Float;
 pub use plan::plan;
-pub use profile::{MAX_PHASES, Phase, Profile, State, Ticks};
+pub use profile::{MAX_PHASES, Phase, PositionExtrema, Profile, State, Ticks};
 pub use request::{MotionProfile, Overshoot, Request};
 pub use scurve::{MAX_ROOT_ITERATIONS, SCAN_POINTS, plan_scurve};
 pub use sync::synchronize_phases;

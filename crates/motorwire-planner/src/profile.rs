@@ -20,6 +20,50 @@ pub struct State<F> {
     pub jerk: F,
 }
 
+/// The lowest and highest positions along a profile's whole path, and when
+/// it reaches them ([`Profile::position_extrema`]). Times are seconds from
+/// the start; where an extreme is reached more than once, one of the
+/// times it is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionExtrema<F> {
+    /// The lowest position.
+    pub min: F,
+    /// When the lowest position is reached (s).
+    pub t_min: F,
+    /// The highest position.
+    pub max: F,
+    /// When the highest position is reached (s).
+    pub t_max: F,
+}
+
+impl<F: Float> PositionExtrema<F> {
+    /// How far the path goes below `lower`, and when it is lowest:
+    /// `Some((lower - min, t_min))`, or `None` if it never goes below.
+    ///
+    /// ```
+    /// use motorwire_planner::PositionExtrema;
+    /// let e = PositionExtrema { min: -1.5f32, t_min: 0.25, max: 3.0, t_max: 1.0 };
+    /// assert_eq!(e.below(-1.0), Some((0.5, 0.25)));
+    /// assert_eq!(e.below(-1.5), None); // reaching a limit is not passing it
+    /// ```
+    pub fn below(&self, lower: F) -> Option<(F, F)> {
+        (self.min < lower).then(|| (lower - self.min, self.t_min))
+    }
+
+    /// How far the path goes above `upper`, and when it is highest:
+    /// `Some((max - upper, t_max))`, or `None` if it never goes above.
+    ///
+    /// ```
+    /// use motorwire_planner::PositionExtrema;
+    /// let e = PositionExtrema { min: -1.5f64, t_min: 0.25, max: 3.0, t_max: 1.0 };
+    /// assert_eq!(e.above(2.0), Some((1.0, 1.0)));
+    /// assert_eq!(e.above(3.0), None);
+    /// ```
+    pub fn above(&self, upper: F) -> Option<(F, F)> {
+        (self.max > upper).then(|| (self.max - upper, self.t_max))
+    }
+}
+
 /// One phase of a profile, as [`Profile::phases`] yields it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Phase<F> {
@@ -206,8 +250,46 @@ impl<F: Float> Profile<F> {
         }
     }
 
+    /// The lowest and highest positions along the whole path, each with
+    /// the time it is reached: [`PositionExtrema`]. Exact, not sampled:
+    /// each phase's position is a cubic whose extremes lie at the phase's
+    /// ends or where its velocity crosses zero (the roots of
+    /// `v + a t + j t²/2`), so an overshoot past the target, or a start
+    /// moving away from it, is found however short it is. The start and the
+    /// end count (a move that never reverses has its extrema there). A
+    /// safety gate compares these with a motor's position limits.
+    ///
+    /// ```
+    /// use motorwire_planner::{Request, plan_scurve};
+    ///
+    /// // 110 units/s towards a target 7.43 away, to arrive at -54.28 units/s
+    /// // (issue 17's example): the path passes the target by 4.12.
+    /// let req = Request::new(7.568808115350748f64, 15.002252214259556, 178.86060348763993, 1536.4613817844474)
+    ///     .with_velocities(110.01997366326663, -54.28459435217094)
+    ///     .with_jerk(8919.108436621469);
+    /// let e = plan_scurve(&req)?.position_extrema();
+    /// assert_eq!((e.min, e.t_min), (7.568808115350748, 0.0)); // the start
+    /// assert!((e.max - 19.126339397731826).abs() < 1e-12); // Ruckig's, to 1e-12
+    /// assert!((e.t_max - 0.1611204936725121).abs() < 1e-12);
+    /// // Against limits [-10, 18]: 1.126 past the upper one, at 0.161 s.
+    /// let (by, at) = e.above(18.0).unwrap();
+    /// assert!((by - 1.126339397731826).abs() < 1e-12 && at == e.t_max);
+    /// assert_eq!(e.below(-10.0), None);
+    /// # Ok::<(), motorwire_planner::PlanError>(())
+    /// ```
+    pub fn position_extrema(&self) -> PositionExtrema<F> {
+        let ((min, t_min), (max, t_max)) = self.position_extremes();
+        PositionExtrema {
+            min,
+            t_min,
+            max,
+            t_max,
+        }
+    }
+
     /// The lowest and highest positions the motion reaches, each with the
-    /// time it is reached: `((min, t_min), (max, t_max))`.
+    /// time it is reached: `((min, t_min), (max, t_max))`, as
+    /// [`Self::position_extrema`] has them.
     pub fn position_extremes(&self) -> ((F, F), (F, F)) {
         let end = (self.end_position, self.duration());
         let mut lo = end;
@@ -438,6 +520,7 @@ impl<'a, F: Float> Builder<'a, F> {
     /// planned. The next phase starts from that velocity and from the
     /// position `p + duration (v + end_velocity) / 2`, exact for constant
     /// acceleration, rather than from re-integrated, rounded products.
+    #[inline(always)]
     pub(crate) fn constant_acceleration(&mut self, duration: F, a: F, end_velocity: F) {
         let before = self.profile.count;
         let start = self.state;

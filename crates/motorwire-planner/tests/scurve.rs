@@ -574,3 +574,106 @@ fn issue_17_a_saturated_change_then_a_short_return() {
     assert!((t_lo - 0.183_506_031_706_510_5).abs() < 4e-6, "{t_lo}");
     assert_eq!((hi, t_hi), (-2.745603535009467, 0.0));
 }
+
+// ---- position extrema along the whole path -------------------------------
+
+/// Checks `position_extrema` against 4,000 samples of the profile and its
+/// phase ends: every sample lies within [min, max] (to rounding), and the
+/// profile sampled at `t_min` and `t_max` is at `min` and `max`.
+fn check_extrema<F: Float>(p: &Profile<F>, tol: f64) -> (f64, f64) {
+    let e = p.position_extrema();
+    let (min, max) = (e.min.to_f64(), e.max.to_f64());
+    let scale = min.abs().max(max.abs()).max(1.0);
+    let t_end = p.duration().to_f64();
+    let mut times: Vec<f64> = (0..=4000).map(|i| t_end * f64::from(i) / 4000.0).collect();
+    times.extend(p.phases().map(|ph| ph.start_time.to_f64()));
+    let (mut lowest, mut highest) = (f64::INFINITY, f64::NEG_INFINITY);
+    for t in times {
+        let x = p.sample(F::from_f64(t)).position.to_f64();
+        assert!(
+            x >= min - tol * scale && x <= max + tol * scale,
+            "{x} at {t} outside [{min}, {max}]"
+        );
+        lowest = lowest.min(x);
+        highest = highest.max(x);
+    }
+    let at = |t: F| p.sample(t).position.to_f64();
+    assert!(
+        (at(e.t_min) - min).abs() <= tol * scale,
+        "{} at t_min vs {min}",
+        at(e.t_min)
+    );
+    assert!(
+        (at(e.t_max) - max).abs() <= tol * scale,
+        "{} at t_max vs {max}",
+        at(e.t_max)
+    );
+    // The extrema are attained, so sampling finds them to within what a
+    // sample spacing can miss (and never beyond them).
+    (min - lowest, highest - max)
+}
+
+#[test]
+fn position_extrema_bound_the_sampled_path_f64_and_f32() {
+    let mut rng = Rng(0x4578_7472_656d_6121);
+    let mut reversing = 0;
+    for _ in 0..20_000 {
+        let req = random_request(&mut rng);
+        let p = plan_scurve(&req).unwrap();
+        check_extrema(&p, 1e-12);
+        let e = p.position_extrema();
+        if e.min < req.start.min(req.target) || e.max > req.start.max(req.target) {
+            reversing += 1;
+        }
+        if let Ok(p32) = plan_scurve(&common::to_f32(&req)) {
+            // f32 profiles are continuous to 1e-5 of the path's extent
+            // (`f32_profiles_end_within_relative_1e_5`).
+            check_extrema(&p32, 1e-5);
+        }
+    }
+    // Many of these paths leave the interval between start and target:
+    // the extrema are not just the end points.
+    assert!(reversing > 2_000, "{reversing}");
+}
+
+#[test]
+fn position_extrema_of_named_moves() {
+    // Rest-to-rest: the ends.
+    let p = plan_checked(&scurve(0.0, 90.0, 100.0, 500.0, 2000.0));
+    let e = p.position_extrema();
+    assert_eq!(
+        (e.min, e.t_min, e.max, e.t_max),
+        (0.0, 0.0, 90.0, p.duration())
+    );
+    assert_eq!((e.below(0.0), e.above(90.0)), (None, None));
+    // Trapezoidal, 10 units/s towards a target 1 ahead, braking at 1
+    // unit/s²: the farthest point is where the velocity reaches zero,
+    // 10²/2 = 50, at t = 10 s.
+    let t =
+        plan_trapezoidal(&Request::new(0.0f64, 1.0, 10.0, 1.0).with_velocities(10.0, 0.0)).unwrap();
+    let e = t.position_extrema();
+    assert_eq!((e.max, e.t_max), (50.0, 10.0));
+    assert_eq!(e.above(45.0), Some((5.0, 10.0)));
+    // f32: the issue's example, the same extrema to f32's precision.
+    let req = common::to_f32(&full_state([
+        7.568808115350748,
+        15.002252214259556,
+        110.01997366326663,
+        -54.28459435217094,
+        178.86060348763993,
+        1536.4613817844474,
+        8919.108436621469,
+    ]));
+    let e = plan_scurve(&req).unwrap().position_extrema();
+    assert_eq!((e.min, e.t_min), (req.start, 0.0));
+    assert!(
+        (f64::from(e.max) - 19.126_339_397_731_826).abs() < 2e-5,
+        "{}",
+        e.max
+    );
+    assert!(
+        (f64::from(e.t_max) - 0.161_120_493_672_512_1).abs() < 2e-6,
+        "{}",
+        e.t_max
+    );
+}
