@@ -1,20 +1,31 @@
 //! The planner: `sample` against a bare cubic (the arithmetic any sampler
 //! must do) in the same run; `plan_trapezoidal` on seeded random inputs; and
 //! `plan_scurve` against rsruckig (the pure-Rust port of Ruckig) on the same
-//! random inputs, rest-to-rest and full-state sets separately.
+//! random inputs, rest-to-rest and full-state sets separately; Ruckig
+//! itself (C++, through its Python package) on the same full-state
+//! requests when `MOTORWIRE_RUCKIG_PYTHON` names a Python that has
+//! `ruckig` 0.19.4; and the latency distribution of exact-duration planning
+//! (p50, p99, p99.9 and max of 100,000 seeded requests, each timed alone).
 //!
 //! `cargo bench -p motorwire-benches --bench planner`
+//! (`MOTORWIRE_RUCKIG_PYTHON=target/ruckig-venv/bin/python` to add Ruckig)
 #![allow(
     missing_docs,
     clippy::unwrap_used,
     clippy::expect_used,
-    clippy::indexing_slicing
+    clippy::indexing_slicing,
+    clippy::panic
 )]
 
 use std::hint::black_box;
+use std::io::Write;
+use std::process::{Command, Stdio};
+use std::time::Instant;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use motorwire_planner::{Request, plan_scurve, plan_trapezoidal};
+use motorwire_planner::{
+    PlanError, Request, minimum_duration, plan_scurve, plan_trapezoidal, plan_with_duration,
+};
 use rsruckig::prelude::*;
 
 struct Rng(u64);
@@ -27,9 +38,18 @@ impl Rng {
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         z ^ (z >> 31)
     }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * ((self.next() >> 11) as f64 / (1u64 << 53) as f64)
+    fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
     }
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+}
+
+/// Whether criterion measures (`cargo bench`) rather than runs each
+/// benchmark once (`cargo test --benches` passes no `--bench`).
+fn measuring() -> bool {
+    std::env::args().any(|a| a == "--bench")
 }
 
 fn requests(full_state: bool) -> Vec<Request<f64>> {
@@ -89,6 +109,7 @@ fn planner(c: &mut Criterion) {
             plan_trapezoidal(black_box(&full[i])).unwrap()
         })
     });
+    let mut full_jerky = Vec::new();
     for (name, set) in [("rest_to_rest", &rest), ("full_state", &full)] {
         let jerky: Vec<Request<f64>> = set
             .iter()
@@ -96,6 +117,9 @@ fn planner(c: &mut Criterion) {
             .map(|(i, r)| r.with_jerk(1000.0 + 19.0 * i as f64))
             .collect();
         let inputs: Vec<InputParameter<1>> = jerky.iter().map(ruckig_input).collect();
+        if name == "full_state" {
+            full_jerky.clone_from(&jerky);
+        }
         g.bench_function(format!("plan_scurve_{name}"), |b| {
             let mut i = 0usize;
             b.iter(|| {
@@ -116,6 +140,98 @@ fn planner(c: &mut Criterion) {
         });
     }
     g.finish();
+    ruckig_python(&full_jerky);
+    exact_duration_latency(if measuring() { 100_000 } else { 2_000 });
+}
+
+/// Times Ruckig (C++, through its Python package) on `requests` with
+/// `tools/ruckig_reference.py --time`, when `MOTORWIRE_RUCKIG_PYTHON` names
+/// a Python that has it; prints the script's line (the time per call
+/// includes Python's overhead of the call and of building Ruckig's result).
+fn ruckig_python(requests: &[Request<f64>]) {
+    let Ok(python) = std::env::var("MOTORWIRE_RUCKIG_PYTHON") else {
+        println!("planner/ruckig_python_full_state: not measured (set MOTORWIRE_RUCKIG_PYTHON)");
+        return;
+    };
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../crates/motorwire-planner/tools/ruckig_reference.py"
+    );
+    let passes = if measuring() { "200" } else { "1" };
+    let mut child = Command::new(python)
+        .args([script, "--time", passes])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("MOTORWIRE_RUCKIG_PYTHON runs");
+    let mut stdin = child.stdin.take().unwrap();
+    for r in requests {
+        let i = ruckig_input(r);
+        writeln!(
+            stdin,
+            "{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?}",
+            i.current_position[0],
+            i.target_position[0],
+            i.current_velocity[0],
+            i.target_velocity[0],
+            i.max_velocity[0],
+            i.max_acceleration[0],
+            i.min_acceleration.as_ref().unwrap()[0],
+            i.max_jerk[0]
+        )
+        .unwrap();
+    }
+    drop(stdin);
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{script} --time failed");
+    print!("planner/{}", String::from_utf8_lossy(&out.stdout));
+}
+
+/// The latency distribution of `plan_with_duration`: `n` seeded random
+/// full-state S-curve requests (the full-state set's ranges, jerk 1000 to
+/// 20,000), each asked for its minimum duration times a factor uniform in
+/// [1, 4]; each call timed alone, three times, the fastest kept (so a
+/// preemption of the benchmark is not counted as the planner's).
+fn exact_duration_latency(n: usize) {
+    let mut rng = Rng(17);
+    let mut ns = Vec::with_capacity(n);
+    let (mut met, mut blocked) = (0usize, 0usize);
+    for _ in 0..n {
+        let vmax = rng.range(10.0, 200.0);
+        let req = Request::new(
+            rng.range(-180.0, 180.0),
+            rng.range(-180.0, 180.0),
+            vmax,
+            rng.range(50.0, 2000.0),
+        )
+        .with_max_deceleration(rng.range(50.0, 2000.0))
+        .with_velocities(rng.range(-vmax, vmax), rng.range(-vmax, vmax))
+        .with_jerk(rng.range(1000.0, 20000.0));
+        let t = minimum_duration(&req).unwrap() * (1.0 + 3.0 * rng.unit());
+        let mut best = u128::MAX;
+        for _ in 0..3 {
+            let start = Instant::now();
+            let r = plan_with_duration(black_box(&req), black_box(t));
+            best = best.min(start.elapsed().as_nanos());
+            match black_box(r) {
+                Ok(_) => met += 1,
+                Err(PlanError::DurationBlocked { .. }) => blocked += 1,
+                Err(e) => panic!("{req:?} in {t} s: {e}"),
+            }
+        }
+        ns.push(best);
+    }
+    ns.sort_unstable();
+    let at = |q: f64| ns[((ns.len() - 1) as f64 * q).round() as usize];
+    let (p50, max) = (at(0.5), ns[ns.len() - 1]);
+    println!(
+        "planner/plan_with_duration latency over {n} requests ({} met, {} blocked): p50 {p50} ns, p99 {} ns, p99.9 {} ns, max {max} ns ({:.1}x the median)",
+        met / 3,
+        blocked / 3,
+        at(0.99),
+        at(0.999),
+        max as f64 / p50.max(1) as f64
+    );
 }
 
 /// The same move for Ruckig: acceleration towards the target is

@@ -18,6 +18,13 @@ per call (measured around that call alone, Python's overhead of the call
 included).
 
     python3 ruckig_reference.py --seed 17 --count 100000 > ruckig.csv
+
+With `--time PASSES` it instead reads requests from stdin, one a line,
+`start,target,start_velocity,target_velocity,max_velocity,max_acceleration,min_acceleration,max_jerk`
+(`min_acceleration` negative), plans all of them PASSES times and prints
+`ruckig python: N ns per call` (the median pass; Python's overhead of the
+call included). The planner benchmark uses it to time Ruckig on its own
+requests in the same run.
 """
 
 import argparse
@@ -61,11 +68,52 @@ def request(rng):
     return (p0, p1, v0, v1, vmax, acc, jerk)
 
 
+def time_requests(passes):
+    """Times Ruckig's calculate on the requests read from stdin."""
+    inputs = []
+    for line in sys.stdin:
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        p0, p1, v0, v1, vmax, amax, amin, jerk = (float(f) for f in line.split(","))
+        inp = ruckig.InputParameter(1)
+        inp.current_position = [p0]
+        inp.target_position = [p1]
+        inp.current_velocity = [v0]
+        inp.target_velocity = [v1]
+        inp.max_velocity = [vmax]
+        inp.max_acceleration = [amax]
+        inp.min_acceleration = [amin]
+        inp.max_jerk = [jerk]
+        inputs.append(inp)
+    otg = ruckig.Ruckig(1)
+    traj = ruckig.Trajectory(1)
+    per_pass = []
+    failed = 0
+    for _ in range(passes):
+        t0 = time.perf_counter_ns()
+        for inp in inputs:
+            if otg.calculate(inp, traj) != ruckig.Result.Working:
+                failed += 1
+        per_pass.append((time.perf_counter_ns() - t0) / max(len(inputs), 1))
+    per_pass.sort()
+    print(
+        "ruckig python: %.1f ns per call (median of %d passes over %d requests, %d failed)"
+        % (per_pass[len(per_pass) // 2], passes, len(inputs), failed)
+    )
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--seed", type=int, required=True)
-    parser.add_argument("--count", type=int, required=True)
+    parser.add_argument("--seed", type=int)
+    parser.add_argument("--count", type=int)
+    parser.add_argument("--time", type=int, metavar="PASSES")
     args = parser.parse_args()
+    if args.time is not None:
+        time_requests(args.time)
+        return
+    if args.seed is None or args.count is None:
+        parser.error("--seed and --count are required (or --time)")
 
     rng = random.Random(args.seed)
     otg = ruckig.Ruckig(1)
