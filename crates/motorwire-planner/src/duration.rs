@@ -38,8 +38,9 @@
 //! whose durations span the request, plus one for the feasibility boundary;
 //! at most two island rescans of 32 points. On 100,000 seeded random
 //! full-state requests (the planner benchmark's `plan_with_duration`
-//! latency), the slowest took 6.6 times the median (5.1 µs against 0.77 µs;
-//! before this bound, rescanning every infeasible cell, 51 times: 38.8 µs).
+//! latency), the slowest took at most 6.6 times the median in three runs
+//! (4.2 to 5.1 µs against 0.74 to 0.77 µs; before this bound, rescanning
+//! every infeasible cell, 51 times: 38.8 µs).
 
 use crate::scurve::{Model, Peak, build, solve};
 use crate::{Float, PlanError, Profile, Request};
