@@ -4,7 +4,9 @@
 //! ±max_velocity, deceleration equal to acceleration) must never exceed
 //! Ruckig's time-optimal duration by more than 1e-9 relative; where it is
 //! shorter, the profile is sampled and checked against every limit and the
-//! target.
+//! target. Each request rounded to f32 is planned in f32 and in f64 (from
+//! the same rounded inputs): the f32 duration must not exceed the f64 one
+//! by more than 1e-5.
 //!
 //! Ruckig's durations come from a file `tools/ruckig_reference.py` writes:
 //!
@@ -33,6 +35,10 @@ use motorwire_planner::{Profile, Request, plan_scurve};
 
 /// How much longer than Ruckig motorwire may be, relative.
 const LONGER: f64 = 1e-9;
+
+/// How much longer an f32 profile may be than the f64 one of the same
+/// (rounded) request: f32 finds its roots to a few of its ulps.
+const LONGER_F32: f64 = 1e-5;
 
 /// One line of the reference file.
 struct Case {
@@ -122,6 +128,7 @@ fn never_longer_than_ruckig() {
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     let (mut cases, mut longer, mut shorter, mut ruckig_failed) = (0usize, 0usize, 0usize, 0usize);
     let (mut worst, mut worst_case) = (0.0f64, None);
+    let (mut worst_f32, mut longer_f32) = (0.0f64, 0usize);
     let mut failures = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let Some(case) = parse(line, i + 1) else {
@@ -135,6 +142,25 @@ fn never_longer_than_ruckig() {
             ruckig_failed += 1;
             sample_check(&req, &ours);
             continue;
+        }
+        // f32: the request rounded to f32 is another request (a distance of
+        // 2e-4 at position 50 moves by 2%), whose time-optimal duration is
+        // that of the f64 planner, just checked against Ruckig: the f32
+        // planner must find the same profile, to f32's precision.
+        let req32 = common::to_f32(&req);
+        if let (Ok(p32), Ok(p64)) = (plan_scurve(&req32), plan_scurve(&common::to_f64(&req32))) {
+            let r32 = f64::from(p32.duration()) / p64.duration();
+            worst_f32 = worst_f32.max(r32);
+            if r32 > 1.0 + LONGER_F32 {
+                longer_f32 += 1;
+                if failures.len() < 20 {
+                    failures.push(format!(
+                        "f32 {req32:?}: motorwire {} s in f32, {} s in f64",
+                        p32.duration(),
+                        p64.duration()
+                    ));
+                }
+            }
         }
         let ratio = ours.duration() / case.ruckig;
         if ratio > worst {
@@ -161,6 +187,9 @@ fn never_longer_than_ruckig() {
         "ruckig reference: {cases} cases, worst ratio motorwire/Ruckig {worst:.15}, longer than Ruckig by more than 1e-9: {longer} ({:.3}%), shorter (and checked by sampling): {shorter} ({:.3}%), Ruckig failed: {ruckig_failed}",
         share(longer),
         share(shorter),
+    );
+    println!(
+        "ruckig reference: f32 against f64 on the rounded requests: worst ratio {worst_f32:.9}, longer by more than {LONGER_F32:e}: {longer_f32}"
     );
     if let Some((req, ours, theirs)) = worst_case {
         println!("ruckig reference: worst case {req:?}: motorwire {ours} s, Ruckig {theirs} s");

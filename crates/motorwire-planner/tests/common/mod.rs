@@ -92,6 +92,22 @@ pub fn to_f32(r: &Request<f64>) -> Request<f32> {
     }
 }
 
+/// The same request in f64 (each field exactly).
+pub fn to_f64(r: &Request<f32>) -> Request<f64> {
+    Request {
+        start: f64::from(r.start),
+        target: f64::from(r.target),
+        start_velocity: f64::from(r.start_velocity),
+        target_velocity: f64::from(r.target_velocity),
+        max_velocity: f64::from(r.max_velocity),
+        max_acceleration: f64::from(r.max_acceleration),
+        max_deceleration: r.max_deceleration.map(f64::from),
+        max_jerk: r.max_jerk.map(f64::from),
+        profile: r.profile,
+        overshoot: r.overshoot,
+    }
+}
+
 /// Checks a jerk-limited profile against its request, phase by phase,
 /// analytically: jerk in {-J, 0, J}; acceleration within max_acceleration
 /// towards the target and max_deceleration away from it (and, where the
