@@ -224,3 +224,36 @@ fn an_island_of_feasible_cruises_inside_one_grid_cell() {
         other => panic!("{other:?}"),
     }
 }
+
+/// With equal acceleration and deceleration, the shortest exact duration of
+/// a trapezoidal request (the S-curve model with unbounded jerk) is the
+/// trapezoidal planner's duration, full-state requests included. The two
+/// solvers are independent; this checks the model's peak below
+/// `min(v0, v1)` (issue 17's case 3), which with unbounded jerk is searched
+/// in the velocity itself rather than in the square root of the return
+/// ramp's depth. (Unlike the S-curve model, this one chose right before
+/// issue 17 too.)
+#[test]
+fn minimum_duration_of_a_trapezoidal_request_is_the_trapezoidal_planners() {
+    let mut rng = Rng(0x7472_6170_6d69_6e21);
+    let mut compared = 0;
+    while compared < 20_000 {
+        let req = common::random_request(&mut rng).with_profile(MotionProfile::Trapezoidal);
+        if req
+            .max_deceleration
+            .is_some_and(|d| d != req.max_acceleration)
+        {
+            continue;
+        }
+        let Ok(p) = plan_trapezoidal(&req) else {
+            continue;
+        };
+        let m = minimum_duration(&req).unwrap();
+        assert!(
+            (m - p.duration()).abs() <= 1e-9 * p.duration().max(1e-300),
+            "{req:?}: minimum_duration {m}, plan_trapezoidal {}",
+            p.duration()
+        );
+        compared += 1;
+    }
+}
