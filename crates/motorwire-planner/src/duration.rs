@@ -24,10 +24,14 @@
 //! finds any duration between its ends. The cruise is infeasible where the
 //! ramps cover more than the distance (forward) or less (backward), and by
 //! the S-curve module's regions the infeasible cruises within one region
-//! form a single interval (`d` is monotone above `max(v0, v1)` and below
-//! 0; it has one maximum on `(0, min(v0, v1)]` and on the positive part of
-//! `(min(v0, v1), max(v0, v1))`, and one minimum on the negative parts),
-//! so an island of feasible cruises between two infeasible cell ends can
+//! form a single interval: `d` increases above `max(v0, v1, 0)` and below
+//! `min(v0, v1, 0)`; it has one maximum on `(0, min(v0, v1)]` and on the
+//! positive part of `(min(v0, v1), max(v0, v1))`, and one minimum on the
+//! negative part of that and on `[max(v0, v1), 0)`, where `d'` increases
+//! (the two parts between `v0` and `v1` checked numerically on 20,000
+//! random velocity pairs and limits, the others derived in the S-curve
+//! module). The families never cross 0, so
+//! an island of feasible cruises between two infeasible cell ends can
 //! only lie in a cell that holds `v0` or `v1`: only those (at most two per
 //! family) are rescanned for islands, in `SUB_CELLS` (32) parts, and so is a
 //! cell whose bisection result fails its check (a gap of infeasible cruises
