@@ -1,30 +1,52 @@
 //! The sans-IO bridge: lines and frames in, frames and output lines out.
+//!
+//! The engine is split along its seams, after quinn-proto's `Connection`:
+//! [`classify`](crate::classify) decides what a line asks for; admission
+//! ([`Bridge::admit`]) refuses what must not run (shutting down, latched,
+//! stale, offline, busy); each admitted line becomes one job
+//! ([`crate::job`]) with one step per joint, queued on the joint registry
+//! ([`crate::joints`]) which keeps one request in flight per joint; phase
+//! changes happen in [`Bridge::enter`] only; and every deadline lives in one
+//! timer table ([`Timers`]).
+//!
+//! The invariants, each tested under faults and random interleavings:
+//! - every input line gets exactly one result;
+//! - no request is executed twice (one request in flight per joint, so every
+//!   resend falls within the joint's duplicate memory);
+//! - an emergency stop goes ahead of everything queued, cancels what is in
+//!   flight (never sent again) and answers the lines it cancelled; nothing
+//!   commanded before it moves a joint after it;
+//! - nothing outside the bus map's limits reaches a frame;
+//! - nothing waits without bound: lines beyond [`BridgeConfig::max_pending_lines`]
+//!   or a joint's [`BridgeConfig::max_queue_per_joint`] are refused `busy`.
 
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
 use motorwire_can::Frame;
-use motorwire_can::client::{Client, ClientConfig, Completion, Event, Outcome};
-use motorwire_irpc::{LifecycleState, MotionProfile, NackCode, Payload, SetTargetPayloadV2};
-use motorwire_planner::{Overshoot, Request};
+use motorwire_can::client::{Client, ClientConfig, Completion, Event as ClientEvent, Outcome};
+use motorwire_irpc::{LifecycleState, NackCode, Payload, SetTargetPayloadV2};
 use motorwire_translate::{
     BusMap, Report, Target, feedback_from_irpc, multi_axis_to_irpc, to_irpc,
 };
 use motorwire_wia::{Message, MotorCommand, MotorFeedback, MultiAxisCommand, Validator};
-use serde_json::{Value, json};
 
 use crate::BridgeError;
-
-/// Who sent a line: the runner's name for an input (stdin, a TCP client).
-/// Results go back to the origin of their line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub struct Origin(pub u64);
+use crate::classify::{Input, classify};
+use crate::job::{Axis, AxisState, Job, JobKind};
+use crate::joints::{Joint, StepRef, Unresolved};
+use crate::output::{
+    ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output, StepOutcome,
+    StepReport,
+};
 
 /// How a [`Bridge`] behaves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BridgeConfig {
-    /// The iRPC client: the bridge's node id, wire version, Ack timeout
-    /// and retries (default: node 0x0000, v2.0, 100 ms, 3 retries).
+    /// The iRPC client: the bridge's node id, the default wire version
+    /// (each joint is spoken to in its bus map `wire`), Ack timeout and
+    /// retries (default: node 0x0000, v2.0, 100 ms, 3 retries, one request
+    /// in flight per joint).
     pub client: ClientConfig,
     /// Configure and activate every mapped joint on start (default: true).
     pub activate_on_start: bool,
@@ -40,9 +62,22 @@ pub struct BridgeConfig {
     /// At the end of input, how long to wait for moves in progress to end
     /// before stopping the joints anyway (default: 30 s).
     pub drain_timeout: Duration,
-    /// Unix time in milliseconds at the bridge's time zero, for the
-    /// feedback's timestamps.
-    pub epoch_unix_ms: f64,
+    /// Unix time in milliseconds at the bridge's time zero: feedback
+    /// timestamps, and the age of commands. `None` (the default): the
+    /// bridge has no wall clock, feedback timestamps count from zero and
+    /// command ages are not checked.
+    pub epoch_unix_ms: Option<f64>,
+    /// WIA §10.1's clock skew: a command whose timestamp is further than
+    /// this in the past or the future is refused `stale` (default: 5
+    /// minutes; `None`: not checked). Needs [`BridgeConfig::epoch_unix_ms`].
+    pub max_age: Option<Duration>,
+    /// Input lines accepted and not yet answered, at most (default 1024);
+    /// beyond, a line is refused `busy` at once.
+    pub max_pending_lines: usize,
+    /// Steps waiting for one joint, at most (default 16); beyond, a line is
+    /// refused `busy`. A newer position command replaces a waiting one
+    /// (`superseded`), so a stream of moves never fills it.
+    pub max_queue_per_joint: usize,
 }
 
 impl Default for BridgeConfig {
@@ -54,36 +89,10 @@ impl Default for BridgeConfig {
             offline_after: Duration::from_millis(500),
             heartbeat_period: Duration::from_millis(50),
             drain_timeout: Duration::from_secs(30),
-            epoch_unix_ms: 0.0,
-        }
-    }
-}
-
-/// A line for someone to read.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Output {
-    /// The result of one input line, for its origin:
-    /// `{"ok":true,...}` or `{"ok":false,"error":{...}}`.
-    Result {
-        /// Whose line it answers.
-        origin: Origin,
-        /// The JSON.
-        json: Value,
-    },
-    /// One joint's feedback, for every reader:
-    /// `{"feedback":{WIA MotorFeedback}|null,"motor_id":...,"online":bool}`.
-    Feedback(Value),
-    /// Something that happened, for every reader: `{"event":"...",...}`
-    /// (`startup`, `ready`, `offline`, `online`, `bad_frame`,
-    /// `emergency_stop`, `released`, `stopping`, `stopped`).
-    Event(Value),
-}
-
-impl Output {
-    /// The JSON of the line.
-    pub fn json(&self) -> &Value {
-        match self {
-            Self::Result { json, .. } | Self::Feedback(json) | Self::Event(json) => json,
+            epoch_unix_ms: None,
+            max_age: Some(Duration::from_secs(300)),
+            max_pending_lines: 1024,
+            max_queue_per_joint: 16,
         }
     }
 }
@@ -95,14 +104,20 @@ pub struct JointView {
     pub name: String,
     /// Its node id.
     pub node: u16,
+    /// The wire version it is spoken to in.
+    pub wire: motorwire_irpc::WireVersion,
     /// Whether it was heard from within [`BridgeConfig::offline_after`].
     pub online: bool,
     /// Its lifecycle state as its last JointStatus said.
     pub state: Option<LifecycleState>,
+    /// Whether the bridge holds it Active.
+    pub active: bool,
     /// Its last feedback (positions in the motor's unit).
     pub feedback: Option<MotorFeedback>,
     /// The target of its last acked move (degrees, iRPC's unit).
     pub target: Option<f64>,
+    /// Steps waiting for it, and whether one is in flight.
+    pub queued: usize,
 }
 
 /// Counters for what the bridge has done.
@@ -122,56 +137,18 @@ pub struct BridgeStats {
     pub feedback_lines: u64,
     /// Emergency stops latched.
     pub emergency_stops: u64,
+    /// Lines refused `busy`.
+    pub busy: u64,
+    /// Steps replaced by a newer position command before being sent.
+    pub superseded: u64,
+    /// Steps cancelled by an emergency stop or an interrupt.
+    pub cancelled: u64,
 }
 
-#[derive(Debug)]
-struct Joint {
-    name: String,
-    node: u16,
-    last_heard: Option<Duration>,
-    online: bool,
-    state: Option<LifecycleState>,
-    feedback: Option<MotorFeedback>,
-    target: Option<f64>,
-    /// Until when its last acked move runs (as the bridge plans it).
-    moving_until: Duration,
-}
-
-#[derive(Debug)]
-struct Axis {
-    motor: String,
-    node: u16,
-    queue: VecDeque<Payload>,
-    in_flight: Option<(u32, Payload)>,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum LineKind {
-    Command,
-    Startup,
-    EmergencyStop,
-    Release,
-    Shutdown,
-}
-
-#[derive(Debug)]
-struct PendingLine {
-    origin: Option<Origin>,
-    number: u64,
-    /// `("motor_id"|"command_id", value)`, when the line had one.
-    label: Option<(&'static str, String)>,
-    kind: LineKind,
-    received: Duration,
-    axes: Vec<Axis>,
-    acked: Vec<String>,
-    failures: Vec<Value>,
-    report: Report,
-    last_frame: Option<Duration>,
-    unflushed: bool,
-}
-
+/// The bridge's phases. Every change goes through [`Bridge::enter`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Phase {
+    /// Configuring and activating the joints; lines wait.
     Starting,
     Running,
     /// End of input: finishing lines and moves.
@@ -183,6 +160,22 @@ enum Phase {
     Finished,
 }
 
+/// Every deadline the bridge keeps, in one place.
+#[derive(Debug, Clone, Copy, Default)]
+struct Timers {
+    feedback: Option<Duration>,
+    heartbeat: Option<Duration>,
+}
+
+/// A line that waits for startup to end.
+#[derive(Debug)]
+struct Waiting {
+    at: Duration,
+    origin: Origin,
+    number: u64,
+    text: String,
+}
+
 /// The bridge, sans-IO: feed it input lines ([`Bridge::handle_line`]),
 /// frames from the bus ([`Bridge::handle_frame`]) and the time
 /// ([`Bridge::handle_timeout`]); put [`Bridge::poll_transmit`]'s frames on
@@ -191,7 +184,7 @@ enum Phase {
 ///
 /// ```
 /// use std::time::Duration;
-/// use motorwire_bridge::{Bridge, BridgeConfig, Origin};
+/// use motorwire_bridge::{Bridge, BridgeConfig, ErrorKind, Origin};
 /// use motorwire_translate::BusMap;
 ///
 /// let map = BusMap::from_toml(
@@ -203,11 +196,8 @@ enum Phase {
 /// bridge.start(Duration::ZERO);
 /// // A line that is not JSON never reaches the bus: it is answered at once.
 /// bridge.handle_line(Duration::ZERO, Origin(0), "{oops");
-/// let out = loop {
-///     let o = bridge.poll_output().unwrap();
-///     if o.json()["ok"] == false { break o; }
-/// };
-/// assert_eq!(out.json()["error"]["kind"], "invalid");
+/// let result = std::iter::from_fn(|| bridge.poll_output()).find_map(|o| o.result().cloned()).unwrap();
+/// assert_eq!(result.error.unwrap().kind, ErrorKind::Invalid);
 /// assert!(bridge.poll_transmit().is_none());
 /// // A move: SetTargetV2 (variant 5) from 0x0000 to 0x12, msg_id 1.
 /// bridge.handle_line(
@@ -226,18 +216,21 @@ pub struct Bridge {
     validator: Validator,
     client: Client,
     joints: Vec<Joint>,
-    lines: BTreeMap<u64, PendingLine>,
-    next_line: u64,
-    by_msg: BTreeMap<u32, (u64, usize)>,
-    waiting: VecDeque<(Duration, Origin, u64, String)>,
+    jobs: BTreeMap<u64, Job>,
+    next_job: u64,
+    /// msg_id in flight -> the joint it went to.
+    by_msg: BTreeMap<u32, usize>,
+    waiting: VecDeque<Waiting>,
     line_numbers: BTreeMap<Origin, u64>,
-    /// The number of the line being handled.
-    line: u64,
     latched: bool,
+    /// For each joint, what the release sends it (those active, or being
+    /// started, when the stop came).
+    resume: BTreeMap<usize, Vec<Payload>>,
     phase: Phase,
+    /// The input ended during startup: drain (until this deadline) once ready.
+    drain_after_start: Option<Duration>,
+    timers: Timers,
     out: VecDeque<Output>,
-    next_feedback: Duration,
-    next_heartbeat: Duration,
     now: Duration,
     stats: BridgeStats,
 }
@@ -246,17 +239,14 @@ fn us(d: Duration) -> u64 {
     u64::try_from(d.as_micros()).unwrap_or(u64::MAX)
 }
 
-fn error(kind: &str, message: impl Into<String>) -> Value {
-    json!({"kind": kind, "message": message.into()})
-}
-
 impl Bridge {
-    /// A bridge for the iRPC joints of `map`.
+    /// A bridge for the iRPC joints of `map`, each spoken to in its own
+    /// wire version.
     ///
     /// # Errors
     /// [`BridgeError::NoJoints`] when the map has no iRPC joint;
-    /// [`BridgeError::Config`] for a zero period or timeout, or a client
-    /// node id beyond 11 bits.
+    /// [`BridgeError::Config`] for a zero period, timeout or bound, a
+    /// non-finite epoch, or a client node id beyond 11 bits.
     pub fn new(map: BusMap, config: BridgeConfig) -> Result<Self, BridgeError> {
         if config.feedback_period == Some(Duration::ZERO) {
             return Err(BridgeError::Config("the feedback period must not be zero"));
@@ -266,28 +256,27 @@ impl Bridge {
                 "the offline timeout and the heartbeat period must not be zero",
             ));
         }
-        if !config.epoch_unix_ms.is_finite() {
+        if config.epoch_unix_ms.is_some_and(|e| !e.is_finite()) {
             return Err(BridgeError::Config("the epoch must be a finite number"));
         }
-        let client = Client::new(config.client)?;
+        if config.max_pending_lines == 0 || config.max_queue_per_joint == 0 {
+            return Err(BridgeError::Config(
+                "max_pending_lines and max_queue_per_joint must be at least 1",
+            ));
+        }
+        let mut client = Client::new(config.client)?;
         let joints: Vec<Joint> = map
             .motors()
             .filter_map(|m| match m.target {
-                Target::Irpc { node, .. } => Some(Joint {
-                    name: m.name.clone(),
-                    node,
-                    last_heard: None,
-                    online: true,
-                    state: None,
-                    feedback: None,
-                    target: None,
-                    moving_until: Duration::ZERO,
-                }),
+                Target::Irpc { node, wire } => Some(Joint::new(m.name.clone(), node, wire)),
                 _ => None,
             })
             .collect();
         if joints.is_empty() {
             return Err(BridgeError::NoJoints);
+        }
+        for j in &joints {
+            client.set_wire(j.node, j.wire);
         }
         Ok(Self {
             map,
@@ -295,17 +284,17 @@ impl Bridge {
             validator: Validator::new(),
             client,
             joints,
-            lines: BTreeMap::new(),
-            next_line: 0,
+            jobs: BTreeMap::new(),
+            next_job: 0,
             by_msg: BTreeMap::new(),
             waiting: VecDeque::new(),
             line_numbers: BTreeMap::new(),
-            line: 0,
             latched: false,
+            resume: BTreeMap::new(),
             phase: Phase::Starting,
+            drain_after_start: None,
+            timers: Timers::default(),
             out: VecDeque::new(),
-            next_feedback: Duration::ZERO,
-            next_heartbeat: Duration::ZERO,
             now: Duration::ZERO,
             stats: BridgeStats::default(),
         })
@@ -336,50 +325,144 @@ impl Bridge {
         self.phase == Phase::Finished
     }
 
+    /// Input lines accepted and not yet answered.
+    pub fn pending_lines(&self) -> usize {
+        self.waiting.len()
+            + self
+                .jobs
+                .values()
+                .filter(|j| j.kind == JobKind::Command)
+                .count()
+    }
+
     /// The joints, in the bus map's order.
     pub fn joints(&self) -> impl Iterator<Item = JointView> + '_ {
         self.joints.iter().map(|j| JointView {
             name: j.name.clone(),
             node: j.node,
+            wire: j.wire,
             online: j.online,
             state: j.state,
+            active: j.active,
             feedback: j.feedback.clone(),
             target: j.target,
+            queued: j.queue.len() + usize::from(j.busy.is_some()),
         })
+    }
+
+    // ---- phases ---------------------------------------------------------
+
+    /// The one place the phase changes.
+    fn enter(&mut self, to: Phase) {
+        let from = self.phase;
+        match (from, to) {
+            (Phase::Finished, _) => {}
+            (_, Phase::Running) => {
+                self.phase = Phase::Running;
+                let joints = self.joints.iter().map(|j| j.name.clone()).collect();
+                self.out.push_back(Output::Event(Event::Ready { joints }));
+                while let Some(w) = self.waiting.pop_front() {
+                    self.take_line(w.at, w.origin, w.number, &w.text);
+                }
+                if let Some(deadline) = self.drain_after_start.take() {
+                    self.enter(Phase::Draining { deadline });
+                }
+            }
+            (Phase::Starting | Phase::Running, Phase::Draining { .. }) => {
+                self.phase = to;
+                self.out.push_back(Output::Event(Event::Stopping {
+                    reason: "end of input".to_owned(),
+                }));
+            }
+            (Phase::Stopping, Phase::Draining { .. }) => {}
+            (_, Phase::Stopping) if from != Phase::Stopping => {
+                self.phase = Phase::Stopping;
+                let axes = self.every_joint(&[Payload::Deactivate]);
+                self.open_job(
+                    None,
+                    0,
+                    None,
+                    JobKind::Shutdown,
+                    self.now,
+                    axes,
+                    Report::default(),
+                    Vec::new(),
+                );
+            }
+            (_, Phase::Finished) => self.phase = Phase::Finished,
+            _ => {}
+        }
     }
 
     /// Starts: configures and activates every joint (unless
     /// [`BridgeConfig::activate_on_start`] is false). Lines that arrive
-    /// before the joints are ready wait for them.
+    /// before the joints are ready wait for them (an emergency stop does
+    /// not: it is acted on at once).
     pub fn start(&mut self, now: Duration) {
         self.now = now;
-        self.next_feedback = now;
+        self.timers.feedback = self.config.feedback_period.map(|_| now);
         if !self.config.activate_on_start {
-            self.become_ready();
+            self.enter(Phase::Running);
             return;
         }
         let axes = self.every_joint(&[Payload::Configure, Payload::Activate]);
-        self.open_line(None, None, LineKind::Startup, now, axes, Report::default());
+        self.open_job(
+            None,
+            0,
+            None,
+            JobKind::Startup,
+            now,
+            axes,
+            Report::default(),
+            Vec::new(),
+        );
     }
 
-    fn become_ready(&mut self) {
-        // The input may have ended during startup: its lines are still
-        // served, then the drain goes on.
-        let after = match self.phase {
-            Phase::Starting => Phase::Running,
-            other => other,
-        };
-        self.phase = Phase::Running;
-        let joints: Vec<&str> = self.joints.iter().map(|j| j.name.as_str()).collect();
-        self.out
-            .push_back(Output::Event(json!({"event": "ready", "joints": joints})));
-        while let Some((at, origin, number, text)) = self.waiting.pop_front() {
-            self.take_line(at, origin, number, &text);
+    /// End of input: lines in flight and moves in progress finish (up to
+    /// [`BridgeConfig::drain_timeout`]), then every joint is deactivated.
+    pub fn finish(&mut self, now: Duration) {
+        self.now = self.now.max(now);
+        if matches!(self.phase, Phase::Starting | Phase::Running) {
+            // Lines still waiting for startup are served first.
+            let deadline = self.now.saturating_add(self.config.drain_timeout);
+            if self.phase == Phase::Starting {
+                // Served once the joints are ready, then drained.
+                self.drain_after_start = Some(deadline);
+            } else {
+                self.enter(Phase::Draining { deadline });
+            }
         }
-        if self.phase == Phase::Running {
-            self.phase = after;
-        }
+        self.handle_timeout(self.now);
     }
+
+    /// Interrupted (a signal): everything queued or in flight is cancelled
+    /// and every joint deactivated now.
+    pub fn interrupt(&mut self, now: Duration) {
+        self.now = self.now.max(now);
+        if matches!(self.phase, Phase::Stopping | Phase::Finished) {
+            return;
+        }
+        self.out.push_back(Output::Event(Event::Stopping {
+            reason: "interrupted".to_owned(),
+        }));
+        let waiting: Vec<Waiting> = self.waiting.drain(..).collect();
+        for w in waiting {
+            self.stats.lines += 1;
+            self.refuse(
+                w.origin,
+                w.number,
+                None,
+                ErrorBody::new(
+                    ErrorKind::Cancelled,
+                    "the bridge was interrupted before the line was served",
+                ),
+            );
+        }
+        self.cancel_everything("cancelled: the bridge was interrupted");
+        self.enter(Phase::Stopping);
+    }
+
+    // ---- input ----------------------------------------------------------
 
     /// Takes one input line received at `now` from `origin`. Blank lines
     /// are ignored; every other line gets exactly one result.
@@ -394,11 +477,6 @@ impl Bridge {
             return;
         }
         let number = self.number(origin);
-        if self.phase == Phase::Starting {
-            self.waiting
-                .push_back((now, origin, number, line.to_owned()));
-            return;
-        }
         self.take_line(now, origin, number, line);
     }
 
@@ -408,8 +486,19 @@ impl Bridge {
     pub fn handle_unreadable(&mut self, now: Duration, origin: Origin, reason: &str) {
         self.now = self.now.max(now);
         self.stats.lines += 1;
-        self.line = self.number(origin);
-        self.refuse(origin, None, error("unreadable", reason));
+        let number = self.number(origin);
+        self.refuse(
+            origin,
+            number,
+            None,
+            ErrorBody::new(ErrorKind::Unreadable, reason),
+        );
+    }
+
+    /// Forgets `origin`'s line count (a client that left); its lines in
+    /// progress are still answered.
+    pub fn forget_origin(&mut self, origin: Origin) {
+        self.line_numbers.remove(&origin);
     }
 
     fn number(&mut self, origin: Origin) -> u64 {
@@ -419,11 +508,34 @@ impl Bridge {
     }
 
     fn take_line(&mut self, now: Duration, origin: Origin, number: u64, line: &str) {
-        self.line = number;
+        let input = classify(&self.validator, line);
+        // The stop is acted on in every phase but the last, ahead of all.
+        if let Input::Stop { label, problems } = input {
+            self.stats.lines += 1;
+            let cause = label
+                .as_ref()
+                .map_or_else(|| "input".to_owned(), |(_, v)| v.clone());
+            self.emergency_stop(now, origin, number, label, problems, cause);
+            return;
+        }
         match self.phase {
             Phase::Starting => {
-                self.waiting
-                    .push_back((now, origin, number, line.to_owned()));
+                if self.waiting.len() >= self.config.max_pending_lines {
+                    self.stats.lines += 1;
+                    self.busy(
+                        origin,
+                        number,
+                        None,
+                        "too many lines are waiting for the joints to start",
+                    );
+                } else {
+                    self.waiting.push_back(Waiting {
+                        at: now,
+                        origin,
+                        number,
+                        text: line.to_owned(),
+                    });
+                }
                 return;
             }
             Phase::Running => {}
@@ -431,113 +543,198 @@ impl Bridge {
                 self.stats.lines += 1;
                 self.refuse(
                     origin,
+                    number,
                     None,
-                    error("shutting_down", "the bridge is shutting down"),
+                    ErrorBody::new(ErrorKind::ShuttingDown, "the bridge is shutting down"),
                 );
                 return;
             }
         }
         self.stats.lines += 1;
-        if let Some(stop) = control_message(line) {
-            if stop {
-                self.emergency_stop(now, Some(origin), "input");
-            } else {
-                self.release(now, origin);
+        match input {
+            Input::Stop { .. } => {}
+            Input::Release => self.release(now, origin, number),
+            Input::BadRelease { reason } => {
+                self.refuse(origin, number, None, ErrorBody::new(ErrorKind::InvalidRelease, reason));
             }
-            return;
-        }
-        match self.validator.parse_any(line) {
-            Ok(Message::MotorCommand(cmd)) => self.motor_command(now, origin, &cmd),
-            Ok(Message::MultiAxisCommand(cmd)) => self.multi_axis(now, origin, &cmd),
-            Ok(other) => self.refuse(
-                origin,
-                None,
-                error(
-                    "unsupported_kind",
-                    format!(
-                        "a {} is valid WIA, but the bridge takes motor-command and multi-axis-command lines",
-                        other.kind()
+            Input::Invalid { message, violations, label } => {
+                let mut e = ErrorBody::new(ErrorKind::Invalid, message);
+                e.violations = violations;
+                self.refuse(origin, number, label, e);
+            }
+            Input::Message(m) => match *m {
+                Message::MotorCommand(cmd) => self.motor_command(now, origin, number, &cmd),
+                Message::MultiAxisCommand(cmd) => self.multi_axis(now, origin, number, &cmd),
+                other => self.refuse(
+                    origin,
+                    number,
+                    None,
+                    ErrorBody::new(
+                        ErrorKind::UnsupportedKind,
+                        format!(
+                            "a {} is valid WIA, but the bridge takes motor-command and multi-axis-command lines",
+                            other.kind()
+                        ),
                     ),
                 ),
-            ),
-            Err(e) => {
-                let violations = serde_json::to_value(e.violations()).unwrap_or(Value::Null);
-                self.refuse(
-                    origin,
-                    None,
-                    json!({"kind": "invalid", "message": "not a valid WIA message", "violations": violations}),
-                );
-            }
+            },
         }
     }
 
-    fn refuse(&mut self, origin: Origin, label: Option<(&'static str, String)>, err: Value) {
+    fn refuse(
+        &mut self,
+        origin: Origin,
+        number: u64,
+        label: Option<(&'static str, String)>,
+        error: ErrorBody,
+    ) {
         self.stats.failed += 1;
-        let mut v = json!({"ok": false, "error": err, "line": self.line});
-        if let (Some((key, value)), Some(obj)) = (label, v.as_object_mut()) {
-            obj.insert(key.to_owned(), Value::String(value));
-        }
-        self.out.push_back(Output::Result { origin, json: v });
+        let mut r = LineResult {
+            ok: false,
+            line: number,
+            error: Some(error),
+            ..LineResult::default()
+        };
+        set_label(&mut r, label);
+        self.out.push_back(Output::Result { origin, result: r });
+    }
+
+    fn busy(
+        &mut self,
+        origin: Origin,
+        number: u64,
+        label: Option<(&'static str, String)>,
+        why: &str,
+    ) {
+        self.stats.busy += 1;
+        self.refuse(
+            origin,
+            number,
+            label,
+            ErrorBody::new(
+                ErrorKind::Busy,
+                format!("{why}; nothing was sent, send it again later"),
+            ),
+        );
     }
 
     fn joint_index(&self, motor: &str) -> Option<usize> {
         self.joints.iter().position(|j| j.name == motor)
     }
 
-    /// Refuses a motion line while latched or towards offline joints.
-    fn motion_refusal<'a>(&self, mut motors: impl Iterator<Item = &'a str>) -> Option<Value> {
+    /// Admission: what refuses a motion line before anything is planned.
+    fn admit<'a>(
+        &self,
+        timestamp: f64,
+        mut motors: impl Iterator<Item = &'a str> + Clone,
+    ) -> Result<(), ErrorBody> {
         if self.latched {
-            return Some(error(
-                "emergency_stop_latched",
+            return Err(ErrorBody::new(
+                ErrorKind::EmergencyStopLatched,
                 "the emergency stop is latched; send {\"emergency_stop\": false} to release it",
             ));
         }
-        motors.find_map(|m| {
+        if let (Some(epoch), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age) {
+            let now_ms = epoch + self.now.as_secs_f64() * 1000.0;
+            let skew = max_age.as_secs_f64() * 1000.0;
+            let age = now_ms - timestamp;
+            if age > skew || -age > skew {
+                let when = if age > 0.0 { "old" } else { "in the future" };
+                return Err(ErrorBody::new(
+                    ErrorKind::Stale,
+                    format!(
+                        "timestamp {timestamp} is {:.1} s {when}; the allowed clock skew is {} s (WIA §10.1)",
+                        age.abs() / 1000.0,
+                        max_age.as_secs_f64()
+                    ),
+                ));
+            }
+        }
+        if let Some(err) = motors.clone().find_map(|m| {
             let j = self.joints.get(self.joint_index(m)?)?;
             (!j.online).then(|| {
-                json!({"kind": "offline", "motor": m, "message": format!("{m} is offline: nothing heard from node 0x{:02X}", j.node)})
+                ErrorBody::new(
+                    ErrorKind::Offline,
+                    format!("{m} is offline: nothing heard from node 0x{:02X}", j.node),
+                )
+                .about(m)
             })
-        })
+        }) {
+            return Err(err);
+        }
+        if self.pending_lines() >= self.config.max_pending_lines {
+            return Err(ErrorBody::new(
+                ErrorKind::Busy,
+                format!(
+                    "{} lines are in progress, the most the bridge takes; nothing was sent, send it again later",
+                    self.config.max_pending_lines
+                ),
+            ));
+        }
+        if let Some(m) = motors.find(|m| {
+            self.joint_index(m)
+                .and_then(|i| self.joints.get(i))
+                .is_some_and(|j| j.queue.len() >= self.config.max_queue_per_joint)
+        }) {
+            return Err(ErrorBody::new(
+                ErrorKind::Busy,
+                format!("{m} has {} steps waiting, the most it takes; nothing was sent, send it again later", self.config.max_queue_per_joint),
+            )
+            .about(m));
+        }
+        Ok(())
     }
 
-    fn motor_command(&mut self, now: Duration, origin: Origin, cmd: &MotorCommand) {
+    fn motor_command(&mut self, now: Duration, origin: Origin, number: u64, cmd: &MotorCommand) {
         let label = Some(("motor_id", cmd.motor_id.clone()));
-        if cmd.safety_limits.as_ref().and_then(|l| l.emergency_stop) == Some(true) {
-            self.emergency_stop(now, Some(origin), cmd.motor_id.as_str());
-            return;
-        }
-        if let Some(err) = self.motion_refusal(std::iter::once(cmd.motor_id.as_str())) {
-            self.refuse(origin, label, err);
+        if let Err(e) = self.admit(cmd.timestamp, std::iter::once(cmd.motor_id.as_str())) {
+            if e.kind == ErrorKind::Busy {
+                self.stats.busy += 1;
+            }
+            self.refuse(origin, number, label, e);
             return;
         }
         match to_irpc(&self.map, cmd) {
             Ok(t) => {
-                let axes = vec![Axis {
-                    motor: cmd.motor_id.clone(),
-                    node: t.value.node,
-                    queue: t.value.payloads.into(),
-                    in_flight: None,
-                }];
-                self.open_line(Some(origin), label, LineKind::Command, now, axes, t.report);
+                let Some(joint) = self.joint_index(&cmd.motor_id) else {
+                    let e = ErrorBody::new(
+                        ErrorKind::Refused,
+                        format!("{} is not an iRPC joint of the bus map", cmd.motor_id),
+                    );
+                    self.refuse(origin, number, label, e);
+                    return;
+                };
+                let axes = vec![Axis::new(cmd.motor_id.clone(), joint, t.value.payloads)];
+                self.open_job(
+                    Some(origin),
+                    number,
+                    label,
+                    JobKind::Command,
+                    now,
+                    axes,
+                    t.report,
+                    Vec::new(),
+                );
             }
-            Err(r) => self.refuse(origin, label, refusal(&r)),
+            Err(r) => self.refuse(
+                origin,
+                number,
+                label,
+                ErrorBody::new(ErrorKind::Refused, r.to_string()),
+            ),
         }
     }
 
-    fn multi_axis(&mut self, now: Duration, origin: Origin, cmd: &MultiAxisCommand) {
+    fn multi_axis(&mut self, now: Duration, origin: Origin, number: u64, cmd: &MultiAxisCommand) {
         let label = Some(("command_id", cmd.command_id.clone()));
-        let emergency = cmd.motors.iter().any(|a| {
-            a.to_motor_command(cmd.timestamp)
-                .safety_limits
-                .and_then(|l| l.emergency_stop)
-                == Some(true)
-        });
-        if emergency {
-            self.emergency_stop(now, Some(origin), cmd.command_id.as_str());
-            return;
-        }
-        if let Some(err) = self.motion_refusal(cmd.motors.iter().map(|a| a.motor_id.as_str())) {
-            self.refuse(origin, label, err);
+        if let Err(e) = self.admit(
+            cmd.timestamp,
+            cmd.motors.iter().map(|a| a.motor_id.as_str()),
+        ) {
+            if e.kind == ErrorKind::Busy {
+                self.stats.busy += 1;
+            }
+            self.refuse(origin, number, label, e);
             return;
         }
         let position = |m: &str| {
@@ -546,245 +743,569 @@ impl Bridge {
         };
         match multi_axis_to_irpc(&self.map, cmd, &position) {
             Ok(t) => {
-                let axes = cmd
-                    .motors
-                    .iter()
-                    .zip(t.value.commands)
-                    .map(|(a, c)| Axis {
-                        motor: a.motor_id.clone(),
-                        node: c.node,
-                        queue: c.payloads.into(),
-                        in_flight: None,
-                    })
-                    .collect();
-                self.open_line(Some(origin), label, LineKind::Command, now, axes, t.report);
+                let mut axes = Vec::new();
+                for (a, c) in cmd.motors.iter().zip(t.value.commands) {
+                    let Some(joint) = self.joint_index(&a.motor_id) else {
+                        let e = ErrorBody::new(
+                            ErrorKind::Refused,
+                            format!("{} is not an iRPC joint of the bus map", a.motor_id),
+                        )
+                        .about(a.motor_id.clone());
+                        self.refuse(origin, number, label, e);
+                        return;
+                    };
+                    axes.push(Axis::new(a.motor_id.clone(), joint, c.payloads));
+                }
+                self.open_job(
+                    Some(origin),
+                    number,
+                    label,
+                    JobKind::Command,
+                    now,
+                    axes,
+                    t.report,
+                    Vec::new(),
+                );
             }
-            Err(r) => self.refuse(origin, label, refusal(&r)),
+            Err(r) => self.refuse(
+                origin,
+                number,
+                label,
+                ErrorBody::new(ErrorKind::Refused, r.to_string()),
+            ),
         }
     }
 
-    fn emergency_stop(&mut self, now: Duration, origin: Option<Origin>, cause: &str) {
+    // ---- the emergency stop ------------------------------------------------
+
+    fn emergency_stop(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        label: Option<(&'static str, String)>,
+        problems: Vec<String>,
+        cause: String,
+    ) {
+        if self.phase == Phase::Finished {
+            // Nothing runs any more; the joints were deactivated.
+            self.stats.failed += 1;
+            let mut r = LineResult {
+                ok: false,
+                line: number,
+                emergency_stop: true,
+                problems,
+                error: Some(ErrorBody::new(
+                    ErrorKind::ShuttingDown,
+                    "the bridge has already deactivated every joint",
+                )),
+                ..LineResult::default()
+            };
+            set_label(&mut r, label);
+            self.out.push_back(Output::Result { origin, result: r });
+            return;
+        }
         self.stats.emergency_stops += 1;
+        // What the release brings back: the joints active now, and those
+        // whose startup or release this stop interrupts.
+        if !self.latched {
+            self.resume.clear();
+        }
+        for (i, j) in self.joints.iter().enumerate() {
+            let starting = j.busy.iter().chain(j.queue.iter()).find_map(|s| {
+                let job = self.jobs.get(&s.job)?;
+                matches!(job.kind, JobKind::Startup | JobKind::Release).then(|| {
+                    let a = job.axes.get(s.axis)?;
+                    let mut p: Vec<Payload> = a.payloads.iter().copied().collect();
+                    if let AxisState::InFlight { payload, .. } = a.state {
+                        p.insert(0, payload);
+                    }
+                    Some(p)
+                })?
+            });
+            if let Some(p) = starting {
+                self.resume.insert(i, p);
+            } else if j.active {
+                self.resume.insert(i, vec![Payload::Activate]);
+            }
+        }
         self.latched = true;
-        // Everything not yet sent is cancelled; what is in flight completes.
-        let mut cancelled = Vec::new();
-        for line in self.lines.values_mut() {
-            if line.kind == LineKind::Command {
-                for a in &mut line.axes {
-                    if !a.queue.is_empty() {
-                        a.queue.clear();
-                        line.failures.push(json!({"motor": a.motor, "kind": "emergency_stop", "message": "cancelled by the emergency stop before it was sent"}));
-                        cancelled.push(a.motor.clone());
+        let cancelled = self.cancel_everything("cancelled by the emergency stop");
+        self.out
+            .push_back(Output::Event(Event::EmergencyStop { cause, cancelled }));
+        let axes = self.every_joint(&[Payload::Deactivate]);
+        self.open_job(
+            Some(origin),
+            number,
+            label,
+            JobKind::EmergencyStop,
+            now,
+            axes,
+            Report::default(),
+            problems,
+        );
+        if self.phase == Phase::Starting {
+            // The startup was cancelled: lines are served (and refused
+            // while latched).
+            self.enter(Phase::Running);
+        }
+    }
+
+    /// Cancels every step queued or in flight (never sent again); returns
+    /// the input lines affected.
+    fn cancel_everything(&mut self, why: &str) -> Vec<LineRef> {
+        let mut touched = Vec::new();
+        for ji in 0..self.joints.len() {
+            let Some(joint) = self.joints.get_mut(ji) else {
+                continue;
+            };
+            let busy = joint.busy.take();
+            let queued: Vec<StepRef> = joint.queue.drain(..).collect();
+            if let Some(s) = busy
+                && let Some(job) = self.jobs.get_mut(&s.job)
+                && let Some(a) = job.axes.get_mut(s.axis)
+            {
+                if let AxisState::InFlight { msg_id, .. } = a.state {
+                    self.client.cancel(msg_id);
+                    self.by_msg.remove(&msg_id);
+                }
+                a.finish(StepOutcome::Cancelled, None, format!("{why}: it was sent and the stop followed it (the joint may have started it; it stopped)"));
+                self.stats.cancelled += 1;
+                if let Some(o) = job.origin {
+                    touched.push(LineRef {
+                        origin: o,
+                        line: job.number,
+                    });
+                }
+            }
+            for s in queued {
+                if let Some(job) = self.jobs.get_mut(&s.job)
+                    && let Some(a) = job.axes.get_mut(s.axis)
+                {
+                    a.finish(
+                        StepOutcome::Cancelled,
+                        None,
+                        format!("{why} before it was sent"),
+                    );
+                    self.stats.cancelled += 1;
+                    if let Some(o) = job.origin {
+                        touched.push(LineRef {
+                            origin: o,
+                            line: job.number,
+                        });
                     }
                 }
             }
         }
-        self.out.push_back(Output::Event(json!({
-            "event": "emergency_stop", "cause": cause, "cancelled": cancelled,
-        })));
-        let axes = self.stop_axes();
-        self.open_line(
-            origin,
+        touched.sort_by_key(|r| (r.origin, r.line));
+        touched.dedup();
+        self.finish_jobs();
+        touched
+    }
+
+    fn release(&mut self, now: Duration, origin: Origin, number: u64) {
+        if !self.latched {
+            self.refuse(
+                origin,
+                number,
+                None,
+                ErrorBody::new(
+                    ErrorKind::NotLatched,
+                    "there is no emergency stop to release",
+                ),
+            );
+            return;
+        }
+        self.latched = false;
+        let resume = std::mem::take(&mut self.resume);
+        let reactivated = resume
+            .keys()
+            .filter_map(|i| self.joints.get(*i))
+            .map(|j| j.name.clone())
+            .collect();
+        self.out
+            .push_back(Output::Event(Event::Released { reactivated }));
+        let axes = resume
+            .into_iter()
+            .filter_map(|(i, p)| Some(Axis::new(self.joints.get(i)?.name.clone(), i, p)))
+            .collect();
+        self.open_job(
+            Some(origin),
+            number,
             None,
-            LineKind::EmergencyStop,
+            JobKind::Release,
             now,
             axes,
             Report::default(),
+            Vec::new(),
         );
-        self.finish_lines();
-    }
-
-    /// `Deactivate` for every joint: iRPC executes motion only while
-    /// Active, so leaving it is the stop every joint obeys, braking at its
-    /// own deceleration limit.
-    fn stop_axes(&self) -> Vec<Axis> {
-        self.every_joint(&[Payload::Deactivate])
     }
 
     /// `payloads`, in order, for every joint.
     fn every_joint(&self, payloads: &[Payload]) -> Vec<Axis> {
         self.joints
             .iter()
-            .map(|j| Axis {
-                motor: j.name.clone(),
-                node: j.node,
-                queue: payloads.iter().copied().collect(),
-                in_flight: None,
-            })
+            .enumerate()
+            .map(|(i, j)| Axis::new(j.name.clone(), i, payloads.iter().copied()))
             .collect()
     }
 
-    fn release(&mut self, now: Duration, origin: Origin) {
-        if !self.latched {
-            self.refuse(
-                origin,
-                None,
-                error("not_latched", "there is no emergency stop to release"),
-            );
-            return;
-        }
-        self.latched = false;
-        self.out
-            .push_back(Output::Event(json!({"event": "released"})));
-        let axes = self.every_joint(&[Payload::Activate]);
-        self.open_line(
-            Some(origin),
-            None,
-            LineKind::Release,
-            now,
-            axes,
-            Report::default(),
-        );
-    }
+    // ---- jobs and the joint queues -------------------------------------------
 
-    fn open_line(
+    #[allow(clippy::too_many_arguments)]
+    fn open_job(
         &mut self,
         origin: Option<Origin>,
+        number: u64,
         label: Option<(&'static str, String)>,
-        kind: LineKind,
+        kind: JobKind,
         now: Duration,
         axes: Vec<Axis>,
         report: Report,
+        problems: Vec<String>,
     ) {
-        let id = self.next_line;
-        self.next_line += 1;
-        self.lines.insert(
+        let id = self.next_job;
+        self.next_job += 1;
+        if kind.is_stop() {
+            self.cancel_everything("cancelled by the stop");
+        }
+        let steps: Vec<(usize, StepRef, bool)> = axes
+            .iter()
+            .enumerate()
+            .map(|(axis, a)| (a.joint, StepRef { job: id, axis }, a.is_position_move()))
+            .collect();
+        self.jobs.insert(
             id,
-            PendingLine {
+            Job {
                 origin,
-                number: self.line,
+                number,
                 label,
                 kind,
                 received: now,
                 axes,
-                acked: Vec::new(),
-                failures: Vec::new(),
                 report,
+                problems,
                 last_frame: None,
                 unflushed: false,
             },
         );
-        let n = self.lines.get(&id).map_or(0, |l| l.axes.len());
-        for axis in 0..n {
-            self.send_next(id, axis);
+        for (ji, step, position) in steps {
+            if kind == JobKind::Command && position {
+                self.supersede(ji);
+            }
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.queue.push_back(step);
+            }
+            self.pump(ji);
         }
-        self.finish_lines();
+        self.finish_jobs();
     }
 
-    /// Sends the next payload of one axis of a line.
-    fn send_next(&mut self, line_id: u64, axis: usize) {
+    /// A newer position move for joint `ji`: the waiting one is replaced.
+    fn supersede(&mut self, ji: usize) {
+        let Some(joint) = self.joints.get_mut(ji) else {
+            return;
+        };
+        let mut keep = VecDeque::new();
+        for s in joint.queue.drain(..) {
+            let replaced = self.jobs.get_mut(&s.job).is_some_and(|job| {
+                job.kind == JobKind::Command && job.axes.get_mut(s.axis).is_some_and(|a| {
+                    let yes = a.is_position_move() && a.state == AxisState::Queued;
+                    if yes {
+                        a.finish(
+                            StepOutcome::Superseded,
+                            None,
+                            "a newer position command for the joint replaced it before it was sent",
+                        );
+                    }
+                    yes
+                })
+            });
+            if replaced {
+                self.stats.superseded += 1;
+            } else {
+                keep.push_back(s);
+            }
+        }
+        joint.queue = keep;
+    }
+
+    /// Sends the next waiting step of joint `ji` if none is in flight.
+    fn pump(&mut self, ji: usize) {
         let now = self.now;
-        let Some(line) = self.lines.get_mut(&line_id) else {
-            return;
+        loop {
+            let Some(joint) = self.joints.get_mut(ji) else {
+                return;
+            };
+            if joint.busy.is_some() {
+                return;
+            }
+            let Some(step) = joint.queue.pop_front() else {
+                return;
+            };
+            let node = joint.node;
+            if self.send_step(now, ji, node, step) {
+                return;
+            }
+        }
+    }
+
+    /// Sends the next payload of `step`; returns whether a request is now in
+    /// flight for it.
+    fn send_step(&mut self, now: Duration, ji: usize, node: u16, step: StepRef) -> bool {
+        let Some(job) = self.jobs.get_mut(&step.job) else {
+            return false;
         };
-        let Some(a) = line.axes.get_mut(axis) else {
-            return;
+        let Some(a) = job.axes.get_mut(step.axis) else {
+            return false;
         };
-        let Some(payload) = a.queue.pop_front() else {
-            return;
+        let Some(payload) = a.payloads.pop_front() else {
+            if !a.is_done() {
+                a.finish(StepOutcome::Acked, None, "acked");
+            }
+            return false;
         };
-        match self.client.request(now, a.node, payload) {
+        match self.client.request(now, node, payload) {
             Ok(msg_id) => {
-                a.in_flight = Some((msg_id, payload));
-                line.unflushed = true;
-                self.by_msg.insert(msg_id, (line_id, axis));
+                a.state = AxisState::InFlight { msg_id, payload };
+                a.attempts = 1;
+                job.unflushed = true;
+                self.by_msg.insert(msg_id, ji);
+                if let Some(j) = self.joints.get_mut(ji) {
+                    j.busy = Some(step);
+                }
+                true
             }
             Err(e) => {
-                line.failures
-                    .push(json!({"motor": a.motor, "kind": "encode", "message": e.to_string()}));
-                a.queue.clear();
+                a.finish(StepOutcome::NotSent, None, format!("not sent: {e}"));
+                false
             }
         }
     }
 
-    /// Emits the result of every line that is done.
-    fn finish_lines(&mut self) {
+    fn completed(&mut self, c: Completion) {
+        if c.outcome != Outcome::TimedOut {
+            self.heard(c.target, c.finished_at);
+        }
+        let Some(ji) = self.by_msg.remove(&c.msg_id) else {
+            return;
+        };
+        let Some(step) = self.joints.get_mut(ji).and_then(|j| j.busy.take()) else {
+            return;
+        };
+        let Some(job) = self.jobs.get_mut(&step.job) else {
+            return;
+        };
+        let (kind, origin, number) = (job.kind, job.origin, job.number);
+        let Some(a) = job.axes.get_mut(step.axis) else {
+            return;
+        };
+        let AxisState::InFlight { payload, .. } = a.state else {
+            return;
+        };
+        a.state = AxisState::Queued;
+        let stopping = kind.is_stop();
+        match c.outcome {
+            Outcome::Acked => {
+                if a.payloads.is_empty() {
+                    a.finish(StepOutcome::Acked, None, "acked");
+                }
+            }
+            // Stopping a joint that is already stopped is a stop.
+            Outcome::Nacked(code) if stopping && code == NackCode::DEACTIVATE_WRONG_STATE => {
+                a.finish(StepOutcome::Acked, None, "already stopped");
+            }
+            Outcome::Nacked(code) => {
+                a.finish(StepOutcome::Nacked, Some(code.0), format!("nacked: {code}"));
+            }
+            Outcome::TimedOut => {
+                a.finish(
+                    StepOutcome::OutcomeUnknown,
+                    None,
+                    format!(
+                        "sent {} times, never answered: node 0x{:02X} may or may not have executed it",
+                        c.attempts, c.target
+                    ),
+                );
+            }
+        }
+        let more = !a.is_done();
+        if c.outcome == Outcome::TimedOut
+            && let Some(j) = self.joints.get_mut(ji)
+        {
+            if let (JobKind::Command, Some(target)) = (kind, move_target(&payload)) {
+                j.unresolved = Some(Unresolved {
+                    origin,
+                    line: number,
+                    target,
+                });
+            }
+            if j.online {
+                j.online = false;
+                self.out.push_back(Output::Event(Event::Offline {
+                    motor_id: j.name.clone(),
+                    node: j.node,
+                    reason: "a request timed out".to_owned(),
+                }));
+            }
+        }
+        if c.outcome == Outcome::Acked {
+            self.track(ji, payload, c.finished_at);
+        }
+        if more {
+            let node = self.joints.get(ji).map_or(0, |j| j.node);
+            if !self.send_step(self.now, ji, node, step) {
+                self.pump(ji);
+            }
+        } else {
+            self.pump(ji);
+        }
+        self.finish_jobs();
+    }
+
+    /// Remembers an acked request's effect on its joint: its lifecycle, and
+    /// for a move its target and (as planned from the last feedback) when
+    /// it ends.
+    fn track(&mut self, ji: usize, payload: Payload, at: Duration) {
+        let max_acc = self
+            .joints
+            .get(ji)
+            .and_then(|j| self.map.motor(&j.name))
+            .and_then(|m| m.limits.max_acceleration.map(|a| m.unit.to_degrees(a)));
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
+        let (pos, vel) = j.motion.unwrap_or((0.0, 0.0));
+        let planned = |p: &SetTargetPayloadV2| {
+            motorwire_planner::plan(&p.planner_request(pos, vel))
+                .ok()
+                .and_then(|plan| Duration::try_from_secs_f64(plan.duration()).ok())
+                .unwrap_or(Duration::from_secs(1))
+        };
+        match payload {
+            Payload::SetTargetV2(p) => {
+                j.target = Some(f64::from(p.target_angle));
+                j.moving_until = at.saturating_add(planned(&p));
+                j.unresolved = None;
+            }
+            Payload::SetTarget(p) => {
+                #[allow(clippy::cast_possible_truncation)]
+                let acc = max_acc.unwrap_or(1000.0) as f32;
+                let v2 = SetTargetPayloadV2::trapezoidal(p.target_angle, p.velocity_limit, acc);
+                j.target = Some(f64::from(p.target_angle));
+                j.moving_until = at.saturating_add(planned(&v2));
+                j.unresolved = None;
+            }
+            Payload::Activate => j.active = true,
+            Payload::Deactivate | Payload::Reset => {
+                j.active = false;
+                // The joint brakes; give it a moment before calling it idle.
+                j.moving_until = j
+                    .moving_until
+                    .min(at.saturating_add(Duration::from_millis(100)));
+            }
+            _ => {}
+        }
+    }
+
+    /// Emits the result of every job that is done.
+    fn finish_jobs(&mut self) {
         let done: Vec<u64> = self
-            .lines
+            .jobs
             .iter()
-            .filter(|(_, l)| {
-                l.axes
-                    .iter()
-                    .all(|a| a.in_flight.is_none() && a.queue.is_empty())
-                    && !l.unflushed
-            })
+            .filter(|(_, j)| j.is_done())
             .map(|(id, _)| *id)
             .collect();
         for id in done {
-            if let Some(line) = self.lines.remove(&id) {
-                self.complete(line);
+            if let Some(job) = self.jobs.remove(&id) {
+                self.complete(job);
             }
         }
     }
 
-    fn complete(&mut self, line: PendingLine) {
+    fn complete(&mut self, job: Job) {
         let now = self.now;
-        let latency = line
-            .last_frame
-            .map(|t| Value::from(us(t.saturating_sub(line.received))));
-        let ack = us(now.saturating_sub(line.received));
-        let ok = line.failures.is_empty();
-        match line.kind {
-            LineKind::Startup => {
-                for name in &line.acked {
-                    self.out.push_back(Output::Event(
-                        json!({"event": "startup", "motor_id": name, "ok": true}),
-                    ));
+        let reports: Vec<StepReport> = job
+            .axes
+            .into_iter()
+            .filter_map(|a| match a.state {
+                AxisState::Done(r) => Some(r),
+                _ => None,
+            })
+            .collect();
+        let acked: Vec<String> = reports
+            .iter()
+            .filter(|r| r.outcome == StepOutcome::Acked)
+            .map(|r| r.motor.clone())
+            .collect();
+        let failures: Vec<StepReport> = reports
+            .into_iter()
+            .filter(|r| r.outcome != StepOutcome::Acked)
+            .collect();
+        match job.kind {
+            JobKind::Startup => {
+                for name in acked {
+                    self.out.push_back(Output::Event(Event::Startup {
+                        motor_id: name,
+                        ok: true,
+                        error: None,
+                    }));
                 }
-                for f in &line.failures {
-                    self.out.push_back(Output::Event(
-                        json!({"event": "startup", "motor_id": f["motor"], "ok": false, "error": f}),
-                    ));
+                for f in failures {
+                    self.out.push_back(Output::Event(Event::Startup {
+                        motor_id: f.motor.clone(),
+                        ok: false,
+                        error: Some(f),
+                    }));
                 }
-                self.become_ready();
+                if self.phase == Phase::Starting {
+                    self.enter(Phase::Running);
+                }
                 return;
             }
-            LineKind::Shutdown => {
-                self.out.push_back(Output::Event(json!({
-                    "event": "stopped", "deactivated": line.acked, "failures": line.failures,
-                })));
-                self.phase = Phase::Finished;
+            JobKind::Shutdown => {
+                self.out.push_back(Output::Event(Event::Stopped {
+                    deactivated: acked,
+                    failures,
+                }));
+                self.enter(Phase::Finished);
                 return;
             }
-            LineKind::Command | LineKind::EmergencyStop | LineKind::Release => {}
+            JobKind::Command | JobKind::EmergencyStop | JobKind::Release => {}
         }
-        let Some(origin) = line.origin else {
-            return;
-        };
-        let mut v = if ok {
+        let Some(origin) = job.origin else { return };
+        let latency = job.last_frame.map(|t| us(t.saturating_sub(job.received)));
+        let ok = failures.is_empty();
+        let error = (!ok).then(|| failure_error(&failures));
+        if ok {
             self.stats.ok += 1;
-            json!({"ok": true, "acked": line.acked, "latency_us": latency, "ack_us": ack})
         } else {
             self.stats.failed += 1;
-            json!({
-                "ok": false,
-                "error": {"kind": "joint_failed", "message": "not every joint accepted the command", "failures": line.failures},
-                "acked": line.acked, "latency_us": latency, "ack_us": ack,
-            })
-        };
-        if let Some(obj) = v.as_object_mut() {
-            obj.insert("line".to_owned(), Value::from(line.number));
-            if let Some((key, value)) = line.label {
-                obj.insert(key.to_owned(), Value::String(value));
-            }
-            match line.kind {
-                LineKind::EmergencyStop => {
-                    obj.insert("emergency_stop".to_owned(), Value::Bool(true));
-                    obj.insert("stop_latency_us".to_owned(), latency.unwrap_or(Value::Null));
-                }
-                LineKind::Release => {
-                    obj.insert("released".to_owned(), Value::Bool(true));
-                }
-                _ => {}
-            }
-            if !line.report.losses.is_empty() {
-                let losses: Vec<String> =
-                    line.report.losses.iter().map(ToString::to_string).collect();
-                obj.insert("losses".to_owned(), json!(losses));
-            }
         }
-        self.out.push_back(Output::Result { origin, json: v });
+        let mut r = LineResult {
+            ok,
+            line: job.number,
+            emergency_stop: job.kind == JobKind::EmergencyStop,
+            released: job.kind == JobKind::Release,
+            error,
+            acked: Some(acked),
+            outcomes: failures,
+            problems: job.problems,
+            latency_us: latency,
+            ack_us: Some(us(now.saturating_sub(job.received))),
+            stop_latency_us: if job.kind == JobKind::EmergencyStop {
+                latency
+            } else {
+                None
+            },
+            losses: job.report.losses.iter().map(ToString::to_string).collect(),
+            ..LineResult::default()
+        };
+        set_label(&mut r, job.label);
+        self.out.push_back(Output::Result { origin, result: r });
     }
+
+    // ---- the bus --------------------------------------------------------
 
     /// Takes a frame from the bus.
     pub fn handle_frame(&mut self, now: Duration, frame: &Frame) {
@@ -793,6 +1314,99 @@ impl Bridge {
         self.drain_client();
     }
 
+    fn drain_client(&mut self) {
+        while let Some(event) = self.client.poll_event() {
+            match event {
+                ClientEvent::Completed(c) => self.completed(c),
+                ClientEvent::Feedback { message, at } => self.feedback(message, at),
+                ClientEvent::StrayReply { message } => {
+                    self.heard(message.header.source_id, self.now)
+                }
+                ClientEvent::Undecodable { can_id, error } => {
+                    self.stats.bad_frames += 1;
+                    self.out.push_back(Output::Event(Event::BadFrame {
+                        can_id: can_id.to_string(),
+                        error: error.to_string(),
+                    }));
+                }
+                ClientEvent::Misaddressed { can_id, message } => {
+                    self.stats.bad_frames += 1;
+                    self.out.push_back(Output::Event(Event::BadFrame {
+                        can_id: can_id.to_string(),
+                        error: format!(
+                            "the CAN id is not the sender's node id 0x{:02X}",
+                            message.header.source_id
+                        ),
+                    }));
+                }
+            }
+        }
+        self.finish_jobs();
+    }
+
+    fn feedback(&mut self, message: motorwire_irpc::Message, at: Duration) {
+        let node = message.header.source_id;
+        self.heard(node, at);
+        let ts = self.unix_ms(at);
+        let Some(ji) = self.joints.iter().position(|j| j.node == node) else {
+            return;
+        };
+        let unit = self
+            .joints
+            .get(ji)
+            .and_then(|j| self.map.motor(&j.name))
+            .map(|m| m.unit);
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
+        match message.payload {
+            Payload::JointStatus { state, .. } => {
+                j.state = Some(state);
+                j.active = state == LifecycleState::Active;
+            }
+            Payload::Encoder(e) => j.motion = Some((f64::from(e.position), f64::from(e.velocity))),
+            Payload::TelemetryStream(t) => {
+                j.motion = Some((f64::from(t.position), f64::from(t.velocity)))
+            }
+            _ => {}
+        }
+        if let Ok(t) =
+            feedback_from_irpc(&self.map, node, &message.payload, ts, j.feedback.as_ref())
+        {
+            j.feedback = Some(t.value);
+        }
+        // A part whose outcome was unknown, shown executed by the joint's position.
+        if let (Some(u), Some((pos, vel))) = (j.unresolved, j.motion)
+            && (pos - u.target).abs() < 0.5
+            && vel.abs() < 1.0
+        {
+            j.unresolved = None;
+            let position = unit.map_or(pos, |u| u.from_degrees(pos));
+            self.out.push_back(Output::Event(Event::Outcome {
+                origin: u.origin,
+                line: u.line,
+                motor_id: j.name.clone(),
+                outcome: "executed",
+                position: shortest(position),
+            }));
+        }
+    }
+
+    fn heard(&mut self, node: u16, at: Duration) {
+        if let Some(j) = self.joints.iter_mut().find(|j| j.node == node) {
+            j.last_heard = Some(at.max(j.last_heard.unwrap_or(Duration::ZERO)));
+            if !j.online {
+                j.online = true;
+                self.out.push_back(Output::Event(Event::Online {
+                    motor_id: j.name.clone(),
+                    node,
+                }));
+            }
+        }
+    }
+
+    // ---- time -----------------------------------------------------------
+
     /// Advances to `now`: retransmissions and timeouts, feedback, liveness,
     /// heartbeats, the end of a drain.
     pub fn handle_timeout(&mut self, now: Duration) {
@@ -800,32 +1414,36 @@ impl Bridge {
         let now = self.now;
         self.client.handle_timeout(now);
         self.drain_client();
-        // Liveness.
         let offline_after = self.config.offline_after;
-        let mut changes = Vec::new();
         for j in &mut self.joints {
             let since = j.last_heard.unwrap_or(Duration::ZERO);
-            if j.online && now.saturating_sub(since) >= offline_after {
+            let silent = now.saturating_sub(since);
+            if j.online && silent >= offline_after {
                 j.online = false;
-                changes.push(json!({"event": "offline", "motor_id": j.name, "node": j.node, "silent_ms": now.saturating_sub(since).as_millis()}));
+                self.out.push_back(Output::Event(Event::Offline {
+                    motor_id: j.name.clone(),
+                    node: j.node,
+                    reason: format!("nothing heard for {} ms", silent.as_millis()),
+                }));
             }
         }
-        for c in changes {
-            self.out.push_back(Output::Event(c));
-        }
-        if let Some(period) = self.config.feedback_period
-            && now >= self.next_feedback
+        if let (Some(period), Some(at)) = (self.config.feedback_period, self.timers.feedback)
+            && now >= at
         {
             self.emit_feedback(now);
-            self.next_feedback = now.saturating_add(period);
+            self.timers.feedback = Some(now.saturating_add(period));
         }
-        if self.any_moving(now) && now >= self.next_heartbeat && self.client.arm_ready().is_ok() {
-            self.next_heartbeat = now.saturating_add(self.config.heartbeat_period);
+        if self.any_moving(now) {
+            if self.timers.heartbeat.is_none_or(|t| now >= t) && self.client.arm_ready().is_ok() {
+                self.timers.heartbeat = Some(now.saturating_add(self.config.heartbeat_period));
+            }
+        } else {
+            self.timers.heartbeat = None;
         }
         if let Phase::Draining { deadline } = self.phase {
-            let idle = self.lines.is_empty() && !self.any_moving(now);
+            let idle = self.jobs.is_empty() && self.waiting.is_empty() && !self.any_moving(now);
             if idle || now >= deadline {
-                self.stop_all(now);
+                self.enter(Phase::Stopping);
             }
         }
     }
@@ -842,201 +1460,26 @@ impl Bridge {
                 if !j.online {
                     f.status.fault = Some(true);
                 }
-                f
+                shortest_feedback(f)
             });
-            let fb = fb.map_or(Value::Null, |f| {
-                serde_json::to_value(f).unwrap_or(Value::Null)
-            });
-            if fb.is_null() && j.online {
+            if fb.is_none() && j.online {
                 continue; // nothing heard yet, and not yet overdue
             }
             self.stats.feedback_lines += 1;
-            self.out.push_back(Output::Feedback(
-                json!({"feedback": fb, "motor_id": j.name, "online": j.online}),
-            ));
+            self.out.push_back(Output::Feedback(FeedbackLine {
+                feedback: fb,
+                motor_id: j.name.clone(),
+                online: j.online,
+            }));
         }
     }
 
+    /// Whole Unix milliseconds (or milliseconds since start without a wall clock).
     fn unix_ms(&self, now: Duration) -> f64 {
-        self.config.epoch_unix_ms + now.as_secs_f64() * 1000.0
-    }
-
-    fn drain_client(&mut self) {
-        while let Some(event) = self.client.poll_event() {
-            match event {
-                Event::Completed(c) => self.completed(c),
-                Event::Feedback { message, at } => {
-                    let node = message.header.source_id;
-                    self.heard(node, at);
-                    let ts = self.unix_ms(at);
-                    let Some(j) = self.joints.iter_mut().find(|j| j.node == node) else {
-                        continue;
-                    };
-                    if let Payload::JointStatus { state, .. } = message.payload {
-                        j.state = Some(state);
-                    }
-                    if let Ok(t) = feedback_from_irpc(
-                        &self.map,
-                        node,
-                        &message.payload,
-                        ts,
-                        j.feedback.as_ref(),
-                    ) {
-                        j.feedback = Some(t.value);
-                    }
-                }
-                Event::StrayReply { message } => {
-                    self.heard(message.header.source_id, self.now);
-                }
-                Event::Undecodable { can_id, error } => {
-                    self.stats.bad_frames += 1;
-                    self.out.push_back(Output::Event(json!({
-                        "event": "bad_frame", "can_id": can_id.to_string(), "error": error.to_string(),
-                    })));
-                }
-                Event::Misaddressed { can_id, message } => {
-                    self.stats.bad_frames += 1;
-                    self.out.push_back(Output::Event(json!({
-                        "event": "bad_frame", "can_id": can_id.to_string(),
-                        "error": format!("the CAN id is not the sender's node id 0x{:02X}", message.header.source_id),
-                    })));
-                }
-            }
-        }
-        self.finish_lines();
-    }
-
-    fn heard(&mut self, node: u16, at: Duration) {
-        if let Some(j) = self.joints.iter_mut().find(|j| j.node == node) {
-            j.last_heard = Some(at.max(j.last_heard.unwrap_or(Duration::ZERO)));
-            if !j.online {
-                j.online = true;
-                self.out.push_back(Output::Event(
-                    json!({"event": "online", "motor_id": j.name, "node": node}),
-                ));
-            }
-        }
-    }
-
-    fn completed(&mut self, c: Completion) {
-        if c.outcome != Outcome::TimedOut {
-            self.heard(c.target, c.finished_at);
-        }
-        let Some((line_id, axis)) = self.by_msg.remove(&c.msg_id) else {
-            return;
-        };
-        let Some(line) = self.lines.get_mut(&line_id) else {
-            return;
-        };
-        let kind = line.kind;
-        let Some(a) = line.axes.get_mut(axis) else {
-            return;
-        };
-        let Some((_, payload)) = a.in_flight.take() else {
-            return;
-        };
-        // Stopping a joint that is already stopped is a stop.
-        let already = matches!(payload, Payload::Deactivate)
-            && c.outcome == Outcome::Nacked(NackCode::DEACTIVATE_WRONG_STATE)
-            && matches!(kind, LineKind::EmergencyStop | LineKind::Shutdown);
-        match c.outcome {
-            Outcome::Acked => {}
-            _ if already => {}
-            Outcome::Nacked(code) => {
-                line.failures.push(json!({
-                    "motor": a.motor, "kind": "nacked", "code": code.0, "message": code.meaning(),
-                }));
-                a.queue.clear();
-            }
-            Outcome::TimedOut => {
-                line.failures.push(json!({
-                    "motor": a.motor, "kind": "timed_out",
-                    "message": format!("no answer from node 0x{:02X} after {} tries", a.node, c.attempts),
-                }));
-                a.queue.clear();
-            }
-        }
-        let motor = a.motor.clone();
-        let more = !a.queue.is_empty();
-        if a.in_flight.is_none() && !more && (c.outcome == Outcome::Acked || already) {
-            line.acked.push(motor.clone());
-        }
-        if c.outcome == Outcome::TimedOut
-            && let Some(j) = self.joints.iter_mut().find(|j| j.node == c.target)
-            && j.online
-        {
-            j.online = false;
-            self.out.push_back(Output::Event(json!({
-                "event": "offline", "motor_id": j.name, "node": j.node, "reason": "a request timed out",
-            })));
-        }
-        if c.outcome == Outcome::Acked {
-            self.track_motion(c.target, payload, c.finished_at);
-        }
-        if more {
-            self.send_next(line_id, axis);
-        }
-    }
-
-    /// Remembers an acked move: its target and (as planned from the last
-    /// feedback) when it ends.
-    fn track_motion(&mut self, node: u16, payload: Payload, at: Duration) {
-        let Some(j) = self.joints.iter_mut().find(|j| j.node == node) else {
-            return;
-        };
-        let unit = self.map.motor(&j.name).map(|m| m.unit);
-        match payload {
-            Payload::SetTargetV2(p) => {
-                let (pos, vel) = j.feedback.as_ref().map_or((0.0, 0.0), |f| {
-                    unit.map_or((f.position, f.velocity), |u| {
-                        (u.to_degrees(f.position), u.to_degrees(f.velocity))
-                    })
-                });
-                j.target = Some(f64::from(p.target_angle));
-                j.moving_until = at.saturating_add(planned_duration(pos, vel, &p));
-            }
-            Payload::Deactivate | Payload::Reset => {
-                // The joint brakes; give it a moment before calling it idle.
-                j.moving_until = j
-                    .moving_until
-                    .min(at.saturating_add(Duration::from_millis(100)));
-            }
-            _ => {}
-        }
-    }
-
-    /// End of input: lines in flight and moves in progress finish (up to
-    /// [`BridgeConfig::drain_timeout`]), then every joint is stopped and
-    /// deactivated.
-    pub fn finish(&mut self, now: Duration) {
-        self.now = self.now.max(now);
-        if matches!(self.phase, Phase::Starting | Phase::Running) {
-            self.phase = Phase::Draining {
-                deadline: self.now.saturating_add(self.config.drain_timeout),
-            };
-            self.out.push_back(Output::Event(
-                json!({"event": "stopping", "reason": "end of input"}),
-            ));
-        }
-        self.handle_timeout(self.now);
-    }
-
-    /// Interrupted (SIGINT): stop every joint now and deactivate it.
-    pub fn interrupt(&mut self, now: Duration) {
-        self.now = self.now.max(now);
-        if matches!(self.phase, Phase::Stopping | Phase::Finished) {
-            return;
-        }
-        self.out.push_back(Output::Event(
-            json!({"event": "stopping", "reason": "interrupted"}),
-        ));
-        self.stop_all(self.now);
-    }
-
-    fn stop_all(&mut self, now: Duration) {
-        self.phase = Phase::Stopping;
-        let axes = self.stop_axes();
-        self.open_line(None, None, LineKind::Shutdown, now, axes, Report::default());
+        let ms = u64::try_from(now.as_millis()).unwrap_or(u64::MAX);
+        #[allow(clippy::cast_precision_loss)]
+        let ms = ms as f64;
+        (self.config.epoch_unix_ms.unwrap_or(0.0) + ms).floor()
     }
 
     /// The next frame to put on the bus.
@@ -1051,13 +1494,13 @@ impl Bridge {
     /// as their input-to-bus latency.
     pub fn flushed(&mut self, now: Duration) {
         self.now = self.now.max(now);
-        for line in self.lines.values_mut() {
-            if line.unflushed {
-                line.unflushed = false;
-                line.last_frame = Some(now);
+        for job in self.jobs.values_mut() {
+            if job.unflushed {
+                job.unflushed = false;
+                job.last_frame = Some(now);
             }
         }
-        self.finish_lines();
+        self.finish_jobs();
     }
 
     /// The next line to print.
@@ -1082,7 +1525,7 @@ impl Bridge {
             .min();
         let heartbeat = self
             .any_moving(self.now)
-            .then_some(self.next_heartbeat.max(self.now));
+            .then(|| self.timers.heartbeat.unwrap_or(self.now).max(self.now));
         let drain = match self.phase {
             Phase::Draining { deadline } => Some(
                 self.joints
@@ -1097,7 +1540,7 @@ impl Bridge {
         };
         [
             self.client.poll_timeout(),
-            self.config.feedback_period.map(|_| self.next_feedback),
+            self.timers.feedback,
             liveness,
             heartbeat,
             drain,
@@ -1108,47 +1551,81 @@ impl Bridge {
     }
 }
 
-/// `{"emergency_stop": true|false}` and nothing else.
-fn control_message(line: &str) -> Option<bool> {
-    if !line.contains("emergency_stop") {
-        return None;
+fn set_label(r: &mut LineResult, label: Option<(&'static str, String)>) {
+    match label {
+        Some(("motor_id", v)) => r.motor_id = Some(v),
+        Some((_, v)) => r.command_id = Some(v),
+        None => {}
     }
-    let v: Value = serde_json::from_str(line).ok()?;
-    let obj = v.as_object()?;
-    if obj.len() != 1 {
-        return None;
-    }
-    obj.get("emergency_stop")?.as_bool()
 }
 
-fn refusal(r: &motorwire_translate::Refusal) -> Value {
-    json!({"kind": "refused", "message": r.to_string()})
-}
-
-/// How long a joint takes for `p` from `pos`/`vel` (degrees), planned as
-/// the joint plans it; one second when it cannot be planned here.
-fn planned_duration(pos: f64, vel: f64, p: &SetTargetPayloadV2) -> Duration {
-    let decel = if p.max_deceleration > 0.0 {
-        p.max_deceleration
-    } else {
-        p.max_acceleration
+/// The error of a job whose parts did not all succeed: the gravest first
+/// (an unknown outcome, then a refusal, then what was never sent).
+fn failure_error(failures: &[StepReport]) -> ErrorBody {
+    let rank = |o: StepOutcome| match o {
+        StepOutcome::OutcomeUnknown => 0,
+        StepOutcome::Nacked => 1,
+        StepOutcome::Cancelled => 2,
+        StepOutcome::Superseded => 3,
+        StepOutcome::NotSent => 4,
+        StepOutcome::Acked => 5,
     };
-    let mut req = Request::new(
-        pos,
-        f64::from(p.target_angle),
-        f64::from(p.max_velocity),
-        f64::from(p.max_acceleration),
-    )
-    .with_velocities(vel, f64::from(p.target_velocity))
-    .with_max_deceleration(f64::from(decel))
-    .with_overshoot(Overshoot::Allow);
-    if p.max_jerk > 0.0 && !matches!(p.profile, MotionProfile::Trapezoidal) {
-        req = req
-            .with_jerk(f64::from(p.max_jerk))
-            .with_profile(motorwire_planner::MotionProfile::SCurve);
+    let worst = failures.iter().min_by_key(|f| rank(f.outcome));
+    let (kind, message) = match worst.map(|f| f.outcome) {
+        Some(StepOutcome::OutcomeUnknown) => (
+            ErrorKind::OutcomeUnknown,
+            "a joint never answered: it may or may not have executed the command",
+        ),
+        Some(StepOutcome::Nacked) => (ErrorKind::Nacked, "a joint refused the command"),
+        Some(StepOutcome::Cancelled) => (
+            ErrorKind::Cancelled,
+            "cancelled by an emergency stop or the end; nothing of it runs after the stop",
+        ),
+        Some(StepOutcome::Superseded) => (
+            ErrorKind::Superseded,
+            "a newer position command replaced it before it was sent",
+        ),
+        _ => (ErrorKind::NotSent, "not every part could be sent"),
+    };
+    let mut e = ErrorBody::new(kind, message);
+    if let [only] = failures {
+        e.motor = Some(only.motor.clone());
     }
-    motorwire_planner::plan(&req)
-        .ok()
-        .and_then(|plan| Duration::try_from_secs_f64(plan.duration()).ok())
-        .unwrap_or(Duration::from_secs(1))
+    e
+}
+
+/// A move's target (degrees).
+fn move_target(p: &Payload) -> Option<f64> {
+    match p {
+        Payload::SetTargetV2(p) => Some(f64::from(p.target_angle)),
+        Payload::SetTarget(p) => Some(f64::from(p.target_angle)),
+        _ => None,
+    }
+}
+
+/// The shortest decimal of the f32 `v` came from, when it is one (iRPC
+/// carries f32: `45.29999923706055` prints as `45.3`); `v` otherwise.
+fn shortest(v: f64) -> f64 {
+    #[allow(clippy::cast_possible_truncation)]
+    let f = v as f32;
+    if f64::from(f) == v && f.is_finite() {
+        f.to_string().parse().unwrap_or(v)
+    } else {
+        v
+    }
+}
+
+fn shortest_feedback(mut f: MotorFeedback) -> MotorFeedback {
+    f.position = shortest(f.position);
+    f.velocity = shortest(f.velocity);
+    f.torque = shortest(f.torque);
+    for x in [
+        &mut f.acceleration,
+        &mut f.current,
+        &mut f.voltage,
+        &mut f.temperature,
+    ] {
+        *x = x.map(shortest);
+    }
+    f
 }

@@ -1,10 +1,19 @@
 #![doc = include_str!("../README.md")]
 
+mod classify;
 mod engine;
 mod error;
+mod job;
+mod joints;
+mod output;
 mod runtime;
 pub mod sim;
 
-pub use engine::{Bridge, BridgeConfig, BridgeStats, JointView, Origin, Output};
+pub use classify::{Input, classify};
+pub use engine::{Bridge, BridgeConfig, BridgeStats, JointView};
 pub use error::BridgeError;
+pub use output::{
+    ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output, StepOutcome,
+    StepReport,
+};
 pub use runtime::{InputSender, MAX_LINE, ReadLine, Runner, feed, read_line};

@@ -8,9 +8,8 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use motorwire_can::{CanBus, Error as CanError, Frame};
-use serde_json::json;
 
-use crate::{Bridge, BridgeError, Origin, Output};
+use crate::{Bridge, BridgeError, Event, Origin, Output};
 
 /// The longest input line accepted (bytes, without the newline).
 pub const MAX_LINE: usize = 64 * 1024;
@@ -287,9 +286,7 @@ impl Runner {
                 Ok(Msg::Frame { frame, at }) => bridge.handle_frame(since(at), &frame),
                 Ok(Msg::Finish) => bridge.finish(since(Instant::now())),
                 Ok(Msg::Interrupt) => bridge.interrupt(since(Instant::now())),
-                Ok(Msg::BusError(e)) => {
-                    sink(&Output::Event(json!({"event": "bus_error", "error": e})))
-                }
+                Ok(Msg::BusError(e)) => sink(&Output::Event(Event::BusError { error: e })),
                 Err(RecvTimeoutError::Timeout) => bridge.handle_timeout(since(Instant::now())),
                 Err(RecvTimeoutError::Disconnected) => bridge.finish(since(Instant::now())),
             }

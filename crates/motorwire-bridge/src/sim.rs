@@ -201,8 +201,8 @@ impl SimulatedArm {
     pub fn take_results(&mut self) -> Vec<serde_json::Value> {
         self.take_outputs()
             .into_iter()
-            .filter_map(|o| match o {
-                Output::Result { json, .. } => Some(json),
+            .filter_map(|o| match &o {
+                Output::Result { .. } => Some(o.to_value()),
                 _ => None,
             })
             .collect()

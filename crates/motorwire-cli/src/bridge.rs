@@ -44,6 +44,10 @@ pub(crate) struct Args {
     /// How many times to send again before reporting a command failed.
     #[arg(long, value_name = "N", default_value_t = 3)]
     retries: u8,
+    /// WIA §10.1's clock skew: a command whose timestamp is further than
+    /// this many ms in the past or future is refused `stale` (0: not checked).
+    #[arg(long, value_name = "MS", default_value_t = 300_000)]
+    max_age: u64,
     /// The bridge's own iRPC node id (its frames' CAN id).
     #[arg(long, value_parser = crate::sim::parse_node, default_value = "0x0000")]
     node: u16,
@@ -86,6 +90,18 @@ pub(crate) fn unix_ms() -> f64 {
         .map_or(0.0, |d| d.as_secs_f64() * 1000.0)
 }
 
+/// The clock's microseconds, as a msg_id (RFC 793's way of choosing a
+/// starting sequence number): a bridge started after another starts past
+/// its msg_ids unless that one sent over a million requests a second.
+fn first_msg_id() -> u32 {
+    let us = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(1, |d| d.as_micros());
+    #[allow(clippy::cast_possible_truncation)]
+    let id = (us & 0xFFFF_FFFF) as u32;
+    id.max(1)
+}
+
 /// Sends SIGINT (Ctrl-C) to `input` as an interrupt.
 fn on_interrupt(input: InputSender) {
     thread::spawn(move || {
@@ -115,12 +131,16 @@ fn bridge(args: &Args) -> Result<u8, String> {
             node_id: args.node,
             timeout: Duration::from_millis(args.ack_timeout.max(1)),
             retries: args.retries,
+            // Past any earlier bridge's msg_ids: the joints refuse requests
+            // older than the last lifecycle request they heard.
+            first_msg_id: first_msg_id(),
             ..ClientConfig::default()
         },
         activate_on_start: !args.no_activate,
         feedback_period: feedback_period(args.feedback_hz)?,
         offline_after: Duration::from_millis(args.offline_after.max(1)),
-        epoch_unix_ms: unix_ms(),
+        epoch_unix_ms: Some(unix_ms()),
+        max_age: (args.max_age > 0).then(|| Duration::from_millis(args.max_age)),
         ..BridgeConfig::default()
     };
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
@@ -163,7 +183,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
 
     let stdout = io::stdout();
     let sink = |o: &Output| {
-        let line = o.json().to_string();
+        let line = o.to_json();
         match o {
             Output::Result { origin, .. } if tcp => {
                 let mut c = clients.lock().unwrap_or_else(PoisonError::into_inner);

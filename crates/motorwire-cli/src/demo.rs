@@ -55,7 +55,7 @@ struct Step {
 
 fn command(motor: &str, setpoint: f64, velocity: f64) -> String {
     format!(
-        r#"{{"motor_id":"{motor}","timestamp":1704067200000,"control_mode":"position","setpoint":{setpoint},"velocity_limit":{velocity}}}"#
+        r#"{{"motor_id":"{motor}","timestamp":0,"control_mode":"position","setpoint":{setpoint},"velocity_limit":{velocity}}}"#
     )
 }
 
@@ -74,7 +74,7 @@ fn script() -> Vec<Step> {
         },
         Step {
             title: "synchronized move: pitch -30°, roll 20°, elbow 60°",
-            line: r#"{"command_id":"demo-sync","timestamp":1704067200000,"sync_mode":"simultaneous","motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":-30},{"motor_id":"shoulder_roll","control_mode":"position","setpoint":20},{"motor_id":"elbow","control_mode":"position","setpoint":60}]}"#.to_owned(),
+            line: r#"{"command_id":"demo-sync","timestamp":0,"sync_mode":"simultaneous","motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":-30},{"motor_id":"shoulder_roll","control_mode":"position","setpoint":20},{"motor_id":"elbow","control_mode":"position","setpoint":60}]}"#.to_owned(),
             expect: Expect::Arrive(&[("shoulder_pitch", -30.0), ("shoulder_roll", 20.0), ("elbow", 60.0)]),
         },
         Step {
@@ -123,9 +123,10 @@ struct Watch {
 
 impl Watch {
     fn take(&mut self, o: Output) -> Option<Value> {
+        let v = o.to_value();
         match o {
-            Output::Result { json, .. } => return Some(json),
-            Output::Feedback(v) => {
+            Output::Result { .. } => return Some(v),
+            Output::Feedback(_) => {
                 let (Some(motor), Some(pos), Some(vel), Some(ts)) = (
                     v["motor_id"].as_str(),
                     v["feedback"]["position"].as_f64(),
@@ -141,7 +142,7 @@ impl Watch {
                     vel,
                 ));
             }
-            Output::Event(v) => self.events.push(v),
+            Output::Event(_) => self.events.push(v),
         }
         None
     }
@@ -219,7 +220,7 @@ fn demo(args: &Args) -> Result<bool, String> {
     let epoch_ms = crate::bridge::unix_ms();
     let config = BridgeConfig {
         feedback_period: Some(Duration::from_millis(20)),
-        epoch_unix_ms: epoch_ms,
+        epoch_unix_ms: Some(epoch_ms),
         ..BridgeConfig::default()
     };
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
@@ -249,7 +250,7 @@ fn demo(args: &Args) -> Result<bool, String> {
     let mut rows = Vec::new();
     let mut targets: BTreeMap<&str, f64> = BTreeMap::new();
     for (i, step) in steps.iter().enumerate() {
-        input.line(ORIGIN, step.line.clone());
+        input.line(ORIGIN, stamped(&step.line));
         let result = watch.result(Duration::from_secs(3));
         let (ok, detail) = match (&result, step.expect) {
             (None, _) => (false, "no result within 3 s".to_owned()),
@@ -442,4 +443,17 @@ fn plot(samples: &BTreeMap<String, Vec<Sample>>, path: &Path) -> Result<(), Stri
             .map_err(|e| e.to_string())?;
     }
     root.present().map_err(|e| e.to_string())
+}
+
+/// `line` with its `timestamp` set to now (the bridge refuses commands
+/// outside WIA's 5-minute clock skew).
+fn stamped(line: &str) -> String {
+    match serde_json::from_str::<Value>(line) {
+        Ok(mut v) if v.get("timestamp").is_some() => {
+            let now = crate::bridge::unix_ms().floor();
+            v["timestamp"] = Value::from(now);
+            v.to_string()
+        }
+        _ => line.to_owned(),
+    }
 }

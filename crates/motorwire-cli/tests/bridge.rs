@@ -16,8 +16,17 @@ const MAP: &str = "fixtures/maps/demo-arm.toml";
 
 fn command(motor: &str, setpoint: f64) -> String {
     format!(
-        r#"{{"motor_id":"{motor}","timestamp":1704067200000,"control_mode":"position","setpoint":{setpoint}}}"#
+        r#"{{"motor_id":"{motor}","timestamp":{},"control_mode":"position","setpoint":{setpoint}}}"#,
+        now_ms()
     )
+}
+
+/// Unix milliseconds now: the bridge refuses commands outside WIA's 5-minute skew.
+fn now_ms() -> u128 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis()
 }
 
 fn lines(bytes: &[u8]) -> Vec<Value> {

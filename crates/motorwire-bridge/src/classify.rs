@@ -1,0 +1,295 @@
+//! What an input line asks for, decided before anything else: a pure
+//! function of the text, so every rule about stops can be tested alone.
+//!
+//! The emergency stop wins over everything: a line that parses as JSON and
+//! asks for a stop in any of these forms stops, whatever else it carries,
+//! and its other problems are reported alongside:
+//!
+//! - a top-level `emergency_stop` member whose value is anything but
+//!   `false` (`true`, `"true"`, `1`, `null`, ...), with any other members;
+//! - a top-level `safety_limits` object whose `emergency_stop` is anything
+//!   but `false` (a MotorCommand's), valid or not;
+//! - any `motors[i].safety_limits.emergency_stop` that is anything but
+//!   `false` (a multi-axis command's), valid or not.
+//!
+//! A member named twice counts every time: `{"emergency_stop": false,
+//! "emergency_stop": true}` stops. The release is exact: the line
+//! `{"emergency_stop": false}` with no other member and no repeat; any
+//! other line whose every `emergency_stop` is `false` is an
+//! [`Input::BadRelease`] and the latch holds.
+
+use std::fmt;
+
+use motorwire_wia::{Message, Validator};
+use serde::de::{Deserializer, MapAccess, Visitor};
+use serde_json::Value;
+
+/// What a line asks for.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Input {
+    /// An emergency stop.
+    Stop {
+        /// `("motor_id"|"command_id", value)` when the line names one.
+        label: Option<(&'static str, String)>,
+        /// What else is wrong with the line (reported; it stops anyway).
+        problems: Vec<String>,
+    },
+    /// `{"emergency_stop": false}`, exactly.
+    Release,
+    /// A release that is not exact; the latch holds.
+    BadRelease {
+        /// Why.
+        reason: String,
+    },
+    /// A valid WIA message.
+    Message(Box<Message>),
+    /// Not JSON, or not valid WIA.
+    Invalid {
+        /// Said for a person.
+        message: String,
+        /// The WIA violations, when it was JSON.
+        violations: Option<Value>,
+        /// `("motor_id"|"command_id", value)` when the line names one.
+        label: Option<(&'static str, String)>,
+    },
+}
+
+/// A JSON object's members in order, repeats kept.
+struct Members(Vec<(String, Value)>);
+
+impl<'de> serde::Deserialize<'de> for Members {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Members;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a JSON object")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Members, A::Error> {
+                let mut v = Vec::new();
+                while let Some((k, x)) = map.next_entry::<String, Value>()? {
+                    v.push((k, x));
+                }
+                Ok(Members(v))
+            }
+        }
+        d.deserialize_map(V)
+    }
+}
+
+fn stops(v: &Value) -> bool {
+    *v != Value::Bool(false)
+}
+
+/// Every `emergency_stop` of a `safety_limits` value, repeats included.
+fn nested_stops(safety_limits: &Value, out: &mut Vec<String>, at: &str) {
+    if let Value::Object(m) = safety_limits
+        && let Some(v) = m.get("emergency_stop")
+        && stops(v)
+    {
+        out.push(format!("{at}.emergency_stop is {v}"));
+    }
+}
+
+/// Decides what `line` asks for. `validator` parses the WIA messages.
+///
+/// ```
+/// use motorwire_bridge::{Input, classify};
+/// use motorwire_wia::Validator;
+/// let v = Validator::new();
+/// assert_eq!(classify(&v, r#"{"emergency_stop": false}"#), Input::Release);
+/// // Stops, whatever else the line carries; the rest is reported.
+/// let Input::Stop { problems, .. } = classify(&v, r#"{"emergency_stop": "true", "x": 1}"#) else { panic!() };
+/// assert_eq!(problems, [
+///     "emergency_stop is \"true\", not true: taken as a stop",
+///     "the line also carries x",
+/// ]);
+/// // An invalid command that carries a stop stops.
+/// let line = r#"{"motor_id":"elbow","control_mode":"warp","safety_limits":{"emergency_stop":true}}"#;
+/// assert!(matches!(classify(&v, line), Input::Stop { .. }));
+/// // A release with anything else is not one.
+/// assert!(matches!(classify(&v, r#"{"emergency_stop": false, "emergency_stop": false}"#), Input::BadRelease { .. }));
+/// ```
+pub fn classify(validator: &Validator, line: &str) -> Input {
+    let members = match serde_json::from_str::<Members>(line) {
+        Ok(m) => m.0,
+        Err(e) => {
+            // Not an object (or not JSON): it can be neither a stop nor a release.
+            return match validator.parse_any(line) {
+                Ok(m) => Input::Message(Box::new(m)),
+                Err(err) => Input::Invalid {
+                    message: if serde_json::from_str::<Value>(line).is_ok() {
+                        "not a valid WIA message".to_owned()
+                    } else {
+                        format!("not JSON: {e}")
+                    },
+                    violations: serde_json::to_value(err.violations()).ok(),
+                    label: None,
+                },
+            };
+        }
+    };
+    let label = members
+        .iter()
+        .rev()
+        .find_map(|(k, v)| match (k.as_str(), v) {
+            ("motor_id", Value::String(s)) => Some(("motor_id", s.clone())),
+            ("command_id", Value::String(s)) => Some(("command_id", s.clone())),
+            _ => None,
+        });
+    let mut reasons = Vec::new();
+    let mut top = Vec::new();
+    for (k, v) in &members {
+        match k.as_str() {
+            "emergency_stop" => top.push(v),
+            "safety_limits" => nested_stops(v, &mut reasons, "safety_limits"),
+            "motors" => {
+                if let Value::Array(axes) = v {
+                    for (i, a) in axes.iter().enumerate() {
+                        if let Some(l) = a.get("safety_limits") {
+                            nested_stops(l, &mut reasons, &format!("motors[{i}].safety_limits"));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    let top_stop = top.iter().any(|v| stops(v));
+    if top_stop || !reasons.is_empty() {
+        let mut problems = Vec::new();
+        if top_stop {
+            for v in top.iter().filter(|v| **v != &Value::Bool(true) && stops(v)) {
+                problems.push(format!("emergency_stop is {v}, not true: taken as a stop"));
+            }
+            if top.len() > 1 {
+                problems.push(format!("emergency_stop appears {} times", top.len()));
+            }
+            let others: Vec<&str> = members
+                .iter()
+                .map(|(k, _)| k.as_str())
+                .filter(|k| *k != "emergency_stop")
+                .collect();
+            if !others.is_empty() {
+                problems.push(format!("the line also carries {}", others.join(", ")));
+            }
+        } else if let Err(e) = validator.parse_any(line) {
+            // A command carrying a stop: its stop is obeyed even if the
+            // rest of it is not valid.
+            for v in e.violations() {
+                problems.push(v.to_string());
+            }
+        }
+        return Input::Stop { label, problems };
+    }
+    if !top.is_empty() {
+        if members.len() == 1 {
+            return Input::Release;
+        }
+        let reason = if top.len() > 1 {
+            format!("emergency_stop appears {} times", top.len())
+        } else {
+            let others: Vec<&str> = members
+                .iter()
+                .map(|(k, _)| k.as_str())
+                .filter(|k| *k != "emergency_stop")
+                .collect();
+            format!("the line also carries {}", others.join(", "))
+        };
+        return Input::BadRelease {
+            reason: format!(
+                "{reason}: a release is exactly {{\"emergency_stop\": false}}; the emergency stop stays latched"
+            ),
+        };
+    }
+    match validator.parse_any(line) {
+        Ok(m) => Input::Message(Box::new(m)),
+        Err(err) => Input::Invalid {
+            message: "not a valid WIA message".to_owned(),
+            violations: serde_json::to_value(err.violations()).ok(),
+            label,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::panic)]
+    use super::*;
+
+    fn stop(line: &str) -> Vec<String> {
+        match classify(&Validator::new(), line) {
+            Input::Stop { problems, .. } => problems,
+            other => panic!("{line}: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn every_stop_form_stops() {
+        assert!(stop(r#"{"emergency_stop": true}"#).is_empty());
+        assert_eq!(
+            stop(r#"{"emergency_stop": true, "why": "x"}"#),
+            ["the line also carries why"]
+        );
+        assert_eq!(
+            stop(r#"{"emergency_stop": 1}"#),
+            ["emergency_stop is 1, not true: taken as a stop"]
+        );
+        assert_eq!(
+            stop(r#"{"emergency_stop": null}"#),
+            ["emergency_stop is null, not true: taken as a stop"]
+        );
+        assert_eq!(
+            stop(r#"{"emergency_stop": false, "emergency_stop": true}"#),
+            ["emergency_stop appears 2 times"]
+        );
+        // A valid command carrying the stop: no problems.
+        assert!(stop(r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":1,"safety_limits":{"emergency_stop":true}}"#).is_empty());
+        // An invalid one: stops, and says what is wrong.
+        let p = stop(
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"warp","setpoint":1,"safety_limits":{"emergency_stop":true}}"#,
+        );
+        assert!(p.iter().any(|v| v.contains("control_mode")), "{p:?}");
+        // A multi-axis command with one stopping axis.
+        let p = stop(
+            r#"{"command_id":"c","timestamp":1,"motors":[{"motor_id":"a","control_mode":"position","setpoint":1},{"motor_id":"b","safety_limits":{"emergency_stop":"yes"}}]}"#,
+        );
+        assert!(!p.is_empty());
+    }
+
+    #[test]
+    fn only_the_exact_release_releases() {
+        let v = Validator::new();
+        assert_eq!(
+            classify(&v, r#" {"emergency_stop":false} "#),
+            Input::Release
+        );
+        for bad in [
+            r#"{"emergency_stop": false, "motor_id": "elbow"}"#,
+            r#"{"emergency_stop": false, "emergency_stop": false}"#,
+        ] {
+            assert!(
+                matches!(classify(&v, bad), Input::BadRelease { .. }),
+                "{bad}"
+            );
+        }
+        // Not JSON, or not an object: never a stop or a release.
+        assert!(matches!(
+            classify(&v, r#"{"emergency_stop": false"#),
+            Input::Invalid { .. }
+        ));
+        assert!(matches!(
+            classify(&v, r#"[{"emergency_stop": true}]"#),
+            Input::Invalid { .. }
+        ));
+    }
+
+    #[test]
+    fn deep_and_huge_lines_are_invalid_not_a_crash() {
+        let v = Validator::new();
+        let deep = format!("{}{}", "[".repeat(100_000), "]".repeat(100_000));
+        assert!(matches!(classify(&v, &deep), Input::Invalid { .. }));
+        let deep_obj = format!("{{\"a\":{}1{}}}", "[".repeat(10_000), "]".repeat(10_000));
+        assert!(matches!(classify(&v, &deep_obj), Input::Invalid { .. }));
+    }
+}

@@ -1,0 +1,127 @@
+//! One job per input line (and per startup, stop, release and shutdown):
+//! its per-joint steps and what became of each.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use motorwire_irpc::Payload;
+use motorwire_translate::Report;
+
+use crate::output::{Origin, StepOutcome, StepReport};
+
+/// What a job is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum JobKind {
+    /// A WIA command line.
+    Command,
+    /// Configure and activate every joint.
+    Startup,
+    /// An emergency stop: Deactivate every joint.
+    EmergencyStop,
+    /// The release: Activate the joints that were active.
+    Release,
+    /// The end: Deactivate every joint.
+    Shutdown,
+}
+
+impl JobKind {
+    /// Jobs that go ahead of every queued step and cancel what is in flight.
+    pub(crate) fn is_stop(self) -> bool {
+        matches!(self, Self::EmergencyStop | Self::Shutdown)
+    }
+}
+
+/// Where one axis of a job stands.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum AxisState {
+    /// Waiting in its joint's queue.
+    Queued,
+    /// A request is in flight.
+    InFlight {
+        /// Its msg_id.
+        msg_id: u32,
+        /// What it asks.
+        payload: Payload,
+    },
+    /// Finished.
+    Done(StepReport),
+}
+
+/// One joint's part of a job: its payloads, sent one after another.
+#[derive(Debug)]
+pub(crate) struct Axis {
+    pub(crate) motor: String,
+    /// The joint's index in the registry.
+    pub(crate) joint: usize,
+    pub(crate) payloads: VecDeque<Payload>,
+    pub(crate) state: AxisState,
+    /// Times the request in flight was sent, for the report.
+    pub(crate) attempts: u8,
+}
+
+impl Axis {
+    pub(crate) fn new(
+        motor: String,
+        joint: usize,
+        payloads: impl IntoIterator<Item = Payload>,
+    ) -> Self {
+        Self {
+            motor,
+            joint,
+            payloads: payloads.into_iter().collect(),
+            state: AxisState::Queued,
+            attempts: 0,
+        }
+    }
+
+    /// Whether it is one position move, which a newer one may replace
+    /// while it waits.
+    pub(crate) fn is_position_move(&self) -> bool {
+        self.payloads.len() == 1
+            && matches!(
+                self.payloads.front(),
+                Some(Payload::SetTargetV2(_) | Payload::SetTarget(_))
+            )
+    }
+
+    pub(crate) fn finish(
+        &mut self,
+        outcome: StepOutcome,
+        code: Option<u16>,
+        message: impl Into<String>,
+    ) {
+        self.payloads.clear();
+        self.state = AxisState::Done(StepReport {
+            motor: self.motor.clone(),
+            outcome,
+            code,
+            message: message.into(),
+        });
+    }
+
+    pub(crate) fn is_done(&self) -> bool {
+        matches!(self.state, AxisState::Done(_))
+    }
+}
+
+/// One job.
+#[derive(Debug)]
+pub(crate) struct Job {
+    pub(crate) origin: Option<Origin>,
+    pub(crate) number: u64,
+    pub(crate) label: Option<(&'static str, String)>,
+    pub(crate) kind: JobKind,
+    pub(crate) received: Duration,
+    pub(crate) axes: Vec<Axis>,
+    pub(crate) report: Report,
+    /// Problems of a stop line, reported alongside.
+    pub(crate) problems: Vec<String>,
+    pub(crate) last_frame: Option<Duration>,
+    pub(crate) unflushed: bool,
+}
+
+impl Job {
+    pub(crate) fn is_done(&self) -> bool {
+        self.axes.iter().all(Axis::is_done) && !self.unflushed
+    }
+}

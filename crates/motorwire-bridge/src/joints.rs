@@ -1,0 +1,72 @@
+//! The joint registry: who each joint is, whether it is heard, what it is
+//! doing, and the queue of steps waiting for it.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use motorwire_irpc::{LifecycleState, WireVersion};
+use motorwire_wia::MotorFeedback;
+
+use crate::output::Origin;
+
+/// A step of a job waiting for (or running on) a joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct StepRef {
+    pub(crate) job: u64,
+    pub(crate) axis: usize,
+}
+
+/// A part sent and never answered: the joint may have executed it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Unresolved {
+    pub(crate) origin: Option<Origin>,
+    pub(crate) line: u64,
+    /// The move's target (degrees).
+    pub(crate) target: f64,
+}
+
+#[derive(Debug)]
+pub(crate) struct Joint {
+    pub(crate) name: String,
+    pub(crate) node: u16,
+    pub(crate) wire: WireVersion,
+    pub(crate) last_heard: Option<Duration>,
+    pub(crate) online: bool,
+    pub(crate) state: Option<LifecycleState>,
+    /// Whether the bridge last made it Active (its own acked Activate or
+    /// Deactivate, or the joint's JointStatus, whichever came last).
+    pub(crate) active: bool,
+    pub(crate) feedback: Option<MotorFeedback>,
+    /// Its position and velocity (degrees) as last reported.
+    pub(crate) motion: Option<(f64, f64)>,
+    /// The target of its last acked move (degrees).
+    pub(crate) target: Option<f64>,
+    /// Until when its last acked move runs (as the bridge plans it).
+    pub(crate) moving_until: Duration,
+    /// Steps waiting to be sent, oldest first.
+    pub(crate) queue: VecDeque<StepRef>,
+    /// The step whose request is in flight.
+    pub(crate) busy: Option<StepRef>,
+    pub(crate) unresolved: Option<Unresolved>,
+}
+
+impl Joint {
+    pub(crate) fn new(name: String, node: u16, wire: WireVersion) -> Self {
+        Self {
+            name,
+            node,
+            wire,
+            last_heard: None,
+            online: true,
+            state: None,
+            active: false,
+            feedback: None,
+            motion: None,
+            target: None,
+            moving_until: Duration::ZERO,
+            queue: VecDeque::new(),
+            busy: None,
+            unresolved: None,
+        }
+    }
+}

@@ -1,0 +1,323 @@
+//! What the bridge says: one typed shape for each kind of line.
+//!
+//! Every line is one JSON object whose first key tells its kind: `ok` (the
+//! result of an input line), `feedback` (a joint's WIA MotorFeedback) or
+//! `event` (something that happened). Fields come in the order declared
+//! here; optional ones are left out when empty.
+
+use motorwire_wia::MotorFeedback;
+use serde::Serialize;
+use serde_json::Value;
+
+/// Who sent a line: the runner's name for an input (stdin, a TCP client).
+/// Results go back to the origin of their line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub struct Origin(pub u64);
+
+/// A line for someone to read.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Output {
+    /// The result of one input line, for its origin.
+    Result {
+        /// Whose line it answers.
+        origin: Origin,
+        /// The result.
+        result: LineResult,
+    },
+    /// One joint's feedback, for every reader.
+    Feedback(FeedbackLine),
+    /// Something that happened, for every reader.
+    Event(Event),
+}
+
+impl Output {
+    /// The line as JSON text (no newline).
+    pub fn to_json(&self) -> String {
+        let text = match self {
+            Self::Result { result, .. } => serde_json::to_string(result),
+            Self::Feedback(f) => serde_json::to_string(f),
+            Self::Event(e) => serde_json::to_string(e),
+        };
+        // Serializing these types cannot fail: no maps with non-string keys,
+        // no non-finite floats (they are refused at the input).
+        text.unwrap_or_else(|e| format!("{{\"event\":\"internal_error\",\"error\":\"{e}\"}}"))
+    }
+
+    /// The line as a JSON value (for tests and tools that inspect it).
+    pub fn to_value(&self) -> Value {
+        serde_json::from_str(&self.to_json()).unwrap_or(Value::Null)
+    }
+
+    /// The result, if this is one.
+    pub fn result(&self) -> Option<&LineResult> {
+        match self {
+            Self::Result { result, .. } => Some(result),
+            _ => None,
+        }
+    }
+}
+
+/// The result of one input line: `{"ok":true,...}` or
+/// `{"ok":false,"error":{...},...}`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct LineResult {
+    /// Whether every part of the line was done.
+    pub ok: bool,
+    /// The line's number among its origin's non-blank lines, from 1.
+    pub line: u64,
+    /// The MotorCommand's `motor_id`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub motor_id: Option<String>,
+    /// The multi-axis command's `command_id`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub command_id: Option<String>,
+    /// The line was an emergency stop (it stopped every joint).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub emergency_stop: bool,
+    /// The line released the emergency stop.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub released: bool,
+    /// Why not, when `ok` is false.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<ErrorBody>,
+    /// The motors whose every request was acked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub acked: Option<Vec<String>>,
+    /// What became of each motor's part that was not acked.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub outcomes: Vec<StepReport>,
+    /// Problems of a line that stopped anyway (an emergency stop carried by
+    /// an otherwise invalid line).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub problems: Vec<String>,
+    /// From the line's arrival to its last frame on the bus (µs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub latency_us: Option<u64>,
+    /// From the line's arrival to its last answer (µs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ack_us: Option<u64>,
+    /// For an emergency stop: from the line's arrival to the last stop
+    /// frame on the bus (µs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stop_latency_us: Option<u64>,
+    /// What the translation could not carry exactly.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub losses: Vec<String>,
+}
+
+/// Why a line was not done.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ErrorBody {
+    /// What kind of failure.
+    pub kind: ErrorKind,
+    /// Said for a person.
+    pub message: String,
+    /// The motor it concerns, when one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub motor: Option<String>,
+    /// Every WIA violation, for `invalid`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub violations: Option<Value>,
+}
+
+impl ErrorBody {
+    /// An error of `kind` saying `message`.
+    pub fn new(kind: ErrorKind, message: impl Into<String>) -> Self {
+        Self {
+            kind,
+            message: message.into(),
+            motor: None,
+            violations: None,
+        }
+    }
+
+    /// The same, about `motor`.
+    #[must_use]
+    pub fn about(mut self, motor: impl Into<String>) -> Self {
+        self.motor = Some(motor.into());
+        self
+    }
+}
+
+/// The kinds of failure a result reports (`error.kind`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum ErrorKind {
+    /// Not JSON, or not valid WIA. Nothing was sent.
+    Invalid,
+    /// Valid WIA of a kind the bridge does not take. Nothing was sent.
+    UnsupportedKind,
+    /// Outside a limit, or not expressible for the motor. Nothing was sent.
+    Refused,
+    /// A motor of the line is offline. Nothing was sent.
+    Offline,
+    /// The emergency stop is latched. Nothing was sent.
+    EmergencyStopLatched,
+    /// A release with no stop latched.
+    NotLatched,
+    /// A line that tries to release the stop but is not exactly
+    /// `{"emergency_stop": false}`; the latch holds.
+    InvalidRelease,
+    /// The bridge is shutting down. Nothing was sent.
+    ShuttingDown,
+    /// The line could not be read (too long, not UTF-8, cut off).
+    Unreadable,
+    /// Too many lines waiting: refused at once. Nothing was sent.
+    Busy,
+    /// The command's timestamp is outside the allowed clock skew. Nothing was sent.
+    Stale,
+    /// An emergency stop (or the end) cancelled the line: what it had not
+    /// sent never will be; what was in flight was stopped.
+    Cancelled,
+    /// A newer position command for the same joint replaced it before it
+    /// was sent. Nothing of it was sent.
+    Superseded,
+    /// A joint refused its part (Nack).
+    Nacked,
+    /// A part was sent but never answered after every retry: the joint may
+    /// or may not have executed it.
+    OutcomeUnknown,
+    /// A part could not be sent (not encodable for the joint's wire version).
+    NotSent,
+}
+
+/// What became of one motor's part of a line.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepReport {
+    /// The motor.
+    pub motor: String,
+    /// What became of it.
+    pub outcome: StepOutcome,
+    /// The Nack code, for `nacked`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub code: Option<u16>,
+    /// Said for a person.
+    pub message: String,
+}
+
+/// What became of one motor's part of a line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StepOutcome {
+    /// Every request acked.
+    Acked,
+    /// A request was refused (Nack).
+    Nacked,
+    /// A request was sent and never answered.
+    OutcomeUnknown,
+    /// Cancelled by an emergency stop or the end.
+    Cancelled,
+    /// Replaced by a newer command before it was sent.
+    Superseded,
+    /// Could not be encoded for the joint.
+    NotSent,
+}
+
+/// One joint's feedback: `{"feedback":{WIA MotorFeedback}|null,"motor_id":...,"online":bool}`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FeedbackLine {
+    /// The WIA MotorFeedback (`null` when nothing was heard yet).
+    pub feedback: Option<MotorFeedback>,
+    /// The motor.
+    pub motor_id: String,
+    /// Whether it was heard within the offline timeout.
+    pub online: bool,
+}
+
+/// Something that happened: `{"event":"...",...}`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "event", rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum Event {
+    /// A joint was configured and activated at startup, or failed to be.
+    Startup {
+        /// The motor.
+        motor_id: String,
+        /// Whether it is ready.
+        ok: bool,
+        /// Why not.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        error: Option<StepReport>,
+    },
+    /// Startup is over: lines are served.
+    Ready {
+        /// The joints.
+        joints: Vec<String>,
+    },
+    /// A joint went silent (or a request to it timed out).
+    Offline {
+        /// The motor.
+        motor_id: String,
+        /// Its node id.
+        node: u16,
+        /// Why.
+        reason: String,
+    },
+    /// A joint was heard again.
+    Online {
+        /// The motor.
+        motor_id: String,
+        /// Its node id.
+        node: u16,
+    },
+    /// A frame that is not an iRPC message for the bridge.
+    BadFrame {
+        /// Its CAN id.
+        can_id: String,
+        /// Why.
+        error: String,
+    },
+    /// The emergency stop was latched.
+    EmergencyStop {
+        /// What asked for it (`input`, a motor_id or command_id).
+        cause: String,
+        /// The input lines it cancelled, as `{"origin":..,"line":..}`.
+        cancelled: Vec<LineRef>,
+    },
+    /// The emergency stop was released.
+    Released {
+        /// The joints activated again (those active when the stop came).
+        reactivated: Vec<String>,
+    },
+    /// The bridge is stopping.
+    Stopping {
+        /// Why (`end of input`, `interrupted`).
+        reason: String,
+    },
+    /// Every joint was deactivated; the bridge is done.
+    Stopped {
+        /// The joints that acked their Deactivate.
+        deactivated: Vec<String>,
+        /// The rest, with why.
+        failures: Vec<StepReport>,
+    },
+    /// The bus reported an error.
+    BusError {
+        /// What it said.
+        error: String,
+    },
+    /// A part whose outcome was unknown turned out executed: the joint's
+    /// feedback shows it at that part's target.
+    Outcome {
+        /// The line's origin.
+        origin: Option<Origin>,
+        /// The line's number.
+        line: u64,
+        /// The motor.
+        motor_id: String,
+        /// What the feedback shows.
+        outcome: &'static str,
+        /// The position that shows it (the motor's unit).
+        position: f64,
+    },
+}
+
+/// An input line: its origin and number.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct LineRef {
+    /// Its origin.
+    pub origin: Origin,
+    /// Its number.
+    pub line: u64,
+}

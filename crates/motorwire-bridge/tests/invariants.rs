@@ -1,0 +1,516 @@
+//! The bridge's safety invariants under load, faults and random
+//! interleavings, in simulated time:
+//!
+//! 1. every input line gets exactly one result;
+//! 2. no joint executes a request twice;
+//! 3. nothing commanded before an emergency stop runs after it (a move a
+//!    joint executes comes after every Deactivate it executed whose msg_id
+//!    is newer than the move's);
+//! 4. nothing outside the bus map's limits reaches a joint;
+//! 5. at rest, each joint stands at the target of its last acked move.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    clippy::cast_precision_loss,
+    clippy::cast_possible_truncation
+)]
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::time::Duration;
+
+use motorwire_bridge::sim::SimulatedArm;
+use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output};
+use motorwire_can::{Faults, SimConfig};
+use motorwire_irpc::{LifecycleState, Payload};
+use motorwire_translate::BusMap;
+use proptest::prelude::*;
+use serde_json::Value;
+
+const MAP: &str = include_str!("../../../fixtures/maps/demo-arm.toml");
+/// (motor, node, min, max) of the demo arm's joints.
+const JOINTS: [(&str, u16, f64, f64); 3] = [
+    ("shoulder_pitch", 0x10, -90.0, 90.0),
+    ("shoulder_roll", 0x11, -45.0, 45.0),
+    ("elbow", 0x12, 0.0, 150.0),
+];
+
+fn faults() -> Faults {
+    Faults {
+        drop: 0.10,
+        duplicate: 0.10,
+        delay: 0.05,
+        reorder: 0.10,
+        max_delay: Duration::from_millis(20),
+        ..Faults::default()
+    }
+}
+
+fn arm_with(map: &str, faults: Faults, seed: u64) -> SimulatedArm {
+    let bridge = Bridge::new(BusMap::from_toml(map).unwrap(), BridgeConfig::default()).unwrap();
+    let mut arm = SimulatedArm::new(
+        bridge,
+        SimConfig {
+            seed,
+            faults,
+            ..SimConfig::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        arm.run_while(Duration::from_secs(5), |a| a.bridge().is_ready())
+            .unwrap()
+    );
+    arm
+}
+
+fn command(motor: &str, setpoint: f64) -> String {
+    format!(
+        r#"{{"motor_id":"{motor}","timestamp":1,"control_mode":"position","setpoint":{setpoint}}}"#
+    )
+}
+
+/// What a scenario sends.
+#[derive(Debug, Clone)]
+enum Op {
+    Move {
+        client: u64,
+        joint: usize,
+        setpoint: f64,
+    },
+    Multi {
+        client: u64,
+        setpoints: [f64; 3],
+    },
+    Stop {
+        client: u64,
+        form: usize,
+    },
+    Release {
+        client: u64,
+    },
+    BadRelease {
+        client: u64,
+    },
+    Wait {
+        ms: u64,
+    },
+}
+
+const STOP_FORMS: [&str; 5] = [
+    r#"{"emergency_stop": true}"#,
+    r#"{"emergency_stop": "true", "why": "hostile"}"#,
+    r#"{"emergency_stop": false, "emergency_stop": true}"#,
+    r#"{"motor_id":"elbow","timestamp":1,"control_mode":"warp","setpoint":1,"safety_limits":{"emergency_stop":true}}"#,
+    r#"{"command_id":"c","timestamp":1,"motors":[{"motor_id":"elbow","control_mode":"position","setpoint":1,"safety_limits":{"emergency_stop":true}}]}"#,
+];
+
+#[derive(Default)]
+struct Tally {
+    /// (origin, line) -> result
+    results: BTreeMap<(u64, u64), Value>,
+    sent: BTreeMap<u64, u64>,
+}
+
+fn play(arm: &mut SimulatedArm, ops: &[Op], tally: &mut Tally) {
+    for op in ops {
+        let (client, text) = match op {
+            Op::Move {
+                client,
+                joint,
+                setpoint,
+            } => (*client, command(JOINTS[*joint].0, *setpoint)),
+            Op::Multi { client, setpoints } => (
+                *client,
+                format!(
+                    r#"{{"command_id":"m","timestamp":1,"sync_mode":"simultaneous","motors":[{}]}}"#,
+                    JOINTS
+                        .iter()
+                        .zip(setpoints)
+                        .map(|((m, ..), s)| format!(
+                            r#"{{"motor_id":"{m}","control_mode":"position","setpoint":{s}}}"#
+                        ))
+                        .collect::<Vec<_>>()
+                        .join(",")
+                ),
+            ),
+            Op::Stop { client, form } => (*client, STOP_FORMS[*form % STOP_FORMS.len()].to_owned()),
+            Op::Release { client } => (*client, r#"{"emergency_stop": false}"#.to_owned()),
+            Op::BadRelease { client } => {
+                (*client, r#"{"emergency_stop": false, "x": 1}"#.to_owned())
+            }
+            Op::Wait { ms } => {
+                let t = arm.now() + Duration::from_millis(*ms);
+                arm.run_until(t).unwrap();
+                collect(arm, tally);
+                continue;
+            }
+        };
+        *tally.sent.entry(client).or_default() += 1;
+        arm.line(Origin(client), &text);
+    }
+}
+
+fn collect(arm: &mut SimulatedArm, tally: &mut Tally) {
+    for o in arm.take_outputs() {
+        if let Output::Result { origin, result } = &o {
+            let v = o.to_value();
+            assert!(
+                tally.results.insert((origin.0, result.line), v).is_none(),
+                "two results for line {} of client {}",
+                result.line,
+                origin.0
+            );
+        }
+    }
+}
+
+/// Invariants 1 to 4, from the results and the joints' own logs.
+fn check(arm: &SimulatedArm, tally: &Tally) {
+    for (client, n) in &tally.sent {
+        for line in 1..=*n {
+            assert!(
+                tally.results.contains_key(&(*client, line)),
+                "client {client} line {line}: no result"
+            );
+        }
+    }
+    assert_eq!(
+        tally.results.len() as u64,
+        tally.sent.values().sum::<u64>(),
+        "one result per line"
+    );
+    for (motor, node, lo, hi) in JOINTS {
+        let log = arm.joint(node).unwrap().log();
+        let mut seen = BTreeSet::new();
+        let mut stops: Vec<u32> = Vec::new();
+        for e in log {
+            assert!(
+                seen.insert((e.source, e.msg_id)),
+                "{motor}: msg_id {} executed twice",
+                e.msg_id
+            );
+            match e.payload {
+                Payload::Deactivate if matches!(e.answer, Payload::Ack(_)) => stops.push(e.msg_id),
+                Payload::SetTargetV2(p) if matches!(e.answer, Payload::Ack(_)) => {
+                    let t = f64::from(p.target_angle);
+                    assert!(
+                        (lo..=hi).contains(&t),
+                        "{motor}: target {t} outside [{lo}, {hi}]"
+                    );
+                    if let Some(d) = stops.iter().find(|d| **d > e.msg_id) {
+                        panic!(
+                            "{motor}: move msg_id {} ran after the stop msg_id {d}",
+                            e.msg_id
+                        );
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+}
+
+/// Many lines in flight from four clients, under 10 % drop, duplicate and
+/// reorder, stops in every form and releases among them.
+#[test]
+fn four_clients_bursts_stops_and_faults_keep_every_invariant() {
+    let mut arm = arm_with(MAP, faults(), 11);
+    let mut tally = Tally::default();
+    let mut ops = Vec::new();
+    for round in 0..12u64 {
+        for i in 0..60u64 {
+            let joint = ((i + round) % 3) as usize;
+            let (_, _, lo, hi) = JOINTS[joint];
+            // Now and then a setpoint outside the limits: refused, never sent.
+            let setpoint = if i % 17 == 0 {
+                hi + 20.0
+            } else {
+                lo + (hi - lo) * ((i * 7 + round) % 10) as f64 / 10.0
+            };
+            ops.push(Op::Move {
+                client: i % 4,
+                joint,
+                setpoint,
+            });
+            if i % 20 == 5 {
+                ops.push(Op::Multi {
+                    client: 3,
+                    setpoints: [10.0, -10.0, 40.0 + round as f64],
+                });
+            }
+        }
+        ops.push(Op::Wait { ms: 3 });
+        ops.push(Op::Stop {
+            client: round % 4,
+            form: round as usize,
+        });
+        ops.push(Op::BadRelease { client: 1 });
+        ops.push(Op::Move {
+            client: 0,
+            joint: 0,
+            setpoint: 1.0,
+        });
+        ops.push(Op::Wait { ms: 30 });
+        ops.push(Op::Release { client: 2 });
+        ops.push(Op::Wait { ms: 300 });
+    }
+    play(&mut arm, &ops, &mut tally);
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    collect(&mut arm, &mut tally);
+    check(&arm, &tally);
+    let kinds: BTreeSet<String> = tally
+        .results
+        .values()
+        .filter_map(|r| r["error"]["kind"].as_str().map(str::to_owned))
+        .collect();
+    // The scenario reached every path it means to test.
+    for k in [
+        "refused",
+        "cancelled",
+        "superseded",
+        "invalid_release",
+        "emergency_stop_latched",
+    ] {
+        assert!(kinds.contains(k), "no {k} among {kinds:?}");
+    }
+    let stats = arm.bus().stats();
+    assert!(
+        stats.dropped > 0 && stats.duplicated > 0 && stats.reordered > 0,
+        "{stats:?}"
+    );
+    // Invariant 5: one last move per joint, then at rest on its target.
+    for (j, (motor, ..)) in JOINTS.iter().enumerate() {
+        let setpoint = [12.5, -7.5, 33.0][j];
+        arm.line(Origin(9), &command(motor, setpoint));
+    }
+    arm.run_until(arm.now() + Duration::from_secs(4)).unwrap();
+    for view in arm.bridge().joints() {
+        let node = view.node;
+        let j = arm.joint(node).unwrap();
+        assert_eq!(j.state(), LifecycleState::Active, "{}", view.name);
+        let target = view.target.unwrap();
+        assert!(
+            (j.position() - target).abs() < 1e-3,
+            "{}: at {} for {target}",
+            view.name,
+            j.position()
+        );
+    }
+}
+
+/// A burst far beyond the bounds: refused `busy` or superseded at once,
+/// never buffered without bound, each answered once.
+#[test]
+fn a_burst_is_bounded_and_a_newer_move_supersedes_a_waiting_one() {
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    let mut tally = Tally::default();
+    let ops: Vec<Op> = (0..3000u64)
+        .map(|i| Op::Move {
+            client: i % 2,
+            joint: 2,
+            setpoint: (i % 150) as f64,
+        })
+        .collect();
+    play(&mut arm, &ops, &mut tally);
+    assert!(arm.bridge().pending_lines() <= 1024);
+    arm.run_until(arm.now() + Duration::from_secs(5)).unwrap();
+    collect(&mut arm, &mut tally);
+    check(&arm, &tally);
+    let superseded = tally
+        .results
+        .values()
+        .filter(|r| r["error"]["kind"] == "superseded")
+        .count();
+    assert!(superseded > 2900, "{superseded}");
+    // The last line wins: the elbow ends at the last setpoint.
+    let j = arm.joint(0x12).unwrap();
+    assert!(
+        (j.position() - (2999 % 150) as f64).abs() < 1e-3,
+        "{}",
+        j.position()
+    );
+}
+
+/// A map mixing the four wire versions starts, moves each joint and stops it.
+#[test]
+fn every_joint_in_its_own_wire_version() {
+    let map = r#"
+[motors.a]
+dialect = "irpc"
+node = 0x20
+wire = "v1"
+limits = { min_position = -90, max_position = 90, max_velocity = 100, max_acceleration = 400 }
+[motors.b]
+dialect = "irpc"
+node = 0x21
+wire = "v2.0"
+limits = { min_position = -90, max_position = 90, max_velocity = 100, max_acceleration = 400 }
+[motors.c]
+dialect = "irpc"
+node = 0x22
+wire = "v2.1"
+limits = { min_position = -90, max_position = 90, max_velocity = 100, max_acceleration = 400 }
+[motors.d]
+dialect = "irpc"
+node = 0x23
+wire = "v2.2"
+limits = { min_position = -90, max_position = 90, max_velocity = 100, max_acceleration = 400 }
+"#;
+    let mut arm = arm_with(map, Faults::default(), 0);
+    for node in 0x20..=0x23 {
+        assert_eq!(
+            arm.joint(node).unwrap().state(),
+            LifecycleState::Active,
+            "{node:#x}"
+        );
+    }
+    for (i, m) in ["a", "b", "c", "d"].iter().enumerate() {
+        arm.line(Origin(1), &command(m, 10.0 * (i + 1) as f64));
+    }
+    arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+    let results: Vec<Value> = arm.take_results();
+    assert_eq!(results.len(), 4);
+    assert!(results.iter().all(|r| r["ok"] == true), "{results:?}");
+    for (i, node) in (0x20..=0x23).enumerate() {
+        let j = arm.joint(node).unwrap();
+        assert!(
+            (j.position() - 10.0 * (i + 1) as f64).abs() < 1e-3,
+            "{node:#x}: {}",
+            j.position()
+        );
+    }
+    let v1 = arm.joint(0x20).unwrap().log();
+    assert!(
+        v1.iter()
+            .any(|e| matches!(e.payload, Payload::SetTarget(_))),
+        "v1 moves with SetTarget"
+    );
+    arm.line(Origin(1), r#"{"emergency_stop": true}"#);
+    arm.run_until(arm.now() + Duration::from_millis(300))
+        .unwrap();
+    let r = arm.take_results();
+    assert_eq!(r[0]["acked"].as_array().unwrap().len(), 4, "{}", r[0]);
+    for node in 0x20..=0x23 {
+        assert_eq!(
+            arm.joint(node).unwrap().state(),
+            LifecycleState::Inactive,
+            "{node:#x}"
+        );
+    }
+    // The release activates again exactly the four that were active.
+    arm.line(Origin(1), r#"{"emergency_stop": false}"#);
+    arm.run_until(arm.now() + Duration::from_millis(300))
+        .unwrap();
+    for node in 0x20..=0x23 {
+        assert_eq!(
+            arm.joint(node).unwrap().state(),
+            LifecycleState::Active,
+            "{node:#x}"
+        );
+    }
+}
+
+/// A joint disabled before the stop stays inactive after the release.
+#[test]
+fn the_release_activates_only_the_joints_that_were_active() {
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"disabled","setpoint":0}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    assert_eq!(arm.joint(0x12).unwrap().state(), LifecycleState::Inactive);
+    arm.line(Origin(1), r#"{"emergency_stop": true}"#);
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    arm.line(Origin(1), r#"{"emergency_stop": false}"#);
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    assert_eq!(arm.joint(0x10).unwrap().state(), LifecycleState::Active);
+    assert_eq!(arm.joint(0x11).unwrap().state(), LifecycleState::Active);
+    assert_eq!(arm.joint(0x12).unwrap().state(), LifecycleState::Inactive);
+    let released = arm
+        .take_outputs()
+        .iter()
+        .map(Output::to_value)
+        .find(|v| v["event"] == "released")
+        .unwrap();
+    assert_eq!(
+        released["reactivated"],
+        serde_json::json!(["shoulder_pitch", "shoulder_roll"])
+    );
+}
+
+/// Stale and future timestamps are refused before anything is sent.
+#[test]
+fn stale_commands_are_refused() {
+    let config = BridgeConfig {
+        epoch_unix_ms: Some(1_800_000_000_000.0),
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
+    let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
+    arm.run_until(Duration::from_millis(100)).unwrap();
+    let sent = arm.bridge().stats().frames_sent;
+    let now = 1_800_000_000_100.0;
+    for (ts, ok) in [
+        (now - 600_000.0, false),
+        (now + 600_000.0, false),
+        (now - 299_000.0, true),
+        (1.0, false),
+    ] {
+        arm.line(
+            Origin(1),
+            &format!(
+                r#"{{"motor_id":"elbow","timestamp":{ts},"control_mode":"position","setpoint":5}}"#
+            ),
+        );
+        arm.run_until(arm.now() + Duration::from_millis(1)).unwrap();
+        let r = arm.take_results();
+        assert_eq!(r[0]["ok"], ok, "{ts}: {}", r[0]);
+        if !ok {
+            assert_eq!(r[0]["error"]["kind"], "stale", "{}", r[0]);
+        }
+    }
+    assert!(
+        arm.bridge().stats().frames_sent > sent,
+        "the fresh one was sent"
+    );
+}
+
+fn op() -> impl Strategy<Value = Op> {
+    prop_oneof![
+        6 => (0u64..3, 0usize..3, -100.0f64..160.0).prop_map(|(client, joint, setpoint)| Op::Move { client, joint, setpoint: setpoint.round() }),
+        1 => (0u64..3, -40.0f64..40.0).prop_map(|(client, s)| Op::Multi { client, setpoints: [s.round(), (s / 2.0).round(), (s.abs() + 10.0).round()] }),
+        1 => (0u64..3, 0usize..5).prop_map(|(client, form)| Op::Stop { client, form }),
+        1 => (0u64..3).prop_map(|client| Op::Release { client }),
+        1 => (0u64..3).prop_map(|client| Op::BadRelease { client }),
+        3 => (0u64..80).prop_map(|ms| Op::Wait { ms }),
+    ]
+}
+
+fn cases() -> u32 {
+    std::env::var("MOTORWIRE_BRIDGE_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(64)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// Random interleavings of commands, stops, releases and waits from
+    /// three clients, on a bus that drops, duplicates, delays and reorders.
+    #[test]
+    fn random_interleavings_keep_every_invariant(ops in prop::collection::vec(op(), 1..80), seed in any::<u64>()) {
+        let mut arm = arm_with(MAP, faults(), seed);
+        let mut tally = Tally::default();
+        play(&mut arm, &ops, &mut tally);
+        arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+        collect(&mut arm, &mut tally);
+        check(&arm, &tally);
+    }
+}
