@@ -36,6 +36,9 @@ pub fn joint_config(motor: &MappedMotor) -> Option<JointConfig> {
     Some(config)
 }
 
+/// Told of every request a simulated joint executes: its name, its node id and the execution.
+pub type ExecutionLog = Arc<dyn Fn(&str, u16, &motorwire_sim::Execution) + Send + Sync>;
+
 /// The map's iRPC joints on an in-memory bus in real time, each on its own
 /// thread, until dropped.
 #[derive(Debug)]
@@ -52,18 +55,44 @@ impl RealTimeArm {
     /// [`SimError::InvalidConfig`] for a joint the simulator cannot be
     /// (a start outside its own ±180° range).
     pub fn start(map: &BusMap) -> Result<Self, SimError> {
+        Self::start_with(map, SimConfig::default(), None)
+    }
+
+    /// Starts the joints on a bus made hostile by `config`'s seeded faults
+    /// (its clock is made real). `on_execution`, when given, is told of
+    /// every request a joint acts on for the first time (the joint's name
+    /// and the execution), from the joint's thread.
+    ///
+    /// # Errors
+    /// As [`RealTimeArm::start`]; the bus's refusal of a fault rate outside 0..=1.
+    pub fn start_with(
+        map: &BusMap,
+        config: SimConfig,
+        on_execution: Option<ExecutionLog>,
+    ) -> Result<Self, SimError> {
         let bus = SimBus::new(SimConfig {
             clock: Clock::Real,
-            ..SimConfig::default()
-        })?;
+            ..config
+        })
+        .map_err(SimError::from)?;
         let stop = Arc::new(AtomicBool::new(false));
         let mut threads = Vec::new();
-        for config in map.motors().filter_map(joint_config) {
+        for motor in map.motors() {
+            let Some(config) = joint_config(motor) else {
+                continue;
+            };
             let mut joint = SimJoint::new(config)?;
             let mut port = bus.port();
             let stop = Arc::clone(&stop);
+            let log = on_execution.clone();
+            let name = motor.name.clone();
+            let node = config.node_id;
             threads.push(thread::spawn(move || {
-                let _ = joint.run(&mut port, &stop, |_| {});
+                let _ = joint.run(&mut port, &stop, |e| {
+                    if let Some(log) = &log {
+                        log(&name, node, e);
+                    }
+                });
             }));
         }
         Ok(Self { bus, stop, threads })

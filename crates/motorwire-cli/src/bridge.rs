@@ -7,9 +7,11 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use motorwire_bridge::sim::RealTimeArm;
+use motorwire_bridge::sim::{ExecutionLog, RealTimeArm};
 use motorwire_bridge::{Bridge, BridgeConfig, InputSender, Origin, Output, Runner, feed};
 use motorwire_can::client::ClientConfig;
+use motorwire_can::{Faults, SimConfig};
+use motorwire_sim::Execution;
 use motorwire_translate::BusMap;
 
 /// The origin of stdin's lines.
@@ -48,6 +50,19 @@ pub(crate) struct Args {
     /// this many ms in the past or future is refused `stale` (0: not checked).
     #[arg(long, value_name = "MS", default_value_t = 300_000)]
     max_age: u64,
+    /// With `--bus sim`: faults on the simulated bus, as
+    /// `drop=R,duplicate=R,corrupt=R,delay=R,reorder=R,max-delay-ms=MS`
+    /// (rates 0 to 1, any subset; e.g. `drop=0.1,duplicate=0.1,reorder=0.1`).
+    #[arg(long, value_name = "SPEC", default_value = "")]
+    sim_faults: String,
+    /// With `--bus sim`: the fault generator's seed (the same seed and
+    /// traffic give the same faults).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    sim_seed: u64,
+    /// With `--bus sim`: write every request a simulated joint executes to
+    /// FILE, one JSON line each: `{"joint","node","source","msg_id","payload","answer","at_us"}`.
+    #[arg(long, value_name = "FILE")]
+    sim_log: Option<String>,
     /// The bridge's own iRPC node id (its frames' CAN id).
     #[arg(long, value_parser = crate::sim::parse_node, default_value = "0x0000")]
     node: u16,
@@ -88,6 +103,57 @@ pub(crate) fn unix_ms() -> f64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64() * 1000.0)
+}
+
+/// `drop=0.1,duplicate=0.05,...` as fault rates.
+pub(crate) fn parse_faults(spec: &str) -> Result<Faults, String> {
+    let mut f = Faults::default();
+    for part in spec.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        let (key, value) = part
+            .split_once('=')
+            .ok_or_else(|| format!("--sim-faults {part:?}: expected NAME=VALUE"))?;
+        let number: f64 = value
+            .parse()
+            .map_err(|_| format!("--sim-faults {part:?}: {value:?} is not a number"))?;
+        match key {
+            "drop" => f.drop = number,
+            "duplicate" => f.duplicate = number,
+            "corrupt" => f.corrupt = number,
+            "delay" => f.delay = number,
+            "reorder" => f.reorder = number,
+            "max-delay-ms" => {
+                f.max_delay = Duration::try_from_secs_f64(number / 1000.0)
+                    .map_err(|e| format!("--sim-faults {part:?}: {e}"))?;
+            }
+            other => {
+                return Err(format!(
+                    "--sim-faults: unknown fault {other:?} (drop, duplicate, corrupt, delay, reorder, max-delay-ms)"
+                ));
+            }
+        }
+    }
+    f.validate().map_err(|e| format!("--sim-faults: {e}"))?;
+    Ok(f)
+}
+
+/// Writes each execution as a JSON line to `path`, flushed at once.
+fn execution_log(path: &str) -> Result<ExecutionLog, String> {
+    let file = std::fs::File::create(path).map_err(|e| format!("--sim-log {path}: {e}"))?;
+    let file = Mutex::new(io::BufWriter::new(file));
+    Ok(Arc::new(move |joint: &str, node: u16, e: &Execution| {
+        let line = serde_json::json!({
+            "joint": joint,
+            "node": node,
+            "source": e.source,
+            "msg_id": e.msg_id,
+            "payload": e.payload,
+            "answer": e.answer,
+            "at_us": u64::try_from(e.at.as_micros()).unwrap_or(u64::MAX),
+        });
+        let mut f = file.lock().unwrap_or_else(PoisonError::into_inner);
+        let _ = writeln!(f, "{line}");
+        let _ = f.flush();
+    }))
 }
 
 /// The clock's microseconds, as a msg_id (RFC 793's way of choosing a
@@ -210,7 +276,18 @@ fn bridge(args: &Args) -> Result<u8, String> {
     };
     let result = match args.bus.as_str() {
         "sim" => {
-            let arm = RealTimeArm::start(bridge.map()).map_err(|e| e.to_string())?;
+            let faults = parse_faults(&args.sim_faults)?;
+            let log = match &args.sim_log {
+                Some(path) => Some(execution_log(path)?),
+                None => None,
+            };
+            let config = SimConfig {
+                seed: args.sim_seed,
+                faults,
+                ..SimConfig::default()
+            };
+            let arm =
+                RealTimeArm::start_with(bridge.map(), config, log).map_err(|e| e.to_string())?;
             let (tx, rx) = (arm.port(), arm.port());
             runner.run(bridge, tx, rx, sink)
         }
