@@ -91,6 +91,50 @@ fn nested_stops(safety_limits: &Value, out: &mut Vec<String>, at: &str) {
     }
 }
 
+/// Whether `line` asks for an emergency stop (in any of the forms above):
+/// a quick test a runner uses to let a stop overtake the lines queued
+/// before it. It agrees with [`classify`] on every line.
+///
+/// ```
+/// use motorwire_bridge::asks_for_stop;
+/// assert!(asks_for_stop(r#"{"emergency_stop": "true", "x": 1}"#));
+/// assert!(!asks_for_stop(r#"{"emergency_stop": false}"#));
+/// assert!(!asks_for_stop(r#"{"motor_id":"elbow","setpoint":1}"#));
+/// ```
+pub fn asks_for_stop(line: &str) -> bool {
+    if !line.contains("emergency_stop") {
+        return false;
+    }
+    let Ok(Members(members)) = serde_json::from_str::<Members>(line) else {
+        return false;
+    };
+    let (top, reasons) = stop_members(&members);
+    top.iter().any(|v| stops(v)) || !reasons.is_empty()
+}
+
+/// The top-level `emergency_stop` values, and the nested ones that stop.
+fn stop_members(members: &[(String, Value)]) -> (Vec<&Value>, Vec<String>) {
+    let mut reasons = Vec::new();
+    let mut top = Vec::new();
+    for (k, v) in members {
+        match k.as_str() {
+            "emergency_stop" => top.push(v),
+            "safety_limits" => nested_stops(v, &mut reasons, "safety_limits"),
+            "motors" => {
+                if let Value::Array(axes) = v {
+                    for (i, a) in axes.iter().enumerate() {
+                        if let Some(l) = a.get("safety_limits") {
+                            nested_stops(l, &mut reasons, &format!("motors[{i}].safety_limits"));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    (top, reasons)
+}
+
 /// Decides what `line` asks for. `validator` parses the WIA messages.
 ///
 /// ```
@@ -137,24 +181,7 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
             ("command_id", Value::String(s)) => Some(("command_id", s.clone())),
             _ => None,
         });
-    let mut reasons = Vec::new();
-    let mut top = Vec::new();
-    for (k, v) in &members {
-        match k.as_str() {
-            "emergency_stop" => top.push(v),
-            "safety_limits" => nested_stops(v, &mut reasons, "safety_limits"),
-            "motors" => {
-                if let Value::Array(axes) = v {
-                    for (i, a) in axes.iter().enumerate() {
-                        if let Some(l) = a.get("safety_limits") {
-                            nested_stops(l, &mut reasons, &format!("motors[{i}].safety_limits"));
-                        }
-                    }
-                }
-            }
-            _ => {}
-        }
-    }
+    let (top, reasons) = stop_members(&members);
     let top_stop = top.iter().any(|v| stops(v));
     if top_stop || !reasons.is_empty() {
         let mut problems = Vec::new();

@@ -227,6 +227,9 @@ pub struct Bridge {
     /// started, when the stop came).
     resume: BTreeMap<usize, Vec<Payload>>,
     phase: Phase,
+    /// When the latest stop line arrived: a release that arrived before it
+    /// is not obeyed.
+    last_stop_arrival: Option<Duration>,
     /// The input ended during startup: drain (until this deadline) once ready.
     drain_after_start: Option<Duration>,
     timers: Timers,
@@ -293,6 +296,7 @@ impl Bridge {
             resume: BTreeMap::new(),
             phase: Phase::Starting,
             drain_after_start: None,
+            last_stop_arrival: None,
             timers: Timers::default(),
             out: VecDeque::new(),
             now: Duration::ZERO,
@@ -480,6 +484,37 @@ impl Bridge {
         self.take_line(now, origin, number, line);
     }
 
+    /// [`Bridge::handle_line`] for a line its runner already numbered (a
+    /// runner that lets emergency stops overtake the lines queued before
+    /// them numbers lines as they arrive). The bridge's own count for
+    /// `origin` is not used.
+    pub fn handle_numbered_line(&mut self, now: Duration, origin: Origin, number: u64, line: &str) {
+        self.now = self.now.max(now);
+        let line = line.trim();
+        if line.is_empty() {
+            return;
+        }
+        self.take_line(now, origin, number, line);
+    }
+
+    /// [`Bridge::handle_unreadable`] for a line its runner already numbered.
+    pub fn handle_numbered_unreadable(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        reason: &str,
+    ) {
+        self.now = self.now.max(now);
+        self.stats.lines += 1;
+        self.refuse(
+            origin,
+            number,
+            None,
+            ErrorBody::new(ErrorKind::Unreadable, reason),
+        );
+    }
+
     /// A line that could not be read as text (not UTF-8, too long): it
     /// counts as a line of `origin` and is answered
     /// `{"ok":false,"error":{"kind":"unreadable",...}}`.
@@ -511,6 +546,7 @@ impl Bridge {
         let input = classify(&self.validator, line);
         // The stop is acted on in every phase but the last, ahead of all.
         if let Input::Stop { label, problems } = input {
+            self.last_stop_arrival = Some(self.last_stop_arrival.map_or(now, |t| t.max(now)));
             self.stats.lines += 1;
             let cause = label
                 .as_ref()
@@ -553,6 +589,19 @@ impl Bridge {
         self.stats.lines += 1;
         match input {
             Input::Stop { .. } => {}
+            // A stop that arrived after this release was acted on first (it
+            // overtook the queue, or the release waited for startup):
+            // releasing now would let what followed the release run after
+            // the stop.
+            Input::Release if self.last_stop_arrival.is_some_and(|t| now < t) => self.refuse(
+                origin,
+                number,
+                None,
+                ErrorBody::new(
+                    ErrorKind::Cancelled,
+                    "an emergency stop sent after this release was acted on before it; the emergency stop stays latched",
+                ),
+            ),
             Input::Release => self.release(now, origin, number),
             Input::BadRelease { reason } => {
                 self.refuse(origin, number, None, ErrorBody::new(ErrorKind::InvalidRelease, reason));
@@ -1009,17 +1058,18 @@ impl Bridge {
         let mut keep = VecDeque::new();
         for s in joint.queue.drain(..) {
             let replaced = self.jobs.get_mut(&s.job).is_some_and(|job| {
-                job.kind == JobKind::Command && job.axes.get_mut(s.axis).is_some_and(|a| {
-                    let yes = a.is_position_move() && a.state == AxisState::Queued;
-                    if yes {
-                        a.finish(
+                job.kind == JobKind::Command
+                    && job.axes.get_mut(s.axis).is_some_and(|a| {
+                        let yes = a.is_position_move() && a.state == AxisState::Queued;
+                        if yes {
+                            a.finish(
                             StepOutcome::Superseded,
                             None,
                             "a newer position command for the joint replaced it before it was sent",
                         );
-                    }
-                    yes
-                })
+                        }
+                        yes
+                    })
             });
             if replaced {
                 self.stats.superseded += 1;

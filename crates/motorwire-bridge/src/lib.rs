@@ -9,7 +9,7 @@ mod output;
 mod runtime;
 pub mod sim;
 
-pub use classify::{Input, classify};
+pub use classify::{Input, asks_for_stop, classify};
 pub use engine::{Bridge, BridgeConfig, BridgeStats, JointView};
 pub use error::BridgeError;
 pub use output::{

@@ -9,7 +9,10 @@ use std::time::{Duration, Instant};
 
 use motorwire_can::{CanBus, Error as CanError, Frame};
 
-use crate::{Bridge, BridgeError, Event, Origin, Output};
+use std::collections::BTreeMap;
+use std::sync::{Mutex, PoisonError};
+
+use crate::{Bridge, BridgeError, Event, Origin, Output, asks_for_stop};
 
 /// The longest input line accepted (bytes, without the newline).
 pub const MAX_LINE: usize = 64 * 1024;
@@ -18,13 +21,17 @@ pub const MAX_LINE: usize = 64 * 1024;
 enum Msg {
     Line {
         origin: Origin,
+        number: u64,
         text: String,
         at: Instant,
     },
     Refused {
         origin: Origin,
+        number: u64,
         reason: String,
     },
+    /// A stop is waiting on the urgent channel.
+    Wake,
     Finish,
     Interrupt,
     Frame {
@@ -35,28 +42,65 @@ enum Msg {
 }
 
 /// Hands input to a running [`Runner`]; clone it for each input.
+///
+/// Lines are numbered per origin as they arrive (blank lines not
+/// counted); a line that asks for an emergency stop ([`asks_for_stop`])
+/// overtakes every line queued before it.
 #[derive(Debug, Clone)]
 pub struct InputSender {
     tx: Sender<Msg>,
+    urgent: Sender<Msg>,
+    numbers: Arc<Mutex<BTreeMap<Origin, u64>>>,
 }
 
 impl InputSender {
+    fn number(&self, origin: Origin) -> u64 {
+        let mut n = self.numbers.lock().unwrap_or_else(PoisonError::into_inner);
+        let c = n.entry(origin).or_insert(0);
+        *c += 1;
+        *c
+    }
+
     /// One line from `origin`, received now.
     pub fn line(&self, origin: Origin, text: impl Into<String>) {
-        let _ = self.tx.send(Msg::Line {
+        let text = text.into();
+        if text.trim().is_empty() {
+            return;
+        }
+        let number = self.number(origin);
+        let urgent = asks_for_stop(text.trim());
+        let msg = Msg::Line {
             origin,
-            text: text.into(),
+            number,
+            text,
             at: Instant::now(),
-        });
+        };
+        if urgent {
+            let _ = self.urgent.send(msg);
+            let _ = self.tx.send(Msg::Wake);
+        } else {
+            let _ = self.tx.send(msg);
+        }
     }
 
     /// A line that could not be taken (too long, not UTF-8): answered with
     /// an error, never sent.
     pub fn refused(&self, origin: Origin, reason: impl Into<String>) {
+        let number = self.number(origin);
         let _ = self.tx.send(Msg::Refused {
             origin,
+            number,
             reason: reason.into(),
         });
+    }
+
+    /// `origin` left: its line count is forgotten (bounded memory over
+    /// many clients).
+    pub fn forget(&self, origin: Origin) {
+        self.numbers
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .remove(&origin);
     }
 
     /// End of input: finish and stop the joints.
@@ -188,6 +232,9 @@ pub fn feed(
 pub struct Runner {
     tx: Sender<Msg>,
     rx: Receiver<Msg>,
+    urgent_tx: Sender<Msg>,
+    urgent: Receiver<Msg>,
+    numbers: Arc<Mutex<BTreeMap<Origin, u64>>>,
 }
 
 impl Default for Runner {
@@ -200,13 +247,22 @@ impl Runner {
     /// A runner with no input yet.
     pub fn new() -> Self {
         let (tx, rx) = mpsc::channel();
-        Self { tx, rx }
+        let (urgent_tx, urgent) = mpsc::channel();
+        Self {
+            tx,
+            rx,
+            urgent_tx,
+            urgent,
+            numbers: Arc::default(),
+        }
     }
 
     /// A handle to give input with.
     pub fn input(&self) -> InputSender {
         InputSender {
             tx: self.tx.clone(),
+            urgent: self.urgent_tx.clone(),
+            numbers: Arc::clone(&self.numbers),
         }
     }
 
@@ -278,10 +334,42 @@ impl Runner {
             let wait = bridge
                 .poll_timeout()
                 .map_or(Duration::from_millis(100), |t| t.saturating_sub(now));
+            // Stops first, ahead of every line queued before them.
+            let mut stopped = false;
+            while let Ok(Msg::Line {
+                origin,
+                number,
+                text,
+                at,
+            }) = self.urgent.try_recv()
+            {
+                bridge.handle_numbered_line(since(at), origin, number, &text);
+                stopped = true;
+            }
+            if stopped {
+                continue; // its frames go out before anything else is read
+            }
             match self.rx.recv_timeout(wait) {
-                Ok(Msg::Line { origin, text, at }) => bridge.handle_line(since(at), origin, &text),
-                Ok(Msg::Refused { origin, reason }) => {
-                    bridge.handle_unreadable(since(Instant::now()), origin, &reason);
+                Ok(Msg::Wake) => {}
+                Ok(Msg::Line {
+                    origin,
+                    number,
+                    text,
+                    at,
+                }) => {
+                    bridge.handle_numbered_line(since(at), origin, number, &text);
+                }
+                Ok(Msg::Refused {
+                    origin,
+                    number,
+                    reason,
+                }) => {
+                    bridge.handle_numbered_unreadable(
+                        since(Instant::now()),
+                        origin,
+                        number,
+                        &reason,
+                    );
                 }
                 Ok(Msg::Frame { frame, at }) => bridge.handle_frame(since(at), &frame),
                 Ok(Msg::Finish) => bridge.finish(since(Instant::now())),

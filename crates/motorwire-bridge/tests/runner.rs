@@ -1,0 +1,98 @@
+//! The real-time runner: an emergency stop overtakes every line queued
+//! before it, and nothing queued before it runs after it.
+#![allow(clippy::unwrap_used, clippy::panic, clippy::indexing_slicing)]
+
+use std::sync::mpsc;
+use std::thread;
+use std::time::Duration;
+
+use motorwire_bridge::sim::RealTimeArm;
+use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output, Runner};
+use motorwire_translate::BusMap;
+use serde_json::Value;
+
+const MAP: &str = include_str!("../../../fixtures/maps/demo-arm.toml");
+
+#[test]
+fn a_stop_overtakes_two_thousand_queued_lines() {
+    let map = BusMap::from_toml(MAP).unwrap();
+    let config = BridgeConfig {
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(map, config).unwrap();
+    let arm = RealTimeArm::start(bridge.map()).unwrap();
+    let runner = Runner::new();
+    let input = runner.input();
+    let (tx, rx) = mpsc::channel();
+    let (a, b) = (arm.port(), arm.port());
+    let handle = thread::spawn(move || {
+        runner.run(bridge, a, b, |o| {
+            if let Output::Result { .. } = o {
+                let _ = tx.send(o.to_value());
+            }
+        })
+    });
+    // Ready first: one move, answered.
+    input.line(
+        Origin(3),
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":5}"#,
+    );
+    assert_eq!(
+        rx.recv_timeout(Duration::from_secs(10)).unwrap()["ok"],
+        true
+    );
+    let n = 2000;
+    for i in 0..n {
+        let motor = ["shoulder_pitch", "shoulder_roll", "elbow"][i % 3];
+        input.line(
+            Origin(1),
+            format!(
+                r#"{{"motor_id":"{motor}","timestamp":1,"control_mode":"position","setpoint":{}}}"#,
+                i % 40
+            ),
+        );
+    }
+    // A release queued before the stop must not undo it.
+    input.line(Origin(1), r#"{"emergency_stop": false}"#);
+    input.line(Origin(2), r#"{"emergency_stop": true, "from": "operator"}"#);
+    let mut results: Vec<Value> = Vec::new();
+    while results.len() < n + 2 {
+        results.push(rx.recv_timeout(Duration::from_secs(10)).unwrap());
+    }
+    input.interrupt();
+    handle.join().unwrap().unwrap();
+    let stop_at = results
+        .iter()
+        .position(|r| r["emergency_stop"] == true)
+        .unwrap();
+    assert_eq!(results[stop_at]["ok"], true, "{}", results[stop_at]);
+    assert_eq!(results[stop_at]["line"], 1);
+    assert!(!results[stop_at]["problems"].as_array().unwrap().is_empty());
+    // Nothing queued before the stop was acked after it.
+    for r in &results[stop_at + 1..] {
+        assert_eq!(r["ok"], false, "{r}");
+    }
+    let release = results.iter().find(|r| r["line"] == n as u64 + 1).unwrap();
+    assert_eq!(release["ok"], false, "{release}");
+    // Lines the stop overtook are refused latched: most of the burst.
+    let latched = results
+        .iter()
+        .filter(|r| r["error"]["kind"] == "emergency_stop_latched")
+        .count();
+    assert!(
+        latched > n / 2,
+        "only {latched} of {n} lines came after the stop: it did not overtake them"
+    );
+    let mut lines: Vec<u64> = results
+        .iter()
+        .filter(|r| r["line"].as_u64().is_some() && r["emergency_stop"] != true)
+        .map(|r| r["line"].as_u64().unwrap())
+        .collect();
+    lines.sort_unstable();
+    assert_eq!(
+        lines,
+        (1..=n as u64 + 1).collect::<Vec<_>>(),
+        "one result per line"
+    );
+}
