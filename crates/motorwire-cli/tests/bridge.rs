@@ -317,3 +317,48 @@ fn a_hostile_simulated_bus_and_the_execution_log_prove_exactly_once() {
         }
     }
 }
+
+/// Every feedback object the bridge prints is a valid WIA MotorFeedback,
+/// with a whole-millisecond timestamp and the f32 values in their shortest
+/// form (30.1, not 30.100000381469727).
+#[test]
+fn every_feedback_line_is_valid_wia_with_whole_ms_and_short_floats() {
+    let input = format!("{}\n", command("elbow", 30.1));
+    let out = common::run(
+        &[
+            "bridge",
+            "--map",
+            MAP,
+            "--bus",
+            "sim",
+            "--feedback-hz",
+            "50",
+        ],
+        input.as_bytes(),
+    );
+    assert_eq!(out.status.code(), Some(0));
+    let validator = motorwire_wia::Validator::new();
+    let mut seen = 0;
+    let mut last_elbow = None;
+    for v in lines(&out.stdout) {
+        let Some(fb) = v.get("feedback").filter(|f| !f.is_null()) else {
+            continue;
+        };
+        seen += 1;
+        let text = fb.to_string();
+        let report = validator.validate_auto(&text);
+        assert!(report.is_valid(), "{text}: {report:?}");
+        let ts = fb["timestamp"].as_f64().unwrap();
+        assert_eq!(ts.fract(), 0.0, "{text}");
+        if v["motor_id"] == "elbow" {
+            last_elbow = Some(fb["position"].clone());
+        }
+    }
+    assert!(seen > 10, "{seen}");
+    // The shortest decimal that reads back as the joint's f32.
+    let text = last_elbow.unwrap().to_string();
+    #[allow(clippy::cast_possible_truncation)]
+    let f = text.parse::<f64>().unwrap() as f32;
+    assert_eq!(f.to_string(), text.trim_end_matches(".0"), "{text}");
+    assert!(text.len() <= 9, "{text}");
+}
