@@ -238,9 +238,6 @@ pub struct Bridge {
     stats: BridgeStats,
 }
 
-/// How long past a move's planned end the drain waits before deactivating.
-const DRAIN_MARGIN: Duration = Duration::from_millis(50);
-
 fn us(d: Duration) -> u64 {
     u64::try_from(d.as_micros()).unwrap_or(u64::MAX)
 }
@@ -1494,10 +1491,7 @@ impl Bridge {
             self.timers.heartbeat = None;
         }
         if let Phase::Draining { deadline } = self.phase {
-            // A margin past each move's planned end: the joint's own clock
-            // and its 10 ms control tick trail the bridge's estimate.
-            let settled = !self.any_moving(now.saturating_sub(DRAIN_MARGIN));
-            let idle = self.jobs.is_empty() && self.waiting.is_empty() && settled;
+            let idle = self.jobs.is_empty() && self.waiting.is_empty() && !self.any_moving(now);
             if idle || now >= deadline {
                 self.enter(Phase::Stopping);
             }
