@@ -37,9 +37,12 @@
 //!   last lifecycle request (Configure, Activate, Deactivate, Reset) is
 //!   refused `Nack 19` and not executed: a late copy of a move sent before
 //!   an emergency stop cannot run after the stop or after its release.
-//!   msg_ids are compared as serial numbers (RFC 1982); one more than
-//!   [`RESTART_SPAN`] behind the last lifecycle request is a sender that
-//!   started again, whose memory is forgotten.
+//!   So is a request older than every answer remembered while the memory
+//!   is full (a late copy whose first answer was forgotten: an anti-replay
+//!   window, as IPsec keeps). msg_ids are compared as serial numbers (RFC
+//!   1982); a Configure or Reset more than [`RESTART_SPAN`] behind the last
+//!   lifecycle request is a sender that started again, whose memory is
+//!   forgotten.
 //! - **Watchdog**: while moving, a joint that hears nothing from its host for
 //!   [`JointConfig::watchdog`] (200 ms) brakes to a stop at its acceleration
 //!   limit and reports [`WATCHDOG_STOP`] in `JointStatus.error_code` until
@@ -585,12 +588,18 @@ impl SimJoint {
             return None;
         }
         let lifecycle = is_lifecycle(&message.payload);
+        let restart = matches!(message.payload, Payload::Configure | Payload::Reset);
         let sender = self.sender(h.source_id);
-        if let Some(epoch) = sender.epoch
-            && serial_before(h.msg_id, epoch)
-        {
-            if epoch.wrapping_sub(h.msg_id) > RESTART_SPAN {
-                // Not a late copy: the sender started again.
+        // Older than every answer remembered (with the memory full): a late
+        // copy whose first answer was forgotten, never executed again.
+        let forgotten = sender.order.len() >= DEDUP_WINDOW
+            && sender.order.iter().all(|&id| serial_before(h.msg_id, id));
+        let behind_epoch = sender.epoch.filter(|&e| serial_before(h.msg_id, e));
+        if forgotten || behind_epoch.is_some() {
+            let far = behind_epoch.is_some_and(|e| e.wrapping_sub(h.msg_id) > RESTART_SPAN);
+            if restart && far {
+                // Not a late copy: the sender started again (a host starts
+                // with Configure).
                 *sender = Sender {
                     last_heard: sender.last_heard,
                     ..Sender::default()

@@ -282,3 +282,77 @@ fn joints_never_answer_each_others_answers_or_telemetry() {
         .count();
     assert_eq!(strays, 0);
 }
+
+/// Sends `payload` from the arm with `msg_id` straight to `joint`; the
+/// answer it gives (executed or not), and whether it executed.
+fn raw(joint: &mut motorwire_sim::SimJoint, msg_id: u32, payload: Payload) -> (Payload, bool) {
+    use motorwire_irpc::{Header, MAX_FRAME_LEN, Message};
+    let msg = Message {
+        header: Header {
+            source_id: 0,
+            target_id: J,
+            msg_id,
+        },
+        payload,
+    };
+    let mut buf = [0u8; MAX_FRAME_LEN];
+    let len = msg.encode_frame(WireVersion::V2_0, &mut buf).unwrap();
+    let frame = Frame::fd(CanId::standard(0).unwrap(), &buf[..len]).unwrap();
+    let executed = joint.handle_frame(Duration::ZERO, &frame).is_some();
+    let mut answer = None;
+    while let Some(f) = joint.poll_transmit() {
+        if let Ok(m) = Message::decode_frame(WireVersion::V2_0, f.data())
+            && matches!(m.payload, Payload::Ack(_) | Payload::Nack { .. })
+        {
+            answer = Some(m.payload);
+        }
+    }
+    (answer.unwrap(), executed)
+}
+
+#[test]
+fn a_late_copy_older_than_the_whole_memory_is_refused_never_executed() {
+    use motorwire_sim::{DEDUP_WINDOW, RESTART_SPAN};
+    let mut joint = motorwire_sim::SimJoint::new(JointConfig::new(J)).unwrap();
+    assert_eq!(
+        raw(&mut joint, 1, Payload::Configure),
+        (Payload::Ack(1), true)
+    );
+    assert_eq!(
+        raw(&mut joint, 2, Payload::Activate),
+        (Payload::Ack(2), true)
+    );
+    let last = 2 + u32::try_from(DEDUP_WINDOW).unwrap() + 50;
+    for id in 3..=last {
+        assert_eq!(raw(&mut joint, id, to(10.0)), (Payload::Ack(id), true));
+    }
+    let stale = |id| Payload::Nack {
+        id,
+        error: NackCode::STALE_REQUEST.0,
+    };
+    // Its answer is forgotten, and it is older than every answer kept: a
+    // late copy, refused.
+    assert_eq!(raw(&mut joint, 10, to(-50.0)), (stale(10), false));
+    // The newest is still remembered: answered again, not executed again.
+    assert_eq!(raw(&mut joint, last, to(10.0)), (Payload::Ack(last), false));
+    // A move far behind is still a late copy, never a restart.
+    let far = 2u32.wrapping_sub(RESTART_SPAN + 10);
+    assert_eq!(raw(&mut joint, far, to(-50.0)), (stale(far), false));
+    assert_eq!(joint.stats().stale, 2);
+    assert_eq!(joint.stats().duplicates, 1);
+    // A Reset far behind the last lifecycle request is a sender that
+    // started again: executed, and its new requests are obeyed.
+    assert_eq!(
+        raw(&mut joint, far - 1, Payload::Reset),
+        (Payload::Ack(far - 1), true)
+    );
+    assert_eq!(
+        raw(&mut joint, far, Payload::Configure),
+        (Payload::Ack(far), true)
+    );
+    // A Reset only a little behind is a late copy.
+    assert_eq!(
+        raw(&mut joint, far - 5, Payload::Reset),
+        (stale(far - 5), false)
+    );
+}
