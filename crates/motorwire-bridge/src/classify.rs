@@ -17,6 +17,12 @@
 //! `{"emergency_stop": false}` with no other member and no repeat; any
 //! other line whose every `emergency_stop` is `false` is an
 //! [`Input::BadRelease`] and the latch holds.
+//!
+//! JSON that is valid but that no parser holds exactly (a number such as
+//! `1e400` beyond the f64 range, a lone UTF-16 surrogate such as
+//! `"\ud800"`) still stops when it asks for a stop: such numbers are read
+//! as 0 and such escapes as U+FFFD only to find the stop, and the line's
+//! problem is reported alongside. It is never taken as a command.
 
 use std::fmt;
 
@@ -105,11 +111,83 @@ pub fn asks_for_stop(line: &str) -> bool {
     if !line.contains("emergency_stop") {
         return false;
     }
-    let Ok(Members(members)) = serde_json::from_str::<Members>(line) else {
+    let Ok((members, _)) = members_of(line) else {
         return false;
     };
     let (top, reasons) = stop_members(&members);
     top.iter().any(|v| stops(v)) || !reasons.is_empty()
+}
+
+/// Members of `line`, or, when it is valid JSON that serde_json cannot
+/// hold (an out-of-range number, a lone surrogate) and it may name a stop,
+/// the members of its repaired copy with the original error.
+#[allow(clippy::type_complexity)]
+fn members_of(line: &str) -> Result<(Vec<(String, Value)>, Option<String>), serde_json::Error> {
+    match serde_json::from_str::<Members>(line) {
+        Ok(m) => Ok((m.0, None)),
+        Err(e) => {
+            if !line.contains("emergency_stop") {
+                return Err(e);
+            }
+            match repair(line).map(|r| serde_json::from_str::<Members>(&r)) {
+                Some(Ok(m)) => Ok((m.0, Some(e.to_string()))),
+                _ => Err(e),
+            }
+        }
+    }
+}
+
+/// `line` with every number beyond the f64 range written `0` and every
+/// surrogate escape (`\uD800`..`\uDFFF`) written `\uFFFD`; `None` when
+/// there was nothing to repair.
+fn repair(line: &str) -> Option<String> {
+    let mut out = String::with_capacity(line.len());
+    let mut changed = false;
+    let mut rest = line;
+    let mut in_string = false;
+    while let Some(c) = rest.chars().next() {
+        if in_string {
+            if let Some(esc) = rest.strip_prefix("\\u")
+                && let Some(hex) = esc.get(..4)
+                && let Ok(u) = u16::from_str_radix(hex, 16)
+                && (0xD800..=0xDFFF).contains(&u)
+            {
+                out.push_str("\\uFFFD");
+                changed = true;
+                rest = esc.get(4..).unwrap_or_default();
+                continue;
+            }
+            if c == '\\' {
+                // An escape: it and the character after it.
+                out.push(c);
+                rest = rest.get(1..).unwrap_or_default();
+                if let Some(n) = rest.chars().next() {
+                    out.push(n);
+                    rest = rest.get(n.len_utf8()..).unwrap_or_default();
+                }
+                continue;
+            }
+            in_string = c != '"';
+        } else if c == '"' {
+            in_string = true;
+        } else if c == '-' || c.is_ascii_digit() {
+            let len = rest
+                .find(|c: char| !matches!(c, '0'..='9' | '-' | '+' | '.' | 'e' | 'E'))
+                .unwrap_or(rest.len());
+            let token = rest.get(..len).unwrap_or_default();
+            if token.parse::<f64>().is_ok_and(f64::is_infinite) {
+                out.push('0');
+                changed = true;
+            } else {
+                out.push_str(token);
+            }
+            rest = rest.get(len..).unwrap_or_default();
+            continue;
+        }
+        out.push(c);
+        rest = rest.get(c.len_utf8()..).unwrap_or_default();
+    }
+    changed.then_some(out)
 }
 
 /// The top-level `emergency_stop` values, and the nested ones that stop.
@@ -155,8 +233,8 @@ fn stop_members(members: &[(String, Value)]) -> (Vec<&Value>, Vec<String>) {
 /// assert!(matches!(classify(&v, r#"{"emergency_stop": false, "emergency_stop": false}"#), Input::BadRelease { .. }));
 /// ```
 pub fn classify(validator: &Validator, line: &str) -> Input {
-    let members = match serde_json::from_str::<Members>(line) {
-        Ok(m) => m.0,
+    let (members, unholdable) = match members_of(line) {
+        Ok(m) => m,
         Err(e) => {
             // Not an object (or not JSON): it can be neither a stop nor a release.
             return match validator.parse_any(line) {
@@ -183,6 +261,21 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
         });
     let (top, reasons) = stop_members(&members);
     let top_stop = top.iter().any(|v| stops(v));
+    if let Some(e) = unholdable {
+        if top_stop || !reasons.is_empty() {
+            return Input::Stop {
+                label,
+                problems: vec![format!(
+                    "the line cannot be read exactly ({e}); it asks for a stop, so it stops"
+                )],
+            };
+        }
+        return Input::Invalid {
+            message: format!("not JSON this bridge can read: {e}"),
+            violations: None,
+            label,
+        };
+    }
     if top_stop || !reasons.is_empty() {
         let mut problems = Vec::new();
         if top_stop {
@@ -309,6 +402,49 @@ mod tests {
             classify(&v, r#"[{"emergency_stop": true}]"#),
             Input::Invalid { .. }
         ));
+    }
+
+    #[test]
+    fn valid_json_no_parser_holds_still_stops() {
+        let v = Validator::new();
+        assert_eq!(
+            stop(r#"{"emergency_stop": true, "x": 1e400}"#),
+            [
+                "the line cannot be read exactly (number out of range at line 1 column 35); it asks for a stop, so it stops"
+            ]
+        );
+        assert_eq!(
+            stop(
+                r#"{"motor_id":"el\ud800bow","timestamp":1,"control_mode":"position","setpoint":-1e999,"safety_limits":{"emergency_stop":true}}"#
+            ),
+            [
+                "the line cannot be read exactly (unexpected end of hex escape at line 1 column 22); it asks for a stop, so it stops"
+            ]
+        );
+        assert!(asks_for_stop(r#"{"emergency_stop": true, "x": 1e400}"#));
+        assert!(asks_for_stop(r#"{"emergency_stop": "\udc00"}"#));
+        // Repaired only to find a stop: otherwise invalid, never a release
+        // or a command.
+        for line in [
+            r#"{"emergency_stop": false, "x": 1e400}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":1e400,"emergency_stop_note":1}"#,
+        ] {
+            assert!(!asks_for_stop(line), "{line}");
+            assert!(
+                matches!(classify(&v, line), Input::Invalid { .. }),
+                "{line}"
+            );
+        }
+        // The repair leaves what it does not need to touch alone.
+        assert_eq!(
+            repair(r#"{"a":"1e400 \"\\ud800","b":[-1e400,2.5e3]}"#).unwrap(),
+            r#"{"a":"1e400 \"\\ud800","b":[0,2.5e3]}"#
+        );
+        assert_eq!(
+            repair(r#"{"a":"ü\uD834\uDD1E"}"#).unwrap(),
+            r#"{"a":"ü\uFFFD\uFFFD"}"#
+        );
+        assert_eq!(repair(r#"{"a":1}"#), None);
     }
 
     #[test]

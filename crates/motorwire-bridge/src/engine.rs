@@ -33,7 +33,7 @@ use motorwire_wia::{Message, MotorCommand, MotorFeedback, MultiAxisCommand, Vali
 
 use crate::BridgeError;
 use crate::classify::{Input, classify};
-use crate::job::{Axis, AxisState, Job, JobKind};
+use crate::job::{Axis, AxisState, Job, JobKind, Rider};
 use crate::joints::{Joint, StepRef, Unresolved};
 use crate::output::{
     ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output, StepOutcome,
@@ -135,8 +135,11 @@ pub struct BridgeStats {
     pub bad_frames: u64,
     /// Feedback lines emitted.
     pub feedback_lines: u64,
-    /// Emergency stops latched.
+    /// Emergency stops acted on (Deactivate sent to every joint).
     pub emergency_stops: u64,
+    /// Stop lines that came while a stop was under way and were answered
+    /// by it (no frames of their own).
+    pub stops_coalesced: u64,
     /// Lines refused `busy`.
     pub busy: u64,
     /// Steps replaced by a newer position command before being sent.
@@ -515,6 +518,45 @@ impl Bridge {
         );
     }
 
+    /// A line that could not be read (not UTF-8, too long) but names
+    /// `emergency_stop` (a runner finds it while skipping the line): the
+    /// bridge cannot tell what it asks, and when in doubt it stops. It is
+    /// answered as a stop, `reason` among its problems.
+    pub fn handle_numbered_unreadable_stop(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        reason: &str,
+    ) {
+        self.now = self.now.max(now);
+        self.take_stop(
+            now,
+            origin,
+            number,
+            None,
+            vec![format!(
+                "{reason}; it names emergency_stop, so it is taken as a stop"
+            )],
+        );
+    }
+
+    fn take_stop(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        label: Option<(&'static str, String)>,
+        problems: Vec<String>,
+    ) {
+        self.last_stop_arrival = Some(self.last_stop_arrival.map_or(now, |t| t.max(now)));
+        self.stats.lines += 1;
+        let cause = label
+            .as_ref()
+            .map_or_else(|| "input".to_owned(), |(_, v)| v.clone());
+        self.emergency_stop(now, origin, number, label, problems, cause);
+    }
+
     /// A line that could not be read as text (not UTF-8, too long): it
     /// counts as a line of `origin` and is answered
     /// `{"ok":false,"error":{"kind":"unreadable",...}}`.
@@ -546,12 +588,7 @@ impl Bridge {
         let input = classify(&self.validator, line);
         // The stop is acted on in every phase but the last, ahead of all.
         if let Input::Stop { label, problems } = input {
-            self.last_stop_arrival = Some(self.last_stop_arrival.map_or(now, |t| t.max(now)));
-            self.stats.lines += 1;
-            let cause = label
-                .as_ref()
-                .map_or_else(|| "input".to_owned(), |(_, v)| v.clone());
-            self.emergency_stop(now, origin, number, label, problems, cause);
+            self.take_stop(now, origin, number, label, problems);
             return;
         }
         match self.phase {
@@ -854,6 +891,26 @@ impl Bridge {
             self.out.push_back(Output::Result { origin, result: r });
             return;
         }
+        // A stop already under way (latched, not released since) answers
+        // this line too: its Deactivates are in flight or queued first, and
+        // sending them again would only add frames ahead of nothing.
+        if self.latched
+            && let Some(job) = self
+                .jobs
+                .values_mut()
+                .rev()
+                .find(|j| j.kind == JobKind::EmergencyStop)
+        {
+            self.stats.stops_coalesced += 1;
+            job.riders.push(Rider {
+                origin,
+                number,
+                label,
+                problems,
+                received: now,
+            });
+            return;
+        }
         self.stats.emergency_stops += 1;
         // What the release brings back: the joints active now, and those
         // whose startup or release this stop interrupts.
@@ -1036,6 +1093,7 @@ impl Bridge {
                 problems,
                 last_frame: None,
                 unflushed: false,
+                riders: Vec::new(),
             },
         );
         for (ji, step, position) in steps {
@@ -1351,6 +1409,27 @@ impl Bridge {
             losses: job.report.losses.iter().map(ToString::to_string).collect(),
             ..LineResult::default()
         };
+        for rider in job.riders {
+            let mut rr = LineResult {
+                line: rider.number,
+                problems: rider.problems,
+                // The stop frames went out before this line came.
+                latency_us: latency.map(|_| 0),
+                stop_latency_us: latency.map(|_| 0),
+                ack_us: Some(us(now.saturating_sub(rider.received))),
+                ..r.clone()
+            };
+            set_label(&mut rr, rider.label);
+            if rr.ok {
+                self.stats.ok += 1;
+            } else {
+                self.stats.failed += 1;
+            }
+            self.out.push_back(Output::Result {
+                origin: rider.origin,
+                result: rr,
+            });
+        }
         set_label(&mut r, job.label);
         self.out.push_back(Output::Result { origin, result: r });
     }

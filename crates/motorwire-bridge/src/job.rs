@@ -118,6 +118,20 @@ pub(crate) struct Job {
     pub(crate) problems: Vec<String>,
     pub(crate) last_frame: Option<Duration>,
     pub(crate) unflushed: bool,
+    /// Stop lines that came while this stop was under way: they ride on it
+    /// and are answered with its outcome, so a flood of stops costs one
+    /// Deactivate per joint, not one per line.
+    pub(crate) riders: Vec<Rider>,
+}
+
+/// A stop line answered by a stop already under way.
+#[derive(Debug)]
+pub(crate) struct Rider {
+    pub(crate) origin: Origin,
+    pub(crate) number: u64,
+    pub(crate) label: Option<(&'static str, String)>,
+    pub(crate) problems: Vec<String>,
+    pub(crate) received: Duration,
 }
 
 impl Job {

@@ -29,6 +29,8 @@ enum Msg {
         origin: Origin,
         number: u64,
         reason: String,
+        /// It names `emergency_stop`: taken as a stop.
+        stop: bool,
     },
     /// A stop is waiting on the urgent channel.
     Wake,
@@ -91,7 +93,22 @@ impl InputSender {
             origin,
             number,
             reason: reason.into(),
+            stop: false,
         });
+    }
+
+    /// A line that could not be taken but names `emergency_stop`: when in
+    /// doubt, stop. It overtakes the lines queued before it, as a stop does
+    /// ([`Bridge::handle_numbered_unreadable_stop`]).
+    pub fn refused_stop(&self, origin: Origin, reason: impl Into<String>) {
+        let number = self.number(origin);
+        let _ = self.urgent.send(Msg::Refused {
+            origin,
+            number,
+            reason: reason.into(),
+            stop: true,
+        });
+        let _ = self.tx.send(Msg::Wake);
     }
 
     /// `origin` left: its line count is forgotten (bounded memory over
@@ -120,9 +137,15 @@ pub enum ReadLine {
     /// A whole line (without its newline).
     Line(String),
     /// A line over [`MAX_LINE`] bytes, skipped to its end.
-    TooLong,
+    TooLong {
+        /// The skipped bytes contain `emergency_stop`.
+        names_stop: bool,
+    },
     /// A line that is not UTF-8.
-    NotUtf8,
+    NotUtf8 {
+        /// Its bytes contain `emergency_stop`.
+        names_stop: bool,
+    },
     /// Bytes at the end of input with no newline after them.
     Partial(String),
     /// End of input.
@@ -136,6 +159,10 @@ pub enum ReadLine {
 pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
     let mut bytes = Vec::new();
     let mut too_long = false;
+    // While a too-long line is skipped: whether it named a stop, and its
+    // last bytes (a name split between two reads).
+    let mut names_stop = false;
+    let mut tail: Vec<u8> = Vec::new();
     loop {
         let (consumed, done) = {
             let buf = match reader.fill_buf() {
@@ -145,7 +172,7 @@ pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
             };
             if buf.is_empty() {
                 return Ok(if too_long {
-                    ReadLine::TooLong
+                    ReadLine::TooLong { names_stop }
                 } else if bytes.is_empty() {
                     ReadLine::End
                 } else {
@@ -154,13 +181,18 @@ pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
             }
             match buf.iter().position(|&b| b == b'\n') {
                 Some(i) => {
-                    if !too_long {
-                        bytes.extend_from_slice(buf.get(..i).unwrap_or_default());
+                    let seg = buf.get(..i).unwrap_or_default();
+                    if too_long {
+                        names_stop |= scan(&mut tail, seg);
+                    } else {
+                        bytes.extend_from_slice(seg);
                     }
                     (i + 1, true)
                 }
                 None => {
-                    if !too_long {
+                    if too_long {
+                        names_stop |= scan(&mut tail, buf);
+                    } else {
                         bytes.extend_from_slice(buf);
                     }
                     (buf.len(), false)
@@ -170,11 +202,12 @@ pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
         reader.consume(consumed);
         if bytes.len() > MAX_LINE {
             too_long = true;
-            bytes.clear();
+            names_stop |= scan(&mut tail, &bytes);
+            bytes = Vec::new();
         }
         if done {
             if too_long {
-                return Ok(ReadLine::TooLong);
+                return Ok(ReadLine::TooLong { names_stop });
             }
             return Ok(match String::from_utf8(bytes) {
                 Ok(mut s) => {
@@ -183,10 +216,30 @@ pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
                     }
                     ReadLine::Line(s)
                 }
-                Err(_) => ReadLine::NotUtf8,
+                Err(e) => ReadLine::NotUtf8 {
+                    names_stop: scan(&mut Vec::new(), e.as_bytes()),
+                },
             });
         }
     }
+}
+
+/// Whether `emergency_stop` is in `tail` followed by `seg`; keeps the last
+/// bytes of the two in `tail` for the next segment.
+fn scan(tail: &mut Vec<u8>, seg: &[u8]) -> bool {
+    const NAME: &[u8] = b"emergency_stop";
+    let keep = NAME.len() - 1;
+    let head = seg.get(..keep.min(seg.len())).unwrap_or_default();
+    tail.extend_from_slice(head);
+    let found =
+        tail.windows(NAME.len()).any(|w| w == NAME) || seg.windows(NAME.len()).any(|w| w == NAME);
+    if seg.len() >= keep {
+        tail.clear();
+        tail.extend_from_slice(seg.get(seg.len() - keep..).unwrap_or_default());
+    } else if tail.len() > keep {
+        tail.drain(..tail.len() - keep);
+    }
+    found
 }
 
 /// Feeds `reader`'s lines to `input` as `origin` until it ends. With
@@ -202,10 +255,18 @@ pub fn feed(
     loop {
         match read_line(reader)? {
             ReadLine::Line(s) => input.line(origin, s),
-            ReadLine::TooLong => {
-                input.refused(origin, format!("the line is over {MAX_LINE} bytes"))
+            ReadLine::TooLong { names_stop: false } => {
+                input.refused(origin, format!("the line is over {MAX_LINE} bytes"));
             }
-            ReadLine::NotUtf8 => input.refused(origin, "the line is not UTF-8"),
+            ReadLine::TooLong { names_stop: true } => {
+                input.refused_stop(origin, format!("the line is over {MAX_LINE} bytes"));
+            }
+            ReadLine::NotUtf8 { names_stop: false } => {
+                input.refused(origin, "the line is not UTF-8");
+            }
+            ReadLine::NotUtf8 { names_stop: true } => {
+                input.refused_stop(origin, "the line is not UTF-8");
+            }
             ReadLine::Partial(s) if partial_is_line => {
                 input.line(origin, s);
                 return Ok(());
@@ -336,14 +397,27 @@ impl Runner {
                 .map_or(Duration::from_millis(100), |t| t.saturating_sub(now));
             // Stops first, ahead of every line queued before them.
             let mut stopped = false;
-            while let Ok(Msg::Line {
-                origin,
-                number,
-                text,
-                at,
-            }) = self.urgent.try_recv()
-            {
-                bridge.handle_numbered_line(since(at), origin, number, &text);
+            while let Ok(msg) = self.urgent.try_recv() {
+                match msg {
+                    Msg::Line {
+                        origin,
+                        number,
+                        text,
+                        at,
+                    } => bridge.handle_numbered_line(since(at), origin, number, &text),
+                    Msg::Refused {
+                        origin,
+                        number,
+                        reason,
+                        ..
+                    } => bridge.handle_numbered_unreadable_stop(
+                        since(Instant::now()),
+                        origin,
+                        number,
+                        &reason,
+                    ),
+                    _ => {}
+                }
                 stopped = true;
             }
             if stopped {
@@ -363,6 +437,20 @@ impl Runner {
                     origin,
                     number,
                     reason,
+                    stop: true,
+                }) => {
+                    bridge.handle_numbered_unreadable_stop(
+                        since(Instant::now()),
+                        origin,
+                        number,
+                        &reason,
+                    );
+                }
+                Ok(Msg::Refused {
+                    origin,
+                    number,
+                    reason,
+                    stop: false,
                 }) => {
                     bridge.handle_numbered_unreadable(
                         since(Instant::now()),

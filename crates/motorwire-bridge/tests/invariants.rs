@@ -514,3 +514,47 @@ proptest! {
         check(&arm, &tally);
     }
 }
+
+/// A flood of stops from three clients is one stop: every line is
+/// answered with its outcome, and each joint is sent one Deactivate.
+#[test]
+fn a_flood_of_stops_is_one_stop() {
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    let before: Vec<usize> = JOINTS
+        .iter()
+        .map(|(_, node, ..)| arm.joint(*node).unwrap().log().len())
+        .collect();
+    let mut tally = Tally::default();
+    let ops: Vec<Op> = (0..5000u64)
+        .map(|i| Op::Stop {
+            client: i % 3,
+            form: (i % 5) as usize,
+        })
+        .collect();
+    play(&mut arm, &ops, &mut tally);
+    arm.run_until(arm.now() + Duration::from_millis(200))
+        .unwrap();
+    collect(&mut arm, &mut tally);
+    check(&arm, &tally);
+    assert_eq!(tally.results.len(), 5000);
+    for r in tally.results.values() {
+        assert_eq!(r["ok"], true, "{r}");
+        assert_eq!(r["emergency_stop"], true, "{r}");
+    }
+    let stats = arm.bridge().stats();
+    assert_eq!(stats.emergency_stops, 1);
+    assert_eq!(stats.stops_coalesced, 4999);
+    for ((motor, node, ..), n) in JOINTS.iter().zip(before) {
+        let log = arm.joint(*node).unwrap().log();
+        let new: Vec<_> = log[n..].iter().map(|e| e.payload).collect();
+        assert_eq!(new, [Payload::Deactivate], "{motor}");
+        assert_eq!(arm.joint(*node).unwrap().state(), LifecycleState::Inactive);
+    }
+    // The release after the flood re-activates the joints once.
+    arm.line(Origin(0), r#"{"emergency_stop": false}"#);
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    for (_, node, ..) in JOINTS {
+        assert_eq!(arm.joint(node).unwrap().state(), LifecycleState::Active);
+    }
+}

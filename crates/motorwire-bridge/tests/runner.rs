@@ -96,3 +96,62 @@ fn a_stop_overtakes_two_thousand_queued_lines() {
         "one result per line"
     );
 }
+
+/// A line too long to read (or not UTF-8) that names `emergency_stop`
+/// stops: the bridge cannot tell what it asks, and when in doubt it stops.
+#[test]
+fn an_unreadable_line_that_names_a_stop_stops() {
+    use std::io::BufReader;
+    let map = BusMap::from_toml(MAP).unwrap();
+    let config = BridgeConfig {
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(map, config).unwrap();
+    let arm = RealTimeArm::start(bridge.map()).unwrap();
+    let runner = Runner::new();
+    let input = runner.input();
+    let (tx, rx) = mpsc::channel();
+    let (a, b) = (arm.port(), arm.port());
+    let handle = thread::spawn(move || {
+        runner.run(bridge, a, b, |o| {
+            if let Output::Result { .. } = o {
+                let _ = tx.send(o.to_value());
+            }
+        })
+    });
+    let long_stop = format!(
+        "{{\"pad\":\"{}\",\"emergency_stop\":true}}\n",
+        "x".repeat(motorwire_bridge::MAX_LINE)
+    );
+    let mut text = Vec::new();
+    text.extend_from_slice(
+        b"{\"motor_id\":\"elbow\",\"timestamp\":1,\"control_mode\":\"position\",\"setpoint\":5}\n",
+    );
+    text.extend_from_slice(long_stop.as_bytes());
+    text.extend_from_slice(
+        b"{\"motor_id\":\"elbow\",\"timestamp\":1,\"control_mode\":\"position\",\"setpoint\":9}\n",
+    );
+    motorwire_bridge::feed(&input, Origin(1), &mut BufReader::new(&text[..]), true).unwrap();
+    let mut results: Vec<Value> = (0..3)
+        .map(|_| rx.recv_timeout(Duration::from_secs(10)).unwrap())
+        .collect();
+    input.interrupt();
+    handle.join().unwrap().unwrap();
+    results.sort_by_key(|r| r["line"].as_u64());
+    let stop = &results[1];
+    assert_eq!(stop["line"], 2, "{stop}");
+    assert_eq!(stop["ok"], true, "{stop}");
+    assert_eq!(stop["emergency_stop"], true, "{stop}");
+    assert_eq!(
+        stop["problems"],
+        serde_json::json!([
+            "the line is over 65536 bytes; it names emergency_stop, so it is taken as a stop"
+        ])
+    );
+    assert_eq!(
+        results[2]["error"]["kind"], "emergency_stop_latched",
+        "{}",
+        results[2]
+    );
+}

@@ -1,0 +1,78 @@
+//! Reading input lines: bounded, and an unreadable line that names a stop
+//! is said to.
+#![allow(clippy::unwrap_used)]
+
+use std::io::{BufReader, Read};
+
+use motorwire_bridge::{MAX_LINE, ReadLine, read_line};
+
+fn read_all(bytes: &[u8], capacity: usize) -> Vec<ReadLine> {
+    let mut r = BufReader::with_capacity(capacity, bytes);
+    let mut out = Vec::new();
+    loop {
+        let l = read_line(&mut r).unwrap();
+        if l == ReadLine::End {
+            return out;
+        }
+        out.push(l);
+    }
+}
+
+#[test]
+fn lines_too_long_and_not_utf8_say_whether_they_name_a_stop() {
+    // The name at every place relative to the 64 KiB bound, read in
+    // chunks of every size that splits it.
+    for at in [
+        0,
+        100,
+        MAX_LINE - 20,
+        MAX_LINE - 7,
+        MAX_LINE,
+        MAX_LINE + 3000,
+    ] {
+        let mut line = vec![b'x'; MAX_LINE + 5000];
+        line.splice(at..at + 14, *b"emergency_stop");
+        line.push(b'\n');
+        line.extend_from_slice(b"{\"a\":1}\n");
+        for capacity in [1, 5, 7, 13, 14, 8192] {
+            assert_eq!(
+                read_all(&line, capacity),
+                [
+                    ReadLine::TooLong { names_stop: true },
+                    ReadLine::Line("{\"a\":1}".into())
+                ],
+                "at {at}, capacity {capacity}"
+            );
+        }
+    }
+    let mut plain = vec![b'x'; MAX_LINE + 1];
+    plain.extend_from_slice(b"emergency_sto\npy\n");
+    assert_eq!(
+        read_all(&plain, 7),
+        [
+            ReadLine::TooLong { names_stop: false },
+            ReadLine::Line("py".into())
+        ]
+    );
+    // Exactly MAX_LINE bytes is a line.
+    let max = vec![b'y'; MAX_LINE];
+    assert_eq!(
+        read_all(&[&max[..], b"\n"].concat(), 8192),
+        [ReadLine::Line(String::from_utf8(max).unwrap())]
+    );
+    assert_eq!(
+        read_all(b"{\"emergency_stop\":\xff}\n\xfe\r\n", 8192),
+        [
+            ReadLine::NotUtf8 { names_stop: true },
+            ReadLine::NotUtf8 { names_stop: false }
+        ]
+    );
+    // Without its newline at the end: too long all the same, and nothing
+    // over the bound is held.
+    let mut endless = std::io::repeat(b'z').take(10 * MAX_LINE as u64);
+    let mut r = BufReader::new(&mut endless);
+    assert_eq!(
+        read_line(&mut r).unwrap(),
+        ReadLine::TooLong { names_stop: false }
+    );
+}
