@@ -81,6 +81,75 @@ pub enum Refusal {
         /// Why.
         problem: String,
     },
+    /// A move whose target is within the limits but whose planned path,
+    /// from the joint's current position and velocity, passes a position
+    /// limit on the way ([`check_path`](crate::check_path)). Positions are
+    /// in the motor's unit. The message rounds the extreme and the
+    /// overshoot to the same decimals, enough for three significant digits
+    /// of the overshoot (at least three), and the time to the millisecond;
+    /// the fields keep them in full.
+    #[error(
+        "{motor}: {}the planned path reaches {} past {limit} {bound} by {} ({} s into the move)",
+        in_segment(*.segment),
+        shown(*.extreme, *.overshoot),
+        shown(*.overshoot, *.overshoot),
+        shown(*.at, 1.0)
+    )]
+    PathOutsideLimit {
+        /// The motor.
+        motor: String,
+        /// For a trajectory, the segment whose path passes the limit,
+        /// counted from 0 (the index in the slice of segments); `None` for
+        /// a single move.
+        segment: Option<usize>,
+        /// The limit passed (`min_position` or `max_position`), with where
+        /// it came from.
+        limit: String,
+        /// The limit's value.
+        bound: f64,
+        /// The lowest (for `min_position`) or highest (for `max_position`)
+        /// position the path reaches.
+        extreme: f64,
+        /// How far past the limit it reaches: `|extreme - bound|`.
+        overshoot: f64,
+        /// When it reaches `extreme` (s after the move starts).
+        at: f64,
+    },
+    /// A move the joint's planner refuses (a limit that is zero or
+    /// negative, a target velocity faster than `max_velocity`, a value
+    /// that is not finite ...): the joint would refuse it too.
+    #[error("{motor}: {}the joint cannot plan the move: {problem}", in_segment(*.segment))]
+    Unplannable {
+        /// The motor.
+        motor: String,
+        /// For a trajectory, the segment, counted from 0; `None` for a
+        /// single move.
+        segment: Option<usize>,
+        /// The planner's reason.
+        problem: String,
+    },
+}
+
+/// `"segment N (counted from 0): "` for a trajectory's segment, or nothing.
+fn in_segment(segment: Option<usize>) -> String {
+    segment.map_or_else(String::new, |i| format!("segment {i} (counted from 0): "))
+}
+
+/// `x` rounded to as many decimals as show three significant digits of
+/// `overshoot` (at least three), trailing zeros dropped: an extreme and
+/// its overshoot shown side by side add up.
+fn shown(x: f64, overshoot: f64) -> String {
+    let mut decimals: i32 = 3;
+    while decimals < 17 && overshoot < 10f64.powi(2 - decimals) {
+        decimals += 1;
+    }
+    let text = format!("{x:.*}", decimals.unsigned_abs() as usize);
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" {
+        "0".to_owned()
+    } else {
+        text.to_owned()
+    }
 }
 
 /// A limit and where it came from.
@@ -129,8 +198,36 @@ fn from_map(v: Option<f64>) -> Option<Bound> {
 }
 
 impl Effective {
+    /// The limits a motor is held to by the bus map alone (and, for an
+    /// Orion motor, the document's value range), when there is no command
+    /// to tighten them: for checking payloads built elsewhere, such as a
+    /// trajectory's segments ([`check_trajectory`](crate::check_trajectory)).
+    ///
+    /// ```
+    /// use motorwire_translate::{BusMap, Effective};
+    /// let map = BusMap::from_toml(r#"
+    ///     [motors.elbow]
+    ///     dialect = "irpc"
+    ///     node = 0x12
+    ///     limits = { min_position = 0, max_position = 150 }
+    /// "#)?;
+    /// let e = Effective::from_bus_map(map.motor("elbow").unwrap());
+    /// assert_eq!(e.max_position.map(|b| (b.value, b.source)), Some((150.0, "bus map")));
+    /// # Ok::<(), motorwire_translate::MapError>(())
+    /// ```
+    pub fn from_bus_map(motor: &MappedMotor) -> Self {
+        Self::with(&motor.limits, None, motor.target)
+    }
+
     fn new(limits: &Limits, cmd: &MotorCommand, target: Target) -> Self {
-        let own = cmd.safety_limits.as_ref();
+        Self::with(limits, cmd.safety_limits.as_ref(), target)
+    }
+
+    fn with(
+        limits: &Limits,
+        own: Option<&motorwire_wia::CommandSafetyLimits>,
+        target: Target,
+    ) -> Self {
         let from_cmd = |v: Option<f64>| {
             v.map(|value| Bound {
                 value,

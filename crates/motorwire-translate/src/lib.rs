@@ -4,6 +4,7 @@ mod command;
 mod feedback;
 mod gate;
 mod map;
+mod path;
 mod report;
 mod sync;
 
@@ -13,5 +14,6 @@ pub use command::{
 pub use feedback::{FeedbackError, feedback_from_irpc, feedback_from_orion};
 pub use gate::{Bound, Effective, Refusal, gate};
 pub use map::{AngleUnit, BusMap, Limits, MapError, MappedMotor, Target};
+pub use path::{PathExtent, check_path, check_trajectory};
 pub use report::{Loss, LossKind, Report, Translated};
 pub use sync::{MultiAxisMove, SYNC_TOLERANCE_S, multi_axis_to_irpc};

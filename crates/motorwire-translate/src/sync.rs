@@ -7,6 +7,7 @@ use motorwire_wia::{MultiAxisCommand, SyncMode};
 
 use crate::command::to_irpc;
 use crate::gate::gate;
+use crate::path::check_path;
 use crate::report::{LossKind, Report, Translated};
 use crate::{BusMap, IrpcCommand, Refusal, Target};
 
@@ -35,13 +36,17 @@ pub struct MultiAxisMove {
 /// profile take exactly that long (the move the exact-duration planner
 /// finds, with the same acceleration and jerk limits). The result is
 /// checked by planning each joint's `SetTargetV2` in f32, as the joint
-/// does: every arrival agrees within [`SYNC_TOLERANCE_S`].
+/// does: every arrival agrees within [`SYNC_TOLERANCE_S`]. Each joint's
+/// final `SetTargetV2` is also planned from its current position at rest
+/// (as the synchronization plans it) and its whole path held to the
+/// joint's position limits ([`check_path`](crate::check_path)).
 ///
 /// # Errors
 /// Any axis's refusal (naming it); [`Refusal::UnknownPosition`] for a joint
 /// whose position is unknown; [`Refusal::Unsynchronizable`] when the
 /// requested duration is shorter than a joint's fastest move, or the check
-/// fails.
+/// fails; [`Refusal::PathOutsideLimit`] for a path that leaves a joint's
+/// position limits.
 pub fn multi_axis_to_irpc(
     map: &BusMap,
     cmd: &MultiAxisCommand,
@@ -80,7 +85,7 @@ pub fn multi_axis_to_irpc(
                 dialect: "a synchronized iRPC move (position only)",
             });
         }
-        let (motor, _) = gate(map, &single)?;
+        let (motor, limits) = gate(map, &single)?;
         if !matches!(motor.target, Target::Irpc { .. }) {
             return Err(Refusal::ModeNotExpressible {
                 motor: motor.name.clone(),
@@ -109,10 +114,15 @@ pub fn multi_axis_to_irpc(
             report.losses.push(loss);
         }
         let start_deg = motor.unit.to_degrees(start);
-        axes.push((t.value, p, joint_request(f64::from(start_deg as f32), &p)));
+        axes.push((
+            t.value,
+            p,
+            joint_request(f64::from(start_deg as f32), &p),
+            (motor, limits, start),
+        ));
     }
     let mut slowest: (f64, &str) = (0.0, "");
-    for ((_, _, req), axis) in axes.iter().zip(&cmd.motors) {
+    for ((_, _, req, _), axis) in axes.iter().zip(&cmd.motors) {
         let min = minimum_duration(req).map_err(|e| Refusal::Unsynchronizable {
             problem: format!("{}: {e}", axis.motor_id),
         })?;
@@ -137,7 +147,9 @@ pub fn multi_axis_to_irpc(
         None => slowest.0,
     };
     let mut commands = Vec::new();
-    for ((mut command, mut p, req), axis) in axes.into_iter().zip(&cmd.motors) {
+    for ((mut command, mut p, req, (motor, limits, start)), axis) in
+        axes.into_iter().zip(&cmd.motors)
+    {
         let name = axis.motor_id.as_str();
         if req.start == req.target {
             report.push(
@@ -177,6 +189,7 @@ pub fn multi_axis_to_irpc(
                 });
             }
         }
+        check_path(motor, &limits, &p, start, 0.0)?;
         command.payloads = vec![Payload::SetTargetV2(p)];
         commands.push(command);
     }
