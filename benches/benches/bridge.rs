@@ -20,7 +20,6 @@
 
 use std::hint::black_box;
 use std::sync::mpsc;
-use std::thread;
 use std::time::{Duration, Instant};
 
 use criterion::{Criterion, Throughput};
@@ -116,13 +115,10 @@ fn real_time(n: u64) {
     let runner = Runner::new();
     let input = runner.input();
     let (tx, rx) = mpsc::channel();
-    let (a, b) = (arm.port(), arm.port());
-    let handle = thread::spawn(move || {
-        runner.run(bridge, a, b, |o| {
-            if let Output::Result { .. } = o {
-                let _ = tx.send(o.to_value());
-            }
-        })
+    let handle = arm.spawn(runner, bridge, move |o| {
+        if let Output::Result { .. } = o {
+            let _ = tx.send(o.to_value());
+        }
     });
     let mut latencies = Vec::new();
     for i in 0..n {

@@ -284,10 +284,21 @@ impl Bridge {
         for j in &joints {
             client.set_wire(j.node, j.wire);
         }
+        let validator = Validator::new();
+        // Warm the paths a stop takes: the first invalid command the
+        // schema reports on builds its error machinery lazily (hash seeds
+        // drawn from the OS on first use). Better here, before any joint
+        // moves, than inside the first emergency stop: on a machine whose
+        // random pool is not yet initialised (early boot) that first draw
+        // can wait.
+        let _ = classify(
+            &validator,
+            r#"{"motor_id":"-","control_mode":"warp","safety_limits":{"emergency_stop":true}}"#,
+        );
         Ok(Self {
             map,
             config,
-            validator: Validator::new(),
+            validator,
             client,
             joints,
             jobs: BTreeMap::new(),
@@ -790,6 +801,15 @@ impl Bridge {
                     self.refuse(origin, number, label, e);
                     return;
                 };
+                if let Err(r) = self.path_within_limits(joint, cmd, &t.value.payloads) {
+                    self.refuse(
+                        origin,
+                        number,
+                        label,
+                        ErrorBody::new(ErrorKind::Refused, r.to_string()),
+                    );
+                    return;
+                }
                 let axes = vec![Axis::new(cmd.motor_id.clone(), joint, t.value.payloads)];
                 self.open_job(
                     Some(origin),
@@ -809,6 +829,35 @@ impl Bridge {
                 ErrorBody::new(ErrorKind::Refused, r.to_string()),
             ),
         }
+    }
+
+    /// A move's whole planned path, from the joint's last reported
+    /// position and velocity (as the joint will plan it), stays within the
+    /// limits (issue: a joint moving fast toward a limit overshoots a target
+    /// inside it). Without a report yet there is nothing to plan from: the
+    /// joint's own check stands.
+    fn path_within_limits(
+        &self,
+        joint: usize,
+        cmd: &MotorCommand,
+        payloads: &[Payload],
+    ) -> Result<(), motorwire_translate::Refusal> {
+        let Some((position, velocity)) = self.joints.get(joint).and_then(|j| j.motion) else {
+            return Ok(());
+        };
+        let (motor, limits) = motorwire_translate::gate(&self.map, cmd)?;
+        for p in payloads {
+            if let Payload::SetTargetV2(p) = p {
+                motorwire_translate::check_path(
+                    motor,
+                    &limits,
+                    p,
+                    motor.unit.from_degrees(position),
+                    motor.unit.from_degrees(velocity),
+                )?;
+            }
+        }
+        Ok(())
     }
 
     fn multi_axis(&mut self, now: Duration, origin: Origin, number: u64, cmd: &MultiAxisCommand) {
@@ -960,13 +1009,65 @@ impl Bridge {
     /// Cancels every step queued or in flight (never sent again); returns
     /// the input lines affected.
     fn cancel_everything(&mut self, why: &str) -> Vec<LineRef> {
+        self.cancel_where(why, |_| true)
+    }
+
+    /// `origin` is gone (disconnected by its runner: it stopped reading,
+    /// or its connection failed). Its lines not yet done are cancelled:
+    /// steps waiting are never sent, requests in flight never sent again
+    /// (the joint may have taken one; a stop still stops it). Said on the
+    /// event stream as `client_dropped`, since the client cannot be told.
+    /// Its line count is forgotten.
+    pub fn drop_origin(&mut self, now: Duration, origin: Origin, reason: &str) {
+        self.now = self.now.max(now);
+        self.line_numbers.remove(&origin);
+        let before = self.waiting.len();
+        let mut cancelled: Vec<LineRef> = Vec::new();
+        self.waiting.retain(|w| {
+            if w.origin == origin {
+                cancelled.push(LineRef {
+                    origin,
+                    line: w.number,
+                });
+                false
+            } else {
+                true
+            }
+        });
+        self.stats.cancelled += (before - self.waiting.len()) as u64;
+        let why = format!("cancelled: the client was disconnected ({reason})");
+        cancelled.extend(self.cancel_where(&why, |job| {
+            job.origin == Some(origin) && job.kind == JobKind::Command
+        }));
+        cancelled.sort_by_key(|r| r.line);
+        cancelled.dedup();
+        self.out.push_back(Output::Event(Event::ClientDropped {
+            origin,
+            reason: reason.to_owned(),
+            cancelled,
+        }));
+        for ji in 0..self.joints.len() {
+            self.pump(ji);
+        }
+        self.finish_jobs();
+    }
+
+    /// Cancels the steps (queued or in flight) of the jobs `pick` chooses;
+    /// returns the input lines affected.
+    fn cancel_where(&mut self, why: &str, pick: impl Fn(&Job) -> bool) -> Vec<LineRef> {
         let mut touched = Vec::new();
         for ji in 0..self.joints.len() {
             let Some(joint) = self.joints.get_mut(ji) else {
                 continue;
             };
-            let busy = joint.busy.take();
-            let queued: Vec<StepRef> = joint.queue.drain(..).collect();
+            let busy = joint
+                .busy
+                .take_if(|s| self.jobs.get(&s.job).is_some_and(&pick));
+            let (queued, kept): (Vec<StepRef>, Vec<StepRef>) = joint
+                .queue
+                .drain(..)
+                .partition(|s| self.jobs.get(&s.job).is_some_and(&pick));
+            joint.queue.extend(kept);
             if let Some(s) = busy
                 && let Some(job) = self.jobs.get_mut(&s.job)
                 && let Some(a) = job.axes.get_mut(s.axis)

@@ -16,4 +16,6 @@ pub use output::{
     ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output, StepOutcome,
     StepReport,
 };
-pub use runtime::{InputSender, MAX_LINE, ReadLine, Runner, feed, read_line};
+pub use runtime::{
+    InputSender, MAX_LINE, MAX_QUEUED_PER_ORIGIN, ReadLine, Runner, feed, read_line,
+};

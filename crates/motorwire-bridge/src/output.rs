@@ -275,6 +275,17 @@ pub enum Event {
         /// The input lines it cancelled, as `{"origin":..,"line":..}`.
         cancelled: Vec<LineRef>,
     },
+    /// A client was disconnected by the bridge (it stopped reading its
+    /// results, or its connection failed): its commands not yet done were
+    /// cancelled (never sent, or never sent again).
+    ClientDropped {
+        /// The client.
+        origin: Origin,
+        /// Why.
+        reason: String,
+        /// Its lines cancelled.
+        cancelled: Vec<LineRef>,
+    },
     /// The emergency stop was released.
     Released {
         /// The joints activated again (those active when the stop came).

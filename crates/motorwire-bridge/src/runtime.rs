@@ -10,12 +10,52 @@ use std::time::{Duration, Instant};
 use motorwire_can::{CanBus, Error as CanError, Frame};
 
 use std::collections::BTreeMap;
-use std::sync::{Mutex, PoisonError};
+use std::sync::{Condvar, Mutex, PoisonError};
 
 use crate::{Bridge, BridgeError, Event, Origin, Output, asks_for_stop};
 
 /// The longest input line accepted (bytes, without the newline).
 pub const MAX_LINE: usize = 64 * 1024;
+
+/// Lines of one origin handed to a [`Runner`] and not yet taken by it (and
+/// as many stops): [`InputSender::line`] waits beyond this, so a client
+/// that floods is slowed to the bridge's pace (its socket fills, and its
+/// sender waits) instead of growing the bridge's memory.
+pub const MAX_QUEUED_PER_ORIGIN: usize = 256;
+
+/// Per origin, lines handed over and not yet taken (normal, urgent).
+#[derive(Debug, Default)]
+struct Budget {
+    queued: Mutex<BTreeMap<(Origin, bool), usize>>,
+    freed: Condvar,
+}
+
+impl Budget {
+    /// Waits until `origin` may hand over one more line.
+    fn take(&self, origin: Origin, urgent: bool) {
+        let mut q = self.queued.lock().unwrap_or_else(PoisonError::into_inner);
+        while q
+            .get(&(origin, urgent))
+            .is_some_and(|n| *n >= MAX_QUEUED_PER_ORIGIN)
+        {
+            q = self.freed.wait(q).unwrap_or_else(PoisonError::into_inner);
+        }
+        *q.entry((origin, urgent)).or_insert(0) += 1;
+    }
+
+    /// The runner took one of `origin`'s lines.
+    fn give(&self, origin: Origin, urgent: bool) {
+        let mut q = self.queued.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(n) = q.get_mut(&(origin, urgent)) {
+            *n = n.saturating_sub(1);
+            if *n == 0 {
+                q.remove(&(origin, urgent));
+            }
+        }
+        drop(q);
+        self.freed.notify_all();
+    }
+}
 
 #[derive(Debug)]
 enum Msg {
@@ -34,6 +74,11 @@ enum Msg {
     },
     /// A stop is waiting on the urgent channel.
     Wake,
+    /// An origin is gone: its pending lines are cancelled.
+    Dropped {
+        origin: Origin,
+        reason: String,
+    },
     Finish,
     Interrupt,
     Frame {
@@ -53,6 +98,7 @@ pub struct InputSender {
     tx: Sender<Msg>,
     urgent: Sender<Msg>,
     numbers: Arc<Mutex<BTreeMap<Origin, u64>>>,
+    budget: Arc<Budget>,
 }
 
 impl InputSender {
@@ -63,14 +109,17 @@ impl InputSender {
         *c
     }
 
-    /// One line from `origin`, received now.
+    /// One line from `origin`, received now. Waits while
+    /// [`MAX_QUEUED_PER_ORIGIN`] of `origin`'s lines are still waiting for
+    /// the runner (a stop waits only behind other stops).
     pub fn line(&self, origin: Origin, text: impl Into<String>) {
         let text = text.into();
         if text.trim().is_empty() {
             return;
         }
-        let number = self.number(origin);
         let urgent = asks_for_stop(text.trim());
+        self.budget.take(origin, urgent);
+        let number = self.number(origin);
         let msg = Msg::Line {
             origin,
             number,
@@ -88,6 +137,7 @@ impl InputSender {
     /// A line that could not be taken (too long, not UTF-8): answered with
     /// an error, never sent.
     pub fn refused(&self, origin: Origin, reason: impl Into<String>) {
+        self.budget.take(origin, false);
         let number = self.number(origin);
         let _ = self.tx.send(Msg::Refused {
             origin,
@@ -101,6 +151,7 @@ impl InputSender {
     /// doubt, stop. It overtakes the lines queued before it, as a stop does
     /// ([`Bridge::handle_numbered_unreadable_stop`]).
     pub fn refused_stop(&self, origin: Origin, reason: impl Into<String>) {
+        self.budget.take(origin, true);
         let number = self.number(origin);
         let _ = self.urgent.send(Msg::Refused {
             origin,
@@ -118,6 +169,18 @@ impl InputSender {
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .remove(&origin);
+    }
+
+    /// `origin` was disconnected by the bridge's owner (it stopped reading
+    /// its results, or its connection failed): its lines not yet done are
+    /// cancelled ([`Bridge::drop_origin`]) and its count forgotten. Lines
+    /// it handed over before are still taken first.
+    pub fn drop_origin(&self, origin: Origin, reason: impl Into<String>) {
+        let _ = self.tx.send(Msg::Dropped {
+            origin,
+            reason: reason.into(),
+        });
+        self.forget(origin);
     }
 
     /// End of input: finish and stop the joints.
@@ -296,6 +359,7 @@ pub struct Runner {
     urgent_tx: Sender<Msg>,
     urgent: Receiver<Msg>,
     numbers: Arc<Mutex<BTreeMap<Origin, u64>>>,
+    budget: Arc<Budget>,
 }
 
 impl Default for Runner {
@@ -315,6 +379,7 @@ impl Runner {
             urgent_tx,
             urgent,
             numbers: Arc::default(),
+            budget: Arc::default(),
         }
     }
 
@@ -324,6 +389,7 @@ impl Runner {
             tx: self.tx.clone(),
             urgent: self.urgent_tx.clone(),
             numbers: Arc::clone(&self.numbers),
+            budget: Arc::clone(&self.budget),
         }
     }
 
@@ -398,6 +464,9 @@ impl Runner {
             // Stops first, ahead of every line queued before them.
             let mut stopped = false;
             while let Ok(msg) = self.urgent.try_recv() {
+                if let Msg::Line { origin, .. } | Msg::Refused { origin, .. } = &msg {
+                    self.budget.give(*origin, true);
+                }
                 match msg {
                     Msg::Line {
                         origin,
@@ -423,8 +492,15 @@ impl Runner {
             if stopped {
                 continue; // its frames go out before anything else is read
             }
-            match self.rx.recv_timeout(wait) {
+            let msg = self.rx.recv_timeout(wait);
+            if let Ok(Msg::Line { origin, .. } | Msg::Refused { origin, .. }) = &msg {
+                self.budget.give(*origin, false);
+            }
+            match msg {
                 Ok(Msg::Wake) => {}
+                Ok(Msg::Dropped { origin, reason }) => {
+                    bridge.drop_origin(since(Instant::now()), origin, &reason);
+                }
                 Ok(Msg::Line {
                     origin,
                     number,

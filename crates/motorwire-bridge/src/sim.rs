@@ -103,6 +103,36 @@ impl RealTimeArm {
     pub fn port(&self) -> SimPort {
         self.bus.port()
     }
+
+    /// Runs `bridge` on this arm's bus with `runner`, on a thread of its
+    /// own; `sink` is given every output. Feed it with `runner.input()`
+    /// (taken before) and end it with [`crate::InputSender::finish`] or
+    /// [`crate::InputSender::interrupt`].
+    ///
+    /// ```
+    /// use motorwire_bridge::sim::RealTimeArm;
+    /// use motorwire_bridge::{Bridge, BridgeConfig, Output, Runner};
+    /// use motorwire_translate::BusMap;
+    /// let map = BusMap::from_toml(include_str!("../../../fixtures/maps/demo-arm.toml"))?;
+    /// let bridge = Bridge::new(map, BridgeConfig::default())?;
+    /// let arm = RealTimeArm::start(bridge.map())?;
+    /// let runner = Runner::new();
+    /// let input = runner.input();
+    /// let handle = arm.spawn(runner, bridge, |o: &Output| println!("{}", o.to_json()));
+    /// input.finish();
+    /// let bridge = handle.join().expect("the runner thread")?;
+    /// assert!(bridge.is_finished());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn spawn(
+        &self,
+        runner: crate::Runner,
+        bridge: Bridge,
+        mut sink: impl FnMut(&Output) + Send + 'static,
+    ) -> JoinHandle<Result<Bridge, BridgeError>> {
+        let (tx, rx) = (self.port(), self.port());
+        thread::spawn(move || runner.run(bridge, tx, rx, |o| sink(o)))
+    }
 }
 
 impl Drop for RealTimeArm {

@@ -558,3 +558,52 @@ fn a_flood_of_stops_is_one_stop() {
         assert_eq!(arm.joint(node).unwrap().state(), LifecycleState::Active);
     }
 }
+
+/// A move whose target is inside the limits but whose planned path, from
+/// the joint's current speed, overshoots them is refused before any frame.
+#[test]
+fn a_move_that_would_overshoot_a_limit_from_the_current_speed_is_refused() {
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":140,"velocity_limit":100}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(900))
+        .unwrap();
+    let moving = arm.joint(0x12).unwrap().position();
+    assert!((60.0..130.0).contains(&moving), "{moving}");
+    let executed = arm.joint(0x12).unwrap().log().len();
+    // Braking from about 100°/s at 20°/s² takes 250°: far past 150.
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":145,"velocity_limit":100,"acceleration_limit":20}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    let results = arm.take_results();
+    let refused = results.iter().find(|r| r["line"] == 2).unwrap();
+    assert_eq!(refused["ok"], false, "{refused}");
+    assert_eq!(refused["error"]["kind"], "refused", "{refused}");
+    let message = refused["error"]["message"].as_str().unwrap();
+    assert!(
+        message.starts_with("elbow: the planned path reaches ")
+            && message.contains(" past max_position (bus map) 150 by "),
+        "{message}"
+    );
+    assert_eq!(
+        arm.joint(0x12).unwrap().log().len(),
+        executed,
+        "nothing sent"
+    );
+    // The same move from rest is accepted.
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":145,"velocity_limit":100,"acceleration_limit":20}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    let results = arm.take_results();
+    let ok = results.iter().find(|r| r["line"] == 3).unwrap();
+    assert_eq!(ok["ok"], true, "{ok}");
+}

@@ -7,14 +7,17 @@ use std::thread;
 use std::time::Duration;
 
 use motorwire_bridge::sim::RealTimeArm;
-use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output, Runner};
+use motorwire_bridge::{Bridge, BridgeConfig, InputSender, Origin, Output, Runner};
 use motorwire_translate::BusMap;
 use serde_json::Value;
 
 const MAP: &str = include_str!("../../../fixtures/maps/demo-arm.toml");
 
-#[test]
-fn a_stop_overtakes_two_thousand_queued_lines() {
+type Handle = thread::JoinHandle<Result<Bridge, motorwire_bridge::BridgeError>>;
+
+/// The demo arm in real time, its bridge run by a [`Runner`] without
+/// feedback; results come on the receiver.
+fn start() -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
     let map = BusMap::from_toml(MAP).unwrap();
     let config = BridgeConfig {
         feedback_period: None,
@@ -25,14 +28,17 @@ fn a_stop_overtakes_two_thousand_queued_lines() {
     let runner = Runner::new();
     let input = runner.input();
     let (tx, rx) = mpsc::channel();
-    let (a, b) = (arm.port(), arm.port());
-    let handle = thread::spawn(move || {
-        runner.run(bridge, a, b, |o| {
-            if let Output::Result { .. } = o {
-                let _ = tx.send(o.to_value());
-            }
-        })
+    let handle = arm.spawn(runner, bridge, move |o| {
+        if let Output::Result { .. } = o {
+            let _ = tx.send(o.to_value());
+        }
     });
+    (arm, input, rx, handle)
+}
+
+#[test]
+fn a_stop_overtakes_the_lines_queued_before_it() {
+    let (_arm, input, rx, handle) = start();
     // Ready first: one move, answered.
     input.line(
         Origin(3),
@@ -80,8 +86,10 @@ fn a_stop_overtakes_two_thousand_queued_lines() {
         .iter()
         .filter(|r| r["error"]["kind"] == "emergency_stop_latched")
         .count();
+    // The sender waits while MAX_QUEUED_PER_ORIGIN lines are queued, so
+    // that many at most were waiting when the stop came.
     assert!(
-        latched > n / 2,
+        latched > motorwire_bridge::MAX_QUEUED_PER_ORIGIN / 2,
         "only {latched} of {n} lines came after the stop: it did not overtake them"
     );
     let mut lines: Vec<u64> = results
@@ -102,24 +110,7 @@ fn a_stop_overtakes_two_thousand_queued_lines() {
 #[test]
 fn an_unreadable_line_that_names_a_stop_stops() {
     use std::io::BufReader;
-    let map = BusMap::from_toml(MAP).unwrap();
-    let config = BridgeConfig {
-        feedback_period: None,
-        ..BridgeConfig::default()
-    };
-    let bridge = Bridge::new(map, config).unwrap();
-    let arm = RealTimeArm::start(bridge.map()).unwrap();
-    let runner = Runner::new();
-    let input = runner.input();
-    let (tx, rx) = mpsc::channel();
-    let (a, b) = (arm.port(), arm.port());
-    let handle = thread::spawn(move || {
-        runner.run(bridge, a, b, |o| {
-            if let Output::Result { .. } = o {
-                let _ = tx.send(o.to_value());
-            }
-        })
-    });
+    let (_arm, input, rx, handle) = start();
     let long_stop = format!(
         "{{\"pad\":\"{}\",\"emergency_stop\":true}}\n",
         "x".repeat(motorwire_bridge::MAX_LINE)

@@ -198,6 +198,10 @@ pub struct ClientStats {
     pub stray_replies: u64,
     /// Undecodable or misaddressed frames.
     pub bad_frames: u64,
+    /// Frames sent from this client's own CAN id, heard back (a second
+    /// socket on the same interface receives what the first sends): not
+    /// decoded, not reported.
+    pub own_frames: u64,
 }
 
 #[derive(Debug)]
@@ -519,6 +523,12 @@ impl Client {
     /// Takes a frame from the bus.
     pub fn handle_frame(&mut self, now: Duration, frame: &Frame) {
         if frame.id().is_extended() {
+            return;
+        }
+        if frame.id().raw() == u32::from(self.config.node_id) {
+            // Our own request, heard back: each is in the wire of the joint
+            // it was for, so decoding it in ours would call it bad.
+            self.stats.own_frames += 1;
             return;
         }
         let wire = u16::try_from(frame.id().raw()).map_or(self.config.wire, |n| self.wire_of(n));

@@ -155,6 +155,14 @@ fn feedback_undecodable_and_misaddressed_frames_are_events() {
     c.handle_frame(ms(5), &wrong_id);
     assert!(matches!(c.poll_event(), Some(Event::Misaddressed { .. })));
     assert_eq!(c.stats().bad_frames, 2);
+    // Our own frames heard back (a v2.2 request a v2.0 reading calls bad):
+    // counted apart, never reported.
+    c.handle_frame(
+        ms(5),
+        &Frame::fd(CanId::standard(0).unwrap(), &[0x00, 0x33, 0x01, 0x14]).unwrap(),
+    );
+    assert!(c.poll_event().is_none());
+    assert_eq!((c.stats().bad_frames, c.stats().own_frames), (2, 1));
 }
 
 #[test]

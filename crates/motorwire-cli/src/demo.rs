@@ -7,7 +7,6 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
-use std::thread;
 use std::time::{Duration, Instant};
 
 use motorwire_bridge::sim::RealTimeArm;
@@ -232,11 +231,8 @@ fn demo(args: &Args) -> Result<bool, String> {
     let runner = Runner::new();
     let input = runner.input();
     let (tx, rx) = mpsc::channel();
-    let (port_tx, port_rx) = (arm.port(), arm.port());
-    let handle = thread::spawn(move || {
-        runner.run(bridge, port_tx, port_rx, |o| {
-            let _ = tx.send(o.clone());
-        })
+    let handle = arm.spawn(runner, bridge, move |o| {
+        let _ = tx.send(o.clone());
     });
     let mut watch = Watch {
         rx,
