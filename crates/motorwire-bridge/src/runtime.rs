@@ -162,6 +162,17 @@ impl InputSender {
         let _ = self.tx.send(Msg::Wake);
     }
 
+    /// How many lines of `origin` were handed over (each gets one result),
+    /// until [`InputSender::forget`].
+    pub fn lines_of(&self, origin: Origin) -> u64 {
+        self.numbers
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(&origin)
+            .copied()
+            .unwrap_or(0)
+    }
+
     /// `origin` left: its line count is forgotten (bounded memory over
     /// many clients).
     pub fn forget(&self, origin: Origin) {

@@ -1,21 +1,16 @@
 //! `motorwire bridge`: WIA JSON lines in, iRPC frames on a CAN bus out.
 
-use std::collections::BTreeMap;
-use std::io::{self, BufReader, Write};
-use std::net::{TcpListener, TcpStream};
+use std::io::{self, Write};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use motorwire_bridge::sim::{ExecutionLog, RealTimeArm};
-use motorwire_bridge::{Bridge, BridgeConfig, InputSender, Origin, Output, Runner, feed};
+use motorwire_bridge::{Bridge, BridgeConfig, InputSender, Output, Runner};
 use motorwire_can::client::ClientConfig;
 use motorwire_can::{Faults, SimConfig};
 use motorwire_sim::Execution;
 use motorwire_translate::BusMap;
-
-/// The origin of stdin's lines.
-const STDIN: Origin = Origin(0);
 
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
@@ -26,11 +21,30 @@ pub(crate) struct Args {
     /// time) or `socketcan:IFACE` (a Linux CAN-FD interface, e.g. vcan0).
     #[arg(long, value_name = "BUS")]
     bus: String,
-    /// Where lines come from: `-` (stdin; the bridge stops at its end) or
-    /// `tcp:ADDR` (clients on a loopback address, e.g. tcp:127.0.0.1:7878;
-    /// the bridge runs until interrupted).
+    /// Where lines come from: `-` (stdin; the bridge stops at its end),
+    /// `unix:PATH` (a local socket only this user can connect to: the
+    /// recommended local input) or `tcp:ADDR` (a loopback address, e.g.
+    /// tcp:127.0.0.1:7878, with `--token-file`). With a socket the bridge
+    /// runs until interrupted; each client gets its own results, and every
+    /// client the feedback and events.
     #[arg(long, value_name = "INPUT", default_value = "-")]
     input: String,
+    /// A file holding the token (one line, at least 16 bytes, mode 0600)
+    /// that a connection's first line must be. Required with `tcp:`.
+    #[arg(long, value_name = "FILE")]
+    token_file: Option<String>,
+    /// Accept TCP connections without a token: any local process can then
+    /// move the motors.
+    #[arg(long)]
+    insecure_no_auth: bool,
+    /// Connections served at once; more are refused with an error line.
+    #[arg(long, value_name = "N", default_value_t = 8)]
+    max_clients: usize,
+    /// Output lines a client may have waiting; a client that lets this
+    /// many pile up (it stopped reading) is disconnected and its pending
+    /// commands cancelled.
+    #[arg(long, value_name = "LINES", default_value_t = 1024)]
+    client_queue: usize,
     /// Feedback lines per joint per second (0: none).
     #[arg(long, value_name = "N", default_value_t = 10.0)]
     feedback_hz: f64,
@@ -188,8 +202,6 @@ fn on_interrupt(input: InputSender) {
     });
 }
 
-type Clients = Arc<Mutex<BTreeMap<u64, TcpStream>>>;
-
 fn bridge(args: &Args) -> Result<u8, String> {
     let map = load_map(&args.map)?;
     let config = BridgeConfig {
@@ -214,65 +226,32 @@ fn bridge(args: &Args) -> Result<u8, String> {
     let input = runner.input();
     on_interrupt(input.clone());
 
-    let clients: Clients = Arc::default();
-    let tcp = match args.input.as_str() {
-        "-" => {
-            let input = input.clone();
-            thread::spawn(move || {
-                let mut reader = BufReader::new(io::stdin());
-                if let Err(e) = feed(&input, STDIN, &mut reader, true) {
-                    eprintln!("motorwire bridge: reading standard input: {e}");
-                }
-                input.finish();
-            });
-            false
+    let listen = crate::serve::parse_listen(&args.input)?;
+    let token = match (&listen, &args.token_file) {
+        (_, Some(path)) => Some(crate::serve::read_token(path)?),
+        (crate::serve::Listen::Tcp(_), None) if !args.insecure_no_auth => {
+            return Err(format!(
+                "--input {}: TCP needs --token-file FILE (a connection's first line is the token), or --insecure-no-auth to let any local process move the motors; unix:PATH needs neither",
+                args.input
+            ));
         }
-        spec => {
-            let addr = spec.strip_prefix("tcp:").ok_or_else(|| {
-                format!(
-                    "--input {spec:?}: expected - (stdin) or tcp:ADDR (e.g. tcp:127.0.0.1:7878)"
-                )
-            })?;
-            let listener = TcpListener::bind(addr).map_err(|e| format!("--input {spec}: {e}"))?;
-            if !listener.local_addr().is_ok_and(|a| a.ip().is_loopback()) {
-                return Err(format!(
-                    "--input {spec}: the bridge listens on loopback addresses only (127.0.0.1, ::1)"
-                ));
-            }
-            if let Ok(a) = listener.local_addr() {
-                eprintln!("motorwire bridge: listening on tcp:{a}");
-            }
-            accept(listener, input.clone(), Arc::clone(&clients));
-            true
-        }
+        _ => None,
     };
-
-    let stdout = io::stdout();
-    let sink = |o: &Output| {
-        let line = o.to_json();
-        match o {
-            Output::Result { origin, .. } if tcp => {
-                let mut c = clients.lock().unwrap_or_else(PoisonError::into_inner);
-                if let Some(s) = c.get_mut(&origin.0)
-                    && writeln!(s, "{line}").is_err()
-                {
-                    c.remove(&origin.0);
-                }
-            }
-            Output::Result { .. } => {
-                let _ = writeln!(stdout.lock(), "{line}");
-            }
-            Output::Feedback(_) | Output::Event(_) if tcp => {
-                let mut c = clients.lock().unwrap_or_else(PoisonError::into_inner);
-                c.retain(|_, s| writeln!(s, "{line}").is_ok());
-                if matches!(o, Output::Event(_)) {
-                    let _ = writeln!(stdout.lock(), "{line}");
-                }
-            }
-            Output::Feedback(_) | Output::Event(_) => {
-                let _ = writeln!(stdout.lock(), "{line}");
-            }
-        }
+    if args.max_clients == 0 || args.client_queue == 0 {
+        return Err("--max-clients and --client-queue must be at least 1".to_owned());
+    }
+    let router = crate::serve::Router::new(input.clone(), listen != crate::serve::Listen::Stdin);
+    let socket_path = router.serve(
+        &listen,
+        crate::serve::ServeConfig {
+            token,
+            max_clients: args.max_clients,
+            client_queue: args.client_queue,
+        },
+    )?;
+    let sink = {
+        let router = std::sync::Arc::clone(&router);
+        move |o: &Output| router.route(o)
     };
     let result = match args.bus.as_str() {
         "sim" => {
@@ -297,45 +276,18 @@ fn bridge(args: &Args) -> Result<u8, String> {
             runner.run(bridge, tx, rx, sink)
         }
     };
+    if let Some(path) = socket_path {
+        let _ = std::fs::remove_file(path);
+    }
     let bridge = result.map_err(|e| e.to_string())?;
     let s = bridge.stats();
     eprintln!(
         "motorwire bridge: {} lines, {} ok, {} failed, {} frames sent, {} bad frames received",
         s.lines, s.ok, s.failed, s.frames_sent, s.bad_frames
     );
+    if let Some(why) = router.failure() {
+        eprintln!("motorwire bridge: {why}; the joints were stopped");
+        return Ok(crate::serve::EXIT_OUTPUT_FAILED);
+    }
     Ok(0)
-}
-
-/// Accepts TCP clients; each one's lines are fed as its own origin (from
-/// 1), and it gets its results, the feedback and the events.
-fn accept(listener: TcpListener, input: InputSender, clients: Clients) {
-    thread::spawn(move || {
-        let mut next = 1u64;
-        for stream in listener.incoming() {
-            let Ok(stream) = stream else {
-                continue;
-            };
-            let id = next;
-            next += 1;
-            let Ok(writer) = stream.try_clone() else {
-                continue;
-            };
-            let _ = writer.set_write_timeout(Some(Duration::from_millis(200)));
-            clients
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .insert(id, writer);
-            let input = input.clone();
-            let clients = Arc::clone(&clients);
-            thread::spawn(move || {
-                let mut reader = BufReader::new(stream);
-                // A client that goes away mid-line: its partial line is not taken.
-                let _ = feed(&input, Origin(id), &mut reader, false);
-                clients
-                    .lock()
-                    .unwrap_or_else(PoisonError::into_inner)
-                    .remove(&id);
-            });
-        }
-    });
 }

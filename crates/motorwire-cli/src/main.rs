@@ -13,6 +13,7 @@ mod input;
 mod irpc;
 mod lines;
 mod plan;
+mod serve;
 mod sim;
 mod validate;
 

@@ -1,0 +1,673 @@
+//! Where `motorwire bridge`'s lines come from and where its output goes:
+//! standard input and output, a local socket or TCP. Nothing here ever
+//! makes the engine wait: every output goes into a bounded queue that a
+//! thread of its own writes out, and a reader that floods waits for the
+//! engine ([`motorwire_bridge::MAX_QUEUED_PER_ORIGIN`]), never the other way.
+//!
+//! - A client whose queue fills (it stopped reading) is disconnected and
+//!   its pending commands are cancelled, said on the event stream
+//!   (`client_dropped`).
+//! - Standard output that fills (nobody reads it) or fails (closed pipe)
+//!   stops the joints and ends the bridge with status 74.
+//! - `unix:PATH` is a socket only its owner can connect to (mode 0600, made
+//!   in a private directory first, so there is no moment it is open to
+//!   others). `tcp:ADDR` is loopback only and needs `--token-file` (the
+//!   first line of a connection is the token) unless `--insecure-no-auth`.
+//!   A connection whose first line looks like HTTP is closed without
+//!   executing anything, so a web page cannot reach the bridge.
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::io::{self, BufReader, Read, Write};
+use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
+use std::os::unix::fs::{DirBuilderExt, FileTypeExt, PermissionsExt};
+use std::os::unix::net::{UnixListener, UnixStream};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use motorwire_bridge::{InputSender, Origin, Output, ReadLine, feed, read_line};
+
+/// The origin of standard input's lines.
+pub(crate) const STDIN: Origin = Origin(0);
+
+/// Exit status when standard output stopped being read or failed.
+pub(crate) const EXIT_OUTPUT_FAILED: u8 = 74;
+
+/// Lines standard output may hold before it counts as not read.
+const STDOUT_QUEUE: usize = 4096;
+
+/// The longest token file read (bytes).
+const MAX_TOKEN_FILE: u64 = 4096;
+
+/// The shortest token accepted (bytes).
+const MIN_TOKEN: usize = 16;
+
+/// Where lines come from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum Listen {
+    /// Standard input; the bridge stops at its end.
+    Stdin,
+    /// A TCP address on loopback.
+    Tcp(SocketAddr),
+    /// A local socket at a path.
+    Unix(PathBuf),
+}
+
+/// Parses `--input`: `-`, `tcp:ADDR` (loopback only) or `unix:PATH`.
+pub(crate) fn parse_listen(spec: &str) -> Result<Listen, String> {
+    if spec == "-" {
+        return Ok(Listen::Stdin);
+    }
+    if let Some(path) = spec.strip_prefix("unix:") {
+        if path.is_empty() {
+            return Err("--input unix:PATH: the path is empty".to_owned());
+        }
+        return Ok(Listen::Unix(PathBuf::from(path)));
+    }
+    if let Some(addr) = spec.strip_prefix("tcp:") {
+        let addrs: Vec<SocketAddr> = addr
+            .to_socket_addrs()
+            .map_err(|e| format!("--input {spec}: {e}"))?
+            .collect();
+        let Some(first) = addrs.first().copied() else {
+            return Err(format!("--input {spec}: the address resolves to nothing"));
+        };
+        if let Some(a) = addrs.iter().find(|a| !a.ip().is_loopback()) {
+            return Err(format!(
+                "--input {spec}: {a} is not a loopback address; the bridge listens on 127.0.0.1 or ::1 only (use unix:PATH for local clients, and a tunnel you trust for remote ones)"
+            ));
+        }
+        return Ok(Listen::Tcp(first));
+    }
+    Err(format!(
+        "--input {spec:?}: expected - (stdin), unix:PATH or tcp:ADDR (e.g. tcp:127.0.0.1:7878)"
+    ))
+}
+
+/// Reads the token in `path`: at most 4 KiB, trimmed, at least 16 bytes,
+/// in a file only its owner can read.
+pub(crate) fn read_token(path: &str) -> Result<String, String> {
+    let meta = fs::metadata(path).map_err(|e| format!("--token-file {path}: {e}"))?;
+    if !meta.is_file() {
+        return Err(format!("--token-file {path}: not a regular file"));
+    }
+    if meta.permissions().mode() & 0o077 != 0 {
+        return Err(format!(
+            "--token-file {path}: others can read it (mode {:o}); chmod 600 it",
+            meta.permissions().mode() & 0o777
+        ));
+    }
+    let mut text = String::new();
+    fs::File::open(path)
+        .and_then(|f| f.take(MAX_TOKEN_FILE + 1).read_to_string(&mut text))
+        .map_err(|e| format!("--token-file {path}: {e}"))?;
+    if text.len() as u64 > MAX_TOKEN_FILE {
+        return Err(format!(
+            "--token-file {path}: over {MAX_TOKEN_FILE} bytes; a token is one line"
+        ));
+    }
+    let token = text.trim().to_owned();
+    if token.len() < MIN_TOKEN || token.contains('\n') {
+        return Err(format!(
+            "--token-file {path}: the token must be one line of at least {MIN_TOKEN} bytes"
+        ));
+    }
+    Ok(token)
+}
+
+/// Whether `a` and `b` are equal, in time that does not depend on where
+/// they differ.
+fn same_secret(a: &[u8], b: &[u8]) -> bool {
+    let mut diff = u8::from(a.len() != b.len());
+    for i in 0..a.len().max(b.len()) {
+        diff |= a.get(i).copied().unwrap_or(0) ^ b.get(i).copied().unwrap_or(0xFF);
+    }
+    diff == 0
+}
+
+/// Whether `line` looks like the start of an HTTP request (a request line)
+/// or one of its headers: a browser or `curl` talking to the bridge.
+pub(crate) fn looks_like_http(line: &str) -> bool {
+    const METHODS: [&str; 9] = [
+        "GET ", "POST ", "PUT ", "DELETE ", "HEAD ", "OPTIONS ", "PATCH ", "CONNECT ", "TRACE ",
+    ];
+    let t = line.trim_start();
+    if METHODS.iter().any(|m| t.starts_with(m)) || t.contains(" HTTP/") {
+        return true;
+    }
+    // `Name: value` with a header's name (letters, digits and dashes).
+    t.split_once(':').is_some_and(|(name, _)| {
+        !name.is_empty() && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-')
+    })
+}
+
+/// One connection's socket, either kind.
+#[derive(Debug)]
+enum Conn {
+    Tcp(TcpStream),
+    Unix(UnixStream),
+}
+
+impl Conn {
+    fn try_clone(&self) -> io::Result<Self> {
+        Ok(match self {
+            Self::Tcp(s) => Self::Tcp(s.try_clone()?),
+            Self::Unix(s) => Self::Unix(s.try_clone()?),
+        })
+    }
+
+    fn shutdown(&self) {
+        let _ = match self {
+            Self::Tcp(s) => s.shutdown(Shutdown::Both),
+            Self::Unix(s) => s.shutdown(Shutdown::Both),
+        };
+    }
+
+    fn set_write_timeout(&self, t: Duration) {
+        let _ = match self {
+            Self::Tcp(s) => s.set_write_timeout(Some(t)),
+            Self::Unix(s) => s.set_write_timeout(Some(t)),
+        };
+    }
+}
+
+impl Read for Conn {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        match self {
+            Self::Tcp(s) => s.read(buf),
+            Self::Unix(s) => s.read(buf),
+        }
+    }
+}
+
+impl Write for Conn {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        match self {
+            Self::Tcp(s) => s.write(buf),
+            Self::Unix(s) => s.write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        match self {
+            Self::Tcp(s) => s.flush(),
+            Self::Unix(s) => s.flush(),
+        }
+    }
+}
+
+/// A connected, authenticated client: its queue and its socket.
+#[derive(Debug)]
+struct Client {
+    queue: SyncSender<Arc<str>>,
+    conn: Conn,
+    /// Results sent to it.
+    delivered: u64,
+    /// Once its input ended: how many results it is owed. It is let go
+    /// (its queue drained, then its socket closed) when it has them all.
+    owed: Option<u64>,
+}
+
+/// How the server is set up.
+#[derive(Debug, Clone)]
+pub(crate) struct ServeConfig {
+    /// The token a connection's first line must be (`None`: no token).
+    pub(crate) token: Option<String>,
+    /// Connections at once (authenticating or not).
+    pub(crate) max_clients: usize,
+    /// Lines a client may have waiting before it counts as not reading.
+    pub(crate) client_queue: usize,
+}
+
+/// Routes the engine's outputs to standard output and the clients without
+/// ever blocking; see the module's documentation.
+#[derive(Debug)]
+pub(crate) struct Router {
+    input: InputSender,
+    stdout: SyncSender<Arc<str>>,
+    clients: Mutex<BTreeMap<u64, Client>>,
+    /// Results go to the clients (a socket input), not to standard output.
+    sockets: bool,
+    failure: Mutex<Option<String>>,
+    connected: AtomicUsize,
+}
+
+impl Router {
+    /// A router, and the thread that writes standard output.
+    pub(crate) fn new(input: InputSender, sockets: bool) -> Arc<Self> {
+        let (stdout, lines) = mpsc::sync_channel(STDOUT_QUEUE);
+        let router = Arc::new(Self {
+            input,
+            stdout,
+            clients: Mutex::default(),
+            sockets,
+            failure: Mutex::default(),
+            connected: AtomicUsize::new(0),
+        });
+        let r = Arc::clone(&router);
+        thread::spawn(move || r.write_stdout(&lines));
+        router
+    }
+
+    /// Why standard output failed, if it did.
+    pub(crate) fn failure(&self) -> Option<String> {
+        self.failure
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    fn fail(&self, why: String) {
+        let mut f = self.failure.lock().unwrap_or_else(PoisonError::into_inner);
+        if f.is_none() {
+            *f = Some(why);
+            // Nobody sees the results any more: stop the joints.
+            self.input.interrupt();
+        }
+    }
+
+    fn write_stdout(&self, lines: &Receiver<Arc<str>>) {
+        let stdout = io::stdout();
+        while let Ok(line) = lines.recv() {
+            let mut buf = Vec::with_capacity(line.len() + 1);
+            buf.extend_from_slice(line.as_bytes());
+            buf.push(b'\n');
+            let mut out = stdout.lock();
+            if let Err(e) = out.write_all(&buf).and_then(|()| out.flush()) {
+                self.fail(format!("standard output failed: {e}"));
+                return;
+            }
+        }
+    }
+
+    /// Takes one output of the engine; never waits.
+    pub(crate) fn route(&self, o: &Output) {
+        let line: Arc<str> = Arc::from(o.to_json());
+        match o {
+            Output::Result { origin, .. } if *origin == STDIN || !self.sockets => {
+                self.to_stdout(line);
+            }
+            Output::Result { origin, .. } => self.to_client(origin.0, line),
+            Output::Feedback(_) if self.sockets => self.to_every_client(&line),
+            Output::Event(_) if self.sockets => {
+                self.to_every_client(&line);
+                self.to_stdout(line);
+            }
+            Output::Feedback(_) | Output::Event(_) => self.to_stdout(line),
+        }
+    }
+
+    fn to_stdout(&self, line: Arc<str>) {
+        if self.failure().is_some() {
+            return; // already failed: nothing can be delivered there
+        }
+        if let Err(TrySendError::Full(_)) = self.stdout.try_send(line) {
+            self.fail(format!(
+                "standard output is not being read ({STDOUT_QUEUE} lines waiting)"
+            ));
+        }
+    }
+
+    fn to_client(&self, id: u64, line: Arc<str>) {
+        let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
+        let Some(c) = clients.get(&id) else {
+            return; // gone: its lines were cancelled when it went
+        };
+        match c.queue.try_send(line) {
+            Ok(()) => {
+                if let Some(c) = clients.get_mut(&id) {
+                    c.delivered += 1;
+                    if c.owed.is_some_and(|n| c.delivered >= n) {
+                        clients.remove(&id); // the writer drains, then closes
+                    }
+                }
+            }
+            Err(TrySendError::Full(_)) => {
+                let why = "it stopped reading its results (its queue is full)";
+                self.drop_client(&mut clients, id, why);
+            }
+            Err(TrySendError::Disconnected(_)) => {
+                self.drop_client(&mut clients, id, "its connection failed");
+            }
+        }
+    }
+
+    fn to_every_client(&self, line: &Arc<str>) {
+        let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut gone = Vec::new();
+        for (id, c) in clients.iter() {
+            match c.queue.try_send(Arc::clone(line)) {
+                Ok(()) => {}
+                Err(TrySendError::Full(_)) => {
+                    gone.push((*id, "it stopped reading (its queue is full)"));
+                }
+                Err(TrySendError::Disconnected(_)) => gone.push((*id, "its connection failed")),
+            }
+        }
+        for (id, why) in gone {
+            self.drop_client(&mut clients, id, why);
+        }
+    }
+
+    fn drop_client(&self, clients: &mut BTreeMap<u64, Client>, id: u64, why: &str) {
+        if let Some(c) = clients.remove(&id) {
+            c.conn.shutdown();
+            self.input.drop_origin(Origin(id), why);
+        }
+    }
+
+    /// Registers an authenticated connection; its writer thread sends its
+    /// queue out, one write per line.
+    fn add_client(&self, id: u64, conn: Conn, queue_len: usize) -> io::Result<()> {
+        let (queue, lines) = mpsc::sync_channel::<Arc<str>>(queue_len);
+        let mut writer = conn.try_clone()?;
+        self.clients
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .insert(
+                id,
+                Client {
+                    queue,
+                    conn,
+                    delivered: 0,
+                    owed: None,
+                },
+            );
+        thread::spawn(move || {
+            while let Ok(line) = lines.recv() {
+                let mut buf = Vec::with_capacity(line.len() + 1);
+                buf.extend_from_slice(line.as_bytes());
+                buf.push(b'\n');
+                if writer.write_all(&buf).is_err() {
+                    return; // its queue is dropped: the router sees it gone
+                }
+            }
+        });
+        Ok(())
+    }
+
+    /// Standard input fed to the bridge, which stops at its end.
+    pub(crate) fn serve_stdin(&self) {
+        let input = self.input.clone();
+        thread::spawn(move || {
+            let mut reader = BufReader::new(io::stdin());
+            if let Err(e) = feed(&input, STDIN, &mut reader, true) {
+                say(&format!("motorwire bridge: reading standard input: {e}"));
+            }
+            input.finish();
+        });
+    }
+
+    /// Listens on `at` for clients, each one's lines its own origin (from
+    /// 1); returns once listening. For a local socket, the path to remove
+    /// at the end.
+    pub(crate) fn serve(
+        self: &Arc<Self>,
+        at: &Listen,
+        config: ServeConfig,
+    ) -> Result<Option<PathBuf>, String> {
+        match at {
+            Listen::Stdin => {
+                self.serve_stdin();
+                Ok(None)
+            }
+            Listen::Tcp(addr) => {
+                let listener =
+                    TcpListener::bind(addr).map_err(|e| format!("--input tcp:{addr}: {e}"))?;
+                let shown = listener.local_addr().map_or(*addr, |a| a);
+                say(&format!("motorwire bridge: listening on tcp:{shown}"));
+                let r = Arc::clone(self);
+                thread::spawn(move || {
+                    r.accept_loop(
+                        || {
+                            listener.accept().map(|(s, _)| {
+                                let _ = s.set_nodelay(true);
+                                Conn::Tcp(s)
+                            })
+                        },
+                        &config,
+                    );
+                });
+                Ok(None)
+            }
+            Listen::Unix(path) => {
+                let listener = bind_private(path)?;
+                say(&format!(
+                    "motorwire bridge: listening on unix:{}",
+                    path.display()
+                ));
+                let r = Arc::clone(self);
+                thread::spawn(move || {
+                    r.accept_loop(|| listener.accept().map(|(s, _)| Conn::Unix(s)), &config);
+                });
+                Ok(Some(path.clone()))
+            }
+        }
+    }
+
+    /// Accepts connections until the process ends. Accept errors (out of
+    /// descriptors) back off from 10 ms to 1 s and are reported once per
+    /// run of them, never spun on.
+    fn accept_loop(
+        self: &Arc<Self>,
+        mut accept: impl FnMut() -> io::Result<Conn>,
+        config: &ServeConfig,
+    ) {
+        let mut next = 1u64;
+        let mut backoff = Duration::ZERO;
+        loop {
+            let conn = match accept() {
+                Ok(c) => {
+                    if !backoff.is_zero() {
+                        say("motorwire bridge: accepting connections again");
+                    }
+                    backoff = Duration::ZERO;
+                    c
+                }
+                Err(e) => {
+                    if backoff.is_zero() {
+                        say(&format!(
+                            "motorwire bridge: accepting a connection failed: {e}; retrying with back-off"
+                        ));
+                    }
+                    backoff =
+                        (backoff * 2).clamp(Duration::from_millis(10), Duration::from_secs(1));
+                    thread::sleep(backoff);
+                    continue;
+                }
+            };
+            let id = next;
+            next += 1;
+            if self.connected.fetch_add(1, Ordering::SeqCst) >= config.max_clients {
+                self.connected.fetch_sub(1, Ordering::SeqCst);
+                refuse(
+                    conn,
+                    "too_many_clients",
+                    &format!("the bridge serves {} clients at once", config.max_clients),
+                );
+                continue;
+            }
+            let r = Arc::clone(self);
+            let config = config.clone();
+            thread::spawn(move || {
+                r.client(id, conn, &config);
+                r.connected.fetch_sub(1, Ordering::SeqCst);
+            });
+        }
+    }
+
+    /// One connection: authenticated by its first line, then fed.
+    fn client(&self, id: u64, conn: Conn, config: &ServeConfig) {
+        let Ok(read_half) = conn.try_clone() else {
+            return;
+        };
+        let mut reader = BufReader::new(read_half);
+        let first = match read_line(&mut reader) {
+            Ok(ReadLine::Line(s)) => s,
+            Ok(ReadLine::Partial(_) | ReadLine::End) | Err(_) => return,
+            Ok(ReadLine::TooLong { .. } | ReadLine::NotUtf8 { .. }) => {
+                refuse(conn, "unauthorized", "the first line could not be read");
+                return;
+            }
+        };
+        if looks_like_http(&first) {
+            refuse(
+                conn,
+                "http_refused",
+                "this is not an HTTP server; nothing was executed",
+            );
+            return;
+        }
+        let first_is_command = match &config.token {
+            Some(token) => {
+                if !same_secret(first.trim().as_bytes(), token.as_bytes()) {
+                    refuse(
+                        conn,
+                        "unauthorized",
+                        "the first line must be the bridge's token",
+                    );
+                    return;
+                }
+                false
+            }
+            None => true,
+        };
+        if self.add_client(id, conn, config.client_queue).is_err() {
+            return;
+        }
+        if first_is_command {
+            self.input.line(Origin(id), first);
+        }
+        // A client that goes away mid-line: its partial line is not taken.
+        let _ = feed(&self.input, Origin(id), &mut reader, false);
+        let owed = self.input.lines_of(Origin(id));
+        self.input.forget(Origin(id));
+        // Its results still go out (it may have closed only its sending
+        // side); it is let go once it has them all.
+        let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(c) = clients.get_mut(&id) {
+            if c.delivered >= owed {
+                clients.remove(&id);
+            } else {
+                c.owed = Some(owed);
+            }
+        }
+    }
+}
+
+/// A line on standard error; a broken standard error is ignored.
+fn say(msg: &str) {
+    let _ = writeln!(io::stderr(), "{msg}");
+}
+
+/// One error line, then the connection closed.
+fn refuse(mut conn: Conn, kind: &str, message: &str) {
+    conn.set_write_timeout(Duration::from_millis(200));
+    let line = serde_json::json!({
+        "ok": false,
+        "error": { "kind": kind, "message": message },
+    });
+    let _ = writeln!(conn, "{line}");
+    conn.shutdown();
+}
+
+/// Binds a local socket at `path` that only this user can connect to: it
+/// is made in a new directory of mode 0700, given mode 0600, then moved to
+/// `path`. A stale socket at `path` (nothing listening) is replaced; a
+/// live one or any other file is an error.
+fn bind_private(path: &Path) -> Result<UnixListener, String> {
+    let shown = path.display();
+    if let Ok(meta) = fs::symlink_metadata(path) {
+        if !meta.file_type().is_socket() {
+            return Err(format!(
+                "--input unix:{shown}: the path exists and is not a socket"
+            ));
+        }
+        if UnixStream::connect(path).is_ok() {
+            return Err(format!(
+                "--input unix:{shown}: another process is listening there"
+            ));
+        }
+        fs::remove_file(path).map_err(|e| format!("--input unix:{shown}: {e}"))?;
+    }
+    let parent = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let nanos = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    let dir = parent.join(format!(".motorwire-{}-{nanos}", std::process::id()));
+    fs::DirBuilder::new()
+        .mode(0o700)
+        .create(&dir)
+        .map_err(|e| format!("--input unix:{shown}: making {}: {e}", dir.display()))?;
+    let inner = dir.join("s");
+    let result = UnixListener::bind(&inner)
+        .and_then(|l| {
+            fs::set_permissions(&inner, fs::Permissions::from_mode(0o600))?;
+            fs::rename(&inner, path)?;
+            Ok(l)
+        })
+        .map_err(|e| format!("--input unix:{shown}: {e}"));
+    let _ = fs::remove_file(&inner);
+    let _ = fs::remove_dir(&dir);
+    result
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn http_is_recognised_and_json_is_not() {
+        for l in [
+            "POST / HTTP/1.1",
+            "GET /x HTTP/1.0",
+            "OPTIONS * HTTP/1.1",
+            "Host: 127.0.0.1:7878",
+            "Content-Type: application/json",
+            "PRI * HTTP/2.0",
+        ] {
+            assert!(looks_like_http(l), "{l}");
+        }
+        for l in [
+            r#"{"emergency_stop": true}"#,
+            r#"{"motor_id":"elbow","timestamp":1}"#,
+            "a-token-of-sixteen-bytes",
+        ] {
+            assert!(!looks_like_http(l), "{l}");
+        }
+    }
+
+    #[test]
+    fn secrets_compare_whole() {
+        assert!(same_secret(b"0123456789abcdef", b"0123456789abcdef"));
+        assert!(!same_secret(b"0123456789abcdef", b"0123456789abcdeF"));
+        assert!(!same_secret(b"0123456789abcdef", b"0123456789abcde"));
+        assert!(!same_secret(b"", b"\xff"));
+        assert!(same_secret(b"", b""));
+    }
+
+    #[test]
+    fn only_loopback_addresses_are_listened_on() {
+        assert_eq!(
+            parse_listen("tcp:127.0.0.1:0").unwrap(),
+            Listen::Tcp("127.0.0.1:0".parse().unwrap())
+        );
+        assert_eq!(
+            parse_listen("tcp:0.0.0.0:7878").unwrap_err(),
+            "--input tcp:0.0.0.0:7878: 0.0.0.0:7878 is not a loopback address; the bridge listens on 127.0.0.1 or ::1 only (use unix:PATH for local clients, and a tunnel you trust for remote ones)"
+        );
+        assert!(parse_listen("udp:1").is_err());
+        assert_eq!(
+            parse_listen("unix:/run/x.sock").unwrap(),
+            Listen::Unix(PathBuf::from("/run/x.sock"))
+        );
+    }
+}
