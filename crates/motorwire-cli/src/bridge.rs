@@ -42,8 +42,9 @@ pub(crate) struct Args {
     max_clients: usize,
     /// Output lines a client may have waiting; a client that lets this
     /// many pile up (it stopped reading) is disconnected and its pending
-    /// commands cancelled.
-    #[arg(long, value_name = "LINES", default_value_t = 1024)]
+    /// commands cancelled. At least 2048: a stop can answer every line in
+    /// progress (up to 1024, and 256 more on their way) at once.
+    #[arg(long, value_name = "LINES", default_value_t = 4096)]
     client_queue: usize,
     /// Feedback lines per joint per second (0: none).
     #[arg(long, value_name = "N", default_value_t = 10.0)]
@@ -237,8 +238,14 @@ fn bridge(args: &Args) -> Result<u8, String> {
         }
         _ => None,
     };
-    if args.max_clients == 0 || args.client_queue == 0 {
-        return Err("--max-clients and --client-queue must be at least 1".to_owned());
+    if args.max_clients == 0 {
+        return Err("--max-clients must be at least 1".to_owned());
+    }
+    if args.client_queue < 2048 {
+        return Err(format!(
+            "--client-queue {}: at least 2048 (a stop can answer that many lines at once)",
+            args.client_queue
+        ));
     }
     let router = crate::serve::Router::new(input.clone(), listen != crate::serve::Listen::Stdin);
     let socket_path = router.serve(

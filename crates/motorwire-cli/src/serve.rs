@@ -509,8 +509,32 @@ impl Router {
         let first = match read_line(&mut reader) {
             Ok(ReadLine::Line(s)) => s,
             Ok(ReadLine::Partial(_) | ReadLine::End) | Err(_) => return,
-            Ok(ReadLine::TooLong { .. } | ReadLine::NotUtf8 { .. }) => {
-                refuse(conn, "unauthorized", "the first line could not be read");
+            Ok(unreadable @ (ReadLine::TooLong { .. } | ReadLine::NotUtf8 { .. })) => {
+                if config.token.is_some() {
+                    refuse(conn, "unauthorized", "the first line could not be read");
+                    return;
+                }
+                if self.add_client(id, conn, config.client_queue).is_err() {
+                    return;
+                }
+                // Answered as any unreadable line is (and a stop if it
+                // names one).
+                let origin = Origin(id);
+                match unreadable {
+                    ReadLine::TooLong { names_stop } => {
+                        let why = format!("the line is over {} bytes", motorwire_bridge::MAX_LINE);
+                        if names_stop {
+                            self.input.refused_stop(origin, why);
+                        } else {
+                            self.input.refused(origin, why);
+                        }
+                    }
+                    ReadLine::NotUtf8 { names_stop: true } => {
+                        self.input.refused_stop(origin, "the line is not UTF-8");
+                    }
+                    _ => self.input.refused(origin, "the line is not UTF-8"),
+                }
+                self.feed_rest(id, &mut reader);
                 return;
             }
         };
@@ -542,8 +566,14 @@ impl Router {
         if first_is_command {
             self.input.line(Origin(id), first);
         }
+        self.feed_rest(id, &mut reader);
+    }
+
+    /// Feeds the rest of a client's lines; lets it go once it has all its
+    /// results.
+    fn feed_rest(&self, id: u64, reader: &mut BufReader<Conn>) {
         // A client that goes away mid-line: its partial line is not taken.
-        let _ = feed(&self.input, Origin(id), &mut reader, false);
+        let _ = feed(&self.input, Origin(id), reader, false);
         let owed = self.input.lines_of(Origin(id));
         self.input.forget(Origin(id));
         // Its results still go out (it may have closed only its sending

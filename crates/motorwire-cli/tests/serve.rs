@@ -163,9 +163,9 @@ fn a_flooding_and_a_non_reading_client_do_not_delay_anothers_stop() {
         "--input",
         &format!("unix:{}", sock.display()),
         "--feedback-hz",
-        "200",
+        "1000",
         "--client-queue",
-        "64",
+        "2048",
     ]);
     let _ = listening(&mut child);
     let events = stdout_lines(&mut child);
