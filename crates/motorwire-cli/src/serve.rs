@@ -378,10 +378,19 @@ impl Router {
                 },
             );
         thread::spawn(move || {
+            // Whole lines only, and as many as are waiting in one write (up
+            // to 64 KiB): a client reading as fast as it can keeps up with
+            // a flood of its own results.
+            let mut buf = Vec::new();
             while let Ok(line) = lines.recv() {
-                let mut buf = Vec::with_capacity(line.len() + 1);
+                buf.clear();
                 buf.extend_from_slice(line.as_bytes());
                 buf.push(b'\n');
+                while buf.len() < 64 * 1024 {
+                    let Ok(more) = lines.try_recv() else { break };
+                    buf.extend_from_slice(more.as_bytes());
+                    buf.push(b'\n');
+                }
                 if writer.write_all(&buf).is_err() {
                     return; // its queue is dropped: the router sees it gone
                 }

@@ -171,7 +171,11 @@ fn a_flooding_and_a_non_reading_client_do_not_delay_anothers_stop() {
     let events = stdout_lines(&mut child);
     let pid = child.id();
     let bridge = Bridge(child);
-    // The flooder: writes as fast as it can and reads nothing.
+    // The sleeper (origin 1): one command, then never reads.
+    let mut sleeper = UnixStream::connect(&sock).unwrap();
+    writeln!(sleeper, "{}", command("shoulder_roll", 5.0)).unwrap();
+    thread::sleep(Duration::from_millis(100));
+    // The flooder (origin 2): writes as fast as it can.
     let stop_flood = Arc::new(AtomicBool::new(false));
     let flooder = {
         let sock = sock.clone();
@@ -190,9 +194,6 @@ fn a_flooding_and_a_non_reading_client_do_not_delay_anothers_stop() {
             sent
         })
     };
-    // The sleeper: one command, then never reads.
-    let mut sleeper = UnixStream::connect(&sock).unwrap();
-    writeln!(sleeper, "{}", command("shoulder_roll", 5.0)).unwrap();
     // The sleeper is disconnected once its queue is full, and said so.
     let dropped = wait_for(&events, Duration::from_secs(30), |v| {
         v["event"] == "client_dropped"
@@ -204,6 +205,7 @@ fn a_flooding_and_a_non_reading_client_do_not_delay_anothers_stop() {
             .contains("stopped reading"),
         "{dropped}"
     );
+    assert_eq!(dropped["origin"], 1, "{dropped}");
     // The operator, while the flood goes on: its stop is acted on at once.
     let op = UnixStream::connect(&sock).unwrap();
     op.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
@@ -225,6 +227,13 @@ fn a_flooding_and_a_non_reading_client_do_not_delay_anothers_stop() {
     }
     stop_flood.store(true, Ordering::Relaxed);
     let flooded = flooder.join().unwrap();
+    // The flooder reads what it is sent, and the operator too: neither was
+    // dropped.
+    let late: Vec<Value> = events
+        .try_iter()
+        .filter(|v| v["event"] == "client_dropped")
+        .collect();
+    assert!(late.is_empty(), "{late:?}");
     assert!(flooded > 1000, "the flooder sent only {flooded} lines");
     stop_latencies.sort_unstable();
     round_trips.sort_unstable();
