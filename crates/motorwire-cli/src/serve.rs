@@ -361,7 +361,7 @@ impl Router {
     }
 
     /// Registers an authenticated connection; its writer thread sends its
-    /// queue out, one write per line.
+    /// queue out: whole lines, all that are waiting in one write.
     fn add_client(&self, id: u64, conn: Conn, queue_len: usize) -> io::Result<()> {
         let (queue, lines) = mpsc::sync_channel::<Arc<str>>(queue_len);
         let mut writer = conn.try_clone()?;
