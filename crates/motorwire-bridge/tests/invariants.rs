@@ -607,3 +607,64 @@ fn a_move_that_would_overshoot_a_limit_from_the_current_speed_is_refused() {
     let ok = results.iter().find(|r| r["line"] == 3).unwrap();
     assert_eq!(ok["ok"], true, "{ok}");
 }
+
+/// A client dropped by its runner: its lines waiting are never sent, its
+/// request in flight never sent again, the event lists them; the other
+/// clients' lines are served.
+#[test]
+fn a_dropped_client_s_pending_lines_are_cancelled_and_said() {
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    let mut tally = Tally::default();
+    // Client 1 queues moves for every joint; client 2 one for the elbow.
+    let mut ops: Vec<Op> = (0..30)
+        .map(|i| Op::Multi {
+            client: 1,
+            setpoints: [f64::from(i), f64::from(i % 40), f64::from(i * 3)],
+        })
+        .collect();
+    ops.push(Op::Move {
+        client: 2,
+        joint: 2,
+        setpoint: 77.0,
+    });
+    play(&mut arm, &ops, &mut tally);
+    let before: usize = JOINTS
+        .iter()
+        .map(|(_, n, ..)| arm.joint(*n).unwrap().log().len())
+        .sum();
+    let now = arm.now();
+    arm.bridge_mut()
+        .drop_origin(now, Origin(1), "it stopped reading");
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    let outputs = arm.take_outputs();
+    let dropped = outputs
+        .iter()
+        .map(Output::to_value)
+        .find(|v| v["event"] == "client_dropped")
+        .unwrap();
+    assert_eq!(dropped["origin"], 1);
+    assert_eq!(dropped["reason"], "it stopped reading");
+    let cancelled = dropped["cancelled"].as_array().unwrap();
+    assert!(!cancelled.is_empty(), "{dropped}");
+    // At most the one request per joint already in flight ran after the
+    // drop; nothing queued was sent.
+    let after: usize = JOINTS
+        .iter()
+        .map(|(_, n, ..)| arm.joint(*n).unwrap().log().len())
+        .sum();
+    assert!(
+        after - before <= 3 + 1,
+        "{} requests ran after the drop",
+        after - before
+    );
+    for o in &outputs {
+        if let Output::Result { origin, result } = o {
+            tally.results.insert((origin.0, result.line), o.to_value());
+        }
+    }
+    // Client 2 is served: the elbow ends at its target.
+    let r2 = &tally.results[&(2, 1)];
+    assert_eq!(r2["ok"], true, "{r2}");
+    assert!((arm.joint(0x12).unwrap().position() - 77.0).abs() < 1e-3);
+    check(&arm, &tally);
+}
