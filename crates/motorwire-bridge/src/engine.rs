@@ -32,6 +32,7 @@ use motorwire_translate::{
 use motorwire_wia::{Message, MotorCommand, MotorFeedback, MultiAxisCommand, Validator};
 
 use crate::BridgeError;
+use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Input, classify};
 use crate::job::{Axis, AxisState, Job, JobKind, Rider};
 use crate::joints::{Joint, StepRef, Unresolved};
@@ -233,6 +234,8 @@ pub struct Bridge {
     /// When the latest stop line arrived: a release that arrived before it
     /// is not obeyed.
     last_stop_arrival: Option<Duration>,
+    /// Motion lines whose moves are watched for arrival.
+    arrivals: Vec<Watch>,
     /// The input ended during startup: drain (until this deadline) once ready.
     drain_after_start: Option<Duration>,
     timers: Timers,
@@ -311,6 +314,7 @@ impl Bridge {
             phase: Phase::Starting,
             drain_after_start: None,
             last_stop_arrival: None,
+            arrivals: Vec::new(),
             timers: Timers::default(),
             out: VecDeque::new(),
             now: Duration::ZERO,
@@ -395,6 +399,7 @@ impl Bridge {
             (Phase::Stopping, Phase::Draining { .. }) => {}
             (_, Phase::Stopping) if from != Phase::Stopping => {
                 self.phase = Phase::Stopping;
+                self.fail_watches(|_| true, "the bridge is stopping the joints");
                 let axes = self.every_joint(&[Payload::Deactivate]);
                 self.open_job(
                     None,
@@ -985,6 +990,7 @@ impl Bridge {
             }
         }
         self.latched = true;
+        self.fail_watches(|_| true, "stopped by the emergency stop");
         let cancelled = self.cancel_everything("cancelled by the emergency stop");
         self.out
             .push_back(Output::Event(Event::EmergencyStop { cause, cancelled }));
@@ -1041,6 +1047,7 @@ impl Bridge {
         }));
         cancelled.sort_by_key(|r| r.line);
         cancelled.dedup();
+        self.arrivals.retain(|w| w.origin != origin);
         self.out.push_back(Output::Event(Event::ClientDropped {
             origin,
             reason: reason.to_owned(),
@@ -1356,6 +1363,7 @@ impl Bridge {
                     node: j.node,
                     reason: "a request timed out".to_owned(),
                 }));
+                self.fail_watches(|w| w.waits_on(ji), "the joint went offline");
             }
         }
         if c.outcome == Outcome::Acked {
@@ -1434,6 +1442,13 @@ impl Bridge {
 
     fn complete(&mut self, job: Job) {
         let now = self.now;
+        // The moves acked, to watch for arrival.
+        let moved: Vec<(usize, String, f64)> = job
+            .axes
+            .iter()
+            .filter(|a| matches!(&a.state, AxisState::Done(r) if r.outcome == StepOutcome::Acked))
+            .filter_map(|a| Some((a.joint, a.motor.clone(), a.target?)))
+            .collect();
         let reports: Vec<StepReport> = job
             .axes
             .into_iter()
@@ -1531,8 +1546,111 @@ impl Bridge {
                 result: rr,
             });
         }
+        let watch_label = job.label.clone();
+        r.arrival_follows = job.kind == JobKind::Command && !moved.is_empty();
         set_label(&mut r, job.label);
         self.out.push_back(Output::Result { origin, result: r });
+        if job.kind == JobKind::Command && !moved.is_empty() {
+            self.watch(origin, job.number, watch_label, moved);
+        }
+    }
+
+    // ---- arrival ----------------------------------------------------------
+
+    /// Watches a motion line's acked moves until they arrive; an older
+    /// line still waiting on one of these joints will not arrive now.
+    fn watch(
+        &mut self,
+        origin: Origin,
+        line: u64,
+        label: Option<(&'static str, String)>,
+        moved: Vec<(usize, String, f64)>,
+    ) {
+        let now = self.now;
+        for (ji, ..) in &moved {
+            let why = format!("superseded by line {line} of client {}", origin.0);
+            self.fail_watches(|w| w.waits_on(*ji), &why);
+        }
+        let mut axes = Vec::new();
+        let mut end = now;
+        for (ji, motor, target) in moved {
+            let m = self.map.motor(&motor);
+            let unit = m.map_or(motorwire_translate::AngleUnit::Degrees, |m| m.unit);
+            let tolerance = m.map_or(0.1, |m| unit.to_degrees(m.arrival_tolerance));
+            if let Some(j) = self.joints.get(ji) {
+                end = end.max(j.moving_until);
+            }
+            axes.push(WatchAxis {
+                joint: ji,
+                motor,
+                target,
+                tolerance,
+                unit,
+                arrived: None,
+                last_error: None,
+            });
+        }
+        let planned = end.saturating_sub(now);
+        let margin = (planned / 4).max(Duration::from_millis(500));
+        let mut w = Watch {
+            origin,
+            line,
+            label,
+            since: now,
+            deadline: end.saturating_add(margin),
+            axes,
+        };
+        // Already there (a move to where it stands)?
+        let mut done = false;
+        for (ji, j) in self.joints.iter().enumerate() {
+            if let Some((pos, vel)) = j.motion
+                && w.axes.iter().any(|a| a.joint == ji)
+            {
+                done = w.observe(ji, pos, vel, now) || done;
+            }
+        }
+        if done && w.axes.iter().all(|a| a.arrived.is_some()) {
+            let arrival = w.verdict(now, None);
+            self.out.push_back(Output::Arrival { origin, arrival });
+        } else {
+            self.arrivals.push(w);
+        }
+    }
+
+    /// Joint `ji` is at `position` moving at `velocity` (degrees): the
+    /// lines that have now arrived are said so.
+    fn observe(&mut self, ji: usize, position: f64, velocity: f64, at: Duration) {
+        let mut i = 0;
+        while let Some(w) = self.arrivals.get_mut(i) {
+            if w.axes.iter().any(|a| a.joint == ji) && w.observe(ji, position, velocity, at) {
+                let w = self.arrivals.remove(i);
+                let arrival = w.verdict(at, None);
+                self.out.push_back(Output::Arrival {
+                    origin: w.origin,
+                    arrival,
+                });
+            } else {
+                i += 1;
+            }
+        }
+    }
+
+    /// The watched lines `pick` chooses will not arrive: said, with `why`.
+    fn fail_watches(&mut self, pick: impl Fn(&Watch) -> bool, why: &str) {
+        let now = self.now;
+        let mut i = 0;
+        while let Some(w) = self.arrivals.get(i) {
+            if pick(w) {
+                let w = self.arrivals.remove(i);
+                let arrival = w.verdict(now, Some(why.to_owned()));
+                self.out.push_back(Output::Arrival {
+                    origin: w.origin,
+                    arrival,
+                });
+            } else {
+                i += 1;
+            }
+        }
     }
 
     // ---- the bus --------------------------------------------------------
@@ -1605,6 +1723,17 @@ impl Bridge {
         {
             j.feedback = Some(t.value);
         }
+        if matches!(
+            message.payload,
+            Payload::Encoder(_) | Payload::TelemetryStream(_)
+        ) && let Some((pos, vel)) = j.motion
+            && !self.arrivals.is_empty()
+        {
+            self.observe(ji, pos, vel, at);
+        }
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
         // A part whose outcome was unknown, shown executed by the joint's position.
         if let (Some(u), Some((pos, vel))) = (j.unresolved, j.motion)
             && (pos - u.target).abs() < 0.5
@@ -1644,11 +1773,39 @@ impl Bridge {
         let now = self.now;
         self.client.handle_timeout(now);
         self.drain_client();
+        // Watched lines past their time: not arrived.
+        let late: Vec<usize> = self
+            .arrivals
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| now >= w.deadline)
+            .map(|(i, _)| i)
+            .collect();
+        for i in late.into_iter().rev() {
+            let w = self.arrivals.remove(i);
+            let far = w
+                .axes
+                .iter()
+                .filter(|a| a.arrived.is_none())
+                .map(|a| match a.last_error {
+                    Some(e) => format!("{} {} away", a.motor, short_unit(a.unit.from_degrees(e))),
+                    None => format!("{} never reported its position", a.motor),
+                })
+                .collect::<Vec<_>>()
+                .join(", ");
+            let arrival = w.verdict(now, Some(format!("timed out: {far}")));
+            self.out.push_back(Output::Arrival {
+                origin: w.origin,
+                arrival,
+            });
+        }
         let offline_after = self.config.offline_after;
-        for j in &mut self.joints {
+        let mut went_offline = Vec::new();
+        for (ji, j) in self.joints.iter_mut().enumerate() {
             let since = j.last_heard.unwrap_or(Duration::ZERO);
             let silent = now.saturating_sub(since);
             if j.online && silent >= offline_after {
+                went_offline.push(ji);
                 j.online = false;
                 self.out.push_back(Output::Event(Event::Offline {
                     motor_id: j.name.clone(),
@@ -1656,6 +1813,9 @@ impl Bridge {
                     reason: format!("nothing heard for {} ms", silent.as_millis()),
                 }));
             }
+        }
+        for ji in went_offline {
+            self.fail_watches(|w| w.waits_on(ji), "the joint went offline");
         }
         if let (Some(period), Some(at)) = (self.config.feedback_period, self.timers.feedback)
             && now >= at
@@ -1685,10 +1845,21 @@ impl Bridge {
     fn emit_feedback(&mut self, now: Duration) {
         let ts = self.unix_ms(now);
         for j in &self.joints {
+            // Degrees: how close counts as there, and how slow as at rest.
+            let tolerance = self
+                .map
+                .motor(&j.name)
+                .map_or(0.1, |m| m.unit.to_degrees(m.arrival_tolerance));
             let fb = j.feedback.clone().map(|mut f| {
                 f.timestamp = ts;
                 if !j.online {
                     f.status.fault = Some(true);
+                }
+                if let Some((pos, vel)) = j.motion {
+                    f.status.in_motion = Some(vel.abs() > tolerance * 10.0);
+                    if let Some(target) = j.target {
+                        f.status.at_target = Some((pos - target).abs() <= tolerance);
+                    }
                 }
                 shortest_feedback(f)
             });
@@ -1768,12 +1939,14 @@ impl Bridge {
             ),
             _ => None,
         };
+        let arrival = self.arrivals.iter().map(|w| w.deadline).min();
         [
             self.client.poll_timeout(),
             self.timers.feedback,
             liveness,
             heartbeat,
             drain,
+            arrival,
         ]
         .into_iter()
         .flatten()
@@ -1835,6 +2008,13 @@ fn move_target(p: &Payload) -> Option<f64> {
 
 /// The shortest decimal of the f32 `v` came from, when it is one (iRPC
 /// carries f32: `45.29999923706055` prints as `45.3`); `v` otherwise.
+/// `v` as the shortest decimal of the nearest f32 (for what is said, not
+/// measured).
+fn short_unit(v: f64) -> f64 {
+    #[allow(clippy::cast_possible_truncation)]
+    shortest(f64::from(v as f32))
+}
+
 fn shortest(v: f64) -> f64 {
     #[allow(clippy::cast_possible_truncation)]
     let f = v as f32;

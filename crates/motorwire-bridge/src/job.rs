@@ -57,6 +57,9 @@ pub(crate) struct Axis {
     pub(crate) state: AxisState,
     /// Times the request in flight was sent, for the report.
     pub(crate) attempts: u8,
+    /// The target of its last move (degrees), watched for arrival once
+    /// acked.
+    pub(crate) target: Option<f64>,
 }
 
 impl Axis {
@@ -65,12 +68,19 @@ impl Axis {
         joint: usize,
         payloads: impl IntoIterator<Item = Payload>,
     ) -> Self {
+        let payloads: VecDeque<Payload> = payloads.into_iter().collect();
+        let target = payloads.iter().rev().find_map(|p| match p {
+            Payload::SetTargetV2(p) => Some(f64::from(p.target_angle)),
+            Payload::SetTarget(p) => Some(f64::from(p.target_angle)),
+            _ => None,
+        });
         Self {
             motor,
             joint,
-            payloads: payloads.into_iter().collect(),
+            payloads,
             state: AxisState::Queued,
             attempts: 0,
+            target,
         }
     }
 

@@ -1,5 +1,6 @@
 #![doc = include_str!("../README.md")]
 
+mod arrival;
 mod classify;
 mod engine;
 mod error;
@@ -13,8 +14,8 @@ pub use classify::{Input, asks_for_stop, classify};
 pub use engine::{Bridge, BridgeConfig, BridgeStats, JointView};
 pub use error::BridgeError;
 pub use output::{
-    ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output, StepOutcome,
-    StepReport,
+    ArrivalLine, ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, MotorArrival,
+    Origin, Output, StepOutcome, StepReport,
 };
 pub use runtime::{
     InputSender, MAX_LINE, MAX_QUEUED_PER_ORIGIN, ReadLine, Runner, feed, read_line,

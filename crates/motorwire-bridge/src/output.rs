@@ -1,7 +1,8 @@
 //! What the bridge says: one typed shape for each kind of line.
 //!
 //! Every line is one JSON object whose first key tells its kind: `ok` (the
-//! result of an input line), `feedback` (a joint's WIA MotorFeedback) or
+//! result of an input line), `arrived` (whether a motion line's moves got
+//! there, after its result), `feedback` (a joint's WIA MotorFeedback) or
 //! `event` (something that happened). Fields come in the order declared
 //! here; optional ones are left out when empty.
 
@@ -24,6 +25,14 @@ pub enum Output {
         /// The result.
         result: LineResult,
     },
+    /// Whether a motion line's moves arrived, for its origin: one per
+    /// motion line that moved something, after its result.
+    Arrival {
+        /// Whose line it answers.
+        origin: Origin,
+        /// The completion.
+        arrival: ArrivalLine,
+    },
     /// One joint's feedback, for every reader.
     Feedback(FeedbackLine),
     /// Something that happened, for every reader.
@@ -35,6 +44,7 @@ impl Output {
     pub fn to_json(&self) -> String {
         let text = match self {
             Self::Result { result, .. } => serde_json::to_string(result),
+            Self::Arrival { arrival, .. } => serde_json::to_string(arrival),
             Self::Feedback(f) => serde_json::to_string(f),
             Self::Event(e) => serde_json::to_string(e),
         };
@@ -55,6 +65,49 @@ impl Output {
             _ => None,
         }
     }
+}
+
+/// A motion line's completion: `{"arrived":true,"line":N,...}` once every
+/// motor it moved is within its `arrival_tolerance` of its target and at
+/// rest, or `{"arrived":false,...,"reason":...}` when that will not happen
+/// (stopped, superseded, timed out, the joint offline, the bridge ending).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ArrivalLine {
+    /// Whether every motor arrived.
+    pub arrived: bool,
+    /// The line's number.
+    pub line: u64,
+    /// The line's `motor_id`, for a MotorCommand.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub motor_id: Option<String>,
+    /// The line's `command_id`, for a multi-axis command.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub command_id: Option<String>,
+    /// Why not, when it did not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    /// From the result (the joints' Acks) to the arrival or the verdict (ms).
+    pub after_ms: u64,
+    /// Each motor.
+    pub motors: Vec<MotorArrival>,
+}
+
+/// One motor of an [`ArrivalLine`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MotorArrival {
+    /// The motor.
+    pub motor_id: String,
+    /// Whether it arrived.
+    pub arrived: bool,
+    /// Its target, in its unit.
+    pub target: f64,
+    /// How far from the target it was when it arrived, or at the verdict
+    /// (in its unit; absent when no position was ever reported).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<f64>,
+    /// When it arrived, from the result (ms).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub after_ms: Option<u64>,
 }
 
 /// The result of one input line: `{"ok":true,...}` or
@@ -83,6 +136,10 @@ pub struct LineResult {
     /// The motors whose every request was acked.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub acked: Option<Vec<String>>,
+    /// A completion line (`{"arrived":...}`) for this line will follow:
+    /// it moved something.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub arrival_follows: bool,
     /// What became of each motor's part that was not acked.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub outcomes: Vec<StepReport>,

@@ -668,3 +668,86 @@ fn a_dropped_client_s_pending_lines_are_cancelled_and_said() {
     assert!((arm.joint(0x12).unwrap().position() - 77.0).abs() < 1e-3);
     check(&arm, &tally);
 }
+
+fn arrivals(outputs: &[Output]) -> Vec<Value> {
+    outputs
+        .iter()
+        .filter(|o| matches!(o, Output::Arrival { .. }))
+        .map(Output::to_value)
+        .collect()
+}
+
+/// Every motion line gets one completion line after its result: arrived
+/// (within the tolerance, with the error and the time), or not and why.
+#[test]
+fn each_move_says_whether_it_arrived() {
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    // Arrives.
+    arm.line(Origin(1), &command("elbow", 50.0));
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    let out = arm.take_outputs();
+    let r = out.iter().find_map(Output::result).unwrap();
+    assert!(r.arrival_follows);
+    let a = arrivals(&out);
+    assert_eq!(a.len(), 1, "{a:?}");
+    assert_eq!(a[0]["arrived"], true, "{}", a[0]);
+    assert_eq!(a[0]["line"], 1);
+    assert_eq!(a[0]["motor_id"], "elbow");
+    assert_eq!(a[0]["motors"][0]["target"], 50.0);
+    assert!(
+        a[0]["motors"][0]["error"].as_f64().unwrap() <= 0.1,
+        "{}",
+        a[0]
+    );
+    let ms = a[0]["after_ms"].as_u64().unwrap();
+    assert!((300..1500).contains(&ms), "{}", a[0]);
+    // Feedback says it: at rest, at its target.
+    let fb = out
+        .iter()
+        .map(Output::to_value)
+        .rfind(|v| v["motor_id"] == "elbow" && v["feedback"].is_object())
+        .unwrap();
+    assert_eq!(fb["feedback"]["status"]["at_target"], true, "{fb}");
+    assert_eq!(fb["feedback"]["status"]["in_motion"], false, "{fb}");
+    // Superseded by a newer move for the same joint, then arrives.
+    arm.line(Origin(1), &command("elbow", 100.0));
+    arm.run_until(arm.now() + Duration::from_millis(200))
+        .unwrap();
+    arm.line(Origin(2), &command("elbow", 20.0));
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    let a = arrivals(&arm.take_outputs());
+    assert_eq!(a.len(), 2, "{a:?}");
+    assert_eq!(a[0]["arrived"], false);
+    assert_eq!(a[0]["line"], 2);
+    assert_eq!(a[0]["reason"], "superseded by line 1 of client 2");
+    assert_eq!(a[1]["arrived"], true);
+    // A multi-axis move stopped on its way.
+    arm.line(
+        Origin(1),
+        r#"{"command_id":"m","timestamp":1,"sync_mode":"simultaneous","motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":60},{"motor_id":"elbow","control_mode":"position","setpoint":120}]}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(300))
+        .unwrap();
+    arm.line(Origin(1), r#"{"emergency_stop": true}"#);
+    arm.run_until(arm.now() + Duration::from_millis(300))
+        .unwrap();
+    let a = arrivals(&arm.take_outputs());
+    assert_eq!(a.len(), 1, "{a:?}");
+    assert_eq!(a[0]["arrived"], false);
+    assert_eq!(a[0]["command_id"], "m");
+    assert_eq!(a[0]["reason"], "stopped by the emergency stop");
+    assert_eq!(a[0]["motors"].as_array().unwrap().len(), 2);
+    arm.line(Origin(1), r#"{"emergency_stop": false}"#);
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    // A joint that goes silent on its way.
+    arm.line(Origin(1), &command("shoulder_roll", 40.0));
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    arm.disconnect(0x11);
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    let a = arrivals(&arm.take_outputs());
+    assert_eq!(a.len(), 1, "{a:?}");
+    assert_eq!(a[0]["arrived"], false);
+    assert_eq!(a[0]["reason"], "the joint went offline");
+}

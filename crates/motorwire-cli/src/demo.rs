@@ -141,7 +141,7 @@ impl Watch {
                     vel,
                 ));
             }
-            Output::Event(_) => self.events.push(v),
+            Output::Event(_) | Output::Arrival { .. } => self.events.push(v),
         }
         None
     }

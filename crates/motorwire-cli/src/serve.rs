@@ -200,6 +200,15 @@ impl Write for Conn {
     }
 }
 
+/// What a line to a client is.
+#[derive(Debug, Clone, Copy)]
+enum Sent {
+    /// The result of one of its lines; whether a completion line follows.
+    Result(bool),
+    /// A completion line.
+    Arrival,
+}
+
 /// A connected, authenticated client: its queue and its socket.
 #[derive(Debug)]
 struct Client {
@@ -207,9 +216,20 @@ struct Client {
     conn: Conn,
     /// Results sent to it.
     delivered: u64,
+    /// Completion lines announced (`arrival_follows`) and sent.
+    arrivals_owed: u64,
+    arrivals_sent: u64,
     /// Once its input ended: how many results it is owed. It is let go
-    /// (its queue drained, then its socket closed) when it has them all.
+    /// (its queue drained, then its socket closed) when it has them all,
+    /// and the completion lines they announced.
     owed: Option<u64>,
+}
+
+impl Client {
+    fn settled(&self) -> bool {
+        self.owed
+            .is_some_and(|n| self.delivered >= n && self.arrivals_sent >= self.arrivals_owed)
+    }
 }
 
 /// How the server is set up.
@@ -288,10 +308,15 @@ impl Router {
     pub(crate) fn route(&self, o: &Output) {
         let line: Arc<str> = Arc::from(o.to_json());
         match o {
-            Output::Result { origin, .. } if *origin == STDIN || !self.sockets => {
+            Output::Result { origin, .. } | Output::Arrival { origin, .. }
+                if *origin == STDIN || !self.sockets =>
+            {
                 self.to_stdout(line);
             }
-            Output::Result { origin, .. } => self.to_client(origin.0, line),
+            Output::Result { origin, result } => {
+                self.to_client(origin.0, line, Sent::Result(result.arrival_follows));
+            }
+            Output::Arrival { origin, .. } => self.to_client(origin.0, line, Sent::Arrival),
             Output::Feedback(_) if self.sockets => self.to_every_client(&line),
             Output::Event(_) if self.sockets => {
                 self.to_every_client(&line);
@@ -312,7 +337,9 @@ impl Router {
         }
     }
 
-    fn to_client(&self, id: u64, line: Arc<str>) {
+    /// `sent`: what the line is, counted towards what the client is owed
+    /// once its input ends.
+    fn to_client(&self, id: u64, line: Arc<str>, sent: Sent) {
         let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
         let Some(c) = clients.get(&id) else {
             return; // gone: its lines were cancelled when it went
@@ -320,8 +347,14 @@ impl Router {
         match c.queue.try_send(line) {
             Ok(()) => {
                 if let Some(c) = clients.get_mut(&id) {
-                    c.delivered += 1;
-                    if c.owed.is_some_and(|n| c.delivered >= n) {
+                    match sent {
+                        Sent::Result(arrival_follows) => {
+                            c.delivered += 1;
+                            c.arrivals_owed += u64::from(arrival_follows);
+                        }
+                        Sent::Arrival => c.arrivals_sent += 1,
+                    }
+                    if c.settled() {
                         clients.remove(&id); // the writer drains, then closes
                     }
                 }
@@ -374,6 +407,8 @@ impl Router {
                     queue,
                     conn,
                     delivered: 0,
+                    arrivals_owed: 0,
+                    arrivals_sent: 0,
                     owed: None,
                 },
             );
@@ -589,10 +624,9 @@ impl Router {
         // side); it is let go once it has them all.
         let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(c) = clients.get_mut(&id) {
-            if c.delivered >= owed {
+            c.owed = Some(owed);
+            if c.settled() {
                 clients.remove(&id);
-            } else {
-                c.owed = Some(owed);
             }
         }
     }

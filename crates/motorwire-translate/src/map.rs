@@ -170,6 +170,10 @@ pub struct MappedMotor {
     pub limits: Limits,
     /// The motion profile its iRPC moves use.
     pub profile: MotionProfile,
+    /// How close to its target (in its unit) a position move must come
+    /// to have arrived: the map's `arrival_tolerance`, by default 0.1°
+    /// (0.1° in radians for a motor in `rad`).
+    pub arrival_tolerance: f64,
 }
 
 /// The bus map, read from TOML.
@@ -194,7 +198,9 @@ pub struct MappedMotor {
 /// Per motor: `dialect` (`irpc`, `compact` or `orion`); for iRPC `node`
 /// and optionally `wire` (`v1`, `v2.0` the default, `v2.1`, `v2.2`) and
 /// `profile` (`trapezoidal`, `scurve` the default, `adaptive`); for Orion
-/// `key` (`TRM` ...); `unit` (`deg` the default, or `rad`); and `limits`
+/// `key` (`TRM` ...); `unit` (`deg` the default, or `rad`);
+/// `arrival_tolerance` (how close a position move must come to its target
+/// to have arrived, in the motor's unit; 0.1° by default); and `limits`
 /// (`min_position`, `max_position`, `max_velocity`, `max_acceleration`,
 /// `max_deceleration`, `max_jerk`, `max_torque`), all in the motor's unit.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -218,6 +224,7 @@ struct RawMotor {
     key: Option<String>,
     unit: Option<String>,
     profile: Option<String>,
+    arrival_tolerance: Option<f64>,
     #[serde(default)]
     limits: RawLimits,
 }
@@ -391,8 +398,20 @@ impl BusMap {
                 format!("min_position {lo} is above max_position {hi}"),
             ));
         }
+        let arrival_tolerance = match m.arrival_tolerance {
+            None => unit.from_degrees(0.1),
+            Some(t) if t.is_finite() && t > 0.0 => t,
+            Some(t) => {
+                return Err(invalid(
+                    name,
+                    "arrival_tolerance",
+                    format!("{t} is not a finite number > 0"),
+                ));
+            }
+        };
         Ok(MappedMotor {
             name: name.to_owned(),
+            arrival_tolerance,
             target,
             unit,
             limits: Limits {
