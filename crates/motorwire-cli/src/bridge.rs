@@ -274,7 +274,8 @@ fn bridge(args: &Args) -> Result<u8, String> {
             };
             let arm =
                 RealTimeArm::start_with(bridge.map(), config, log).map_err(|e| e.to_string())?;
-            let (tx, rx) = (arm.port(), arm.port());
+            // The sending half never receives: nothing queues for it.
+            let (tx, rx) = (arm.sender(), arm.port());
             runner.run(bridge, tx, rx, sink)
         }
         spec => {
