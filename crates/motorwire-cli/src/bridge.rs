@@ -12,6 +12,8 @@ use motorwire_can::{Faults, SimConfig};
 use motorwire_sim::Execution;
 use motorwire_translate::BusMap;
 
+use crate::console::note;
+
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
     /// The bus map (TOML): which motor is which joint, and its limits.
@@ -87,7 +89,7 @@ pub(crate) fn run(args: &Args) -> u8 {
     match bridge(args) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("motorwire bridge: {e}");
+            note!("motorwire bridge: {e}");
             2
         }
     }
@@ -289,12 +291,16 @@ fn bridge(args: &Args) -> Result<u8, String> {
     }
     let bridge = result.map_err(|e| e.to_string())?;
     let s = bridge.stats();
-    eprintln!(
+    note!(
         "motorwire bridge: {} lines, {} ok, {} failed, {} frames sent, {} bad frames received",
-        s.lines, s.ok, s.failed, s.frames_sent, s.bad_frames
+        s.lines,
+        s.ok,
+        s.failed,
+        s.frames_sent,
+        s.bad_frames
     );
     if let Some(why) = router.failure() {
-        eprintln!("motorwire bridge: {why}; the joints were stopped");
+        note!("motorwire bridge: {why}; the joints were stopped");
         return Ok(crate::serve::EXIT_OUTPUT_FAILED);
     }
     Ok(0)

@@ -9,6 +9,7 @@ use motorwire_compact::CompactCommand;
 use motorwire_irpc::{Message, WireVersion};
 use serde_json::{Value, json};
 
+use crate::console::note;
 use crate::irpc::parse_wire;
 
 /// Read candump logs.
@@ -54,7 +55,7 @@ fn decode(args: &DecodeArgs) -> u8 {
     let text = match text {
         Ok(t) => t,
         Err(e) => {
-            eprintln!("motorwire: reading {}: {e}", args.file.display());
+            note!("motorwire: reading {}: {e}", args.file.display());
             return 2;
         }
     };

@@ -15,6 +15,7 @@ use motorwire_compact::{CompactCommand, MotorHash};
 use motorwire_translate::compact_command;
 use motorwire_wia::{MotorCommand, Validator};
 
+use crate::console::note;
 use crate::lines::{filter, from_hex, to_hex};
 
 /// Encode and decode the 24-byte WIA compact command.
@@ -54,7 +55,7 @@ pub(crate) fn run(args: &Args) -> u8 {
                 let cmd: MotorCommand = validator.parse(line).map_err(|e| e.to_string())?;
                 let translated = compact_command(&cmd).map_err(|e| e.to_string())?;
                 for loss in &translated.report.losses {
-                    eprintln!("motorwire compact encode: {}: {loss}", cmd.motor_id);
+                    note!("motorwire compact encode: {}: {loss}", cmd.motor_id);
                 }
                 translated
                     .value
@@ -69,7 +70,7 @@ pub(crate) fn run(args: &Args) -> u8 {
                 Some(path) => match read_names(path) {
                     Ok(n) => Some(n),
                     Err(e) => {
-                        eprintln!("motorwire compact decode: {path}: {e}");
+                        note!("motorwire compact decode: {path}: {e}");
                         return 2;
                     }
                 },

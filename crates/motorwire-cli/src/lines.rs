@@ -3,6 +3,7 @@
 
 use std::io::{self, Write};
 
+use crate::console::note;
 use crate::input::{self, Refused};
 
 /// The longest input line accepted.
@@ -23,7 +24,7 @@ pub(crate) fn filter(mut f: impl FnMut(&str) -> Result<String, String>) -> u8 {
             Ok(None) => break,
             Err(e) => {
                 let _ = out.flush();
-                eprintln!("motorwire: reading standard input: {e}");
+                note!("motorwire: reading standard input: {e}");
                 return 2;
             }
         };

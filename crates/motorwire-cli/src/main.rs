@@ -1,4 +1,6 @@
 #![doc = include_str!("../README.md")]
+// println!/eprintln! panic on a closed pipe: `console::say!`/`note!` instead.
+#![deny(clippy::print_stdout, clippy::print_stderr)]
 
 use std::process::ExitCode;
 
@@ -8,6 +10,7 @@ mod bridge;
 mod bus;
 mod candump;
 mod compact;
+mod console;
 mod demo;
 mod input;
 mod irpc;

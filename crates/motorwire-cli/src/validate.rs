@@ -6,6 +6,7 @@ use clap::ValueEnum;
 use motorwire_wia::{MessageKind, Report, Rule, Validator, Violation};
 use serde::Serialize;
 
+use crate::console::note;
 use crate::input::{self, Document, Refused};
 
 /// The kinds `--kind` accepts.
@@ -119,7 +120,7 @@ pub(crate) fn run(args: &Args) -> u8 {
             }
             any_error = true;
             let _ = out.flush();
-            eprintln!("motorwire validate: {file}: {e}");
+            note!("motorwire validate: {file}: {e}");
         }
     }
     if out.flush().is_err() {
