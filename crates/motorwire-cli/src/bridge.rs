@@ -110,8 +110,13 @@ pub(crate) fn feedback_period(hz: f64) -> Result<Option<Duration>, String> {
         .map_err(|e| e.to_string())
 }
 
+/// The largest bus map read (1 MiB; the demo arm's is 1.4 KiB).
+pub(crate) const MAX_MAP_SIZE: usize = 1 << 20;
+
+/// The bus map at `path`, reading at most [`MAX_MAP_SIZE`] bytes of it.
 pub(crate) fn load_map(path: &str) -> Result<BusMap, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("--map {path}: {e}"))?;
+    let text = crate::input::read_text_file(path, MAX_MAP_SIZE)
+        .map_err(|e| format!("--map {path}: {e}"))?;
     BusMap::from_toml(&text).map_err(|e| format!("--map {path}: {e}"))
 }
 

@@ -45,8 +45,9 @@ fn run(args: &[&str], closed: &Closed) -> Output {
 
 #[test]
 fn a_closed_stderr_is_not_a_panic() {
-    let cases: [(&[&str], i32); 5] = [
+    let cases: [(&[&str], i32); 6] = [
         (&["validate", "/no/such/file.json"], 2),
+        (&["validate", "--lines", "/dev/zero"], 2),
         (
             &["candump", "decode", "--wire", "v2.0", "/no/such/file.log"],
             2,
