@@ -1,6 +1,7 @@
 //! `motorwire bridge`: WIA JSON lines in, iRPC frames on a CAN bus out.
 
 use std::io::{self, Write};
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -190,24 +191,89 @@ fn first_msg_id() -> u32 {
     id.max(1)
 }
 
-/// Sends SIGINT (Ctrl-C) to `input` as an interrupt.
-fn on_interrupt(input: InputSender) {
+/// The exit status a signal gives: 128 plus its number, as a shell reports
+/// a process the signal ended (SIGHUP 129, SIGINT 130, SIGTERM 143).
+pub(crate) type SignalStatus = Arc<AtomicU8>;
+
+/// Stops the bridge on SIGINT, SIGTERM or SIGHUP: the first signal
+/// interrupts `input` (the joints are stopped and deactivated, then the
+/// bridge ends) and its status is kept for the exit; a second signal, of
+/// any of the three, ends the process at once with its own status. The
+/// handlers are in place when this returns.
+#[cfg(unix)]
+fn on_signals(input: InputSender) -> Result<SignalStatus, String> {
+    use tokio::signal::unix::{SignalKind, signal};
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_io()
+        .build()
+        .map_err(|e| format!("listening for signals: {e}"))?;
+    let listen = |kind: SignalKind, name: &'static str| {
+        let status = u8::try_from(128 + kind.as_raw_value()).unwrap_or(u8::MAX);
+        signal(kind)
+            .map(|s| (s, name, status))
+            .map_err(|e| format!("listening for {name}: {e}"))
+    };
+    let (mut int, mut term, mut hup) = {
+        let _in_runtime = rt.enter();
+        (
+            listen(SignalKind::interrupt(), "SIGINT")?,
+            listen(SignalKind::terminate(), "SIGTERM")?,
+            listen(SignalKind::hangup(), "SIGHUP")?,
+        )
+    };
+    let ended = SignalStatus::default();
+    let seen = Arc::clone(&ended);
     thread::spawn(move || {
-        let Ok(rt) = tokio::runtime::Builder::new_current_thread()
-            .enable_io()
-            .build()
-        else {
-            return;
-        };
-        rt.block_on(async {
+        rt.block_on(async move {
             loop {
-                if tokio::signal::ctrl_c().await.is_err() {
-                    return;
+                let (name, status) = tokio::select! {
+                    Some(()) = int.0.recv() => (int.1, int.2),
+                    Some(()) = term.0.recv() => (term.1, term.2),
+                    Some(()) = hup.0.recv() => (hup.1, hup.2),
+                    else => return,
+                };
+                if seen
+                    .compare_exchange(0, status, Ordering::SeqCst, Ordering::SeqCst)
+                    .is_err()
+                {
+                    note!(
+                        "motorwire bridge: {name}, a second signal: exiting now, the joints may not be stopped"
+                    );
+                    std::process::exit(i32::from(status));
+                }
+                note!(
+                    "motorwire bridge: {name}: stopping and deactivating the joints (a second signal exits at once)"
+                );
+                input.interrupt();
+            }
+        });
+    });
+    Ok(ended)
+}
+
+/// Ctrl-C where there are no Unix signals: as SIGINT.
+#[cfg(not(unix))]
+fn on_signals(input: InputSender) -> Result<SignalStatus, String> {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_io()
+        .build()
+        .map_err(|e| format!("listening for Ctrl-C: {e}"))?;
+    let ended = SignalStatus::default();
+    let seen = Arc::clone(&ended);
+    thread::spawn(move || {
+        rt.block_on(async {
+            while tokio::signal::ctrl_c().await.is_ok() {
+                if seen
+                    .compare_exchange(0, 130, Ordering::SeqCst, Ordering::SeqCst)
+                    .is_err()
+                {
+                    std::process::exit(130);
                 }
                 input.interrupt();
             }
         });
     });
+    Ok(ended)
 }
 
 fn bridge(args: &Args) -> Result<u8, String> {
@@ -232,7 +298,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
     let runner = Runner::new();
     let input = runner.input();
-    on_interrupt(input.clone());
+    let signalled = on_signals(input.clone())?;
 
     let listen = crate::serve::parse_listen(&args.input)?;
     let token = match (&listen, &args.token_file) {
@@ -308,5 +374,6 @@ fn bridge(args: &Args) -> Result<u8, String> {
         note!("motorwire bridge: {why}; the joints were stopped");
         return Ok(crate::serve::EXIT_OUTPUT_FAILED);
     }
-    Ok(0)
+    // 0, or the status of the signal that ended the bridge.
+    Ok(signalled.load(Ordering::SeqCst))
 }
