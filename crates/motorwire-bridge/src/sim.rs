@@ -139,7 +139,7 @@ impl RealTimeArm {
         bridge: Bridge,
         mut sink: impl FnMut(&Output) + Send + 'static,
     ) -> JoinHandle<Result<Bridge, BridgeError>> {
-        let (tx, rx) = (self.port(), self.port());
+        let (tx, rx) = (self.sender(), self.port());
         thread::spawn(move || runner.run(bridge, tx, rx, |o| sink(o)))
     }
 }
