@@ -98,8 +98,17 @@ impl RealTimeArm {
         Ok(Self { bus, stop, threads })
     }
 
-    /// A new port on the arm's bus (the bridge takes two: one to send, one
-    /// to receive).
+    /// A new port on the arm's bus that sends and never receives
+    /// ([`SimBus::send_only_port`]): the bridge's sending half. Nothing is
+    /// queued for it, where a second [`RealTimeArm::port`] that is never
+    /// read would keep every joint frame (about 60 KB/s with three joints).
+    pub fn sender(&self) -> SimPort {
+        self.bus.send_only_port()
+    }
+
+    /// A new port on the arm's bus that receives every frame sent after it
+    /// was made, until dropped: the bridge's receiving half (its sending
+    /// half is [`RealTimeArm::sender`]).
     pub fn port(&self) -> SimPort {
         self.bus.port()
     }
@@ -130,7 +139,7 @@ impl RealTimeArm {
         bridge: Bridge,
         mut sink: impl FnMut(&Output) + Send + 'static,
     ) -> JoinHandle<Result<Bridge, BridgeError>> {
-        let (tx, rx) = (self.port(), self.port());
+        let (tx, rx) = (self.sender(), self.port());
         thread::spawn(move || runner.run(bridge, tx, rx, |o| sink(o)))
     }
 }

@@ -160,6 +160,8 @@ impl Rng {
 
 #[derive(Debug, Default)]
 struct PortState {
+    /// Frames sent on the bus are queued for it (false for a dropped port
+    /// and a send-only port).
     open: bool,
     queue: BTreeMap<(Duration, u64), Frame>,
     held: Option<(Duration, Frame)>,
@@ -391,6 +393,36 @@ impl SimBus {
         }
     }
 
+    /// A new port that sends and never receives: no frame is ever queued
+    /// for it, so a node that only transmits (a bridge's sending half) costs
+    /// no memory however long the bus runs. Its `recv` times out (the async
+    /// `recv` never returns).
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use motorwire_can::{CanBus, CanId, Frame, SimBus};
+    ///
+    /// let bus = SimBus::default();
+    /// let (mut tx, mut rx, mut joint) = (bus.send_only_port(), bus.port(), bus.port());
+    /// tx.send(&Frame::fd(CanId::standard(0x10)?, &[1])?)?;
+    /// assert_eq!(joint.recv(Duration::ZERO)?.frame.data(), &[1]);
+    /// joint.send(&Frame::fd(CanId::standard(0x20)?, &[2])?)?;
+    /// // A receiving port hears both, as on a real bus; the send-only one neither.
+    /// assert_eq!(rx.recv(Duration::ZERO)?.frame.data(), &[1]);
+    /// assert_eq!(rx.recv(Duration::ZERO)?.frame.data(), &[2]);
+    /// assert_eq!(tx.queued(), 0);
+    /// assert!(tx.recv(Duration::ZERO).is_err());
+    /// # Ok::<(), motorwire_can::Error>(())
+    /// ```
+    pub fn send_only_port(&self) -> SimPort {
+        let mut s = self.lock();
+        s.ports.push(PortState::default());
+        SimPort {
+            bus: self.clone(),
+            index: s.ports.len() - 1,
+        }
+    }
+
     /// The bus's time: simulated, or wall-clock since it was made.
     pub fn now(&self) -> Duration {
         self.lock().now()
@@ -441,6 +473,15 @@ impl SimPort {
     /// When the next frame for this port is due.
     pub fn next_due(&self) -> Option<Duration> {
         self.bus.lock().next_for(self.index)
+    }
+
+    /// How many frames are waiting for this port (due or not, held back
+    /// ones included): what it costs in memory until it receives them.
+    pub fn queued(&self) -> usize {
+        let s = self.bus.lock();
+        s.ports
+            .get(self.index)
+            .map_or(0, |p| p.queue.len() + usize::from(p.held.is_some()))
     }
 }
 

@@ -272,3 +272,36 @@ async fn the_async_trait_on_the_in_memory_bus() {
         .unwrap();
     assert_eq!(waiter.await.unwrap().unwrap().data(), &[1, 2]);
 }
+
+/// A port that only sends costs nothing however much traffic the bus
+/// carries; a receiving port nobody reads keeps every frame (what
+/// `motorwire bridge --bus sim` did with its sending port, issue 15).
+#[test]
+fn a_send_only_port_never_queues_a_frame() {
+    const N: usize = 10_000;
+    let bus = SimBus::new(SimConfig {
+        clock: Clock::Real,
+        ..SimConfig::default()
+    })
+    .unwrap();
+    let (mut tx, mut joint) = (bus.send_only_port(), bus.port());
+    let unread = bus.port();
+    let frame = Frame::fd(id(0x10), &[0xAB; 8]).unwrap();
+    for _ in 0..N {
+        joint.send(&frame).unwrap();
+    }
+    assert_eq!(tx.queued(), 0, "the send-only port keeps nothing");
+    assert_eq!(
+        unread.queued(),
+        N,
+        "an unread receiving port keeps everything"
+    );
+    assert!(matches!(
+        tx.recv(Duration::from_millis(1)),
+        Err(Error::Timeout(_))
+    ));
+    // It still sends to everyone else.
+    tx.send(&Frame::fd(id(0x01), &[1]).unwrap()).unwrap();
+    assert_eq!(joint.recv(Duration::ZERO).unwrap().frame.data(), &[1]);
+    assert_eq!(unread.queued(), N + 1);
+}

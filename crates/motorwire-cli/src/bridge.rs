@@ -1,6 +1,7 @@
 //! `motorwire bridge`: WIA JSON lines in, iRPC frames on a CAN bus out.
 
 use std::io::{self, Write};
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -11,6 +12,8 @@ use motorwire_can::client::ClientConfig;
 use motorwire_can::{Faults, SimConfig};
 use motorwire_sim::Execution;
 use motorwire_translate::BusMap;
+
+use crate::console::note;
 
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
@@ -87,7 +90,7 @@ pub(crate) fn run(args: &Args) -> u8 {
     match bridge(args) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("motorwire bridge: {e}");
+            note!("motorwire bridge: {e}");
             2
         }
     }
@@ -108,8 +111,13 @@ pub(crate) fn feedback_period(hz: f64) -> Result<Option<Duration>, String> {
         .map_err(|e| e.to_string())
 }
 
+/// The largest bus map read (1 MiB; the demo arm's is 1.4 KiB).
+pub(crate) const MAX_MAP_SIZE: usize = 1 << 20;
+
+/// The bus map at `path`, reading at most [`MAX_MAP_SIZE`] bytes of it.
 pub(crate) fn load_map(path: &str) -> Result<BusMap, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("--map {path}: {e}"))?;
+    let text = crate::input::read_text_file(path, MAX_MAP_SIZE)
+        .map_err(|e| format!("--map {path}: {e}"))?;
     BusMap::from_toml(&text).map_err(|e| format!("--map {path}: {e}"))
 }
 
@@ -183,24 +191,89 @@ fn first_msg_id() -> u32 {
     id.max(1)
 }
 
-/// Sends SIGINT (Ctrl-C) to `input` as an interrupt.
-fn on_interrupt(input: InputSender) {
+/// The exit status a signal gives: 128 plus its number, as a shell reports
+/// a process the signal ended (SIGHUP 129, SIGINT 130, SIGTERM 143).
+pub(crate) type SignalStatus = Arc<AtomicU8>;
+
+/// Stops the bridge on SIGINT, SIGTERM or SIGHUP: the first signal
+/// interrupts `input` (the joints are stopped and deactivated, then the
+/// bridge ends) and its status is kept for the exit; a second signal, of
+/// any of the three, ends the process at once with its own status. The
+/// handlers are in place when this returns.
+#[cfg(unix)]
+fn on_signals(input: InputSender) -> Result<SignalStatus, String> {
+    use tokio::signal::unix::{SignalKind, signal};
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_io()
+        .build()
+        .map_err(|e| format!("listening for signals: {e}"))?;
+    let listen = |kind: SignalKind, name: &'static str| {
+        let status = u8::try_from(128 + kind.as_raw_value()).unwrap_or(u8::MAX);
+        signal(kind)
+            .map(|s| (s, name, status))
+            .map_err(|e| format!("listening for {name}: {e}"))
+    };
+    let (mut int, mut term, mut hup) = {
+        let _in_runtime = rt.enter();
+        (
+            listen(SignalKind::interrupt(), "SIGINT")?,
+            listen(SignalKind::terminate(), "SIGTERM")?,
+            listen(SignalKind::hangup(), "SIGHUP")?,
+        )
+    };
+    let ended = SignalStatus::default();
+    let seen = Arc::clone(&ended);
     thread::spawn(move || {
-        let Ok(rt) = tokio::runtime::Builder::new_current_thread()
-            .enable_io()
-            .build()
-        else {
-            return;
-        };
-        rt.block_on(async {
+        rt.block_on(async move {
             loop {
-                if tokio::signal::ctrl_c().await.is_err() {
-                    return;
+                let (name, status) = tokio::select! {
+                    Some(()) = int.0.recv() => (int.1, int.2),
+                    Some(()) = term.0.recv() => (term.1, term.2),
+                    Some(()) = hup.0.recv() => (hup.1, hup.2),
+                    else => return,
+                };
+                if seen
+                    .compare_exchange(0, status, Ordering::SeqCst, Ordering::SeqCst)
+                    .is_err()
+                {
+                    note!(
+                        "motorwire bridge: {name}, a second signal: exiting now, the joints may not be stopped"
+                    );
+                    std::process::exit(i32::from(status));
+                }
+                note!(
+                    "motorwire bridge: {name}: stopping and deactivating the joints (a second signal exits at once)"
+                );
+                input.interrupt();
+            }
+        });
+    });
+    Ok(ended)
+}
+
+/// Ctrl-C where there are no Unix signals: as SIGINT.
+#[cfg(not(unix))]
+fn on_signals(input: InputSender) -> Result<SignalStatus, String> {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_io()
+        .build()
+        .map_err(|e| format!("listening for Ctrl-C: {e}"))?;
+    let ended = SignalStatus::default();
+    let seen = Arc::clone(&ended);
+    thread::spawn(move || {
+        rt.block_on(async {
+            while tokio::signal::ctrl_c().await.is_ok() {
+                if seen
+                    .compare_exchange(0, 130, Ordering::SeqCst, Ordering::SeqCst)
+                    .is_err()
+                {
+                    std::process::exit(130);
                 }
                 input.interrupt();
             }
         });
     });
+    Ok(ended)
 }
 
 fn bridge(args: &Args) -> Result<u8, String> {
@@ -225,7 +298,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
     let runner = Runner::new();
     let input = runner.input();
-    on_interrupt(input.clone());
+    let signalled = on_signals(input.clone())?;
 
     let listen = crate::serve::parse_listen(&args.input)?;
     let token = match (&listen, &args.token_file) {
@@ -274,7 +347,8 @@ fn bridge(args: &Args) -> Result<u8, String> {
             };
             let arm =
                 RealTimeArm::start_with(bridge.map(), config, log).map_err(|e| e.to_string())?;
-            let (tx, rx) = (arm.port(), arm.port());
+            // The sending half never receives: nothing queues for it.
+            let (tx, rx) = (arm.sender(), arm.port());
             runner.run(bridge, tx, rx, sink)
         }
         spec => {
@@ -288,13 +362,18 @@ fn bridge(args: &Args) -> Result<u8, String> {
     }
     let bridge = result.map_err(|e| e.to_string())?;
     let s = bridge.stats();
-    eprintln!(
+    note!(
         "motorwire bridge: {} lines, {} ok, {} failed, {} frames sent, {} bad frames received",
-        s.lines, s.ok, s.failed, s.frames_sent, s.bad_frames
+        s.lines,
+        s.ok,
+        s.failed,
+        s.frames_sent,
+        s.bad_frames
     );
     if let Some(why) = router.failure() {
-        eprintln!("motorwire bridge: {why}; the joints were stopped");
+        note!("motorwire bridge: {why}; the joints were stopped");
         return Ok(crate::serve::EXIT_OUTPUT_FAILED);
     }
-    Ok(0)
+    // 0, or the status of the signal that ended the bridge.
+    Ok(signalled.load(Ordering::SeqCst))
 }

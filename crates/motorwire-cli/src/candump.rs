@@ -9,6 +9,8 @@ use motorwire_compact::CompactCommand;
 use motorwire_irpc::{Message, WireVersion};
 use serde_json::{Value, json};
 
+use crate::console::note;
+use crate::input::{self, Live, Refused};
 use crate::irpc::parse_wire;
 
 /// Read candump logs.
@@ -22,8 +24,11 @@ pub(crate) struct Args {
 enum Command {
     /// Print each frame of a `candump -L` log as one JSON line: its time,
     /// interface, CAN id and the decoded iRPC message (or compact command
-    /// with --compact), or the reason it does not decode. Exits 1 when any
-    /// line did not decode, 2 when the file cannot be read.
+    /// with --compact), or the reason it does not decode (a line over 4096
+    /// bytes or not UTF-8 is one such line). Each line is printed as soon as
+    /// it is read, so a live `candump -L` piped in is decoded as it comes.
+    /// Exits 1 when any line did not decode, 2 when the file cannot be read
+    /// (or has a line with no end within 16 MiB) or stdout closes.
     Decode(DecodeArgs),
 }
 
@@ -45,33 +50,48 @@ pub(crate) fn run(args: &Args) -> u8 {
     }
 }
 
+/// The longest log line read (bytes): a `candump -L` line is at most about
+/// 200 (a 64-byte CAN-FD frame is 128 hex digits).
+pub(crate) const MAX_LOG_LINE: usize = 4096;
+
+/// Decodes the log line by line, each line printed as soon as it is read.
 fn decode(args: &DecodeArgs) -> u8 {
-    let text = if args.file.as_os_str() == "-" {
-        io::read_to_string(io::stdin())
-    } else {
-        std::fs::read_to_string(&args.file)
-    };
-    let text = match text {
-        Ok(t) => t,
+    let input = match input::open_raw(&args.file) {
+        Ok(i) => i,
         Err(e) => {
-            eprintln!("motorwire: reading {}: {e}", args.file.display());
+            note!("motorwire: reading {}: {e}", args.file.display());
             return 2;
         }
     };
-    let stdout = io::stdout();
-    let mut out = io::BufWriter::new(stdout.lock());
+    let mut reader = Live::new(input, io::BufWriter::new(io::stdout().lock()));
+    let mut line_no = 0;
     let mut failed = false;
-    for (i, line) in text.lines().enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let value = decode_line(i + 1, line.trim(), args.wire, args.compact);
+    loop {
+        let doc = match input::next_line(&mut reader, MAX_LOG_LINE, &mut line_no) {
+            Ok(Some(doc)) => doc,
+            Ok(None) => break,
+            Err(e) => {
+                if !reader.out_failed() {
+                    let _ = reader.out().flush();
+                    note!("motorwire: reading {}: {e}", args.file.display());
+                }
+                return 2;
+            }
+        };
+        let n = doc.line.unwrap_or(line_no);
+        let value = match doc.text {
+            Ok(text) => decode_line(n, text.trim(), args.wire, args.compact),
+            Err(Refused::TooLarge { limit }) => {
+                json!({ "line": n, "error": format!("the line is over {limit} bytes") })
+            }
+            Err(Refused::NotUtf8) => json!({ "line": n, "error": "the line is not UTF-8" }),
+        };
         failed |= value.get("error").is_some();
-        if writeln!(out, "{value}").is_err() {
+        if writeln!(reader.out(), "{value}").is_err() {
             return 2;
         }
     }
-    if out.flush().is_err() {
+    if reader.out().flush().is_err() {
         return 2;
     }
     u8::from(failed)

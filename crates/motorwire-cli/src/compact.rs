@@ -15,6 +15,7 @@ use motorwire_compact::{CompactCommand, MotorHash};
 use motorwire_translate::compact_command;
 use motorwire_wia::{MotorCommand, Validator};
 
+use crate::console::note;
 use crate::lines::{filter, from_hex, to_hex};
 
 /// Encode and decode the 24-byte WIA compact command.
@@ -41,7 +42,8 @@ struct EncodeArgs {
 
 #[derive(Debug, ClapArgs)]
 struct DecodeArgs {
-    /// A file of motor ids, one per line, to resolve the hashes back to names.
+    /// A file of motor ids, one per line, to resolve the hashes back to
+    /// names (at most 1 MiB).
     #[arg(long, value_name = "FILE")]
     names: Option<String>,
 }
@@ -54,7 +56,7 @@ pub(crate) fn run(args: &Args) -> u8 {
                 let cmd: MotorCommand = validator.parse(line).map_err(|e| e.to_string())?;
                 let translated = compact_command(&cmd).map_err(|e| e.to_string())?;
                 for loss in &translated.report.losses {
-                    eprintln!("motorwire compact encode: {}: {loss}", cmd.motor_id);
+                    note!("motorwire compact encode: {}: {loss}", cmd.motor_id);
                 }
                 translated
                     .value
@@ -69,7 +71,7 @@ pub(crate) fn run(args: &Args) -> u8 {
                 Some(path) => match read_names(path) {
                     Ok(n) => Some(n),
                     Err(e) => {
-                        eprintln!("motorwire compact decode: {path}: {e}");
+                        note!("motorwire compact decode: {path}: {e}");
                         return 2;
                     }
                 },
@@ -79,8 +81,11 @@ pub(crate) fn run(args: &Args) -> u8 {
     }
 }
 
-fn read_names(path: &str) -> std::io::Result<HashMap<MotorHash, String>> {
-    let text = std::fs::read_to_string(path)?;
+/// The largest `--names` file read (1 MiB).
+const MAX_NAMES_SIZE: usize = 1 << 20;
+
+fn read_names(path: &str) -> Result<HashMap<MotorHash, String>, String> {
+    let text = crate::input::read_text_file(path, MAX_NAMES_SIZE)?;
     let mut names: HashMap<MotorHash, String> = HashMap::new();
     for name in text
         .lines()
@@ -91,9 +96,9 @@ fn read_names(path: &str) -> std::io::Result<HashMap<MotorHash, String>> {
         if let Some(other) = names.get(&hash)
             && other != name
         {
-            return Err(std::io::Error::other(format!(
+            return Err(format!(
                 "{other:?} and {name:?} share the hash {hash}; the wire cannot tell them apart"
-            )));
+            ));
         }
         names.insert(hash, name.to_owned());
     }

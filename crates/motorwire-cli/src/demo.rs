@@ -14,6 +14,8 @@ use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output, Runner};
 use motorwire_translate::BusMap;
 use serde_json::Value;
 
+use crate::console::{note, say};
+
 /// Runs the bridge on the simulated arm of `fixtures/maps/demo-arm.toml`:
 /// the WIA document's multi-axis example, a move, a synchronized move, an
 /// unsafe command refused, an emergency stop and its release. Prints each
@@ -206,10 +208,15 @@ pub(crate) fn run(args: &Args) -> u8 {
         Ok(true) => 0,
         Ok(false) => 1,
         Err(e) => {
-            eprintln!("motorwire demo: {e}");
+            note!("motorwire demo: {e}");
             2
         }
     }
+}
+
+/// Why the demo ended early: its stdout closed.
+fn stdout_closed(e: std::io::Error) -> String {
+    format!("writing standard output: {e}")
 }
 
 #[allow(clippy::too_many_lines)]
@@ -224,10 +231,11 @@ fn demo(args: &Args) -> Result<bool, String> {
     };
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
     let arm = RealTimeArm::start(bridge.map()).map_err(|e| e.to_string())?;
-    println!("motorwire demo: the bridge on a simulated 3-joint arm (fixtures/maps/demo-arm.toml)");
-    println!(
+    say!("motorwire demo: the bridge on a simulated 3-joint arm (fixtures/maps/demo-arm.toml)")
+        .map_err(stdout_closed)?;
+    say!(
         "  shoulder_pitch 0x10, shoulder_roll 0x11, elbow 0x12: iRPC v2.0 over an in-memory CAN-FD bus, in real time\n"
-    );
+    ).map_err(stdout_closed)?;
     let runner = Runner::new();
     let input = runner.input();
     let (tx, rx) = mpsc::channel();
@@ -312,12 +320,13 @@ fn demo(args: &Args) -> Result<bool, String> {
         };
         held &= ok;
         let mark = if ok { "ok  " } else { "FAIL" };
-        println!(
+        say!(
             "[{}/{}] {mark} {}\n          {detail}",
             i + 1,
             steps.len(),
             step.title
-        );
+        )
+        .map_err(stdout_closed)?;
         rows.push((step.title, ok));
     }
     input.finish();
@@ -335,43 +344,49 @@ fn demo(args: &Args) -> Result<bool, String> {
         .any(|e| e["event"] == "stopped" && e["failures"] == serde_json::json!([]));
     held &= stopped;
 
-    println!("\nsummary:");
+    say!("\nsummary:").map_err(stdout_closed)?;
     let passed = rows.iter().filter(|(_, ok)| *ok).count();
-    println!("  {passed} of {} steps as expected", rows.len());
-    println!(
+    say!("  {passed} of {} steps as expected", rows.len()).map_err(stdout_closed)?;
+    say!(
         "  {:<16} {:>10} {:>10} {:>8}",
-        "joint", "final (°)", "target (°)", ""
-    );
+        "joint",
+        "final (°)",
+        "target (°)",
+        ""
+    )
+    .map_err(stdout_closed)?;
     for j in bridge.joints() {
         let pos = j.feedback.as_ref().map(|f| f.position);
         let target = targets.get(j.name.as_str()).copied();
         let ok = matches!((pos, target), (Some(p), Some(t)) if (p - t).abs() < AT_TARGET);
         held &= ok;
-        println!(
+        say!(
             "  {:<16} {:>10} {:>10} {:>8}",
             j.name,
             pos.map_or("?".to_owned(), |p| format!("{p:.3}")),
             target.map_or("?".to_owned(), |t| format!("{t:.3}")),
             if ok { "ok" } else { "FAIL" }
-        );
+        )
+        .map_err(stdout_closed)?;
     }
     let s = bridge.stats();
-    println!(
+    say!(
         "  bridge: {} lines ({} ok, {} refused or failed), {} frames sent, {} feedback lines; joints stopped and deactivated: {stopped}",
         s.lines, s.ok, s.failed, s.frames_sent, s.feedback_lines
-    );
+    ).map_err(stdout_closed)?;
     match plot(&watch.samples, &args.svg) {
-        Ok(()) => println!("  plot of positions and velocities: {}", args.svg.display()),
+        Ok(()) => say!("  plot of positions and velocities: {}", args.svg.display())
+            .map_err(stdout_closed)?,
         Err(e) => {
             held = false;
-            println!("  plot FAILED: {e}");
+            say!("  plot FAILED: {e}").map_err(stdout_closed)?;
         }
     }
-    println!("  {:.1} s", started.elapsed().as_secs_f64());
+    say!("  {:.1} s", started.elapsed().as_secs_f64()).map_err(stdout_closed)?;
     if held {
-        println!("all expectations held");
+        say!("all expectations held").map_err(stdout_closed)?;
     } else {
-        println!("an expectation did not hold (see FAIL above)");
+        say!("an expectation did not hold (see FAIL above)").map_err(stdout_closed)?;
     }
     Ok(held)
 }

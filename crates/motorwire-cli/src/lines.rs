@@ -3,18 +3,18 @@
 
 use std::io::{self, Write};
 
-use crate::input::{self, Refused};
+use crate::console::note;
+use crate::input::{self, Live, Refused};
 
 /// The longest input line accepted.
 pub(crate) const MAX_LINE: usize = 1 << 20;
 
-/// Runs `f` on every non-blank stdin line; returns the exit status (0 when
-/// every line succeeded, 1 when any failed, 2 on an I/O error).
+/// Runs `f` on every non-blank stdin line, printing each result as soon as
+/// its line is in; returns the exit status (0 when every line succeeded, 1
+/// when any failed, 2 on an I/O error or a closed stdout).
 pub(crate) fn filter(mut f: impl FnMut(&str) -> Result<String, String>) -> u8 {
-    let stdin = io::stdin();
-    let mut reader = stdin.lock();
-    let stdout = io::stdout();
-    let mut out = io::BufWriter::new(stdout.lock());
+    let out = io::BufWriter::new(io::stdout().lock());
+    let mut reader = Live::new(Box::new(io::stdin().lock()), out);
     let mut line_no = 0;
     let mut failed = false;
     loop {
@@ -22,8 +22,10 @@ pub(crate) fn filter(mut f: impl FnMut(&str) -> Result<String, String>) -> u8 {
             Ok(Some(doc)) => doc,
             Ok(None) => break,
             Err(e) => {
-                let _ = out.flush();
-                eprintln!("motorwire: reading standard input: {e}");
+                if !reader.out_failed() {
+                    let _ = reader.out().flush();
+                    note!("motorwire: reading standard input: {e}");
+                }
                 return 2;
             }
         };
@@ -40,11 +42,11 @@ pub(crate) fn filter(mut f: impl FnMut(&str) -> Result<String, String>) -> u8 {
                 serde_json::json!({ "error": error, "line": n }).to_string()
             }
         };
-        if writeln!(out, "{line}").is_err() {
+        if writeln!(reader.out(), "{line}").is_err() {
             return 2;
         }
     }
-    if out.flush().is_err() {
+    if reader.out().flush().is_err() {
         return 2;
     }
     u8::from(failed)

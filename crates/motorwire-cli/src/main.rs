@@ -1,4 +1,6 @@
 #![doc = include_str!("../README.md")]
+// println!/eprintln! panic on a closed pipe: `console::say!`/`note!` instead.
+#![deny(clippy::print_stdout, clippy::print_stderr)]
 
 use std::process::ExitCode;
 
@@ -8,6 +10,7 @@ mod bridge;
 mod bus;
 mod candump;
 mod compact;
+mod console;
 mod demo;
 mod input;
 mod irpc;
@@ -44,6 +47,11 @@ enum Command {
     /// Bridge WIA JSON commands onto iRPC joints on a CAN bus (or a
     /// simulated arm): one result line per input line, feedback and events
     /// as they come.
+    ///
+    /// SIGINT, SIGTERM and SIGHUP stop and deactivate the joints, then end
+    /// the bridge with exit status 130, 143 or 129; a second signal exits
+    /// at once. Exit status 0 after the end of input, 2 on an error, 74
+    /// when standard output stopped being read or failed.
     Bridge(bridge::Args),
     /// Walk through the WIA document's example messages, validating each.
     Demo(demo::Args),

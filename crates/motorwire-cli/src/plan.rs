@@ -8,6 +8,7 @@ use clap::{Args as ClapArgs, ValueEnum};
 use motorwire_planner::{Float, MotionProfile, Profile, Request, plan, plan_with_duration};
 use serde::Deserialize;
 
+use crate::console::note;
 use crate::lines::filter;
 
 /// Plan moves.
@@ -94,14 +95,14 @@ pub(crate) fn run(args: &Args) -> u8 {
     let tick = match args.sample.map(tick_us).transpose() {
         Ok(t) => t,
         Err(e) => {
-            eprintln!("motorwire plan: --sample: {e}");
+            note!("motorwire plan: --sample: {e}");
             return 2;
         }
     };
     if let Some(d) = args.duration
         && !(d.is_finite() && d >= 0.0)
     {
-        eprintln!("motorwire plan: --duration must be a finite number of seconds >= 0");
+        note!("motorwire plan: --duration must be a finite number of seconds >= 0");
         return 2;
     }
     let mut line = 0usize;

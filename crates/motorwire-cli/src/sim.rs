@@ -8,6 +8,7 @@ use std::time::Duration;
 use clap::{Subcommand, ValueEnum};
 use motorwire_orion::{ArmController, FeedbackKeys, Output};
 
+use crate::console::note;
 use crate::input::{self, Refused};
 use crate::lines::MAX_LINE;
 
@@ -23,7 +24,7 @@ enum Device {
     /// until the first command, then one feedback line per command line.
     /// A line that is not an Orion command changes nothing, prints nothing
     /// on stdout and one message on stderr; every clamp is reported on
-    /// stderr.
+    /// stderr. Exits 0 at the end of input, 2 when stdout closes.
     Orion(OrionArgs),
     /// A simulated iRPC joint on a CAN bus, in real time, until interrupted:
     /// the document's lifecycle, Ack for SetTargetV2, planned motion,
@@ -143,7 +144,7 @@ fn orion(args: &OrionArgs) -> u8 {
         .and_then(|()| out.flush())
         .is_err()
     {
-        return 0; // the reader went away
+        return 2; // stdout closed: nobody hears the arm any more
     }
     let interval = Duration::from_millis(args.beacon_interval);
     loop {
@@ -155,7 +156,7 @@ fn orion(args: &OrionArgs) -> u8 {
                         .and_then(|()| out.flush())
                         .is_err()
                     {
-                        return 0;
+                        return 2;
                     }
                     continue;
                 }
@@ -170,32 +171,32 @@ fn orion(args: &OrionArgs) -> u8 {
         let (n, text) = match received {
             Line::Text(n, text) => (n, text),
             Line::Failed(e) => {
-                eprintln!("motorwire sim orion: reading standard input: {e}");
+                note!("motorwire sim orion: reading standard input: {e}");
                 return 2;
             }
         };
         let text = match text {
             Ok(text) => text,
             Err(Refused::TooLarge { limit }) => {
-                eprintln!("motorwire sim orion: line {n}: over {limit} bytes; ignored");
+                note!("motorwire sim orion: line {n}: over {limit} bytes; ignored");
                 continue;
             }
             Err(Refused::NotUtf8) => {
-                eprintln!("motorwire sim orion: line {n}: not UTF-8; ignored");
+                note!("motorwire sim orion: line {n}: not UTF-8; ignored");
                 continue;
             }
         };
         match arm.handle_line(text.trim()) {
             Ok(response) => {
                 for clamp in &response.clamps {
-                    eprintln!("motorwire sim orion: line {n}: {clamp}");
+                    note!("motorwire sim orion: line {n}: {clamp}");
                 }
                 let line = response.output.to_json(keys);
                 if writeln!(out, "{line}").and_then(|()| out.flush()).is_err() {
-                    return 0;
+                    return 2;
                 }
             }
-            Err(e) => eprintln!("motorwire sim orion: line {n}: {e}; ignored"),
+            Err(e) => note!("motorwire sim orion: line {n}: {e}; ignored"),
         }
     }
 }
@@ -219,25 +220,29 @@ fn joint(args: &JointArgs) -> u8 {
     let mut joint = match SimJoint::new(config) {
         Ok(j) => j,
         Err(e) => {
-            eprintln!("motorwire: {e}");
+            note!("motorwire: {e}");
             return 2;
         }
     };
     let mut bus = match crate::bus::open(&args.bus) {
         Ok(b) => b,
         Err(e) => {
-            eprintln!("motorwire: {e}");
+            note!("motorwire: {e}");
             return 2;
         }
     };
-    eprintln!(
+    note!(
         "motorwire sim joint: node {:#05x} on {} ({}), limits [{}, {}] deg",
-        args.node, args.bus, args.wire, args.min_angle, args.max_angle
+        args.node,
+        args.bus,
+        args.wire,
+        args.min_angle,
+        args.max_angle
     );
     // Runs until the process is interrupted (SIGINT's default action).
     let stop = std::sync::atomic::AtomicBool::new(false);
     let log = |e: &motorwire_sim::Execution| {
-        eprintln!(
+        note!(
             "t={:.3}s from {:#05x} msg_id {}: {:?} -> {:?}",
             e.at.as_secs_f64(),
             e.source,
@@ -249,7 +254,7 @@ fn joint(args: &JointArgs) -> u8 {
     match joint.run(&mut bus, &stop, log) {
         Ok(()) => 0,
         Err(e) => {
-            eprintln!("motorwire: {e}");
+            note!("motorwire: {e}");
             1
         }
     }

@@ -6,6 +6,7 @@ use clap::ValueEnum;
 use motorwire_wia::{MessageKind, Report, Rule, Validator, Violation};
 use serde::Serialize;
 
+use crate::console::note;
 use crate::input::{self, Document, Refused};
 
 /// The kinds `--kind` accepts.
@@ -48,7 +49,8 @@ pub(crate) enum Format {
 /// Validate WIA JSON messages.
 ///
 /// Exit status: 0 when every document is valid, 1 when any is invalid,
-/// 2 on a usage or I/O error.
+/// 2 on a usage or I/O error (including a line with no end within 16 MiB
+/// past --max-size, and a closed stdout).
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
     /// The kind of message; `auto` infers it and says which it chose.
@@ -66,8 +68,11 @@ pub(crate) struct Args {
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Text)]
     format: Format,
-    /// The largest document accepted, in bytes.
-    #[arg(long, value_name = "BYTES", default_value_t = Validator::DEFAULT_MAX_DOCUMENT_SIZE)]
+    /// The largest document accepted, in bytes (at most 16777216, 16 MiB).
+    /// A bigger document, or line with --lines, is reported invalid
+    /// (`document-too-large`) after reading at most this many bytes of it.
+    #[arg(long, value_name = "BYTES", default_value_t = Validator::DEFAULT_MAX_DOCUMENT_SIZE,
+          value_parser = parse_max_size)]
     max_size: usize,
     /// The deepest nesting accepted (at most 128).
     #[arg(long, value_name = "N", default_value_t = 32,
@@ -76,6 +81,22 @@ pub(crate) struct Args {
     /// Files to validate; `-` is standard input.
     #[arg(required = true, value_name = "FILE")]
     files: Vec<String>,
+}
+
+/// The largest `--max-size` (16 MiB): a document is held whole in memory,
+/// parsed, and checked against its schema, so the bound is on all three.
+pub(crate) const MAX_SIZE_CEILING: usize = 16 << 20;
+
+fn parse_max_size(s: &str) -> Result<usize, String> {
+    let n: usize = s
+        .parse()
+        .map_err(|e| format!("{s:?} is not a number of bytes: {e}"))?;
+    if n > MAX_SIZE_CEILING {
+        return Err(format!(
+            "{n} is over {MAX_SIZE_CEILING} (16 MiB), the largest document validate reads"
+        ));
+    }
+    Ok(n)
 }
 
 #[derive(Serialize)]
@@ -119,7 +140,7 @@ pub(crate) fn run(args: &Args) -> u8 {
             }
             any_error = true;
             let _ = out.flush();
-            eprintln!("motorwire validate: {file}: {e}");
+            note!("motorwire validate: {file}: {e}");
         }
     }
     if out.flush().is_err() {

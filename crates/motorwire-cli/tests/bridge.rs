@@ -206,7 +206,7 @@ fn tcp_clients_at_once_garbage_and_a_client_leaving_mid_line() {
         thread::sleep(Duration::from_millis(20));
     }
     let out = child.wait_with_output().unwrap();
-    assert_eq!(out.status.code(), Some(0));
+    assert_eq!(out.status.code(), Some(130), "SIGINT's exit status");
     let events = lines(&out.stdout);
     assert!(
         events

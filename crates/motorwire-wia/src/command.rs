@@ -1,5 +1,7 @@
 //! MotorCommand (WIA §3.1), the multi-axis command (§3.2) and their parts.
 
+use std::collections::HashMap;
+
 use motorwire_core::{ControlMode, FilterKind, check};
 use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
@@ -778,14 +780,16 @@ impl MultiAxisCommand {
         s.timestamp(&ts, self.timestamp);
         let motors = root.key("motors");
         s.min_items(&motors, self.motors.len(), 1);
+        // Where each motor first appears: one pass, not a search per axis
+        // (8,192 axes fit in the default document size).
+        let mut first_at: HashMap<&str, usize> = HashMap::with_capacity(self.motors.len());
         for (i, axis) in self.motors.iter().enumerate() {
             let at = motors.index(i);
             let id = at.key("motor_id");
             s.id_pattern(&id, &axis.motor_id);
             s.motor_id(&id, &axis.motor_id);
-            if let Some(first) = self.motors.iter().position(|m| m.motor_id == axis.motor_id)
-                && first < i
-            {
+            let first = *first_at.entry(axis.motor_id.as_str()).or_insert(i);
+            if first < i {
                 s.push(
                     &id,
                     Rule::DuplicateMotor,
