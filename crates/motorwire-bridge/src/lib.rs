@@ -18,5 +18,5 @@ pub use output::{
     Origin, Output, StepOutcome, StepReport,
 };
 pub use runtime::{
-    InputSender, MAX_LINE, MAX_QUEUED_PER_ORIGIN, ReadLine, Runner, feed, read_line,
+    InputSender, MAX_LINE, MAX_QUEUED_PER_ORIGIN, MAX_SKIP, ReadLine, Runner, feed, read_line,
 };

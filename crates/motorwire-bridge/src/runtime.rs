@@ -17,6 +17,11 @@ use crate::{Bridge, BridgeError, Event, Origin, Output, asks_for_stop};
 /// The longest input line accepted (bytes, without the newline).
 pub const MAX_LINE: usize = 64 * 1024;
 
+/// How much of a line too long to take is skipped looking for its end:
+/// beyond this the input is given up ([`read_line`] fails), so an endless
+/// input (`/dev/zero`) ends instead of being read forever.
+pub const MAX_SKIP: u64 = 16 * 1024 * 1024;
+
 /// Lines of one origin handed to a [`Runner`] and not yet taken by it (and
 /// as many stops): [`InputSender::line`] waits beyond this, so a client
 /// that floods is slowed to the bridge's pace (its socket fills, and its
@@ -199,9 +204,11 @@ impl InputSender {
         let _ = self.tx.send(Msg::Finish);
     }
 
-    /// Interrupted: stop the joints now.
+    /// Interrupted: stop the joints now, ahead of every line queued (on
+    /// the stops' channel).
     pub fn interrupt(&self) {
-        let _ = self.tx.send(Msg::Interrupt);
+        let _ = self.urgent.send(Msg::Interrupt);
+        let _ = self.tx.send(Msg::Wake);
     }
 }
 
@@ -237,7 +244,17 @@ pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
     // last bytes (a name split between two reads).
     let mut names_stop = false;
     let mut tail: Vec<u8> = Vec::new();
+    let mut skipped: u64 = 0;
     loop {
+        if skipped > MAX_SKIP {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!(
+                    "a line over {MAX_LINE} bytes has no end within {} MiB more; the input was given up",
+                    MAX_SKIP / (1024 * 1024)
+                ),
+            ));
+        }
         let (consumed, done) = {
             let buf = match reader.fill_buf() {
                 Ok(b) => b,
@@ -274,6 +291,9 @@ pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
             }
         };
         reader.consume(consumed);
+        if too_long {
+            skipped += consumed as u64;
+        }
         if bytes.len() > MAX_LINE {
             too_long = true;
             names_stop |= scan(&mut tail, &bytes);
@@ -496,6 +516,7 @@ impl Runner {
                         number,
                         &reason,
                     ),
+                    Msg::Interrupt => bridge.interrupt(since(Instant::now())),
                     _ => {}
                 }
                 stopped = true;

@@ -76,3 +76,15 @@ fn lines_too_long_and_not_utf8_say_whether_they_name_a_stop() {
         ReadLine::TooLong { names_stop: false }
     );
 }
+
+#[test]
+fn an_endless_line_gives_the_input_up() {
+    let mut endless = std::io::repeat(b'z');
+    let mut r = BufReader::new(&mut endless);
+    let e = read_line(&mut r).unwrap_err();
+    assert_eq!(e.kind(), std::io::ErrorKind::InvalidData);
+    assert_eq!(
+        e.to_string(),
+        "a line over 65536 bytes has no end within 16 MiB more; the input was given up"
+    );
+}

@@ -374,6 +374,10 @@ fn bridge(args: &Args) -> Result<u8, String> {
         note!("motorwire bridge: {why}; the joints were stopped");
         return Ok(crate::serve::EXIT_OUTPUT_FAILED);
     }
+    if let Some(why) = router.input_failure() {
+        note!("motorwire bridge: {why}; the joints were stopped");
+        return Ok(2);
+    }
     // 0, or the status of the signal that ended the bridge.
     Ok(signalled.load(Ordering::SeqCst))
 }

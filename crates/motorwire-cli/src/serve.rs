@@ -253,6 +253,7 @@ pub(crate) struct Router {
     /// Results go to the clients (a socket input), not to standard output.
     sockets: bool,
     failure: Mutex<Option<String>>,
+    input_failure: Mutex<Option<String>>,
     connected: AtomicUsize,
 }
 
@@ -266,6 +267,7 @@ impl Router {
             clients: Mutex::default(),
             sockets,
             failure: Mutex::default(),
+            input_failure: Mutex::default(),
             connected: AtomicUsize::new(0),
         });
         let r = Arc::clone(&router);
@@ -435,15 +437,27 @@ impl Router {
     }
 
     /// Standard input fed to the bridge, which stops at its end.
-    pub(crate) fn serve_stdin(&self) {
-        let input = self.input.clone();
+    pub(crate) fn serve_stdin(self: &Arc<Self>) {
+        let r = Arc::clone(self);
         thread::spawn(move || {
             let mut reader = BufReader::new(io::stdin());
-            if let Err(e) = feed(&input, STDIN, &mut reader, true) {
-                say(&format!("motorwire bridge: reading standard input: {e}"));
+            if let Err(e) = feed(&r.input, STDIN, &mut reader, true) {
+                *r.input_failure
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner) =
+                    Some(format!("reading standard input: {e}"));
             }
-            input.finish();
+            r.input.finish();
         });
+    }
+
+    /// Why standard input was given up, if it was (an endless line, a read
+    /// error): the bridge finished what it had and stopped the joints.
+    pub(crate) fn input_failure(&self) -> Option<String> {
+        self.input_failure
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
     }
 
     /// Listens on `at` for clients, each one's lines its own origin (from

@@ -241,3 +241,28 @@ fn validate_lines_one_bad_byte_costs_one_line() {
         results[1]
     );
 }
+
+/// The bridge fed `/dev/zero`: the endless line is given up after 16 MiB,
+/// the joints are stopped, and the exit status says the input failed.
+#[test]
+fn the_bridge_gives_up_an_endless_standard_input() {
+    let out = run_bounded(
+        &[
+            "bridge",
+            "--map",
+            "fixtures/maps/demo-arm.toml",
+            "--bus",
+            "sim",
+        ],
+        Some(File::open("/dev/zero").unwrap()),
+        Duration::from_secs(20),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("reading standard input: a line over 65536 bytes has no end within 16 MiB more; the input was given up; the joints were stopped"),
+        "{err}"
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains(r#""event":"stopped""#), "{text}");
+}
