@@ -29,7 +29,7 @@ use motorwire_irpc::{LifecycleState, NackCode, Payload, SetTargetPayloadV2};
 use motorwire_translate::{
     BusMap, Report, Target, feedback_from_irpc, multi_axis_to_irpc, to_irpc,
 };
-use motorwire_wia::{Message, MotorCommand, MotorFeedback, MultiAxisCommand, Validator};
+use motorwire_wia::{Message, MotorCommand, MotorFeedback, MultiAxisCommand, SyncMode, Validator};
 
 use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
@@ -896,6 +896,30 @@ impl Bridge {
                     };
                     axes.push(Axis::new(a.motor_id.clone(), joint, c.payloads));
                 }
+                if cmd.sync_mode == Some(SyncMode::Sequential) {
+                    // One after another: each starts once the one before
+                    // it arrived, so each must be a move to a target.
+                    if let Some((a, i)) = axes
+                        .iter()
+                        .zip(&cmd.motors)
+                        .find(|(ax, _)| ax.target.is_none())
+                    {
+                        let e = ErrorBody::new(
+                            ErrorKind::Refused,
+                            format!(
+                                "{}: sync_mode sequential runs position moves one after another, each once the one before arrived; a {} command has no arrival to wait for",
+                                a.motor,
+                                i.control_mode.name()
+                            ),
+                        )
+                        .about(a.motor.clone());
+                        self.refuse(origin, number, label, e);
+                        return;
+                    }
+                    for (k, a) in axes.iter_mut().enumerate().skip(1) {
+                        a.after = Some(k - 1);
+                    }
+                }
                 self.open_job(
                     Some(origin),
                     number,
@@ -1256,6 +1280,15 @@ impl Bridge {
             if joint.busy.is_some() {
                 return;
             }
+            let Some(&front) = joint.queue.front() else {
+                return;
+            };
+            if self.waits_for_arrival(front, now) {
+                return; // sequential: the axis before it has not arrived
+            }
+            let Some(joint) = self.joints.get_mut(ji) else {
+                return;
+            };
             let Some(step) = joint.queue.pop_front() else {
                 return;
             };
@@ -1264,6 +1297,107 @@ impl Bridge {
                 return;
             }
         }
+    }
+
+    /// Whether `step` (a sequential axis) must wait for the axis before it
+    /// to arrive. When that axis failed, or did not arrive in time, `step`
+    /// is finished `not_sent` here and need not wait.
+    fn waits_for_arrival(&mut self, step: StepRef, now: Duration) -> bool {
+        let Some(job) = self.jobs.get(&step.job) else {
+            return false;
+        };
+        let Some(before) = job.axes.get(step.axis).and_then(|a| a.after) else {
+            return false;
+        };
+        let Some(b) = job.axes.get(before) else {
+            return false;
+        };
+        if b.arrived {
+            return false;
+        }
+        let failed = match &b.state {
+            AxisState::Done(r) if r.outcome != StepOutcome::Acked => Some(format!(
+                "not sent: {} before it did not complete ({})",
+                b.motor,
+                r.outcome.name()
+            )),
+            AxisState::Done(_) => {
+                let by = b.arrive_by.unwrap_or_else(|| {
+                    let end = self
+                        .joints
+                        .get(b.joint)
+                        .map_or(now, |j| j.moving_until)
+                        .max(now);
+                    end.saturating_add(
+                        (end.saturating_sub(now) / 4).max(Duration::from_millis(500)),
+                    )
+                });
+                if now >= by {
+                    Some(format!(
+                        "not sent: {} before it did not arrive in time",
+                        b.motor
+                    ))
+                } else {
+                    if let Some(a) = self
+                        .jobs
+                        .get_mut(&step.job)
+                        .and_then(|j| j.axes.get_mut(before))
+                    {
+                        a.arrive_by = Some(by);
+                    }
+                    None
+                }
+            }
+            _ => None,
+        };
+        let Some(why) = failed else {
+            return true;
+        };
+        if let Some(a) = self
+            .jobs
+            .get_mut(&step.job)
+            .and_then(|j| j.axes.get_mut(step.axis))
+        {
+            a.finish(StepOutcome::NotSent, None, why);
+        }
+        false
+    }
+
+    /// Joint `ji` is at `position` moving at `velocity` (degrees): the
+    /// sequential axes on it that have arrived let the next ones go.
+    fn sequence_progress(&mut self, ji: usize, position: f64, velocity: f64) {
+        let mut freed = Vec::new();
+        for job in self.jobs.values_mut() {
+            let waited: Vec<(usize, usize)> = job
+                .axes
+                .iter()
+                .filter_map(|x| Some((x.after?, x.joint)))
+                .collect();
+            for (k, a) in job.axes.iter_mut().enumerate() {
+                let Some(&(_, next)) = waited.iter().find(|(b, _)| *b == k) else {
+                    continue;
+                };
+                let Some(target) = a.target else { continue };
+                if a.joint != ji
+                    || a.arrived
+                    || !matches!(&a.state, AxisState::Done(r) if r.outcome == StepOutcome::Acked)
+                {
+                    continue;
+                }
+                let tolerance = self
+                    .map
+                    .motor(&a.motor)
+                    .map_or(0.1, |m| m.unit.to_degrees(m.arrival_tolerance));
+                if (position - target).abs() <= tolerance && velocity.abs() <= tolerance * 10.0 {
+                    a.arrived = true;
+                    freed.push(next);
+                }
+            }
+        }
+        for ji in freed {
+            self.pump(ji);
+        }
+        self.finish_jobs();
     }
 
     /// Sends the next payload of `step`; returns whether a request is now in
@@ -1727,9 +1861,11 @@ impl Bridge {
             message.payload,
             Payload::Encoder(_) | Payload::TelemetryStream(_)
         ) && let Some((pos, vel)) = j.motion
-            && !self.arrivals.is_empty()
         {
-            self.observe(ji, pos, vel, at);
+            if !self.arrivals.is_empty() {
+                self.observe(ji, pos, vel, at);
+            }
+            self.sequence_progress(ji, pos, vel);
         }
         let Some(j) = self.joints.get_mut(ji) else {
             return;
@@ -1773,6 +1909,11 @@ impl Bridge {
         let now = self.now;
         self.client.handle_timeout(now);
         self.drain_client();
+        // Sequential axes whose predecessor is overdue give up.
+        for ji in 0..self.joints.len() {
+            self.pump(ji);
+        }
+        self.finish_jobs();
         // Watched lines past their time: not arrived.
         let late: Vec<usize> = self
             .arrivals
@@ -1940,6 +2081,14 @@ impl Bridge {
             _ => None,
         };
         let arrival = self.arrivals.iter().map(|w| w.deadline).min();
+        // A sequential axis waiting on one that must arrive by then.
+        let sequence = self
+            .jobs
+            .values()
+            .flat_map(|j| j.axes.iter())
+            .filter(|a| !a.arrived)
+            .filter_map(|a| a.arrive_by)
+            .min();
         [
             self.client.poll_timeout(),
             self.timers.feedback,
@@ -1947,6 +2096,7 @@ impl Bridge {
             heartbeat,
             drain,
             arrival,
+            sequence,
         ]
         .into_iter()
         .flatten()

@@ -60,6 +60,13 @@ pub(crate) struct Axis {
     /// The target of its last move (degrees), watched for arrival once
     /// acked.
     pub(crate) target: Option<f64>,
+    /// `sync_mode: sequential`: the axis of the same job that must have
+    /// arrived before this one is sent.
+    pub(crate) after: Option<usize>,
+    /// It has arrived at its target (watched while a later axis waits).
+    pub(crate) arrived: bool,
+    /// A later axis waits for it: past this, it did not arrive in time.
+    pub(crate) arrive_by: Option<Duration>,
 }
 
 impl Axis {
@@ -81,6 +88,9 @@ impl Axis {
             state: AxisState::Queued,
             attempts: 0,
             target,
+            after: None,
+            arrived: false,
+            arrive_by: None,
         }
     }
 

@@ -267,8 +267,22 @@ pub enum StepOutcome {
     Cancelled,
     /// Replaced by a newer command before it was sent.
     Superseded,
-    /// Could not be encoded for the joint.
+    /// Could not be encoded for the joint, or what it waited for failed.
     NotSent,
+}
+
+impl StepOutcome {
+    /// Its name on the wire (`acked`, `nacked`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Acked => "acked",
+            Self::Nacked => "nacked",
+            Self::OutcomeUnknown => "outcome_unknown",
+            Self::Cancelled => "cancelled",
+            Self::Superseded => "superseded",
+            Self::NotSent => "not_sent",
+        }
+    }
 }
 
 /// One joint's feedback: `{"feedback":{WIA MotorFeedback}|null,"motor_id":...,"online":bool}`.

@@ -751,3 +751,96 @@ fn each_move_says_whether_it_arrived() {
     assert_eq!(a[0]["arrived"], false);
     assert_eq!(a[0]["reason"], "the joint went offline");
 }
+
+/// `sync_mode: sequential`: each axis starts once the one before it
+/// arrived; a non-position axis is refused, never run differently.
+#[test]
+fn sequential_axes_run_one_after_another() {
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    arm.line(
+        Origin(1),
+        r#"{"command_id":"seq","timestamp":1,"sync_mode":"sequential","motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":30},{"motor_id":"elbow","control_mode":"position","setpoint":60},{"motor_id":"shoulder_roll","control_mode":"position","setpoint":-20}]}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_secs(6)).unwrap();
+    let out = arm.take_outputs();
+    let r = out.iter().find_map(Output::result).unwrap();
+    assert!(r.ok, "{r:?}");
+    // Each move was executed only after the one before it arrived.
+    let first_move = |node: u16| {
+        arm.joint(node)
+            .unwrap()
+            .log()
+            .iter()
+            .find(|e| matches!(e.payload, Payload::SetTargetV2(_)))
+            .map(|e| e.at)
+            .unwrap()
+    };
+    let (p, e, roll) = (first_move(0x10), first_move(0x12), first_move(0x11));
+    // 30° at the shoulder takes about half a second at its limits.
+    assert!(e > p + Duration::from_millis(300), "{p:?} {e:?}");
+    assert!(roll > e + Duration::from_millis(300), "{e:?} {roll:?}");
+    let a = arrivals(&out);
+    assert_eq!(a.len(), 1, "{a:?}");
+    assert_eq!(a[0]["arrived"], true, "{}", a[0]);
+    for (node, target) in [(0x10, 30.0), (0x12, 60.0), (0x11, -20.0)] {
+        assert!((arm.joint(node).unwrap().position() - target).abs() < 0.1);
+    }
+    // A velocity axis has no arrival to wait for: refused, nothing sent.
+    arm.line(
+        Origin(1),
+        r#"{"command_id":"bad","timestamp":1,"sync_mode":"sequential","motors":[{"motor_id":"elbow","control_mode":"position","setpoint":10},{"motor_id":"shoulder_roll","control_mode":"disabled","setpoint":0}]}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    let r = arm.take_results();
+    let bad = r.iter().find(|v| v["command_id"] == "bad").unwrap();
+    assert_eq!(bad["ok"], false, "{bad}");
+    assert_eq!(
+        bad["error"]["message"],
+        "shoulder_roll: sync_mode sequential runs position moves one after another, each once the one before arrived; a disabled command has no arrival to wait for"
+    );
+    // A stop while the second waits: it is never sent.
+    arm.line(
+        Origin(1),
+        r#"{"command_id":"seq2","timestamp":1,"sync_mode":"sequential","motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":-60},{"motor_id":"elbow","control_mode":"position","setpoint":100}]}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(200))
+        .unwrap();
+    let elbow_moves = arm.joint(0x12).unwrap().log().len();
+    arm.line(Origin(1), r#"{"emergency_stop": true}"#);
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    let r = arm.take_results();
+    let seq2 = r.iter().find(|v| v["command_id"] == "seq2").unwrap();
+    assert_eq!(seq2["ok"], false, "{seq2}");
+    let elbow_after: Vec<_> = arm.joint(0x12).unwrap().log()[elbow_moves..]
+        .iter()
+        .map(|e| e.payload)
+        .collect();
+    assert_eq!(
+        elbow_after,
+        [Payload::Deactivate],
+        "the elbow's move was sent"
+    );
+    // The first axis acked, then its joint went silent: the next is not
+    // sent, and says why.
+    arm.line(Origin(1), r#"{"emergency_stop": false}"#);
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    arm.line(
+        Origin(1),
+        r#"{"command_id":"seq3","timestamp":1,"sync_mode":"sequential","motors":[{"motor_id":"shoulder_roll","control_mode":"position","setpoint":40},{"motor_id":"elbow","control_mode":"position","setpoint":5}]}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(30))
+        .unwrap();
+    arm.disconnect(0x11);
+    arm.run_until(arm.now() + Duration::from_secs(5)).unwrap();
+    let r = arm.take_results();
+    let seq3 = r.iter().find(|v| v["command_id"] == "seq3").unwrap();
+    assert_eq!(seq3["ok"], false, "{seq3}");
+    assert_eq!(seq3["outcomes"][0]["motor"], "elbow", "{seq3}");
+    assert_eq!(seq3["outcomes"][0]["outcome"], "not_sent", "{seq3}");
+    assert_eq!(
+        seq3["outcomes"][0]["message"],
+        "not sent: shoulder_roll before it did not arrive in time"
+    );
+}
