@@ -47,6 +47,11 @@ pub enum Input {
         /// Why.
         reason: String,
     },
+    /// `{"query":"limits","motor_id":M}`: the motor's limits in force.
+    QueryLimits {
+        /// The motor asked about.
+        motor_id: String,
+    },
     /// A valid WIA message.
     Message(Box<Message>),
     /// Not JSON, or not valid WIA.
@@ -320,6 +325,18 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
             reason: format!(
                 "{reason}: a release is exactly {{\"emergency_stop\": false}}; the emergency stop stays latched"
             ),
+        };
+    }
+    if let Some((_, q)) = members.iter().find(|(k, _)| k == "query") {
+        return match (q.as_str(), members.len(), &label) {
+            (Some("limits"), 2, Some(("motor_id", m))) => Input::QueryLimits {
+                motor_id: m.clone(),
+            },
+            _ => Input::Invalid {
+                message: r#"a query is exactly {"query":"limits","motor_id":"..."}"#.to_owned(),
+                violations: None,
+                label,
+            },
         };
     }
     match validator.parse_any(line) {

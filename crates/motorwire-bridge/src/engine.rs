@@ -27,9 +27,12 @@ use motorwire_can::Frame;
 use motorwire_can::client::{Client, ClientConfig, Completion, Event as ClientEvent, Outcome};
 use motorwire_irpc::{LifecycleState, NackCode, Payload, SetTargetPayloadV2};
 use motorwire_translate::{
-    BusMap, Report, Target, feedback_from_irpc, multi_axis_to_irpc, to_irpc,
+    BusMap, Limits, Report, Target, feedback_from_irpc, multi_axis_to_irpc, to_irpc,
 };
-use motorwire_wia::{Message, MotorCommand, MotorFeedback, MultiAxisCommand, SyncMode, Validator};
+use motorwire_wia::{
+    Message, MotorCommand, MotorFeedback, MultiAxisCommand, SafetyLimits, SyncMode, Validator,
+};
+use serde_json::Value;
 
 use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
@@ -236,6 +239,12 @@ pub struct Bridge {
     last_stop_arrival: Option<Duration>,
     /// Motion lines whose moves are watched for arrival.
     arrivals: Vec<Watch>,
+    /// Each motor's limits as the bus map gives them (SafetyLimits lines
+    /// tighten `map`'s, never beyond these).
+    base_limits: BTreeMap<String, Limits>,
+    /// Emergency decelerations given by SafetyLimits lines (recorded and
+    /// reported; iRPC cannot carry them).
+    emergency_decel: BTreeMap<String, f64>,
     /// The input ended during startup: drain (until this deadline) once ready.
     drain_after_start: Option<Duration>,
     timers: Timers,
@@ -287,6 +296,7 @@ impl Bridge {
         for j in &joints {
             client.set_wire(j.node, j.wire);
         }
+        let base_limits = map.motors().map(|m| (m.name.clone(), m.limits)).collect();
         let validator = Validator::new();
         // Warm the paths a stop takes: the first invalid command the
         // schema reports on builds its error machinery lazily (hash seeds
@@ -315,6 +325,8 @@ impl Bridge {
             drain_after_start: None,
             last_stop_arrival: None,
             arrivals: Vec::new(),
+            base_limits,
+            emergency_decel: BTreeMap::new(),
             timers: Timers::default(),
             out: VecDeque::new(),
             now: Duration::ZERO,
@@ -664,9 +676,29 @@ impl Bridge {
                 e.violations = violations;
                 self.refuse(origin, number, label, e);
             }
+            Input::QueryLimits { motor_id } => self.query_limits(origin, number, &motor_id),
             Input::Message(m) => match *m {
                 Message::MotorCommand(cmd) => self.motor_command(now, origin, number, &cmd),
                 Message::MultiAxisCommand(cmd) => self.multi_axis(now, origin, number, &cmd),
+                Message::SafetyLimits(l) => self.safety_limits(origin, number, &l),
+                Message::PidConfig(p) => self.refuse(
+                    origin,
+                    number,
+                    Some(("motor_id", p.motor_id.clone())),
+                    ErrorBody::new(
+                        ErrorKind::Unsupported,
+                        "iRPC carries no PID gains (its joints run their own control loops): nothing was sent",
+                    ),
+                ),
+                Message::ControlModeConfig(_) => self.refuse(
+                    origin,
+                    number,
+                    None,
+                    ErrorBody::new(
+                        ErrorKind::Unsupported,
+                        "iRPC carries no control-mode configuration (a joint takes position moves and lifecycle requests): nothing was sent",
+                    ),
+                ),
                 other => self.refuse(
                     origin,
                     number,
@@ -681,6 +713,192 @@ impl Bridge {
                 ),
             },
         }
+    }
+
+    // ---- live limits --------------------------------------------------------
+
+    /// The limits of `motor` in force and the bus map's, as JSON.
+    fn limits_value(&self, motor: &str) -> Option<Value> {
+        let now = self.map.motor(motor)?;
+        let base = self.base_limits.get(motor)?;
+        let as_json = |l: &Limits| {
+            let mut m = serde_json::Map::new();
+            for (k, v) in [
+                ("min_position", l.min_position),
+                ("max_position", l.max_position),
+                ("max_velocity", l.max_velocity),
+                ("max_acceleration", l.max_acceleration),
+                ("max_deceleration", l.max_deceleration),
+                ("max_jerk", l.max_jerk),
+                ("max_torque", l.max_torque),
+            ] {
+                if let Some(v) = v {
+                    m.insert(k.to_owned(), serde_json::json!(v));
+                }
+            }
+            Value::Object(m)
+        };
+        let mut effective = as_json(&now.limits);
+        if let (Some(d), Value::Object(m)) = (self.emergency_decel.get(motor), &mut effective) {
+            m.insert("emergency_decel".to_owned(), serde_json::json!(d));
+        }
+        Some(serde_json::json!({ "effective": effective, "bus_map": as_json(base) }))
+    }
+
+    fn query_limits(&mut self, origin: Origin, number: u64, motor: &str) {
+        let label = Some(("motor_id", motor.to_owned()));
+        let Some(limits) = self.limits_value(motor) else {
+            let e = ErrorBody::new(
+                ErrorKind::Refused,
+                format!("motor {motor:?} is not in the bus map"),
+            );
+            self.refuse(origin, number, label, e);
+            return;
+        };
+        self.stats.ok += 1;
+        let mut r = LineResult {
+            ok: true,
+            line: number,
+            limits: Some(limits),
+            ..LineResult::default()
+        };
+        set_label(&mut r, label);
+        self.out.push_back(Output::Result { origin, result: r });
+    }
+
+    /// A WIA SafetyLimits line: the motor's gate is held to these limits
+    /// from now on (until another such line). Each limit must lie within
+    /// the bus map's; a wider one refuses the whole line.
+    fn safety_limits(&mut self, origin: Origin, number: u64, l: &SafetyLimits) {
+        let name = l.motor_id.clone();
+        let label = Some(("motor_id", name.clone()));
+        let Some(base) = self.base_limits.get(&name).copied() else {
+            let e = ErrorBody::new(
+                ErrorKind::Refused,
+                format!("motor {name:?} is not in the bus map"),
+            );
+            self.refuse(origin, number, label, e);
+            return;
+        };
+        let p = &l.position_limits;
+        let v = &l.velocity_limits;
+        let t = &l.torque_limits;
+        let mut wider = Vec::new();
+        let mut low = |field: &str, value: Option<f64>, map: Option<f64>, map_field: &str| {
+            if let (Some(x), Some(b)) = (value, map)
+                && x < b
+            {
+                wider.push(format!(
+                    "{name}: {field} {x} is wider than the bus map's {map_field} {b}"
+                ));
+            }
+        };
+        low(
+            "position_limits.min",
+            Some(p.min),
+            base.min_position,
+            "min_position",
+        );
+        low(
+            "position_limits.soft_min",
+            p.soft_min,
+            base.min_position,
+            "min_position",
+        );
+        let mut high = |field: &str, value: Option<f64>, map: Option<f64>, map_field: &str| {
+            if let (Some(x), Some(b)) = (value, map)
+                && x > b
+            {
+                wider.push(format!(
+                    "{name}: {field} {x} is wider than the bus map's {map_field} {b}"
+                ));
+            }
+        };
+        high(
+            "position_limits.max",
+            Some(p.max),
+            base.max_position,
+            "max_position",
+        );
+        high(
+            "position_limits.soft_max",
+            p.soft_max,
+            base.max_position,
+            "max_position",
+        );
+        high(
+            "velocity_limits.max_velocity",
+            v.max_velocity,
+            base.max_velocity,
+            "max_velocity",
+        );
+        high(
+            "torque_limits.continuous_torque",
+            t.continuous_torque,
+            base.max_torque,
+            "max_torque",
+        );
+        high(
+            "torque_limits.peak_torque",
+            t.peak_torque,
+            base.max_torque,
+            "max_torque",
+        );
+        if !wider.is_empty() {
+            let e = ErrorBody::new(ErrorKind::Refused, wider.join("; "));
+            self.refuse(origin, number, label, e);
+            return;
+        }
+        // The soft limits, where given, are the gate's; the torque a
+        // command may hold is the continuous one.
+        let lo = p.soft_min.map_or(p.min, |s| s.max(p.min));
+        let hi = p.soft_max.map_or(p.max, |s| s.min(p.max));
+        let torque = match (t.continuous_torque, t.peak_torque) {
+            (Some(c), Some(k)) => Some(c.min(k)),
+            (c, k) => c.or(k).or(base.max_torque),
+        };
+        let limits = Limits {
+            min_position: Some(lo),
+            max_position: Some(hi),
+            max_velocity: v.max_velocity.or(base.max_velocity),
+            max_torque: torque,
+            ..base
+        };
+        self.map
+            .set_limits(&name, limits, "the SafetyLimits line in force");
+        match v.emergency_decel {
+            Some(d) => self.emergency_decel.insert(name.clone(), d),
+            None => self.emergency_decel.remove(&name),
+        };
+        let mut losses = Vec::new();
+        if v.emergency_decel.is_some() {
+            losses.push("velocity_limits.emergency_decel: recorded, not carried: an iRPC joint brakes from a Deactivate at its own rate".to_owned());
+        }
+        for (field, given) in [
+            ("thermal_limits", l.thermal_limits.is_some()),
+            ("current_limits", l.current_limits.is_some()),
+            ("collision_detection", l.collision_detection.is_some()),
+            (
+                "torque_limits.peak_duration_ms",
+                t.peak_duration_ms.is_some(),
+            ),
+        ] {
+            if given {
+                losses.push(format!(
+                    "{field}: not carried: iRPC has no such setting; the joint keeps its own"
+                ));
+            }
+        }
+        self.stats.ok += 1;
+        let mut r = LineResult {
+            ok: true,
+            line: number,
+            limits: self.limits_value(&name),
+            losses,
+            ..LineResult::default()
+        };
+        set_label(&mut r, label);
+        self.out.push_back(Output::Result { origin, result: r });
     }
 
     fn refuse(

@@ -160,6 +160,10 @@ pub struct LineResult {
     /// What the translation could not carry exactly.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub losses: Vec<String>,
+    /// For a SafetyLimits line or a limits query: the motor's limits in
+    /// force now (`effective`) and the bus map's (`bus_map`), in its unit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub limits: Option<Value>,
 }
 
 /// Why a line was not done.
@@ -205,6 +209,9 @@ pub enum ErrorKind {
     Invalid,
     /// Valid WIA of a kind the bridge does not take. Nothing was sent.
     UnsupportedKind,
+    /// Valid WIA the bridge understands but the joints cannot carry (PID
+    /// gains, a control-mode configuration: iRPC has no such messages).
+    Unsupported,
     /// Outside a limit, or not expressible for the motor. Nothing was sent.
     Refused,
     /// A motor of the line is offline. Nothing was sent.

@@ -844,3 +844,49 @@ fn sequential_axes_run_one_after_another() {
         "not sent: shoulder_roll before it did not arrive in time"
     );
 }
+
+/// A SafetyLimits line tightens a motor's gate from then on; one wider
+/// than the bus map is refused naming both; the limits in force can be
+/// asked for; PID gains are answered `unsupported`.
+#[test]
+fn safety_limits_lines_tighten_the_gate_at_runtime() {
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    let limits = |min: f64, max: f64, v: f64| {
+        format!(
+            r#"{{"motor_id":"elbow","position_limits":{{"min":{min},"max":{max}}},"velocity_limits":{{"max_velocity":{v},"emergency_decel":900}},"torque_limits":{{"continuous_torque":2,"peak_torque":4}}}}"#
+        )
+    };
+    // A move that passes now.
+    arm.line(Origin(1), &command("elbow", 120.0));
+    // Wider than the map: refused, naming both; nothing changes.
+    arm.line(Origin(1), &limits(-5.0, 100.0, 60.0));
+    // Tighter: in force from now on.
+    arm.line(Origin(1), &limits(10.0, 100.0, 60.0));
+    arm.line(Origin(1), &command("elbow", 120.0));
+    arm.line(Origin(1), r#"{"query":"limits","motor_id":"elbow"}"#);
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"elbow","control_mode":"position","gains":{"kp":40,"ki":0.05,"kd":1.8}}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    let r = arm.take_results();
+    let by = |n: u64| r.iter().find(|v| v["line"] == n).unwrap();
+    assert_eq!(by(1)["ok"], true, "{}", by(1));
+    assert_eq!(by(2)["ok"], false);
+    assert_eq!(
+        by(2)["error"]["message"],
+        "elbow: position_limits.min -5 is wider than the bus map's min_position 0"
+    );
+    assert_eq!(by(3)["ok"], true, "{}", by(3));
+    assert_eq!(by(3)["limits"]["effective"]["max_position"], 100.0);
+    assert_eq!(by(3)["limits"]["effective"]["max_torque"], 2.0);
+    assert_eq!(by(3)["limits"]["effective"]["emergency_decel"], 900.0);
+    assert_eq!(by(3)["limits"]["bus_map"]["max_position"], 150.0);
+    assert_eq!(by(4)["ok"], false);
+    assert_eq!(
+        by(4)["error"]["message"],
+        "elbow: setpoint 120 is outside max_position (the SafetyLimits line in force) 100"
+    );
+    assert_eq!(by(5)["limits"], by(3)["limits"]);
+    assert_eq!(by(6)["error"]["kind"], "unsupported", "{}", by(6));
+}

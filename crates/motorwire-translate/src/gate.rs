@@ -3,7 +3,7 @@
 use motorwire_core::ControlMode;
 use motorwire_wia::MotorCommand;
 
-use crate::{BusMap, Limits, MappedMotor, Target};
+use crate::{BusMap, MappedMotor, Target};
 
 /// Why a command was refused before any bytes existed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -157,7 +157,9 @@ fn shown(x: f64, overshoot: f64) -> String {
 pub struct Bound {
     /// The value.
     pub value: f64,
-    /// `"bus map"`, `"command"` or `"Orion range"`.
+    /// `"bus map"` (or, once a runtime tightening replaced the map's,
+    /// what [`BusMap::set_limits`](crate::BusMap::set_limits) was told),
+    /// `"command"` or `"Orion range"`.
     pub source: &'static str,
 }
 
@@ -190,11 +192,8 @@ fn tighter(a: Option<Bound>, b: Option<Bound>, lower_wins: bool) -> Option<Bound
     }
 }
 
-fn from_map(v: Option<f64>) -> Option<Bound> {
-    v.map(|value| Bound {
-        value,
-        source: "bus map",
-    })
+fn from_map(v: Option<f64>, source: &'static str) -> Option<Bound> {
+    v.map(|value| Bound { value, source })
 }
 
 impl Effective {
@@ -216,18 +215,15 @@ impl Effective {
     /// # Ok::<(), motorwire_translate::MapError>(())
     /// ```
     pub fn from_bus_map(motor: &MappedMotor) -> Self {
-        Self::with(&motor.limits, None, motor.target)
+        Self::with(motor, None)
     }
 
-    fn new(limits: &Limits, cmd: &MotorCommand, target: Target) -> Self {
-        Self::with(limits, cmd.safety_limits.as_ref(), target)
+    fn new(motor: &MappedMotor, cmd: &MotorCommand) -> Self {
+        Self::with(motor, cmd.safety_limits.as_ref())
     }
 
-    fn with(
-        limits: &Limits,
-        own: Option<&motorwire_wia::CommandSafetyLimits>,
-        target: Target,
-    ) -> Self {
+    fn with(motor: &MappedMotor, own: Option<&motorwire_wia::CommandSafetyLimits>) -> Self {
+        let (limits, target, source) = (&motor.limits, motor.target, motor.limits_source);
         let from_cmd = |v: Option<f64>| {
             v.map(|value| Bound {
                 value,
@@ -236,26 +232,26 @@ impl Effective {
         };
         let mut e = Effective {
             min_position: tighter(
-                from_map(limits.min_position),
+                from_map(limits.min_position, source),
                 from_cmd(own.and_then(|l| l.min_position)),
                 false,
             ),
             max_position: tighter(
-                from_map(limits.max_position),
+                from_map(limits.max_position, source),
                 from_cmd(own.and_then(|l| l.max_position)),
                 true,
             ),
             max_velocity: tighter(
-                from_map(limits.max_velocity),
+                from_map(limits.max_velocity, source),
                 from_cmd(own.and_then(|l| l.max_velocity)),
                 true,
             ),
             max_torque: tighter(
-                from_map(limits.max_torque),
+                from_map(limits.max_torque, source),
                 from_cmd(own.and_then(|l| l.max_torque)),
                 true,
             ),
-            max_acceleration: from_map(limits.max_acceleration),
+            max_acceleration: from_map(limits.max_acceleration, source),
         };
         if let Target::Orion { motor } = target {
             let (lo, hi) = motor.range();
@@ -337,7 +333,7 @@ pub fn gate<'m>(
         finite("safety_limits.max_velocity", l.max_velocity)?;
         finite("safety_limits.max_torque", l.max_torque)?;
     }
-    let e = Effective::new(&motor.limits, cmd, motor.target);
+    let e = Effective::new(motor, cmd);
     let sp = cmd.setpoint;
     match cmd.control_mode {
         ControlMode::Disabled => {}

@@ -168,6 +168,9 @@ pub struct MappedMotor {
     pub unit: AngleUnit,
     /// Its safety limits.
     pub limits: Limits,
+    /// Where `limits` come from, as a refusal names it: `"bus map"`, or
+    /// what [`BusMap::set_limits`] was told.
+    pub limits_source: &'static str,
     /// The motion profile its iRPC moves use.
     pub profile: MotionProfile,
     /// How close to its target (in its unit) a position move must come
@@ -412,6 +415,7 @@ impl BusMap {
         Ok(MappedMotor {
             name: name.to_owned(),
             arrival_tolerance,
+            limits_source: "bus map",
             target,
             unit,
             limits: Limits {
@@ -450,6 +454,38 @@ impl BusMap {
     /// The motor named `name`.
     pub fn motor(&self, name: &str) -> Option<&MappedMotor> {
         self.motors.get(name)
+    }
+
+    /// Replaces the limits of motor `name` (a runtime tightening, such as
+    /// the bridge applies from a WIA SafetyLimits line), saying where they
+    /// come from (`source`, named by refusals); `false` when there is no
+    /// such motor. The caller checks the new limits against the old.
+    ///
+    /// ```
+    /// use motorwire_translate::{BusMap, gate};
+    /// let mut map = BusMap::from_toml(r#"
+    ///     [motors.elbow]
+    ///     dialect = "irpc"
+    ///     node = 0x12
+    ///     limits = { min_position = 0, max_position = 150 }
+    /// "#)?;
+    /// let limits = motorwire_translate::Limits { max_position: Some(100.0), ..map.motor("elbow").unwrap().limits };
+    /// assert!(map.set_limits("elbow", limits, "safety limits"));
+    /// let cmd: motorwire_wia::MotorCommand = serde_json::from_str(
+    ///     r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":120}"#)?;
+    /// assert_eq!(gate(&map, &cmd).unwrap_err().to_string(),
+    ///     "elbow: setpoint 120 is outside max_position (safety limits) 100");
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn set_limits(&mut self, name: &str, limits: Limits, source: &'static str) -> bool {
+        match self.motors.get_mut(name) {
+            Some(m) => {
+                m.limits = limits;
+                m.limits_source = source;
+                true
+            }
+            None => false,
+        }
     }
 
     /// Every motor, in name order.
