@@ -731,6 +731,7 @@ impl Bridge {
                 ("max_deceleration", l.max_deceleration),
                 ("max_jerk", l.max_jerk),
                 ("max_torque", l.max_torque),
+                ("emergency_deceleration", l.emergency_deceleration),
             ] {
                 if let Some(v) = v {
                     m.insert(k.to_owned(), serde_json::json!(v));

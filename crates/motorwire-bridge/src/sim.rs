@@ -14,8 +14,9 @@ use motorwire_translate::{BusMap, MappedMotor, Target};
 
 use crate::{Bridge, BridgeError, Origin, Output};
 
-/// A joint for `motor` if it is an iRPC joint: the map's wire version, and
-/// a start at 0° or, when 0 is outside the map's range, its nearest end.
+/// A joint for `motor` if it is an iRPC joint: the map's wire version, its
+/// `emergency_deceleration` (the joint's own default otherwise), and a
+/// start at 0° or, when 0 is outside the map's range, its nearest end.
 pub fn joint_config(motor: &MappedMotor) -> Option<JointConfig> {
     let Target::Irpc { node, wire } = motor.target else {
         return None;
@@ -33,6 +34,11 @@ pub fn joint_config(motor: &MappedMotor) -> Option<JointConfig> {
     #[allow(clippy::cast_possible_truncation)]
     let start = 0.0f64.max(lo).min(hi) as f32;
     config.initial_position = start;
+    if let Some(d) = motor.limits.emergency_deceleration {
+        #[allow(clippy::cast_possible_truncation)]
+        let d = motor.unit.to_degrees(d) as f32;
+        config.emergency_deceleration = d;
+    }
     Some(config)
 }
 

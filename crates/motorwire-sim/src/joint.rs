@@ -194,6 +194,11 @@ pub struct JointConfig {
     pub limits: JointLimits,
     /// Brake when nothing was heard for this long while moving (zero: never).
     pub watchdog: Duration,
+    /// The deceleration a Deactivate or Reset brakes at (deg/s², > 0): a
+    /// stop is physical, not instant. 1000 deg/s² by default (a joint at
+    /// 100 deg/s stops within 0.1 s and 5°); the watchdog brakes at
+    /// `limits.max_acceleration`.
+    pub emergency_deceleration: f32,
     /// Encoder feedback period (zero: none).
     pub encoder_period: Duration,
     /// JointStatus period (zero: only on changes).
@@ -211,6 +216,7 @@ impl JointConfig {
             wire: WireVersion::V2_0,
             limits: JointLimits::default(),
             watchdog: Duration::from_millis(200),
+            emergency_deceleration: 1000.0,
             encoder_period: Duration::from_millis(10),
             status_period: Duration::from_millis(100),
             initial_position: 0.0,
@@ -331,6 +337,7 @@ impl SimJoint {
             ("limits.max_velocity", l.max_velocity),
             ("limits.max_acceleration", l.max_acceleration),
             ("limits.max_jerk", l.max_jerk),
+            ("emergency_deceleration", config.emergency_deceleration),
         ] {
             if !positive_finite(v) {
                 return bad(field, "must be finite and positive");
@@ -449,7 +456,7 @@ impl SimJoint {
         }
     }
 
-    fn brake(&mut self) {
+    fn brake(&mut self, deceleration: f32) {
         self.current = None;
         if matches!(self.motion, Motion::Holding) {
             return;
@@ -461,7 +468,7 @@ impl SimJoint {
                 start: self.now,
                 position: self.position,
                 velocity: self.velocity,
-                deceleration: f64::from(self.config.limits.max_acceleration),
+                deceleration: f64::from(deceleration),
             }
         };
     }
@@ -696,14 +703,14 @@ impl SimJoint {
             },
             Payload::Deactivate => match self.state {
                 Active | Inactive => {
-                    self.brake();
+                    self.brake(self.config.emergency_deceleration);
                     self.set_state(Inactive);
                     Payload::Ack(id)
                 }
                 _ => nack(NackCode::DEACTIVATE_WRONG_STATE),
             },
             Payload::Reset => {
-                self.brake();
+                self.brake(self.config.emergency_deceleration);
                 self.error_code = 0;
                 self.telemetry_period = None;
                 self.set_state(Unconfigured);
@@ -803,7 +810,7 @@ impl SimJoint {
             && !wd.is_zero()
             && now.saturating_sub(self.last_heard) >= wd
         {
-            self.brake();
+            self.brake(self.config.limits.max_acceleration);
             self.stats.watchdog_stops += 1;
             self.error_code = WATCHDOG_STOP;
             self.send_status();

@@ -356,3 +356,64 @@ fn a_late_copy_older_than_the_whole_memory_is_refused_never_executed() {
         (stale(far - 5), false)
     );
 }
+
+#[test]
+fn a_deactivate_brakes_at_the_emergency_deceleration_not_at_once() {
+    let mut joint = motorwire_sim::SimJoint::new(JointConfig {
+        emergency_deceleration: 500.0,
+        watchdog: Duration::ZERO, // no host heartbeats here
+        ..JointConfig::new(J)
+    })
+    .unwrap();
+    assert_eq!(raw(&mut joint, 1, Payload::Configure).1, true);
+    assert_eq!(raw(&mut joint, 2, Payload::Activate).1, true);
+    // A long move at 100 deg/s, reached after 0.2 s at 500 deg/s².
+    assert_eq!(
+        raw(
+            &mut joint,
+            3,
+            Payload::SetTargetV2(SetTargetPayloadV2::trapezoidal(170.0, 100.0, 500.0))
+        ),
+        (Payload::Ack(3), true)
+    );
+    let mut t = Duration::ZERO;
+    while t < Duration::from_millis(500) {
+        t += Duration::from_millis(1);
+        joint.handle_timeout(t);
+        while joint.poll_transmit().is_some() {}
+    }
+    let at_stop = joint.position();
+    assert!(
+        (joint.velocity() - 100.0).abs() < 1e-6,
+        "{}",
+        joint.velocity()
+    );
+    let frame = |bytes: Vec<u8>| Frame::fd(CanId::standard(0).unwrap(), &bytes).unwrap();
+    let mut buf = [0u8; motorwire_irpc::MAX_FRAME_LEN];
+    let msg = motorwire_irpc::Message {
+        header: motorwire_irpc::Header {
+            source_id: 0,
+            target_id: J,
+            msg_id: 4,
+        },
+        payload: Payload::Deactivate,
+    };
+    let len = msg.encode_frame(WireVersion::V2_0, &mut buf).unwrap();
+    joint.handle_frame(t, &frame(buf[..len].to_vec())).unwrap();
+    // Still moving 0.1 s later, at half speed; at rest after 0.2 s, 10°
+    // (v²/2a) past where the stop came.
+    joint.handle_timeout(t + Duration::from_millis(100));
+    assert!(
+        (joint.velocity() - 50.0).abs() < 1e-6,
+        "{}",
+        joint.velocity()
+    );
+    joint.handle_timeout(t + Duration::from_millis(250));
+    assert_eq!(joint.velocity(), 0.0);
+    assert!(
+        (joint.position() - (at_stop + 10.0)).abs() < 1e-6,
+        "{} {}",
+        joint.position(),
+        at_stop
+    );
+}

@@ -155,6 +155,9 @@ pub struct Limits {
     pub max_jerk: Option<f64>,
     /// Largest torque magnitude (Nm).
     pub max_torque: Option<f64>,
+    /// How hard the motor brakes on an emergency stop (its unit per s²);
+    /// the simulated joint brakes at it, real joints at their own.
+    pub emergency_deceleration: Option<f64>,
 }
 
 /// One motor of the map.
@@ -205,7 +208,8 @@ pub struct MappedMotor {
 /// `arrival_tolerance` (how close a position move must come to its target
 /// to have arrived, in the motor's unit; 0.1° by default); and `limits`
 /// (`min_position`, `max_position`, `max_velocity`, `max_acceleration`,
-/// `max_deceleration`, `max_jerk`, `max_torque`), all in the motor's unit.
+/// `max_deceleration`, `max_jerk`, `max_torque`, `emergency_deceleration`),
+/// all in the motor's unit.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BusMap {
     motors: BTreeMap<String, MappedMotor>,
@@ -242,6 +246,7 @@ struct RawLimits {
     max_deceleration: Option<f64>,
     max_jerk: Option<f64>,
     max_torque: Option<f64>,
+    emergency_deceleration: Option<f64>,
 }
 
 fn invalid(motor: &str, field: &'static str, problem: impl fmt::Display) -> MapError {
@@ -382,6 +387,11 @@ impl BusMap {
             ("limits.max_deceleration", l.max_deceleration, true),
             ("limits.max_jerk", l.max_jerk, true),
             ("limits.max_torque", l.max_torque, true),
+            (
+                "limits.emergency_deceleration",
+                l.emergency_deceleration,
+                true,
+            ),
         ] {
             if let Some(v) = value {
                 if !v.is_finite() {
@@ -426,6 +436,7 @@ impl BusMap {
                 max_deceleration: l.max_deceleration,
                 max_jerk: l.max_jerk,
                 max_torque: l.max_torque,
+                emergency_deceleration: l.emergency_deceleration,
             },
             profile,
         })
