@@ -756,15 +756,13 @@ impl Bridge {
             self.refuse(origin, number, label, e);
             return;
         };
-        self.stats.ok += 1;
-        let mut r = LineResult {
+        let r = LineResult {
             ok: true,
             line: number,
             limits: Some(limits),
             ..LineResult::default()
         };
-        set_label(&mut r, label);
-        self.out.push_back(Output::Result { origin, result: r });
+        self.answer(origin, r, label);
     }
 
     /// A WIA SafetyLimits line: the motor's gate is held to these limits
@@ -890,16 +888,14 @@ impl Bridge {
                 ));
             }
         }
-        self.stats.ok += 1;
-        let mut r = LineResult {
+        let r = LineResult {
             ok: true,
             line: number,
             limits: self.limits_value(&name),
             losses,
             ..LineResult::default()
         };
-        set_label(&mut r, label);
-        self.out.push_back(Output::Result { origin, result: r });
+        self.answer(origin, r, label);
     }
 
     fn refuse(
@@ -909,13 +905,22 @@ impl Bridge {
         label: Option<(&'static str, String)>,
         error: ErrorBody,
     ) {
-        self.stats.failed += 1;
-        let mut r = LineResult {
+        let r = LineResult {
             ok: false,
             line: number,
             error: Some(error),
             ..LineResult::default()
         };
+        self.answer(origin, r, label);
+    }
+
+    /// Gives `r` (labelled) to `origin`, counting it.
+    fn answer(&mut self, origin: Origin, mut r: LineResult, label: Option<(&'static str, String)>) {
+        if r.ok {
+            self.stats.ok += 1;
+        } else {
+            self.stats.failed += 1;
+        }
         set_label(&mut r, label);
         self.out.push_back(Output::Result { origin, result: r });
     }

@@ -150,23 +150,20 @@ fn rss_kib(pid: u32) -> u64 {
         .unwrap()
 }
 
+/// `motorwire bridge` on the simulated arm listening on the local socket
+/// `sock`, with `extra` arguments.
+fn unix_bridge(sock: &Path, extra: &[&str]) -> Child {
+    let input = format!("unix:{}", sock.display());
+    let mut args = vec!["bridge", "--map", MAP, "--bus", "sim", "--input", &input];
+    args.extend_from_slice(extra);
+    common::spawn(&args)
+}
+
 #[test]
 fn a_flooding_and_a_non_reading_client_do_not_delay_anothers_stop() {
     let dir = scratch("flood");
     let sock = dir.join("bridge.sock");
-    let mut child = common::spawn(&[
-        "bridge",
-        "--map",
-        MAP,
-        "--bus",
-        "sim",
-        "--input",
-        &format!("unix:{}", sock.display()),
-        "--feedback-hz",
-        "1000",
-        "--client-queue",
-        "2048",
-    ]);
+    let mut child = unix_bridge(&sock, &["--feedback-hz", "1000", "--client-queue", "2048"]);
     let _ = listening(&mut child);
     let events = stdout_lines(&mut child);
     let pid = child.id();
@@ -451,15 +448,7 @@ fn tcp_needs_a_token_and_loopback_and_the_token_file_its_owner() {
 fn the_local_socket_is_its_owners_alone_and_removed_at_the_end() {
     let dir = scratch("unix");
     let sock = dir.join("bridge.sock");
-    let mut child = common::spawn(&[
-        "bridge",
-        "--map",
-        MAP,
-        "--bus",
-        "sim",
-        "--input",
-        &format!("unix:{}", sock.display()),
-    ]);
+    let mut child = unix_bridge(&sock, &[]);
     let _ = listening(&mut child);
     let mode = std::fs::metadata(&sock).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode, 0o600);
@@ -472,18 +461,9 @@ fn the_local_socket_is_its_owners_alone_and_removed_at_the_end() {
     writeln!(w, "{}", command("elbow", 10.0)).unwrap();
     assert_eq!(next_result(&mut BufReader::new(s))["ok"], true);
     // A second bridge on the same path is refused while the first lives.
-    let out = common::run(
-        &[
-            "bridge",
-            "--map",
-            MAP,
-            "--bus",
-            "sim",
-            "--input",
-            &format!("unix:{}", sock.display()),
-        ],
-        b"",
-    );
+    let mut second = unix_bridge(&sock, &[]);
+    drop(second.stdin.take());
+    let out = second.wait_with_output().unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("another process is listening"));
     Command::new("kill")
