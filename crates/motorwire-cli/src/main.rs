@@ -18,6 +18,7 @@ mod lines;
 mod plan;
 mod serve;
 mod sim;
+mod translate;
 mod validate;
 
 /// Typed, validated, safe messages between the software that decides a
@@ -37,6 +38,13 @@ enum Command {
     Irpc(irpc::Args),
     /// Encode and decode the 24-byte WIA compact command.
     Compact(compact::Args),
+    /// Translate WIA command lines into one target dialect (iRPC frames,
+    /// compact-command frames or Orion JSON) through the bridge's gate:
+    /// one result line per input line, with the translation's loss report.
+    ///
+    /// Exit status 0 when every line was translated, 1 when any was
+    /// refused, 2 on a usage error (a bad map, an unknown --to).
+    Translate(translate::Args),
     /// Plan motion profiles: JSON move requests in, one JSON line (or CSV
     /// samples, or an SVG plot) out per move.
     Plan(plan::Args),
@@ -63,6 +71,7 @@ fn main() -> ExitCode {
         Command::Validate(args) => validate::run(&args),
         Command::Irpc(args) => irpc::run(&args),
         Command::Compact(args) => compact::run(&args),
+        Command::Translate(args) => translate::run(&args),
         Command::Plan(args) => plan::run(&args),
         Command::Sim(args) => sim::run(&args),
         Command::Candump(args) => candump::run(&args),

@@ -4,7 +4,7 @@ use motorwire_compact::{CompactCommand, Flags, MotorHash, TorqueLimit, VelocityL
 use motorwire_core::ControlMode;
 use motorwire_irpc::{MotionProfile, Payload, SetTargetPayload, SetTargetPayloadV2, WireVersion};
 use motorwire_orion::{MotorValues, Quantity};
-use motorwire_wia::{MotorCommand, MultiAxisCommand};
+use motorwire_wia::{AxisCommand, MotorCommand, MultiAxisCommand};
 
 use crate::gate::{Effective, gate};
 use crate::report::{LossKind, Report, Translated};
@@ -415,10 +415,122 @@ pub fn compact_command(cmd: &MotorCommand) -> Result<Translated<CompactCommand>,
 /// [`compact_command`]'s.
 pub fn to_compact(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<CompactCommand>, Refusal> {
     let (motor, _) = gate_unless_emergency(map, cmd)?;
-    if motor.target != Target::Compact {
+    if !matches!(motor.target, Target::Compact { .. }) {
         return Err(not_for(motor, cmd, "compact"));
     }
     compact_command(cmd)
+}
+
+/// A WIA multi-axis command for compact devices: each axis as
+/// [`to_compact`] translates it (behind the gate), one compact command per
+/// axis in the command's order, each axis's losses named
+/// `motor_id.field`. Compact devices run their commands independently:
+/// `sync_mode`, `coordination` and `metadata` have no place in the 24
+/// bytes and are reported dropped.
+///
+/// ```
+/// use motorwire_translate::{BusMap, multi_axis_to_compact};
+/// let map = BusMap::from_toml(r#"
+///     [motors.gripper]
+///     dialect = "compact"
+///     node = 0x20
+///     limits = { min_position = 0, max_position = 90 }
+/// "#)?;
+/// let cmd: motorwire_wia::MultiAxisCommand = serde_json::from_str(r#"{
+///     "command_id": "close", "timestamp": 0, "sync_mode": "simultaneous",
+///     "motors": [{"motor_id": "gripper", "control_mode": "position", "setpoint": 45}]
+/// }"#)?;
+/// let t = multi_axis_to_compact(&map, &cmd)?;
+/// assert_eq!(t.value[0].setpoint, 45.0);
+/// assert_eq!(
+///     t.report.losses[0].to_string(),
+///     "sync_mode: dropped: the compact command has no place for it; each device runs its own command"
+/// );
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// The first axis's refusal, naming it.
+pub fn multi_axis_to_compact(
+    map: &BusMap,
+    cmd: &MultiAxisCommand,
+) -> Result<Translated<Vec<CompactCommand>>, Refusal> {
+    let mut report = Report::default();
+    let mut commands = Vec::with_capacity(cmd.motors.len());
+    for axis in &cmd.motors {
+        let t = to_compact(map, &axis.to_motor_command(cmd.timestamp))?;
+        for mut loss in t.report.losses {
+            loss.field = format!("{}.{}", axis.motor_id, loss.field);
+            report.losses.push(loss);
+        }
+        commands.push(t.value);
+    }
+    for (field, present) in [
+        ("sync_mode", cmd.sync_mode.is_some()),
+        ("coordination", cmd.coordination.is_some()),
+        ("metadata", cmd.metadata.is_some()),
+    ] {
+        if present {
+            report.push(
+                field,
+                LossKind::Dropped,
+                "the compact command has no place for it; each device runs its own command",
+            );
+        }
+    }
+    Ok(Translated {
+        value: commands,
+        report,
+    })
+}
+
+/// [`to_orion`] for one WIA MotorCommand: the command as a multi-axis
+/// command of one axis, so it is gated and mapped exactly as an axis is
+/// (its losses are named `motor_id.field`).
+///
+/// ```
+/// use motorwire_translate::{BusMap, to_orion_motor};
+/// let map = BusMap::from_toml("[motors.turntable]\ndialect = \"orion\"\nkey = \"TRM\"")?;
+/// let cmd: motorwire_wia::MotorCommand = serde_json::from_str(
+///     r#"{"motor_id": "turntable", "timestamp": 0, "control_mode": "velocity", "setpoint": 200}"#,
+/// )?;
+/// assert_eq!(to_orion_motor(&map, &cmd)?.value.to_json(), r#"{"ID":32,"MODE":1,"DATA":{"TRM":200}}"#);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// As [`to_orion`].
+pub fn to_orion_motor(
+    map: &BusMap,
+    cmd: &MotorCommand,
+) -> Result<Translated<motorwire_orion::Input>, Refusal> {
+    let axis = AxisCommand {
+        motor_id: cmd.motor_id.clone(),
+        control_mode: cmd.control_mode,
+        setpoint: cmd.setpoint,
+        velocity_limit: cmd.velocity_limit,
+        acceleration_limit: cmd.acceleration_limit,
+        torque_limit: cmd.torque_limit,
+        pid_gains: cmd.pid_gains.clone(),
+        impedance_params: cmd.impedance_params.clone(),
+        filter_config: cmd.filter_config.clone(),
+        safety_limits: cmd.safety_limits.clone(),
+        priority: cmd.priority,
+        metadata: cmd.metadata.clone(),
+        extra: cmd.extra.clone(),
+    };
+    to_orion(
+        map,
+        &MultiAxisCommand {
+            command_id: cmd.motor_id.clone(),
+            timestamp: cmd.timestamp,
+            sync_mode: None,
+            motors: vec![axis],
+            coordination: None,
+            metadata: None,
+            extra: serde_json::Map::new(),
+        },
+    )
 }
 
 /// A WIA multi-axis command for Orion motors, as direct-control `DATA`,

@@ -130,6 +130,33 @@ pub enum Refusal {
     },
 }
 
+impl Refusal {
+    /// The refusal's kind as a stable snake_case name, for machine-readable
+    /// output (`motorwire translate`'s `error.rule`): `unknown_motor`,
+    /// `non_finite`, `outside_limit`, `mode_not_expressible`,
+    /// `missing_limit`, `not_representable`, `unknown_position`,
+    /// `unsynchronizable`, `path_outside_limit`, `unplannable`.
+    ///
+    /// ```
+    /// use motorwire_translate::Refusal;
+    /// assert_eq!(Refusal::UnknownMotor { motor: "knee".into() }.rule(), "unknown_motor");
+    /// ```
+    pub const fn rule(&self) -> &'static str {
+        match self {
+            Self::UnknownMotor { .. } => "unknown_motor",
+            Self::NonFinite { .. } => "non_finite",
+            Self::OutsideLimit { .. } => "outside_limit",
+            Self::ModeNotExpressible { .. } => "mode_not_expressible",
+            Self::MissingLimit { .. } => "missing_limit",
+            Self::NotRepresentable { .. } => "not_representable",
+            Self::UnknownPosition { .. } => "unknown_position",
+            Self::Unsynchronizable { .. } => "unsynchronizable",
+            Self::PathOutsideLimit { .. } => "path_outside_limit",
+            Self::Unplannable { .. } => "unplannable",
+        }
+    }
+}
+
 /// `"segment N (counted from 0): "` for a trajectory's segment, or nothing.
 fn in_segment(segment: Option<usize>) -> String {
     segment.map_or_else(String::new, |i| format!("segment {i} (counted from 0): "))

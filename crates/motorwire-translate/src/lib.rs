@@ -2,6 +2,7 @@
 
 mod command;
 mod feedback;
+mod frames;
 mod gate;
 mod map;
 mod path;
@@ -9,9 +10,11 @@ mod report;
 mod sync;
 
 pub use command::{
-    HIGH_PRIORITY, IrpcCommand, compact_command, lifecycle, to_compact, to_irpc, to_orion,
+    HIGH_PRIORITY, IrpcCommand, compact_command, lifecycle, multi_axis_to_compact, to_compact,
+    to_irpc, to_orion, to_orion_motor,
 };
 pub use feedback::{FeedbackError, feedback_from_irpc, feedback_from_orion};
+pub use frames::{IrpcFrame, irpc_frames};
 pub use gate::{Bound, Effective, Refusal, gate};
 pub use map::{AngleUnit, BusMap, Limits, MapError, MappedMotor, Target};
 pub use path::{PathExtent, check_path, check_trajectory};

@@ -80,8 +80,16 @@ pub enum Target {
         /// The wire version it speaks.
         wire: WireVersion,
     },
-    /// A device taking the WIA compact command.
-    Compact,
+    /// A compact device: a device taking the WIA compact command on CAN-FD
+    /// (WIRE-FACTS §2.1).
+    Compact {
+        /// The CAN id its commands are sent on (11 bits, not 0x000: the
+        /// arm's iRPC id).
+        node: u16,
+        /// The CAN id it sends its feedback on: the map's `feedback_node`,
+        /// by default `node | 0x400`; never `node`.
+        feedback_node: u16,
+    },
     /// One of the Orion arm controller's motors.
     Orion {
         /// Which.
@@ -94,7 +102,7 @@ impl Target {
     pub const fn dialect(&self) -> &'static str {
         match self {
             Target::Irpc { .. } => "irpc",
-            Target::Compact => "compact",
+            Target::Compact { .. } => "compact",
             Target::Orion { .. } => "orion",
         }
     }
@@ -203,7 +211,10 @@ pub struct MappedMotor {
 ///
 /// Per motor: `dialect` (`irpc`, `compact` or `orion`); for iRPC `node`
 /// and optionally `wire` (`v1`, `v2.0` the default, `v2.1`, `v2.2`) and
-/// `profile` (`trapezoidal`, `scurve` the default, `adaptive`); for Orion
+/// `profile` (`trapezoidal`, `scurve` the default, `adaptive`); for a
+/// compact device `node` (the CAN id of its commands, 0x001..=0x7FF) and
+/// optionally `feedback_node` (the CAN id of its feedback, by default
+/// `node | 0x400`); for Orion
 /// `key` (`TRM` ...); `unit` (`deg` the default, or `rad`);
 /// `arrival_tolerance` (how close a position move must come to its target
 /// to have arrived, in the motor's unit; 0.1° by default); and `limits`
@@ -227,6 +238,7 @@ struct RawMap {
 struct RawMotor {
     dialect: String,
     node: Option<i64>,
+    feedback_node: Option<i64>,
     wire: Option<String>,
     key: Option<String>,
     unit: Option<String>,
@@ -255,6 +267,53 @@ fn invalid(motor: &str, field: &'static str, problem: impl fmt::Display) -> MapE
         field,
         problem: problem.to_string(),
     }
+}
+
+/// A compact device's CAN ids (WIRE-FACTS §2.1): `node` required, in
+/// 0x001..=0x7FF (an 11-bit id; 0x000 is the arm's iRPC id);
+/// `feedback_node` by default `node | 0x400`, in the same range and never
+/// `node` itself.
+fn compact_target(
+    name: &str,
+    node: Option<i64>,
+    feedback_node: Option<i64>,
+) -> Result<Target, MapError> {
+    let can_id = |field: &'static str, v: i64| {
+        u16::try_from(v)
+            .ok()
+            .filter(|n| (1..=0x7FF).contains(n))
+            .ok_or_else(|| {
+                invalid(
+                    name,
+                    field,
+                    format!("{v} is not a CAN id in 0x001..=0x7FF (11 bits; 0x000 is the arm's)"),
+                )
+            })
+    };
+    let node = node.ok_or(MapError::Missing {
+        motor: name.to_owned(),
+        dialect: "compact",
+        field: "node",
+    })?;
+    let node = can_id("node", node)?;
+    let feedback_node = match feedback_node {
+        Some(f) => can_id("feedback_node", f)?,
+        None => node | 0x400,
+    };
+    if feedback_node == node {
+        return Err(invalid(
+            name,
+            "feedback_node",
+            format!(
+                "{feedback_node:#05x} is the node itself (the device and its commands need different CAN ids; \
+                 the default node | 0x400 is the node for nodes from 0x400)"
+            ),
+        ));
+    }
+    Ok(Target::Compact {
+        node,
+        feedback_node,
+    })
 }
 
 fn valid_name(name: &str) -> bool {
@@ -313,6 +372,9 @@ impl BusMap {
                 if m.key.is_some() {
                     return Err(not_for("key", "irpc"));
                 }
+                if m.feedback_node.is_some() {
+                    return Err(not_for("feedback_node", "irpc"));
+                }
                 Target::Irpc { node, wire }
             }
             "compact" | "orion" => {
@@ -322,7 +384,11 @@ impl BusMap {
                     "orion"
                 };
                 for (field, present) in [
-                    ("node", m.node.is_some()),
+                    ("node", dialect == "orion" && m.node.is_some()),
+                    (
+                        "feedback_node",
+                        dialect == "orion" && m.feedback_node.is_some(),
+                    ),
                     ("wire", m.wire.is_some()),
                     ("profile", m.profile.is_some()),
                 ] {
@@ -334,7 +400,7 @@ impl BusMap {
                     if m.key.is_some() {
                         return Err(not_for("key", "compact"));
                     }
-                    Target::Compact
+                    compact_target(name, m.node, m.feedback_node)?
                 } else {
                     let key = m.key.as_deref().ok_or(MapError::Missing {
                         motor: name.to_owned(),
@@ -442,22 +508,50 @@ impl BusMap {
         })
     }
 
+    /// Every motor at an address of its own: no two iRPC joints, compact
+    /// devices or Orion motors at one node, key or CAN id (a compact
+    /// device takes two CAN ids: its commands' and its feedback's).
     fn check_addresses(&self) -> Result<(), MapError> {
-        let mut seen: BTreeMap<String, &str> = BTreeMap::new();
+        #[derive(PartialEq, Eq, PartialOrd, Ord)]
+        enum Address {
+            Can(u16),
+            Orion(&'static str),
+        }
+        // Each address with the first motor there and whether it is an iRPC joint.
+        let mut seen: BTreeMap<Address, (&str, bool)> = BTreeMap::new();
         for m in self.motors.values() {
-            let address = match m.target {
-                Target::Irpc { node, .. } => format!("iRPC node 0x{node:02X}"),
-                Target::Orion { motor } => format!("Orion {}", motor.key()),
-                Target::Compact => continue,
+            let (ids, irpc) = match m.target {
+                Target::Irpc { node, .. } => ([Some(node), None], true),
+                Target::Compact {
+                    node,
+                    feedback_node,
+                } => ([Some(node), Some(feedback_node)], false),
+                Target::Orion { motor } => {
+                    if let Some((first, _)) = seen.get(&Address::Orion(motor.key())) {
+                        return Err(MapError::SharedAddress {
+                            first: (*first).to_owned(),
+                            second: m.name.clone(),
+                            address: format!("Orion {}", motor.key()),
+                        });
+                    }
+                    seen.insert(Address::Orion(motor.key()), (&m.name, false));
+                    continue;
+                }
             };
-            if let Some(first) = seen.get(&address) {
-                return Err(MapError::SharedAddress {
-                    first: (*first).to_owned(),
-                    second: m.name.clone(),
-                    address,
-                });
+            for id in ids.into_iter().flatten() {
+                if let Some((first, first_irpc)) = seen.get(&Address::Can(id)) {
+                    return Err(MapError::SharedAddress {
+                        first: (*first).to_owned(),
+                        second: m.name.clone(),
+                        address: if irpc && *first_irpc {
+                            format!("iRPC node 0x{id:02X}")
+                        } else {
+                            format!("CAN id 0x{id:03X}")
+                        },
+                    });
+                }
+                seen.insert(Address::Can(id), (&m.name, irpc));
             }
-            seen.insert(address, &m.name);
         }
         Ok(())
     }
@@ -509,6 +603,30 @@ impl BusMap {
         self.motors
             .values()
             .find(|m| matches!(m.target, Target::Irpc { node: n, .. } if n == node))
+    }
+
+    /// This map with every iRPC joint speaking `wire`, whatever its own
+    /// `wire` says: for translating a command into the bytes a joint of
+    /// another wire version would get (`motorwire translate --to
+    /// irpc-v1`). Nodes, units, limits and profiles are unchanged.
+    ///
+    /// ```
+    /// use motorwire_irpc::WireVersion;
+    /// use motorwire_translate::{BusMap, Target};
+    /// let map = BusMap::from_toml("[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\nwire = \"v2.0\"")?;
+    /// let v1 = map.with_wire(WireVersion::V1);
+    /// assert_eq!(v1.motor("elbow").unwrap().target, Target::Irpc { node: 0x12, wire: WireVersion::V1 });
+    /// # Ok::<(), motorwire_translate::MapError>(())
+    /// ```
+    #[must_use]
+    pub fn with_wire(&self, wire: WireVersion) -> BusMap {
+        let mut map = self.clone();
+        for m in map.motors.values_mut() {
+            if let Target::Irpc { node, .. } = m.target {
+                m.target = Target::Irpc { node, wire };
+            }
+        }
+        map
     }
 
     /// The motor mapped to Orion `motor`.

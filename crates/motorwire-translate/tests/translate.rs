@@ -45,7 +45,13 @@ fn the_demo_map_has_every_motor_where_the_issue_puts_it() {
     assert_eq!(pitch.limits.min_position, Some(-90.0));
     assert_eq!(pitch.limits.max_velocity, Some(120.0));
     assert_eq!(map.irpc_node(0x12).unwrap().name, "elbow");
-    assert_eq!(map.motor("gripper_axis").unwrap().target, Target::Compact);
+    assert_eq!(
+        map.motor("gripper_axis").unwrap().target,
+        Target::Compact {
+            node: 0x20,
+            feedback_node: 0x420
+        }
+    );
     assert_eq!(
         map.orion_motor(motorwire_orion::Motor::Turntable)
             .unwrap()
@@ -89,24 +95,52 @@ fn bad_maps_are_refused_naming_motor_and_field() {
             "bus map: motors.a.node means nothing for a orion motor",
         ),
         (
-            "[motors.a]\ndialect = \"compact\"\nunit = \"grad\"",
+            "[motors.a]\ndialect = \"compact\"\nnode = 0x20\nunit = \"grad\"",
             "bus map: motors.a.unit: \"grad\" is not deg or rad",
         ),
         (
-            "[motors.a]\ndialect = \"compact\"\nlimits = { max_velocity = -1 }",
+            "[motors.a]\ndialect = \"compact\"\nnode = 0x20\nlimits = { max_velocity = -1 }",
             "bus map: motors.a.limits.max_velocity: -1 is not > 0",
         ),
         (
-            "[motors.a]\ndialect = \"compact\"\nlimits = { max_velocity = nan }",
+            "[motors.a]\ndialect = \"compact\"\nnode = 0x20\nlimits = { max_velocity = nan }",
             "bus map: motors.a.limits.max_velocity: NaN is not a finite number",
         ),
         (
-            "[motors.a]\ndialect = \"compact\"\nlimits = { min_position = 5, max_position = 1 }",
+            "[motors.a]\ndialect = \"compact\"\nnode = 0x20\nlimits = { min_position = 5, max_position = 1 }",
             "bus map: motors.a.limits: min_position 5 is above max_position 1",
         ),
         (
             "[motors.a]\ndialect = \"irpc\"\nnode = 3\n[motors.b]\ndialect = \"irpc\"\nnode = 3",
             "bus map: motors.a and motors.b are both iRPC node 0x03",
+        ),
+        (
+            "[motors.a]\ndialect = \"compact\"",
+            "bus map: motors.a speaks compact and needs node",
+        ),
+        (
+            "[motors.a]\ndialect = \"compact\"\nnode = 0",
+            "bus map: motors.a.node: 0 is not a CAN id in 0x001..=0x7FF (11 bits; 0x000 is the arm's)",
+        ),
+        (
+            "[motors.a]\ndialect = \"compact\"\nnode = 0x20\nfeedback_node = 0x800",
+            "bus map: motors.a.feedback_node: 2048 is not a CAN id in 0x001..=0x7FF (11 bits; 0x000 is the arm's)",
+        ),
+        (
+            "[motors.a]\ndialect = \"compact\"\nnode = 0x400",
+            "bus map: motors.a.feedback_node: 0x400 is the node itself (the device and its commands need different CAN ids; the default node | 0x400 is the node for nodes from 0x400)",
+        ),
+        (
+            "[motors.a]\ndialect = \"irpc\"\nnode = 0x20\nfeedback_node = 0x21",
+            "bus map: motors.a.feedback_node means nothing for a irpc motor",
+        ),
+        (
+            "[motors.a]\ndialect = \"irpc\"\nnode = 0x420\n[motors.b]\ndialect = \"compact\"\nnode = 0x20",
+            "bus map: motors.a and motors.b are both CAN id 0x420",
+        ),
+        (
+            "[motors.a]\ndialect = \"compact\"\nnode = 0x20\n[motors.b]\ndialect = \"compact\"\nnode = 0x21\nfeedback_node = 0x20",
+            "bus map: motors.a and motors.b are both CAN id 0x020",
         ),
         (
             "[motors.\"a b\"]\ndialect = \"compact\"",
@@ -118,7 +152,8 @@ fn bad_maps_are_refused_naming_motor_and_field() {
         assert_eq!(err.to_string(), message, "{text}");
     }
     // Typos and wrong types come from the TOML reader, with the place.
-    let typo = BusMap::from_toml("[motors.a]\ndialect = \"compact\"\nlimit = {}").unwrap_err();
+    let typo = BusMap::from_toml("[motors.a]\ndialect = \"compact\"\nnode = 0x20\nlimit = {}")
+        .unwrap_err();
     assert!(
         matches!(&typo, MapError::Toml { message } if message.contains("unknown field `limit`")),
         "{typo}"
@@ -465,4 +500,83 @@ fn hostile_maps_are_errors_not_crashes() {
         Err(MapError::Toml { .. })
     ));
     assert_eq!(BusMap::from_toml("").unwrap().motors().count(), 0);
+}
+
+#[test]
+fn irpc_frames_number_and_pad_and_refuse_what_cannot_be_framed() {
+    // Two payloads: msg_ids 7 and 8, the counter left at 9.
+    let command = IrpcCommand {
+        node: 0x12,
+        wire: WireVersion::V2_0,
+        payloads: vec![Payload::Activate, Payload::Deactivate],
+    };
+    let mut msg_id = 7;
+    let frames = irpc_frames("elbow", &command, 0x0000, &mut msg_id).unwrap();
+    assert_eq!(
+        frames,
+        [
+            IrpcFrame {
+                can_id: 0x000,
+                msg_id: 7,
+                data: vec![0x00, 0x12, 0x07, 0x02]
+            },
+            IrpcFrame {
+                can_id: 0x000,
+                msg_id: 8,
+                data: vec![0x00, 0x12, 0x08, 0x03]
+            },
+        ]
+    );
+    assert_eq!(msg_id, 9);
+    // A source that is not an 11-bit CAN id, and a payload the wire version
+    // does not have: refused, the counter untouched.
+    let e = irpc_frames("elbow", &command, 0x800, &mut msg_id).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "elbow: source node 0x800 is above 0x7FF: it is the frames' 11-bit CAN id"
+    );
+    assert_eq!(e.rule(), "not_representable");
+    let v1 = IrpcCommand {
+        node: 0x12,
+        wire: WireVersion::V1,
+        payloads: vec![
+            Payload::Activate,
+            Payload::SetTargetV2(SetTargetPayloadV2::scurve(90.0, 100.0, 500.0, 2000.0)),
+        ],
+    };
+    let e = irpc_frames("elbow", &v1, 0x0000, &mut msg_id).unwrap_err();
+    assert!(
+        matches!(&e, Refusal::NotRepresentable { field: "payload", problem, .. } if problem.starts_with("SetTargetV2 in iRPC v1: ")),
+        "{e}"
+    );
+    assert_eq!(msg_id, 9);
+}
+
+#[test]
+fn with_wire_makes_every_joint_speak_one_version() {
+    let map = demo().with_wire(WireVersion::V1);
+    let t = to_irpc(
+        &map,
+        &cmd(
+            r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":90,"velocity_limit":100}"#,
+        ),
+    )
+    .unwrap();
+    assert_eq!(t.value.wire, WireVersion::V1);
+    assert_eq!(
+        t.value.payloads,
+        [Payload::SetTarget(SetTargetPayload {
+            target_angle: 90.0,
+            velocity_limit: 100.0
+        })]
+    );
+    // Nothing but the wire version changes.
+    assert_eq!(
+        map.motor("gripper_axis").unwrap(),
+        demo().motor("gripper_axis").unwrap()
+    );
+    assert_eq!(
+        map.motor("elbow").unwrap().limits,
+        demo().motor("elbow").unwrap().limits
+    );
 }

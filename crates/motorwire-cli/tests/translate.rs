@@ -1,0 +1,467 @@
+//! `motorwire translate`, run as a user runs it, on the demo arm's bus map
+//! (iRPC joints, a compact gripper, the Orion arm's motors). Expected bytes
+//! are written out field by field from WIRE-FACTS §1.4 (iRPC golden
+//! vectors) and §2 (the compact command's layout), never taken from the
+//! output.
+#![allow(clippy::unwrap_used, clippy::panic, clippy::indexing_slicing)]
+
+mod common;
+
+use std::process::Output;
+
+const MAP: &str = "fixtures/maps/demo-arm.toml";
+
+fn translate(to: &str, extra: &[&str], stdin: &[u8]) -> Output {
+    let mut args = vec!["translate", "--map", MAP, "--to", to];
+    args.extend_from_slice(extra);
+    common::run(&args, stdin)
+}
+
+fn lines(o: &Output) -> Vec<String> {
+    String::from_utf8(o.stdout.clone())
+        .unwrap()
+        .lines()
+        .map(str::to_owned)
+        .collect()
+}
+
+fn input(lines: &[&str]) -> Vec<u8> {
+    let mut s = lines.join("\n");
+    s.push('\n');
+    s.into_bytes()
+}
+
+/// The iRPC document's example move: SetTargetV2 {90, 100, 0, 500, 500,
+/// 2000, SCurve, 0, 0} once the bus map's jerk (2000) is added.
+const PITCH_90: &str = r#"{"motor_id":"shoulder_pitch","timestamp":1704067200000,"control_mode":"position","setpoint":90,"velocity_limit":100,"acceleration_limit":500}"#;
+const ELBOW_OFF: &str =
+    r#"{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"disabled","setpoint":0}"#;
+
+/// SetTargetV2's body after the header for PITCH_90: tag 5, then nine
+/// fields (WIRE-FACTS §1.4, first row), then zeros to the CAN-FD length 48.
+fn pitch_90_body() -> String {
+    [
+        "05",       // SetTargetV2 (v2.x tag 5)
+        "0000b442", // target_angle 90
+        "0000c842", // max_velocity 100
+        "00000000", // target_velocity 0
+        "0000fa43", // max_acceleration 500
+        "0000fa43", // max_deceleration 500 (no max_deceleration in the map)
+        "0000fa44", // max_jerk 2000 (the map's)
+        "01",       // SCurve
+        "00000000", // max_current
+        "00000000", // max_temperature
+        &"00".repeat(48 - 37),
+    ]
+    .concat()
+}
+
+#[test]
+fn irpc_v2_0_frames_are_the_documents_golden_bytes() {
+    let o = translate(
+        "irpc-v2.0",
+        &["--first-msg-id", "42"],
+        &input(&[PITCH_90, ELBOW_OFF]),
+    );
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    // Header 0x0000 -> 0x0010, msg_id 42: 00 10 2a. CAN id = the sender's node.
+    assert_eq!(
+        lines(&o),
+        [
+            format!(
+                r#"{{"ok":true,"line":1,"frames":[{{"motor_id":"shoulder_pitch","can_id":"0x000","data":"00102a{}"}}],"report":["max_jerk: defaulted: 2000 from the bus map"]}}"#,
+                pitch_90_body()
+            ),
+            // Deactivate (tag 3) to 0x12 as the next msg_id, 43: four bytes, no padding.
+            r#"{"ok":true,"line":2,"frames":[{"motor_id":"elbow","can_id":"0x000","data":"00122b03"}],"report":[]}"#
+                .to_owned(),
+        ]
+    );
+    // The whole first frame is the document's 37 bytes, padded.
+    assert!(
+        lines(&o)[0]
+            .contains("00102a050000b4420000c842000000000000fa430000fa430000fa44010000000000000000")
+    );
+}
+
+#[test]
+fn irpc_v1_is_set_target_whatever_wire_the_map_gives() {
+    // WIRE-FACTS §1.4: msg_id 5, SetTarget {90, 150} is 00 10 05 00 00 00 b4 42 00 00 16 43;
+    // here the velocity limit is 100 (00 00 c8 42). 12 bytes: a CAN-FD length.
+    let cmd = r#"{"motor_id":"shoulder_pitch","timestamp":1704067200000,"control_mode":"position","setpoint":90,"velocity_limit":100,"acceleration_limit":500}"#;
+    let o = translate("irpc-v1", &["--first-msg-id", "5"], &input(&[cmd]));
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    assert_eq!(
+        lines(&o),
+        [
+            r#"{"ok":true,"line":1,"frames":[{"motor_id":"shoulder_pitch","can_id":"0x000","data":"001005000000b4420000c842"}],"report":["acceleration_limit: dropped: SetTarget (iRPC v1) has no place for it"]}"#
+        ]
+    );
+}
+
+#[test]
+fn irpc_v2_1_and_v2_2_number_frames_across_lines() {
+    // SetTargetV2 and Deactivate keep their tags (5 and 3) in v2.1 and v2.2.
+    let o = translate("irpc-v2.1", &[], &input(&[PITCH_90, ELBOW_OFF]));
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    let out = lines(&o);
+    assert!(
+        out[0].contains(&format!(r#""data":"001001{}""#, pitch_90_body())),
+        "{}",
+        out[0]
+    );
+    assert!(out[1].contains(r#""data":"00120203""#), "{}", out[1]);
+    // --node is the source and the CAN id; msg_ids wrap past u32::MAX to 1.
+    let o = translate(
+        "irpc-v2.2",
+        &["--node", "0x7ff", "--first-msg-id", "4294967295"],
+        &input(&[ELBOW_OFF, ELBOW_OFF]),
+    );
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    assert_eq!(
+        lines(&o),
+        [
+            // source 0x7ff = varint ff 0f, target 12, msg_id u32::MAX = ff ff ff ff 0f,
+            // tag 03: 9 bytes, zero-padded to the CAN-FD length 12.
+            r#"{"ok":true,"line":1,"frames":[{"motor_id":"elbow","can_id":"0x7ff","data":"ff0f12ffffffff0f03000000"}],"report":[]}"#,
+            r#"{"ok":true,"line":2,"frames":[{"motor_id":"elbow","can_id":"0x7ff","data":"ff0f120103"}],"report":[]}"#,
+        ]
+    );
+}
+
+/// The compact command's fields in wire order (WIRE-FACTS §2), for
+/// "gripper_axis", whose CRC-32 is 0x713c1b51.
+fn compact(timestamp_le: &str, mode: &str, flags: &str, setpoint: &str, limits: &str) -> String {
+    [
+        "511b3c71",
+        timestamp_le,
+        mode,
+        flags,
+        "0000",
+        setpoint,
+        limits,
+    ]
+    .concat()
+}
+
+#[test]
+fn compact_is_the_24_bytes_on_the_devices_node() {
+    let o = translate(
+        "compact",
+        &[],
+        &input(&[
+            r#"{"motor_id":"gripper_axis","timestamp":1704067200000,"control_mode":"position","setpoint":45,"velocity_limit":30}"#,
+            r#"{"motor_id":"gripper_axis","timestamp":1704067200001,"control_mode":"velocity","setpoint":-20,"priority":80,"metadata":{"why":"test"}}"#,
+            r#"{"motor_id":"gripper_axis","timestamp":1704067200002,"control_mode":"position","setpoint":45,"safety_limits":{"emergency_stop":true}}"#,
+        ]),
+    );
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    // 1704067200000 ms = 0x18CC251F400, little-endian in 8 bytes.
+    let position = compact(
+        "00f451c28c010000",
+        "01",       // position
+        "00",       // no flag
+        "00003442", // 45.0
+        "2c01ffff", // velocity_limit 30.0 = 300 x 0.1; torque_limit none (0xFFFF)
+    );
+    let velocity = compact(
+        "01f451c28c010000",
+        "02",       // velocity
+        "80",       // PRIORITY_HIGH (priority 80 >= 75)
+        "0000a0c1", // -20.0
+        "ffffffff",
+    );
+    let stop = compact(
+        "02f451c28c010000",
+        "01",
+        "01", // EMERGENCY_STOP
+        "00003442",
+        "ffffffff",
+    );
+    // CAN id = the device's node from the map (0x20); 24 bytes need no padding.
+    assert_eq!(
+        lines(&o),
+        [
+            format!(
+                r#"{{"ok":true,"line":1,"frames":[{{"motor_id":"gripper_axis","can_id":"0x020","data":"{position}"}}],"report":[]}}"#
+            ),
+            format!(
+                r#"{{"ok":true,"line":2,"frames":[{{"motor_id":"gripper_axis","can_id":"0x020","data":"{velocity}"}}],"report":["priority: converted: to the PRIORITY_HIGH flag (set from 75)","metadata: dropped: the compact command has no place for it"]}}"#
+            ),
+            format!(
+                r#"{{"ok":true,"line":3,"frames":[{{"motor_id":"gripper_axis","can_id":"0x020","data":"{stop}"}}],"report":[]}}"#
+            ),
+        ]
+    );
+    assert_eq!(position.len(), 48);
+}
+
+#[test]
+fn orion_is_the_direct_control_json() {
+    let o = translate(
+        "orion",
+        &[],
+        &input(&[
+            r#"{"motor_id":"turntable","timestamp":1704067200000,"control_mode":"velocity","setpoint":200}"#,
+            r#"{"command_id":"wrist","timestamp":1704067200000,"sync_mode":"simultaneous","motors":[{"motor_id":"turntable","control_mode":"velocity","setpoint":-100},{"motor_id":"grasper_horizontal_servo","control_mode":"position","setpoint":-12.5}]}"#,
+            r#"{"motor_id":"turntable","timestamp":1704067200000,"control_mode":"velocity","setpoint":0,"safety_limits":{"emergency_stop":true}}"#,
+        ]),
+    );
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    assert_eq!(
+        lines(&o),
+        [
+            r#"{"ok":true,"line":1,"orion":{"ID":32,"MODE":1,"DATA":{"TRM":200}},"report":[]}"#,
+            r#"{"ok":true,"line":2,"orion":{"ID":32,"MODE":1,"DATA":{"TRM":-100,"GHS":-12.5}},"report":["sync_mode: dropped: Orion direct control has no place for it"]}"#,
+            r#"{"ok":true,"line":3,"orion":{"ID":32,"MODE":2,"DATA":1},"report":["motors: converted: an emergency stop: Orion's stop command (MODE 2, DATA 1) replaces the values"]}"#,
+        ]
+    );
+}
+
+#[test]
+fn a_refusal_names_its_rule_and_exits_1() {
+    let o = translate(
+        "irpc-v2.0",
+        &[],
+        &input(&[
+            r#"{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"position","setpoint":170}"#,
+            r#"{"motor_id":"knee","timestamp":1704067200000,"control_mode":"position","setpoint":1}"#,
+            r#"{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"torque","setpoint":1}"#,
+            ELBOW_OFF,
+        ]),
+    );
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    assert_eq!(
+        lines(&o),
+        [
+            r#"{"ok":false,"line":1,"error":{"rule":"outside_limit","message":"elbow: setpoint 170 is outside max_position (bus map) 150"}}"#,
+            r#"{"ok":false,"line":2,"error":{"rule":"unknown_motor","message":"motor \"knee\" is not in the bus map"}}"#,
+            r#"{"ok":false,"line":3,"error":{"rule":"mode_not_expressible","message":"elbow: iRPC cannot express control mode torque"}}"#,
+            // A refused line uses no msg_id: the first frame is msg_id 1.
+            r#"{"ok":true,"line":4,"frames":[{"motor_id":"elbow","can_id":"0x000","data":"00120103"}],"report":[]}"#,
+        ]
+    );
+    // The gripper's limit holds for the compact command too.
+    let o = translate(
+        "compact",
+        &[],
+        &input(&[
+            r#"{"motor_id":"gripper_axis","timestamp":1704067200000,"control_mode":"position","setpoint":300}"#,
+        ]),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        lines(&o),
+        [
+            r#"{"ok":false,"line":1,"error":{"rule":"outside_limit","message":"gripper_axis: setpoint 300 is outside max_position (bus map) 90"}}"#
+        ]
+    );
+}
+
+#[test]
+fn a_motor_of_another_dialect_is_refused_not_a_crash() {
+    let turntable = r#"{"motor_id":"turntable","timestamp":1704067200000,"control_mode":"velocity","setpoint":100}"#;
+    let gripper = r#"{"motor_id":"gripper_axis","timestamp":1704067200000,"control_mode":"position","setpoint":45}"#;
+    let cases = [
+        (
+            "compact",
+            turntable,
+            "turntable: the bus map says it speaks orion, not compact (--to compact)",
+        ),
+        (
+            "irpc-v2.0",
+            gripper,
+            "gripper_axis: the bus map says it speaks compact, not irpc (--to irpc-v2.0)",
+        ),
+        (
+            "orion",
+            PITCH_90,
+            "shoulder_pitch: the bus map says it speaks irpc, not orion (--to orion)",
+        ),
+    ];
+    for (to, cmd, message) in cases {
+        let o = translate(to, &[], &input(&[cmd]));
+        assert_eq!(o.status.code(), Some(1), "{to}");
+        assert_eq!(
+            lines(&o),
+            [format!(
+                r#"{{"ok":false,"line":1,"error":{{"rule":"dialect_mismatch","message":"{message}"}}}}"#
+            )]
+        );
+    }
+    // In a multi-axis command too: the whole line is refused.
+    let mixed = r#"{"command_id":"m","timestamp":1704067200000,"motors":[{"motor_id":"elbow","control_mode":"position","setpoint":10},{"motor_id":"gripper_axis","control_mode":"position","setpoint":10}]}"#;
+    let o = translate("irpc-v2.0", &[], &input(&[mixed]));
+    assert_eq!(o.status.code(), Some(1));
+    assert!(lines(&o)[0].contains(r#""rule":"dialect_mismatch","message":"gripper_axis: "#));
+}
+
+const REACH: &str = r#"{"command_id":"reach","timestamp":1704067200000,"motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":45},{"motor_id":"elbow","control_mode":"position","setpoint":90}]}"#;
+const REACH_TOGETHER: &str = r#"{"command_id":"reach","timestamp":1704067200000,"sync_mode":"simultaneous","motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":45},{"motor_id":"elbow","control_mode":"position","setpoint":90}]}"#;
+
+#[test]
+fn multi_axis_commands_translate_each_axis() {
+    // Independent axes: one SetTargetV2 per joint, msg_ids 1 and 2, each
+    // with the map's limits (elbow's deceleration 400).
+    let body = |target: &str, velocity: &str, deceleration: &str| {
+        [
+            "05",
+            target,
+            velocity,
+            "00000000",
+            "0000fa43", // max_acceleration 500
+            deceleration,
+            "0000fa44", // max_jerk 2000
+            "01",
+            "0000000000000000",
+            &"00".repeat(11),
+        ]
+        .concat()
+    };
+    let defaults = [
+        "shoulder_pitch.max_velocity: defaulted: 120 from the bus map",
+        "shoulder_pitch.max_acceleration: defaulted: 500 from the bus map",
+        "shoulder_pitch.max_jerk: defaulted: 2000 from the bus map",
+        "elbow.max_velocity: defaulted: 120 from the bus map",
+        "elbow.max_acceleration: defaulted: 500 from the bus map",
+        "elbow.max_deceleration: defaulted: 400 from the bus map",
+        "elbow.max_jerk: defaulted: 2000 from the bus map",
+    ];
+    let report = |extra: &[&str]| {
+        let all: Vec<String> = defaults
+            .iter()
+            .chain(extra)
+            .map(|l| format!("{l:?}"))
+            .collect();
+        all.join(",")
+    };
+    let o = translate("irpc-v2.0", &[], &input(&[REACH, REACH_TOGETHER]));
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    let out = lines(&o);
+    assert_eq!(
+        out[0],
+        format!(
+            r#"{{"ok":true,"line":1,"frames":[{{"motor_id":"shoulder_pitch","can_id":"0x000","data":"001001{}"}},{{"motor_id":"elbow","can_id":"0x000","data":"001202{}"}}],"report":[{}]}}"#,
+            body("00003442", "0000f042", "0000fa43"), // 45, 120, deceleration 500
+            body("0000b442", "0000f042", "0000c843"), // 90, 120, deceleration 400
+            report(&[])
+        )
+    );
+    // Synchronized: the joints' current positions are needed, and not given.
+    assert_eq!(
+        out[1],
+        r#"{"ok":false,"line":2,"error":{"rule":"unknown_position","message":"shoulder_pitch: its current position is not known, so its move cannot be synchronized"}}"#
+    );
+    // With --positions, the shorter move's cruise velocity is lowered so
+    // both arrive together (the library's synchronization, checked by its
+    // own tests; here the exact bytes it gives).
+    let o = translate(
+        "irpc-v2.0",
+        &["--positions", "shoulder_pitch=0, elbow=0"],
+        &input(&[REACH_TOGETHER]),
+    );
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    assert_eq!(
+        lines(&o),
+        [format!(
+            r#"{{"ok":true,"line":1,"frames":[{{"motor_id":"shoulder_pitch","can_id":"0x000","data":"001001{}"}},{{"motor_id":"elbow","can_id":"0x000","data":"001202{}"}}],"report":[{}]}}"#,
+            body("00003442", "9f964042", "0000fa43"), // 45, 48.14709, 500
+            body("0000b442", "0000f042", "0000c843"),
+            report(&[
+                "shoulder_pitch.max_velocity: converted: 120 lowered to 48.14709 so every joint arrives after 1.2449 s"
+            ])
+        )]
+    );
+    // The compact target takes multi-axis commands too.
+    let grip = r#"{"command_id":"grip","timestamp":1704067200000,"sync_mode":"simultaneous","motors":[{"motor_id":"gripper_axis","control_mode":"position","setpoint":45,"velocity_limit":30}]}"#;
+    let o = translate("compact", &[], &input(&[grip]));
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    assert_eq!(
+        lines(&o),
+        [format!(
+            r#"{{"ok":true,"line":1,"frames":[{{"motor_id":"gripper_axis","can_id":"0x020","data":"{}"}}],"report":["sync_mode: dropped: the compact command has no place for it; each device runs its own command"]}}"#,
+            compact("00f451c28c010000", "01", "00", "00003442", "2c01ffff")
+        )]
+    );
+}
+
+#[test]
+fn garbage_and_unreadable_lines_cost_one_line_each() {
+    let mut stdin = b"garbage\n\n".to_vec();
+    stdin.extend_from_slice(b"{\"motor_id\":\"elbow\xff\"}\n");
+    stdin.extend_from_slice(&vec![b' '; 70_000]);
+    stdin.extend_from_slice(b"x\n");
+    stdin.extend_from_slice(
+        br#"{"motor_id":"elbow","timestamp":-1,"control_mode":"warp","setpoint":1}"#,
+    );
+    stdin.push(b'\n');
+    let feedback = std::fs::read_to_string(
+        common::root().join("fixtures/wia/valid/doc-4.2-motor-feedback.json"),
+    )
+    .unwrap();
+    let feedback: serde_json::Value = serde_json::from_str(&feedback).unwrap();
+    stdin.extend_from_slice(feedback.to_string().as_bytes());
+    stdin.push(b'\n');
+    // The last line has no newline: it is translated all the same.
+    stdin.extend_from_slice(ELBOW_OFF.as_bytes());
+    let o = translate("irpc-v2.0", &[], &stdin);
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    assert_eq!(
+        lines(&o),
+        [
+            r#"{"ok":false,"line":1,"error":{"rule":"invalid","message":"invalid document: (document): not valid JSON: expected value at line 1 column 1 (json-syntax)","violations":[{"message":"not valid JSON: expected value at line 1 column 1","pointer":"","rule":"json-syntax"}]}}"#,
+            // Line 2 is blank: skipped, but counted.
+            r#"{"ok":false,"line":3,"error":{"rule":"unreadable","message":"the line is not UTF-8"}}"#,
+            r#"{"ok":false,"line":4,"error":{"rule":"unreadable","message":"the line is over 65536 bytes"}}"#,
+            r#"{"ok":false,"line":5,"error":{"rule":"invalid","message":"invalid motor-command: /control_mode: \"warp\" is not one of \"position\", \"velocity\" or 8 other candidates (enum); and 1 more","violations":[{"message":"\"warp\" is not one of \"position\", \"velocity\" or 8 other candidates","pointer":"/control_mode","rule":"enum"},{"message":"-1 is less than the minimum of 0","pointer":"/timestamp","rule":"minimum"}]}}"#,
+            r#"{"ok":false,"line":6,"error":{"rule":"unsupported_kind","message":"a motor-feedback is valid WIA, but translate takes motor-command and multi-axis-command lines"}}"#,
+            r#"{"ok":true,"line":7,"frames":[{"motor_id":"elbow","can_id":"0x000","data":"00120103"}],"report":[]}"#,
+        ]
+    );
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    let cases: [&[&str]; 6] = [
+        &["translate", "--map", MAP, "--to", "bogus"],
+        &["translate", "--map", MAP],
+        &["translate", "--map", "/no/such/map.toml", "--to", "compact"],
+        &[
+            "translate",
+            "--map",
+            "fixtures/wia/valid/motor-command.json",
+            "--to",
+            "compact",
+        ],
+        &[
+            "translate",
+            "--map",
+            MAP,
+            "--to",
+            "irpc-v2.0",
+            "--positions",
+            "knee=1",
+        ],
+        &[
+            "translate",
+            "--map",
+            MAP,
+            "--to",
+            "irpc-v2.0",
+            "--node",
+            "0x800",
+        ],
+    ];
+    for args in cases {
+        let o = common::run(args, ELBOW_OFF.as_bytes());
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert!(o.stdout.is_empty(), "{args:?}");
+        assert!(!o.stderr.is_empty(), "{args:?}");
+    }
+    let o = common::run(&["translate", "--map", MAP, "--to", "bogus"], b"");
+    let err = String::from_utf8(o.stderr).unwrap();
+    assert!(
+        err.contains("[possible values: irpc-v1, irpc-v2.0, irpc-v2.1, irpc-v2.2, compact, orion]"),
+        "{err}"
+    );
+}
