@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out=fuzz/corpus
 rm -rf "$out"
-mkdir -p "$out"/{compact_decode,irpc_decode_v1,irpc_decode_v2_0,irpc_decode_v2_1,irpc_decode_v2_2,irpc_decode_frame,wia_validate,orion_parse}
+mkdir -p "$out"/{compact_decode,compact_feedback_decode,irpc_decode_v1,irpc_decode_v2_0,irpc_decode_v2_1,irpc_decode_v2_2,irpc_decode_frame,wia_validate,orion_parse}
 # Hex digits (spaces allowed) to bytes, with bash's printf alone.
 unhex() { local h; h=$(printf '%s' "$1" | tr -d ' \n' | sed 's/../\\x&/g'); printf '%b' "$h"; }
 i=0
@@ -33,6 +33,8 @@ unhex "00 ff ff 03 00 14" > "$out/irpc_decode_v2_1/facts-armready"
 # Compact goldens.
 unhex "cf 43 3b f3 00 f4 51 c2 8c 01 00 00 01 00 00 00 00 00 34 42 58 02 ff ff" > "$out/compact_decode/shoulder-pitch"
 unhex "22 cb 57 81 08 07 06 05 04 03 02 01 03 e1 00 00 00 00 20 c0 fe ff d2 04" > "$out/compact_decode/elbow-flags"
+# Compact feedback golden (crates/motorwire-compact/tests/feedback.rs).
+unhex "22 cb 57 81 60 e3 16 00 00 00 00 00 00 00 34 42 00 00 20 c0 00 00 00 00 00 00 c0 3f 00 00 00 40 00 00 c0 41 00 00 c8 41 59 00 64 00 00 00 00 00" > "$out/compact_feedback_decode/elbow"
 # WIA fixtures.
 for f in fixtures/wia/valid/*.json fixtures/wia/invalid/*.json; do
     cp "$f" "$out/wia_validate/$(basename "$f")"

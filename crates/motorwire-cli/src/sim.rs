@@ -31,6 +31,64 @@ enum Device {
     /// Encoder and JointStatus feedback, a watchdog. Each request it acts
     /// on is logged on stderr.
     Joint(JointArgs),
+    /// A simulated compact device (WIRE-FACTS §2.1) on a CAN-FD bus, in
+    /// real time, until interrupted: 24-byte compact commands on its node
+    /// (position, velocity, torque, disabled), the WIA Phase 3 feedback
+    /// record on its feedback node at its rate and after every REQUIRE_ACK,
+    /// refusals for setpoints outside its limits, a duplicate memory of one
+    /// command, an emergency stop that holds until a command without the
+    /// flag. Each command it acts on is logged on stderr.
+    Compact(CompactArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct CompactArgs {
+    /// The bus: `socketcan:IFACE` (a Linux CAN-FD interface, e.g. vcan0).
+    #[arg(long, value_name = "BUS")]
+    bus: String,
+    /// The node id its commands come on (hex with 0x, or decimal), at most
+    /// 0x7FF.
+    #[arg(long, value_parser = parse_node)]
+    node: u16,
+    /// The motor id; commands must carry its CRC-32 hash.
+    #[arg(long, value_parser = parse_motor_name)]
+    name: String,
+    /// The node id it sends feedback on [default: node | 0x400].
+    #[arg(long, value_parser = parse_node)]
+    feedback_node: Option<u16>,
+    /// Periodic feedback rate in Hz, at most 1000 (0: only after commands
+    /// with REQUIRE_ACK).
+    #[arg(long, value_name = "HZ", default_value_t = 50, value_parser = clap::value_parser!(u32).range(0..=1000))]
+    rate_hz: u32,
+    /// Lowest position (the commands' unit: degrees or radians).
+    #[arg(long, default_value_t = -180.0, allow_negative_numbers = true)]
+    min_position: f32,
+    /// Highest position.
+    #[arg(long, default_value_t = 180.0, allow_negative_numbers = true)]
+    max_position: f32,
+    /// Fastest speed (units/s).
+    #[arg(long, default_value_t = 360.0)]
+    max_velocity: f32,
+    /// Largest acceleration and deceleration (units/s²).
+    #[arg(long, default_value_t = 5000.0)]
+    max_acceleration: f32,
+    /// Largest torque (Nm).
+    #[arg(long, default_value_t = 10.0)]
+    max_torque: f32,
+    /// Brake at this deceleration (units/s²) on an emergency stop
+    /// [default: stop at once].
+    #[arg(long, value_name = "UNITS_PER_S2")]
+    emergency_deceleration: Option<f32>,
+    /// Where it starts (at rest, disabled).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    initial_position: f32,
+}
+
+/// A motor id as the bus map and WIA spell it (at most 64 bytes of
+/// `[a-zA-Z0-9_-]`).
+fn parse_motor_name(s: &str) -> Result<String, String> {
+    motorwire_core::MotorId::validate(s).map_err(|e| format!("{s:?} is not a motor id: {e}"))?;
+    Ok(s.to_owned())
 }
 
 #[derive(Debug, clap::Args)]
@@ -104,6 +162,7 @@ pub(crate) fn run(args: &Args) -> u8 {
     match &args.device {
         Device::Orion(a) => orion(a),
         Device::Joint(a) => joint(a),
+        Device::Compact(a) => compact(a),
     }
 }
 
@@ -252,6 +311,82 @@ fn joint(args: &JointArgs) -> u8 {
         );
     };
     match joint.run(&mut bus, &stop, log) {
+        Ok(()) => 0,
+        Err(e) => {
+            note!("motorwire: {e}");
+            1
+        }
+    }
+}
+
+fn compact(args: &CompactArgs) -> u8 {
+    use motorwire_sim::{
+        CompactDeviceConfig, CompactDeviceLimits, CompactExecution, CompactOutcome,
+        SimCompactDevice,
+    };
+    let base = CompactDeviceConfig::new(args.node, &args.name);
+    let config = CompactDeviceConfig {
+        feedback_node: args.feedback_node.unwrap_or(base.feedback_node),
+        limits: CompactDeviceLimits {
+            min_position: args.min_position,
+            max_position: args.max_position,
+            max_velocity: args.max_velocity,
+            max_acceleration: args.max_acceleration,
+            max_torque: args.max_torque,
+        },
+        feedback_period: if args.rate_hz == 0 {
+            Duration::ZERO
+        } else {
+            Duration::from_micros(1_000_000 / u64::from(args.rate_hz))
+        },
+        emergency_deceleration: args.emergency_deceleration,
+        initial_position: args.initial_position,
+        ..base
+    };
+    let mut device = match SimCompactDevice::new(config) {
+        Ok(d) => d,
+        Err(e) => {
+            note!("motorwire: {e}");
+            return 2;
+        }
+    };
+    let mut bus = match crate::bus::open(&args.bus) {
+        Ok(b) => b,
+        Err(e) => {
+            note!("motorwire: {e}");
+            return 2;
+        }
+    };
+    note!(
+        "motorwire sim compact: {} (hash {}) on node {:#05x}, feedback on {:#05x} at {} Hz, on {}, limits [{}, {}]",
+        args.name,
+        config.motor,
+        config.node,
+        config.feedback_node,
+        args.rate_hz,
+        args.bus,
+        args.min_position,
+        args.max_position
+    );
+    // Runs until the process is interrupted (SIGINT's default action).
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let log = |e: &CompactExecution| {
+        let c = &e.command;
+        let flags: Vec<&str> = c.flags.names().collect();
+        let outcome = match e.outcome {
+            CompactOutcome::Executed => "executed".to_owned(),
+            CompactOutcome::Refused(r) => format!("refused: {r}"),
+        };
+        note!(
+            "t={:.3}s {} {} flags [{}] timestamp_ms {}: {outcome}",
+            e.at.as_secs_f64(),
+            c.control_mode.name(),
+            c.setpoint,
+            flags.join(" "),
+            c.timestamp_ms,
+        );
+    };
+    match device.run(&mut bus, &stop, log) {
         Ok(()) => 0,
         Err(e) => {
             note!("motorwire: {e}");

@@ -1,4 +1,4 @@
-//! `motorwire sim orion`, run as a user runs it.
+//! `motorwire sim orion` and `motorwire sim compact`, run as a user runs them.
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
@@ -118,5 +118,69 @@ fn the_beacon_repeats_until_the_first_command_and_stops_after_it() {
         [
             "motorwire sim orion: line 1: ID 7 is not the arm controller's 32 (7 is in the drive controllers' 0-31 range); ignored"
         ]
+    );
+}
+
+#[test]
+fn sim_compact_refuses_bad_arguments_clearly() {
+    let refused = |args: &[&str], says: &str| {
+        let mut all = vec!["sim", "compact"];
+        all.extend_from_slice(args);
+        let out = common::run(&all, b"");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(says), "{args:?}: {stderr}");
+    };
+    let bus = ["--bus", "socketcan:vcan0"];
+    let with = |extra: &[&'static str]| -> Vec<&'static str> {
+        let mut v = bus.to_vec();
+        v.extend_from_slice(extra);
+        v
+    };
+    refused(
+        &with(&["--node", "0x800", "--name", "gripper_axis"]),
+        "above 0x7FF",
+    );
+    refused(
+        &with(&["--node", "0x20", "--name", "gripper axis"]),
+        "is not a motor id",
+    );
+    refused(&with(&["--node", "0x20"]), "--name");
+    refused(
+        &with(&["--node", "0x20", "--name", "g", "--rate-hz", "2000"]),
+        "--rate-hz",
+    );
+    // The configuration is checked before the bus is opened.
+    refused(
+        &with(&["--node", "0x420", "--name", "gripper_axis"]),
+        "feedback_node: 0x420 is the node itself",
+    );
+    refused(
+        &with(&[
+            "--node",
+            "0x20",
+            "--name",
+            "g",
+            "--min-position",
+            "10",
+            "--max-position",
+            "-10",
+        ]),
+        "min_position and max_position",
+    );
+    refused(
+        &["--bus", "can0", "--node", "0x20", "--name", "g"],
+        "expected socketcan:IFACE",
+    );
+    refused(
+        &[
+            "--bus",
+            "socketcan:nosuch0",
+            "--node",
+            "0x20",
+            "--name",
+            "g",
+        ],
+        "no CAN interface named \"nosuch0\"",
     );
 }

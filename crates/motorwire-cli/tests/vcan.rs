@@ -322,6 +322,72 @@ fn the_client_configures_activates_and_moves_the_simulated_joint() {
     }
 }
 
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn the_simulated_compact_device_answers_on_its_feedback_node() {
+    use motorwire_compact::{
+        CompactCommand, ControlMode, FeedbackRecord, Flags, MotorHash, StatusFlag,
+    };
+    let device = motorwire()
+        .args([
+            "sim",
+            "compact",
+            "--bus",
+            "socketcan:vcan0",
+            "--node",
+            "0x20",
+            "--name",
+            "gripper_axis",
+            "--rate-hz",
+            "0",
+            "--max-position",
+            "90",
+        ])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let _device = Killed(device);
+    sleep(Duration::from_millis(300));
+    let mut bus = SocketCanBus::open(IFACE).unwrap();
+    let command = |setpoint: f32, timestamp_ms: u64| {
+        let cmd = CompactCommand {
+            motor: MotorHash::of("gripper_axis"),
+            timestamp_ms,
+            control_mode: ControlMode::Position,
+            flags: Flags::REQUIRE_ACK,
+            setpoint,
+            velocity_limit: None,
+            torque_limit: None,
+        };
+        Frame::fd(CanId::standard(0x20).unwrap(), &cmd.encode().unwrap()).unwrap()
+    };
+    // The answer to a REQUIRE_ACK command: one 48-byte record on 0x420.
+    let answer = |bus: &mut SocketCanBus, frame: &Frame| {
+        bus.send(frame).unwrap();
+        loop {
+            let r = bus.recv(Duration::from_secs(2)).unwrap();
+            if r.frame.id() == CanId::standard(0x420).unwrap() {
+                assert_eq!(r.frame.len(), 48);
+                return FeedbackRecord::decode(r.frame.data()).unwrap();
+            }
+        }
+    };
+    let close = command(45.0, 1);
+    let first = answer(&mut bus, &close);
+    assert_eq!(first.motor, MotorHash::of("gripper_axis"));
+    assert!(first.status.contains(StatusFlag::Enabled));
+    sleep(Duration::from_millis(500));
+    // The resend is answered (not executed again): it is there.
+    let again = answer(&mut bus, &close);
+    assert_eq!(again.position, 45.0);
+    assert!(again.status.contains(StatusFlag::AtTarget));
+    assert!(again.timestamp_us > first.timestamp_us);
+    // Beyond its limit: refused, the warning bit says so, it stays.
+    let refused = answer(&mut bus, &command(300.0, 2));
+    assert!(refused.status.contains(StatusFlag::Warning));
+    assert_eq!(refused.position, 45.0);
+}
+
 fn fault_history() -> Message {
     let mut records = [FaultRecord::default(); 10];
     for (i, r) in records.iter_mut().enumerate() {

@@ -4,7 +4,10 @@
 use core::fmt;
 
 use crc::{CRC_32_ISO_HDLC, Crc};
-pub use motorwire_core::ControlMode;
+pub use motorwire_core::{ControlMode, StatusFlag, StatusFlags};
+
+mod feedback;
+pub use feedback::{FEEDBACK_FRAME_LEN, FEEDBACK_LEN, FeedbackRecord, MAX_HEALTH};
 
 /// Length of a compact command on the wire.
 pub const LEN: usize = 24;
@@ -616,6 +619,36 @@ pub enum Error {
         /// Its capacity.
         capacity: usize,
     },
+    /// A feedback record is not 44 bytes (or its 48-byte CAN-FD frame), or
+    /// the output buffer is shorter than 44 bytes.
+    WrongFeedbackLength {
+        /// The length given.
+        len: usize,
+    },
+    /// A feedback record's status word sets bits above 0x0400, which carry
+    /// no flag.
+    ReservedStatusBits {
+        /// The reserved bits that are set.
+        bits: u16,
+    },
+    /// A feedback record's health score is over 100.
+    HealthOutOfRange {
+        /// The score.
+        health: u8,
+    },
+    /// A feedback record's reserved byte (offset 43) is not zero.
+    FeedbackReserved {
+        /// Its value.
+        value: u8,
+    },
+    /// A byte of the padding after a feedback record (offsets 44 to 47) is
+    /// not zero.
+    FeedbackPadding {
+        /// The offset of the first byte that is not zero.
+        offset: usize,
+        /// Its value.
+        value: u8,
+    },
 }
 
 impl fmt::Display for Error {
@@ -652,6 +685,26 @@ impl fmt::Display for Error {
             Self::RegistryFull { capacity } => {
                 write!(f, "the name registry is full ({capacity} names)")
             }
+            Self::WrongFeedbackLength { len } => write!(
+                f,
+                "a feedback record is {FEEDBACK_LEN} bytes (or its {FEEDBACK_FRAME_LEN}-byte CAN-FD frame), not {len}"
+            ),
+            Self::ReservedStatusBits { bits } => {
+                write!(f, "status bits {bits:#06x} are reserved and must be zero")
+            }
+            Self::HealthOutOfRange { health } => {
+                write!(f, "health score {health} is over {MAX_HEALTH}")
+            }
+            Self::FeedbackReserved { value } => {
+                write!(
+                    f,
+                    "the feedback record's reserved byte must be zero, not {value:#04x}"
+                )
+            }
+            Self::FeedbackPadding { offset, value } => write!(
+                f,
+                "the feedback frame's padding must be zero, but byte {offset} is {value:#04x}"
+            ),
         }
     }
 }

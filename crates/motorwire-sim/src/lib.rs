@@ -1,8 +1,13 @@
 #![doc = include_str!("../README.md")]
 
+pub mod compact;
 pub mod joint;
 pub mod rig;
 
+pub use compact::{
+    CompactDeviceConfig, CompactDeviceLimits, CompactDeviceStats, CompactExecution, CompactOutcome,
+    CompactRefusal, DEFAULT_FEEDBACK_PERIOD, FEEDBACK_NODE_BIT, SimCompactDevice,
+};
 pub use joint::{
     DEDUP_WINDOW, Execution, JointConfig, JointLimits, JointStats, MAX_SENDERS, RESTART_SPAN,
     SimJoint, WATCHDOG_STOP,
@@ -15,7 +20,7 @@ use thiserror::Error;
 #[non_exhaustive]
 pub enum SimError {
     /// A configuration value that cannot work.
-    #[error("invalid joint configuration: {field}: {reason}")]
+    #[error("invalid simulated device configuration: {field}: {reason}")]
     InvalidConfig {
         /// The field.
         field: &'static str,
