@@ -23,11 +23,18 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
+use motorwire_can::CanId;
 use motorwire_can::Frame;
 use motorwire_can::client::{Client, ClientConfig, Completion, Event as ClientEvent, Outcome};
-use motorwire_irpc::{LifecycleState, NackCode, Payload, SetTargetPayloadV2};
+use motorwire_compact::{
+    CompactCommand, ControlMode as CompactMode, FeedbackRecord, Flags, MotorHash, StatusFlag,
+};
+use motorwire_irpc::{
+    LifecycleState, NackCode, Payload, PayloadKind, SetTargetPayloadV2, WireVersion,
+};
 use motorwire_translate::{
-    BusMap, Limits, Report, Target, feedback_from_irpc, multi_axis_to_irpc, to_irpc,
+    AngleUnit, BusMap, Limits, Report, Target, feedback_from_irpc, multi_axis_to_irpc, to_compact,
+    to_irpc,
 };
 use motorwire_wia::{
     Message, MotorCommand, MotorFeedback, MultiAxisCommand, SafetyLimits, SyncMode, Validator,
@@ -37,8 +44,8 @@ use serde_json::Value;
 use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Input, classify};
-use crate::job::{Axis, AxisState, Job, JobKind, Rider};
-use crate::joints::{Joint, StepRef, Unresolved};
+use crate::job::{Axis, AxisState, Job, JobKind, Order, Rider};
+use crate::joints::{CompactLink, Joint, StepRef, Unresolved};
 use crate::output::{
     ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output, StepOutcome,
     StepReport,
@@ -175,6 +182,52 @@ struct Timers {
 }
 
 /// A line that waits for startup to end.
+/// A compact command sent and not yet acknowledged by a feedback frame.
+#[derive(Debug)]
+struct CompactPending {
+    msg_id: u32,
+    frame: Frame,
+    attempts: u8,
+    deadline: Duration,
+}
+
+/// `c` as its CAN-FD frame on `node` (WIRE-FACTS §2.1: the 24 bytes, no
+/// padding).
+fn compact_frame(node: u16, c: CompactCommand) -> Result<Frame, String> {
+    let bytes = c.encode().map_err(|e| e.to_string())?;
+    let id = CanId::standard(node).map_err(|e| e.to_string())?;
+    Frame::fd(id, &bytes).map_err(|e| e.to_string())
+}
+
+/// A compact device's feedback record as WIA MotorFeedback.
+fn compact_to_wia(motor: &str, timestamp: f64, r: &FeedbackRecord) -> MotorFeedback {
+    let s = r.status;
+    let mut f = MotorFeedback {
+        motor_id: motor.to_owned(),
+        timestamp,
+        position: f64::from(r.position),
+        velocity: f64::from(r.velocity),
+        acceleration: Some(f64::from(r.acceleration)),
+        torque: f64::from(r.torque),
+        current: Some(f64::from(r.current)),
+        voltage: Some(f64::from(r.voltage)),
+        temperature: Some(f64::from(r.temperature)),
+        power: None,
+        position_error: None,
+        velocity_error: None,
+        control_effort: None,
+        status: motorwire_wia::MotorStatus::default(),
+        health: None,
+        extra: serde_json::Map::new(),
+    };
+    f.status.enabled = Some(s.contains(StatusFlag::Enabled));
+    f.status.fault = Some(s.contains(StatusFlag::Fault));
+    f.status.warning = Some(s.contains(StatusFlag::Warning));
+    f.status.in_motion = Some(s.contains(StatusFlag::InMotion));
+    f.status.at_target = Some(s.contains(StatusFlag::AtTarget));
+    f
+}
+
 #[derive(Debug)]
 struct Waiting {
     at: Duration,
@@ -245,6 +298,11 @@ pub struct Bridge {
     /// Emergency decelerations given by SafetyLimits lines (recorded and
     /// reported; iRPC cannot carry them).
     emergency_decel: BTreeMap<String, f64>,
+    /// Compact devices: the command in flight for each (by device index),
+    /// the frames to send, and the bridge's own numbering of the commands.
+    compact_pending: BTreeMap<usize, CompactPending>,
+    compact_tx: VecDeque<Frame>,
+    next_compact_id: u32,
     /// The input ended during startup: drain (until this deadline) once ready.
     drain_after_start: Option<Duration>,
     timers: Timers,
@@ -287,13 +345,27 @@ impl Bridge {
             .motors()
             .filter_map(|m| match m.target {
                 Target::Irpc { node, wire } => Some(Joint::new(m.name.clone(), node, wire)),
-                _ => None,
+                Target::Compact {
+                    node,
+                    feedback_node,
+                } => {
+                    let mut j = Joint::new(m.name.clone(), node, WireVersion::V2_0);
+                    j.compact = Some(CompactLink {
+                        feedback_node,
+                        hash: MotorHash::of(&m.name),
+                    });
+                    // A compact device has no lifecycle: it takes commands
+                    // as it is.
+                    j.active = true;
+                    Some(j)
+                }
+                Target::Orion { .. } => None,
             })
             .collect();
         if joints.is_empty() {
             return Err(BridgeError::NoJoints);
         }
-        for j in &joints {
+        for j in joints.iter().filter(|j| j.compact.is_none()) {
             client.set_wire(j.node, j.wire);
         }
         let base_limits = map.motors().map(|m| (m.name.clone(), m.limits)).collect();
@@ -327,6 +399,9 @@ impl Bridge {
             arrivals: Vec::new(),
             base_limits,
             emergency_decel: BTreeMap::new(),
+            compact_pending: BTreeMap::new(),
+            compact_tx: VecDeque::new(),
+            next_compact_id: 1,
             timers: Timers::default(),
             out: VecDeque::new(),
             now: Duration::ZERO,
@@ -1020,6 +1095,12 @@ impl Bridge {
             self.refuse(origin, number, label, e);
             return;
         }
+        if let Some(ji) = self.joint_index(&cmd.motor_id)
+            && self.joints.get(ji).is_some_and(|j| j.compact.is_some())
+        {
+            self.compact_command(now, origin, number, ji, cmd);
+            return;
+        }
         match to_irpc(&self.map, cmd) {
             Ok(t) => {
                 let Some(joint) = self.joint_index(&cmd.motor_id) else {
@@ -1058,6 +1139,47 @@ impl Bridge {
                 ErrorBody::new(ErrorKind::Refused, r.to_string()),
             ),
         }
+    }
+
+    /// A MotorCommand for compact device `ji`: gated and translated
+    /// (position, velocity, torque, disabled), sent with REQUIRE_ACK.
+    fn compact_command(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        ji: usize,
+        cmd: &MotorCommand,
+    ) {
+        let label = Some(("motor_id", cmd.motor_id.clone()));
+        let t = match to_compact(&self.map, cmd) {
+            Ok(t) => t,
+            Err(r) => {
+                let e = ErrorBody::new(ErrorKind::Refused, r.to_string());
+                self.refuse(origin, number, label, e);
+                return;
+            }
+        };
+        let mut c = t.value;
+        c.flags = c.flags.union(Flags::REQUIRE_ACK);
+        let unit = self
+            .map
+            .motor(&cmd.motor_id)
+            .map_or(AngleUnit::Degrees, |m| m.unit);
+        let mut axis = Axis::of(cmd.motor_id.clone(), ji, [Order::Compact(c)]);
+        if c.control_mode == CompactMode::Position {
+            axis.target = Some(unit.to_degrees(f64::from(c.setpoint)));
+        }
+        self.open_job(
+            Some(origin),
+            number,
+            label,
+            JobKind::Command,
+            now,
+            vec![axis],
+            t.report,
+            Vec::new(),
+        );
     }
 
     /// A move's whole planned path, from the joint's last reported
@@ -1224,9 +1346,15 @@ impl Bridge {
                 let job = self.jobs.get(&s.job)?;
                 matches!(job.kind, JobKind::Startup | JobKind::Release).then(|| {
                     let a = job.axes.get(s.axis)?;
-                    let mut p: Vec<Payload> = a.payloads.iter().copied().collect();
-                    if let AxisState::InFlight { payload, .. } = a.state {
-                        p.insert(0, payload);
+                    let irpc = |o: &Order| match o {
+                        Order::Irpc(p) => Some(*p),
+                        Order::Compact(_) => None,
+                    };
+                    let mut p: Vec<Payload> = a.payloads.iter().filter_map(irpc).collect();
+                    if let AxisState::InFlight { payload, .. } = a.state
+                        && let Some(first) = irpc(&payload)
+                    {
+                        p.insert(0, first);
                     }
                     Some(p)
                 })?
@@ -1327,9 +1455,21 @@ impl Bridge {
                 && let Some(job) = self.jobs.get_mut(&s.job)
                 && let Some(a) = job.axes.get_mut(s.axis)
             {
-                if let AxisState::InFlight { msg_id, .. } = a.state {
-                    self.client.cancel(msg_id);
-                    self.by_msg.remove(&msg_id);
+                match a.state {
+                    AxisState::InFlight {
+                        msg_id,
+                        payload: Order::Irpc(_),
+                    } => {
+                        self.client.cancel(msg_id);
+                        self.by_msg.remove(&msg_id);
+                    }
+                    AxisState::InFlight {
+                        payload: Order::Compact(_),
+                        ..
+                    } => {
+                        self.compact_pending.remove(&ji);
+                    }
+                    _ => {}
                 }
                 a.finish(StepOutcome::Cancelled, None, format!("{why}: it was sent and the stop followed it (the joint may have started it; it stopped)"));
                 self.stats.cancelled += 1;
@@ -1389,7 +1529,10 @@ impl Bridge {
             .push_back(Output::Event(Event::Released { reactivated }));
         let axes = resume
             .into_iter()
-            .filter_map(|(i, p)| Some(Axis::new(self.joints.get(i)?.name.clone(), i, p)))
+            .filter_map(|(i, p)| {
+                let orders = self.orders_for(i, &p);
+                Some(Axis::of(self.joints.get(i)?.name.clone(), i, orders))
+            })
             .collect();
         self.open_job(
             Some(origin),
@@ -1408,7 +1551,38 @@ impl Bridge {
         self.joints
             .iter()
             .enumerate()
-            .map(|(i, j)| Axis::new(j.name.clone(), i, payloads.iter().copied()))
+            .map(|(i, j)| Axis::of(j.name.clone(), i, self.orders_for(i, payloads)))
+            .collect()
+    }
+
+    /// Lifecycle `payloads` as device `ji` takes them: as they are for an
+    /// iRPC joint; for a compact device, which has no lifecycle, a
+    /// Deactivate is its emergency stop (flag 0x01, held until a command
+    /// without it) and the rest is nothing to send.
+    fn orders_for(&self, ji: usize, payloads: &[Payload]) -> Vec<Order> {
+        let Some(j) = self.joints.get(ji) else {
+            return Vec::new();
+        };
+        let Some(link) = j.compact else {
+            return payloads.iter().copied().map(Order::Irpc).collect();
+        };
+        payloads
+            .iter()
+            .filter(|p| matches!(p, Payload::Deactivate | Payload::Reset))
+            .take(1)
+            .map(|_| {
+                Order::Compact(CompactCommand {
+                    motor: link.hash,
+                    timestamp_ms: self.unix_ms(self.now) as u64,
+                    control_mode: CompactMode::Disabled,
+                    flags: Flags::EMERGENCY_STOP
+                        .union(Flags::REQUIRE_ACK)
+                        .union(Flags::PRIORITY_HIGH),
+                    setpoint: 0.0,
+                    velocity_limit: None,
+                    torque_limit: None,
+                })
+            })
             .collect()
     }
 
@@ -1639,12 +1813,34 @@ impl Bridge {
             }
             return false;
         };
-        match self.client.request(now, node, payload) {
+        let sent = match payload {
+            Order::Irpc(p) => self.client.request(now, node, p).map_err(|e| e.to_string()),
+            Order::Compact(c) => {
+                let id = self.next_compact_id;
+                self.next_compact_id = self.next_compact_id.wrapping_add(1);
+                compact_frame(node, c).map(|frame| {
+                    self.compact_tx.push_back(frame);
+                    self.compact_pending.insert(
+                        ji,
+                        CompactPending {
+                            msg_id: id,
+                            frame,
+                            attempts: 1,
+                            deadline: now.saturating_add(self.config.client.timeout),
+                        },
+                    );
+                    id
+                })
+            }
+        };
+        match sent {
             Ok(msg_id) => {
                 a.state = AxisState::InFlight { msg_id, payload };
                 a.attempts = 1;
                 job.unflushed = true;
-                self.by_msg.insert(msg_id, ji);
+                if matches!(payload, Order::Irpc(_)) {
+                    self.by_msg.insert(msg_id, ji);
+                }
                 if let Some(j) = self.joints.get_mut(ji) {
                     j.busy = Some(step);
                 }
@@ -1664,6 +1860,11 @@ impl Bridge {
         let Some(ji) = self.by_msg.remove(&c.msg_id) else {
             return;
         };
+        self.step_done(ji, c);
+    }
+
+    /// The request in flight for device `ji` ended as `c` says.
+    fn step_done(&mut self, ji: usize, c: Completion) {
         let Some(step) = self.joints.get_mut(ji).and_then(|j| j.busy.take()) else {
             return;
         };
@@ -1677,6 +1878,7 @@ impl Bridge {
         let AxisState::InFlight { payload, .. } = a.state else {
             return;
         };
+        let a_target = a.target.filter(|_| payload.is_position_move());
         a.state = AxisState::Queued;
         let stopping = kind.is_stop();
         match c.outcome {
@@ -1707,7 +1909,7 @@ impl Bridge {
         if c.outcome == Outcome::TimedOut
             && let Some(j) = self.joints.get_mut(ji)
         {
-            if let (JobKind::Command, Some(target)) = (kind, move_target(&payload)) {
+            if let (JobKind::Command, Some(target)) = (kind, a_target) {
                 j.unresolved = Some(Unresolved {
                     origin,
                     line: number,
@@ -1741,7 +1943,14 @@ impl Bridge {
     /// Remembers an acked request's effect on its joint: its lifecycle, and
     /// for a move its target and (as planned from the last feedback) when
     /// it ends.
-    fn track(&mut self, ji: usize, payload: Payload, at: Duration) {
+    fn track(&mut self, ji: usize, order: Order, at: Duration) {
+        let payload = match order {
+            Order::Irpc(p) => p,
+            Order::Compact(c) => {
+                self.track_compact(ji, c, at);
+                return;
+            }
+        };
         let max_acc = self
             .joints
             .get(ji)
@@ -1853,7 +2062,7 @@ impl Bridge {
                 self.enter(Phase::Finished);
                 return;
             }
-            JobKind::Command | JobKind::EmergencyStop | JobKind::Release => {}
+            JobKind::Command | JobKind::EmergencyStop | JobKind::Release | JobKind::Deadman => {}
         }
         let Some(origin) = job.origin else { return };
         let latency = job.last_frame.map(|t| us(t.saturating_sub(job.received)));
@@ -2016,8 +2225,248 @@ impl Bridge {
     /// Takes a frame from the bus.
     pub fn handle_frame(&mut self, now: Duration, frame: &Frame) {
         self.now = self.now.max(now);
+        let id = frame.id();
+        if !id.is_extended()
+            && let Some(ji) = self.joints.iter().position(|j| {
+                j.compact
+                    .is_some_and(|c| u32::from(c.feedback_node) == id.raw())
+            })
+        {
+            self.compact_feedback(ji, frame);
+            return;
+        }
+        if !id.is_extended()
+            && self
+                .joints
+                .iter()
+                .any(|j| j.compact.is_some() && u32::from(j.node) == id.raw())
+        {
+            // A compact command (ours, heard back on a second socket): not
+            // iRPC, and nothing to act on.
+            return;
+        }
         self.client.handle_frame(self.now, frame);
         self.drain_client();
+    }
+
+    // ---- compact devices ----------------------------------------------------
+
+    /// A frame from compact device `ji`'s feedback id: its WIA Phase 3
+    /// feedback record. The first valid one after a command acknowledges
+    /// it (WIRE-FACTS §2.1).
+    fn compact_feedback(&mut self, ji: usize, frame: &Frame) {
+        let now = self.now;
+        let Some(j) = self.joints.get(ji) else { return };
+        let Some(link) = j.compact else { return };
+        let record = match FeedbackRecord::decode(frame.data()) {
+            Ok(r) if r.motor == link.hash => r,
+            Ok(r) => {
+                self.stats.bad_frames += 1;
+                self.out.push_back(Output::Event(Event::BadFrame {
+                    can_id: frame.id().to_string(),
+                    error: format!(
+                        "feedback for motor hash {:08x}, not {}'s {:08x}",
+                        r.motor.0, j.name, link.hash.0
+                    ),
+                }));
+                return;
+            }
+            Err(e) => {
+                self.stats.bad_frames += 1;
+                self.out.push_back(Output::Event(Event::BadFrame {
+                    can_id: frame.id().to_string(),
+                    error: e.to_string(),
+                }));
+                return;
+            }
+        };
+        let node = j.node;
+        let unit = self
+            .map
+            .motor(&j.name)
+            .map_or(AngleUnit::Degrees, |m| m.unit);
+        self.heard(node, now);
+        let ts = self.unix_ms(now);
+        if let Some(j) = self.joints.get_mut(ji) {
+            let pos = unit.to_degrees(f64::from(record.position));
+            let vel = unit.to_degrees(f64::from(record.velocity));
+            j.motion = Some((pos, vel));
+            j.feedback = Some(compact_to_wia(&j.name, ts, &record));
+        }
+        if let Some((pos, vel)) = self.joints.get(ji).and_then(|j| j.motion) {
+            if !self.arrivals.is_empty() {
+                self.observe(ji, pos, vel, now);
+            }
+            self.sequence_progress(ji, pos, vel);
+        }
+        if let Some(p) = self.compact_pending.remove(&ji) {
+            self.step_done(
+                ji,
+                Completion {
+                    msg_id: p.msg_id,
+                    target: node,
+                    kind: PayloadKind::SetTargetV2,
+                    outcome: Outcome::Acked,
+                    attempts: p.attempts,
+                    sent_at: now,
+                    finished_at: now,
+                },
+            );
+        }
+    }
+
+    /// Compact commands not acknowledged in time: sent again (the device
+    /// executes a repeat of its last command once), or, after the retries,
+    /// their outcome is unknown.
+    fn compact_timeouts(&mut self, now: Duration) {
+        let due: Vec<usize> = self
+            .compact_pending
+            .iter()
+            .filter(|(_, p)| now >= p.deadline)
+            .map(|(ji, _)| *ji)
+            .collect();
+        for ji in due {
+            let retries = self.config.client.retries;
+            let timeout = self.config.client.timeout;
+            let Some(p) = self.compact_pending.get_mut(&ji) else {
+                continue;
+            };
+            if p.attempts <= retries {
+                p.attempts += 1;
+                p.deadline = now.saturating_add(timeout);
+                let frame = p.frame;
+                self.compact_tx.push_back(frame);
+                continue;
+            }
+            let Some(p) = self.compact_pending.remove(&ji) else {
+                continue;
+            };
+            let node = self.joints.get(ji).map_or(0, |j| j.node);
+            self.step_done(
+                ji,
+                Completion {
+                    msg_id: p.msg_id,
+                    target: node,
+                    kind: PayloadKind::SetTargetV2,
+                    outcome: Outcome::TimedOut,
+                    attempts: p.attempts,
+                    sent_at: now,
+                    finished_at: now,
+                },
+            );
+        }
+    }
+
+    /// An acked compact command: its target (a position move) and how long
+    /// the move may take; the deadman for a velocity or torque setpoint.
+    fn track_compact(&mut self, ji: usize, c: CompactCommand, at: Duration) {
+        let Some(j) = self.joints.get(ji) else { return };
+        let motor = self.map.motor(&j.name);
+        let unit = motor.map_or(AngleUnit::Degrees, |m| m.unit);
+        let timeout = motor.and_then(|m| m.command_timeout);
+        let (max_v, max_a) = motor.map_or((None, None), |m| {
+            (
+                m.limits.max_velocity.map(|v| unit.to_degrees(v)),
+                m.limits.max_acceleration.map(|a| unit.to_degrees(a)),
+            )
+        });
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
+        j.deadman = None;
+        if c.flags.contains(Flags::EMERGENCY_STOP) {
+            j.moving_until = j.moving_until.min(at);
+            return;
+        }
+        match c.control_mode {
+            CompactMode::Position => {
+                let target = unit.to_degrees(f64::from(c.setpoint));
+                let from = j.motion.map_or(target, |(p, _)| p);
+                let v = c
+                    .velocity_limit
+                    .map(|l| unit.to_degrees(l.units_per_s()))
+                    .or(max_v)
+                    .unwrap_or(60.0)
+                    .max(1e-3);
+                let a = max_a.unwrap_or(500.0).max(1e-3);
+                // A trapezoid's duration, a bound on the device's move.
+                let d = (target - from).abs();
+                let secs = d / v + v / a;
+                j.target = Some(target);
+                j.moving_until = at.saturating_add(Duration::from_secs_f64(secs.min(3600.0)));
+            }
+            CompactMode::Velocity | CompactMode::Torque => {
+                j.target = None;
+                j.deadman = timeout.map(|t| at.saturating_add(t));
+                j.moving_until = j.deadman.unwrap_or(at);
+            }
+            _ => j.moving_until = at,
+        }
+    }
+
+    /// Devices holding a velocity or torque setpoint that was not renewed
+    /// within their command timeout are brought to a stop (velocity 0),
+    /// and an event says so.
+    fn deadman(&mut self, now: Duration) {
+        let due: Vec<usize> = self
+            .joints
+            .iter()
+            .enumerate()
+            .filter(|(_, j)| j.deadman.is_some_and(|d| now >= d))
+            .map(|(i, _)| i)
+            .collect();
+        for ji in due {
+            let Some(j) = self.joints.get_mut(ji) else {
+                continue;
+            };
+            j.deadman = None;
+            let Some(link) = j.compact else { continue };
+            let name = j.name.clone();
+            let timeout_ms = self
+                .map
+                .motor(&name)
+                .and_then(|m| m.command_timeout)
+                .map_or(0, |t| u64::try_from(t.as_millis()).unwrap_or(u64::MAX));
+            let stop = CompactCommand {
+                motor: link.hash,
+                timestamp_ms: self.unix_ms(now) as u64,
+                control_mode: CompactMode::Velocity,
+                flags: Flags::REQUIRE_ACK.union(Flags::PRIORITY_HIGH),
+                setpoint: 0.0,
+                velocity_limit: None,
+                torque_limit: None,
+            };
+            self.out.push_back(Output::Event(Event::Deadman {
+                motor_id: name.clone(),
+                timeout_ms,
+            }));
+            // Ahead of anything waiting for the device.
+            if let Some(j) = self.joints.get_mut(ji) {
+                for s in j.queue.drain(..).collect::<Vec<_>>() {
+                    if let Some(a) = self
+                        .jobs
+                        .get_mut(&s.job)
+                        .and_then(|job| job.axes.get_mut(s.axis))
+                    {
+                        a.finish(
+                            StepOutcome::Cancelled,
+                            None,
+                            "cancelled: the deadman stopped the device first",
+                        );
+                    }
+                }
+            }
+            self.open_job(
+                None,
+                0,
+                None,
+                JobKind::Deadman,
+                now,
+                vec![Axis::of(name, ji, [Order::Compact(stop)])],
+                Report::default(),
+                Vec::new(),
+            );
+        }
     }
 
     fn drain_client(&mut self) {
@@ -2133,6 +2582,8 @@ impl Bridge {
         let now = self.now;
         self.client.handle_timeout(now);
         self.drain_client();
+        self.compact_timeouts(now);
+        self.deadman(now);
         // Sequential axes whose predecessor is overdue give up.
         for ji in 0..self.joints.len() {
             self.pump(ji);
@@ -2250,7 +2701,10 @@ impl Bridge {
 
     /// The next frame to put on the bus.
     pub fn poll_transmit(&mut self) -> Option<Frame> {
-        let f = self.client.poll_transmit()?;
+        let f = self
+            .client
+            .poll_transmit()
+            .or_else(|| self.compact_tx.pop_front())?;
         self.stats.frames_sent += 1;
         Some(f)
     }
@@ -2305,6 +2759,8 @@ impl Bridge {
             _ => None,
         };
         let arrival = self.arrivals.iter().map(|w| w.deadline).min();
+        let compact = self.compact_pending.values().map(|p| p.deadline).min();
+        let deadman = self.joints.iter().filter_map(|j| j.deadman).min();
         // A sequential axis waiting on one that must arrive by then.
         let sequence = self
             .jobs
@@ -2321,6 +2777,8 @@ impl Bridge {
             drain,
             arrival,
             sequence,
+            compact,
+            deadman,
         ]
         .into_iter()
         .flatten()
@@ -2372,14 +2830,6 @@ fn failure_error(failures: &[StepReport]) -> ErrorBody {
 }
 
 /// A move's target (degrees).
-fn move_target(p: &Payload) -> Option<f64> {
-    match p {
-        Payload::SetTargetV2(p) => Some(f64::from(p.target_angle)),
-        Payload::SetTarget(p) => Some(f64::from(p.target_angle)),
-        _ => None,
-    }
-}
-
 /// The shortest decimal of the f32 `v` came from, when it is one (iRPC
 /// carries f32: `45.29999923706055` prints as `45.3`); `v` otherwise.
 /// `v` as the shortest decimal of the nearest f32 (for what is said, not

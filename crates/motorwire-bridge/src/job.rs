@@ -4,6 +4,7 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
+use motorwire_compact::{CompactCommand, ControlMode as CompactMode};
 use motorwire_irpc::Payload;
 use motorwire_translate::Report;
 
@@ -22,12 +23,33 @@ pub(crate) enum JobKind {
     Release,
     /// The end: Deactivate every joint.
     Shutdown,
+    /// The deadman stopping a device whose setpoint was not renewed.
+    Deadman,
 }
 
 impl JobKind {
     /// Jobs that go ahead of every queued step and cancel what is in flight.
     pub(crate) fn is_stop(self) -> bool {
         matches!(self, Self::EmergencyStop | Self::Shutdown)
+    }
+}
+
+/// One request for a device: an iRPC payload for a joint, or a compact
+/// command for a compact device.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Order {
+    Irpc(Payload),
+    Compact(CompactCommand),
+}
+
+impl Order {
+    /// Whether it is a position move (which a newer one may replace while
+    /// it waits, and whose arrival is watched).
+    pub(crate) fn is_position_move(&self) -> bool {
+        match self {
+            Self::Irpc(p) => matches!(p, Payload::SetTargetV2(_) | Payload::SetTarget(_)),
+            Self::Compact(c) => c.control_mode == CompactMode::Position,
+        }
     }
 }
 
@@ -38,10 +60,10 @@ pub(crate) enum AxisState {
     Queued,
     /// A request is in flight.
     InFlight {
-        /// Its msg_id.
+        /// Its msg_id (for a compact command, the bridge's own number).
         msg_id: u32,
         /// What it asks.
-        payload: Payload,
+        payload: Order,
     },
     /// Finished.
     Done(StepReport),
@@ -53,7 +75,7 @@ pub(crate) struct Axis {
     pub(crate) motor: String,
     /// The joint's index in the registry.
     pub(crate) joint: usize,
-    pub(crate) payloads: VecDeque<Payload>,
+    pub(crate) payloads: VecDeque<Order>,
     pub(crate) state: AxisState,
     /// Times the request in flight was sent, for the report.
     pub(crate) attempts: u8,
@@ -70,15 +92,22 @@ pub(crate) struct Axis {
 }
 
 impl Axis {
+    /// An axis of iRPC payloads for a joint.
     pub(crate) fn new(
         motor: String,
         joint: usize,
         payloads: impl IntoIterator<Item = Payload>,
     ) -> Self {
-        let payloads: VecDeque<Payload> = payloads.into_iter().collect();
+        Self::of(motor, joint, payloads.into_iter().map(Order::Irpc))
+    }
+
+    /// An axis of orders; the target of a compact position command is set
+    /// by the caller (it knows the motor's unit).
+    pub(crate) fn of(motor: String, joint: usize, orders: impl IntoIterator<Item = Order>) -> Self {
+        let payloads: VecDeque<Order> = orders.into_iter().collect();
         let target = payloads.iter().rev().find_map(|p| match p {
-            Payload::SetTargetV2(p) => Some(f64::from(p.target_angle)),
-            Payload::SetTarget(p) => Some(f64::from(p.target_angle)),
+            Order::Irpc(Payload::SetTargetV2(p)) => Some(f64::from(p.target_angle)),
+            Order::Irpc(Payload::SetTarget(p)) => Some(f64::from(p.target_angle)),
             _ => None,
         });
         Self {
@@ -97,11 +126,7 @@ impl Axis {
     /// Whether it is one position move, which a newer one may replace
     /// while it waits.
     pub(crate) fn is_position_move(&self) -> bool {
-        self.payloads.len() == 1
-            && matches!(
-                self.payloads.front(),
-                Some(Payload::SetTargetV2(_) | Payload::SetTarget(_))
-            )
+        self.payloads.len() == 1 && self.payloads.front().is_some_and(Order::is_position_move)
     }
 
     pub(crate) fn finish(

@@ -48,6 +48,19 @@ pub(crate) struct Joint {
     /// The step whose request is in flight.
     pub(crate) busy: Option<StepRef>,
     pub(crate) unresolved: Option<Unresolved>,
+    /// A compact device (WIRE-FACTS §2.1) rather than an iRPC joint: where
+    /// its feedback comes from and its motor hash.
+    pub(crate) compact: Option<CompactLink>,
+    /// The deadman: when a velocity or torque setpoint it holds must be
+    /// renewed by, or it is brought to a stop.
+    pub(crate) deadman: Option<Duration>,
+}
+
+/// What a compact device is reached by.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct CompactLink {
+    pub(crate) feedback_node: u16,
+    pub(crate) hash: motorwire_compact::MotorHash,
 }
 
 impl Joint {
@@ -67,6 +80,8 @@ impl Joint {
             queue: VecDeque::new(),
             busy: None,
             unresolved: None,
+            compact: None,
+            deadman: None,
         }
     }
 }

@@ -346,6 +346,14 @@ pub enum Event {
         /// Why.
         error: String,
     },
+    /// A velocity or torque setpoint was not renewed within the motor's
+    /// command timeout: the device was brought to a stop (velocity 0).
+    Deadman {
+        /// The motor.
+        motor_id: String,
+        /// Its command timeout (ms).
+        timeout_ms: u64,
+    },
     /// The emergency stop was latched.
     EmergencyStop {
         /// What asked for it (`input`, a motor_id or command_id).

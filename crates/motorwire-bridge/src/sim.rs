@@ -9,7 +9,9 @@ use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
 use motorwire_can::{CanBus, Clock, SimBus, SimConfig, SimPort};
-use motorwire_sim::{JointConfig, SimError, SimJoint};
+use motorwire_sim::{
+    CompactDeviceConfig, CompactDeviceLimits, JointConfig, SimCompactDevice, SimError, SimJoint,
+};
 use motorwire_translate::{BusMap, MappedMotor, Target};
 
 use crate::{Bridge, BridgeError, Origin, Output};
@@ -39,6 +41,36 @@ pub fn joint_config(motor: &MappedMotor) -> Option<JointConfig> {
         let d = motor.unit.to_degrees(d) as f32;
         config.emergency_deceleration = d;
     }
+    Some(config)
+}
+
+/// A simulated compact device for `motor` if the map gives it the compact
+/// dialect: its CAN ids, and the map's limits as its own (in the motor's
+/// unit), starting at 0 or the nearest end of its range.
+pub fn compact_config(motor: &MappedMotor) -> Option<CompactDeviceConfig> {
+    let Target::Compact {
+        node,
+        feedback_node,
+    } = motor.target
+    else {
+        return None;
+    };
+    let mut config = CompactDeviceConfig::new(node, &motor.name);
+    config.feedback_node = feedback_node;
+    let d = CompactDeviceLimits::default();
+    let l = motor.limits;
+    #[allow(clippy::cast_possible_truncation)]
+    let f = |v: Option<f64>, default: f32| v.map_or(default, |v| v as f32);
+    config.limits = CompactDeviceLimits {
+        min_position: f(l.min_position, d.min_position),
+        max_position: f(l.max_position, d.max_position),
+        max_velocity: f(l.max_velocity, d.max_velocity),
+        max_acceleration: f(l.max_acceleration, d.max_acceleration),
+        max_torque: f(l.max_torque, d.max_torque),
+    };
+    config.initial_position = 0.0f32
+        .max(config.limits.min_position)
+        .min(config.limits.max_position);
     Some(config)
 }
 
@@ -99,6 +131,17 @@ impl RealTimeArm {
                         log(&name, node, e);
                     }
                 });
+            }));
+        }
+        for motor in map.motors() {
+            let Some(config) = compact_config(motor) else {
+                continue;
+            };
+            let mut device = SimCompactDevice::new(config)?;
+            let mut port = bus.port();
+            let stop = Arc::clone(&stop);
+            threads.push(thread::spawn(move || {
+                let _ = device.run(&mut port, &stop, |_| {});
             }));
         }
         Ok(Self { bus, stop, threads })
@@ -189,6 +232,7 @@ pub struct SimulatedArm {
     port: SimPort,
     bridge: Bridge,
     joints: Vec<(SimJoint, Option<SimPort>)>,
+    compact: Vec<(SimCompactDevice, SimPort)>,
     outputs: Vec<Output>,
 }
 
@@ -211,12 +255,19 @@ impl SimulatedArm {
             joint.keep_log();
             joints.push((joint, Some(bus.port())));
         }
+        let mut compact = Vec::new();
+        for c in bridge.map().motors().filter_map(compact_config) {
+            let mut device = SimCompactDevice::new(c)?;
+            device.keep_log();
+            compact.push((device, bus.port()));
+        }
         bridge.start(Duration::ZERO);
         Ok(Self {
             bus,
             port,
             bridge,
             joints,
+            compact,
             outputs: Vec::new(),
         })
     }
@@ -247,6 +298,14 @@ impl SimulatedArm {
             .iter()
             .map(|(j, _)| j)
             .find(|j| j.config().node_id == node)
+    }
+
+    /// The compact device on CAN id `node`.
+    pub fn compact_device(&self, node: u16) -> Option<&SimCompactDevice> {
+        self.compact
+            .iter()
+            .map(|(d, _)| d)
+            .find(|d| d.config().node == node)
     }
 
     /// Cuts the joint with node id `node` off the bus (a cable pulled): it
@@ -311,6 +370,9 @@ impl SimulatedArm {
                     busy |= joint.serve(port, now)?;
                 }
             }
+            for (device, port) in &mut self.compact {
+                busy |= device.serve(port, now)?;
+            }
             while let Some(r) = self.port.try_recv() {
                 self.bridge.handle_frame(now, &r.frame);
                 busy = true;
@@ -331,6 +393,10 @@ impl SimulatedArm {
                 .iter()
                 .filter(|(_, p)| p.is_some())
                 .filter_map(|(j, _)| j.poll_timeout())
+                .min(),
+            self.compact
+                .iter()
+                .filter_map(|(d, _)| d.poll_timeout())
                 .min(),
         ]
         .into_iter()

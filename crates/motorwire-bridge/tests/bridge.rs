@@ -257,7 +257,11 @@ fn the_emergency_stop_stops_latches_and_releases() {
     assert_eq!(r[0]["ok"], true, "{}", r[0]);
     assert_eq!(r[0]["emergency_stop"], true);
     assert!(r[0]["stop_latency_us"].is_u64());
-    assert_eq!(r[0]["acked"].as_array().unwrap().len(), 3);
+    assert_eq!(
+        r[0]["acked"].as_array().unwrap().len(),
+        4,
+        "three joints and the gripper"
+    );
     arm.run_until(arm.now() + Duration::from_millis(500))
         .unwrap();
     for node in [PITCH, ROLL, ELBOW] {

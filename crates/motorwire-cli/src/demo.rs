@@ -79,6 +79,11 @@ fn script() -> Vec<Step> {
             expect: Expect::Arrive(&[("shoulder_pitch", -30.0), ("shoulder_roll", 20.0), ("elbow", 60.0)]),
         },
         Step {
+            title: "compact command: close the gripper to 45° (CAN id 0x20, acked by its feedback)",
+            line: r#"{"motor_id":"gripper_axis","timestamp":0,"control_mode":"position","setpoint":45,"velocity_limit":60}"#.to_owned(),
+            expect: Expect::Arrive(&[("gripper_axis", 45.0)]),
+        },
+        Step {
             title: "unsafe: elbow to 170° (its limit is 150°)",
             line: command("elbow", 170.0, 60.0),
             expect: Expect::Refused("refused"),
@@ -107,6 +112,11 @@ fn script() -> Vec<Step> {
             title: "move: shoulder_pitch back to 0°",
             line: command("shoulder_pitch", 0.0, 120.0),
             expect: Expect::Arrive(&[("shoulder_pitch", 0.0)]),
+        },
+        Step {
+            title: "compact command: open the gripper to 0°",
+            line: r#"{"motor_id":"gripper_axis","timestamp":0,"control_mode":"position","setpoint":0,"velocity_limit":60}"#.to_owned(),
+            expect: Expect::Arrive(&[("gripper_axis", 0.0)]),
         },
     ]
 }
@@ -231,10 +241,10 @@ fn demo(args: &Args) -> Result<bool, String> {
     };
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
     let arm = RealTimeArm::start(bridge.map()).map_err(|e| e.to_string())?;
-    say!("motorwire demo: the bridge on a simulated 3-joint arm (fixtures/maps/demo-arm.toml)")
+    say!("motorwire demo: the bridge on a simulated 3-joint arm and gripper (fixtures/maps/demo-arm.toml)")
         .map_err(stdout_closed)?;
     say!(
-        "  shoulder_pitch 0x10, shoulder_roll 0x11, elbow 0x12: iRPC v2.0 over an in-memory CAN-FD bus, in real time\n"
+        "  shoulder_pitch 0x10, shoulder_roll 0x11, elbow 0x12: iRPC v2.0; gripper_axis 0x20: the WIA compact command;\n  over an in-memory CAN-FD bus, in real time\n"
     ).map_err(stdout_closed)?;
     let runner = Runner::new();
     let input = runner.input();
@@ -295,9 +305,10 @@ fn demo(args: &Args) -> Result<bool, String> {
                 )
             }
             (Some(r), Expect::Stop) => {
-                let acked = r["ok"] == true && r["acked"].as_array().is_some_and(|a| a.len() == 3);
+                // Every device of the map: the three joints and the gripper.
+                let acked = r["ok"] == true && r["acked"].as_array().is_some_and(|a| a.len() == 4);
                 let rest = watch.until(Duration::from_secs(2), |l| {
-                    l.len() == 3 && l.values().all(|(_, v)| v.abs() < 1e-3)
+                    l.len() == 4 && l.values().all(|(_, v)| v.abs() < 1e-3)
                 });
                 if let Some((p, _)) = watch.latest.get("shoulder_pitch") {
                     targets.insert("shoulder_pitch", *p);

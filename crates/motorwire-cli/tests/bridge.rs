@@ -86,7 +86,8 @@ fn stdin_lines_get_one_result_each_then_the_joints_are_stopped() {
         .unwrap();
     assert!((last_elbow["feedback"]["position"].as_f64().unwrap() - 20.0).abs() < 0.05);
     let stopped = all.iter().find(|v| v["event"] == "stopped").unwrap();
-    assert_eq!(stopped["deactivated"].as_array().unwrap().len(), 3);
+    // The three joints and the compact gripper.
+    assert_eq!(stopped["deactivated"].as_array().unwrap().len(), 4);
     assert_eq!(all.last().unwrap()["event"], "stopped");
 }
 
@@ -217,7 +218,7 @@ fn tcp_clients_at_once_garbage_and_a_client_leaving_mid_line() {
     let stopped = events.iter().find(|e| e["event"] == "stopped").unwrap();
     assert_eq!(
         stopped["deactivated"].as_array().unwrap().len(),
-        3,
+        4,
         "{stopped}"
     );
 }

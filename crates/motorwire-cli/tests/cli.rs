@@ -252,7 +252,11 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
     let out = motorwire(&["demo", "--svg", svg.to_str().unwrap()], None);
     let text = String::from_utf8(out.stdout).unwrap();
     assert_eq!(out.status.code(), Some(0), "{text}");
-    assert_eq!(text.matches("] ok   ").count(), 9, "{text}");
+    assert_eq!(text.matches("] ok   ").count(), 11, "{text}");
+    assert!(
+        text.contains("compact command: close the gripper to 45°"),
+        "{text}"
+    );
     assert!(
         text.contains("refused (refused): elbow: setpoint 170 is outside max_position"),
         "{text}"
@@ -265,9 +269,9 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
     assert!(text.contains("all expectations held"), "{text}");
     let plot = std::fs::read_to_string(&svg).unwrap();
     let _ = std::fs::remove_file(&svg);
-    // Two panels, three joints each.
-    assert!(plot.matches("<polyline").count() >= 6, "{plot}");
-    for motor in ["shoulder_pitch", "shoulder_roll", "elbow"] {
+    // Two panels, three joints and the gripper each.
+    assert!(plot.matches("<polyline").count() >= 8, "{plot}");
+    for motor in ["shoulder_pitch", "shoulder_roll", "elbow", "gripper_axis"] {
         assert!(plot.contains(motor), "{motor}");
     }
 }

@@ -182,6 +182,13 @@ pub struct MappedMotor {
     /// Where `limits` come from, as a refusal names it: `"bus map"`, or
     /// what [`BusMap::set_limits`] was told.
     pub limits_source: &'static str,
+    /// The deadman: a velocity or torque setpoint with no new command for
+    /// this long is brought to a stop. The map's `command_timeout_ms`; by
+    /// default 200 ms (the WIA controller-to-motor watchdog) for compact
+    /// devices and Orion motors, which hold such setpoints; `None` for iRPC
+    /// joints (they take position moves and keep their own watchdog) or
+    /// where the map says `command_timeout_ms = 0`.
+    pub command_timeout: Option<std::time::Duration>,
     /// The motion profile its iRPC moves use.
     pub profile: MotionProfile,
     /// How close to its target (in its unit) a position move must come
@@ -217,7 +224,9 @@ pub struct MappedMotor {
 /// `node | 0x400`); for Orion
 /// `key` (`TRM` ...); `unit` (`deg` the default, or `rad`);
 /// `arrival_tolerance` (how close a position move must come to its target
-/// to have arrived, in the motor's unit; 0.1° by default); and `limits`
+/// to have arrived, in the motor's unit; 0.1° by default);
+/// `command_timeout_ms` (the deadman for velocity and torque setpoints: 200
+/// by default for compact and Orion motors, 0 to disable); and `limits`
 /// (`min_position`, `max_position`, `max_velocity`, `max_acceleration`,
 /// `max_deceleration`, `max_jerk`, `max_torque`, `emergency_deceleration`),
 /// all in the motor's unit.
@@ -244,6 +253,7 @@ struct RawMotor {
     unit: Option<String>,
     profile: Option<String>,
     arrival_tolerance: Option<f64>,
+    command_timeout_ms: Option<u64>,
     #[serde(default)]
     limits: RawLimits,
 }
@@ -488,9 +498,15 @@ impl BusMap {
                 ));
             }
         };
+        let command_timeout = match (m.command_timeout_ms, &target) {
+            (Some(0), _) | (None, Target::Irpc { .. }) => None,
+            (Some(ms), _) => Some(std::time::Duration::from_millis(ms)),
+            (None, _) => Some(std::time::Duration::from_millis(200)),
+        };
         Ok(MappedMotor {
             name: name.to_owned(),
             arrival_tolerance,
+            command_timeout,
             limits_source: "bus map",
             target,
             unit,
