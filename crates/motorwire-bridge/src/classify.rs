@@ -18,6 +18,12 @@
 //! other line whose every `emergency_stop` is `false` is an
 //! [`Input::BadRelease`] and the latch holds.
 //!
+//! A line that is not a JSON object this bridge can read (truncated,
+//! garbage before or after it, nested deeper than the parser goes, `NaN`,
+//! an array, a byte-order mark) stops when it names `emergency_stop`
+//! anywhere (escapes decoded) with a value that is not `false`: when in
+//! doubt, stop. It is never taken as a command or a release.
+//!
 //! JSON that is valid but that no parser holds exactly (a number such as
 //! `1e400` beyond the f64 range, a lone UTF-16 surrogate such as
 //! `"\ud800"`) still stops when it asks for a stop: such numbers are read
@@ -113,14 +119,63 @@ fn nested_stops(safety_limits: &Value, out: &mut Vec<String>, at: &str) {
 /// assert!(!asks_for_stop(r#"{"motor_id":"elbow","setpoint":1}"#));
 /// ```
 pub fn asks_for_stop(line: &str) -> bool {
-    if !line.contains("emergency_stop") {
+    if !line.contains("emergency") && !line.contains("\\u") {
         return false;
     }
     let Ok((members, _)) = members_of(line) else {
-        return false;
+        return names_a_stop(line);
     };
     let (top, reasons) = stop_members(&members);
     top.iter().any(|v| stops(v)) || !reasons.is_empty()
+}
+
+/// For a line that is not a JSON object this bridge can read (truncated,
+/// garbage around it, nested past the parser's depth, `NaN`, an array, a
+/// byte-order mark): whether it anywhere names `emergency_stop` (escapes
+/// decoded) with a value that is not `false`. When in doubt, stop.
+pub(crate) fn names_a_stop(line: &str) -> bool {
+    let mut chars = line.chars().peekable();
+    let mut last_string: Option<String> = None;
+    while let Some(c) = chars.next() {
+        match c {
+            '"' => {
+                let mut text = String::new();
+                while let Some(c) = chars.next() {
+                    match c {
+                        '"' => break,
+                        '\\' => match chars.next() {
+                            Some('u') => {
+                                let hex: String = chars.by_ref().take(4).collect();
+                                let ch = u32::from_str_radix(&hex, 16)
+                                    .ok()
+                                    .and_then(char::from_u32)
+                                    .unwrap_or('\u{FFFD}');
+                                text.push(ch);
+                            }
+                            Some(other) => text.push(other),
+                            None => break,
+                        },
+                        other => text.push(other),
+                    }
+                }
+                last_string = Some(text);
+            }
+            ':' if last_string.as_deref() == Some("emergency_stop") => {
+                while chars.next_if(|c| c.is_whitespace()).is_some() {}
+                let value: String = chars
+                    .clone()
+                    .take_while(|c| !matches!(c, ',' | '}' | ']') && !c.is_whitespace())
+                    .collect();
+                if value != "false" {
+                    return true;
+                }
+                last_string = None;
+            }
+            c if c.is_whitespace() => {}
+            _ => last_string = None,
+        }
+    }
+    false
 }
 
 /// Members of `line`, or, when it is valid JSON that serde_json cannot
@@ -240,6 +295,14 @@ fn stop_members(members: &[(String, Value)]) -> (Vec<&Value>, Vec<String>) {
 pub fn classify(validator: &Validator, line: &str) -> Input {
     let (members, unholdable) = match members_of(line) {
         Ok(m) => m,
+        Err(e) if names_a_stop(line) => {
+            return Input::Stop {
+                label: None,
+                problems: vec![format!(
+                    "the line is not a JSON object this bridge can read ({e}); it names emergency_stop with a value other than false, so it stops"
+                )],
+            };
+        }
         Err(e) => {
             // Not an object (or not JSON): it can be neither a stop nor a release.
             return match validator.parse_any(line) {
@@ -410,13 +473,14 @@ mod tests {
                 "{bad}"
             );
         }
-        // Not JSON, or not an object: never a stop or a release.
+        // Not JSON, or not an object: never a release (and a stop only when
+        // it names one with a value other than false).
         assert!(matches!(
             classify(&v, r#"{"emergency_stop": false"#),
             Input::Invalid { .. }
         ));
         assert!(matches!(
-            classify(&v, r#"[{"emergency_stop": true}]"#),
+            classify(&v, r#"[{"emergency_stop": false}]"#),
             Input::Invalid { .. }
         ));
     }
@@ -462,6 +526,49 @@ mod tests {
             r#"{"a":"ü\uFFFD\uFFFD"}"#
         );
         assert_eq!(repair(r#"{"a":1}"#), None);
+    }
+
+    #[test]
+    fn lines_no_parser_reads_that_name_a_stop_stop() {
+        let deep = format!(
+            r#"{{"emergency_stop": true, "x": {}1{}}}"#,
+            "[".repeat(200),
+            "]".repeat(200)
+        );
+        for line in [
+            deep.as_str(),
+            "{\"emergency_stop\": true}\u{0}",
+            "\u{FEFF}{\"emergency_stop\": true}",
+            r#"{"emergency_stop": true} x"#,
+            r#"{"emergency_stop": true"#,
+            r#"{"emergency_stop": NaN}"#,
+            r#"[{"emergency_stop": true}]"#,
+            r#"{"emergency\u005fstop": true, "x": }"#,
+            r#"{"a": {"b": [{"emergency_stop" : 1}]}, }"#,
+        ] {
+            assert!(asks_for_stop(line), "{line}");
+            let p = stop(line);
+            assert_eq!(p.len(), 1, "{line}: {p:?}");
+            assert!(
+                p[0].ends_with(
+                    "it names emergency_stop with a value other than false, so it stops"
+                ),
+                "{p:?}"
+            );
+        }
+        // Not a stop: false, or no such key.
+        for line in [
+            r#"{"emergency_stop": false"#,
+            r#"{"emergency_stop" : false} x"#,
+            r#"{"motor_id": "emergency_stop", "x": }"#,
+            "garbage",
+        ] {
+            assert!(!asks_for_stop(line), "{line}");
+            assert!(
+                matches!(classify(&Validator::new(), line), Input::Invalid { .. }),
+                "{line}"
+            );
+        }
     }
 
     #[test]

@@ -1471,7 +1471,15 @@ impl Bridge {
                     }
                     _ => {}
                 }
-                a.finish(StepOutcome::Cancelled, None, format!("{why}: it was sent and the stop followed it (the joint may have started it; it stopped)"));
+                // Sent and not answered: it may have run. Never sent again.
+                a.finish(
+                    StepOutcome::OutcomeUnknown,
+                    None,
+                    format!(
+                        "{why}: it was sent before and not answered, so the joint may have started it (the stop stopped it); it is never sent again"
+                    ),
+                );
+                job.cut = true;
                 self.stats.cancelled += 1;
                 if let Some(o) = job.origin {
                     touched.push(LineRef {
@@ -1489,6 +1497,7 @@ impl Bridge {
                         None,
                         format!("{why} before it was sent"),
                     );
+                    job.cut = true;
                     self.stats.cancelled += 1;
                     if let Some(o) = job.origin {
                         touched.push(LineRef {
@@ -1525,8 +1534,17 @@ impl Bridge {
             .filter_map(|i| self.joints.get(*i))
             .map(|j| j.name.clone())
             .collect();
-        self.out
-            .push_back(Output::Event(Event::Released { reactivated }));
+        let left_inactive = self
+            .joints
+            .iter()
+            .enumerate()
+            .filter(|(i, j)| !resume.contains_key(i) && j.compact.is_none())
+            .map(|(_, j)| j.name.clone())
+            .collect();
+        self.out.push_back(Output::Event(Event::Released {
+            reactivated,
+            left_inactive,
+        }));
         let axes = resume
             .into_iter()
             .filter_map(|(i, p)| {
@@ -1624,6 +1642,7 @@ impl Bridge {
                 last_frame: None,
                 unflushed: false,
                 riders: Vec::new(),
+                cut: false,
             },
         );
         for (ji, step, position) in steps {
@@ -2067,7 +2086,7 @@ impl Bridge {
         let Some(origin) = job.origin else { return };
         let latency = job.last_frame.map(|t| us(t.saturating_sub(job.received)));
         let ok = failures.is_empty();
-        let error = (!ok).then(|| failure_error(&failures));
+        let error = (!ok).then(|| failure_error(&failures, job.cut));
         if ok {
             self.stats.ok += 1;
         } else {
@@ -2796,7 +2815,26 @@ fn set_label(r: &mut LineResult, label: Option<(&'static str, String)>) {
 
 /// The error of a job whose parts did not all succeed: the gravest first
 /// (an unknown outcome, then a refusal, then what was never sent).
-fn failure_error(failures: &[StepReport]) -> ErrorBody {
+/// `cut`: a stop cancelled the line (its kind is then `cancelled`, and a
+/// part in flight when the stop came is `outcome_unknown` in `outcomes`).
+fn failure_error(failures: &[StepReport], cut: bool) -> ErrorBody {
+    if cut {
+        let mut e = ErrorBody::new(
+            ErrorKind::Cancelled,
+            if failures
+                .iter()
+                .any(|f| f.outcome == StepOutcome::OutcomeUnknown)
+            {
+                "cancelled by an emergency stop or the end: a part was sent before it and not answered, so it may have started (the stop stopped it); nothing of it runs after the stop"
+            } else {
+                "cancelled by an emergency stop or the end; nothing of it runs after the stop"
+            },
+        );
+        if let [only] = failures {
+            e.motor = Some(only.motor.clone());
+        }
+        return e;
+    }
     let rank = |o: StepOutcome| match o {
         StepOutcome::OutcomeUnknown => 0,
         StepOutcome::Nacked => 1,

@@ -167,6 +167,8 @@ pub(crate) struct Job {
     /// and are answered with its outcome, so a flood of stops costs one
     /// Deactivate per joint, not one per line.
     pub(crate) riders: Vec<Rider>,
+    /// A stop (or the end) cancelled some of it.
+    pub(crate) cut: bool,
 }
 
 /// A stop line answered by a stop already under way.

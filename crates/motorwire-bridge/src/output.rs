@@ -376,6 +376,11 @@ pub enum Event {
     Released {
         /// The joints activated again (those active when the stop came).
         reactivated: Vec<String>,
+        /// The joints left inactive (they were not active when the stop
+        /// came): a command for one is refused by the joint until it is
+        /// activated again.
+        #[serde(skip_serializing_if = "Vec::is_empty")]
+        left_inactive: Vec<String>,
     },
     /// The bridge is stopping.
     Stopping {

@@ -311,22 +311,28 @@ pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
                     ReadLine::Line(s)
                 }
                 Err(e) => ReadLine::NotUtf8 {
-                    names_stop: scan(&mut Vec::new(), e.as_bytes()),
+                    names_stop: e.as_bytes().windows(14).any(|w| w == b"emergency_stop")
+                        || crate::classify::names_a_stop(&String::from_utf8_lossy(e.as_bytes())),
                 },
             });
         }
     }
 }
 
-/// Whether `emergency_stop` is in `tail` followed by `seg`; keeps the last
-/// bytes of the two in `tail` for the next segment.
+/// Whether `emergency_stop` (or any `\u` escape, which may spell it) is
+/// in `tail` followed by `seg`; keeps the last bytes of the two in `tail`
+/// for the next segment.
 fn scan(tail: &mut Vec<u8>, seg: &[u8]) -> bool {
     const NAME: &[u8] = b"emergency_stop";
     let keep = NAME.len() - 1;
     let head = seg.get(..keep.min(seg.len())).unwrap_or_default();
     tail.extend_from_slice(head);
-    let found =
-        tail.windows(NAME.len()).any(|w| w == NAME) || seg.windows(NAME.len()).any(|w| w == NAME);
+    // A `\u` escape may spell the name (`emergency\u005fstop`): a line
+    // too long to read that has one is taken as naming a stop too.
+    let found = tail.windows(NAME.len()).any(|w| w == NAME)
+        || seg.windows(NAME.len()).any(|w| w == NAME)
+        || tail.windows(2).any(|w| w == b"\\u")
+        || seg.windows(2).any(|w| w == b"\\u");
     if seg.len() >= keep {
         tail.clear();
         tail.extend_from_slice(seg.get(seg.len() - keep..).unwrap_or_default());

@@ -445,6 +445,7 @@ fn the_release_activates_only_the_joints_that_were_active() {
         released["reactivated"],
         serde_json::json!(["gripper_axis", "shoulder_pitch", "shoulder_roll"])
     );
+    assert_eq!(released["left_inactive"], serde_json::json!(["elbow"]));
 }
 
 /// Stale and future timestamps are refused before anything is sent.

@@ -61,11 +61,22 @@ fn lines_too_long_and_not_utf8_say_whether_they_name_a_stop() {
         [ReadLine::Line(String::from_utf8(max).unwrap())]
     );
     assert_eq!(
-        read_all(b"{\"emergency_stop\":\xff}\n\xfe\r\n", 8192),
+        read_all(
+            b"{\"emergency_stop\":\xff}\n\xfe\r\n{\"emergency\\u005fstop\": 1, \"x\": \"\xff\"}\n",
+            8192
+        ),
         [
             ReadLine::NotUtf8 { names_stop: true },
-            ReadLine::NotUtf8 { names_stop: false }
+            ReadLine::NotUtf8 { names_stop: false },
+            ReadLine::NotUtf8 { names_stop: true }
         ]
+    );
+    // Too long with a `\u` escape: it may spell the name.
+    let mut escaped = vec![b'x'; MAX_LINE + 10];
+    escaped.extend_from_slice(b"\\u0065\n");
+    assert_eq!(
+        read_all(&escaped, 7),
+        [ReadLine::TooLong { names_stop: true }]
     );
     // Without its newline at the end: too long all the same, and nothing
     // over the bound is held.

@@ -132,11 +132,14 @@ fn same_secret(a: &[u8], b: &[u8]) -> bool {
 /// Whether `line` looks like the start of an HTTP request (a request line)
 /// or one of its headers: a browser or `curl` talking to the bridge.
 pub(crate) fn looks_like_http(line: &str) -> bool {
-    const METHODS: [&str; 9] = [
-        "GET ", "POST ", "PUT ", "DELETE ", "HEAD ", "OPTIONS ", "PATCH ", "CONNECT ", "TRACE ",
+    const METHODS: [&str; 10] = [
+        "GET", "POST", "PUT", "DELETE", "HEAD", "OPTIONS", "PATCH", "CONNECT", "TRACE", "PRI",
     ];
     let t = line.trim_start();
-    if METHODS.iter().any(|m| t.starts_with(m)) || t.contains(" HTTP/") {
+    let upper = t.to_ascii_uppercase();
+    let mut words = upper.split_whitespace();
+    let first = words.next().unwrap_or_default();
+    if (METHODS.contains(&first) && words.next().is_some()) || upper.contains("HTTP/") {
         return true;
     }
     // `Name: value` with a header's name (letters, digits and dashes).
@@ -564,7 +567,20 @@ impl Router {
             return;
         };
         let mut reader = BufReader::new(read_half);
-        let first = match read_line(&mut reader) {
+        // The first line that is not blank (HTTP allows empty lines before
+        // its request line).
+        let mut first_read = read_line(&mut reader);
+        for _ in 0..16 {
+            match &first_read {
+                Ok(ReadLine::Line(s)) if s.trim().is_empty() => first_read = read_line(&mut reader),
+                _ => break,
+            }
+        }
+        let first = match first_read {
+            Ok(ReadLine::Line(s)) if s.trim().is_empty() => {
+                refuse(conn, "unauthorized", "only blank lines");
+                return;
+            }
             Ok(ReadLine::Line(s)) => s,
             Ok(ReadLine::Partial(_) | ReadLine::End) | Err(_) => return,
             Ok(unreadable @ (ReadLine::TooLong { .. } | ReadLine::NotUtf8 { .. })) => {
@@ -720,6 +736,9 @@ mod tests {
             "Host: 127.0.0.1:7878",
             "Content-Type: application/json",
             "PRI * HTTP/2.0",
+            "post / http/1.1",
+            "POST\t/\tHTTP/1.1",
+            "Get /",
         ] {
             assert!(looks_like_http(l), "{l}");
         }

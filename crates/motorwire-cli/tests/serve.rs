@@ -370,6 +370,17 @@ fn an_http_post_moves_nothing_even_without_a_token() {
     assert_eq!(said.len(), 1, "{said:?}");
     assert_eq!(said[0]["ok"], false);
     assert_eq!(said[0]["error"]["kind"], "http_refused");
+    // Blank lines first, a lower-case method, tabs: HTTP all the same.
+    for request in [
+        "\r\n\r\nPOST / HTTP/1.1\r\n",
+        "post / http/1.1\r\n",
+        "POST\t/\tHTTP/1.1\r\n",
+    ] {
+        let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+        write!(s, "{request}Host: x\r\n\r\n{body}\n").unwrap();
+        let said = until_closed(s);
+        assert_eq!(said[0]["error"]["kind"], "http_refused", "{request:?}");
+    }
     thread::sleep(Duration::from_millis(300));
     assert_eq!(moves(&log), 0, "the elbow moved");
 }
