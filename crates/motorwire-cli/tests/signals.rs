@@ -120,7 +120,8 @@ fn each_signal_stops_and_deactivates_the_joints_and_sets_the_exit_status() {
         .collect();
     for (signal, _, bridge) in &mut bridges {
         let ready = bridge.wait_for("ready");
-        assert_eq!(ready["joints"].as_array().unwrap().len(), 3, "{ready}");
+        // The three joints and the compact gripper.
+        assert_eq!(ready["joints"].as_array().unwrap().len(), 4, "{ready}");
         bridge.kill(signal);
     }
     for (signal, status, bridge) in &mut bridges {
@@ -138,7 +139,7 @@ fn each_signal_stops_and_deactivates_the_joints_and_sets_the_exit_status() {
             .unwrap_or_else(|| panic!("SIG{signal}: no stopped event: {lines:?}"));
         assert_eq!(
             stopped["deactivated"],
-            serde_json::json!(["elbow", "shoulder_pitch", "shoulder_roll"]),
+            serde_json::json!(["elbow", "gripper_axis", "shoulder_pitch", "shoulder_roll"]),
             "SIG{signal}: {stopped}"
         );
         assert_eq!(stopped["failures"], serde_json::json!([]), "{stopped}");
