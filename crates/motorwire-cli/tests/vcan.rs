@@ -589,7 +589,7 @@ fn the_async_bus_on_socketcan() {
 #[test]
 #[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
 fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
-    let joints: Vec<Killed> = ["0x10", "0x11", "0x12"]
+    let mut joints: Vec<Killed> = ["0x10", "0x11", "0x12"]
         .iter()
         .map(|node| {
             Killed(
@@ -601,6 +601,27 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
             )
         })
         .collect();
+    // The map's compact-command gripper, beside the iRPC joints.
+    joints.push(Killed(
+        motorwire()
+            .args([
+                "sim",
+                "compact",
+                "--bus",
+                "socketcan:vcan0",
+                "--node",
+                "0x20",
+                "--name",
+                "gripper_axis",
+                "--min-position",
+                "0",
+                "--max-position",
+                "90",
+            ])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    ));
     sleep(Duration::from_millis(300));
     let map = std::env::temp_dir().join("motorwire-vcan-bridge-map.toml");
     std::fs::write(&map, include_str!("../../../fixtures/maps/demo-arm.toml")).unwrap();
@@ -659,6 +680,11 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
     stdin
         .write_all(cmd("shoulder_pitch", 10.0).as_bytes())
         .unwrap();
+    stdin
+        .write_all(cmd("gripper_axis", 30.0).as_bytes())
+        .unwrap();
+    // The gripper's move (30° at its default 360 units/s) before the end.
+    sleep(Duration::from_millis(1000));
     drop(stdin);
     let start = Instant::now();
     while bridge.try_wait().unwrap().is_none() {
@@ -686,10 +712,11 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
         .filter(|v| v.get("ok").is_some() && v.get("event").is_none())
         .collect();
     results.sort_by_key(|v| v["line"].as_u64());
-    assert_eq!(results.len(), 6, "{text}");
+    assert_eq!(results.len(), 7, "{text}");
     assert_eq!(results[0]["ok"], true, "{text}");
     assert_eq!(results[1]["emergency_stop"], true, "{text}");
-    assert_eq!(results[1]["acked"].as_array().unwrap().len(), 3, "{text}");
+    // The three joints and the gripper.
+    assert_eq!(results[1]["acked"].as_array().unwrap().len(), 4, "{text}");
     assert_eq!(
         results[2]["error"]["kind"], "emergency_stop_latched",
         "{text}"
@@ -697,6 +724,17 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
     assert_eq!(results[3]["error"]["kind"], "invalid_release", "{text}");
     assert_eq!(results[4]["released"], true, "{text}");
     assert_eq!(results[5]["ok"], true, "{text}");
+    // The gripper, on its own CAN id, acked by its feedback record.
+    assert_eq!(results[6]["ok"], true, "{text}");
+    assert_eq!(results[6]["acked"], serde_json::json!(["gripper_axis"]), "{text}");
+    let gripper = lines
+        .iter()
+        .rfind(|v| v["motor_id"] == "gripper_axis" && v["feedback"].is_object())
+        .unwrap_or_else(|| panic!("no gripper feedback: {text}"));
+    assert!(
+        (gripper["feedback"]["position"].as_f64().unwrap() - 30.0).abs() < 0.1,
+        "{gripper}"
+    );
     let bad = lines
         .iter()
         .find(|v| v["event"] == "bad_frame")
@@ -706,14 +744,17 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
         .iter()
         .rfind(|v| v["motor_id"] == "elbow" && v.get("feedback").is_some())
         .unwrap();
+    // Within its arrival tolerance (0.1°): under emulation, with five
+    // processes on two virtual cores, a late heartbeat can let the joint's
+    // own watchdog brake the last hundredths of a degree.
     assert!(
-        (elbow["feedback"]["position"].as_f64().unwrap() - 20.0).abs() < 0.05,
+        (elbow["feedback"]["position"].as_f64().unwrap() - 20.0).abs() < 0.1,
         "{elbow}"
     );
     let stopped = lines.iter().find(|v| v["event"] == "stopped").unwrap();
     assert_eq!(
         stopped["deactivated"].as_array().unwrap().len(),
-        3,
+        4,
         "{stopped}"
     );
 }

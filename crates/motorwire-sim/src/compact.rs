@@ -89,8 +89,8 @@
 
 use std::collections::VecDeque;
 use std::fmt;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
 
 use motorwire_can::{CanBus, CanId, Frame, SimPort};
 use motorwire_compact::{
@@ -924,19 +924,7 @@ impl SimCompactDevice {
     /// # Errors
     /// The bus's errors.
     pub fn serve(&mut self, port: &mut SimPort, now: Duration) -> Result<bool, SimError> {
-        let mut busy = false;
-        while let Some(r) = port.try_recv() {
-            self.handle_frame(now, &r.frame);
-            busy = true;
-        }
-        if self.poll_timeout().is_some_and(|t| t <= now) {
-            self.handle_timeout(now);
-        }
-        while let Some(f) = self.poll_transmit() {
-            port.send(&f)?;
-            busy = true;
-        }
-        Ok(busy)
+        crate::device::serve(self, port, now)
     }
 
     /// Runs the device on `bus` in real time until `stop` is set, handling
@@ -949,38 +937,29 @@ impl SimCompactDevice {
         &mut self,
         bus: &mut impl CanBus,
         stop: &AtomicBool,
-        mut on_execution: impl FnMut(&CompactExecution),
+        on_execution: impl FnMut(&CompactExecution),
     ) -> Result<(), SimError> {
-        let start = Instant::now();
-        let tick = Duration::from_millis(10);
-        while !stop.load(Ordering::Relaxed) {
-            let now = start.elapsed();
-            self.handle_timeout(now);
-            while let Some(f) = self.poll_transmit() {
-                bus.send(&f)?;
-            }
-            let wait = self
-                .poll_timeout()
-                .map_or(tick, |t| t.saturating_sub(start.elapsed()))
-                .min(tick);
-            match bus.recv(wait) {
-                Ok(r) => {
-                    if let Some(e) = self.handle_frame(start.elapsed(), &r.frame) {
-                        on_execution(&e);
-                    }
-                }
-                Err(motorwire_can::Error::Timeout(_)) => {}
-                Err(e) => return Err(e.into()),
-            }
-            while let Some(f) = self.poll_transmit() {
-                bus.send(&f)?;
-            }
-        }
-        Ok(())
+        crate::device::run(self, bus, stop, on_execution)
     }
 }
 
 /// `start` plus `secs` seconds, saturating.
 fn after(start: Duration, secs: f64) -> Duration {
     Duration::try_from_secs_f64(secs.max(0.0)).map_or(Duration::MAX, |d| start.saturating_add(d))
+}
+
+impl crate::device::Device for SimCompactDevice {
+    type Acted = CompactExecution;
+    fn handle_frame(&mut self, now: Duration, frame: &Frame) -> Option<CompactExecution> {
+        SimCompactDevice::handle_frame(self, now, frame)
+    }
+    fn handle_timeout(&mut self, now: Duration) {
+        SimCompactDevice::handle_timeout(self, now);
+    }
+    fn poll_transmit(&mut self) -> Option<Frame> {
+        SimCompactDevice::poll_transmit(self)
+    }
+    fn poll_timeout(&self) -> Option<Duration> {
+        SimCompactDevice::poll_timeout(self)
+    }
 }

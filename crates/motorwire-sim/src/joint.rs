@@ -102,8 +102,8 @@
 //! ```
 
 use std::collections::{HashMap, VecDeque};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
 
 use motorwire_can::client::ARM_NODE;
 use motorwire_can::{CanBus, CanId, Frame, SimPort};
@@ -886,19 +886,7 @@ impl SimJoint {
     /// # Errors
     /// The bus's errors.
     pub fn serve(&mut self, port: &mut SimPort, now: Duration) -> Result<bool, SimError> {
-        let mut busy = false;
-        while let Some(r) = port.try_recv() {
-            self.handle_frame(now, &r.frame);
-            busy = true;
-        }
-        if self.poll_timeout().is_some_and(|t| t <= now) {
-            self.handle_timeout(now);
-        }
-        while let Some(f) = self.poll_transmit() {
-            port.send(&f)?;
-            busy = true;
-        }
-        Ok(busy)
+        crate::device::serve(self, port, now)
     }
 
     /// Runs the joint on `bus` in real time until `stop` is set, handling
@@ -911,34 +899,9 @@ impl SimJoint {
         &mut self,
         bus: &mut impl CanBus,
         stop: &AtomicBool,
-        mut on_request: impl FnMut(&Execution),
+        on_request: impl FnMut(&Execution),
     ) -> Result<(), SimError> {
-        let start = Instant::now();
-        let tick = Duration::from_millis(10);
-        while !stop.load(Ordering::Relaxed) {
-            let now = start.elapsed();
-            self.handle_timeout(now);
-            while let Some(f) = self.poll_transmit() {
-                bus.send(&f)?;
-            }
-            let wait = self
-                .poll_timeout()
-                .map_or(tick, |t| t.saturating_sub(start.elapsed()))
-                .min(tick);
-            match bus.recv(wait) {
-                Ok(r) => {
-                    if let Some(e) = self.handle_frame(start.elapsed(), &r.frame) {
-                        on_request(&e);
-                    }
-                }
-                Err(motorwire_can::Error::Timeout(_)) => {}
-                Err(e) => return Err(e.into()),
-            }
-            while let Some(f) = self.poll_transmit() {
-                bus.send(&f)?;
-            }
-        }
-        Ok(())
+        crate::device::run(self, bus, stop, on_request)
     }
 }
 
@@ -971,4 +934,20 @@ fn valid_source(h: &Header, frame: &Frame) -> bool {
 /// can plan a motion longer than any `Duration`).
 fn after(start: Duration, secs: f64) -> Duration {
     Duration::try_from_secs_f64(secs.max(0.0)).map_or(Duration::MAX, |d| start.saturating_add(d))
+}
+
+impl crate::device::Device for SimJoint {
+    type Acted = Execution;
+    fn handle_frame(&mut self, now: Duration, frame: &Frame) -> Option<Execution> {
+        SimJoint::handle_frame(self, now, frame)
+    }
+    fn handle_timeout(&mut self, now: Duration) {
+        SimJoint::handle_timeout(self, now);
+    }
+    fn poll_transmit(&mut self) -> Option<Frame> {
+        SimJoint::poll_transmit(self)
+    }
+    fn poll_timeout(&self) -> Option<Duration> {
+        SimJoint::poll_timeout(self)
+    }
 }

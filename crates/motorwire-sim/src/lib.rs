@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 pub mod compact;
+mod device;
 pub mod joint;
 pub mod rig;
 

@@ -365,8 +365,14 @@ fn a_deactivate_brakes_at_the_emergency_deceleration_not_at_once() {
         ..JointConfig::new(J)
     })
     .unwrap();
-    assert_eq!(raw(&mut joint, 1, Payload::Configure), (Payload::Ack(1), true));
-    assert_eq!(raw(&mut joint, 2, Payload::Activate), (Payload::Ack(2), true));
+    assert_eq!(
+        raw(&mut joint, 1, Payload::Configure),
+        (Payload::Ack(1), true)
+    );
+    assert_eq!(
+        raw(&mut joint, 2, Payload::Activate),
+        (Payload::Ack(2), true)
+    );
     // A long move at 100 deg/s, reached after 0.2 s at 500 deg/s².
     assert_eq!(
         raw(
