@@ -726,7 +726,11 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
     assert_eq!(results[5]["ok"], true, "{text}");
     // The gripper, on its own CAN id, acked by its feedback record.
     assert_eq!(results[6]["ok"], true, "{text}");
-    assert_eq!(results[6]["acked"], serde_json::json!(["gripper_axis"]), "{text}");
+    assert_eq!(
+        results[6]["acked"],
+        serde_json::json!(["gripper_axis"]),
+        "{text}"
+    );
     let gripper = lines
         .iter()
         .rfind(|v| v["motor_id"] == "gripper_axis" && v["feedback"].is_object())
