@@ -53,6 +53,11 @@ pub enum Input {
         /// Why.
         reason: String,
     },
+    /// `{"reset":M}`: bring joint M back after a fault or a reboot.
+    Reset {
+        /// The joint.
+        motor_id: String,
+    },
     /// `{"query":"limits","motor_id":M}`: the motor's limits in force.
     QueryLimits {
         /// The motor asked about.
@@ -388,6 +393,18 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
             reason: format!(
                 "{reason}: a release is exactly {{\"emergency_stop\": false}}; the emergency stop stays latched"
             ),
+        };
+    }
+    if let Some((_, m)) = members.iter().find(|(k, _)| k == "reset") {
+        return match (m.as_str(), members.len()) {
+            (Some(m), 1) => Input::Reset {
+                motor_id: m.to_owned(),
+            },
+            _ => Input::Invalid {
+                message: r#"a reset is exactly {"reset":"<motor_id>"}"#.to_owned(),
+                violations: None,
+                label,
+            },
         };
     }
     if let Some((_, q)) = members.iter().find(|(k, _)| k == "query") {

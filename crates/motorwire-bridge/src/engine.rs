@@ -657,7 +657,7 @@ impl Bridge {
         let cause = label
             .as_ref()
             .map_or_else(|| "input".to_owned(), |(_, v)| v.clone());
-        self.emergency_stop(now, origin, number, label, problems, cause);
+        self.emergency_stop(now, Some(origin), number, label, problems, cause);
     }
 
     /// A line that could not be read as text (not UTF-8, too long): it
@@ -752,6 +752,7 @@ impl Bridge {
                 self.refuse(origin, number, label, e);
             }
             Input::QueryLimits { motor_id } => self.query_limits(origin, number, &motor_id),
+            Input::Reset { motor_id } => self.reset_joint(now, origin, number, &motor_id),
             Input::Message(m) => match *m {
                 Message::MotorCommand(cmd) => self.motor_command(now, origin, number, &cmd),
                 Message::MultiAxisCommand(cmd) => self.multi_axis(now, origin, number, &cmd),
@@ -788,6 +789,75 @@ impl Bridge {
                 ),
             },
         }
+    }
+
+    // ---- faults and resets ----------------------------------------------------
+
+    /// A reset line: Reset, Configure and Activate for joint `motor`, after
+    /// a fault or a reboot (or to start a joint afresh). Refused while the
+    /// emergency stop is latched.
+    fn reset_joint(&mut self, now: Duration, origin: Origin, number: u64, motor: &str) {
+        let label = Some(("motor_id", motor.to_owned()));
+        if self.latched {
+            let e = ErrorBody::new(
+                ErrorKind::EmergencyStopLatched,
+                "the emergency stop is latched; release it first, then reset",
+            );
+            self.refuse(origin, number, label, e);
+            return;
+        }
+        let Some(ji) = self
+            .joint_index(motor)
+            .filter(|ji| self.joints.get(*ji).is_some_and(|j| j.compact.is_none()))
+        else {
+            let e = ErrorBody::new(
+                ErrorKind::Refused,
+                format!("{motor} is not an iRPC joint of the bus map"),
+            );
+            self.refuse(origin, number, label, e);
+            return;
+        };
+        self.cancel_where("cancelled by a reset of its joint", |job| {
+            job.kind == JobKind::Command && job.axes.iter().any(|a| a.joint == ji)
+        });
+        if let Some(j) = self.joints.get_mut(ji) {
+            j.resetting = true;
+        }
+        let axes = vec![Axis::new(
+            motor.to_owned(),
+            ji,
+            [Payload::Reset, Payload::Configure, Payload::Activate],
+        )];
+        self.open_job(
+            Some(origin),
+            number,
+            label,
+            JobKind::Reset,
+            now,
+            axes,
+            Report::default(),
+            Vec::new(),
+        );
+    }
+
+    /// Joint `ji` faulted or rebooted (`why`): said with `event`, and
+    /// everything waiting for it is cancelled; nothing but a reset line is
+    /// sent to it from now on.
+    fn joint_lost(&mut self, ji: usize, why: String, event: Event) {
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
+        if j.needs_reset.is_some() {
+            return;
+        }
+        j.needs_reset = Some(why.clone());
+        j.active = false;
+        self.out.push_back(Output::Event(event));
+        let because = format!("cancelled: the joint {why}");
+        self.cancel_where(&because, |job| {
+            job.kind == JobKind::Command && job.axes.iter().any(|a| a.joint == ji)
+        });
+        self.fail_watches(|w| w.waits_on(ji), &format!("the joint {why}"));
     }
 
     // ---- live limits --------------------------------------------------------
@@ -1053,6 +1123,19 @@ impl Bridge {
         }
         if let Some(err) = motors.clone().find_map(|m| {
             let j = self.joints.get(self.joint_index(m)?)?;
+            let why = j.needs_reset.as_ref()?;
+            Some(
+                ErrorBody::new(
+                    ErrorKind::NeedsReset,
+                    format!("{m} {why}: send {{\"reset\":\"{m}\"}} to bring it back"),
+                )
+                .about(m),
+            )
+        }) {
+            return Err(err);
+        }
+        if let Some(err) = motors.clone().find_map(|m| {
+            let j = self.joints.get(self.joint_index(m)?)?;
             (!j.online).then(|| {
                 ErrorBody::new(
                     ErrorKind::Offline,
@@ -1291,7 +1374,7 @@ impl Bridge {
     fn emergency_stop(
         &mut self,
         now: Duration,
-        origin: Origin,
+        origin: Option<Origin>,
         number: u64,
         label: Option<(&'static str, String)>,
         problems: Vec<String>,
@@ -1312,7 +1395,9 @@ impl Bridge {
                 ..LineResult::default()
             };
             set_label(&mut r, label);
-            self.out.push_back(Output::Result { origin, result: r });
+            if let Some(origin) = origin {
+                self.out.push_back(Output::Result { origin, result: r });
+            }
             return;
         }
         // A stop already under way (latched, not released since) answers
@@ -1326,13 +1411,15 @@ impl Bridge {
                 .find(|j| j.kind == JobKind::EmergencyStop)
         {
             self.stats.stops_coalesced += 1;
-            job.riders.push(Rider {
-                origin,
-                number,
-                label,
-                problems,
-                received: now,
-            });
+            if let Some(origin) = origin {
+                job.riders.push(Rider {
+                    origin,
+                    number,
+                    label,
+                    problems,
+                    received: now,
+                });
+            }
             return;
         }
         self.stats.emergency_stops += 1;
@@ -1372,7 +1459,7 @@ impl Bridge {
             .push_back(Output::Event(Event::EmergencyStop { cause, cancelled }));
         let axes = self.every_joint(&[Payload::Deactivate]);
         self.open_job(
-            Some(origin),
+            origin,
             number,
             label,
             JobKind::EmergencyStop,
@@ -1476,10 +1563,10 @@ impl Bridge {
                     StepOutcome::OutcomeUnknown,
                     None,
                     format!(
-                        "{why}: it was sent before and not answered, so the joint may have started it (the stop stopped it); it is never sent again"
+                        "{why}: it was sent before and not answered, so the joint may have started it; it is never sent again"
                     ),
                 );
-                job.cut = true;
+                job.cut.get_or_insert_with(|| why.to_owned());
                 self.stats.cancelled += 1;
                 if let Some(o) = job.origin {
                     touched.push(LineRef {
@@ -1497,7 +1584,7 @@ impl Bridge {
                         None,
                         format!("{why} before it was sent"),
                     );
-                    job.cut = true;
+                    job.cut.get_or_insert_with(|| why.to_owned());
                     self.stats.cancelled += 1;
                     if let Some(o) = job.origin {
                         touched.push(LineRef {
@@ -1642,7 +1729,7 @@ impl Bridge {
                 last_frame: None,
                 unflushed: false,
                 riders: Vec::new(),
-                cut: false,
+                cut: None,
             },
         );
         for (ji, step, position) in steps {
@@ -2028,6 +2115,7 @@ impl Bridge {
 
     fn complete(&mut self, job: Job) {
         let now = self.now;
+        let moved_joints: Vec<usize> = job.axes.iter().map(|a| a.joint).collect();
         // The moves acked, to watch for arrival.
         let moved: Vec<(usize, String, f64)> = job
             .axes
@@ -2081,12 +2169,22 @@ impl Bridge {
                 self.enter(Phase::Finished);
                 return;
             }
+            JobKind::Reset => {
+                for a in &moved_joints {
+                    if let Some(j) = self.joints.get_mut(*a) {
+                        j.resetting = false;
+                        if failures.is_empty() {
+                            j.needs_reset = None;
+                        }
+                    }
+                }
+            }
             JobKind::Command | JobKind::EmergencyStop | JobKind::Release | JobKind::Deadman => {}
         }
         let Some(origin) = job.origin else { return };
         let latency = job.last_frame.map(|t| us(t.saturating_sub(job.received)));
         let ok = failures.is_empty();
-        let error = (!ok).then(|| failure_error(&failures, job.cut));
+        let error = (!ok).then(|| failure_error(&failures, job.cut.as_deref()));
         if ok {
             self.stats.ok += 1;
         } else {
@@ -2533,10 +2631,45 @@ impl Bridge {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
+        let mut lost: Option<(String, Event)> = None;
+        let mut joint_stop: Option<String> = None;
         match message.payload {
-            Payload::JointStatus { state, .. } => {
+            Payload::JointStatus { state, error_code } => {
+                let before = j.state;
                 j.state = Some(state);
                 j.active = state == LifecycleState::Active;
+                if state == LifecycleState::Error {
+                    lost = Some((
+                        format!("faulted (error code {error_code})"),
+                        Event::JointFault {
+                            motor_id: j.name.clone(),
+                            code: error_code,
+                        },
+                    ));
+                } else if state == LifecycleState::Unconfigured
+                    && !j.resetting
+                    && matches!(
+                        before,
+                        Some(LifecycleState::Active | LifecycleState::Inactive)
+                    )
+                {
+                    lost = Some((
+                        "rebooted".to_owned(),
+                        Event::Rebooted {
+                            motor_id: j.name.clone(),
+                        },
+                    ));
+                }
+            }
+            Payload::EmergencyStop(e) => {
+                joint_stop = Some(format!("{}: {:?}", j.name, e.reason));
+                lost = Some((
+                    format!("stopped itself ({:?})", e.reason),
+                    Event::JointFault {
+                        motor_id: j.name.clone(),
+                        code: u16::try_from(e.reason.index()).unwrap_or(u16::MAX),
+                    },
+                ));
             }
             Payload::Encoder(e) => j.motion = Some((f64::from(e.position), f64::from(e.velocity))),
             Payload::TelemetryStream(t) => {
@@ -2576,6 +2709,14 @@ impl Bridge {
                 outcome: "executed",
                 position: shortest(position),
             }));
+        }
+        if let Some((why, event)) = lost {
+            self.joint_lost(ji, why, event);
+        }
+        if let Some(cause) = joint_stop {
+            // A joint's own emergency stop stops every joint: the arm is
+            // not safe to move with one of them down.
+            self.emergency_stop(at, None, 0, None, Vec::new(), cause);
         }
     }
 
@@ -2815,19 +2956,22 @@ fn set_label(r: &mut LineResult, label: Option<(&'static str, String)>) {
 
 /// The error of a job whose parts did not all succeed: the gravest first
 /// (an unknown outcome, then a refusal, then what was never sent).
-/// `cut`: a stop cancelled the line (its kind is then `cancelled`, and a
-/// part in flight when the stop came is `outcome_unknown` in `outcomes`).
-fn failure_error(failures: &[StepReport], cut: bool) -> ErrorBody {
-    if cut {
+/// `cut`: why a stop (or the end, a reset, a lost joint) cancelled the
+/// line: its kind is then `cancelled`, and a part in flight when that came
+/// is `outcome_unknown` in `outcomes`.
+fn failure_error(failures: &[StepReport], cut: Option<&str>) -> ErrorBody {
+    if let Some(why) = cut {
         let mut e = ErrorBody::new(
             ErrorKind::Cancelled,
             if failures
                 .iter()
                 .any(|f| f.outcome == StepOutcome::OutcomeUnknown)
             {
-                "cancelled by an emergency stop or the end: a part was sent before it and not answered, so it may have started (the stop stopped it); nothing of it runs after the stop"
+                format!(
+                    "{why}: a part was sent before and not answered, so it may have started; nothing of it is sent again"
+                )
             } else {
-                "cancelled by an emergency stop or the end; nothing of it runs after the stop"
+                format!("{why}; nothing of it is sent")
             },
         );
         if let [only] = failures {

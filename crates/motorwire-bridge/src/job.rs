@@ -25,6 +25,8 @@ pub(crate) enum JobKind {
     Shutdown,
     /// The deadman stopping a device whose setpoint was not renewed.
     Deadman,
+    /// A reset line: Reset, Configure and Activate for one joint.
+    Reset,
 }
 
 impl JobKind {
@@ -167,8 +169,8 @@ pub(crate) struct Job {
     /// and are answered with its outcome, so a flood of stops costs one
     /// Deactivate per joint, not one per line.
     pub(crate) riders: Vec<Rider>,
-    /// A stop (or the end) cancelled some of it.
-    pub(crate) cut: bool,
+    /// Why a stop (or the end, a reset, a lost joint) cancelled some of it.
+    pub(crate) cut: Option<String>,
 }
 
 /// A stop line answered by a stop already under way.

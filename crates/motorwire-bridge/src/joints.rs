@@ -54,6 +54,11 @@ pub(crate) struct Joint {
     /// The deadman: when a velocity or torque setpoint it holds must be
     /// renewed by, or it is brought to a stop.
     pub(crate) deadman: Option<Duration>,
+    /// It faulted or rebooted (why): nothing but a reset line is sent to it.
+    pub(crate) needs_reset: Option<String>,
+    /// A Reset the bridge sent is under way (its `Unconfigured` is no
+    /// reboot).
+    pub(crate) resetting: bool,
 }
 
 /// What a compact device is reached by.
@@ -82,6 +87,8 @@ impl Joint {
             unresolved: None,
             compact: None,
             deadman: None,
+            needs_reset: None,
+            resetting: false,
         }
     }
 }

@@ -220,6 +220,9 @@ pub enum ErrorKind {
     EmergencyStopLatched,
     /// A release with no stop latched.
     NotLatched,
+    /// A joint of the line faulted or rebooted: it takes nothing until a
+    /// reset line (`{"reset":"elbow"}`) brings it back. Nothing was sent.
+    NeedsReset,
     /// A line that tries to release the stop but is not exactly
     /// `{"emergency_stop": false}`; the latch holds.
     InvalidRelease,
@@ -360,6 +363,21 @@ pub enum Event {
         cause: String,
         /// The input lines it cancelled, as `{"origin":..,"line":..}`.
         cancelled: Vec<LineRef>,
+    },
+    /// A joint reported a fault (it entered `Error`): it takes nothing
+    /// until a reset line brings it back.
+    JointFault {
+        /// The joint.
+        motor_id: String,
+        /// Its `JointStatus.error_code`.
+        code: u16,
+    },
+    /// A joint started again (heard `Unconfigured` while it was
+    /// configured): it stays inactive, and is never moved by a command
+    /// sent before, until a reset line brings it back.
+    Rebooted {
+        /// The joint.
+        motor_id: String,
     },
     /// A client was disconnected by the bridge (it stopped reading its
     /// results, or its connection failed): its commands not yet done were

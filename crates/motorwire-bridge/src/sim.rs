@@ -300,6 +300,16 @@ impl SimulatedArm {
             .find(|j| j.config().node_id == node)
     }
 
+    /// Makes joint `node` suffer `fault` now ([`SimJoint::fault`]).
+    pub fn fault(&mut self, node: u16, fault: motorwire_sim::JointFault) {
+        let now = self.bus.now();
+        for (j, _) in &mut self.joints {
+            if j.config().node_id == node {
+                j.fault(now, fault);
+            }
+        }
+    }
+
     /// The compact device on CAN id `node`.
     pub fn compact_device(&self, node: u16) -> Option<&SimCompactDevice> {
         self.compact

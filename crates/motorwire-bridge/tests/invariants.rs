@@ -1046,3 +1046,108 @@ fn the_deadman_stops_a_compact_device_a_silent_controller_left_running() {
     );
     assert_eq!(arm.compact_device(0x20).unwrap().velocity(), 0.0);
 }
+
+/// A joint that reboots or faults is said so, takes nothing (and nothing
+/// queued before runs on it) until a reset line brings it back; a v2.2
+/// joint's own emergency stop latches the bridge's.
+#[test]
+fn faults_and_reboots_hold_a_joint_until_a_reset_brings_it_back() {
+    use motorwire_sim::JointFault;
+    let events = |out: &[Output], kind: &str| -> Vec<Value> {
+        out.iter()
+            .map(Output::to_value)
+            .filter(|v| v["event"] == kind)
+            .collect()
+    };
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    arm.line(Origin(1), &command("elbow", 100.0));
+    arm.run_until(arm.now() + Duration::from_millis(200))
+        .unwrap();
+    let executed = arm.joint(0x12).unwrap().log().len();
+    arm.fault(0x12, JointFault::Reboot);
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    arm.line(Origin(1), &command("elbow", 50.0));
+    arm.run_until(arm.now() + Duration::from_millis(300))
+        .unwrap();
+    let out = arm.take_outputs();
+    assert_eq!(
+        events(&out, "rebooted"),
+        [serde_json::json!({"event":"rebooted","motor_id":"elbow"})]
+    );
+    let refused = out
+        .iter()
+        .filter_map(|o| o.result().map(|_| o.to_value()))
+        .find(|v| v["line"] == 2)
+        .unwrap();
+    assert_eq!(refused["error"]["kind"], "needs_reset", "{refused}");
+    assert_eq!(
+        refused["error"]["message"],
+        r#"elbow rebooted: send {"reset":"elbow"} to bring it back"#
+    );
+    assert_eq!(
+        arm.joint(0x12).unwrap().log().len(),
+        executed,
+        "sent after the reboot"
+    );
+    assert_eq!(
+        arm.joint(0x12).unwrap().state(),
+        LifecycleState::Unconfigured
+    );
+    // The reset brings it back; a move then runs.
+    arm.line(Origin(1), r#"{"reset":"elbow"}"#);
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    arm.line(Origin(1), &command("elbow", 50.0));
+    arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+    let r = arm.take_results();
+    assert_eq!(r[0]["ok"], true, "{}", r[0]);
+    assert_eq!(r[1]["ok"], true, "{}", r[1]);
+    assert!((arm.joint(0x12).unwrap().position() - 50.0).abs() < 1e-3);
+
+    // A driver fault: said with its code, held until a reset.
+    arm.fault(0x10, JointFault::DriverFault);
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    arm.line(Origin(1), &command("shoulder_pitch", 10.0));
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    let out = arm.take_outputs();
+    assert_eq!(
+        events(&out, "joint_fault"),
+        [serde_json::json!({"event":"joint_fault","motor_id":"shoulder_pitch","code":5})]
+    );
+    let r: Vec<Value> = out
+        .iter()
+        .filter_map(|o| o.result().map(|_| o.to_value()))
+        .collect();
+    assert_eq!(r[0]["error"]["kind"], "needs_reset", "{}", r[0]);
+    arm.line(Origin(1), r#"{"reset":"shoulder_pitch"}"#);
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    assert_eq!(arm.take_results()[0]["ok"], true);
+    assert_eq!(arm.joint(0x10).unwrap().state(), LifecycleState::Active);
+
+    // A v2.2 joint overheating stops the whole arm.
+    let map = MAP.replace(
+        "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\nwire = \"v2.0\"",
+        "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\nwire = \"v2.2\"",
+    );
+    assert_ne!(map, MAP);
+    let mut arm = arm_with(&map, Faults::default(), 0);
+    arm.line(Origin(1), &command("shoulder_pitch", 60.0));
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    arm.fault(0x12, JointFault::Overtemperature);
+    arm.run_until(arm.now() + Duration::from_millis(500))
+        .unwrap();
+    let out = arm.take_outputs();
+    let stop = events(&out, "emergency_stop");
+    assert_eq!(stop.len(), 1, "{out:?}");
+    assert_eq!(stop[0]["cause"], "elbow: Overtemperature");
+    assert_eq!(events(&out, "joint_fault")[0]["code"], 4);
+    for node in [0x10, 0x11] {
+        assert_eq!(arm.joint(node).unwrap().state(), LifecycleState::Inactive);
+    }
+    assert!(arm.bridge().is_latched());
+}

@@ -108,9 +108,9 @@ use std::time::Duration;
 use motorwire_can::client::ARM_NODE;
 use motorwire_can::{CanBus, CanId, Frame, SimPort};
 use motorwire_irpc::{
-    EncoderTelemetry, Error as WireError, Header, LifecycleState, MAX_FRAME_LEN, Message,
-    MotionProfile, NackCode, Payload, SetTargetPayloadV2, TelemetryMode, TelemetryStream,
-    WireVersion,
+    EmergencyReason, EmergencyStop, EncoderTelemetry, Error as WireError, Header, LifecycleState,
+    MAX_FRAME_LEN, Message, MotionProfile, NackCode, Payload, SetTargetPayloadV2, TelemetryMode,
+    TelemetryStream, WireVersion,
 };
 use motorwire_planner::Profile;
 
@@ -222,6 +222,18 @@ impl JointConfig {
             initial_position: 0.0,
         }
     }
+}
+
+/// A fault [`SimJoint::fault`] makes happen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum JointFault {
+    /// The motor overheated (v2.2 `EmergencyStop`, error code 4).
+    Overtemperature,
+    /// The motor driver failed (v2.2 `EmergencyStop`, error code 5).
+    DriverFault,
+    /// The joint's controller started again (power glitch, watchdog).
+    Reboot,
 }
 
 /// What the joint has done.
@@ -497,6 +509,55 @@ impl SimJoint {
         let id = self.next_msg_id;
         self.next_msg_id = self.next_msg_id.wrapping_add(1).max(1);
         self.emit(self.host, id, payload);
+    }
+
+    /// Makes a fault happen now (for tests of what a host does about it):
+    ///
+    /// - [`JointFault::Overtemperature`] and [`JointFault::DriverFault`]:
+    ///   the joint brakes at its emergency deceleration, enters `Error`
+    ///   with the fault's code in `JointStatus.error_code` (4 and 5, the
+    ///   v2.2 `EmergencyReason` numbers) and, speaking v2.2, reports an
+    ///   `EmergencyStop` to its host. It takes nothing but `Reset` until
+    ///   then.
+    /// - [`JointFault::Reboot`]: the joint starts again: at rest where it
+    ///   stood, `Unconfigured`, every sender forgotten; it says so with a
+    ///   `JointStatus`.
+    pub fn fault(&mut self, now: Duration, fault: JointFault) {
+        self.now = self.now.max(now);
+        match fault {
+            JointFault::Overtemperature | JointFault::DriverFault => {
+                let (code, reason) = match fault {
+                    JointFault::Overtemperature => (4, EmergencyReason::Overtemperature),
+                    _ => (5, EmergencyReason::DriverFault),
+                };
+                self.brake(self.config.emergency_deceleration);
+                self.error_code = code;
+                if self.config.wire == WireVersion::V2_2 {
+                    #[allow(clippy::cast_possible_truncation)]
+                    let ms = self.now.as_millis() as u32;
+                    self.feedback(Payload::EmergencyStop(EmergencyStop {
+                        reason,
+                        vbus_mv: 24_000,
+                        current_ma: 0,
+                        temp_c: if code == 4 { 95.0 } else { 40.0 },
+                        timestamp_ms: ms,
+                    }));
+                }
+                self.state = LifecycleState::Error;
+                self.send_status();
+            }
+            JointFault::Reboot => {
+                self.current = None;
+                self.motion = Motion::Holding;
+                self.velocity = 0.0;
+                self.acceleration = 0.0;
+                self.error_code = 0;
+                self.telemetry_period = None;
+                self.senders.clear();
+                self.state = LifecycleState::Unconfigured;
+                self.send_status();
+            }
+        }
     }
 
     fn set_state(&mut self, state: LifecycleState) {

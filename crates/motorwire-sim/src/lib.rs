@@ -10,8 +10,8 @@ pub use compact::{
     CompactRefusal, DEFAULT_FEEDBACK_PERIOD, FEEDBACK_NODE_BIT, SimCompactDevice,
 };
 pub use joint::{
-    DEDUP_WINDOW, Execution, JointConfig, JointLimits, JointStats, MAX_SENDERS, RESTART_SPAN,
-    SimJoint, WATCHDOG_STOP,
+    DEDUP_WINDOW, Execution, JointConfig, JointFault, JointLimits, JointStats, MAX_SENDERS,
+    RESTART_SPAN, SimJoint, WATCHDOG_STOP,
 };
 
 use thiserror::Error;
