@@ -203,6 +203,70 @@ fn real_time(n: u64) {
     );
 }
 
+/// Emergency stop latency (line to the last stop frame on the bus) for a
+/// map of one dialect: `n` stops, each released, on the real-time
+/// simulated devices. (median, p99) in µs.
+fn stop_latency(map: &str, n: usize) -> (u64, u64) {
+    let map = BusMap::from_toml(map).unwrap();
+    let config = BridgeConfig {
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(map, config).unwrap();
+    let arm = RealTimeArm::start(bridge.map()).unwrap();
+    let runner = Runner::new();
+    let input = runner.input();
+    let (tx, rx) = mpsc::channel();
+    let handle = arm.spawn(runner, bridge, move |o| {
+        if let Output::Result { .. } = o {
+            let _ = tx.send(o.to_value());
+        }
+    });
+    let mut stops = Vec::new();
+    for _ in 0..n {
+        input.line(Origin(1), r#"{"emergency_stop": true}"#);
+        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+        assert_eq!(r["ok"], true, "{r}");
+        stops.push(r["stop_latency_us"].as_u64().unwrap());
+        input.line(Origin(1), r#"{"emergency_stop": false}"#);
+        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+        assert_eq!(r["released"], true, "{r}");
+    }
+    input.interrupt();
+    handle.join().unwrap().unwrap();
+    stops.sort_unstable();
+    (percentile(&stops, 0.5), percentile(&stops, 0.99))
+}
+
+/// The stop's latency per dialect: the three iRPC joints alone, the
+/// compact gripper alone, and the whole map.
+fn stop_per_dialect(n: usize) {
+    let irpc = MAP
+        .split("\n[motors.")
+        .enumerate()
+        .filter(|(i, part)| *i == 0 || part.contains("dialect = \"irpc\""))
+        .map(|(i, part)| {
+            if i == 0 {
+                part.to_owned()
+            } else {
+                format!("[motors.{part}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let compact = "[motors.gripper_axis]\ndialect = \"compact\"\nnode = 0x20\nlimits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 5 }\n";
+    for (name, map) in [
+        ("iRPC joints (3)", irpc.as_str()),
+        ("compact device (1)", compact),
+        ("whole map (3 + 1)", MAP),
+    ] {
+        let (median, p99) = stop_latency(map, n);
+        println!(
+            "bridge/stop_per_dialect: {name}: {n} stops; line to the last stop frame: median {median} us, p99 {p99} us"
+        );
+    }
+}
+
 fn main() {
     // `cargo bench` passes --bench; `cargo test --benches` does not (test mode).
     let test_mode = !std::env::args().any(|a| a == "--bench");
@@ -210,4 +274,5 @@ fn main() {
     benches(&mut c);
     c.final_summary();
     real_time(if test_mode { 20 } else { 5000 });
+    stop_per_dialect(if test_mode { 5 } else { 500 });
 }
