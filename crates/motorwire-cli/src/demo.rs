@@ -263,7 +263,17 @@ fn demo(args: &Args) -> Result<bool, String> {
     let mut held = true;
     let mut rows = Vec::new();
     let mut targets: BTreeMap<&str, f64> = BTreeMap::new();
+    let mut marks: Vec<(f64, String)> = Vec::new();
     for (i, step) in steps.iter().enumerate() {
+        let sent_s = (crate::bridge::unix_ms() - epoch_ms) / 1000.0;
+        marks.push((
+            sent_s,
+            match step.expect {
+                Expect::Stop => format!("{} stop", i + 1),
+                Expect::Release => format!("{} release", i + 1),
+                _ => format!("{}", i + 1),
+            },
+        ));
         input.line(ORIGIN, stamped(&step.line));
         let result = watch.result(Duration::from_secs(3));
         let (ok, detail) = match (&result, step.expect) {
@@ -385,7 +395,7 @@ fn demo(args: &Args) -> Result<bool, String> {
         "  bridge: {} lines ({} ok, {} refused or failed), {} frames sent, {} feedback lines; joints stopped and deactivated: {stopped}",
         s.lines, s.ok, s.failed, s.frames_sent, s.feedback_lines
     ).map_err(stdout_closed)?;
-    match plot(&watch.samples, &args.svg) {
+    match plot(&watch.samples, &marks, &args.svg) {
         Ok(()) => say!("  plot of positions and velocities: {}", args.svg.display())
             .map_err(stdout_closed)?,
         Err(e) => {
@@ -402,8 +412,26 @@ fn demo(args: &Args) -> Result<bool, String> {
     Ok(held)
 }
 
-/// Two panels (position, velocity) against time, one line per joint.
-fn plot(samples: &BTreeMap<String, Vec<Sample>>, path: &Path) -> Result<(), String> {
+/// Okabe and Ito's palette: told apart with every common colour-vision
+/// deficiency.
+const PALETTE: [(u8, u8, u8); 7] = [
+    (0, 114, 178),   // blue
+    (213, 94, 0),    // vermillion
+    (0, 158, 115),   // bluish green
+    (204, 121, 167), // reddish purple
+    (230, 159, 0),   // orange
+    (86, 180, 233),  // sky blue
+    (0, 0, 0),       // black
+];
+
+/// Two panels (position, velocity) against time, one line per device, a
+/// dashed mark at each step (numbered as the steps are printed; the
+/// emergency stop and its release named), the legend beside the data.
+fn plot(
+    samples: &BTreeMap<String, Vec<Sample>>,
+    marks: &[(f64, String)],
+    path: &Path,
+) -> Result<(), String> {
     use plotters::prelude::*;
     let end = samples
         .values()
@@ -411,15 +439,31 @@ fn plot(samples: &BTreeMap<String, Vec<Sample>>, path: &Path) -> Result<(), Stri
         .map(|s| s.0)
         .fold(0.0f64, f64::max)
         .max(1e-3);
-    let root = SVGBackend::new(path, (1000, 700)).into_drawing_area();
+    let root = SVGBackend::new(path, (1100, 720)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let panels = root.split_evenly((2, 1));
-    let colors = [BLUE, RED, GREEN, MAGENTA, CYAN, BLACK];
+    // The legend in a column of its own, so it never covers a curve.
+    let (plots, legend) = root.split_horizontally(940);
+    let panels = plots.split_evenly((2, 1));
+    let colors: Vec<RGBColor> = PALETTE.iter().map(|&(r, g, b)| RGBColor(r, g, b)).collect();
+    for (i, motor) in samples.keys().enumerate() {
+        let color = colors.get(i).copied().unwrap_or(BLACK);
+        let y = 60 + 28 * i32::try_from(i).unwrap_or(0);
+        legend
+            .draw(&PathElement::new(
+                vec![(8, y), (36, y)],
+                color.stroke_width(3),
+            ))
+            .map_err(|e| e.to_string())?;
+        legend
+            .draw(&Text::new(motor.clone(), (42, y - 7), ("sans-serif", 15)))
+            .map_err(|e| e.to_string())?;
+    }
     for (k, (area, name)) in panels
         .iter()
         .zip(["position (°)", "velocity (°/s)"])
         .enumerate()
     {
+        let unit = name;
         let pick = |s: &Sample| if k == 0 { s.1 } else { s.2 };
         let (lo, hi) = samples
             .values()
@@ -444,25 +488,43 @@ fn plot(samples: &BTreeMap<String, Vec<Sample>>, path: &Path) -> Result<(), Stri
         chart
             .configure_mesh()
             .x_desc("time (s)")
+            .y_desc(unit)
             .draw()
             .map_err(|e| e.to_string())?;
-        for (i, (motor, s)) in samples.iter().enumerate() {
+        // Each step's moment, dashed, labelled in the top panel.
+        let (ylo, yhi) = (lo - pad, hi + pad);
+        for (m, (t, label)) in marks.iter().enumerate() {
+            let grey = RGBColor(120, 120, 120);
+            // Steps close together: their labels on three rows.
+            #[allow(clippy::cast_precision_loss)]
+            let row = (m % 3) as f64 * (yhi - ylo) * 0.07;
+            chart
+                .draw_series(DashedLineSeries::new(
+                    [(*t, ylo), (*t, yhi)],
+                    4,
+                    4,
+                    grey.stroke_width(1),
+                ))
+                .map_err(|e| e.to_string())?;
+            if k == 0 {
+                chart
+                    .draw_series(std::iter::once(Text::new(
+                        label.clone(),
+                        (*t, yhi - row),
+                        ("sans-serif", 12),
+                    )))
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+        for (i, s) in samples.values().enumerate() {
             let color = colors.get(i).copied().unwrap_or(BLACK);
             chart
                 .draw_series(LineSeries::new(
                     s.iter().map(|x| (x.0, pick(x))),
                     color.stroke_width(2),
                 ))
-                .map_err(|e| e.to_string())?
-                .label(motor.as_str())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+                .map_err(|e| e.to_string())?;
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| e.to_string())?;
     }
     root.present().map_err(|e| e.to_string())
 }

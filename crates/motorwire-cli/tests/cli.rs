@@ -274,4 +274,20 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
     for motor in ["shoulder_pitch", "shoulder_roll", "elbow", "gripper_axis"] {
         assert!(plot.contains(motor), "{motor}");
     }
+    // Units on both y axes, each step marked, the stop and its release
+    // named, colours from a palette colour-blind readers can tell apart.
+    for text in [
+        "position (°)",
+        "velocity (°/s)",
+        "time (s)",
+        "7 stop",
+        "9 release",
+        "11",
+    ] {
+        assert!(plot.contains(text), "{text}");
+    }
+    for colour in ["#0072B2", "#D55E00", "#009E73", "#CC79A7"] {
+        assert!(plot.contains(colour), "{colour}");
+    }
+    assert!(plot.contains("stroke-dasharray") || plot.matches("<polyline").count() > 30);
 }
