@@ -34,10 +34,11 @@ use motorwire_irpc::{
 };
 use motorwire_translate::{
     AngleUnit, BusMap, Limits, Report, Target, feedback_from_irpc, multi_axis_to_irpc, to_compact,
-    to_irpc,
+    to_irpc, trajectory_to_irpc,
 };
 use motorwire_wia::{
-    Message, MotorCommand, MotorFeedback, MultiAxisCommand, SafetyLimits, SyncMode, Validator,
+    Message, MotorCommand, MotorFeedback, MultiAxisCommand, SafetyLimits, SyncMode, Trajectory,
+    Validator,
 };
 use serde_json::Value;
 
@@ -757,6 +758,7 @@ impl Bridge {
                 Message::MotorCommand(cmd) => self.motor_command(now, origin, number, &cmd),
                 Message::MultiAxisCommand(cmd) => self.multi_axis(now, origin, number, &cmd),
                 Message::SafetyLimits(l) => self.safety_limits(origin, number, &l),
+                Message::Trajectory(t) => self.trajectory(now, origin, number, &t),
                 Message::PidConfig(p) => self.refuse(
                     origin,
                     number,
@@ -789,6 +791,91 @@ impl Bridge {
                 ),
             },
         }
+    }
+
+    // ---- trajectories -----------------------------------------------------------
+
+    /// A WIA Trajectory for an iRPC joint: planned and checked whole
+    /// ([`trajectory_to_irpc`]) before anything is sent, then each segment
+    /// sent at its time (`timing.start_time` in the future schedules the
+    /// start). The joint must stand at the first waypoint.
+    fn trajectory(&mut self, now: Duration, origin: Origin, number: u64, t: &Trajectory) {
+        let label = Some(("motor_id", t.motor_id.clone()));
+        let now_ms = self.unix_ms(now);
+        let start_ms = t.timing.start_time.unwrap_or(now_ms);
+        if let Err(e) = self.admit(start_ms.min(now_ms), std::iter::once(t.motor_id.as_str())) {
+            self.refuse(origin, number, label, e);
+            return;
+        }
+        let plan = match trajectory_to_irpc(&self.map, t) {
+            Ok(p) => p,
+            Err(r) => {
+                let e = ErrorBody::new(ErrorKind::Refused, r.to_string());
+                self.refuse(origin, number, label, e);
+                return;
+            }
+        };
+        let Some(ji) = self.joint_index(&t.motor_id) else {
+            let e = ErrorBody::new(
+                ErrorKind::Refused,
+                format!("{} is not an iRPC joint", t.motor_id),
+            );
+            self.refuse(origin, number, label, e);
+            return;
+        };
+        let (unit, tolerance) = self
+            .map
+            .motor(&t.motor_id)
+            .map_or((AngleUnit::Degrees, 0.1), |m| {
+                (m.unit, m.unit.to_degrees(m.arrival_tolerance))
+            });
+        let first = t
+            .waypoints
+            .first()
+            .map_or(0.0, |w| unit.to_degrees(w.position));
+        let here = self.joints.get(ji).and_then(|j| j.motion).map(|(p, _)| p);
+        if here.is_none_or(|p| (p - first).abs() > tolerance) {
+            let at = here.map_or_else(
+                || "at an unknown position".to_owned(),
+                |p| format!("at {}", short_unit(unit.from_degrees(p))),
+            );
+            let e = ErrorBody::new(
+                ErrorKind::Refused,
+                format!(
+                    "{}: the trajectory starts at {} and the joint is {at}: move it there first",
+                    t.motor_id,
+                    short_unit(unit.from_degrees(first))
+                ),
+            );
+            self.refuse(origin, number, label, e);
+            return;
+        }
+        let delay = Duration::from_secs_f64(((start_ms - now_ms) / 1000.0).max(0.0));
+        let start = now.saturating_add(delay);
+        let mut axis = Axis::new(
+            t.motor_id.clone(),
+            ji,
+            plan.value
+                .segments
+                .iter()
+                .map(|s| Payload::SetTargetV2(s.payload)),
+        );
+        axis.due = plan
+            .value
+            .segments
+            .iter()
+            .map(|s| start.saturating_add(Duration::from_secs_f64(s.at.max(0.0))))
+            .collect();
+        self.open_job(
+            Some(origin),
+            number,
+            label,
+            JobKind::Command,
+            now,
+            vec![axis],
+            plan.report,
+            Vec::new(),
+        );
     }
 
     // ---- faults and resets ----------------------------------------------------
@@ -1558,14 +1645,24 @@ impl Bridge {
                     }
                     _ => {}
                 }
-                // Sent and not answered: it may have run. Never sent again.
-                a.finish(
-                    StepOutcome::OutcomeUnknown,
-                    None,
-                    format!(
-                        "{why}: it was sent before and not answered, so the joint may have started it; it is never sent again"
-                    ),
-                );
+                joint.wake = None;
+                if matches!(a.state, AxisState::InFlight { .. }) {
+                    // Sent and not answered: it may have run. Never sent again.
+                    a.finish(
+                        StepOutcome::OutcomeUnknown,
+                        None,
+                        format!(
+                            "{why}: it was sent before and not answered, so the joint may have started it; it is never sent again"
+                        ),
+                    );
+                } else {
+                    // A trajectory between segments: the rest never sent.
+                    a.finish(
+                        StepOutcome::Cancelled,
+                        None,
+                        format!("{why}: the trajectory's remaining segments were never sent"),
+                    );
+                }
                 job.cut.get_or_insert_with(|| why.to_owned());
                 self.stats.cancelled += 1;
                 if let Some(o) = job.origin {
@@ -1913,6 +2010,20 @@ impl Bridge {
         let Some(a) = job.axes.get_mut(step.axis) else {
             return false;
         };
+        // A trajectory's next segment, not due yet: the joint stays this
+        // step's until then.
+        if let Some(&due) = a.due.front()
+            && due > now
+            && !a.payloads.is_empty()
+        {
+            a.state = AxisState::Queued;
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.busy = Some(step);
+                j.wake = Some(due);
+            }
+            return true;
+        }
+        a.due.pop_front();
         let Some(payload) = a.payloads.pop_front() else {
             if !a.is_done() {
                 a.finish(StepOutcome::Acked, None, "acked");
@@ -2744,6 +2855,27 @@ impl Bridge {
         self.drain_client();
         self.compact_timeouts(now);
         self.deadman(now);
+        // Trajectory segments now due.
+        let due: Vec<usize> = self
+            .joints
+            .iter()
+            .enumerate()
+            .filter(|(_, j)| j.wake.is_some_and(|w| now >= w))
+            .map(|(i, _)| i)
+            .collect();
+        for ji in due {
+            let Some(j) = self.joints.get_mut(ji) else {
+                continue;
+            };
+            j.wake = None;
+            let node = j.node;
+            if let Some(step) = j.busy.take()
+                && !self.send_step(now, ji, node, step)
+            {
+                self.pump(ji);
+            }
+        }
+        self.finish_jobs();
         // Sequential axes whose predecessor is overdue give up.
         for ji in 0..self.joints.len() {
             self.pump(ji);
@@ -2921,6 +3053,7 @@ impl Bridge {
         let arrival = self.arrivals.iter().map(|w| w.deadline).min();
         let compact = self.compact_pending.values().map(|p| p.deadline).min();
         let deadman = self.joints.iter().filter_map(|j| j.deadman).min();
+        let wake = self.joints.iter().filter_map(|j| j.wake).min();
         // A sequential axis waiting on one that must arrive by then.
         let sequence = self
             .jobs
@@ -2939,6 +3072,7 @@ impl Bridge {
             sequence,
             compact,
             deadman,
+            wake,
         ]
         .into_iter()
         .flatten()

@@ -81,6 +81,9 @@ pub(crate) struct Axis {
     pub(crate) state: AxisState,
     /// Times the request in flight was sent, for the report.
     pub(crate) attempts: u8,
+    /// A trajectory's: when each payload is due (bridge time), in order;
+    /// empty for a command (sent one after another as they are acked).
+    pub(crate) due: VecDeque<Duration>,
     /// The target of its last move (degrees), watched for arrival once
     /// acked.
     pub(crate) target: Option<f64>,
@@ -118,6 +121,7 @@ impl Axis {
             payloads,
             state: AxisState::Queued,
             attempts: 0,
+            due: VecDeque::new(),
             target,
             after: None,
             arrived: false,

@@ -59,6 +59,8 @@ pub(crate) struct Joint {
     /// A Reset the bridge sent is under way (its `Unconfigured` is no
     /// reboot).
     pub(crate) resetting: bool,
+    /// Its busy step (a trajectory's) sends its next payload then.
+    pub(crate) wake: Option<Duration>,
 }
 
 /// What a compact device is reached by.
@@ -89,6 +91,7 @@ impl Joint {
             deadman: None,
             needs_reset: None,
             resetting: false,
+            wake: None,
         }
     }
 }

@@ -1151,3 +1151,85 @@ fn faults_and_reboots_hold_a_joint_until_a_reset_brings_it_back() {
     }
     assert!(arm.bridge().is_latched());
 }
+
+/// WIRE-FACTS §3's feasible variant of the WIA §5.2 trajectory on an iRPC
+/// joint: each waypoint passed at its time; the document's own version
+/// refused before motion, naming waypoint 4.
+#[test]
+fn a_trajectory_passes_each_waypoint_at_its_time() {
+    let map = r#"
+[motors.gripper_axis]
+dialect = "irpc"
+node = 0x20
+limits = { min_position = -10, max_position = 100, max_velocity = 200, max_acceleration = 500, max_jerk = 5000 }
+"#;
+    let doc = include_str!("../../../fixtures/wia/valid/doc-5.2-trajectory.json");
+    let mut arm = arm_with(map, Faults::default(), 0);
+    // As the document has it: refused, nothing sent.
+    let mut t: Value = serde_json::from_str(doc).unwrap();
+    t["timing"].as_object_mut().unwrap().remove("start_time");
+    arm.line(Origin(1), &t.to_string());
+    arm.run_until(arm.now() + Duration::from_millis(20))
+        .unwrap();
+    let r = arm.take_results();
+    assert_eq!(r[0]["ok"], false);
+    assert_eq!(
+        r[0]["error"]["message"],
+        "gripper_axis: waypoint 4: its segment needs 2.24 s of the 2.00 s it is given under max_velocity 60, max_acceleration 120, max_jerk 500"
+    );
+    // The feasible variant.
+    t["constraints"]["max_velocity"] = 90.0.into();
+    t["constraints"]["max_acceleration"] = 200.0.into();
+    t["constraints"]["max_jerk"] = 1000.0.into();
+    arm.line(Origin(1), &t.to_string());
+    // The trajectory's time starts when the joint takes its first segment
+    // (the bus's latency shifts all of it, not one waypoint against
+    // another).
+    arm.run_until(arm.now() + Duration::from_millis(20))
+        .unwrap();
+    let start = arm
+        .joint(0x20)
+        .unwrap()
+        .log()
+        .iter()
+        .find(|e| matches!(e.payload, Payload::SetTargetV2(_)))
+        .unwrap()
+        .at;
+    let mut worst: f64 = 0.0;
+    for (time, position, velocity) in [
+        (1.5, 45.0, 30.0),
+        (3.0, 90.0, 15.0),
+        (4.0, 90.0, 0.0),
+        (6.0, 0.0, 0.0),
+    ] {
+        let at = start + Duration::from_secs_f64(time);
+        arm.run_until(at).unwrap();
+        let j = arm.joint(0x20).unwrap();
+        // Off in time by how much: the position error over the speed there.
+        let off = (j.position_at(at) - position).abs();
+        let late = if velocity == 0.0 {
+            f64::from(u8::from(off > 0.05))
+        } else {
+            off / velocity
+        };
+        worst = worst.max(late);
+        assert!(
+            late <= 0.001,
+            "waypoint at {time} s: at {} not {position}",
+            j.position_at(at)
+        );
+    }
+    eprintln!("worst waypoint timing error: {:.3} ms", worst * 1000.0);
+    arm.run_until(arm.now() + Duration::from_secs(1)).unwrap();
+    let out = arm.take_outputs();
+    let r = out.iter().find_map(Output::result).unwrap();
+    assert!(r.ok, "{r:?}");
+    assert!(
+        r.losses
+            .iter()
+            .any(|l| l.starts_with("timing.interpolation")),
+        "{r:?}"
+    );
+    let a = arrivals(&out);
+    assert_eq!(a[0]["arrived"], true, "{}", a[0]);
+}

@@ -428,6 +428,35 @@ impl SimJoint {
         self.stats
     }
 
+    /// Where the joint is at `t` (degrees) on the motion it runs now, without
+    /// advancing it: [`SimJoint::position`] is as of the last event it
+    /// handled (an Encoder tick at most 10 ms ago), this is exact. For a
+    /// `t` before its last event, the position then.
+    pub fn position_at(&self, t: Duration) -> f64 {
+        let t = t.max(self.now);
+        match self.motion {
+            Motion::Holding => self.position,
+            Motion::Profile { profile, start } => {
+                let s = t
+                    .saturating_sub(start)
+                    .as_secs_f64()
+                    .min(profile.duration());
+                profile.sample(s).position
+            }
+            Motion::Braking {
+                start,
+                position,
+                velocity,
+                deceleration,
+            } => {
+                let stop = velocity.abs() / deceleration;
+                let s = t.saturating_sub(start).as_secs_f64().min(stop);
+                let a = -velocity.signum() * deceleration;
+                position + velocity * s + a * s * s / 2.0
+            }
+        }
+    }
+
     /// Advances the motion to `now`.
     fn update(&mut self, now: Duration) {
         self.now = self.now.max(now);

@@ -75,6 +75,17 @@ pub enum Refusal {
         /// The motor.
         motor: String,
     },
+    /// A trajectory waypoint that cannot be reached at its time within the
+    /// limits, or is outside them.
+    #[error("{motor}: waypoint {waypoint}: {problem}")]
+    Infeasible {
+        /// The motor.
+        motor: String,
+        /// The waypoint (counted from 0).
+        waypoint: usize,
+        /// Why, naming the limit.
+        problem: String,
+    },
     /// A multi-axis move whose axes cannot arrive together.
     #[error("{problem}")]
     Unsynchronizable {
@@ -151,6 +162,7 @@ impl Refusal {
             Self::NotRepresentable { .. } => "not_representable",
             Self::UnknownPosition { .. } => "unknown_position",
             Self::Unsynchronizable { .. } => "unsynchronizable",
+            Self::Infeasible { .. } => "infeasible",
             Self::PathOutsideLimit { .. } => "path_outside_limit",
             Self::Unplannable { .. } => "unplannable",
         }

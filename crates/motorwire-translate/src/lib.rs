@@ -8,6 +8,7 @@ mod map;
 mod path;
 mod report;
 mod sync;
+mod trajectory;
 
 pub use command::{
     HIGH_PRIORITY, IrpcCommand, compact_command, lifecycle, multi_axis_to_compact, to_compact,
@@ -20,3 +21,6 @@ pub use map::{AngleUnit, BusMap, Limits, MapError, MappedMotor, Target};
 pub use path::{PathExtent, check_path, check_trajectory};
 pub use report::{Loss, LossKind, Report, Translated};
 pub use sync::{MultiAxisMove, SYNC_TOLERANCE_S, multi_axis_to_irpc};
+pub use trajectory::{
+    TRAJECTORY_LEAD_S, TrajectoryPlan, TrajectorySegment, WAYPOINT_TOLERANCE_S, trajectory_to_irpc,
+};

@@ -1,0 +1,325 @@
+//! A WIA Trajectory for an iRPC joint, as the `SetTargetV2` segments that
+//! pass each waypoint at its time.
+
+use motorwire_irpc::{MotionProfile, SetTargetPayloadV2};
+use motorwire_planner::{minimum_duration, plan, plan_with_duration};
+use motorwire_wia::Trajectory;
+
+use crate::gate::Effective;
+use crate::report::{LossKind, Report, Translated};
+use crate::{BusMap, Refusal, Target, check_path};
+
+/// How long before a waypoint's time the next segment is sent (s): the
+/// joint replans from where it then is, still on its way to the waypoint
+/// at its velocity, so it flies through instead of stopping there.
+pub const TRAJECTORY_LEAD_S: f64 = 0.002;
+
+/// How close to its time each waypoint is passed, as the joint's own f32
+/// plan has it (s).
+pub const WAYPOINT_TOLERANCE_S: f64 = 0.001;
+
+/// One segment: sent `at` seconds after the trajectory starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrajectorySegment {
+    /// When to send it (s from the start).
+    pub at: f64,
+    /// What to send.
+    pub payload: SetTargetPayloadV2,
+    /// When the joint's own plan of it reaches its waypoint (s from the
+    /// start).
+    pub arrives: f64,
+}
+
+/// A trajectory's segments, in order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrajectoryPlan {
+    /// The segments (one per waypoint after the first, times the loops).
+    pub segments: Vec<TrajectorySegment>,
+    /// How long the whole trajectory takes (s).
+    pub duration: f64,
+}
+
+/// Plans `traj` for its iRPC joint: every waypoint gated against the bus
+/// map's limits (tightened by the trajectory's `constraints`), then, for
+/// each segment, the `SetTargetV2` whose time-optimal profile under those
+/// limits (its cruise velocity lowered as needed) takes the joint from the
+/// previous waypoint (at its velocity) to the next (at its velocity)
+/// exactly in the time between them (a waypoint to be reached at rest may
+/// be reached early: the joint holds there until the next segment starts
+/// at the waypoint's time). Each is checked by planning it in
+/// f32 as the joint does, from the state the joint will be in when it
+/// arrives ([`TRAJECTORY_LEAD_S`] before the waypoint's time): the
+/// waypoint is passed within [`WAYPOINT_TOLERANCE_S`]. The path of each
+/// segment is held to the position limits ([`check_path`]).
+///
+/// Waypoint `time` is in seconds from the start (WIRE-FACTS §3); the first
+/// waypoint is where the joint must be. `loop` with a `count` repeats it
+/// (`reverse_on_loop` runs every other pass backwards); a count of -1
+/// (forever) is refused, as is a first waypoint time other than 0.
+///
+/// # Errors
+/// [`Refusal::Infeasible`] naming the waypoint and the limit; the gate's
+/// refusals; [`Refusal::PathOutsideLimit`].
+#[allow(clippy::too_many_lines)]
+pub fn trajectory_to_irpc(
+    map: &BusMap,
+    traj: &Trajectory,
+) -> Result<Translated<TrajectoryPlan>, Refusal> {
+    let motor = map
+        .motor(&traj.motor_id)
+        .ok_or_else(|| Refusal::UnknownMotor {
+            motor: traj.motor_id.clone(),
+        })?;
+    let name = motor.name.clone();
+    if !matches!(motor.target, Target::Irpc { .. }) {
+        return Err(Refusal::ModeNotExpressible {
+            motor: name,
+            mode: "trajectory",
+            dialect: "this motor's dialect (trajectories run on iRPC joints)",
+        });
+    }
+    let infeasible = |waypoint: usize, problem: String| Refusal::Infeasible {
+        motor: name.clone(),
+        waypoint,
+        problem,
+    };
+    let mut report = Report::default();
+    let unit = motor.unit;
+    let e = Effective::from_bus_map(motor);
+    let tighter = |own: Option<f64>, map: Option<f64>| match (own, map) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    };
+    let c = traj.constraints.as_ref();
+    let max_v = tighter(
+        c.and_then(|c| c.max_velocity),
+        e.max_velocity.map(|b| b.value),
+    );
+    let max_a = tighter(
+        c.and_then(|c| c.max_acceleration),
+        e.max_acceleration.map(|b| b.value),
+    );
+    let max_j = tighter(c.and_then(|c| c.max_jerk), motor.limits.max_jerk);
+    let (Some(max_v), Some(max_a)) = (max_v, max_a) else {
+        return Err(Refusal::MissingLimit {
+            motor: name,
+            dialect: "a trajectory",
+            field: "max_velocity and max_acceleration",
+        });
+    };
+    let w = &traj.waypoints;
+    if w.len() < 2 {
+        return Err(infeasible(
+            0,
+            "a trajectory needs at least 2 waypoints".to_owned(),
+        ));
+    }
+    if w.first().is_some_and(|f| f.time != 0.0) {
+        return Err(infeasible(
+            0,
+            "the first waypoint's time must be 0 (seconds from the start)".to_owned(),
+        ));
+    }
+    // Every waypoint within the limits.
+    for (i, p) in w.iter().enumerate() {
+        if !(p.position.is_finite() && p.time.is_finite() && p.velocity.is_none_or(f64::is_finite))
+        {
+            return Err(infeasible(i, "a value is not a finite number".to_owned()));
+        }
+        if let Some(b) = e.min_position.filter(|b| p.position < b.value) {
+            return Err(infeasible(
+                i,
+                format!(
+                    "position {} is below min_position ({}) {}",
+                    p.position, b.source, b.value
+                ),
+            ));
+        }
+        if let Some(b) = e.max_position.filter(|b| p.position > b.value) {
+            return Err(infeasible(
+                i,
+                format!(
+                    "position {} is above max_position ({}) {}",
+                    p.position, b.source, b.value
+                ),
+            ));
+        }
+        if let Some(v) = p.velocity.filter(|v| v.abs() > max_v) {
+            return Err(infeasible(
+                i,
+                format!("velocity {v} is above max_velocity {max_v}"),
+            ));
+        }
+    }
+    let passes: usize = match traj
+        .loop_config
+        .as_ref()
+        .filter(|l| l.enabled == Some(true))
+    {
+        None => 1,
+        Some(l) => match l.count {
+            None => 1,
+            Some(n) if n >= 1 => usize::try_from(n).unwrap_or(usize::MAX).min(1000),
+            Some(-1) => {
+                return Err(Refusal::NotRepresentable {
+                    motor: name,
+                    field: "loop.count",
+                    problem: "loop.count -1 (forever) is not run by this bridge yet: give a count"
+                        .to_owned(),
+                });
+            }
+            Some(n) => {
+                return Err(infeasible(
+                    0,
+                    format!("loop.count {n} is not a number of passes"),
+                ));
+            }
+        },
+    };
+    let reverse = traj.loop_config.as_ref().and_then(|l| l.reverse_on_loop) == Some(true);
+    if passes > 1 && !reverse && w.first().map(|p| p.position) != w.last().map(|p| p.position) {
+        return Err(infeasible(
+            w.len() - 1,
+            "a loop without reverse_on_loop must end where it starts".to_owned(),
+        ));
+    }
+    if traj.timing.interpolation.is_some() || traj.kind.is_some() {
+        report.push(
+            "timing.interpolation",
+            LossKind::Converted,
+            "the joint plans a jerk-limited S-curve between waypoints, through each at its velocity and time",
+        );
+    }
+    // The waypoints of every pass, in degrees, with absolute times.
+    let mut points: Vec<(usize, f64, f64, f64)> = Vec::new(); // (index, time, position, velocity)
+    let span = w.last().map_or(0.0, |p| p.time);
+    for pass in 0..passes {
+        let backwards = reverse && pass % 2 == 1;
+        #[allow(clippy::cast_precision_loss)]
+        let t0 = span * pass as f64;
+        let order: Vec<usize> = if backwards {
+            (0..w.len()).rev().collect()
+        } else {
+            (0..w.len()).collect()
+        };
+        for (k, &i) in order.iter().enumerate() {
+            if pass > 0 && k == 0 {
+                continue; // the same point the last pass ended at
+            }
+            let Some(p) = w.get(i) else { continue };
+            let time = if backwards { span - p.time } else { p.time };
+            let v = p.velocity.unwrap_or(0.0);
+            points.push((
+                i,
+                t0 + time,
+                unit.to_degrees(p.position),
+                unit.to_degrees(if backwards { -v } else { v }),
+            ));
+        }
+    }
+    let deg = |x: f64| unit.to_degrees(x);
+    #[allow(clippy::cast_possible_truncation)]
+    let f = |x: f64| x as f32;
+    let scurve = max_j.is_some() && motor.profile != MotionProfile::Trapezoidal;
+    let mut segments = Vec::new();
+    // Where the joint is when each segment is sent: the previous
+    // segment's own f32 plan, TRAJECTORY_LEAD_S before its waypoint.
+    let (mut from_pos, mut from_vel, mut from_t) = match points.first() {
+        Some(&(_, t, p, v)) => (p, v, t),
+        None => return Err(infeasible(0, "no waypoints".to_owned())),
+    };
+    for pair in points.windows(2) {
+        let (&(_, _, _, _), &(index, t1, p1, v1)) = match pair {
+            [a, b] => (a, b),
+            _ => continue,
+        };
+        let last = segments.len() + 2 == points.len();
+        let lead = if last { 0.0 } else { TRAJECTORY_LEAD_S };
+        let duration = t1 - from_t;
+        if duration <= 0.0 {
+            return Err(infeasible(index, "waypoint times must increase".to_owned()));
+        }
+        let base = if scurve {
+            SetTargetPayloadV2::scurve(
+                f(p1),
+                f(deg(max_v)),
+                f(deg(max_a)),
+                f(deg(max_j.unwrap_or(0.0))),
+            )
+        } else {
+            SetTargetPayloadV2::trapezoidal(f(p1), f(deg(max_v)), f(deg(max_a)))
+        };
+        let mut payload = SetTargetPayloadV2 {
+            target_velocity: f(v1),
+            ..base
+        };
+        payload.profile = if scurve {
+            MotionProfile::SCurve
+        } else {
+            MotionProfile::Trapezoidal
+        };
+        let req = payload.planner_request(from_pos, from_vel);
+        let fastest = minimum_duration(&req).map_err(|e| infeasible(index, e.to_string()))?;
+        if fastest > duration + 1e-9 {
+            return Err(infeasible(
+                index,
+                format!(
+                    "its segment needs {:.2} s of the {:.2} s it is given under max_velocity {max_v}, max_acceleration {max_a}{}",
+                    fastest,
+                    duration,
+                    max_j.map_or_else(String::new, |j| format!(", max_jerk {j}"))
+                ),
+            ));
+        }
+        let profile =
+            plan_with_duration(&req, duration).map_err(|e| infeasible(index, e.to_string()))?;
+        let cruise = profile.peak_velocity().0.abs();
+        if cruise < f64::from(payload.max_velocity) {
+            payload.max_velocity = f(cruise).max(f(v1.abs())).max(f(from_vel.abs()));
+        }
+        // The joint's own plan, in f32, from where it will be.
+        let joint = plan(&payload.planner_request(f(from_pos), f(from_vel)))
+            .map_err(|e| infeasible(index, format!("the joint's own plan fails: {e}")))?;
+        let arrives = from_t + f64::from(joint.duration());
+        // A waypoint to reach at rest may be reached early: the joint holds
+        // there until its time, when the next segment starts from rest.
+        let early_at_rest = v1 == 0.0 && arrives < t1;
+        if (arrives - t1).abs() > WAYPOINT_TOLERANCE_S && !early_at_rest {
+            return Err(infeasible(
+                index,
+                format!("the joint would pass it at {arrives:.4} s, not {t1:.4} s"),
+            ));
+        }
+        check_path(
+            motor,
+            &e,
+            &payload,
+            unit.from_degrees(from_pos),
+            unit.from_degrees(from_vel),
+        )
+        .map_err(|r| infeasible(index, r.to_string()))?;
+        segments.push(TrajectorySegment {
+            at: from_t,
+            payload,
+            arrives,
+        });
+        if early_at_rest || v1 == 0.0 {
+            // At rest on the waypoint at its time.
+            from_pos = p1;
+            from_vel = 0.0;
+            from_t = t1;
+        } else {
+            // The next segment is sent `lead` before this one's end.
+            let send = f64::from(joint.duration()) - lead;
+            let s = joint.sample(f(send.max(0.0)));
+            from_pos = f64::from(s.position);
+            from_vel = f64::from(s.velocity);
+            from_t += send.max(0.0);
+        }
+    }
+    let duration = points.last().map_or(0.0, |p| p.1);
+    Ok(Translated {
+        value: TrajectoryPlan { segments, duration },
+        report,
+    })
+}

@@ -1,0 +1,101 @@
+//! WIA trajectories for an iRPC joint: gated, checked, planned segment by
+//! segment so each waypoint is passed at its time.
+#![allow(clippy::unwrap_used, clippy::panic, clippy::indexing_slicing)]
+
+use motorwire_translate::{BusMap, Refusal, WAYPOINT_TOLERANCE_S, trajectory_to_irpc};
+use motorwire_wia::Trajectory;
+
+const DOC: &str = include_str!("../../../fixtures/wia/valid/doc-5.2-trajectory.json");
+
+fn map() -> BusMap {
+    BusMap::from_toml(
+        r#"
+        [motors.gripper_axis]
+        dialect = "irpc"
+        node = 0x20
+        limits = { min_position = -10, max_position = 100, max_velocity = 200, max_acceleration = 500, max_jerk = 5000 }
+        "#,
+    )
+    .unwrap()
+}
+
+fn feasible() -> Trajectory {
+    let mut t: Trajectory = serde_json::from_str(DOC).unwrap();
+    let c = t.constraints.as_mut().unwrap();
+    c.max_velocity = Some(90.0);
+    c.max_acceleration = Some(200.0);
+    c.max_jerk = Some(1000.0);
+    t
+}
+
+#[test]
+fn the_documents_example_is_refused_naming_waypoint_4() {
+    let t: Trajectory = serde_json::from_str(DOC).unwrap();
+    let e = trajectory_to_irpc(&map(), &t).unwrap_err();
+    assert!(
+        matches!(e, Refusal::Infeasible { waypoint: 4, .. }),
+        "{e:?}"
+    );
+    assert_eq!(
+        e.to_string(),
+        "gripper_axis: waypoint 4: its segment needs 2.24 s of the 2.00 s it is given under max_velocity 60, max_acceleration 120, max_jerk 500"
+    );
+}
+
+#[test]
+fn its_feasible_variant_passes_each_waypoint_at_its_time() {
+    let plan = trajectory_to_irpc(&map(), &feasible()).unwrap().value;
+    let times = [1.5, 3.0, 4.0, 6.0];
+    assert_eq!(plan.segments.len(), 4);
+    for (s, t) in plan.segments.iter().zip(times) {
+        if s.payload.target_velocity == 0.0 {
+            // At rest on it by its time (it holds there until then).
+            assert!(
+                s.arrives <= t + WAYPOINT_TOLERANCE_S,
+                "{} for {t}",
+                s.arrives
+            );
+        } else {
+            assert!(
+                (s.arrives - t).abs() <= WAYPOINT_TOLERANCE_S,
+                "{} for {t}",
+                s.arrives
+            );
+        }
+    }
+    // The segment leaving 90 at 15 deg/s to be back at rest one second
+    // later arrives early and holds; the next starts at its waypoint's time.
+    assert!(
+        plan.segments[2].arrives < 3.9,
+        "{}",
+        plan.segments[2].arrives
+    );
+    assert_eq!(plan.segments[3].at, 4.0);
+    assert_eq!(plan.duration, 6.0);
+    assert_eq!(plan.segments[0].at, 0.0);
+    assert_eq!(plan.segments[1].payload.target_velocity, 15.0);
+    // Each segment after the first is sent just before the waypoint before it.
+    assert!(
+        (plan.segments[1].at - (1.5 - 0.002)).abs() < 1e-6,
+        "{}",
+        plan.segments[1].at
+    );
+}
+
+#[test]
+fn waypoints_outside_the_limits_and_loops_are_checked() {
+    let mut t = feasible();
+    t.waypoints[2].position = 120.0;
+    assert_eq!(
+        trajectory_to_irpc(&map(), &t).unwrap_err().to_string(),
+        "gripper_axis: waypoint 2: position 120 is above max_position (bus map) 100"
+    );
+    let mut t = feasible();
+    t.loop_config = Some(serde_json::from_str(r#"{"enabled": true, "count": -1}"#).unwrap());
+    assert!(trajectory_to_irpc(&map(), &t).is_err());
+    let mut t = feasible();
+    t.loop_config = Some(serde_json::from_str(r#"{"enabled": true, "count": 3}"#).unwrap());
+    let plan = trajectory_to_irpc(&map(), &t).unwrap().value;
+    assert_eq!(plan.segments.len(), 12);
+    assert_eq!(plan.duration, 18.0);
+}
