@@ -170,6 +170,20 @@ impl Conn {
         };
     }
 
+    fn shutdown_write(&self) {
+        let _ = match self {
+            Self::Tcp(s) => s.shutdown(Shutdown::Write),
+            Self::Unix(s) => s.shutdown(Shutdown::Write),
+        };
+    }
+
+    fn set_read_timeout(&self, t: Duration) {
+        let _ = match self {
+            Self::Tcp(s) => s.set_read_timeout(Some(t)),
+            Self::Unix(s) => s.set_read_timeout(Some(t)),
+        };
+    }
+
     fn set_write_timeout(&self, t: Duration) {
         let _ = match self {
             Self::Tcp(s) => s.set_write_timeout(Some(t)),
@@ -545,7 +559,7 @@ impl Router {
             next += 1;
             if self.connected.fetch_add(1, Ordering::SeqCst) >= config.max_clients {
                 self.connected.fetch_sub(1, Ordering::SeqCst);
-                refuse(
+                refuse_now(
                     conn,
                     "too_many_clients",
                     &format!("the bridge serves {} clients at once", config.max_clients),
@@ -674,8 +688,33 @@ fn refuse(mut conn: Conn, kind: &str, message: &str) {
         "ok": false,
         "error": { "kind": kind, "message": message },
     });
-    let _ = writeln!(conn, "{line}");
+    let _ = conn.write_all(format!("{line}\n").as_bytes());
+    // A lingering close: what the peer still sends is read and dropped
+    // (at most 64 KiB, 200 ms), so closing does not reset the connection
+    // and discard the error line before the peer reads it.
+    conn.shutdown_write();
+    conn.set_read_timeout(Duration::from_millis(200));
+    let mut sink = [0u8; 4096];
+    let mut left: usize = 64 * 1024;
+    while left > 0 {
+        match conn.read(&mut sink) {
+            Ok(0) | Err(_) => break,
+            Ok(n) => left = left.saturating_sub(n),
+        }
+    }
     conn.shutdown();
+}
+
+/// One error line, then the connection closed at once (the accept loop
+/// cannot wait for the peer; what it sent unread may reset it).
+fn refuse_now(mut conn: Conn, kind: &str, message: &str) {
+    conn.set_write_timeout(Duration::from_millis(50));
+    let line = serde_json::json!({
+        "ok": false,
+        "error": { "kind": kind, "message": message },
+    });
+    let _ = conn.write_all(format!("{line}\n").as_bytes());
+    conn.shutdown_write();
 }
 
 /// Binds a local socket at `path` that only this user can connect to: it
