@@ -1233,3 +1233,94 @@ limits = { min_position = -10, max_position = 100, max_velocity = 200, max_accel
     let a = arrivals(&out);
     assert_eq!(a[0]["arrived"], true, "{}", a[0]);
 }
+
+/// Random feasible trajectories through the bridge in simulated time:
+/// every waypoint passed within 1 ms of its time (the joint's position
+/// error there over its speed; at rest, there by its time).
+/// `MOTORWIRE_TRAJECTORY_CASES` sets how many (30 by default); `--nocapture`
+/// prints the worst and the p99, which BENCHMARKS.md records.
+#[test]
+fn random_trajectories_pass_their_waypoints_on_time() {
+    let map = r#"
+[motors.j]
+dialect = "irpc"
+node = 0x20
+limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acceleration = 800, max_jerk = 8000 }
+"#;
+    let cases: usize = std::env::var("MOTORWIRE_TRAJECTORY_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(30);
+    let mut rng = proptest::test_runner::TestRng::deterministic_rng(
+        proptest::test_runner::RngAlgorithm::ChaCha,
+    );
+    let mut errors: Vec<f64> = Vec::new();
+    let (mut ran, mut refused) = (0usize, 0usize);
+    while ran < cases {
+        let n = rng.random_range(3..6usize);
+        let mut t = 0.0;
+        let mut p = 0.0;
+        let mut points = vec![(0.0f64, 0.0f64, 0.0f64)];
+        for k in 1..n {
+            t += rng.random_range(0.6..2.0f64);
+            p = (p + rng.random_range(-60.0..60.0f64)).clamp(-150.0, 150.0);
+            let v = if k + 1 == n {
+                0.0
+            } else {
+                rng.random_range(-40.0..40.0f64)
+            };
+            points.push((
+                (t * 1000.0).round() / 1000.0,
+                (p * 10.0).round() / 10.0,
+                v.round(),
+            ));
+        }
+        let waypoints: Vec<String> = points
+            .iter()
+            .map(|(t, p, v)| format!(r#"{{"position":{p},"velocity":{v},"time":{t}}}"#))
+            .collect();
+        let line = format!(
+            r#"{{"trajectory_id":"r","motor_id":"j","waypoints":[{}],"timing":{{}}}}"#,
+            waypoints.join(",")
+        );
+        let traj: motorwire_wia::Trajectory = serde_json::from_str(&line).unwrap();
+        if motorwire_translate::trajectory_to_irpc(&BusMap::from_toml(map).unwrap(), &traj).is_err()
+        {
+            refused += 1;
+            continue;
+        }
+        ran += 1;
+        let mut arm = arm_with(map, Faults::default(), 0);
+        arm.line(Origin(1), &line);
+        arm.run_until(arm.now() + Duration::from_millis(20))
+            .unwrap();
+        let start = arm
+            .joint(0x20)
+            .unwrap()
+            .log()
+            .iter()
+            .find(|e| matches!(e.payload, Payload::SetTargetV2(_)))
+            .unwrap()
+            .at;
+        for &(time, position, velocity) in &points[1..] {
+            let at = start + Duration::from_secs_f64(time);
+            arm.run_until(at).unwrap();
+            let off = (arm.joint(0x20).unwrap().position_at(at) - position).abs();
+            let late = if velocity == 0.0 {
+                if off > 0.1 { f64::INFINITY } else { 0.0 }
+            } else {
+                off / velocity.abs()
+            };
+            assert!(late <= 0.001, "{line}: at {time} s off by {off}");
+            errors.push(late);
+        }
+    }
+    errors.sort_by(f64::total_cmp);
+    let p99 = errors[(errors.len() - 1) * 99 / 100];
+    eprintln!(
+        "{ran} trajectories ({refused} random ones refused as infeasible), {} waypoints: timing error max {:.4} ms, p99 {:.4} ms",
+        errors.len(),
+        errors.last().unwrap() * 1000.0,
+        p99 * 1000.0
+    );
+}
