@@ -1324,3 +1324,56 @@ limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acce
         p99 * 1000.0
     );
 }
+
+/// A trajectory on a bus that drops and duplicates: it arrives, or its
+/// lines say why; nothing is executed twice.
+#[test]
+fn a_trajectory_under_faults_arrives_or_says_why() {
+    let map = r#"
+[motors.j]
+dialect = "irpc"
+node = 0x20
+limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acceleration = 800, max_jerk = 8000 }
+"#;
+    let line = r#"{"trajectory_id":"f","motor_id":"j","waypoints":[{"position":0,"velocity":0,"time":0},{"position":40,"velocity":20,"time":1},{"position":80,"velocity":0,"time":2.5},{"position":10,"velocity":0,"time":4}],"timing":{}}"#;
+    let (mut arrived, mut said_why) = (0, 0);
+    for seed in 0..10 {
+        let mut arm = arm_with(map, faults(), seed);
+        // Its position heard first (the trajectory must start where it is).
+        arm.run_until(arm.now() + Duration::from_millis(100))
+            .unwrap();
+        arm.line(Origin(1), line);
+        arm.run_until(arm.now() + Duration::from_secs(8)).unwrap();
+        let out = arm.take_outputs();
+        let r: Vec<Value> = out
+            .iter()
+            .filter_map(|o| o.result().map(|_| o.to_value()))
+            .collect();
+        assert_eq!(r.len(), 1, "seed {seed}");
+        let a = arrivals(&out);
+        if r[0]["ok"] == true {
+            assert_eq!(a.len(), 1, "seed {seed}: {r:?}");
+            if a[0]["arrived"] == true {
+                arrived += 1;
+                assert!((arm.joint(0x20).unwrap().position() - 10.0).abs() < 0.1);
+            } else {
+                assert!(a[0]["reason"].is_string(), "{}", a[0]);
+                said_why += 1;
+            }
+        } else {
+            assert!(r[0]["error"]["message"].is_string(), "{}", r[0]);
+            eprintln!("seed {seed}: {}", r[0]);
+            said_why += 1;
+        }
+        let mut seen = BTreeSet::new();
+        for e in arm.joint(0x20).unwrap().log() {
+            assert!(
+                seen.insert((e.source, e.msg_id)),
+                "seed {seed}: executed twice"
+            );
+        }
+    }
+    assert_eq!(arrived + said_why, 10);
+    eprintln!("{arrived} of 10 arrived, {said_why} said why not");
+    assert!(arrived >= 5, "{arrived} of 10 arrived");
+}

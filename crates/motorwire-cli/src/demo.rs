@@ -79,6 +79,11 @@ fn script() -> Vec<Step> {
             expect: Expect::Arrive(&[("shoulder_pitch", -30.0), ("shoulder_roll", 20.0), ("elbow", 60.0)]),
         },
         Step {
+            title: "trajectory: the elbow through 100° at 40°/s at 1.1 s, to rest at 70° at 2.5 s",
+            line: r#"{"trajectory_id":"demo-wave","motor_id":"elbow","waypoints":[{"position":60,"velocity":0,"time":0},{"position":100,"velocity":40,"time":1.1},{"position":70,"velocity":0,"time":2.5}],"timing":{"interpolation":"quintic"}}"#.to_owned(),
+            expect: Expect::Arrive(&[("elbow", 70.0)]),
+        },
+        Step {
             title: "compact command: close the gripper to 45° (CAN id 0x20, acked by its feedback)",
             line: r#"{"motor_id":"gripper_axis","timestamp":0,"control_mode":"position","setpoint":45,"velocity_limit":60}"#.to_owned(),
             expect: Expect::Arrive(&[("gripper_axis", 45.0)]),

@@ -252,7 +252,8 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
     let out = motorwire(&["demo", "--svg", svg.to_str().unwrap()], None);
     let text = String::from_utf8(out.stdout).unwrap();
     assert_eq!(out.status.code(), Some(0), "{text}");
-    assert_eq!(text.matches("] ok   ").count(), 11, "{text}");
+    assert_eq!(text.matches("] ok   ").count(), 12, "{text}");
+    assert!(text.contains("trajectory: the elbow"), "{text}");
     assert!(
         text.contains("compact command: close the gripper to 45°"),
         "{text}"
@@ -280,9 +281,9 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
         "position (°)",
         "velocity (°/s)",
         "time (s)",
-        "7 stop",
-        "9 release",
-        "11",
+        "8 stop",
+        "10 release",
+        "12",
     ] {
         assert!(plot.contains(text), "{text}");
     }
