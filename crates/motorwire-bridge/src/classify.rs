@@ -53,6 +53,14 @@ pub enum Input {
         /// Why.
         reason: String,
     },
+    /// A multi-axis trajectory: `{"trajectory_id":..,"trajectories":[..]}`,
+    /// each a WIA Trajectory for its own joint, on one time base.
+    Trajectories {
+        /// Its `trajectory_id`.
+        id: String,
+        /// Each joint's.
+        trajectories: Vec<motorwire_wia::Trajectory>,
+    },
     /// `{"reset":M}`: bring joint M back after a fault or a reboot.
     Reset {
         /// The joint.
@@ -393,6 +401,46 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
             reason: format!(
                 "{reason}: a release is exactly {{\"emergency_stop\": false}}; the emergency stop stays latched"
             ),
+        };
+    }
+    if let Some((_, Value::Array(items))) = members.iter().find(|(k, _)| k == "trajectories") {
+        let id = members
+            .iter()
+            .find_map(|(k, v)| (k == "trajectory_id").then(|| v.as_str()))
+            .flatten();
+        let problem = |message: String| Input::Invalid {
+            message,
+            violations: None,
+            label: label.clone(),
+        };
+        let Some(id) = id else {
+            return problem(r#"a multi-axis trajectory is {"trajectory_id":"...","trajectories":[WIA Trajectory, ...]}"#.to_owned());
+        };
+        if members.len() != 2 || items.is_empty() {
+            return problem(r#"a multi-axis trajectory is {"trajectory_id":"...","trajectories":[WIA Trajectory, ...]} and nothing else"#.to_owned());
+        }
+        let mut trajectories = Vec::new();
+        for (i, item) in items.iter().enumerate() {
+            match validator.parse_any(&item.to_string()) {
+                Ok(Message::Trajectory(t)) => trajectories.push(*Box::new(t)),
+                Ok(other) => {
+                    return problem(format!(
+                        "trajectories[{i}] is a {}, not a trajectory",
+                        other.kind()
+                    ));
+                }
+                Err(e) => {
+                    return Input::Invalid {
+                        message: format!("trajectories[{i}] is not a valid WIA trajectory"),
+                        violations: serde_json::to_value(e.violations()).ok(),
+                        label,
+                    };
+                }
+            }
+        }
+        return Input::Trajectories {
+            id: id.to_owned(),
+            trajectories,
         };
     }
     if let Some((_, m)) = members.iter().find(|(k, _)| k == "reset") {

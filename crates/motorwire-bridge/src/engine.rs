@@ -754,11 +754,17 @@ impl Bridge {
             }
             Input::QueryLimits { motor_id } => self.query_limits(origin, number, &motor_id),
             Input::Reset { motor_id } => self.reset_joint(now, origin, number, &motor_id),
+            Input::Trajectories { id, trajectories } => {
+                self.trajectories(now, origin, number, &id, &trajectories);
+            }
             Input::Message(m) => match *m {
                 Message::MotorCommand(cmd) => self.motor_command(now, origin, number, &cmd),
                 Message::MultiAxisCommand(cmd) => self.multi_axis(now, origin, number, &cmd),
                 Message::SafetyLimits(l) => self.safety_limits(origin, number, &l),
-                Message::Trajectory(t) => self.trajectory(now, origin, number, &t),
+                Message::Trajectory(t) => {
+                    let id = t.trajectory_id.clone();
+                    self.trajectories(now, origin, number, &id, std::slice::from_ref(&t));
+                }
                 Message::PidConfig(p) => self.refuse(
                     origin,
                     number,
@@ -795,85 +801,124 @@ impl Bridge {
 
     // ---- trajectories -----------------------------------------------------------
 
-    /// A WIA Trajectory for an iRPC joint: planned and checked whole
-    /// ([`trajectory_to_irpc`]) before anything is sent, then each segment
-    /// sent at its time (`timing.start_time` in the future schedules the
-    /// start). The joint must stand at the first waypoint.
-    fn trajectory(&mut self, now: Duration, origin: Origin, number: u64, t: &Trajectory) {
-        let label = Some(("motor_id", t.motor_id.clone()));
+    /// WIA Trajectories for iRPC joints (one, or several on one time base):
+    /// each planned and checked whole ([`trajectory_to_irpc`]) before
+    /// anything is sent, then each segment sent at its time
+    /// (`timing.start_time` in the future schedules the start). Each joint
+    /// must stand at its first waypoint.
+    fn trajectories(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        id: &str,
+        all: &[Trajectory],
+    ) {
+        // One trajectory: labelled by its motor; several: by their id.
+        let label = match all {
+            [one] => Some(("motor_id", one.motor_id.clone())),
+            _ => Some(("command_id", id.to_owned())),
+        };
         let now_ms = self.unix_ms(now);
-        let start_ms = t.timing.start_time.unwrap_or(now_ms);
-        if let Err(e) = self.admit(start_ms.min(now_ms), std::iter::once(t.motor_id.as_str())) {
-            self.refuse(origin, number, label, e);
-            return;
-        }
-        let plan = match trajectory_to_irpc(&self.map, t) {
-            Ok(p) => p,
-            Err(r) => {
-                let e = ErrorBody::new(ErrorKind::Refused, r.to_string());
-                self.refuse(origin, number, label, e);
-                return;
-            }
-        };
-        let Some(ji) = self.joint_index(&t.motor_id) else {
-            let e = ErrorBody::new(
-                ErrorKind::Refused,
-                format!("{} is not an iRPC joint", t.motor_id),
-            );
-            self.refuse(origin, number, label, e);
-            return;
-        };
-        let (unit, tolerance) = self
-            .map
-            .motor(&t.motor_id)
-            .map_or((AngleUnit::Degrees, 0.1), |m| {
-                (m.unit, m.unit.to_degrees(m.arrival_tolerance))
-            });
-        let first = t
-            .waypoints
-            .first()
-            .map_or(0.0, |w| unit.to_degrees(w.position));
-        let here = self.joints.get(ji).and_then(|j| j.motion).map(|(p, _)| p);
-        if here.is_none_or(|p| (p - first).abs() > tolerance) {
-            let at = here.map_or_else(
-                || "at an unknown position".to_owned(),
-                |p| format!("at {}", short_unit(unit.from_degrees(p))),
-            );
-            let e = ErrorBody::new(
-                ErrorKind::Refused,
-                format!(
-                    "{}: the trajectory starts at {} and the joint is {at}: move it there first",
-                    t.motor_id,
-                    short_unit(unit.from_degrees(first))
-                ),
-            );
+        // One time base: the first `start_time` given, or now.
+        let start_ms = all
+            .iter()
+            .find_map(|t| t.timing.start_time)
+            .unwrap_or(now_ms);
+        if let Err(e) = self.admit(
+            start_ms.min(now_ms),
+            all.iter().map(|t| t.motor_id.as_str()),
+        ) {
             self.refuse(origin, number, label, e);
             return;
         }
         let delay = Duration::from_secs_f64(((start_ms - now_ms) / 1000.0).max(0.0));
         let start = now.saturating_add(delay);
-        let mut axis = Axis::new(
-            t.motor_id.clone(),
-            ji,
-            plan.value
+        let mut axes = Vec::new();
+        let mut report = Report::default();
+        let mut seen = std::collections::BTreeSet::new();
+        for t in all {
+            if !seen.insert(t.motor_id.as_str()) {
+                let e = ErrorBody::new(
+                    ErrorKind::Refused,
+                    format!("{} has two trajectories in one line", t.motor_id),
+                );
+                self.refuse(origin, number, label, e);
+                return;
+            }
+            let plan = match trajectory_to_irpc(&self.map, t) {
+                Ok(p) => p,
+                Err(r) => {
+                    let e = ErrorBody::new(ErrorKind::Refused, r.to_string());
+                    self.refuse(origin, number, label, e);
+                    return;
+                }
+            };
+            let Some(ji) = self.joint_index(&t.motor_id) else {
+                let e = ErrorBody::new(
+                    ErrorKind::Refused,
+                    format!("{} is not an iRPC joint", t.motor_id),
+                );
+                self.refuse(origin, number, label, e);
+                return;
+            };
+            let (unit, tolerance) = self
+                .map
+                .motor(&t.motor_id)
+                .map_or((AngleUnit::Degrees, 0.1), |m| {
+                    (m.unit, m.unit.to_degrees(m.arrival_tolerance))
+                });
+            let first = t
+                .waypoints
+                .first()
+                .map_or(0.0, |w| unit.to_degrees(w.position));
+            let here = self.joints.get(ji).and_then(|j| j.motion).map(|(p, _)| p);
+            if here.is_none_or(|p| (p - first).abs() > tolerance) {
+                let at = here.map_or_else(
+                    || "at an unknown position".to_owned(),
+                    |p| format!("at {}", short_unit(unit.from_degrees(p))),
+                );
+                let e = ErrorBody::new(
+                    ErrorKind::Refused,
+                    format!(
+                        "{}: the trajectory starts at {} and the joint is {at}: move it there first",
+                        t.motor_id,
+                        short_unit(unit.from_degrees(first))
+                    ),
+                );
+                self.refuse(origin, number, label, e);
+                return;
+            }
+            for mut loss in plan.report.losses {
+                if all.len() > 1 {
+                    loss.field = format!("{}.{}", t.motor_id, loss.field);
+                }
+                report.losses.push(loss);
+            }
+            let mut axis = Axis::new(
+                t.motor_id.clone(),
+                ji,
+                plan.value
+                    .segments
+                    .iter()
+                    .map(|s| Payload::SetTargetV2(s.payload)),
+            );
+            axis.due = plan
+                .value
                 .segments
                 .iter()
-                .map(|s| Payload::SetTargetV2(s.payload)),
-        );
-        axis.due = plan
-            .value
-            .segments
-            .iter()
-            .map(|s| start.saturating_add(Duration::from_secs_f64(s.at.max(0.0))))
-            .collect();
+                .map(|s| start.saturating_add(Duration::from_secs_f64(s.at.max(0.0))))
+                .collect();
+            axes.push(axis);
+        }
         self.open_job(
             Some(origin),
             number,
             label,
             JobKind::Command,
             now,
-            vec![axis],
-            plan.report,
+            axes,
+            report,
             Vec::new(),
         );
     }

@@ -1377,3 +1377,49 @@ limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acce
     eprintln!("{arrived} of 10 arrived, {said_why} said why not");
     assert!(arrived >= 5, "{arrived} of 10 arrived");
 }
+
+/// Several joints' trajectories on one time base, in one line.
+#[test]
+fn a_multi_axis_trajectory_moves_every_joint_on_one_time_base() {
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    arm.run_until(arm.now() + Duration::from_millis(50)).unwrap();
+    let line = r#"{"trajectory_id":"wave","trajectories":[
+        {"trajectory_id":"a","motor_id":"shoulder_pitch","waypoints":[{"position":0,"velocity":0,"time":0},{"position":40,"velocity":40,"time":1.1},{"position":10,"velocity":0,"time":2.5}],"timing":{}},
+        {"trajectory_id":"b","motor_id":"elbow","waypoints":[{"position":0,"velocity":0,"time":0},{"position":60,"velocity":0,"time":2.5}],"timing":{}}
+    ]}"#
+        .replace('\n', "");
+    arm.line(Origin(1), &line);
+    arm.run_until(arm.now() + Duration::from_millis(20)).unwrap();
+    let start = arm
+        .joint(0x10)
+        .unwrap()
+        .log()
+        .iter()
+        .find(|e| matches!(e.payload, Payload::SetTargetV2(_)))
+        .unwrap()
+        .at;
+    let at = start + Duration::from_secs_f64(1.1);
+    arm.run_until(at).unwrap();
+    assert!((arm.joint(0x10).unwrap().position_at(at) - 40.0).abs() < 0.04);
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    let out = arm.take_outputs();
+    let r = out.iter().find_map(|o| o.result().map(|_| o.to_value())).unwrap();
+    assert_eq!(r["ok"], true, "{r}");
+    assert_eq!(r["command_id"], "wave");
+    assert_eq!(r["acked"], serde_json::json!(["shoulder_pitch", "elbow"]));
+    let a = arrivals(&out);
+    assert_eq!(a[0]["arrived"], true, "{}", a[0]);
+    assert_eq!(a[0]["motors"].as_array().unwrap().len(), 2);
+    // One axis infeasible: the whole line refused, nothing sent.
+    let before = arm.joint(0x12).unwrap().log().len();
+    arm.line(
+        Origin(1),
+        &line
+            .replace(r#""position":60,"velocity":0,"time":2.5"#, r#""position":0.5,"velocity":0,"time":2.5"#)
+            .replace(r#""position":10,"velocity":0,"time":2.5"#, r#""position":170,"velocity":0,"time":2.5"#),
+    );
+    arm.run_until(arm.now() + Duration::from_millis(50)).unwrap();
+    let r = arm.take_results();
+    assert_eq!(r[0]["ok"], false, "{}", r[0]);
+    assert_eq!(arm.joint(0x12).unwrap().log().len(), before);
+}
