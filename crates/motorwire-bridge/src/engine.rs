@@ -909,6 +909,22 @@ impl Bridge {
                 .iter()
                 .map(|s| start.saturating_add(Duration::from_secs_f64(s.at.max(0.0))))
                 .collect();
+            if plan.value.forever {
+                axis.cycle = Some((
+                    plan.value
+                        .segments
+                        .iter()
+                        .map(|s| {
+                            (
+                                Duration::from_secs_f64(s.at.max(0.0)),
+                                Payload::SetTargetV2(s.payload),
+                            )
+                        })
+                        .collect(),
+                    Duration::from_secs_f64(plan.value.duration),
+                    start,
+                ));
+            }
             axes.push(axis);
         }
         self.open_job(
@@ -2055,6 +2071,16 @@ impl Bridge {
         let Some(a) = job.axes.get_mut(step.axis) else {
             return false;
         };
+        // A trajectory looping forever: its next cycle.
+        if a.payloads.is_empty()
+            && let Some((cycle, period, started)) = a.cycle.as_mut()
+        {
+            *started = started.saturating_add(*period);
+            for (offset, p) in cycle.iter() {
+                a.payloads.push_back(Order::Irpc(*p));
+                a.due.push_back(started.saturating_add(*offset));
+            }
+        }
         // A trajectory's next segment, not due yet: the joint stays this
         // step's until then.
         if let Some(&due) = a.due.front()
@@ -2145,7 +2171,8 @@ impl Bridge {
         let stopping = kind.is_stop();
         match c.outcome {
             Outcome::Acked => {
-                if a.payloads.is_empty() {
+                // A trajectory looping forever has its next cycle to come.
+                if a.payloads.is_empty() && a.cycle.is_none() {
                     a.finish(StepOutcome::Acked, None, "acked");
                 }
             }

@@ -84,6 +84,10 @@ pub(crate) struct Axis {
     /// A trajectory's: when each payload is due (bridge time), in order;
     /// empty for a command (sent one after another as they are acked).
     pub(crate) due: VecDeque<Duration>,
+    /// A trajectory that loops forever: its cycle (payloads, their offsets
+    /// from the cycle's start), the cycle's length, and when the current
+    /// one started. Refilled when it runs out, until a stop.
+    pub(crate) cycle: Option<(Vec<(Duration, Payload)>, Duration, Duration)>,
     /// The target of its last move (degrees), watched for arrival once
     /// acked.
     pub(crate) target: Option<f64>,
@@ -122,6 +126,7 @@ impl Axis {
             state: AxisState::Queued,
             attempts: 0,
             due: VecDeque::new(),
+            cycle: None,
             target,
             after: None,
             arrived: false,

@@ -1382,14 +1382,16 @@ limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acce
 #[test]
 fn a_multi_axis_trajectory_moves_every_joint_on_one_time_base() {
     let mut arm = arm_with(MAP, Faults::default(), 0);
-    arm.run_until(arm.now() + Duration::from_millis(50)).unwrap();
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
     let line = r#"{"trajectory_id":"wave","trajectories":[
         {"trajectory_id":"a","motor_id":"shoulder_pitch","waypoints":[{"position":0,"velocity":0,"time":0},{"position":40,"velocity":40,"time":1.1},{"position":10,"velocity":0,"time":2.5}],"timing":{}},
         {"trajectory_id":"b","motor_id":"elbow","waypoints":[{"position":0,"velocity":0,"time":0},{"position":60,"velocity":0,"time":2.5}],"timing":{}}
     ]}"#
         .replace('\n', "");
     arm.line(Origin(1), &line);
-    arm.run_until(arm.now() + Duration::from_millis(20)).unwrap();
+    arm.run_until(arm.now() + Duration::from_millis(20))
+        .unwrap();
     let start = arm
         .joint(0x10)
         .unwrap()
@@ -1403,7 +1405,10 @@ fn a_multi_axis_trajectory_moves_every_joint_on_one_time_base() {
     assert!((arm.joint(0x10).unwrap().position_at(at) - 40.0).abs() < 0.04);
     arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
     let out = arm.take_outputs();
-    let r = out.iter().find_map(|o| o.result().map(|_| o.to_value())).unwrap();
+    let r = out
+        .iter()
+        .find_map(|o| o.result().map(|_| o.to_value()))
+        .unwrap();
     assert_eq!(r["ok"], true, "{r}");
     assert_eq!(r["command_id"], "wave");
     assert_eq!(r["acked"], serde_json::json!(["shoulder_pitch", "elbow"]));
@@ -1415,11 +1420,65 @@ fn a_multi_axis_trajectory_moves_every_joint_on_one_time_base() {
     arm.line(
         Origin(1),
         &line
-            .replace(r#""position":60,"velocity":0,"time":2.5"#, r#""position":0.5,"velocity":0,"time":2.5"#)
-            .replace(r#""position":10,"velocity":0,"time":2.5"#, r#""position":170,"velocity":0,"time":2.5"#),
+            .replace(
+                r#""position":60,"velocity":0,"time":2.5"#,
+                r#""position":0.5,"velocity":0,"time":2.5"#,
+            )
+            .replace(
+                r#""position":10,"velocity":0,"time":2.5"#,
+                r#""position":170,"velocity":0,"time":2.5"#,
+            ),
     );
-    arm.run_until(arm.now() + Duration::from_millis(50)).unwrap();
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
     let r = arm.take_results();
     assert_eq!(r[0]["ok"], false, "{}", r[0]);
     assert_eq!(arm.joint(0x12).unwrap().log().len(), before);
+}
+
+/// `loop.count` -1: the trajectory runs cycle after cycle until a stop,
+/// whose line answers it.
+#[test]
+fn a_trajectory_looping_forever_runs_until_a_stop() {
+    let map = r#"
+[motors.j]
+dialect = "irpc"
+node = 0x20
+limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acceleration = 800, max_jerk = 8000 }
+"#;
+    let mut arm = arm_with(map, Faults::default(), 0);
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    arm.line(
+        Origin(1),
+        r#"{"trajectory_id":"pendulum","motor_id":"j","waypoints":[{"position":0,"velocity":0,"time":0},{"position":30,"velocity":30,"time":1},{"position":0,"velocity":0,"time":2}],"timing":{},"loop":{"enabled":true,"count":-1}}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(6500))
+        .unwrap();
+    let moves = arm
+        .joint(0x20)
+        .unwrap()
+        .log()
+        .iter()
+        .filter(|e| matches!(e.payload, Payload::SetTargetV2(_)))
+        .count();
+    // Segments at 0, 0.998, 2, 2.998, 4, 4.998 and 6 s.
+    assert_eq!(
+        moves, 7,
+        "three cycles of two segments and the fourth begun in 6.5 s"
+    );
+    assert!(arm.take_results().is_empty(), "no result while it loops");
+    arm.line(Origin(1), r#"{"emergency_stop": true}"#);
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    let r = arm.take_results();
+    let looped = r.iter().find(|v| v["line"] == 1).unwrap();
+    assert_eq!(looped["error"]["kind"], "cancelled", "{looped}");
+    let after = arm
+        .joint(0x20)
+        .unwrap()
+        .log()
+        .iter()
+        .filter(|e| matches!(e.payload, Payload::SetTargetV2(_)))
+        .count();
+    assert_eq!(after, moves, "a segment was sent after the stop");
 }

@@ -35,8 +35,13 @@ pub struct TrajectorySegment {
 pub struct TrajectoryPlan {
     /// The segments (one per waypoint after the first, times the loops).
     pub segments: Vec<TrajectorySegment>,
-    /// How long the whole trajectory takes (s).
+    /// How long the whole trajectory takes (s); for one that loops
+    /// forever, one cycle.
     pub duration: f64,
+    /// `loop.count` -1: `segments` are one cycle (one pass, or a pass and
+    /// its reverse), repeated every `duration` until stopped. Each cycle
+    /// ends at rest where it starts, so it repeats exactly.
+    pub forever: bool,
 }
 
 /// Plans `traj` for its iRPC joint: every waypoint gated against the bus
@@ -55,7 +60,8 @@ pub struct TrajectoryPlan {
 /// Waypoint `time` is in seconds from the start (WIRE-FACTS §3); the first
 /// waypoint is where the joint must be. `loop` with a `count` repeats it
 /// (`reverse_on_loop` runs every other pass backwards); a count of -1
-/// (forever) is refused, as is a first waypoint time other than 0.
+/// (forever) plans one cycle to repeat ([`TrajectoryPlan::forever`]). A
+/// first waypoint time other than 0 is refused.
 ///
 /// # Errors
 /// [`Refusal::Infeasible`] naming the waypoint and the limit; the gate's
@@ -161,12 +167,18 @@ pub fn trajectory_to_irpc(
             None => 1,
             Some(n) if n >= 1 => usize::try_from(n).unwrap_or(usize::MAX).min(1000),
             Some(-1) => {
-                return Err(Refusal::NotRepresentable {
-                    motor: name,
-                    field: "loop.count",
-                    problem: "loop.count -1 (forever) is not run by this bridge yet: give a count"
-                        .to_owned(),
-                });
+                let reverse = l.reverse_on_loop == Some(true);
+                let (a, b) = (w.first(), w.last());
+                if b.is_some_and(|b| b.velocity.unwrap_or(0.0) != 0.0)
+                    || (!reverse && a.map(|p| p.position) != b.map(|p| p.position))
+                {
+                    return Err(infeasible(
+                        w.len() - 1,
+                        "a loop forever must end at rest, where it starts (or reverse_on_loop)"
+                            .to_owned(),
+                    ));
+                }
+                if reverse { 2 } else { 1 }
             }
             Some(n) => {
                 return Err(infeasible(
@@ -318,8 +330,16 @@ pub fn trajectory_to_irpc(
         }
     }
     let duration = points.last().map_or(0.0, |p| p.1);
+    let forever = traj
+        .loop_config
+        .as_ref()
+        .is_some_and(|l| l.enabled == Some(true) && l.count == Some(-1));
     Ok(Translated {
-        value: TrajectoryPlan { segments, duration },
+        value: TrajectoryPlan {
+            segments,
+            duration,
+            forever,
+        },
         report,
     })
 }

@@ -90,9 +90,18 @@ fn waypoints_outside_the_limits_and_loops_are_checked() {
         trajectory_to_irpc(&map(), &t).unwrap_err().to_string(),
         "gripper_axis: waypoint 2: position 120 is above max_position (bus map) 100"
     );
+    // Forever: one cycle, repeated (it ends at rest where it starts).
     let mut t = feasible();
     t.loop_config = Some(serde_json::from_str(r#"{"enabled": true, "count": -1}"#).unwrap());
-    assert!(trajectory_to_irpc(&map(), &t).is_err());
+    let plan = trajectory_to_irpc(&map(), &t).unwrap().value;
+    assert!(plan.forever);
+    assert_eq!((plan.segments.len(), plan.duration), (4, 6.0));
+    // A forever loop that would not end where it starts: refused.
+    t.waypoints[4].position = 10.0;
+    assert_eq!(
+        trajectory_to_irpc(&map(), &t).unwrap_err().to_string(),
+        "gripper_axis: waypoint 4: a loop forever must end at rest, where it starts (or reverse_on_loop)"
+    );
     let mut t = feasible();
     t.loop_config = Some(serde_json::from_str(r#"{"enabled": true, "count": 3}"#).unwrap());
     let plan = trajectory_to_irpc(&map(), &t).unwrap().value;
