@@ -45,7 +45,7 @@ use serde_json::Value;
 use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Input, classify};
-use crate::job::{Axis, AxisState, Job, JobKind, Order, Rider};
+use crate::job::{Axis, AxisState, Cycle, Job, JobKind, Order, Rider};
 use crate::joints::{CompactLink, Joint, StepRef, Unresolved};
 use crate::output::{
     ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output, StepOutcome,
@@ -910,8 +910,9 @@ impl Bridge {
                 .map(|s| start.saturating_add(Duration::from_secs_f64(s.at.max(0.0))))
                 .collect();
             if plan.value.forever {
-                axis.cycle = Some((
-                    plan.value
+                axis.cycle = Some(Cycle {
+                    payloads: plan
+                        .value
                         .segments
                         .iter()
                         .map(|s| {
@@ -921,9 +922,9 @@ impl Bridge {
                             )
                         })
                         .collect(),
-                    Duration::from_secs_f64(plan.value.duration),
-                    start,
-                ));
+                    period: Duration::from_secs_f64(plan.value.duration),
+                    started: start,
+                });
             }
             axes.push(axis);
         }
@@ -2073,12 +2074,12 @@ impl Bridge {
         };
         // A trajectory looping forever: its next cycle.
         if a.payloads.is_empty()
-            && let Some((cycle, period, started)) = a.cycle.as_mut()
+            && let Some(c) = a.cycle.as_mut()
         {
-            *started = started.saturating_add(*period);
-            for (offset, p) in cycle.iter() {
+            c.started = c.started.saturating_add(c.period);
+            for (offset, p) in &c.payloads {
                 a.payloads.push_back(Order::Irpc(*p));
-                a.due.push_back(started.saturating_add(*offset));
+                a.due.push_back(c.started.saturating_add(*offset));
             }
         }
         // A trajectory's next segment, not due yet: the joint stays this

@@ -84,10 +84,9 @@ pub(crate) struct Axis {
     /// A trajectory's: when each payload is due (bridge time), in order;
     /// empty for a command (sent one after another as they are acked).
     pub(crate) due: VecDeque<Duration>,
-    /// A trajectory that loops forever: its cycle (payloads, their offsets
-    /// from the cycle's start), the cycle's length, and when the current
-    /// one started. Refilled when it runs out, until a stop.
-    pub(crate) cycle: Option<(Vec<(Duration, Payload)>, Duration, Duration)>,
+    /// A trajectory that loops forever: refilled from its cycle when it
+    /// runs out, until a stop.
+    pub(crate) cycle: Option<Cycle>,
     /// The target of its last move (degrees), watched for arrival once
     /// acked.
     pub(crate) target: Option<f64>,
@@ -158,6 +157,17 @@ impl Axis {
     pub(crate) fn is_done(&self) -> bool {
         matches!(self.state, AxisState::Done(_))
     }
+}
+
+/// One cycle of a trajectory that loops forever.
+#[derive(Debug)]
+pub(crate) struct Cycle {
+    /// Its payloads, each with its offset from the cycle's start.
+    pub(crate) payloads: Vec<(Duration, Payload)>,
+    /// How long a cycle is.
+    pub(crate) period: Duration,
+    /// When the current cycle started.
+    pub(crate) started: Duration,
 }
 
 /// One job.
