@@ -22,5 +22,6 @@ pub use path::{PathExtent, check_path, check_trajectory};
 pub use report::{Loss, LossKind, Report, Translated};
 pub use sync::{MultiAxisMove, SYNC_TOLERANCE_S, multi_axis_to_irpc};
 pub use trajectory::{
-    TRAJECTORY_LEAD_S, TrajectoryPlan, TrajectorySegment, WAYPOINT_TOLERANCE_S, trajectory_to_irpc,
+    MAX_TRAJECTORY_SEGMENTS, TRAJECTORY_LEAD_S, TrajectoryPlan, TrajectorySegment,
+    WAYPOINT_TOLERANCE_S, trajectory_to_irpc,
 };

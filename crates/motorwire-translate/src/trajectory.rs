@@ -18,6 +18,11 @@ pub const TRAJECTORY_LEAD_S: f64 = 0.002;
 /// plan has it (s).
 pub const WAYPOINT_TOLERANCE_S: f64 = 0.001;
 
+/// The most segments one trajectory line may plan to (waypoints times
+/// passes): planning takes the bridge's engine some microseconds per
+/// segment, and a stop waits behind it.
+pub const MAX_TRAJECTORY_SEGMENTS: usize = 1000;
+
 /// One segment: sent `at` seconds after the trajectory starts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrajectorySegment {
@@ -188,6 +193,15 @@ pub fn trajectory_to_irpc(
             }
         },
     };
+    if passes.saturating_mul(w.len() - 1) > MAX_TRAJECTORY_SEGMENTS {
+        return Err(infeasible(
+            w.len() - 1,
+            format!(
+                "{} waypoints over {passes} passes are more than the {MAX_TRAJECTORY_SEGMENTS} segments one line may plan",
+                w.len()
+            ),
+        ));
+    }
     let reverse = traj.loop_config.as_ref().and_then(|l| l.reverse_on_loop) == Some(true);
     if passes > 1 && !reverse && w.first().map(|p| p.position) != w.last().map(|p| p.position) {
         return Err(infeasible(

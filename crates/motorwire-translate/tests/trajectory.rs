@@ -108,3 +108,18 @@ fn waypoints_outside_the_limits_and_loops_are_checked() {
     assert_eq!(plan.segments.len(), 12);
     assert_eq!(plan.duration, 18.0);
 }
+
+#[test]
+fn a_trajectory_too_long_to_plan_at_once_is_refused_and_the_longest_is_quick() {
+    let mut t = feasible();
+    t.loop_config = Some(serde_json::from_str(r#"{"enabled": true, "count": 251}"#).unwrap());
+    assert_eq!(
+        trajectory_to_irpc(&map(), &t).unwrap_err().to_string(),
+        "gripper_axis: waypoint 4: 5 waypoints over 251 passes are more than the 1000 segments one line may plan"
+    );
+    t.loop_config = Some(serde_json::from_str(r#"{"enabled": true, "count": 250}"#).unwrap());
+    let started = std::time::Instant::now();
+    let plan = trajectory_to_irpc(&map(), &t).unwrap().value;
+    assert_eq!(plan.segments.len(), 1000);
+    eprintln!("1000 segments planned in {:?}", started.elapsed());
+}
