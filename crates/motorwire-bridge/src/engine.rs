@@ -2705,17 +2705,21 @@ impl Bridge {
         }
     }
 
+    /// The indices of the devices `pick` chooses.
+    fn joints_where(&self, pick: impl Fn(&Joint) -> bool) -> Vec<usize> {
+        self.joints
+            .iter()
+            .enumerate()
+            .filter(|(_, j)| pick(j))
+            .map(|(i, _)| i)
+            .collect()
+    }
+
     /// Devices holding a velocity or torque setpoint that was not renewed
     /// within their command timeout are brought to a stop (velocity 0),
     /// and an event says so.
     fn deadman(&mut self, now: Duration) {
-        let due: Vec<usize> = self
-            .joints
-            .iter()
-            .enumerate()
-            .filter(|(_, j)| j.deadman.is_some_and(|d| now >= d))
-            .map(|(i, _)| i)
-            .collect();
+        let due = self.joints_where(|j| j.deadman.is_some_and(|d| now >= d));
         for ji in due {
             let Some(j) = self.joints.get_mut(ji) else {
                 continue;
@@ -2929,13 +2933,7 @@ impl Bridge {
         self.compact_timeouts(now);
         self.deadman(now);
         // Trajectory segments now due.
-        let due: Vec<usize> = self
-            .joints
-            .iter()
-            .enumerate()
-            .filter(|(_, j)| j.wake.is_some_and(|w| now >= w))
-            .map(|(i, _)| i)
-            .collect();
+        let due = self.joints_where(|j| j.wake.is_some_and(|w| now >= w));
         for ji in due {
             let Some(j) = self.joints.get_mut(ji) else {
                 continue;

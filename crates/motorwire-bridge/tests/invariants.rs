@@ -673,6 +673,19 @@ fn a_dropped_client_s_pending_lines_are_cancelled_and_said() {
     check(&arm, &tally);
 }
 
+/// When joint `node` executed its first move (a trajectory's time starts
+/// then: the bus's latency shifts all of it, not one waypoint against
+/// another).
+fn first_move_at(arm: &SimulatedArm, node: u16) -> Duration {
+    arm.joint(node)
+        .unwrap()
+        .log()
+        .iter()
+        .find(|e| matches!(e.payload, Payload::SetTargetV2(_)))
+        .unwrap()
+        .at
+}
+
 fn arrivals(outputs: &[Output]) -> Vec<Value> {
     outputs
         .iter()
@@ -1187,14 +1200,7 @@ limits = { min_position = -10, max_position = 100, max_velocity = 200, max_accel
     // another).
     arm.run_until(arm.now() + Duration::from_millis(20))
         .unwrap();
-    let start = arm
-        .joint(0x20)
-        .unwrap()
-        .log()
-        .iter()
-        .find(|e| matches!(e.payload, Payload::SetTargetV2(_)))
-        .unwrap()
-        .at;
+    let start = first_move_at(&arm, 0x20);
     let mut worst: f64 = 0.0;
     for (time, position, velocity) in [
         (1.5, 45.0, 30.0),
@@ -1294,14 +1300,7 @@ limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acce
         arm.line(Origin(1), &line);
         arm.run_until(arm.now() + Duration::from_millis(20))
             .unwrap();
-        let start = arm
-            .joint(0x20)
-            .unwrap()
-            .log()
-            .iter()
-            .find(|e| matches!(e.payload, Payload::SetTargetV2(_)))
-            .unwrap()
-            .at;
+        let start = first_move_at(&arm, 0x20);
         for &(time, position, velocity) in &points[1..] {
             let at = start + Duration::from_secs_f64(time);
             arm.run_until(at).unwrap();
@@ -1392,14 +1391,7 @@ fn a_multi_axis_trajectory_moves_every_joint_on_one_time_base() {
     arm.line(Origin(1), &line);
     arm.run_until(arm.now() + Duration::from_millis(20))
         .unwrap();
-    let start = arm
-        .joint(0x10)
-        .unwrap()
-        .log()
-        .iter()
-        .find(|e| matches!(e.payload, Payload::SetTargetV2(_)))
-        .unwrap()
-        .at;
+    let start = first_move_at(&arm, 0x10);
     let at = start + Duration::from_secs_f64(1.1);
     arm.run_until(at).unwrap();
     assert!((arm.joint(0x10).unwrap().position_at(at) - 40.0).abs() < 0.04);
