@@ -171,7 +171,16 @@ impl RealTimeArm {
     /// use motorwire_bridge::sim::RealTimeArm;
     /// use motorwire_bridge::{Bridge, BridgeConfig, Output, Runner};
     /// use motorwire_translate::BusMap;
-    /// let map = BusMap::from_toml(include_str!("../../../fixtures/maps/demo-arm.toml"))?;
+    /// let map = BusMap::from_toml(
+    ///     r#"
+    ///     [motors.elbow]
+    ///     dialect = "irpc"
+    ///     node = 0x12
+    ///     wire = "v2.0"
+    ///     profile = "scurve"
+    ///     limits = { min_position = 0, max_position = 150, max_velocity = 120, max_acceleration = 500, max_jerk = 2000 }
+    ///     "#,
+    /// )?;
     /// let bridge = Bridge::new(map, BridgeConfig::default())?;
     /// let arm = RealTimeArm::start(bridge.map())?;
     /// let runner = Runner::new();

@@ -544,6 +544,7 @@ impl CanBus for SimPort {
 }
 
 #[cfg(feature = "tokio")]
+#[cfg_attr(docsrs, doc(cfg(feature = "tokio")))]
 impl crate::AsyncCanBus for SimPort {
     async fn send(&mut self, frame: &Frame) -> Result<(), Error> {
         CanBus::send(self, frame)

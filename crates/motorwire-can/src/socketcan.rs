@@ -278,6 +278,7 @@ impl CanBus for SocketCanBus {
 
 /// The async twin of [`SocketCanBus`] (features `socketcan` and `tokio`).
 #[cfg(feature = "tokio")]
+#[cfg_attr(docsrs, doc(cfg(feature = "tokio")))]
 #[derive(Debug)]
 pub struct AsyncSocketCanBus {
     iface: String,
@@ -285,6 +286,7 @@ pub struct AsyncSocketCanBus {
 }
 
 #[cfg(feature = "tokio")]
+#[cfg_attr(docsrs, doc(cfg(feature = "tokio")))]
 impl AsyncSocketCanBus {
     /// Opens `iface` as [`SocketCanBus::open`] does; needs a tokio runtime
     /// with I/O enabled.
@@ -303,6 +305,7 @@ impl AsyncSocketCanBus {
 }
 
 #[cfg(feature = "tokio")]
+#[cfg_attr(docsrs, doc(cfg(feature = "tokio")))]
 impl crate::AsyncCanBus for AsyncSocketCanBus {
     async fn send(&mut self, frame: &Frame) -> Result<(), Error> {
         let k = to_kernel(frame)?;

@@ -256,6 +256,9 @@ fn rates_outside_zero_to_one_are_refused() {
     );
 }
 
+// Needs the feature, which the workspace turns on for tests (a self
+// dev-dependency) and a downloaded crate does with `--features tokio`.
+#[cfg(feature = "tokio")]
 #[tokio::test]
 async fn the_async_trait_on_the_in_memory_bus() {
     use motorwire_can::AsyncCanBus;

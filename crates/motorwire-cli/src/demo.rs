@@ -28,8 +28,8 @@ pub(crate) struct Args {
     svg: PathBuf,
 }
 
-const MAP: &str = include_str!("../../../fixtures/maps/demo-arm.toml");
-const MULTI: &str = include_str!("../../../fixtures/wia/valid/doc-3.2-multi-axis-command.json");
+const MAP: &str = include_str!("../demo/demo-arm.toml");
+const MULTI: &str = include_str!("../demo/doc-3.2-multi-axis-command.json");
 const ORIGIN: Origin = Origin(1);
 /// How close a joint must come to its target (degrees).
 const AT_TARGET: f64 = 0.05;

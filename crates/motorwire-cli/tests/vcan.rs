@@ -624,7 +624,7 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
     ));
     sleep(Duration::from_millis(300));
     let map = std::env::temp_dir().join("motorwire-vcan-bridge-map.toml");
-    std::fs::write(&map, include_str!("../../../fixtures/maps/demo-arm.toml")).unwrap();
+    std::fs::write(&map, include_str!("../demo/demo-arm.toml")).unwrap();
     // Under emulation a joint can be slow to answer: longer timeouts.
     let mut bridge = motorwire()
         .args([

@@ -4,6 +4,7 @@ use motorwire_planner::{Float, MotionProfile as Shape, Overshoot, Request};
 
 use crate::{MotionProfile, SetTargetPayloadV2};
 
+#[cfg_attr(docsrs, doc(cfg(feature = "planner")))]
 impl SetTargetPayloadV2 {
     /// The planner's request for the move a joint makes on this command
     /// from `start` (degrees) at `start_velocity` (deg/s): the one reading

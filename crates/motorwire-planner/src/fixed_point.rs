@@ -65,17 +65,34 @@ impl core::error::Error for FixedRangeError {}
 
 /// `value` as an `F`: exact for `f64`; for `f32`, exact below 256 in
 /// magnitude and rounded to nearest above.
+///
+/// ```
+/// use motorwire_planner::fixed_point::{I16F16, from_i16f16};
+/// assert_eq!(from_i16f16::<f64>(I16F16::from_bits(1)), 1.0 / 65536.0);
+/// // 300 + 2^-16 needs 25 significant bits: f32 rounds it to 300.
+/// assert_eq!(from_i16f16::<f32>(I16F16::from_bits((300 << 16) + 1)), 300.0);
+/// ```
 pub fn from_i16f16<F: Float>(value: I16F16) -> F {
     F::from_f64(value.to_num::<f64>())
 }
 
 /// `value` rounded to the nearest `I16F16` (ties to even), or an error
 /// naming `field` when it is not finite or out of range.
+///
+/// ```
+/// use motorwire_planner::fixed_point::{I16F16, to_i16f16};
+/// assert_eq!(to_i16f16(1.5_f64, "position")?, I16F16::from_num(1.5));
+/// let err = to_i16f16(1e5_f64, "jerk").unwrap_err();
+/// assert_eq!((err.field, err.value), ("jerk", 1e5));
+/// assert!(to_i16f16(f32::NAN, "velocity").is_err());
+/// # Ok::<(), motorwire_planner::fixed_point::FixedRangeError>(())
+/// ```
 pub fn to_i16f16<F: Float>(value: F, field: &'static str) -> Result<I16F16, FixedRangeError> {
     let value = value.to_f64();
     I16F16::checked_from_num(value).ok_or(FixedRangeError { field, value })
 }
 
+#[cfg_attr(docsrs, doc(cfg(feature = "fixed")))]
 impl<F: Float> Request<F> {
     /// [`Request::new`] from `I16F16` inputs (a rest-to-rest move with
     /// symmetric limits, as the iRPC document's `TrapezoidalProfile::new`
@@ -96,6 +113,7 @@ impl<F: Float> Request<F> {
     }
 }
 
+#[cfg_attr(docsrs, doc(cfg(feature = "fixed")))]
 impl<F: Float> State<F> {
     /// Every field rounded to the nearest `I16F16`; the first that does not
     /// fit is the error.

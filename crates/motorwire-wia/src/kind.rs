@@ -70,13 +70,13 @@ impl MessageKind {
     /// ```
     pub const fn schema(self) -> &'static str {
         match self {
-            Self::MotorCommand => include_str!("../../../schemas/motor-command.json"),
-            Self::MultiAxisCommand => include_str!("../../../schemas/multi-axis-command.json"),
-            Self::MotorFeedback => include_str!("../../../schemas/motor-feedback.json"),
-            Self::Trajectory => include_str!("../../../schemas/trajectory.json"),
-            Self::PidConfig => include_str!("../../../schemas/pid-config.json"),
-            Self::SafetyLimits => include_str!("../../../schemas/safety-limits.json"),
-            Self::ControlModeConfig => include_str!("../../../schemas/control-mode-config.json"),
+            Self::MotorCommand => include_str!("../schemas/motor-command.json"),
+            Self::MultiAxisCommand => include_str!("../schemas/multi-axis-command.json"),
+            Self::MotorFeedback => include_str!("../schemas/motor-feedback.json"),
+            Self::Trajectory => include_str!("../schemas/trajectory.json"),
+            Self::PidConfig => include_str!("../schemas/pid-config.json"),
+            Self::SafetyLimits => include_str!("../schemas/safety-limits.json"),
+            Self::ControlModeConfig => include_str!("../schemas/control-mode-config.json"),
         }
     }
 

@@ -278,8 +278,17 @@ fn compare(kind: MessageKind, value: &Value, tally: &mut Tally, what: &str) {
     }
 }
 
-fn load_fixtures() -> Vec<(MessageKind, Value)> {
+/// Every fixture under the workspace's `fixtures/wia/` with its kind, or
+/// `None` (saying so) in a packaged crate, which has no workspace around it.
+fn load_fixtures() -> Option<Vec<(MessageKind, Value)>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/wia");
+    if !root.is_dir() {
+        eprintln!(
+            "skipped: {} does not exist (a packaged crate, outside the workspace)",
+            root.display()
+        );
+        return None;
+    }
     let mut out = Vec::new();
     for dir in ["valid", "invalid"] {
         for entry in std::fs::read_dir(root.join(dir)).unwrap() {
@@ -294,12 +303,14 @@ fn load_fixtures() -> Vec<(MessageKind, Value)> {
         }
     }
     out.sort_by_key(|(k, v)| (k.name(), v.to_string()));
-    out
+    Some(out)
 }
 
 #[test]
 fn typed_path_and_json_schema_agree() {
-    let fixtures = load_fixtures();
+    let Some(fixtures) = load_fixtures() else {
+        return;
+    };
     let mut tally = Tally::default();
     for (kind, value) in &fixtures {
         for k in MessageKind::ALL {
