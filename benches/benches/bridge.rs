@@ -24,13 +24,14 @@ use std::time::{Duration, Instant};
 
 use criterion::{Criterion, Throughput};
 use motorwire_bridge::sim::{RealTimeArm, SimulatedArm};
-use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output, Runner};
+use motorwire_bridge::{Bridge, BridgeConfig, InputSender, Origin, Output, Runner};
 use motorwire_can::SimConfig;
 use motorwire_can::client::{ClientConfig, Outcome};
 use motorwire_irpc::{Payload, SetTargetPayloadV2};
 use motorwire_sim::JointConfig;
 use motorwire_sim::rig::Rig;
 use motorwire_translate::BusMap;
+use serde_json::Value;
 
 const MAP: &str = include_str!("../../fixtures/maps/demo-arm.toml");
 
@@ -102,10 +103,12 @@ fn percentile(sorted: &[u64], p: f64) -> u64 {
     sorted[i.min(sorted.len() - 1)]
 }
 
-/// The Runner in real time: `n` lines, each sent when the previous result
-/// came (latency), then `n` lines with up to 16 in flight (rate).
-fn real_time(n: u64) {
-    let map = BusMap::from_toml(MAP).unwrap();
+type Handle = std::thread::JoinHandle<Result<Bridge, motorwire_bridge::BridgeError>>;
+
+/// The bridge for `map` (no feedback) run by a `Runner` on its real-time
+/// simulated devices; results come on the receiver.
+fn started(map: &str) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
+    let map = BusMap::from_toml(map).unwrap();
     let config = BridgeConfig {
         feedback_period: None,
         ..BridgeConfig::default()
@@ -120,6 +123,31 @@ fn real_time(n: u64) {
             let _ = tx.send(o.to_value());
         }
     });
+    (arm, input, rx, handle)
+}
+
+/// `n` emergency stops, each released; their latencies (line to the last
+/// stop frame, µs), sorted.
+fn stop_each_released(input: &InputSender, rx: &mpsc::Receiver<Value>, n: usize) -> Vec<u64> {
+    let mut stops = Vec::new();
+    for _ in 0..n {
+        input.line(Origin(1), r#"{"emergency_stop": true}"#);
+        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+        assert_eq!(r["ok"], true, "{r}");
+        assert_eq!(r["emergency_stop"], true, "{r}");
+        stops.push(r["stop_latency_us"].as_u64().unwrap());
+        input.line(Origin(1), r#"{"emergency_stop": false}"#);
+        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+        assert_eq!(r["released"], true, "{r}");
+    }
+    stops.sort_unstable();
+    stops
+}
+
+/// The Runner in real time: `n` lines, each sent when the previous result
+/// came (latency), then `n` lines with up to 16 in flight (rate).
+fn real_time(n: u64) {
+    let (_arm, input, rx, handle) = started(MAP);
     let mut latencies = Vec::new();
     for i in 0..n {
         input.line(Origin(1), line(i));
@@ -148,17 +176,8 @@ fn real_time(n: u64) {
     assert_eq!(failed, 0, "{failed} of {n} lines failed");
     // The emergency stop: from its line to the last of its three
     // Deactivate frames on the bus; released after each.
-    let mut stops = Vec::new();
-    for _ in 0..n.min(500) {
-        input.line(Origin(1), r#"{"emergency_stop": true}"#);
-        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
-        assert_eq!(r["emergency_stop"], true, "{r}");
-        stops.push(r["stop_latency_us"].as_u64().unwrap());
-        input.line(Origin(1), r#"{"emergency_stop": false}"#);
-        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
-        assert_eq!(r["released"], true, "{r}");
-    }
-    stops.sort_unstable();
+    #[allow(clippy::cast_possible_truncation)]
+    let stops = stop_each_released(&input, &rx, n.min(500) as usize);
     // The same with a burst of BURST lines in flight when the stop comes.
     const BURST: u64 = 1000;
     let mut loaded = Vec::new();
@@ -207,34 +226,10 @@ fn real_time(n: u64) {
 /// map of one dialect: `n` stops, each released, on the real-time
 /// simulated devices. (median, p99) in µs.
 fn stop_latency(map: &str, n: usize) -> (u64, u64) {
-    let map = BusMap::from_toml(map).unwrap();
-    let config = BridgeConfig {
-        feedback_period: None,
-        ..BridgeConfig::default()
-    };
-    let bridge = Bridge::new(map, config).unwrap();
-    let arm = RealTimeArm::start(bridge.map()).unwrap();
-    let runner = Runner::new();
-    let input = runner.input();
-    let (tx, rx) = mpsc::channel();
-    let handle = arm.spawn(runner, bridge, move |o| {
-        if let Output::Result { .. } = o {
-            let _ = tx.send(o.to_value());
-        }
-    });
-    let mut stops = Vec::new();
-    for _ in 0..n {
-        input.line(Origin(1), r#"{"emergency_stop": true}"#);
-        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
-        assert_eq!(r["ok"], true, "{r}");
-        stops.push(r["stop_latency_us"].as_u64().unwrap());
-        input.line(Origin(1), r#"{"emergency_stop": false}"#);
-        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
-        assert_eq!(r["released"], true, "{r}");
-    }
+    let (_arm, input, rx, handle) = started(map);
+    let stops = stop_each_released(&input, &rx, n);
     input.interrupt();
     handle.join().unwrap().unwrap();
-    stops.sort_unstable();
     (percentile(&stops, 0.5), percentile(&stops, 0.99))
 }
 
