@@ -594,7 +594,19 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
         .map(|node| {
             Killed(
                 motorwire()
-                    .args(["sim", "joint", "--bus", "socketcan:vcan0", "--node", node])
+                    // Under emulation, with five processes on two virtual
+                    // cores, a heartbeat can come later than the default
+                    // 200 ms watchdog: this test is not about the watchdog.
+                    .args([
+                        "sim",
+                        "joint",
+                        "--bus",
+                        "socketcan:vcan0",
+                        "--node",
+                        node,
+                        "--watchdog",
+                        "2000",
+                    ])
                     .stderr(Stdio::null())
                     .spawn()
                     .unwrap(),
@@ -649,13 +661,38 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
         .spawn()
         .unwrap();
     let mut stdin = bridge.stdin.take().unwrap();
+    // Every output line, as it comes: the test waits for the elbow's
+    // completion line rather than guessing how slow the emulation is.
+    let (lines_tx, lines_rx) = std::sync::mpsc::channel::<String>();
+    let stdout = bridge.stdout.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        use std::io::BufRead;
+        for line in std::io::BufReader::new(stdout).lines() {
+            let Ok(line) = line else { break };
+            if lines_tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let mut seen: Vec<String> = Vec::new();
     let cmd = |motor: &str, setpoint: f64| {
         format!(
             "{{\"motor_id\":\"{motor}\",\"timestamp\":1704067200000,\"control_mode\":\"position\",\"setpoint\":{setpoint}}}\n"
         )
     };
     stdin.write_all(cmd("elbow", 20.0).as_bytes()).unwrap();
-    sleep(Duration::from_millis(1500));
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        let line = lines_rx
+            .recv_timeout(left)
+            .unwrap_or_else(|_| panic!("no completion line for the elbow: {seen:?}"));
+        let done = line.contains("\"arrived\"") && line.contains("\"line\":1,");
+        seen.push(line);
+        if done {
+            break;
+        }
+    }
     // CAN id 0x12 (the elbow's), header 12 00 01, then variant 0xFF: no
     // such payload.
     assert!(
@@ -696,7 +733,9 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
     }
     let out = bridge.wait_with_output().unwrap();
     drop(joints);
-    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    reader.join().unwrap();
+    seen.extend(lines_rx.try_iter());
+    let text = seen.join("\n");
     assert_eq!(
         out.status.code(),
         Some(0),
@@ -790,6 +829,9 @@ fn the_bridge_speaks_each_joint_its_own_wire_version() {
                         node,
                         "--wire",
                         wire,
+                        // Not a watchdog test: see the test above.
+                        "--watchdog",
+                        "2000",
                     ])
                     .stderr(Stdio::null())
                     .spawn()
