@@ -66,6 +66,12 @@ pub enum Input {
         /// The joint.
         motor_id: String,
     },
+    /// `{"orion":"fold"}` or `{"orion":"unfold"}`: the Orion arm
+    /// controller's command mode.
+    OrionCommand {
+        /// Fold or unfold.
+        command: motorwire_orion::ArmCommand,
+    },
     /// `{"query":"limits","motor_id":M}`: the motor's limits in force.
     QueryLimits {
         /// The motor asked about.
@@ -450,6 +456,21 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
             },
             _ => Input::Invalid {
                 message: r#"a reset is exactly {"reset":"<motor_id>"}"#.to_owned(),
+                violations: None,
+                label,
+            },
+        };
+    }
+    if let Some((_, c)) = members.iter().find(|(k, _)| k == "orion") {
+        return match (c.as_str(), members.len()) {
+            (Some("fold"), 1) => Input::OrionCommand {
+                command: motorwire_orion::ArmCommand::Fold,
+            },
+            (Some("unfold"), 1) => Input::OrionCommand {
+                command: motorwire_orion::ArmCommand::Unfold,
+            },
+            _ => Input::Invalid {
+                message: r#"an Orion command is exactly {"orion":"fold"} or {"orion":"unfold"} (a stop is {"emergency_stop":true})"#.to_owned(),
                 violations: None,
                 label,
             },

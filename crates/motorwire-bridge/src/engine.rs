@@ -23,6 +23,9 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
+mod orion;
+pub use orion::{MAX_ORION_LINE, POLL as ORION_POLL};
+
 use motorwire_can::CanId;
 use motorwire_can::Frame;
 use motorwire_can::client::{Client, ClientConfig, Completion, Event as ClientEvent, Outcome};
@@ -45,7 +48,7 @@ use serde_json::Value;
 use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Input, classify};
-use crate::job::{Axis, AxisState, Cycle, Job, JobKind, Order, Rider};
+use crate::job::{Axis, AxisState, Cycle, Job, JobKind, Order, OrionOrder, Rider};
 use crate::joints::{CompactLink, Joint, StepRef, Unresolved};
 use crate::output::{
     ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output, StepOutcome,
@@ -90,6 +93,14 @@ pub struct BridgeConfig {
     /// refused `busy`. A newer position command replaces a waiting one
     /// (`superseded`), so a stream of moves never fills it.
     pub max_queue_per_joint: usize,
+    /// An Orion arm controller is attached (its lines through
+    /// [`Bridge::poll_orion_line`] and [`Bridge::handle_orion_line`]): the
+    /// map's Orion motors are devices of the bridge. Default: false (they
+    /// are refused).
+    pub orion: bool,
+    /// How long the Orion controller may take to answer a fold or unfold
+    /// command, which it answers once it has run (default: 30 s).
+    pub orion_command_timeout: Duration,
 }
 
 impl Default for BridgeConfig {
@@ -105,6 +116,8 @@ impl Default for BridgeConfig {
             max_age: Some(Duration::from_secs(300)),
             max_pending_lines: 1024,
             max_queue_per_joint: 16,
+            orion: false,
+            orion_command_timeout: Duration::from_secs(30),
         }
     }
 }
@@ -304,6 +317,8 @@ pub struct Bridge {
     compact_pending: BTreeMap<usize, CompactPending>,
     compact_tx: VecDeque<Frame>,
     next_compact_id: u32,
+    /// The Orion arm controller's link.
+    orion: orion::Link,
     /// The input ended during startup: drain (until this deadline) once ready.
     drain_after_start: Option<Duration>,
     timers: Timers,
@@ -360,13 +375,23 @@ impl Bridge {
                     j.active = true;
                     Some(j)
                 }
+                Target::Orion { motor } if config.orion => {
+                    let mut j = Joint::new(m.name.clone(), orion::ORION_NODE, WireVersion::V2_0);
+                    j.orion = Some(motor);
+                    // No lifecycle either.
+                    j.active = true;
+                    Some(j)
+                }
                 Target::Orion { .. } => None,
             })
             .collect();
         if joints.is_empty() {
             return Err(BridgeError::NoJoints);
         }
-        for j in joints.iter().filter(|j| j.compact.is_none()) {
+        for j in joints
+            .iter()
+            .filter(|j| j.compact.is_none() && j.orion.is_none())
+        {
             client.set_wire(j.node, j.wire);
         }
         let base_limits = map.motors().map(|m| (m.name.clone(), m.limits)).collect();
@@ -403,6 +428,7 @@ impl Bridge {
             compact_pending: BTreeMap::new(),
             compact_tx: VecDeque::new(),
             next_compact_id: 1,
+            orion: orion::Link::default(),
             timers: Timers::default(),
             out: VecDeque::new(),
             now: Duration::ZERO,
@@ -753,6 +779,7 @@ impl Bridge {
                 self.refuse(origin, number, label, e);
             }
             Input::QueryLimits { motor_id } => self.query_limits(origin, number, &motor_id),
+            Input::OrionCommand { command } => self.orion_command(now, origin, number, command),
             Input::Reset { motor_id } => self.reset_joint(now, origin, number, &motor_id),
             Input::Trajectories { id, trajectories } => {
                 self.trajectories(now, origin, number, &id, &trajectories);
@@ -1242,6 +1269,19 @@ impl Bridge {
         self.joints.iter().position(|j| j.name == motor)
     }
 
+    /// [`Bridge::admit`] for a line that carries no timestamp (taken as
+    /// sent now).
+    fn admit_now<'a>(
+        &self,
+        motors: impl Iterator<Item = &'a str> + Clone,
+    ) -> Result<(), ErrorBody> {
+        let now_ms = self
+            .config
+            .epoch_unix_ms
+            .map_or(0.0, |e| e + self.now.as_secs_f64() * 1000.0);
+        self.admit(now_ms, motors)
+    }
+
     /// Admission: what refuses a motion line before anything is planned.
     fn admit<'a>(
         &self,
@@ -1288,7 +1328,11 @@ impl Bridge {
             (!j.online).then(|| {
                 ErrorBody::new(
                     ErrorKind::Offline,
-                    format!("{m} is offline: nothing heard from node 0x{:02X}", j.node),
+                    if j.orion.is_some() {
+                        format!("{m} is offline: nothing heard from {}", Self::orion_label())
+                    } else {
+                        format!("{m} is offline: nothing heard from node 0x{:02X}", j.node)
+                    },
                 )
                 .about(m)
             })
@@ -1331,6 +1375,16 @@ impl Bridge {
             && self.joints.get(ji).is_some_and(|j| j.compact.is_some())
         {
             self.compact_command(now, origin, number, ji, cmd);
+            return;
+        }
+        if let Some(e) = self.orion_unattached(std::iter::once(cmd.motor_id.as_str())) {
+            self.refuse(origin, number, label, e);
+            return;
+        }
+        if let Some(ji) = self.joint_index(&cmd.motor_id)
+            && self.is_orion(ji)
+        {
+            self.orion_motor_command(now, origin, number, ji, cmd);
             return;
         }
         match to_irpc(&self.map, cmd) {
@@ -1384,14 +1438,31 @@ impl Bridge {
         cmd: &MotorCommand,
     ) {
         let label = Some(("motor_id", cmd.motor_id.clone()));
-        let t = match to_compact(&self.map, cmd) {
-            Ok(t) => t,
+        match self.compact_axis(ji, cmd) {
+            Ok((axis, report)) => self.open_job(
+                Some(origin),
+                number,
+                label,
+                JobKind::Command,
+                now,
+                vec![axis],
+                report,
+                Vec::new(),
+            ),
             Err(r) => {
                 let e = ErrorBody::new(ErrorKind::Refused, r.to_string());
                 self.refuse(origin, number, label, e);
-                return;
             }
-        };
+        }
+    }
+
+    /// `cmd` for compact device `ji`, gated and translated, as its axis.
+    fn compact_axis(
+        &self,
+        ji: usize,
+        cmd: &MotorCommand,
+    ) -> Result<(Axis, Report), motorwire_translate::Refusal> {
+        let t = to_compact(&self.map, cmd)?;
         let mut c = t.value;
         c.flags = c.flags.union(Flags::REQUIRE_ACK);
         let unit = self
@@ -1402,16 +1473,124 @@ impl Bridge {
         if c.control_mode == CompactMode::Position {
             axis.target = Some(unit.to_degrees(f64::from(c.setpoint)));
         }
-        self.open_job(
-            Some(origin),
-            number,
-            label,
-            JobKind::Command,
-            now,
-            vec![axis],
-            t.report,
-            Vec::new(),
-        );
+        Ok((axis, t.report))
+    }
+
+    /// A multi-axis command with compact devices or Orion motors among its
+    /// axes: the iRPC joints' axes planned together (synchronized as the
+    /// command asks), every other axis gated and translated on its own,
+    /// all sent as one job.
+    fn multi_axis_mixed(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        cmd: &MultiAxisCommand,
+    ) {
+        let label = Some(("command_id", cmd.command_id.clone()));
+        match self.mixed_axes(cmd) {
+            Ok((mut axes, report)) => {
+                if cmd.sync_mode == Some(SyncMode::Sequential) {
+                    if let Some(a) = axes.iter().find(|a| a.target.is_none()) {
+                        let e = ErrorBody::new(
+                            ErrorKind::Refused,
+                            format!(
+                                "{}: sync_mode sequential runs position moves one after another, each once the one before arrived; this axis has no arrival to wait for",
+                                a.motor
+                            ),
+                        )
+                        .about(a.motor.clone());
+                        self.refuse(origin, number, label, e);
+                        return;
+                    }
+                    for (k, a) in axes.iter_mut().enumerate().skip(1) {
+                        a.after = Some(k - 1);
+                    }
+                }
+                self.open_job(
+                    Some(origin),
+                    number,
+                    label,
+                    JobKind::Command,
+                    now,
+                    axes,
+                    report,
+                    Vec::new(),
+                );
+            }
+            Err(e) => self.refuse(origin, number, label, e),
+        }
+    }
+
+    fn mixed_axes(&self, cmd: &MultiAxisCommand) -> Result<(Vec<Axis>, Report), ErrorBody> {
+        let refused = |motor: &str, why: String| {
+            ErrorBody::new(ErrorKind::Refused, why).about(motor.to_owned())
+        };
+        let mut report = Report::default();
+        // The iRPC joints' axes, planned together.
+        let mut sub = cmd.clone();
+        sub.motors.retain(|a| {
+            self.joint_index(&a.motor_id).is_some_and(|ji| {
+                self.joints
+                    .get(ji)
+                    .is_some_and(|j| j.compact.is_none() && j.orion.is_none())
+            })
+        });
+        let mut irpc: Vec<Vec<Payload>> = Vec::new();
+        if !sub.motors.is_empty() {
+            let position = |m: &str| {
+                let j = self.joints.get(self.joint_index(m)?)?;
+                j.feedback.as_ref().map(|f| f.position)
+            };
+            let t = multi_axis_to_irpc(&self.map, &sub, &position)
+                .map_err(|r| ErrorBody::new(ErrorKind::Refused, r.to_string()))?;
+            irpc = t.value.commands.into_iter().map(|c| c.payloads).collect();
+            report.losses.extend(t.report.losses);
+        }
+        let mut irpc = irpc.into_iter();
+        let mut axes = Vec::new();
+        let mut others = false;
+        for a in &cmd.motors {
+            let Some(ji) = self.joint_index(&a.motor_id) else {
+                return Err(refused(
+                    &a.motor_id,
+                    format!("{} is not a device of the bus map", a.motor_id),
+                ));
+            };
+            let single = a.to_motor_command(cmd.timestamp);
+            let prefixed = |r: Report| {
+                r.losses.into_iter().map(|mut l| {
+                    l.field = format!("{}.{}", a.motor_id, l.field);
+                    l
+                })
+            };
+            if self.joints.get(ji).is_some_and(|j| j.compact.is_some()) {
+                let (axis, r) = self
+                    .compact_axis(ji, &single)
+                    .map_err(|r| refused(&a.motor_id, r.to_string()))?;
+                report.losses.extend(prefixed(r));
+                axes.push(axis);
+                others = true;
+            } else if self.is_orion(ji) {
+                let (axis, r) = self
+                    .orion_axis(ji, &single)
+                    .map_err(|r| refused(&a.motor_id, r.to_string()))?;
+                report.losses.extend(prefixed(r));
+                axes.push(axis);
+                others = true;
+            } else {
+                let payloads = irpc.next().unwrap_or_default();
+                axes.push(Axis::new(a.motor_id.clone(), ji, payloads));
+            }
+        }
+        if others && !sub.motors.is_empty() && cmd.sync_mode != Some(SyncMode::Sequential) {
+            report.losses.push(motorwire_translate::Loss {
+                field: "sync_mode".to_owned(),
+                kind: motorwire_translate::LossKind::Converted,
+                detail: "compact and Orion axes are sent at the same time as the others, but only iRPC joints are planned to a common duration".to_owned(),
+            });
+        }
+        Ok((axes, report))
     }
 
     /// A move's whole planned path, from the joint's last reported
@@ -1453,6 +1632,20 @@ impl Bridge {
                 self.stats.busy += 1;
             }
             self.refuse(origin, number, label, e);
+            return;
+        }
+        if let Some(e) = self.orion_unattached(cmd.motors.iter().map(|a| a.motor_id.as_str())) {
+            self.refuse(origin, number, label, e);
+            return;
+        }
+        if cmd.motors.iter().any(|a| {
+            self.joint_index(&a.motor_id).is_some_and(|ji| {
+                self.joints
+                    .get(ji)
+                    .is_some_and(|j| j.compact.is_some() || j.orion.is_some())
+            })
+        }) {
+            self.multi_axis_mixed(now, origin, number, cmd);
             return;
         }
         let position = |m: &str| {
@@ -1584,7 +1777,7 @@ impl Bridge {
                     let a = job.axes.get(s.axis)?;
                     let irpc = |o: &Order| match o {
                         Order::Irpc(p) => Some(*p),
-                        Order::Compact(_) => None,
+                        Order::Compact(_) | Order::Orion(_) => None,
                     };
                     let mut p: Vec<Payload> = a.payloads.iter().filter_map(irpc).collect();
                     if let AxisState::InFlight { payload, .. } = a.state
@@ -1704,6 +1897,14 @@ impl Bridge {
                         ..
                     } => {
                         self.compact_pending.remove(&ji);
+                    }
+                    AxisState::InFlight {
+                        payload: Order::Orion(_),
+                        ..
+                    } => {
+                        if let Some(p) = self.orion.pending.as_mut() {
+                            p.forget(ji);
+                        }
                     }
                     _ => {}
                 }
@@ -1827,6 +2028,16 @@ impl Bridge {
         let Some(j) = self.joints.get(ji) else {
             return Vec::new();
         };
+        if j.orion.is_some() {
+            // The controller has no lifecycle: a Deactivate is its stop
+            // command (one line for all its motors).
+            return payloads
+                .iter()
+                .filter(|p| matches!(p, Payload::Deactivate | Payload::Reset))
+                .take(1)
+                .map(|_| Order::Orion(OrionOrder::Command(motorwire_orion::ArmCommand::Stop)))
+                .collect();
+        }
         let Some(link) = j.compact else {
             return payloads.iter().copied().map(Order::Irpc).collect();
         };
@@ -1891,13 +2102,17 @@ impl Bridge {
                 cut: None,
             },
         );
-        for (ji, step, position) in steps {
+        for &(ji, step, position) in &steps {
             if kind == JobKind::Command && position {
                 self.supersede(ji);
             }
             if let Some(j) = self.joints.get_mut(ji) {
                 j.queue.push_back(step);
             }
+        }
+        // Every step queued before any is sent: the Orion motors of one
+        // line go out as one line.
+        for (ji, _, _) in steps {
             self.pump(ji);
         }
         self.finish_jobs();
@@ -1948,6 +2163,9 @@ impl Bridge {
             };
             if self.waits_for_arrival(front, now) {
                 return; // sequential: the axis before it has not arrived
+            }
+            if self.is_orion(ji) && !self.orion_may_send(front) {
+                return; // one line in flight to the controller
             }
             let Some(joint) = self.joints.get_mut(ji) else {
                 return;
@@ -2102,8 +2320,47 @@ impl Bridge {
             }
             return false;
         };
+        let orion_order = match payload {
+            Order::Orion(o) => Some(o),
+            _ => None,
+        };
+        if let Some(o) = orion_order {
+            // The line may carry other motors' steps: this one's state first.
+            a.state = AxisState::InFlight { msg_id: 0, payload };
+            a.attempts = 1;
+            job.unflushed = true;
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.busy = Some(step);
+            }
+            return match self.orion_send(now, ji, step, o) {
+                Ok(msg_id) => {
+                    if let Some(a) = self
+                        .jobs
+                        .get_mut(&step.job)
+                        .and_then(|job| job.axes.get_mut(step.axis))
+                    {
+                        a.state = AxisState::InFlight { msg_id, payload };
+                    }
+                    true
+                }
+                Err(e) => {
+                    if let Some(j) = self.joints.get_mut(ji) {
+                        j.busy = None;
+                    }
+                    if let Some(a) = self
+                        .jobs
+                        .get_mut(&step.job)
+                        .and_then(|job| job.axes.get_mut(step.axis))
+                    {
+                        a.finish(StepOutcome::NotSent, None, format!("not sent: {e}"));
+                    }
+                    false
+                }
+            };
+        }
         let sent = match payload {
             Order::Irpc(p) => self.client.request(now, node, p).map_err(|e| e.to_string()),
+            Order::Orion(_) => Err("an Orion order on the CAN path".to_owned()),
             Order::Compact(c) => {
                 let id = self.next_compact_id;
                 self.next_compact_id = self.next_compact_id.wrapping_add(1);
@@ -2185,12 +2442,17 @@ impl Bridge {
                 a.finish(StepOutcome::Nacked, Some(code.0), format!("nacked: {code}"));
             }
             Outcome::TimedOut => {
+                let who = if c.target == orion::ORION_NODE {
+                    Self::orion_label()
+                } else {
+                    format!("node 0x{:02X}", c.target)
+                };
                 a.finish(
                     StepOutcome::OutcomeUnknown,
                     None,
                     format!(
-                        "sent {} times, never answered: node 0x{:02X} may or may not have executed it",
-                        c.attempts, c.target
+                        "sent {} times, never answered: {who} may or may not have executed it",
+                        c.attempts
                     ),
                 );
             }
@@ -2238,6 +2500,10 @@ impl Bridge {
             Order::Irpc(p) => p,
             Order::Compact(c) => {
                 self.track_compact(ji, c, at);
+                return;
+            }
+            Order::Orion(o) => {
+                self.track_orion(ji, o, at);
                 return;
             }
         };
@@ -2725,22 +2991,31 @@ impl Bridge {
                 continue;
             };
             j.deadman = None;
-            let Some(link) = j.compact else { continue };
             let name = j.name.clone();
+            let axis = match j.compact {
+                Some(link) => Axis::of(
+                    name.clone(),
+                    ji,
+                    [Order::Compact(CompactCommand {
+                        motor: link.hash,
+                        timestamp_ms: self.unix_ms(now) as u64,
+                        control_mode: CompactMode::Velocity,
+                        flags: Flags::REQUIRE_ACK.union(Flags::PRIORITY_HIGH),
+                        setpoint: 0.0,
+                        velocity_limit: None,
+                        torque_limit: None,
+                    })],
+                ),
+                None => match self.orion_deadman_axis(ji) {
+                    Some(axis) => axis,
+                    None => continue,
+                },
+            };
             let timeout_ms = self
                 .map
                 .motor(&name)
                 .and_then(|m| m.command_timeout)
                 .map_or(0, |t| u64::try_from(t.as_millis()).unwrap_or(u64::MAX));
-            let stop = CompactCommand {
-                motor: link.hash,
-                timestamp_ms: self.unix_ms(now) as u64,
-                control_mode: CompactMode::Velocity,
-                flags: Flags::REQUIRE_ACK.union(Flags::PRIORITY_HIGH),
-                setpoint: 0.0,
-                velocity_limit: None,
-                torque_limit: None,
-            };
             self.out.push_back(Output::Event(Event::Deadman {
                 motor_id: name.clone(),
                 timeout_ms,
@@ -2767,7 +3042,7 @@ impl Bridge {
                 None,
                 JobKind::Deadman,
                 now,
-                vec![Axis::of(name, ji, [Order::Compact(stop)])],
+                vec![axis],
                 Report::default(),
                 Vec::new(),
             );
@@ -2931,6 +3206,7 @@ impl Bridge {
         self.client.handle_timeout(now);
         self.drain_client();
         self.compact_timeouts(now);
+        self.orion_timeouts(now);
         self.deadman(now);
         // Trajectory segments now due.
         let due = self.joints_where(|j| j.wake.is_some_and(|w| now >= w));
@@ -3144,6 +3420,7 @@ impl Bridge {
             compact,
             deadman,
             wake,
+            self.orion.deadline(),
         ]
         .into_iter()
         .flatten()
@@ -3154,6 +3431,7 @@ impl Bridge {
 fn set_label(r: &mut LineResult, label: Option<(&'static str, String)>) {
     match label {
         Some(("motor_id", v)) => r.motor_id = Some(v),
+        Some(("orion", v)) => r.orion = Some(v),
         Some((_, v)) => r.command_id = Some(v),
         None => {}
     }

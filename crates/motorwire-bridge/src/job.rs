@@ -36,12 +36,23 @@ impl JobKind {
     }
 }
 
-/// One request for a device: an iRPC payload for a joint, or a compact
-/// command for a compact device.
+/// One request for a device: an iRPC payload for a joint, a compact
+/// command for a compact device, or a value or command for the Orion arm
+/// controller.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Order {
     Irpc(Payload),
     Compact(CompactCommand),
+    Orion(OrionOrder),
+}
+
+/// One Orion motor's part of a line to the arm controller.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum OrionOrder {
+    /// Direct control: the motor's new value (already within its range).
+    Set(motorwire_orion::Motor, f64),
+    /// Command mode: stop, fold or unfold.
+    Command(motorwire_orion::ArmCommand),
 }
 
 impl Order {
@@ -51,6 +62,10 @@ impl Order {
         match self {
             Self::Irpc(p) => matches!(p, Payload::SetTargetV2(_) | Payload::SetTarget(_)),
             Self::Compact(c) => c.control_mode == CompactMode::Position,
+            Self::Orion(OrionOrder::Set(m, _)) => {
+                m.quantity() == motorwire_orion::Quantity::PositionDegrees
+            }
+            Self::Orion(OrionOrder::Command(_)) => false,
         }
     }
 }

@@ -61,6 +61,8 @@ pub(crate) struct Joint {
     pub(crate) resetting: bool,
     /// Its busy step (a trajectory's) sends its next payload then.
     pub(crate) wake: Option<Duration>,
+    /// One of the Orion arm controller's motors rather than a CAN device.
+    pub(crate) orion: Option<motorwire_orion::Motor>,
 }
 
 /// What a compact device is reached by.
@@ -92,6 +94,7 @@ impl Joint {
             needs_reset: None,
             resetting: false,
             wake: None,
+            orion: None,
         }
     }
 }

@@ -11,12 +11,13 @@ mod runtime;
 pub mod sim;
 
 pub use classify::{Input, asks_for_stop, classify};
-pub use engine::{Bridge, BridgeConfig, BridgeStats, JointView};
+pub use engine::{Bridge, BridgeConfig, BridgeStats, JointView, MAX_ORION_LINE, ORION_POLL};
 pub use error::BridgeError;
 pub use output::{
     ArrivalLine, ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, MotorArrival,
     Origin, Output, StepOutcome, StepReport,
 };
 pub use runtime::{
-    InputSender, MAX_LINE, MAX_QUEUED_PER_ORIGIN, MAX_SKIP, ReadLine, Runner, feed, read_line,
+    InputSender, MAX_LINE, MAX_QUEUED_PER_ORIGIN, MAX_SKIP, OrionPort, ReadLine, Runner, feed,
+    read_line,
 };

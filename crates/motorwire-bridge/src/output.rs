@@ -124,6 +124,10 @@ pub struct LineResult {
     /// The multi-axis command's `command_id`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub command_id: Option<String>,
+    /// The Orion controller's command of an `{"orion":...}` line (`fold`,
+    /// `unfold`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub orion: Option<String>,
     /// The line was an emergency stop (it stopped every joint).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub emergency_stop: bool,
@@ -346,6 +350,25 @@ pub enum Event {
     BadFrame {
         /// Its CAN id.
         can_id: String,
+        /// Why.
+        error: String,
+    },
+    /// A line from the Orion arm controller that is not one of its
+    /// messages (WIRE-FACTS §4.1): reported and skipped, never acted on.
+    BadOrionLine {
+        /// Why.
+        error: String,
+    },
+    /// The Orion arm controller sent its boot beacon (`{"ID":32}`):
+    /// `first` when it is the first heard, otherwise the controller
+    /// started again (every motor of it at rest, its values forgotten).
+    OrionBeacon {
+        /// Whether it is the first beacon heard.
+        first: bool,
+    },
+    /// The link to the Orion arm controller ended or failed: its motors
+    /// are offline from now on.
+    OrionLinkLost {
         /// Why.
         error: String,
     },

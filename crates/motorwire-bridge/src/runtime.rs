@@ -1,6 +1,6 @@
 //! Running a [`Bridge`] in real time on a blocking bus.
 
-use std::io::{self, BufRead};
+use std::io::{self, BufRead, Write};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
@@ -91,6 +91,33 @@ enum Msg {
         at: Instant,
     },
     BusError(String),
+    /// A line from the Orion controller.
+    OrionLine {
+        text: String,
+        at: Instant,
+    },
+    /// A line from the Orion controller that could not be read.
+    OrionUnreadable(String),
+    /// The Orion controller's stream ended or failed.
+    OrionLost(String),
+}
+
+/// The byte stream to the Orion arm controller (WIRE-FACTS §4.1): one
+/// JSON object per line each way. The controller's lines are read from
+/// `reader` on a thread of their own; the bridge's are written to `writer`
+/// on another, so a controller that stops reading never holds up the
+/// engine.
+pub struct OrionPort {
+    /// Where the controller's lines come from.
+    pub reader: Box<dyn io::Read + Send>,
+    /// Where the bridge's lines go.
+    pub writer: Box<dyn io::Write + Send>,
+}
+
+impl std::fmt::Debug for OrionPort {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("OrionPort")
+    }
 }
 
 /// Hands input to a running [`Runner`]; clone it for each input.
@@ -397,6 +424,7 @@ pub struct Runner {
     urgent: Receiver<Msg>,
     numbers: Arc<Mutex<BTreeMap<Origin, u64>>>,
     budget: Arc<Budget>,
+    orion: Option<OrionPort>,
 }
 
 impl Default for Runner {
@@ -417,7 +445,16 @@ impl Runner {
             urgent,
             numbers: Arc::default(),
             budget: Arc::default(),
+            orion: None,
         }
+    }
+
+    /// Attaches the Orion arm controller (the bridge must have been made
+    /// with [`crate::BridgeConfig::orion`]).
+    #[must_use]
+    pub fn with_orion(mut self, port: OrionPort) -> Self {
+        self.orion = Some(port);
+        self
     }
 
     /// A handle to give input with.
@@ -439,7 +476,7 @@ impl Runner {
     /// [`BridgeError::Bus`] when sending on the bus fails for good (bus off,
     /// interface down).
     pub fn run<T, R>(
-        self,
+        mut self,
         mut bridge: Bridge,
         mut tx: T,
         mut rx: R,
@@ -475,6 +512,10 @@ impl Runner {
                 }
             })
         };
+        let orion = self
+            .orion
+            .take()
+            .map(|port| spawn_orion(port, self.tx.clone()));
         bridge.start(since(Instant::now()));
         let result = loop {
             let mut failed = None;
@@ -482,6 +523,11 @@ impl Runner {
                 if let Err(e) = tx.send(&f) {
                     failed = Some(e);
                     break;
+                }
+            }
+            while let Some(line) = bridge.poll_orion_line() {
+                if let Some((to_orion, _)) = &orion {
+                    let _ = to_orion.send(line);
                 }
             }
             bridge.flushed(since(Instant::now()));
@@ -577,6 +623,11 @@ impl Runner {
                 Ok(Msg::Finish) => bridge.finish(since(Instant::now())),
                 Ok(Msg::Interrupt) => bridge.interrupt(since(Instant::now())),
                 Ok(Msg::BusError(e)) => sink(&Output::Event(Event::BusError { error: e })),
+                Ok(Msg::OrionLine { text, at }) => bridge.handle_orion_line(since(at), &text),
+                Ok(Msg::OrionUnreadable(error)) => {
+                    sink(&Output::Event(Event::BadOrionLine { error }));
+                }
+                Ok(Msg::OrionLost(e)) => bridge.orion_link_lost(since(Instant::now()), &e),
                 Err(RecvTimeoutError::Timeout) => bridge.handle_timeout(since(Instant::now())),
                 Err(RecvTimeoutError::Disconnected) => bridge.finish(since(Instant::now())),
             }
@@ -588,8 +639,71 @@ impl Runner {
         };
         stop.store(true, Ordering::Relaxed);
         let _ = reader.join();
+        if let Some((to_orion, written)) = orion {
+            // The last lines (the stop) reach the controller before the
+            // end, unless its stream is stuck.
+            drop(to_orion);
+            let _ = written.recv_timeout(Duration::from_secs(1));
+        }
         result.map(|()| bridge)
     }
+}
+
+/// Starts the Orion port's reader and writer threads: lines to write go
+/// into the returned sender; the receiver hears when the writer is done.
+fn spawn_orion(port: OrionPort, events: Sender<Msg>) -> (Sender<String>, Receiver<()>) {
+    let OrionPort { reader, mut writer } = port;
+    {
+        let events = events.clone();
+        // Not joined: a blocking read cannot be interrupted, and the thread
+        // ends with its stream or the process.
+        thread::spawn(move || {
+            let mut reader = io::BufReader::new(reader);
+            loop {
+                let msg = match read_line(&mut reader) {
+                    Ok(ReadLine::Line(text)) => Msg::OrionLine {
+                        text,
+                        at: Instant::now(),
+                    },
+                    Ok(ReadLine::TooLong { .. }) => {
+                        Msg::OrionUnreadable(format!("a line over {MAX_LINE} bytes"))
+                    }
+                    Ok(ReadLine::NotUtf8 { .. }) => {
+                        Msg::OrionUnreadable("a line that is not UTF-8".to_owned())
+                    }
+                    Ok(ReadLine::Partial(_) | ReadLine::End) => {
+                        let _ =
+                            events.send(Msg::OrionLost("the controller's stream ended".to_owned()));
+                        return;
+                    }
+                    Err(e) => {
+                        let _ = events
+                            .send(Msg::OrionLost(format!("reading from the controller: {e}")));
+                        return;
+                    }
+                };
+                if events.send(msg).is_err() {
+                    return;
+                }
+            }
+        });
+    }
+    let (lines_tx, lines_rx) = mpsc::channel::<String>();
+    let (done_tx, done_rx) = mpsc::channel();
+    thread::spawn(move || {
+        for line in lines_rx {
+            let written = writer
+                .write_all(line.as_bytes())
+                .and_then(|()| writer.write_all(b"\n"))
+                .and_then(|()| writer.flush());
+            if let Err(e) = written {
+                let _ = events.send(Msg::OrionLost(format!("writing to the controller: {e}")));
+                break;
+            }
+        }
+        let _ = done_tx.send(());
+    });
+    (lines_tx, done_rx)
 }
 
 /// A receive error after which the handle will never receive again.

@@ -81,6 +81,12 @@ pub(crate) struct Args {
     /// FILE, one JSON line each: `{"joint","node","source","msg_id","payload","answer","at_us"}`.
     #[arg(long, value_name = "FILE")]
     sim_log: Option<String>,
+    /// The Orion arm controller of the map's Orion motors: `serial:PATH[@BAUD]`
+    /// (USB CDC or UART, default 115200 baud, 8N1), `tcp:ADDR`, or `sim`
+    /// (motorwire's simulated controller, in this process). Without it
+    /// the map's Orion motors are refused.
+    #[arg(long, value_name = "LINK")]
+    orion: Option<String>,
     /// The bridge's own iRPC node id (its frames' CAN id).
     #[arg(long, value_parser = crate::sim::parse_node, default_value = "0x0000")]
     node: u16,
@@ -278,6 +284,10 @@ fn on_signals(input: InputSender) -> Result<SignalStatus, String> {
 
 fn bridge(args: &Args) -> Result<u8, String> {
     let map = load_map(&args.map)?;
+    let orion = match &args.orion {
+        Some(spec) => Some(crate::orion_link::parse(spec)?),
+        None => None,
+    };
     let config = BridgeConfig {
         client: ClientConfig {
             node_id: args.node,
@@ -293,10 +303,14 @@ fn bridge(args: &Args) -> Result<u8, String> {
         offline_after: Duration::from_millis(args.offline_after.max(1)),
         epoch_unix_ms: Some(unix_ms()),
         max_age: (args.max_age > 0).then(|| Duration::from_millis(args.max_age)),
+        orion: orion.is_some(),
         ..BridgeConfig::default()
     };
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
-    let runner = Runner::new();
+    let mut runner = Runner::new();
+    if let Some(spec) = &orion {
+        runner = runner.with_orion(crate::orion_link::open(spec)?);
+    }
     let input = runner.input();
     let signalled = on_signals(input.clone())?;
 

@@ -15,6 +15,7 @@ mod demo;
 mod input;
 mod irpc;
 mod lines;
+mod orion_link;
 mod plan;
 mod serve;
 mod sim;

@@ -1,16 +1,13 @@
 //! `motorwire sim`: simulated devices.
 
-use std::io::{self, BufReader, Write};
-use std::sync::mpsc::{self, RecvTimeoutError};
-use std::thread;
+use std::io;
 use std::time::Duration;
 
 use clap::{Subcommand, ValueEnum};
-use motorwire_orion::{ArmController, FeedbackKeys, Output};
+use motorwire_orion::FeedbackKeys;
+use motorwire_sim::orion::OrionConfig;
 
 use crate::console::note;
-use crate::input::{self, Refused};
-use crate::lines::MAX_LINE;
 
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
@@ -166,96 +163,25 @@ pub(crate) fn run(args: &Args) -> u8 {
     }
 }
 
-/// One stdin line, as the reader thread hands it over.
-enum Line {
-    Text(usize, Result<String, Refused>),
-    Failed(io::Error),
-}
-
 fn orion(args: &OrionArgs) -> u8 {
     let keys = match args.feedback_keys {
         Keys::Table => FeedbackKeys::Table,
         Keys::Example => FeedbackKeys::Example,
     };
-    let (tx, rx) = mpsc::channel();
-    // stdin is read on its own thread so the beacon keeps its rhythm while
-    // no line arrives.
-    thread::spawn(move || {
-        let mut reader = BufReader::new(io::stdin());
-        let mut line_no = 0;
-        loop {
-            let item = match input::next_line(&mut reader, MAX_LINE, &mut line_no) {
-                Ok(Some(doc)) => Line::Text(doc.line.unwrap_or(line_no), doc.text),
-                Ok(None) => break,
-                Err(e) => Line::Failed(e),
-            };
-            let failed = matches!(item, Line::Failed(_));
-            if tx.send(item).is_err() || failed {
-                break;
-            }
-        }
-    });
+    let config = OrionConfig {
+        keys,
+        beacon_interval: (args.beacon_interval > 0)
+            .then(|| Duration::from_millis(args.beacon_interval)),
+    };
     let stdout = io::stdout();
-    let mut out = stdout.lock();
-    let mut arm = ArmController::new();
-    let beacon = Output::Beacon.to_json(keys);
-    if writeln!(out, "{beacon}")
-        .and_then(|()| out.flush())
-        .is_err()
-    {
-        return 2; // stdout closed: nobody hears the arm any more
-    }
-    let interval = Duration::from_millis(args.beacon_interval);
-    loop {
-        let received = if arm.awaiting_first_command() && args.beacon_interval > 0 {
-            match rx.recv_timeout(interval) {
-                Ok(line) => line,
-                Err(RecvTimeoutError::Timeout) => {
-                    if writeln!(out, "{beacon}")
-                        .and_then(|()| out.flush())
-                        .is_err()
-                    {
-                        return 2;
-                    }
-                    continue;
-                }
-                Err(RecvTimeoutError::Disconnected) => return 0,
-            }
-        } else {
-            match rx.recv() {
-                Ok(line) => line,
-                Err(_) => return 0,
-            }
-        };
-        let (n, text) = match received {
-            Line::Text(n, text) => (n, text),
-            Line::Failed(e) => {
-                note!("motorwire sim orion: reading standard input: {e}");
-                return 2;
-            }
-        };
-        let text = match text {
-            Ok(text) => text,
-            Err(Refused::TooLarge { limit }) => {
-                note!("motorwire sim orion: line {n}: over {limit} bytes; ignored");
-                continue;
-            }
-            Err(Refused::NotUtf8) => {
-                note!("motorwire sim orion: line {n}: not UTF-8; ignored");
-                continue;
-            }
-        };
-        match arm.handle_line(text.trim()) {
-            Ok(response) => {
-                for clamp in &response.clamps {
-                    note!("motorwire sim orion: line {n}: {clamp}");
-                }
-                let line = response.output.to_json(keys);
-                if writeln!(out, "{line}").and_then(|()| out.flush()).is_err() {
-                    return 2;
-                }
-            }
-            Err(e) => note!("motorwire sim orion: line {n}: {e}; ignored"),
+    match motorwire_sim::orion::serve(io::stdin(), stdout.lock(), config, |n| {
+        note!("motorwire sim orion: {n}");
+    }) {
+        Ok(()) => 0,
+        // stdin failed, or stdout closed: nobody hears the arm any more.
+        Err(e) => {
+            note!("motorwire sim orion: {e}");
+            2
         }
     }
 }

@@ -1,0 +1,653 @@
+//! The Orion arm controller behind the bridge (WIRE-FACTS §4.1): one JSON
+//! object per line each way on a byte stream.
+//!
+//! - The map's Orion motors are devices of the bridge like joints: gated,
+//!   queued, stopped, watched by the deadman. Their orders become lines to
+//!   the one controller, one line in flight at a time: direct-control
+//!   `DATA` with only the keys whose value changes (the controller
+//!   remembers the rest), or a command (`MODE` 2: stop, fold, unfold).
+//! - Orders of one input line for several Orion motors go out as one
+//!   `DATA` line; a stop for all of them is one stop command.
+//! - The controller answers every line: direct control with its feedback
+//!   (`MODE` 1), a command with `CMDF` once it has run. The answer of the
+//!   mode awaited acknowledges the line in flight (the controller answers
+//!   in order); one of the other mode answers a line given up before, and
+//!   is feedback only. A line unanswered within the Ack timeout is sent
+//!   again (a direct-control value set twice is set once), then its
+//!   outcome is unknown.
+//! - Nothing but a stop is sent before the boot beacon `{"ID":32}` is
+//!   heard. While idle the bridge asks for feedback with an empty `DATA`
+//!   every [`POLL`], which also keeps the controller from being taken as
+//!   silent.
+//! - An emergency stop goes out at once, whatever is in flight.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use motorwire_can::client::{Completion, Outcome};
+use motorwire_irpc::{NackCode, PayloadKind};
+use motorwire_orion::{ArmCommand, CONTROLLER_ID, Motor, MotorValues, Output, Quantity};
+use motorwire_translate::Report;
+
+use super::Bridge;
+use crate::job::{Axis, AxisState, JobKind, Order, OrionOrder};
+use crate::joints::StepRef;
+use crate::output::{Event, Output as BridgeOutput};
+
+/// The node id the bridge gives Orion motors: beyond CAN's 11 bits, so no
+/// frame is ever taken for theirs.
+pub(crate) const ORION_NODE: u16 = 0xFFFF;
+
+/// How often an idle bridge asks the controller for its feedback.
+pub const POLL: Duration = Duration::from_millis(100);
+
+/// The longest line taken from the controller (bytes); its feedback is
+/// under 300.
+pub const MAX_ORION_LINE: usize = 4096;
+
+/// A line to the controller waiting for its answer.
+#[derive(Debug)]
+pub(super) struct Pending {
+    msg_id: u32,
+    /// The devices whose steps it carries (none: a poll, or a line whose
+    /// steps were given up).
+    joints: Vec<usize>,
+    line: String,
+    /// The mode of the answer that acknowledges it.
+    mode: u8,
+    attempts: u8,
+    retries: u8,
+    timeout: Duration,
+    deadline: Duration,
+}
+
+impl Pending {
+    /// Device `ji`'s step was given up: the answer no longer acknowledges
+    /// it.
+    pub(super) fn forget(&mut self, ji: usize) {
+        self.joints.retain(|&k| k != ji);
+    }
+}
+
+/// The link to the controller.
+#[derive(Debug, Default)]
+pub(super) struct Link {
+    /// The boot beacon was heard.
+    ready: bool,
+    /// The link ended: nothing more is sent.
+    lost: bool,
+    pub(super) pending: Option<Pending>,
+    tx: VecDeque<String>,
+    /// What the controller runs each motor at, as its feedback last said.
+    known: [Option<f64>; 7],
+    next_poll: Option<Duration>,
+    next_id: u32,
+}
+
+impl Link {
+    /// Whether a line may go now (a stop always may).
+    pub(super) fn free(&self) -> bool {
+        self.ready && !self.lost && self.pending.is_none()
+    }
+
+    /// The next deadline.
+    pub(super) fn deadline(&self) -> Option<Duration> {
+        match &self.pending {
+            Some(p) => Some(p.deadline),
+            None if self.ready && !self.lost => self.next_poll,
+            None => None,
+        }
+    }
+}
+
+fn line_of(values: &MotorValues) -> String {
+    motorwire_orion::Input::DirectControl(*values).to_json()
+}
+
+impl Bridge {
+    /// Whether device `ji` is an Orion motor.
+    pub(super) fn is_orion(&self, ji: usize) -> bool {
+        self.joints.get(ji).is_some_and(|j| j.orion.is_some())
+    }
+
+    /// Whether `step`, waiting for an Orion motor, may be sent now.
+    pub(super) fn orion_may_send(&self, step: StepRef) -> bool {
+        let Some(job) = self.jobs.get(&step.job) else {
+            return true;
+        };
+        // Nothing to send (startup has nothing for the controller), or a
+        // stop: it goes now.
+        let orders = job
+            .axes
+            .get(step.axis)
+            .is_some_and(|a| matches!(a.payloads.front(), Some(Order::Orion(_))));
+        !orders || job.kind.is_stop() || self.orion.lost || self.orion.free()
+    }
+
+    /// Sends `order` of `step` for Orion motor `ji`, with the orders of
+    /// the same job waiting at the front of the other Orion motors (one
+    /// line for one input line). Returns the line's number.
+    pub(super) fn orion_send(
+        &mut self,
+        now: Duration,
+        ji: usize,
+        step: StepRef,
+        order: OrionOrder,
+    ) -> Result<u32, String> {
+        if self.orion.lost {
+            return Err("the link to the Orion controller is lost".to_owned());
+        }
+        let id = self.orion.next_id;
+        self.orion.next_id = self.orion.next_id.wrapping_add(1);
+        // Others of the same job, same kind of order.
+        let mut joints = vec![ji];
+        let mut orders = vec![order];
+        for k in 0..self.joints.len() {
+            if k == ji {
+                continue;
+            }
+            let Some(j) = self.joints.get(k) else {
+                continue;
+            };
+            if j.orion.is_none() || j.busy.is_some() {
+                continue;
+            }
+            let Some(&front) = j.queue.front() else {
+                continue;
+            };
+            if front.job != step.job {
+                continue;
+            }
+            let Some(a) = self
+                .jobs
+                .get_mut(&front.job)
+                .and_then(|job| job.axes.get_mut(front.axis))
+            else {
+                continue;
+            };
+            let fits = match (a.payloads.front(), order) {
+                (Some(Order::Orion(OrionOrder::Set(..))), OrionOrder::Set(..)) => a.after.is_none(),
+                (Some(Order::Orion(OrionOrder::Command(c))), OrionOrder::Command(d)) => *c == d,
+                _ => false,
+            };
+            if !fits || !a.due.is_empty() {
+                continue;
+            }
+            let Some(payload) = a.payloads.pop_front() else {
+                continue;
+            };
+            if let Order::Orion(o) = payload {
+                orders.push(o);
+            }
+            a.state = AxisState::InFlight {
+                msg_id: id,
+                payload,
+            };
+            a.attempts = 1;
+            if let Some(j) = self.joints.get_mut(k) {
+                j.queue.pop_front();
+                j.busy = Some(front);
+            }
+            joints.push(k);
+        }
+        let (line, mode, timeout, retries) = match order {
+            OrionOrder::Command(c) => {
+                let (timeout, retries) = match c {
+                    // A stop is quick and may be sent again.
+                    ArmCommand::Stop => (self.config.client.timeout, self.config.client.retries),
+                    // Fold and unfold are answered once they have run.
+                    _ => (self.config.orion_command_timeout, 0),
+                };
+                let line = motorwire_orion::Input::Command(c.into()).to_json();
+                (line, 2, timeout, retries)
+            }
+            OrionOrder::Set(..) => {
+                let mut values = MotorValues::new();
+                for o in &orders {
+                    if let OrionOrder::Set(m, v) = *o
+                        && self.orion.known.get(m.index()).copied().flatten() != Some(v)
+                    {
+                        values.set(m, v);
+                    }
+                }
+                (
+                    line_of(&values),
+                    1,
+                    self.config.client.timeout,
+                    self.config.client.retries,
+                )
+            }
+        };
+        self.orion.tx.push_back(line.clone());
+        self.orion.pending = Some(Pending {
+            msg_id: id,
+            joints,
+            line,
+            mode,
+            attempts: 1,
+            retries,
+            timeout,
+            deadline: now.saturating_add(timeout),
+        });
+        Ok(id)
+    }
+
+    /// The next line for the Orion controller (without its newline).
+    pub fn poll_orion_line(&mut self) -> Option<String> {
+        self.orion.tx.pop_front()
+    }
+
+    /// One line from the Orion controller, received at `now`.
+    pub fn handle_orion_line(&mut self, now: Duration, line: &str) {
+        self.now = self.now.max(now);
+        let now = self.now;
+        let output = match Output::parse(line.trim()) {
+            Ok(o) => o,
+            Err(e) => {
+                self.stats.bad_frames += 1;
+                self.out.push_back(BridgeOutput::Event(Event::BadOrionLine {
+                    error: e.to_string(),
+                }));
+                return;
+            }
+        };
+        self.orion_heard(now);
+        match output {
+            Output::Beacon => {
+                let first = !self.orion.ready;
+                if first || self.orion.next_poll.is_some() {
+                    // The first beacon, or one after the controller had
+                    // been commanded: it started again, every value 0.
+                    self.orion.known = [None; 7];
+                    self.out
+                        .push_back(BridgeOutput::Event(Event::OrionBeacon { first }));
+                }
+                self.orion.ready = true;
+                // Answered by the first poll, which ends the beacons.
+                self.orion.next_poll = Some(now);
+                if first {
+                    for ji in 0..self.joints.len() {
+                        if self.is_orion(ji) {
+                            self.pump(ji);
+                        }
+                    }
+                    self.finish_jobs();
+                }
+            }
+            Output::DirectControl(fb) => {
+                for (m, f) in fb.iter() {
+                    if let Some(slot) = self.orion.known.get_mut(m.index()) {
+                        *slot = Some(f.value);
+                    }
+                }
+                self.orion_feedback(&fb, now);
+                self.orion_answered(now, 1, Outcome::Acked);
+            }
+            Output::Command { succeeded } => {
+                let outcome = if succeeded {
+                    Outcome::Acked
+                } else {
+                    Outcome::Nacked(NackCode(0))
+                };
+                self.orion_answered(now, 2, outcome);
+            }
+        }
+    }
+
+    /// The link to the controller ended (`error` says how): its motors
+    /// are offline, and what was in flight has an unknown outcome.
+    pub fn orion_link_lost(&mut self, now: Duration, error: &str) {
+        self.now = self.now.max(now);
+        if self.orion.lost {
+            return;
+        }
+        self.orion.lost = true;
+        self.out
+            .push_back(BridgeOutput::Event(Event::OrionLinkLost {
+                error: error.to_owned(),
+            }));
+        if let Some(p) = self.orion.pending.take() {
+            self.orion_done(p, Outcome::TimedOut);
+        }
+        let orion: Vec<usize> = (0..self.joints.len())
+            .filter(|&k| self.is_orion(k))
+            .collect();
+        for &ji in &orion {
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.deadman = None;
+                if j.online {
+                    j.online = false;
+                    self.out.push_back(BridgeOutput::Event(Event::Offline {
+                        motor_id: j.name.clone(),
+                        node: j.node,
+                        reason: format!("the link to the Orion controller is lost: {error}"),
+                    }));
+                }
+            }
+        }
+        self.fail_watches(
+            |w| orion.iter().any(|&ji| w.waits_on(ji)),
+            "the link to the Orion controller is lost",
+        );
+        // What waits for the controller is not sent.
+        for ji in orion {
+            self.pump(ji);
+        }
+        self.finish_jobs();
+        self.handle_timeout(now);
+    }
+
+    fn orion_heard(&mut self, at: Duration) {
+        let orion: Vec<usize> = (0..self.joints.len())
+            .filter(|&k| self.is_orion(k))
+            .collect();
+        for ji in orion {
+            let Some(j) = self.joints.get_mut(ji) else {
+                continue;
+            };
+            j.last_heard = Some(at.max(j.last_heard.unwrap_or(Duration::ZERO)));
+            if !j.online {
+                j.online = true;
+                self.out.push_back(BridgeOutput::Event(Event::Online {
+                    motor_id: j.name.clone(),
+                    node: j.node,
+                }));
+            }
+        }
+    }
+
+    /// Direct-control feedback: each mapped motor's WIA feedback, its
+    /// motion and its arrival.
+    fn orion_feedback(&mut self, fb: &motorwire_orion::Feedback, now: Duration) {
+        let ts = self.unix_ms(now);
+        let Ok(list) = motorwire_translate::feedback_from_orion(&self.map, fb, ts) else {
+            self.stats.bad_frames += 1;
+            self.out.push_back(BridgeOutput::Event(Event::BadOrionLine {
+                error: "feedback with a value that is not a finite number".to_owned(),
+            }));
+            return;
+        };
+        for t in list {
+            let f = t.value;
+            let Some(ji) = self.joint_index(&f.motor_id) else {
+                continue;
+            };
+            let Some(motor) = self.joints.get(ji).and_then(|j| j.orion) else {
+                continue;
+            };
+            let degrees = self
+                .map
+                .motor(&f.motor_id)
+                .map_or(f.position, |m| m.unit.to_degrees(f.position));
+            let motion = match motor.quantity() {
+                Quantity::PositionDegrees => (degrees, 0.0),
+                Quantity::Speed | Quantity::Actuator => (0.0, f.velocity),
+            };
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.motion = Some(motion);
+                j.feedback = Some(f);
+            }
+            if motor.quantity() == Quantity::PositionDegrees {
+                if !self.arrivals.is_empty() {
+                    self.observe(ji, motion.0, motion.1, now);
+                }
+                self.sequence_progress(ji, motion.0, motion.1);
+            }
+        }
+    }
+
+    /// An answer of `mode`: it acknowledges the line in flight if that
+    /// awaits this mode.
+    fn orion_answered(&mut self, now: Duration, mode: u8, outcome: Outcome) {
+        if self.orion.pending.as_ref().is_none_or(|p| p.mode != mode) {
+            return;
+        }
+        let Some(p) = self.orion.pending.take() else {
+            return;
+        };
+        self.orion.next_poll = Some(now.saturating_add(POLL));
+        self.orion_done(p, outcome);
+    }
+
+    fn orion_done(&mut self, p: Pending, outcome: Outcome) {
+        let now = self.now;
+        for ji in p.joints {
+            self.step_done(
+                ji,
+                Completion {
+                    msg_id: p.msg_id,
+                    target: ORION_NODE,
+                    kind: PayloadKind::SetTargetV2,
+                    outcome,
+                    attempts: p.attempts,
+                    sent_at: now,
+                    finished_at: now,
+                },
+            );
+        }
+        for ji in 0..self.joints.len() {
+            if self.is_orion(ji) {
+                self.pump(ji);
+            }
+        }
+        self.finish_jobs();
+    }
+
+    /// Resends, gives up, and polls when idle.
+    pub(super) fn orion_timeouts(&mut self, now: Duration) {
+        if let Some(p) = self.orion.pending.as_mut()
+            && now >= p.deadline
+        {
+            if p.attempts <= p.retries && !p.joints.is_empty() && !self.orion.lost {
+                p.attempts += 1;
+                p.deadline = now.saturating_add(p.timeout);
+                let line = p.line.clone();
+                self.orion.tx.push_back(line);
+            } else if let Some(p) = self.orion.pending.take() {
+                self.orion.next_poll = Some(now);
+                self.orion_done(p, Outcome::TimedOut);
+            }
+        }
+        if self.orion.free()
+            && self.orion.next_poll.is_some_and(|t| now >= t)
+            && self.joints.iter().any(|j| j.orion.is_some())
+        {
+            let id = self.orion.next_id;
+            self.orion.next_id = self.orion.next_id.wrapping_add(1);
+            let line = line_of(&MotorValues::new());
+            self.orion.tx.push_back(line.clone());
+            let timeout = self.config.client.timeout;
+            self.orion.pending = Some(Pending {
+                msg_id: id,
+                joints: Vec::new(),
+                line,
+                mode: 1,
+                attempts: 1,
+                retries: 0,
+                timeout,
+                deadline: now.saturating_add(timeout),
+            });
+            self.orion.next_poll = None;
+        }
+    }
+
+    /// An acked Orion order's effect: a speed or actuator value other than
+    /// 0 is watched by the deadman; the servo's value is its target.
+    pub(super) fn track_orion(&mut self, ji: usize, order: OrionOrder, at: Duration) {
+        let timeout = self
+            .joints
+            .get(ji)
+            .and_then(|j| self.map.motor(&j.name))
+            .and_then(|m| m.command_timeout);
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
+        j.deadman = None;
+        match order {
+            OrionOrder::Set(m, v) => match m.quantity() {
+                Quantity::PositionDegrees => {
+                    j.target = Some(v);
+                    j.moving_until = at;
+                }
+                Quantity::Speed | Quantity::Actuator => {
+                    j.target = None;
+                    if v != 0.0 {
+                        j.deadman = timeout.map(|t| at.saturating_add(t));
+                    }
+                    j.moving_until = j.deadman.unwrap_or(at);
+                }
+            },
+            OrionOrder::Command(_) => {
+                j.moving_until = at;
+            }
+        }
+    }
+
+    /// The deadman's stop for Orion motor `ji`: its value 0.
+    pub(super) fn orion_deadman_axis(&self, ji: usize) -> Option<Axis> {
+        let j = self.joints.get(ji)?;
+        let m: Motor = j.orion?;
+        Some(Axis::of(
+            j.name.clone(),
+            ji,
+            [Order::Orion(OrionOrder::Set(m, 0.0))],
+        ))
+    }
+
+    /// A MotorCommand for Orion motor `ji`: gated (nothing left for the
+    /// controller to clamp) and translated to its direct-control value.
+    pub(super) fn orion_motor_command(
+        &mut self,
+        now: Duration,
+        origin: crate::output::Origin,
+        number: u64,
+        ji: usize,
+        cmd: &motorwire_wia::MotorCommand,
+    ) {
+        let label = Some(("motor_id", cmd.motor_id.clone()));
+        match self.orion_axis(ji, cmd) {
+            Ok((axis, report)) => self.open_job(
+                Some(origin),
+                number,
+                label,
+                JobKind::Command,
+                now,
+                vec![axis],
+                report,
+                Vec::new(),
+            ),
+            Err(r) => {
+                let e =
+                    crate::output::ErrorBody::new(crate::output::ErrorKind::Refused, r.to_string());
+                self.refuse(origin, number, label, e);
+            }
+        }
+    }
+
+    /// `cmd` for Orion motor `ji`, gated and translated, as its axis.
+    pub(super) fn orion_axis(
+        &self,
+        ji: usize,
+        cmd: &motorwire_wia::MotorCommand,
+    ) -> Result<(Axis, Report), motorwire_translate::Refusal> {
+        let t = motorwire_translate::to_orion_motor(&self.map, cmd)?;
+        let motor = self
+            .joints
+            .get(ji)
+            .and_then(|j| j.orion)
+            .unwrap_or(Motor::Turntable);
+        let order = match t.value {
+            motorwire_orion::Input::DirectControl(values) => {
+                OrionOrder::Set(motor, values.get(motor).unwrap_or(0.0))
+            }
+            motorwire_orion::Input::Command(_) => OrionOrder::Command(ArmCommand::Stop),
+        };
+        let mut axis = Axis::of(cmd.motor_id.clone(), ji, [Order::Orion(order)]);
+        if let OrionOrder::Set(m, v) = order
+            && m.quantity() == Quantity::PositionDegrees
+        {
+            axis.target = Some(v);
+        }
+        Ok((axis, t.report))
+    }
+
+    /// `{"orion":"fold"}` or `{"orion":"unfold"}`: the controller's command
+    /// mode, for every Orion motor of the map (one line).
+    pub(super) fn orion_command(
+        &mut self,
+        now: Duration,
+        origin: crate::output::Origin,
+        number: u64,
+        command: ArmCommand,
+    ) {
+        let name = match command {
+            ArmCommand::Fold => "fold",
+            ArmCommand::Unfold => "unfold",
+            ArmCommand::Stop => "stop",
+        };
+        let label = Some(("orion", name.to_owned()));
+        let motors: Vec<(usize, String)> = self
+            .joints
+            .iter()
+            .enumerate()
+            .filter(|(_, j)| j.orion.is_some())
+            .map(|(i, j)| (i, j.name.clone()))
+            .collect();
+        if motors.is_empty() {
+            let e = crate::output::ErrorBody::new(
+                crate::output::ErrorKind::Refused,
+                "no Orion arm controller is attached (motorwire bridge --orion ...)",
+            );
+            self.refuse(origin, number, label, e);
+            return;
+        }
+        if let Err(e) = self.admit_now(motors.iter().map(|(_, n)| n.as_str())) {
+            self.refuse(origin, number, label, e);
+            return;
+        }
+        let axes = motors
+            .into_iter()
+            .map(|(ji, name)| Axis::of(name, ji, [Order::Orion(OrionOrder::Command(command))]))
+            .collect();
+        self.open_job(
+            Some(origin),
+            number,
+            label,
+            JobKind::Command,
+            now,
+            axes,
+            Report::default(),
+            Vec::new(),
+        );
+    }
+
+    /// The refusal for an Orion motor among `motors` when no controller
+    /// is attached.
+    pub(super) fn orion_unattached<'a>(
+        &self,
+        mut motors: impl Iterator<Item = &'a str>,
+    ) -> Option<crate::output::ErrorBody> {
+        if self.config.orion {
+            return None;
+        }
+        let m = motors.find(|m| {
+            self.map
+                .motor(m)
+                .is_some_and(|m| matches!(m.target, motorwire_translate::Target::Orion { .. }))
+        })?;
+        Some(
+            crate::output::ErrorBody::new(
+                crate::output::ErrorKind::Refused,
+                format!(
+                    "{m} is an Orion motor, and no Orion controller is attached (motorwire bridge --orion ...)"
+                ),
+            )
+            .about(m),
+        )
+    }
+
+    /// The Orion controller's id, for messages.
+    pub(super) fn orion_label() -> String {
+        format!("the Orion arm controller (ID {CONTROLLER_ID})")
+    }
+}

@@ -1,0 +1,459 @@
+//! The Orion arm controller behind the bridge (WIRE-FACTS §4.1), in
+//! simulated time: the bridge's lines go to motorwire's `ArmController`
+//! (or are lost, or answered late, as a test says), its answers come back.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use std::time::Duration;
+
+use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output};
+use motorwire_orion::{ArmController, FeedbackKeys, Motor};
+use motorwire_translate::BusMap;
+use serde_json::{Value, json};
+
+const MAP: &str = r#"
+[motors.elbow]
+dialect = "irpc"
+node = 0x12
+limits = { min_position = 0, max_position = 150, max_velocity = 120, max_acceleration = 500 }
+
+[motors.turntable]
+dialect = "orion"
+key = "TRM"
+
+[motors.arm_extension]
+dialect = "orion"
+key = "AEM"
+
+[motors.grasper_horizontal_servo]
+dialect = "orion"
+key = "GHS"
+limits = { min_position = -90, max_position = 90 }
+"#;
+
+/// The bridge and the controller, on one simulated clock.
+struct Rig {
+    bridge: Bridge,
+    arm: ArmController,
+    now: Duration,
+    /// Every line the bridge wrote to the controller.
+    sent: Vec<String>,
+    /// Answers held back (the controller is slow): delivered by `release`.
+    held: Vec<String>,
+    /// Whether the controller answers (false: it hears nothing).
+    answering: bool,
+    /// Whether answers are held back.
+    holding: bool,
+    out: Vec<Value>,
+}
+
+impl Rig {
+    fn new() -> Self {
+        let config = BridgeConfig {
+            orion: true,
+            activate_on_start: false,
+            ..BridgeConfig::default()
+        };
+        let mut bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
+        bridge.start(Duration::ZERO);
+        let mut rig = Self {
+            bridge,
+            arm: ArmController::new(),
+            now: Duration::ZERO,
+            sent: Vec::new(),
+            held: Vec::new(),
+            answering: true,
+            holding: false,
+            out: Vec::new(),
+        };
+        rig.pump();
+        rig
+    }
+
+    /// The controller boots: its beacon.
+    fn boot(&mut self) {
+        self.bridge.handle_orion_line(self.now, r#"{"ID":32}"#);
+        self.pump();
+    }
+
+    fn pump(&mut self) {
+        loop {
+            let mut any = false;
+            while let Some(line) = self.bridge.poll_orion_line() {
+                any = true;
+                self.sent.push(line.clone());
+                if !self.answering {
+                    continue;
+                }
+                let answer = self
+                    .arm
+                    .handle_line(&line)
+                    .unwrap()
+                    .output
+                    .to_json(FeedbackKeys::Table);
+                if self.holding {
+                    self.held.push(answer);
+                } else {
+                    self.bridge.handle_orion_line(self.now, &answer);
+                }
+            }
+            while self.bridge.poll_transmit().is_some() {}
+            self.bridge.flushed(self.now);
+            while let Some(o) = self.bridge.poll_output() {
+                any = true;
+                self.out.push(o.to_value());
+            }
+            if !any {
+                break;
+            }
+        }
+    }
+
+    fn release(&mut self) {
+        for answer in std::mem::take(&mut self.held) {
+            self.bridge.handle_orion_line(self.now, &answer);
+        }
+        self.pump();
+    }
+
+    fn line(&mut self, text: &str) {
+        self.bridge.handle_line(self.now, Origin(0), text);
+        self.pump();
+    }
+
+    fn advance(&mut self, by: Duration) {
+        let end = self.now + by;
+        while self.now < end {
+            self.now = (self.now + Duration::from_millis(5)).min(end);
+            self.bridge.handle_timeout(self.now);
+            self.pump();
+        }
+    }
+
+    /// The lines written since `from`, polls (empty DATA) left out.
+    fn commands_since(&self, from: usize) -> Vec<&str> {
+        self.sent[from..]
+            .iter()
+            .map(String::as_str)
+            .filter(|l| *l != r#"{"ID":32,"MODE":1,"DATA":{}}"#)
+            .collect()
+    }
+
+    fn result(&self, line: u64) -> Option<&Value> {
+        self.out
+            .iter()
+            .find(|v| v["line"] == line && v.get("ok").is_some())
+    }
+}
+
+fn velocity(motor: &str, v: f64) -> String {
+    format!(r#"{{"motor_id":"{motor}","timestamp":0,"control_mode":"velocity","setpoint":{v}}}"#)
+}
+
+#[test]
+fn nothing_but_a_stop_goes_before_the_boot_beacon_then_only_changed_keys() {
+    let mut rig = Rig::new();
+    rig.line(&velocity("turntable", 200.0));
+    assert!(rig.sent.is_empty(), "{:?}", rig.sent);
+    assert!(rig.result(1).is_none());
+    rig.boot();
+    assert_eq!(
+        rig.commands_since(0),
+        [r#"{"ID":32,"MODE":1,"DATA":{"TRM":200}}"#]
+    );
+    let r = rig.result(1).unwrap();
+    assert_eq!(r["ok"], true, "{r}");
+    assert_eq!(r["acked"], json!(["turntable"]));
+    assert_eq!(rig.arm.value(Motor::Turntable), 200.0);
+    // The same value again is not sent again (the controller remembers
+    // it); another motor's key goes alone.
+    let from = rig.sent.len();
+    rig.line(&velocity("turntable", 200.0));
+    rig.line(&velocity("arm_extension", -50.0));
+    assert_eq!(
+        rig.commands_since(from),
+        [r#"{"ID":32,"MODE":1,"DATA":{"AEM":-50}}"#]
+    );
+    assert_eq!(rig.result(2).unwrap()["ok"], true);
+    assert_eq!(rig.result(3).unwrap()["ok"], true);
+    assert_eq!(rig.arm.value(Motor::ArmExtension), -50.0);
+}
+
+#[test]
+fn a_multi_axis_command_for_orion_motors_is_one_line_and_the_gate_refuses_a_clamp() {
+    let mut rig = Rig::new();
+    rig.boot();
+    let from = rig.sent.len();
+    rig.line(
+        r#"{"command_id":"m1","timestamp":0,"motors":[
+            {"motor_id":"turntable","control_mode":"velocity","setpoint":-120},
+            {"motor_id":"grasper_horizontal_servo","control_mode":"position","setpoint":30}]}"#
+            .replace('\n', "")
+            .as_str(),
+    );
+    assert_eq!(
+        rig.commands_since(from),
+        [r#"{"ID":32,"MODE":1,"DATA":{"TRM":-120,"GHS":30}}"#]
+    );
+    let r = rig.result(1).unwrap();
+    assert_eq!(
+        r["acked"],
+        json!(["turntable", "grasper_horizontal_servo"]),
+        "{r}"
+    );
+    // The servo's position is watched for arrival.
+    let arrival = rig.out.iter().find(|v| v["arrived"].is_boolean()).unwrap();
+    assert_eq!(arrival["arrived"], true, "{arrival}");
+    assert_eq!(arrival["motors"][0]["motor_id"], "grasper_horizontal_servo");
+    // 500 is outside the controller's [-400, 400]: it would clamp it, so
+    // the gate refuses it and nothing is written.
+    let from = rig.sent.len();
+    rig.line(&velocity("turntable", 500.0));
+    let r = rig.result(2).unwrap();
+    assert_eq!(r["ok"], false);
+    assert_eq!(r["error"]["kind"], "refused");
+    assert_eq!(
+        r["error"]["message"],
+        "turntable: setpoint 500 is outside max_velocity (Orion range) 400"
+    );
+    assert!(rig.commands_since(from).is_empty());
+    // A servo position beyond the map's ±90 is refused too.
+    rig.line(
+        r#"{"motor_id":"grasper_horizontal_servo","timestamp":0,"control_mode":"position","setpoint":120}"#,
+    );
+    assert_eq!(rig.result(3).unwrap()["error"]["kind"], "refused");
+    assert_eq!(rig.arm.value(Motor::GrasperHorizontalServo), 30.0);
+}
+
+#[test]
+fn the_stop_goes_out_at_once_ahead_of_a_line_in_flight_and_its_answer_is_not_taken_for_the_stop() {
+    let mut rig = Rig::new();
+    rig.boot();
+    rig.holding = true;
+    let from = rig.sent.len();
+    rig.line(&velocity("turntable", 300.0));
+    rig.line(&velocity("arm_extension", 100.0));
+    // One line in flight: the second waits for its answer.
+    assert_eq!(
+        rig.commands_since(from),
+        [r#"{"ID":32,"MODE":1,"DATA":{"TRM":300}}"#]
+    );
+    rig.line(r#"{"emergency_stop":true}"#);
+    assert_eq!(
+        rig.commands_since(from),
+        [
+            r#"{"ID":32,"MODE":1,"DATA":{"TRM":300}}"#,
+            r#"{"ID":32,"MODE":2,"DATA":1}"#
+        ]
+    );
+    // The answer to the direct-control line comes first: the stop waits
+    // for its own (CMDF).
+    let first = rig.held.remove(0);
+    rig.bridge.handle_orion_line(rig.now, &first);
+    rig.pump();
+    assert!(rig.result(3).is_none(), "{:?}", rig.out);
+    rig.release();
+    // The elbow (an iRPC joint nobody simulates here) times out.
+    rig.advance(Duration::from_millis(600));
+    let stop = rig.result(3).unwrap();
+    assert_eq!(stop["emergency_stop"], true, "{stop}");
+    assert_eq!(
+        stop["acked"],
+        json!([
+            "arm_extension",
+            "elbow",
+            "grasper_horizontal_servo",
+            "turntable"
+        ])
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|m| *m != "elbow")
+        .cloned()
+        .collect::<Value>(),
+        "{stop}"
+    );
+    // The line in flight may have run; the one waiting never went.
+    assert_eq!(rig.result(1).unwrap()["error"]["kind"], "cancelled");
+    assert_eq!(
+        rig.result(1).unwrap()["outcomes"][0]["outcome"],
+        "outcome_unknown"
+    );
+    assert_eq!(
+        rig.result(2).unwrap()["outcomes"][0]["outcome"],
+        "cancelled"
+    );
+    assert_eq!(rig.arm.value(Motor::Turntable), 0.0);
+    assert_eq!(rig.arm.value(Motor::ArmExtension), 0.0);
+    assert!(!rig.sent.iter().any(|l| l.contains("AEM")));
+}
+
+#[test]
+fn a_silent_controller_stops_a_spinning_turntable_by_the_deadman() {
+    let mut rig = Rig::new();
+    rig.boot();
+    rig.line(&velocity("turntable", 250.0));
+    assert_eq!(rig.arm.value(Motor::Turntable), 250.0);
+    // Renewed within 200 ms: it keeps turning.
+    rig.advance(Duration::from_millis(150));
+    rig.line(&velocity("turntable", 250.0));
+    rig.advance(Duration::from_millis(150));
+    assert_eq!(rig.arm.value(Motor::Turntable), 250.0);
+    assert!(!rig.out.iter().any(|v| v["event"] == "deadman"));
+    // Then the controller's commander falls silent.
+    rig.advance(Duration::from_millis(100));
+    let deadman = rig.out.iter().find(|v| v["event"] == "deadman").unwrap();
+    assert_eq!(
+        deadman,
+        &json!({"event":"deadman","motor_id":"turntable","timeout_ms":200})
+    );
+    assert_eq!(rig.arm.value(Motor::Turntable), 0.0);
+    assert!(
+        rig.sent
+            .iter()
+            .any(|l| l == r#"{"ID":32,"MODE":1,"DATA":{"TRM":0}}"#)
+    );
+}
+
+#[test]
+fn an_unanswered_line_is_sent_again_then_its_outcome_is_unknown_and_the_motors_go_offline() {
+    let mut rig = Rig::new();
+    rig.boot();
+    rig.answering = false;
+    let from = rig.sent.len();
+    rig.line(&velocity("turntable", 100.0));
+    rig.advance(Duration::from_millis(1000));
+    // Sent once and again three times (100 ms Ack timeout, 3 retries).
+    assert_eq!(
+        rig.commands_since(from)
+            .iter()
+            .filter(|l| **l == r#"{"ID":32,"MODE":1,"DATA":{"TRM":100}}"#)
+            .count(),
+        4
+    );
+    let r = rig.result(1).unwrap();
+    assert_eq!(r["outcomes"][0]["outcome"], "outcome_unknown", "{r}");
+    assert_eq!(
+        r["outcomes"][0]["message"],
+        "sent 4 times, never answered: the Orion arm controller (ID 32) may or may not have executed it"
+    );
+    let offline: Vec<&Value> = rig.out.iter().filter(|v| v["event"] == "offline").collect();
+    assert!(
+        offline.iter().any(|v| v["motor_id"] == "turntable"),
+        "{:?}",
+        rig.out
+    );
+    rig.line(&velocity("arm_extension", 10.0));
+    let r = rig.result(2).unwrap();
+    assert_eq!(r["error"]["kind"], "offline");
+    assert_eq!(
+        r["error"]["message"],
+        "arm_extension is offline: nothing heard from the Orion arm controller (ID 32)"
+    );
+}
+
+#[test]
+fn lines_that_are_not_the_controllers_are_reported_and_never_acted_on() {
+    let mut rig = Rig::new();
+    rig.boot();
+    rig.holding = true;
+    rig.line(&velocity("turntable", 100.0));
+    for bad in [
+        "not json",
+        r#"{"ID":33,"MODE":1,"DATA":{"TRMF":[100,20,0]}}"#,
+        r#"{"ID":32,"MODE":1,"DATA":{"XYZ":[1,2,0]}}"#,
+        r#"[32]"#,
+    ] {
+        rig.bridge.handle_orion_line(rig.now, bad);
+    }
+    rig.pump();
+    let bad: Vec<&Value> = rig
+        .out
+        .iter()
+        .filter(|v| v["event"] == "bad_orion_line")
+        .collect();
+    assert_eq!(bad.len(), 4, "{:?}", rig.out);
+    // Not one of them acknowledged the line in flight.
+    assert!(rig.result(1).is_none());
+    rig.release();
+    assert_eq!(rig.result(1).unwrap()["ok"], true);
+}
+
+#[test]
+fn fold_and_unfold_are_the_controllers_command_mode_and_cmdf_0_fails_the_line() {
+    let mut rig = Rig::new();
+    rig.boot();
+    let from = rig.sent.len();
+    rig.line(r#"{"orion":"fold"}"#);
+    assert_eq!(rig.commands_since(from), [r#"{"ID":32,"MODE":2,"DATA":2}"#]);
+    let r = rig.result(1).unwrap();
+    assert_eq!(r["ok"], true, "{r}");
+    assert_eq!(r["orion"], "fold");
+    assert_eq!(rig.arm.posture(), motorwire_orion::Posture::Folded);
+    // A controller that answers CMDF 0.
+    rig.answering = false;
+    rig.line(r#"{"orion":"unfold"}"#);
+    rig.bridge
+        .handle_orion_line(rig.now, r#"{"ID":32,"MODE":2,"DATA":{"CMDF":0}}"#);
+    rig.pump();
+    let r = rig.result(2).unwrap();
+    assert_eq!(r["ok"], false, "{r}");
+    assert_eq!(r["outcomes"][0]["outcome"], "nacked");
+    // Anything else is not an Orion command line.
+    rig.line(r#"{"orion":"dance"}"#);
+    let r = rig.result(3).unwrap();
+    assert_eq!(r["error"]["kind"], "invalid");
+    assert_eq!(
+        r["error"]["message"],
+        r#"an Orion command is exactly {"orion":"fold"} or {"orion":"unfold"} (a stop is {"emergency_stop":true})"#
+    );
+}
+
+#[test]
+fn a_lost_link_reports_it_and_takes_the_orion_motors_offline() {
+    let mut rig = Rig::new();
+    rig.boot();
+    rig.bridge
+        .orion_link_lost(rig.now, "the controller's stream ended");
+    rig.pump();
+    assert!(
+        rig.out
+            .iter()
+            .any(|v| v
+                == &json!({"event":"orion_link_lost","error":"the controller's stream ended"}))
+    );
+    rig.line(&velocity("turntable", 10.0));
+    assert_eq!(rig.result(1).unwrap()["error"]["kind"], "offline");
+    // A stop still answers, and the iRPC joint is still served.
+    rig.line(r#"{"emergency_stop":true}"#);
+    rig.advance(Duration::from_millis(600));
+    let stop = rig.result(2).unwrap();
+    assert_eq!(stop["emergency_stop"], true, "{stop}");
+}
+
+#[test]
+fn without_an_orion_controller_its_motors_are_refused() {
+    let config = BridgeConfig {
+        activate_on_start: false,
+        ..BridgeConfig::default()
+    };
+    let mut bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
+    bridge.start(Duration::ZERO);
+    bridge.handle_line(Duration::ZERO, Origin(0), &velocity("turntable", 10.0));
+    let r = std::iter::from_fn(|| bridge.poll_output())
+        .find_map(|o| match o {
+            Output::Result { result, .. } => Some(result),
+            _ => None,
+        })
+        .unwrap();
+    assert!(!r.ok);
+    assert_eq!(
+        r.error.unwrap().message,
+        "turntable is an Orion motor, and no Orion controller is attached (motorwire bridge --orion ...)"
+    );
+    assert!(bridge.poll_orion_line().is_none());
+}
