@@ -46,6 +46,9 @@ enum Expect {
     Stop,
     /// The release: acked by every joint.
     Release,
+    /// Acked; the motor runs at this speed; then, with no command renewing
+    /// it, the deadman brings it to rest.
+    Deadman(&'static str, f64),
 }
 
 struct Step {
@@ -87,6 +90,11 @@ fn script() -> Vec<Step> {
             title: "compact command: close the gripper to 45° (CAN id 0x20, acked by its feedback)",
             line: r#"{"motor_id":"gripper_axis","timestamp":0,"control_mode":"position","setpoint":45,"velocity_limit":60}"#.to_owned(),
             expect: Expect::Arrive(&[("gripper_axis", 45.0)]),
+        },
+        Step {
+            title: "Orion: turn the turntable at 150 (its controller over a line link), then send nothing more",
+            line: r#"{"motor_id":"turntable","timestamp":0,"control_mode":"velocity","setpoint":150}"#.to_owned(),
+            expect: Expect::Deadman("turntable", 150.0),
         },
         Step {
             title: "unsafe: elbow to 170° (its limit is 150°)",
@@ -131,6 +139,8 @@ type Sample = (f64, f64, f64);
 
 struct Watch {
     rx: Receiver<Output>,
+    /// Motors left out of the plot (the Orion motors the demo never moves).
+    unplotted: Vec<String>,
     epoch_ms: f64,
     latest: BTreeMap<String, (f64, f64)>,
     samples: BTreeMap<String, Vec<Sample>>,
@@ -152,6 +162,9 @@ impl Watch {
                     return None;
                 };
                 self.latest.insert(motor.to_owned(), (pos, vel));
+                if self.unplotted.iter().any(|m| m == motor) {
+                    return None;
+                }
                 self.samples.entry(motor.to_owned()).or_default().push((
                     (ts - self.epoch_ms) / 1000.0,
                     pos,
@@ -242,16 +255,26 @@ fn demo(args: &Args) -> Result<bool, String> {
     let config = BridgeConfig {
         feedback_period: Some(Duration::from_millis(20)),
         epoch_unix_ms: Some(epoch_ms),
+        orion: true,
         ..BridgeConfig::default()
     };
+    let unplotted: Vec<String> = map
+        .motors()
+        .filter(|m| {
+            matches!(m.target, motorwire_translate::Target::Orion { .. }) && m.name != "turntable"
+        })
+        .map(|m| m.name.clone())
+        .collect();
+    let devices = map.motors().count();
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
     let arm = RealTimeArm::start(bridge.map()).map_err(|e| e.to_string())?;
-    say!("motorwire demo: the bridge on a simulated 3-joint arm and gripper (fixtures/maps/demo-arm.toml)")
+    say!("motorwire demo: the bridge on a simulated 3-joint arm, its gripper and the Orion rover arm (fixtures/maps/demo-arm.toml)")
         .map_err(stdout_closed)?;
     say!(
-        "  shoulder_pitch 0x10, shoulder_roll 0x11, elbow 0x12: iRPC v2.0; gripper_axis 0x20: the WIA compact command;\n  over an in-memory CAN-FD bus, in real time\n"
+        "  shoulder_pitch 0x10, shoulder_roll 0x11, elbow 0x12: iRPC v2.0; gripper_axis 0x20: the WIA compact command;\n  over an in-memory CAN-FD bus, in real time; the Orion arm's seven motors through its simulated controller\n  (one JSON line each way, as over its serial link)\n"
     ).map_err(stdout_closed)?;
-    let runner = Runner::new();
+    let orion = crate::orion_link::open(&crate::orion_link::OrionSpec::Sim)?;
+    let runner = Runner::new().with_orion(orion);
     let input = runner.input();
     let (tx, rx) = mpsc::channel();
     let handle = arm.spawn(runner, bridge, move |o| {
@@ -259,6 +282,7 @@ fn demo(args: &Args) -> Result<bool, String> {
     });
     let mut watch = Watch {
         rx,
+        unplotted,
         epoch_ms,
         latest: BTreeMap::new(),
         samples: BTreeMap::new(),
@@ -320,10 +344,12 @@ fn demo(args: &Args) -> Result<bool, String> {
                 )
             }
             (Some(r), Expect::Stop) => {
-                // Every device of the map: the three joints and the gripper.
-                let acked = r["ok"] == true && r["acked"].as_array().is_some_and(|a| a.len() == 4);
+                // Every device of the map: the three joints, the gripper
+                // and the Orion arm's motors.
+                let acked =
+                    r["ok"] == true && r["acked"].as_array().is_some_and(|a| a.len() == devices);
                 let rest = watch.until(Duration::from_secs(2), |l| {
-                    l.len() == 4 && l.values().all(|(_, v)| v.abs() < 1e-3)
+                    l.len() == devices && l.values().all(|(_, v)| v.abs() < 1e-3)
                 });
                 if let Some((p, _)) = watch.latest.get("shoulder_pitch") {
                     targets.insert("shoulder_pitch", *p);
@@ -333,6 +359,30 @@ fn demo(args: &Args) -> Result<bool, String> {
                     format!(
                         "latched; stop frames on the bus {} µs after the line; every joint at rest: {rest}",
                         r["stop_latency_us"]
+                    ),
+                )
+            }
+            (Some(r), Expect::Deadman(motor, speed)) => {
+                let acked = r["ok"] == true;
+                let turning = acked
+                    && watch.until(Duration::from_secs(2), |l| {
+                        l.get(motor).is_some_and(|(_, v)| (v - speed).abs() < 1e-9)
+                    });
+                let stopped = turning
+                    && watch.until(Duration::from_secs(2), |l| {
+                        l.get(motor).is_some_and(|(_, v)| *v == 0.0)
+                    });
+                let deadman = watch
+                    .events
+                    .iter()
+                    .any(|e| e["event"] == "deadman" && e["motor_id"] == motor);
+                targets.insert(motor, 0.0);
+                (
+                    acked && turning && stopped && deadman,
+                    format!(
+                        "acked in {} µs; turning at {speed}: {turning}; the deadman stopped it 200 ms after the last command: {}",
+                        r["ack_us"],
+                        stopped && deadman
                     ),
                 )
             }
@@ -384,6 +434,9 @@ fn demo(args: &Args) -> Result<bool, String> {
     for j in bridge.joints() {
         let pos = j.feedback.as_ref().map(|f| f.position);
         let target = targets.get(j.name.as_str()).copied();
+        if target.is_none() && watch.unplotted.contains(&j.name) {
+            continue; // an Orion motor the demo does not move
+        }
         let ok = matches!((pos, target), (Some(p), Some(t)) if (p - t).abs() < AT_TARGET);
         held &= ok;
         say!(

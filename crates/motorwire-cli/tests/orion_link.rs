@@ -1,0 +1,279 @@
+//! `motorwire bridge --orion`: the Orion arm controller over a serial line
+//! (a pseudo-terminal pair) and over TCP, with `motorwire sim orion` on the
+//! other end, run as a user runs them.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use std::io::{self, BufRead, BufReader, Read, Write};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::sync::{Arc, Mutex};
+use std::thread;
+use std::time::{Duration, Instant};
+
+/// The demo arm's map, from inside this crate (the packaged crate has it).
+const MAP: &str = include_str!("../demo/demo-arm.toml");
+
+fn map_file(name: &str) -> String {
+    let path = std::env::temp_dir().join(format!(
+        "motorwire-orion-{name}-{}.toml",
+        std::process::id()
+    ));
+    std::fs::write(&path, MAP).unwrap();
+    path.to_str().unwrap().to_owned()
+}
+
+/// `motorwire sim orion`, its stdin and stdout piped.
+fn sim_orion() -> Child {
+    Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args(["sim", "orion", "--beacon-interval", "200"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+/// Copies `from` to `to` until `from` ends, keeping each line that passes
+/// in `seen`; reads that time out (a serial port's) are tried again.
+fn relay(
+    mut from: impl Read + Send + 'static,
+    mut to: impl Write + Send + 'static,
+    seen: Arc<Mutex<Vec<u8>>>,
+) {
+    thread::spawn(move || {
+        let mut buf = [0u8; 4096];
+        loop {
+            let n = match from.read(&mut buf) {
+                Ok(0) => return,
+                Ok(n) => n,
+                Err(e) if e.kind() == io::ErrorKind::TimedOut => continue,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(_) => return,
+            };
+            seen.lock().unwrap().extend_from_slice(&buf[..n]);
+            if to.write_all(&buf[..n]).and_then(|()| to.flush()).is_err() {
+                return;
+            }
+        }
+    });
+}
+
+/// Runs the bridge with `--orion SPEC` on the demo map (the joints on the
+/// simulated bus), feeds it `lines` one by one, each once the previous
+/// one's result came, and returns every output line.
+fn bridge_with(spec: &str, map: &str, lines: &[&str]) -> Vec<serde_json::Value> {
+    let mut bridge = Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args([
+            "bridge",
+            "--map",
+            map,
+            "--bus",
+            "sim",
+            "--orion",
+            spec,
+            "--max-age",
+            "0",
+            "--feedback-hz",
+            "0",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = bridge.stdin.take().unwrap();
+    let stdout = bridge.stdout.take().unwrap();
+    let (tx, rx) = mpsc::channel();
+    thread::spawn(move || {
+        for line in BufReader::new(stdout).lines() {
+            let Ok(line) = line else { return };
+            if tx.send(line).is_err() {
+                return;
+            }
+        }
+    });
+    let mut out: Vec<serde_json::Value> = Vec::new();
+    let wait_for = |out: &mut Vec<serde_json::Value>, pick: &dyn Fn(&serde_json::Value) -> bool| {
+        let end = Instant::now() + Duration::from_secs(20);
+        loop {
+            if out.iter().any(pick) {
+                return;
+            }
+            let left = end.saturating_duration_since(Instant::now());
+            let line = rx
+                .recv_timeout(left)
+                .unwrap_or_else(|_| panic!("nothing more within 20 s: {out:?}"));
+            out.push(serde_json::from_str(&line).unwrap());
+        }
+    };
+    // The controller's boot beacon first: commands before it would wait.
+    wait_for(&mut out, &|v| v["event"] == "orion_beacon");
+    for (i, line) in lines.iter().enumerate() {
+        stdin.write_all(line.as_bytes()).unwrap();
+        stdin.write_all(b"\n").unwrap();
+        let n = i as u64 + 1;
+        wait_for(&mut out, &|v| v["line"] == n && v.get("ok").is_some());
+    }
+    drop(stdin);
+    let end = Instant::now() + Duration::from_secs(20);
+    while bridge.try_wait().unwrap().is_none() {
+        assert!(Instant::now() < end, "the bridge did not end: {out:?}");
+        thread::sleep(Duration::from_millis(20));
+    }
+    out.extend(rx.try_iter().map(|l| serde_json::from_str(&l).unwrap()));
+    let status = bridge.wait().unwrap();
+    let mut err = String::new();
+    bridge
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    assert_eq!(status.code(), Some(0), "{err}\n{out:?}");
+    out
+}
+
+const TURN: &str =
+    r#"{"motor_id":"turntable","timestamp":0,"control_mode":"velocity","setpoint":150}"#;
+const SERVO: &str = r#"{"motor_id":"grasper_horizontal_servo","timestamp":0,"control_mode":"position","setpoint":-45}"#;
+const TOO_FAST: &str =
+    r#"{"motor_id":"turntable","timestamp":0,"control_mode":"velocity","setpoint":-401}"#;
+const STOP: &str = r#"{"emergency_stop":true}"#;
+
+fn result(out: &[serde_json::Value], line: u64) -> &serde_json::Value {
+    out.iter()
+        .find(|v| v["line"] == line && v.get("ok").is_some())
+        .unwrap_or_else(|| panic!("no result for line {line}: {out:?}"))
+}
+
+/// What every run must show: the moves acked by the controller, the clamp
+/// refused before the controller, the stop reaching it.
+fn check(out: &[serde_json::Value], to_controller: &str) {
+    assert_eq!(result(out, 1)["acked"], serde_json::json!(["turntable"]));
+    assert_eq!(
+        result(out, 2)["acked"],
+        serde_json::json!(["grasper_horizontal_servo"])
+    );
+    let arrived = out
+        .iter()
+        .find(|v| v["line"] == 2 && v["arrived"].is_boolean())
+        .unwrap();
+    assert_eq!(arrived["arrived"], true, "{arrived}");
+    assert_eq!(result(out, 3)["error"]["kind"], "refused");
+    assert_eq!(
+        result(out, 3)["error"]["message"],
+        "turntable: setpoint -401 is outside max_velocity (Orion range) 400"
+    );
+    let stop = result(out, 4);
+    assert_eq!(stop["emergency_stop"], true);
+    assert!(
+        stop["acked"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|m| m == "turntable"),
+        "{stop}"
+    );
+    let sent: Vec<&str> = to_controller.lines().collect();
+    assert!(
+        sent.contains(&r#"{"ID":32,"MODE":1,"DATA":{"TRM":150}}"#),
+        "{sent:?}"
+    );
+    assert!(
+        sent.contains(&r#"{"ID":32,"MODE":1,"DATA":{"GHS":-45}}"#),
+        "{sent:?}"
+    );
+    assert!(sent.contains(&r#"{"ID":32,"MODE":2,"DATA":1}"#), "{sent:?}");
+    assert!(!to_controller.contains("401"), "{sent:?}");
+}
+
+#[cfg(unix)]
+#[test]
+fn the_orion_controller_over_a_pseudo_terminal() {
+    let (master, slave) = serialport::TTYPort::pair().unwrap();
+    let path = serialport::SerialPort::name(&slave).unwrap();
+    let mut sim = sim_orion();
+    let to_controller = Arc::new(Mutex::new(Vec::new()));
+    relay(
+        master.try_clone_native().unwrap(),
+        sim.stdin.take().unwrap(),
+        Arc::clone(&to_controller),
+    );
+    relay(sim.stdout.take().unwrap(), master, Arc::default());
+    let map = map_file("pty");
+    let out = bridge_with(
+        &format!("serial:{path}@115200"),
+        &map,
+        &[TURN, SERVO, TOO_FAST, STOP],
+    );
+    drop(slave);
+    let _ = sim.kill();
+    let _ = sim.wait();
+    let sent = String::from_utf8(to_controller.lock().unwrap().clone()).unwrap();
+    check(&out, &sent);
+}
+
+#[test]
+fn the_orion_controller_over_tcp() {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let to_controller = Arc::new(Mutex::new(Vec::new()));
+    let seen = Arc::clone(&to_controller);
+    let server = thread::spawn(move || {
+        let (stream, _) = listener.accept().unwrap();
+        let mut sim = sim_orion();
+        relay(stream.try_clone().unwrap(), sim.stdin.take().unwrap(), seen);
+        relay(sim.stdout.take().unwrap(), stream, Arc::default());
+        sim
+    });
+    let map = map_file("tcp");
+    let out = bridge_with(&format!("tcp:{addr}"), &map, &[TURN, SERVO, TOO_FAST, STOP]);
+    let mut sim = server.join().unwrap();
+    let _ = sim.kill();
+    let _ = sim.wait();
+    let sent = String::from_utf8(to_controller.lock().unwrap().clone()).unwrap();
+    check(&out, &sent);
+}
+
+#[test]
+fn the_simulated_controller_in_process_and_bad_links_are_refused() {
+    let map = map_file("sim");
+    let out = bridge_with("sim", &map, &[TURN, SERVO, TOO_FAST, STOP]);
+    assert_eq!(result(&out, 1)["acked"], serde_json::json!(["turntable"]));
+    assert_eq!(result(&out, 4)["emergency_stop"], true);
+    // A link that cannot be opened ends the bridge before anything moves.
+    let o = Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args([
+            "bridge",
+            "--map",
+            &map,
+            "--bus",
+            "sim",
+            "--orion",
+            "serial:/nonexistent/tty",
+        ])
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.starts_with("motorwire bridge: --orion serial:/nonexistent/tty: "),
+        "{err}"
+    );
+    let o = Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args(["bridge", "--map", &map, "--bus", "sim", "--orion", "usb0"])
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(
+        String::from_utf8_lossy(&o.stderr),
+        "motorwire bridge: --orion usb0: expected serial:PATH[@BAUD], tcp:ADDR or sim\n"
+    );
+}
