@@ -106,16 +106,28 @@ fn percentile(sorted: &[u64], p: f64) -> u64 {
 type Handle = std::thread::JoinHandle<Result<Bridge, motorwire_bridge::BridgeError>>;
 
 /// The bridge for `map` (no feedback) run by a `Runner` on its real-time
-/// simulated devices; results come on the receiver.
-fn started(map: &str) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
+/// simulated devices; results come on the receiver. With `orion`, the
+/// map's Orion motors are reached through motorwire's simulated
+/// controller on a pipe, as `--orion sim` does.
+fn started(map: &str, orion: bool) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
     let map = BusMap::from_toml(map).unwrap();
     let config = BridgeConfig {
         feedback_period: None,
+        orion,
         ..BridgeConfig::default()
     };
     let bridge = Bridge::new(map, config).unwrap();
     let arm = RealTimeArm::start(bridge.map()).unwrap();
-    let runner = Runner::new();
+    let mut runner = Runner::new();
+    if orion {
+        let (reader, writer) =
+            motorwire_sim::orion::spawn_in_process(motorwire_sim::orion::OrionConfig::default())
+                .unwrap();
+        runner = runner.with_orion(motorwire_bridge::OrionPort {
+            reader: Box::new(reader),
+            writer: Box::new(writer),
+        });
+    }
     let input = runner.input();
     let (tx, rx) = mpsc::channel();
     let handle = arm.spawn(runner, bridge, move |o| {
@@ -147,7 +159,7 @@ fn stop_each_released(input: &InputSender, rx: &mpsc::Receiver<Value>, n: usize)
 /// The Runner in real time: `n` lines, each sent when the previous result
 /// came (latency), then `n` lines with up to 16 in flight (rate).
 fn real_time(n: u64) {
-    let (_arm, input, rx, handle) = started(MAP);
+    let (_arm, input, rx, handle) = started(MAP, false);
     let mut latencies = Vec::new();
     for i in 0..n {
         input.line(Origin(1), line(i));
@@ -225,21 +237,19 @@ fn real_time(n: u64) {
 /// Emergency stop latency (line to the last stop frame on the bus) for a
 /// map of one dialect: `n` stops, each released, on the real-time
 /// simulated devices. (median, p99) in µs.
-fn stop_latency(map: &str, n: usize) -> (u64, u64) {
-    let (_arm, input, rx, handle) = started(map);
+fn stop_latency(map: &str, orion: bool, n: usize) -> (u64, u64) {
+    let (_arm, input, rx, handle) = started(map, orion);
     let stops = stop_each_released(&input, &rx, n);
     input.interrupt();
     handle.join().unwrap().unwrap();
     (percentile(&stops, 0.5), percentile(&stops, 0.99))
 }
 
-/// The stop's latency per dialect: the three iRPC joints alone, the
-/// compact gripper alone, and the whole map.
-fn stop_per_dialect(n: usize) {
-    let irpc = MAP
-        .split("\n[motors.")
+/// The demo map's motors of one dialect.
+fn only(dialect: &str) -> String {
+    MAP.split("\n[motors.")
         .enumerate()
-        .filter(|(i, part)| *i == 0 || part.contains("dialect = \"irpc\""))
+        .filter(|(i, part)| *i == 0 || part.contains(&format!("dialect = \"{dialect}\"")))
         .map(|(i, part)| {
             if i == 0 {
                 part.to_owned()
@@ -248,14 +258,20 @@ fn stop_per_dialect(n: usize) {
             }
         })
         .collect::<Vec<_>>()
-        .join("\n");
-    let compact = "[motors.gripper_axis]\ndialect = \"compact\"\nnode = 0x20\nlimits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 5 }\n";
-    for (name, map) in [
-        ("iRPC joints (3)", irpc.as_str()),
-        ("compact device (1)", compact),
-        ("whole map (3 + 1)", MAP),
+        .join("\n")
+}
+
+/// The stop's latency per dialect: the three iRPC joints alone, the
+/// compact gripper alone, the Orion arm alone, and the whole map.
+fn stop_per_dialect(n: usize) {
+    let (irpc, compact, orion) = (only("irpc"), only("compact"), only("orion"));
+    for (name, map, with_orion) in [
+        ("iRPC joints (3)", irpc.as_str(), false),
+        ("compact device (1)", compact.as_str(), false),
+        ("Orion arm (7 motors, 1 line)", orion.as_str(), true),
+        ("whole map (3 + 1 + 7)", MAP, true),
     ] {
-        let (median, p99) = stop_latency(map, n);
+        let (median, p99) = stop_latency(map, with_orion, n);
         println!(
             "bridge/stop_per_dialect: {name}: {n} stops; line to the last stop frame: median {median} us, p99 {p99} us"
         );

@@ -277,3 +277,60 @@ fn the_simulated_controller_in_process_and_bad_links_are_refused() {
         "motorwire bridge: --orion usb0: expected serial:PATH[@BAUD], tcp:ADDR or sim\n"
     );
 }
+
+/// The issue's promise: `motorwire bridge --map fixtures/maps/demo-arm.toml
+/// --bus sim --orion sim` moves every motor of the map, here in one
+/// multi-axis line (iRPC joints, the compact gripper, the seven Orion
+/// motors), acked by each.
+#[test]
+fn one_multi_axis_line_moves_every_motor_of_the_map() {
+    let map = map_file("all");
+    let every = r#"{"command_id":"all","timestamp":0,"motors":[
+        {"motor_id":"shoulder_pitch","control_mode":"position","setpoint":10},
+        {"motor_id":"shoulder_roll","control_mode":"position","setpoint":-10},
+        {"motor_id":"elbow","control_mode":"position","setpoint":20},
+        {"motor_id":"gripper_axis","control_mode":"position","setpoint":30},
+        {"motor_id":"turntable","control_mode":"velocity","setpoint":100},
+        {"motor_id":"lower_arm_actuator","control_mode":"velocity","setpoint":1},
+        {"motor_id":"upper_arm_actuator","control_mode":"velocity","setpoint":-1},
+        {"motor_id":"arm_extension","control_mode":"velocity","setpoint":200},
+        {"motor_id":"grasper_vertical","control_mode":"velocity","setpoint":-50},
+        {"motor_id":"grasper_rotation","control_mode":"velocity","setpoint":25},
+        {"motor_id":"grasper_horizontal_servo","control_mode":"position","setpoint":15}]}"#
+        .lines()
+        .map(str::trim)
+        .collect::<String>();
+    let out = bridge_with("sim", &map, &[&every, STOP]);
+    let r = result(&out, 1);
+    assert_eq!(r["ok"], true, "{r}");
+    let mut acked: Vec<&str> = r["acked"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m.as_str().unwrap())
+        .collect();
+    acked.sort_unstable();
+    assert_eq!(
+        acked,
+        [
+            "arm_extension",
+            "elbow",
+            "grasper_horizontal_servo",
+            "grasper_rotation",
+            "grasper_vertical",
+            "gripper_axis",
+            "lower_arm_actuator",
+            "shoulder_pitch",
+            "shoulder_roll",
+            "turntable",
+            "upper_arm_actuator"
+        ]
+    );
+    // Mixing dialects is said: only the iRPC joints share a planned duration.
+    assert_eq!(
+        r["losses"].as_array().unwrap().last().unwrap(),
+        "sync_mode: converted: compact and Orion axes are sent at the same time as the others, but only iRPC joints are planned to a common duration",
+        "{r}"
+    );
+    assert_eq!(result(&out, 2)["emergency_stop"], true);
+}
