@@ -823,9 +823,7 @@ impl Client {
     /// The next frame to put on the bus: a request's, or a segmented
     /// transfer's (flow control, first and consecutive frames).
     pub fn poll_transmit(&mut self) -> Option<Frame> {
-        self.out
-            .pop_front()
-            .or_else(|| self.links.poll_transmit())
+        self.out.pop_front().or_else(|| self.links.poll_transmit())
     }
 
     /// The next event.

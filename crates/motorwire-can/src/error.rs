@@ -131,7 +131,9 @@ pub enum Error {
     },
     /// A node id a segmented transfer cannot name: its 29-bit CAN id
     /// carries both ends in 11 bits each ([`crate::segmented::segmented_ids`]).
-    #[error("node id {node:#x} is above 0x7FF: a segmented transfer's CAN id carries each node id in 11 bits")]
+    #[error(
+        "node id {node:#x} is above 0x7FF: a segmented transfer's CAN id carries each node id in 11 bits"
+    )]
     SegmentedNode {
         /// The node id.
         node: u16,

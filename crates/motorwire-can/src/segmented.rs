@@ -372,7 +372,9 @@ impl Links {
         tag: Option<u32>,
     ) -> Result<(), Error> {
         if let Some(p) = self.peers.get_mut(&peer)
-            && p.tx.as_ref().is_some_and(|(_, t)| *t == tag && tag.is_some())
+            && p.tx
+                .as_ref()
+                .is_some_and(|(_, t)| *t == tag && tag.is_some())
         {
             p.tx = None;
         }

@@ -121,7 +121,10 @@ fn the_longest_fault_history_travels_in_exactly_these_frames() {
         [&first.data()[2..], &cf1.data()[1..], &cf2.data()[1..]].concat(),
         bytes
     );
-    assert_eq!(joint.poll_event(), Some(LinkEvent::Sent { peer: 0, tag: None }));
+    assert_eq!(
+        joint.poll_event(),
+        Some(LinkEvent::Sent { peer: 0, tag: None })
+    );
 
     arm.handle_frame(ms(3), &cf1);
     assert_eq!(arm.poll_event(), None);
@@ -247,11 +250,18 @@ fn a_segmented_request_that_is_never_answered_times_out_and_stops() {
     let mut first_frames = 0;
     loop {
         while let Some(f) = c.poll_transmit() {
-            assert_eq!(f.data()[0] >> 4, 1, "only first frames: no flow control came");
+            assert_eq!(
+                f.data()[0] >> 4,
+                1,
+                "only first frames: no flow control came"
+            );
             first_frames += 1;
         }
         if let Some(Event::Completed(done)) = c.poll_event() {
-            assert_eq!((done.msg_id, done.outcome, done.attempts), (id, Outcome::TimedOut, 4));
+            assert_eq!(
+                (done.msg_id, done.outcome, done.attempts),
+                (id, Outcome::TimedOut, 4)
+            );
             break;
         }
         t = c.poll_timeout().unwrap();
@@ -259,7 +269,11 @@ fn a_segmented_request_that_is_never_answered_times_out_and_stops() {
     }
     assert_eq!(first_frames, 4);
     assert_eq!(t, ms(400));
-    assert_eq!(c.poll_timeout(), None, "the abandoned transfer is forgotten");
+    assert_eq!(
+        c.poll_timeout(),
+        None,
+        "the abandoned transfer is forgotten"
+    );
     assert_eq!(c.poll_transmit(), None);
 }
 
@@ -353,7 +367,9 @@ fn malformed_transfers_are_typed_events_and_the_client_keeps_working() {
     c.handle_frame(ms(5000), &first_frame(b.len(), &b));
     c.handle_frame(ms(5001), &consecutive(1, &b[62..125]));
     c.handle_frame(ms(5002), &consecutive(2, &b[125..]));
-    assert!(matches!(c.poll_event(), Some(Event::Misaddressed { message, .. }) if message == other));
+    assert!(
+        matches!(c.poll_event(), Some(Event::Misaddressed { message, .. }) if message == other)
+    );
 
     // An empty frame and a reserved PCI on a segmented id.
     c.handle_frame(
