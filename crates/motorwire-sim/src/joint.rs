@@ -861,8 +861,10 @@ impl SimJoint {
                 self.end_calibration(false, CALIBRATION_FAULTED);
                 self.record_fault(reason, current_ma);
                 if self.config.wire == WireVersion::V2_2 {
+                    // A 32-bit millisecond counter, as firmware keeps it:
+                    // it wraps every 49.7 days.
                     #[allow(clippy::cast_possible_truncation)]
-                    let ms = self.clock().as_millis().min(u128::from(u32::MAX)) as u32;
+                    let ms = self.clock().as_millis() as u32;
                     self.feedback(Payload::EmergencyStop(EmergencyStop {
                         reason,
                         vbus_mv: BUS_VOLTAGE_MV,
@@ -944,7 +946,8 @@ impl SimJoint {
         }
         let iq = self.current_q();
         let steady = AMBIENT_TEMPERATURE + THERMAL_RESISTANCE * WINDING_RESISTANCE * iq * iq;
-        self.temperature = steady + (self.temperature - steady) * (-secs / THERMAL_TIME_CONSTANT).exp();
+        self.temperature =
+            steady + (self.temperature - steady) * (-secs / THERMAL_TIME_CONSTANT).exp();
         let drawn = self.power().max(0.0);
         self.energy_mwh += drawn * secs / 3.6;
         self.charge_mah += drawn / (f64::from(BUS_VOLTAGE_MV) / 1000.0) * secs / 3.6;
@@ -957,8 +960,9 @@ impl SimJoint {
         u16::from(self.temperature >= f64::from(self.power_config.temp_throttle_start_c))
     }
 
+    /// The TelemetryStream it sends now (see [the model](self#the-motion-model-behind-the-telemetry)).
     #[allow(clippy::cast_possible_truncation)]
-    fn telemetry(&self) -> TelemetryStream {
+    pub fn telemetry(&self) -> TelemetryStream {
         let f = |x: f64| x as f32;
         let iq = self.current_q();
         let omega = self.velocity.to_radians();
@@ -982,8 +986,13 @@ impl SimJoint {
         }
     }
 
+    /// The PowerMetrics it sends now (v2.2): phase currents from `i_q` at
+    /// the electrical angle, RMS current, power drawn, the MCU at ambient
+    /// plus 10 °C, the thermal throttle factor (1 below the throttle
+    /// temperature, 0 at shutdown, linear between), energy and charge drawn
+    /// and time Active since boot, its fault counters.
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-    fn power_metrics(&self) -> PowerMetrics {
+    pub fn power_metrics(&self) -> PowerMetrics {
         let iq = self.current_q();
         let theta = POLE_PAIRS * self.position.to_radians();
         let third = 2.0 * std::f64::consts::PI / 3.0;
@@ -1625,9 +1634,7 @@ impl SimJoint {
         };
         let calibration = self.calibration.as_ref().map(|c| {
             let end = c.start.saturating_add(c.total());
-            c.next_status
-                .min(end)
-                .min(c.timeout_at().unwrap_or(end))
+            c.next_status.min(end).min(c.timeout_at().unwrap_or(end))
         });
         [
             on(self.config.encoder_period, self.next_encoder),
