@@ -25,6 +25,24 @@
 //! encoded in the target's version and frames decoded in the sender's (the
 //! CAN id is the sender's node id).
 //!
+//! **Messages over one frame** (WIRE-FACTS §1.5: TelemetryStream,
+//! PowerMetrics, CalibrationResult, FaultHistory can exceed 64 bytes)
+//! travel as ISO-TP over CAN-FD on 29-bit CAN ids that name both ends,
+//! motorwire's decision described in [`crate::segmented`]: data from
+//! `source` to `target` on `0x1000_0000 | (target << 11) | source`
+//! ([`segmented_ids`]), flow control on the swapped id. A message that fits
+//! 64 bytes is one plain frame, as always. The client reassembles what
+//! joints send it (one transfer per joint at a time, at most
+//! [`ClientConfig::max_message_len`] bytes, [`ClientConfig::transfer_timeout`]
+//! between a joint's frames), answers with flow control from
+//! [`Client::poll_transmit`], and reports the message like any other
+//! (Ack, Nack, [`Event::Feedback`]); a transfer that fails or does not
+//! decode is an [`Event::Undecodable`] naming why ([`FrameError`]). A
+//! request over 64 bytes goes out the same way, one transfer per target at
+//! a time; a retry sends the same bytes, same msg_id, from a new first
+//! frame. [`Client::poll_timeout`] and [`Client::handle_timeout`] drive the
+//! transfers' timeouts and pacing.
+//!
 //! ```
 //! use std::time::Duration;
 //! use motorwire_can::{CanBus, SimBus, client::{Client, ClientConfig, Event, Outcome}};
@@ -62,6 +80,9 @@ use motorwire_irpc::{
     SetTargetPayload, SetTargetPayloadV2, TelemetryMode, WireVersion,
 };
 
+use crate::isotp::IsoTpError;
+use crate::segmented::{LinkEvent, Links};
+pub use crate::segmented::{SegmentedIds, segmented_ids};
 use crate::{CanBus, CanId, Error, Frame};
 
 /// The node id iRPC gives the arm.
@@ -88,11 +109,21 @@ pub struct ClientConfig {
     /// joints that heard an earlier one should start past that one's ids:
     /// `motorwire bridge` starts from the clock's microseconds.
     pub first_msg_id: u32,
+    /// How long a segmented transfer waits for the peer's next frame
+    /// (flow control, consecutive frame) before it fails (default 1 s,
+    /// ISO 15765-2's N_Bs and N_Cr).
+    pub transfer_timeout: Duration,
+    /// The longest message accepted in a segmented transfer (default
+    /// [`crate::segmented::DEFAULT_MAX_LEN`], 256 bytes; the longest iRPC
+    /// message is 148). A longer first frame is refused with flow status
+    /// overflow.
+    pub max_message_len: usize,
 }
 
 impl Default for ClientConfig {
     /// The arm (node 0x0000), v2.0, 100 ms, 3 retries, one request in
-    /// flight per node, msg_ids from 1.
+    /// flight per node, msg_ids from 1; segmented transfers of up to 256
+    /// bytes, 1 s between frames.
     fn default() -> Self {
         Self {
             node_id: ARM_NODE,
@@ -101,6 +132,8 @@ impl Default for ClientConfig {
             retries: 3,
             max_in_flight: 1,
             first_msg_id: 1,
+            transfer_timeout: Duration::from_secs(1),
+            max_message_len: crate::segmented::DEFAULT_MAX_LEN,
         }
     }
 }
@@ -164,12 +197,13 @@ pub enum Event {
         /// The message.
         message: Message,
     },
-    /// A frame that is not a valid iRPC message.
+    /// A frame that is not a valid iRPC message, or a segmented transfer
+    /// that failed or did not reassemble into one.
     Undecodable {
-        /// Its CAN id.
+        /// Its CAN id (for a transfer, the id of its data frames).
         can_id: CanId,
         /// Why.
-        error: motorwire_irpc::Error,
+        error: FrameError,
     },
     /// A frame whose CAN id is not its header's source (WIRE-FACTS §1.5:
     /// the CAN id is the sender's node id), dropped.
@@ -179,6 +213,45 @@ pub enum Event {
         /// The message it carried.
         message: Message,
     },
+}
+
+/// Why a frame or a segmented transfer did not give an iRPC message.
+///
+/// ```
+/// use motorwire_can::client::FrameError;
+/// use motorwire_can::isotp::IsoTpError;
+/// let e = FrameError::Irpc(motorwire_irpc::Error::InvalidFrameLength { len: 9 });
+/// assert_eq!(e.to_string(), motorwire_irpc::Error::InvalidFrameLength { len: 9 }.to_string());
+/// let t = FrameError::Transfer(IsoTpError::WrongSequence { expected: 2, got: 3 });
+/// assert_eq!(t.to_string(), "segmented transfer: consecutive frame 3 out of sequence (expected 2)");
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum FrameError {
+    /// The bytes are not a valid iRPC message (a plain frame's, or a
+    /// reassembled message's).
+    Irpc(motorwire_irpc::Error),
+    /// The segmented transfer failed: a timeout, a frame out of sequence,
+    /// a length over [`ClientConfig::max_message_len`], a frame that is not
+    /// ISO-TP.
+    Transfer(IsoTpError),
+}
+
+impl fmt::Display for FrameError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Irpc(e) => write!(f, "{e}"),
+            Self::Transfer(e) => write!(f, "segmented transfer: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for FrameError {}
+
+impl From<motorwire_irpc::Error> for FrameError {
+    fn from(e: motorwire_irpc::Error) -> Self {
+        Self::Irpc(e)
+    }
 }
 
 /// Counters for what the client has seen.
@@ -202,13 +275,32 @@ pub struct ClientStats {
     /// socket on the same interface receives what the first sends): not
     /// decoded, not reported.
     pub own_frames: u64,
+    /// Segmented transfers sent whole (requests over 64 bytes).
+    pub segmented_sent: u64,
+    /// Messages received by segmented transfer (decoded or not).
+    pub segmented_received: u64,
+    /// Segmented transfers from a peer that failed (reported as
+    /// [`Event::Undecodable`]).
+    pub failed_transfers: u64,
+    /// Segmented transfers to a peer that failed (no flow control, or
+    /// refused): the request is sent again at its timeout.
+    pub failed_sends: u64,
+}
+
+/// How a request goes on the bus.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Wire {
+    /// One plain frame.
+    Frame(Frame),
+    /// A segmented transfer of these bytes.
+    Segmented(Vec<u8>),
 }
 
 #[derive(Debug)]
 struct Pending {
     target: u16,
     kind: PayloadKind,
-    frame: Frame,
+    wire: Wire,
     attempts: u8,
     sent_at: Duration,
     deadline: Duration,
@@ -226,6 +318,7 @@ pub struct Client {
     /// Wire versions of nodes that do not speak `config.wire`.
     wires: BTreeMap<u16, WireVersion>,
     out: VecDeque<Frame>,
+    links: Links,
     events: VecDeque<Event>,
     stats: ClientStats,
 }
@@ -237,8 +330,11 @@ impl Client {
     /// [`Error::InvalidId`] for a node id above 0x7FF (it is the frames'
     /// standard CAN id).
     pub fn new(config: ClientConfig) -> Result<Self, Error> {
+        let can_id = CanId::standard(config.node_id)?;
         Ok(Self {
-            can_id: CanId::standard(config.node_id)?,
+            links: Links::new(config.node_id, config.transfer_timeout)?
+                .with_max_len(config.max_message_len),
+            can_id,
             next_id: config.first_msg_id.max(1),
             config,
             pending: BTreeMap::new(),
@@ -317,7 +413,12 @@ impl Client {
             return false;
         };
         self.release(p.target);
-        self.out.retain(|f| *f != p.frame);
+        match p.wire {
+            Wire::Frame(frame) => self.out.retain(|f| *f != frame),
+            Wire::Segmented(_) => {
+                self.links.cancel(p.target, msg_id);
+            }
+        }
         true
     }
 
@@ -340,18 +441,34 @@ impl Client {
         }
     }
 
-    fn frame(&self, wire: WireVersion, message: &Message) -> Result<Frame, Error> {
-        let mut buf = [0u8; MAX_FRAME_LEN];
-        let len = message.encode_frame(wire, &mut buf)?;
-        Frame::fd(self.can_id, buf.get(..len).unwrap_or(&buf))
+    /// One frame, or the bytes of a segmented transfer for a message over 64.
+    fn encode(&self, wire: WireVersion, message: &Message) -> Result<Wire, Error> {
+        let len = message.encoded_len(wire)?;
+        if len <= MAX_FRAME_LEN {
+            let mut buf = [0u8; MAX_FRAME_LEN];
+            let len = message.encode_frame(wire, &mut buf)?;
+            return Ok(Wire::Frame(Frame::fd(
+                self.can_id,
+                buf.get(..len).unwrap_or(&buf),
+            )?));
+        }
+        segmented_ids(self.config.node_id, message.header.target_id)?;
+        let mut bytes = vec![0u8; len];
+        let n = message.encode(wire, &mut bytes)?;
+        bytes.truncate(n);
+        Ok(Wire::Segmented(bytes))
     }
 
     /// Sends `payload` to `target` and awaits its Ack or Nack. Returns the
     /// msg_id; the answer comes as [`Event::Completed`].
     ///
+    /// A message over 64 bytes goes as a segmented transfer (see the
+    /// [module docs](self)).
+    ///
     /// # Errors
-    /// [`Error::Irpc`]: the payload is not in the target's wire version,
-    /// holds a non-finite value, or does not fit a frame;
+    /// [`Error::Irpc`]: the payload is not in the target's wire version or
+    /// holds a non-finite value; [`Error::SegmentedNode`]: a message over
+    /// 64 bytes to a node above 0x7FF (broadcasts included);
     /// [`Error::InFlightLimit`] when `target` already has
     /// [`ClientConfig::max_in_flight`] requests in flight.
     pub fn request(&mut self, now: Duration, target: u16, payload: Payload) -> Result<u32, Error> {
@@ -361,14 +478,14 @@ impl Client {
                 in_flight: self.in_flight_to(target),
             });
         }
-        let (msg_id, frame) = self.enqueue(self.wire_of(target), target, payload)?;
+        let (msg_id, wire) = self.enqueue(now, self.wire_of(target), target, payload)?;
         *self.in_flight.entry(target).or_insert(0) += 1;
         self.pending.insert(
             msg_id,
             Pending {
                 target,
                 kind: payload.kind(),
-                frame,
+                wire,
                 attempts: 1,
                 sent_at: now,
                 deadline: now.saturating_add(self.config.timeout),
@@ -398,17 +515,19 @@ impl Client {
         target: u16,
         payload: Payload,
     ) -> Result<u32, Error> {
-        self.enqueue(wire, target, payload)
+        self.enqueue(Duration::ZERO, wire, target, payload)
             .map(|(msg_id, _)| msg_id)
     }
 
-    /// Encodes `payload` to `target` under a fresh msg_id and queues its frame.
+    /// Encodes `payload` to `target` under a fresh msg_id and queues its
+    /// frame or transfer.
     fn enqueue(
         &mut self,
+        now: Duration,
         wire: WireVersion,
         target: u16,
         payload: Payload,
-    ) -> Result<(u32, Frame), Error> {
+    ) -> Result<(u32, Wire), Error> {
         let msg_id = self.allocate_id();
         let message = Message {
             header: Header {
@@ -418,9 +537,15 @@ impl Client {
             },
             payload,
         };
-        let frame = self.frame(wire, &message)?;
-        self.out.push_back(frame);
-        Ok((msg_id, frame))
+        let encoded = self.encode(wire, &message)?;
+        match &encoded {
+            Wire::Frame(frame) => self.out.push_back(*frame),
+            Wire::Segmented(bytes) => {
+                self.links
+                    .send_message(now, target, bytes.clone(), Some(msg_id))?;
+            }
+        }
+        Ok((msg_id, encoded))
     }
 
     /// Lifecycle: configure `target` (Unconfigured to Inactive).
@@ -520,9 +645,17 @@ impl Client {
         self.send(BROADCAST, Payload::ArmReady)
     }
 
-    /// Takes a frame from the bus.
+    /// Takes a frame from the bus: a plain iRPC frame, or a frame of a
+    /// segmented transfer to this node (other extended frames are ignored).
     pub fn handle_frame(&mut self, now: Duration, frame: &Frame) {
         if frame.id().is_extended() {
+            if self.links.handle_frame(now, frame) {
+                self.drain_links(now);
+            } else if crate::segmented::segmented_ends(frame.id())
+                .is_some_and(|(source, _)| source == self.config.node_id)
+            {
+                self.stats.own_frames += 1;
+            }
             return;
         }
         if frame.id().raw() == u32::from(self.config.node_id) {
@@ -545,8 +678,50 @@ impl Client {
                 self.stats.bad_frames += 1;
                 self.events.push_back(Event::Undecodable {
                     can_id: frame.id(),
-                    error,
+                    error: FrameError::Irpc(error),
                 });
+            }
+        }
+    }
+
+    /// Handles what the segmented transfers reported.
+    fn drain_links(&mut self, now: Duration) {
+        while let Some(event) = self.links.poll_event() {
+            match event {
+                LinkEvent::Message {
+                    source,
+                    can_id,
+                    bytes,
+                } => {
+                    self.stats.segmented_received += 1;
+                    match Message::decode(self.wire_of(source), &bytes) {
+                        Ok(message)
+                            if message.header.source_id != source
+                                || message.header.target_id != self.config.node_id =>
+                        {
+                            self.stats.bad_frames += 1;
+                            self.events
+                                .push_back(Event::Misaddressed { can_id, message });
+                        }
+                        Ok(message) => self.handle_message(now, message),
+                        Err(error) => {
+                            self.stats.bad_frames += 1;
+                            self.events.push_back(Event::Undecodable {
+                                can_id,
+                                error: FrameError::Irpc(error),
+                            });
+                        }
+                    }
+                }
+                LinkEvent::ReceiveFailed { can_id, error, .. } => {
+                    self.stats.failed_transfers += 1;
+                    self.events.push_back(Event::Undecodable {
+                        can_id,
+                        error: FrameError::Transfer(error),
+                    });
+                }
+                LinkEvent::SendFailed { .. } => self.stats.failed_sends += 1,
+                LinkEvent::Sent { .. } => self.stats.segmented_sent += 1,
             }
         }
     }
@@ -596,8 +771,12 @@ impl Client {
         }
     }
 
-    /// Sends again, or gives up on, every request whose deadline is `now` or earlier.
+    /// Sends again, or gives up on, every request whose deadline is `now`
+    /// or earlier; ends segmented transfers whose peer fell silent and
+    /// lets paced frames go.
     pub fn handle_timeout(&mut self, now: Duration) {
+        self.links.handle_timeout(now);
+        self.drain_links(now);
         let due: Vec<u32> = self
             .pending
             .iter()
@@ -611,10 +790,22 @@ impl Client {
             if p.attempts <= self.config.retries {
                 p.attempts += 1;
                 p.deadline = now.saturating_add(self.config.timeout);
-                self.out.push_back(p.frame);
+                let target = p.target;
+                match &p.wire {
+                    Wire::Frame(frame) => self.out.push_back(*frame),
+                    Wire::Segmented(bytes) => {
+                        // Checked when the request was made: cannot fail.
+                        let _ = self
+                            .links
+                            .resend_message(now, target, bytes.clone(), Some(id));
+                    }
+                }
                 self.stats.retransmissions += 1;
             } else if let Some(p) = self.pending.remove(&id) {
                 self.release(p.target);
+                if matches!(p.wire, Wire::Segmented(_)) {
+                    self.links.cancel(p.target, id);
+                }
                 self.stats.timed_out += 1;
                 self.events.push_back(Event::Completed(Completion {
                     msg_id: id,
@@ -629,9 +820,10 @@ impl Client {
         }
     }
 
-    /// The next frame to put on the bus.
+    /// The next frame to put on the bus: a request's, or a segmented
+    /// transfer's (flow control, first and consecutive frames).
     pub fn poll_transmit(&mut self) -> Option<Frame> {
-        self.out.pop_front()
+        self.out.pop_front().or_else(|| self.links.poll_transmit())
     }
 
     /// The next event.
@@ -639,9 +831,14 @@ impl Client {
         self.events.pop_front()
     }
 
-    /// The earliest deadline of a request in flight.
+    /// The earliest deadline of a request in flight or of a segmented
+    /// transfer (a peer's next frame, a paced frame of ours).
     pub fn poll_timeout(&self) -> Option<Duration> {
-        self.pending.values().map(|p| p.deadline).min()
+        self.pending
+            .values()
+            .map(|p| p.deadline)
+            .chain(self.links.poll_timeout())
+            .min()
     }
 
     /// Drives the client on a blocking bus until `msg_id` completes,

@@ -129,6 +129,15 @@ pub enum Error {
         /// What is wrong with it.
         reason: String,
     },
+    /// A node id a segmented transfer cannot name: its 29-bit CAN id
+    /// carries both ends in 11 bits each ([`crate::segmented::segmented_ids`]).
+    #[error(
+        "node id {node:#x} is above 0x7FF: a segmented transfer's CAN id carries each node id in 11 bits"
+    )]
+    SegmentedNode {
+        /// The node id.
+        node: u16,
+    },
     /// An ISO-TP (ISO 15765-2) transfer failed.
     #[error("ISO-TP: {0}")]
     IsoTp(#[from] crate::isotp::IsoTpError),

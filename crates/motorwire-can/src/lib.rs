@@ -20,6 +20,7 @@ pub mod client;
 mod error;
 mod frame;
 pub mod isotp;
+pub mod segmented;
 mod sim;
 #[cfg(all(feature = "socketcan", target_os = "linux"))]
 #[cfg_attr(docsrs, doc(cfg(all(feature = "socketcan", target_os = "linux"))))]

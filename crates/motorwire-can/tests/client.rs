@@ -4,7 +4,7 @@
 
 use std::time::Duration;
 
-use motorwire_can::client::{Client, ClientConfig, Completion, Event, Outcome};
+use motorwire_can::client::{Client, ClientConfig, Completion, Event, FrameError, Outcome};
 use motorwire_can::{CanBus, CanId, Error, Frame, SimBus};
 use motorwire_irpc::{Header, Message, NackCode, Payload, PayloadKind, TelemetryMode, WireVersion};
 
@@ -146,7 +146,7 @@ fn feedback_undecodable_and_misaddressed_frames_are_events() {
     assert!(matches!(
         c.poll_event(),
         Some(Event::Undecodable {
-            error: motorwire_irpc::Error::UnknownTag { tag: 127, .. },
+            error: FrameError::Irpc(motorwire_irpc::Error::UnknownTag { tag: 127, .. }),
             ..
         })
     ));

@@ -120,6 +120,22 @@ struct JointArgs {
     /// JointStatus period in ms (0: only on changes).
     #[arg(long, value_name = "MS", default_value_t = 100)]
     status_period: u64,
+    /// A fault that happens as the joint starts (repeatable, in order; for
+    /// testing what a host does about faults): the joint starts in Error
+    /// with each one in its fault history (v2.2 RequestFaultHistory) and
+    /// its PowerMetrics counters, and a v2.2 joint reports an
+    /// EmergencyStop for each.
+    #[arg(long = "fault", value_enum, value_name = "KIND")]
+    faults: Vec<FaultKind>,
+}
+
+/// A fault `motorwire sim joint --fault` makes happen.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum FaultKind {
+    /// The motor overheated (EmergencyReason 4).
+    Overtemperature,
+    /// The motor driver failed (EmergencyReason 5).
+    DriverFault,
 }
 
 /// `0x10`, `0X10` or `16`.
@@ -209,6 +225,15 @@ fn joint(args: &JointArgs) -> u8 {
             return 2;
         }
     };
+    for kind in &args.faults {
+        joint.fault(
+            Duration::ZERO,
+            match kind {
+                FaultKind::Overtemperature => motorwire_sim::JointFault::Overtemperature,
+                FaultKind::DriverFault => motorwire_sim::JointFault::DriverFault,
+            },
+        );
+    }
     let mut bus = match crate::bus::open(&args.bus) {
         Ok(b) => b,
         Err(e) => {

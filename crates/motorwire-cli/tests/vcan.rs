@@ -388,6 +388,97 @@ fn the_simulated_compact_device_answers_on_its_feedback_node() {
     assert_eq!(refused.position, 45.0);
 }
 
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn a_v2_2_joint_process_answers_request_fault_history_over_isotp() {
+    // Five faults as it starts: its FaultHistory is then over 64 bytes.
+    let mut args = vec![
+        "sim",
+        "joint",
+        "--bus",
+        "socketcan:vcan0",
+        "--node",
+        "0x33",
+        "--wire",
+        "v2.2",
+        "--encoder-period",
+        "0",
+        "--status-period",
+        "0",
+    ];
+    for kind in [
+        "overtemperature",
+        "driver-fault",
+        "overtemperature",
+        "driver-fault",
+        "overtemperature",
+    ] {
+        args.extend(["--fault", kind]);
+    }
+    let joint = motorwire()
+        .args(&args)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let _joint = Killed(joint);
+    let dump = candump();
+    sleep(Duration::from_millis(300));
+    let mut bus = SocketCanBus::open(IFACE).unwrap();
+    let start = Instant::now();
+    let clock = || start.elapsed();
+    let mut client = Client::new(ClientConfig {
+        wire: WireVersion::V2_2,
+        timeout: Duration::from_millis(500),
+        ..ClientConfig::default()
+    })
+    .unwrap();
+    let id = client
+        .request(clock(), 0x33, Payload::RequestFaultHistory)
+        .unwrap();
+    let done = client.drive(&mut bus, clock, id).unwrap();
+    assert_eq!(done.outcome, Outcome::Acked);
+    let mut history = None;
+    while let Some(e) = client.poll_event() {
+        if let Event::Feedback { message, .. } = e
+            && let Payload::FaultHistory(h) = message.payload
+        {
+            assert_eq!(
+                (message.header.source_id, message.header.target_id),
+                (0x33, 0)
+            );
+            assert!(message.encoded_len(WireVersion::V2_2).unwrap() > 64);
+            history = Some(h);
+        }
+    }
+    let h = history.expect("the joint's FaultHistory, before its Ack");
+    assert_eq!((h.total_faults, h.valid_count), (5, 5));
+    let types: Vec<u8> = h.records.iter().map(|r| r.fault_type).collect();
+    assert_eq!(types, [4, 5, 4, 5, 4, 0, 0, 0, 0, 0]);
+    for r in &h.records[..5] {
+        assert_eq!(
+            (r.timestamp_sec, r.vbus_mv, r.current_ma, r.temp_c),
+            (0, 24_000, 0, 95)
+        );
+    }
+    assert_eq!(client.stats().segmented_received, 1);
+    // On the wire: the first frame on 0x1000_0033 (0x33 to 0x000), the
+    // client's flow control on 0x1001_9800, exactly.
+    let log = finish(dump);
+    let frames: Vec<Frame> = log
+        .lines()
+        .map(|l| LogEntry::parse(l).unwrap().frame)
+        .collect();
+    let first = frames
+        .iter()
+        .find(|f| f.id() == CanId::extended(0x1000_0033).unwrap())
+        .unwrap_or_else(|| panic!("no first frame: {log}"));
+    assert_eq!(first.data()[0] >> 4, 1, "{first}");
+    assert!(
+        frames.iter().any(|f| f.to_string() == "10019800##1300000"),
+        "{log}"
+    );
+}
+
 fn fault_history() -> Message {
     let mut records = [FaultRecord::default(); 10];
     for (i, r) in records.iter_mut().enumerate() {

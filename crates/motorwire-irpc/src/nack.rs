@@ -5,7 +5,7 @@ use core::fmt;
 /// The `error` of a [`Payload::Nack`](crate::Payload::Nack), with its meaning.
 ///
 /// Codes 1 to 4 and 255 are the ones the public joint firmware sends; the
-/// document names none. Codes 16 to 18 are motorwire's own (its simulated
+/// document names none. Codes 16 to 20 are motorwire's own (its simulated
 /// joint sends them), for refusals the firmware does not make: it executes
 /// non-finite and out-of-limit targets. Any other code is kept as it came.
 ///
@@ -40,6 +40,10 @@ impl NackCode {
     /// (its msg_id comes before the Activate or Deactivate that followed it):
     /// a late copy from before an emergency stop, never executed (motorwire).
     pub const STALE_REQUEST: Self = Self(19);
+    /// StartCalibration in a state that cannot calibrate (a joint
+    /// calibrates from Inactive), or StopCalibration while not calibrating
+    /// (motorwire).
+    pub const CALIBRATION_WRONG_STATE: Self = Self(20);
     /// A payload the joint does not handle.
     pub const UNKNOWN_PAYLOAD: Self = Self(255);
 
@@ -54,6 +58,7 @@ impl NackCode {
             17 => "non-finite value",
             18 => "malformed payload",
             19 => "a motion request from before the last lifecycle change",
+            20 => "calibration started or stopped in the wrong state",
             255 => "unknown payload",
             _ => return None,
         })

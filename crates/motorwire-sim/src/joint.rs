@@ -56,6 +56,82 @@
 //!   `ConfigureTelemetry` asks (`OnChange` and `Adaptive` are sent at that
 //!   rate too) or once per `RequestTelemetry`. Feedback goes to the last
 //!   node that commanded the joint (the arm, 0x0000, before any).
+//! - **Messages over 64 bytes** (a FaultHistory with its faults, a
+//!   TelemetryStream or PowerMetrics with long varints, a failed
+//!   CalibrationResult with a long header) go as segmented transfers, and
+//!   segmented requests are taken, as motorwire decides in
+//!   [`motorwire_can::segmented`]: ISO-TP over CAN-FD on the 29-bit ids
+//!   [`segmented_ids`](motorwire_can::segmented::segmented_ids) makes.
+//!   Everything the joint sends to one node keeps its order: a frame made
+//!   after a long message waits for its transfer. A transfer waits
+//!   [`JointConfig::transfer_timeout`] (250 ms) for the host's flow control.
+//!
+//! ## The motion model behind the telemetry
+//!
+//! The joint's load is a pure inertia [`INERTIA`] (kg·m²) driven through a
+//! motor of torque constant [`TORQUE_CONSTANT`] (Nm/A, also its back-EMF
+//! constant in V·s/rad), winding resistance [`WINDING_RESISTANCE`] (Ω),
+//! inductance [`WINDING_INDUCTANCE`] (H) and [`POLE_PAIRS`] pole pairs, on a
+//! [`BUS_VOLTAGE_MV`] bus, under field-oriented control with `i_d = 0`.
+//! With α the planned acceleration and ω the velocity, both in rad/s:
+//!
+//! - `torque_estimate = INERTIA · α`, `current_q = torque / TORQUE_CONSTANT`
+//!   (proportional to the acceleration), `current_d = 0`;
+//! - `voltage_q = R · i_q + TORQUE_CONSTANT · ω`,
+//!   `voltage_d = −POLE_PAIRS · ω · L · i_q`;
+//! - `power = voltage_q · i_q` (W, negative while braking regenerates);
+//! - `load_percent = 100 · |torque| / (INERTIA · max_acceleration)`;
+//! - the winding temperature follows a first-order model, from
+//!   [`AMBIENT_TEMPERATURE`] towards `ambient + THERMAL_RESISTANCE · R · i_q²`
+//!   with time constant [`THERMAL_TIME_CONSTANT`]: it rises slowly with the
+//!   current and cools at rest;
+//! - `foc_loop_time_us` is [`FOC_LOOP_TIME_US`]; `warnings` bit 0x0001 is
+//!   set at or above the power configuration's throttle temperature;
+//! - the clock (`timestamp_us`, fault times) is the joint's uptime:
+//!   [`JointConfig::uptime`] plus the bus time.
+//!
+//! ## Calibration (v2.1 on)
+//!
+//! `StartCalibration` is taken from **Inactive** only (a joint must be
+//! deactivated, so no motion is cut short, and configured), else
+//! `Nack 20` ([`NackCode::CALIBRATION_WRONG_STATE`]); limits that are not
+//! positive are `Nack 16`. The joint then reports `Calibrating` and runs
+//! the phases its mask selects (bit 0 InertiaTest, 1 FrictionTest, 2
+//! TorqueConstantVerification, 3 DampingTest, 4 Validation; a mask with
+//! none of them set runs all five), [`CALIBRATION_PHASE_TIME`] each,
+//! without moving. Every [`CALIBRATION_STATUS_PERIOD`] it sends a
+//! `CalibrationStatus` (phase, overall progress 0 to 1, time remaining in
+//! s, `current_iq` half the request's `max_current`); at the end a
+//! `CalibrationStatus` `Complete` and a `CalibrationResult` with `success`,
+//! the parameters of [`SIM_MOTOR_PARAMETERS`] its phases measured (the
+//! others zero), their confidences (`overall` the lowest), `total_time`,
+//! and back to Inactive. Meanwhile motion commands are `Nack 4`, Configure
+//! and Activate `Nack 1` and `2`. `StopCalibration` (else `Nack 20`),
+//! `Deactivate` and `Reset` abort it: a `CalibrationStatus` `Failed`, a
+//! `CalibrationResult` with `success: false`, `error_code`
+//! [`CALIBRATION_ABORTED`], and Inactive (Unconfigured after a Reset). A
+//! `phase_timeout` shorter than a phase fails it with
+//! [`CALIBRATION_PHASE_TIMEOUT`], a fault with [`CALIBRATION_FAULTED`].
+//!
+//! ## Power and faults (v2.2)
+//!
+//! - `RequestFaultHistory` is answered with a `FaultHistory` of the joint's
+//!   faults ([`SimJoint::fault`]: type 4 overtemperature, 5 driver fault,
+//!   the `EmergencyReason` numbers), the last ten, oldest first, with
+//!   `total_faults` since boot and `valid_count`.
+//! - `RequestPowerConfig` is answered with a `PowerConfigResponse`;
+//!   `ConfigurePower` is acked and kept (`Nack 16` unless undervoltage <
+//!   overvoltage and throttle start < shutdown temperature). Its
+//!   `telemetry_rate_hz`, when not 0, sends `PowerMetrics` at that rate.
+//! - v2.2 has no request for `PowerMetrics`, so **motorwire's decision**: a
+//!   v2.2 joint answers `RequestTelemetry` with a `TelemetryStream`
+//!   followed by a `PowerMetrics` (phase currents from `i_q` at the
+//!   electrical angle, energy and charge drawn since boot, time Active,
+//!   [`FaultCounters`] counting its faults and emergency stops).
+//! - These requests, and the telemetry ones, are answered in every state
+//!   (Error included: they are how a host finds out why).
+//! - `ConfigureAdaptive` and `RequestAdaptiveStatus` are `Nack 255`: the
+//!   simulated joint has no adaptive current control.
 //!
 //! ```
 //! use std::time::Duration;
@@ -106,11 +182,14 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use motorwire_can::client::ARM_NODE;
+use motorwire_can::segmented::{LinkEvent, Links};
 use motorwire_can::{CanBus, CanId, Frame, SimPort};
 use motorwire_irpc::{
-    EmergencyReason, EmergencyStop, EncoderTelemetry, Error as WireError, Header, LifecycleState,
-    MAX_FRAME_LEN, Message, MotionProfile, NackCode, Payload, SetTargetPayloadV2, TelemetryMode,
-    TelemetryStream, WireVersion,
+    CalibrationConfidence, CalibrationPhase, CalibrationRequest, CalibrationResult,
+    CalibrationStatus, EmergencyReason, EmergencyStop, EncoderTelemetry, Error as WireError,
+    FaultCounters, FaultHistory, FaultRecord, Header, LifecycleState, MAX_FRAME_LEN, Message,
+    MotionProfile, MotorParameters, NackCode, Payload, PowerConfig, PowerMetrics,
+    SetTargetPayloadV2, TelemetryMode, TelemetryStream, WireVersion,
 };
 use motorwire_planner::Profile;
 
@@ -118,6 +197,97 @@ use crate::SimError;
 
 /// `JointStatus.error_code` after the watchdog braked a motion.
 pub const WATCHDOG_STOP: u16 = 1;
+
+/// The motor's torque constant (Nm/A), also its back-EMF constant (V·s/rad).
+pub const TORQUE_CONSTANT: f64 = 0.08;
+/// The joint's inertia as the motor sees it (kg·m²).
+pub const INERTIA: f64 = 0.01;
+/// The motor's winding resistance (Ω).
+pub const WINDING_RESISTANCE: f64 = 0.5;
+/// The motor's winding inductance (H).
+pub const WINDING_INDUCTANCE: f64 = 0.0005;
+/// The motor's pole pairs.
+pub const POLE_PAIRS: f64 = 7.0;
+/// The supply voltage (mV).
+pub const BUS_VOLTAGE_MV: u32 = 24_000;
+/// The temperature of the joint's surroundings and of a cold motor (°C).
+pub const AMBIENT_TEMPERATURE: f64 = 25.0;
+/// The motor's thermal resistance to ambient (K/W).
+pub const THERMAL_RESISTANCE: f64 = 2.0;
+/// The motor's thermal time constant (s).
+pub const THERMAL_TIME_CONSTANT: f64 = 60.0;
+/// The field-oriented control loop's period reported in telemetry (µs).
+pub const FOC_LOOP_TIME_US: u16 = 50;
+/// The temperature an overtemperature fault reports (°C).
+pub const OVERTEMPERATURE_C: f64 = 95.0;
+
+/// How long each calibration phase takes.
+pub const CALIBRATION_PHASE_TIME: Duration = Duration::from_millis(500);
+/// How often a calibrating joint sends `CalibrationStatus`.
+pub const CALIBRATION_STATUS_PERIOD: Duration = Duration::from_millis(100);
+/// `CalibrationResult.error_code` of a calibration stopped by
+/// StopCalibration, Deactivate or Reset.
+pub const CALIBRATION_ABORTED: u16 = 0x0101;
+/// `CalibrationResult.error_code` of a calibration whose phase took longer
+/// than the request's `phase_timeout`.
+pub const CALIBRATION_PHASE_TIMEOUT: u16 = 0x0102;
+/// `CalibrationResult.error_code` of a calibration a fault ended.
+pub const CALIBRATION_FAULTED: u16 = 0x0103;
+
+/// What the simulated motor is, and what a full calibration finds:
+/// inertia kg·m², torque constant Nm/A, damping Nm·s/rad, Coulomb and
+/// Stribeck friction Nm, Stribeck velocity rad/s, viscous friction
+/// Nm·s/rad.
+pub const SIM_MOTOR_PARAMETERS: MotorParameters = MotorParameters {
+    inertia: 0.01,
+    torque_constant: 0.08,
+    damping: 0.002,
+    friction_coulomb: 0.03,
+    friction_stribeck: 0.01,
+    friction_vstribeck: 0.05,
+    friction_viscous: 0.001,
+};
+
+/// The confidence each calibration phase reports, in phase order
+/// (InertiaTest, FrictionTest, TorqueConstantVerification, DampingTest,
+/// Validation).
+pub const CALIBRATION_CONFIDENCE: [f32; 5] = [0.97, 0.92, 0.99, 0.95, 0.98];
+
+/// The validation RMS error a calibration with a Validation phase reports.
+pub const CALIBRATION_VALIDATION_RMS: f32 = 0.015;
+
+/// The power configuration a joint starts with: 30 V over, 18 V under,
+/// 10 A RMS, 20 A peak, throttling from 70 °C, shutdown at 90 °C, no
+/// periodic PowerMetrics.
+pub const DEFAULT_POWER_CONFIG: PowerConfig = PowerConfig {
+    vbus_overvoltage_mv: 30_000,
+    vbus_undervoltage_mv: 18_000,
+    max_rms_current_ma: 10_000,
+    max_peak_current_ma: 20_000,
+    temp_throttle_start_c: 70,
+    temp_shutdown_c: 90,
+    telemetry_rate_hz: 0,
+};
+
+/// How many faults a FaultHistory holds.
+pub const FAULT_RECORDS: usize = 10;
+
+const DEFAULT_COUNTERS: FaultCounters = FaultCounters {
+    overcurrent: 0,
+    overvoltage: 0,
+    undervoltage: 0,
+    overtemp: 0,
+    driver_fault: 0,
+    emergency_stops: 0,
+};
+
+const PHASES: [CalibrationPhase; 5] = [
+    CalibrationPhase::InertiaTest,
+    CalibrationPhase::FrictionTest,
+    CalibrationPhase::TorqueConstantVerification,
+    CalibrationPhase::DampingTest,
+    CalibrationPhase::Validation,
+];
 
 /// How many answered requests of each sender are remembered for duplicate
 /// suppression.
@@ -205,11 +375,21 @@ pub struct JointConfig {
     pub status_period: Duration,
     /// Where it starts (degrees).
     pub initial_position: f32,
+    /// How long the joint has been running when the bus starts: its clock
+    /// (TelemetryStream.timestamp_us, fault times) reads this at bus time
+    /// zero. Zero by default.
+    pub uptime: Duration,
+    /// The msg_id of its first feedback message (default 1).
+    pub first_msg_id: u32,
+    /// How long a segmented transfer of its waits for the host's flow
+    /// control, and a host's transfer for its next frame (250 ms).
+    pub transfer_timeout: Duration,
 }
 
 impl JointConfig {
     /// Node `node_id`, v2.0, default limits, 200 ms watchdog, Encoder every
-    /// 10 ms, JointStatus every 100 ms, starting at 0°.
+    /// 10 ms, JointStatus every 100 ms, starting at 0°, uptime zero,
+    /// feedback msg_ids from 1, 250 ms segmented transfer timeout.
     pub fn new(node_id: u16) -> Self {
         Self {
             node_id,
@@ -220,6 +400,9 @@ impl JointConfig {
             encoder_period: Duration::from_millis(10),
             status_period: Duration::from_millis(100),
             initial_position: 0.0,
+            uptime: Duration::ZERO,
+            first_msg_id: 1,
+            transfer_timeout: Duration::from_millis(250),
         }
     }
 }
@@ -254,8 +437,41 @@ pub struct JointStats {
     pub bad_frames: u64,
     /// Motions braked by the watchdog.
     pub watchdog_stops: u64,
-    /// Feedback messages too large for one frame, not sent.
+    /// Messages that could not be sent: over 64 bytes to a node a
+    /// segmented transfer cannot name (above 0x7FF), or with too many
+    /// waiting for that node already.
     pub oversized: u64,
+    /// Segmented transfers sent whole.
+    pub segmented_sent: u64,
+    /// Messages received by segmented transfer.
+    pub segmented_received: u64,
+    /// Segmented transfers that failed, either way (also counted in
+    /// `bad_frames` when received).
+    pub failed_transfers: u64,
+    /// Calibrations run to their end (successful or failed).
+    pub calibrations: u64,
+}
+
+/// A calibration in progress.
+#[derive(Debug, Clone)]
+struct Calibration {
+    request: CalibrationRequest,
+    phases: Vec<usize>,
+    start: Duration,
+    next_status: Duration,
+}
+
+impl Calibration {
+    fn total(&self) -> Duration {
+        CALIBRATION_PHASE_TIME.saturating_mul(u32::try_from(self.phases.len()).unwrap_or(5))
+    }
+
+    /// When a phase times out, if the request's phase_timeout is shorter
+    /// than a phase.
+    fn timeout_at(&self) -> Option<Duration> {
+        let t = Duration::try_from_secs_f32(self.request.phase_timeout).ok()?;
+        (t < CALIBRATION_PHASE_TIME).then(|| self.start.saturating_add(t))
+    }
 }
 
 /// A request the joint acted on (the first time it saw its msg_id), as its
@@ -307,7 +523,7 @@ pub struct SimJoint {
     host: u16,
     last_heard: Duration,
     senders: HashMap<u16, Sender>,
-    out: VecDeque<Frame>,
+    links: Links,
     next_msg_id: u32,
     next_encoder: Duration,
     next_status: Duration,
@@ -315,6 +531,20 @@ pub struct SimJoint {
     next_telemetry: Duration,
     stats: JointStats,
     log: Option<Vec<Execution>>,
+    /// Winding temperature (°C).
+    temperature: f64,
+    /// Energy drawn since boot (mWh).
+    energy_mwh: f64,
+    /// Charge drawn since boot (mAh).
+    charge_mah: f64,
+    /// Time spent Active since boot.
+    active_time: Duration,
+    faults: VecDeque<FaultRecord>,
+    total_faults: u32,
+    counters: FaultCounters,
+    power_config: PowerConfig,
+    next_power: Duration,
+    calibration: Option<Calibration>,
 }
 
 fn positive_finite(x: f32) -> bool {
@@ -328,10 +558,12 @@ impl SimJoint {
     /// [`SimError::InvalidConfig`] for a node id above 0x7FF, limits that are
     /// not finite, positive and ordered, or a start outside them.
     pub fn new(config: JointConfig) -> Result<Self, SimError> {
-        let can_id = CanId::standard(config.node_id).map_err(|e| SimError::InvalidConfig {
+        let invalid_node = |e: motorwire_can::Error| SimError::InvalidConfig {
             field: "node_id",
             reason: e.to_string(),
-        })?;
+        };
+        let can_id = CanId::standard(config.node_id).map_err(invalid_node)?;
+        let links = Links::new(config.node_id, config.transfer_timeout).map_err(invalid_node)?;
         let l = config.limits;
         let bad = |field: &'static str, reason: &str| {
             Err(SimError::InvalidConfig {
@@ -372,14 +604,24 @@ impl SimJoint {
             host: ARM_NODE,
             last_heard: Duration::ZERO,
             senders: HashMap::new(),
-            out: VecDeque::new(),
-            next_msg_id: 1,
+            links,
+            next_msg_id: config.first_msg_id.max(1),
             next_encoder: Duration::ZERO,
             next_status: Duration::ZERO,
             telemetry_period: None,
             next_telemetry: Duration::ZERO,
             stats: JointStats::default(),
             log: None,
+            temperature: AMBIENT_TEMPERATURE,
+            energy_mwh: 0.0,
+            charge_mah: 0.0,
+            active_time: Duration::ZERO,
+            faults: VecDeque::new(),
+            total_faults: 0,
+            counters: DEFAULT_COUNTERS,
+            power_config: DEFAULT_POWER_CONFIG,
+            next_power: Duration::ZERO,
+            calibration: None,
         })
     }
 
@@ -459,6 +701,8 @@ impl SimJoint {
 
     /// Advances the motion to `now`.
     fn update(&mut self, now: Duration) {
+        let dt = now.saturating_sub(self.now);
+        self.integrate(dt);
         self.now = self.now.max(now);
         let now = self.now;
         match self.motion {
@@ -514,6 +758,8 @@ impl SimJoint {
         };
     }
 
+    /// Sends `payload` to `target`: one frame, or a segmented transfer
+    /// over 64 bytes; in order behind what is already on its way there.
     fn emit(&mut self, target: u16, msg_id: u32, payload: Payload) {
         let message = Message {
             header: Header {
@@ -523,15 +769,55 @@ impl SimJoint {
             },
             payload,
         };
+        let wire = self.config.wire;
         let mut buf = [0u8; MAX_FRAME_LEN];
-        match message.encode_frame(self.config.wire, &mut buf) {
+        match message.encode_frame(wire, &mut buf) {
             Ok(len) => {
-                if let Ok(f) = Frame::fd(self.can_id, buf.get(..len).unwrap_or(&buf)) {
-                    self.out.push_back(f);
+                if let Ok(f) = Frame::fd(self.can_id, buf.get(..len).unwrap_or(&buf))
+                    && !self.links.send_frame(target, f)
+                {
+                    self.stats.oversized += 1;
                 }
+            }
+            Err(WireError::FrameTooLarge { len }) => {
+                let mut bytes = vec![0u8; len];
+                let sent = message
+                    .encode(wire, &mut bytes)
+                    .map_err(motorwire_can::Error::from)
+                    .and_then(|n| {
+                        bytes.truncate(n);
+                        self.links.send_message(self.now, target, bytes, None)
+                    });
+                if sent.is_err() {
+                    self.stats.oversized += 1;
+                }
+                self.drain_links();
             }
             Err(_) => self.stats.oversized += 1,
         }
+    }
+
+    /// Handles what the segmented transfers reported; returns the last
+    /// request a reassembled message carried.
+    fn drain_links(&mut self) -> Option<Execution> {
+        let mut acted = None;
+        while let Some(event) = self.links.poll_event() {
+            match event {
+                LinkEvent::Message { source, bytes, .. } => {
+                    self.stats.segmented_received += 1;
+                    if let Some(e) = self.handle_bytes(&bytes, Origin::Segmented(source)) {
+                        acted = Some(e);
+                    }
+                }
+                LinkEvent::ReceiveFailed { .. } => {
+                    self.stats.failed_transfers += 1;
+                    self.stats.bad_frames += 1;
+                }
+                LinkEvent::SendFailed { .. } => self.stats.failed_transfers += 1,
+                LinkEvent::Sent { .. } => self.stats.segmented_sent += 1,
+            }
+        }
+        acted
     }
 
     fn feedback(&mut self, payload: Payload) {
@@ -548,9 +834,15 @@ impl SimJoint {
     ///   v2.2 `EmergencyReason` numbers) and, speaking v2.2, reports an
     ///   `EmergencyStop` to its host. It takes nothing but `Reset` until
     ///   then.
+    ///   The fault is recorded in its fault history (v2.2
+    ///   `RequestFaultHistory`) and counted in `PowerMetrics.faults` (its
+    ///   kind and `emergency_stops`); an overtemperature heats the motor
+    ///   to [`OVERTEMPERATURE_C`]; a calibration in progress fails with
+    ///   [`CALIBRATION_FAULTED`].
     /// - [`JointFault::Reboot`]: the joint starts again: at rest where it
-    ///   stood, `Unconfigured`, every sender forgotten; it says so with a
-    ///   `JointStatus`.
+    ///   stood, `Unconfigured`, every sender forgotten, its fault history,
+    ///   counters, energy and power configuration as at boot (they live in
+    ///   RAM); it says so with a `JointStatus`.
     pub fn fault(&mut self, now: Duration, fault: JointFault) {
         self.now = self.now.max(now);
         match fault {
@@ -559,14 +851,23 @@ impl SimJoint {
                     JointFault::Overtemperature => (4, EmergencyReason::Overtemperature),
                     _ => (5, EmergencyReason::DriverFault),
                 };
+                if code == 4 {
+                    self.temperature = self.temperature.max(OVERTEMPERATURE_C);
+                }
+                let current_ma = self.current_q().abs() * 1000.0;
                 self.brake(self.config.emergency_deceleration);
                 self.error_code = code;
+                self.state = LifecycleState::Error;
+                self.end_calibration(false, CALIBRATION_FAULTED);
+                self.record_fault(reason, current_ma);
                 if self.config.wire == WireVersion::V2_2 {
+                    // A 32-bit millisecond counter, as firmware keeps it:
+                    // it wraps every 49.7 days.
                     #[allow(clippy::cast_possible_truncation)]
-                    let ms = self.now.as_millis() as u32;
+                    let ms = self.clock().as_millis() as u32;
                     self.feedback(Payload::EmergencyStop(EmergencyStop {
                         reason,
-                        vbus_mv: 24_000,
+                        vbus_mv: BUS_VOLTAGE_MV,
                         current_ma: 0,
                         temp_c: if code == 4 { 95.0 } else { 40.0 },
                         timestamp_ms: ms,
@@ -583,6 +884,14 @@ impl SimJoint {
                 self.error_code = 0;
                 self.telemetry_period = None;
                 self.senders.clear();
+                self.calibration = None;
+                self.faults.clear();
+                self.total_faults = 0;
+                self.counters = DEFAULT_COUNTERS;
+                self.power_config = DEFAULT_POWER_CONFIG;
+                self.energy_mwh = 0.0;
+                self.charge_mah = 0.0;
+                self.active_time = Duration::ZERO;
                 self.state = LifecycleState::Unconfigured;
                 self.send_status();
             }
@@ -603,25 +912,316 @@ impl SimJoint {
         });
     }
 
-    fn telemetry(&self) -> TelemetryStream {
-        #[allow(clippy::cast_possible_truncation)]
+    /// The joint's own clock: its uptime.
+    fn clock(&self) -> Duration {
+        self.config.uptime.saturating_add(self.now)
+    }
+
+    /// Torque (Nm) the motor gives the load now.
+    fn torque(&self) -> f64 {
+        INERTIA * self.acceleration.to_radians()
+    }
+
+    /// q-axis current (A) now.
+    fn current_q(&self) -> f64 {
+        self.torque() / TORQUE_CONSTANT
+    }
+
+    /// q-axis voltage (V) now.
+    fn voltage_q(&self) -> f64 {
+        WINDING_RESISTANCE * self.current_q() + TORQUE_CONSTANT * self.velocity.to_radians()
+    }
+
+    /// Electrical power (W) into the windings now.
+    fn power(&self) -> f64 {
+        self.voltage_q() * self.current_q()
+    }
+
+    /// Advances the thermal and energy model over `dt` at the present
+    /// current and power.
+    fn integrate(&mut self, dt: Duration) {
+        let secs = dt.as_secs_f64();
+        if secs <= 0.0 {
+            return;
+        }
+        let iq = self.current_q();
+        let steady = AMBIENT_TEMPERATURE + THERMAL_RESISTANCE * WINDING_RESISTANCE * iq * iq;
+        self.temperature =
+            steady + (self.temperature - steady) * (-secs / THERMAL_TIME_CONSTANT).exp();
+        let drawn = self.power().max(0.0);
+        self.energy_mwh += drawn * secs / 3.6;
+        self.charge_mah += drawn / (f64::from(BUS_VOLTAGE_MV) / 1000.0) * secs / 3.6;
+        if self.state == LifecycleState::Active {
+            self.active_time = self.active_time.saturating_add(dt);
+        }
+    }
+
+    fn warnings(&self) -> u16 {
+        u16::from(self.temperature >= f64::from(self.power_config.temp_throttle_start_c))
+    }
+
+    /// The TelemetryStream it sends now (see [the model](self#the-motion-model-behind-the-telemetry)).
+    #[allow(clippy::cast_possible_truncation)]
+    pub fn telemetry(&self) -> TelemetryStream {
         let f = |x: f64| x as f32;
+        let iq = self.current_q();
+        let omega = self.velocity.to_radians();
+        let peak = INERTIA * f64::from(self.config.limits.max_acceleration).to_radians();
         TelemetryStream {
-            timestamp_us: u64::try_from(self.now.as_micros()).unwrap_or(u64::MAX),
+            timestamp_us: u64::try_from(self.clock().as_micros()).unwrap_or(u64::MAX),
             position: f(self.position),
             velocity: f(self.velocity),
             acceleration: f(self.acceleration),
             current_d: 0.0,
-            current_q: 0.0,
-            voltage_d: 0.0,
-            voltage_q: 0.0,
-            torque_estimate: 0.0,
-            power: 0.0,
-            load_percent: 0.0,
-            foc_loop_time_us: 0,
-            temperature_c: 25.0,
-            warnings: 0,
+            current_q: f(iq),
+            voltage_d: f(-POLE_PAIRS * omega * WINDING_INDUCTANCE * iq),
+            voltage_q: f(self.voltage_q()),
+            torque_estimate: f(self.torque()),
+            power: f(self.power()),
+            load_percent: f((100.0 * self.torque().abs() / peak).min(100.0)),
+            foc_loop_time_us: FOC_LOOP_TIME_US,
+            temperature_c: f(self.temperature),
+            warnings: self.warnings(),
             trajectory_active: matches!(self.motion, Motion::Profile { .. }),
+        }
+    }
+
+    /// The PowerMetrics it sends now (v2.2): phase currents from `i_q` at
+    /// the electrical angle, RMS current, power drawn, the MCU at ambient
+    /// plus 10 °C, the thermal throttle factor (1 below the throttle
+    /// temperature, 0 at shutdown, linear between), energy and charge drawn
+    /// and time Active since boot, its fault counters.
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    pub fn power_metrics(&self) -> PowerMetrics {
+        let iq = self.current_q();
+        let theta = POLE_PAIRS * self.position.to_radians();
+        let third = 2.0 * std::f64::consts::PI / 3.0;
+        let ma = |a: f64| (a * 1000.0).round() as i32;
+        let cfg = self.power_config;
+        let (start, stop) = (
+            f64::from(cfg.temp_throttle_start_c),
+            f64::from(cfg.temp_shutdown_c),
+        );
+        let throttle = if self.temperature < start {
+            1.0
+        } else if stop > start {
+            ((stop - self.temperature) / (stop - start)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        PowerMetrics {
+            vbus_mv: BUS_VOLTAGE_MV,
+            ia_ma: ma(-iq * theta.sin()),
+            ib_ma: ma(-iq * (theta - third).sin()),
+            i_rms_ma: (iq.abs() * 1000.0 / std::f64::consts::SQRT_2) as f32,
+            power_mw: (self.power().max(0.0) * 1000.0).round() as u32,
+            mcu_temp_c: (AMBIENT_TEMPERATURE + 10.0) as f32,
+            throttle_factor: throttle as f32,
+            energy_mwh: self.energy_mwh as u32,
+            charge_mah: self.charge_mah as u32,
+            active_time_ms: self.active_time.as_millis().min(u128::from(u32::MAX)) as u32,
+            faults: self.counters,
+        }
+    }
+
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    fn record_fault(&mut self, reason: EmergencyReason, current_ma: f64) {
+        let fault_type = match reason {
+            EmergencyReason::Overtemperature => {
+                self.counters.overtemp = self.counters.overtemp.saturating_add(1);
+                4
+            }
+            _ => {
+                self.counters.driver_fault = self.counters.driver_fault.saturating_add(1);
+                5
+            }
+        };
+        self.counters.emergency_stops = self.counters.emergency_stops.saturating_add(1);
+        self.total_faults = self.total_faults.saturating_add(1);
+        if self.faults.len() >= FAULT_RECORDS {
+            self.faults.pop_front();
+        }
+        self.faults.push_back(FaultRecord {
+            fault_type,
+            timestamp_sec: self.clock().as_secs().min(u64::from(u32::MAX)) as u32,
+            vbus_mv: u16::try_from(BUS_VOLTAGE_MV).unwrap_or(u16::MAX),
+            current_ma: current_ma.min(f64::from(u16::MAX)) as u16,
+            temp_c: self.temperature.round().clamp(-128.0, 127.0) as i8,
+        });
+    }
+
+    /// The joint's fault history as `RequestFaultHistory` reports it.
+    pub fn fault_history(&self) -> FaultHistory {
+        let mut records = [FaultRecord::default(); FAULT_RECORDS];
+        for (slot, r) in records.iter_mut().zip(self.faults.iter()) {
+            *slot = *r;
+        }
+        FaultHistory {
+            records,
+            total_faults: self.total_faults,
+            valid_count: u8::try_from(self.faults.len()).unwrap_or(u8::MAX),
+        }
+    }
+
+    /// The power configuration it keeps (v2.2 `ConfigurePower`).
+    pub fn power_config(&self) -> PowerConfig {
+        self.power_config
+    }
+
+    /// The winding temperature (°C) of its thermal model.
+    pub fn temperature(&self) -> f64 {
+        self.temperature
+    }
+
+    /// Whether a calibration is in progress.
+    pub fn is_calibrating(&self) -> bool {
+        self.calibration.is_some()
+    }
+
+    fn start_calibration(&mut self, id: u32, request: CalibrationRequest) -> Payload {
+        let nack = |code: NackCode| Payload::Nack { id, error: code.0 };
+        if self.state != LifecycleState::Inactive {
+            return nack(NackCode::CALIBRATION_WRONG_STATE);
+        }
+        let r = request;
+        if !(positive_finite(r.max_current)
+            && positive_finite(r.max_velocity)
+            && positive_finite(r.max_position_range)
+            && positive_finite(r.phase_timeout))
+        {
+            return nack(NackCode::OUT_OF_LIMITS);
+        }
+        let mask = if r.phases & 0x1F == 0 { 0x1F } else { r.phases };
+        let phases = (0..PHASES.len()).filter(|i| mask & (1 << i) != 0).collect();
+        self.calibration = Some(Calibration {
+            request,
+            phases,
+            start: self.now,
+            next_status: self.now,
+        });
+        self.set_state(LifecycleState::Calibrating);
+        Payload::Ack(id)
+    }
+
+    /// The phase (index into PHASES) running `elapsed` into a calibration,
+    /// and the overall progress.
+    fn calibration_phase(c: &Calibration, elapsed: Duration) -> (Option<usize>, f32) {
+        let total = c.total().as_secs_f64();
+        let progress = if total > 0.0 {
+            (elapsed.as_secs_f64() / total).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        let step = CALIBRATION_PHASE_TIME.as_secs_f64();
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let n = (elapsed.as_secs_f64() / step) as usize;
+        #[allow(clippy::cast_possible_truncation)]
+        (c.phases.get(n).copied(), progress as f32)
+    }
+
+    fn calibration_status(&mut self, phase: CalibrationPhase, progress: f32, remaining: f32) {
+        let Some(c) = self.calibration.as_ref() else {
+            return;
+        };
+        #[allow(clippy::cast_possible_truncation)]
+        let status = CalibrationStatus {
+            phase,
+            progress,
+            time_remaining: remaining,
+            current_position: self.position as f32,
+            current_velocity: self.velocity as f32,
+            current_iq: if matches!(phase, CalibrationPhase::Failed | CalibrationPhase::Complete) {
+                0.0
+            } else {
+                c.request.max_current / 2.0
+            },
+        };
+        self.feedback(Payload::CalibrationStatus(status));
+    }
+
+    /// Sends what is due of the calibration in progress.
+    fn calibrate(&mut self) {
+        let Some(c) = self.calibration.as_ref() else {
+            return;
+        };
+        let now = self.now;
+        if c.timeout_at().is_some_and(|t| now >= t) {
+            self.end_calibration(false, CALIBRATION_PHASE_TIMEOUT);
+            return;
+        }
+        let elapsed = now.saturating_sub(c.start);
+        if elapsed >= c.total() {
+            self.end_calibration(true, 0);
+            return;
+        }
+        if now >= c.next_status {
+            let (phase, progress) = Self::calibration_phase(c, elapsed);
+            let remaining = c.total().saturating_sub(elapsed).as_secs_f32();
+            let phase = phase
+                .and_then(|i| PHASES.get(i).copied())
+                .unwrap_or(CalibrationPhase::Validation);
+            self.calibration_status(phase, progress, remaining);
+            if let Some(c) = self.calibration.as_mut() {
+                c.next_status = now.saturating_add(CALIBRATION_STATUS_PERIOD);
+            }
+        }
+    }
+
+    /// Ends the calibration in progress, if any: its last status and its
+    /// result, then Inactive (unless `success` is false because of a fault
+    /// or a reset, whose caller sets the state).
+    fn end_calibration(&mut self, success: bool, error_code: u16) {
+        let Some(c) = self.calibration.as_ref() else {
+            return;
+        };
+        let elapsed = self.now.saturating_sub(c.start).min(c.total());
+        let (_, progress) = Self::calibration_phase(c, elapsed);
+        let ran = |i: usize| success && c.phases.contains(&i);
+        let pick = |i: usize, v: f32| if ran(i) { v } else { 0.0 };
+        let conf = |i: usize| pick(i, CALIBRATION_CONFIDENCE.get(i).copied().unwrap_or(0.0));
+        let p = SIM_MOTOR_PARAMETERS;
+        #[allow(clippy::cast_possible_truncation)]
+        let parameters = MotorParameters {
+            inertia: pick(0, p.inertia),
+            torque_constant: pick(2, p.torque_constant),
+            damping: pick(3, p.damping),
+            friction_coulomb: pick(1, p.friction_coulomb),
+            friction_stribeck: pick(1, p.friction_stribeck),
+            friction_vstribeck: pick(1, p.friction_vstribeck),
+            friction_viscous: pick(1, p.friction_viscous),
+        };
+        let overall = if success {
+            c.phases
+                .iter()
+                .filter_map(|&i| CALIBRATION_CONFIDENCE.get(i).copied())
+                .fold(1.0f32, f32::min)
+        } else {
+            0.0
+        };
+        let result = CalibrationResult {
+            success,
+            parameters,
+            confidence: CalibrationConfidence {
+                overall,
+                inertia: conf(0),
+                friction: conf(1),
+                torque_constant: conf(2),
+                validation_rms: pick(4, CALIBRATION_VALIDATION_RMS),
+            },
+            total_time: elapsed.as_secs_f32(),
+            error_code,
+        };
+        let phase = if success {
+            CalibrationPhase::Complete
+        } else {
+            CalibrationPhase::Failed
+        };
+        self.calibration_status(phase, if success { 1.0 } else { progress }, 0.0);
+        self.calibration = None;
+        self.stats.calibrations += 1;
+        self.feedback(Payload::CalibrationResult(result));
+        if self.state == LifecycleState::Calibrating {
+            self.set_state(LifecycleState::Inactive);
         }
     }
 
@@ -630,15 +1230,36 @@ impl SimJoint {
     pub fn handle_frame(&mut self, now: Duration, frame: &Frame) -> Option<Execution> {
         self.update(now);
         if frame.id().is_extended() {
+            // A segmented transfer to this joint (flow control for its own,
+            // or a host's message), or not for it at all.
+            if self.links.handle_frame(self.now, frame) {
+                return self.drain_links();
+            }
             return None;
         }
+        self.handle_bytes(frame.data(), Origin::Plain(frame.id()))
+    }
+
+    /// Takes one message's bytes: a plain frame's (padded; its CAN id must
+    /// be the sender's) or a reassembled transfer's (exact; the header must
+    /// name the ends its CAN ids named).
+    fn handle_bytes(&mut self, bytes: &[u8], origin: Origin) -> Option<Execution> {
         let wire = self.config.wire;
-        let message = match Message::decode_frame(wire, frame.data()) {
+        let node = self.config.node_id;
+        let decoded = match origin {
+            Origin::Plain(_) => Message::decode_frame(wire, bytes),
+            Origin::Segmented(_) => Message::decode(wire, bytes),
+        };
+        let valid_source = |h: &Header| match origin {
+            Origin::Plain(id) => u32::from(h.source_id) == id.raw(),
+            Origin::Segmented(from) => h.source_id == from && h.target_id == node,
+        };
+        let message = match decoded {
             Ok(m) => m,
             Err(WireError::NonFinite { .. }) => {
                 // The header is sound; the value is not: refuse it by name.
-                match Header::decode_prefix(wire, frame.data()) {
-                    Ok((h, _)) if self.is_for_me(h.target_id) && valid_source(&h, frame) => {
+                match Header::decode_prefix(wire, bytes) {
+                    Ok((h, _)) if self.is_for_me(h.target_id) && valid_source(&h) => {
                         self.last_heard = self.now;
                         self.answer(
                             h,
@@ -661,7 +1282,7 @@ impl SimJoint {
         if !self.is_for_me(h.target_id) {
             return None;
         }
-        if !valid_source(&h, frame) {
+        if !valid_source(&h) {
             self.stats.bad_frames += 1;
             return None;
         }
@@ -792,6 +1413,10 @@ impl SimJoint {
                 _ => nack(NackCode::ACTIVATE_WRONG_STATE),
             },
             Payload::Deactivate => match self.state {
+                LifecycleState::Calibrating => {
+                    self.end_calibration(false, CALIBRATION_ABORTED);
+                    Payload::Ack(id)
+                }
                 Active | Inactive => {
                     self.brake(self.config.emergency_deceleration);
                     self.set_state(Inactive);
@@ -800,6 +1425,7 @@ impl SimJoint {
                 _ => nack(NackCode::DEACTIVATE_WRONG_STATE),
             },
             Payload::Reset => {
+                self.end_calibration(false, CALIBRATION_ABORTED);
                 self.brake(self.config.emergency_deceleration);
                 self.error_code = 0;
                 self.telemetry_period = None;
@@ -838,8 +1464,41 @@ impl SimJoint {
             Payload::RequestTelemetry => {
                 let t = self.telemetry();
                 self.feedback(Payload::TelemetryStream(t));
+                if self.config.wire == WireVersion::V2_2 {
+                    let p = self.power_metrics();
+                    self.feedback(Payload::PowerMetrics(p));
+                }
                 Payload::Ack(id)
             }
+            Payload::StartCalibration(request) => self.start_calibration(id, request),
+            Payload::StopCalibration => {
+                if self.calibration.is_some() {
+                    self.end_calibration(false, CALIBRATION_ABORTED);
+                    Payload::Ack(id)
+                } else {
+                    nack(NackCode::CALIBRATION_WRONG_STATE)
+                }
+            }
+            Payload::RequestFaultHistory => {
+                let h = self.fault_history();
+                self.feedback(Payload::FaultHistory(h));
+                Payload::Ack(id)
+            }
+            Payload::RequestPowerConfig => {
+                self.feedback(Payload::PowerConfigResponse(self.power_config));
+                Payload::Ack(id)
+            }
+            Payload::ConfigurePower(c) => {
+                if c.vbus_undervoltage_mv >= c.vbus_overvoltage_mv
+                    || c.temp_throttle_start_c >= c.temp_shutdown_c
+                {
+                    return nack(NackCode::OUT_OF_LIMITS);
+                }
+                self.power_config = c;
+                self.next_power = self.now;
+                Payload::Ack(id)
+            }
+            // ConfigureAdaptive, RequestAdaptiveStatus: no adaptive control here.
             _ => nack(NackCode::UNKNOWN_PAYLOAD),
         }
     }
@@ -929,11 +1588,28 @@ impl SimJoint {
             self.feedback(Payload::TelemetryStream(t));
             self.next_telemetry = now.saturating_add(period);
         }
+        if let Some(period) = self.power_period()
+            && now >= self.next_power
+        {
+            let p = self.power_metrics();
+            self.feedback(Payload::PowerMetrics(p));
+            self.next_power = now.saturating_add(period);
+        }
+        self.calibrate();
+        self.links.handle_timeout(now);
+        self.drain_links();
+    }
+
+    /// The period of PowerMetrics a v2.2 `ConfigurePower` asked for.
+    fn power_period(&self) -> Option<Duration> {
+        let hz = self.power_config.telemetry_rate_hz;
+        (self.config.wire == WireVersion::V2_2 && hz > 0)
+            .then(|| Duration::from_micros(1_000_000 / u64::from(hz)))
     }
 
     /// The next frame to put on the bus.
     pub fn poll_transmit(&mut self) -> Option<Frame> {
-        self.out.pop_front()
+        self.links.poll_transmit()
     }
 
     /// When [`SimJoint::handle_timeout`] next has work: feedback, the
@@ -956,12 +1632,19 @@ impl SimJoint {
             } => (Some(after(start, velocity.abs() / deceleration)), None),
             Motion::Holding => (None, None),
         };
+        let calibration = self.calibration.as_ref().map(|c| {
+            let end = c.start.saturating_add(c.total());
+            c.next_status.min(end).min(c.timeout_at().unwrap_or(end))
+        });
         [
             on(self.config.encoder_period, self.next_encoder),
             on(self.config.status_period, self.next_status),
             self.telemetry_period.map(|_| self.next_telemetry),
+            self.power_period().map(|_| self.next_power),
             motion_end,
             watchdog,
+            calibration,
+            self.links.poll_timeout(),
         ]
         .into_iter()
         .flatten()
@@ -1015,9 +1698,13 @@ fn is_request(payload: &Payload) -> bool {
     )
 }
 
-/// WIRE-FACTS §1.5: a frame's CAN id is its sender's node id.
-fn valid_source(h: &Header, frame: &Frame) -> bool {
-    u32::from(h.source_id) == frame.id().raw()
+/// Where a message's bytes came from.
+#[derive(Debug, Clone, Copy)]
+enum Origin {
+    /// A plain frame with this CAN id (WIRE-FACTS §1.5: the sender's node id).
+    Plain(CanId),
+    /// A segmented transfer from this node.
+    Segmented(u16),
 }
 
 /// `start` plus `secs` seconds, saturating (a corrupted or absurd command
