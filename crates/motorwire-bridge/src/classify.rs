@@ -66,6 +66,24 @@ pub enum Input {
         /// The joint.
         motor_id: String,
     },
+    /// `{"request":K,"motor_id":M}`: ask joint M for its telemetry
+    /// (`telemetry`, v2.1 on), its power metrics (`power_metrics`) or its
+    /// fault history (`fault_history`, both v2.2); answered as JSON.
+    Request {
+        /// What is asked for.
+        kind: RequestKind,
+        /// The joint.
+        motor_id: String,
+    },
+    /// `{"calibration":"start","motor_id":M,...}` (with any of
+    /// `phases`, `max_current`, `max_velocity`, `max_position_range`,
+    /// `phase_timeout`, `return_home`) or `{"calibration":"stop","motor_id":M}`.
+    Calibration {
+        /// The joint.
+        motor_id: String,
+        /// The request to start with; `None` to stop.
+        start: Option<motorwire_irpc::CalibrationRequest>,
+    },
     /// `{"orion":"fold"}` or `{"orion":"unfold"}`: the Orion arm
     /// controller's command mode.
     OrionCommand {
@@ -88,6 +106,103 @@ pub enum Input {
         /// `("motor_id"|"command_id", value)` when the line names one.
         label: Option<(&'static str, String)>,
     },
+}
+
+/// What a request line asks a joint for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RequestKind {
+    /// One TelemetryStream (v2.1 on).
+    Telemetry,
+    /// PowerMetrics (v2.2).
+    PowerMetrics,
+    /// FaultHistory (v2.2).
+    FaultHistory,
+}
+
+impl RequestKind {
+    /// Its name in lines and results.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Telemetry => "telemetry",
+            Self::PowerMetrics => "power_metrics",
+            Self::FaultHistory => "fault_history",
+        }
+    }
+}
+
+/// The calibration a start line asks for when it gives no parameter: all
+/// five phases, 2 A, 30 deg/s, within 20 degrees, 10 s per phase, back
+/// home afterwards.
+pub const DEFAULT_CALIBRATION: motorwire_irpc::CalibrationRequest =
+    motorwire_irpc::CalibrationRequest {
+        phases: 0x1F,
+        max_current: 2.0,
+        max_velocity: 30.0,
+        max_position_range: 20.0,
+        phase_timeout: 10.0,
+        return_home: true,
+    };
+
+fn calibration_line(members: &[(String, Value)], label: Option<(&'static str, String)>) -> Input {
+    let usage = r#"a calibration line is {"calibration":"start","motor_id":"..."} (optionally with phases, max_current, max_velocity, max_position_range, phase_timeout, return_home) or {"calibration":"stop","motor_id":"..."}"#;
+    let invalid = |message: String| Input::Invalid {
+        message,
+        violations: None,
+        label: label.clone(),
+    };
+    let Some(("motor_id", motor_id)) = label.as_ref().map(|(k, v)| (*k, v.clone())) else {
+        return invalid(usage.to_owned());
+    };
+    let action = members
+        .iter()
+        .find(|(k, _)| k == "calibration")
+        .and_then(|(_, v)| v.as_str());
+    match action {
+        Some("stop") if members.len() == 2 => Input::Calibration {
+            motor_id,
+            start: None,
+        },
+        Some("start") => {
+            let mut r = DEFAULT_CALIBRATION;
+            for (k, v) in members {
+                let number = || {
+                    v.as_f64()
+                        .filter(|x| x.is_finite() && *x > 0.0 && *x <= f64::from(f32::MAX))
+                        .map(|x| x as f32)
+                        .ok_or_else(|| format!("calibration {k}: {v} is not a positive number"))
+                };
+                let set = match k.as_str() {
+                    "calibration" | "motor_id" => Ok(()),
+                    "phases" => v
+                        .as_u64()
+                        .and_then(|p| u8::try_from(p).ok())
+                        .filter(|p| *p != 0 && *p <= 0x1F)
+                        .map(|p| r.phases = p)
+                        .ok_or_else(|| {
+                            format!(
+                                "calibration phases: {v} is not a mask of the five phases (1 to 31)"
+                            )
+                        }),
+                    "max_current" => number().map(|x| r.max_current = x),
+                    "max_velocity" => number().map(|x| r.max_velocity = x),
+                    "max_position_range" => number().map(|x| r.max_position_range = x),
+                    "phase_timeout" => number().map(|x| r.phase_timeout = x),
+                    "return_home" => v.as_bool().map(|b| r.return_home = b).ok_or_else(|| {
+                        format!("calibration return_home: {v} is not true or false")
+                    }),
+                    other => Err(format!("calibration: unknown member {other:?}; {usage}")),
+                };
+                if let Err(e) = set {
+                    return invalid(e);
+                }
+            }
+            Input::Calibration {
+                motor_id,
+                start: Some(r),
+            }
+        }
+        _ => invalid(usage.to_owned()),
+    }
 }
 
 /// A JSON object's members in order, repeats kept.
@@ -456,6 +571,28 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
             },
             _ => Input::Invalid {
                 message: r#"a reset is exactly {"reset":"<motor_id>"}"#.to_owned(),
+                violations: None,
+                label,
+            },
+        };
+    }
+    if members.iter().any(|(k, _)| k == "calibration") {
+        return calibration_line(&members, label);
+    }
+    if let Some((_, q)) = members.iter().find(|(k, _)| k == "request") {
+        let kind = match q.as_str() {
+            Some("telemetry") => Some(RequestKind::Telemetry),
+            Some("power_metrics") => Some(RequestKind::PowerMetrics),
+            Some("fault_history") => Some(RequestKind::FaultHistory),
+            _ => None,
+        };
+        return match (kind, members.len(), &label) {
+            (Some(kind), 2, Some(("motor_id", m))) => Input::Request {
+                kind,
+                motor_id: m.clone(),
+            },
+            _ => Input::Invalid {
+                message: r#"a request is exactly {"request":"telemetry"|"power_metrics"|"fault_history","motor_id":"..."}"#.to_owned(),
                 violations: None,
                 label,
             },

@@ -24,6 +24,7 @@ use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
 mod orion;
+mod requests;
 pub use orion::{MAX_ORION_LINE, POLL as ORION_POLL};
 
 use motorwire_can::CanId;
@@ -101,6 +102,12 @@ pub struct BridgeConfig {
     /// How long the Orion controller may take to answer a fold or unfold
     /// command, which it answers once it has run (default: 30 s).
     pub orion_command_timeout: Duration,
+    /// Subscribe every v2.1 and v2.2 joint to its TelemetryStream at this
+    /// rate (Hz) when it is configured (`ConfigureTelemetry`, `Periodic`):
+    /// its WIA feedback then carries acceleration, torque, current,
+    /// voltage, temperature, power and load. `None` (the default): no
+    /// subscription (v1 and v2.0 joints have none).
+    pub telemetry_hz: Option<u16>,
 }
 
 impl Default for BridgeConfig {
@@ -118,6 +125,7 @@ impl Default for BridgeConfig {
             max_queue_per_joint: 16,
             orion: false,
             orion_command_timeout: Duration::from_secs(30),
+            telemetry_hz: None,
         }
     }
 }
@@ -542,7 +550,12 @@ impl Bridge {
             self.enter(Phase::Running);
             return;
         }
-        let axes = self.every_joint(&[Payload::Configure, Payload::Activate]);
+        let mut axes = self.every_joint(&[Payload::Configure, Payload::Activate]);
+        for a in &mut axes {
+            if let Some(t) = self.telemetry_subscription(a.joint) {
+                a.payloads.push_back(Order::Irpc(t));
+            }
+        }
         self.open_job(
             None,
             0,
@@ -780,6 +793,12 @@ impl Bridge {
             }
             Input::QueryLimits { motor_id } => self.query_limits(origin, number, &motor_id),
             Input::OrionCommand { command } => self.orion_command(now, origin, number, command),
+            Input::Request { kind, motor_id } => {
+                self.request_line(now, origin, number, kind, &motor_id);
+            }
+            Input::Calibration { motor_id, start } => {
+                self.calibration_line(now, origin, number, &motor_id, start);
+            }
             Input::Reset { motor_id } => self.reset_joint(now, origin, number, &motor_id),
             Input::Trajectories { id, trajectories } => {
                 self.trajectories(now, origin, number, &id, &trajectories);
@@ -999,10 +1018,13 @@ impl Bridge {
         if let Some(j) = self.joints.get_mut(ji) {
             j.resetting = true;
         }
+        let subscription = self.telemetry_subscription(ji);
         let axes = vec![Axis::new(
             motor.to_owned(),
             ji,
-            [Payload::Reset, Payload::Configure, Payload::Activate],
+            [Payload::Reset, Payload::Configure, Payload::Activate]
+                .into_iter()
+                .chain(subscription),
         )];
         self.open_job(
             Some(origin),
@@ -1267,6 +1289,25 @@ impl Bridge {
 
     fn joint_index(&self, motor: &str) -> Option<usize> {
         self.joints.iter().position(|j| j.name == motor)
+    }
+
+    /// The `ConfigureTelemetry` joint `ji` gets when configured, if
+    /// [`BridgeConfig::telemetry_hz`] asks and its wire version has it.
+    fn telemetry_subscription(&self, ji: usize) -> Option<Payload> {
+        let rate_hz = self.config.telemetry_hz.filter(|r| *r > 0)?;
+        let j = self.joints.get(ji)?;
+        if j.compact.is_some() || j.orion.is_some() {
+            return None;
+        }
+        j.wire
+            .tag_of(motorwire_irpc::PayloadKind::ConfigureTelemetry)?;
+        Some(Payload::ConfigureTelemetry(
+            motorwire_irpc::ConfigureTelemetryPayload {
+                mode: motorwire_irpc::TelemetryMode::Periodic,
+                rate_hz,
+                change_threshold: 0.0,
+            },
+        ))
     }
 
     /// [`Bridge::admit`] for a line that carries no timestamp (taken as
@@ -2100,6 +2141,9 @@ impl Bridge {
                 unflushed: false,
                 riders: Vec::new(),
                 cut: None,
+                awaiting: None,
+                data: None,
+                data_error: None,
             },
         );
         for &(ji, step, position) in &steps {
@@ -2633,8 +2677,14 @@ impl Bridge {
         }
         let Some(origin) = job.origin else { return };
         let latency = job.last_frame.map(|t| us(t.saturating_sub(job.received)));
-        let ok = failures.is_empty();
-        let error = (!ok).then(|| failure_error(&failures, job.cut.as_deref()));
+        let ok = failures.is_empty() && job.data_error.is_none();
+        let error = if !failures.is_empty() {
+            Some(failure_error(&failures, job.cut.as_deref()))
+        } else {
+            job.data_error
+                .clone()
+                .map(|why| ErrorBody::new(ErrorKind::NoAnswer, why))
+        };
         if ok {
             self.stats.ok += 1;
         } else {
@@ -2657,6 +2707,7 @@ impl Bridge {
                 None
             },
             losses: job.report.losses.iter().map(ToString::to_string).collect(),
+            data: job.data.clone(),
             ..LineResult::default()
         };
         for rider in job.riders {
@@ -3140,6 +3191,20 @@ impl Bridge {
             }
             _ => {}
         }
+        let answers = matches!(
+            message.payload,
+            Payload::TelemetryStream(_)
+                | Payload::PowerMetrics(_)
+                | Payload::FaultHistory(_)
+                | Payload::CalibrationStatus(_)
+                | Payload::CalibrationResult(_)
+        );
+        if answers {
+            self.answered(ji, &message.payload);
+        }
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
         if let Ok(t) =
             feedback_from_irpc(&self.map, node, &message.payload, ts, j.feedback.as_ref())
         {
@@ -3207,6 +3272,7 @@ impl Bridge {
         self.drain_client();
         self.compact_timeouts(now);
         self.orion_timeouts(now);
+        self.awaiting_timeouts(now);
         self.deadman(now);
         // Trajectory segments now due.
         let due = self.joints_where(|j| j.wake.is_some_and(|w| now >= w));
@@ -3421,6 +3487,10 @@ impl Bridge {
             deadman,
             wake,
             self.orion.deadline(),
+            self.jobs
+                .values()
+                .filter_map(|j| j.awaiting.map(|a| a.deadline))
+                .min(),
         ]
         .into_iter()
         .flatten()
@@ -3523,6 +3593,8 @@ fn shortest_feedback(mut f: MotorFeedback) -> MotorFeedback {
         &mut f.current,
         &mut f.voltage,
         &mut f.temperature,
+        &mut f.power,
+        &mut f.control_effort,
     ] {
         *x = x.map(shortest);
     }

@@ -205,6 +205,34 @@ pub(crate) struct Job {
     pub(crate) riders: Vec<Rider>,
     /// Why a stop (or the end, a reset, a lost joint) cancelled some of it.
     pub(crate) cut: Option<String>,
+    /// A request line: what it waits for once its request is acked.
+    pub(crate) awaiting: Option<Awaiting>,
+    /// What a request line got: `{"<kind>": {...}}`.
+    pub(crate) data: Option<serde_json::Value>,
+    /// Why a request line got nothing (or a calibration failed).
+    pub(crate) data_error: Option<String>,
+}
+
+/// What a request line waits for from its joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum AwaitKind {
+    /// A TelemetryStream.
+    Telemetry,
+    /// A PowerMetrics.
+    PowerMetrics,
+    /// A FaultHistory.
+    FaultHistory,
+    /// A CalibrationResult.
+    CalibrationResult,
+}
+
+/// A request line's wait.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Awaiting {
+    pub(crate) joint: usize,
+    pub(crate) kind: AwaitKind,
+    /// Past this, nothing came.
+    pub(crate) deadline: Duration,
 }
 
 /// A stop line answered by a stop already under way.
@@ -219,6 +247,12 @@ pub(crate) struct Rider {
 
 impl Job {
     pub(crate) fn is_done(&self) -> bool {
-        self.axes.iter().all(Axis::is_done) && !self.unflushed
+        let failed = self
+            .axes
+            .iter()
+            .any(|a| matches!(&a.state, AxisState::Done(r) if r.outcome != StepOutcome::Acked));
+        self.axes.iter().all(Axis::is_done)
+            && !self.unflushed
+            && (self.awaiting.is_none() || failed)
     }
 }

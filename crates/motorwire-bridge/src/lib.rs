@@ -10,7 +10,7 @@ mod output;
 mod runtime;
 pub mod sim;
 
-pub use classify::{Input, asks_for_stop, classify};
+pub use classify::{DEFAULT_CALIBRATION, Input, RequestKind, asks_for_stop, classify};
 pub use engine::{Bridge, BridgeConfig, BridgeStats, JointView, MAX_ORION_LINE, ORION_POLL};
 pub use error::BridgeError;
 pub use output::{

@@ -164,6 +164,11 @@ pub struct LineResult {
     /// What the translation could not carry exactly.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub losses: Vec<String>,
+    /// For a request or calibration line: what the joint answered,
+    /// `{"telemetry"|"power_metrics"|"fault_history"|"calibration_result": {...}}`
+    /// (iRPC's field names, WIRE-FACTS §1.3).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub data: Option<Value>,
     /// For a SafetyLimits line or a limits query: the motor's limits in
     /// force now (`effective`) and the bus map's (`bus_map`), in its unit.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -251,6 +256,10 @@ pub enum ErrorKind {
     OutcomeUnknown,
     /// A part could not be sent (not encodable for the joint's wire version).
     NotSent,
+    /// A request was acked, but what it asked for (telemetry, power
+    /// metrics, a fault history, a calibration result) never came, or the
+    /// calibration failed.
+    NoAnswer,
 }
 
 /// What became of one motor's part of a line.
@@ -352,6 +361,19 @@ pub enum Event {
         can_id: String,
         /// Why.
         error: String,
+    },
+    /// A joint's calibration progress (its `CalibrationStatus`).
+    Calibration {
+        /// The joint.
+        motor_id: String,
+        /// The phase (`inertia_test`, `friction_test`,
+        /// `torque_constant_verification`, `damping_test`, `validation`,
+        /// `complete`, `failed`).
+        phase: String,
+        /// Overall progress, 0 to 1.
+        progress: f64,
+        /// Seconds left.
+        time_remaining: f64,
     },
     /// A line from the Orion arm controller that is not one of its
     /// messages (WIRE-FACTS §4.1): reported and skipped, never acted on.

@@ -52,6 +52,11 @@ pub(crate) struct Args {
     /// Feedback lines per joint per second (0: none).
     #[arg(long, value_name = "N", default_value_t = 10.0)]
     feedback_hz: f64,
+    /// Subscribe the v2.1 and v2.2 joints to their TelemetryStream at N Hz
+    /// (0: none): their feedback then carries acceleration, torque,
+    /// current, voltage, temperature, power and load.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    telemetry_hz: u16,
     /// Do not configure and activate the joints on startup.
     #[arg(long)]
     no_activate: bool,
@@ -304,6 +309,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
         epoch_unix_ms: Some(unix_ms()),
         max_age: (args.max_age > 0).then(|| Duration::from_millis(args.max_age)),
         orion: orion.is_some(),
+        telemetry_hz: (args.telemetry_hz > 0).then_some(args.telemetry_hz),
         ..BridgeConfig::default()
     };
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
