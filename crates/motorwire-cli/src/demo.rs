@@ -513,7 +513,16 @@ fn plot(
             ))
             .map_err(|e| e.to_string())?;
         legend
-            .draw(&Text::new(motor.clone(), (42, y - 7), ("sans-serif", 15)))
+            .draw(&Text::new(
+                // Orion speeds are the controller's units, not °/s.
+                if motor == "turntable" {
+                    "turntable (Orion)".to_owned()
+                } else {
+                    motor.clone()
+                },
+                (42, y - 7),
+                ("sans-serif", 15),
+            ))
             .map_err(|e| e.to_string())?;
     }
     for (k, (area, name)) in panels
