@@ -21,3 +21,9 @@ pub fn fixture(rel: &str) -> std::path::PathBuf {
         .join("../fixtures")
         .join(rel)
 }
+
+/// The root README's Rust code, run as a doctest (`cargo test -p
+/// motorwire-examples --doc`) so that it stays true.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct RootReadme;
