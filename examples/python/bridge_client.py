@@ -11,8 +11,8 @@ line of a connection must be the token in FILE.
 
 Start a bridge on its simulated arm, then run this against it:
 
-    motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --input unix:/tmp/mw/bridge.sock &
-    python3 examples/python/bridge_client.py --unix /tmp/mw/bridge.sock
+    motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --input unix:$XDG_RUNTIME_DIR/motorwire.sock &
+    python3 examples/python/bridge_client.py --unix $XDG_RUNTIME_DIR/motorwire.sock
 
     motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --input tcp:127.0.0.1:7878 --token-file token &
     python3 examples/python/bridge_client.py --tcp 127.0.0.1:7878 --token-file token
