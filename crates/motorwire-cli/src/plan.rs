@@ -137,7 +137,8 @@ fn one<F: Float>(
     .map_err(|e| e.to_string())?;
     if let Some(path) = &args.plot {
         let path = numbered(path, line);
-        draw(&profile, &path, &args.unit).map_err(|e| format!("plotting to {}: {e}", path.display()))?;
+        draw(&profile, &path, &args.unit)
+            .map_err(|e| format!("plotting to {}: {e}", path.display()))?;
     }
     match tick {
         Some(tick) => csv(&profile, tick, header),

@@ -149,7 +149,12 @@ fn the_plot_names_the_unit_given() {
     );
     assert_eq!(out.status.code(), Some(0));
     let svg = std::fs::read_to_string(&path).unwrap();
-    for label in ["position (rad)", "velocity (rad/s)", "acceleration (rad/s²)", "jerk (rad/s³)"] {
+    for label in [
+        "position (rad)",
+        "velocity (rad/s)",
+        "acceleration (rad/s²)",
+        "jerk (rad/s³)",
+    ] {
         assert_eq!(svg.matches(label).count(), 2, "{label}");
     }
     std::fs::remove_dir_all(&dir).unwrap();

@@ -22,7 +22,8 @@ limits = { min_position = 0, max_position = 150, max_velocity = 120, max_acceler
 /// The SetTargetV2's max_deceleration and the report's deceleration line.
 fn deceleration(motor: &str, acceleration_limit: Option<f64>) -> (f32, String) {
     let map = BusMap::from_toml(MAP).unwrap();
-    let accel = acceleration_limit.map_or(String::new(), |a| format!(r#","acceleration_limit":{a}"#));
+    let accel =
+        acceleration_limit.map_or(String::new(), |a| format!(r#","acceleration_limit":{a}"#));
     let cmd: MotorCommand = serde_json::from_str(&format!(
         r#"{{"motor_id":"{motor}","timestamp":0,"control_mode":"position","setpoint":10,"velocity_limit":60{accel}}}"#
     ))
@@ -78,10 +79,16 @@ fn a_commands_acceleration_below_the_maps_deceleration_bounds_it_and_says_so() {
 fn the_maps_deceleration_when_it_is_the_tighter() {
     assert_eq!(
         deceleration("elbow", Some(450.0)),
-        (400.0, "max_deceleration: defaulted: 400 from the bus map".to_owned())
+        (
+            400.0,
+            "max_deceleration: defaulted: 400 from the bus map".to_owned()
+        )
     );
     assert_eq!(
         deceleration("elbow", None),
-        (400.0, "max_deceleration: defaulted: 400 from the bus map".to_owned())
+        (
+            400.0,
+            "max_deceleration: defaulted: 400 from the bus map".to_owned()
+        )
     );
 }

@@ -107,7 +107,11 @@ fn object_like() -> impl Strategy<Value = String> {
         Just("1704067200000".to_owned()),
     ];
     let members = prop::collection::vec((key, value), 0..8);
-    (members, 0usize..200, prop_oneof![Just(""), Just(" "), Just("x"), Just("}"), Just(",{}")])
+    (
+        members,
+        0usize..200,
+        prop_oneof![Just(""), Just(" "), Just("x"), Just("}"), Just(",{}")],
+    )
         .prop_map(|(members, cut, tail)| {
             let body: Vec<String> = members.iter().map(|(k, v)| format!("{k}: {v}")).collect();
             let mut doc = format!(" {{{}}}{tail}", body.join(", "));
