@@ -1,7 +1,7 @@
 //! The loss report names where each value really came from: a
 //! deceleration taken from an acceleration limit says whose. Self-contained
 //! (an inline map), so it ships with the package.
-#![allow(clippy::unwrap_used, clippy::panic)]
+#![allow(clippy::unwrap_used, clippy::panic, clippy::indexing_slicing)]
 
 use motorwire_irpc::Payload;
 use motorwire_translate::{BusMap, to_irpc};
