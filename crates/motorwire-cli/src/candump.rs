@@ -7,7 +7,7 @@ use clap::{Args as ClapArgs, Subcommand};
 use motorwire_can::candump::LogEntry;
 use motorwire_compact::CompactCommand;
 use motorwire_irpc::{Message, WireVersion};
-use serde_json::{Value, json};
+use serde::Serialize;
 
 use crate::console::note;
 use crate::input::{self, Live, Refused};
@@ -82,12 +82,15 @@ fn decode(args: &DecodeArgs) -> u8 {
         let value = match doc.text {
             Ok(text) => decode_line(n, text.trim(), args.wire, args.compact),
             Err(Refused::TooLarge { limit }) => {
-                json!({ "line": n, "error": format!("the line is over {limit} bytes") })
+                FrameLine::error(n, format!("the line is over {limit} bytes"))
             }
-            Err(Refused::NotUtf8) => json!({ "line": n, "error": "the line is not UTF-8" }),
+            Err(Refused::NotUtf8) => FrameLine::error(n, "the line is not UTF-8"),
         };
-        failed |= value.get("error").is_some();
-        if writeln!(reader.out(), "{value}").is_err() {
+        failed |= value.failed();
+        let Ok(json) = serde_json::to_string(&value) else {
+            return 2;
+        };
+        if writeln!(reader.out(), "{json}").is_err() {
             return 2;
         }
     }
@@ -97,45 +100,95 @@ fn decode(args: &DecodeArgs) -> u8 {
     u8::from(failed)
 }
 
-/// One line's JSON: always `line`, then either the frame and what it
-/// decodes to, or `error`.
+/// One line's JSON, its fields in this order: always `line`, then the
+/// frame (`timestamp`, `interface`, `can_id`, `fd`, `len`) and what it
+/// decodes to (`message`, or `command` with --compact), or `error`.
+///
+/// The message is serialized as itself (not through `serde_json::Value`),
+/// so it prints exactly as `motorwire irpc decode` prints it: fields in
+/// wire order, each f32 in its shortest form (0.1, not 0.10000000149011612).
+#[derive(Debug, Serialize)]
+pub(crate) struct FrameLine {
+    line: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    timestamp: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    interface: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    can_id: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    fd: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    len: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    message: Option<Message>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    command: Option<CompactCommand>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    error: Option<String>,
+}
+
+impl FrameLine {
+    fn error(line: usize, error: impl Into<String>) -> FrameLine {
+        FrameLine {
+            line,
+            timestamp: None,
+            interface: None,
+            can_id: None,
+            fd: None,
+            len: None,
+            message: None,
+            command: None,
+            error: Some(error.into()),
+        }
+    }
+
+    fn failed(&self) -> bool {
+        self.error.is_some()
+    }
+}
+
+/// Decodes one log line.
 pub(crate) fn decode_line(
     line_no: usize,
     line: &str,
     wire: Option<WireVersion>,
     compact: bool,
-) -> Value {
+) -> FrameLine {
     let entry = match LogEntry::parse(line) {
         Ok(e) => e,
-        Err(reason) => return json!({ "line": line_no, "error": reason }),
+        Err(reason) => return FrameLine::error(line_no, reason),
     };
-    let mut v = json!({
-        "line": line_no,
-        "timestamp": format!("{}.{:06}", entry.timestamp.as_secs(), entry.timestamp.subsec_micros()),
-        "interface": entry.interface,
-        "can_id": entry.frame.id().to_string(),
-        "fd": entry.frame.is_fd(),
-        "len": entry.frame.len(),
-    });
+    let mut out = FrameLine {
+        line: line_no,
+        timestamp: Some(format!(
+            "{}.{:06}",
+            entry.timestamp.as_secs(),
+            entry.timestamp.subsec_micros()
+        )),
+        interface: Some(entry.interface),
+        can_id: Some(entry.frame.id().to_string()),
+        fd: Some(entry.frame.is_fd()),
+        len: Some(entry.frame.len()),
+        message: None,
+        command: None,
+        error: None,
+    };
     let decoded = if compact {
         CompactCommand::decode(entry.frame.data())
+            .map(|c| out.command = Some(c))
             .map_err(|e| e.to_string())
-            .and_then(|c| serde_json::to_value(c).map_err(|e| e.to_string()))
-            .map(|c| ("command", c))
     } else {
         let wire = wire.unwrap_or(WireVersion::V2_0);
-        decode_irpc(wire, &entry.frame).map(|m| ("message", m))
+        decode_irpc(wire, &entry.frame).map(|m| out.message = Some(m))
     };
-    if let Some(obj) = v.as_object_mut() {
-        match decoded {
-            Ok((key, value)) => obj.insert(key.to_owned(), value),
-            Err(e) => obj.insert("error".to_owned(), Value::String(e)),
-        };
+    if let Err(e) = decoded {
+        out.error = Some(e);
     }
-    v
+    out
 }
 
-fn decode_irpc(wire: WireVersion, frame: &motorwire_can::Frame) -> Result<Value, String> {
+fn decode_irpc(wire: WireVersion, frame: &motorwire_can::Frame) -> Result<Message, String> {
     let decode = if frame.is_fd() {
         Message::decode_frame(wire, frame.data())
     } else {
@@ -149,5 +202,5 @@ fn decode_irpc(wire: WireVersion, frame: &motorwire_can::Frame) -> Result<Value,
             m.header.source_id
         ));
     }
-    serde_json::to_value(m).map_err(|e| e.to_string())
+    Ok(m)
 }

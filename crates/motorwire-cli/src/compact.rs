@@ -11,7 +11,7 @@
 use std::collections::HashMap;
 
 use clap::{Args as ClapArgs, Subcommand};
-use motorwire_compact::{CompactCommand, MotorHash};
+use motorwire_compact::{CompactCommand, MotorHash, TorqueLimit, VelocityLimit};
 use motorwire_translate::compact_command;
 use motorwire_wia::{MotorCommand, Validator};
 
@@ -112,14 +112,27 @@ fn decode(line: &str, names: Option<&HashMap<MotorHash, String>>) -> Result<Stri
         command: &cmd,
         // With --names: the name, or null for a hash no name has.
         motor_id: names.map(|n| n.get(&cmd.motor).map(String::as_str)),
+        flag_names: cmd.flags.names().collect(),
+        velocity_limit_units_per_s: cmd.velocity_limit.map(VelocityLimit::units_per_s),
+        torque_limit_nm: cmd.torque_limit.map(TorqueLimit::nm),
     };
     serde_json::to_string(&decoded).map_err(|e| e.to_string())
 }
 
+/// A decoded command: the wire's fields as they are (the raw steps:
+/// `velocity_limit` in 0.1 units/s, `torque_limit` in 0.01 Nm, `flags` the
+/// bits), then the same in physical units and by name.
 #[derive(serde::Serialize)]
 struct Decoded<'a> {
     #[serde(flatten)]
     command: &'a CompactCommand,
     #[serde(skip_serializing_if = "Option::is_none")]
     motor_id: Option<Option<&'a str>>,
+    /// The flags set, by name (`PRIORITY_HIGH`, `EMERGENCY_STOP`, ...).
+    flag_names: Vec<&'static str>,
+    /// The velocity limit in the mode's unit per second (deg/s or rad/s);
+    /// null: no limit.
+    velocity_limit_units_per_s: Option<f64>,
+    /// The torque limit in Nm; null: no limit.
+    torque_limit_nm: Option<f64>,
 }

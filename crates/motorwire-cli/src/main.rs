@@ -62,7 +62,21 @@ enum Command {
     /// at once. Exit status 0 after the end of input, 2 on an error, 74
     /// when standard output stopped being read or failed.
     Bridge(bridge::Args),
-    /// Walk through the WIA document's example messages, validating each.
+    /// Run the bridge on a simulated arm (3 iRPC joints and a compact-command
+    /// gripper, no hardware) through a scripted session, checking each step.
+    ///
+    /// The map is the built-in copy of fixtures/maps/demo-arm.toml. In order:
+    /// the WIA document's multi-axis example (3 joints, synchronized, 2 s), a
+    /// move, a synchronized move, a trajectory through a waypoint at speed,
+    /// the gripper closed, an unsafe command refused (elbow beyond its
+    /// limit), a move interrupted by an emergency stop, a command refused
+    /// while the stop is latched, the release, a move back and the gripper
+    /// opened. Prints each step and its result, then a summary (each step,
+    /// each device's final position against its target) and writes --svg,
+    /// the positions and velocities from the feedback (about 9 s).
+    ///
+    /// Exit status 0 only if every expectation held, 1 otherwise, 2 when
+    /// standard output closes.
     Demo(demo::Args),
 }
 

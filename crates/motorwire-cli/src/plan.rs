@@ -29,6 +29,11 @@ pub(crate) struct Args {
     /// SVG file; the move on input line N > 1 goes to FILE-N.svg.
     #[arg(long, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
+    /// The unit of `start` and `target`, for the plot's axes: positions in
+    /// UNIT, velocities in UNIT/s, accelerations in UNIT/s², jerk in
+    /// UNIT/s³ (the planner itself is unit-free).
+    #[arg(long, value_name = "UNIT", default_value = "deg")]
+    unit: String,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -132,7 +137,8 @@ fn one<F: Float>(
     .map_err(|e| e.to_string())?;
     if let Some(path) = &args.plot {
         let path = numbered(path, line);
-        draw(&profile, &path).map_err(|e| format!("plotting to {}: {e}", path.display()))?;
+        draw(&profile, &path, &args.unit)
+            .map_err(|e| format!("plotting to {}: {e}", path.display()))?;
     }
     match tick {
         Some(tick) => csv(&profile, tick, header),
@@ -235,7 +241,7 @@ fn numbered(path: &Path, line: usize) -> PathBuf {
 }
 
 /// Four stacked panels against one time axis.
-fn draw<F: Float>(p: &Profile<F>, path: &Path) -> Result<(), String> {
+fn draw<F: Float>(p: &Profile<F>, path: &Path, unit: &str) -> Result<(), String> {
     use plotters::prelude::*;
     let duration = p.duration().to_f64().max(1e-9);
     let n = 1000u32;
@@ -257,14 +263,17 @@ fn draw<F: Float>(p: &Profile<F>, path: &Path) -> Result<(), String> {
     let root = SVGBackend::new(path, (1000, 1100)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let panels = root.split_evenly((4, 1));
+    // Every axis says its unit: time in seconds below each panel, and
+    // each quantity in the move's unit beside it.
     let names = [
-        "position",
-        "velocity (/s)",
-        "acceleration (/s²)",
-        "jerk (/s³)",
+        format!("position ({unit})"),
+        format!("velocity ({unit}/s)"),
+        format!("acceleration ({unit}/s²)"),
+        format!("jerk ({unit}/s³)"),
     ];
     let colors = [BLUE, GREEN, RED, MAGENTA];
     for (k, area) in panels.iter().enumerate() {
+        let name = names.get(k).map_or("", String::as_str);
         let values = samples
             .iter()
             .map(|(_, v)| v.get(k).copied().unwrap_or(0.0));
@@ -274,7 +283,7 @@ fn draw<F: Float>(p: &Profile<F>, path: &Path) -> Result<(), String> {
         let pad = ((hi - lo) * 0.08).max(1e-9 * hi.abs().max(1.0));
         let mut chart = ChartBuilder::on(area)
             .margin(12)
-            .caption(names.get(k).copied().unwrap_or(""), ("sans-serif", 22))
+            .caption(name, ("sans-serif", 22))
             .x_label_area_size(32)
             .y_label_area_size(80)
             .build_cartesian_2d(0.0..duration, (lo - pad)..(hi + pad))
@@ -284,6 +293,7 @@ fn draw<F: Float>(p: &Profile<F>, path: &Path) -> Result<(), String> {
             .label_style(("sans-serif", 14))
             .axis_desc_style(("sans-serif", 15))
             .x_desc("time (s)")
+            .y_desc(name)
             .draw()
             .map_err(|e| e.to_string())?;
         let color = colors.get(k).copied().unwrap_or(BLACK);

@@ -134,3 +134,38 @@ fn sim_joint_refuses_bad_arguments_clearly() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("no CAN interface named \"nosuch0\""));
 }
+
+/// `candump decode` prints a frame's message byte for byte as `irpc decode`
+/// prints it: fields in wire order, each f32 in its shortest form (33.3, not
+/// 33.29999923706055 as a detour through `serde_json::Value`'s f64 gives).
+#[test]
+fn candump_decode_and_irpc_decode_print_the_same_message_json() {
+    let message = r#"{"header":{"source_id":0,"target_id":16,"msg_id":7},"payload":{"SetTargetV2":{"target_angle":33.3,"max_velocity":0.1,"target_velocity":0.0,"max_acceleration":123.45,"max_deceleration":500.0,"max_jerk":2000.0,"profile":"SCurve","max_current":1.5,"max_temperature":0.0}}}"#;
+    let enc = common::run(&["irpc", "encode", "--wire", "v2.0"], message.as_bytes());
+    assert_eq!(enc.status.code(), Some(0));
+    let hex = String::from_utf8(enc.stdout).unwrap();
+    // 37 bytes, zero-padded to the CAN-FD length 48.
+    let frame = format!("{}{}", hex.trim(), "00".repeat(11));
+    assert_eq!(frame.len(), 96);
+
+    let irpc = common::run(
+        &["irpc", "decode", "--wire", "v2.0", "--frame"],
+        format!("{frame}\n").as_bytes(),
+    );
+    assert_eq!(irpc.status.code(), Some(0));
+    let irpc_line = String::from_utf8(irpc.stdout).unwrap();
+    assert_eq!(irpc_line, format!("{message}\n"));
+
+    let log = format!("(1795336405.000001) vcan0 000##5{frame}\n");
+    let candump = common::run(
+        &["candump", "decode", "--wire", "v2.0", "-"],
+        log.as_bytes(),
+    );
+    assert_eq!(candump.status.code(), Some(0));
+    assert_eq!(
+        String::from_utf8(candump.stdout).unwrap(),
+        format!(
+            r#"{{"line":1,"timestamp":"1795336405.000001","interface":"vcan0","can_id":"000","fd":true,"len":48,"message":{message}}}"#
+        ) + "\n"
+    );
+}

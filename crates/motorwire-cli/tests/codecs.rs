@@ -132,10 +132,35 @@ fn compact_encode_and_decode_with_names() {
     assert_eq!(
         stdout(&o),
         concat!(
-            r#"{"motor":4080747471,"timestamp_ms":1704067200000,"control_mode":"position","flags":0,"setpoint":45.0,"velocity_limit":600,"torque_limit":null,"motor_id":"shoulder_pitch"}"#,
+            r#"{"motor":4080747471,"timestamp_ms":1704067200000,"control_mode":"position","flags":0,"setpoint":45.0,"velocity_limit":600,"torque_limit":null,"motor_id":"shoulder_pitch","flag_names":[],"velocity_limit_units_per_s":60.0,"torque_limit_nm":null}"#,
             "\n",
-            r#"{"motor":0,"timestamp_ms":1704067200000,"control_mode":"position","flags":0,"setpoint":45.0,"velocity_limit":600,"torque_limit":null,"motor_id":null}"#,
+            r#"{"motor":0,"timestamp_ms":1704067200000,"control_mode":"position","flags":0,"setpoint":45.0,"velocity_limit":600,"torque_limit":null,"motor_id":null,"flag_names":[],"velocity_limit_units_per_s":60.0,"torque_limit_nm":null}"#,
             "\n"
+        )
+    );
+}
+
+/// Beside the raw steps (`velocity_limit` in 0.1 units/s, `torque_limit`
+/// in 0.01 Nm, `flags` as bits): the same in physical units and by name.
+#[test]
+fn compact_decode_shows_units_and_flag_names_beside_the_raw_steps() {
+    let o = run(
+        &["compact", "decode"],
+        concat!(
+            // elbow, 45.5, 60 deg/s, 2.5 Nm, priority 80 (PRIORITY_HIGH)
+            "22cb578100f451c28c01000001800000000036425802fa00\n",
+            // flags 0x81: PRIORITY_HIGH | EMERGENCY_STOP; no limits
+            "22cb578101000000000000000081000000000000ffffffff\n",
+        ),
+    );
+    assert_eq!(o.status.code(), Some(0));
+    assert_eq!(
+        stdout(&o),
+        concat!(
+            r#"{"motor":2170014498,"timestamp_ms":1704067200000,"control_mode":"position","flags":128,"setpoint":45.5,"velocity_limit":600,"torque_limit":250,"flag_names":["PRIORITY_HIGH"],"velocity_limit_units_per_s":60.0,"torque_limit_nm":2.5}"#,
+            "\n",
+            r#"{"motor":2170014498,"timestamp_ms":1,"control_mode":"disabled","flags":129,"setpoint":0.0,"velocity_limit":null,"torque_limit":null,"flag_names":["PRIORITY_HIGH","EMERGENCY_STOP"],"velocity_limit_units_per_s":null,"torque_limit_nm":null}"#,
+            "\n",
         )
     );
 }

@@ -122,16 +122,40 @@ fn draws_an_svg_with_the_four_quantities() {
     for file in [path.clone(), dir.join("move-2.svg")] {
         let svg = std::fs::read_to_string(&file).unwrap();
         assert!(svg.starts_with("<svg"), "{file:?}");
+        // Each of the four panels: a caption and a y axis in its unit, and
+        // an x axis in seconds.
         for label in [
-            "position",
-            "velocity (/s)",
-            "acceleration (/s²)",
-            "jerk (/s³)",
-            "time (s)",
+            "position (deg)",
+            "velocity (deg/s)",
+            "acceleration (deg/s²)",
+            "jerk (deg/s³)",
         ] {
-            assert!(svg.contains(label), "{file:?} lacks {label}");
+            assert_eq!(svg.matches(label).count(), 2, "{file:?}: {label}");
         }
+        assert_eq!(svg.matches("time (s)").count(), 4, "{file:?}");
         assert!(svg.matches("<polyline").count() >= 4);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_plot_names_the_unit_given() {
+    let dir = std::env::temp_dir().join(format!("motorwire-plan-unit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("move.svg");
+    let out = motorwire(
+        &["plan", "--unit", "rad", "--plot", path.to_str().unwrap()],
+        &format!("{EXAMPLE}\n"),
+    );
+    assert_eq!(out.status.code(), Some(0));
+    let svg = std::fs::read_to_string(&path).unwrap();
+    for label in [
+        "position (rad)",
+        "velocity (rad/s)",
+        "acceleration (rad/s²)",
+        "jerk (rad/s³)",
+    ] {
+        assert_eq!(svg.matches(label).count(), 2, "{label}");
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -69,7 +69,7 @@ fn irpc_v2_0_frames_are_the_documents_golden_bytes() {
         lines(&o),
         [
             format!(
-                r#"{{"ok":true,"line":1,"frames":[{{"motor_id":"shoulder_pitch","can_id":"0x000","data":"00102a{}"}}],"report":["max_jerk: defaulted: 2000 from the bus map"]}}"#,
+                r#"{{"ok":true,"line":1,"frames":[{{"motor_id":"shoulder_pitch","can_id":"0x000","data":"00102a{}"}}],"report":["max_deceleration: defaulted: 500, the command's acceleration_limit (the bus map gives no max_deceleration)","max_jerk: defaulted: 2000 from the bus map"]}}"#,
                 pitch_90_body()
             ),
             // Deactivate (tag 3) to 0x12 as the next msg_id, 43: four bytes, no padding.
@@ -321,6 +321,7 @@ fn multi_axis_commands_translate_each_axis() {
     let defaults = [
         "shoulder_pitch.max_velocity: defaulted: 120 from the bus map",
         "shoulder_pitch.max_acceleration: defaulted: 500 from the bus map",
+        "shoulder_pitch.max_deceleration: defaulted: 500, the max_acceleration from the bus map (the bus map gives no max_deceleration)",
         "shoulder_pitch.max_jerk: defaulted: 2000 from the bus map",
         "elbow.max_velocity: defaulted: 120 from the bus map",
         "elbow.max_acceleration: defaulted: 500 from the bus map",

@@ -22,3 +22,12 @@ pub use payload::{
     SetTargetPayloadV2, StallStatus, TelemetryMode, TelemetryStream,
 };
 pub use version::{PayloadKind, UnknownWireVersion, WireVersion};
+
+/// [`Message`] under a name that cannot be mistaken for
+/// `motorwire_wia::Message` (any WIA JSON message) in code that uses both:
+/// the same type.
+pub use message::Message as IrpcMessage;
+/// [`MotionProfile`] (the wire enum of `SetTargetV2.profile`) under a name
+/// that cannot be mistaken for `motorwire_planner::MotionProfile` (the
+/// planner's, `motorwire_planner::PlannerMotionProfile`): the same type.
+pub use payload::MotionProfile as IrpcMotionProfile;

@@ -375,11 +375,15 @@ wire_struct! {
 wire_struct! {
     /// Identified motor parameters.
     pub struct MotorParameters as "CalibrationResult.parameters" {
-        /// Inertia.
+        /// Inertia. JSON also accepts the public implementation's name
+        /// `inertia_J` (WIRE-FACTS §1.3).
+        #[cfg_attr(feature = "serde", serde(alias = "inertia_J"))]
         inertia: f32,
-        /// Torque constant.
+        /// Torque constant. JSON also accepts `torque_constant_kt`.
+        #[cfg_attr(feature = "serde", serde(alias = "torque_constant_kt"))]
         torque_constant: f32,
-        /// Damping.
+        /// Damping. JSON also accepts `damping_b`.
+        #[cfg_attr(feature = "serde", serde(alias = "damping_b"))]
         damping: f32,
         /// Coulomb friction.
         friction_coulomb: f32,
@@ -427,15 +431,21 @@ wire_struct! {
 wire_struct! {
     /// Fault counters.
     pub struct FaultCounters as "PowerMetrics.faults" {
-        /// Over-current events.
+        /// Over-current events. JSON also accepts the public
+        /// implementation's name `overcurrent_events` (WIRE-FACTS §1.3).
+        #[cfg_attr(feature = "serde", serde(alias = "overcurrent_events"))]
         overcurrent: u16,
-        /// Over-voltage events.
+        /// Over-voltage events. JSON also accepts `overvoltage_events`.
+        #[cfg_attr(feature = "serde", serde(alias = "overvoltage_events"))]
         overvoltage: u16,
-        /// Under-voltage events.
+        /// Under-voltage events. JSON also accepts `undervoltage_events`.
+        #[cfg_attr(feature = "serde", serde(alias = "undervoltage_events"))]
         undervoltage: u16,
-        /// Over-temperature events.
+        /// Over-temperature events. JSON also accepts `overtemp_events`.
+        #[cfg_attr(feature = "serde", serde(alias = "overtemp_events"))]
         overtemp: u16,
-        /// Driver faults.
+        /// Driver faults. JSON also accepts `driver_fault_events`.
+        #[cfg_attr(feature = "serde", serde(alias = "driver_fault_events"))]
         driver_fault: u16,
         /// Emergency stops.
         emergency_stops: u16,

@@ -89,6 +89,59 @@ fn json_that_does_not_fit_is_refused() {
     }
 }
 
+/// WIRE-FACTS §1.3: the public implementation names five fields of
+/// `MotorParameters` and `FaultCounters` differently (`inertia_J`,
+/// `overcurrent_events`, ...); its JSON reads the same, and is written back
+/// with motorwire's names.
+#[test]
+fn the_public_implementations_field_names_are_accepted_as_aliases() {
+    let theirs = r#"{"inertia_J":0.5,"torque_constant_kt":0.25,"damping_b":0.125,"friction_coulomb":1.0,"friction_stribeck":2.0,"friction_vstribeck":3.0,"friction_viscous":4.0}"#;
+    let ours = r#"{"inertia":0.5,"torque_constant":0.25,"damping":0.125,"friction_coulomb":1.0,"friction_stribeck":2.0,"friction_vstribeck":3.0,"friction_viscous":4.0}"#;
+    let parameters: MotorParameters = serde_json::from_str(theirs).unwrap();
+    assert_eq!(
+        parameters,
+        MotorParameters {
+            inertia: 0.5,
+            torque_constant: 0.25,
+            damping: 0.125,
+            friction_coulomb: 1.0,
+            friction_stribeck: 2.0,
+            friction_vstribeck: 3.0,
+            friction_viscous: 4.0,
+        }
+    );
+    assert_eq!(
+        serde_json::from_str::<MotorParameters>(ours).unwrap(),
+        parameters
+    );
+    assert_eq!(serde_json::to_string(&parameters).unwrap(), ours);
+
+    let theirs = r#"{"overcurrent_events":1,"overvoltage_events":2,"undervoltage_events":3,"overtemp_events":4,"driver_fault_events":5,"emergency_stops":6}"#;
+    let ours = r#"{"overcurrent":1,"overvoltage":2,"undervoltage":3,"overtemp":4,"driver_fault":5,"emergency_stops":6}"#;
+    let faults: FaultCounters = serde_json::from_str(theirs).unwrap();
+    assert_eq!(
+        faults,
+        FaultCounters {
+            overcurrent: 1,
+            overvoltage: 2,
+            undervoltage: 3,
+            overtemp: 4,
+            driver_fault: 5,
+            emergency_stops: 6,
+        }
+    );
+    assert_eq!(serde_json::to_string(&faults).unwrap(), ours);
+
+    // Both names for one field is a duplicate, as serde reports any.
+    let both = r#"{"overcurrent":1,"overcurrent_events":1,"overvoltage":2,"undervoltage":3,"overtemp":4,"driver_fault":5,"emergency_stops":6}"#;
+    assert_eq!(
+        serde_json::from_str::<FaultCounters>(both)
+            .unwrap_err()
+            .to_string(),
+        "duplicate field `overcurrent` at line 1 column 37"
+    );
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(3000))]
 

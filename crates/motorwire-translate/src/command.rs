@@ -84,9 +84,12 @@ fn f32_of(motor: &str, field: &'static str, v: f64, report: &mut Report) -> Resu
 ///
 /// - `position` becomes `SetTargetV2` (wire v2.0 and later) or `SetTarget`
 ///   (v1), positions converted to degrees. Velocity and acceleration limits
-///   come from the command or, failing that, the bus map; deceleration and
-///   jerk from the bus map; the profile from the bus map (an S-curve without
-///   a `max_jerk` in the map is trapezoidal, and reported).
+///   come from the command or, failing that, the bus map; deceleration from
+///   the bus map's `max_deceleration` (no more than the command's
+///   `acceleration_limit`) or, when the map has none, the acceleration
+///   limit, the report saying which; jerk and the profile from the bus map
+///   (an S-curve without a `max_jerk` in the map is trapezoidal, and
+///   reported).
 /// - `disabled` becomes `Deactivate`.
 /// - `safety_limits.emergency_stop: true` becomes `Deactivate`, whatever the
 ///   mode: iRPC executes motion only in the Active state, so leaving it is
@@ -274,18 +277,51 @@ fn set_target(
         e.max_acceleration,
         report,
     )?;
-    // The command's acceleration_limit bounds slowing down too.
+    // The command's acceleration_limit bounds slowing down too. The report
+    // names where the value really came from: the map's deceleration limit,
+    // or an acceleration limit (the command's, or the one just defaulted)
+    // when that is what bounds it.
+    let from_acceleration = |value: f64| match cmd.acceleration_limit {
+        Some(_) => format!("{value}, the command's acceleration_limit"),
+        None => format!(
+            "{value}, the max_acceleration from the {}",
+            e.max_acceleration.map_or("bus map", |b| b.source)
+        ),
+    };
     let deceleration = match motor.limits.max_deceleration {
-        Some(d) => {
-            let d = cmd.acceleration_limit.map_or(d, |a| a.min(d));
+        Some(d) if cmd.acceleration_limit.is_some_and(|a| a < d) => {
+            let a = cmd.acceleration_limit.unwrap_or(d);
             report.push(
                 "max_deceleration",
                 LossKind::Defaulted,
-                format!("{d} from the bus map"),
+                format!(
+                    "{} (below max_deceleration {d} from the {})",
+                    from_acceleration(a),
+                    motor.limits_source
+                ),
+            );
+            a
+        }
+        Some(d) => {
+            report.push(
+                "max_deceleration",
+                LossKind::Defaulted,
+                format!("{d} from the {}", motor.limits_source),
             );
             d
         }
-        None => acceleration,
+        None => {
+            report.push(
+                "max_deceleration",
+                LossKind::Defaulted,
+                format!(
+                    "{} (the {} gives no max_deceleration)",
+                    from_acceleration(acceleration),
+                    motor.limits_source
+                ),
+            );
+            acceleration
+        }
     };
     let (profile, jerk) = match (motor.profile, motor.limits.max_jerk) {
         (MotionProfile::Trapezoidal, _) => (MotionProfile::Trapezoidal, 0.0),

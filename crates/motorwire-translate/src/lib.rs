@@ -19,6 +19,10 @@ pub use frames::{IrpcFrame, irpc_frames};
 pub use gate::{Bound, Effective, Refusal, gate};
 pub use map::{AngleUnit, BusMap, Limits, MapError, MappedMotor, Target};
 pub use path::{PathExtent, check_path, check_trajectory};
+/// [`Report`] (what a translation lost or filled in) under a name that
+/// cannot be mistaken for `motorwire_wia::Report` (a validation verdict,
+/// also `motorwire_wia::ValidationReport`): the same type.
+pub use report::Report as TranslationReport;
 pub use report::{Loss, LossKind, Report, Translated};
 pub use sync::{MultiAxisMove, SYNC_TOLERANCE_S, multi_axis_to_irpc};
 pub use trajectory::{

@@ -68,6 +68,33 @@ pub enum MapError {
         /// The address they share.
         address: String,
     },
+    /// The file could not be read ([`BusMap::from_path`]).
+    #[error("bus map {path}: {message}")]
+    Read {
+        /// The file, as given.
+        path: String,
+        /// What kind of I/O error it was.
+        kind: std::io::ErrorKind,
+        /// The operating system's message.
+        message: String,
+    },
+    /// The file is larger than [`BusMap::MAX_FILE_SIZE`]
+    /// ([`BusMap::from_path`]): no more than that is read.
+    #[error("bus map {path}: larger than {limit} bytes")]
+    TooLarge {
+        /// The file, as given.
+        path: String,
+        /// The limit in bytes.
+        limit: u64,
+    },
+    /// The file is not UTF-8 ([`BusMap::from_path`]).
+    #[error("bus map {path}: not UTF-8 (at byte {offset})")]
+    NotUtf8 {
+        /// The file, as given.
+        path: String,
+        /// The offset of the first byte that is not UTF-8.
+        offset: usize,
+    },
 }
 
 /// How a motor is reached.
@@ -335,6 +362,60 @@ fn valid_name(name: &str) -> bool {
 }
 
 impl BusMap {
+    /// The largest bus map file [`BusMap::from_path`] reads: 1 MiB (the
+    /// `motorwire` command's limit too). A device or pipe that never ends
+    /// (`/dev/zero`) is refused after this many bytes, not read forever.
+    pub const MAX_FILE_SIZE: u64 = 1 << 20;
+
+    /// Reads a bus map from a TOML file (at most [`BusMap::MAX_FILE_SIZE`]
+    /// bytes of it).
+    ///
+    /// ```
+    /// use motorwire_translate::{BusMap, MapError, Target};
+    /// use motorwire_irpc::WireVersion;
+    ///
+    /// let path = std::env::temp_dir().join("motorwire-doctest-map.toml");
+    /// std::fs::write(&path, "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n")?;
+    /// let map = BusMap::from_path(&path)?;
+    /// assert_eq!(map.motor("elbow").map(|m| m.target), Some(Target::Irpc { node: 0x12, wire: WireVersion::V2_0 }));
+    ///
+    /// let missing = BusMap::from_path("no/such/map.toml").unwrap_err();
+    /// assert!(matches!(missing, MapError::Read { kind: std::io::ErrorKind::NotFound, .. }));
+    /// # std::fs::remove_file(&path)?;
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`MapError::Read`] when the file cannot be opened or read,
+    /// [`MapError::TooLarge`], [`MapError::NotUtf8`], or as
+    /// [`BusMap::from_toml`].
+    pub fn from_path(path: impl AsRef<std::path::Path>) -> Result<BusMap, MapError> {
+        use std::io::Read as _;
+        let path = path.as_ref();
+        let shown = || path.display().to_string();
+        let read_error = |e: std::io::Error| MapError::Read {
+            path: shown(),
+            kind: e.kind(),
+            message: e.to_string(),
+        };
+        let file = std::fs::File::open(path).map_err(read_error)?;
+        let mut bytes = Vec::new();
+        file.take(Self::MAX_FILE_SIZE + 1)
+            .read_to_end(&mut bytes)
+            .map_err(read_error)?;
+        if bytes.len() as u64 > Self::MAX_FILE_SIZE {
+            return Err(MapError::TooLarge {
+                path: shown(),
+                limit: Self::MAX_FILE_SIZE,
+            });
+        }
+        let text = String::from_utf8(bytes).map_err(|e| MapError::NotUtf8 {
+            path: shown(),
+            offset: e.utf8_error().valid_up_to(),
+        })?;
+        Self::from_toml(&text)
+    }
+
     /// Reads a bus map.
     ///
     /// # Errors

@@ -154,6 +154,24 @@ struct TopLevelKeys {
 }
 
 impl TopLevelKeys {
+    /// Notes one top-level member name.
+    fn note(&mut self, key: &[u8]) {
+        match key {
+            b"motors" | b"command_id" => self.motors = true,
+            b"waypoints" | b"trajectory_id" => self.waypoints = true,
+            b"position_limits" | b"velocity_limits" | b"torque_limits" => {
+                self.position_limits = true;
+            }
+            b"gains" => self.gains = true,
+            b"setpoint" | b"control_mode" => self.setpoint = true,
+            b"status" | b"position" | b"velocity" | b"torque" => {
+                self.status_or_position = true;
+            }
+            b"mode" | b"parameters" => self.mode = true,
+            _ => {}
+        }
+    }
+
     fn kind(&self) -> Option<MessageKind> {
         [
             (self.motors, MessageKind::MultiAxisCommand),
@@ -182,26 +200,83 @@ impl<'de> Deserialize<'de> for TopLevelKeys {
             fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<TopLevelKeys, A::Error> {
                 let mut keys = TopLevelKeys::default();
                 while let Some(key) = map.next_key::<Cow<'de, str>>()? {
-                    match key.as_ref() {
-                        "motors" | "command_id" => keys.motors = true,
-                        "waypoints" | "trajectory_id" => keys.waypoints = true,
-                        "position_limits" | "velocity_limits" | "torque_limits" => {
-                            keys.position_limits = true;
-                        }
-                        "gains" => keys.gains = true,
-                        "setpoint" | "control_mode" => keys.setpoint = true,
-                        "status" | "position" | "velocity" | "torque" => {
-                            keys.status_or_position = true;
-                        }
-                        "mode" | "parameters" => keys.mode = true,
-                        _ => {}
-                    }
+                    keys.note(key.as_bytes());
                     map.next_value::<IgnoredAny>()?;
                 }
                 Ok(keys)
             }
         }
         d.deserialize_map(KeysVisitor)
+    }
+}
+
+/// The kind [`MessageKind::infer`] would give `json`, told from a scan of
+/// its bytes for the top-level member names, without parsing it (no
+/// numbers read, nothing allocated), so that inferring the kind does not
+/// cost a parse of its own. `None` when the scan cannot be sure: the text
+/// does not start with an object, no member names a kind, a top-level
+/// name has an escape in it, or the object never closes; the caller then
+/// asks [`MessageKind::infer`], which also says what is wrong. The scan
+/// does not check the syntax: the typed parse that follows does.
+pub(crate) fn scan_kind(json: &str) -> Option<MessageKind> {
+    let bytes = json.as_bytes();
+    let mut keys = TopLevelKeys::default();
+    let mut depth = 0usize;
+    let mut expect_key = false;
+    let mut i = 0;
+    loop {
+        let b = *bytes.get(i)?;
+        i += 1;
+        match b {
+            b'"' if depth == 0 => return None,
+            b'"' => {
+                let (end, escaped) = string_end(bytes, i)?;
+                if depth == 1 && expect_key {
+                    if escaped {
+                        return None;
+                    }
+                    keys.note(bytes.get(i..end)?);
+                    expect_key = false;
+                }
+                i = end + 1;
+            }
+            b'{' => {
+                expect_key = depth == 0;
+                depth += 1;
+            }
+            b'[' if depth == 0 => return None,
+            b'[' => depth += 1,
+            b'}' | b']' => {
+                depth = depth.checked_sub(1)?;
+                if depth == 0 {
+                    return keys.kind();
+                }
+            }
+            b',' if depth == 1 => expect_key = true,
+            b' ' | b'\t' | b'\n' | b'\r' => {}
+            _ if depth == 0 => return None,
+            _ => {}
+        }
+    }
+}
+
+/// The index of the quote that closes the string whose contents start at
+/// `start`, and whether the string has an escape; `None` if it never closes.
+fn string_end(bytes: &[u8], start: usize) -> Option<(usize, bool)> {
+    let mut i = start;
+    let mut escaped = false;
+    loop {
+        let at = bytes
+            .get(i..)?
+            .iter()
+            .position(|&c| c == b'"' || c == b'\\')?;
+        i += at;
+        if bytes.get(i) == Some(&b'"') {
+            return Some((i, escaped));
+        }
+        // A backslash: it and the byte it escapes.
+        escaped = true;
+        i += 2;
     }
 }
 
@@ -285,6 +360,48 @@ impl Message {
             Self::PidConfig(_) => MessageKind::PidConfig,
             Self::SafetyLimits(_) => MessageKind::SafetyLimits,
             Self::ControlModeConfig(_) => MessageKind::ControlModeConfig,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_scan_finds_the_kind_from_top_level_names_only() {
+        let cases: [(&str, Option<MessageKind>); 12] = [
+            (r#"{"setpoint": 1}"#, Some(MessageKind::MotorCommand)),
+            (
+                r#" {"setpoint": 1, "motors": []}"#,
+                Some(MessageKind::MultiAxisCommand),
+            ),
+            // Names inside values and nested objects do not count.
+            (r#"{"a": {"motors": 1}, "b": "motors"}"#, None),
+            (
+                r#"{"a": "\"motors\"", "gains": {}}"#,
+                Some(MessageKind::PidConfig),
+            ),
+            (
+                r#"{"a": ["waypoints", {"mode": 1}], "status": "ok"}"#,
+                Some(MessageKind::MotorFeedback),
+            ),
+            // An escape in a top-level name: the scan leaves it to infer.
+            (r#"{"mot\u006frs": []}"#, None),
+            // Not an object, or not closed.
+            ("[1]", None),
+            (r#""setpoint""#, None),
+            (r#"{"setpoint": 1"#, None),
+            ("", None),
+            // The syntax is not the scan's to check: the parse after it does.
+            (r#"{"setpoint" 1}"#, Some(MessageKind::MotorCommand)),
+            (
+                r#"{"mode": 1} trailing"#,
+                Some(MessageKind::ControlModeConfig),
+            ),
+        ];
+        for (doc, kind) in cases {
+            assert_eq!(scan_kind(doc), kind, "{doc}");
         }
     }
 }

@@ -20,8 +20,16 @@ pub use command::{
     AccelerationProfile, AxisCommand, CommandSafetyLimits, Coordination, CoordinationType,
     FilterConfig, ImpedanceParams, MotorCommand, MultiAxisCommand, PidGains, SyncMode,
 };
+/// [`Report`] (a document's validation verdict) under a name that cannot
+/// be mistaken for `motorwire_translate::Report` (what a translation lost,
+/// also `motorwire_translate::TranslationReport`): the same type.
+pub use error::Report as ValidationReport;
 pub use error::{Error, Report};
 pub use feedback::{MotorFeedback, MotorHealth, MotorStatus};
+/// [`Message`] (any of the seven WIA messages) under a name that cannot be
+/// mistaken for `motorwire_irpc::Message` (an iRPC frame's message, also
+/// `motorwire_irpc::IrpcMessage`): the same type.
+pub use kind::Message as AnyWiaMessage;
 pub use kind::{Message, MessageKind, UnknownKindName, WiaMessage};
 pub use mode_config::{ControlModeConfig, ModeLimits, ModeParameters};
 pub use pid::{OutputLimits, PidConfig, PidConfigGains, SetpointFilter};

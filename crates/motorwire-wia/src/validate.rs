@@ -186,7 +186,27 @@ impl Validator {
     /// assert_eq!((r.kind, r.is_valid()), (Some(MessageKind::ControlModeConfig), true));
     /// ```
     pub fn validate_auto(&self, json: &str) -> Report {
-        match self.precheck(json).and_then(|()| infer(json)) {
+        if let Err(v) = self.precheck(json) {
+            return Report {
+                kind: None,
+                violations: vec![v],
+            };
+        }
+        // The document is parsed once: the kind comes from a scan of its
+        // top-level member names. Only when the scan cannot tell, or the
+        // text turns out not to be JSON, does `infer` parse it to say why,
+        // exactly as before.
+        if let Some(kind) = crate::kind::scan_kind(json) {
+            let violations = self.checked(kind, json);
+            let not_json = matches!(violations.as_slice(), [v] if v.rule == Rule::JsonSyntax);
+            if !not_json {
+                return Report {
+                    kind: Some(kind),
+                    violations,
+                };
+            }
+        }
+        match infer(json) {
             Ok(kind) => Report {
                 kind: Some(kind),
                 violations: self.checked(kind, json),

@@ -76,3 +76,65 @@ proptest! {
         }
     }
 }
+
+/// A JSON object whose top-level member names name kinds (some escaped),
+/// with values that hide member names in strings and nested objects, then
+/// maybe cut short or followed by garbage.
+fn object_like() -> impl Strategy<Value = String> {
+    let key = prop_oneof![
+        Just("\"motors\"".to_owned()),
+        Just("\"mot\\u006frs\"".to_owned()),
+        Just("\"setpoint\"".to_owned()),
+        Just("\"control_mode\"".to_owned()),
+        Just("\"motor_id\"".to_owned()),
+        Just("\"timestamp\"".to_owned()),
+        Just("\"gains\"".to_owned()),
+        Just("\"mode\"".to_owned()),
+        Just("\"status\"".to_owned()),
+        Just("\"position_limits\"".to_owned()),
+        Just("\"waypoints\"".to_owned()),
+        Just("\"x\\\"motors\"".to_owned()),
+        "[a-z_]{0,8}".prop_map(|s| format!("\"{s}\"")),
+    ];
+    let value = prop_oneof![
+        Just("1".to_owned()),
+        Just("\"position\"".to_owned()),
+        Just("\"}, \\\"motors\\\": [\"".to_owned()),
+        Just("{\"motors\": [1, {\"waypoints\": 2}]}".to_owned()),
+        Just("[\"setpoint\", {\"gains\": {}}]".to_owned()),
+        Just("null".to_owned()),
+        Just("\"elbow\"".to_owned()),
+        Just("1704067200000".to_owned()),
+    ];
+    let members = prop::collection::vec((key, value), 0..8);
+    (
+        members,
+        0usize..200,
+        prop_oneof![Just(""), Just(" "), Just("x"), Just("}"), Just(",{}")],
+    )
+        .prop_map(|(members, cut, tail)| {
+            let body: Vec<String> = members.iter().map(|(k, v)| format!("{k}: {v}")).collect();
+            let mut doc = format!(" {{{}}}{tail}", body.join(", "));
+            if cut < doc.len() && cut % 3 == 0 {
+                doc.truncate(cut);
+            }
+            doc
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(4000))]
+
+    /// `validate_auto` parses a document once (its kind from a scan of the
+    /// member names), and judges exactly as inferring the kind with a parse
+    /// of its own and then validating as that kind does.
+    #[test]
+    fn auto_validation_equals_infer_then_validate(doc in prop_oneof![object_like(), json_like()]) {
+        let v = Validator::new();
+        let auto = v.validate_auto(&doc);
+        match MessageKind::infer(&doc) {
+            Ok(Some(kind)) => prop_assert_eq!(auto, v.validate(kind, &doc)),
+            _ => prop_assert_eq!(auto.kind, None),
+        }
+    }
+}

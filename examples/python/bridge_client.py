@@ -1,0 +1,152 @@
+#!/usr/bin/env python3
+"""Talk to a running `motorwire bridge` from Python, with the standard library only.
+
+The bridge reads WIA JSON lines and answers each with exactly one result
+line (`{"ok": ..., "line": N, ...}`); a move that went ahead is followed by
+a completion line (`{"arrived": ..., "line": N, ...}`); feedback
+(`{"feedback": ...}`) and events (`{"event": ...}`) come in between. Over a
+local socket (`--input unix:PATH`) only processes of the same user can
+connect; over TCP (`--input tcp:127.0.0.1:PORT --token-file FILE`) the first
+line of a connection must be the token in FILE.
+
+Start a bridge on its simulated arm, then run this against it:
+
+    motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --input unix:$XDG_RUNTIME_DIR/motorwire.sock &
+    python3 examples/python/bridge_client.py --unix $XDG_RUNTIME_DIR/motorwire.sock
+
+    motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --input tcp:127.0.0.1:7878 --token-file token &
+    python3 examples/python/bridge_client.py --tcp 127.0.0.1:7878 --token-file token
+
+It moves the elbow, asks for a move outside the elbow's limits (refused,
+nothing moves), and moves back; it checks each answer and exits 1 if one
+is not what the bridge promises (so CI runs it), 0 otherwise.
+"""
+
+import argparse
+import json
+import socket
+import sys
+import time
+
+
+class Bridge:
+    """One connection to a bridge: JSON lines out, JSON lines in."""
+
+    def __init__(self, sock):
+        self.sock = sock
+        self.reader = sock.makefile("r", encoding="utf-8", newline="\n")
+        self.sent = 0  # the bridge numbers a connection's lines from 1
+
+    @classmethod
+    def unix(cls, path, timeout=10.0):
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        sock.settimeout(timeout)
+        sock.connect(path)
+        return cls(sock)
+
+    @classmethod
+    def tcp(cls, address, token, timeout=10.0):
+        host, _, port = address.rpartition(":")
+        sock = socket.create_connection((host.strip("[]"), int(port)), timeout=timeout)
+        bridge = cls(sock)
+        # The first line is the token, not a command: it takes no line number.
+        sock.sendall(token.encode("utf-8") + b"\n")
+        return bridge
+
+    def send(self, message):
+        """Sends one JSON line; returns its line number."""
+        self.sock.sendall(json.dumps(message).encode("utf-8") + b"\n")
+        self.sent += 1
+        return self.sent
+
+    def read(self):
+        line = self.reader.readline()
+        if not line:
+            raise ConnectionError("the bridge closed the connection")
+        return json.loads(line)
+
+    def wait_for(self, line, key, timeout=10.0):
+        """The first line answering input line `line` that has `key`
+        ("ok" for its result, "arrived" for its completion); feedback and
+        events are skipped (an error from the bridge is raised)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            message = self.read()
+            if message.get("line") == line and key in message:
+                return message
+            if "ok" in message and "line" not in message:
+                raise RuntimeError("the bridge refused the connection: %s" % json.dumps(message))
+        raise TimeoutError("no %r for line %d within %.0f s" % (key, line, timeout))
+
+    def close(self):
+        self.reader.close()
+        self.sock.close()
+
+
+def command(motor, setpoint):
+    return {
+        "motor_id": motor,
+        "timestamp": int(time.time() * 1000),
+        "control_mode": "position",
+        "setpoint": setpoint,
+    }
+
+
+def check(condition, what, message):
+    if not condition:
+        print("FAIL: %s: %s" % (what, json.dumps(message)), file=sys.stderr)
+        sys.exit(1)
+    print("ok: %s" % what)
+
+
+def session(bridge):
+    # A move within the limits: acked by the joint, then arrives.
+    line = bridge.send(command("elbow", 40))
+    result = bridge.wait_for(line, "ok")
+    check(result["ok"] is True and result["acked"] == ["elbow"], "elbow to 40 acked", result)
+    arrival = bridge.wait_for(line, "arrived")
+    check(arrival["arrived"] is True and arrival["motors"][0]["target"] == 40.0,
+          "elbow arrived at 40", arrival)
+
+    # Outside the bus map's max_position 150: refused before any frame.
+    line = bridge.send(command("elbow", 170))
+    result = bridge.wait_for(line, "ok")
+    check(result["ok"] is False and result["error"]["kind"] == "refused"
+          and result["error"]["message"] == "elbow: setpoint 170 is outside max_position (bus map) 150",
+          "elbow to 170 refused", result)
+
+    # And back.
+    line = bridge.send(command("elbow", 0))
+    result = bridge.wait_for(line, "ok")
+    check(result["ok"] is True, "elbow to 0 acked", result)
+    arrival = bridge.wait_for(line, "arrived")
+    check(arrival["arrived"] is True, "elbow arrived at 0", arrival)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--unix", metavar="PATH", help="the bridge's --input unix:PATH socket")
+    where.add_argument("--tcp", metavar="HOST:PORT", help="the bridge's --input tcp:HOST:PORT")
+    parser.add_argument("--token-file", help="with --tcp: the bridge's --token-file")
+    args = parser.parse_args()
+
+    if args.unix:
+        bridge = Bridge.unix(args.unix)
+    else:
+        if not args.token_file:
+            parser.error("--tcp needs --token-file")
+        with open(args.token_file, encoding="utf-8") as f:
+            token = f.readline().rstrip("\n")
+        bridge = Bridge.tcp(args.tcp, token)
+    try:
+        session(bridge)
+    except (OSError, ValueError, KeyError, IndexError, RuntimeError) as e:
+        print("FAIL: %s: %s" % (type(e).__name__, e), file=sys.stderr)
+        sys.exit(1)
+    finally:
+        bridge.close()
+
+
+if __name__ == "__main__":
+    main()
