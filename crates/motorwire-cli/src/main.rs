@@ -62,14 +62,17 @@ enum Command {
     /// at once. Exit status 0 after the end of input, 2 on an error, 74
     /// when standard output stopped being read or failed.
     Bridge(bridge::Args),
-    /// Run the bridge on a simulated arm (3 iRPC joints and a compact-command
-    /// gripper, no hardware) through a scripted session, checking each step.
+    /// Run the bridge on a simulated arm (3 iRPC joints, a compact-command
+    /// gripper and the Orion arm's 7 motors, no hardware) through a
+    /// scripted session, checking each step.
     ///
     /// The map is the built-in copy of fixtures/maps/demo-arm.toml. In order:
     /// the WIA document's multi-axis example (3 joints, synchronized, 2 s), a
     /// move, a synchronized move, a trajectory through a waypoint at speed,
-    /// the gripper closed, an unsafe command refused (elbow beyond its
-    /// limit), a move interrupted by an emergency stop, a command refused
+    /// the gripper closed, the Orion turntable turned and then stopped by the
+    /// deadman once its commands stop, an unsafe command refused (elbow
+    /// beyond its limit), a move interrupted by an emergency stop (every
+    /// motor of the map), a command refused
     /// while the stop is latched, the release, a move back and the gripper
     /// opened. Prints each step and its result, then a summary (each step,
     /// each device's final position against its target) and writes --svg,
