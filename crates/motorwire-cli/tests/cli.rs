@@ -252,8 +252,14 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
     let out = motorwire(&["demo", "--svg", svg.to_str().unwrap()], None);
     let text = String::from_utf8(out.stdout).unwrap();
     assert_eq!(out.status.code(), Some(0), "{text}");
-    assert_eq!(text.matches("] ok   ").count(), 12, "{text}");
+    assert_eq!(text.matches("] ok   ").count(), 13, "{text}");
     assert!(text.contains("trajectory: the elbow"), "{text}");
+    assert!(
+        text.contains(
+            "turning at 150: true; the deadman stopped it 200 ms after the last command: true"
+        ),
+        "{text}"
+    );
     assert!(
         text.contains("compact command: close the gripper to 45°"),
         "{text}"
@@ -272,7 +278,13 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
     let _ = std::fs::remove_file(&svg);
     // Two panels, three joints and the gripper each.
     assert!(plot.matches("<polyline").count() >= 8, "{plot}");
-    for motor in ["shoulder_pitch", "shoulder_roll", "elbow", "gripper_axis"] {
+    for motor in [
+        "shoulder_pitch",
+        "shoulder_roll",
+        "elbow",
+        "gripper_axis",
+        "turntable (Orion)",
+    ] {
         assert!(plot.contains(motor), "{motor}");
     }
     // Units on both y axes, each step marked, the stop and its release
@@ -281,9 +293,9 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
         "position (°)",
         "velocity (°/s)",
         "time (s)",
-        "8 stop",
-        "10 release",
-        "12",
+        "9 stop",
+        "11 release",
+        "13",
     ] {
         assert!(plot.contains(text), "{text}");
     }
