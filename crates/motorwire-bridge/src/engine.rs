@@ -1415,7 +1415,8 @@ impl Bridge {
         if let Some(ji) = self.joint_index(&cmd.motor_id)
             && self.joints.get(ji).is_some_and(|j| j.compact.is_some())
         {
-            self.compact_command(now, origin, number, ji, cmd);
+            let built = self.compact_axis(ji, cmd);
+            self.device_command(now, origin, number, cmd, built);
             return;
         }
         if let Some(e) = self.orion_unattached(std::iter::once(cmd.motor_id.as_str())) {
@@ -1425,7 +1426,8 @@ impl Bridge {
         if let Some(ji) = self.joint_index(&cmd.motor_id)
             && self.is_orion(ji)
         {
-            self.orion_motor_command(now, origin, number, ji, cmd);
+            let built = self.orion_axis(ji, cmd);
+            self.device_command(now, origin, number, cmd, built);
             return;
         }
         match to_irpc(&self.map, cmd) {
@@ -1468,35 +1470,6 @@ impl Bridge {
         }
     }
 
-    /// A MotorCommand for compact device `ji`: gated and translated
-    /// (position, velocity, torque, disabled), sent with REQUIRE_ACK.
-    fn compact_command(
-        &mut self,
-        now: Duration,
-        origin: Origin,
-        number: u64,
-        ji: usize,
-        cmd: &MotorCommand,
-    ) {
-        let label = Some(("motor_id", cmd.motor_id.clone()));
-        match self.compact_axis(ji, cmd) {
-            Ok((axis, report)) => self.open_job(
-                Some(origin),
-                number,
-                label,
-                JobKind::Command,
-                now,
-                vec![axis],
-                report,
-                Vec::new(),
-            ),
-            Err(r) => {
-                let e = ErrorBody::new(ErrorKind::Refused, r.to_string());
-                self.refuse(origin, number, label, e);
-            }
-        }
-    }
-
     /// `cmd` for compact device `ji`, gated and translated, as its axis.
     fn compact_axis(
         &self,
@@ -1517,11 +1490,12 @@ impl Bridge {
         Ok((axis, t.report))
     }
 
-    /// A multi-axis command with compact devices or Orion motors among its
-    /// axes: the iRPC joints' axes planned together (synchronized as the
-    /// command asks), every other axis gated and translated on its own,
-    /// all sent as one job.
-    fn multi_axis_mixed(
+    /// A multi-axis command: the iRPC joints' axes planned together
+    /// (synchronized as the command asks), every compact device's and
+    /// Orion motor's axis gated and translated on its own, all sent as one
+    /// job. `sync_mode: sequential` runs them one after another, each once
+    /// the one before arrived.
+    fn multi_axis_jobs(
         &mut self,
         now: Duration,
         origin: Origin,
@@ -1529,37 +1503,75 @@ impl Bridge {
         cmd: &MultiAxisCommand,
     ) {
         let label = Some(("command_id", cmd.command_id.clone()));
-        match self.mixed_axes(cmd) {
-            Ok((mut axes, report)) => {
-                if cmd.sync_mode == Some(SyncMode::Sequential) {
-                    if let Some(a) = axes.iter().find(|a| a.target.is_none()) {
-                        let e = ErrorBody::new(
-                            ErrorKind::Refused,
-                            format!(
-                                "{}: sync_mode sequential runs position moves one after another, each once the one before arrived; this axis has no arrival to wait for",
-                                a.motor
-                            ),
-                        )
-                        .about(a.motor.clone());
-                        self.refuse(origin, number, label, e);
-                        return;
-                    }
-                    for (k, a) in axes.iter_mut().enumerate().skip(1) {
-                        a.after = Some(k - 1);
-                    }
-                }
-                self.open_job(
-                    Some(origin),
-                    number,
-                    label,
-                    JobKind::Command,
-                    now,
-                    axes,
-                    report,
-                    Vec::new(),
-                );
+        let (mut axes, report) = match self.mixed_axes(cmd) {
+            Ok(x) => x,
+            Err(e) => return self.refuse(origin, number, label, e),
+        };
+        if cmd.sync_mode == Some(SyncMode::Sequential) {
+            // One after another: each starts once the one before it
+            // arrived, so each must be a move to a target.
+            if let Some((a, i)) = axes
+                .iter()
+                .zip(&cmd.motors)
+                .find(|(ax, _)| ax.target.is_none())
+            {
+                let e = ErrorBody::new(
+                    ErrorKind::Refused,
+                    format!(
+                        "{}: sync_mode sequential runs position moves one after another, each once the one before arrived; a {} command has no arrival to wait for",
+                        a.motor,
+                        i.control_mode.name()
+                    ),
+                )
+                .about(a.motor.clone());
+                return self.refuse(origin, number, label, e);
             }
-            Err(e) => self.refuse(origin, number, label, e),
+            for (k, a) in axes.iter_mut().enumerate().skip(1) {
+                a.after = Some(k - 1);
+            }
+        }
+        self.command_job(now, origin, number, label, axes, report);
+    }
+
+    /// Opens the job of a command line: `axes`, `report`'s losses.
+    fn command_job(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        label: Option<(&'static str, String)>,
+        axes: Vec<Axis>,
+        report: Report,
+    ) {
+        self.open_job(
+            Some(origin),
+            number,
+            label,
+            JobKind::Command,
+            now,
+            axes,
+            report,
+            Vec::new(),
+        );
+    }
+
+    /// A MotorCommand for one compact device or Orion motor: its axis as
+    /// `built`, or the refusal.
+    fn device_command(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        cmd: &MotorCommand,
+        built: Result<(Axis, Report), motorwire_translate::Refusal>,
+    ) {
+        let label = Some(("motor_id", cmd.motor_id.clone()));
+        match built {
+            Ok((axis, report)) => self.command_job(now, origin, number, label, vec![axis], report),
+            Err(r) => {
+                let e = ErrorBody::new(ErrorKind::Refused, r.to_string());
+                self.refuse(origin, number, label, e);
+            }
         }
     }
 
@@ -1679,77 +1691,7 @@ impl Bridge {
             self.refuse(origin, number, label, e);
             return;
         }
-        if cmd.motors.iter().any(|a| {
-            self.joint_index(&a.motor_id).is_some_and(|ji| {
-                self.joints
-                    .get(ji)
-                    .is_some_and(|j| j.compact.is_some() || j.orion.is_some())
-            })
-        }) {
-            self.multi_axis_mixed(now, origin, number, cmd);
-            return;
-        }
-        let position = |m: &str| {
-            let j = self.joints.get(self.joint_index(m)?)?;
-            j.feedback.as_ref().map(|f| f.position)
-        };
-        match multi_axis_to_irpc(&self.map, cmd, &position) {
-            Ok(t) => {
-                let mut axes = Vec::new();
-                for (a, c) in cmd.motors.iter().zip(t.value.commands) {
-                    let Some(joint) = self.joint_index(&a.motor_id) else {
-                        let e = ErrorBody::new(
-                            ErrorKind::Refused,
-                            format!("{} is not an iRPC joint of the bus map", a.motor_id),
-                        )
-                        .about(a.motor_id.clone());
-                        self.refuse(origin, number, label, e);
-                        return;
-                    };
-                    axes.push(Axis::new(a.motor_id.clone(), joint, c.payloads));
-                }
-                if cmd.sync_mode == Some(SyncMode::Sequential) {
-                    // One after another: each starts once the one before
-                    // it arrived, so each must be a move to a target.
-                    if let Some((a, i)) = axes
-                        .iter()
-                        .zip(&cmd.motors)
-                        .find(|(ax, _)| ax.target.is_none())
-                    {
-                        let e = ErrorBody::new(
-                            ErrorKind::Refused,
-                            format!(
-                                "{}: sync_mode sequential runs position moves one after another, each once the one before arrived; a {} command has no arrival to wait for",
-                                a.motor,
-                                i.control_mode.name()
-                            ),
-                        )
-                        .about(a.motor.clone());
-                        self.refuse(origin, number, label, e);
-                        return;
-                    }
-                    for (k, a) in axes.iter_mut().enumerate().skip(1) {
-                        a.after = Some(k - 1);
-                    }
-                }
-                self.open_job(
-                    Some(origin),
-                    number,
-                    label,
-                    JobKind::Command,
-                    now,
-                    axes,
-                    t.report,
-                    Vec::new(),
-                );
-            }
-            Err(r) => self.refuse(
-                origin,
-                number,
-                label,
-                ErrorBody::new(ErrorKind::Refused, r.to_string()),
-            ),
-        }
+        self.multi_axis_jobs(now, origin, number, cmd);
     }
 
     // ---- the emergency stop ------------------------------------------------

@@ -30,7 +30,7 @@ use motorwire_orion::{ArmCommand, CONTROLLER_ID, Motor, MotorValues, Output, Qua
 use motorwire_translate::Report;
 
 use super::Bridge;
-use crate::job::{Axis, AxisState, JobKind, Order, OrionOrder};
+use crate::job::{Axis, AxisState, Order, OrionOrder};
 use crate::joints::StepRef;
 use crate::output::{Event, Output as BridgeOutput};
 
@@ -514,36 +514,6 @@ impl Bridge {
         ))
     }
 
-    /// A MotorCommand for Orion motor `ji`: gated (nothing left for the
-    /// controller to clamp) and translated to its direct-control value.
-    pub(super) fn orion_motor_command(
-        &mut self,
-        now: Duration,
-        origin: crate::output::Origin,
-        number: u64,
-        ji: usize,
-        cmd: &motorwire_wia::MotorCommand,
-    ) {
-        let label = Some(("motor_id", cmd.motor_id.clone()));
-        match self.orion_axis(ji, cmd) {
-            Ok((axis, report)) => self.open_job(
-                Some(origin),
-                number,
-                label,
-                JobKind::Command,
-                now,
-                vec![axis],
-                report,
-                Vec::new(),
-            ),
-            Err(r) => {
-                let e =
-                    crate::output::ErrorBody::new(crate::output::ErrorKind::Refused, r.to_string());
-                self.refuse(origin, number, label, e);
-            }
-        }
-    }
-
     /// `cmd` for Orion motor `ji`, gated and translated, as its axis.
     pub(super) fn orion_axis(
         &self,
@@ -609,16 +579,7 @@ impl Bridge {
             .into_iter()
             .map(|(ji, name)| Axis::of(name, ji, [Order::Orion(OrionOrder::Command(command))]))
             .collect();
-        self.open_job(
-            Some(origin),
-            number,
-            label,
-            JobKind::Command,
-            now,
-            axes,
-            Report::default(),
-            Vec::new(),
-        );
+        self.command_job(now, origin, number, label, axes, Report::default());
     }
 
     /// The refusal for an Orion motor among `motors` when no controller

@@ -18,7 +18,7 @@ use motorwire_translate::Report;
 
 use super::Bridge;
 use crate::classify::RequestKind;
-use crate::job::{AwaitKind, Awaiting, Axis, JobKind};
+use crate::job::{AwaitKind, Awaiting, Axis};
 use crate::output::{ErrorBody, ErrorKind, Event, Origin, Output};
 
 /// How long past its Ack timeouts a request line waits for its answer.
@@ -169,16 +169,7 @@ impl Bridge {
         };
         let Some(request) = start else {
             let axis = Axis::new(motor.to_owned(), ji, [Payload::StopCalibration]);
-            self.open_job(
-                Some(origin),
-                number,
-                label,
-                JobKind::Command,
-                now,
-                vec![axis],
-                Report::default(),
-                Vec::new(),
-            );
+            self.command_job(now, origin, number, label, vec![axis], Report::default());
             return;
         };
         // A calibration moves the joint: refused as a motion is.
@@ -216,16 +207,7 @@ impl Bridge {
         awaiting: Awaiting,
     ) {
         let id = self.next_job;
-        self.open_job(
-            Some(origin),
-            number,
-            label,
-            JobKind::Command,
-            now,
-            vec![axis],
-            Report::default(),
-            Vec::new(),
-        );
+        self.command_job(now, origin, number, label, vec![axis], Report::default());
         // Not done yet (a job is taken out once done): it waits.
         if let Some(job) = self.jobs.get_mut(&id) {
             job.awaiting = Some(awaiting);
