@@ -1,0 +1,439 @@
+//! `motorwire bridge --zenoh`: bridges as separate processes on loopback,
+//! each with its simulated arm, one controller (this test), and a router
+//! in this process: commands reach only their robot, a retried query runs
+//! once, the fleet stop reaches every bridge, a killed bridge leaves the
+//! liveliness tokens within its lease, and a bridge that loses its session
+//! stops its joints.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::Child;
+use std::sync::mpsc;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use motorwire_zenoh::zenoh::{self, Wait};
+use serde_json::{Value, json};
+use zenoh::query::ConsolidationMode;
+
+const MAP: &str = "fixtures/maps/demo-arm.toml";
+
+/// The lease every participant here announces (ms): a killed bridge is
+/// forgotten within it.
+const LEASE_MS: u64 = 1000;
+
+fn now_ms() -> u128 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("motorwire-fleet-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// What every participant here shares: no multicast, a short lease.
+fn common_config(mode: &str) -> String {
+    format!(
+        r#"mode: "{mode}",
+  scouting: {{ multicast: {{ enabled: false }}, gossip: {{ enabled: false }} }},
+  transport: {{ link: {{ tx: {{ lease: {LEASE_MS}, keep_alive: 4 }} }} }},"#
+    )
+}
+
+/// A router on `port` in this process (as `zenohd` would be).
+fn router(port: u16) -> zenoh::Session {
+    let text = format!(
+        r#"{{ {} listen: {{ endpoints: ["tcp/127.0.0.1:{port}"] }} }}"#,
+        common_config("router")
+    );
+    zenoh::open(zenoh::Config::from_json5(&text).unwrap())
+        .wait()
+        .unwrap()
+}
+
+/// A client of the router on `port` (the controller).
+fn client(port: u16) -> zenoh::Session {
+    zenoh::open(zenoh::Config::from_json5(&client_config(port)).unwrap())
+        .wait()
+        .unwrap()
+}
+
+fn client_config(port: u16) -> String {
+    format!(
+        r#"{{ {} connect: {{ endpoints: ["tcp/127.0.0.1:{port}"], timeout_ms: 5000 }} }}"#,
+        common_config("client")
+    )
+}
+
+/// A bridge process, killed when dropped; its standard input held open.
+struct Bridge {
+    child: Child,
+    robot: String,
+    log: PathBuf,
+    events: mpsc::Receiver<Value>,
+}
+
+impl Drop for Bridge {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// `motorwire bridge --bus sim --zenoh --robot ROBOT` connected to the
+/// router on `port`, its executions logged in `dir`.
+fn bridge(dir: &Path, port: u16, robot: &str, extra: &[&str]) -> Bridge {
+    let config = dir.join(format!("{robot}.json5"));
+    std::fs::write(&config, client_config(port)).unwrap();
+    let log = dir.join(format!("{robot}.log"));
+    let (config_s, log_s) = (config.display().to_string(), log.display().to_string());
+    let mut args = vec![
+        "bridge", "--map", MAP, "--bus", "sim", "--sim-log", &log_s, "--zenoh", "--robot", robot,
+        "--zenoh-config", &config_s,
+    ];
+    args.extend_from_slice(extra);
+    let mut child = common::spawn(&args);
+    let out = child.stdout.take().unwrap();
+    let (tx, events) = mpsc::channel();
+    thread::spawn(move || {
+        for line in BufReader::new(out).lines() {
+            let Ok(line) = line else { return };
+            if let Ok(v) = serde_json::from_str::<Value>(&line)
+                && tx.send(v).is_err()
+            {
+                return;
+            }
+        }
+    });
+    let err = child.stderr.take().unwrap();
+    thread::spawn(move || {
+        for line in BufReader::new(err).lines() {
+            let Ok(_) = line else { return };
+        }
+    });
+    Bridge {
+        child,
+        robot: robot.to_owned(),
+        log,
+        events,
+    }
+}
+
+/// The robots whose liveliness token the controller sees now.
+fn alive(session: &zenoh::Session) -> Vec<String> {
+    let replies = session
+        .liveliness()
+        .get("motorwire/*/alive")
+        .timeout(Duration::from_secs(2))
+        .wait()
+        .unwrap();
+    let mut robots: Vec<String> = std::iter::from_fn(|| replies.recv().ok())
+        .filter_map(|r| r.result().ok().map(|s| s.key_expr().as_str().to_owned()))
+        .filter_map(|k| k.split('/').nth(1).map(str::to_owned))
+        .collect();
+    robots.sort();
+    robots
+}
+
+/// Waits until the controller sees exactly `robots` alive and ready (the
+/// joints' startup done: `ready` on the bridge's standard output).
+fn wait_alive(session: &zenoh::Session, robots: &[&str], limit: Duration) {
+    let end = Instant::now() + limit;
+    loop {
+        let seen = alive(session);
+        if seen == robots {
+            return;
+        }
+        assert!(Instant::now() < end, "alive: {seen:?}, expected {robots:?}");
+        thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn wait_ready(b: &Bridge) {
+    wait_event(b, Duration::from_secs(20), |v| v["event"] == "ready");
+}
+
+fn wait_event(b: &Bridge, limit: Duration, what: impl Fn(&Value) -> bool) -> Value {
+    let end = Instant::now() + limit;
+    loop {
+        let left = end.saturating_duration_since(Instant::now());
+        match b.events.recv_timeout(left) {
+            Ok(v) if what(&v) => return v,
+            Ok(_) => {}
+            Err(e) => panic!("{}: not seen within {limit:?}: {e}", b.robot),
+        }
+    }
+}
+
+/// Sends `payload` as a query on `robot`'s cmd; every reply, in order.
+fn query(session: &zenoh::Session, robot: &str, payload: &str, limit: Duration) -> Vec<Value> {
+    let replies = session
+        .get(format!("motorwire/{robot}/cmd?controller=test"))
+        .payload(payload)
+        .consolidation(ConsolidationMode::None)
+        .timeout(limit)
+        .wait()
+        .unwrap();
+    std::iter::from_fn(|| replies.recv().ok())
+        .map(|r| {
+            let s = r.result().unwrap();
+            assert_eq!(s.key_expr().as_str(), format!("motorwire/{robot}/cmd"));
+            serde_json::from_str(&s.payload().try_to_string().unwrap()).unwrap()
+        })
+        .collect()
+}
+
+fn move_line(motor: &str, setpoint: f64, request_id: &str) -> String {
+    format!(
+        r#"{{"motor_id":"{motor}","timestamp":{},"control_mode":"position","setpoint":{setpoint},"request_id":"{request_id}"}}"#,
+        now_ms()
+    )
+}
+
+/// The targets the simulated joints were sent (`SetTargetV2`), from the log.
+fn moves(log: &Path) -> Vec<f64> {
+    std::fs::read_to_string(log)
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .filter_map(|e| e["payload"]["SetTargetV2"]["target_angle"].as_f64())
+        .collect()
+}
+
+#[test]
+fn commands_reach_only_their_robot_and_a_retried_query_runs_once() {
+    let dir = scratch("route");
+    let port = free_port();
+    let _router = router(port);
+    let a = bridge(&dir, port, "a", &[]);
+    let b = bridge(&dir, port, "b", &[]);
+    let controller = client(port);
+    wait_alive(&controller, &["a", "b"], Duration::from_secs(20));
+    wait_ready(&a);
+    wait_ready(&b);
+
+    let line = move_line("elbow", 30.0, "move-1");
+    let first = query(&controller, "a", &line, Duration::from_secs(10));
+    assert_eq!(first.len(), 2, "{first:?}");
+    assert_eq!(first[0]["ok"], json!(true));
+    assert_eq!(first[0]["motor_id"], json!("elbow"));
+    assert_eq!(first[0]["acked"], json!(["elbow"]));
+    assert_eq!(first[0]["arrival_follows"], json!(true));
+    assert_eq!(first[1]["arrived"], json!(true));
+    assert_eq!(first[1]["motors"][0]["target"], json!(30.0));
+    // The retry (same controller, same request_id, even a newer
+    // timestamp) is answered with the first replies, exactly.
+    let again = query(
+        &controller,
+        "a",
+        &move_line("elbow", 30.0, "move-1"),
+        Duration::from_secs(10),
+    );
+    assert_eq!(again, first);
+    // Executed once, on a alone.
+    assert_eq!(moves(&a.log), vec![30.0]);
+    assert_eq!(moves(&b.log), Vec::<f64>::new());
+
+    // A query and its retry while the first is in progress: one
+    // execution, both answered the same.
+    let line = move_line("elbow", 60.0, "move-2");
+    let retry = {
+        let line = line.clone();
+        let port2 = port;
+        thread::spawn(move || {
+            thread::sleep(Duration::from_millis(5));
+            let c = client(port2);
+            let replies = c
+                .get("motorwire/a/cmd?controller=test")
+                .payload(line)
+                .consolidation(ConsolidationMode::None)
+                .timeout(Duration::from_secs(10))
+                .wait()
+                .unwrap();
+            std::iter::from_fn(|| replies.recv().ok())
+                .map(|r| {
+                    serde_json::from_str::<Value>(
+                        &r.result().unwrap().payload().try_to_string().unwrap(),
+                    )
+                    .unwrap()
+                })
+                .collect::<Vec<_>>()
+        })
+    };
+    let first = query(&controller, "a", &line, Duration::from_secs(10));
+    let second = retry.join().unwrap();
+    assert_eq!(first.len(), 2, "{first:?}");
+    assert_eq!(first[1]["arrived"], json!(true));
+    assert_eq!(second, first);
+    assert_eq!(moves(&a.log), vec![30.0, 60.0]);
+
+    // The same id from another controller is another command.
+    let other = controller
+        .get("motorwire/b/cmd?controller=other")
+        .payload(move_line("elbow", 20.0, "move-1"))
+        .consolidation(ConsolidationMode::None)
+        .timeout(Duration::from_secs(10))
+        .wait()
+        .unwrap();
+    let n = std::iter::from_fn(|| other.recv().ok()).count();
+    assert_eq!(n, 2);
+    assert_eq!(moves(&b.log), vec![20.0]);
+    assert_eq!(moves(&a.log), vec![30.0, 60.0]);
+
+    // A multi-axis command's command_id is its id.
+    let multi = format!(
+        r#"{{"command_id":"multi-1","timestamp":{},"motors":[{{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":10}}],"sync_mode":"independent"}}"#,
+        now_ms()
+    );
+    let first = query(&controller, "b", &multi, Duration::from_secs(10));
+    assert_eq!(first[0]["command_id"], json!("multi-1"), "{first:?}");
+    let again = query(&controller, "b", &multi, Duration::from_secs(10));
+    assert_eq!(again, first);
+    assert_eq!(moves(&b.log), vec![20.0, 10.0]);
+}
+
+#[test]
+fn the_fleet_stop_reaches_every_bridge_and_the_release_is_per_robot() {
+    let dir = scratch("estop");
+    let port = free_port();
+    let _router = router(port);
+    let robots = ["r1", "r2", "r3"];
+    let bridges: Vec<Bridge> = robots.iter().map(|r| bridge(&dir, port, r, &[])).collect();
+    let controller = client(port);
+    wait_alive(&controller, &robots, Duration::from_secs(20));
+    bridges.iter().for_each(wait_ready);
+    let results = controller
+        .declare_subscriber("motorwire/*/estop/result")
+        .wait()
+        .unwrap();
+    thread::sleep(Duration::from_millis(200));
+    controller.put("motorwire/fleet/estop", "{}").wait().unwrap();
+    let mut stopped = Vec::new();
+    for _ in &robots {
+        let s = results.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+        let v: Value = serde_json::from_str(&s.payload().try_to_string().unwrap()).unwrap();
+        assert_eq!(v["ok"], json!(true), "{v}");
+        assert_eq!(v["emergency_stop"], json!(true), "{v}");
+        assert!(v["stop_latency_us"].as_u64().is_some(), "{v}");
+        stopped.push(s.key_expr().as_str().split('/').nth(1).unwrap().to_owned());
+    }
+    stopped.sort();
+    assert_eq!(stopped, robots);
+    for b in &bridges {
+        wait_event(b, Duration::from_secs(5), |v| v["event"] == "emergency_stop");
+    }
+    // Latched everywhere: a move is refused.
+    for r in robots {
+        let replies = query(&controller, r, &move_line("elbow", 40.0, "after-stop"), Duration::from_secs(5));
+        assert_eq!(replies.len(), 1, "{replies:?}");
+        assert_eq!(replies[0]["error"]["kind"], json!("emergency_stop_latched"));
+    }
+    // Released on r2 alone: r2 moves, r1 and r3 are still latched.
+    let released = query(&controller, "r2", r#"{"emergency_stop": false}"#, Duration::from_secs(5));
+    assert_eq!(released[0]["released"], json!(true), "{released:?}");
+    let moved = query(&controller, "r2", &move_line("elbow", 40.0, "after-release"), Duration::from_secs(10));
+    assert_eq!(moved[0]["ok"], json!(true), "{moved:?}");
+    let refused = query(&controller, "r1", &move_line("elbow", 40.0, "after-release"), Duration::from_secs(5));
+    assert_eq!(refused[0]["error"]["kind"], json!("emergency_stop_latched"));
+    assert_eq!(moves(&bridges[0].log), Vec::<f64>::new());
+    assert_eq!(moves(&bridges[1].log), vec![40.0]);
+    assert_eq!(moves(&bridges[2].log), Vec::<f64>::new());
+
+    // One robot's own stop reaches it alone.
+    controller.put("motorwire/r2/estop", "").wait().unwrap();
+    let s = results.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+    assert_eq!(s.key_expr().as_str(), "motorwire/r2/estop/result");
+    assert!(results.recv_timeout(Duration::from_millis(500)).unwrap().is_none());
+}
+
+#[test]
+fn a_killed_bridge_leaves_the_liveliness_tokens_within_its_lease() {
+    let dir = scratch("kill");
+    let port = free_port();
+    let _router = router(port);
+    let a = bridge(&dir, port, "ka", &[]);
+    let mut b = bridge(&dir, port, "kb", &[]);
+    let controller = client(port);
+    wait_alive(&controller, &["ka", "kb"], Duration::from_secs(20));
+    let gone = controller
+        .liveliness()
+        .declare_subscriber("motorwire/*/alive")
+        .wait()
+        .unwrap();
+    let killed = Instant::now();
+    b.child.kill().unwrap();
+    let s = gone.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+    let after = killed.elapsed();
+    assert_eq!(s.key_expr().as_str(), "motorwire/kb/alive");
+    assert_eq!(s.kind(), zenoh::sample::SampleKind::Delete);
+    // SIGKILL closes the socket: the router sees it at once; a lease is
+    // the bound when the machine itself goes.
+    assert!(after <= Duration::from_millis(LEASE_MS + 500), "{after:?}");
+    assert_eq!(alive(&controller), ["ka"]);
+    drop(a);
+}
+
+#[test]
+fn a_bridge_that_loses_its_session_while_joints_move_stops_them() {
+    let dir = scratch("lost");
+    let port = free_port();
+    let router = router(port);
+    let b = bridge(&dir, port, "lost", &["--zenoh-session-timeout", "300"]);
+    let controller = client(port);
+    wait_alive(&controller, &["lost"], Duration::from_secs(20));
+    wait_ready(&b);
+    // A long, slow move: the query stays in progress until it arrives.
+    let line = format!(
+        r#"{{"motor_id":"elbow","timestamp":{},"control_mode":"position","setpoint":140,"velocity_limit":10,"request_id":"slow"}}"#,
+        now_ms()
+    );
+    let replies = controller
+        .get("motorwire/lost/cmd?controller=test")
+        .payload(line)
+        .consolidation(ConsolidationMode::None)
+        .timeout(Duration::from_secs(30))
+        .wait()
+        .unwrap();
+    let result: Value = serde_json::from_str(
+        &replies.recv().unwrap().result().unwrap().payload().try_to_string().unwrap(),
+    )
+    .unwrap();
+    assert_eq!(result["ok"], json!(true), "{result}");
+    assert_eq!(result["arrival_follows"], json!(true), "{result}");
+    // The network goes: the router is gone.
+    let lost = Instant::now();
+    router.close().wait().unwrap();
+    let stop = wait_event(&b, Duration::from_secs(5), |v| v["event"] == "emergency_stop");
+    let after = lost.elapsed();
+    assert_eq!(stop["cause"], json!("input"), "{stop}");
+    assert!(
+        after >= Duration::from_millis(300) && after <= Duration::from_millis(300 + 700),
+        "stopped {after:?} after the session was lost"
+    );
+    let arrival = wait_event(&b, Duration::from_secs(5), |v| v["event"] == "stopped" || v.get("arrived").is_some());
+    drop(arrival);
+    // The joint was stopped short of its target.
+    assert_eq!(moves(&b.log), vec![140.0]);
+}
