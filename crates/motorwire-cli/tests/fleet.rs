@@ -105,8 +105,15 @@ impl Drop for Bridge {
 /// `motorwire bridge --bus sim --zenoh --robot ROBOT` connected to the
 /// router on `port`, its executions logged in `dir`.
 fn bridge(dir: &Path, port: u16, robot: &str, extra: &[&str]) -> Bridge {
+    bridge_with(dir, &client_config(port), robot, extra)
+}
+
+/// `motorwire bridge --bus sim --zenoh --robot ROBOT` with the Zenoh
+/// configuration `config`.
+fn bridge_with(dir: &Path, config: &str, robot: &str, extra: &[&str]) -> Bridge {
+    let config_text = config;
     let config = dir.join(format!("{robot}.json5"));
-    std::fs::write(&config, client_config(port)).unwrap();
+    std::fs::write(&config, config_text).unwrap();
     let log = dir.join(format!("{robot}.log"));
     let (config_s, log_s) = (config.display().to_string(), log.display().to_string());
     let mut args = vec![
@@ -448,4 +455,114 @@ fn a_bridge_that_loses_its_session_while_joints_move_stops_them() {
         .map(|e| e["payload"].clone())
         .collect();
     assert_eq!(elbow.last(), Some(&json!("Deactivate")), "{elbow:?}");
+}
+
+/// The documented deployment configuration `name` (crates/motorwire-zenoh/
+/// config/NAME.json5) made to run here: the test-only certificate, the
+/// passwords of `dir`, the router on `port`.
+fn deployment(name: &str, dir: &Path, port: u16) -> String {
+    let certs = common::root().join("crates/motorwire-cli/tests/fleet-test-certs");
+    std::fs::read_to_string(
+        common::root().join(format!("crates/motorwire-zenoh/config/{name}.json5")),
+    )
+    .unwrap()
+    .replace(
+        "/etc/motorwire/zenoh/passwords.txt",
+        &dir.join("passwords.txt").display().to_string(),
+    )
+    .replace("/etc/motorwire/zenoh/", &format!("{}/", certs.display()))
+    .replace("tls/0.0.0.0:7447", &format!("tls/127.0.0.1:{port}"))
+    .replace("tls/fleet-router.example:7447", &format!("tls/127.0.0.1:{port}"))
+    .replace("lease: 3000", &format!("lease: {LEASE_MS}"))
+    .replace("CHANGE-ME-controller", "controller-secret")
+    .replace("CHANGE-ME-bridge", "bridge-secret")
+    .replace("CHANGE-ME-observer", "observer-secret")
+}
+
+/// Opens a session as an intruder would: `Ok` when it got one (it may
+/// still reach nobody).
+fn try_open(config: &str) -> Option<zenoh::Session> {
+    // Give up on the router after a second instead of trying forever.
+    let config = config.replace("timeout_ms: -1", "timeout_ms: 1000");
+    zenoh::open(zenoh::Config::from_json5(&config).unwrap())
+        .wait()
+        .ok()
+}
+
+#[test]
+fn without_the_controllers_credentials_no_participant_moves_a_joint() {
+    let dir = scratch("secure");
+    std::fs::write(
+        dir.join("passwords.txt"),
+        "controller:controller-secret\nbridge:bridge-secret\nobserver:observer-secret\n",
+    )
+    .unwrap();
+    let port = free_port();
+    let _router = zenoh::open(
+        zenoh::Config::from_json5(&deployment("router", &dir, port)).unwrap(),
+    )
+    .wait()
+    .unwrap();
+    let b = bridge_with(&dir, &deployment("bridge", &dir, port), "secure", &[]);
+    let controller = zenoh::open(
+        zenoh::Config::from_json5(&deployment("controller", &dir, port)).unwrap(),
+    )
+    .wait()
+    .unwrap();
+    wait_alive(&controller, &["secure"], Duration::from_secs(20));
+    wait_ready(&b);
+    let line = |id: &str| move_line("elbow", 50.0, id);
+
+    // An observer, with its own credentials: it hears the feedback, and
+    // its commands and stops go nowhere.
+    let observer = try_open(&deployment("observer", &dir, port)).unwrap();
+    let feedback = observer
+        .declare_subscriber("motorwire/secure/feedback/elbow")
+        .wait()
+        .unwrap();
+    let heard = feedback.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+    let heard: Value = serde_json::from_str(&heard.payload().try_to_string().unwrap()).unwrap();
+    assert_eq!(heard["motor_id"], json!("elbow"));
+    assert_eq!(query(&observer, "secure", &line("observer"), Duration::from_secs(2)), Vec::<Value>::new());
+    observer.put("motorwire/fleet/estop", "{}").wait().unwrap();
+    observer.put("motorwire/secure/estop", "{}").wait().unwrap();
+
+    // No password, a wrong password, the bridge's password (a bridge
+    // serves, it does not command), and no TLS: nothing.
+    let controller_doc = deployment("controller", &dir, port);
+    let intruders = [
+        controller_doc.replace(
+            r#"usrpwd: { user: "controller", password: "controller-secret" },"#,
+            "",
+        ),
+        controller_doc.replace("controller-secret", "guessed"),
+        controller_doc
+            .replace(r#"user: "controller""#, r#"user: "bridge""#)
+            .replace("controller-secret", "bridge-secret"),
+        controller_doc
+            .replace(&format!("tls/127.0.0.1:{port}"), &format!("tcp/127.0.0.1:{port}"))
+            .replace(r#"protocols: ["tls"]"#, r#"protocols: ["tcp"]"#),
+    ];
+    assert!(intruders.iter().all(|i| *i != controller_doc));
+    for (n, config) in intruders.iter().enumerate() {
+        if let Some(s) = try_open(config) {
+            let replies = query(&s, "secure", &line(&format!("intruder-{n}")), Duration::from_secs(2));
+            assert_eq!(replies, Vec::<Value>::new(), "intruder {n}");
+            s.put("motorwire/fleet/estop", "{}").wait().unwrap();
+        }
+    }
+    thread::sleep(Duration::from_millis(300));
+    assert_eq!(moves(&b.log), Vec::<f64>::new());
+    while let Ok(v) = b.events.try_recv() {
+        assert_ne!(v["event"], json!("emergency_stop"), "{v}");
+    }
+
+    // The controller moves the joint, and stops the fleet.
+    let replies = query(&controller, "secure", &line("controller"), Duration::from_secs(10));
+    assert_eq!(replies.len(), 2, "{replies:?}");
+    assert_eq!(replies[0]["ok"], json!(true));
+    assert_eq!(replies[1]["arrived"], json!(true));
+    assert_eq!(moves(&b.log), vec![50.0]);
+    controller.put("motorwire/fleet/estop", "{}").wait().unwrap();
+    wait_event(&b, Duration::from_secs(5), |v| v["event"] == "emergency_stop");
 }
