@@ -49,8 +49,10 @@ pub(crate) fn start(args: &ZenohArgs, input: InputSender) -> Result<Option<Fleet
     };
     let mut config = FleetConfig::new(&robot, zenoh).map_err(|e| format!("--robot {e}"))?;
     config.session_timeout = Duration::from_millis(args.zenoh_session_timeout.max(1));
-    let participant = Participant::start(config, input).map_err(|e| format!("--zenoh: {e}"))?;
-    crate::console::note!("motorwire bridge: in the fleet as motorwire/{robot}");
+    let participant = Participant::start(config, input, |what: &str| {
+        crate::console::note!("motorwire bridge: {what}");
+    })
+    .map_err(|e| format!("--zenoh: {e}"))?;
     Ok(Some(Fleet(participant)))
 }
 

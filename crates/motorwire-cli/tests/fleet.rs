@@ -117,8 +117,18 @@ fn bridge_with(dir: &Path, config: &str, robot: &str, extra: &[&str]) -> Bridge 
     let log = dir.join(format!("{robot}.log"));
     let (config_s, log_s) = (config.display().to_string(), log.display().to_string());
     let mut args = vec![
-        "bridge", "--map", MAP, "--bus", "sim", "--sim-log", &log_s, "--zenoh", "--robot", robot,
-        "--zenoh-config", &config_s,
+        "bridge",
+        "--map",
+        MAP,
+        "--bus",
+        "sim",
+        "--sim-log",
+        &log_s,
+        "--zenoh",
+        "--robot",
+        robot,
+        "--zenoh-config",
+        &config_s,
     ];
     args.extend_from_slice(extra);
     let mut child = common::spawn(&args);
@@ -342,10 +352,16 @@ fn the_fleet_stop_reaches_every_bridge_and_the_release_is_per_robot() {
         .wait()
         .unwrap();
     thread::sleep(Duration::from_millis(200));
-    controller.put("motorwire/fleet/estop", "{}").wait().unwrap();
+    controller
+        .put("motorwire/fleet/estop", "{}")
+        .wait()
+        .unwrap();
     let mut stopped = Vec::new();
     for _ in &robots {
-        let s = results.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+        let s = results
+            .recv_timeout(Duration::from_secs(5))
+            .unwrap()
+            .unwrap();
         let v: Value = serde_json::from_str(&s.payload().try_to_string().unwrap()).unwrap();
         assert_eq!(v["ok"], json!(true), "{v}");
         assert_eq!(v["emergency_stop"], json!(true), "{v}");
@@ -355,20 +371,42 @@ fn the_fleet_stop_reaches_every_bridge_and_the_release_is_per_robot() {
     stopped.sort();
     assert_eq!(stopped, robots);
     for b in &bridges {
-        wait_event(b, Duration::from_secs(5), |v| v["event"] == "emergency_stop");
+        wait_event(b, Duration::from_secs(5), |v| {
+            v["event"] == "emergency_stop"
+        });
     }
     // Latched everywhere: a move is refused.
     for r in robots {
-        let replies = query(&controller, r, &move_line("elbow", 40.0, "after-stop"), Duration::from_secs(5));
+        let replies = query(
+            &controller,
+            r,
+            &move_line("elbow", 40.0, "after-stop"),
+            Duration::from_secs(5),
+        );
         assert_eq!(replies.len(), 1, "{replies:?}");
         assert_eq!(replies[0]["error"]["kind"], json!("emergency_stop_latched"));
     }
     // Released on r2 alone: r2 moves, r1 and r3 are still latched.
-    let released = query(&controller, "r2", r#"{"emergency_stop": false}"#, Duration::from_secs(5));
+    let released = query(
+        &controller,
+        "r2",
+        r#"{"emergency_stop": false}"#,
+        Duration::from_secs(5),
+    );
     assert_eq!(released[0]["released"], json!(true), "{released:?}");
-    let moved = query(&controller, "r2", &move_line("elbow", 40.0, "after-release"), Duration::from_secs(10));
+    let moved = query(
+        &controller,
+        "r2",
+        &move_line("elbow", 40.0, "after-release"),
+        Duration::from_secs(10),
+    );
     assert_eq!(moved[0]["ok"], json!(true), "{moved:?}");
-    let refused = query(&controller, "r1", &move_line("elbow", 40.0, "after-release"), Duration::from_secs(5));
+    let refused = query(
+        &controller,
+        "r1",
+        &move_line("elbow", 40.0, "after-release"),
+        Duration::from_secs(5),
+    );
     assert_eq!(refused[0]["error"]["kind"], json!("emergency_stop_latched"));
     assert_eq!(moves(&bridges[0].log), Vec::<f64>::new());
     assert_eq!(moves(&bridges[1].log), vec![40.0]);
@@ -376,9 +414,17 @@ fn the_fleet_stop_reaches_every_bridge_and_the_release_is_per_robot() {
 
     // One robot's own stop reaches it alone.
     controller.put("motorwire/r2/estop", "").wait().unwrap();
-    let s = results.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+    let s = results
+        .recv_timeout(Duration::from_secs(5))
+        .unwrap()
+        .unwrap();
     assert_eq!(s.key_expr().as_str(), "motorwire/r2/estop/result");
-    assert!(results.recv_timeout(Duration::from_millis(500)).unwrap().is_none());
+    assert!(
+        results
+            .recv_timeout(Duration::from_millis(500))
+            .unwrap()
+            .is_none()
+    );
 }
 
 #[test]
@@ -430,7 +476,14 @@ fn a_bridge_that_loses_its_session_while_joints_move_stops_them() {
         .wait()
         .unwrap();
     let result: Value = serde_json::from_str(
-        &replies.recv().unwrap().result().unwrap().payload().try_to_string().unwrap(),
+        &replies
+            .recv()
+            .unwrap()
+            .result()
+            .unwrap()
+            .payload()
+            .try_to_string()
+            .unwrap(),
     )
     .unwrap();
     assert_eq!(result["ok"], json!(true), "{result}");
@@ -438,7 +491,9 @@ fn a_bridge_that_loses_its_session_while_joints_move_stops_them() {
     // The network goes: the router is gone.
     let lost = Instant::now();
     router.close().wait().unwrap();
-    let stop = wait_event(&b, Duration::from_secs(5), |v| v["event"] == "emergency_stop");
+    let stop = wait_event(&b, Duration::from_secs(5), |v| {
+        v["event"] == "emergency_stop"
+    });
     let after = lost.elapsed();
     assert_eq!(stop["cause"], json!("input"), "{stop}");
     assert!(
@@ -472,7 +527,10 @@ fn deployment(name: &str, dir: &Path, port: u16) -> String {
     )
     .replace("/etc/motorwire/zenoh/", &format!("{}/", certs.display()))
     .replace("tls/0.0.0.0:7447", &format!("tls/127.0.0.1:{port}"))
-    .replace("tls/fleet-router.example:7447", &format!("tls/127.0.0.1:{port}"))
+    .replace(
+        "tls/fleet-router.example:7447",
+        &format!("tls/127.0.0.1:{port}"),
+    )
     .replace("lease: 3000", &format!("lease: {LEASE_MS}"))
     .replace("CHANGE-ME-controller", "controller-secret")
     .replace("CHANGE-ME-bridge", "bridge-secret")
@@ -498,17 +556,15 @@ fn without_the_controllers_credentials_no_participant_moves_a_joint() {
     )
     .unwrap();
     let port = free_port();
-    let _router = zenoh::open(
-        zenoh::Config::from_json5(&deployment("router", &dir, port)).unwrap(),
-    )
-    .wait()
-    .unwrap();
+    let _router =
+        zenoh::open(zenoh::Config::from_json5(&deployment("router", &dir, port)).unwrap())
+            .wait()
+            .unwrap();
     let b = bridge_with(&dir, &deployment("bridge", &dir, port), "secure", &[]);
-    let controller = zenoh::open(
-        zenoh::Config::from_json5(&deployment("controller", &dir, port)).unwrap(),
-    )
-    .wait()
-    .unwrap();
+    let controller =
+        zenoh::open(zenoh::Config::from_json5(&deployment("controller", &dir, port)).unwrap())
+            .wait()
+            .unwrap();
     wait_alive(&controller, &["secure"], Duration::from_secs(20));
     wait_ready(&b);
     let line = |id: &str| move_line("elbow", 50.0, id);
@@ -520,10 +576,21 @@ fn without_the_controllers_credentials_no_participant_moves_a_joint() {
         .declare_subscriber("motorwire/secure/feedback/elbow")
         .wait()
         .unwrap();
-    let heard = feedback.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+    let heard = feedback
+        .recv_timeout(Duration::from_secs(5))
+        .unwrap()
+        .unwrap();
     let heard: Value = serde_json::from_str(&heard.payload().try_to_string().unwrap()).unwrap();
     assert_eq!(heard["motor_id"], json!("elbow"));
-    assert_eq!(query(&observer, "secure", &line("observer"), Duration::from_secs(2)), Vec::<Value>::new());
+    assert_eq!(
+        query(
+            &observer,
+            "secure",
+            &line("observer"),
+            Duration::from_secs(2)
+        ),
+        Vec::<Value>::new()
+    );
     observer.put("motorwire/fleet/estop", "{}").wait().unwrap();
     observer.put("motorwire/secure/estop", "{}").wait().unwrap();
 
@@ -540,13 +607,21 @@ fn without_the_controllers_credentials_no_participant_moves_a_joint() {
             .replace(r#"user: "controller""#, r#"user: "bridge""#)
             .replace("controller-secret", "bridge-secret"),
         controller_doc
-            .replace(&format!("tls/127.0.0.1:{port}"), &format!("tcp/127.0.0.1:{port}"))
+            .replace(
+                &format!("tls/127.0.0.1:{port}"),
+                &format!("tcp/127.0.0.1:{port}"),
+            )
             .replace(r#"protocols: ["tls"]"#, r#"protocols: ["tcp"]"#),
     ];
     assert!(intruders.iter().all(|i| *i != controller_doc));
     for (n, config) in intruders.iter().enumerate() {
         if let Some(s) = try_open(config) {
-            let replies = query(&s, "secure", &line(&format!("intruder-{n}")), Duration::from_secs(2));
+            let replies = query(
+                &s,
+                "secure",
+                &line(&format!("intruder-{n}")),
+                Duration::from_secs(2),
+            );
             assert_eq!(replies, Vec::<Value>::new(), "intruder {n}");
             s.put("motorwire/fleet/estop", "{}").wait().unwrap();
         }
@@ -558,11 +633,140 @@ fn without_the_controllers_credentials_no_participant_moves_a_joint() {
     }
 
     // The controller moves the joint, and stops the fleet.
-    let replies = query(&controller, "secure", &line("controller"), Duration::from_secs(10));
+    let replies = query(
+        &controller,
+        "secure",
+        &line("controller"),
+        Duration::from_secs(10),
+    );
     assert_eq!(replies.len(), 2, "{replies:?}");
     assert_eq!(replies[0]["ok"], json!(true));
     assert_eq!(replies[1]["arrived"], json!(true));
     assert_eq!(moves(&b.log), vec![50.0]);
-    controller.put("motorwire/fleet/estop", "{}").wait().unwrap();
-    wait_event(&b, Duration::from_secs(5), |v| v["event"] == "emergency_stop");
+    controller
+        .put("motorwire/fleet/estop", "{}")
+        .wait()
+        .unwrap();
+    wait_event(&b, Duration::from_secs(5), |v| {
+        v["event"] == "emergency_stop"
+    });
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+/// BENCHMARKS.md's fleet numbers: the fleet stop's latency for 1, 4 and 16
+/// bridges, and command round trips through Zenoh and the local socket of
+/// the same bridge. `cargo test --release -p motorwire-cli --test fleet --
+/// --ignored --nocapture fleet_numbers`
+#[test]
+#[ignore = "a benchmark: run it by name, in release"]
+fn fleet_numbers() {
+    let dir = scratch("numbers");
+    let port = free_port();
+    let _router = router(port);
+    let controller = client(port);
+    let results = controller
+        .declare_subscriber("motorwire/*/estop/result")
+        .wait()
+        .unwrap();
+    let sock = dir.join("b00.sock");
+    let sock_input = format!("unix:{}", sock.display());
+    let mut bridges: Vec<Bridge> = Vec::new();
+    println!(
+        "| bridges | stops | put → last stop result, median | p99 | max | bridges' line → last stop frame, median of the slowest | p99 |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- |");
+    for (n, trials) in [(1usize, 200usize), (4, 200), (16, 100)] {
+        while bridges.len() < n {
+            let name = format!("b{:02}", bridges.len());
+            let extra: Vec<&str> = if bridges.is_empty() {
+                vec!["--input", &sock_input]
+            } else {
+                vec![]
+            };
+            bridges.push(bridge(&dir, port, &name, &extra));
+        }
+        let names: Vec<String> = (0..n).map(|i| format!("b{i:02}")).collect();
+        let want: Vec<&str> = names.iter().map(String::as_str).collect();
+        wait_alive(&controller, &want, Duration::from_secs(60));
+        thread::sleep(Duration::from_secs(1));
+        let mut put_to_last = Vec::new();
+        let mut frame = Vec::new();
+        for _ in 0..trials {
+            let t0 = Instant::now();
+            controller
+                .put("motorwire/fleet/estop", "{}")
+                .wait()
+                .unwrap();
+            let mut slowest = 0u64;
+            for _ in 0..n {
+                let s = results
+                    .recv_timeout(Duration::from_secs(10))
+                    .unwrap()
+                    .unwrap();
+                let v: Value = serde_json::from_str(&s.payload().try_to_string().unwrap()).unwrap();
+                slowest = slowest.max(v["stop_latency_us"].as_u64().unwrap());
+            }
+            put_to_last.push(t0.elapsed().as_secs_f64() * 1000.0);
+            frame.push(slowest as f64 / 1000.0);
+            for r in &names {
+                let replies = query(
+                    &controller,
+                    r,
+                    r#"{"emergency_stop": false}"#,
+                    Duration::from_secs(5),
+                );
+                assert_eq!(replies[0]["released"], json!(true), "{replies:?}");
+            }
+            thread::sleep(Duration::from_millis(10));
+        }
+        put_to_last.sort_by(f64::total_cmp);
+        frame.sort_by(f64::total_cmp);
+        println!(
+            "| {n} | {trials} | {:.2} ms | {:.2} ms | {:.2} ms | {:.3} ms | {:.3} ms |",
+            percentile(&put_to_last, 0.5),
+            percentile(&put_to_last, 0.99),
+            put_to_last[put_to_last.len() - 1],
+            percentile(&frame, 0.5),
+            percentile(&frame, 0.99),
+        );
+    }
+    // Round trips, one at a time, for 3 s each, to bridge b00 (16 bridges
+    // running): through Zenoh (controller → router → bridge and back) and
+    // through its local socket.
+    let line = r#"{"query":"limits","motor_id":"elbow"}"#;
+    let window = Duration::from_secs(3);
+    let t0 = Instant::now();
+    let mut zenoh_n = 0u64;
+    while t0.elapsed() < window {
+        let replies = query(&controller, "b00", line, Duration::from_secs(5));
+        assert_eq!(replies[0]["ok"], json!(true), "{replies:?}");
+        zenoh_n += 1;
+    }
+    let zenoh_rate = zenoh_n as f64 / t0.elapsed().as_secs_f64();
+    let mut s = std::os::unix::net::UnixStream::connect(&sock).unwrap();
+    let mut r = BufReader::new(s.try_clone().unwrap());
+    let t0 = Instant::now();
+    let mut unix_n = 0u64;
+    while t0.elapsed() < window {
+        use std::io::Write;
+        writeln!(s, "{line}").unwrap();
+        loop {
+            let mut l = String::new();
+            r.read_line(&mut l).unwrap();
+            if l.starts_with(r#"{"ok""#) {
+                break;
+            }
+        }
+        unix_n += 1;
+    }
+    let unix_rate = unix_n as f64 / t0.elapsed().as_secs_f64();
+    println!();
+    println!("| path (16 bridges running) | round trips | per second |");
+    println!("| --- | --- | --- |");
+    println!("| Zenoh query (controller → router → bridge → back) | {zenoh_n} | {zenoh_rate:.0} |");
+    println!("| local socket (unix:) | {unix_n} | {unix_rate:.0} |");
 }

@@ -126,7 +126,9 @@ impl IdMemory {
     /// How many ids are remembered for `controller`.
     #[cfg(test)]
     fn ids_of(&mut self, controller: &str) -> usize {
-        self.controllers.get_mut(controller).map_or(0, |ids| ids.len())
+        self.controllers
+            .get_mut(controller)
+            .map_or(0, |ids| ids.len())
     }
 }
 

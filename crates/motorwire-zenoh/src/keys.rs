@@ -86,11 +86,12 @@ fn check_chunk(s: &str) -> Result<(), &'static str> {
     if s.len() > 64 {
         return Err("longer than 64 bytes");
     }
-    if s
-        .chars()
+    if s.chars()
         .any(|c| matches!(c, '/' | '*' | '$' | '?' | '#') || c.is_whitespace() || c.is_control())
     {
-        return Err("a key-expression chunk cannot hold `/`, `*`, `$`, `?`, `#`, spaces or control characters");
+        return Err(
+            "a key-expression chunk cannot hold `/`, `*`, `$`, `?`, `#`, spaces or control characters",
+        );
     }
     Ok(())
 }
@@ -103,10 +104,22 @@ mod tests {
     fn keys_of_a_robot() {
         let k = RobotKeys::new("arm-1").ok();
         let k = k.as_ref();
-        assert_eq!(k.map(RobotKeys::cmd).as_deref(), Some("motorwire/arm-1/cmd"));
-        assert_eq!(k.map(RobotKeys::estop).as_deref(), Some("motorwire/arm-1/estop"));
-        assert_eq!(k.map(RobotKeys::alive).as_deref(), Some("motorwire/arm-1/alive"));
-        assert_eq!(k.map(RobotKeys::event).as_deref(), Some("motorwire/arm-1/event"));
+        assert_eq!(
+            k.map(RobotKeys::cmd).as_deref(),
+            Some("motorwire/arm-1/cmd")
+        );
+        assert_eq!(
+            k.map(RobotKeys::estop).as_deref(),
+            Some("motorwire/arm-1/estop")
+        );
+        assert_eq!(
+            k.map(RobotKeys::alive).as_deref(),
+            Some("motorwire/arm-1/alive")
+        );
+        assert_eq!(
+            k.map(RobotKeys::event).as_deref(),
+            Some("motorwire/arm-1/event")
+        );
         assert_eq!(
             k.and_then(|k| k.feedback("elbow")).as_deref(),
             Some("motorwire/arm-1/feedback/elbow")
@@ -116,7 +129,18 @@ mod tests {
 
     #[test]
     fn names_that_are_not_one_chunk_are_refused() {
-        for bad in ["", "a/b", "*", "a*", "$x", "a?b", "a#", "a b", "fleet", &"x".repeat(65)] {
+        for bad in [
+            "",
+            "a/b",
+            "*",
+            "a*",
+            "$x",
+            "a?b",
+            "a#",
+            "a b",
+            "fleet",
+            &"x".repeat(65),
+        ] {
             assert!(RobotKeys::new(bad).is_err(), "{bad:?} accepted");
         }
         assert!(RobotKeys::new(&"x".repeat(64)).is_ok());

@@ -15,9 +15,9 @@ use tokio::sync::mpsc;
 use zenoh::bytes::Encoding;
 use zenoh::query::Query;
 
+use crate::ZenohError;
 use crate::ids::{CONTROLLERS, IDS_PER_CONTROLLER, IdMemory, Recalled};
 use crate::keys::{FLEET_ESTOP, RobotKeys};
-use crate::ZenohError;
 
 /// The first origin of a command query; every query gets the next one.
 /// The line interface's origins (standard input 0, clients from 1) stay
@@ -42,6 +42,9 @@ pub const MAX_QUERIES_IN_PROGRESS: usize = 2048;
 /// Feedback and event lines waiting to be published; beyond this they are
 /// dropped (counted in [`Participant::dropped`]), never the engine held up.
 pub const PUBLISH_QUEUE: usize = 4096;
+
+/// How long to wait before trying to open the session again.
+pub const RETRY_OPEN: Duration = Duration::from_secs(1);
 
 /// How often the session's links are looked at.
 const WATCH_PERIOD: Duration = Duration::from_millis(20);
@@ -112,15 +115,21 @@ pub struct Participant {
 }
 
 impl Participant {
-    /// Opens the session, declares the queryable, the stop subscribers
-    /// and the liveliness token (last, so a controller that sees the token
-    /// can command), and hands each command to `input`.
+    /// Starts the participant and returns at once: on its own threads it
+    /// opens the session (trying again every [`RETRY_OPEN`] while no router
+    /// or peer can be reached, so the bridge runs meanwhile), declares the
+    /// queryable and the stop subscribers, and last the liveliness token
+    /// (so a controller that sees the token can command). Each command is
+    /// handed to `input`. `note` is told, for a person, when the session is
+    /// open and why an attempt failed.
     ///
     /// # Errors
-    /// [`ZenohError::Zenoh`] when the session cannot be opened or a
-    /// declaration fails, [`ZenohError::Runtime`] when the threads cannot
-    /// be started.
-    pub fn start(config: FleetConfig, input: InputSender) -> Result<Self, ZenohError> {
+    /// [`ZenohError::Runtime`] when the threads cannot be started.
+    pub fn start(
+        config: FleetConfig,
+        input: InputSender,
+        note: impl Fn(&str) + Send + Sync + 'static,
+    ) -> Result<Self, ZenohError> {
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .thread_name("motorwire-zenoh")
@@ -128,55 +137,62 @@ impl Participant {
             .build()?;
         let (replies, replies_rx) = mpsc::unbounded_channel();
         let (publish, publish_rx) = mpsc::channel(PUBLISH_QUEUE);
-        let stops = Arc::new(AtomicU64::new(STOP_ORIGINS));
-        let task = runtime.block_on(async {
-            let session = zenoh::open(config.zenoh).await.map_err(ZenohError::zenoh)?;
-            let keys = config.keys;
-            let queryable = session
-                .declare_queryable(keys.cmd())
-                .await
-                .map_err(ZenohError::zenoh)?;
-            let mut subscribers = Vec::new();
-            for key in [FLEET_ESTOP.to_owned(), keys.estop()] {
-                let input = input.clone();
-                let stops = Arc::clone(&stops);
-                let s = session
-                    .declare_subscriber(key)
-                    .callback(move |_sample| {
-                        // A fresh origin: a stop never waits behind another
-                        // origin's lines.
-                        let origin = Origin(stops.fetch_add(1, Ordering::Relaxed));
-                        input.line(origin, STOP_LINE);
-                    })
-                    .await
-                    .map_err(ZenohError::zenoh)?;
-                subscribers.push(s);
-            }
-            let token = session
-                .liveliness()
-                .declare_token(keys.alive())
-                .await
-                .map_err(ZenohError::zenoh)?;
+        let task = runtime.spawn(async move {
+            let FleetConfig {
+                keys,
+                zenoh,
+                session_timeout,
+                ids_per_controller,
+                controllers,
+            } = config;
+            let mut failed = false;
+            let session = loop {
+                match zenoh::open(zenoh.clone()).await {
+                    Ok(s) => break s,
+                    Err(e) => {
+                        // Said once, not every second.
+                        if !failed {
+                            note(&format!(
+                                "zenoh: {e}; trying again every {RETRY_OPEN:?} (the bridge runs meanwhile)"
+                            ));
+                            failed = true;
+                        }
+                        tokio::time::sleep(RETRY_OPEN).await;
+                    }
+                }
+            };
+            let stops = Arc::new(AtomicU64::new(STOP_ORIGINS));
+            let declared = declare(&session, &keys, &input, &stops).await;
+            let (queryable, subscribers, token) = match declared {
+                Ok(d) => d,
+                Err(e) => {
+                    note(&format!("{e}; the bridge is not in the fleet"));
+                    let _ = session.close().await;
+                    return;
+                }
+            };
+            note(&format!("in the fleet as motorwire/{}", keys.robot()));
             let state = State {
                 keys,
                 input,
                 next_origin: QUERY_ORIGINS,
                 stops,
                 pending: HashMap::new(),
-                ids: IdMemory::new(config.ids_per_controller, config.controllers),
+                ids: IdMemory::new(ids_per_controller, controllers),
                 moving: BTreeSet::new(),
-                timeout: config.session_timeout,
+                timeout: session_timeout,
             };
-            let task = tokio::spawn(state.run(
-                session,
-                queryable,
-                subscribers,
-                token,
-                replies_rx,
-                publish_rx,
-            ));
-            Ok::<_, ZenohError>(task)
-        })?;
+            state
+                .run(
+                    session,
+                    queryable,
+                    subscribers,
+                    token,
+                    replies_rx,
+                    publish_rx,
+                )
+                .await;
+        });
         Ok(Self {
             replies,
             publish,
@@ -241,6 +257,48 @@ impl Drop for Participant {
     }
 }
 
+/// The queryable, the stop subscribers (each put a stop on a fresh
+/// origin: a stop never waits behind another origin's lines) and the
+/// liveliness token, in that order.
+async fn declare(
+    session: &zenoh::Session,
+    keys: &RobotKeys,
+    input: &InputSender,
+    stops: &Arc<AtomicU64>,
+) -> Result<
+    (
+        zenoh::query::Queryable<zenoh::handlers::FifoChannelHandler<Query>>,
+        Vec<zenoh::pubsub::Subscriber<()>>,
+        zenoh::liveliness::LivelinessToken,
+    ),
+    ZenohError,
+> {
+    let queryable = session
+        .declare_queryable(keys.cmd())
+        .await
+        .map_err(ZenohError::zenoh)?;
+    let mut subscribers = Vec::new();
+    for key in [FLEET_ESTOP.to_owned(), keys.estop()] {
+        let input = input.clone();
+        let stops = Arc::clone(stops);
+        let s = session
+            .declare_subscriber(key)
+            .callback(move |_sample| {
+                let origin = Origin(stops.fetch_add(1, Ordering::Relaxed));
+                input.line(origin, STOP_LINE);
+            })
+            .await
+            .map_err(ZenohError::zenoh)?;
+        subscribers.push(s);
+    }
+    let token = session
+        .liveliness()
+        .declare_token(keys.alive())
+        .await
+        .map_err(ZenohError::zenoh)?;
+    Ok((queryable, subscribers, token))
+}
+
 /// A command query's line in progress.
 #[derive(Debug)]
 struct Pending {
@@ -272,7 +330,8 @@ fn command(payload: &[u8]) -> Command {
         .collect();
     bytes.push(b'\n');
     let text = match read_line(&mut std::io::Cursor::new(bytes)) {
-        Ok(ReadLine::Line(s)) => s,
+        // A blank line would get no result at all: refused instead.
+        Ok(ReadLine::Line(s)) if !s.trim().is_empty() => s,
         Ok(ReadLine::TooLong { names_stop }) => {
             return Command::Refused {
                 reason: format!("the command is over {} bytes", motorwire_bridge::MAX_LINE),
@@ -285,7 +344,7 @@ fn command(payload: &[u8]) -> Command {
                 stop: names_stop,
             };
         }
-        Ok(ReadLine::Partial(_) | ReadLine::End) | Err(_) => {
+        Ok(ReadLine::Line(_) | ReadLine::Partial(_) | ReadLine::End) | Err(_) => {
             return Command::Refused {
                 reason: "the query carried no command".to_owned(),
                 stop: false,
@@ -403,7 +462,10 @@ impl State {
     }
 
     async fn query(&mut self, q: Query) {
-        let payload = q.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+        let payload = q
+            .payload()
+            .map(|p| p.to_bytes().into_owned())
+            .unwrap_or_default();
         let controller = q.parameters().get("controller").unwrap_or("").to_owned();
         let command = if controller.len() > MAX_NAME {
             Command::Refused {
@@ -475,7 +537,10 @@ impl State {
         match command {
             Command::Line { text, .. } => self.input.line(origin, text),
             Command::Refused { reason, stop: true } => self.input.refused_stop(origin, reason),
-            Command::Refused { reason, stop: false } => self.input.refused(origin, reason),
+            Command::Refused {
+                reason,
+                stop: false,
+            } => self.input.refused(origin, reason),
         }
     }
 
@@ -562,5 +627,86 @@ impl State {
                 .encoding(Encoding::APPLICATION_JSON)
                 .await;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(text: &str, id: Option<&str>) -> Command {
+        Command::Line {
+            text: text.to_owned(),
+            id: id.map(str::to_owned),
+        }
+    }
+
+    #[test]
+    fn request_id_is_taken_out_of_the_line() {
+        assert_eq!(
+            command(br#"{"motor_id":"elbow","setpoint":3,"request_id":"r-1"}"#),
+            line(r#"{"motor_id":"elbow","setpoint":3}"#, Some("r-1"))
+        );
+        assert_eq!(
+            command(br#"{"request_id":42,"motor_id":"elbow"}"#),
+            line(r#"{"motor_id":"elbow"}"#, Some("42"))
+        );
+    }
+
+    #[test]
+    fn command_id_is_the_id_of_a_multi_axis_command_and_the_line_is_unchanged() {
+        let text = r#"{"command_id":"c1","motors":[]}"#;
+        assert_eq!(command(text.as_bytes()), line(text, Some("c1")));
+        // request_id wins, and is removed.
+        assert_eq!(
+            command(br#"{"command_id":"c1","request_id":"r"}"#),
+            line(r#"{"command_id":"c1"}"#, Some("r"))
+        );
+    }
+
+    #[test]
+    fn stops_and_releases_are_handed_over_exactly_and_carry_no_id() {
+        for text in [
+            r#"{"emergency_stop":true,"request_id":"x"}"#,
+            r#"{"emergency_stop": false}"#,
+            r#"{"emergency_stop": false, "request_id":"x"}"#,
+            r#"{"motor_id":"elbow","safety_limits":{"emergency_stop":true},"request_id":"x"}"#,
+        ] {
+            assert_eq!(command(text.as_bytes()), line(text, None), "{text}");
+        }
+    }
+
+    #[test]
+    fn a_pretty_printed_command_is_one_line() {
+        assert_eq!(
+            command(b"{\n  \"motor_id\": \"elbow\"\r\n}\n"),
+            line("{   \"motor_id\": \"elbow\"  } ", None)
+        );
+    }
+
+    #[test]
+    fn a_bad_request_id_or_an_unreadable_payload_is_refused() {
+        assert!(matches!(
+            command(br#"{"motor_id":"elbow","request_id":""}"#),
+            Command::Refused { stop: false, .. }
+        ));
+        assert!(matches!(
+            command(br#"{"motor_id":"elbow","request_id":[1]}"#),
+            Command::Refused { stop: false, .. }
+        ));
+        assert!(matches!(command(b""), Command::Refused { stop: false, .. }));
+        assert!(matches!(command(b" \n "), Command::Refused { stop: false, .. }));
+        assert!(matches!(
+            command(b"{\"emergency_stop\":true,\"x\":\"\xff\"}"),
+            Command::Refused { stop: true, .. }
+        ));
+        let long = format!(r#"{{"emergency_stop":true,"pad":"{}"}}"#, "x".repeat(70_000));
+        assert!(matches!(command(long.as_bytes()), Command::Refused { stop: true, .. }));
+    }
+
+    #[test]
+    fn json_that_is_not_an_object_goes_to_the_bridge_as_it_is() {
+        assert_eq!(command(b"[1,2]"), line("[1,2]", None));
+        assert_eq!(command(b"not json"), line("not json", None));
     }
 }
