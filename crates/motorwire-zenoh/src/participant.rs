@@ -96,7 +96,7 @@ pub fn config_from_file(path: &str) -> Result<zenoh::Config, ZenohError> {
 /// What the engine's outputs become for the participant's task.
 #[derive(Debug)]
 enum Msg {
-    Output(Output),
+    Output(Box<Output>),
     Close,
 }
 
@@ -218,11 +218,15 @@ impl Participant {
                 if !Self::owns(*origin) {
                     return false;
                 }
-                let _ = self.replies.send(Msg::Output(o.clone()));
+                let _ = self.replies.send(Msg::Output(Box::new(o.clone())));
                 true
             }
             Output::Feedback(_) | Output::Event(_) => {
-                if self.publish.try_send(Msg::Output(o.clone())).is_err() {
+                if self
+                    .publish
+                    .try_send(Msg::Output(Box::new(o.clone())))
+                    .is_err()
+                {
                     self.dropped.fetch_add(1, Ordering::Relaxed);
                 }
                 false
@@ -417,7 +421,7 @@ impl State {
             tokio::select! {
                 biased;
                 msg = replies.recv() => match msg {
-                    Some(Msg::Output(o)) => self.answer(&session, o).await,
+                    Some(Msg::Output(o)) => self.answer(&session, *o).await,
                     Some(Msg::Close) | None => break,
                 },
                 q = queryable.recv_async() => match q {
@@ -592,13 +596,16 @@ impl State {
         }
         drop(queries); // their replies are complete
         self.input.forget(origin);
-        if let Some(p) = self.pending.remove(&origin) {
-            if let Some((controller, id)) = p.id {
-                if busy {
-                    self.ids.forget(&controller, &id);
-                } else {
-                    self.ids.remember(&controller, &id, Recalled::Done(p.sent));
-                }
+        if let Some(Pending {
+            id: Some((controller, id)),
+            sent,
+            ..
+        }) = self.pending.remove(&origin)
+        {
+            if busy {
+                self.ids.forget(&controller, &id);
+            } else {
+                self.ids.remember(&controller, &id, Recalled::Done(sent));
             }
         }
     }
@@ -695,13 +702,22 @@ mod tests {
             Command::Refused { stop: false, .. }
         ));
         assert!(matches!(command(b""), Command::Refused { stop: false, .. }));
-        assert!(matches!(command(b" \n "), Command::Refused { stop: false, .. }));
+        assert!(matches!(
+            command(b" \n "),
+            Command::Refused { stop: false, .. }
+        ));
         assert!(matches!(
             command(b"{\"emergency_stop\":true,\"x\":\"\xff\"}"),
             Command::Refused { stop: true, .. }
         ));
-        let long = format!(r#"{{"emergency_stop":true,"pad":"{}"}}"#, "x".repeat(70_000));
-        assert!(matches!(command(long.as_bytes()), Command::Refused { stop: true, .. }));
+        let long = format!(
+            r#"{{"emergency_stop":true,"pad":"{}"}}"#,
+            "x".repeat(70_000)
+        );
+        assert!(matches!(
+            command(long.as_bytes()),
+            Command::Refused { stop: true, .. }
+        ));
     }
 
     #[test]
