@@ -338,6 +338,49 @@ fn commands_reach_only_their_robot_and_a_retried_query_runs_once() {
 }
 
 #[test]
+fn many_commands_in_flight_each_retried_at_once_run_at_most_once() {
+    let dir = scratch("inflight");
+    let port = free_port();
+    let _router = router(port);
+    let b = bridge(&dir, port, "busy", &[]);
+    let controller = std::sync::Arc::new(client(port));
+    wait_alive(&controller, &["busy"], Duration::from_secs(20));
+    wait_ready(&b);
+    // 20 moves of the shoulder, each sent twice at once (a controller
+    // that retried at once): 40 queries in flight.
+    let handles: Vec<_> = (0..40)
+        .map(|i| {
+            let c = std::sync::Arc::clone(&controller);
+            let setpoint = f64::from(1 + i / 2);
+            let line = move_line("shoulder_pitch", setpoint, &format!("burst-{}", i / 2));
+            thread::spawn(move || (i / 2, query(&c, "busy", &line, Duration::from_secs(20))))
+        })
+        .collect();
+    let mut answers: Vec<(i32, Vec<Value>)> =
+        handles.into_iter().map(|h| h.join().unwrap()).collect();
+    answers.sort_by_key(|(id, _)| *id);
+    let mut acked = Vec::new();
+    for pair in answers.chunks(2) {
+        let [(id, first), (_, second)] = pair else {
+            panic!("{pair:?}")
+        };
+        assert!(!first.is_empty(), "burst-{id}: no reply");
+        // Both queries of a pair got the same replies.
+        assert_eq!(first, second, "burst-{id}");
+        if first[0]["acked"] == json!(["shoulder_pitch"]) {
+            acked.push(f64::from(1 + id));
+        }
+    }
+    // Every move the bridge acked was executed exactly once; the rest
+    // (superseded by a newer one while waiting) never.
+    let mut executed = moves(&b.log);
+    executed.sort_by(f64::total_cmp);
+    acked.sort_by(f64::total_cmp);
+    assert_eq!(executed, acked);
+    assert!(!acked.is_empty());
+}
+
+#[test]
 fn the_fleet_stop_reaches_every_bridge_and_the_release_is_per_robot() {
     let dir = scratch("estop");
     let port = free_port();
@@ -496,8 +539,10 @@ fn a_bridge_that_loses_its_session_while_joints_move_stops_them() {
     });
     let after = lost.elapsed();
     assert_eq!(stop["cause"], json!("input"), "{stop}");
+    // Not before the timeout; well within Zenoh's default lease (10 s),
+    // with room for a loaded machine.
     assert!(
-        after >= Duration::from_millis(300) && after <= Duration::from_millis(300 + 700),
+        after >= Duration::from_millis(300) && after <= Duration::from_millis(2000),
         "stopped {after:?} after the session was lost"
     );
     // The joint was sent its move, then the stop (Deactivate: it brakes).
