@@ -34,7 +34,7 @@ def parse_args():
     where.add_argument("--connect", metavar="ENDPOINT", help="connect to a router or peer here, e.g. tcp/127.0.0.1:7447")
     where.add_argument("--config", metavar="FILE", help="a Zenoh configuration file (JSON5)")
     p.add_argument("--expect", type=int, default=1, help="wait until this many bridges are alive (default 1)")
-    p.add_argument("--wait", type=float, default=20.0, help="seconds to wait for them (default 20)")
+    p.add_argument("--wait", type=float, default=60.0, help="seconds to wait for them (default 60)")
     p.add_argument("--position", type=float, default=30.0, help="the elbow's target (degrees, default 30)")
     p.add_argument("--duration-ms", type=int, default=1500, help="the move's duration (default 1500 ms)")
     p.add_argument("--release", action="store_true", help="release each robot's stop at the end")
@@ -97,8 +97,14 @@ def move(session, robot, command, results):
 def main():
     args = parse_args()
     session = open_session(args)
-    stop_results = []
-    session.declare_subscriber("motorwire/*/estop/result", lambda s: stop_results.append(s))
+    stop_results, expected, all_stopped = [], [0], threading.Event()
+
+    def on_stop_result(sample):
+        stop_results.append(sample)
+        if expected[0] and len(stop_results) >= expected[0]:
+            all_stopped.set()
+
+    session.declare_subscriber("motorwire/*/estop/result", on_stop_result)
 
     robots = discover(session, args.expect, args.wait)
     print(f"bridges alive: {robots}", flush=True)
@@ -130,11 +136,10 @@ def main():
     print(f"arrived: {arrived}", flush=True)
 
     # The fleet's emergency stop: one put, every bridge.
+    expected[0] = len(robots)
     sent = time.monotonic()
     session.put("motorwire/fleet/estop", "{}")
-    end = sent + 5.0
-    while len(stop_results) < len(robots) and time.monotonic() < end:
-        time.sleep(0.01)
+    all_stopped.wait(5.0)
     took = (time.monotonic() - sent) * 1000
     stopped = sorted(str(s.key_expr).split("/")[1] for s in stop_results)
     for s in stop_results:
