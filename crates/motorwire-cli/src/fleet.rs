@@ -11,6 +11,8 @@ pub(crate) struct ZenohArgs {
     /// Join a Zenoh fleet: commands as queries on motorwire/<robot>/cmd,
     /// feedback and events published, a liveliness token, and the fleet's
     /// emergency stop (motorwire/fleet/estop), beside the other inputs.
+    /// With `--input -` the bridge still ends at the end of standard input:
+    /// to serve the fleet alone, keep it open or use `--input unix:PATH`.
     #[arg(long)]
     zenoh: bool,
     /// The robot's name in the fleet's key expressions (default: the host
