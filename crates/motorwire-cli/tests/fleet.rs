@@ -815,3 +815,36 @@ fn fleet_numbers() {
     println!("| Zenoh query (controller → router → bridge → back) | {zenoh_n} | {zenoh_rate:.0} |");
     println!("| local socket (unix:) | {unix_n} | {unix_rate:.0} |");
 }
+
+/// The control for the test above: the same deployment with its access
+/// control turned off lets the observer move the joint, so it is the
+/// rules, not the TLS or the passwords, that keep it out.
+#[test]
+fn without_the_access_control_the_observer_could_move_a_joint() {
+    let dir = scratch("no-acl");
+    std::fs::write(
+        dir.join("passwords.txt"),
+        "controller:controller-secret\nbridge:bridge-secret\nobserver:observer-secret\n",
+    )
+    .unwrap();
+    let port = free_port();
+    let router_doc = deployment("router", &dir, port);
+    let open_doc = router_doc.replacen("enabled: true", "enabled: false", 1);
+    assert_ne!(open_doc, router_doc);
+    let _router = zenoh::open(zenoh::Config::from_json5(&open_doc).unwrap())
+        .wait()
+        .unwrap();
+    let b = bridge_with(&dir, &deployment("bridge", &dir, port), "open", &[]);
+    let observer = try_open(&deployment("observer", &dir, port)).unwrap();
+    wait_alive(&observer, &["open"], Duration::from_secs(20));
+    wait_ready(&b);
+    let replies = query(
+        &observer,
+        "open",
+        &move_line("elbow", 50.0, "observer"),
+        Duration::from_secs(10),
+    );
+    assert_eq!(replies.len(), 2, "{replies:?}");
+    assert_eq!(replies[0]["ok"], json!(true));
+    assert_eq!(moves(&b.log), vec![50.0]);
+}
