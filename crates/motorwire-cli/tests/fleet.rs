@@ -545,15 +545,23 @@ fn a_bridge_that_loses_its_session_while_joints_move_stops_them() {
         after >= Duration::from_millis(300) && after <= Duration::from_millis(2000),
         "stopped {after:?} after the session was lost"
     );
-    // The joint was sent its move, then the stop (Deactivate: it brakes).
+    // The joint was sent its move, then the stop (Deactivate: it brakes),
+    // which it logs once it has executed it.
     assert_eq!(moves(&b.log), vec![140.0]);
-    let elbow: Vec<Value> = std::fs::read_to_string(&b.log)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str::<Value>(l).unwrap())
-        .filter(|e| e["joint"] == "elbow")
-        .map(|e| e["payload"].clone())
-        .collect();
+    let elbow = || -> Vec<Value> {
+        std::fs::read_to_string(&b.log)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str::<Value>(l).unwrap())
+            .filter(|e| e["joint"] == "elbow")
+            .map(|e| e["payload"].clone())
+            .collect()
+    };
+    let end = Instant::now() + Duration::from_secs(5);
+    while elbow().last() != Some(&json!("Deactivate")) && Instant::now() < end {
+        thread::sleep(Duration::from_millis(20));
+    }
+    let elbow = elbow();
     assert_eq!(elbow.last(), Some(&json!("Deactivate")), "{elbow:?}");
 }
 
@@ -678,13 +686,22 @@ fn without_the_controllers_credentials_no_participant_moves_a_joint() {
     }
 
     // The controller moves the joint, and stops the fleet.
+    let sent = Instant::now();
     let replies = query(
         &controller,
         "secure",
         &line("controller"),
         Duration::from_secs(10),
     );
-    assert_eq!(replies.len(), 2, "{replies:?}");
+    let took = sent.elapsed();
+    let seen: Vec<Value> = std::iter::from_fn(|| b.events.try_recv().ok())
+        .filter(|v| v.get("feedback").is_none())
+        .collect();
+    assert_eq!(
+        replies.len(),
+        2,
+        "{replies:?} after {took:?}; events {seen:?}"
+    );
     assert_eq!(replies[0]["ok"], json!(true));
     assert_eq!(replies[1]["arrived"], json!(true));
     assert_eq!(moves(&b.log), vec![50.0]);
