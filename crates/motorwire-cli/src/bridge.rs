@@ -95,6 +95,8 @@ pub(crate) struct Args {
     /// The bridge's own iRPC node id (its frames' CAN id).
     #[arg(long, value_parser = crate::sim::parse_node, default_value = "0x0000")]
     node: u16,
+    #[command(flatten)]
+    zenoh: crate::fleet::ZenohArgs,
 }
 
 pub(crate) fn run(args: &Args) -> u8 {
@@ -349,9 +351,15 @@ fn bridge(args: &Args) -> Result<u8, String> {
             client_queue: args.client_queue,
         },
     )?;
+    let fleet = crate::fleet::start(&args.zenoh, input.clone())?;
     let sink = {
         let router = std::sync::Arc::clone(&router);
-        move |o: &Output| router.route(o)
+        let fleet = fleet.as_ref();
+        move |o: &Output| {
+            if !fleet.is_some_and(|f| f.route(o)) {
+                router.route(o);
+            }
+        }
     };
     let result = match args.bus.as_str() {
         "sim" => {
@@ -379,6 +387,9 @@ fn bridge(args: &Args) -> Result<u8, String> {
     };
     if let Some(path) = socket_path {
         let _ = std::fs::remove_file(path);
+    }
+    if let Some(fleet) = fleet {
+        fleet.close();
     }
     let bridge = result.map_err(|e| e.to_string())?;
     let s = bridge.stats();

@@ -12,6 +12,7 @@ mod candump;
 mod compact;
 mod console;
 mod demo;
+mod fleet;
 mod input;
 mod irpc;
 mod lines;

@@ -1,0 +1,75 @@
+//! `motorwire bridge --zenoh`: the bridge joins a fleet as a Zenoh
+//! participant beside its other inputs (motorwire-zenoh).
+
+use std::time::Duration;
+
+use motorwire_bridge::{InputSender, Output};
+use motorwire_zenoh::{FleetConfig, Participant, config_from_file};
+
+#[derive(Debug, clap::Args)]
+pub(crate) struct ZenohArgs {
+    /// Join a Zenoh fleet: commands as queries on motorwire/<robot>/cmd,
+    /// feedback and events published, a liveliness token, and the fleet's
+    /// emergency stop (motorwire/fleet/estop), beside the other inputs.
+    /// With `--input -` the bridge still ends at the end of standard input:
+    /// to serve the fleet alone, keep it open or use `--input unix:PATH`.
+    #[arg(long)]
+    zenoh: bool,
+    /// The robot's name in the fleet's key expressions (default: the host
+    /// name).
+    #[arg(long, value_name = "NAME", requires = "zenoh")]
+    robot: Option<String>,
+    /// The Zenoh configuration (JSON5): mode, endpoints, TLS,
+    /// authentication, access control. Without it, Zenoh's defaults (a
+    /// peer that scouts by multicast, no TLS).
+    #[arg(long, value_name = "FILE", requires = "zenoh")]
+    zenoh_config: Option<String>,
+    /// With `--zenoh`: a session with no router or peer for this long
+    /// while joints move (or a command is in progress) stops them.
+    #[arg(long, value_name = "MS", default_value_t = 500)]
+    zenoh_session_timeout: u64,
+}
+
+/// The host's name, as a robot name (`robot` when it has none usable).
+fn host_name() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .ok()
+        .map(|s| s.trim().to_owned())
+        .filter(|s| motorwire_zenoh::RobotKeys::new(s).is_ok())
+        .unwrap_or_else(|| "robot".to_owned())
+}
+
+/// Starts the participant when `--zenoh` was given.
+pub(crate) fn start(args: &ZenohArgs, input: InputSender) -> Result<Option<Fleet>, String> {
+    if !args.zenoh {
+        return Ok(None);
+    }
+    let robot = args.robot.clone().unwrap_or_else(host_name);
+    let zenoh = match &args.zenoh_config {
+        Some(path) => config_from_file(path).map_err(|e| format!("--zenoh-config {e}"))?,
+        None => motorwire_zenoh::zenoh::Config::default(),
+    };
+    let mut config = FleetConfig::new(&robot, zenoh).map_err(|e| format!("--robot {e}"))?;
+    config.session_timeout = Duration::from_millis(args.zenoh_session_timeout.max(1));
+    let participant = Participant::start(config, input, |what: &str| {
+        crate::console::note!("motorwire bridge: {what}");
+    })
+    .map_err(|e| format!("--zenoh: {e}"))?;
+    Ok(Some(Fleet(participant)))
+}
+
+/// The running participant.
+#[derive(Debug)]
+pub(crate) struct Fleet(Participant);
+
+impl Fleet {
+    /// Takes one output; `true` when it was the participant's alone.
+    pub(crate) fn route(&self, o: &Output) -> bool {
+        self.0.route(o)
+    }
+
+    /// Withdraws the token and closes the session.
+    pub(crate) fn close(self) {
+        self.0.close();
+    }
+}

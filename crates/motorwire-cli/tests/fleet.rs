@@ -1,0 +1,887 @@
+//! `motorwire bridge --zenoh`: bridges as separate processes on loopback,
+//! each with its simulated arm, one controller (this test), and a router
+//! in this process: commands reach only their robot, a retried query runs
+//! once, the fleet stop reaches every bridge, a killed bridge leaves the
+//! liveliness tokens within its lease, and a bridge that loses its session
+//! stops its joints.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::Child;
+use std::sync::mpsc;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use motorwire_zenoh::zenoh::{self, Wait};
+use serde_json::{Value, json};
+use zenoh::query::ConsolidationMode;
+
+const MAP: &str = "fixtures/maps/demo-arm.toml";
+
+/// The lease every participant here announces (ms): a killed bridge is
+/// forgotten within it (Zenoh's default is 10 s). Not shorter: a process
+/// starved of CPU that long on a loaded machine would lose its link, and
+/// its queries in progress with it.
+const LEASE_MS: u64 = 3000;
+
+fn now_ms() -> u128 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("motorwire-fleet-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// What every participant here shares: no multicast, a short lease.
+fn common_config(mode: &str) -> String {
+    format!(
+        r#"mode: "{mode}",
+  scouting: {{ multicast: {{ enabled: false }}, gossip: {{ enabled: false }} }},
+  transport: {{ link: {{ tx: {{ lease: {LEASE_MS}, keep_alive: 4 }} }} }},"#
+    )
+}
+
+/// A router on `port` in this process (as `zenohd` would be).
+fn router(port: u16) -> zenoh::Session {
+    let text = format!(
+        r#"{{ {} listen: {{ endpoints: ["tcp/127.0.0.1:{port}"] }} }}"#,
+        common_config("router")
+    );
+    zenoh::open(zenoh::Config::from_json5(&text).unwrap())
+        .wait()
+        .unwrap()
+}
+
+/// A client of the router on `port` (the controller).
+fn client(port: u16) -> zenoh::Session {
+    zenoh::open(zenoh::Config::from_json5(&client_config(port)).unwrap())
+        .wait()
+        .unwrap()
+}
+
+fn client_config(port: u16) -> String {
+    format!(
+        r#"{{ {} connect: {{ endpoints: ["tcp/127.0.0.1:{port}"], timeout_ms: 5000 }} }}"#,
+        common_config("client")
+    )
+}
+
+/// A bridge process, killed when dropped; its standard input held open.
+struct Bridge {
+    child: Child,
+    robot: String,
+    log: PathBuf,
+    events: mpsc::Receiver<Value>,
+}
+
+impl Drop for Bridge {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// `motorwire bridge --bus sim --zenoh --robot ROBOT` connected to the
+/// router on `port`, its executions logged in `dir`.
+fn bridge(dir: &Path, port: u16, robot: &str, extra: &[&str]) -> Bridge {
+    bridge_with(dir, &client_config(port), robot, extra)
+}
+
+/// `motorwire bridge --bus sim --zenoh --robot ROBOT` with the Zenoh
+/// configuration `config`.
+fn bridge_with(dir: &Path, config: &str, robot: &str, extra: &[&str]) -> Bridge {
+    let config_text = config;
+    let config = dir.join(format!("{robot}.json5"));
+    std::fs::write(&config, config_text).unwrap();
+    let log = dir.join(format!("{robot}.log"));
+    let (config_s, log_s) = (config.display().to_string(), log.display().to_string());
+    let mut args = vec![
+        "bridge",
+        "--map",
+        MAP,
+        "--bus",
+        "sim",
+        "--sim-log",
+        &log_s,
+        "--zenoh",
+        "--robot",
+        robot,
+        "--zenoh-config",
+        &config_s,
+    ];
+    args.extend_from_slice(extra);
+    let mut child = common::spawn(&args);
+    let out = child.stdout.take().unwrap();
+    let (tx, events) = mpsc::channel();
+    thread::spawn(move || {
+        for line in BufReader::new(out).lines() {
+            let Ok(line) = line else { return };
+            if let Ok(v) = serde_json::from_str::<Value>(&line)
+                && tx.send(v).is_err()
+            {
+                return;
+            }
+        }
+    });
+    let err = child.stderr.take().unwrap();
+    let name = robot.to_owned();
+    thread::spawn(move || {
+        for line in BufReader::new(err).lines() {
+            let Ok(line) = line else { return };
+            eprintln!("[{name}] {line}");
+        }
+    });
+    Bridge {
+        child,
+        robot: robot.to_owned(),
+        log,
+        events,
+    }
+}
+
+/// The robots whose liveliness token the controller sees now.
+fn alive(session: &zenoh::Session) -> Vec<String> {
+    let replies = session
+        .liveliness()
+        .get("motorwire/*/alive")
+        .timeout(Duration::from_secs(2))
+        .wait()
+        .unwrap();
+    let mut robots: Vec<String> = std::iter::from_fn(|| replies.recv().ok())
+        .filter_map(|r| r.result().ok().map(|s| s.key_expr().as_str().to_owned()))
+        .filter_map(|k| k.split('/').nth(1).map(str::to_owned))
+        .collect();
+    robots.sort();
+    robots
+}
+
+/// Waits until the controller sees exactly `robots` alive and ready (the
+/// joints' startup done: `ready` on the bridge's standard output).
+fn wait_alive(session: &zenoh::Session, robots: &[&str], limit: Duration) {
+    let end = Instant::now() + limit;
+    loop {
+        let seen = alive(session);
+        if seen == robots {
+            return;
+        }
+        assert!(Instant::now() < end, "alive: {seen:?}, expected {robots:?}");
+        thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn wait_ready(b: &Bridge) {
+    wait_event(b, Duration::from_secs(20), |v| v["event"] == "ready");
+}
+
+fn wait_event(b: &Bridge, limit: Duration, what: impl Fn(&Value) -> bool) -> Value {
+    let end = Instant::now() + limit;
+    loop {
+        let left = end.saturating_duration_since(Instant::now());
+        match b.events.recv_timeout(left) {
+            Ok(v) if what(&v) => return v,
+            Ok(v) => {
+                if v.get("feedback").is_none() {
+                    eprintln!("[{}] {v}", b.robot);
+                }
+            }
+            Err(e) => panic!("{}: not seen within {limit:?}: {e}", b.robot),
+        }
+    }
+}
+
+/// Sends `payload` as a query on `robot`'s cmd; every reply, in order.
+fn query(session: &zenoh::Session, robot: &str, payload: &str, limit: Duration) -> Vec<Value> {
+    let replies = session
+        .get(format!("motorwire/{robot}/cmd?controller=test"))
+        .payload(payload)
+        .consolidation(ConsolidationMode::None)
+        .timeout(limit)
+        .wait()
+        .unwrap();
+    std::iter::from_fn(|| replies.recv().ok())
+        .map(|r| {
+            let s = r.result().unwrap();
+            assert_eq!(s.key_expr().as_str(), format!("motorwire/{robot}/cmd"));
+            serde_json::from_str(&s.payload().try_to_string().unwrap()).unwrap()
+        })
+        .collect()
+}
+
+fn move_line(motor: &str, setpoint: f64, request_id: &str) -> String {
+    format!(
+        r#"{{"motor_id":"{motor}","timestamp":{},"control_mode":"position","setpoint":{setpoint},"request_id":"{request_id}"}}"#,
+        now_ms()
+    )
+}
+
+/// The targets the simulated joints were sent (`SetTargetV2`), from the log.
+fn moves(log: &Path) -> Vec<f64> {
+    std::fs::read_to_string(log)
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .filter_map(|e| e["payload"]["SetTargetV2"]["target_angle"].as_f64())
+        .collect()
+}
+
+#[test]
+fn commands_reach_only_their_robot_and_a_retried_query_runs_once() {
+    let dir = scratch("route");
+    let port = free_port();
+    let _router = router(port);
+    let a = bridge(&dir, port, "a", &[]);
+    let b = bridge(&dir, port, "b", &[]);
+    let controller = client(port);
+    wait_alive(&controller, &["a", "b"], Duration::from_secs(20));
+    wait_ready(&a);
+    wait_ready(&b);
+
+    let line = move_line("elbow", 30.0, "move-1");
+    let first = query(&controller, "a", &line, Duration::from_secs(10));
+    assert_eq!(first.len(), 2, "{first:?}");
+    assert_eq!(first[0]["ok"], json!(true));
+    assert_eq!(first[0]["motor_id"], json!("elbow"));
+    assert_eq!(first[0]["acked"], json!(["elbow"]));
+    assert_eq!(first[0]["arrival_follows"], json!(true));
+    assert_eq!(first[1]["arrived"], json!(true));
+    assert_eq!(first[1]["motors"][0]["target"], json!(30.0));
+    // The retry (same controller, same request_id, even a newer
+    // timestamp) is answered with the first replies, exactly.
+    let again = query(
+        &controller,
+        "a",
+        &move_line("elbow", 30.0, "move-1"),
+        Duration::from_secs(10),
+    );
+    assert_eq!(again, first);
+    // Executed once, on a alone.
+    assert_eq!(moves(&a.log), vec![30.0]);
+    assert_eq!(moves(&b.log), Vec::<f64>::new());
+
+    // A query and its retry while the first is in progress: one
+    // execution, both answered the same.
+    let line = move_line("elbow", 60.0, "move-2");
+    let retry = {
+        let line = line.clone();
+        let port2 = port;
+        thread::spawn(move || {
+            thread::sleep(Duration::from_millis(5));
+            let c = client(port2);
+            let replies = c
+                .get("motorwire/a/cmd?controller=test")
+                .payload(line)
+                .consolidation(ConsolidationMode::None)
+                .timeout(Duration::from_secs(10))
+                .wait()
+                .unwrap();
+            std::iter::from_fn(|| replies.recv().ok())
+                .map(|r| {
+                    serde_json::from_str::<Value>(
+                        &r.result().unwrap().payload().try_to_string().unwrap(),
+                    )
+                    .unwrap()
+                })
+                .collect::<Vec<_>>()
+        })
+    };
+    let first = query(&controller, "a", &line, Duration::from_secs(10));
+    let second = retry.join().unwrap();
+    assert_eq!(first.len(), 2, "{first:?}");
+    assert_eq!(first[1]["arrived"], json!(true));
+    assert_eq!(second, first);
+    assert_eq!(moves(&a.log), vec![30.0, 60.0]);
+
+    // The same id from another controller is another command.
+    let other = controller
+        .get("motorwire/b/cmd?controller=other")
+        .payload(move_line("elbow", 20.0, "move-1"))
+        .consolidation(ConsolidationMode::None)
+        .timeout(Duration::from_secs(10))
+        .wait()
+        .unwrap();
+    let n = std::iter::from_fn(|| other.recv().ok()).count();
+    assert_eq!(n, 2);
+    assert_eq!(moves(&b.log), vec![20.0]);
+    assert_eq!(moves(&a.log), vec![30.0, 60.0]);
+
+    // A multi-axis command's command_id is its id.
+    let multi = format!(
+        r#"{{"command_id":"multi-1","timestamp":{},"motors":[{{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":10}}],"sync_mode":"independent"}}"#,
+        now_ms()
+    );
+    let first = query(&controller, "b", &multi, Duration::from_secs(10));
+    assert_eq!(first[0]["command_id"], json!("multi-1"), "{first:?}");
+    let again = query(&controller, "b", &multi, Duration::from_secs(10));
+    assert_eq!(again, first);
+    assert_eq!(moves(&b.log), vec![20.0, 10.0]);
+}
+
+#[test]
+fn many_commands_in_flight_each_retried_at_once_run_at_most_once() {
+    let dir = scratch("inflight");
+    let port = free_port();
+    let _router = router(port);
+    let b = bridge(&dir, port, "busy", &[]);
+    let controller = std::sync::Arc::new(client(port));
+    wait_alive(&controller, &["busy"], Duration::from_secs(20));
+    wait_ready(&b);
+    // 20 moves of the shoulder, each sent twice at once (a controller
+    // that retried at once): 40 queries in flight.
+    let handles: Vec<_> = (0..40)
+        .map(|i| {
+            let c = std::sync::Arc::clone(&controller);
+            let setpoint = f64::from(1 + i / 2);
+            let line = move_line("shoulder_pitch", setpoint, &format!("burst-{}", i / 2));
+            thread::spawn(move || (i / 2, query(&c, "busy", &line, Duration::from_secs(20))))
+        })
+        .collect();
+    let mut answers: Vec<(i32, Vec<Value>)> =
+        handles.into_iter().map(|h| h.join().unwrap()).collect();
+    answers.sort_by_key(|(id, _)| *id);
+    let mut acked = Vec::new();
+    for pair in answers.chunks(2) {
+        let [(id, first), (_, second)] = pair else {
+            panic!("{pair:?}")
+        };
+        assert!(!first.is_empty(), "burst-{id}: no reply");
+        // Both queries of a pair got the same replies.
+        assert_eq!(first, second, "burst-{id}");
+        if first[0]["acked"] == json!(["shoulder_pitch"]) {
+            acked.push(f64::from(1 + id));
+        }
+    }
+    // Every move the bridge acked was executed exactly once; the rest
+    // (superseded by a newer one while waiting) never.
+    let mut executed = moves(&b.log);
+    executed.sort_by(f64::total_cmp);
+    acked.sort_by(f64::total_cmp);
+    assert_eq!(executed, acked);
+    assert!(!acked.is_empty());
+}
+
+#[test]
+fn the_fleet_stop_reaches_every_bridge_and_the_release_is_per_robot() {
+    let dir = scratch("estop");
+    let port = free_port();
+    let _router = router(port);
+    let robots = ["r1", "r2", "r3"];
+    let bridges: Vec<Bridge> = robots.iter().map(|r| bridge(&dir, port, r, &[])).collect();
+    let controller = client(port);
+    wait_alive(&controller, &robots, Duration::from_secs(20));
+    bridges.iter().for_each(wait_ready);
+    let results = controller
+        .declare_subscriber("motorwire/*/estop/result")
+        .wait()
+        .unwrap();
+    thread::sleep(Duration::from_millis(200));
+    controller
+        .put("motorwire/fleet/estop", "{}")
+        .wait()
+        .unwrap();
+    let mut stopped = Vec::new();
+    for _ in &robots {
+        let s = results
+            .recv_timeout(Duration::from_secs(5))
+            .unwrap()
+            .unwrap();
+        let v: Value = serde_json::from_str(&s.payload().try_to_string().unwrap()).unwrap();
+        assert_eq!(v["ok"], json!(true), "{v}");
+        assert_eq!(v["emergency_stop"], json!(true), "{v}");
+        assert!(v["stop_latency_us"].as_u64().is_some(), "{v}");
+        stopped.push(s.key_expr().as_str().split('/').nth(1).unwrap().to_owned());
+    }
+    stopped.sort();
+    assert_eq!(stopped, robots);
+    for b in &bridges {
+        wait_event(b, Duration::from_secs(5), |v| {
+            v["event"] == "emergency_stop"
+        });
+    }
+    // Latched everywhere: a move is refused.
+    for r in robots {
+        let replies = query(
+            &controller,
+            r,
+            &move_line("elbow", 40.0, "after-stop"),
+            Duration::from_secs(5),
+        );
+        assert_eq!(replies.len(), 1, "{replies:?}");
+        assert_eq!(replies[0]["error"]["kind"], json!("emergency_stop_latched"));
+    }
+    // Released on r2 alone: r2 moves, r1 and r3 are still latched.
+    let released = query(
+        &controller,
+        "r2",
+        r#"{"emergency_stop": false}"#,
+        Duration::from_secs(5),
+    );
+    assert_eq!(released[0]["released"], json!(true), "{released:?}");
+    let moved = query(
+        &controller,
+        "r2",
+        &move_line("elbow", 40.0, "after-release"),
+        Duration::from_secs(10),
+    );
+    assert_eq!(moved[0]["ok"], json!(true), "{moved:?}");
+    let refused = query(
+        &controller,
+        "r1",
+        &move_line("elbow", 40.0, "after-release"),
+        Duration::from_secs(5),
+    );
+    assert_eq!(refused[0]["error"]["kind"], json!("emergency_stop_latched"));
+    assert_eq!(moves(&bridges[0].log), Vec::<f64>::new());
+    assert_eq!(moves(&bridges[1].log), vec![40.0]);
+    assert_eq!(moves(&bridges[2].log), Vec::<f64>::new());
+
+    // One robot's own stop reaches it alone.
+    controller.put("motorwire/r2/estop", "").wait().unwrap();
+    let s = results
+        .recv_timeout(Duration::from_secs(5))
+        .unwrap()
+        .unwrap();
+    assert_eq!(s.key_expr().as_str(), "motorwire/r2/estop/result");
+    assert!(
+        results
+            .recv_timeout(Duration::from_millis(500))
+            .unwrap()
+            .is_none()
+    );
+}
+
+#[test]
+fn a_killed_bridge_leaves_the_liveliness_tokens_within_its_lease() {
+    let dir = scratch("kill");
+    let port = free_port();
+    let _router = router(port);
+    let a = bridge(&dir, port, "ka", &[]);
+    let mut b = bridge(&dir, port, "kb", &[]);
+    let c = bridge(&dir, port, "kc", &[]);
+    let controller = client(port);
+    wait_alive(&controller, &["ka", "kb", "kc"], Duration::from_secs(20));
+    let gone = controller
+        .liveliness()
+        .declare_subscriber("motorwire/*/alive")
+        .wait()
+        .unwrap();
+    // SIGKILL: its socket is closed, the router sees it at once.
+    let killed = Instant::now();
+    b.child.kill().unwrap();
+    let s = gone.recv_timeout(Duration::from_secs(5)).unwrap().unwrap();
+    let after = killed.elapsed();
+    assert_eq!(s.key_expr().as_str(), "motorwire/kb/alive");
+    assert_eq!(s.kind(), zenoh::sample::SampleKind::Delete);
+    assert!(after <= Duration::from_millis(500), "{after:?}");
+    assert_eq!(alive(&controller), ["ka", "kc"]);
+    // SIGSTOP: a machine that froze or whose cable is out; its socket
+    // stays open and only the lease tells.
+    let frozen = Instant::now();
+    let status = std::process::Command::new("kill")
+        .args(["-STOP", &c.child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let s = gone.recv_timeout(Duration::from_secs(10)).unwrap().unwrap();
+    let after = frozen.elapsed();
+    assert_eq!(s.key_expr().as_str(), "motorwire/kc/alive");
+    assert_eq!(s.kind(), zenoh::sample::SampleKind::Delete);
+    assert!(
+        after >= Duration::from_millis(LEASE_MS / 2)
+            && after <= Duration::from_millis(LEASE_MS + 1000),
+        "{after:?}"
+    );
+    assert_eq!(alive(&controller), ["ka"]);
+    drop(a);
+    drop(c); // killed (SIGKILL ends a stopped process too)
+}
+
+#[test]
+fn a_bridge_that_loses_its_session_while_joints_move_stops_them() {
+    let dir = scratch("lost");
+    let port = free_port();
+    let router = router(port);
+    let b = bridge(&dir, port, "lost", &["--zenoh-session-timeout", "300"]);
+    let controller = client(port);
+    wait_alive(&controller, &["lost"], Duration::from_secs(20));
+    wait_ready(&b);
+    // A long, slow move: the query stays in progress until it arrives.
+    let line = format!(
+        r#"{{"motor_id":"elbow","timestamp":{},"control_mode":"position","setpoint":140,"velocity_limit":10,"request_id":"slow"}}"#,
+        now_ms()
+    );
+    let replies = controller
+        .get("motorwire/lost/cmd?controller=test")
+        .payload(line)
+        .consolidation(ConsolidationMode::None)
+        .timeout(Duration::from_secs(30))
+        .wait()
+        .unwrap();
+    let result: Value = serde_json::from_str(
+        &replies
+            .recv()
+            .unwrap()
+            .result()
+            .unwrap()
+            .payload()
+            .try_to_string()
+            .unwrap(),
+    )
+    .unwrap();
+    assert_eq!(result["ok"], json!(true), "{result}");
+    assert_eq!(result["arrival_follows"], json!(true), "{result}");
+    // The network goes: the router is gone.
+    let lost = Instant::now();
+    router.close().wait().unwrap();
+    let stop = wait_event(&b, Duration::from_secs(5), |v| {
+        v["event"] == "emergency_stop"
+    });
+    let after = lost.elapsed();
+    assert_eq!(stop["cause"], json!("input"), "{stop}");
+    // Not before the timeout; well within Zenoh's default lease (10 s),
+    // with room for a loaded machine.
+    assert!(
+        after >= Duration::from_millis(300) && after <= Duration::from_millis(2000),
+        "stopped {after:?} after the session was lost"
+    );
+    // The joint was sent its move, then the stop (Deactivate: it brakes),
+    // which it logs once it has executed it.
+    assert_eq!(moves(&b.log), vec![140.0]);
+    let elbow = || -> Vec<Value> {
+        std::fs::read_to_string(&b.log)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str::<Value>(l).unwrap())
+            .filter(|e| e["joint"] == "elbow")
+            .map(|e| e["payload"].clone())
+            .collect()
+    };
+    let end = Instant::now() + Duration::from_secs(5);
+    while elbow().last() != Some(&json!("Deactivate")) && Instant::now() < end {
+        thread::sleep(Duration::from_millis(20));
+    }
+    let elbow = elbow();
+    assert_eq!(elbow.last(), Some(&json!("Deactivate")), "{elbow:?}");
+}
+
+/// The documented deployment configuration `name` (crates/motorwire-zenoh/
+/// config/NAME.json5) made to run here: the test-only certificate, the
+/// passwords of `dir`, the router on `port`.
+fn deployment(name: &str, dir: &Path, port: u16) -> String {
+    let certs = common::root().join("crates/motorwire-cli/tests/fleet-test-certs");
+    std::fs::read_to_string(
+        common::root().join(format!("crates/motorwire-zenoh/config/{name}.json5")),
+    )
+    .unwrap()
+    .replace(
+        "/etc/motorwire/zenoh/passwords.txt",
+        &dir.join("passwords.txt").display().to_string(),
+    )
+    .replace("/etc/motorwire/zenoh/", &format!("{}/", certs.display()))
+    .replace("tls/0.0.0.0:7447", &format!("tls/127.0.0.1:{port}"))
+    .replace(
+        "tls/fleet-router.example:7447",
+        &format!("tls/127.0.0.1:{port}"),
+    )
+    .replace("CHANGE-ME-controller", "controller-secret")
+    .replace("CHANGE-ME-bridge", "bridge-secret")
+    .replace("CHANGE-ME-observer", "observer-secret")
+}
+
+/// Opens a session as an intruder would: `Ok` when it got one (it may
+/// still reach nobody).
+fn try_open(config: &str) -> Option<zenoh::Session> {
+    // Give up on the router after a second instead of trying forever.
+    let config = config.replace("timeout_ms: -1", "timeout_ms: 1000");
+    zenoh::open(zenoh::Config::from_json5(&config).unwrap())
+        .wait()
+        .ok()
+}
+
+#[test]
+fn without_the_controllers_credentials_no_participant_moves_a_joint() {
+    let dir = scratch("secure");
+    std::fs::write(
+        dir.join("passwords.txt"),
+        "controller:controller-secret\nbridge:bridge-secret\nobserver:observer-secret\n",
+    )
+    .unwrap();
+    let port = free_port();
+    let _router =
+        zenoh::open(zenoh::Config::from_json5(&deployment("router", &dir, port)).unwrap())
+            .wait()
+            .unwrap();
+    let b = bridge_with(&dir, &deployment("bridge", &dir, port), "secure", &[]);
+    let controller =
+        zenoh::open(zenoh::Config::from_json5(&deployment("controller", &dir, port)).unwrap())
+            .wait()
+            .unwrap();
+    wait_alive(&controller, &["secure"], Duration::from_secs(20));
+    wait_ready(&b);
+    let line = |id: &str| move_line("elbow", 50.0, id);
+
+    // An observer, with its own credentials: it hears the feedback, and
+    // its commands and stops go nowhere.
+    let observer = try_open(&deployment("observer", &dir, port)).unwrap();
+    let feedback = observer
+        .declare_subscriber("motorwire/secure/feedback/elbow")
+        .wait()
+        .unwrap();
+    let heard = feedback
+        .recv_timeout(Duration::from_secs(5))
+        .unwrap()
+        .unwrap();
+    let heard: Value = serde_json::from_str(&heard.payload().try_to_string().unwrap()).unwrap();
+    assert_eq!(heard["motor_id"], json!("elbow"));
+    assert_eq!(
+        query(
+            &observer,
+            "secure",
+            &line("observer"),
+            Duration::from_secs(2)
+        ),
+        Vec::<Value>::new()
+    );
+    observer.put("motorwire/fleet/estop", "{}").wait().unwrap();
+    observer.put("motorwire/secure/estop", "{}").wait().unwrap();
+
+    // No password, a wrong password, the bridge's password (a bridge
+    // serves, it does not command), and no TLS: nothing.
+    let controller_doc = deployment("controller", &dir, port);
+    let intruders = [
+        controller_doc.replace(
+            r#"usrpwd: { user: "controller", password: "controller-secret" },"#,
+            "",
+        ),
+        controller_doc.replace("controller-secret", "guessed"),
+        controller_doc
+            .replace(r#"user: "controller""#, r#"user: "bridge""#)
+            .replace("controller-secret", "bridge-secret"),
+        controller_doc
+            .replace(
+                &format!("tls/127.0.0.1:{port}"),
+                &format!("tcp/127.0.0.1:{port}"),
+            )
+            .replace(r#"protocols: ["tls"]"#, r#"protocols: ["tcp"]"#),
+    ];
+    assert!(intruders.iter().all(|i| *i != controller_doc));
+    for (n, config) in intruders.iter().enumerate() {
+        if let Some(s) = try_open(config) {
+            let replies = query(
+                &s,
+                "secure",
+                &line(&format!("intruder-{n}")),
+                Duration::from_secs(2),
+            );
+            assert_eq!(replies, Vec::<Value>::new(), "intruder {n}");
+            s.put("motorwire/fleet/estop", "{}").wait().unwrap();
+        }
+    }
+    thread::sleep(Duration::from_millis(300));
+    assert_eq!(moves(&b.log), Vec::<f64>::new());
+    while let Ok(v) = b.events.try_recv() {
+        assert_ne!(v["event"], json!("emergency_stop"), "{v}");
+    }
+
+    // The controller moves the joint, and stops the fleet.
+    let sent = Instant::now();
+    let replies = query(
+        &controller,
+        "secure",
+        &line("controller"),
+        Duration::from_secs(10),
+    );
+    let took = sent.elapsed();
+    let seen: Vec<Value> = std::iter::from_fn(|| b.events.try_recv().ok())
+        .filter(|v| v.get("feedback").is_none())
+        .collect();
+    assert_eq!(
+        replies.len(),
+        2,
+        "{replies:?} after {took:?}; events {seen:?}"
+    );
+    assert_eq!(replies[0]["ok"], json!(true));
+    assert_eq!(replies[1]["arrived"], json!(true));
+    assert_eq!(moves(&b.log), vec![50.0]);
+    controller
+        .put("motorwire/fleet/estop", "{}")
+        .wait()
+        .unwrap();
+    wait_event(&b, Duration::from_secs(5), |v| {
+        v["event"] == "emergency_stop"
+    });
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+/// BENCHMARKS.md's fleet numbers: the fleet stop's latency for 1, 4 and 16
+/// bridges, and command round trips through Zenoh and the local socket of
+/// the same bridge. `cargo test --release -p motorwire-cli --test fleet --
+/// --ignored --nocapture fleet_numbers`
+#[test]
+#[ignore = "a benchmark: run it by name, in release"]
+fn fleet_numbers() {
+    let dir = scratch("numbers");
+    let port = free_port();
+    let _router = router(port);
+    let controller = client(port);
+    let results = controller
+        .declare_subscriber("motorwire/*/estop/result")
+        .wait()
+        .unwrap();
+    let sock = dir.join("b00.sock");
+    let sock_input = format!("unix:{}", sock.display());
+    let mut bridges: Vec<Bridge> = Vec::new();
+    println!(
+        "| bridges | stops | put → last stop result, median | p99 | max | bridges' line → last stop frame, median of the slowest | p99 |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- |");
+    for (n, trials) in [(1usize, 200usize), (4, 200), (16, 100)] {
+        while bridges.len() < n {
+            let name = format!("b{:02}", bridges.len());
+            let extra: Vec<&str> = if bridges.is_empty() {
+                vec!["--input", &sock_input]
+            } else {
+                vec![]
+            };
+            bridges.push(bridge(&dir, port, &name, &extra));
+        }
+        let names: Vec<String> = (0..n).map(|i| format!("b{i:02}")).collect();
+        let want: Vec<&str> = names.iter().map(String::as_str).collect();
+        wait_alive(&controller, &want, Duration::from_secs(60));
+        thread::sleep(Duration::from_secs(1));
+        let mut put_to_last = Vec::new();
+        let mut frame = Vec::new();
+        for _ in 0..trials {
+            let t0 = Instant::now();
+            controller
+                .put("motorwire/fleet/estop", "{}")
+                .wait()
+                .unwrap();
+            let mut slowest = 0u64;
+            for _ in 0..n {
+                let s = results
+                    .recv_timeout(Duration::from_secs(10))
+                    .unwrap()
+                    .unwrap();
+                let v: Value = serde_json::from_str(&s.payload().try_to_string().unwrap()).unwrap();
+                slowest = slowest.max(v["stop_latency_us"].as_u64().unwrap());
+            }
+            put_to_last.push(t0.elapsed().as_secs_f64() * 1000.0);
+            frame.push(slowest as f64 / 1000.0);
+            for r in &names {
+                let replies = query(
+                    &controller,
+                    r,
+                    r#"{"emergency_stop": false}"#,
+                    Duration::from_secs(5),
+                );
+                assert_eq!(replies[0]["released"], json!(true), "{replies:?}");
+            }
+            thread::sleep(Duration::from_millis(10));
+        }
+        put_to_last.sort_by(f64::total_cmp);
+        frame.sort_by(f64::total_cmp);
+        println!(
+            "| {n} | {trials} | {:.2} ms | {:.2} ms | {:.2} ms | {:.3} ms | {:.3} ms |",
+            percentile(&put_to_last, 0.5),
+            percentile(&put_to_last, 0.99),
+            put_to_last[put_to_last.len() - 1],
+            percentile(&frame, 0.5),
+            percentile(&frame, 0.99),
+        );
+    }
+    // Round trips, one at a time, for 3 s each, to bridge b00 (16 bridges
+    // running): through Zenoh (controller → router → bridge and back) and
+    // through its local socket.
+    let line = r#"{"query":"limits","motor_id":"elbow"}"#;
+    let window = Duration::from_secs(3);
+    let t0 = Instant::now();
+    let mut zenoh_n = 0u64;
+    while t0.elapsed() < window {
+        let replies = query(&controller, "b00", line, Duration::from_secs(5));
+        assert_eq!(replies[0]["ok"], json!(true), "{replies:?}");
+        zenoh_n += 1;
+    }
+    let zenoh_rate = zenoh_n as f64 / t0.elapsed().as_secs_f64();
+    let mut s = std::os::unix::net::UnixStream::connect(&sock).unwrap();
+    let mut r = BufReader::new(s.try_clone().unwrap());
+    let t0 = Instant::now();
+    let mut unix_n = 0u64;
+    while t0.elapsed() < window {
+        use std::io::Write;
+        writeln!(s, "{line}").unwrap();
+        loop {
+            let mut l = String::new();
+            r.read_line(&mut l).unwrap();
+            if l.starts_with(r#"{"ok""#) {
+                break;
+            }
+        }
+        unix_n += 1;
+    }
+    let unix_rate = unix_n as f64 / t0.elapsed().as_secs_f64();
+    println!();
+    println!("| path (16 bridges running) | round trips | per second |");
+    println!("| --- | --- | --- |");
+    println!("| Zenoh query (controller → router → bridge → back) | {zenoh_n} | {zenoh_rate:.0} |");
+    println!("| local socket (unix:) | {unix_n} | {unix_rate:.0} |");
+}
+
+/// The control for the test above: the same deployment with its access
+/// control turned off lets the observer move the joint, so it is the
+/// rules, not the TLS or the passwords, that keep it out.
+#[test]
+fn without_the_access_control_the_observer_could_move_a_joint() {
+    let dir = scratch("no-acl");
+    std::fs::write(
+        dir.join("passwords.txt"),
+        "controller:controller-secret\nbridge:bridge-secret\nobserver:observer-secret\n",
+    )
+    .unwrap();
+    let port = free_port();
+    let router_doc = deployment("router", &dir, port);
+    let open_doc = router_doc.replacen("enabled: true", "enabled: false", 1);
+    assert_ne!(open_doc, router_doc);
+    let _router = zenoh::open(zenoh::Config::from_json5(&open_doc).unwrap())
+        .wait()
+        .unwrap();
+    let b = bridge_with(&dir, &deployment("bridge", &dir, port), "open", &[]);
+    let observer = try_open(&deployment("observer", &dir, port)).unwrap();
+    wait_alive(&observer, &["open"], Duration::from_secs(20));
+    wait_ready(&b);
+    let replies = query(
+        &observer,
+        "open",
+        &move_line("elbow", 50.0, "observer"),
+        Duration::from_secs(10),
+    );
+    assert_eq!(replies.len(), 2, "{replies:?}");
+    assert_eq!(replies[0]["ok"], json!(true));
+    assert_eq!(moves(&b.log), vec![50.0]);
+}

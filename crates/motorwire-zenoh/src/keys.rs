@@ -1,0 +1,148 @@
+//! The key expressions of a robot and of the fleet.
+
+use crate::ZenohError;
+
+/// Where every bridge of the fleet listens for the fleet's emergency stop
+/// (a put, any payload).
+pub const FLEET_ESTOP: &str = "motorwire/fleet/estop";
+
+/// The name `fleet` is taken by [`FLEET_ESTOP`].
+const RESERVED: &str = "fleet";
+
+/// The key expressions of one robot, `motorwire/<robot>/...`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RobotKeys {
+    robot: String,
+}
+
+impl RobotKeys {
+    /// The keys of `robot`: a non-empty key-expression chunk (no `/`, `*`,
+    /// `$`, `?`, `#`, whitespace or control character), at most 64 bytes,
+    /// not `fleet`.
+    ///
+    /// # Errors
+    /// [`ZenohError::RobotName`] when the name cannot be used.
+    pub fn new(robot: &str) -> Result<Self, ZenohError> {
+        check_chunk(robot).map_err(|why| ZenohError::RobotName {
+            name: robot.to_owned(),
+            why,
+        })?;
+        if robot == RESERVED {
+            return Err(ZenohError::RobotName {
+                name: robot.to_owned(),
+                why: "`fleet` is the fleet's own (motorwire/fleet/estop)",
+            });
+        }
+        Ok(Self {
+            robot: robot.to_owned(),
+        })
+    }
+
+    /// The robot's name.
+    pub fn robot(&self) -> &str {
+        &self.robot
+    }
+
+    /// `motorwire/<robot>/cmd`: commands, as queries.
+    pub fn cmd(&self) -> String {
+        format!("motorwire/{}/cmd", self.robot)
+    }
+
+    /// `motorwire/<robot>/estop`: this robot's emergency stop, as a put.
+    pub fn estop(&self) -> String {
+        format!("motorwire/{}/estop", self.robot)
+    }
+
+    /// `motorwire/<robot>/estop/result`: the result line of each stop put
+    /// heard (with its `stop_latency_us`).
+    pub fn estop_result(&self) -> String {
+        format!("motorwire/{}/estop/result", self.robot)
+    }
+
+    /// `motorwire/<robot>/event`: the bridge's events.
+    pub fn event(&self) -> String {
+        format!("motorwire/{}/event", self.robot)
+    }
+
+    /// `motorwire/<robot>/alive`: the bridge's liveliness token.
+    pub fn alive(&self) -> String {
+        format!("motorwire/{}/alive", self.robot)
+    }
+
+    /// `motorwire/<robot>/feedback/<motor_id>`, or `None` when the motor's
+    /// id cannot be a key-expression chunk (its feedback is then not
+    /// published).
+    pub fn feedback(&self, motor_id: &str) -> Option<String> {
+        check_chunk(motor_id).ok()?;
+        Some(format!("motorwire/{}/feedback/{motor_id}", self.robot))
+    }
+}
+
+/// Whether `s` can be one chunk of a key expression, and why not.
+fn check_chunk(s: &str) -> Result<(), &'static str> {
+    if s.is_empty() {
+        return Err("empty");
+    }
+    if s.len() > 64 {
+        return Err("longer than 64 bytes");
+    }
+    if s.chars()
+        .any(|c| matches!(c, '/' | '*' | '$' | '?' | '#') || c.is_whitespace() || c.is_control())
+    {
+        return Err(
+            "a key-expression chunk cannot hold `/`, `*`, `$`, `?`, `#`, spaces or control characters",
+        );
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_of_a_robot() {
+        let k = RobotKeys::new("arm-1").ok();
+        let k = k.as_ref();
+        assert_eq!(
+            k.map(RobotKeys::cmd).as_deref(),
+            Some("motorwire/arm-1/cmd")
+        );
+        assert_eq!(
+            k.map(RobotKeys::estop).as_deref(),
+            Some("motorwire/arm-1/estop")
+        );
+        assert_eq!(
+            k.map(RobotKeys::alive).as_deref(),
+            Some("motorwire/arm-1/alive")
+        );
+        assert_eq!(
+            k.map(RobotKeys::event).as_deref(),
+            Some("motorwire/arm-1/event")
+        );
+        assert_eq!(
+            k.and_then(|k| k.feedback("elbow")).as_deref(),
+            Some("motorwire/arm-1/feedback/elbow")
+        );
+        assert_eq!(k.and_then(|k| k.feedback("a/b")), None);
+    }
+
+    #[test]
+    fn names_that_are_not_one_chunk_are_refused() {
+        for bad in [
+            "",
+            "a/b",
+            "*",
+            "a*",
+            "$x",
+            "a?b",
+            "a#",
+            "a b",
+            "fleet",
+            &"x".repeat(65),
+        ] {
+            assert!(RobotKeys::new(bad).is_err(), "{bad:?} accepted");
+        }
+        assert!(RobotKeys::new(&"x".repeat(64)).is_ok());
+    }
+}
