@@ -25,7 +25,7 @@ use std::time::Duration;
 
 mod orion;
 mod requests;
-pub use orion::{MAX_ORION_LINE, POLL as ORION_POLL};
+pub use orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL as ORION_POLL};
 
 use motorwire_can::CanId;
 use motorwire_can::Frame;
@@ -2615,6 +2615,24 @@ impl Bridge {
                     }
                 }
             }
+            JobKind::Deadman if !failures.is_empty() && !self.latched => {
+                // The deadman could not stop a device (its stop was never
+                // answered): when in doubt, stop everything.
+                let why = failures
+                    .iter()
+                    .map(|f| format!("{} ({})", f.motor, f.outcome.name()))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                self.emergency_stop(
+                    now,
+                    None,
+                    0,
+                    None,
+                    Vec::new(),
+                    format!("deadman: could not stop {why}"),
+                );
+                return;
+            }
             JobKind::Command | JobKind::EmergencyStop | JobKind::Release | JobKind::Deadman => {}
         }
         let Some(origin) = job.origin else { return };
@@ -3213,9 +3231,11 @@ impl Bridge {
         self.client.handle_timeout(now);
         self.drain_client();
         self.compact_timeouts(now);
+        // The deadman's stops are queued before the Orion link picks what
+        // to send next.
+        self.deadman(now);
         self.orion_timeouts(now);
         self.awaiting_timeouts(now);
-        self.deadman(now);
         // Trajectory segments now due.
         let due = self.joints_where(|j| j.wake.is_some_and(|w| now >= w));
         for ji in due {

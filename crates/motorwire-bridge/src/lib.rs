@@ -11,7 +11,9 @@ mod runtime;
 pub mod sim;
 
 pub use classify::{DEFAULT_CALIBRATION, Input, RequestKind, asks_for_stop, classify};
-pub use engine::{Bridge, BridgeConfig, BridgeStats, JointView, MAX_ORION_LINE, ORION_POLL};
+pub use engine::{
+    Bridge, BridgeConfig, BridgeStats, JointView, MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, ORION_POLL,
+};
 pub use error::BridgeError;
 pub use output::{
     ArrivalLine, ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, MotorArrival,

@@ -110,6 +110,10 @@ pub struct MotorArrival {
     pub after_ms: Option<u64>,
 }
 
+fn is_zero(n: &u64) -> bool {
+    *n == 0
+}
+
 /// The result of one input line: `{"ok":true,...}` or
 /// `{"ok":false,"error":{...},...}`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize)]
@@ -380,6 +384,10 @@ pub enum Event {
     BadOrionLine {
         /// Why.
         error: String,
+        /// Bad lines before this one that were not reported (at most ten
+        /// are a second).
+        #[serde(skip_serializing_if = "is_zero")]
+        suppressed: u64,
     },
     /// The Orion arm controller sent its boot beacon (`{"ID":32}`):
     /// `first` when it is the first heard, otherwise the controller

@@ -625,7 +625,7 @@ impl Runner {
                 Ok(Msg::BusError(e)) => sink(&Output::Event(Event::BusError { error: e })),
                 Ok(Msg::OrionLine { text, at }) => bridge.handle_orion_line(since(at), &text),
                 Ok(Msg::OrionUnreadable(error)) => {
-                    sink(&Output::Event(Event::BadOrionLine { error }));
+                    bridge.handle_orion_unreadable(since(Instant::now()), &error);
                 }
                 Ok(Msg::OrionLost(e)) => bridge.orion_link_lost(since(Instant::now()), &e),
                 Err(RecvTimeoutError::Timeout) => bridge.handle_timeout(since(Instant::now())),
@@ -675,6 +675,11 @@ fn spawn_orion(port: OrionPort, events: Sender<Msg>) -> (Sender<String>, Receive
                         let _ =
                             events.send(Msg::OrionLost("the controller's stream ended".to_owned()));
                         return;
+                    }
+                    // A line with no end within MAX_SKIP: reported, and
+                    // reading goes on (the next line starts after it).
+                    Err(e) if e.kind() == io::ErrorKind::InvalidData => {
+                        Msg::OrionUnreadable(e.to_string())
                     }
                     Err(e) => {
                         let _ = events

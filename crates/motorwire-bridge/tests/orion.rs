@@ -457,3 +457,131 @@ fn without_an_orion_controller_its_motors_are_refused() {
     );
     assert!(bridge.poll_orion_line().is_none());
 }
+
+/// Answers the line in flight by hand: `data` is the answer's DATA.
+fn answer(rig: &mut Rig, data: &str) {
+    let line = format!(r#"{{"ID":32,"MODE":1,"DATA":{data}}}"#);
+    rig.bridge.handle_orion_line(rig.now, &line);
+    rig.pump();
+}
+
+#[test]
+fn what_the_controller_reports_never_stands_for_what_was_commanded() {
+    // A controller whose feedback is the motor's actual speed, still 0
+    // while it spins up: a stop value is sent all the same.
+    let mut rig = Rig::new();
+    rig.boot();
+    rig.answering = false;
+    let from = rig.sent.len();
+    rig.line(&velocity("turntable", 150.0));
+    answer(&mut rig, r#"{"TRMF":[0,0.1,0]}"#);
+    assert_eq!(rig.result(1).unwrap()["ok"], true);
+    rig.line(&velocity("turntable", 0.0));
+    assert_eq!(
+        rig.commands_since(from),
+        [
+            r#"{"ID":32,"MODE":1,"DATA":{"TRM":150}}"#,
+            r#"{"ID":32,"MODE":1,"DATA":{"TRM":0}}"#
+        ]
+    );
+    answer(&mut rig, r#"{"TRMF":[0,0,0]}"#);
+    // And the deadman's 0 for a speed set again goes out too.
+    rig.line(&velocity("turntable", 150.0));
+    answer(&mut rig, r#"{"TRMF":[0,0.1,0]}"#);
+    let from = rig.sent.len();
+    rig.advance(Duration::from_millis(250));
+    assert!(
+        rig.commands_since(from)
+            .contains(&r#"{"ID":32,"MODE":1,"DATA":{"TRM":0}}"#),
+        "{:?}",
+        rig.sent
+    );
+    // An unsolicited report of 150 does not make a later 150 "unchanged".
+    answer(&mut rig, r#"{"TRMF":[0,0,0]}"#);
+    rig.bridge
+        .handle_orion_line(rig.now, r#"{"ID":32,"MODE":1,"DATA":{"TRMF":[150,0,0]}}"#);
+    rig.pump();
+    let from = rig.sent.len();
+    rig.line(&velocity("turntable", 150.0));
+    assert_eq!(
+        rig.commands_since(from),
+        [r#"{"ID":32,"MODE":1,"DATA":{"TRM":150}}"#]
+    );
+}
+
+#[test]
+fn an_answer_that_does_not_report_the_motors_set_acknowledges_nothing() {
+    let mut rig = Rig::new();
+    rig.boot();
+    rig.answering = false;
+    rig.line(&velocity("turntable", 150.0));
+    answer(&mut rig, "{}");
+    answer(&mut rig, r#"{"LAAF":[0,0,0]}"#);
+    assert!(rig.result(1).is_none(), "{:?}", rig.out);
+    answer(&mut rig, r#"{"TRM":[150,20,0]}"#);
+    assert_eq!(rig.result(1).unwrap()["ok"], true);
+}
+
+#[test]
+fn a_flooding_controller_cannot_flood_the_output() {
+    let mut rig = Rig::new();
+    rig.boot();
+    for _ in 0..1000 {
+        rig.bridge.handle_orion_line(rig.now, "x");
+    }
+    rig.pump();
+    let bad = |rig: &Rig| {
+        rig.out
+            .iter()
+            .filter(|v| v["event"] == "bad_orion_line")
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(bad(&rig).len(), 10);
+    assert_eq!(rig.bridge.stats().bad_frames, 1000);
+    // A second later, the next one says how many were not reported.
+    rig.advance(Duration::from_millis(1000));
+    rig.bridge.handle_orion_line(rig.now, "x");
+    rig.pump();
+    let last = bad(&rig).pop().unwrap();
+    assert_eq!(last["suppressed"], 990, "{last}");
+}
+
+#[test]
+fn a_stop_is_still_written_when_nothing_comes_from_the_controller_any_more() {
+    let mut rig = Rig::new();
+    rig.boot();
+    rig.bridge
+        .orion_link_lost(rig.now, "the controller's stream ended");
+    rig.pump();
+    let from = rig.sent.len();
+    rig.line(r#"{"emergency_stop":true}"#);
+    assert_eq!(rig.commands_since(from), [r#"{"ID":32,"MODE":2,"DATA":1}"#]);
+}
+
+#[test]
+fn a_deadman_stop_that_is_never_answered_stops_everything() {
+    let mut rig = Rig::new();
+    rig.boot();
+    rig.line(&velocity("turntable", 150.0));
+    assert_eq!(rig.result(1).unwrap()["ok"], true);
+    // The controller stops answering: the deadman's TRM 0 is sent, sent
+    // again, never answered; then the emergency stop latches.
+    rig.answering = false;
+    rig.advance(Duration::from_millis(1000));
+    let stop = rig
+        .out
+        .iter()
+        .find(|v| v["event"] == "emergency_stop")
+        .unwrap_or_else(|| panic!("{:?}", rig.out));
+    assert_eq!(
+        stop["cause"],
+        "deadman: could not stop turntable (outcome_unknown)"
+    );
+    assert!(rig.bridge.is_latched());
+    assert!(
+        rig.sent
+            .iter()
+            .any(|l| l == r#"{"ID":32,"MODE":2,"DATA":1}"#)
+    );
+}

@@ -8,7 +8,7 @@ use motorwire_zenoh::{FleetConfig, Participant, config_from_file};
 
 #[derive(Debug, clap::Args)]
 pub(crate) struct ZenohArgs {
-    /// Join a Zenoh fleet: commands as queries on motorwire/<robot>/cmd,
+    /// Join a Zenoh fleet: commands as queries on motorwire/ROBOT/cmd,
     /// feedback and events published, a liveliness token, and the fleet's
     /// emergency stop (motorwire/fleet/estop), beside the other inputs.
     /// With `--input -` the bridge still ends at the end of standard input:

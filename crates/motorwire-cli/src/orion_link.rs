@@ -1,8 +1,9 @@
 //! `motorwire bridge --orion SPEC`: the byte stream to the Orion arm
 //! controller (WIRE-FACTS §4.1).
 
-use std::io::{self, Read};
-use std::net::{TcpStream, ToSocketAddrs};
+use std::io::{self, Read, Write};
+use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 use motorwire_bridge::OrionPort;
@@ -75,6 +76,88 @@ impl Read for Patient {
     }
 }
 
+/// How long a broken TCP link waits between attempts to connect again.
+const RECONNECT_EVERY: Duration = Duration::from_millis(200);
+
+/// A TCP link to the controller that connects again when it breaks (the
+/// controller, or the gateway in front of it, restarted): the bridge sees
+/// the controller silent (its motors offline), then heard again. The
+/// reader and the writer share the connection; whichever finds it broken
+/// first connects again, and the other takes the new one.
+#[derive(Clone)]
+struct Tcp {
+    addr: SocketAddr,
+    /// The connection and how many times it was made.
+    current: Arc<Mutex<(u64, TcpStream)>>,
+}
+
+impl Tcp {
+    fn connect(addr: SocketAddr) -> io::Result<TcpStream> {
+        let s = TcpStream::connect_timeout(&addr, Duration::from_secs(5))?;
+        let _ = s.set_nodelay(true);
+        Ok(s)
+    }
+
+    /// The connection now, and its number.
+    fn stream(&self) -> io::Result<(u64, TcpStream)> {
+        let c = self.current.lock().unwrap_or_else(PoisonError::into_inner);
+        Ok((c.0, c.1.try_clone()?))
+    }
+
+    /// Connection `broken` failed: connect again (once; `Err` if that
+    /// fails), unless the other side already did.
+    fn renew(&self, broken: u64) -> io::Result<()> {
+        let mut c = self.current.lock().unwrap_or_else(PoisonError::into_inner);
+        if c.0 != broken {
+            return Ok(());
+        }
+        let s = Self::connect(self.addr)?;
+        *c = (broken + 1, s);
+        Ok(())
+    }
+}
+
+/// The reading half: it never ends; a broken connection is made again.
+struct TcpReader(Tcp);
+
+impl Read for TcpReader {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        loop {
+            let (n, mut s) = self.0.stream()?;
+            match s.read(buf) {
+                Ok(0) => {}
+                Ok(got) => return Ok(got),
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(_) => {}
+            }
+            while self.0.renew(n).is_err() {
+                std::thread::sleep(RECONNECT_EVERY);
+            }
+        }
+    }
+}
+
+/// The writing half: a write to a broken connection connects again once
+/// and writes there; if that fails too, the write fails.
+struct TcpWriter(Tcp);
+
+impl Write for TcpWriter {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        let (n, mut s) = self.0.stream()?;
+        match s.write(buf) {
+            Ok(w) => Ok(w),
+            Err(_) => {
+                self.0.renew(n)?;
+                self.0.stream()?.1.write(buf)
+            }
+        }
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.0.stream()?.1.flush()
+    }
+}
+
 /// Opens the stream `spec` names.
 pub(crate) fn open(spec: &OrionSpec) -> Result<OrionPort, String> {
     match spec {
@@ -96,15 +179,14 @@ pub(crate) fn open(spec: &OrionSpec) -> Result<OrionPort, String> {
                 .map_err(|e| format!("--orion tcp:{addr}: {e}"))?
                 .next()
                 .ok_or_else(|| format!("--orion tcp:{addr}: no such address"))?;
-            let stream = TcpStream::connect_timeout(&target, Duration::from_secs(5))
-                .map_err(|e| format!("--orion tcp:{addr}: {e}"))?;
-            let _ = stream.set_nodelay(true);
-            let reader = stream
-                .try_clone()
-                .map_err(|e| format!("--orion tcp:{addr}: {e}"))?;
+            let stream = Tcp::connect(target).map_err(|e| format!("--orion tcp:{addr}: {e}"))?;
+            let link = Tcp {
+                addr: target,
+                current: Arc::new(Mutex::new((0, stream))),
+            };
             Ok(OrionPort {
-                reader: Box::new(reader),
-                writer: Box::new(stream),
+                reader: Box::new(TcpReader(link.clone())),
+                writer: Box::new(TcpWriter(link)),
             })
         }
         OrionSpec::Serial { path, baud } => {

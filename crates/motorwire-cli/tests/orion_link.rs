@@ -334,3 +334,92 @@ fn one_multi_axis_line_moves_every_motor_of_the_map() {
     );
     assert_eq!(result(&out, 2)["emergency_stop"], true);
 }
+
+/// A TCP link that breaks (the controller's gateway restarts) is made
+/// again: the next command reaches the new connection's controller.
+#[test]
+fn a_broken_tcp_link_is_made_again() {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let (drop_tx, drop_rx) = mpsc::channel::<()>();
+    let server = thread::spawn(move || {
+        let mut sims = Vec::new();
+        for round in 0..2 {
+            let (stream, _) = listener.accept().unwrap();
+            let mut sim = sim_orion();
+            relay(
+                stream.try_clone().unwrap(),
+                sim.stdin.take().unwrap(),
+                Arc::default(),
+            );
+            relay(
+                sim.stdout.take().unwrap(),
+                stream.try_clone().unwrap(),
+                Arc::default(),
+            );
+            if round == 0 {
+                drop_rx.recv().unwrap();
+                let _ = stream.shutdown(std::net::Shutdown::Both);
+                let _ = sim.kill();
+            }
+            sims.push(sim);
+        }
+        sims
+    });
+    let map = map_file("reconnect");
+    let mut bridge = Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args([
+            "bridge",
+            "--map",
+            &map,
+            "--bus",
+            "sim",
+            "--orion",
+            &format!("tcp:{addr}"),
+            "--max-age",
+            "0",
+            "--feedback-hz",
+            "0",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stdin = bridge.stdin.take().unwrap();
+    let stdout = bridge.stdout.take().unwrap();
+    let (tx, rx) = mpsc::channel();
+    thread::spawn(move || {
+        for line in BufReader::new(stdout).lines() {
+            let Ok(line) = line else { return };
+            let _ = tx.send(serde_json::from_str::<serde_json::Value>(&line).unwrap());
+        }
+    });
+    let mut out = Vec::new();
+    let until = |out: &mut Vec<serde_json::Value>, pick: &dyn Fn(&serde_json::Value) -> bool| {
+        let end = Instant::now() + Duration::from_secs(20);
+        while !out.iter().any(pick) {
+            let left = end.saturating_duration_since(Instant::now());
+            out.push(rx.recv_timeout(left).unwrap_or_else(|_| panic!("{out:?}")));
+        }
+    };
+    until(&mut out, &|v| v["event"] == "orion_beacon");
+    stdin.write_all(format!("{TURN}\n").as_bytes()).unwrap();
+    until(&mut out, &|v| v["line"] == 1 && v.get("ok").is_some());
+    drop_tx.send(()).unwrap();
+    // The new connection's controller boots: its beacon is heard.
+    until(&mut out, &|v| {
+        v["event"] == "orion_beacon" && v["first"] == false
+    });
+    stdin.write_all(format!("{SERVO}\n").as_bytes()).unwrap();
+    until(&mut out, &|v| v["line"] == 2 && v.get("ok").is_some());
+    drop(stdin);
+    let status = bridge.wait().unwrap();
+    assert_eq!(status.code(), Some(0));
+    assert_eq!(result(&out, 1)["ok"], true, "{out:?}");
+    assert_eq!(result(&out, 2)["ok"], true, "{out:?}");
+    for mut sim in server.join().unwrap() {
+        let _ = sim.kill();
+        let _ = sim.wait();
+    }
+}

@@ -45,6 +45,11 @@ pub const POLL: Duration = Duration::from_millis(100);
 /// under 300.
 pub const MAX_ORION_LINE: usize = 4096;
 
+/// Bad lines from the controller reported as events per second, at most;
+/// the rest are counted, and the next event says how many were not
+/// reported (a flooding controller cannot flood the bridge's output).
+pub const MAX_BAD_LINE_EVENTS: u32 = 10;
+
 /// A line to the controller waiting for its answer.
 #[derive(Debug)]
 pub(super) struct Pending {
@@ -59,6 +64,8 @@ pub(super) struct Pending {
     retries: u8,
     timeout: Duration,
     deadline: Duration,
+    /// The values the line sets (its answer must report each of them).
+    sets: Vec<(Motor, f64)>,
 }
 
 impl Pending {
@@ -74,17 +81,41 @@ impl Pending {
 pub(super) struct Link {
     /// The boot beacon was heard.
     ready: bool,
-    /// The link ended: nothing more is sent.
+    /// Nothing more comes from the controller: nothing but a stop is sent.
     lost: bool,
     pub(super) pending: Option<Pending>,
     tx: VecDeque<String>,
-    /// What the controller runs each motor at, as its feedback last said.
-    known: [Option<f64>; 7],
+    /// What the bridge last set each motor to, answered by the controller
+    /// (never its feedback, which reports what the motor does now): a key
+    /// whose new value equals it is not sent again, unless the value is 0
+    /// (a stop always goes out).
+    commanded: [Option<f64>; 7],
+    /// Lines from the controller reported as bad in the current second,
+    /// when that second began, and how many were not reported since.
+    bad_in_window: u32,
+    bad_window: Duration,
+    bad_suppressed: u64,
     next_poll: Option<Duration>,
     next_id: u32,
 }
 
 impl Link {
+    /// Whether the bridge should report one more bad line now (at most
+    /// [`MAX_BAD_LINE_EVENTS`] a second); `Some(n)` with the number not
+    /// reported before it.
+    fn report_bad(&mut self, now: Duration) -> Option<u64> {
+        if now.saturating_sub(self.bad_window) >= Duration::from_secs(1) {
+            self.bad_window = now;
+            self.bad_in_window = 0;
+        }
+        if self.bad_in_window >= MAX_BAD_LINE_EVENTS {
+            self.bad_suppressed += 1;
+            return None;
+        }
+        self.bad_in_window += 1;
+        Some(std::mem::take(&mut self.bad_suppressed))
+    }
+
     /// Whether a line may go now (a stop always may).
     pub(super) fn free(&self) -> bool {
         self.ready && !self.lost && self.pending.is_none()
@@ -134,7 +165,9 @@ impl Bridge {
         step: StepRef,
         order: OrionOrder,
     ) -> Result<u32, String> {
-        if self.orion.lost {
+        // Nothing is heard from a lost link; a stop is still written, in
+        // case the controller still reads (it cannot be answered).
+        if self.orion.lost && order != OrionOrder::Command(ArmCommand::Stop) {
             return Err("the link to the Orion controller is lost".to_owned());
         }
         let id = self.orion.next_id;
@@ -205,7 +238,8 @@ impl Bridge {
                 let mut values = MotorValues::new();
                 for o in &orders {
                     if let OrionOrder::Set(m, v) = *o
-                        && self.orion.known.get(m.index()).copied().flatten() != Some(v)
+                        && (v == 0.0
+                            || self.orion.commanded.get(m.index()).copied().flatten() != Some(v))
                     {
                         values.set(m, v);
                     }
@@ -218,6 +252,16 @@ impl Bridge {
                 )
             }
         };
+        let sets = match order {
+            OrionOrder::Set(..) => orders
+                .iter()
+                .filter_map(|o| match *o {
+                    OrionOrder::Set(m, v) => Some((m, v)),
+                    OrionOrder::Command(_) => None,
+                })
+                .collect(),
+            OrionOrder::Command(_) => Vec::new(),
+        };
         self.orion.tx.push_back(line.clone());
         self.orion.pending = Some(Pending {
             msg_id: id,
@@ -228,6 +272,7 @@ impl Bridge {
             retries,
             timeout,
             deadline: now.saturating_add(timeout),
+            sets,
         });
         Ok(id)
     }
@@ -244,10 +289,7 @@ impl Bridge {
         let output = match Output::parse(line.trim()) {
             Ok(o) => o,
             Err(e) => {
-                self.stats.bad_frames += 1;
-                self.out.push_back(BridgeOutput::Event(Event::BadOrionLine {
-                    error: e.to_string(),
-                }));
+                self.orion_bad_line(now, e.to_string());
                 return;
             }
         };
@@ -258,7 +300,7 @@ impl Bridge {
                 if first || self.orion.next_poll.is_some() {
                     // The first beacon, or one after the controller had
                     // been commanded: it started again, every value 0.
-                    self.orion.known = [None; 7];
+                    self.orion.commanded = [None; 7];
                     self.out
                         .push_back(BridgeOutput::Event(Event::OrionBeacon { first }));
                 }
@@ -275,13 +317,24 @@ impl Bridge {
                 }
             }
             Output::DirectControl(fb) => {
-                for (m, f) in fb.iter() {
-                    if let Some(slot) = self.orion.known.get_mut(m.index()) {
-                        *slot = Some(f.value);
-                    }
+                if !self.orion_feedback(&fb, now) {
+                    return;
                 }
-                self.orion_feedback(&fb, now);
-                self.orion_answered(now, 1, Outcome::Acked);
+                // It answers the line in flight only if it reports every
+                // motor that line set.
+                let answers = self.orion.pending.as_ref().is_some_and(|p| {
+                    p.mode == 1 && p.sets.iter().all(|(m, _)| fb.get(*m).is_some())
+                });
+                if answers {
+                    if let Some(p) = self.orion.pending.as_ref() {
+                        for &(m, v) in &p.sets {
+                            if let Some(slot) = self.orion.commanded.get_mut(m.index()) {
+                                *slot = Some(v);
+                            }
+                        }
+                    }
+                    self.orion_answered(now, 1, Outcome::Acked);
+                }
             }
             Output::Command { succeeded } => {
                 let outcome = if succeeded {
@@ -289,9 +342,33 @@ impl Bridge {
                 } else {
                     Outcome::Nacked(NackCode(0))
                 };
+                if self.orion.pending.as_ref().is_some_and(|p| p.mode == 2) {
+                    // Stop, fold and unfold leave the speeds and actuators
+                    // at 0 and move the servo: send every value again.
+                    self.orion.commanded = [None; 7];
+                }
                 self.orion_answered(now, 2, outcome);
             }
         }
+    }
+
+    /// A line from the controller that is not one of its messages: counted,
+    /// and reported (at most [`MAX_BAD_LINE_EVENTS`] a second).
+    fn orion_bad_line(&mut self, now: Duration, error: String) {
+        self.stats.bad_frames += 1;
+        if let Some(suppressed) = self.orion.report_bad(now) {
+            self.out.push_back(BridgeOutput::Event(Event::BadOrionLine {
+                error,
+                suppressed,
+            }));
+        }
+    }
+
+    /// A line from the controller that could not be read (too long, not
+    /// UTF-8), at `now`: reported like a bad line.
+    pub fn handle_orion_unreadable(&mut self, now: Duration, reason: &str) {
+        self.now = self.now.max(now);
+        self.orion_bad_line(self.now, reason.to_owned());
     }
 
     /// The link to the controller ended (`error` says how): its motors
@@ -357,15 +434,16 @@ impl Bridge {
     }
 
     /// Direct-control feedback: each mapped motor's WIA feedback, its
-    /// motion and its arrival.
-    fn orion_feedback(&mut self, fb: &motorwire_orion::Feedback, now: Duration) {
+    /// motion and its arrival. False (and reported) when a value is not a
+    /// finite number: such a line is not an answer.
+    fn orion_feedback(&mut self, fb: &motorwire_orion::Feedback, now: Duration) -> bool {
         let ts = self.unix_ms(now);
         let Ok(list) = motorwire_translate::feedback_from_orion(&self.map, fb, ts) else {
-            self.stats.bad_frames += 1;
-            self.out.push_back(BridgeOutput::Event(Event::BadOrionLine {
-                error: "feedback with a value that is not a finite number".to_owned(),
-            }));
-            return;
+            self.orion_bad_line(
+                now,
+                "feedback with a value that is not a finite number".to_owned(),
+            );
+            return false;
         };
         for t in list {
             let f = t.value;
@@ -394,6 +472,7 @@ impl Bridge {
                 self.sequence_progress(ji, motion.0, motion.1);
             }
         }
+        true
     }
 
     /// An answer of `mode`: it acknowledges the line in flight if that
@@ -448,9 +527,14 @@ impl Bridge {
                 self.orion_done(p, Outcome::TimedOut);
             }
         }
+        // A poll never takes the link from a step waiting for it.
         if self.orion.free()
             && self.orion.next_poll.is_some_and(|t| now >= t)
             && self.joints.iter().any(|j| j.orion.is_some())
+            && !self
+                .joints
+                .iter()
+                .any(|j| j.orion.is_some() && (!j.queue.is_empty() || j.busy.is_some()))
         {
             let id = self.orion.next_id;
             self.orion.next_id = self.orion.next_id.wrapping_add(1);
@@ -466,6 +550,7 @@ impl Bridge {
                 retries: 0,
                 timeout,
                 deadline: now.saturating_add(timeout),
+                sets: Vec::new(),
             });
             self.orion.next_poll = None;
         }
