@@ -974,16 +974,7 @@ impl Bridge {
             }
             axes.push(axis);
         }
-        self.open_job(
-            Some(origin),
-            number,
-            label,
-            JobKind::Command,
-            now,
-            axes,
-            report,
-            Vec::new(),
-        );
+        self.command_job(now, origin, number, label, axes, report);
     }
 
     // ---- faults and resets ----------------------------------------------------
@@ -1450,16 +1441,7 @@ impl Bridge {
                     return;
                 }
                 let axes = vec![Axis::new(cmd.motor_id.clone(), joint, t.value.payloads)];
-                self.open_job(
-                    Some(origin),
-                    number,
-                    label,
-                    JobKind::Command,
-                    now,
-                    axes,
-                    t.report,
-                    Vec::new(),
-                );
+                self.command_job(now, origin, number, label, axes, t.report);
             }
             Err(r) => self.refuse(
                 origin,
