@@ -181,6 +181,7 @@ impl Participant {
                 ids: IdMemory::new(ids_per_controller, controllers),
                 moving: BTreeSet::new(),
                 timeout: session_timeout,
+                note: Box::new(note),
             };
             state
                 .run(
@@ -400,6 +401,8 @@ struct State {
     /// Motors whose last feedback said `in_motion`.
     moving: BTreeSet<String>,
     timeout: Duration,
+    /// Tells a person what happened to the session's links.
+    note: Box<dyn Fn(&str) + Send + Sync>,
 }
 
 impl State {
@@ -437,10 +440,19 @@ impl State {
                     let linked = session.info().routers_zid().await.next().is_some()
                         || session.info().peers_zid().await.next().is_some();
                     if linked {
+                        if lost_since.is_some() {
+                            (self.note)("zenoh: a router or peer is reachable again");
+                        }
                         had_link = true;
                         lost_since = None;
                         stopped_for_loss = false;
                     } else if had_link {
+                        if lost_since.is_none() {
+                            (self.note)(&format!(
+                                "zenoh: no router or peer is reachable; moving joints stop after {:?}",
+                                self.timeout
+                            ));
+                        }
                         let since = *lost_since.get_or_insert_with(Instant::now);
                         if !stopped_for_loss && since.elapsed() >= self.timeout && self.is_moving() {
                             stopped_for_loss = true;
