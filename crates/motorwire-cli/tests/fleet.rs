@@ -881,11 +881,11 @@ fn without_the_access_control_the_observer_could_move_a_joint() {
         &move_line("elbow", 50.0, "observer"),
         Duration::from_secs(10),
     );
-    // What this control shows is that the observer's command ran; the
-    // reply sequence itself is held by the tests above. (Under a loaded CI
-    // machine this TLS run once lost the completion reply: see the
-    // CHANGELOG's known issues.)
-    assert!(!replies.is_empty(), "{replies:?}");
+    let seen: Vec<Value> = std::iter::from_fn(|| b.events.try_recv().ok())
+        .filter(|v| v.get("feedback").is_none())
+        .collect();
+    assert_eq!(replies.len(), 2, "{replies:?}; events {seen:?}");
     assert_eq!(replies[0]["ok"], json!(true));
+    assert_eq!(replies[1]["arrived"], json!(true));
     assert_eq!(moves(&b.log), vec![50.0]);
 }

@@ -1017,3 +1017,185 @@ fn the_bridge_speaks_each_joint_its_own_wire_version() {
         );
     }
 }
+
+/// A fleet bridge killed while its joint moves: the joint is a separate
+/// process on vcan0, so it outlives the bridge. Its liveliness token
+/// leaves the router at once (the socket closes), and the joint, no longer
+/// hearing the bridge, brakes to a stop by its own watchdog, short of the
+/// target, and says why (`JointStatus.error_code` 1). The network and the
+/// bridge are in the safety chain; the joint's watchdog is the last link.
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn a_killed_fleet_bridge_leaves_the_fleet_and_its_joint_process_stops() {
+    use motorwire_zenoh::zenoh::{self, Wait};
+    const NODE: u16 = 0x40;
+    const WATCHDOG_MS: u64 = 1000;
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let common = r#"scouting: { multicast: { enabled: false }, gossip: { enabled: false } },
+  transport: { link: { tx: { lease: 3000, keep_alive: 4 } } },"#;
+    let router = zenoh::open(
+        zenoh::Config::from_json5(&format!(
+            r#"{{ mode: "router", {common} listen: {{ endpoints: ["tcp/127.0.0.1:{port}"] }} }}"#
+        ))
+        .unwrap(),
+    )
+    .wait()
+    .unwrap();
+    let client = format!(
+        r#"{{ mode: "client", {common} connect: {{ endpoints: ["tcp/127.0.0.1:{port}"], timeout_ms: 20000 }} }}"#
+    );
+    let config = std::env::temp_dir().join("motorwire-vcan-fleet.json5");
+    std::fs::write(&config, &client).unwrap();
+    // The joint's watchdog is longer than the other tests' 200 ms default
+    // (a heartbeat can come late under emulation) and still far shorter
+    // than the move.
+    let _joint = Killed(
+        motorwire()
+            .args([
+                "sim",
+                "joint",
+                "--bus",
+                "socketcan:vcan0",
+                "--node",
+                "0x40",
+                "--watchdog",
+                &WATCHDOG_MS.to_string(),
+            ])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    sleep(Duration::from_millis(300));
+    // 90° at 15 deg/s: six seconds of motion.
+    let map = std::env::temp_dir().join("motorwire-vcan-fleet-map.toml");
+    std::fs::write(
+        &map,
+        "[motors.wrist]\ndialect = \"irpc\"\nnode = 0x40\n\
+         limits = { min_position = -120, max_position = 120, max_velocity = 15, max_acceleration = 100 }\n",
+    )
+    .unwrap();
+    let mut bridge = Killed(
+        motorwire()
+            .args([
+                "bridge",
+                "--map",
+                map.to_str().unwrap(),
+                "--bus",
+                "socketcan:vcan0",
+                "--ack-timeout",
+                "500",
+                "--offline-after",
+                "5000",
+                "--max-age",
+                "0",
+                "--zenoh",
+                "--robot",
+                "vcanarm",
+                "--zenoh-config",
+                config.to_str().unwrap(),
+            ])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    // Standard input held open: the bridge serves the fleet until killed.
+    let _stdin = bridge.0.stdin.take().unwrap();
+    let stdout = bridge.0.stdout.take().unwrap();
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel::<()>();
+    std::thread::spawn(move || {
+        use std::io::BufRead;
+        for line in std::io::BufReader::new(stdout).lines() {
+            let Ok(line) = line else { return };
+            if line.contains(r#""event":"ready""#) {
+                let _ = ready_tx.send(());
+            }
+        }
+    });
+    ready_rx
+        .recv_timeout(Duration::from_secs(60))
+        .expect("the bridge's joint startup");
+    let alive = router
+        .liveliness()
+        .declare_subscriber("motorwire/vcanarm/alive")
+        .history(true)
+        .wait()
+        .unwrap();
+    let s = alive
+        .recv_timeout(Duration::from_secs(60))
+        .unwrap()
+        .expect("the bridge's liveliness token");
+    assert_eq!(s.kind(), zenoh::sample::SampleKind::Put);
+    let dump = candump();
+    let replies = router
+        .get("motorwire/vcanarm/cmd?controller=vcan")
+        .payload(
+            r#"{"motor_id":"wrist","timestamp":1,"control_mode":"position","setpoint":90,"request_id":"kill-1"}"#,
+        )
+        .timeout(Duration::from_secs(60))
+        .wait()
+        .unwrap();
+    let result = replies.recv().expect("the move's result");
+    let result: serde_json::Value =
+        serde_json::from_str(&result.result().unwrap().payload().try_to_string().unwrap()).unwrap();
+    assert_eq!(result["ok"], true, "{result}");
+    // A second into the move, the bridge dies (SIGKILL: nothing of it runs).
+    sleep(Duration::from_millis(1000));
+    let killed_at = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap();
+    let killed = Instant::now();
+    let _ = bridge.0.kill();
+    let _ = bridge.0.wait();
+    let gone = alive
+        .recv_timeout(Duration::from_secs(10))
+        .unwrap()
+        .expect("the token's withdrawal");
+    let after = killed.elapsed();
+    assert_eq!(gone.key_expr().as_str(), "motorwire/vcanarm/alive");
+    assert_eq!(gone.kind(), zenoh::sample::SampleKind::Delete);
+    assert!(after <= Duration::from_millis(3000), "{after:?}");
+    // The query in progress gets no completion.
+    if let Ok(Some(r)) = replies.recv_timeout(Duration::from_secs(2)) {
+        panic!("a reply from a killed bridge: {r:?}");
+    }
+    sleep(Duration::from_millis(WATCHDOG_MS + 1500));
+    let log = finish(dump);
+    let mut positions = Vec::new();
+    let mut watchdog_at = None;
+    for line in log.lines() {
+        let Ok(entry) = LogEntry::parse(line) else {
+            continue;
+        };
+        if entry.frame.id() != CanId::standard(NODE).unwrap() {
+            continue;
+        }
+        let Ok(m) = Message::decode_frame(WireVersion::V2_0, entry.frame.data()) else {
+            continue;
+        };
+        match m.payload {
+            Payload::Encoder(e) => positions.push((entry.timestamp, e.position)),
+            Payload::JointStatus { error_code: 1, .. } if watchdog_at.is_none() => {
+                watchdog_at = Some(entry.timestamp);
+            }
+            _ => {}
+        }
+    }
+    let watchdog_at = watchdog_at.unwrap_or_else(|| panic!("no watchdog stop: {log}"));
+    assert!(watchdog_at > killed_at, "{watchdog_at:?} {killed_at:?}");
+    let last = positions.last().unwrap().1;
+    assert!(last > 5.0 && last < 80.0, "stopped at {last}");
+    // Still since the brake: the last second's positions all equal.
+    let still: Vec<f32> = positions
+        .iter()
+        .filter(|(t, _)| *t + Duration::from_millis(1000) >= positions.last().unwrap().0)
+        .map(|(_, p)| *p)
+        .collect();
+    assert!(still.len() >= 10, "{still:?}");
+    assert!(still.iter().all(|p| *p == last), "{still:?}");
+}
