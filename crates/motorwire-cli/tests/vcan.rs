@@ -1132,8 +1132,11 @@ fn a_killed_fleet_bridge_leaves_the_fleet_and_its_joint_process_stops() {
         .expect("the bridge's liveliness token");
     assert_eq!(s.kind(), zenoh::sample::SampleKind::Put);
     let dump = candump();
+    // Every reply as it comes (Zenoh's default consolidation would keep
+    // only the last, at the end).
     let replies = router
         .get("motorwire/vcanarm/cmd?controller=vcan")
+        .consolidation(zenoh::query::ConsolidationMode::None)
         .payload(
             r#"{"motor_id":"wrist","timestamp":1,"control_mode":"position","setpoint":90,"request_id":"kill-1"}"#,
         )
