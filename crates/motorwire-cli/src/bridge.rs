@@ -290,6 +290,7 @@ fn on_signals(input: InputSender) -> Result<SignalStatus, String> {
 }
 
 fn bridge(args: &Args) -> Result<u8, String> {
+    crate::fleet::check(&args.zenoh)?;
     let map = load_map(&args.map)?;
     let orion = match &args.orion {
         Some(spec) => Some(crate::orion_link::parse(spec)?),

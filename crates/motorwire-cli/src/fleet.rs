@@ -1,18 +1,35 @@
 //! `motorwire bridge --zenoh`: the bridge joins a fleet as a Zenoh
 //! participant beside its other inputs (motorwire-zenoh).
+//!
+//! The fleet is the `fleet` cargo feature: Zenoh is most of the crates a
+//! build with it compiles, so the default build leaves it out. A binary
+//! built without it still knows the fleet's options, and answers
+//! `--zenoh` with exit 2 and the command that builds the fleet in
+//! ([`WITHOUT_FLEET`]).
 
+#[cfg(feature = "fleet")]
 use std::time::Duration;
 
 use motorwire_bridge::{InputSender, Output};
+#[cfg(feature = "fleet")]
 use motorwire_zenoh::{FleetConfig, Participant, config_from_file};
 
+/// What a binary built without the `fleet` feature answers `--zenoh` with
+/// (and says in `--help`): the exact commands that build it in.
+pub(crate) const WITHOUT_FLEET: &str = "this motorwire was built without the fleet (the `fleet` feature): build it with `cargo build --release -p motorwire-cli --features fleet` in the repository, or install it with `cargo install --path crates/motorwire-cli --features fleet`";
+
 #[derive(Debug, clap::Args)]
+#[cfg_attr(not(feature = "fleet"), allow(dead_code))]
 pub(crate) struct ZenohArgs {
     /// Join a Zenoh fleet: commands as queries on motorwire/ROBOT/cmd,
     /// feedback and events published, a liveliness token, and the fleet's
     /// emergency stop (motorwire/fleet/estop), beside the other inputs.
     /// With `--input -` the bridge still ends at the end of standard input:
     /// to serve the fleet alone, keep it open or use `--input unix:PATH`.
+    #[cfg_attr(
+        not(feature = "fleet"),
+        doc = "Not in this build: it was built without the fleet (the `fleet` feature). Build it with `cargo build --release -p motorwire-cli --features fleet` in the repository, or install it with `cargo install --path crates/motorwire-cli --features fleet`."
+    )]
     #[arg(long)]
     zenoh: bool,
     /// The robot's name in the fleet's key expressions (default: the host
@@ -30,7 +47,17 @@ pub(crate) struct ZenohArgs {
     zenoh_session_timeout: u64,
 }
 
+/// Refuses `--zenoh` in a build without the fleet, before the bridge
+/// opens anything.
+pub(crate) fn check(args: &ZenohArgs) -> Result<(), String> {
+    if args.zenoh && !cfg!(feature = "fleet") {
+        return Err(format!("--zenoh: {WITHOUT_FLEET}"));
+    }
+    Ok(())
+}
+
 /// The host's name, as a robot name (`robot` when it has none usable).
+#[cfg(feature = "fleet")]
 fn host_name() -> String {
     std::fs::read_to_string("/proc/sys/kernel/hostname")
         .ok()
@@ -40,6 +67,7 @@ fn host_name() -> String {
 }
 
 /// Starts the participant when `--zenoh` was given.
+#[cfg(feature = "fleet")]
 pub(crate) fn start(args: &ZenohArgs, input: InputSender) -> Result<Option<Fleet>, String> {
     if !args.zenoh {
         return Ok(None);
@@ -58,10 +86,24 @@ pub(crate) fn start(args: &ZenohArgs, input: InputSender) -> Result<Option<Fleet
     Ok(Some(Fleet(participant)))
 }
 
+/// Without the fleet there is never a participant: [`check`] has refused
+/// `--zenoh` already.
+#[cfg(not(feature = "fleet"))]
+pub(crate) fn start(args: &ZenohArgs, _input: InputSender) -> Result<Option<Fleet>, String> {
+    check(args).map(|()| None)
+}
+
 /// The running participant.
+#[cfg(feature = "fleet")]
 #[derive(Debug)]
 pub(crate) struct Fleet(Participant);
 
+/// The running participant (none without the fleet).
+#[cfg(not(feature = "fleet"))]
+#[derive(Debug)]
+pub(crate) enum Fleet {}
+
+#[cfg(feature = "fleet")]
 impl Fleet {
     /// Takes one output; `true` when it was the participant's alone.
     pub(crate) fn route(&self, o: &Output) -> bool {
@@ -71,5 +113,18 @@ impl Fleet {
     /// Withdraws the token and closes the session.
     pub(crate) fn close(self) {
         self.0.close();
+    }
+}
+
+#[cfg(not(feature = "fleet"))]
+impl Fleet {
+    /// Never called: there is no participant.
+    pub(crate) fn route(&self, _o: &Output) -> bool {
+        match *self {}
+    }
+
+    /// Never called: there is no participant.
+    pub(crate) fn close(self) {
+        match self {}
     }
 }

@@ -304,3 +304,30 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
     }
     assert!(plot.contains("stroke-dasharray") || plot.matches("<polyline").count() > 30);
 }
+
+/// The default build has no fleet (the `fleet` feature, Zenoh): `--zenoh`
+/// is answered at once, before the map or the bus is opened, with exit 2
+/// and the command that builds the fleet in; `--help` says the same.
+#[cfg(not(feature = "fleet"))]
+#[test]
+fn without_the_fleet_feature_zenoh_exits_2_naming_the_build_command() {
+    const SAID: &str = "motorwire bridge: --zenoh: this motorwire was built without the fleet (the `fleet` feature): build it with `cargo build --release -p motorwire-cli --features fleet` in the repository, or install it with `cargo install --path crates/motorwire-cli --features fleet`\n";
+    for map in ["fixtures/maps/demo-arm.toml", "no/such/map.toml"] {
+        let out = motorwire(
+            &[
+                "bridge", "--map", map, "--bus", "sim", "--zenoh", "--robot", "arm1",
+            ],
+            Some(b"{\"emergency_stop\":true}\n"),
+        );
+        assert_eq!(out.status.code(), Some(2), "--map {map}");
+        assert_eq!(String::from_utf8(out.stderr).unwrap(), SAID, "--map {map}");
+        assert_eq!(String::from_utf8(out.stdout).unwrap(), "", "--map {map}");
+    }
+    let help = motorwire(&["bridge", "--help"], None);
+    assert_eq!(help.status.code(), Some(0));
+    let help = String::from_utf8(help.stdout).unwrap();
+    assert!(
+        help.contains("Not in this build: it was built without the fleet (the `fleet` feature). Build it with `cargo build --release -p motorwire-cli --features fleet` in the repository, or install it with `cargo install --path crates/motorwire-cli --features fleet`."),
+        "{help}"
+    );
+}

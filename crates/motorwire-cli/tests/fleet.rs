@@ -4,6 +4,10 @@
 //! once, the fleet stop reaches every bridge, a killed bridge leaves the
 //! liveliness tokens within its lease, and a bridge that loses its session
 //! stops its joints.
+//!
+//! With the `fleet` feature only: `cargo test -p motorwire-cli --features
+//! fleet --test fleet` (CI runs it in release).
+#![cfg(feature = "fleet")]
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
@@ -783,7 +787,7 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 
 /// BENCHMARKS.md's fleet numbers: the fleet stop's latency for 1, 4 and 16
 /// bridges, and command round trips through Zenoh and the local socket of
-/// the same bridge. `cargo test --release -p motorwire-cli --test fleet --
+/// the same bridge. `cargo test --release -p motorwire-cli --features fleet --test fleet --
 /// --ignored --nocapture fleet_numbers`
 #[test]
 #[ignore = "a benchmark: run it by name, in release"]

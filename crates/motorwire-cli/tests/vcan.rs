@@ -2,9 +2,10 @@
 //! can-utils on the PATH, and the right to take the interface down.
 //!
 //! CI kernels have no CAN, so these tests are ignored by `cargo test`;
-//! `.ci/kernel-test` builds them as a static binary and runs them with
-//! `--ignored` inside a virtual machine whose kernel has vcan and can-isotp
-//! (WIRE-FACTS §5). Set `MOTORWIRE_BIN` to the `motorwire` binary there, and
+//! `.ci/kernel-test` runs them with `--ignored` inside a virtual machine
+//! whose kernel has vcan and can-isotp (WIRE-FACTS §5). Set `MOTORWIRE_BIN`
+//! to the `motorwire` binary there, `MOTORWIRE_FLEET_BIN` to one built with
+//! the `fleet` feature for the fleet bridge (default: `MOTORWIRE_BIN`), and
 //! `MOTORWIRE_CAPTURE` to a file to keep the session capture in.
 #![allow(
     clippy::unwrap_used,
@@ -34,6 +35,17 @@ fn motorwire() -> Command {
         std::env::var("MOTORWIRE_BIN")
             .unwrap_or_else(|_| env!("CARGO_BIN_EXE_motorwire").to_owned()),
     )
+}
+
+/// The `motorwire` binary for a fleet bridge: `MOTORWIRE_FLEET_BIN` (one
+/// built with the `fleet` feature, when `MOTORWIRE_BIN` is not), else the
+/// same as [`motorwire`].
+#[cfg(feature = "fleet")]
+fn motorwire_fleet() -> Command {
+    match std::env::var("MOTORWIRE_FLEET_BIN") {
+        Ok(path) => Command::new(path),
+        Err(_) => motorwire(),
+    }
 }
 
 /// A child process killed when dropped.
@@ -1024,6 +1036,8 @@ fn the_bridge_speaks_each_joint_its_own_wire_version() {
 /// hearing the bridge, brakes to a stop by its own watchdog, short of the
 /// target, and says why (`JointStatus.error_code` 1). The network and the
 /// bridge are in the safety chain; the joint's watchdog is the last link.
+/// (With the `fleet` feature: `.ci/kernel-test` builds it so.)
+#[cfg(feature = "fleet")]
 #[test]
 #[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
 fn a_killed_fleet_bridge_leaves_the_fleet_and_its_joint_process_stops() {
@@ -1079,7 +1093,7 @@ fn a_killed_fleet_bridge_leaves_the_fleet_and_its_joint_process_stops() {
     )
     .unwrap();
     let mut bridge = Killed(
-        motorwire()
+        motorwire_fleet()
             .args([
                 "bridge",
                 "--map",
