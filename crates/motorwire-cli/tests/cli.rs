@@ -327,7 +327,7 @@ fn without_the_fleet_feature_zenoh_exits_2_naming_the_build_command() {
     assert_eq!(help.status.code(), Some(0));
     let help = String::from_utf8(help.stdout).unwrap();
     assert!(
-        help.contains("Not in this build: it was built without the fleet (the `fleet` feature). Build it with `cargo build --release -p motorwire-cli --features fleet` in the repository, or install it with `cargo install --path crates/motorwire-cli --features fleet`."),
+        help.contains("Not in this build: it was built without the fleet (the `fleet` feature). Build it with `cargo build --release -p motorwire-cli --features fleet` in the repository, or install it with `cargo install --path crates/motorwire-cli --features fleet`"),
         "{help}"
     );
 }
