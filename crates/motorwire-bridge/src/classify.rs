@@ -228,6 +228,26 @@ impl<'de> serde::Deserialize<'de> for Members {
     }
 }
 
+/// The top-level members of a line that is a JSON object, in order, with
+/// repeats kept: the one reading [`classify`] makes of a line's members
+/// (a member named twice is there twice). An envelope around a line (a
+/// Zenoh query's `request_id`) is read with it, so that it and the line
+/// agree on what the line holds.
+///
+/// # Errors
+/// The parser's error when `line` is not one JSON object serde_json can
+/// hold (truncated, garbage around it, too deep, a number beyond f64).
+///
+/// ```
+/// use serde_json::json;
+/// let m = motorwire_bridge::members(r#"{"setpoint":20,"setpoint":140}"#).unwrap();
+/// assert_eq!(m, [("setpoint".to_owned(), json!(20)), ("setpoint".to_owned(), json!(140))]);
+/// assert!(motorwire_bridge::members("[1]").is_err());
+/// ```
+pub fn members(line: &str) -> Result<Vec<(String, Value)>, serde_json::Error> {
+    serde_json::from_str::<Members>(line).map(|m| m.0)
+}
+
 fn stops(v: &Value) -> bool {
     *v != Value::Bool(false)
 }

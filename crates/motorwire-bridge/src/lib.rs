@@ -10,7 +10,7 @@ mod output;
 mod runtime;
 pub mod sim;
 
-pub use classify::{DEFAULT_CALIBRATION, Input, RequestKind, asks_for_stop, classify};
+pub use classify::{DEFAULT_CALIBRATION, Input, RequestKind, asks_for_stop, classify, members};
 pub use engine::{
     Bridge, BridgeConfig, BridgeStats, JointView, MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, ORION_POLL,
 };

@@ -264,6 +264,10 @@ pub enum ErrorKind {
     /// metrics, a fault history, a calibration result) never came, or the
     /// calibration failed.
     NoAnswer,
+    /// A command id (a fleet query's `request_id` or `command_id`) that
+    /// named another command: refused, nothing was sent. A retry must carry
+    /// the same command as the first try.
+    IdReused,
 }
 
 /// What became of one motor's part of a line.

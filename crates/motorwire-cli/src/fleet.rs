@@ -33,7 +33,8 @@ pub(crate) struct ZenohArgs {
     #[arg(long)]
     zenoh: bool,
     /// The robot's name in the fleet's key expressions (default: the host
-    /// name).
+    /// name). One bridge per name: when another bridge answers for it
+    /// already, this one exits 2 naming that bridge.
     #[arg(long, value_name = "NAME", requires = "zenoh")]
     robot: Option<String>,
     /// The Zenoh configuration (JSON5): mode, endpoints, TLS,

@@ -99,6 +99,8 @@ struct Bridge {
     robot: String,
     log: PathBuf,
     events: mpsc::Receiver<Value>,
+    /// Its standard error so far.
+    stderr: std::sync::Arc<std::sync::Mutex<Vec<String>>>,
 }
 
 impl Drop for Bridge {
@@ -152,10 +154,15 @@ fn bridge_with(dir: &Path, config: &str, robot: &str, extra: &[&str]) -> Bridge 
     });
     let err = child.stderr.take().unwrap();
     let name = robot.to_owned();
+    let stderr: std::sync::Arc<std::sync::Mutex<Vec<String>>> = std::sync::Arc::default();
+    let kept = std::sync::Arc::clone(&stderr);
     thread::spawn(move || {
         for line in BufReader::new(err).lines() {
             let Ok(line) = line else { return };
             eprintln!("[{name}] {line}");
+            if let Ok(mut kept) = kept.lock() {
+                kept.push(line);
+            }
         }
     });
     Bridge {
@@ -163,6 +170,7 @@ fn bridge_with(dir: &Path, config: &str, robot: &str, extra: &[&str]) -> Bridge 
         robot: robot.to_owned(),
         log,
         events,
+        stderr,
     }
 }
 
@@ -363,6 +371,283 @@ fn commands_reach_only_their_robot_and_a_retried_query_runs_once() {
     let again = query(&controller, "b", &multi, Duration::from_secs(10));
     assert_eq!(again, first);
     assert_eq!(moves(&b.log), vec![20.0, 10.0]);
+}
+
+/// The kind of a refused result's error.
+fn refused(replies: &[Value]) -> &Value {
+    assert_eq!(replies.len(), 1, "{replies:?}");
+    assert_eq!(replies[0]["ok"], json!(false), "{replies:?}");
+    &replies[0]["error"]["kind"]
+}
+
+/// A router, one bridge `a` on it, ready, and a controller: the router,
+/// the bridge, the controller, the scratch folder and the router's port.
+fn fleet_of_one(name: &str) -> (zenoh::Session, Bridge, zenoh::Session, PathBuf, u16) {
+    let dir = scratch(name);
+    let port = free_port();
+    let router = router(port);
+    let a = bridge(&dir, port, "a", &[]);
+    let controller = client(port);
+    wait_alive(&controller, &["a"], Duration::from_secs(20));
+    wait_ready(&a);
+    (router, a, controller, dir, port)
+}
+
+#[test]
+fn a_query_is_read_as_a_local_line_and_an_id_names_one_command() {
+    let (_router, a, controller, _, _) = fleet_of_one("one-reading");
+    let limit = Duration::from_secs(10);
+    let stamp = now_ms();
+
+    // A repeated member is refused, as on standard input, id or not.
+    for payload in [
+        format!(
+            r#"{{"motor_id":"elbow","timestamp":{stamp},"control_mode":"position","setpoint":20,"setpoint":140,"request_id":"d1"}}"#
+        ),
+        format!(
+            r#"{{"motor_id":"elbow","motor_id":"shoulder_pitch","timestamp":{stamp},"control_mode":"position","setpoint":20,"request_id":"d2"}}"#
+        ),
+    ] {
+        let replies = query(&controller, "a", &payload, limit);
+        assert_eq!(refused(&replies), &json!("invalid"), "{payload}");
+        assert!(
+            replies[0]["error"]["violations"]
+                .to_string()
+                .contains("duplicate field"),
+            "{replies:?}"
+        );
+        // Its retry is answered the same, from the memory.
+        assert_eq!(query(&controller, "a", &payload, limit), replies);
+    }
+    assert_eq!(moves(&a.log), Vec::<f64>::new());
+
+    // A command naming emergency_stop (false) keeps its id: its retry,
+    // stamped anew, is answered with the first replies and runs nothing.
+    let limited = |setpoint: f64, id: &str| {
+        format!(
+            r#"{{"motor_id":"elbow","timestamp":{},"control_mode":"position","setpoint":{setpoint},"safety_limits":{{"emergency_stop":false}},"request_id":"{id}"}}"#,
+            now_ms()
+        )
+    };
+    let first = query(&controller, "a", &limited(60.0, "es-1"), limit);
+    let es_first = first.clone();
+    assert_eq!(first.len(), 2, "{first:?}");
+    assert_eq!(first[0]["ok"], json!(true), "{first:?}");
+    assert!(
+        first[0]
+            .get("losses")
+            .is_none_or(|l| !l.to_string().contains("request_id")),
+        "{first:?}"
+    );
+    let again = query(&controller, "a", &limited(60.0, "es-1"), limit);
+    assert_eq!(again, first);
+    assert_eq!(moves(&a.log), vec![60.0]);
+
+    // The same id with another command is refused, naming the first.
+    let reused = query(&controller, "a", &limited(70.0, "es-1"), limit);
+    assert_eq!(refused(&reused), &json!("id_reused"));
+    let message = reused[0]["error"]["message"].as_str().unwrap_or_default();
+    assert!(message.contains(r#""setpoint":60"#), "{message}");
+    assert_eq!(moves(&a.log), vec![60.0]);
+
+    // An integer id is not the string with its digits.
+    let numbered = |setpoint: f64, id: &str| {
+        format!(
+            r#"{{"motor_id":"elbow","timestamp":{},"control_mode":"position","setpoint":{setpoint},"request_id":{id}}}"#,
+            now_ms()
+        )
+    };
+    let first = query(&controller, "a", &numbered(15.0, "42"), limit);
+    assert_eq!(first[0]["ok"], json!(true), "{first:?}");
+    let other = query(&controller, "a", &numbered(25.0, r#""42""#), limit);
+    assert_eq!(other[0]["ok"], json!(true), "{other:?}");
+    let again = query(&controller, "a", &numbered(15.0, "42"), limit);
+    assert_eq!(again, first);
+    assert_eq!(moves(&a.log), vec![60.0, 15.0, 25.0]);
+
+    // A multi-axis command whose motor names emergency_stop: once.
+    let multi = format!(
+        r#"{{"command_id":"m-es","timestamp":{},"motors":[{{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":12,"safety_limits":{{"emergency_stop":false}}}}],"sync_mode":"independent"}}"#,
+        now_ms()
+    );
+    let first = query(&controller, "a", &multi, limit);
+    assert_eq!(first[0]["ok"], json!(true), "{first:?}");
+    let again = query(&controller, "a", &multi, limit);
+    assert_eq!(again, first);
+    assert_eq!(moves(&a.log), vec![60.0, 15.0, 25.0, 12.0]);
+
+    // Invented controller names cannot push this controller's ids out:
+    // 63 more fill the memory (64), the rest are refused `busy`, and the
+    // retry of es-1 still runs nothing.
+    let mut kinds = Vec::new();
+    for n in 0..70 {
+        let replies = controller
+            .get(format!("motorwire/a/cmd?controller=invented-{n}"))
+            .payload(r#"{"query":"limits","motor_id":"elbow","request_id":"x"}"#)
+            .consolidation(ConsolidationMode::None)
+            .timeout(limit)
+            .wait()
+            .unwrap();
+        let first: Value = std::iter::from_fn(|| replies.recv().ok())
+            .map(|r| {
+                serde_json::from_str(&r.result().unwrap().payload().try_to_string().unwrap())
+                    .unwrap()
+            })
+            .next()
+            .unwrap();
+        kinds.push(first["error"]["kind"].as_str().unwrap_or("ok").to_owned());
+    }
+    assert_eq!(kinds.iter().filter(|k| *k == "ok").count(), 63, "{kinds:?}");
+    assert_eq!(
+        kinds.iter().filter(|k| *k == "busy").count(),
+        7,
+        "{kinds:?}"
+    );
+    let again = query(&controller, "a", &limited(60.0, "es-1"), limit);
+    assert_eq!(again, es_first);
+    assert_eq!(moves(&a.log), vec![60.0, 15.0, 25.0, 12.0]);
+
+    // A stop carrying an id stops (and is never remembered: a second
+    // stop is a second stop); the release with an id releases.
+    for payload in [
+        r#"{"emergency_stop":true,"request_id":"s"}"#,
+        r#"{"emergency_stop":true,"request_id":"s"}"#,
+        r#"{"emergency_stop":false,"request_id":"s"}"#,
+    ] {
+        let replies = query(&controller, "a", payload, limit);
+        assert_eq!(replies[0]["ok"], json!(true), "{payload}: {replies:?}");
+    }
+}
+
+/// `motorwire bridge --zenoh --robot ROBOT` with the Zenoh configuration
+/// file `config`, which must exit 2 at start: its standard error.
+fn refused_at_start(robot: &str, config: &str) -> String {
+    let out = common::run(
+        &[
+            "bridge",
+            "--map",
+            MAP,
+            "--bus",
+            "sim",
+            "--zenoh",
+            "--robot",
+            robot,
+            "--zenoh-config",
+            config,
+        ],
+        b"",
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    stderr
+}
+
+#[test]
+fn a_robot_name_is_one_robot_and_every_reply_names_its_bridge() {
+    let (_router, a, controller, dir, port) = fleet_of_one("one-name");
+    let limit = Duration::from_secs(10);
+
+    let first = query(&controller, "a", &move_line("elbow", 5.0, "n1"), limit);
+    assert_eq!(first.len(), 2, "{first:?}");
+    let zid = first[0]["bridge"].as_str().unwrap_or_default().to_owned();
+    // A Zenoh id: up to 32 hex digits (without leading zeros).
+    assert!(
+        !zid.is_empty() && zid.len() <= 32 && zid.chars().all(|c| c.is_ascii_hexdigit()),
+        "{first:?}"
+    );
+    for reply in &first {
+        assert_eq!(
+            (&reply["robot"], &reply["bridge"]),
+            (&json!("a"), &json!(zid))
+        );
+    }
+
+    // A second bridge with the same name refuses to join: exit 2, naming
+    // the bridge that has it, before it answers anything.
+    let config = dir.join("second.json5");
+    std::fs::write(&config, client_config(port)).unwrap();
+    let config = config.display().to_string();
+    let stderr = refused_at_start("a", &config);
+    assert!(
+        stderr.contains(&format!(
+            "robot name \"a\" is taken: bridge {zid} answers for motorwire/a already (its Zenoh id); give this bridge another --robot, or stop that one"
+        )),
+        "{stderr}"
+    );
+    // One robot, one bridge: one token, and a command answered once.
+    assert_eq!(alive(&controller), ["a"]);
+    let next = query(&controller, "a", &move_line("elbow", 6.0, "n2"), limit);
+    assert_eq!(next.len(), 2, "{next:?}");
+    assert_eq!(moves(&a.log), vec![5.0, 6.0]);
+
+    // A name no wildcard finds is refused at start.
+    let stderr = refused_at_start("@lab", &config);
+    assert!(
+        stderr.contains("--robot robot name \"@lab\": a chunk that starts with `@` is verbatim: no wildcard finds it (`motorwire/*/alive` would not)"),
+        "{stderr}"
+    );
+}
+
+/// The Zenoh ids of the bridges whose own token for `robot` the
+/// controller sees now.
+fn bridges_of(session: &zenoh::Session, robot: &str) -> Vec<String> {
+    let replies = session
+        .liveliness()
+        .get(format!("motorwire/{robot}/alive/*"))
+        .timeout(Duration::from_secs(2))
+        .wait()
+        .unwrap();
+    std::iter::from_fn(|| replies.recv().ok())
+        .filter_map(|r| r.result().ok().map(|s| s.key_expr().as_str().to_owned()))
+        .filter_map(|k| k.rsplit('/').next().map(str::to_owned))
+        .collect()
+}
+
+#[test]
+fn two_bridges_started_at_once_under_one_name_leave_one_in_the_fleet() {
+    let dir = scratch("twins");
+    let port = free_port();
+    // Both start before the router: their sessions open on the same retry.
+    let dir1 = dir.join("1");
+    let dir2 = dir.join("2");
+    std::fs::create_dir_all(&dir1).unwrap();
+    std::fs::create_dir_all(&dir2).unwrap();
+    let first = bridge(&dir1, port, "twin", &[]);
+    let second = bridge(&dir2, port, "twin", &[]);
+    let retrying = |b: &Bridge| {
+        b.stderr
+            .lock()
+            .is_ok_and(|l| l.iter().any(|l| l.contains("trying again every")))
+    };
+    let end = Instant::now() + Duration::from_secs(20);
+    while !(retrying(&first) && retrying(&second)) {
+        assert!(Instant::now() < end, "the bridges never tried the session");
+        thread::sleep(Duration::from_millis(20));
+    }
+    let _router = router(port);
+    let controller = client(port);
+    let end = Instant::now() + Duration::from_secs(15);
+    let said = |b: &Bridge| {
+        b.stderr.lock().is_ok_and(|l| {
+            l.iter().any(|l| {
+                l.contains("leaves the fleet") && l.contains("this bridge")
+                    || l.contains("stays out of the fleet")
+            })
+        })
+    };
+    loop {
+        let out = [said(&first), said(&second)];
+        let seen = bridges_of(&controller, "twin");
+        if seen.len() == 1 && out.iter().filter(|o| **o).count() == 1 {
+            break;
+        }
+        assert!(Instant::now() < end, "tokens {seen:?}, left {out:?}");
+        thread::sleep(Duration::from_millis(100));
+    }
+    assert_eq!(alive(&controller), ["twin"]);
+    // Stays so: the one that left does not come back.
+    thread::sleep(Duration::from_millis(1500));
+    assert_eq!(bridges_of(&controller, "twin").len(), 1);
 }
 
 #[test]

@@ -12,6 +12,18 @@ pub enum ZenohError {
         /// Why it cannot be used.
         why: &'static str,
     },
+    /// Another bridge answers for this robot name already: two bridges
+    /// would both run every command sent to it.
+    #[error(
+        "robot name {robot:?} is taken: bridge {} answers for motorwire/{robot} already (its Zenoh id); give this bridge another --robot, or stop that one",
+        bridges.join(", bridge ")
+    )]
+    RobotTaken {
+        /// The name.
+        robot: String,
+        /// The Zenoh ids of the bridges that answer for it.
+        bridges: Vec<String>,
+    },
     /// The Zenoh configuration could not be read or is not valid.
     #[error("zenoh configuration: {0}")]
     Config(String),

@@ -3,15 +3,22 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use motorwire_bridge::Origin;
 
 /// Ids remembered per controller: the most recently used this many.
 pub const IDS_PER_CONTROLLER: usize = 1024;
 
-/// Controllers remembered: the most recently heard this many (a controller
-/// forgotten has all its ids forgotten).
+/// Controllers remembered: at most this many (a controller forgotten has
+/// all its ids forgotten). One is forgotten only when it has been idle for
+/// [`CONTROLLER_IDLE`]: another controller cannot push it out sooner.
 pub const CONTROLLERS: usize = 64;
+
+/// How long a controller must have been silent before a new controller
+/// may take its place in a full memory (until then the newcomer's
+/// commands with ids are refused `busy`).
+pub const CONTROLLER_IDLE: Duration = Duration::from_secs(600);
 
 /// What is remembered of one id.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -67,6 +74,10 @@ impl<V> Lru<V> {
         self.order.insert(self.tick, key.to_owned());
     }
 
+    fn contains(&self, key: &str) -> bool {
+        self.entries.contains_key(key)
+    }
+
     fn remove(&mut self, key: &str) {
         if let Some((used, _)) = self.entries.remove(key) {
             self.order.remove(&used);
@@ -84,34 +95,75 @@ impl<V> Lru<V> {
 #[derive(Debug)]
 pub(crate) struct IdMemory {
     per_controller: usize,
-    controllers: Lru<Lru<Recalled>>,
+    bound: usize,
+    idle: Duration,
+    controllers: Lru<Lru<(Arc<str>, Recalled)>>,
+    /// When each remembered controller was last heard.
+    heard: HashMap<String, Instant>,
 }
 
 impl IdMemory {
-    pub(crate) fn new(per_controller: usize, controllers: usize) -> Self {
+    pub(crate) fn new(per_controller: usize, controllers: usize, idle: Duration) -> Self {
         Self {
             per_controller,
+            bound: controllers.max(1),
+            idle,
             controllers: Lru::new(controllers),
+            heard: HashMap::new(),
         }
     }
 
-    /// What is remembered of `id` from `controller` (and it is now the
-    /// most recently used).
-    pub(crate) fn recall(&mut self, controller: &str, id: &str) -> Option<Recalled> {
+    /// Makes room for `controller`, heard at `now`: whether its ids can be
+    /// remembered. A controller already remembered always can; a new one
+    /// when there is room, or when the least recently heard controller has
+    /// been silent for the idle time (it is then forgotten whole). Never
+    /// does a new controller push out one heard more recently.
+    pub(crate) fn admit(&mut self, controller: &str, now: Instant) -> bool {
+        if self.controllers.contains(controller) {
+            self.heard.insert(controller.to_owned(), now);
+            return true;
+        }
+        if self.heard.len() >= self.bound {
+            let Some((oldest, last)) = self
+                .heard
+                .iter()
+                .min_by_key(|(_, t)| **t)
+                .map(|(c, t)| (c.clone(), *t))
+            else {
+                return false;
+            };
+            if now.saturating_duration_since(last) < self.idle {
+                return false;
+            }
+            self.controllers.remove(&oldest);
+            self.heard.remove(&oldest);
+        }
+        self.controllers
+            .insert(controller, Lru::new(self.per_controller));
+        self.heard.insert(controller.to_owned(), now);
+        true
+    }
+
+    /// What is remembered of `id` from `controller`: the body of the
+    /// command it named, and where that command is (and it is now the most
+    /// recently used).
+    pub(crate) fn recall(&mut self, controller: &str, id: &str) -> Option<(Arc<str>, Recalled)> {
         self.controllers
             .get_mut(controller)?
             .get_mut(id)
             .map(|r| r.clone())
     }
 
-    /// Remembers `id` from `controller` as `what`.
-    pub(crate) fn remember(&mut self, controller: &str, id: &str, what: Recalled) {
-        if self.controllers.get_mut(controller).is_none() {
-            self.controllers
-                .insert(controller, Lru::new(self.per_controller));
-        }
+    /// How many controllers are remembered at most.
+    pub(crate) fn bound(&self) -> usize {
+        self.bound
+    }
+
+    /// Remembers `id` from `controller` as the command `body`, now `what`
+    /// (nothing when `controller` was not [`IdMemory::admit`]ted).
+    pub(crate) fn remember(&mut self, controller: &str, id: &str, body: Arc<str>, what: Recalled) {
         if let Some(ids) = self.controllers.get_mut(controller) {
-            ids.insert(id, what);
+            ids.insert(id, (body, what));
         }
     }
 
@@ -136,51 +188,90 @@ impl IdMemory {
 mod tests {
     use super::*;
 
+    fn body() -> Arc<str> {
+        Arc::from(r#"{"motor_id":"elbow"}"#)
+    }
+
+    /// `m` with `controllers` admitted now.
+    fn admitted(mut m: IdMemory, controllers: &[&str]) -> IdMemory {
+        for c in controllers {
+            assert!(m.admit(c, Instant::now()), "{c}");
+        }
+        m
+    }
+
     fn done(s: &str) -> Recalled {
         Recalled::Done(vec![Arc::from(s)])
     }
 
     #[test]
     fn an_id_is_recalled_per_controller() {
-        let mut m = IdMemory::new(4, 2);
-        m.remember("a", "1", Recalled::InProgress(Origin(7)));
-        assert_eq!(m.recall("a", "1"), Some(Recalled::InProgress(Origin(7))));
+        let mut m = admitted(IdMemory::new(4, 2, Duration::ZERO), &["a", "b"]);
+        m.remember("a", "1", body(), Recalled::InProgress(Origin(7)));
+        assert_eq!(
+            m.recall("a", "1"),
+            Some((body(), Recalled::InProgress(Origin(7))))
+        );
         assert_eq!(m.recall("b", "1"), None);
-        m.remember("a", "1", done("r"));
-        assert_eq!(m.recall("a", "1"), Some(done("r")));
+        m.remember("a", "1", body(), done("r"));
+        assert_eq!(m.recall("a", "1"), Some((body(), done("r"))));
         m.forget("a", "1");
         assert_eq!(m.recall("a", "1"), None);
+        // The body is remembered with the id.
+        m.remember("a", "2", Arc::from("{}"), done("r"));
+        assert_eq!(m.recall("a", "2"), Some((Arc::from("{}"), done("r"))));
     }
 
     #[test]
     fn the_least_recently_used_id_goes_first_and_the_bound_holds() {
-        let mut m = IdMemory::new(3, 2);
+        let mut m = admitted(IdMemory::new(3, 2, Duration::ZERO), &["a"]);
         for id in ["1", "2", "3"] {
-            m.remember("a", id, done(id));
+            m.remember("a", id, body(), done(id));
         }
         // "1" used again: "2" is now the oldest.
-        assert_eq!(m.recall("a", "1"), Some(done("1")));
-        m.remember("a", "4", done("4"));
+        assert_eq!(m.recall("a", "1"), Some((body(), done("1"))));
+        m.remember("a", "4", body(), done("4"));
         assert_eq!(m.ids_of("a"), 3);
         assert_eq!(m.recall("a", "2"), None);
-        assert_eq!(m.recall("a", "1"), Some(done("1")));
-        assert_eq!(m.recall("a", "3"), Some(done("3")));
-        assert_eq!(m.recall("a", "4"), Some(done("4")));
+        assert_eq!(m.recall("a", "1"), Some((body(), done("1"))));
+        assert_eq!(m.recall("a", "3"), Some((body(), done("3"))));
+        assert_eq!(m.recall("a", "4"), Some((body(), done("4"))));
         for n in 0..10_000 {
-            m.remember("a", &n.to_string(), done("x"));
+            m.remember("a", &n.to_string(), body(), done("x"));
         }
         assert_eq!(m.ids_of("a"), 3);
     }
 
     #[test]
-    fn the_least_recently_heard_controller_is_forgotten_whole() {
-        let mut m = IdMemory::new(3, 2);
-        m.remember("a", "1", done("a1"));
-        m.remember("b", "1", done("b1"));
-        assert_eq!(m.recall("a", "1"), Some(done("a1")));
-        m.remember("c", "1", done("c1"));
+    fn a_silent_controller_is_forgotten_whole_and_only_a_silent_one() {
+        let t0 = Instant::now();
+        let idle = Duration::from_secs(600);
+        let mut m = IdMemory::new(3, 2, idle);
+        assert!(m.admit("a", t0));
+        m.remember("a", "1", body(), done("a1"));
+        assert!(m.admit("b", t0));
+        m.remember("b", "1", body(), done("b1"));
+        // Full: 64 (here 2) invented names cannot push out a controller
+        // heard within the idle time, however many come.
+        for n in 0..100 {
+            assert!(!m.admit(&format!("invented-{n}"), t0 + Duration::from_secs(599)));
+        }
+        assert_eq!(m.recall("a", "1"), Some((body(), done("a1"))));
+        assert_eq!(m.recall("b", "1"), Some((body(), done("b1"))));
+        // A remembered controller is always admitted, and heard anew.
+        assert!(m.admit("a", t0 + Duration::from_secs(300)));
+        // b, silent for the idle time, makes room; a, heard at 300 s, not
+        // yet.
+        assert!(m.admit("c", t0 + Duration::from_secs(600)));
+        m.remember("c", "1", body(), done("c1"));
         assert_eq!(m.recall("b", "1"), None);
-        assert_eq!(m.recall("a", "1"), Some(done("a1")));
-        assert_eq!(m.recall("c", "1"), Some(done("c1")));
+        assert_eq!(m.recall("a", "1"), Some((body(), done("a1"))));
+        assert!(!m.admit("d", t0 + Duration::from_secs(899)));
+        assert!(m.admit("d", t0 + Duration::from_secs(900)));
+        assert_eq!(m.recall("a", "1"), None);
+        assert_eq!(m.recall("c", "1"), Some((body(), done("c1"))));
+        // Nothing is remembered for a controller not admitted.
+        m.remember("e", "1", body(), done("e1"));
+        assert_eq!(m.recall("e", "1"), None);
     }
 }

@@ -69,6 +69,18 @@ impl RobotKeys {
         format!("motorwire/{}/alive", self.robot)
     }
 
+    /// `motorwire/<robot>/alive/<bridge>`: one bridge's own liveliness
+    /// token, `bridge` its Zenoh id (how a bridge starting with a name
+    /// already taken finds the bridge that has it).
+    pub fn alive_bridge(&self, bridge: &str) -> String {
+        format!("motorwire/{}/alive/{bridge}", self.robot)
+    }
+
+    /// `motorwire/<robot>/alive/*`: every bridge's token for this robot.
+    pub fn alive_bridges(&self) -> String {
+        format!("motorwire/{}/alive/*", self.robot)
+    }
+
     /// `motorwire/<robot>/feedback/<motor_id>`, or `None` when the motor's
     /// id cannot be a key-expression chunk (its feedback is then not
     /// published).
@@ -91,6 +103,11 @@ fn check_chunk(s: &str) -> Result<(), &'static str> {
     {
         return Err(
             "a key-expression chunk cannot hold `/`, `*`, `$`, `?`, `#`, spaces or control characters",
+        );
+    }
+    if s.starts_with('@') {
+        return Err(
+            "a chunk that starts with `@` is verbatim: no wildcard finds it (`motorwire/*/alive` would not)",
         );
     }
     Ok(())
@@ -117,6 +134,14 @@ mod tests {
             Some("motorwire/arm-1/alive")
         );
         assert_eq!(
+            k.map(|k| k.alive_bridge("a1b2")).as_deref(),
+            Some("motorwire/arm-1/alive/a1b2")
+        );
+        assert_eq!(
+            k.map(RobotKeys::alive_bridges).as_deref(),
+            Some("motorwire/arm-1/alive/*")
+        );
+        assert_eq!(
             k.map(RobotKeys::event).as_deref(),
             Some("motorwire/arm-1/event")
         );
@@ -139,10 +164,20 @@ mod tests {
             "a#",
             "a b",
             "fleet",
+            "@lab",
+            "@",
             &"x".repeat(65),
         ] {
             assert!(RobotKeys::new(bad).is_err(), "{bad:?} accepted");
         }
         assert!(RobotKeys::new(&"x".repeat(64)).is_ok());
+        assert!(RobotKeys::new("lab@2").is_ok());
+        let why = RobotKeys::new("@lab").err().map(|e| e.to_string());
+        assert_eq!(
+            why.as_deref(),
+            Some(
+                "robot name \"@lab\": a chunk that starts with `@` is verbatim: no wildcard finds it (`motorwire/*/alive` would not)"
+            )
+        );
     }
 }

@@ -6,11 +6,11 @@ mod keys;
 mod participant;
 
 pub use error::ZenohError;
-pub use ids::{CONTROLLERS, IDS_PER_CONTROLLER};
+pub use ids::{CONTROLLER_IDLE, CONTROLLERS, IDS_PER_CONTROLLER};
 pub use keys::{FLEET_ESTOP, RobotKeys};
 pub use participant::{
-    DEFAULT_SESSION_TIMEOUT, FleetConfig, MAX_QUERIES_IN_PROGRESS, PUBLISH_QUEUE, Participant,
-    QUERY_ORIGINS, RETRY_OPEN, STOP_LINE, STOP_ORIGINS, config_from_file,
+    ALIVE_CHECK, DEFAULT_SESSION_TIMEOUT, FleetConfig, MAX_QUERIES_IN_PROGRESS, PUBLISH_QUEUE,
+    Participant, QUERY_ORIGINS, RETRY_OPEN, STOP_LINE, STOP_ORIGINS, config_from_file,
 };
 /// The Zenoh crate this participant is built on (its configuration type
 /// is [`FleetConfig::zenoh`]'s).

@@ -16,7 +16,7 @@ use zenoh::bytes::Encoding;
 use zenoh::query::Query;
 
 use crate::ZenohError;
-use crate::ids::{CONTROLLERS, IDS_PER_CONTROLLER, IdMemory, Recalled};
+use crate::ids::{CONTROLLER_IDLE, CONTROLLERS, IDS_PER_CONTROLLER, IdMemory, Recalled};
 use crate::keys::{FLEET_ESTOP, RobotKeys};
 
 /// The first origin of a command query; every query gets the next one.
@@ -45,6 +45,10 @@ pub const PUBLISH_QUEUE: usize = 4096;
 
 /// How long to wait before trying to open the session again.
 pub const RETRY_OPEN: Duration = Duration::from_secs(1);
+
+/// How long a starting bridge waits for the answers of the bridges that
+/// already answer for its robot name.
+pub const ALIVE_CHECK: Duration = Duration::from_secs(1);
 
 /// How often the session's links are looked at.
 const WATCH_PERIOD: Duration = Duration::from_millis(20);
@@ -137,29 +141,67 @@ impl Participant {
             .build()?;
         let (replies, replies_rx) = mpsc::unbounded_channel();
         let (publish, publish_rx) = mpsc::channel(PUBLISH_QUEUE);
-        let task = runtime.spawn(async move {
-            let FleetConfig {
-                keys,
-                zenoh,
-                session_timeout,
-                ids_per_controller,
-                controllers,
-            } = config;
-            let mut failed = false;
-            let session = loop {
-                match zenoh::open(zenoh.clone()).await {
-                    Ok(s) => break s,
-                    Err(e) => {
-                        // Said once, not every second.
-                        if !failed {
-                            note(&format!(
-                                "zenoh: {e}; trying again every {RETRY_OPEN:?} (the bridge runs meanwhile)"
-                            ));
-                            failed = true;
-                        }
-                        tokio::time::sleep(RETRY_OPEN).await;
+        let FleetConfig {
+            keys,
+            zenoh,
+            session_timeout,
+            ids_per_controller,
+            controllers,
+        } = config;
+        // The first try at the session is made here: a robot name another
+        // bridge answers already is refused before anything is declared.
+        // When no router or peer can be reached yet, the bridge runs and
+        // the session is tried again on the participant's threads (and the
+        // same check made there: a bridge that finds its name taken then
+        // stays out of the fleet and says so).
+        let first = runtime.block_on(async {
+            match zenoh::open(zenoh.clone()).await {
+                Ok(session) => match others_named(&session, &keys).await {
+                    Ok(others) if others.is_empty() => Ok(Some(session)),
+                    Ok(others) => {
+                        let _ = session.close().await;
+                        Err(ZenohError::RobotTaken {
+                            robot: keys.robot().to_owned(),
+                            bridges: others,
+                        })
                     }
+                    Err(e) => {
+                        let _ = session.close().await;
+                        Err(e)
+                    }
+                },
+                Err(e) => {
+                    note(&format!(
+                        "zenoh: {e}; trying again every {RETRY_OPEN:?} (the bridge runs meanwhile)"
+                    ));
+                    Ok(None)
                 }
+            }
+        })?;
+        let task = runtime.spawn(async move {
+            let session = match first {
+                Some(session) => session,
+                None => loop {
+                    tokio::time::sleep(RETRY_OPEN).await;
+                    let Ok(session) = zenoh::open(zenoh.clone()).await else {
+                        continue; // said once, above
+                    };
+                    match others_named(&session, &keys).await {
+                        Ok(others) if others.is_empty() => break session,
+                        Ok(others) => {
+                            note(&format!(
+                                "{}; this bridge stays out of the fleet",
+                                ZenohError::RobotTaken {
+                                    robot: keys.robot().to_owned(),
+                                    bridges: others
+                                }
+                            ));
+                        }
+                        Err(e) => note(&format!("{e}; the bridge is not in the fleet")),
+                    }
+                    let _ = session.close().await;
+                    return;
+                },
             };
             let stops = Arc::new(AtomicU64::new(STOP_ORIGINS));
             let declared = declare(&session, &keys, &input, &stops).await;
@@ -171,14 +213,20 @@ impl Participant {
                     return;
                 }
             };
-            note(&format!("in the fleet as motorwire/{}", keys.robot()));
+            let bridge = session.zid().to_string();
+            note(&format!(
+                "in the fleet as motorwire/{} (bridge {bridge})",
+                keys.robot()
+            ));
             let state = State {
+                robot: Value::String(keys.robot().to_owned()).to_string(),
+                bridge,
                 keys,
                 input,
                 next_origin: QUERY_ORIGINS,
                 stops,
                 pending: HashMap::new(),
-                ids: IdMemory::new(ids_per_controller, controllers),
+                ids: IdMemory::new(ids_per_controller, controllers, CONTROLLER_IDLE),
                 moving: BTreeSet::new(),
                 timeout: session_timeout,
                 note: Box::new(note),
@@ -262,6 +310,49 @@ impl Drop for Participant {
     }
 }
 
+/// `line` (a JSON object) with `robot` (a JSON string) and `bridge` (a
+/// Zenoh id) last: which robot and which bridge answered.
+fn signed(line: &str, robot: &str, bridge: &str) -> String {
+    match line.trim_end().strip_suffix('}') {
+        Some(rest) if line.starts_with('{') => {
+            let comma = if rest.trim_end().ends_with('{') {
+                ""
+            } else {
+                ","
+            };
+            format!(r#"{rest}{comma}"robot":{robot},"bridge":"{bridge}"}}"#)
+        }
+        _ => line.to_owned(),
+    }
+}
+
+/// The Zenoh ids of the other bridges that answer for `keys`' robot now:
+/// their per-bridge liveliness tokens (`motorwire/<robot>/alive/<zid>`).
+async fn others_named(
+    session: &zenoh::Session,
+    keys: &RobotKeys,
+) -> Result<Vec<String>, ZenohError> {
+    let replies = session
+        .liveliness()
+        .get(keys.alive_bridges())
+        .timeout(ALIVE_CHECK)
+        .await
+        .map_err(ZenohError::zenoh)?;
+    let mine = session.zid().to_string();
+    let mut others = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        if let Ok(sample) = reply.result()
+            && let Some(zid) = sample.key_expr().as_str().rsplit('/').next()
+            && zid != mine
+            && !others.iter().any(|o| o == zid)
+        {
+            others.push(zid.to_owned());
+        }
+    }
+    others.sort();
+    Ok(others)
+}
+
 /// The queryable, the stop subscribers (each put a stop on a fresh
 /// origin: a stop never waits behind another origin's lines) and the
 /// liveliness token, in that order.
@@ -274,7 +365,7 @@ async fn declare(
     (
         zenoh::query::Queryable<zenoh::handlers::FifoChannelHandler<Query>>,
         Vec<zenoh::pubsub::Subscriber<()>>,
-        zenoh::liveliness::LivelinessToken,
+        [zenoh::liveliness::LivelinessToken; 2],
     ),
     ZenohError,
 > {
@@ -296,12 +387,17 @@ async fn declare(
             .map_err(ZenohError::zenoh)?;
         subscribers.push(s);
     }
+    let bridge = session
+        .liveliness()
+        .declare_token(keys.alive_bridge(&session.zid().to_string()))
+        .await
+        .map_err(ZenohError::zenoh)?;
     let token = session
         .liveliness()
         .declare_token(keys.alive())
         .await
         .map_err(ZenohError::zenoh)?;
-    Ok((queryable, subscribers, token))
+    Ok((queryable, subscribers, [bridge, token]))
 }
 
 /// A command query's line in progress.
@@ -309,8 +405,9 @@ async fn declare(
 struct Pending {
     /// The queries waiting for its replies (the first, and its retries).
     queries: Vec<Query>,
-    /// `(controller, id)` when it carried an id.
-    id: Option<(String, String)>,
+    /// `(controller, id, body)` when it carried an id (the id as the
+    /// memory keys it: [`CommandId`]'s type and value).
+    id: Option<(String, String, Arc<str>)>,
     /// The replies so far.
     sent: Vec<Arc<str>>,
 }
@@ -319,13 +416,143 @@ struct Pending {
 #[derive(Debug, PartialEq)]
 enum Command {
     /// A line to hand over, with its id when it has one.
-    Line { text: String, id: Option<String> },
+    Line { text: String, id: Option<Keyed> },
     /// A line the bridge must refuse (it names a stop: it stops).
     Refused { reason: String, stop: bool },
 }
 
-/// Reads a query's payload as the line interface reads a line; takes its
-/// `request_id` (removed from the line) or its `command_id`.
+/// A command's id as the controller sent it: the string `"42"` and the
+/// integer `42` are two ids.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum CommandId {
+    /// A string id.
+    Text(String),
+    /// An unsigned integer id.
+    Number(u64),
+}
+
+impl CommandId {
+    /// The id in the memory: its type and its value.
+    fn key(&self) -> String {
+        match self {
+            Self::Text(s) => format!("s:{s}"),
+            Self::Number(n) => format!("n:{n}"),
+        }
+    }
+}
+
+impl std::fmt::Display for CommandId {
+    /// As JSON writes it: a string quoted, an integer bare.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Text(s) => write!(f, "{}", Value::String(s.clone())),
+            Self::Number(n) => write!(f, "{n}"),
+        }
+    }
+}
+
+/// A command's id and its body: the command's members without its
+/// `request_id` and its `timestamp` (a retry may be stamped anew), in
+/// order and with repeats, as one text: what a retry must repeat for the
+/// id to name the same command.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Keyed {
+    id: CommandId,
+    body: Arc<str>,
+}
+
+/// The body of a command: its members but `request_id` and `timestamp`,
+/// in order, repeats kept, written as one JSON object (with the repeats).
+fn body_of(members: &[(String, Value)]) -> Arc<str> {
+    let inner: Vec<String> = members
+        .iter()
+        .filter(|(k, _)| k != "request_id" && k != "timestamp")
+        .map(|(k, v)| format!("{}:{v}", Value::String(k.clone())))
+        .collect();
+    Arc::from(format!("{{{}}}", inner.join(",")))
+}
+
+/// Where each top-level member of the JSON object `text` lies (from its
+/// key's opening quote to its value's end), with its key decoded; `None`
+/// when `text` is not one object.
+fn member_spans(text: &str) -> Option<Vec<(String, std::ops::Range<usize>)>> {
+    fn skip_ws(b: &[u8], mut i: usize) -> usize {
+        while b
+            .get(i)
+            .is_some_and(|c| matches!(c, b' ' | b'\t' | b'\n' | b'\r'))
+        {
+            i += 1;
+        }
+        i
+    }
+    /// The key at the start of `s`, and the bytes it took.
+    fn key(s: &str) -> Option<(String, usize)> {
+        let mut values = serde_json::Deserializer::from_str(s).into_iter::<String>();
+        let v = values.next()?.ok()?;
+        Some((v, values.byte_offset()))
+    }
+    /// The bytes the JSON value at the start of `s` takes.
+    fn value(s: &str) -> Option<usize> {
+        let mut values = serde_json::Deserializer::from_str(s).into_iter::<Value>();
+        values.next()?.ok()?;
+        Some(values.byte_offset())
+    }
+    let b = text.as_bytes();
+    let mut i = skip_ws(b, 0);
+    if b.get(i) != Some(&b'{') {
+        return None;
+    }
+    i = skip_ws(b, i + 1);
+    let mut spans = Vec::new();
+    if b.get(i) == Some(&b'}') {
+        return Some(spans);
+    }
+    loop {
+        let start = i;
+        let (key, n) = key(text.get(i..)?)?;
+        i = skip_ws(b, i + n);
+        if b.get(i) != Some(&b':') {
+            return None;
+        }
+        i = skip_ws(b, i + 1);
+        i += value(text.get(i..)?)?;
+        spans.push((key, start..i));
+        i = skip_ws(b, i);
+        match b.get(i) {
+            Some(b',') => i = skip_ws(b, i + 1),
+            Some(b'}') => return Some(spans),
+            _ => return None,
+        }
+    }
+}
+
+/// `text` with its one top-level `request_id` member cut out (and the
+/// comma that joined it to a neighbour); every other byte as it came.
+fn without_request_id(text: &str) -> Option<String> {
+    let spans = member_spans(text)?;
+    let at = spans.iter().position(|(k, _)| k == "request_id")?;
+    let cut = match (
+        at.checked_sub(1).and_then(|p| spans.get(p)),
+        spans.get(at + 1),
+    ) {
+        // Up to the next member: the member, its comma and the space.
+        (_, Some((_, next))) => spans.get(at)?.1.start..next.start,
+        // The last of several: from the end of the one before it.
+        (Some((_, before)), None) => before.end..spans.get(at)?.1.end,
+        (None, None) => spans.get(at)?.1.clone(),
+    };
+    let mut out = String::with_capacity(text.len());
+    out.push_str(text.get(..cut.start)?);
+    out.push_str(text.get(cut.end..)?);
+    Some(out)
+}
+
+/// Reads a query's payload as the line interface reads a line, with the
+/// bridge's own reading of its members ([`motorwire_bridge::members`]:
+/// repeats kept): its `request_id` (cut out of the line, every other byte
+/// as it came) or else its `command_id` is its id. The bridge then reads
+/// the line exactly as a line on standard input without that member: a
+/// repeated member, a typo or a stop form gets the same result.
 fn command(payload: &[u8]) -> Command {
     // A pretty-printed command is one line once its newlines are spaces
     // (JSON allows no raw newline inside a string anyway).
@@ -356,42 +583,135 @@ fn command(payload: &[u8]) -> Command {
             };
         }
     };
-    // Stops and the release are handed over exactly as they came, and are
-    // never remembered: a stop always acts, and a release repeated is
-    // answered `not_latched`.
-    if asks_for_stop(text.trim()) || text.contains("emergency_stop") {
+    // A stop always acts: nothing about its id can refuse it, and a stop
+    // (or a release) is never remembered (a repeated release is answered
+    // `not_latched`).
+    let stop = asks_for_stop(text.trim());
+    let Ok(members) = motorwire_bridge::members(&text) else {
+        // Not one object serde_json holds: the bridge says why (or stops).
         return Command::Line { text, id: None };
-    }
-    let Ok(Value::Object(mut members)) = serde_json::from_str::<Value>(&text) else {
-        return Command::Line { text, id: None }; // the bridge says why
     };
-    match members.remove("request_id") {
-        None => {
-            let id = match members.get("command_id") {
-                Some(Value::String(s)) => Some(s.clone()),
-                _ => None,
+    let ids: Vec<&Value> = members
+        .iter()
+        .filter(|(k, _)| k == "request_id")
+        .map(|(_, v)| v)
+        .collect();
+    let (line, id) = match ids.as_slice() {
+        [] => {
+            let command_ids: Vec<&Value> = members
+                .iter()
+                .filter(|(k, _)| k == "command_id")
+                .map(|(_, v)| v)
+                .collect();
+            let id = match command_ids.as_slice() {
+                [Value::String(s)] => Some(CommandId::Text(s.clone())),
+                _ => None, // none, or repeated: the bridge refuses a repeat
             };
-            Command::Line { text, id }
+            (text, id)
         }
-        Some(Value::String(s)) if !s.is_empty() && s.len() <= MAX_NAME => Command::Line {
-            text: Value::Object(members).to_string(),
-            id: Some(s),
-        },
-        Some(Value::Number(n)) if n.is_u64() => Command::Line {
-            text: Value::Object(members).to_string(),
-            id: Some(n.to_string()),
-        },
-        Some(_) => Command::Refused {
-            reason: format!(
-                "request_id must be a non-empty string of at most {MAX_NAME} bytes or an unsigned integer"
-            ),
-            stop: false,
+        [v] => {
+            let Some(line) = without_request_id(&text) else {
+                // members() read it, so this does not happen; when in
+                // doubt, the line as it came (a stop stops).
+                return Command::Line { text, id: None };
+            };
+            let id = match v {
+                Value::String(s) if !s.is_empty() && s.len() <= MAX_NAME => {
+                    Ok(CommandId::Text(s.clone()))
+                }
+                Value::Number(n) if n.is_u64() => {
+                    Ok(CommandId::Number(n.as_u64().unwrap_or_default()))
+                }
+                _ => Err(format!(
+                    "request_id {v} is not a non-empty string of at most {MAX_NAME} bytes or an unsigned integer; nothing was sent"
+                )),
+            };
+            match id {
+                Ok(id) => (line, Some(id)),
+                Err(_) if stop => {
+                    return Command::Line {
+                        text: line,
+                        id: None,
+                    };
+                }
+                Err(reason) => {
+                    return Command::Refused {
+                        reason,
+                        stop: false,
+                    };
+                }
+            }
+        }
+        many => {
+            if stop {
+                return Command::Line { text, id: None };
+            }
+            return Command::Refused {
+                reason: format!(
+                    "request_id appears {} times: a command has one id; nothing was sent",
+                    many.len()
+                ),
+                stop: false,
+            };
+        }
+    };
+    if stop || members.iter().any(|(k, _)| k == "emergency_stop") {
+        return Command::Line {
+            text: line,
+            id: None,
+        };
+    }
+    Command::Line {
+        text: line,
+        id: id.map(|id| Keyed {
+            id,
+            body: body_of(&members),
+        }),
+    }
+}
+
+/// The most of the first command that a refused reuse of its id shows.
+const SHOWN_OF_FIRST: usize = 256;
+
+/// The result line of a query this participant refuses itself (nothing
+/// reaches the bridge): `line` 0.
+fn refusal(kind: ErrorKind, message: String) -> String {
+    Output::Result {
+        origin: Origin(0),
+        result: LineResult {
+            ok: false,
+            error: Some(ErrorBody::new(kind, message)),
+            ..LineResult::default()
         },
     }
+    .to_json()
+}
+
+/// The result line of a query whose id named another command.
+fn id_reused(id: &CommandId, first: &str) -> String {
+    let mut shown = first;
+    if shown.len() > SHOWN_OF_FIRST {
+        let mut end = SHOWN_OF_FIRST;
+        while !shown.is_char_boundary(end) {
+            end -= 1;
+        }
+        shown = shown.get(..end).unwrap_or_default();
+    }
+    let cut = if shown.len() < first.len() { "..." } else { "" };
+    refusal(
+        ErrorKind::IdReused,
+        format!(
+            "the id {id} is this controller's id of another command, {shown}{cut}; a retry carries the same command as its first try, a new command a new id; nothing was sent"
+        ),
+    )
 }
 
 /// The participant's state, owned by its one task.
 struct State {
+    /// The robot's name as a JSON string, and this bridge's Zenoh id: in
+    /// every reply.
+    robot: String,
+    bridge: String,
     keys: RobotKeys,
     input: InputSender,
     next_origin: u64,
@@ -411,10 +731,27 @@ impl State {
         session: zenoh::Session,
         queryable: zenoh::query::Queryable<zenoh::handlers::FifoChannelHandler<Query>>,
         subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
-        token: zenoh::liveliness::LivelinessToken,
+        token: [zenoh::liveliness::LivelinessToken; 2],
         mut replies: mpsc::UnboundedReceiver<Msg>,
         mut publish: mpsc::Receiver<Msg>,
     ) {
+        // Another bridge that joins under this robot's name (both started
+        // at once, or found when their sessions met): the one with the
+        // greater Zenoh id stops its joints and leaves, so that one bridge
+        // answers for the name.
+        let twins = match session
+            .liveliness()
+            .declare_subscriber(self.keys.alive_bridges())
+            .history(true)
+            .await
+        {
+            Ok(t) => t,
+            Err(e) => {
+                (self.note)(&format!("zenoh: {e}; the bridge leaves the fleet"));
+                let _ = session.close().await;
+                return;
+            }
+        };
         let mut watch = tokio::time::interval(WATCH_PERIOD);
         watch.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut had_link = false;
@@ -427,6 +764,25 @@ impl State {
                     Some(Msg::Output(o)) => self.answer(&session, *o).await,
                     Some(Msg::Close) | None => break,
                 },
+                twin = twins.recv_async() => {
+                    let Ok(twin) = twin else { break };
+                    let zid = twin.key_expr().as_str().rsplit('/').next().unwrap_or_default().to_owned();
+                    if twin.kind() == zenoh::sample::SampleKind::Put && zid != self.bridge {
+                        if self.bridge > zid {
+                            (self.note)(&format!(
+                                "zenoh: bridge {zid} also answers for motorwire/{}: two bridges would run every command sent to it; this bridge ({}, the greater Zenoh id) stops its joints and leaves the fleet",
+                                self.keys.robot(), self.bridge
+                            ));
+                            let origin = Origin(self.stops.fetch_add(1, Ordering::Relaxed));
+                            self.input.line(origin, STOP_LINE);
+                            break;
+                        }
+                        (self.note)(&format!(
+                            "zenoh: bridge {zid} also answers for motorwire/{}; it has the greater Zenoh id and leaves the fleet",
+                            self.keys.robot()
+                        ));
+                    }
+                }
                 q = queryable.recv_async() => match q {
                     Ok(q) => self.query(q).await,
                     Err(_) => break,
@@ -464,6 +820,7 @@ impl State {
             }
         }
         drop(token);
+        drop(twins);
         drop(subscribers);
         drop(queryable);
         // Queries in progress end here, without more replies.
@@ -491,15 +848,34 @@ impl State {
         } else {
             command(&payload)
         };
-        if let Command::Line { id: Some(id), .. } = &command {
-            match self.ids.recall(&controller, id) {
-                Some(Recalled::Done(lines)) => {
+        if let Command::Line {
+            id: Some(keyed), ..
+        } = &command
+        {
+            if !self.ids.admit(&controller, Instant::now()) {
+                let text = refusal(
+                    ErrorKind::Busy,
+                    format!(
+                        "the ids of {} controllers are remembered, each heard within the last {} s: a new controller's command with an id waits until one is silent that long (a command without an id is taken); nothing was sent",
+                        self.ids.bound(),
+                        CONTROLLER_IDLE.as_secs()
+                    ),
+                );
+                self.reply(&q, &text).await;
+                return;
+            }
+            match self.ids.recall(&controller, &keyed.id.key()) {
+                Some((first, _)) if first != keyed.body => {
+                    self.reply(&q, &id_reused(&keyed.id, &first)).await;
+                    return;
+                }
+                Some((_, Recalled::Done(lines))) => {
                     for line in &lines {
                         self.reply(&q, line).await;
                     }
                     return; // dropping the query ends its replies
                 }
-                Some(Recalled::InProgress(origin)) => {
+                Some((_, Recalled::InProgress(origin))) => {
                     if let Some(p) = self.pending.get_mut(&origin) {
                         for line in p.sent.clone() {
                             self.reply(&q, &line).await;
@@ -514,31 +890,29 @@ impl State {
             }
         }
         if self.pending.len() >= MAX_QUERIES_IN_PROGRESS {
-            let busy = LineResult {
-                ok: false,
-                error: Some(ErrorBody::new(
-                    ErrorKind::Busy,
-                    format!(
-                        "{MAX_QUERIES_IN_PROGRESS} commands are in progress on this bridge; nothing was sent"
-                    ),
-                )),
-                ..LineResult::default()
-            };
-            let text = Output::Result {
-                origin: Origin(0),
-                result: busy,
-            }
-            .to_json();
+            let text = refusal(
+                ErrorKind::Busy,
+                format!(
+                    "{MAX_QUERIES_IN_PROGRESS} commands are in progress on this bridge; nothing was sent"
+                ),
+            );
             self.reply(&q, &text).await;
             return;
         }
         let origin = Origin(self.next_origin);
         self.next_origin += 1;
         let id = match &command {
-            Command::Line { id: Some(id), .. } => {
-                self.ids
-                    .remember(&controller, id, Recalled::InProgress(origin));
-                Some((controller, id.clone()))
+            Command::Line {
+                id: Some(keyed), ..
+            } => {
+                let key = keyed.id.key();
+                self.ids.remember(
+                    &controller,
+                    &key,
+                    Arc::clone(&keyed.body),
+                    Recalled::InProgress(origin),
+                );
+                Some((controller, key, Arc::clone(&keyed.body)))
             }
             _ => None,
         };
@@ -561,6 +935,7 @@ impl State {
     }
 
     async fn reply(&self, q: &Query, line: &str) {
+        let line = signed(line, &self.robot, &self.bridge);
         let _ = q
             .reply(self.keys.cmd(), line)
             .encoding(Encoding::APPLICATION_JSON)
@@ -609,7 +984,7 @@ impl State {
         drop(queries); // their replies are complete
         self.input.forget(origin);
         if let Some(Pending {
-            id: Some((controller, id)),
+            id: Some((controller, id, body)),
             sent,
             ..
         }) = self.pending.remove(&origin)
@@ -617,7 +992,8 @@ impl State {
             if busy {
                 self.ids.forget(&controller, &id);
             } else {
-                self.ids.remember(&controller, &id, Recalled::Done(sent));
+                self.ids
+                    .remember(&controller, &id, body, Recalled::Done(sent));
             }
         }
     }
@@ -652,47 +1028,248 @@ impl State {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use motorwire_bridge::{Input, classify};
+    use motorwire_wia::Validator;
 
-    fn line(text: &str, id: Option<&str>) -> Command {
+    fn line(text: &str, id: Option<(CommandId, &str)>) -> Command {
         Command::Line {
             text: text.to_owned(),
-            id: id.map(str::to_owned),
+            id: id.map(|(id, body)| Keyed {
+                id,
+                body: Arc::from(body),
+            }),
         }
     }
 
+    fn text(id: &str) -> CommandId {
+        CommandId::Text(id.to_owned())
+    }
+
     #[test]
-    fn request_id_is_taken_out_of_the_line() {
+    fn request_id_is_cut_out_and_every_other_byte_is_kept() {
         assert_eq!(
             command(br#"{"motor_id":"elbow","setpoint":3,"request_id":"r-1"}"#),
-            line(r#"{"motor_id":"elbow","setpoint":3}"#, Some("r-1"))
+            line(
+                r#"{"motor_id":"elbow","setpoint":3}"#,
+                Some((text("r-1"), r#"{"motor_id":"elbow","setpoint":3}"#))
+            )
         );
         assert_eq!(
             command(br#"{"request_id":42,"motor_id":"elbow"}"#),
-            line(r#"{"motor_id":"elbow"}"#, Some("42"))
+            line(
+                r#"{"motor_id":"elbow"}"#,
+                Some((CommandId::Number(42), r#"{"motor_id":"elbow"}"#))
+            )
         );
-    }
-
-    #[test]
-    fn command_id_is_the_id_of_a_multi_axis_command_and_the_line_is_unchanged() {
-        let text = r#"{"command_id":"c1","motors":[]}"#;
-        assert_eq!(command(text.as_bytes()), line(text, Some("c1")));
-        // request_id wins, and is removed.
+        // Spaces, a number's spelling and the order stay as they came.
         assert_eq!(
-            command(br#"{"command_id":"c1","request_id":"r"}"#),
-            line(r#"{"command_id":"c1"}"#, Some("r"))
+            command(br#"{ "motor_id" : "elbow" , "request_id" : "x" , "setpoint" : 1.50 }"#),
+            line(
+                r#"{ "motor_id" : "elbow" , "setpoint" : 1.50 }"#,
+                Some((text("x"), r#"{"motor_id":"elbow","setpoint":1.5}"#))
+            )
+        );
+        assert_eq!(
+            command(br#"{"a":1 , "request_id":"x" }"#),
+            line(r#"{"a":1 }"#, Some((text("x"), r#"{"a":1}"#)))
+        );
+        assert_eq!(
+            command(br#"{"request_id":"x"}"#),
+            line("{}", Some((text("x"), "{}")))
+        );
+        // The key as JSON reads it, escapes decoded.
+        assert_eq!(
+            command(br#"{"request\u005fid":"x","motor_id":"elbow"}"#),
+            line(
+                r#"{"motor_id":"elbow"}"#,
+                Some((text("x"), r#"{"motor_id":"elbow"}"#))
+            )
         );
     }
 
     #[test]
-    fn stops_and_releases_are_handed_over_exactly_and_carry_no_id() {
-        for text in [
-            r#"{"emergency_stop":true,"request_id":"x"}"#,
-            r#"{"emergency_stop": false}"#,
-            r#"{"emergency_stop": false, "request_id":"x"}"#,
-            r#"{"motor_id":"elbow","safety_limits":{"emergency_stop":true},"request_id":"x"}"#,
+    fn a_repeated_member_stays_repeated_for_the_bridge_to_refuse() {
+        assert_eq!(
+            command(br#"{"motor_id":"elbow","setpoint":20,"setpoint":140,"request_id":"d1"}"#),
+            line(
+                r#"{"motor_id":"elbow","setpoint":20,"setpoint":140}"#,
+                Some((
+                    text("d1"),
+                    r#"{"motor_id":"elbow","setpoint":20,"setpoint":140}"#
+                ))
+            )
+        );
+        let v = Validator::new();
+        let Command::Line { text, .. } = command(
+            br#"{"motor_id":"elbow","motor_id":"shoulder_pitch","timestamp":1,"control_mode":"position","setpoint":20,"request_id":"d2"}"#,
+        ) else {
+            panic!("not a line");
+        };
+        let Input::Invalid { message, .. } = classify(&v, &text) else {
+            panic!("{text} was not refused");
+        };
+        assert_eq!(message, "not a valid WIA message");
+    }
+
+    #[test]
+    fn a_string_id_and_an_integer_id_are_two_ids() {
+        let (Command::Line { id: Some(a), .. }, Command::Line { id: Some(b), .. }) = (
+            command(br#"{"motor_id":"elbow","request_id":42}"#),
+            command(br#"{"motor_id":"elbow","request_id":"42"}"#),
+        ) else {
+            panic!("no ids");
+        };
+        assert_eq!(
+            (a.id.key(), b.id.key()),
+            ("n:42".to_owned(), "s:42".to_owned())
+        );
+        assert_eq!(
+            (a.id.to_string(), b.id.to_string()),
+            ("42".to_owned(), r#""42""#.to_owned())
+        );
+        assert_eq!(a.body, b.body);
+        // A retry stamped anew is the same command.
+        let (Command::Line { id: Some(a), .. }, Command::Line { id: Some(b), .. }) = (
+            command(br#"{"motor_id":"elbow","timestamp":1,"setpoint":2,"request_id":"r"}"#),
+            command(br#"{"motor_id":"elbow","timestamp":9,"setpoint":2,"request_id":"r"}"#),
+        ) else {
+            panic!("no ids");
+        };
+        assert_eq!(
+            (&*a.body, &*b.body),
+            (
+                r#"{"motor_id":"elbow","setpoint":2}"#,
+                r#"{"motor_id":"elbow","setpoint":2}"#
+            )
+        );
+    }
+
+    #[test]
+    fn a_command_that_names_emergency_stop_false_keeps_its_id() {
+        for (payload, body) in [
+            (
+                r#"{"motor_id":"elbow","setpoint":60,"safety_limits":{"emergency_stop":false},"request_id":"r"}"#,
+                r#"{"motor_id":"elbow","setpoint":60,"safety_limits":{"emergency_stop":false}}"#,
+            ),
+            (
+                r#"{"command_id":"m","motors":[{"motor_id":"elbow","safety_limits":{"emergency_stop":false}}]}"#,
+                r#"{"command_id":"m","motors":[{"motor_id":"elbow","safety_limits":{"emergency_stop":false}}]}"#,
+            ),
         ] {
-            assert_eq!(command(text.as_bytes()), line(text, None), "{text}");
+            let Command::Line {
+                id: Some(keyed), ..
+            } = command(payload.as_bytes())
+            else {
+                panic!("{payload}: no id");
+            };
+            assert_eq!(&*keyed.body, body);
         }
+    }
+
+    #[test]
+    fn stops_and_releases_carry_no_id_and_nothing_about_the_id_refuses_a_stop() {
+        for (payload, handed) in [
+            (
+                r#"{"emergency_stop":true,"request_id":"x"}"#,
+                r#"{"emergency_stop":true}"#,
+            ),
+            (
+                r#"{"emergency_stop":true,"request_id":[1]}"#,
+                r#"{"emergency_stop":true}"#,
+            ),
+            (
+                r#"{"emergency_stop":true,"request_id":"a","request_id":"b"}"#,
+                r#"{"emergency_stop":true,"request_id":"a","request_id":"b"}"#,
+            ),
+            (
+                r#"{"emergency_stop": false}"#,
+                r#"{"emergency_stop": false}"#,
+            ),
+            (
+                r#"{"emergency_stop": false, "request_id":"x"}"#,
+                r#"{"emergency_stop": false}"#,
+            ),
+            (
+                r#"{"emergency_stop": false, "motor_id":"elbow", "request_id":"x"}"#,
+                r#"{"emergency_stop": false, "motor_id":"elbow"}"#,
+            ),
+            (
+                r#"{"motor_id":"elbow","safety_limits":{"emergency_stop":true},"request_id":"x"}"#,
+                r#"{"motor_id":"elbow","safety_limits":{"emergency_stop":true}}"#,
+            ),
+            (
+                r#"{"emergency_stop":true,"x":1e400,"request_id":"x"}"#,
+                r#"{"emergency_stop":true,"x":1e400,"request_id":"x"}"#,
+            ),
+        ] {
+            assert_eq!(command(payload.as_bytes()), line(handed, None), "{payload}");
+        }
+    }
+
+    #[test]
+    fn every_hostile_line_is_read_as_on_standard_input() {
+        let v = Validator::new();
+        // The bridge's stop forms (its invariants), repeats, typos, wrong
+        // types, bad releases and lines that are no command at all.
+        let objects = [
+            r#"{"emergency_stop": true}"#,
+            r#"{"emergency_stop": "true", "why": "hostile"}"#,
+            r#"{"emergency_stop": false, "emergency_stop": true}"#,
+            r#"{"emergency_stop": false, "emergency_stop": false}"#,
+            r#"{"emergency_stop": 0}"#,
+            r#"{"emergency_stop": null, "motor_id": "elbow"}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"warp","setpoint":1,"safety_limits":{"emergency_stop":true}}"#,
+            r#"{"command_id":"c","timestamp":1,"motors":[{"motor_id":"elbow","control_mode":"position","setpoint":1,"safety_limits":{"emergency_stop":true}}]}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"setpoint":140}"#,
+            r#"{"motor_id":"elbow","motor_id":"shoulder_pitch","timestamp":1,"control_mode":"position","setpoint":20}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"velocity_limt":5}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":"20"}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"safety_limits":{"emergency_stop":false}}"#,
+            r#"{"command_id":"c","command_id":"d","timestamp":1,"motors":[]}"#,
+            r#"{"reset":"elbow"}"#,
+            r#"{"reset":"elbow","reset":"wrist"}"#,
+            r#"{"query":"limits","motor_id":"elbow"}"#,
+            r#"{"orion":"fold","orion":"unfold"}"#,
+            r#"{"request":"telemetry","motor_id":"elbow"}"#,
+            r#"{"calibration":"start","motor_id":"elbow","phases":99}"#,
+            r#"{"trajectory_id":"t","trajectories":[]}"#,
+            r#"{"\u0065mergency_stop": true}"#,
+            "{}",
+        ];
+        for form in objects {
+            let payload = match form.strip_prefix('{') {
+                Some(rest) if rest.starts_with('"') => format!(r#"{{"request_id":"h",{rest}"#),
+                _ => format!(r#"{{"request_id":"h"{}"#, form.get(1..).unwrap_or_default()),
+            };
+            let Command::Line { text, .. } = command(payload.as_bytes()) else {
+                panic!("{payload}: refused before the bridge");
+            };
+            assert_eq!(text, form, "{payload}");
+            assert_eq!(classify(&v, &text), classify(&v, form), "{payload}");
+        }
+        // Lines that are not one object serde_json holds go to the bridge
+        // as they came, with no id: it reads them as it reads a line.
+        for form in [
+            "[1,2]",
+            "not json",
+            r#"{"motor_id":"elbow""#,
+            r#"{"motor_id":"elbow","setpoint":1e400}"#,
+            r#"{"emergency_stop":true,"x":1e400}"#,
+            r#"{"emergency_stop":true} trailing"#,
+            r#"{"a":"\ud800","emergency_stop":true}"#,
+        ] {
+            assert_eq!(command(form.as_bytes()), line(form, None), "{form}");
+        }
+    }
+
+    #[test]
+    fn every_reply_says_which_robot_and_which_bridge_answered() {
+        assert_eq!(
+            signed(r#"{"ok":true,"line":1}"#, r#""arm-1""#, "a1b2"),
+            r#"{"ok":true,"line":1,"robot":"arm-1","bridge":"a1b2"}"#
+        );
+        assert_eq!(signed("{}", r#""a""#, "z"), r#"{"robot":"a","bridge":"z"}"#);
+        assert_eq!(signed("[1]", r#""a""#, "z"), "[1]");
     }
 
     #[test]
@@ -704,15 +1281,34 @@ mod tests {
     }
 
     #[test]
-    fn a_bad_request_id_or_an_unreadable_payload_is_refused() {
-        assert!(matches!(
-            command(br#"{"motor_id":"elbow","request_id":""}"#),
-            Command::Refused { stop: false, .. }
-        ));
-        assert!(matches!(
-            command(br#"{"motor_id":"elbow","request_id":[1]}"#),
-            Command::Refused { stop: false, .. }
-        ));
+    fn a_bad_or_repeated_request_id_or_an_unreadable_payload_is_refused() {
+        for (payload, reason) in [
+            (
+                r#"{"motor_id":"elbow","request_id":""}"#,
+                r#"request_id "" is not a non-empty string of at most 256 bytes or an unsigned integer; nothing was sent"#,
+            ),
+            (
+                r#"{"motor_id":"elbow","request_id":[1]}"#,
+                "request_id [1] is not a non-empty string of at most 256 bytes or an unsigned integer; nothing was sent",
+            ),
+            (
+                r#"{"motor_id":"elbow","request_id":-1}"#,
+                "request_id -1 is not a non-empty string of at most 256 bytes or an unsigned integer; nothing was sent",
+            ),
+            (
+                r#"{"motor_id":"elbow","request_id":"a","request_id":"a"}"#,
+                "request_id appears 2 times: a command has one id; nothing was sent",
+            ),
+        ] {
+            assert_eq!(
+                command(payload.as_bytes()),
+                Command::Refused {
+                    reason: reason.to_owned(),
+                    stop: false
+                },
+                "{payload}"
+            );
+        }
         assert!(matches!(command(b""), Command::Refused { stop: false, .. }));
         assert!(matches!(
             command(b" \n "),
@@ -733,8 +1329,43 @@ mod tests {
     }
 
     #[test]
-    fn json_that_is_not_an_object_goes_to_the_bridge_as_it_is() {
-        assert_eq!(command(b"[1,2]"), line("[1,2]", None));
-        assert_eq!(command(b"not json"), line("not json", None));
+    fn command_id_is_the_id_of_a_multi_axis_command_and_request_id_wins() {
+        let t = r#"{"command_id":"c1","motors":[]}"#;
+        assert_eq!(command(t.as_bytes()), line(t, Some((text("c1"), t))));
+        assert_eq!(
+            command(br#"{"command_id":"c1","request_id":"r"}"#),
+            line(
+                r#"{"command_id":"c1"}"#,
+                Some((text("r"), r#"{"command_id":"c1"}"#))
+            )
+        );
+    }
+
+    #[test]
+    fn a_reused_id_is_refused_naming_the_first_command() {
+        let r: Value = serde_json::from_str(&id_reused(
+            &text("d1"),
+            r#"{"motor_id":"elbow","setpoint":20}"#,
+        ))
+        .unwrap_or_default();
+        assert_eq!(
+            r,
+            serde_json::json!({
+                "ok": false,
+                "line": 0,
+                "error": {
+                    "kind": "id_reused",
+                    "message": r#"the id "d1" is this controller's id of another command, {"motor_id":"elbow","setpoint":20}; a retry carries the same command as its first try, a new command a new id; nothing was sent"#,
+                },
+            })
+        );
+        let long = format!(r#"{{"x":"{}"}}"#, "é".repeat(300));
+        let r: Value =
+            serde_json::from_str(&id_reused(&CommandId::Number(7), &long)).unwrap_or_default();
+        let message = r["error"]["message"].as_str().unwrap_or_default();
+        assert!(
+            message.starts_with(r#"the id 7 is this controller's id of another command, {"x":""#)
+        );
+        assert!(message.contains("é...; a retry"), "{message}");
     }
 }
