@@ -273,7 +273,9 @@ fn nested_stops(safety_limits: &Value, out: &mut Vec<String>, at: &str) {
 /// assert!(!asks_for_stop(r#"{"motor_id":"elbow","setpoint":1}"#));
 /// ```
 pub fn asks_for_stop(line: &str) -> bool {
-    if !line.contains("emergency") && !line.contains("\\u") {
+    // Without the word, only an escape (`\u0065`, or one JSON does not
+    // allow, `\g`, which the fallback reads as the letter) can spell it.
+    if !line.contains("emergency") && !line.contains('\\') {
         return false;
     }
     let Ok((members, _)) = members_of(line) else {
@@ -788,6 +790,9 @@ mod tests {
             r#"[{"emergency_stop": true}]"#,
             r#"{"emergency\u005fstop": true, "x": }"#,
             r#"{"a": {"b": [{"emergency_stop" : 1}]}, }"#,
+            // An escape JSON does not allow: not JSON, and the fallback
+            // reads `\g` as `g`; the quick test agrees.
+            r#"{"emer\gency_stop": true}"#,
         ] {
             assert!(asks_for_stop(line), "{line}");
             let p = stop(line);

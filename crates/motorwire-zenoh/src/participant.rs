@@ -326,6 +326,13 @@ fn signed(line: &str, robot: &str, bridge: &str) -> String {
     }
 }
 
+/// Whether a token's last chunk can be a bridge's Zenoh id (up to 32 hex
+/// digits, as Zenoh writes one): anything else (a token declared by hand)
+/// is no bridge, and neither keeps a bridge out nor makes one leave.
+fn is_zid(chunk: &str) -> bool {
+    (1..=32).contains(&chunk.len()) && chunk.bytes().all(|b| b.is_ascii_hexdigit())
+}
+
 /// The Zenoh ids of the other bridges that answer for `keys`' robot now:
 /// their per-bridge liveliness tokens (`motorwire/<robot>/alive/<zid>`).
 async fn others_named(
@@ -344,6 +351,7 @@ async fn others_named(
         if let Ok(sample) = reply.result()
             && let Some(zid) = sample.key_expr().as_str().rsplit('/').next()
             && zid != mine
+            && is_zid(zid)
             && !others.iter().any(|o| o == zid)
         {
             others.push(zid.to_owned());
@@ -461,15 +469,49 @@ struct Keyed {
     body: Arc<str>,
 }
 
-/// The body of a command: its members but `request_id` and `timestamp`,
-/// in order, repeats kept, written as one JSON object (with the repeats).
-fn body_of(members: &[(String, Value)]) -> Arc<str> {
-    let inner: Vec<String> = members
+/// The body of a command: its top-level members as written (nested
+/// repeats and spellings kept; whitespace between tokens dropped), but
+/// `request_id`, and each `timestamp` member's value (a retry may be
+/// stamped anew; how many there are still counts).
+fn body_of(text: &str) -> Arc<str> {
+    let Some(spans) = member_spans(text) else {
+        return Arc::from(text);
+    };
+    let inner: Vec<String> = spans
         .iter()
-        .filter(|(k, _)| k != "request_id" && k != "timestamp")
-        .map(|(k, v)| format!("{}:{v}", Value::String(k.clone())))
+        .filter(|(k, _)| k != "request_id")
+        .map(|(k, at)| {
+            if k == "timestamp" {
+                "\"timestamp\":_".to_owned()
+            } else {
+                tokens_only(text.get(at.clone()).unwrap_or_default())
+            }
+        })
         .collect();
     Arc::from(format!("{{{}}}", inner.join(",")))
+}
+
+/// JSON text without the whitespace between its tokens.
+fn tokens_only(json: &str) -> String {
+    let mut out = String::with_capacity(json.len());
+    let (mut in_string, mut escaped) = (false, false);
+    for c in json.chars() {
+        if in_string {
+            if escaped {
+                escaped = false;
+            } else if c == '\\' {
+                escaped = true;
+            } else if c == '"' {
+                in_string = false;
+            }
+        } else if c == '"' {
+            in_string = true;
+        } else if c.is_whitespace() {
+            continue;
+        }
+        out.push(c);
+    }
+    out
 }
 
 /// Where each top-level member of the JSON object `text` lies (from its
@@ -547,6 +589,37 @@ fn without_request_id(text: &str) -> Option<String> {
     Some(out)
 }
 
+/// A payload as one line: a line break between JSON tokens (pretty-printed
+/// JSON) becomes a space; one inside a string (which JSON does not allow)
+/// stays a raw control character there (a line feed becomes a carriage
+/// return, so the payload stays one line), and the bridge reads the line
+/// as it reads such a line on standard input: not JSON, a stop when it
+/// names one.
+fn one_line(payload: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(payload.len() + 1);
+    let (mut in_string, mut escaped) = (false, false);
+    for &b in payload {
+        let b = match b {
+            b'\n' | b'\r' if !in_string => b' ',
+            b'\n' => b'\r',
+            _ => b,
+        };
+        if in_string {
+            if escaped {
+                escaped = false;
+            } else if b == b'\\' {
+                escaped = true;
+            } else if b == b'"' {
+                in_string = false;
+            }
+        } else if b == b'"' {
+            in_string = true;
+        }
+        out.push(b);
+    }
+    out
+}
+
 /// Reads a query's payload as the line interface reads a line, with the
 /// bridge's own reading of its members ([`motorwire_bridge::members`]:
 /// repeats kept): its `request_id` (cut out of the line, every other byte
@@ -554,12 +627,7 @@ fn without_request_id(text: &str) -> Option<String> {
 /// the line exactly as a line on standard input without that member: a
 /// repeated member, a typo or a stop form gets the same result.
 fn command(payload: &[u8]) -> Command {
-    // A pretty-printed command is one line once its newlines are spaces
-    // (JSON allows no raw newline inside a string anyway).
-    let mut bytes: Vec<u8> = payload
-        .iter()
-        .map(|b| if matches!(b, b'\n' | b'\r') { b' ' } else { *b })
-        .collect();
+    let mut bytes = one_line(payload);
     bytes.push(b'\n');
     let text = match read_line(&mut std::io::Cursor::new(bytes)) {
         // A blank line would get no result at all: refused instead.
@@ -604,8 +672,12 @@ fn command(payload: &[u8]) -> Command {
                 .map(|(_, v)| v)
                 .collect();
             let id = match command_ids.as_slice() {
-                [Value::String(s)] => Some(CommandId::Text(s.clone())),
-                _ => None, // none, or repeated: the bridge refuses a repeat
+                [Value::String(s)] if !s.is_empty() && s.len() <= MAX_NAME => {
+                    Some(CommandId::Text(s.clone()))
+                }
+                // None, repeated (the bridge refuses a repeat), or not an
+                // id this memory keeps: the line runs as a line does.
+                _ => None,
             };
             (text, id)
         }
@@ -661,13 +733,11 @@ fn command(payload: &[u8]) -> Command {
             id: None,
         };
     }
-    Command::Line {
-        text: line,
-        id: id.map(|id| Keyed {
-            id,
-            body: body_of(&members),
-        }),
-    }
+    let id = id.map(|id| Keyed {
+        id,
+        body: body_of(&line),
+    });
+    Command::Line { text: line, id }
 }
 
 /// The most of the first command that a refused reuse of its id shows.
@@ -767,7 +837,7 @@ impl State {
                 twin = twins.recv_async() => {
                     let Ok(twin) = twin else { break };
                     let zid = twin.key_expr().as_str().rsplit('/').next().unwrap_or_default().to_owned();
-                    if twin.kind() == zenoh::sample::SampleKind::Put && zid != self.bridge {
+                    if twin.kind() == zenoh::sample::SampleKind::Put && zid != self.bridge && is_zid(&zid) {
                         if self.bridge > zid {
                             (self.note)(&format!(
                                 "zenoh: bridge {zid} also answers for motorwire/{}: two bridges would run every command sent to it; this bridge ({}, the greater Zenoh id) stops its joints and leaves the fleet",
@@ -889,7 +959,13 @@ impl State {
                 None => {}
             }
         }
-        if self.pending.len() >= MAX_QUERIES_IN_PROGRESS {
+        // A stop always acts: never refused for the commands in progress
+        // (it ends them).
+        let stop = match &command {
+            Command::Line { text, .. } => asks_for_stop(text.trim()),
+            Command::Refused { stop, .. } => *stop,
+        };
+        if self.pending.len() >= MAX_QUERIES_IN_PROGRESS && !stop {
             let text = refusal(
                 ErrorKind::Busy,
                 format!(
@@ -1066,7 +1142,7 @@ mod tests {
             command(br#"{ "motor_id" : "elbow" , "request_id" : "x" , "setpoint" : 1.50 }"#),
             line(
                 r#"{ "motor_id" : "elbow" , "setpoint" : 1.50 }"#,
-                Some((text("x"), r#"{"motor_id":"elbow","setpoint":1.5}"#))
+                Some((text("x"), r#"{"motor_id":"elbow","setpoint":1.50}"#))
             )
         );
         assert_eq!(
@@ -1138,8 +1214,8 @@ mod tests {
         assert_eq!(
             (&*a.body, &*b.body),
             (
-                r#"{"motor_id":"elbow","setpoint":2}"#,
-                r#"{"motor_id":"elbow","setpoint":2}"#
+                r#"{"motor_id":"elbow","timestamp":_,"setpoint":2}"#,
+                r#"{"motor_id":"elbow","timestamp":_,"setpoint":2}"#
             )
         );
     }
@@ -1259,6 +1335,92 @@ mod tests {
             r#"{"a":"\ud800","emergency_stop":true}"#,
         ] {
             assert_eq!(command(form.as_bytes()), line(form, None), "{form}");
+        }
+    }
+
+    #[test]
+    fn a_line_break_inside_a_string_stays_invalid_json_and_a_stop_in_it_stops() {
+        let v = Validator::new();
+        // Between tokens: a space.
+        assert_eq!(one_line(b"{\n\"a\":\r\n1}"), b"{ \"a\":  1}");
+        // Inside a string: a raw carriage return (a line feed becomes one),
+        // escapes respected.
+        assert_eq!(
+            one_line(b"{\"a\":\"x\\\"\ny\"}\n"),
+            b"{\"a\":\"x\\\"\ry\"} "
+        );
+        for raw in ["\r", "\n"] {
+            let payload = format!(
+                r#"{{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"note":"a{raw}b","metadata":{{"emergency_stop":true}},"request_id":"r"}}"#
+            );
+            let Command::Line { text, id } = command(payload.as_bytes()) else {
+                panic!("refused");
+            };
+            assert_eq!(id, None);
+            // Not JSON: it goes on as it came (its request_id too), and
+            // the bridge reads it as the same bytes on standard input.
+            assert_eq!(text.trim_end(), payload.replace('\n', "\r"));
+            assert!(
+                matches!(classify(&v, &text), Input::Stop { .. }),
+                "{text:?}"
+            );
+            assert!(asks_for_stop(&text));
+        }
+    }
+
+    #[test]
+    fn the_body_keeps_nested_repeats_and_spellings_and_counts_timestamps() {
+        let body = |p: &str| match command(p.as_bytes()) {
+            Command::Line { id: Some(k), .. } => k.body,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(
+            &*body(
+                r#"{"motor_id":"elbow","timestamp":1,"safety_limits":{"max_position":90,"max_position":10},"request_id":"k"}"#
+            ),
+            r#"{"motor_id":"elbow","timestamp":_,"safety_limits":{"max_position":90,"max_position":10}}"#
+        );
+        assert_ne!(
+            body(r#"{"motor_id":"elbow","safety_limits":{"max_position":10},"request_id":"k"}"#),
+            body(
+                r#"{"motor_id":"elbow","safety_limits":{"max_position":90,"max_position":10},"request_id":"k"}"#
+            )
+        );
+        // Whitespace between tokens is not the command; inside strings it is.
+        assert_eq!(
+            body(r#"{ "motor_id" : "elbow" , "setpoint" : [1, 2], "request_id":"k"}"#),
+            body(r#"{"motor_id":"elbow","setpoint":[1,2],"request_id":"k"}"#)
+        );
+        assert_ne!(
+            body(r#"{"motor_id":"el bow","request_id":"k"}"#),
+            body(r#"{"motor_id":"elbow","request_id":"k"}"#)
+        );
+        // A timestamp twice is not the command with one.
+        assert_ne!(
+            body(r#"{"timestamp":1,"timestamp":2,"request_id":"k"}"#),
+            body(r#"{"timestamp":3,"request_id":"k"}"#)
+        );
+        // 1.0 is not 1: the command as written.
+        assert_ne!(
+            body(r#"{"setpoint":1.0,"request_id":"k"}"#),
+            body(r#"{"setpoint":1,"request_id":"k"}"#)
+        );
+    }
+
+    #[test]
+    fn a_long_or_empty_command_id_is_no_id() {
+        let long = format!(r#"{{"command_id":"{}","motors":[]}}"#, "c".repeat(257));
+        assert_eq!(command(long.as_bytes()), line(&long, None));
+        let empty = r#"{"command_id":"","motors":[]}"#;
+        assert_eq!(command(empty.as_bytes()), line(empty, None));
+    }
+
+    #[test]
+    fn only_a_zenoh_id_is_a_bridge() {
+        assert!(is_zid("4a753e271844afeb3f1d1450df42d3ab"));
+        assert!(is_zid("f8c46323752c1dbaf10c60ee5959d6"));
+        for not in ["", "!", "zz", "4a753e271844afeb3f1d1450df42d3ab0", "a b"] {
+            assert!(!is_zid(not), "{not:?}");
         }
     }
 
