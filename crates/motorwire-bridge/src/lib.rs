@@ -15,6 +15,8 @@ pub use engine::{
     Bridge, BridgeConfig, BridgeStats, JointView, MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, ORION_POLL,
 };
 pub use error::BridgeError;
+/// The WIA crate whose [`motorwire_wia::Validator`] [`classify`] takes.
+pub use motorwire_wia;
 pub use output::{
     ArrivalLine, ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, MotorArrival,
     Origin, Output, StepOutcome, StepReport,

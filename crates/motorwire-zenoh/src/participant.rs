@@ -1104,8 +1104,8 @@ impl State {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use motorwire_bridge::motorwire_wia::Validator;
     use motorwire_bridge::{Input, classify};
-    use motorwire_wia::Validator;
 
     fn line(text: &str, id: Option<(CommandId, &str)>) -> Command {
         Command::Line {
