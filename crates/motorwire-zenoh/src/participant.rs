@@ -469,14 +469,39 @@ struct Keyed {
     body: Arc<str>,
 }
 
-/// The body of a command: its top-level members as written (nested
-/// repeats and spellings kept; whitespace between tokens dropped), but
-/// `request_id`, and each `timestamp` member's value (a retry may be
-/// stamped anew; how many there are still counts).
-fn body_of(text: &str) -> Arc<str> {
-    let Some(spans) = member_spans(text) else {
-        return Arc::from(text);
-    };
+/// Where a byte of JSON text stands: inside a string or between tokens.
+#[derive(Debug, Default)]
+struct Strings {
+    inside: bool,
+    escaped: bool,
+}
+
+impl Strings {
+    /// Takes the next byte; whether it stands between tokens (a quote that
+    /// opens or closes a string counts as inside it).
+    fn between_tokens(&mut self, b: u8) -> bool {
+        if self.inside {
+            if self.escaped {
+                self.escaped = false;
+            } else if b == b'\\' {
+                self.escaped = true;
+            } else if b == b'"' {
+                self.inside = false;
+            }
+            false
+        } else {
+            self.inside = b == b'"';
+            !self.inside
+        }
+    }
+}
+
+/// The body of a command (`text`, whose top-level members lie at
+/// `spans`): its members as written (nested repeats and spellings kept;
+/// whitespace between tokens dropped), but `request_id`, and each
+/// `timestamp` member's value (a retry may be stamped anew; how many there
+/// are still counts).
+fn body_of(text: &str, spans: &[(String, std::ops::Range<usize>)]) -> Arc<str> {
     let inner: Vec<String> = spans
         .iter()
         .filter(|(k, _)| k != "request_id")
@@ -493,25 +518,13 @@ fn body_of(text: &str) -> Arc<str> {
 
 /// JSON text without the whitespace between its tokens.
 fn tokens_only(json: &str) -> String {
-    let mut out = String::with_capacity(json.len());
-    let (mut in_string, mut escaped) = (false, false);
-    for c in json.chars() {
-        if in_string {
-            if escaped {
-                escaped = false;
-            } else if c == '\\' {
-                escaped = true;
-            } else if c == '"' {
-                in_string = false;
-            }
-        } else if c == '"' {
-            in_string = true;
-        } else if c.is_whitespace() {
-            continue;
-        }
-        out.push(c);
-    }
-    out
+    let mut at = Strings::default();
+    let bytes: Vec<u8> = json
+        .bytes()
+        .filter(|&b| !(at.between_tokens(b) && b.is_ascii_whitespace()))
+        .collect();
+    // Only ASCII whitespace was taken out: still UTF-8.
+    String::from_utf8(bytes).unwrap_or_else(|_| json.to_owned())
 }
 
 /// Where each top-level member of the JSON object `text` lies (from its
@@ -568,10 +581,10 @@ fn member_spans(text: &str) -> Option<Vec<(String, std::ops::Range<usize>)>> {
     }
 }
 
-/// `text` with its one top-level `request_id` member cut out (and the
-/// comma that joined it to a neighbour); every other byte as it came.
-fn without_request_id(text: &str) -> Option<String> {
-    let spans = member_spans(text)?;
+/// `text` (whose top-level members lie at `spans`) with its one
+/// `request_id` member cut out (and the comma that joined it to a
+/// neighbour); every other byte as it came.
+fn without_request_id(text: &str, spans: &[(String, std::ops::Range<usize>)]) -> Option<String> {
     let at = spans.iter().position(|(k, _)| k == "request_id")?;
     let cut = match (
         at.checked_sub(1).and_then(|p| spans.get(p)),
@@ -596,28 +609,18 @@ fn without_request_id(text: &str) -> Option<String> {
 /// as it reads such a line on standard input: not JSON, a stop when it
 /// names one.
 fn one_line(payload: &[u8]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(payload.len() + 1);
-    let (mut in_string, mut escaped) = (false, false);
-    for &b in payload {
-        let b = match b {
-            b'\n' | b'\r' if !in_string => b' ',
-            b'\n' => b'\r',
-            _ => b,
-        };
-        if in_string {
-            if escaped {
-                escaped = false;
-            } else if b == b'\\' {
-                escaped = true;
-            } else if b == b'"' {
-                in_string = false;
+    let mut at = Strings::default();
+    payload
+        .iter()
+        .map(|&b| {
+            let between = at.between_tokens(b);
+            match b {
+                b'\n' | b'\r' if between => b' ',
+                b'\n' => b'\r',
+                _ => b,
             }
-        } else if b == b'"' {
-            in_string = true;
-        }
-        out.push(b);
-    }
-    out
+        })
+        .collect()
 }
 
 /// Reads a query's payload as the line interface reads a line, with the
@@ -659,12 +662,18 @@ fn command(payload: &[u8]) -> Command {
         // Not one object serde_json holds: the bridge says why (or stops).
         return Command::Line { text, id: None };
     };
+    let Some(spans) = member_spans(&text) else {
+        // members() read it, so this does not happen; when in doubt, the
+        // line as it came (a stop stops).
+        return Command::Line { text, id: None };
+    };
     let ids: Vec<&Value> = members
         .iter()
         .filter(|(k, _)| k == "request_id")
         .map(|(_, v)| v)
         .collect();
-    let (line, id) = match ids.as_slice() {
+    // The line without its request_id, when it had one.
+    let (cut, id) = match ids.as_slice() {
         [] => {
             let command_ids: Vec<&Value> = members
                 .iter()
@@ -679,12 +688,10 @@ fn command(payload: &[u8]) -> Command {
                 // id this memory keeps: the line runs as a line does.
                 _ => None,
             };
-            (text, id)
+            (None, id)
         }
         [v] => {
-            let Some(line) = without_request_id(&text) else {
-                // members() read it, so this does not happen; when in
-                // doubt, the line as it came (a stop stops).
+            let Some(line) = without_request_id(&text, &spans) else {
                 return Command::Line { text, id: None };
             };
             let id = match v {
@@ -699,7 +706,7 @@ fn command(payload: &[u8]) -> Command {
                 )),
             };
             match id {
-                Ok(id) => (line, Some(id)),
+                Ok(id) => (Some(line), Some(id)),
                 Err(_) if stop => {
                     return Command::Line {
                         text: line,
@@ -729,15 +736,18 @@ fn command(payload: &[u8]) -> Command {
     };
     if stop || members.iter().any(|(k, _)| k == "emergency_stop") {
         return Command::Line {
-            text: line,
+            text: cut.unwrap_or(text),
             id: None,
         };
     }
     let id = id.map(|id| Keyed {
         id,
-        body: body_of(&line),
+        body: body_of(&text, &spans),
     });
-    Command::Line { text: line, id }
+    Command::Line {
+        text: cut.unwrap_or(text),
+        id,
+    }
 }
 
 /// The most of the first command that a refused reuse of its id shows.
