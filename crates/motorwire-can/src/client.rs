@@ -315,7 +315,8 @@ pub struct Client {
     pending: BTreeMap<u32, Pending>,
     /// Requests in flight per node.
     in_flight: BTreeMap<u16, usize>,
-    /// Wire versions of nodes that do not speak `config.wire`.
+    /// The wire version of every node given one with [`Client::set_wire`]
+    /// (the others speak `config.wire`).
     wires: BTreeMap<u16, WireVersion>,
     out: VecDeque<Frame>,
     links: Links,
@@ -392,11 +393,7 @@ impl Client {
     /// # Ok::<(), motorwire_can::Error>(())
     /// ```
     pub fn set_wire(&mut self, node: u16, wire: WireVersion) {
-        if wire == self.config.wire {
-            self.wires.remove(&node);
-        } else {
-            self.wires.insert(node, wire);
-        }
+        self.wires.insert(node, wire);
     }
 
     /// The wire version spoken to `node`.
@@ -630,19 +627,43 @@ impl Client {
         )
     }
 
-    /// Broadcasts ArmReady (to 0xFFFF; no answer expected), once in every
-    /// wire version spoken (its tag differs between versions).
+    /// Sends ArmReady (no answer expected), so that it means ArmReady to
+    /// every joint: one broadcast (to 0xFFFF) while every node given a wire
+    /// version ([`Client::set_wire`]) speaks the client's own; otherwise one
+    /// ArmReady to each of those nodes, in its version. A broadcast is
+    /// decoded by every joint in its own version, and ArmReady's tag in one
+    /// version is another message in the next: v2.0's ArmReady (tag 10) is
+    /// v2.1's RequestTelemetry. Returns the msg_id of the last frame.
+    ///
+    /// ```
+    /// use motorwire_can::client::{Client, ClientConfig};
+    /// use motorwire_irpc::WireVersion;
+    ///
+    /// let mut client = Client::new(ClientConfig::default())?; // speaks v2.0
+    /// client.set_wire(0x10, WireVersion::V2_0);
+    /// client.arm_ready()?;                                  // one broadcast, tag 10
+    /// assert_eq!(client.poll_transmit().unwrap().data(), [0x00, 0xff, 0xff, 0x03, 0x01, 0x0a]);
+    /// client.set_wire(0x11, WireVersion::V2_1);
+    /// client.arm_ready()?;                                  // to each joint in its version
+    /// assert_eq!(client.poll_transmit().unwrap().data(), [0x00, 0x10, 0x02, 0x0a]);
+    /// assert_eq!(client.poll_transmit().unwrap().data(), [0x00, 0x11, 0x03, 0x14]);
+    /// assert!(client.poll_transmit().is_none());
+    /// # Ok::<(), motorwire_can::Error>(())
+    /// ```
     ///
     /// # Errors
     /// As [`Client::request`].
     pub fn arm_ready(&mut self) -> Result<u32, Error> {
-        let mut wires: Vec<WireVersion> = self.wires.values().copied().collect();
-        wires.sort();
-        wires.dedup();
-        for w in wires {
-            self.send_in(w, BROADCAST, Payload::ArmReady)?;
+        let own = self.config.wire;
+        if self.wires.values().all(|w| *w == own) {
+            return self.send(BROADCAST, Payload::ArmReady);
         }
-        self.send(BROADCAST, Payload::ArmReady)
+        let nodes: Vec<(u16, WireVersion)> = self.wires.iter().map(|(n, w)| (*n, *w)).collect();
+        let mut last = 0;
+        for (node, wire) in nodes {
+            last = self.send_in(wire, node, Payload::ArmReady)?;
+        }
+        Ok(last)
     }
 
     /// Takes a frame from the bus: a plain iRPC frame, or a frame of a

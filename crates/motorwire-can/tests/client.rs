@@ -279,10 +279,21 @@ fn each_node_is_spoken_to_and_heard_in_its_own_wire_version() {
     c.handle_frame(ms(1), &frame);
     let done = completion(&mut c);
     assert_eq!((done.msg_id, done.outcome), (a, Outcome::Acked));
-    // ArmReady goes out once per version spoken: v1 (tag 9), v2.1 (tag 20), then v2.0 (tag 10).
+    // With several versions spoken, ArmReady goes to each joint in its own
+    // version, never as a broadcast: v2.0's broadcast ArmReady (tag 10) is a
+    // RequestTelemetry to a v2.1 joint. A joint of the client's own version
+    // (v2.0, tag 10) is one of them once named.
+    c.set_wire(0x10, WireVersion::V2_0);
     c.arm_ready().unwrap();
-    let tags: Vec<u8> = std::iter::from_fn(|| c.poll_transmit())
-        .map(|f| f.data()[5])
+    let sent: Vec<Vec<u8>> = std::iter::from_fn(|| c.poll_transmit())
+        .map(|f| f.data().to_vec())
         .collect();
-    assert_eq!(tags, [0x09, 0x14, 0x0a]);
+    assert_eq!(
+        sent,
+        [
+            vec![0x00, 0x10, 0x03, 0x0a],
+            vec![0x00, 0x11, 0x04, 0x14],
+            vec![0x00, 0x13, 0x05, 0x09]
+        ]
+    );
 }
