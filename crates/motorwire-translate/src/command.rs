@@ -212,6 +212,17 @@ fn not_for(motor: &MappedMotor, cmd: &MotorCommand, dialect: &'static str) -> Re
 
 /// A limit from the command, or else from the effective limits (said so),
 /// or else a refusal: iRPC needs it.
+/// Where a limit came from, as a report says it: `bus map` is "the bus
+/// map"; a source that names itself with its article is left as it is
+/// ("the SafetyLimits line in force").
+fn the(source: &str) -> String {
+    if source.starts_with("the ") {
+        source.to_owned()
+    } else {
+        format!("the {source}")
+    }
+}
+
 fn resolve(
     motor: &str,
     field: &'static str,
@@ -225,7 +236,7 @@ fn resolve(
             report.push(
                 field,
                 LossKind::Defaulted,
-                format!("{} from the {}", b.value, b.source),
+                format!("{} from {}", b.value, the(b.source)),
             );
             Ok(b.value)
         }
@@ -284,8 +295,8 @@ fn set_target(
     let from_acceleration = |value: f64| match cmd.acceleration_limit {
         Some(_) => format!("{value}, the command's acceleration_limit"),
         None => format!(
-            "{value}, the max_acceleration from the {}",
-            e.max_acceleration.map_or("bus map", |b| b.source)
+            "{value}, the max_acceleration from {}",
+            the(e.max_acceleration.map_or("bus map", |b| b.source))
         ),
     };
     let deceleration = match motor.limits.max_deceleration {
@@ -295,9 +306,9 @@ fn set_target(
                 "max_deceleration",
                 LossKind::Defaulted,
                 format!(
-                    "{} (below max_deceleration {d} from the {})",
+                    "{} (below max_deceleration {d} from {})",
                     from_acceleration(a),
-                    motor.limits_source
+                    the(motor.limits_source)
                 ),
             );
             a
@@ -306,7 +317,7 @@ fn set_target(
             report.push(
                 "max_deceleration",
                 LossKind::Defaulted,
-                format!("{d} from the {}", motor.limits_source),
+                format!("{d} from {}", the(motor.limits_source)),
             );
             d
         }
@@ -315,9 +326,9 @@ fn set_target(
                 "max_deceleration",
                 LossKind::Defaulted,
                 format!(
-                    "{} (the {} gives no max_deceleration)",
+                    "{} ({} gives no max_deceleration)",
                     from_acceleration(acceleration),
-                    motor.limits_source
+                    the(motor.limits_source)
                 ),
             );
             acceleration
@@ -444,17 +455,56 @@ pub fn compact_command(cmd: &MotorCommand) -> Result<Translated<CompactCommand>,
 }
 
 /// [`compact_command`] for a motor the bus map gives the compact dialect,
-/// behind the safety gate.
+/// behind the safety gate. A position command without a `velocity_limit`
+/// carries the `max_velocity` in force (the bus map's, or a SafetyLimits
+/// line's), as an iRPC joint's would: a frame without one would leave the
+/// speed to the device.
+///
+/// ```
+/// use motorwire_translate::{BusMap, to_compact};
+/// let map = BusMap::from_toml(r#"
+///     [motors.gripper]
+///     dialect = "compact"
+///     node = 0x20
+///     limits = { min_position = 0, max_position = 90, max_velocity = 60 }
+/// "#)?;
+/// let cmd: motorwire_wia::MotorCommand = serde_json::from_str(r#"{
+///     "motor_id": "gripper", "timestamp": 0, "control_mode": "position", "setpoint": 45
+/// }"#)?;
+/// let t = to_compact(&map, &cmd)?;
+/// assert_eq!(t.value.velocity_limit.map(|l| l.units_per_s()), Some(60.0));
+/// assert_eq!(t.report.losses[0].to_string(), "velocity_limit: defaulted: 60 from the bus map");
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 ///
 /// # Errors
 /// [`gate`]'s refusals, a motor of another dialect, and
 /// [`compact_command`]'s.
 pub fn to_compact(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<CompactCommand>, Refusal> {
-    let (motor, _) = gate_unless_emergency(map, cmd)?;
+    let (motor, effective) = gate_unless_emergency(map, cmd)?;
     if !matches!(motor.target, Target::Compact { .. }) {
         return Err(not_for(motor, cmd, "compact"));
     }
-    compact_command(cmd)
+    let mut t = compact_command(cmd)?;
+    if cmd.control_mode == ControlMode::Position
+        && cmd.velocity_limit.is_none()
+        && !t.value.flags.contains(Flags::EMERGENCY_STOP)
+        && let Some(b) = effective.max_velocity
+    {
+        let limit =
+            VelocityLimit::from_units_per_s(b.value).map_err(|e| Refusal::NotRepresentable {
+                motor: cmd.motor_id.clone(),
+                field: "velocity_limit",
+                problem: format!("the max_velocity in force, {}: {e}", b.value),
+            })?;
+        t.value.velocity_limit = Some(limit);
+        t.report.push(
+            "velocity_limit",
+            LossKind::Defaulted,
+            format!("{} from {}", b.value, the(b.source)),
+        );
+    }
+    Ok(t)
 }
 
 /// A WIA multi-axis command for compact devices: each axis as

@@ -261,8 +261,8 @@ impl Effective {
         Self::with(motor, cmd.safety_limits.as_ref())
     }
 
-    fn with(motor: &MappedMotor, own: Option<&motorwire_wia::CommandSafetyLimits>) -> Self {
-        let (limits, target, source) = (&motor.limits, motor.target, motor.limits_source);
+    fn with(mapped: &MappedMotor, own: Option<&motorwire_wia::CommandSafetyLimits>) -> Self {
+        let (limits, target, source) = (&mapped.limits, mapped.target, mapped.limits_source);
         let from_cmd = |v: Option<f64>| {
             v.map(|value| Bound {
                 value,
@@ -301,9 +301,12 @@ impl Effective {
                 })
             };
             match motor.quantity() {
+                // The range is in degrees; positions are compared in the
+                // map's unit (180 rad is not within ±180°).
                 motorwire_orion::Quantity::PositionDegrees => {
-                    e.min_position = tighter(e.min_position, range(lo), false);
-                    e.max_position = tighter(e.max_position, range(hi), true);
+                    let unit = mapped.unit;
+                    e.min_position = tighter(e.min_position, range(unit.from_degrees(lo)), false);
+                    e.max_position = tighter(e.max_position, range(unit.from_degrees(hi)), true);
                 }
                 _ => e.max_velocity = tighter(e.max_velocity, range(hi), true),
             }

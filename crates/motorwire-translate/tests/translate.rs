@@ -484,6 +484,41 @@ mod gate_property {
 }
 
 #[test]
+fn an_orion_servo_in_radians_is_held_to_its_range_in_radians() {
+    let map = BusMap::from_toml(
+        r#"
+        [motors.grasper_horizontal_servo]
+        dialect = "orion"
+        key = "GHS"
+        unit = "rad"
+    "#,
+    )
+    .unwrap();
+    let servo = |setpoint: f64| -> MultiAxisCommand {
+        serde_json::from_str(&format!(
+            r#"{{"command_id":"c","timestamp":1,"motors":[{{"motor_id":"grasper_horizontal_servo","control_mode":"position","setpoint":{setpoint}}}]}}"#
+        ))
+        .unwrap()
+    };
+    // 180 rad is 10,313°: outside ±180°, which is ±π rad.
+    assert_eq!(
+        to_orion(&map, &servo(180.0)).unwrap_err().to_string(),
+        "grasper_horizontal_servo: setpoint 180 is outside max_position (Orion range) 3.141592653589793"
+    );
+    assert_eq!(
+        to_orion(&map, &servo(-3.2)).unwrap_err().to_string(),
+        "grasper_horizontal_servo: setpoint -3.2 is outside min_position (Orion range) -3.141592653589793"
+    );
+    assert_eq!(
+        to_orion(&map, &servo(std::f64::consts::FRAC_PI_2))
+            .unwrap()
+            .value
+            .to_json(),
+        r#"{"ID":32,"MODE":1,"DATA":{"GHS":90}}"#
+    );
+}
+
+#[test]
 fn hostile_maps_are_errors_not_crashes() {
     let deep = format!("x = {}1{}", "[".repeat(100_000), "]".repeat(100_000));
     assert!(matches!(
