@@ -305,6 +305,10 @@ pub struct Bridge {
     waiting: VecDeque<Waiting>,
     line_numbers: BTreeMap<Origin, u64>,
     latched: bool,
+    /// Unix ms of the last emergency stop, on the bridge's clock (with
+    /// [`BridgeConfig::epoch_unix_ms`]): a command stamped before it was
+    /// written before the stop, and is refused `stale_before_stop`.
+    last_stop_unix_ms: Option<f64>,
     /// For each joint, what the release sends it (those active, or being
     /// started, when the stop came).
     resume: BTreeMap<usize, Vec<Payload>>,
@@ -388,6 +392,8 @@ impl Bridge {
                     j.orion = Some(motor);
                     // No lifecycle either.
                     j.active = true;
+                    // Online from the controller's boot beacon on.
+                    j.online = false;
                     Some(j)
                 }
                 Target::Orion { .. } => None,
@@ -426,6 +432,7 @@ impl Bridge {
             waiting: VecDeque::new(),
             line_numbers: BTreeMap::new(),
             latched: false,
+            last_stop_unix_ms: None,
             resume: BTreeMap::new(),
             phase: Phase::Starting,
             drain_after_start: None,
@@ -517,6 +524,7 @@ impl Bridge {
                 self.out.push_back(Output::Event(Event::Stopping {
                     reason: "end of input".to_owned(),
                 }));
+                self.end_open_motion();
             }
             (Phase::Stopping, Phase::Draining { .. }) => {}
             (_, Phase::Stopping) if from != Phase::Stopping => {
@@ -583,6 +591,35 @@ impl Bridge {
             }
         }
         self.handle_timeout(self.now);
+    }
+
+    /// At the end of input, motion that would not end by itself stops at
+    /// once: a trajectory looping forever (it ends with the segment under
+    /// way), one whose start is still to come (never started), and a
+    /// velocity or torque setpoint (brought to velocity 0, as the deadman
+    /// does). Finite moves may finish within the drain.
+    fn end_open_motion(&mut self) {
+        let now = self.now;
+        let open = |job: &Job| {
+            job.kind == JobKind::Command
+                && (job.axes.iter().any(|a| a.cycle.is_some() && !a.is_done())
+                    || job
+                        .axes
+                        .iter()
+                        .all(|a| !a.begun && a.due.front().is_some_and(|due| *due > now)))
+        };
+        self.cancel_where(
+            "cancelled by the end of input: it would not end by itself",
+            open,
+        );
+        let held = self.joints_where(|j| j.deadman.is_some());
+        for &ji in &held {
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.deadman = None;
+            }
+        }
+        self.hold_still(now, held, false);
+        self.finish_jobs();
     }
 
     /// Interrupted (a signal): everything queued or in flight is cancelled
@@ -878,6 +915,20 @@ impl Bridge {
             self.refuse(origin, number, label, e);
             return;
         }
+        if let (Some(_), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age)
+            && start_ms - now_ms > max_age.as_secs_f64() * 1000.0
+        {
+            let e = ErrorBody::new(
+                ErrorKind::Stale,
+                format!(
+                    "timing.start_time {start_ms} is {:.1} s ahead; a trajectory starts within the allowed clock skew, {} s (WIA §10.1)",
+                    (start_ms - now_ms) / 1000.0,
+                    max_age.as_secs_f64()
+                ),
+            );
+            self.refuse(origin, number, label, e);
+            return;
+        }
         let delay = Duration::from_secs_f64(((start_ms - now_ms) / 1000.0).max(0.0));
         let start = now.saturating_add(delay);
         let mut axes = Vec::new();
@@ -992,16 +1043,14 @@ impl Bridge {
             self.refuse(origin, number, label, e);
             return;
         }
-        let Some(ji) = self
-            .joint_index(motor)
-            .filter(|ji| self.joints.get(*ji).is_some_and(|j| j.compact.is_none()))
-        else {
-            let e = ErrorBody::new(
-                ErrorKind::Refused,
-                format!("{motor} is not an iRPC joint of the bus map"),
-            );
-            self.refuse(origin, number, label, e);
-            return;
+        // An iRPC joint only: Reset goes to its node alone (an Orion motor's
+        // would be the broadcast node, rebooting every joint).
+        let ji = match self.irpc_joint(motor, PayloadKind::Reset, "Reset") {
+            Ok(ji) => ji,
+            Err(e) => {
+                self.refuse(origin, number, label, e);
+                return;
+            }
         };
         self.cancel_where("cancelled by a reset of its joint", |job| {
             job.kind == JobKind::Command && job.axes.iter().any(|a| a.joint == ji)
@@ -1326,6 +1375,20 @@ impl Bridge {
                 "the emergency stop is latched; send {\"emergency_stop\": false} to release it",
             ));
         }
+        if let Some(stop_ms) = self.last_stop_unix_ms
+            && timestamp < stop_ms
+        {
+            // Written before the stop (another client's, still on its
+            // way): the stop came after it, so it must not run after the
+            // release.
+            return Err(ErrorBody::new(
+                ErrorKind::StaleBeforeStop,
+                format!(
+                    "timestamp {timestamp} is {:.3} s before the last emergency stop (at {stop_ms}): written before the stop, it does not run after the release",
+                    (stop_ms - timestamp) / 1000.0
+                ),
+            ));
+        }
         if let (Some(epoch), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age) {
             let now_ms = epoch + self.now.as_secs_f64() * 1000.0;
             let skew = max_age.as_secs_f64() * 1000.0;
@@ -1361,7 +1424,13 @@ impl Bridge {
                 ErrorBody::new(
                     ErrorKind::Offline,
                     if j.orion.is_some() {
-                        format!("{m} is offline: nothing heard from {}", Self::orion_label())
+                        match self.orion_offline_reason() {
+                            Some(why) => format!("{m} is offline: {why}"),
+                            None => format!(
+                                "{m} is offline: nothing heard from {}",
+                                Self::orion_label()
+                            ),
+                        }
                     } else {
                         format!("{m} is offline: nothing heard from node 0x{:02X}", j.node)
                     },
@@ -1760,6 +1829,10 @@ impl Bridge {
             }
         }
         self.latched = true;
+        self.last_stop_unix_ms = self
+            .config
+            .epoch_unix_ms
+            .map(|e| e + now.as_secs_f64() * 1000.0);
         self.fail_watches(|_| true, "stopped by the emergency stop");
         let cancelled = self.cancel_everything("cancelled by the emergency stop");
         self.out
@@ -2288,6 +2361,7 @@ impl Bridge {
             }
             return false;
         };
+        a.begun = true;
         let orion_order = match payload {
             Order::Orion(o) => Some(o),
             _ => None,
@@ -2955,6 +3029,12 @@ impl Bridge {
                 j.target = Some(target);
                 j.moving_until = at.saturating_add(Duration::from_secs_f64(secs.min(3600.0)));
             }
+            // A setpoint of 0 (the deadman's own stop among them) holds the
+            // device still: nothing for the deadman to stop, nothing moving.
+            CompactMode::Velocity | CompactMode::Torque if c.setpoint == 0.0 => {
+                j.target = None;
+                j.moving_until = at;
+            }
             CompactMode::Velocity | CompactMode::Torque => {
                 j.target = None;
                 j.deadman = timeout.map(|t| at.saturating_add(t));
@@ -2979,7 +3059,15 @@ impl Bridge {
     /// and an event says so.
     fn deadman(&mut self, now: Duration) {
         let due = self.joints_where(|j| j.deadman.is_some_and(|d| now >= d));
-        for ji in due {
+        self.hold_still(now, due, true);
+    }
+
+    /// Brings devices `which` (each holding a velocity or torque setpoint)
+    /// to a stop, velocity 0, as the deadman does; `timed_out`: it is the
+    /// deadman, and an event says so (at the end of input the `stopping`
+    /// event does).
+    fn hold_still(&mut self, now: Duration, which: Vec<usize>, timed_out: bool) {
+        for ji in which {
             let Some(j) = self.joints.get_mut(ji) else {
                 continue;
             };
@@ -3009,10 +3097,12 @@ impl Bridge {
                 .motor(&name)
                 .and_then(|m| m.command_timeout)
                 .map_or(0, |t| u64::try_from(t.as_millis()).unwrap_or(u64::MAX));
-            self.out.push_back(Output::Event(Event::Deadman {
-                motor_id: name.clone(),
-                timeout_ms,
-            }));
+            if timed_out {
+                self.out.push_back(Output::Event(Event::Deadman {
+                    motor_id: name.clone(),
+                    timeout_ms,
+                }));
+            }
             // Ahead of anything waiting for the device.
             if let Some(j) = self.joints.get_mut(ji) {
                 for s in j.queue.drain(..).collect::<Vec<_>>() {
@@ -3281,6 +3371,22 @@ impl Bridge {
         }
         for ji in went_offline {
             self.fail_watches(|w| w.waits_on(ji), "the joint went offline");
+            // What waits for it is not held to run once it is heard again.
+            let name = self
+                .joints
+                .get(ji)
+                .map(|j| j.name.clone())
+                .unwrap_or_default();
+            self.cancel_where(
+                &format!("cancelled: {name} went offline before it was sent"),
+                |job| {
+                    job.kind == JobKind::Command
+                        && job
+                            .axes
+                            .iter()
+                            .any(|a| a.joint == ji && a.state == AxisState::Queued)
+                },
+            );
         }
         if let (Some(period), Some(at)) = (self.config.feedback_period, self.timers.feedback)
             && now >= at

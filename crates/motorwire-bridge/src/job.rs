@@ -102,6 +102,9 @@ pub(crate) struct Axis {
     /// A trajectory that loops forever: refilled from its cycle when it
     /// runs out, until a stop.
     pub(crate) cycle: Option<Cycle>,
+    /// Something of it was sent (a trajectory whose start is still to
+    /// come has sent nothing).
+    pub(crate) begun: bool,
     /// The target of its last move (degrees), watched for arrival once
     /// acked.
     pub(crate) target: Option<f64>,
@@ -141,6 +144,7 @@ impl Axis {
             attempts: 0,
             due: VecDeque::new(),
             cycle: None,
+            begun: false,
             target,
             after: None,
             arrived: false,

@@ -22,6 +22,6 @@ pub use output::{
     Origin, Output, StepOutcome, StepReport,
 };
 pub use runtime::{
-    InputSender, MAX_LINE, MAX_QUEUED_PER_ORIGIN, MAX_SKIP, OrionPort, ReadLine, Runner, feed,
-    read_line,
+    InputSender, MAX_LINE, MAX_ORION_LINES_PER_S, MAX_ORION_QUEUED, MAX_QUEUED_PER_ORIGIN,
+    MAX_SKIP, OrionPort, ReadLine, Runner, feed, read_line,
 };

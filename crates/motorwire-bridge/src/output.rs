@@ -247,6 +247,10 @@ pub enum ErrorKind {
     Busy,
     /// The command's timestamp is outside the allowed clock skew. Nothing was sent.
     Stale,
+    /// The command's timestamp is older than the last emergency stop: it
+    /// was written before the stop, and does not run after the release.
+    /// Nothing was sent.
+    StaleBeforeStop,
     /// An emergency stop (or the end) cancelled the line: what it had not
     /// sent never will be; what was in flight was stopped.
     Cancelled,

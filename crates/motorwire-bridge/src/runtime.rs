@@ -2,7 +2,7 @@
 
 use std::io::{self, BufRead, Write};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::thread;
 use std::time::{Duration, Instant};
@@ -27,6 +27,17 @@ pub const MAX_SKIP: u64 = 16 * 1024 * 1024;
 /// that floods is slowed to the bridge's pace (its socket fills, and its
 /// sender waits) instead of growing the bridge's memory.
 pub const MAX_QUEUED_PER_ORIGIN: usize = 256;
+
+/// Lines from the Orion controller waiting for the bridge, at most; more
+/// are dropped (and counted) until it catches up. The controller answers
+/// one line per line it is sent, every 100 ms when idle.
+pub const MAX_ORION_QUEUED: usize = 64;
+
+/// Lines from the Orion controller taken in one second, at most; more are
+/// dropped and counted, and a bad-line event says how many. A controller
+/// that floods costs its own motors (their answers may be among those
+/// dropped), never the bridge's memory or another device's latency.
+pub const MAX_ORION_LINES_PER_S: u32 = 500;
 
 /// Per origin, lines handed over and not yet taken (normal, urgent).
 #[derive(Debug, Default)]
@@ -512,10 +523,11 @@ impl Runner {
                 }
             })
         };
+        let orion_queued = Arc::new(AtomicUsize::new(0));
         let orion = self
             .orion
             .take()
-            .map(|port| spawn_orion(port, self.tx.clone()));
+            .map(|port| spawn_orion(port, self.tx.clone(), Arc::clone(&orion_queued)));
         bridge.start(since(Instant::now()));
         let result = loop {
             let mut failed = None;
@@ -623,8 +635,12 @@ impl Runner {
                 Ok(Msg::Finish) => bridge.finish(since(Instant::now())),
                 Ok(Msg::Interrupt) => bridge.interrupt(since(Instant::now())),
                 Ok(Msg::BusError(e)) => sink(&Output::Event(Event::BusError { error: e })),
-                Ok(Msg::OrionLine { text, at }) => bridge.handle_orion_line(since(at), &text),
+                Ok(Msg::OrionLine { text, at }) => {
+                    orion_queued.fetch_sub(1, Ordering::SeqCst);
+                    bridge.handle_orion_line(since(at), &text);
+                }
                 Ok(Msg::OrionUnreadable(error)) => {
+                    orion_queued.fetch_sub(1, Ordering::SeqCst);
                     bridge.handle_orion_unreadable(since(Instant::now()), &error);
                 }
                 Ok(Msg::OrionLost(e)) => bridge.orion_link_lost(since(Instant::now()), &e),
@@ -651,7 +667,11 @@ impl Runner {
 
 /// Starts the Orion port's reader and writer threads: lines to write go
 /// into the returned sender; the receiver hears when the writer is done.
-fn spawn_orion(port: OrionPort, events: Sender<Msg>) -> (Sender<String>, Receiver<()>) {
+fn spawn_orion(
+    port: OrionPort,
+    events: Sender<Msg>,
+    queued: Arc<AtomicUsize>,
+) -> (Sender<String>, Receiver<()>) {
     let OrionPort { reader, mut writer } = port;
     {
         let events = events.clone();
@@ -659,6 +679,10 @@ fn spawn_orion(port: OrionPort, events: Sender<Msg>) -> (Sender<String>, Receive
         // ends with its stream or the process.
         thread::spawn(move || {
             let mut reader = io::BufReader::new(reader);
+            // This second's lines, and those dropped since the last report.
+            let mut second = Instant::now();
+            let mut taken: u32 = 0;
+            let mut dropped: u64 = 0;
             loop {
                 let msg = match read_line(&mut reader) {
                     Ok(ReadLine::Line(text)) => Msg::OrionLine {
@@ -687,6 +711,29 @@ fn spawn_orion(port: OrionPort, events: Sender<Msg>) -> (Sender<String>, Receive
                         return;
                     }
                 };
+                let now = Instant::now();
+                if now.duration_since(second) >= Duration::from_secs(1) {
+                    second = now;
+                    taken = 0;
+                }
+                if taken >= MAX_ORION_LINES_PER_S
+                    || queued.load(Ordering::SeqCst) >= MAX_ORION_QUEUED
+                {
+                    dropped += 1;
+                    continue;
+                }
+                taken += 1;
+                if dropped > 0 {
+                    queued.fetch_add(1, Ordering::SeqCst);
+                    let report = Msg::OrionUnreadable(format!(
+                        "{dropped} lines from the controller dropped: more than {MAX_ORION_LINES_PER_S} a second, or {MAX_ORION_QUEUED} waiting"
+                    ));
+                    dropped = 0;
+                    if events.send(report).is_err() {
+                        return;
+                    }
+                }
+                queued.fetch_add(1, Ordering::SeqCst);
                 if events.send(msg).is_err() {
                     return;
                 }
@@ -696,14 +743,22 @@ fn spawn_orion(port: OrionPort, events: Sender<Msg>) -> (Sender<String>, Receive
     let (lines_tx, lines_rx) = mpsc::channel::<String>();
     let (done_tx, done_rx) = mpsc::channel();
     thread::spawn(move || {
+        let mut failing = false;
         for line in lines_rx {
             let written = writer
                 .write_all(line.as_bytes())
                 .and_then(|()| writer.write_all(b"\n"))
                 .and_then(|()| writer.flush());
-            if let Err(e) = written {
-                let _ = events.send(Msg::OrionLost(format!("writing to the controller: {e}")));
-                break;
+            // A failed write is the link lost (reported once per run of
+            // failures); the writer goes on, as a link that connects again
+            // (TCP) takes the next line.
+            match written {
+                Err(e) if !failing => {
+                    failing = true;
+                    let _ = events.send(Msg::OrionLost(format!("writing to the controller: {e}")));
+                }
+                Err(_) => {}
+                Ok(()) => failing = false,
             }
         }
         let _ = done_tx.send(());

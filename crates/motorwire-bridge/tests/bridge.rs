@@ -413,3 +413,279 @@ fn input_ending_during_startup_is_served_then_stopped() {
     assert!((arm.joint(ELBOW).unwrap().position() - 5.0).abs() < 1e-3);
     assert_eq!(arm.joint(ELBOW).unwrap().state(), LifecycleState::Inactive);
 }
+
+/// A bus of two joints in different wire versions, both moving (so the
+/// bridge sends its heartbeat): each keeps its watchdog fed by ArmReady in
+/// its own version, and neither takes a heartbeat for another request (v2.0's
+/// ArmReady tag is v2.1's RequestTelemetry).
+#[test]
+fn the_heartbeat_is_armready_to_every_joint_in_its_own_wire_version() {
+    let map = BusMap::from_toml(
+        r#"
+[motors.shoulder_pitch]
+dialect = "irpc"
+node = 0x10
+wire = "v2.0"
+limits = { min_position = -90, max_position = 90, max_velocity = 40, max_acceleration = 200 }
+
+[motors.shoulder_roll]
+dialect = "irpc"
+node = 0x11
+wire = "v2.1"
+limits = { min_position = -45, max_position = 45, max_velocity = 20, max_acceleration = 200 }
+"#,
+    )
+    .unwrap();
+    let bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
+    let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
+    assert!(
+        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
+            .unwrap()
+    );
+    // Two seconds of motion each, ten times their watchdogs' 200 ms.
+    arm.line(Origin(1), &command("shoulder_pitch", 80.0));
+    arm.line(Origin(1), &command("shoulder_roll", 40.0));
+    arm.run_until(arm.now() + Duration::from_secs(4)).unwrap();
+    for (node, at) in [(PITCH, 80.0), (ROLL, 40.0)] {
+        let joint = arm.joint(node).unwrap();
+        assert!(
+            (joint.position() - at).abs() < 1e-3,
+            "joint {node:#x} at {}",
+            joint.position()
+        );
+        assert_eq!(joint.stats().watchdog_stops, 0, "joint {node:#x}");
+        let taken: Vec<_> = joint
+            .log()
+            .iter()
+            .filter(|e| {
+                !matches!(
+                    e.payload,
+                    Payload::Configure | Payload::Activate | Payload::SetTargetV2(_)
+                )
+            })
+            .map(|e| e.payload)
+            .collect();
+        assert!(taken.is_empty(), "joint {node:#x} took {taken:?}");
+    }
+}
+
+/// Lines another client wrote before a stop, still on their way when it
+/// came, never run after the release: their timestamps are older than the
+/// stop. Every dialect (an iRPC joint, the compact gripper), single and
+/// multi-axis.
+#[test]
+fn commands_written_before_a_stop_are_refused_after_the_release() {
+    const EPOCH: f64 = 1_767_225_600_000.0; // 2026-01-01, the bridge's time zero
+    let map = BusMap::from_toml(MAP).unwrap();
+    let config = BridgeConfig {
+        epoch_unix_ms: Some(EPOCH),
+        ..BridgeConfig::default()
+    };
+    let mut arm =
+        SimulatedArm::new(Bridge::new(map, config).unwrap(), SimConfig::default()).unwrap();
+    assert!(
+        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
+            .unwrap()
+    );
+    let at = |ms: f64, motor: &str, setpoint: f64| {
+        format!(
+            r#"{{"motor_id":"{motor}","timestamp":{},"control_mode":"position","setpoint":{setpoint}}}"#,
+            EPOCH + ms
+        )
+    };
+    let stop_ms = arm.now().as_secs_f64() * 1000.0;
+    arm.line(Origin(1), r#"{"emergency_stop": true}"#);
+    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    arm.line(Origin(1), r#"{"emergency_stop": false}"#);
+    assert_eq!(
+        results(&mut arm, 1, Duration::from_secs(1))[0]["released"],
+        true
+    );
+    let executed = arm.joint(ELBOW).unwrap().stats().executed;
+    let gripper = arm.compact_device(0x20).unwrap().log().len();
+    // 37 lines written 1 to 37 ms before the stop, by a second client.
+    for i in 1..=37 {
+        let written = stop_ms - f64::from(i);
+        let line = match i % 3 {
+            0 => at(written, "elbow", 100.0),
+            1 => at(written, "gripper_axis", 45.0),
+            _ => format!(
+                r#"{{"command_id":"m{i}","timestamp":{},"motors":[{{"motor_id":"elbow","control_mode":"position","setpoint":90}}]}}"#,
+                EPOCH + written
+            ),
+        };
+        arm.line(Origin(2), &line);
+    }
+    let r = results(&mut arm, 37, Duration::from_secs(1));
+    assert_eq!(r.len(), 37);
+    for x in &r {
+        assert_eq!(x["ok"], false, "{x}");
+        assert_eq!(x["error"]["kind"], "stale_before_stop", "{x}");
+    }
+    assert_eq!(
+        r[0]["error"]["message"],
+        format!(
+            "timestamp {} is 0.001 s before the last emergency stop (at {}): written before the stop, it does not run after the release",
+            EPOCH + stop_ms - 1.0,
+            EPOCH + stop_ms
+        )
+    );
+    arm.run_until(arm.now() + Duration::from_secs(1)).unwrap();
+    assert_eq!(arm.joint(ELBOW).unwrap().stats().executed, executed);
+    assert_eq!(arm.compact_device(0x20).unwrap().log().len(), gripper);
+    // A line written after the stop runs.
+    let now_ms = arm.now().as_secs_f64() * 1000.0;
+    arm.line(Origin(2), &at(now_ms, "elbow", 20.0));
+    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+}
+
+/// At the end of input, motion that would not end by itself stops at once
+/// (a trajectory looping forever, one scheduled 15 s ahead, a compact
+/// velocity setpoint whose deadman is 10 s), while a finite move on another
+/// joint finishes; a start_time a year ahead is refused.
+#[test]
+fn end_of_input_stops_what_would_not_end_by_itself_at_once() {
+    const EPOCH: f64 = 1_767_225_600_000.0;
+    let map = BusMap::from_toml(
+        r#"
+[motors.pendulum]
+dialect = "irpc"
+node = 0x13
+limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acceleration = 800, max_jerk = 8000 }
+
+[motors.later]
+dialect = "irpc"
+node = 0x14
+limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acceleration = 800, max_jerk = 8000 }
+
+[motors.elbow]
+dialect = "irpc"
+node = 0x12
+limits = { min_position = 0, max_position = 150, max_velocity = 60, max_acceleration = 500 }
+
+[motors.gripper_axis]
+dialect = "compact"
+node = 0x20
+command_timeout_ms = 10000
+limits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 5 }
+"#,
+    )
+    .unwrap();
+    let config = BridgeConfig {
+        epoch_unix_ms: Some(EPOCH),
+        ..BridgeConfig::default()
+    };
+    let mut arm =
+        SimulatedArm::new(Bridge::new(map, config).unwrap(), SimConfig::default()).unwrap();
+    assert!(
+        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
+            .unwrap()
+    );
+    let trajectory = |motor: &str, start: Option<f64>, forever: bool| {
+        format!(
+            r#"{{"trajectory_id":"{motor}","motor_id":"{motor}","waypoints":[{{"position":0,"velocity":0,"time":0}},{{"position":30,"velocity":30,"time":1}},{{"position":0,"velocity":0,"time":2}}],"timing":{{{}}}{}}}"#,
+            start.map_or(String::new(), |s| format!(r#""start_time":{s}"#)),
+            if forever {
+                r#","loop":{"enabled":true,"count":-1}"#
+            } else {
+                ""
+            }
+        )
+    };
+    let t0 = EPOCH + arm.now().as_secs_f64() * 1000.0;
+    arm.line(Origin(1), &trajectory("pendulum", None, true));
+    arm.line(Origin(1), &trajectory("later", Some(t0 + 15_000.0), false));
+    arm.line(
+        Origin(1),
+        &trajectory("later", Some(t0 + 365.0 * 86_400_000.0), false),
+    );
+    arm.line(
+        Origin(1),
+        &format!(
+            r#"{{"motor_id":"gripper_axis","timestamp":{t0},"control_mode":"velocity","setpoint":20}}"#
+        ),
+    );
+    arm.line(
+        Origin(1),
+        &format!(
+            r#"{{"motor_id":"elbow","timestamp":{t0},"control_mode":"position","setpoint":140}}"#
+        ),
+    );
+    arm.run_until(arm.now() + Duration::from_millis(1500))
+        .unwrap();
+    let year = arm
+        .take_results()
+        .into_iter()
+        .find(|v| v["line"] == 3)
+        .unwrap();
+    assert_eq!(year["error"]["kind"], "stale", "{year}");
+    assert!(
+        year["error"]["message"]
+            .as_str()
+            .unwrap()
+            .starts_with("timing.start_time "),
+        "{year}"
+    );
+    assert!((arm.compact_device(0x20).unwrap().velocity() - 20.0).abs() < 1e-3);
+    let segments = |arm: &SimulatedArm, node: u16| {
+        arm.joint(node)
+            .unwrap()
+            .log()
+            .iter()
+            .filter(|e| matches!(e.payload, Payload::SetTargetV2(_)))
+            .count()
+    };
+    let pendulum = segments(&arm, 0x13);
+    assert!(pendulum >= 2, "{pendulum}");
+    assert!(
+        arm.joint(ELBOW).unwrap().is_moving(),
+        "the elbow is still on its way"
+    );
+    let ended = arm.now();
+    arm.bridge_mut().finish(ended);
+    assert!(
+        arm.run_while(Duration::from_secs(5), |a| a.bridge().is_finished())
+            .unwrap()
+    );
+    let took = arm.now() - ended;
+    assert!(
+        took < Duration::from_secs(2),
+        "the drain waited {took:?} for the elbow's finite move only"
+    );
+    let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
+    let result = |line: u64| {
+        out.iter()
+            .find(|v| v["line"] == line && v.get("ok").is_some())
+            .unwrap_or_else(|| panic!("no result for line {line}: {out:?}"))
+    };
+    for line in [1, 2] {
+        assert_eq!(
+            result(line)["error"]["kind"],
+            "cancelled",
+            "{}",
+            result(line)
+        );
+        assert!(
+            result(line)["error"]["message"]
+                .as_str()
+                .unwrap()
+                .starts_with("cancelled by the end of input: it would not end by itself"),
+            "{}",
+            result(line)
+        );
+    }
+    assert!(
+        segments(&arm, 0x13) <= pendulum + 1,
+        "no new cycle after the end"
+    );
+    assert_eq!(segments(&arm, 0x14), 0, "the scheduled one never started");
+    assert_eq!(arm.compact_device(0x20).unwrap().velocity(), 0.0);
+    assert!(
+        !out.iter().any(|v| v["event"] == "deadman"),
+        "stopped by the end, not by its deadman: {out:?}"
+    );
+    assert!(
+        (arm.joint(ELBOW).unwrap().position() - 140.0).abs() < 1e-3,
+        "the finite move finished"
+    );
+}

@@ -908,6 +908,49 @@ fn safety_limits_lines_tighten_the_gate_at_runtime() {
     assert_eq!(by(6)["error"]["kind"], "unsupported", "{}", by(6));
 }
 
+/// A SafetyLimits line's max_velocity binds every dialect's default speed:
+/// a position command without a velocity_limit moves the compact gripper,
+/// like the iRPC elbow, at most at the limit in force.
+#[test]
+fn a_live_max_velocity_binds_a_compact_move_without_its_own_limit() {
+    use motorwire_compact::CompactCommand;
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"gripper_axis","position_limits":{"min":0,"max":90},"velocity_limits":{"max_velocity":10},"torque_limits":{"continuous_torque":5,"peak_torque":5}}"#,
+    );
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"gripper_axis","timestamp":1,"control_mode":"position","setpoint":40}"#,
+    );
+    let mut fastest: f64 = 0.0;
+    for _ in 0..500 {
+        arm.run_until(arm.now() + Duration::from_millis(10))
+            .unwrap();
+        fastest = fastest.max(arm.compact_device(0x20).unwrap().velocity().abs());
+    }
+    let r = arm.take_results();
+    assert_eq!(r.len(), 2, "{r:?}");
+    assert!(r.iter().all(|v| v["ok"] == true), "{r:?}");
+    let losses = r[1]["losses"].as_array().unwrap();
+    assert!(
+        losses.contains(&serde_json::json!(
+            "velocity_limit: defaulted: 10 from the SafetyLimits line in force"
+        )),
+        "{losses:?}"
+    );
+    let device = arm.compact_device(0x20).unwrap();
+    let sent = CompactCommand::decode(&device.log().last().unwrap().bytes).unwrap();
+    assert_eq!(sent.velocity_limit.map(|l| l.units_per_s()), Some(10.0));
+    assert!(fastest <= 10.0 + 1e-9, "moved at {fastest}");
+    assert!(fastest > 9.0, "moved at {fastest}");
+    assert!(
+        (device.position() - 40.0).abs() < 0.1,
+        "{}",
+        device.position()
+    );
+}
+
 /// The compact-command gripper of the demo map through the bridge: gated,
 /// acked by its feedback, arrived; the stop reaches it; exactly once on a
 /// bus that drops and duplicates.
@@ -1058,6 +1101,19 @@ fn the_deadman_stops_a_compact_device_a_silent_controller_left_running() {
         serde_json::json!({"event":"deadman","motor_id":"gripper_axis","timeout_ms":200})
     );
     assert_eq!(arm.compact_device(0x20).unwrap().velocity(), 0.0);
+    // Once per silent command: its own stop (velocity 0) holds the device
+    // still and is not itself timed out, nor is a velocity 0 from the
+    // controller.
+    arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"gripper_axis","timestamp":1,"control_mode":"velocity","setpoint":0}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+    let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
+    let deadmen = out.iter().filter(|v| v["event"] == "deadman").count();
+    assert_eq!(deadmen, 0, "{out:?}");
+    assert_eq!(out.iter().filter(|v| v["ok"] == true).count(), 1, "{out:?}");
 }
 
 /// A joint that reboots or faults is said so, takes nothing (and nothing

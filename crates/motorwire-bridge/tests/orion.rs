@@ -155,17 +155,33 @@ fn velocity(motor: &str, v: f64) -> String {
 }
 
 #[test]
-fn nothing_but_a_stop_goes_before_the_boot_beacon_then_only_changed_keys() {
+fn nothing_goes_before_the_boot_beacon_then_only_changed_keys() {
     let mut rig = Rig::new();
+    // Before the beacon the motors are offline: refused at once, never
+    // held to run once it comes.
     rig.line(&velocity("turntable", 200.0));
     assert!(rig.sent.is_empty(), "{:?}", rig.sent);
-    assert!(rig.result(1).is_none());
+    let r = rig.result(1).unwrap();
+    assert_eq!(r["error"]["kind"], "offline", "{r}");
+    assert_eq!(
+        r["error"]["message"],
+        "turntable is offline: the Orion arm controller has not sent its boot beacon"
+    );
     rig.boot();
+    assert!(rig.commands_since(0).is_empty(), "{:?}", rig.sent);
+    assert!(
+        rig.out
+            .iter()
+            .any(|v| v["event"] == "online" && v["motor_id"] == "turntable"),
+        "{:?}",
+        rig.out
+    );
+    rig.line(&velocity("turntable", 200.0));
     assert_eq!(
         rig.commands_since(0),
         [r#"{"ID":32,"MODE":1,"DATA":{"TRM":200}}"#]
     );
-    let r = rig.result(1).unwrap();
+    let r = rig.result(2).unwrap();
     assert_eq!(r["ok"], true, "{r}");
     assert_eq!(r["acked"], json!(["turntable"]));
     assert_eq!(rig.arm.value(Motor::Turntable), 200.0);
@@ -178,9 +194,80 @@ fn nothing_but_a_stop_goes_before_the_boot_beacon_then_only_changed_keys() {
         rig.commands_since(from),
         [r#"{"ID":32,"MODE":1,"DATA":{"AEM":-50}}"#]
     );
-    assert_eq!(rig.result(2).unwrap()["ok"], true);
     assert_eq!(rig.result(3).unwrap()["ok"], true);
+    assert_eq!(rig.result(4).unwrap()["ok"], true);
     assert_eq!(rig.arm.value(Motor::ArmExtension), -50.0);
+}
+
+/// A controller heard again, after its link was lost or it went silent, is
+/// stopped before anything else (it may still turn at what it was last
+/// told); its motors are online once the stop is answered, and nothing
+/// that was under way is resumed.
+#[test]
+fn a_controller_heard_again_is_stopped_before_its_motors_are_online() {
+    let stop = r#"{"ID":32,"MODE":2,"DATA":1}"#;
+    let online = |rig: &Rig, from: usize| {
+        rig.out[from..]
+            .iter()
+            .filter(|v| v["event"] == "online" && v["motor_id"] == "turntable")
+            .count()
+    };
+    let mut rig = Rig::new();
+    rig.boot();
+    for (case, lose) in [("lost", true), ("silent", false)] {
+        rig.line(&velocity("turntable", 200.0));
+        assert_eq!(rig.arm.value(Motor::Turntable), 200.0, "{case}");
+        // Nothing reaches the controller any more, nor comes from it.
+        rig.answering = false;
+        if lose {
+            rig.bridge
+                .orion_link_lost(rig.now, "writing to the controller: Broken pipe");
+            rig.pump();
+        }
+        rig.advance(Duration::from_millis(800));
+        let out = rig.out.len();
+        let n = rig.out.iter().filter(|v| v.get("ok").is_some()).count() as u64;
+        rig.line(&velocity("turntable", 100.0));
+        let r = rig.result(n + 1).unwrap();
+        // Silent, the deadman's stop went unanswered, which latches the
+        // emergency stop (when in doubt, stop); lost, the link says so.
+        let refused = if lose {
+            "offline"
+        } else {
+            "emergency_stop_latched"
+        };
+        assert_eq!(r["error"]["kind"], refused, "{case}: {r}");
+        assert_eq!(
+            rig.arm.value(Motor::Turntable),
+            200.0,
+            "{case}: still turning"
+        );
+        // Heard again: the stop goes first, then the motors are online.
+        let from = rig.sent.len();
+        rig.answering = true;
+        rig.advance(Duration::from_millis(300));
+        assert_eq!(
+            rig.commands_since(from).first(),
+            Some(&stop),
+            "{case}: {:?}",
+            rig.sent
+        );
+        assert_eq!(rig.arm.value(Motor::Turntable), 0.0, "{case}");
+        assert_eq!(online(&rig, out), 1, "{case}: {:?}", &rig.out[out..]);
+        assert!(
+            !rig.commands_since(from).iter().any(|l| l.contains("TRM")),
+            "{case}: nothing resumed: {:?}",
+            rig.commands_since(from)
+        );
+        let mut next = n + 2;
+        if !lose {
+            rig.line(r#"{"emergency_stop": false}"#);
+            assert_eq!(rig.result(next).unwrap()["released"], true, "{case}");
+            next += 1;
+        }
+        rig.line(&velocity("turntable", 0.0));
+        assert_eq!(rig.result(next).unwrap()["ok"], true, "{case}");
+    }
 }
 
 #[test]
@@ -317,6 +404,13 @@ fn a_silent_controller_stops_a_spinning_turntable_by_the_deadman() {
             .iter()
             .any(|l| l == r#"{"ID":32,"MODE":1,"DATA":{"TRM":0}}"#)
     );
+    // Once per silent command: the stop (speed 0) is not timed out, nor is
+    // a speed 0 from the controller.
+    rig.advance(Duration::from_secs(2));
+    rig.line(&velocity("turntable", 0.0));
+    rig.advance(Duration::from_secs(2));
+    let deadmen = rig.out.iter().filter(|v| v["event"] == "deadman").count();
+    assert_eq!(deadmen, 1, "{:?}", rig.out);
 }
 
 #[test]
@@ -584,4 +678,35 @@ fn a_deadman_stop_that_is_never_answered_stops_everything() {
             .iter()
             .any(|l| l == r#"{"ID":32,"MODE":2,"DATA":1}"#)
     );
+}
+
+/// A reset names one device: an Orion motor has no iRPC node, and its
+/// Reset went to the broadcast node, rebooting every joint mid-move.
+#[test]
+fn a_reset_of_an_orion_motor_is_refused_and_reaches_no_joint() {
+    let mut rig = Rig::new();
+    rig.boot();
+    let lines = rig.sent.len();
+    rig.bridge.handle_line(
+        rig.now,
+        Origin(0),
+        r#"{"reset":"grasper_horizontal_servo"}"#,
+    );
+    let frames: Vec<_> = std::iter::from_fn(|| rig.bridge.poll_transmit()).collect();
+    assert_eq!(frames, [], "no frame for any joint");
+    rig.pump();
+    let r = rig
+        .out
+        .iter()
+        .find(|v| v.get("ok").is_some())
+        .unwrap()
+        .clone();
+    assert_eq!(r["ok"], false, "{r}");
+    assert_eq!(r["motor_id"], "grasper_horizontal_servo", "{r}");
+    assert_eq!(r["error"]["kind"], "refused", "{r}");
+    assert_eq!(
+        r["error"]["message"], "grasper_horizontal_servo is not an iRPC joint of the bus map",
+        "{r}"
+    );
+    assert_eq!(rig.commands_since(lines), Vec::<&str>::new(), "nor a line");
 }

@@ -40,9 +40,15 @@ pub(crate) struct Args {
     /// move the motors.
     #[arg(long)]
     insecure_no_auth: bool,
-    /// Connections served at once; more are refused with an error line.
+    /// Authenticated connections served at once; more are refused with an
+    /// error line (a stop from one more is still taken). Connections still
+    /// authenticating do not count.
     #[arg(long, value_name = "N", default_value_t = 8)]
     max_clients: usize,
+    /// How long a new connection has to send its first line (the token,
+    /// or without one its first command) before it is closed.
+    #[arg(long, value_name = "MS", default_value_t = 1000)]
+    auth_timeout_ms: u64,
     /// Output lines a client may have waiting; a client that lets this
     /// many pile up (it stopped reading) is disconnected and its pending
     /// commands cancelled. At least 2048: a stop can answer every line in
@@ -337,6 +343,9 @@ fn bridge(args: &Args) -> Result<u8, String> {
     if args.max_clients == 0 {
         return Err("--max-clients must be at least 1".to_owned());
     }
+    if args.auth_timeout_ms == 0 {
+        return Err("--auth-timeout-ms must be at least 1".to_owned());
+    }
     if args.client_queue < 2048 {
         return Err(format!(
             "--client-queue {}: at least 2048 (a stop can answer that many lines at once)",
@@ -349,6 +358,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
         crate::serve::ServeConfig {
             token,
             max_clients: args.max_clients,
+            auth_timeout: Duration::from_millis(args.auth_timeout_ms),
             client_queue: args.client_queue,
         },
     )?;

@@ -27,7 +27,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use motorwire_bridge::{InputSender, Origin, Output, ReadLine, feed, read_line};
 
@@ -184,6 +184,13 @@ impl Conn {
         };
     }
 
+    fn clear_read_timeout(&self) {
+        let _ = match self {
+            Self::Tcp(s) => s.set_read_timeout(None),
+            Self::Unix(s) => s.set_read_timeout(None),
+        };
+    }
+
     fn set_write_timeout(&self, t: Duration) {
         let _ = match self {
             Self::Tcp(s) => s.set_write_timeout(Some(t)),
@@ -214,6 +221,67 @@ impl Write for Conn {
             Self::Tcp(s) => s.flush(),
             Self::Unix(s) => s.flush(),
         }
+    }
+}
+
+/// A connection's reading half, held to a deadline while it
+/// authenticates: each read waits at most until the deadline, so a peer
+/// dripping a byte at a time cannot hold its place for longer.
+struct Timed {
+    conn: Conn,
+    deadline: Option<Instant>,
+}
+
+impl Timed {
+    /// No deadline from now on (the connection authenticated).
+    fn lift(&mut self) {
+        if self.deadline.take().is_some() {
+            self.conn.clear_read_timeout();
+        }
+    }
+}
+
+impl Read for Timed {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        if let Some(d) = self.deadline {
+            let left = d.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Err(io::Error::new(io::ErrorKind::TimedOut, "past the deadline"));
+            }
+            self.conn.set_read_timeout(left);
+        }
+        self.conn.read(buf)
+    }
+}
+
+/// Whether `e` is a read that waited past its timeout.
+fn timed_out(e: &io::Error) -> bool {
+    matches!(
+        e.kind(),
+        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+    )
+}
+
+/// Connections authenticating at once, at most: beyond, a connection is
+/// refused at once (`too_many_clients`). Each has
+/// [`ServeConfig::auth_timeout`] to authenticate, and none counts against
+/// [`ServeConfig::max_clients`].
+pub(crate) const MAX_AUTHENTICATING: usize = 64;
+
+/// Counts a connection as authenticating until dropped.
+struct Authenticating<'a>(Option<&'a AtomicUsize>);
+
+impl Authenticating<'_> {
+    fn done(&mut self) {
+        if let Some(n) = self.0.take() {
+            n.fetch_sub(1, Ordering::SeqCst);
+        }
+    }
+}
+
+impl Drop for Authenticating<'_> {
+    fn drop(&mut self) {
+        self.done();
     }
 }
 
@@ -254,8 +322,12 @@ impl Client {
 pub(crate) struct ServeConfig {
     /// The token a connection's first line must be (`None`: no token).
     pub(crate) token: Option<String>,
-    /// Connections at once (authenticating or not).
+    /// Authenticated connections at once (a stop from one more is still
+    /// taken).
     pub(crate) max_clients: usize,
+    /// How long a connection has to authenticate (its first line, the
+    /// token, or without a token its first command) before it is closed.
+    pub(crate) auth_timeout: Duration,
     /// Lines a client may have waiting before it counts as not reading.
     pub(crate) client_queue: usize,
 }
@@ -272,6 +344,7 @@ pub(crate) struct Router {
     failure: Mutex<Option<String>>,
     input_failure: Mutex<Option<String>>,
     connected: AtomicUsize,
+    authenticating: AtomicUsize,
 }
 
 impl Router {
@@ -286,6 +359,7 @@ impl Router {
             failure: Mutex::default(),
             input_failure: Mutex::default(),
             connected: AtomicUsize::new(0),
+            authenticating: AtomicUsize::new(0),
         });
         let r = Arc::clone(&router);
         thread::spawn(move || r.write_stdout(&lines));
@@ -557,30 +631,45 @@ impl Router {
             };
             let id = next;
             next += 1;
-            if self.connected.fetch_add(1, Ordering::SeqCst) >= config.max_clients {
-                self.connected.fetch_sub(1, Ordering::SeqCst);
+            if self.authenticating.fetch_add(1, Ordering::SeqCst) >= MAX_AUTHENTICATING {
+                self.authenticating.fetch_sub(1, Ordering::SeqCst);
                 refuse_now(
                     conn,
                     "too_many_clients",
-                    &format!("the bridge serves {} clients at once", config.max_clients),
+                    &format!("{MAX_AUTHENTICATING} connections are authenticating already"),
                 );
                 continue;
             }
             let r = Arc::clone(self);
             let config = config.clone();
-            thread::spawn(move || {
-                r.client(id, conn, &config);
-                r.connected.fetch_sub(1, Ordering::SeqCst);
-            });
+            thread::spawn(move || r.client(id, conn, &config));
         }
     }
 
-    /// One connection: authenticated by its first line, then fed.
+    /// One connection: authenticated by its first line (within
+    /// [`ServeConfig::auth_timeout`]), then fed. Beyond
+    /// [`ServeConfig::max_clients`] authenticated connections, a client's
+    /// stop is still taken (its first command, within the timeout too);
+    /// anything else is refused `too_many_clients`.
     fn client(&self, id: u64, conn: Conn, config: &ServeConfig) {
+        let mut authenticating = Authenticating(Some(&self.authenticating));
         let Ok(read_half) = conn.try_clone() else {
             return;
         };
-        let mut reader = BufReader::new(read_half);
+        let mut reader = BufReader::new(Timed {
+            conn: read_half,
+            deadline: Some(Instant::now() + config.auth_timeout),
+        });
+        let late = |conn: Conn| {
+            refuse(
+                conn,
+                "unauthorized",
+                &format!(
+                    "nothing authenticated within {} ms; the connection is closed",
+                    config.auth_timeout.as_millis()
+                ),
+            );
+        };
         // The first line that is not blank (HTTP allows empty lines before
         // its request line).
         let mut first_read = read_line(&mut reader);
@@ -596,12 +685,18 @@ impl Router {
                 return;
             }
             Ok(ReadLine::Line(s)) => s,
+            Err(e) if timed_out(&e) => return late(conn),
             Ok(ReadLine::Partial(_) | ReadLine::End) | Err(_) => return,
             Ok(unreadable @ (ReadLine::TooLong { .. } | ReadLine::NotUtf8 { .. })) => {
                 if config.token.is_some() {
                     refuse(conn, "unauthorized", "the first line could not be read");
                     return;
                 }
+                reader.get_mut().lift();
+                authenticating.done();
+                let Some(_slot) = self.slot(config) else {
+                    return refuse_full(conn, config);
+                };
                 if self.add_client(id, conn, config.client_queue).is_err() {
                     return;
                 }
@@ -648,6 +743,35 @@ impl Router {
             }
             None => true,
         };
+        let slot = self.slot(config);
+        if slot.is_none() {
+            // Full: only a stop is taken, its first command, and then the
+            // connection ends once it has its result.
+            let command = if first_is_command {
+                Some(first)
+            } else {
+                match read_line(&mut reader) {
+                    Ok(ReadLine::Line(s)) => Some(s),
+                    Err(e) if timed_out(&e) => return late(conn),
+                    _ => None,
+                }
+            };
+            authenticating.done();
+            let Some(stop) = command.filter(|c| motorwire_bridge::asks_for_stop(c)) else {
+                return refuse_full(conn, config);
+            };
+            self.connected.fetch_add(1, Ordering::SeqCst);
+            let _over = Slot(&self.connected);
+            if self.add_client(id, conn, config.client_queue).is_err() {
+                return;
+            }
+            self.input.line(Origin(id), stop);
+            self.let_go(id);
+            return;
+        }
+        reader.get_mut().lift();
+        authenticating.done();
+        let _slot = slot;
         if self.add_client(id, conn, config.client_queue).is_err() {
             return;
         }
@@ -657,11 +781,26 @@ impl Router {
         self.feed_rest(id, &mut reader);
     }
 
+    /// A place among the authenticated clients, if one is free: held until
+    /// the returned guard drops.
+    fn slot(&self, config: &ServeConfig) -> Option<Slot<'_>> {
+        if self.connected.fetch_add(1, Ordering::SeqCst) >= config.max_clients {
+            self.connected.fetch_sub(1, Ordering::SeqCst);
+            return None;
+        }
+        Some(Slot(&self.connected))
+    }
+
     /// Feeds the rest of a client's lines; lets it go once it has all its
     /// results.
-    fn feed_rest(&self, id: u64, reader: &mut BufReader<Conn>) {
+    fn feed_rest(&self, id: u64, reader: &mut BufReader<Timed>) {
         // A client that goes away mid-line: its partial line is not taken.
         let _ = feed(&self.input, Origin(id), reader, false);
+        self.let_go(id);
+    }
+
+    /// A client's input ended: it is let go once it has all its results.
+    fn let_go(&self, id: u64) {
         let owed = self.input.lines_of(Origin(id));
         self.input.forget(Origin(id));
         // Its results still go out (it may have closed only its sending
@@ -674,6 +813,27 @@ impl Router {
             }
         }
     }
+}
+
+/// Holds one place among the authenticated clients until dropped.
+struct Slot<'a>(&'a AtomicUsize);
+
+impl Drop for Slot<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// Refused for room: every authenticated place is taken.
+fn refuse_full(conn: Conn, config: &ServeConfig) {
+    refuse(
+        conn,
+        "too_many_clients",
+        &format!(
+            "the bridge serves {} clients at once (a stop is still taken)",
+            config.max_clients
+        ),
+    );
 }
 
 /// A line on standard error; a broken standard error is ignored.

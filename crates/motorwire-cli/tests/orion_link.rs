@@ -423,3 +423,286 @@ fn a_broken_tcp_link_is_made_again() {
         let _ = sim.wait();
     }
 }
+
+/// The same controller (it did not restart) behind a TCP link that drops
+/// for 0.8 s, a moment after a move started: when the link is back the
+/// bridge stops it before anything else (the deadman's stop was lost with
+/// the link, and the turntable still turns), reports its motors online
+/// only then, resumes nothing, and still writes its stop at exit.
+#[cfg(unix)]
+#[test]
+fn a_controller_heard_again_after_an_outage_is_stopped_first() {
+    use std::net::{Shutdown, TcpListener, TcpStream};
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let mut sim = sim_orion();
+    let sim_in = Arc::new(Mutex::new(sim.stdin.take().unwrap()));
+    let current: Arc<Mutex<Option<TcpStream>>> = Arc::default();
+    // Every byte the bridge wrote, and where the second connection's begin.
+    let to_sim: Arc<Mutex<Vec<u8>>> = Arc::default();
+    let second_from = Arc::new(Mutex::new(usize::MAX));
+    {
+        let current = Arc::clone(&current);
+        let out = sim.stdout.take().unwrap();
+        thread::spawn(move || {
+            for line in BufReader::new(out).lines() {
+                let Ok(line) = line else { return };
+                if let Some(s) = current.lock().unwrap().as_mut() {
+                    let _ = writeln!(s, "{line}");
+                }
+            }
+        });
+    }
+    let (drop_tx, drop_rx) = mpsc::channel::<()>();
+    let server = {
+        let (current, sim_in, to_sim, second_from) = (
+            Arc::clone(&current),
+            Arc::clone(&sim_in),
+            Arc::clone(&to_sim),
+            Arc::clone(&second_from),
+        );
+        thread::spawn(move || {
+            let mut listener = Some(listener);
+            for round in 0..2 {
+                let l = listener
+                    .take()
+                    .unwrap_or_else(|| TcpListener::bind(addr).unwrap());
+                let (stream, _) = l.accept().unwrap();
+                if round == 1 {
+                    *second_from.lock().unwrap() = to_sim.lock().unwrap().len();
+                }
+                *current.lock().unwrap() = Some(stream.try_clone().unwrap());
+                let (sim_in, to_sim) = (Arc::clone(&sim_in), Arc::clone(&to_sim));
+                let mut reader = stream.try_clone().unwrap();
+                thread::spawn(move || {
+                    let mut buf = [0u8; 4096];
+                    while let Ok(n @ 1..) = reader.read(&mut buf) {
+                        to_sim.lock().unwrap().extend_from_slice(&buf[..n]);
+                        let _ = sim_in.lock().unwrap().write_all(&buf[..n]);
+                    }
+                });
+                if round == 0 {
+                    drop_rx.recv().unwrap();
+                    *current.lock().unwrap() = None;
+                    let _ = stream.shutdown(Shutdown::Both);
+                    // The outage: nothing listens for 0.8 s.
+                    drop(l);
+                    thread::sleep(Duration::from_millis(800));
+                } else {
+                    listener = Some(l);
+                }
+            }
+            listener
+        })
+    };
+    let map = map_file("outage");
+    let mut bridge = Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args([
+            "bridge",
+            "--map",
+            &map,
+            "--bus",
+            "sim",
+            "--orion",
+            &format!("tcp:{addr}"),
+            "--max-age",
+            "0",
+            "--feedback-hz",
+            "0",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stdin = bridge.stdin.take().unwrap();
+    let stdout = bridge.stdout.take().unwrap();
+    let (tx, rx) = mpsc::channel();
+    thread::spawn(move || {
+        for line in BufReader::new(stdout).lines() {
+            let Ok(line) = line else { return };
+            let _ = tx.send(serde_json::from_str::<serde_json::Value>(&line).unwrap());
+        }
+    });
+    let mut out = Vec::new();
+    // Waits for a line that `pick` takes, among those after `from`.
+    let until = |out: &mut Vec<serde_json::Value>,
+                 from: usize,
+                 pick: &dyn Fn(&serde_json::Value) -> bool| {
+        let end = Instant::now() + Duration::from_secs(20);
+        while !out[from.min(out.len())..].iter().any(pick) {
+            let left = end.saturating_duration_since(Instant::now());
+            out.push(rx.recv_timeout(left).unwrap_or_else(|_| panic!("{out:?}")));
+        }
+    };
+    until(&mut out, 0, &|v| v["event"] == "orion_beacon");
+    stdin.write_all(format!("{TURN}\n").as_bytes()).unwrap();
+    until(&mut out, 0, &|v| v["line"] == 1 && v.get("ok").is_some());
+    let before = out.len();
+    drop_tx.send(()).unwrap();
+    until(&mut out, before, &|v| {
+        v["event"] == "offline" && v["motor_id"] == "turntable"
+    });
+    let offline_at = out.len();
+    until(&mut out, offline_at, &|v| {
+        v["event"] == "online" && v["motor_id"] == "turntable"
+    });
+    // Online only once the stop was answered: the second connection's
+    // first command is the stop, and TRM 150 never went again.
+    let from = *second_from.lock().unwrap();
+    let sent = String::from_utf8(to_sim.lock().unwrap().clone()).unwrap();
+    let second: Vec<&str> = sent[from..]
+        .lines()
+        .filter(|l| *l != r#"{"ID":32,"MODE":1,"DATA":{}}"#)
+        .collect();
+    assert_eq!(
+        second.first(),
+        Some(&r#"{"ID":32,"MODE":2,"DATA":1}"#),
+        "{second:?}"
+    );
+    assert!(!second.iter().any(|l| l.contains("150")), "{second:?}");
+    assert!(
+        out[offline_at..]
+            .iter()
+            .all(|v| v["event"] != "orion_beacon"),
+        "it did not restart"
+    );
+    // Served again; the stop at exit reaches it.
+    stdin.write_all(format!("{SERVO}\n").as_bytes()).unwrap();
+    until(&mut out, 0, &|v| v["line"] == 2 && v.get("ok").is_some());
+    assert_eq!(result(&out, 2)["ok"], true, "{out:?}");
+    drop(stdin);
+    let status = bridge.wait().unwrap();
+    assert_eq!(status.code(), Some(0));
+    let sent = String::from_utf8(to_sim.lock().unwrap().clone()).unwrap();
+    let last = sent
+        .lines()
+        .rfind(|l| *l != r#"{"ID":32,"MODE":1,"DATA":{}}"#)
+        .unwrap()
+        .to_owned();
+    assert_eq!(
+        last, r#"{"ID":32,"MODE":2,"DATA":1}"#,
+        "the stop at exit: {sent}"
+    );
+    drop(server.join().unwrap());
+    let _ = sim.kill();
+    let _ = sim.wait();
+}
+
+/// The bridge's resident memory, in KiB.
+fn rss_kib(pid: u32) -> u64 {
+    std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .unwrap()
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.trim().trim_end_matches(" kB").trim().parse().ok())
+        .unwrap()
+}
+
+/// An Orion controller that floods its link (as fast as the socket takes
+/// it) costs the bridge neither its memory nor the iRPC joints' service:
+/// the elbow's lines are served at once meanwhile, and the end is prompt.
+#[cfg(unix)]
+#[test]
+fn a_flooding_controller_costs_neither_memory_nor_the_joints_latency() {
+    use std::net::TcpListener;
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let flooding = Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let server = {
+        let flooding = Arc::clone(&flooding);
+        thread::spawn(move || {
+            let (mut stream, _) = listener.accept().unwrap();
+            let mut junk = String::from("{\"ID\":32}\n");
+            for i in 0..200 {
+                junk.push_str(&format!(
+                    "{{\"ID\":32,\"MODE\":1,\"DATA\":{{\"TRMF\":[{i},0,0]}}}}\nnot json {i}\n"
+                ));
+            }
+            let mut sent: u64 = 0;
+            while flooding.load(std::sync::atomic::Ordering::Relaxed) {
+                if stream.write_all(junk.as_bytes()).is_err() {
+                    break;
+                }
+                sent += junk.len() as u64;
+            }
+            sent
+        })
+    };
+    let map = map_file("flood");
+    let mut bridge = Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args([
+            "bridge",
+            "--map",
+            &map,
+            "--bus",
+            "sim",
+            "--orion",
+            &format!("tcp:{addr}"),
+            "--max-age",
+            "0",
+            "--feedback-hz",
+            "0",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stdin = bridge.stdin.take().unwrap();
+    let stdout = bridge.stdout.take().unwrap();
+    let (tx, rx) = mpsc::channel();
+    thread::spawn(move || {
+        for line in BufReader::new(stdout).lines() {
+            let Ok(line) = line else { return };
+            let _ = tx.send(serde_json::from_str::<serde_json::Value>(&line).unwrap());
+        }
+    });
+    let started = Instant::now();
+    let mut peak = 0;
+    let mut answers = Vec::new();
+    let mut line = 0u64;
+    while started.elapsed() < Duration::from_secs(5) {
+        line += 1;
+        let setpoint = if line.is_multiple_of(2) { 10 } else { 20 };
+        let sent = Instant::now();
+        writeln!(
+            stdin,
+            r#"{{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":{setpoint}}}"#
+        )
+        .unwrap();
+        let r = loop {
+            let v = rx
+                .recv_timeout(Duration::from_secs(5))
+                .unwrap_or_else(|_| panic!("no result for line {line} within 5 s"));
+            if v["line"] == line && v.get("ok").is_some() {
+                break v;
+            }
+        };
+        answers.push((sent.elapsed(), r));
+        peak = peak.max(rss_kib(bridge.id()));
+        thread::sleep(Duration::from_millis(100));
+    }
+    flooding.store(false, std::sync::atomic::Ordering::Relaxed);
+    let ending = Instant::now();
+    drop(stdin);
+    let status = bridge.wait().unwrap();
+    let took = ending.elapsed();
+    let bytes = server.join().unwrap();
+    assert_eq!(status.code(), Some(0));
+    assert!(bytes > 10_000_000, "the controller sent only {bytes} bytes");
+    assert!(peak < 100 * 1024, "the bridge grew to {peak} KiB");
+    for (waited, r) in &answers {
+        assert_eq!(r["ok"], true, "{r}");
+        assert!(
+            r["latency_us"].as_u64().unwrap() < 50_000,
+            "latency to the bus {} µs: {r}",
+            r["latency_us"]
+        );
+        assert!(
+            *waited < Duration::from_secs(1),
+            "answered after {waited:?}"
+        );
+    }
+    assert!(took < Duration::from_secs(5), "the end took {took:?}");
+}

@@ -489,24 +489,117 @@ fn the_local_socket_is_its_owners_alone_and_removed_at_the_end() {
 }
 
 #[test]
-fn connections_beyond_the_limit_are_refused() {
+fn connections_beyond_the_limit_are_refused_but_a_stop_is_taken() {
     let dir = scratch("limit");
-    let (_bridge, port, _) = tcp_bridge(&dir, &["--insecure-no-auth", "--max-clients", "2"]);
-    let a = TcpStream::connect(("127.0.0.1", port)).unwrap();
-    let b = TcpStream::connect(("127.0.0.1", port)).unwrap();
-    thread::sleep(Duration::from_millis(200));
-    let said = until_closed(TcpStream::connect(("127.0.0.1", port)).unwrap());
+    let (_bridge, port, _) = tcp_bridge(
+        &dir,
+        &[
+            "--insecure-no-auth",
+            "--max-clients",
+            "2",
+            "--auth-timeout-ms",
+            "500",
+        ],
+    );
+    thread::sleep(Duration::from_millis(300)); // the joints are started
+    let connect = || {
+        let s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        s
+    };
+    // Two clients, each served its first command: the limit.
+    let mut served = Vec::new();
+    for setpoint in [10.0, 20.0] {
+        let s = connect();
+        let mut w = s.try_clone().unwrap();
+        writeln!(w, "{}", command("elbow", setpoint)).unwrap();
+        let mut r = BufReader::new(s);
+        assert_eq!(next_result(&mut r)["ok"], true);
+        served.push((w, r));
+    }
+    // A third's command: refused for room, nothing run.
+    let mut s = connect();
+    writeln!(s, "{}", command("elbow", 30.0)).unwrap();
+    let said = until_closed(s);
     assert_eq!(said.len(), 1, "{said:?}");
     assert_eq!(said[0]["error"]["kind"], "too_many_clients");
+    assert_eq!(
+        said[0]["error"]["message"],
+        "the bridge serves 2 clients at once (a stop is still taken)"
+    );
+    // A third's stop: taken and answered (the stop's event comes to every
+    // client too), then the connection ends.
+    let mut s = connect();
+    writeln!(s, r#"{{"emergency_stop": true}}"#).unwrap();
+    let said = until_closed(s);
+    let results: Vec<&Value> = said.iter().filter(|v| v.get("ok").is_some()).collect();
+    assert_eq!(results.len(), 1, "{said:?}");
+    assert_eq!(results[0]["ok"], true, "{said:?}");
+    assert_eq!(results[0]["emergency_stop"], true, "{said:?}");
+    // A served client releases it.
+    let (w, r) = &mut served[0];
+    writeln!(w, r#"{{"emergency_stop": false}}"#).unwrap();
+    assert_eq!(next_result(r)["released"], true);
     // One leaves: a new one is served.
-    drop(a);
+    drop(served.remove(1));
     thread::sleep(Duration::from_millis(200));
-    let s = TcpStream::connect(("127.0.0.1", port)).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let s = connect();
     let mut w = s.try_clone().unwrap();
     writeln!(w, "{}", command("elbow", 10.0)).unwrap();
     assert_eq!(next_result(&mut BufReader::new(s))["ok"], true);
-    drop(b);
+}
+
+/// Connections that never authenticate are closed after the timeout and
+/// never count against the limit: eight idle ones, and the token holder's
+/// stop is taken at once.
+#[test]
+fn idle_connections_are_closed_unauthenticated_and_never_keep_a_stop_out() {
+    let dir = scratch("idle");
+    let token = dir.join("token");
+    std::fs::write(&token, "correct-horse-battery-staple\n").unwrap();
+    std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let (_bridge, port, _) = tcp_bridge(
+        &dir,
+        &[
+            "--token-file",
+            token.to_str().unwrap(),
+            "--max-clients",
+            "2",
+            "--auth-timeout-ms",
+            "800",
+        ],
+    );
+    let opened = Instant::now();
+    let idle: Vec<TcpStream> = (0..8)
+        .map(|_| TcpStream::connect(("127.0.0.1", port)).unwrap())
+        .collect();
+    // A client dripping its token a byte at a time is held to the same
+    // deadline.
+    let mut drip = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    thread::sleep(Duration::from_millis(100));
+    let s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let mut w = s.try_clone().unwrap();
+    writeln!(w, "correct-horse-battery-staple").unwrap();
+    writeln!(w, r#"{{"emergency_stop": true}}"#).unwrap();
+    let r = next_result(&mut BufReader::new(s));
+    assert_eq!(r["ok"], true, "{r}");
+    assert_eq!(r["emergency_stop"], true, "{r}");
+    for b in b"correct-horse" {
+        let _ = drip.write_all(&[*b]);
+        thread::sleep(Duration::from_millis(100));
+    }
+    for s in idle.into_iter().chain([drip]) {
+        let said = until_closed(s);
+        assert_eq!(said.len(), 1, "{said:?}");
+        assert_eq!(said[0]["error"]["kind"], "unauthorized", "{said:?}");
+        assert_eq!(
+            said[0]["error"]["message"],
+            "nothing authenticated within 800 ms; the connection is closed"
+        );
+    }
+    let took = opened.elapsed();
+    assert!(took < Duration::from_secs(3), "closed after {took:?}");
 }
 
 /// CPU time (user + system, in clock ticks) the process has used.

@@ -83,6 +83,9 @@ pub(super) struct Link {
     ready: bool,
     /// Nothing more comes from the controller: nothing but a stop is sent.
     lost: bool,
+    /// Lines came again after the link was lost: a stop was sent first,
+    /// and until it is answered the motors stay offline.
+    recovering: bool,
     pub(super) pending: Option<Pending>,
     tx: VecDeque<String>,
     /// What the bridge last set each motor to, answered by the controller
@@ -118,14 +121,22 @@ impl Link {
 
     /// Whether a line may go now (a stop always may).
     pub(super) fn free(&self) -> bool {
-        self.ready && !self.lost && self.pending.is_none()
+        self.ready && !self.lost && !self.recovering && self.pending.is_none()
+    }
+
+    /// Whether the controller may be polled now: also while the link is
+    /// lost (a link that connects again answers, and is then stopped
+    /// before anything else).
+    fn may_poll(&self) -> bool {
+        self.ready && !self.recovering && self.pending.is_none()
     }
 
     /// The next deadline.
     pub(super) fn deadline(&self) -> Option<Duration> {
         match &self.pending {
             Some(p) => Some(p.deadline),
-            None if self.ready && !self.lost => self.next_poll,
+            None if self.recovering => Some(Duration::ZERO),
+            None if self.ready => self.next_poll,
             None => None,
         }
     }
@@ -209,6 +220,7 @@ impl Bridge {
             let Some(payload) = a.payloads.pop_front() else {
                 continue;
             };
+            a.begun = true;
             if let Order::Orion(o) = payload {
                 orders.push(o);
             }
@@ -293,6 +305,13 @@ impl Bridge {
                 return;
             }
         };
+        // Heard again after the link was lost or went silent: its state is
+        // made safe and known before its motors are online.
+        let offline =
+            self.orion.ready && self.joints.iter().any(|j| j.orion.is_some() && !j.online);
+        if (self.orion.lost || offline) && !self.orion.recovering {
+            self.orion_link_back(now);
+        }
         self.orion_heard(now);
         match output {
             Output::Beacon => {
@@ -305,6 +324,11 @@ impl Bridge {
                         .push_back(BridgeOutput::Event(Event::OrionBeacon { first }));
                 }
                 self.orion.ready = true;
+                // Its motors are online from its boot beacon on: a
+                // controller that (re)started has every value at 0, its
+                // state known, stopped or not.
+                self.orion.recovering = false;
+                self.orion_heard(now);
                 // Answered by the first poll, which ends the beacons.
                 self.orion.next_poll = Some(now);
                 if first {
@@ -342,12 +366,24 @@ impl Bridge {
                 } else {
                     Outcome::Nacked(NackCode(0))
                 };
+                let recovered = succeeded
+                    && self.orion.recovering
+                    && self
+                        .orion
+                        .pending
+                        .as_ref()
+                        .is_some_and(|p| p.mode == 2 && p.joints.is_empty());
                 if self.orion.pending.as_ref().is_some_and(|p| p.mode == 2) {
                     // Stop, fold and unfold leave the speeds and actuators
                     // at 0 and move the servo: send every value again.
                     self.orion.commanded = [None; 7];
                 }
                 self.orion_answered(now, 2, outcome);
+                if recovered {
+                    // Stopped and known: online again, nothing resumed.
+                    self.orion.recovering = false;
+                    self.orion_heard(now);
+                }
             }
         }
     }
@@ -379,6 +415,9 @@ impl Bridge {
             return;
         }
         self.orion.lost = true;
+        self.orion.recovering = false;
+        // Polled on: a link that connects again answers.
+        self.orion.next_poll = Some(now.saturating_add(POLL));
         self.out
             .push_back(BridgeOutput::Event(Event::OrionLinkLost {
                 error: error.to_owned(),
@@ -414,16 +453,68 @@ impl Bridge {
         self.handle_timeout(now);
     }
 
+    /// Lines come again after the link was lost (a link that connected
+    /// again): what the controller runs now is unknown (it may still turn
+    /// at what it was last told), so a stop goes first, nothing under way
+    /// is resumed, and its motors are online once the stop is answered.
+    fn orion_link_back(&mut self, now: Duration) {
+        self.orion.lost = false;
+        self.orion.recovering = true;
+        self.orion.commanded = [None; 7];
+        if self.orion.pending.is_none() {
+            self.orion_recovery_stop(now);
+        }
+    }
+
+    /// The stop that makes a controller heard again safe and known: sent
+    /// again (each time the one before went unanswered) until answered.
+    fn orion_recovery_stop(&mut self, now: Duration) {
+        let id = self.orion.next_id;
+        self.orion.next_id = self.orion.next_id.wrapping_add(1);
+        let line = motorwire_orion::Input::Command(ArmCommand::Stop.into()).to_json();
+        self.orion.tx.push_back(line.clone());
+        let timeout = self.config.client.timeout;
+        self.orion.pending = Some(Pending {
+            msg_id: id,
+            joints: Vec::new(),
+            line,
+            mode: 2,
+            attempts: 1,
+            retries: 0,
+            timeout,
+            deadline: now.saturating_add(timeout),
+            sets: Vec::new(),
+        });
+    }
+
+    /// Why the Orion motors are offline now, if the link says so: before
+    /// the boot beacon, and while a link that came back is being stopped.
+    pub(super) fn orion_offline_reason(&self) -> Option<&'static str> {
+        if !self.orion.ready {
+            Some("the Orion arm controller has not sent its boot beacon")
+        } else if self.orion.recovering {
+            Some("the link to the Orion arm controller came back, and its stop is not answered yet")
+        } else if self.orion.lost {
+            Some("the link to the Orion arm controller is lost")
+        } else {
+            None
+        }
+    }
+
+    /// Something was heard from the controller at `at`; its motors are
+    /// online once its boot beacon was heard (and, after a lost link, its
+    /// stop answered).
     fn orion_heard(&mut self, at: Duration) {
         let orion: Vec<usize> = (0..self.joints.len())
             .filter(|&k| self.is_orion(k))
             .collect();
+        let up = self.orion.ready && !self.orion.recovering && !self.orion.lost;
         for ji in orion {
             let Some(j) = self.joints.get_mut(ji) else {
                 continue;
             };
             j.last_heard = Some(at.max(j.last_heard.unwrap_or(Duration::ZERO)));
-            if !j.online {
+            if up && !j.online {
                 j.online = true;
                 self.out.push_back(BridgeOutput::Event(Event::Online {
                     motor_id: j.name.clone(),
@@ -527,8 +618,11 @@ impl Bridge {
                 self.orion_done(p, Outcome::TimedOut);
             }
         }
+        if self.orion.recovering && self.orion.pending.is_none() {
+            self.orion_recovery_stop(now);
+        }
         // A poll never takes the link from a step waiting for it.
-        if self.orion.free()
+        if self.orion.may_poll()
             && self.orion.next_poll.is_some_and(|t| now >= t)
             && self.joints.iter().any(|j| j.orion.is_some())
             && !self

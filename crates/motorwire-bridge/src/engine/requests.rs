@@ -69,7 +69,12 @@ impl Bridge {
     }
 
     /// The iRPC joint `motor` names, or the refusal to answer with.
-    fn irpc_joint(&self, motor: &str, needs: PayloadKind, what: &str) -> Result<usize, ErrorBody> {
+    pub(super) fn irpc_joint(
+        &self,
+        motor: &str,
+        needs: PayloadKind,
+        what: &str,
+    ) -> Result<usize, ErrorBody> {
         let Some(ji) = self
             .joint_index(motor)
             .filter(|&ji| !self.is_orion(ji))
