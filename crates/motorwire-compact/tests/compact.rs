@@ -257,8 +257,19 @@ fn any_command() -> impl Strategy<Value = CompactCommand> {
         })
 }
 
+/// Cases per property: all of them in an optimized build (CI runs this file
+/// with `--release`), a tenth in a debug build, so that the README's
+/// `cargo test` stays quick.
+const fn cases(all: u32) -> u32 {
+    if cfg!(debug_assertions) {
+        all / 10
+    } else {
+        all
+    }
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(4000))]
+    #![proptest_config(ProptestConfig::with_cases(cases(4000)))]
 
     #[test]
     fn round_trip(cmd in any_command()) {

@@ -142,8 +142,19 @@ fn the_public_implementations_field_names_are_accepted_as_aliases() {
     );
 }
 
+/// Cases per property: all of them in an optimized build (CI runs this file
+/// with `--release`), a tenth in a debug build, so that the README's
+/// `cargo test` stays quick.
+const fn cases(all: u32) -> u32 {
+    if cfg!(debug_assertions) {
+        all / 10
+    } else {
+        all
+    }
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(3000))]
+    #![proptest_config(ProptestConfig::with_cases(cases(3000)))]
 
     #[test]
     fn json_round_trips((_v, msg) in common::versioned_message()) {

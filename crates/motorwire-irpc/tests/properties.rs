@@ -13,8 +13,19 @@ use common::*;
 use motorwire_irpc::*;
 use proptest::prelude::*;
 
+/// Cases per property: all of them in an optimized build (CI runs this file
+/// with `--release`), a tenth in a debug build, so that the README's
+/// `cargo test` stays quick.
+const fn cases(all: u32) -> u32 {
+    if cfg!(debug_assertions) {
+        all / 10
+    } else {
+        all
+    }
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(20_000))]
+    #![proptest_config(ProptestConfig::with_cases(cases(20_000)))]
 
     #[test]
     fn bytes_equal_postcards_and_round_trip((v, msg) in versioned_message()) {

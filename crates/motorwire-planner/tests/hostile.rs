@@ -44,8 +44,19 @@ fn check(p: &Profile<f64>) {
     assert!(p.peak_velocity().0.is_finite() && p.peak_acceleration().is_finite());
 }
 
+/// Cases per property: all of them in an optimized build (CI runs this file
+/// with `--release`), a tenth in a debug build, so that the README's
+/// `cargo test` stays quick.
+const fn cases(all: u32) -> u32 {
+    if cfg!(debug_assertions) {
+        all / 10
+    } else {
+        all
+    }
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(20_000))]
+    #![proptest_config(ProptestConfig::with_cases(cases(20_000)))]
 
     #[test]
     fn any_finite_request_plans_or_refuses(
@@ -72,7 +83,7 @@ proptest! {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(20_000))]
+    #![proptest_config(ProptestConfig::with_cases(cases(20_000)))]
 
     #[test]
     fn any_finite_scurve_request_plans_or_refuses(

@@ -41,8 +41,19 @@ fn json_like() -> impl Strategy<Value = String> {
     prop::collection::vec(token, 0..60).prop_map(|t| t.concat())
 }
 
+/// Cases per property: all of them in an optimized build (CI runs this file
+/// with `--release`), a tenth in a debug build, so that the README's
+/// `cargo test` stays quick.
+const fn cases(all: u32) -> u32 {
+    if cfg!(debug_assertions) {
+        all / 10
+    } else {
+        all
+    }
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(2000))]
+    #![proptest_config(ProptestConfig::with_cases(cases(2000)))]
 
     #[test]
     fn arbitrary_text_never_panics(text in any::<String>()) {
@@ -123,7 +134,7 @@ fn object_like() -> impl Strategy<Value = String> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(4000))]
+    #![proptest_config(ProptestConfig::with_cases(cases(4000)))]
 
     /// `validate_auto` parses a document once (its kind from a scan of the
     /// member names), and judges exactly as inferring the kind with a parse
