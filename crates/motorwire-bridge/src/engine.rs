@@ -306,8 +306,9 @@ pub struct Bridge {
     line_numbers: BTreeMap<Origin, u64>,
     latched: bool,
     /// Unix ms of the last emergency stop, on the bridge's clock (with
-    /// [`BridgeConfig::epoch_unix_ms`]): a command stamped before it was
-    /// written before the stop, and is refused `stale_before_stop`.
+    /// [`BridgeConfig::epoch_unix_ms`]): with [`BridgeConfig::max_age`] in
+    /// force, a command stamped before it was written before the stop, and
+    /// is refused `stale_before_stop`.
     last_stop_unix_ms: Option<f64>,
     /// For each joint, what the release sends it (those active, or being
     /// started, when the stop came).
@@ -606,7 +607,14 @@ impl Bridge {
                     || job
                         .axes
                         .iter()
-                        .all(|a| !a.begun && a.due.front().is_some_and(|due| *due > now)))
+                        .all(|a| !a.begun && a.due.front().is_some_and(|due| *due > now))
+                    // A velocity or torque setpoint still to be sent, or
+                    // sent and not answered (the deadman then watches it).
+                    || job.axes.iter().any(|a| {
+                        !a.is_done()
+                            && (a.payloads.iter().any(|p| holds_setpoint(*p))
+                                || matches!(a.state, AxisState::InFlight { payload, .. } if holds_setpoint(payload)))
+                    }))
         };
         self.cancel_where(
             "cancelled by the end of input: it would not end by itself",
@@ -929,7 +937,16 @@ impl Bridge {
             self.refuse(origin, number, label, e);
             return;
         }
-        let delay = Duration::from_secs_f64(((start_ms - now_ms) / 1000.0).max(0.0));
+        // A start_time so far ahead that no clock reaches it (1e300) is
+        // refused, never a panic.
+        let Ok(delay) = Duration::try_from_secs_f64(((start_ms - now_ms) / 1000.0).max(0.0)) else {
+            let e = ErrorBody::new(
+                ErrorKind::Refused,
+                format!("timing.start_time {start_ms} is beyond any time the bridge can wait for"),
+            );
+            self.refuse(origin, number, label, e);
+            return;
+        };
         let start = now.saturating_add(delay);
         let mut axes = Vec::new();
         let mut report = Report::default();
@@ -991,6 +1008,20 @@ impl Bridge {
                     loss.field = format!("{}.{}", t.motor_id, loss.field);
                 }
                 report.losses.push(loss);
+            }
+            // Times no clock reaches are refused, never a panic.
+            let timeable = |secs: f64| Duration::try_from_secs_f64(secs.max(0.0)).is_ok();
+            if !plan.value.segments.iter().all(|s| timeable(s.at)) || !timeable(plan.value.duration)
+            {
+                let e = ErrorBody::new(
+                    ErrorKind::Refused,
+                    format!(
+                        "{}: a waypoint's time is beyond any time the bridge can wait for",
+                        t.motor_id
+                    ),
+                );
+                self.refuse(origin, number, label, e);
+                return;
             }
             let mut axis = Axis::new(
                 t.motor_id.clone(),
@@ -1129,6 +1160,85 @@ impl Bridge {
         Some(serde_json::json!({ "effective": effective, "bus_map": as_json(base) }))
     }
 
+    /// The first motion of device `ji` already accepted (its move under
+    /// way, what is in flight, what waits to be sent, a trajectory's later
+    /// segments and cycles) that positions `lo..=hi` or a `max_v` (the
+    /// motor's unit) would not allow: what it is, said for a person.
+    fn motion_outside(&self, ji: usize, lo: f64, hi: f64, max_v: Option<f64>) -> Option<String> {
+        let j = self.joints.get(ji)?;
+        let unit = self
+            .map
+            .motor(&j.name)
+            .map_or(AngleUnit::Degrees, |m| m.unit);
+        let (lo_d, hi_d) = (unit.to_degrees(lo), unit.to_degrees(hi));
+        let max_d = max_v.map(|v| unit.to_degrees(v));
+        const SLACK: f64 = 1e-6;
+        let outside = |t: f64| t < lo_d - SLACK || t > hi_d + SLACK;
+        let faster = |v: f64| max_d.is_some_and(|m| v.abs() > m + SLACK);
+        let say = |d: f64| short_unit(unit.from_degrees(d));
+        if j.moving_until > self.now {
+            if let Some(t) = j.target.filter(|t| outside(*t)) {
+                return Some(format!("its move under way goes to {}", say(t)));
+            }
+            if let Some((_, v)) = j.motion.filter(|(_, v)| faster(*v)) {
+                return Some(format!("it moves at {} a second now", say(v.abs())));
+            }
+        }
+        for step in j.busy.iter().chain(j.queue.iter()) {
+            let Some(job) = self.jobs.get(&step.job) else {
+                continue;
+            };
+            let Some(a) = job.axes.get(step.axis) else {
+                continue;
+            };
+            let in_flight = match &a.state {
+                AxisState::InFlight { payload, .. } => Some(*payload),
+                _ => None,
+            };
+            let cycle = a
+                .cycle
+                .iter()
+                .flat_map(|c| c.payloads.iter().map(|(_, p)| Order::Irpc(*p)));
+            for order in in_flight
+                .into_iter()
+                .chain(a.payloads.iter().copied())
+                .chain(cycle)
+            {
+                let (target, speed) = match order {
+                    Order::Irpc(Payload::SetTargetV2(p)) => (
+                        Some(f64::from(p.target_angle)),
+                        Some(f64::from(p.max_velocity)),
+                    ),
+                    Order::Irpc(Payload::SetTarget(p)) => (
+                        Some(f64::from(p.target_angle)),
+                        Some(f64::from(p.velocity_limit)),
+                    ),
+                    Order::Compact(c) if c.control_mode == CompactMode::Position => (
+                        Some(unit.to_degrees(f64::from(c.setpoint))),
+                        c.velocity_limit.map(|l| unit.to_degrees(l.units_per_s())),
+                    ),
+                    Order::Compact(c) if c.control_mode == CompactMode::Velocity => {
+                        (None, Some(unit.to_degrees(f64::from(c.setpoint))))
+                    }
+                    Order::Orion(OrionOrder::Set(m, v))
+                        if m.quantity() == motorwire_orion::Quantity::PositionDegrees =>
+                    {
+                        (Some(v), None)
+                    }
+                    _ => (None, None),
+                };
+                let line = job.number;
+                if let Some(t) = target.filter(|t| outside(*t)) {
+                    return Some(format!("line {line} moves it to {}", say(t)));
+                }
+                if let Some(v) = speed.filter(|v| faster(*v)) {
+                    return Some(format!("line {line} moves it at {} a second", say(v.abs())));
+                }
+            }
+        }
+        None
+    }
+
     fn query_limits(&mut self, origin: Origin, number: u64, motor: &str) {
         let label = Some(("motor_id", motor.to_owned()));
         let Some(limits) = self.limits_value(motor) else {
@@ -1235,6 +1345,22 @@ impl Bridge {
         // command may hold is the continuous one.
         let lo = p.soft_min.map_or(p.min, |s| s.max(p.min));
         let hi = p.soft_max.map_or(p.max, |s| s.min(p.max));
+        // Motion already accepted is held to the new limits too: a line
+        // it would break is refused, naming it, and nothing changes.
+        if let Some(why) = self
+            .joint_index(&name)
+            .and_then(|ji| self.motion_outside(ji, lo, hi, v.max_velocity))
+        {
+            let e = ErrorBody::new(
+                ErrorKind::Refused,
+                format!(
+                    "{name}: {why}, which these limits would not allow; send them once it has ended, or stop it first"
+                ),
+            )
+            .about(&name);
+            self.refuse(origin, number, label, e);
+            return;
+        }
         let torque = match (t.continuous_torque, t.peak_torque) {
             (Some(c), Some(k)) => Some(c.min(k)),
             (c, k) => c.or(k).or(base.max_torque),
@@ -1375,7 +1501,10 @@ impl Bridge {
                 "the emergency stop is latched; send {\"emergency_stop\": false} to release it",
             ));
         }
+        // Only where timestamps are held to the bridge's clock (a max age
+        // in force): without one they may be any number.
         if let Some(stop_ms) = self.last_stop_unix_ms
+            && self.config.max_age.is_some()
             && timestamp < stop_ms
         {
             // Written before the stop (another client's, still on its
@@ -1776,6 +1905,12 @@ impl Bridge {
             }
             return;
         }
+        // Every stop counts for what was written before it, a stop that
+        // rides on another one too.
+        if let Some(e) = self.config.epoch_unix_ms {
+            let at = e + now.as_secs_f64() * 1000.0;
+            self.last_stop_unix_ms = Some(self.last_stop_unix_ms.map_or(at, |t| t.max(at)));
+        }
         // A stop already under way (latched, not released since) answers
         // this line too: its Deactivates are in flight or queued first, and
         // sending them again would only add frames ahead of nothing.
@@ -1829,10 +1964,6 @@ impl Bridge {
             }
         }
         self.latched = true;
-        self.last_stop_unix_ms = self
-            .config
-            .epoch_unix_ms
-            .map(|e| e + now.as_secs_f64() * 1000.0);
         self.fail_watches(|_| true, "stopped by the emergency stop");
         let cancelled = self.cancel_everything("cancelled by the emergency stop");
         self.out
@@ -1906,6 +2037,8 @@ impl Bridge {
     /// returns the input lines affected.
     fn cancel_where(&mut self, why: &str, pick: impl Fn(&Job) -> bool) -> Vec<LineRef> {
         let mut touched = Vec::new();
+        // Setpoints sent and never answered: they may be running.
+        let mut maybe_held = Vec::new();
         for ji in 0..self.joints.len() {
             let Some(joint) = self.joints.get_mut(ji) else {
                 continue;
@@ -1947,6 +2080,11 @@ impl Bridge {
                     _ => {}
                 }
                 joint.wake = None;
+                if let AxisState::InFlight { payload, .. } = a.state
+                    && holds_setpoint(payload)
+                {
+                    maybe_held.push((ji, payload));
+                }
                 if matches!(a.state, AxisState::InFlight { .. }) {
                     // Sent and not answered: it may have run. Never sent again.
                     a.finish(
@@ -1992,6 +2130,10 @@ impl Bridge {
                     }
                 }
             }
+        }
+        // The deadman watches what may be running, as if it were acked.
+        for (ji, payload) in maybe_held {
+            self.track(ji, payload, self.now);
         }
         touched.sort_by_key(|r| (r.origin, r.line));
         touched.dedup();
@@ -2520,7 +2662,11 @@ impl Bridge {
                 self.fail_watches(|w| w.waits_on(ji), "the joint went offline");
             }
         }
-        if c.outcome == Outcome::Acked {
+        // A setpoint whose answer never came may be running: the deadman
+        // watches it as if it were acked.
+        if c.outcome == Outcome::Acked
+            || (c.outcome == Outcome::TimedOut && holds_setpoint(payload))
+        {
             self.track(ji, payload, c.finished_at);
         }
         if more {
@@ -3619,6 +3765,23 @@ fn failure_error(failures: &[StepReport], cut: Option<&str>) -> ErrorBody {
 /// carries f32: `45.29999923706055` prints as `45.3`); `v` otherwise.
 /// `v` as the shortest decimal of the nearest f32 (for what is said, not
 /// measured).
+/// Whether `order` leaves its device holding a setpoint that does not end
+/// by itself (a compact velocity or torque, an Orion speed or actuator
+/// value, other than 0): what the deadman watches.
+fn holds_setpoint(order: Order) -> bool {
+    match order {
+        Order::Compact(c) => {
+            matches!(c.control_mode, CompactMode::Velocity | CompactMode::Torque)
+                && c.setpoint != 0.0
+                && !c.flags.contains(Flags::EMERGENCY_STOP)
+        }
+        Order::Orion(OrionOrder::Set(m, v)) => {
+            m.quantity() != motorwire_orion::Quantity::PositionDegrees && v != 0.0
+        }
+        _ => false,
+    }
+}
+
 fn short_unit(v: f64) -> f64 {
     #[allow(clippy::cast_possible_truncation)]
     shortest(f64::from(v as f32))

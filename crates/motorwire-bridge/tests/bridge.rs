@@ -493,8 +493,14 @@ fn commands_written_before_a_stop_are_refused_after_the_release() {
             EPOCH + ms
         )
     };
-    let stop_ms = arm.now().as_secs_f64() * 1000.0;
     arm.line(Origin(1), r#"{"emergency_stop": true}"#);
+    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    // A second stop while the first is latched counts too: the last stop
+    // is the later one.
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    let stop_ms = arm.now().as_secs_f64() * 1000.0;
+    arm.line(Origin(3), r#"{"emergency_stop": true}"#);
     assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
     arm.line(Origin(1), r#"{"emergency_stop": false}"#);
     assert_eq!(
@@ -688,4 +694,54 @@ limits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 
         (arm.joint(ELBOW).unwrap().position() - 140.0).abs() < 1e-3,
         "the finite move finished"
     );
+}
+
+/// A velocity setpoint still in flight when input ends (sent, not yet
+/// answered) is stopped too: the deadman would not watch what was never
+/// acked, so the end stops it as if it had been.
+#[test]
+fn end_of_input_stops_a_setpoint_still_in_flight() {
+    let map = BusMap::from_toml(
+        r#"
+[motors.gripper_axis]
+dialect = "compact"
+node = 0x20
+command_timeout_ms = 10000
+limits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 5 }
+"#,
+    )
+    .unwrap();
+    let mut arm = SimulatedArm::new(
+        Bridge::new(map, BridgeConfig::default()).unwrap(),
+        SimConfig::default(),
+    )
+    .unwrap();
+    assert!(
+        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
+            .unwrap()
+    );
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"gripper_axis","timestamp":1,"control_mode":"velocity","setpoint":20}"#,
+    );
+    let ended = arm.now();
+    arm.bridge_mut().finish(ended);
+    assert!(
+        arm.run_while(Duration::from_secs(5), |a| a.bridge().is_finished())
+            .unwrap()
+    );
+    assert!(
+        arm.now() - ended < Duration::from_secs(1),
+        "{:?}",
+        arm.now() - ended
+    );
+    let device = arm.compact_device(0x20).unwrap();
+    assert_eq!(device.velocity(), 0.0, "{:?}", device.log());
+    let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
+    let r = out
+        .iter()
+        .find(|v| v["line"] == 1 && v.get("ok").is_some())
+        .unwrap();
+    assert_eq!(r["ok"], false, "{r}");
+    assert!(!out.iter().any(|v| v["event"] == "deadman"), "{out:?}");
 }

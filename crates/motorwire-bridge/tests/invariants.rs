@@ -873,8 +873,9 @@ fn safety_limits_lines_tighten_the_gate_at_runtime() {
             r#"{{"motor_id":"elbow","position_limits":{{"min":{min},"max":{max}}},"velocity_limits":{{"max_velocity":{v},"emergency_decel":900}},"torque_limits":{{"continuous_torque":2,"peak_torque":4}}}}"#
         )
     };
-    // A move that passes now.
+    // A move that passes now, and ends before the limits change.
     arm.line(Origin(1), &command("elbow", 120.0));
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
     // Wider than the map: refused, naming both; nothing changes.
     arm.line(Origin(1), &limits(-5.0, 100.0, 60.0));
     // Tighter: in force from now on.
@@ -906,6 +907,116 @@ fn safety_limits_lines_tighten_the_gate_at_runtime() {
     );
     assert_eq!(by(5)["limits"], by(3)["limits"]);
     assert_eq!(by(6)["error"]["kind"], "unsupported", "{}", by(6));
+}
+
+/// A SafetyLimits line binds motion already accepted: one that a move
+/// under way, a sequential line's later axis or a trajectory looping
+/// forever would break is refused, naming that motion, and nothing
+/// changes; once the motion has ended the same line is taken.
+#[test]
+fn a_safety_limits_line_that_accepted_motion_would_break_is_refused() {
+    let limits = |motor: &str, max: f64| {
+        let v = if motor == "elbow" { 120 } else { 200 };
+        format!(
+            r#"{{"motor_id":"{motor}","position_limits":{{"min":0,"max":{max}}},"velocity_limits":{{"max_velocity":{v}}},"torque_limits":{{"continuous_torque":2,"peak_torque":4}}}}"#
+        )
+    };
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    // A move under way to 140.
+    arm.line(Origin(1), &command("elbow", 140.0));
+    arm.run_until(arm.now() + Duration::from_millis(300))
+        .unwrap();
+    arm.line(Origin(1), &limits("elbow", 50.0));
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    let r = arm.take_results();
+    let refused = r
+        .iter()
+        .find(|v| v["line"] == 2)
+        .unwrap_or_else(|| panic!("{r:?}"))
+        .clone();
+    assert_eq!(refused["ok"], false, "{refused}");
+    assert_eq!(refused["error"]["kind"], "refused", "{refused}");
+    assert_eq!(
+        refused["error"]["message"],
+        "elbow: its move under way goes to 140, which these limits would not allow; send them once it has ended, or stop it first"
+    );
+    // The limits in force did not change: the move goes on and arrives.
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    assert!((arm.joint(0x12).unwrap().position() - 140.0).abs() < 1e-3);
+    arm.line(Origin(1), r#"{"query":"limits","motor_id":"elbow"}"#);
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    let q = arm.take_results();
+    let q = q.iter().find(|v| v["line"] == 3).unwrap();
+    assert_eq!(q["limits"]["effective"]["max_position"], 150.0, "{q}");
+    // Ended: the same line is taken, and binds what comes next.
+    arm.line(Origin(1), &limits("elbow", 50.0));
+    arm.line(Origin(1), &command("elbow", 60.0));
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    let r = arm.take_results();
+    assert_eq!(
+        r.iter().find(|v| v["line"] == 4).unwrap()["ok"],
+        true,
+        "{r:?}"
+    );
+    assert_eq!(
+        r.iter().find(|v| v["line"] == 5).unwrap()["error"]["message"],
+        "elbow: setpoint 60 is outside max_position (the SafetyLimits line in force) 50"
+    );
+
+    // A later axis of a sequential line, waiting for the one before it.
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    arm.line(
+        Origin(1),
+        r#"{"command_id":"seq","timestamp":1,"sync_mode":"sequential","motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":80},{"motor_id":"elbow","control_mode":"position","setpoint":140}]}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(200))
+        .unwrap();
+    arm.line(Origin(1), &limits("elbow", 50.0));
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    let r = arm.take_results();
+    let refused = r.iter().find(|v| v["line"] == 2).unwrap();
+    assert_eq!(
+        refused["error"]["message"],
+        "elbow: line 1 moves it to 140, which these limits would not allow; send them once it has ended, or stop it first",
+        "{refused}"
+    );
+
+    // A trajectory looping forever through 30.
+    let map = r#"
+[motors.j]
+dialect = "irpc"
+node = 0x20
+limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acceleration = 800, max_jerk = 8000, max_torque = 5 }
+"#;
+    let mut arm = arm_with(map, Faults::default(), 0);
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    arm.line(
+        Origin(1),
+        r#"{"trajectory_id":"pendulum","motor_id":"j","waypoints":[{"position":0,"velocity":0,"time":0},{"position":30,"velocity":30,"time":1},{"position":0,"velocity":0,"time":2}],"timing":{},"loop":{"enabled":true,"count":-1}}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(1500))
+        .unwrap();
+    arm.line(
+        Origin(1),
+        &limits("j", 20.0).replace(r#""min":0"#, r#""min":-10"#),
+    );
+    arm.run_until(arm.now() + Duration::from_millis(50))
+        .unwrap();
+    let r = arm.take_results();
+    let refused = r.iter().find(|v| v["line"] == 2).unwrap();
+    assert_eq!(refused["ok"], false, "{refused}");
+    assert!(
+        refused["error"]["message"]
+            .as_str()
+            .unwrap()
+            .ends_with("moves it to 30, which these limits would not allow; send them once it has ended, or stop it first"),
+        "{refused}"
+    );
 }
 
 /// A SafetyLimits line's max_velocity binds every dialect's default speed:

@@ -441,9 +441,25 @@ fn an_unanswered_line_is_sent_again_then_its_outcome_is_unknown_and_the_motors_g
         "{:?}",
         rig.out
     );
+    // The setpoint may be turning the turntable: the deadman watches it as
+    // if acked, its stop is never answered either, and that latches the
+    // emergency stop (when in doubt, stop).
+    assert!(
+        rig.out
+            .iter()
+            .any(|v| v["event"] == "deadman" && v["motor_id"] == "turntable"),
+        "{:?}",
+        rig.out
+    );
+    assert!(rig.bridge.is_latched());
     rig.line(&velocity("arm_extension", 10.0));
     let r = rig.result(2).unwrap();
-    assert_eq!(r["error"]["kind"], "offline");
+    assert_eq!(r["error"]["kind"], "emergency_stop_latched", "{r}");
+    // Released, its motors are still offline: nothing heard.
+    rig.line(r#"{"emergency_stop": false}"#);
+    rig.line(&velocity("arm_extension", 10.0));
+    let r = rig.result(4).unwrap();
+    assert_eq!(r["error"]["kind"], "offline", "{r}");
     assert_eq!(
         r["error"]["message"],
         "arm_extension is offline: nothing heard from the Orion arm controller (ID 32)"

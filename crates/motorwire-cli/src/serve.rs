@@ -262,19 +262,27 @@ fn timed_out(e: &io::Error) -> bool {
     )
 }
 
-/// Connections authenticating at once, at most: beyond, a connection is
-/// refused at once (`too_many_clients`). Each has
-/// [`ServeConfig::auth_timeout`] to authenticate, and none counts against
-/// [`ServeConfig::max_clients`].
+/// Connections authenticating at once, at most: beyond, the one that has
+/// been authenticating longest is closed (`too_many_clients`) for the new
+/// one, so that a flood of connections cannot keep out a client that sends
+/// its token at once. Each has [`ServeConfig::auth_timeout`] to
+/// authenticate, and none counts against [`ServeConfig::max_clients`].
 pub(crate) const MAX_AUTHENTICATING: usize = 64;
 
-/// Counts a connection as authenticating until dropped.
-struct Authenticating<'a>(Option<&'a AtomicUsize>);
+/// Counts a connection as authenticating until done or dropped.
+struct Authenticating<'a> {
+    router: Option<&'a Router>,
+    id: u64,
+}
 
 impl Authenticating<'_> {
     fn done(&mut self) {
-        if let Some(n) = self.0.take() {
-            n.fetch_sub(1, Ordering::SeqCst);
+        if let Some(r) = self.router.take() {
+            r.waiting
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .retain(|(id, _)| *id != self.id);
+            r.authenticating.fetch_sub(1, Ordering::SeqCst);
         }
     }
 }
@@ -345,6 +353,8 @@ pub(crate) struct Router {
     input_failure: Mutex<Option<String>>,
     connected: AtomicUsize,
     authenticating: AtomicUsize,
+    /// The connections authenticating, oldest first.
+    waiting: Mutex<std::collections::VecDeque<(u64, Conn)>>,
 }
 
 impl Router {
@@ -360,6 +370,7 @@ impl Router {
             input_failure: Mutex::default(),
             connected: AtomicUsize::new(0),
             authenticating: AtomicUsize::new(0),
+            waiting: Mutex::default(),
         });
         let r = Arc::clone(&router);
         thread::spawn(move || r.write_stdout(&lines));
@@ -631,14 +642,29 @@ impl Router {
             };
             let id = next;
             next += 1;
-            if self.authenticating.fetch_add(1, Ordering::SeqCst) >= MAX_AUTHENTICATING {
-                self.authenticating.fetch_sub(1, Ordering::SeqCst);
-                refuse_now(
-                    conn,
-                    "too_many_clients",
-                    &format!("{MAX_AUTHENTICATING} connections are authenticating already"),
-                );
-                continue;
+            if self.authenticating.load(Ordering::SeqCst) >= MAX_AUTHENTICATING {
+                let oldest = self
+                    .waiting
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .pop_front();
+                if let Some((_, old)) = oldest {
+                    // Its thread's read ends, and gives its place back.
+                    refuse_now(
+                        old,
+                        "too_many_clients",
+                        &format!(
+                            "closed unauthenticated: {MAX_AUTHENTICATING} connections were authenticating, this one the longest"
+                        ),
+                    );
+                }
+            }
+            self.authenticating.fetch_add(1, Ordering::SeqCst);
+            if let Ok(c) = conn.try_clone() {
+                self.waiting
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .push_back((id, c));
             }
             let r = Arc::clone(self);
             let config = config.clone();
@@ -652,7 +678,10 @@ impl Router {
     /// stop is still taken (its first command, within the timeout too);
     /// anything else is refused `too_many_clients`.
     fn client(&self, id: u64, conn: Conn, config: &ServeConfig) {
-        let mut authenticating = Authenticating(Some(&self.authenticating));
+        let mut authenticating = Authenticating {
+            router: Some(self),
+            id,
+        };
         let Ok(read_half) = conn.try_clone() else {
             return;
         };
@@ -660,7 +689,10 @@ impl Router {
             conn: read_half,
             deadline: Some(Instant::now() + config.auth_timeout),
         });
-        let late = |conn: Conn| {
+        // A refused connection is no longer authenticating: its place is
+        // given back before the refusal's linger.
+        let late = |conn: Conn, authenticating: &mut Authenticating<'_>| {
+            authenticating.done();
             refuse(
                 conn,
                 "unauthorized",
@@ -681,14 +713,16 @@ impl Router {
         }
         let first = match first_read {
             Ok(ReadLine::Line(s)) if s.trim().is_empty() => {
+                authenticating.done();
                 refuse(conn, "unauthorized", "only blank lines");
                 return;
             }
             Ok(ReadLine::Line(s)) => s,
-            Err(e) if timed_out(&e) => return late(conn),
+            Err(e) if timed_out(&e) => return late(conn, &mut authenticating),
             Ok(ReadLine::Partial(_) | ReadLine::End) | Err(_) => return,
             Ok(unreadable @ (ReadLine::TooLong { .. } | ReadLine::NotUtf8 { .. })) => {
                 if config.token.is_some() {
+                    authenticating.done();
                     refuse(conn, "unauthorized", "the first line could not be read");
                     return;
                 }
@@ -722,6 +756,7 @@ impl Router {
             }
         };
         if looks_like_http(&first) {
+            authenticating.done();
             refuse(
                 conn,
                 "http_refused",
@@ -732,6 +767,7 @@ impl Router {
         let first_is_command = match &config.token {
             Some(token) => {
                 if !same_secret(first.trim().as_bytes(), token.as_bytes()) {
+                    authenticating.done();
                     refuse(
                         conn,
                         "unauthorized",
@@ -752,7 +788,7 @@ impl Router {
             } else {
                 match read_line(&mut reader) {
                     Ok(ReadLine::Line(s)) => Some(s),
-                    Err(e) if timed_out(&e) => return late(conn),
+                    Err(e) if timed_out(&e) => return late(conn, &mut authenticating),
                     _ => None,
                 }
             };
@@ -853,10 +889,16 @@ fn refuse(mut conn: Conn, kind: &str, message: &str) {
     // (at most 64 KiB, 200 ms), so closing does not reset the connection
     // and discard the error line before the peer reads it.
     conn.shutdown_write();
-    conn.set_read_timeout(Duration::from_millis(200));
+    // 200 ms in all: a peer dripping bytes cannot hold the thread longer.
+    let end = Instant::now() + Duration::from_millis(200);
     let mut sink = [0u8; 4096];
     let mut left: usize = 64 * 1024;
     while left > 0 {
+        let wait = end.saturating_duration_since(Instant::now());
+        if wait.is_zero() {
+            break;
+        }
+        conn.set_read_timeout(wait);
         match conn.read(&mut sink) {
             Ok(0) | Err(_) => break,
             Ok(n) => left = left.saturating_sub(n),
@@ -865,8 +907,9 @@ fn refuse(mut conn: Conn, kind: &str, message: &str) {
     conn.shutdown();
 }
 
-/// One error line, then the connection closed at once (the accept loop
-/// cannot wait for the peer; what it sent unread may reset it).
+/// One error line, then the connection closed at once, both ways (the
+/// accept loop cannot wait for the peer; a thread reading it wakes and
+/// ends; what the peer sent unread may reset it).
 fn refuse_now(mut conn: Conn, kind: &str, message: &str) {
     conn.set_write_timeout(Duration::from_millis(50));
     let line = serde_json::json!({
@@ -874,7 +917,7 @@ fn refuse_now(mut conn: Conn, kind: &str, message: &str) {
         "error": { "kind": kind, "message": message },
     });
     let _ = conn.write_all(format!("{line}\n").as_bytes());
-    conn.shutdown_write();
+    conn.shutdown();
 }
 
 /// Binds a local socket at `path` that only this user can connect to: it

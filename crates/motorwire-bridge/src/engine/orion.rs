@@ -152,6 +152,19 @@ impl Bridge {
         self.joints.get(ji).is_some_and(|j| j.orion.is_some())
     }
 
+    /// Whether `step` is a sequential line's axis whose earlier axis has
+    /// not arrived: it cannot go yet, so it does not keep the controller
+    /// from being polled (unpolled, the controller would fall silent).
+    fn after_earlier_axis(&self, step: StepRef) -> bool {
+        self.jobs
+            .get(&step.job)
+            .and_then(|job| {
+                let before = job.axes.get(job.axes.get(step.axis)?.after?)?;
+                Some(!before.arrived)
+            })
+            .unwrap_or(false)
+    }
+
     /// Whether `step`, waiting for an Orion motor, may be sent now.
     pub(super) fn orion_may_send(&self, step: StepRef) -> bool {
         let Some(job) = self.jobs.get(&step.job) else {
@@ -298,6 +311,12 @@ impl Bridge {
     pub fn handle_orion_line(&mut self, now: Duration, line: &str) {
         self.now = self.now.max(now);
         let now = self.now;
+        // The controller's lines are under 300 bytes: a longer one is not
+        // parsed (a hostile one would cost every device's time).
+        if line.len() > MAX_ORION_LINE {
+            self.orion_bad_line(now, format!("a line over {MAX_ORION_LINE} bytes"));
+            return;
+        }
         let output = match Output::parse(line.trim()) {
             Ok(o) => o,
             Err(e) => {
@@ -625,10 +644,13 @@ impl Bridge {
         if self.orion.may_poll()
             && self.orion.next_poll.is_some_and(|t| now >= t)
             && self.joints.iter().any(|j| j.orion.is_some())
-            && !self
-                .joints
-                .iter()
-                .any(|j| j.orion.is_some() && (!j.queue.is_empty() || j.busy.is_some()))
+            && !self.joints.iter().any(|j| {
+                j.orion.is_some()
+                    && (j.busy.is_some()
+                        || j.queue
+                            .front()
+                            .is_some_and(|s| !self.after_earlier_axis(*s)))
+            })
         {
             let id = self.orion.next_id;
             self.orion.next_id = self.orion.next_id.wrapping_add(1);
