@@ -39,6 +39,17 @@ fn arm(faults: Faults, seed: u64) -> SimulatedArm {
     arm
 }
 
+/// A bridge on `map` with `config`, on simulated joints, ready.
+fn started(map: BusMap, config: BridgeConfig) -> SimulatedArm {
+    let mut arm =
+        SimulatedArm::new(Bridge::new(map, config).unwrap(), SimConfig::default()).unwrap();
+    assert!(
+        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
+            .unwrap()
+    );
+    arm
+}
+
 fn command(motor: &str, setpoint: f64) -> String {
     format!(
         r#"{{"motor_id":"{motor}","timestamp":1704067200000,"control_mode":"position","setpoint":{setpoint}}}"#
@@ -436,12 +447,7 @@ limits = { min_position = -45, max_position = 45, max_velocity = 20, max_acceler
 "#,
     )
     .unwrap();
-    let bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
-    let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
-    assert!(
-        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
-            .unwrap()
-    );
+    let mut arm = started(map, BridgeConfig::default());
     // Two seconds of motion each, ten times their watchdogs' 200 ms.
     arm.line(Origin(1), &command("shoulder_pitch", 80.0));
     arm.line(Origin(1), &command("shoulder_roll", 40.0));
@@ -481,12 +487,7 @@ fn commands_written_before_a_stop_are_refused_after_the_release() {
         epoch_unix_ms: Some(EPOCH),
         ..BridgeConfig::default()
     };
-    let mut arm =
-        SimulatedArm::new(Bridge::new(map, config).unwrap(), SimConfig::default()).unwrap();
-    assert!(
-        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
-            .unwrap()
-    );
+    let mut arm = started(map, config);
     let at = |ms: f64, motor: &str, setpoint: f64| {
         format!(
             r#"{{"motor_id":"{motor}","timestamp":{},"control_mode":"position","setpoint":{setpoint}}}"#,
@@ -581,12 +582,7 @@ limits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 
         epoch_unix_ms: Some(EPOCH),
         ..BridgeConfig::default()
     };
-    let mut arm =
-        SimulatedArm::new(Bridge::new(map, config).unwrap(), SimConfig::default()).unwrap();
-    assert!(
-        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
-            .unwrap()
-    );
+    let mut arm = started(map, config);
     let trajectory = |motor: &str, start: Option<f64>, forever: bool| {
         format!(
             r#"{{"trajectory_id":"{motor}","motor_id":"{motor}","waypoints":[{{"position":0,"velocity":0,"time":0}},{{"position":30,"velocity":30,"time":1}},{{"position":0,"velocity":0,"time":2}}],"timing":{{{}}}{}}}"#,
@@ -711,15 +707,7 @@ limits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 
 "#,
     )
     .unwrap();
-    let mut arm = SimulatedArm::new(
-        Bridge::new(map, BridgeConfig::default()).unwrap(),
-        SimConfig::default(),
-    )
-    .unwrap();
-    assert!(
-        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
-            .unwrap()
-    );
+    let mut arm = started(map, BridgeConfig::default());
     arm.line(
         Origin(1),
         r#"{"motor_id":"gripper_axis","timestamp":1,"control_mode":"velocity","setpoint":20}"#,

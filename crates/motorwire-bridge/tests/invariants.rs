@@ -65,6 +65,17 @@ fn arm_with(map: &str, faults: Faults, seed: u64) -> SimulatedArm {
     arm
 }
 
+/// One iRPC joint, `j`, for the looping trajectory below.
+const PENDULUM_MAP: &str = r#"
+[motors.j]
+dialect = "irpc"
+node = 0x20
+limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acceleration = 800, max_jerk = 8000 }
+"#;
+
+/// A trajectory looping forever on `j`: 0 to 30 and back, 2 s a cycle.
+const PENDULUM: &str = r#"{"trajectory_id":"pendulum","motor_id":"j","waypoints":[{"position":0,"velocity":0,"time":0},{"position":30,"velocity":30,"time":1},{"position":0,"velocity":0,"time":2}],"timing":{},"loop":{"enabled":true,"count":-1}}"#;
+
 fn command(motor: &str, setpoint: f64) -> String {
     format!(
         r#"{{"motor_id":"{motor}","timestamp":1,"control_mode":"position","setpoint":{setpoint}}}"#
@@ -986,19 +997,10 @@ fn a_safety_limits_line_that_accepted_motion_would_break_is_refused() {
     );
 
     // A trajectory looping forever through 30.
-    let map = r#"
-[motors.j]
-dialect = "irpc"
-node = 0x20
-limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acceleration = 800, max_jerk = 8000, max_torque = 5 }
-"#;
-    let mut arm = arm_with(map, Faults::default(), 0);
+    let mut arm = arm_with(PENDULUM_MAP, Faults::default(), 0);
     arm.run_until(arm.now() + Duration::from_millis(50))
         .unwrap();
-    arm.line(
-        Origin(1),
-        r#"{"trajectory_id":"pendulum","motor_id":"j","waypoints":[{"position":0,"velocity":0,"time":0},{"position":30,"velocity":30,"time":1},{"position":0,"velocity":0,"time":2}],"timing":{},"loop":{"enabled":true,"count":-1}}"#,
-    );
+    arm.line(Origin(1), PENDULUM);
     arm.run_until(arm.now() + Duration::from_millis(1500))
         .unwrap();
     arm.line(
@@ -1599,19 +1601,10 @@ fn a_multi_axis_trajectory_moves_every_joint_on_one_time_base() {
 /// whose line answers it.
 #[test]
 fn a_trajectory_looping_forever_runs_until_a_stop() {
-    let map = r#"
-[motors.j]
-dialect = "irpc"
-node = 0x20
-limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acceleration = 800, max_jerk = 8000 }
-"#;
-    let mut arm = arm_with(map, Faults::default(), 0);
+    let mut arm = arm_with(PENDULUM_MAP, Faults::default(), 0);
     arm.run_until(arm.now() + Duration::from_millis(50))
         .unwrap();
-    arm.line(
-        Origin(1),
-        r#"{"trajectory_id":"pendulum","motor_id":"j","waypoints":[{"position":0,"velocity":0,"time":0},{"position":30,"velocity":30,"time":1},{"position":0,"velocity":0,"time":2}],"timing":{},"loop":{"enabled":true,"count":-1}}"#,
-    );
+    arm.line(Origin(1), PENDULUM);
     arm.run_until(arm.now() + Duration::from_millis(6500))
         .unwrap();
     let moves = arm

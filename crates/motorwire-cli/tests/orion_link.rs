@@ -15,6 +15,8 @@ use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
+mod common;
+
 /// The demo arm's map, from inside this crate (the packaged crate has it).
 const MAP: &str = include_str!("../demo/demo-arm.toml");
 
@@ -136,6 +138,89 @@ fn bridge_with(spec: &str, map: &str, lines: &[&str]) -> Vec<serde_json::Value> 
         .unwrap();
     assert_eq!(status.code(), Some(0), "{err}\n{out:?}");
     out
+}
+
+/// `motorwire bridge` on the demo map (its joints on the simulated bus)
+/// with the Orion controller at `tcp:ADDR`, and its output lines as they
+/// come.
+fn tcp_bridge(addr: std::net::SocketAddr, map: &str) -> (Child, std::process::ChildStdin, Lines) {
+    let mut bridge = Command::new(env!("CARGO_BIN_EXE_motorwire"))
+        .args([
+            "bridge",
+            "--map",
+            map,
+            "--bus",
+            "sim",
+            "--orion",
+            &format!("tcp:{addr}"),
+            "--max-age",
+            "0",
+            "--feedback-hz",
+            "0",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let stdin = bridge.stdin.take().unwrap();
+    let stdout = bridge.stdout.take().unwrap();
+    let (tx, rx) = mpsc::channel();
+    thread::spawn(move || {
+        for line in BufReader::new(stdout).lines() {
+            let Ok(line) = line else { return };
+            let _ = tx.send(serde_json::from_str::<serde_json::Value>(&line).unwrap());
+        }
+    });
+    (
+        bridge,
+        stdin,
+        Lines {
+            rx,
+            seen: Vec::new(),
+        },
+    )
+}
+
+/// A bridge's output lines: those seen so far, and those to come.
+#[derive(Debug)]
+struct Lines {
+    rx: mpsc::Receiver<serde_json::Value>,
+    seen: Vec<serde_json::Value>,
+}
+
+impl Lines {
+    /// Waits (at most 20 s) until a line after the first `from` is one
+    /// `pick` takes.
+    fn until(&mut self, from: usize, pick: impl Fn(&serde_json::Value) -> bool) {
+        let end = Instant::now() + Duration::from_secs(20);
+        while !self.seen[from.min(self.seen.len())..].iter().any(&pick) {
+            let left = end.saturating_duration_since(Instant::now());
+            let Ok(v) = self.rx.recv_timeout(left) else {
+                panic!("nothing more within 20 s: {:?}", self.seen);
+            };
+            self.seen.push(v);
+        }
+    }
+
+    /// The next line that `pick` takes (at most `limit` away).
+    fn next(
+        &mut self,
+        limit: Duration,
+        pick: impl Fn(&serde_json::Value) -> bool,
+    ) -> serde_json::Value {
+        let end = Instant::now() + limit;
+        loop {
+            let left = end.saturating_duration_since(Instant::now());
+            let Ok(v) = self.rx.recv_timeout(left) else {
+                panic!("nothing within {limit:?}: {:?}", self.seen);
+            };
+            self.seen.push(v.clone());
+            if pick(&v) {
+                return v;
+            }
+        }
+    }
 }
 
 const TURN: &str =
@@ -367,57 +452,20 @@ fn a_broken_tcp_link_is_made_again() {
         sims
     });
     let map = map_file("reconnect");
-    let mut bridge = Command::new(env!("CARGO_BIN_EXE_motorwire"))
-        .args([
-            "bridge",
-            "--map",
-            &map,
-            "--bus",
-            "sim",
-            "--orion",
-            &format!("tcp:{addr}"),
-            "--max-age",
-            "0",
-            "--feedback-hz",
-            "0",
-        ])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut stdin = bridge.stdin.take().unwrap();
-    let stdout = bridge.stdout.take().unwrap();
-    let (tx, rx) = mpsc::channel();
-    thread::spawn(move || {
-        for line in BufReader::new(stdout).lines() {
-            let Ok(line) = line else { return };
-            let _ = tx.send(serde_json::from_str::<serde_json::Value>(&line).unwrap());
-        }
-    });
-    let mut out = Vec::new();
-    let until = |out: &mut Vec<serde_json::Value>, pick: &dyn Fn(&serde_json::Value) -> bool| {
-        let end = Instant::now() + Duration::from_secs(20);
-        while !out.iter().any(pick) {
-            let left = end.saturating_duration_since(Instant::now());
-            out.push(rx.recv_timeout(left).unwrap_or_else(|_| panic!("{out:?}")));
-        }
-    };
-    until(&mut out, &|v| v["event"] == "orion_beacon");
+    let (mut bridge, mut stdin, mut out) = tcp_bridge(addr, &map);
+    out.until(0, |v| v["event"] == "orion_beacon");
     stdin.write_all(format!("{TURN}\n").as_bytes()).unwrap();
-    until(&mut out, &|v| v["line"] == 1 && v.get("ok").is_some());
+    out.until(0, |v| v["line"] == 1 && v.get("ok").is_some());
     drop_tx.send(()).unwrap();
     // The new connection's controller boots: its beacon is heard.
-    until(&mut out, &|v| {
-        v["event"] == "orion_beacon" && v["first"] == false
-    });
+    out.until(0, |v| v["event"] == "orion_beacon" && v["first"] == false);
     stdin.write_all(format!("{SERVO}\n").as_bytes()).unwrap();
-    until(&mut out, &|v| v["line"] == 2 && v.get("ok").is_some());
+    out.until(0, |v| v["line"] == 2 && v.get("ok").is_some());
     drop(stdin);
     let status = bridge.wait().unwrap();
     assert_eq!(status.code(), Some(0));
-    assert_eq!(result(&out, 1)["ok"], true, "{out:?}");
-    assert_eq!(result(&out, 2)["ok"], true, "{out:?}");
+    assert_eq!(result(&out.seen, 1)["ok"], true, "{out:?}");
+    assert_eq!(result(&out.seen, 2)["ok"], true, "{out:?}");
     for mut sim in server.join().unwrap() {
         let _ = sim.kill();
         let _ = sim.wait();
@@ -496,55 +544,17 @@ fn a_controller_heard_again_after_an_outage_is_stopped_first() {
         })
     };
     let map = map_file("outage");
-    let mut bridge = Command::new(env!("CARGO_BIN_EXE_motorwire"))
-        .args([
-            "bridge",
-            "--map",
-            &map,
-            "--bus",
-            "sim",
-            "--orion",
-            &format!("tcp:{addr}"),
-            "--max-age",
-            "0",
-            "--feedback-hz",
-            "0",
-        ])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut stdin = bridge.stdin.take().unwrap();
-    let stdout = bridge.stdout.take().unwrap();
-    let (tx, rx) = mpsc::channel();
-    thread::spawn(move || {
-        for line in BufReader::new(stdout).lines() {
-            let Ok(line) = line else { return };
-            let _ = tx.send(serde_json::from_str::<serde_json::Value>(&line).unwrap());
-        }
-    });
-    let mut out = Vec::new();
-    // Waits for a line that `pick` takes, among those after `from`.
-    let until = |out: &mut Vec<serde_json::Value>,
-                 from: usize,
-                 pick: &dyn Fn(&serde_json::Value) -> bool| {
-        let end = Instant::now() + Duration::from_secs(20);
-        while !out[from.min(out.len())..].iter().any(pick) {
-            let left = end.saturating_duration_since(Instant::now());
-            out.push(rx.recv_timeout(left).unwrap_or_else(|_| panic!("{out:?}")));
-        }
-    };
-    until(&mut out, 0, &|v| v["event"] == "orion_beacon");
+    let (mut bridge, mut stdin, mut out) = tcp_bridge(addr, &map);
+    out.until(0, |v| v["event"] == "orion_beacon");
     stdin.write_all(format!("{TURN}\n").as_bytes()).unwrap();
-    until(&mut out, 0, &|v| v["line"] == 1 && v.get("ok").is_some());
-    let before = out.len();
+    out.until(0, |v| v["line"] == 1 && v.get("ok").is_some());
+    let before = out.seen.len();
     drop_tx.send(()).unwrap();
-    until(&mut out, before, &|v| {
+    out.until(before, |v| {
         v["event"] == "offline" && v["motor_id"] == "turntable"
     });
-    let offline_at = out.len();
-    until(&mut out, offline_at, &|v| {
+    let offline_at = out.seen.len();
+    out.until(offline_at, |v| {
         v["event"] == "online" && v["motor_id"] == "turntable"
     });
     // Online only once the stop was answered: the second connection's
@@ -562,15 +572,15 @@ fn a_controller_heard_again_after_an_outage_is_stopped_first() {
     );
     assert!(!second.iter().any(|l| l.contains("150")), "{second:?}");
     assert!(
-        out[offline_at..]
+        out.seen[offline_at..]
             .iter()
             .all(|v| v["event"] != "orion_beacon"),
         "it did not restart"
     );
     // Served again; the stop at exit reaches it.
     stdin.write_all(format!("{SERVO}\n").as_bytes()).unwrap();
-    until(&mut out, 0, &|v| v["line"] == 2 && v.get("ok").is_some());
-    assert_eq!(result(&out, 2)["ok"], true, "{out:?}");
+    out.until(0, |v| v["line"] == 2 && v.get("ok").is_some());
+    assert_eq!(result(&out.seen, 2)["ok"], true, "{out:?}");
     drop(stdin);
     let status = bridge.wait().unwrap();
     assert_eq!(status.code(), Some(0));
@@ -587,16 +597,6 @@ fn a_controller_heard_again_after_an_outage_is_stopped_first() {
     drop(server.join().unwrap());
     let _ = sim.kill();
     let _ = sim.wait();
-}
-
-/// The bridge's resident memory, in KiB.
-fn rss_kib(pid: u32) -> u64 {
-    std::fs::read_to_string(format!("/proc/{pid}/status"))
-        .unwrap()
-        .lines()
-        .find_map(|l| l.strip_prefix("VmRSS:"))
-        .and_then(|v| v.trim().trim_end_matches(" kB").trim().parse().ok())
-        .unwrap()
 }
 
 /// An Orion controller that floods its link (as fast as the socket takes
@@ -630,34 +630,7 @@ fn a_flooding_controller_costs_neither_memory_nor_the_joints_latency() {
         })
     };
     let map = map_file("flood");
-    let mut bridge = Command::new(env!("CARGO_BIN_EXE_motorwire"))
-        .args([
-            "bridge",
-            "--map",
-            &map,
-            "--bus",
-            "sim",
-            "--orion",
-            &format!("tcp:{addr}"),
-            "--max-age",
-            "0",
-            "--feedback-hz",
-            "0",
-        ])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut stdin = bridge.stdin.take().unwrap();
-    let stdout = bridge.stdout.take().unwrap();
-    let (tx, rx) = mpsc::channel();
-    thread::spawn(move || {
-        for line in BufReader::new(stdout).lines() {
-            let Ok(line) = line else { return };
-            let _ = tx.send(serde_json::from_str::<serde_json::Value>(&line).unwrap());
-        }
-    });
+    let (mut bridge, mut stdin, mut out) = tcp_bridge(addr, &map);
     let started = Instant::now();
     let mut peak = 0;
     let mut answers = Vec::new();
@@ -671,16 +644,11 @@ fn a_flooding_controller_costs_neither_memory_nor_the_joints_latency() {
             r#"{{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":{setpoint}}}"#
         )
         .unwrap();
-        let r = loop {
-            let v = rx
-                .recv_timeout(Duration::from_secs(5))
-                .unwrap_or_else(|_| panic!("no result for line {line} within 5 s"));
-            if v["line"] == line && v.get("ok").is_some() {
-                break v;
-            }
-        };
+        let r = out.next(Duration::from_secs(5), |v| {
+            v["line"] == line && v.get("ok").is_some()
+        });
         answers.push((sent.elapsed(), r));
-        peak = peak.max(rss_kib(bridge.id()));
+        peak = peak.max(common::rss_kib(bridge.id()));
         thread::sleep(Duration::from_millis(100));
     }
     flooding.store(false, std::sync::atomic::Ordering::Relaxed);

@@ -141,15 +141,6 @@ fn moves(log: &Path) -> usize {
         .count()
 }
 
-fn rss_kib(pid: u32) -> u64 {
-    std::fs::read_to_string(format!("/proc/{pid}/status"))
-        .unwrap()
-        .lines()
-        .find_map(|l| l.strip_prefix("VmRSS:"))
-        .and_then(|v| v.trim().trim_end_matches(" kB").trim().parse().ok())
-        .unwrap()
-}
-
 /// `motorwire bridge` on the simulated arm listening on the local socket
 /// `sock`, with `extra` arguments.
 fn unix_bridge(sock: &Path, extra: &[&str]) -> Child {
@@ -252,7 +243,7 @@ fn a_flooding_and_a_non_reading_client_do_not_delay_anothers_stop() {
     );
     assert!(worst_trip < Duration::from_secs(1), "{worst_trip:?}");
     // Nothing grew without bound.
-    let rss = rss_kib(pid);
+    let rss = common::rss_kib(pid);
     assert!(rss < 200 * 1024, "the bridge holds {rss} KiB");
     drop(bridge);
 }

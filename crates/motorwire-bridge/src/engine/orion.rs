@@ -488,16 +488,22 @@ impl Bridge {
     /// The stop that makes a controller heard again safe and known: sent
     /// again (each time the one before went unanswered) until answered.
     fn orion_recovery_stop(&mut self, now: Duration) {
+        let line = motorwire_orion::Input::Command(ArmCommand::Stop.into()).to_json();
+        self.orion_own_line(now, line, 2);
+    }
+
+    /// Writes a line of the bridge's own (a poll, a recovery's stop), no
+    /// device's step: awaited once, in `mode`, within the Ack timeout.
+    fn orion_own_line(&mut self, now: Duration, line: String, mode: u8) {
         let id = self.orion.next_id;
         self.orion.next_id = self.orion.next_id.wrapping_add(1);
-        let line = motorwire_orion::Input::Command(ArmCommand::Stop.into()).to_json();
         self.orion.tx.push_back(line.clone());
         let timeout = self.config.client.timeout;
         self.orion.pending = Some(Pending {
             msg_id: id,
             joints: Vec::new(),
             line,
-            mode: 2,
+            mode,
             attempts: 1,
             retries: 0,
             timeout,
@@ -652,22 +658,7 @@ impl Bridge {
                             .is_some_and(|s| !self.after_earlier_axis(*s)))
             })
         {
-            let id = self.orion.next_id;
-            self.orion.next_id = self.orion.next_id.wrapping_add(1);
-            let line = line_of(&MotorValues::new());
-            self.orion.tx.push_back(line.clone());
-            let timeout = self.config.client.timeout;
-            self.orion.pending = Some(Pending {
-                msg_id: id,
-                joints: Vec::new(),
-                line,
-                mode: 1,
-                attempts: 1,
-                retries: 0,
-                timeout,
-                deadline: now.saturating_add(timeout),
-                sets: Vec::new(),
-            });
+            self.orion_own_line(now, line_of(&MotorValues::new()), 1);
             self.orion.next_poll = None;
         }
     }
