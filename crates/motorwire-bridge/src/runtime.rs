@@ -33,10 +33,14 @@ pub const MAX_QUEUED_PER_ORIGIN: usize = 256;
 /// one line per line it is sent, every 100 ms when idle.
 pub const MAX_ORION_QUEUED: usize = 64;
 
-/// Lines from the Orion controller taken in one second, at most; more are
-/// dropped and counted, and a bad-line event says how many. A controller
-/// that floods costs its own motors (their answers may be among those
-/// dropped), never the bridge's memory or another device's latency.
+/// Lines from the Orion controller taken in one second beyond its answers,
+/// at most: every line the bridge writes earns one line back that this
+/// budget does not count (the controller answers each line it is sent), so
+/// a fast exchange (a stop and a release every few milliseconds) is never
+/// cut, while unsolicited lines beyond the budget are dropped and counted,
+/// and a bad-line event says how many. A controller that floods costs its
+/// own motors (their answers may be among those dropped), never the
+/// bridge's memory or another device's latency.
 pub const MAX_ORION_LINES_PER_S: u32 = 500;
 
 /// Per origin, lines handed over and not yet taken (normal, urgent).
@@ -673,8 +677,12 @@ fn spawn_orion(
     queued: Arc<AtomicUsize>,
 ) -> (Sender<String>, Receiver<()>) {
     let OrionPort { reader, mut writer } = port;
+    // Lines written and not yet answered: each lets one line back past the
+    // per-second budget.
+    let owed = Arc::new(AtomicUsize::new(0));
     {
         let events = events.clone();
+        let owed = Arc::clone(&owed);
         // Not joined: a blocking read cannot be interrupted, and the thread
         // ends with its stream or the process.
         thread::spawn(move || {
@@ -716,17 +724,24 @@ fn spawn_orion(
                     second = now;
                     taken = 0;
                 }
-                if taken >= MAX_ORION_LINES_PER_S
-                    || queued.load(Ordering::SeqCst) >= MAX_ORION_QUEUED
-                {
+                if queued.load(Ordering::SeqCst) >= MAX_ORION_QUEUED {
                     dropped += 1;
                     continue;
                 }
-                taken += 1;
+                let answer = owed
+                    .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |n| n.checked_sub(1))
+                    .is_ok();
+                if !answer {
+                    if taken >= MAX_ORION_LINES_PER_S {
+                        dropped += 1;
+                        continue;
+                    }
+                    taken += 1;
+                }
                 if dropped > 0 {
                     queued.fetch_add(1, Ordering::SeqCst);
                     let report = Msg::OrionUnreadable(format!(
-                        "{dropped} lines from the controller dropped: more than {MAX_ORION_LINES_PER_S} a second, or {MAX_ORION_QUEUED} waiting"
+                        "{dropped} lines from the controller dropped: more than {MAX_ORION_LINES_PER_S} a second beyond its answers, or {MAX_ORION_QUEUED} waiting"
                     ));
                     dropped = 0;
                     if events.send(report).is_err() {
@@ -752,6 +767,13 @@ fn spawn_orion(
             // A failed write is the link lost (reported once per run of
             // failures); the writer goes on, as a link that connects again
             // (TCP) takes the next line.
+            if written.is_ok() {
+                // Bounded: a controller that never answers owes at most
+                // one budget's worth.
+                let _ = owed.fetch_update(Ordering::SeqCst, Ordering::SeqCst, |n| {
+                    Some((n + 1).min(MAX_ORION_QUEUED * 8))
+                });
+            }
             match written {
                 Err(e) if !failing => {
                     failing = true;
