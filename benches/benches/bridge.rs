@@ -42,8 +42,8 @@ fn line(i: u64) -> String {
     )
 }
 
-fn simulated_arm() -> SimulatedArm {
-    let map = BusMap::from_toml(MAP).unwrap();
+fn simulated_arm(map: &str) -> SimulatedArm {
+    let map = BusMap::from_toml(map).unwrap();
     let config = BridgeConfig {
         feedback_period: None,
         ..BridgeConfig::default()
@@ -58,23 +58,61 @@ fn simulated_arm() -> SimulatedArm {
     arm
 }
 
+/// The demo map's elbow alone: the bridge in front of the one joint the
+/// baseline's client asks, on a bus with nothing else on it.
+const ELBOW_ALONE: &str = r#"
+[motors.elbow]
+dialect = "irpc"
+node = 0x12
+wire = "v2.0"
+profile = "scurve"
+limits = { min_position = 0, max_position = 150, max_velocity = 120, max_acceleration = 500, max_deceleration = 400, max_jerk = 2000 }
+"#;
+
+/// One line for the elbow through the bridge on `arm`, until its result.
+/// Not inlined, so that an instruction counter (callgrind) sees each call.
+#[inline(never)]
+fn line_to_result(arm: &mut SimulatedArm, i: u64) {
+    arm.line(Origin(1), &line(i));
+    loop {
+        arm.step(Duration::from_millis(1)).unwrap();
+        // Each output as the line a runner prints; the result's `ok` read
+        // from the typed result, not by parsing the line back (which is
+        // the reader's work, not the bridge's).
+        let outputs = arm.take_outputs();
+        let mut done = false;
+        for o in &outputs {
+            let text = black_box(o.to_json());
+            if let Some(r) = o.result() {
+                assert!(r.ok, "{text}");
+                done = true;
+            }
+        }
+        if done {
+            break;
+        }
+    }
+}
+
 fn benches(c: &mut Criterion) {
     let mut g = c.benchmark_group("bridge");
     g.throughput(Throughput::Elements(1));
-    let mut arm = simulated_arm();
+    // The whole demo map on the bus: three joints, the compact gripper
+    // (each simulated device is served every step).
+    let mut arm = simulated_arm(MAP);
     let mut i = 0u64;
     g.bench_function("a_bridge_line_to_result", |b| {
         b.iter(|| {
             i += 1;
-            arm.line(Origin(1), &line(i));
-            loop {
-                arm.step(Duration::from_millis(1)).unwrap();
-                if let Some(r) = arm.take_results().pop() {
-                    assert_eq!(r["ok"], true);
-                    black_box(r);
-                    break;
-                }
-            }
+            line_to_result(&mut arm, i);
+        });
+    });
+    // The same line with the elbow alone on the bus, as in the baseline.
+    let mut arm = simulated_arm(ELBOW_ALONE);
+    g.bench_function("a1_bridge_line_to_result_elbow_alone", |b| {
+        b.iter(|| {
+            i += 1;
+            line_to_result(&mut arm, i);
         });
     });
     // Baseline: the same move asked of the same joint by the client alone.
@@ -88,14 +126,21 @@ fn benches(c: &mut Criterion) {
     g.bench_function("b_client_request_to_ack_without_bridge", |b| {
         b.iter(|| {
             k += 1;
-            let p = SetTargetPayloadV2::scurve(10.0 + (k % 100) as f32, 100.0, 500.0, 2000.0)
-                .with_deceleration(400.0);
-            let done = rig.request(0x12, Payload::SetTargetV2(p)).unwrap();
-            assert_eq!(done.outcome, Outcome::Acked);
-            black_box(done);
+            client_request_to_ack(&mut rig, k);
         });
     });
     g.finish();
+}
+
+/// The baseline's one exchange: the move asked of the joint by the client
+/// alone, until its Ack. Not inlined, as [`line_to_result`].
+#[inline(never)]
+fn client_request_to_ack(rig: &mut Rig, k: u32) {
+    let p = SetTargetPayloadV2::scurve(10.0 + (k % 100) as f32, 100.0, 500.0, 2000.0)
+        .with_deceleration(400.0);
+    let done = rig.request(0x12, Payload::SetTargetV2(p)).unwrap();
+    assert_eq!(done.outcome, Outcome::Acked);
+    black_box(done);
 }
 
 fn percentile(sorted: &[u64], p: f64) -> u64 {
@@ -284,6 +329,11 @@ fn main() {
     let mut c = Criterion::default().configure_from_args();
     benches(&mut c);
     c.final_summary();
+    // Under an instruction counter, only the simulated-time benchmarks:
+    // `MOTORWIRE_BENCH_SIMULATED_ONLY=1 valgrind --tool=callgrind ...`.
+    if std::env::var_os("MOTORWIRE_BENCH_SIMULATED_ONLY").is_some() {
+        return;
+    }
     real_time(if test_mode { 20 } else { 5000 });
     stop_per_dialect(if test_mode { 5 } else { 500 });
 }

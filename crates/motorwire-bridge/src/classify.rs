@@ -449,6 +449,93 @@ fn stop_members(members: &[(String, Value)]) -> (Vec<&Value>, Vec<String>) {
 /// assert!(matches!(classify(&v, r#"{"emergency_stop": false, "emergency_stop": false}"#), Input::BadRelease { .. }));
 /// ```
 pub fn classify(validator: &Validator, line: &str) -> Input {
+    // The line is read once when it is an ordinary valid message: a scan
+    // of its top-level names (no value kept) says it is none of the
+    // bridge's own forms and it cannot name a stop, and the typed parse is
+    // the only other reading. Anything else (a stop, a release, the
+    // bridge's own forms, an invalid line) is decided below from all its
+    // members, exactly as before.
+    if plain_message(line)
+        && let Ok(m) = validator.parse_any(line)
+    {
+        return Input::Message(Box::new(m));
+    }
+    classify_members(validator, line)
+}
+
+/// The top-level names of the bridge's own forms.
+const OWN_FORMS: [&[u8]; 6] = [
+    b"trajectories",
+    b"reset",
+    b"calibration",
+    b"request",
+    b"orion",
+    b"query",
+];
+
+/// Whether `line` cannot name a stop (no `emergency` and no escape in it)
+/// and is a JSON object none of whose top-level names is one of the
+/// bridge's own forms: then [`classify_members`] would take it as a WIA
+/// message if the validator does. A scan of the bytes, nothing parsed and
+/// nothing allocated: it does not judge the syntax (the typed parse that
+/// follows does), and says `false` whenever it cannot be sure (the text
+/// does not start with an object, or the object never closes).
+fn plain_message(line: &str) -> bool {
+    if line.contains("emergency") || line.contains('\\') {
+        return false;
+    }
+    let bytes = line.trim_start().as_bytes();
+    if bytes.first() != Some(&b'{') {
+        return false;
+    }
+    let mut depth = 0usize;
+    let mut expect_key = false;
+    let mut i = 0;
+    while let Some(&b) = bytes.get(i) {
+        i += 1;
+        match b {
+            b'"' => {
+                // No escape in the line: the string ends at the next quote.
+                let Some(len) = bytes
+                    .get(i..)
+                    .and_then(|r| r.iter().position(|&c| c == b'"'))
+                else {
+                    return false;
+                };
+                if depth == 1 && expect_key {
+                    if bytes
+                        .get(i..i + len)
+                        .is_some_and(|k| OWN_FORMS.contains(&k))
+                    {
+                        return false;
+                    }
+                    expect_key = false;
+                }
+                i += len + 1;
+            }
+            b'{' => {
+                expect_key = depth == 0;
+                depth += 1;
+            }
+            b'[' => depth += 1,
+            b'}' | b']' => {
+                let Some(d) = depth.checked_sub(1) else {
+                    return false;
+                };
+                depth = d;
+                if depth == 0 {
+                    return true;
+                }
+            }
+            b',' if depth == 1 => expect_key = true,
+            _ => {}
+        }
+    }
+    false
+}
+
+/// [`classify`] from every member of the line.
+fn classify_members(validator: &Validator, line: &str) -> Input {
     let (members, unholdable) = match members_of(line) {
         Ok(m) => m,
         Err(e) if names_a_stop(line) => {
@@ -661,6 +748,63 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::panic)]
     use super::*;
+
+    /// Lines the fast path must read exactly as every member would be.
+    const LINES: [&str; 16] = [
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20}"#,
+        r#" {"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20} "#,
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"setpoint":140}"#,
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"query":"limits"}"#,
+        r#"{"query":"limits","motor_id":"elbow"}"#,
+        r#"{"reset":"elbow"}"#,
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":1e400}"#,
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20}x"#,
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20"#,
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","x":{"query":1},"setpoint":20}"#,
+        r#"{"motor_id":"el\u0062ow","timestamp":1,"control_mode":"position","setpoint":20}"#,
+        r#"{"command_id":"c","timestamp":1,"motors":[{"motor_id":"elbow","control_mode":"position","setpoint":1}]}"#,
+        r#"{"trajectory_id":"t","trajectories":[]}"#,
+        r#"{"orion":"fold"}"#,
+        r#"[{"motor_id":"elbow"}]"#,
+        r#"{"motor_id":"elbow","position_limits":{"min":0,"max":50},"velocity_limits":{"max_velocity":10},"torque_limits":{"continuous_torque":1,"peak_torque":2}}"#,
+    ];
+
+    #[test]
+    fn the_one_parse_path_reads_every_line_as_the_whole_reading_does() {
+        let v = Validator::new();
+        for line in LINES {
+            assert_eq!(classify(&v, line), classify_members(&v, line), "{line}");
+        }
+        // Which lines took the one-parse path: the plain messages only.
+        let plain: Vec<bool> = LINES.iter().map(|l| plain_message(l)).collect();
+        assert_eq!(
+            plain,
+            [
+                true, true, true, false, false, false, true, true, false, true, false, true, false,
+                false, false, true
+            ]
+        );
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 256, failure_persistence: None, ..Default::default() })]
+        /// Random members (the bridge's own names among them), values and
+        /// junk: both readings agree on every line.
+        #[test]
+        fn both_readings_agree_on_random_lines(
+            parts in proptest::collection::vec(proptest::sample::select(vec![
+                r#""motor_id":"elbow""#, r#""timestamp":1"#, r#""control_mode":"position""#,
+                r#""setpoint":20"#, r#""setpoint":1e400"#, r#""query":"limits""#, r#""reset":"elbow""#,
+                r#""orion":"fold""#, r#""x":{"query":1}"#, r#""motors":[]"#, r#""velocity_limit":5"#,
+                r#""y":[1,{"a":"}"}]"#, r#""command_id":"c""#, r#""trajectories":[1]"#,
+            ]), 0..8),
+            tail in proptest::sample::select(vec!["", " ", "x", "}", "]", ","]),
+        ) {
+            let line = format!("{{{}}}{tail}", parts.join(","));
+            let v = Validator::new();
+            proptest::prop_assert_eq!(classify(&v, &line), classify_members(&v, &line), "{}", line);
+        }
+    }
 
     fn stop(line: &str) -> Vec<String> {
         match classify(&Validator::new(), line) {

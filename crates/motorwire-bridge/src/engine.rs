@@ -1832,7 +1832,7 @@ impl Bridge {
     /// inside it). Without a report yet there is nothing to plan from: the
     /// joint's own check stands.
     fn path_within_limits(
-        &self,
+        &mut self,
         joint: usize,
         cmd: &MotorCommand,
         payloads: &[Payload],
@@ -1841,16 +1841,23 @@ impl Bridge {
             return Ok(());
         };
         let (motor, limits) = motorwire_translate::gate(&self.map, cmd)?;
+        let mut planned = None;
         for p in payloads {
             if let Payload::SetTargetV2(p) = p {
-                motorwire_translate::check_path(
+                let path = motorwire_translate::check_path(
                     motor,
                     &limits,
                     p,
                     motor.unit.from_degrees(position),
                     motor.unit.from_degrees(velocity),
                 )?;
+                planned = Duration::try_from_secs_f64(path.duration)
+                    .ok()
+                    .map(|d| ((position, velocity), *p, d));
             }
+        }
+        if let Some(j) = self.joints.get_mut(joint) {
+            j.planned = planned;
         }
         Ok(())
     }
@@ -2704,7 +2711,14 @@ impl Bridge {
             return;
         };
         let (pos, vel) = j.motion.unwrap_or((0.0, 0.0));
+        let memo = j.planned.take();
         let planned = |p: &SetTargetPayloadV2| {
+            if let Some((from, q, d)) = memo
+                && from == (pos, vel)
+                && q == *p
+            {
+                return d;
+            }
             motorwire_planner::plan(&p.planner_request(pos, vel))
                 .ok()
                 .and_then(|plan| Duration::try_from_secs_f64(plan.duration()).ok())
@@ -2868,7 +2882,12 @@ impl Bridge {
             } else {
                 None
             },
-            losses: job.report.losses.iter().map(ToString::to_string).collect(),
+            losses: job
+                .report
+                .losses
+                .iter()
+                .map(motorwire_translate::Loss::text)
+                .collect(),
             data: job.data.clone(),
             ..LineResult::default()
         };
@@ -3790,8 +3809,8 @@ fn short_unit(v: f64) -> f64 {
 fn shortest(v: f64) -> f64 {
     #[allow(clippy::cast_possible_truncation)]
     let f = v as f32;
-    if f64::from(f) == v && f.is_finite() {
-        f.to_string().parse().unwrap_or(v)
+    if f64::from(f) == v {
+        crate::arrival::f32_shortest(f).unwrap_or(v)
     } else {
         v
     }

@@ -63,6 +63,11 @@ pub(crate) struct Joint {
     pub(crate) wake: Option<Duration>,
     /// One of the Orion arm controller's motors rather than a CAN device.
     pub(crate) orion: Option<motorwire_orion::Motor>,
+    /// The last move the gate planned for it: from (position, velocity)
+    /// in degrees, the payload, and how long the joint's plan takes. When
+    /// its Ack comes from the same state, its arrival time is this plan's
+    /// (the same inputs make the same plan), not a second planning.
+    pub(crate) planned: Option<((f64, f64), motorwire_irpc::SetTargetPayloadV2, Duration)>,
 }
 
 /// What a compact device is reached by.
@@ -95,6 +100,7 @@ impl Joint {
             resetting: false,
             wake: None,
             orion: None,
+            planned: None,
         }
     }
 }

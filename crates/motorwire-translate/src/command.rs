@@ -219,8 +219,23 @@ fn the(source: &str) -> String {
     if source.starts_with("the ") {
         source.to_owned()
     } else {
-        format!("the {source}")
+        let mut s = String::with_capacity(source.len() + 4);
+        s.push_str("the ");
+        s.push_str(source);
+        s
     }
+}
+
+/// `value from the source`, as a defaulted limit's report says it.
+fn from_source(value: f64, source: &str) -> String {
+    use core::fmt::Write;
+    let the = the(source);
+    let mut s = String::with_capacity(the.len() + 16);
+    // Writing to a String cannot fail.
+    let _ = write!(s, "{value}");
+    s.push_str(" from ");
+    s.push_str(&the);
+    s
 }
 
 fn resolve(
@@ -233,11 +248,7 @@ fn resolve(
     match (own, fallback) {
         (Some(v), _) => Ok(v),
         (None, Some(b)) => {
-            report.push(
-                field,
-                LossKind::Defaulted,
-                format!("{} from {}", b.value, the(b.source)),
-            );
+            report.push(field, LossKind::Defaulted, from_source(b.value, b.source));
             Ok(b.value)
         }
         (None, None) => Err(Refusal::MissingLimit {

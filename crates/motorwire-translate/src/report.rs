@@ -27,15 +27,41 @@ pub struct Loss {
     pub detail: String,
 }
 
-impl fmt::Display for Loss {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let kind = match self.kind {
+impl Loss {
+    /// The loss as a report line says it, `field: kind: detail` (what its
+    /// `Display` writes), built without the formatting machinery: a bridge
+    /// writes one for every lossy step of every command.
+    ///
+    /// ```
+    /// use motorwire_translate::{Loss, LossKind};
+    /// let l = Loss { field: "max_acceleration".into(), kind: LossKind::Defaulted, detail: "500 from the bus map".into() };
+    /// assert_eq!(l.text(), "max_acceleration: defaulted: 500 from the bus map");
+    /// assert_eq!(l.text(), l.to_string());
+    /// ```
+    pub fn text(&self) -> String {
+        let kind = self.kind_name();
+        let mut s = String::with_capacity(self.field.len() + kind.len() + self.detail.len() + 4);
+        s.push_str(&self.field);
+        s.push_str(": ");
+        s.push_str(kind);
+        s.push_str(": ");
+        s.push_str(&self.detail);
+        s
+    }
+
+    const fn kind_name(&self) -> &'static str {
+        match self.kind {
             LossKind::Dropped => "dropped",
             LossKind::Converted => "converted",
             LossKind::Defaulted => "defaulted",
             LossKind::Filled => "filled",
-        };
-        write!(f, "{}: {kind}: {}", self.field, self.detail)
+        }
+    }
+}
+
+impl fmt::Display for Loss {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}: {}", self.field, self.kind_name(), self.detail)
     }
 }
 

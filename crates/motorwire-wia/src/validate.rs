@@ -127,6 +127,40 @@ impl Validator {
     /// [`Error::Invalid`]; `kind` in its report is `None` when the kind could
     /// not be inferred.
     pub fn parse_any(&self, json: &str) -> Result<Message, Error> {
+        // The document is parsed once when it is valid: the kind comes from
+        // a scan of its top-level member names. On any failure, the kind is
+        // inferred by a parse and the document judged again, so that every
+        // error is exactly the one `infer` and the typed parse give.
+        if let Some(kind) = crate::kind::scan_kind(json)
+            && self.precheck(json).is_ok()
+            && let Some(m) = self.typed_any(kind, json)
+        {
+            return Ok(m);
+        }
+        self.parse_any_slowly(json)
+    }
+
+    /// `json` as a valid message of `kind`, or `None`.
+    fn typed_any(&self, kind: MessageKind, json: &str) -> Option<Message> {
+        fn valid<T: WiaMessage>(v: &Validator, json: &str) -> Option<T> {
+            match v.run::<T>(json) {
+                (Some(msg), violations) if violations.is_empty() => Some(msg),
+                _ => None,
+            }
+        }
+        Some(match kind {
+            MessageKind::MotorCommand => Message::MotorCommand(valid(self, json)?),
+            MessageKind::MultiAxisCommand => Message::MultiAxisCommand(valid(self, json)?),
+            MessageKind::MotorFeedback => Message::MotorFeedback(valid(self, json)?),
+            MessageKind::Trajectory => Message::Trajectory(valid(self, json)?),
+            MessageKind::PidConfig => Message::PidConfig(valid(self, json)?),
+            MessageKind::SafetyLimits => Message::SafetyLimits(valid(self, json)?),
+            MessageKind::ControlModeConfig => Message::ControlModeConfig(valid(self, json)?),
+        })
+    }
+
+    /// [`Validator::parse_any`] with the kind inferred by a parse.
+    fn parse_any_slowly(&self, json: &str) -> Result<Message, Error> {
         let invalid = |kind, violations| Error::Invalid(Report { kind, violations });
         let kind = self
             .precheck(json)
