@@ -20,7 +20,7 @@
 //! - nothing waits without bound: lines beyond [`BridgeConfig::max_pending_lines`]
 //!   or a joint's [`BridgeConfig::max_queue_per_joint`] are refused `busy`.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::Duration;
 
 mod orion;
@@ -457,7 +457,12 @@ impl Bridge {
         &self.map
     }
 
-    /// What the bridge has done.
+    /// How the bridge was configured.
+    pub fn config(&self) -> &BridgeConfig {
+        &self.config
+    }
+
+    /// Counters for what the bridge has done.
     pub fn stats(&self) -> BridgeStats {
         self.stats
     }
@@ -2046,6 +2051,34 @@ impl Bridge {
         let mut touched = Vec::new();
         // Setpoints sent and never answered: they may be running.
         let mut maybe_held = Vec::new();
+        // Steps whose frame or line was made and never handed out (still
+        // waiting in poll_transmit's or poll_orion_line's queue): taken
+        // back, so what is cancelled never reaches a device after the
+        // cancel (a stop goes ahead of them, not behind).
+        let picked = |b: &Bridge, ji: usize| {
+            b.joints
+                .get(ji)
+                .and_then(|j| j.busy)
+                .is_some_and(|s| b.jobs.get(&s.job).is_some_and(&pick))
+        };
+        let mut unsent: BTreeSet<usize> = BTreeSet::new();
+        for ji in 0..self.joints.len() {
+            if picked(self, ji)
+                && let Some(p) = self.compact_pending.get(&ji)
+                && p.attempts == 1
+                && let Some(at) = self.compact_tx.iter().position(|f| *f == p.frame)
+            {
+                self.compact_tx.remove(at);
+                self.compact_pending.remove(&ji);
+                unsent.insert(ji);
+            }
+        }
+        let orion_picked: BTreeSet<usize> = (0..self.joints.len())
+            .filter(|&ji| self.is_orion(ji) && picked(self, ji))
+            .collect();
+        if let Some(joints) = self.orion.take_back_unsent(|ji| orion_picked.contains(&ji)) {
+            unsent.extend(joints);
+        }
         for ji in 0..self.joints.len() {
             let Some(joint) = self.joints.get_mut(ji) else {
                 continue;
@@ -2087,27 +2120,45 @@ impl Bridge {
                     _ => {}
                 }
                 joint.wake = None;
-                if let AxisState::InFlight { payload, .. } = a.state
-                    && holds_setpoint(payload)
-                {
-                    maybe_held.push((ji, payload));
-                }
-                if matches!(a.state, AxisState::InFlight { .. }) {
-                    // Sent and not answered: it may have run. Never sent again.
-                    a.finish(
-                        StepOutcome::OutcomeUnknown,
-                        None,
-                        format!(
-                            "{why}: it was sent before and not answered, so the joint may have started it; it is never sent again"
-                        ),
-                    );
-                } else {
-                    // A trajectory between segments: the rest never sent.
+                if unsent.contains(&ji) {
                     a.finish(
                         StepOutcome::Cancelled,
                         None,
-                        format!("{why}: the trajectory's remaining segments were never sent"),
+                        format!("{why} before it was sent"),
                     );
+                    // Its frame or line was taken back: nothing of the job
+                    // waits to be written unless another of its steps is
+                    // in flight (whose answer comes after its writing).
+                    if !job
+                        .axes
+                        .iter()
+                        .any(|x| matches!(x.state, AxisState::InFlight { .. }))
+                    {
+                        job.unflushed = false;
+                    }
+                } else {
+                    if let AxisState::InFlight { payload, .. } = a.state
+                        && holds_setpoint(payload)
+                    {
+                        maybe_held.push((ji, payload));
+                    }
+                    if matches!(a.state, AxisState::InFlight { .. }) {
+                        // Sent and not answered: it may have run. Never sent again.
+                        a.finish(
+                            StepOutcome::OutcomeUnknown,
+                            None,
+                            format!(
+                                "{why}: it was sent before and not answered, so the joint may have started it; it is never sent again"
+                            ),
+                        );
+                    } else {
+                        // A trajectory between segments: the rest never sent.
+                        a.finish(
+                            StepOutcome::Cancelled,
+                            None,
+                            format!("{why}: the trajectory's remaining segments were never sent"),
+                        );
+                    }
                 }
                 job.cut.get_or_insert_with(|| why.to_owned());
                 self.stats.cancelled += 1;

@@ -211,8 +211,35 @@ impl Drop for RealTimeArm {
     }
 }
 
-/// A bridge and the simulated joints of its map on one in-memory bus,
-/// stepped together in simulated time.
+/// A line the bridge wrote to the simulated Orion arm controller of a
+/// [`SimulatedArm`], and what the controller made of it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OrionWrite {
+    /// When (simulated time).
+    pub at: Duration,
+    /// The line.
+    pub line: String,
+    /// Values the controller clamped into its range (a value outside it
+    /// reached the controller): none for every line the gate passed.
+    pub clamps: usize,
+    /// Every motor's value after the line, in `motorwire_orion::Motor::ALL`
+    /// order (speeds, actuator commands, the servo's angle).
+    pub values: [f64; 7],
+}
+
+/// The Orion arm controller of a [`SimulatedArm`] whose bridge has
+/// [`crate::BridgeConfig::orion`]: it boots with the bridge (its beacon at
+/// time zero) and answers each line at once.
+#[derive(Debug, Default)]
+struct SimOrion {
+    controller: motorwire_orion::ArmController,
+    log: Vec<OrionWrite>,
+}
+
+/// A bridge and the simulated devices of its map (iRPC joints, compact
+/// devices and, when the bridge has [`crate::BridgeConfig::orion`], the
+/// Orion arm controller) on one in-memory bus, stepped together in
+/// simulated time: one harness for every dialect, as quinn's `Pair` is.
 ///
 /// ```
 /// use std::time::Duration;
@@ -242,6 +269,9 @@ pub struct SimulatedArm {
     bridge: Bridge,
     joints: Vec<(SimJoint, Option<SimPort>)>,
     compact: Vec<(SimCompactDevice, SimPort)>,
+    orion: Option<SimOrion>,
+    /// Every frame the bridge sent, with when, once asked for.
+    sent: Option<Vec<(Duration, motorwire_can::Frame)>>,
     outputs: Vec<Output>,
 }
 
@@ -271,12 +301,19 @@ impl SimulatedArm {
             compact.push((device, bus.port()));
         }
         bridge.start(Duration::ZERO);
+        let orion = bridge.config().orion.then(|| {
+            // The controller's boot beacon.
+            bridge.handle_orion_line(Duration::ZERO, r#"{"ID":32}"#);
+            SimOrion::default()
+        });
         Ok(Self {
             bus,
             port,
             bridge,
             joints,
             compact,
+            orion,
+            sent: None,
             outputs: Vec::new(),
         })
     }
@@ -317,6 +354,23 @@ impl SimulatedArm {
                 j.fault(now, fault);
             }
         }
+    }
+
+    /// Every line the bridge wrote to the simulated Orion arm controller
+    /// (empty without [`crate::BridgeConfig::orion`]).
+    pub fn orion_log(&self) -> &[OrionWrite] {
+        self.orion.as_ref().map_or(&[], |o| o.log.as_slice())
+    }
+
+    /// From now on, keep every frame the bridge sends ([`SimulatedArm::sent`]).
+    pub fn keep_sent(&mut self) {
+        self.sent.get_or_insert_with(Vec::new);
+    }
+
+    /// Every frame the bridge sent since [`SimulatedArm::keep_sent`], with
+    /// when.
+    pub fn sent(&self) -> &[(Duration, motorwire_can::Frame)] {
+        self.sent.as_deref().unwrap_or(&[])
     }
 
     /// The compact device on CAN id `node`.
@@ -378,7 +432,39 @@ impl SimulatedArm {
             let mut sent = false;
             while let Some(f) = self.bridge.poll_transmit() {
                 self.port.send(&f)?;
+                if let Some(log) = &mut self.sent {
+                    log.push((now, f));
+                }
                 sent = true;
+            }
+            if let Some(orion) = &mut self.orion {
+                let mut answers = Vec::new();
+                let mut wrote = false;
+                while let Some(line) = self.bridge.poll_orion_line() {
+                    wrote = true;
+                    let handled = orion.controller.handle_line(&line);
+                    let mut values = [0.0; 7];
+                    for (v, m) in values.iter_mut().zip(motorwire_orion::Motor::ALL) {
+                        *v = orion.controller.value(m);
+                    }
+                    orion.log.push(OrionWrite {
+                        at: now,
+                        line,
+                        clamps: handled.as_ref().map_or(0, |r| r.clamps.len()),
+                        values,
+                    });
+                    if let Ok(r) = handled {
+                        answers.push(r.output.to_json(motorwire_orion::FeedbackKeys::Table));
+                    }
+                }
+                if wrote {
+                    // Written: what waited for its lines to go out is told.
+                    self.bridge.flushed(now);
+                }
+                for a in answers {
+                    self.bridge.handle_orion_line(now, &a);
+                    busy = true;
+                }
             }
             if sent {
                 self.bridge.flushed(now);

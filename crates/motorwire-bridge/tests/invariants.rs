@@ -530,6 +530,289 @@ proptest! {
     }
 }
 
+/// The demo map's motors the every-dialect scenarios command: (name,
+/// map min, map max); the first three are iRPC joints, then the compact
+/// gripper, then the Orion arm's servo.
+const EVERY_DIALECT: [(&str, f64, f64); 5] = [
+    ("shoulder_pitch", -90.0, 90.0),
+    ("shoulder_roll", -45.0, 45.0),
+    ("elbow", 0.0, 150.0),
+    ("gripper_axis", 0.0, 90.0),
+    ("grasper_horizontal_servo", -90.0, 90.0),
+];
+
+/// What an every-dialect scenario sends, beside [`Op`]'s stops, releases
+/// and waits.
+#[derive(Debug, Clone)]
+enum Mixed {
+    /// A position command for one of [`EVERY_DIALECT`].
+    Move {
+        client: u64,
+        motor: usize,
+        setpoint: f64,
+    },
+    /// The Orion turntable at a speed (a setpoint the deadman watches).
+    Spin {
+        client: u64,
+        speed: f64,
+    },
+    /// One multi-axis line for the elbow, the gripper and the servo.
+    Multi {
+        client: u64,
+        setpoints: [f64; 3],
+        sequential: bool,
+    },
+    /// A SafetyLimits line for the elbow, the gripper or the servo: its
+    /// map's min and `max`.
+    Limits {
+        client: u64,
+        motor: usize,
+        max: f64,
+    },
+    Other(Op),
+}
+
+fn mixed_op() -> impl Strategy<Value = Mixed> {
+    prop_oneof![
+        6 => (0u64..3, 0usize..5, -100.0f64..160.0).prop_map(|(client, motor, s)| Mixed::Move { client, motor, setpoint: s.round() }),
+        1 => (0u64..3, -450.0f64..450.0).prop_map(|(client, s)| Mixed::Spin { client, speed: s.round() }),
+        1 => (0u64..3, 0.0f64..140.0, any::<bool>()).prop_map(|(client, s, sequential)| Mixed::Multi { client, setpoints: [s.round(), (s / 2.0).round(), (s - 60.0).round()], sequential }),
+        2 => (0u64..3, 2usize..5, 0.0f64..1.0).prop_map(|(client, motor, f)| {
+            let (_, lo, hi) = EVERY_DIALECT[motor];
+            Mixed::Limits { client, motor, max: (lo + 1.0 + f * (hi - lo - 1.0)).round() }
+        }),
+        1 => (0u64..3, 0usize..5).prop_map(|(client, form)| Mixed::Other(Op::Stop { client, form })),
+        1 => (0u64..3).prop_map(|client| Mixed::Other(Op::Release { client })),
+        3 => (0u64..80).prop_map(|ms| Mixed::Other(Op::Wait { ms })),
+    ]
+}
+
+/// The lines of an every-dialect scenario, as sent.
+#[derive(Default)]
+struct MixedTally {
+    tally: Tally,
+    /// (when, client, line, motor, max) of each SafetyLimits line.
+    limits: Vec<(Duration, u64, u64, usize, f64)>,
+    /// (when, client, line) of each stop line and of each release line.
+    stops: Vec<(Duration, u64, u64)>,
+    releases: Vec<(Duration, u64, u64)>,
+}
+
+fn play_mixed(arm: &mut SimulatedArm, ops: &[Mixed], t: &mut MixedTally) {
+    for op in ops {
+        let (client, text) = match op {
+            Mixed::Move {
+                client,
+                motor,
+                setpoint,
+            } => (*client, command(EVERY_DIALECT[*motor].0, *setpoint)),
+            Mixed::Spin { client, speed } => (
+                *client,
+                format!(
+                    r#"{{"motor_id":"turntable","timestamp":1,"control_mode":"velocity","setpoint":{speed}}}"#
+                ),
+            ),
+            Mixed::Multi {
+                client,
+                setpoints,
+                sequential,
+            } => (
+                *client,
+                format!(
+                    r#"{{"command_id":"m","timestamp":1,"sync_mode":"{}","motors":[{}]}}"#,
+                    if *sequential {
+                        "sequential"
+                    } else {
+                        "simultaneous"
+                    },
+                    [2, 3, 4]
+                        .iter()
+                        .zip(setpoints)
+                        .map(|(m, s)| format!(
+                            r#"{{"motor_id":"{}","control_mode":"position","setpoint":{s}}}"#,
+                            EVERY_DIALECT[*m].0
+                        ))
+                        .collect::<Vec<_>>()
+                        .join(",")
+                ),
+            ),
+            Mixed::Limits { client, motor, max } => {
+                let (name, lo, _) = EVERY_DIALECT[*motor];
+                (
+                    *client,
+                    format!(
+                        r#"{{"motor_id":"{name}","position_limits":{{"min":{lo},"max":{max}}},"velocity_limits":{{"max_velocity":60}},"torque_limits":{{"continuous_torque":2,"peak_torque":4}}}}"#
+                    ),
+                )
+            }
+            Mixed::Other(Op::Wait { ms }) => {
+                let until = arm.now() + Duration::from_millis(*ms);
+                arm.run_until(until).unwrap();
+                collect(arm, &mut t.tally);
+                continue;
+            }
+            Mixed::Other(Op::Stop { client, form }) => {
+                (*client, STOP_FORMS[*form % STOP_FORMS.len()].to_owned())
+            }
+            Mixed::Other(Op::Release { client }) => {
+                (*client, r#"{"emergency_stop": false}"#.to_owned())
+            }
+            Mixed::Other(other) => unreachable!("{other:?}"),
+        };
+        let line = {
+            let n = t.tally.sent.entry(client).or_default();
+            *n += 1;
+            *n
+        };
+        let now = arm.now();
+        match op {
+            Mixed::Limits { motor, max, .. } => t.limits.push((now, client, line, *motor, *max)),
+            Mixed::Other(Op::Stop { .. }) => t.stops.push((now, client, line)),
+            Mixed::Other(Op::Release { .. }) => t.releases.push((now, client, line)),
+            _ => {}
+        }
+        arm.line(Origin(client), &text);
+    }
+}
+
+/// The limit in force on `motor` at `at`: the map's max, or the max of the
+/// last SafetyLimits line for it taken (`ok`) before `at`.
+fn max_in_force(t: &MixedTally, motor: usize, at: Duration) -> f64 {
+    t.limits
+        .iter()
+        .rfind(|(when, client, line, m, _)| {
+            *m == motor && *when <= at && t.tally.results[&(*client, *line)]["ok"] == true
+        })
+        .map_or(EVERY_DIALECT[motor].2, |l| l.4)
+}
+
+/// Whether the emergency stop was latched at `at`: a stop line came at or
+/// before it, and no release taken (`released`) since.
+fn latched_at(t: &MixedTally, at: Duration) -> bool {
+    let Some(stop) = t.stops.iter().map(|s| s.0).filter(|s| *s <= at).max() else {
+        return false;
+    };
+    !t.releases.iter().any(|(when, client, line)| {
+        *when >= stop && *when <= at && t.tally.results[&(*client, *line)]["released"] == true
+    })
+}
+
+/// Every invariant, on every dialect: one result per line (and the iRPC
+/// joints' own, [`check`]); nothing outside the limits in force (the map,
+/// then each SafetyLimits line taken) sent to a joint, the compact
+/// gripper or the Orion arm; and, while the stop is latched, nothing but
+/// stops sent to the gripper and no Orion motor moving.
+fn check_mixed(arm: &SimulatedArm, t: &MixedTally) {
+    check(arm, &t.tally);
+    // iRPC (the elbow) and compact (the gripper): each frame as sent.
+    for (at, frame) in arm.sent() {
+        let id = frame.id().raw();
+        if id == 0x20 {
+            let c = motorwire_compact::CompactCommand::decode(frame.data()).unwrap();
+            let stop = c.flags.bits() & motorwire_compact::Flags::EMERGENCY_STOP.bits() != 0;
+            assert!(
+                stop || !latched_at(t, *at),
+                "at {at:?}, latched: the gripper was sent {c:?}"
+            );
+            if c.control_mode == motorwire_compact::ControlMode::Position && !stop {
+                let max = max_in_force(t, 3, *at);
+                assert!(
+                    f64::from(c.setpoint) <= max + 1e-3,
+                    "at {at:?}: the gripper was sent {} beyond max {max}",
+                    c.setpoint
+                );
+            }
+        } else if let Ok(m) =
+            motorwire_irpc::Message::decode_frame(motorwire_irpc::WireVersion::V2_0, frame.data())
+            && m.header.target_id == 0x12
+            && let Payload::SetTargetV2(p) = m.payload
+        {
+            let max = max_in_force(t, 2, *at);
+            assert!(
+                f64::from(p.target_angle) <= max + 1e-3,
+                "at {at:?}: the elbow was sent {} beyond max {max}",
+                p.target_angle
+            );
+        }
+    }
+    // The Orion arm: what the controller holds after each line.
+    let servo = motorwire_orion::Motor::ALL
+        .iter()
+        .position(|m| m.key() == "GHS")
+        .unwrap();
+    // The servo stands at 0 as booted; a limit may be made tighter than
+    // where it stands (a move back is allowed; farther is not).
+    let mut servo_was = 0.0;
+    for w in arm.orion_log() {
+        assert_eq!(
+            w.clamps, 0,
+            "at {:?}: the controller clamped {}",
+            w.at, w.line
+        );
+        let max = max_in_force(t, 4, w.at);
+        assert!(
+            w.values[servo] == servo_was || w.values[servo] <= max + 1e-3,
+            "at {:?}: the servo moved to {} beyond max {max} by {}",
+            w.at,
+            w.values[servo],
+            w.line
+        );
+        servo_was = w.values[servo];
+        if latched_at(t, w.at) {
+            for (i, v) in w.values.iter().enumerate() {
+                assert!(
+                    i == servo || *v == 0.0,
+                    "at {:?}, latched: {:?} at {v} after {}",
+                    w.at,
+                    motorwire_orion::Motor::ALL[i],
+                    w.line
+                );
+            }
+        }
+    }
+}
+
+fn every_dialect_arm(seed: u64) -> SimulatedArm {
+    let config = BridgeConfig {
+        orion: true,
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
+    let mut arm = SimulatedArm::new(
+        bridge,
+        SimConfig {
+            seed,
+            faults: faults(),
+            ..SimConfig::default()
+        },
+    )
+    .unwrap();
+    arm.keep_sent();
+    assert!(
+        arm.run_while(Duration::from_secs(5), |a| a.bridge().is_ready())
+            .unwrap()
+    );
+    arm
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// Random interleavings on every dialect at once: iRPC joints, the
+    /// compact gripper and the Orion arm, in single and multi-axis lines,
+    /// with live SafetyLimits lines, stops and releases from three
+    /// clients, on a bus that drops, duplicates, delays and reorders.
+    #[test]
+    fn random_interleavings_on_every_dialect_keep_every_invariant(ops in prop::collection::vec(mixed_op(), 1..80), seed in any::<u64>()) {
+        let mut arm = every_dialect_arm(seed);
+        let mut t = MixedTally::default();
+        play_mixed(&mut arm, &ops, &mut t);
+        arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+        collect(&mut arm, &mut t.tally);
+        check_mixed(&arm, &t);
+    }
+}
+
 /// A flood of stops from three clients is one stop: every line is
 /// answered with its outcome, and each joint is sent one Deactivate.
 #[test]

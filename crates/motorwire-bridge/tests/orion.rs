@@ -726,3 +726,75 @@ fn a_reset_of_an_orion_motor_is_refused_and_reaches_no_joint() {
     );
     assert_eq!(rig.commands_since(lines), Vec::<&str>::new(), "nor a line");
 }
+
+/// A stop takes back what was made and not yet handed out: a compact
+/// frame still waiting for `poll_transmit` and an Orion line still waiting
+/// for `poll_orion_line` are never written; the stop goes out alone, and
+/// the lines they carried are answered cancelled "before it was sent" (not
+/// `outcome_unknown`: nothing of them reached a device).
+#[test]
+fn a_stop_takes_back_a_frame_and_a_line_not_yet_handed_out() {
+    let map = BusMap::from_toml(
+        r#"
+[motors.gripper_axis]
+dialect = "compact"
+node = 0x20
+limits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 5 }
+
+[motors.turntable]
+dialect = "orion"
+key = "TRM"
+"#,
+    )
+    .unwrap();
+    let config = BridgeConfig {
+        orion: true,
+        activate_on_start: false,
+        ..BridgeConfig::default()
+    };
+    let mut bridge = Bridge::new(map, config).unwrap();
+    let t = Duration::ZERO;
+    bridge.start(t);
+    bridge.handle_orion_line(t, r#"{"ID":32}"#);
+    bridge.handle_timeout(t);
+    // The first poll, answered.
+    assert_eq!(
+        bridge.poll_orion_line().as_deref(),
+        Some(r#"{"ID":32,"MODE":1,"DATA":{}}"#)
+    );
+    bridge.handle_orion_line(t, r#"{"ID":32,"MODE":1,"DATA":{"TRM":[0,0,0]}}"#);
+    bridge.handle_line(t, Origin(1), &velocity("turntable", 200.0));
+    bridge.handle_line(
+        t,
+        Origin(1),
+        r#"{"motor_id":"gripper_axis","timestamp":1,"control_mode":"velocity","setpoint":20}"#,
+    );
+    bridge.handle_line(t, Origin(2), r#"{"emergency_stop":true}"#);
+    let lines: Vec<String> = std::iter::from_fn(|| bridge.poll_orion_line()).collect();
+    assert_eq!(lines, [r#"{"ID":32,"MODE":2,"DATA":1}"#]);
+    let frames: Vec<_> = std::iter::from_fn(|| bridge.poll_transmit()).collect();
+    assert_eq!(frames.len(), 1, "{frames:?}");
+    let stop = motorwire_compact::CompactCommand::decode(frames[0].data()).unwrap();
+    assert_eq!(stop.flags.bits() & 0x01, 0x01, "{stop:?}");
+    bridge.flushed(t);
+    let out: Vec<Value> = std::iter::from_fn(|| bridge.poll_output())
+        .map(|o| o.to_value())
+        .collect();
+    let of = |line: u64| {
+        out.iter()
+            .find(|v| {
+                v["line"] == line && v.get("ok").is_some() && v.get("emergency_stop").is_none()
+            })
+            .unwrap()
+    };
+    for (line, motor) in [(1, "turntable"), (2, "gripper_axis")] {
+        let r = of(line);
+        assert_eq!(r["ok"], false, "{r}");
+        assert_eq!(r["outcomes"][0]["motor"], motor, "{r}");
+        assert_eq!(r["outcomes"][0]["outcome"], "cancelled", "{r}");
+        assert_eq!(
+            r["outcomes"][0]["message"], "cancelled by the emergency stop before it was sent",
+            "{r}"
+        );
+    }
+}

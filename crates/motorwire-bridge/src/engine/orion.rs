@@ -131,6 +131,24 @@ impl Link {
         self.ready && !self.recovering && self.pending.is_none()
     }
 
+    /// The line waiting for its answer, if it was never handed out (its
+    /// first sending still waits in the queue) and every device whose step
+    /// it carries is `picked`: taken back (out of the queue, no answer
+    /// awaited); the devices whose steps it carried. A line already handed
+    /// out, or sent again, may have run, and stays.
+    pub(super) fn take_back_unsent(
+        &mut self,
+        picked: impl Fn(usize) -> bool,
+    ) -> Option<Vec<usize>> {
+        let p = self.pending.as_ref()?;
+        if p.attempts != 1 || p.joints.is_empty() || !p.joints.iter().all(|&ji| picked(ji)) {
+            return None;
+        }
+        let at = self.tx.iter().position(|l| *l == p.line)?;
+        self.tx.remove(at);
+        self.pending.take().map(|p| p.joints)
+    }
+
     /// The next deadline.
     pub(super) fn deadline(&self) -> Option<Duration> {
         match &self.pending {
