@@ -27,12 +27,9 @@ mod orion;
 mod requests;
 pub use orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL as ORION_POLL};
 
-use motorwire_can::CanId;
 use motorwire_can::Frame;
 use motorwire_can::client::{Client, ClientConfig, Completion, Event as ClientEvent, Outcome};
-use motorwire_compact::{
-    CompactCommand, ControlMode as CompactMode, FeedbackRecord, Flags, MotorHash, StatusFlag,
-};
+use motorwire_compact::{CompactCommand, ControlMode as CompactMode, Flags, MotorHash};
 use motorwire_irpc::{
     LifecycleState, NackCode, Payload, PayloadKind, SetTargetPayloadV2, WireVersion,
 };
@@ -49,6 +46,7 @@ use serde_json::Value;
 use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Input, classify};
+use crate::device::compact::{self, CompactDriver};
 use crate::job::{Axis, AxisState, Cycle, Job, JobKind, Order, OrionOrder, Rider};
 use crate::joints::{CompactLink, Joint, StepRef, Unresolved};
 use crate::output::{
@@ -204,52 +202,6 @@ struct Timers {
 }
 
 /// A line that waits for startup to end.
-/// A compact command sent and not yet acknowledged by a feedback frame.
-#[derive(Debug)]
-struct CompactPending {
-    msg_id: u32,
-    frame: Frame,
-    attempts: u8,
-    deadline: Duration,
-}
-
-/// `c` as its CAN-FD frame on `node` (WIRE-FACTS §2.1: the 24 bytes, no
-/// padding).
-fn compact_frame(node: u16, c: CompactCommand) -> Result<Frame, String> {
-    let bytes = c.encode().map_err(|e| e.to_string())?;
-    let id = CanId::standard(node).map_err(|e| e.to_string())?;
-    Frame::fd(id, &bytes).map_err(|e| e.to_string())
-}
-
-/// A compact device's feedback record as WIA MotorFeedback.
-fn compact_to_wia(motor: &str, timestamp: f64, r: &FeedbackRecord) -> MotorFeedback {
-    let s = r.status;
-    let mut f = MotorFeedback {
-        motor_id: motor.to_owned(),
-        timestamp,
-        position: f64::from(r.position),
-        velocity: f64::from(r.velocity),
-        acceleration: Some(f64::from(r.acceleration)),
-        torque: f64::from(r.torque),
-        current: Some(f64::from(r.current)),
-        voltage: Some(f64::from(r.voltage)),
-        temperature: Some(f64::from(r.temperature)),
-        power: None,
-        position_error: None,
-        velocity_error: None,
-        control_effort: None,
-        status: motorwire_wia::MotorStatus::default(),
-        health: None,
-        extra: serde_json::Map::new(),
-    };
-    f.status.enabled = Some(s.contains(StatusFlag::Enabled));
-    f.status.fault = Some(s.contains(StatusFlag::Fault));
-    f.status.warning = Some(s.contains(StatusFlag::Warning));
-    f.status.in_motion = Some(s.contains(StatusFlag::InMotion));
-    f.status.at_target = Some(s.contains(StatusFlag::AtTarget));
-    f
-}
-
 #[derive(Debug)]
 struct Waiting {
     at: Duration,
@@ -325,11 +277,9 @@ pub struct Bridge {
     /// Emergency decelerations given by SafetyLimits lines (recorded and
     /// reported; iRPC cannot carry them).
     emergency_decel: BTreeMap<String, f64>,
-    /// Compact devices: the command in flight for each (by device index),
-    /// the frames to send, and the bridge's own numbering of the commands.
-    compact_pending: BTreeMap<usize, CompactPending>,
-    compact_tx: VecDeque<Frame>,
-    next_compact_id: u32,
+    /// The compact devices' driver: the command in flight for each (by
+    /// device index) and the frames to send.
+    compact: CompactDriver,
     /// The Orion arm controller's link.
     orion: orion::Link,
     /// The input ended during startup: drain (until this deadline) once ready.
@@ -441,9 +391,7 @@ impl Bridge {
             arrivals: Vec::new(),
             base_limits,
             emergency_decel: BTreeMap::new(),
-            compact_pending: BTreeMap::new(),
-            compact_tx: VecDeque::new(),
-            next_compact_id: 1,
+            compact: CompactDriver::new(config.client.timeout, config.client.retries),
             orion: orion::Link::default(),
             timers: Timers::default(),
             out: VecDeque::new(),
@@ -2063,13 +2011,7 @@ impl Bridge {
         };
         let mut unsent: BTreeSet<usize> = BTreeSet::new();
         for ji in 0..self.joints.len() {
-            if picked(self, ji)
-                && let Some(p) = self.compact_pending.get(&ji)
-                && p.attempts == 1
-                && let Some(at) = self.compact_tx.iter().position(|f| *f == p.frame)
-            {
-                self.compact_tx.remove(at);
-                self.compact_pending.remove(&ji);
+            if picked(self, ji) && self.compact.take_back_unsent(ji) {
                 unsent.insert(ji);
             }
         }
@@ -2107,7 +2049,7 @@ impl Bridge {
                         payload: Order::Compact(_),
                         ..
                     } => {
-                        self.compact_pending.remove(&ji);
+                        self.compact.forget(ji);
                     }
                     AxisState::InFlight {
                         payload: Order::Orion(_),
@@ -2603,23 +2545,7 @@ impl Bridge {
         let sent = match payload {
             Order::Irpc(p) => self.client.request(now, node, p).map_err(|e| e.to_string()),
             Order::Orion(_) => Err("an Orion order on the CAN path".to_owned()),
-            Order::Compact(c) => {
-                let id = self.next_compact_id;
-                self.next_compact_id = self.next_compact_id.wrapping_add(1);
-                compact_frame(node, c).map(|frame| {
-                    self.compact_tx.push_back(frame);
-                    self.compact_pending.insert(
-                        ji,
-                        CompactPending {
-                            msg_id: id,
-                            frame,
-                            attempts: 1,
-                            deadline: now.saturating_add(self.config.client.timeout),
-                        },
-                    );
-                    id
-                })
-            }
+            Order::Compact(c) => self.compact.send(now, ji, node, c),
         };
         match sent {
             Ok(msg_id) => {
@@ -3108,24 +3034,13 @@ impl Bridge {
         let now = self.now;
         let Some(j) = self.joints.get(ji) else { return };
         let Some(link) = j.compact else { return };
-        let record = match FeedbackRecord::decode(frame.data()) {
-            Ok(r) if r.motor == link.hash => r,
-            Ok(r) => {
+        let record = match compact::feedback_record(frame, &j.name, link.hash) {
+            Ok(r) => r,
+            Err(error) => {
                 self.stats.bad_frames += 1;
                 self.out.push_back(Output::Event(Event::BadFrame {
                     can_id: frame.id().to_string(),
-                    error: format!(
-                        "feedback for motor hash {:08x}, not {}'s {:08x}",
-                        r.motor.0, j.name, link.hash.0
-                    ),
-                }));
-                return;
-            }
-            Err(e) => {
-                self.stats.bad_frames += 1;
-                self.out.push_back(Output::Event(Event::BadFrame {
-                    can_id: frame.id().to_string(),
-                    error: e.to_string(),
+                    error,
                 }));
                 return;
             }
@@ -3141,7 +3056,7 @@ impl Bridge {
             let pos = unit.to_degrees(f64::from(record.position));
             let vel = unit.to_degrees(f64::from(record.velocity));
             j.motion = Some((pos, vel));
-            j.feedback = Some(compact_to_wia(&j.name, ts, &record));
+            j.feedback = Some(compact::feedback_to_wia(&j.name, ts, &record));
         }
         if let Some((pos, vel)) = self.joints.get(ji).and_then(|j| j.motion) {
             if !self.arrivals.is_empty() {
@@ -3149,7 +3064,7 @@ impl Bridge {
             }
             self.sequence_progress(ji, pos, vel);
         }
-        if let Some(p) = self.compact_pending.remove(&ji) {
+        if let Some(p) = self.compact.acknowledged(ji) {
             self.step_done(
                 ji,
                 Completion {
@@ -3169,28 +3084,7 @@ impl Bridge {
     /// executes a repeat of its last command once), or, after the retries,
     /// their outcome is unknown.
     fn compact_timeouts(&mut self, now: Duration) {
-        let due: Vec<usize> = self
-            .compact_pending
-            .iter()
-            .filter(|(_, p)| now >= p.deadline)
-            .map(|(ji, _)| *ji)
-            .collect();
-        for ji in due {
-            let retries = self.config.client.retries;
-            let timeout = self.config.client.timeout;
-            let Some(p) = self.compact_pending.get_mut(&ji) else {
-                continue;
-            };
-            if p.attempts <= retries {
-                p.attempts += 1;
-                p.deadline = now.saturating_add(timeout);
-                let frame = p.frame;
-                self.compact_tx.push_back(frame);
-                continue;
-            }
-            let Some(p) = self.compact_pending.remove(&ji) else {
-                continue;
-            };
+        for (ji, p) in self.compact.timeouts(now) {
             let node = self.joints.get(ji).map_or(0, |j| j.node);
             self.step_done(
                 ji,
@@ -3675,7 +3569,7 @@ impl Bridge {
         let f = self
             .client
             .poll_transmit()
-            .or_else(|| self.compact_tx.pop_front())?;
+            .or_else(|| self.compact.poll_transmit())?;
         self.stats.frames_sent += 1;
         Some(f)
     }
@@ -3730,7 +3624,7 @@ impl Bridge {
             _ => None,
         };
         let arrival = self.arrivals.iter().map(|w| w.deadline).min();
-        let compact = self.compact_pending.values().map(|p| p.deadline).min();
+        let compact = self.compact.deadline();
         let deadman = self.joints.iter().filter_map(|j| j.deadman).min();
         let wake = self.joints.iter().filter_map(|j| j.wake).min();
         // A sequential axis waiting on one that must arrive by then.

@@ -2,6 +2,7 @@
 
 mod arrival;
 mod classify;
+mod device;
 mod engine;
 mod error;
 mod job;
