@@ -476,62 +476,15 @@ const OWN_FORMS: [&[u8]; 6] = [
 /// Whether `line` cannot name a stop (no `emergency` and no escape in it)
 /// and is a JSON object none of whose top-level names is one of the
 /// bridge's own forms: then [`classify_members`] would take it as a WIA
-/// message if the validator does. A scan of the bytes, nothing parsed and
-/// nothing allocated: it does not judge the syntax (the typed parse that
-/// follows does), and says `false` whenever it cannot be sure (the text
-/// does not start with an object, or the object never closes).
+/// message if the validator does. A scan of the bytes
+/// ([`motorwire_wia::top_level_names`]), nothing parsed and nothing
+/// allocated; `false` whenever the scan cannot be sure.
 fn plain_message(line: &str) -> bool {
     if line.contains("emergency") || line.contains('\\') {
         return false;
     }
-    let bytes = line.trim_start().as_bytes();
-    if bytes.first() != Some(&b'{') {
-        return false;
-    }
-    let mut depth = 0usize;
-    let mut expect_key = false;
-    let mut i = 0;
-    while let Some(&b) = bytes.get(i) {
-        i += 1;
-        match b {
-            b'"' => {
-                // No escape in the line: the string ends at the next quote.
-                let Some(len) = bytes
-                    .get(i..)
-                    .and_then(|r| r.iter().position(|&c| c == b'"'))
-                else {
-                    return false;
-                };
-                if depth == 1 && expect_key {
-                    if bytes
-                        .get(i..i + len)
-                        .is_some_and(|k| OWN_FORMS.contains(&k))
-                    {
-                        return false;
-                    }
-                    expect_key = false;
-                }
-                i += len + 1;
-            }
-            b'{' => {
-                expect_key = depth == 0;
-                depth += 1;
-            }
-            b'[' => depth += 1,
-            b'}' | b']' => {
-                let Some(d) = depth.checked_sub(1) else {
-                    return false;
-                };
-                depth = d;
-                if depth == 0 {
-                    return true;
-                }
-            }
-            b',' if depth == 1 => expect_key = true,
-            _ => {}
-        }
-    }
-    false
+    let mut own = false;
+    motorwire_wia::top_level_names(line, |name| own |= OWN_FORMS.contains(&name)) && !own
 }
 
 /// [`classify`] from every member of the line.

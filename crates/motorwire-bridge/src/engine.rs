@@ -3065,18 +3065,7 @@ impl Bridge {
             self.sequence_progress(ji, pos, vel);
         }
         if let Some(p) = self.compact.acknowledged(ji) {
-            self.step_done(
-                ji,
-                Completion {
-                    msg_id: p.msg_id,
-                    target: node,
-                    kind: PayloadKind::SetTargetV2,
-                    outcome: Outcome::Acked,
-                    attempts: p.attempts,
-                    sent_at: now,
-                    finished_at: now,
-                },
-            );
+            self.device_done(ji, p.msg_id, node, Outcome::Acked, p.attempts);
         }
     }
 
@@ -3086,19 +3075,34 @@ impl Bridge {
     fn compact_timeouts(&mut self, now: Duration) {
         for (ji, p) in self.compact.timeouts(now) {
             let node = self.joints.get(ji).map_or(0, |j| j.node);
-            self.step_done(
-                ji,
-                Completion {
-                    msg_id: p.msg_id,
-                    target: node,
-                    kind: PayloadKind::SetTargetV2,
-                    outcome: Outcome::TimedOut,
-                    attempts: p.attempts,
-                    sent_at: now,
-                    finished_at: now,
-                },
-            );
+            self.device_done(ji, p.msg_id, node, Outcome::TimedOut, p.attempts);
         }
+    }
+
+    /// A compact or Orion request of device `ji` ended (`target`: its
+    /// node): the step it carried is done, as an iRPC request's completion
+    /// would say it.
+    pub(super) fn device_done(
+        &mut self,
+        ji: usize,
+        msg_id: u32,
+        target: u16,
+        outcome: Outcome,
+        attempts: u8,
+    ) {
+        let now = self.now;
+        self.step_done(
+            ji,
+            Completion {
+                msg_id,
+                target,
+                kind: PayloadKind::SetTargetV2,
+                outcome,
+                attempts,
+                sent_at: now,
+                finished_at: now,
+            },
+        );
     }
 
     /// An acked compact command: its target (a position move) and how long

@@ -219,23 +219,50 @@ impl<'de> Deserialize<'de> for TopLevelKeys {
 /// asks [`MessageKind::infer`], which also says what is wrong. The scan
 /// does not check the syntax: the typed parse that follows does.
 pub(crate) fn scan_kind(json: &str) -> Option<MessageKind> {
-    let bytes = json.as_bytes();
     let mut keys = TopLevelKeys::default();
+    top_level_names(json, |name| keys.note(name)).then(|| keys.kind())?
+}
+
+/// Calls `note` with each top-level member name of the JSON object `json`
+/// holds, in order, from a scan of its bytes: nothing is parsed and nothing
+/// allocated. Returns `false` when the scan cannot be sure of the names:
+/// the text does not start with an object (after white space), a top-level
+/// name has an escape in it, or the object never closes. It does not check
+/// the syntax (a parse after it does): what follows the object's close is
+/// not read.
+///
+/// ```
+/// let mut names = Vec::new();
+/// assert!(motorwire_wia::top_level_names(r#" {"a": {"b": 1}, "c": [{"d": 2}]} "#, |n| names.push(n.to_vec())));
+/// assert_eq!(names, [b"a".to_vec(), b"c".to_vec()]);
+/// assert!(!motorwire_wia::top_level_names(r#"{"\u0061": 1}"#, |_| {}));
+/// assert!(!motorwire_wia::top_level_names(r#"[{"a": 1}]"#, |_| {}));
+/// assert!(!motorwire_wia::top_level_names(r#"{"a": 1"#, |_| {}));
+/// ```
+pub fn top_level_names(json: &str, mut note: impl FnMut(&[u8])) -> bool {
+    let bytes = json.as_bytes();
     let mut depth = 0usize;
     let mut expect_key = false;
     let mut i = 0;
     loop {
-        let b = *bytes.get(i)?;
+        let Some(&b) = bytes.get(i) else {
+            return false;
+        };
         i += 1;
         match b {
-            b'"' if depth == 0 => return None,
+            b'"' if depth == 0 => return false,
             b'"' => {
-                let (end, escaped) = string_end(bytes, i)?;
+                let Some((end, escaped)) = string_end(bytes, i) else {
+                    return false;
+                };
                 if depth == 1 && expect_key {
                     if escaped {
-                        return None;
+                        return false;
                     }
-                    keys.note(bytes.get(i..end)?);
+                    let Some(name) = bytes.get(i..end) else {
+                        return false;
+                    };
+                    note(name);
                     expect_key = false;
                 }
                 i = end + 1;
@@ -244,17 +271,20 @@ pub(crate) fn scan_kind(json: &str) -> Option<MessageKind> {
                 expect_key = depth == 0;
                 depth += 1;
             }
-            b'[' if depth == 0 => return None,
+            b'[' if depth == 0 => return false,
             b'[' => depth += 1,
             b'}' | b']' => {
-                depth = depth.checked_sub(1)?;
+                let Some(d) = depth.checked_sub(1) else {
+                    return false;
+                };
+                depth = d;
                 if depth == 0 {
-                    return keys.kind();
+                    return true;
                 }
             }
             b',' if depth == 1 => expect_key = true,
             b' ' | b'\t' | b'\n' | b'\r' => {}
-            _ if depth == 0 => return None,
+            _ if depth == 0 => return false,
             _ => {}
         }
     }

@@ -133,39 +133,25 @@ impl Validator {
         // error is exactly the one `infer` and the typed parse give.
         if let Some(kind) = crate::kind::scan_kind(json)
             && self.precheck(json).is_ok()
-            && let Some(m) = self.typed_any(kind, json)
+            && let Ok(m) = self.typed(kind, json)
         {
             return Ok(m);
         }
-        self.parse_any_slowly(json)
-    }
-
-    /// `json` as a valid message of `kind`, or `None`.
-    fn typed_any(&self, kind: MessageKind, json: &str) -> Option<Message> {
-        fn valid<T: WiaMessage>(v: &Validator, json: &str) -> Option<T> {
-            match v.run::<T>(json) {
-                (Some(msg), violations) if violations.is_empty() => Some(msg),
-                _ => None,
-            }
-        }
-        Some(match kind {
-            MessageKind::MotorCommand => Message::MotorCommand(valid(self, json)?),
-            MessageKind::MultiAxisCommand => Message::MultiAxisCommand(valid(self, json)?),
-            MessageKind::MotorFeedback => Message::MotorFeedback(valid(self, json)?),
-            MessageKind::Trajectory => Message::Trajectory(valid(self, json)?),
-            MessageKind::PidConfig => Message::PidConfig(valid(self, json)?),
-            MessageKind::SafetyLimits => Message::SafetyLimits(valid(self, json)?),
-            MessageKind::ControlModeConfig => Message::ControlModeConfig(valid(self, json)?),
-        })
-    }
-
-    /// [`Validator::parse_any`] with the kind inferred by a parse.
-    fn parse_any_slowly(&self, json: &str) -> Result<Message, Error> {
-        let invalid = |kind, violations| Error::Invalid(Report { kind, violations });
         let kind = self
             .precheck(json)
             .and_then(|()| infer(json))
-            .map_err(|v| invalid(None, vec![v]))?;
+            .map_err(|v| {
+                Error::Invalid(Report {
+                    kind: None,
+                    violations: vec![v],
+                })
+            })?;
+        self.typed(kind, json)
+    }
+
+    /// `json`, which passed the size and depth limits, as a valid message
+    /// of `kind`.
+    fn typed(&self, kind: MessageKind, json: &str) -> Result<Message, Error> {
         fn typed<T: WiaMessage>(v: &Validator, json: &str) -> Result<T, Error> {
             match v.run::<T>(json) {
                 (Some(msg), violations) if violations.is_empty() => Ok(msg),

@@ -24,8 +24,8 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use motorwire_can::client::{Completion, Outcome};
-use motorwire_irpc::{NackCode, PayloadKind};
+use motorwire_can::client::Outcome;
+use motorwire_irpc::NackCode;
 use motorwire_orion::{ArmCommand, CONTROLLER_ID, Motor, MotorValues, Output, Quantity};
 use motorwire_translate::Report;
 
@@ -623,20 +623,8 @@ impl Bridge {
     }
 
     fn orion_done(&mut self, p: Pending, outcome: Outcome) {
-        let now = self.now;
         for ji in p.joints {
-            self.step_done(
-                ji,
-                Completion {
-                    msg_id: p.msg_id,
-                    target: ORION_NODE,
-                    kind: PayloadKind::SetTargetV2,
-                    outcome,
-                    attempts: p.attempts,
-                    sent_at: now,
-                    finished_at: now,
-                },
-            );
+            self.device_done(ji, p.msg_id, ORION_NODE, outcome, p.attempts);
         }
         for ji in 0..self.joints.len() {
             if self.is_orion(ji) {
