@@ -3,7 +3,8 @@
 
 Finds every bridge by its liveliness token (motorwire/<robot>/alive), sends
 each the same synchronized multi-axis move at the same moment (one query on
-motorwire/<robot>/cmd each), prints each result and arrival as it comes,
+motorwire/<robot>/cmd/<controller> each: the ids of its commands are this
+controller's own), prints each result and arrival as it comes,
 then puts the fleet's emergency stop (motorwire/fleet/estop) and prints
 each bridge's stop result.
 
@@ -14,7 +15,9 @@ Needs eclipse-zenoh==1.10.2 (the version of the bridges' Rust zenoh):
 
 With --listen this controller is where the bridges connect (no router
 needed on one machine); with --config FILE it uses a Zenoh configuration
-such as crates/motorwire-zenoh/config/controller.json5 (TLS, a password).
+such as crates/motorwire-zenoh/config/controller.json5 (TLS, a password;
+--controller is then the Zenoh user, the only one the router lets ask on
+motorwire/*/cmd/<user>).
 Exit status 0 when every bridge found arrived and stopped, 1 otherwise.
 """
 
@@ -38,6 +41,11 @@ def parse_args():
     p.add_argument("--position", type=float, default=30.0, help="the elbow's target (degrees, default 30)")
     p.add_argument("--duration-ms", type=int, default=1500, help="the move's duration (default 1500 ms)")
     p.add_argument("--release", action="store_true", help="release each robot's stop at the end")
+    p.add_argument(
+        "--controller",
+        default="controller",
+        help="this controller's name, the last chunk of motorwire/<robot>/cmd/<controller> (default controller, the user of config/controller.json5)",
+    )
     return p.parse_args()
 
 
@@ -74,10 +82,10 @@ def discover(session, expect, wait):
     return robots
 
 
-def move(session, robot, command, results):
+def move(session, robot, controller, command, results):
     """One command query; every reply printed and kept, in order."""
     replies = session.get(
-        f"motorwire/{robot}/cmd?controller=fleet_controller",
+        f"motorwire/{robot}/cmd/{controller}",
         payload=json.dumps(command),
         consolidation=zenoh.ConsolidationMode.NONE,
         timeout=30.0,
@@ -127,7 +135,7 @@ def main():
             ],
             "coordination": {"type": "linear_interpolation", "total_duration_ms": args.duration_ms},
         }
-        t = threading.Thread(target=move, args=(session, robot, command, results))
+        t = threading.Thread(target=move, args=(session, robot, args.controller, command, results))
         t.start()
         threads.append(t)
     for t in threads:
@@ -149,7 +157,7 @@ def main():
     if args.release:
         for robot in robots:
             for reply in session.get(
-                f"motorwire/{robot}/cmd?controller=fleet_controller",
+                f"motorwire/{robot}/cmd/{args.controller}",
                 payload='{"emergency_stop": false}',
                 consolidation=zenoh.ConsolidationMode.NONE,
                 timeout=5.0,

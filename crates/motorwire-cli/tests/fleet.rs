@@ -226,8 +226,26 @@ fn wait_event(b: &Bridge, limit: Duration, what: impl Fn(&Value) -> bool) -> Val
 
 /// Sends `payload` as a query on `robot`'s cmd; every reply, in order.
 fn query(session: &zenoh::Session, robot: &str, payload: &str, limit: Duration) -> Vec<Value> {
+    query_on(
+        session,
+        &format!("motorwire/{robot}/cmd?controller=test"),
+        &format!("motorwire/{robot}/cmd"),
+        payload,
+        limit,
+    )
+}
+
+/// Sends `payload` as a query on `selector`; every reply, in order, each
+/// on the key `replied_on`.
+fn query_on(
+    session: &zenoh::Session,
+    selector: &str,
+    replied_on: &str,
+    payload: &str,
+    limit: Duration,
+) -> Vec<Value> {
     let replies = session
-        .get(format!("motorwire/{robot}/cmd?controller=test"))
+        .get(selector)
         .payload(payload)
         .consolidation(ConsolidationMode::None)
         .timeout(limit)
@@ -236,7 +254,7 @@ fn query(session: &zenoh::Session, robot: &str, payload: &str, limit: Duration) 
     std::iter::from_fn(|| replies.recv().ok())
         .map(|r| {
             let s = r.result().unwrap();
-            assert_eq!(s.key_expr().as_str(), format!("motorwire/{robot}/cmd"));
+            assert_eq!(s.key_expr().as_str(), replied_on, "{selector}");
             serde_json::from_str(&s.payload().try_to_string().unwrap()).unwrap()
         })
         .collect()
@@ -246,16 +264,18 @@ fn query(session: &zenoh::Session, robot: &str, payload: &str, limit: Duration) 
 /// and while its replies end before the completion (a session lost and
 /// made again drops the query in progress), sends it again with the same
 /// id, at most three times. The replies of the last try, and the tries.
+/// The query is on `key` (`motorwire/<robot>/cmd/<controller>`), and so
+/// are its replies.
 fn query_to_completion(
     session: &zenoh::Session,
-    robot: &str,
+    key: &str,
     payload: &str,
     limit: Duration,
 ) -> (Vec<Value>, usize) {
     let mut tries = 0;
     loop {
         tries += 1;
-        let replies = query(session, robot, payload, limit);
+        let replies = query_on(session, key, key, payload, limit);
         let complete = replies.last().is_some_and(|r| r.get("arrived").is_some());
         if complete || tries == 3 {
             return (replies, tries);
@@ -378,6 +398,135 @@ fn refused(replies: &[Value]) -> &Value {
     assert_eq!(replies.len(), 1, "{replies:?}");
     assert_eq!(replies[0]["ok"], json!(false), "{replies:?}");
     &replies[0]["error"]["kind"]
+}
+
+#[test]
+fn a_controller_is_named_by_its_key_and_a_parameter_never_reaches_its_ids() {
+    let (_router, a, controller, _, _) = fleet_of_one("key-bound");
+    let limit = Duration::from_secs(10);
+    let alice = "motorwire/a/cmd/alice";
+
+    // A command of the controller cmd/alice, answered on its key; its
+    // retry on the robot wildcard is answered from alice's memory.
+    let first = query_on(
+        &controller,
+        alice,
+        alice,
+        &move_line("elbow", 20.0, "k1"),
+        limit,
+    );
+    assert_eq!(first.len(), 2, "{first:?}");
+    assert_eq!(first[0]["ok"], json!(true), "{first:?}");
+    assert_eq!(first[1]["arrived"], json!(true), "{first:?}");
+    let again = query_on(
+        &controller,
+        "motorwire/*/cmd/alice",
+        alice,
+        &move_line("elbow", 20.0, "k1"),
+        limit,
+    );
+    assert_eq!(again, first);
+    assert_eq!(moves(&a.log), vec![20.0]);
+
+    // `?controller=alice` is another namespace: the same id with another
+    // body is not alice's reused id, it is another controller's command;
+    // and its own retry is answered from its own memory.
+    let named = query_on(
+        &controller,
+        "motorwire/a/cmd?controller=alice",
+        "motorwire/a/cmd",
+        &move_line("elbow", 30.0, "k1"),
+        limit,
+    );
+    assert_eq!(named.len(), 2, "{named:?}");
+    assert_eq!(named[0]["ok"], json!(true), "{named:?}");
+    assert_eq!(moves(&a.log), vec![20.0, 30.0]);
+    // ...and alice's memory is untouched by it: her retry still runs
+    // nothing, her reuse is still refused naming her first command.
+    let again = query_on(
+        &controller,
+        alice,
+        alice,
+        &move_line("elbow", 20.0, "k1"),
+        limit,
+    );
+    assert_eq!(again, first);
+    let reused = query_on(
+        &controller,
+        alice,
+        alice,
+        &move_line("elbow", 30.0, "k1"),
+        limit,
+    );
+    assert_eq!(refused(&reused), &json!("id_reused"));
+    assert_eq!(moves(&a.log), vec![20.0, 30.0]);
+
+    // A query that names no one controller is refused, nothing sent.
+    let no_one = [
+        (
+            "motorwire/a/cmd/alice?controller=bob",
+            alice,
+            r#"the key motorwire/a/cmd/alice names the controller "alice" and the `controller` parameter names one too; name it once, by the key"#,
+        ),
+        (
+            "motorwire/a/cmd/*",
+            "motorwire/a/cmd/*",
+            r#"the controller chunk "*" of the key motorwire/a/cmd/*: a key-expression chunk cannot hold `/`, `*`, `$`, `?`, `#`, spaces or control characters; a command is asked on motorwire/<robot>/cmd/<controller>, one controller by its name"#,
+        ),
+        (
+            "motorwire/a/cmd/alice/x",
+            "motorwire/a/cmd/alice/x",
+            "the key motorwire/a/cmd/alice/x names no one controller: a command is asked on motorwire/<robot>/cmd/<controller> (or motorwire/<robot>/cmd)",
+        ),
+        (
+            "motorwire/a/**",
+            "motorwire/a/**",
+            "the key motorwire/a/** names no one controller: a command is asked on motorwire/<robot>/cmd/<controller> (or motorwire/<robot>/cmd)",
+        ),
+    ];
+    for (selector, replied_on, why) in no_one {
+        let replies = query_on(
+            &controller,
+            selector,
+            replied_on,
+            &move_line("elbow", 40.0, "k1"),
+            limit,
+        );
+        assert_eq!(refused(&replies), &json!("invalid"), "{selector}");
+        assert_eq!(
+            replies[0]["error"]["message"],
+            json!(format!("{why}; nothing was sent")),
+            "{selector}: {replies:?}"
+        );
+    }
+    assert_eq!(moves(&a.log), vec![20.0, 30.0]);
+
+    // A stop refused for the key it names still stops.
+    let stop = query_on(
+        &controller,
+        "motorwire/a/cmd/*",
+        "motorwire/a/cmd/*",
+        r#"{"emergency_stop":true}"#,
+        limit,
+    );
+    assert_eq!(stop[0]["ok"], json!(true), "{stop:?}");
+    assert_eq!(stop[0]["emergency_stop"], json!(true), "{stop:?}");
+    assert_eq!(
+        stop[0]["problems"],
+        json!([
+            "the controller chunk \"*\" of the key motorwire/a/cmd/*: a key-expression chunk cannot hold `/`, `*`, `$`, `?`, `#`, spaces or control characters; a command is asked on motorwire/<robot>/cmd/<controller>, one controller by its name; it names emergency_stop, so it is taken as a stop"
+        ]),
+        "{stop:?}"
+    );
+    wait_event(&a, limit, |v| v["event"] == "emergency_stop");
+    let release = query_on(
+        &controller,
+        alice,
+        alice,
+        r#"{"emergency_stop":false}"#,
+        limit,
+    );
+    assert_eq!(release[0]["released"], json!(true), "{release:?}");
 }
 
 /// A router, one bridge `a` on it, ready, and a controller: the router,
@@ -986,15 +1135,23 @@ fn without_the_controllers_credentials_no_participant_moves_a_joint() {
         .unwrap();
     let heard: Value = serde_json::from_str(&heard.payload().try_to_string().unwrap()).unwrap();
     assert_eq!(heard["motor_id"], json!("elbow"));
-    assert_eq!(
-        query(
-            &observer,
-            "secure",
-            &line("observer"),
-            Duration::from_secs(2)
-        ),
-        Vec::<Value>::new()
-    );
+    for selector in [
+        "motorwire/secure/cmd/controller",
+        "motorwire/secure/cmd/observer",
+        "motorwire/secure/cmd?controller=controller",
+    ] {
+        assert_eq!(
+            query_on(
+                &observer,
+                selector,
+                selector,
+                &line("observer"),
+                Duration::from_secs(2)
+            ),
+            Vec::<Value>::new(),
+            "{selector}"
+        );
+    }
     observer.put("motorwire/fleet/estop", "{}").wait().unwrap();
     observer.put("motorwire/secure/estop", "{}").wait().unwrap();
 
@@ -1020,9 +1177,10 @@ fn without_the_controllers_credentials_no_participant_moves_a_joint() {
     assert!(intruders.iter().all(|i| *i != controller_doc));
     for (n, config) in intruders.iter().enumerate() {
         if let Some(s) = try_open(config) {
-            let replies = query(
+            let replies = query_on(
                 &s,
-                "secure",
+                "motorwire/secure/cmd/controller",
+                "motorwire/secure/cmd/controller",
                 &line(&format!("intruder-{n}")),
                 Duration::from_secs(2),
             );
@@ -1040,7 +1198,7 @@ fn without_the_controllers_credentials_no_participant_moves_a_joint() {
     let sent = Instant::now();
     let (replies, tries) = query_to_completion(
         &controller,
-        "secure",
+        "motorwire/secure/cmd/controller",
         &line("controller"),
         Duration::from_secs(10),
     );
@@ -1063,6 +1221,146 @@ fn without_the_controllers_credentials_no_participant_moves_a_joint() {
     wait_event(&b, Duration::from_secs(5), |v| {
         v["event"] == "emergency_stop"
     });
+}
+
+/// The deployment's router with a second controller, `planner`, added as
+/// config/README.md says: its own rules on motorwire/*/cmd/planner, a
+/// subject and a policy.
+fn router_with_planner(dir: &Path, port: u16) -> String {
+    let doc = deployment("router", dir, port);
+    let with = doc
+        .replacen(
+            "    rules: [\n",
+            r#"    rules: [
+      { id: "command_planner", messages: ["query"], flows: ["ingress"], permission: "allow",
+        key_exprs: ["motorwire/*/cmd/planner"] },
+      { id: "answers_planner", messages: ["reply"], flows: ["egress"], permission: "allow",
+        key_exprs: ["motorwire/*/cmd/planner"] },
+"#,
+            1,
+        )
+        .replacen(
+            "    subjects: [\n",
+            "    subjects: [\n      { id: \"planner\", usernames: [\"planner\"] },\n",
+            1,
+        )
+        .replacen(
+            "    policies: [\n",
+            "    policies: [\n      { rules: [\"command_planner\", \"stop\", \"listen\", \"hear\", \"answers_planner\"], subjects: [\"planner\"] },\n",
+            1,
+        );
+    assert_eq!(
+        with.matches("planner").count(),
+        doc.matches("planner").count() + 9
+    );
+    with
+}
+
+#[test]
+fn with_access_control_a_controllers_ids_are_its_users_own() {
+    let dir = scratch("per-user");
+    std::fs::write(
+        dir.join("passwords.txt"),
+        "controller:controller-secret\nplanner:planner-secret\nbridge:bridge-secret\nobserver:observer-secret\n",
+    )
+    .unwrap();
+    let port = free_port();
+    let _router = zenoh::open(zenoh::Config::from_json5(&router_with_planner(&dir, port)).unwrap())
+        .wait()
+        .unwrap();
+    let b = bridge_with(&dir, &deployment("bridge", &dir, port), "secure", &[]);
+    let controller_doc = deployment("controller", &dir, port);
+    let controller = try_open(&controller_doc).unwrap();
+    let planner = try_open(
+        &controller_doc
+            .replace(r#"user: "controller""#, r#"user: "planner""#)
+            .replace("controller-secret", "planner-secret"),
+    )
+    .unwrap();
+    wait_alive(&controller, &["secure"], Duration::from_secs(20));
+    wait_ready(&b);
+    let limit = Duration::from_secs(10);
+    let mine = "motorwire/secure/cmd/controller";
+    let theirs = "motorwire/secure/cmd/planner";
+
+    // The controller's command, on its own key.
+    let first = query_on(
+        &controller,
+        mine,
+        mine,
+        &move_line("elbow", 50.0, "d1"),
+        limit,
+    );
+    assert_eq!(first.len(), 2, "{first:?}");
+    assert_eq!(first[1]["arrived"], json!(true), "{first:?}");
+    assert_eq!(moves(&b.log), vec![50.0]);
+
+    // The planner's own d1, another command: it runs, not `id_reused`.
+    let planners = query_on(
+        &planner,
+        theirs,
+        theirs,
+        &move_line("elbow", 60.0, "d1"),
+        limit,
+    );
+    assert_eq!(planners.len(), 2, "{planners:?}");
+    assert_eq!(planners[0]["ok"], json!(true), "{planners:?}");
+    assert_eq!(moves(&b.log), vec![50.0, 60.0]);
+
+    // The planner cannot reach the controller's memory: not on its key
+    // (a retry of d1 would get the controller's replies, a new body would
+    // be refused naming the controller's command), not through a wildcard,
+    // not through the plain cmd under the controller's name. Nothing
+    // answers, nothing runs.
+    for selector in [
+        mine.to_owned(),
+        "motorwire/*/cmd/controller".to_owned(),
+        "motorwire/secure/cmd/*".to_owned(),
+        "motorwire/secure/cmd/**".to_owned(),
+        "motorwire/secure/cmd?controller=controller".to_owned(),
+        "motorwire/secure/**".to_owned(),
+    ] {
+        for body in [
+            move_line("elbow", 50.0, "d1"),
+            move_line("elbow", 70.0, "d1"),
+        ] {
+            let replies = planner
+                .get(&selector)
+                .payload(body)
+                .consolidation(ConsolidationMode::None)
+                .timeout(Duration::from_secs(2))
+                .wait()
+                .unwrap();
+            let got: Vec<String> = std::iter::from_fn(|| replies.recv().ok())
+                .map(|r| match r.result() {
+                    Ok(s) => s.payload().try_to_string().unwrap().into_owned(),
+                    Err(e) => format!("error reply {:?}", e.payload().try_to_string()),
+                })
+                .collect();
+            assert_eq!(got, Vec::<String>::new(), "{selector}");
+        }
+    }
+    thread::sleep(Duration::from_millis(300));
+    assert_eq!(moves(&b.log), vec![50.0, 60.0]);
+
+    // Each one's retry is answered from its own memory.
+    let again = query_on(
+        &controller,
+        mine,
+        mine,
+        &move_line("elbow", 50.0, "d1"),
+        limit,
+    );
+    assert_eq!(again, first);
+    let again = query_on(
+        &planner,
+        theirs,
+        theirs,
+        &move_line("elbow", 60.0, "d1"),
+        limit,
+    );
+    assert_eq!(again, planners);
+    assert_eq!(moves(&b.log), vec![50.0, 60.0]);
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -1208,7 +1506,7 @@ fn without_the_access_control_the_observer_could_move_a_joint() {
     wait_ready(&b);
     let (replies, tries) = query_to_completion(
         &observer,
-        "open",
+        "motorwire/open/cmd/controller",
         &move_line("elbow", 50.0, "observer"),
         Duration::from_secs(10),
     );

@@ -1,7 +1,9 @@
 //! The ids of recent commands, per controller: what makes a retried query
 //! answer with its first result instead of running again.
 
+use std::borrow::Borrow;
 use std::collections::{BTreeMap, HashMap};
+use std::hash::Hash;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -20,6 +22,30 @@ pub const CONTROLLERS: usize = 64;
 /// commands with ids are refused `busy`).
 pub const CONTROLLER_IDLE: Duration = Duration::from_secs(600);
 
+/// Whose ids a command's id is among: two namespaces that never meet, so a
+/// name in a selector parameter can never reach the ids of a controller
+/// the key expression names.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub(crate) enum Controller {
+    /// The controller the key expression names,
+    /// `motorwire/<robot>/cmd/<controller>`: with the router's access
+    /// control granting each controller's Zenoh user only its own chunk
+    /// (`config/router.json5`), the authenticated user.
+    Key(String),
+    /// What the controller says it is: the selector parameter `controller`
+    /// of a query on `motorwire/<robot>/cmd` (none is `""`).
+    Named(String),
+}
+
+impl std::fmt::Display for Controller {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Key(c) => write!(f, "the controller cmd/{c}"),
+            Self::Named(c) => write!(f, "the controller named {:?}", c),
+        }
+    }
+}
+
 /// What is remembered of one id.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) enum Recalled {
@@ -32,14 +58,14 @@ pub(crate) enum Recalled {
 
 /// A least-recently-used map with a bound.
 #[derive(Debug)]
-struct Lru<V> {
+struct Lru<K, V> {
     bound: usize,
     tick: u64,
-    entries: HashMap<String, (u64, V)>,
-    order: BTreeMap<u64, String>,
+    entries: HashMap<K, (u64, V)>,
+    order: BTreeMap<u64, K>,
 }
 
-impl<V> Lru<V> {
+impl<K: Hash + Eq + Clone, V> Lru<K, V> {
     fn new(bound: usize) -> Self {
         Self {
             bound: bound.max(1),
@@ -49,19 +75,24 @@ impl<V> Lru<V> {
         }
     }
 
-    fn get_mut(&mut self, key: &str) -> Option<&mut V> {
+    fn get_mut<Q>(&mut self, key: &Q) -> Option<&mut V>
+    where
+        K: Borrow<Q>,
+        Q: Hash + Eq + ?Sized,
+    {
         self.tick += 1;
         let tick = self.tick;
         let (used, value) = self.entries.get_mut(key)?;
-        self.order.remove(used);
+        if let Some(k) = self.order.remove(used) {
+            self.order.insert(tick, k);
+        }
         *used = tick;
-        self.order.insert(tick, key.to_owned());
         Some(value)
     }
 
-    fn insert(&mut self, key: &str, value: V) {
+    fn insert(&mut self, key: K, value: V) {
         self.tick += 1;
-        if let Some((used, _)) = self.entries.remove(key) {
+        if let Some((used, _)) = self.entries.remove(&key) {
             self.order.remove(&used);
         }
         while self.entries.len() >= self.bound {
@@ -70,15 +101,23 @@ impl<V> Lru<V> {
             };
             self.entries.remove(&oldest);
         }
-        self.entries.insert(key.to_owned(), (self.tick, value));
-        self.order.insert(self.tick, key.to_owned());
+        self.order.insert(self.tick, key.clone());
+        self.entries.insert(key, (self.tick, value));
     }
 
-    fn contains(&self, key: &str) -> bool {
+    fn contains<Q>(&self, key: &Q) -> bool
+    where
+        K: Borrow<Q>,
+        Q: Hash + Eq + ?Sized,
+    {
         self.entries.contains_key(key)
     }
 
-    fn remove(&mut self, key: &str) {
+    fn remove<Q>(&mut self, key: &Q)
+    where
+        K: Borrow<Q>,
+        Q: Hash + Eq + ?Sized,
+    {
         if let Some((used, _)) = self.entries.remove(key) {
             self.order.remove(&used);
         }
@@ -97,9 +136,9 @@ pub(crate) struct IdMemory {
     per_controller: usize,
     bound: usize,
     idle: Duration,
-    controllers: Lru<Lru<(Arc<str>, Recalled)>>,
+    controllers: Lru<Controller, Lru<String, (Arc<str>, Recalled)>>,
     /// When each remembered controller was last heard.
-    heard: HashMap<String, Instant>,
+    heard: HashMap<Controller, Instant>,
 }
 
 impl IdMemory {
@@ -118,9 +157,9 @@ impl IdMemory {
     /// when there is room, or when the least recently heard controller has
     /// been silent for the idle time (it is then forgotten whole). Never
     /// does a new controller push out one heard more recently.
-    pub(crate) fn admit(&mut self, controller: &str, now: Instant) -> bool {
+    pub(crate) fn admit(&mut self, controller: &Controller, now: Instant) -> bool {
         if self.controllers.contains(controller) {
-            self.heard.insert(controller.to_owned(), now);
+            self.heard.insert(controller.clone(), now);
             return true;
         }
         if self.heard.len() >= self.bound {
@@ -139,15 +178,19 @@ impl IdMemory {
             self.heard.remove(&oldest);
         }
         self.controllers
-            .insert(controller, Lru::new(self.per_controller));
-        self.heard.insert(controller.to_owned(), now);
+            .insert(controller.clone(), Lru::new(self.per_controller));
+        self.heard.insert(controller.clone(), now);
         true
     }
 
     /// What is remembered of `id` from `controller`: the body of the
     /// command it named, and where that command is (and it is now the most
     /// recently used).
-    pub(crate) fn recall(&mut self, controller: &str, id: &str) -> Option<(Arc<str>, Recalled)> {
+    pub(crate) fn recall(
+        &mut self,
+        controller: &Controller,
+        id: &str,
+    ) -> Option<(Arc<str>, Recalled)> {
         self.controllers
             .get_mut(controller)?
             .get_mut(id)
@@ -161,15 +204,21 @@ impl IdMemory {
 
     /// Remembers `id` from `controller` as the command `body`, now `what`
     /// (nothing when `controller` was not [`IdMemory::admit`]ted).
-    pub(crate) fn remember(&mut self, controller: &str, id: &str, body: Arc<str>, what: Recalled) {
+    pub(crate) fn remember(
+        &mut self,
+        controller: &Controller,
+        id: &str,
+        body: Arc<str>,
+        what: Recalled,
+    ) {
         if let Some(ids) = self.controllers.get_mut(controller) {
-            ids.insert(id, (body, what));
+            ids.insert(id.to_owned(), (body, what));
         }
     }
 
     /// Forgets `id` from `controller` (a line refused `busy`: its retry is
     /// a new try).
-    pub(crate) fn forget(&mut self, controller: &str, id: &str) {
+    pub(crate) fn forget(&mut self, controller: &Controller, id: &str) {
         if let Some(ids) = self.controllers.get_mut(controller) {
             ids.remove(id);
         }
@@ -177,7 +226,7 @@ impl IdMemory {
 
     /// How many ids are remembered for `controller`.
     #[cfg(test)]
-    fn ids_of(&mut self, controller: &str) -> usize {
+    fn ids_of(&mut self, controller: &Controller) -> usize {
         self.controllers
             .get_mut(controller)
             .map_or(0, |ids| ids.len())
@@ -188,6 +237,10 @@ impl IdMemory {
 mod tests {
     use super::*;
 
+    fn named(c: &str) -> Controller {
+        Controller::Named(c.to_owned())
+    }
+
     fn body() -> Arc<str> {
         Arc::from(r#"{"motor_id":"elbow"}"#)
     }
@@ -195,7 +248,7 @@ mod tests {
     /// `m` with `controllers` admitted now.
     fn admitted(mut m: IdMemory, controllers: &[&str]) -> IdMemory {
         for c in controllers {
-            assert!(m.admit(c, Instant::now()), "{c}");
+            assert!(m.admit(&named(c), Instant::now()), "{c}");
         }
         m
     }
@@ -207,39 +260,42 @@ mod tests {
     #[test]
     fn an_id_is_recalled_per_controller() {
         let mut m = admitted(IdMemory::new(4, 2, Duration::ZERO), &["a", "b"]);
-        m.remember("a", "1", body(), Recalled::InProgress(Origin(7)));
+        m.remember(&named("a"), "1", body(), Recalled::InProgress(Origin(7)));
         assert_eq!(
-            m.recall("a", "1"),
+            m.recall(&named("a"), "1"),
             Some((body(), Recalled::InProgress(Origin(7))))
         );
-        assert_eq!(m.recall("b", "1"), None);
-        m.remember("a", "1", body(), done("r"));
-        assert_eq!(m.recall("a", "1"), Some((body(), done("r"))));
-        m.forget("a", "1");
-        assert_eq!(m.recall("a", "1"), None);
+        assert_eq!(m.recall(&named("b"), "1"), None);
+        m.remember(&named("a"), "1", body(), done("r"));
+        assert_eq!(m.recall(&named("a"), "1"), Some((body(), done("r"))));
+        m.forget(&named("a"), "1");
+        assert_eq!(m.recall(&named("a"), "1"), None);
         // The body is remembered with the id.
-        m.remember("a", "2", Arc::from("{}"), done("r"));
-        assert_eq!(m.recall("a", "2"), Some((Arc::from("{}"), done("r"))));
+        m.remember(&named("a"), "2", Arc::from("{}"), done("r"));
+        assert_eq!(
+            m.recall(&named("a"), "2"),
+            Some((Arc::from("{}"), done("r")))
+        );
     }
 
     #[test]
     fn the_least_recently_used_id_goes_first_and_the_bound_holds() {
         let mut m = admitted(IdMemory::new(3, 2, Duration::ZERO), &["a"]);
         for id in ["1", "2", "3"] {
-            m.remember("a", id, body(), done(id));
+            m.remember(&named("a"), id, body(), done(id));
         }
         // "1" used again: "2" is now the oldest.
-        assert_eq!(m.recall("a", "1"), Some((body(), done("1"))));
-        m.remember("a", "4", body(), done("4"));
-        assert_eq!(m.ids_of("a"), 3);
-        assert_eq!(m.recall("a", "2"), None);
-        assert_eq!(m.recall("a", "1"), Some((body(), done("1"))));
-        assert_eq!(m.recall("a", "3"), Some((body(), done("3"))));
-        assert_eq!(m.recall("a", "4"), Some((body(), done("4"))));
+        assert_eq!(m.recall(&named("a"), "1"), Some((body(), done("1"))));
+        m.remember(&named("a"), "4", body(), done("4"));
+        assert_eq!(m.ids_of(&named("a")), 3);
+        assert_eq!(m.recall(&named("a"), "2"), None);
+        assert_eq!(m.recall(&named("a"), "1"), Some((body(), done("1"))));
+        assert_eq!(m.recall(&named("a"), "3"), Some((body(), done("3"))));
+        assert_eq!(m.recall(&named("a"), "4"), Some((body(), done("4"))));
         for n in 0..10_000 {
-            m.remember("a", &n.to_string(), body(), done("x"));
+            m.remember(&named("a"), &n.to_string(), body(), done("x"));
         }
-        assert_eq!(m.ids_of("a"), 3);
+        assert_eq!(m.ids_of(&named("a")), 3);
     }
 
     #[test]
@@ -247,31 +303,51 @@ mod tests {
         let t0 = Instant::now();
         let idle = Duration::from_secs(600);
         let mut m = IdMemory::new(3, 2, idle);
-        assert!(m.admit("a", t0));
-        m.remember("a", "1", body(), done("a1"));
-        assert!(m.admit("b", t0));
-        m.remember("b", "1", body(), done("b1"));
+        assert!(m.admit(&named("a"), t0));
+        m.remember(&named("a"), "1", body(), done("a1"));
+        assert!(m.admit(&named("b"), t0));
+        m.remember(&named("b"), "1", body(), done("b1"));
         // Full: 64 (here 2) invented names cannot push out a controller
         // heard within the idle time, however many come.
         for n in 0..100 {
-            assert!(!m.admit(&format!("invented-{n}"), t0 + Duration::from_secs(599)));
+            assert!(!m.admit(
+                &named(&format!("invented-{n}")),
+                t0 + Duration::from_secs(599)
+            ));
         }
-        assert_eq!(m.recall("a", "1"), Some((body(), done("a1"))));
-        assert_eq!(m.recall("b", "1"), Some((body(), done("b1"))));
+        assert_eq!(m.recall(&named("a"), "1"), Some((body(), done("a1"))));
+        assert_eq!(m.recall(&named("b"), "1"), Some((body(), done("b1"))));
         // A remembered controller is always admitted, and heard anew.
-        assert!(m.admit("a", t0 + Duration::from_secs(300)));
+        assert!(m.admit(&named("a"), t0 + Duration::from_secs(300)));
         // b, silent for the idle time, makes room; a, heard at 300 s, not
         // yet.
-        assert!(m.admit("c", t0 + Duration::from_secs(600)));
-        m.remember("c", "1", body(), done("c1"));
-        assert_eq!(m.recall("b", "1"), None);
-        assert_eq!(m.recall("a", "1"), Some((body(), done("a1"))));
-        assert!(!m.admit("d", t0 + Duration::from_secs(899)));
-        assert!(m.admit("d", t0 + Duration::from_secs(900)));
-        assert_eq!(m.recall("a", "1"), None);
-        assert_eq!(m.recall("c", "1"), Some((body(), done("c1"))));
+        assert!(m.admit(&named("c"), t0 + Duration::from_secs(600)));
+        m.remember(&named("c"), "1", body(), done("c1"));
+        assert_eq!(m.recall(&named("b"), "1"), None);
+        assert_eq!(m.recall(&named("a"), "1"), Some((body(), done("a1"))));
+        assert!(!m.admit(&named("d"), t0 + Duration::from_secs(899)));
+        assert!(m.admit(&named("d"), t0 + Duration::from_secs(900)));
+        assert_eq!(m.recall(&named("a"), "1"), None);
+        assert_eq!(m.recall(&named("c"), "1"), Some((body(), done("c1"))));
         // Nothing is remembered for a controller not admitted.
-        m.remember("e", "1", body(), done("e1"));
-        assert_eq!(m.recall("e", "1"), None);
+        m.remember(&named("e"), "1", body(), done("e1"));
+        assert_eq!(m.recall(&named("e"), "1"), None);
+    }
+
+    #[test]
+    fn a_name_in_a_parameter_never_reaches_the_ids_of_a_key_bound_controller() {
+        let mut m = IdMemory::new(4, 4, Duration::ZERO);
+        let bob = Controller::Key("bob".to_owned());
+        assert!(m.admit(&bob, Instant::now()));
+        m.remember(&bob, "s:d1", body(), done("bob's"));
+        // `?controller=bob` is another controller: it neither recalls nor
+        // overwrites nor forgets cmd/bob's ids.
+        assert!(m.admit(&named("bob"), Instant::now()));
+        assert_eq!(m.recall(&named("bob"), "s:d1"), None);
+        m.remember(&named("bob"), "s:d1", Arc::from("{}"), done("named"));
+        m.forget(&named("bob"), "s:d1");
+        assert_eq!(m.recall(&bob, "s:d1"), Some((body(), done("bob's"))));
+        assert_eq!(m.ids_of(&bob), 1);
+        assert_eq!(m.ids_of(&named("bob")), 0);
     }
 }

@@ -1,6 +1,7 @@
 //! The key expressions of a robot and of the fleet.
 
 use crate::ZenohError;
+use crate::ids::Controller;
 
 /// Where every bridge of the fleet listens for the fleet's emergency stop
 /// (a put, any payload).
@@ -48,6 +49,23 @@ impl RobotKeys {
         format!("motorwire/{}/cmd", self.robot)
     }
 
+    /// `motorwire/<robot>/cmd/<controller>`: the commands of one
+    /// controller, as queries (its ids are its own; with the router's
+    /// access control, only the user `controller` may query it).
+    ///
+    /// # Errors
+    /// Why `controller` cannot be one key-expression chunk.
+    pub fn cmd_of(&self, controller: &str) -> Result<String, &'static str> {
+        check_chunk(controller)?;
+        Ok(format!("motorwire/{}/cmd/{controller}", self.robot))
+    }
+
+    /// `motorwire/<robot>/cmd/**`: what the bridge's queryable serves
+    /// (`cmd` itself and every `cmd/<controller>`).
+    pub fn cmd_any(&self) -> String {
+        format!("motorwire/{}/cmd/**", self.robot)
+    }
+
     /// `motorwire/<robot>/estop`: this robot's emergency stop, as a put.
     pub fn estop(&self) -> String {
         format!("motorwire/{}/estop", self.robot)
@@ -87,6 +105,40 @@ impl RobotKeys {
     pub fn feedback(&self, motor_id: &str) -> Option<String> {
         check_chunk(motor_id).ok()?;
         Some(format!("motorwire/{}/feedback/{motor_id}", self.robot))
+    }
+}
+
+/// Whose command a query on `key` (with the selector parameter
+/// `controller`, when it has one) is: [`Controller::Key`] for
+/// `motorwire/<robot>/cmd/<controller>`, [`Controller::Named`] for
+/// `motorwire/<robot>/cmd` (the parameter, or `""`). The robot chunk may
+/// be a wildcard (the query reached this bridge); the controller chunk may
+/// not, nor may a query name its controller both ways.
+///
+/// # Errors
+/// Why the query names no one controller, for a person.
+pub(crate) fn controller_of(key: &str, parameter: Option<&str>) -> Result<Controller, String> {
+    let chunks: Vec<&str> = key.split('/').collect();
+    match chunks.as_slice() {
+        ["motorwire", robot, "cmd"] if *robot != "**" => {
+            Ok(Controller::Named(parameter.unwrap_or("").to_owned()))
+        }
+        ["motorwire", robot, "cmd", controller] if *robot != "**" => {
+            check_chunk(controller).map_err(|why| {
+                format!(
+                    "the controller chunk {controller:?} of the key {key}: {why}; a command is asked on motorwire/<robot>/cmd/<controller>, one controller by its name"
+                )
+            })?;
+            if parameter.is_some() {
+                return Err(format!(
+                    "the key {key} names the controller {controller:?} and the `controller` parameter names one too; name it once, by the key"
+                ));
+            }
+            Ok(Controller::Key((*controller).to_owned()))
+        }
+        _ => Err(format!(
+            "the key {key} names no one controller: a command is asked on motorwire/<robot>/cmd/<controller> (or motorwire/<robot>/cmd)"
+        )),
     }
 }
 
@@ -150,6 +202,69 @@ mod tests {
             Some("motorwire/arm-1/feedback/elbow")
         );
         assert_eq!(k.and_then(|k| k.feedback("a/b")), None);
+        assert_eq!(
+            k.map(|k| k.cmd_of("planner")),
+            Some(Ok("motorwire/arm-1/cmd/planner".to_owned()))
+        );
+        assert_eq!(
+            k.map(|k| k.cmd_of("*")),
+            Some(Err(
+                "a key-expression chunk cannot hold `/`, `*`, `$`, `?`, `#`, spaces or control characters"
+            ))
+        );
+        assert_eq!(
+            k.map(RobotKeys::cmd_any).as_deref(),
+            Some("motorwire/arm-1/cmd/**")
+        );
+    }
+
+    #[test]
+    fn a_query_names_one_controller_by_its_key_or_by_its_parameter() {
+        let key = |c: &str| Ok(Controller::Key(c.to_owned()));
+        let named = |c: &str| Ok(Controller::Named(c.to_owned()));
+        assert_eq!(controller_of("motorwire/arm/cmd/alice", None), key("alice"));
+        assert_eq!(controller_of("motorwire/*/cmd/alice", None), key("alice"));
+        assert_eq!(controller_of("motorwire/arm/cmd", None), named(""));
+        assert_eq!(
+            controller_of("motorwire/arm/cmd", Some("alice")),
+            named("alice")
+        );
+        assert_eq!(controller_of("motorwire/*/cmd", Some("")), named(""));
+        assert_eq!(
+            controller_of("motorwire/arm/cmd/alice", Some("bob")),
+            Err(
+                r#"the key motorwire/arm/cmd/alice names the controller "alice" and the `controller` parameter names one too; name it once, by the key"#
+                    .to_owned()
+            )
+        );
+        assert_eq!(
+            controller_of("motorwire/arm/cmd/*", None),
+            Err(
+                r#"the controller chunk "*" of the key motorwire/arm/cmd/*: a key-expression chunk cannot hold `/`, `*`, `$`, `?`, `#`, spaces or control characters; a command is asked on motorwire/<robot>/cmd/<controller>, one controller by its name"#
+                    .to_owned()
+            )
+        );
+        for wild in [
+            "motorwire/arm/cmd/**",
+            "motorwire/arm/cmd/a$*",
+            "motorwire/arm/cmd/@alice",
+            "motorwire/arm/cmd/alice/x",
+            "motorwire/arm/**",
+            "motorwire/**",
+            "motorwire/**/cmd",
+            "motorwire/**/cmd/alice",
+            "**",
+            "motorwire/arm/c*",
+        ] {
+            assert!(controller_of(wild, None).is_err(), "{wild} accepted");
+        }
+        assert_eq!(
+            controller_of("motorwire/**", None),
+            Err(
+                "the key motorwire/** names no one controller: a command is asked on motorwire/<robot>/cmd/<controller> (or motorwire/<robot>/cmd)"
+                    .to_owned()
+            )
+        );
     }
 
     #[test]

@@ -16,8 +16,10 @@ use zenoh::bytes::Encoding;
 use zenoh::query::Query;
 
 use crate::ZenohError;
-use crate::ids::{CONTROLLER_IDLE, CONTROLLERS, IDS_PER_CONTROLLER, IdMemory, Recalled};
-use crate::keys::{FLEET_ESTOP, RobotKeys};
+use crate::ids::{
+    CONTROLLER_IDLE, CONTROLLERS, Controller, IDS_PER_CONTROLLER, IdMemory, Recalled,
+};
+use crate::keys::{FLEET_ESTOP, RobotKeys, controller_of};
 
 /// The first origin of a command query; every query gets the next one.
 /// The line interface's origins (standard input 0, clients from 1) stay
@@ -378,7 +380,7 @@ async fn declare(
     ZenohError,
 > {
     let queryable = session
-        .declare_queryable(keys.cmd())
+        .declare_queryable(keys.cmd_any())
         .await
         .map_err(ZenohError::zenoh)?;
     let mut subscribers = Vec::new();
@@ -415,7 +417,7 @@ struct Pending {
     queries: Vec<Query>,
     /// `(controller, id, body)` when it carried an id (the id as the
     /// memory keys it: [`CommandId`]'s type and value).
-    id: Option<(String, String, Arc<str>)>,
+    id: Option<(Controller, String, Arc<str>)>,
     /// The replies so far.
     sent: Vec<Arc<str>>,
 }
@@ -919,14 +921,30 @@ impl State {
             .payload()
             .map(|p| p.to_bytes().into_owned())
             .unwrap_or_default();
-        let controller = q.parameters().get("controller").unwrap_or("").to_owned();
-        let command = if controller.len() > MAX_NAME {
-            Command::Refused {
-                reason: format!("the controller parameter is over {MAX_NAME} bytes"),
-                stop: asks_for_stop(&String::from_utf8_lossy(&payload)),
+        let parameter = q.parameters().get("controller");
+        let controller = match parameter {
+            Some(p) if p.len() > MAX_NAME => {
+                Err(format!("the controller parameter is over {MAX_NAME} bytes"))
             }
-        } else {
-            command(&payload)
+            _ => controller_of(q.key_expr().as_str(), parameter),
+        };
+        let (command, controller) = match controller {
+            Ok(c) => (command(&payload), c),
+            // A query that names no one controller is refused here, nothing
+            // sent; when it names a stop, it stops (the bridge refuses it
+            // as a line and stops). A refused query has no id: the
+            // controller here keys nothing.
+            Err(reason) => {
+                if !asks_for_stop(&String::from_utf8_lossy(&payload)) {
+                    let text = refusal(ErrorKind::Invalid, format!("{reason}; nothing was sent"));
+                    self.reply(&q, &text).await;
+                    return;
+                }
+                (
+                    Command::Refused { reason, stop: true },
+                    Controller::Named(String::new()),
+                )
+            }
         };
         if let Command::Line {
             id: Some(keyed), ..
@@ -1020,10 +1038,19 @@ impl State {
         }
     }
 
+    /// Replies `line` to `q`, on the robot's own key of the controller the
+    /// query names (`motorwire/<robot>/cmd` or `.../cmd/<controller>`), or
+    /// on the query's own key when it names no one controller.
     async fn reply(&self, q: &Query, line: &str) {
         let line = signed(line, &self.robot, &self.bridge);
+        let key = match controller_of(q.key_expr().as_str(), None) {
+            Ok(Controller::Key(c)) => self.keys.cmd_of(&c).ok(),
+            Ok(Controller::Named(_)) => Some(self.keys.cmd()),
+            Err(_) => None,
+        }
+        .unwrap_or_else(|| q.key_expr().to_string());
         let _ = q
-            .reply(self.keys.cmd(), line)
+            .reply(key, line)
             .encoding(Encoding::APPLICATION_JSON)
             .await;
     }
