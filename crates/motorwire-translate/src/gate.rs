@@ -24,7 +24,7 @@ pub enum Refusal {
         field: &'static str,
     },
     /// A value outside a limit.
-    #[error("{motor}: {field} {value} is outside {limit} {bound}")]
+    #[error("{motor}: {field} {value} is outside {limit} ({limit_source}) {bound}")]
     OutsideLimit {
         /// The motor.
         motor: String,
@@ -32,9 +32,11 @@ pub enum Refusal {
         field: &'static str,
         /// The value.
         value: f64,
-        /// The limit broken (`max_position`, `max_velocity` ...), with where
-        /// it came from.
-        limit: String,
+        /// The limit broken (`max_position`, `max_velocity` ...).
+        limit: &'static str,
+        /// Where the limit came from ([`Bound::source`]: `bus map`, a
+        /// SafetyLimits line, `command`, `Orion range`).
+        limit_source: &'static str,
         /// The limit's value.
         bound: f64,
     },
@@ -100,7 +102,7 @@ pub enum Refusal {
     /// of the overshoot (at least three), and the time to the millisecond;
     /// the fields keep them in full.
     #[error(
-        "{motor}: {}the planned path reaches {} past {limit} {bound} by {} ({} s into the move)",
+        "{motor}: {}the planned path reaches {} past {limit} ({limit_source}) {bound} by {} ({} s into the move)",
         in_segment(*.segment),
         shown(*.extreme, *.overshoot),
         shown(*.overshoot, *.overshoot),
@@ -113,9 +115,10 @@ pub enum Refusal {
         /// counted from 0 (the index in the slice of segments); `None` for
         /// a single move.
         segment: Option<usize>,
-        /// The limit passed (`min_position` or `max_position`), with where
-        /// it came from.
-        limit: String,
+        /// The limit passed (`min_position` or `max_position`).
+        limit: &'static str,
+        /// Where the limit came from ([`Bound::source`]).
+        limit_source: &'static str,
         /// The limit's value.
         bound: f64,
         /// The lowest (for `min_position`) or highest (for `max_position`)
@@ -165,6 +168,98 @@ impl Refusal {
             Self::Infeasible { .. } => "infeasible",
             Self::PathOutsideLimit { .. } => "path_outside_limit",
             Self::Unplannable { .. } => "unplannable",
+        }
+    }
+}
+
+/// What a [`Refusal`] names, as values, for a program to read beside its
+/// message ([`Refusal::detail`]): each member is there where the refusal
+/// has it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[non_exhaustive]
+pub struct RefusalDetail<'a> {
+    /// The motor.
+    pub motor: Option<&'a str>,
+    /// The command's field (`setpoint`, `velocity_limit` ...).
+    pub field: Option<&'static str>,
+    /// The field's value, or the position the path reaches.
+    pub value: Option<f64>,
+    /// The limit's name (`max_position` ...).
+    pub limit: Option<&'static str>,
+    /// The limit's value.
+    pub bound: Option<f64>,
+    /// Where the limit came from ([`Bound::source`]).
+    pub source: Option<&'static str>,
+}
+
+impl Refusal {
+    /// What the refusal names, as values.
+    ///
+    /// ```
+    /// use motorwire_translate::Refusal;
+    /// let r = Refusal::OutsideLimit {
+    ///     motor: "elbow".into(), field: "setpoint", value: 170.0,
+    ///     limit: "max_position", limit_source: "bus map", bound: 150.0,
+    /// };
+    /// let d = r.detail();
+    /// assert_eq!((d.field, d.value, d.limit, d.bound, d.source),
+    ///            (Some("setpoint"), Some(170.0), Some("max_position"), Some(150.0), Some("bus map")));
+    /// assert_eq!(r.to_string(), "elbow: setpoint 170 is outside max_position (bus map) 150");
+    /// ```
+    pub fn detail(&self) -> RefusalDetail<'_> {
+        fn of(motor: &str) -> RefusalDetail<'_> {
+            RefusalDetail {
+                motor: Some(motor),
+                ..RefusalDetail::default()
+            }
+        }
+        match self {
+            Self::UnknownMotor { motor }
+            | Self::ModeNotExpressible { motor, .. }
+            | Self::UnknownPosition { motor }
+            | Self::Infeasible { motor, .. }
+            | Self::Unplannable { motor, .. } => of(motor),
+            Self::NonFinite { motor, field } | Self::NotRepresentable { motor, field, .. } => {
+                RefusalDetail {
+                    field: Some(field),
+                    ..of(motor)
+                }
+            }
+            Self::MissingLimit { motor, field, .. } => RefusalDetail {
+                limit: Some(field),
+                ..of(motor)
+            },
+            Self::OutsideLimit {
+                motor,
+                field,
+                value,
+                limit,
+                limit_source,
+                bound,
+            } => RefusalDetail {
+                field: Some(field),
+                value: Some(*value),
+                limit: Some(limit),
+                bound: Some(*bound),
+                source: Some(limit_source),
+                ..of(motor)
+            },
+            Self::PathOutsideLimit {
+                motor,
+                limit,
+                limit_source,
+                bound,
+                extreme,
+                ..
+            } => RefusalDetail {
+                field: Some("path"),
+                value: Some(*extreme),
+                limit: Some(limit),
+                bound: Some(*bound),
+                source: Some(limit_source),
+                ..of(motor)
+            },
+            Self::Unsynchronizable { .. } => RefusalDetail::default(),
         }
     }
 }
@@ -315,12 +410,13 @@ impl Effective {
     }
 }
 
-fn outside(motor: &str, field: &'static str, value: f64, name: &str, b: Bound) -> Refusal {
+fn outside(motor: &str, field: &'static str, value: f64, name: &'static str, b: Bound) -> Refusal {
     Refusal::OutsideLimit {
         motor: motor.to_owned(),
         field,
         value,
-        limit: format!("{name} ({})", b.source),
+        limit: name,
+        limit_source: b.source,
         bound: b.value,
     }
 }

@@ -16,7 +16,7 @@ pub use command::{
 };
 pub use feedback::{FeedbackError, feedback_from_irpc, feedback_from_orion};
 pub use frames::{IrpcFrame, irpc_frames};
-pub use gate::{Bound, Effective, Refusal, gate};
+pub use gate::{Bound, Effective, Refusal, RefusalDetail, gate};
 pub use map::{AngleUnit, BusMap, Limits, MapError, MappedMotor, Target};
 pub use path::{PathExtent, check_path, check_trajectory};
 /// [`Report`] (what a translation lost or filled in) under a name that

@@ -217,10 +217,11 @@ fn check_segment(
     let e = profile.position_extrema();
     let start = unit.from_degrees(position);
     let (lowest, highest) = (unit.from_degrees(e.min), unit.from_degrees(e.max));
-    let past = |name: &str, b: Bound, extreme: f64, at: f64| Refusal::PathOutsideLimit {
+    let past = |name: &'static str, b: Bound, extreme: f64, at: f64| Refusal::PathOutsideLimit {
         motor: motor.name.clone(),
         segment,
-        limit: format!("{name} ({})", b.source),
+        limit: name,
+        limit_source: b.source,
         bound: b.value,
         extreme,
         overshoot: (extreme - b.value).abs(),

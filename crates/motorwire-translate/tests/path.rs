@@ -86,10 +86,11 @@ fn sampled_at(profile: &Profile<f64>, n: u32) -> ((f64, f64), (f64, f64)) {
         )
 }
 
-fn outside(r: &Refusal) -> (Option<usize>, &str, f64, f64, f64, f64) {
+fn outside(r: &Refusal) -> (Option<usize>, String, f64, f64, f64, f64) {
     let Refusal::PathOutsideLimit {
         segment,
         limit,
+        limit_source,
         bound,
         extreme,
         overshoot,
@@ -99,7 +100,14 @@ fn outside(r: &Refusal) -> (Option<usize>, &str, f64, f64, f64, f64) {
     else {
         panic!("not PathOutsideLimit: {r:?}")
     };
-    (*segment, limit.as_str(), *bound, *extreme, *overshoot, *at)
+    (
+        *segment,
+        format!("{limit} ({limit_source})"),
+        *bound,
+        *extreme,
+        *overshoot,
+        *at,
+    )
 }
 
 #[test]
@@ -117,7 +125,7 @@ fn an_s_curve_too_fast_to_brake_passes_max_position_and_is_refused() {
     assert!((extreme - highest).abs() < 1e-9, "{extreme} vs {highest}");
     assert!((overshoot - (highest - 150.0)).abs() < 1e-9, "{overshoot}");
     assert_eq!(
-        (segment, limit, bound),
+        (segment, limit.as_str(), bound),
         (None, "max_position (bus map)", 150.0)
     );
     assert!((at - highest_at).abs() < 1e-5, "{at} vs {highest_at}");
@@ -151,7 +159,7 @@ fn a_trapezoid_passes_max_position_by_exactly_its_braking_distance() {
     // v/d = 0.25 s: the path turns at 152.5°.
     let err = check_path(&wrist, &limits, &p, 140.0, 100.0).unwrap_err();
     let (_, limit, bound, extreme, overshoot, at) = outside(&err);
-    assert_eq!((limit, bound), ("max_position (bus map)", 150.0));
+    assert_eq!((limit.as_str(), bound), ("max_position (bus map)", 150.0));
     assert!((extreme - 152.5).abs() < 1e-12, "{extreme}");
     assert!((overshoot - 2.5).abs() < 1e-12, "{overshoot}");
     assert!((at - 0.25).abs() < 1e-12, "{at}");
@@ -179,7 +187,7 @@ fn a_path_below_min_position_names_the_commands_own_limit() {
     let (lowest, _) = sampled(&joint_plan(&p, 25.0, -100.0), 400_000);
     assert!((extreme - lowest).abs() < 1e-9, "{extreme} vs {lowest}");
     assert!((overshoot - (10.0 - lowest)).abs() < 1e-9, "{overshoot}");
-    assert_eq!((limit, bound), ("min_position (command)", 10.0));
+    assert_eq!((limit.as_str(), bound), ("min_position (command)", 10.0));
     assert_eq!(
         err.to_string(),
         "elbow: the planned path reaches 3.167 past min_position (command) 10 by 6.833 (0.35 s into the move)"
@@ -287,7 +295,7 @@ fn a_radian_motors_path_is_checked_and_reported_in_radians() {
         "{extreme}"
     );
     assert!((overshoot - (extreme - 2.5)).abs() < 1e-12);
-    assert_eq!((limit, bound), ("max_position (bus map)", 2.5));
+    assert_eq!((limit.as_str(), bound), ("max_position (bus map)", 2.5));
     assert_eq!(
         err.to_string(),
         "forearm: the planned path reaches 2.637 past max_position (bus map) 2.5 by 0.137 (0.35 s into the move)"
@@ -400,20 +408,20 @@ mod path_property {
                     prop_assert!(hi <= 150.0 + margin(150.0), "sampled {hi} above 150");
                     prop_assert!(path.lowest <= lo + 1e-9 && path.highest >= hi - 1e-9);
                 }
-                Err(Refusal::PathOutsideLimit { limit, bound, extreme, overshoot, at, .. }) => {
+                Err(Refusal::PathOutsideLimit { limit, limit_source, bound, extreme, overshoot, at, .. }) => {
                     // Near a turn the velocity is 0 and grows at most with the
                     // peak acceleration: the nearest of samples dt apart lies
                     // within a·dt²/8 of the extreme.
                     let dt = profile.duration() / 1000.0;
                     let miss = profile.peak_acceleration() * dt * dt / 8.0 + 1e-9;
                     prop_assert!((profile.sample(at).position - extreme).abs() < 1e-9);
-                    if limit == "max_position (bus map)" {
+                    if (limit, limit_source) == ("max_position", "bus map") {
                         prop_assert_eq!(bound, 150.0);
                         prop_assert!(extreme > 150.0 + margin(150.0));
                         prop_assert!(extreme >= hi - 1e-9 && extreme - hi <= miss, "{extreme} vs {hi}");
                         prop_assert!((overshoot - (extreme - 150.0)).abs() < 1e-12);
                     } else {
-                        prop_assert_eq!((limit.as_str(), bound), ("min_position (bus map)", 0.0));
+                        prop_assert_eq!((limit, limit_source, bound), ("min_position", "bus map", 0.0));
                         prop_assert!(extreme < -margin(0.0));
                         prop_assert!(extreme <= lo + 1e-9 && lo - extreme <= miss, "{extreme} vs {lo}");
                         prop_assert!((overshoot + extreme).abs() < 1e-12);

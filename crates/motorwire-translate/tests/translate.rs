@@ -314,7 +314,8 @@ fn the_gate_refuses_naming_limit_and_value() {
             motor: "elbow".into(),
             field: "setpoint",
             value: 151.0,
-            limit: "max_position (bus map)".into(),
+            limit: "max_position",
+            limit_source: "bus map",
             bound: 150.0
         }
     );
