@@ -152,7 +152,7 @@ mod tests {
     /// The output, exactly.
     const EXPECTED: &str = r##"  100 ms  {"ok":true,"line":1,"motor_id":"elbow","acked":["elbow"],"arrival_follows":true,"latency_us":0,"ack_us":0,"losses":["max_velocity: defaulted: 120 from the bus map","max_acceleration: defaulted: 500 from the bus map","max_deceleration: defaulted: 500, the max_acceleration from the bus map (the bus map gives no max_deceleration)","max_jerk: defaulted: 2000 from the bus map"]}
  1060 ms  {"arrived":true,"line":1,"motor_id":"elbow","after_ms":960,"motors":[{"motor_id":"elbow","arrived":true,"target":60.0,"error":0.008907318,"after_ms":960}]}
- 2000 ms  {"ok":false,"line":2,"motor_id":"elbow","error":{"kind":"refused","message":"elbow: setpoint 170 is outside max_position (bus map) 150"}}
+ 2000 ms  {"ok":false,"line":2,"motor_id":"elbow","error":{"kind":"refused","rule":"outside_limit","message":"elbow: setpoint 170 is outside max_position (bus map) 150","motor":"elbow","field":"setpoint","value":170.0,"limit":150.0,"limit_name":"max_position","limit_source":"bus map"}}
  2100 ms  {"ok":true,"line":3,"motor_id":"elbow","acked":["elbow"],"arrival_follows":true,"latency_us":0,"ack_us":0,"losses":["max_acceleration: defaulted: 500 from the bus map","max_deceleration: defaulted: 500, the max_acceleration from the bus map (the bus map gives no max_deceleration)","max_jerk: defaulted: 2000 from the bus map"]}
  2860 ms  {"arrived":true,"line":3,"motor_id":"elbow","after_ms":760,"motors":[{"motor_id":"elbow","arrived":true,"target":30.0,"error":0.0040416718,"after_ms":760}]}
 finished at 5000 ms; the joint is at 30.000 deg, Inactive

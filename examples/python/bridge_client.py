@@ -111,9 +111,15 @@ def session(bridge):
     # Outside the bus map's max_position 150: refused before any frame.
     line = bridge.send(command("elbow", 170))
     result = bridge.wait_for(line, "ok")
-    check(result["ok"] is False and result["error"]["kind"] == "refused"
-          and result["error"]["message"] == "elbow: setpoint 170 is outside max_position (bus map) 150",
-          "elbow to 170 refused", result)
+    # A refusal names its rule and the values it broke, for a program to
+    # match on; the message is for a person.
+    error = result.get("error", {})
+    check(result["ok"] is False and error.get("kind") == "refused"
+          and error.get("rule") == "outside_limit"
+          and (error.get("field"), error.get("value"), error.get("limit"), error.get("limit_name"), error.get("limit_source"))
+          == ("setpoint", 170.0, 150.0, "max_position", "bus map")
+          and error.get("message") == "elbow: setpoint 170 is outside max_position (bus map) 150",
+          "elbow to 170 refused: outside_limit, max_position 150 from the bus map", result)
 
     # And back.
     line = bridge.send(command("elbow", 0))

@@ -50,8 +50,8 @@ use crate::device::compact::{self, CompactDriver};
 use crate::job::{Axis, AxisState, Cycle, Job, JobKind, Order, OrionOrder, Rider};
 use crate::joints::{CompactLink, Joint, StepRef, Unresolved};
 use crate::output::{
-    ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output, StepOutcome,
-    StepReport,
+    BridgeRule, ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output,
+    StepOutcome, StepReport,
 };
 
 /// How a [`Bridge`] behaves.
@@ -893,8 +893,8 @@ impl Bridge {
         // A start_time so far ahead that no clock reaches it (1e300) is
         // refused, never a panic.
         let Ok(delay) = Duration::try_from_secs_f64(((start_ms - now_ms) / 1000.0).max(0.0)) else {
-            let e = ErrorBody::new(
-                ErrorKind::Refused,
+            let e = ErrorBody::refused(
+                BridgeRule::TimeUnreachable,
                 format!("timing.start_time {start_ms} is beyond any time the bridge can wait for"),
             );
             self.refuse(origin, number, label, e);
@@ -906,8 +906,8 @@ impl Bridge {
         let mut seen = std::collections::BTreeSet::new();
         for t in all {
             if !seen.insert(t.motor_id.as_str()) {
-                let e = ErrorBody::new(
-                    ErrorKind::Refused,
+                let e = ErrorBody::refused(
+                    BridgeRule::MotorTwice,
                     format!("{} has two trajectories in one line", t.motor_id),
                 );
                 self.refuse(origin, number, label, e);
@@ -916,14 +916,14 @@ impl Bridge {
             let plan = match trajectory_to_irpc(&self.map, t) {
                 Ok(p) => p,
                 Err(r) => {
-                    let e = ErrorBody::new(ErrorKind::Refused, r.to_string());
+                    let e = ErrorBody::gate(&r);
                     self.refuse(origin, number, label, e);
                     return;
                 }
             };
             let Some(ji) = self.joint_index(&t.motor_id) else {
-                let e = ErrorBody::new(
-                    ErrorKind::Refused,
+                let e = ErrorBody::refused(
+                    BridgeRule::NotAnIrpcJoint,
                     format!("{} is not an iRPC joint", t.motor_id),
                 );
                 self.refuse(origin, number, label, e);
@@ -945,8 +945,8 @@ impl Bridge {
                     || "at an unknown position".to_owned(),
                     |p| format!("at {}", short_unit(unit.from_degrees(p))),
                 );
-                let e = ErrorBody::new(
-                    ErrorKind::Refused,
+                let e = ErrorBody::refused(
+                    BridgeRule::NotAtStart,
                     format!(
                         "{}: the trajectory starts at {} and the joint is {at}: move it there first",
                         t.motor_id,
@@ -966,8 +966,8 @@ impl Bridge {
             let timeable = |secs: f64| Duration::try_from_secs_f64(secs.max(0.0)).is_ok();
             if !plan.value.segments.iter().all(|s| timeable(s.at)) || !timeable(plan.value.duration)
             {
-                let e = ErrorBody::new(
-                    ErrorKind::Refused,
+                let e = ErrorBody::refused(
+                    BridgeRule::TimeUnreachable,
                     format!(
                         "{}: a waypoint's time is beyond any time the bridge can wait for",
                         t.motor_id
@@ -1195,10 +1195,11 @@ impl Bridge {
     fn query_limits(&mut self, origin: Origin, number: u64, motor: &str) {
         let label = Some(("motor_id", motor.to_owned()));
         let Some(limits) = self.limits_value(motor) else {
-            let e = ErrorBody::new(
-                ErrorKind::Refused,
+            let e = ErrorBody::refused(
+                BridgeRule::UnknownMotor,
                 format!("motor {motor:?} is not in the bus map"),
-            );
+            )
+            .about(motor);
             self.refuse(origin, number, label, e);
             return;
         };
@@ -1218,10 +1219,11 @@ impl Bridge {
         let name = l.motor_id.clone();
         let label = Some(("motor_id", name.clone()));
         let Some(base) = self.base_limits.get(&name).copied() else {
-            let e = ErrorBody::new(
-                ErrorKind::Refused,
+            let e = ErrorBody::refused(
+                BridgeRule::UnknownMotor,
                 format!("motor {name:?} is not in the bus map"),
-            );
+            )
+            .about(&name);
             self.refuse(origin, number, label, e);
             return;
         };
@@ -1290,7 +1292,7 @@ impl Bridge {
             "max_torque",
         );
         if !wider.is_empty() {
-            let e = ErrorBody::new(ErrorKind::Refused, wider.join("; "));
+            let e = ErrorBody::refused(BridgeRule::WiderThanBusMap, wider.join("; ")).about(&name);
             self.refuse(origin, number, label, e);
             return;
         }
@@ -1304,8 +1306,8 @@ impl Bridge {
             .joint_index(&name)
             .and_then(|ji| self.motion_outside(ji, lo, hi, v.max_velocity))
         {
-            let e = ErrorBody::new(
-                ErrorKind::Refused,
+            let e = ErrorBody::refused(
+                BridgeRule::MotionOutsideNewLimits,
                 format!(
                     "{name}: {why}, which these limits would not allow; send them once it has ended, or stop it first"
                 ),
@@ -1575,31 +1577,22 @@ impl Bridge {
         match to_irpc(&self.map, cmd) {
             Ok(t) => {
                 let Some(joint) = self.joint_index(&cmd.motor_id) else {
-                    let e = ErrorBody::new(
-                        ErrorKind::Refused,
+                    let e = ErrorBody::refused(
+                        BridgeRule::NotAnIrpcJoint,
                         format!("{} is not an iRPC joint of the bus map", cmd.motor_id),
-                    );
+                    )
+                    .about(cmd.motor_id.clone());
                     self.refuse(origin, number, label, e);
                     return;
                 };
                 if let Err(r) = self.path_within_limits(joint, cmd, &t.value.payloads) {
-                    self.refuse(
-                        origin,
-                        number,
-                        label,
-                        ErrorBody::new(ErrorKind::Refused, r.to_string()),
-                    );
+                    self.refuse(origin, number, label, ErrorBody::gate(&r));
                     return;
                 }
                 let axes = vec![Axis::new(cmd.motor_id.clone(), joint, t.value.payloads)];
                 self.command_job(now, origin, number, label, axes, t.report);
             }
-            Err(r) => self.refuse(
-                origin,
-                number,
-                label,
-                ErrorBody::new(ErrorKind::Refused, r.to_string()),
-            ),
+            Err(r) => self.refuse(origin, number, label, ErrorBody::gate(&r)),
         }
     }
 
@@ -1648,8 +1641,8 @@ impl Bridge {
                 .zip(&cmd.motors)
                 .find(|(ax, _)| ax.target.is_none())
             {
-                let e = ErrorBody::new(
-                    ErrorKind::Refused,
+                let e = ErrorBody::refused(
+                    BridgeRule::SequentialWithoutArrival,
                     format!(
                         "{}: sync_mode sequential runs position moves one after another, each once the one before arrived; a {} command has no arrival to wait for",
                         a.motor,
@@ -1702,15 +1695,15 @@ impl Bridge {
         match built {
             Ok((axis, report)) => self.command_job(now, origin, number, label, vec![axis], report),
             Err(r) => {
-                let e = ErrorBody::new(ErrorKind::Refused, r.to_string());
+                let e = ErrorBody::gate(&r);
                 self.refuse(origin, number, label, e);
             }
         }
     }
 
     fn mixed_axes(&self, cmd: &MultiAxisCommand) -> Result<(Vec<Axis>, Report), ErrorBody> {
-        let refused = |motor: &str, why: String| {
-            ErrorBody::new(ErrorKind::Refused, why).about(motor.to_owned())
+        let refused = |motor: &str, r: &motorwire_translate::Refusal| {
+            ErrorBody::gate(r).about(motor.to_owned())
         };
         let mut report = Report::default();
         // The iRPC joints' axes, planned together.
@@ -1728,8 +1721,8 @@ impl Bridge {
                 let j = self.joints.get(self.joint_index(m)?)?;
                 j.feedback.as_ref().map(|f| f.position)
             };
-            let t = multi_axis_to_irpc(&self.map, &sub, &position)
-                .map_err(|r| ErrorBody::new(ErrorKind::Refused, r.to_string()))?;
+            let t =
+                multi_axis_to_irpc(&self.map, &sub, &position).map_err(|r| ErrorBody::gate(&r))?;
             irpc = t.value.commands.into_iter().map(|c| c.payloads).collect();
             report.losses.extend(t.report.losses);
         }
@@ -1738,10 +1731,11 @@ impl Bridge {
         let mut others = false;
         for a in &cmd.motors {
             let Some(ji) = self.joint_index(&a.motor_id) else {
-                return Err(refused(
-                    &a.motor_id,
+                return Err(ErrorBody::refused(
+                    BridgeRule::UnknownMotor,
                     format!("{} is not a device of the bus map", a.motor_id),
-                ));
+                )
+                .about(a.motor_id.clone()));
             };
             let single = a.to_motor_command(cmd.timestamp);
             let prefixed = |r: Report| {
@@ -1753,14 +1747,14 @@ impl Bridge {
             if self.joints.get(ji).is_some_and(|j| j.compact.is_some()) {
                 let (axis, r) = self
                     .compact_axis(ji, &single)
-                    .map_err(|r| refused(&a.motor_id, r.to_string()))?;
+                    .map_err(|r| refused(&a.motor_id, &r))?;
                 report.losses.extend(prefixed(r));
                 axes.push(axis);
                 others = true;
             } else if self.is_orion(ji) {
                 let (axis, r) = self
                     .orion_axis(ji, &single)
-                    .map_err(|r| refused(&a.motor_id, r.to_string()))?;
+                    .map_err(|r| refused(&a.motor_id, &r))?;
                 report.losses.extend(prefixed(r));
                 axes.push(axis);
                 others = true;

@@ -19,8 +19,8 @@ pub use error::BridgeError;
 /// The WIA crate whose [`motorwire_wia::Validator`] [`classify`] takes.
 pub use motorwire_wia;
 pub use output::{
-    ArrivalLine, ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, MotorArrival,
-    Origin, Output, StepOutcome, StepReport,
+    ArrivalLine, BridgeRule, Broke, ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult,
+    MotorArrival, Origin, Output, StepOutcome, StepReport, rules,
 };
 pub use runtime::{
     InputSender, MAX_LINE, MAX_ORION_LINES_PER_S, MAX_ORION_QUEUED, MAX_QUEUED_PER_ORIGIN,

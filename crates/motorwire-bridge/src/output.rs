@@ -179,29 +179,121 @@ pub struct LineResult {
     pub limits: Option<Value>,
 }
 
-/// Why a line was not done.
+/// Why a line was not done: its kind, the rule it broke (a stable name a
+/// program can match on), a message for a person and, where the rule is
+/// about a value, that value and the limit it broke as JSON values.
+///
+/// ```
+/// use motorwire_bridge::{ErrorBody, ErrorKind};
+/// let e = ErrorBody::new(ErrorKind::Busy, "64 lines are in progress");
+/// assert_eq!(e.rule, "busy");
+/// assert_eq!(
+///     serde_json::to_string(&e)?,
+///     r#"{"kind":"busy","rule":"busy","message":"64 lines are in progress"}"#
+/// );
+/// # Ok::<(), serde_json::Error>(())
+/// ```
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ErrorBody {
     /// What kind of failure.
     pub kind: ErrorKind,
+    /// The rule broken, one of [`rules`]: the gate's
+    /// ([`motorwire_translate::Refusal::rule`]) or the bridge's own
+    /// ([`BridgeRule`]) for `refused`, the kind's own name
+    /// ([`ErrorKind::name`]) for every other kind.
+    pub rule: &'static str,
     /// Said for a person.
     pub message: String,
     /// The motor it concerns, when one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub motor: Option<String>,
+    /// The value and the limit the rule is about, where it names them
+    /// (their members are the error's own in the JSON).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub broke: Option<Box<Broke>>,
     /// Every WIA violation, for `invalid`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub violations: Option<Value>,
 }
 
+/// The value a refusal names and the limit it broke: `error.field`,
+/// `value`, `limit`, `limit_name`, `limit_source`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Broke {
+    /// The member of the line the rule is about (`setpoint`,
+    /// `velocity_limit`, `path` for a planned path).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub field: Option<&'static str>,
+    /// Its value (for `path`, the farthest position the path reaches), in
+    /// the motor's unit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub value: Option<f64>,
+    /// The limit's value, in the motor's unit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub limit: Option<f64>,
+    /// The limit's name (`max_position`, `max_velocity`, ...).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub limit_name: Option<&'static str>,
+    /// Where the limit came from: `bus map`, `the SafetyLimits line in
+    /// force`, `command` (its own `safety_limits`), `Orion range`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub limit_source: Option<&'static str>,
+}
+
 impl ErrorBody {
-    /// An error of `kind` saying `message`.
+    /// An error of `kind` saying `message`, its rule the kind's name. A
+    /// `refused` error names its rule: [`ErrorBody::gate`] or
+    /// [`ErrorBody::refused`].
     pub fn new(kind: ErrorKind, message: impl Into<String>) -> Self {
         Self {
             kind,
+            rule: kind.name(),
             message: message.into(),
             motor: None,
+            broke: None,
             violations: None,
+        }
+    }
+
+    /// A line refused by the bridge's own rule `rule`.
+    pub fn refused(rule: BridgeRule, message: impl Into<String>) -> Self {
+        Self {
+            rule: rule.name(),
+            ..Self::new(ErrorKind::Refused, message)
+        }
+    }
+
+    /// A line refused by the gate (or the planner, or translation): its
+    /// rule, its message and the values it names.
+    ///
+    /// ```
+    /// use motorwire_bridge::ErrorBody;
+    /// use motorwire_translate::Refusal;
+    /// let r = Refusal::OutsideLimit {
+    ///     motor: "elbow".into(), field: "setpoint", value: 170.0,
+    ///     limit: "max_position", limit_source: "bus map", bound: 150.0,
+    /// };
+    /// assert_eq!(
+    ///     serde_json::to_string(&ErrorBody::gate(&r))?,
+    ///     r#"{"kind":"refused","rule":"outside_limit","message":"elbow: setpoint 170 is outside max_position (bus map) 150","motor":"elbow","field":"setpoint","value":170.0,"limit":150.0,"limit_name":"max_position","limit_source":"bus map"}"#
+    /// );
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    pub fn gate(r: &motorwire_translate::Refusal) -> Self {
+        let d = r.detail();
+        let broke = Broke {
+            field: d.field,
+            value: d.value,
+            limit: d.bound,
+            limit_name: d.limit,
+            limit_source: d.source,
+        };
+        let named = broke.field.is_some() || broke.limit_name.is_some();
+        Self {
+            rule: r.rule(),
+            motor: d.motor.map(str::to_owned),
+            broke: named.then(|| Box::new(broke)),
+            ..Self::new(ErrorKind::Refused, r.to_string())
         }
     }
 
@@ -272,6 +364,146 @@ pub enum ErrorKind {
     /// named another command: refused, nothing was sent. A retry must carry
     /// the same command as the first try.
     IdReused,
+}
+
+impl ErrorKind {
+    /// Every kind, in the order of the variants.
+    pub const ALL: [Self; 21] = [
+        Self::Invalid,
+        Self::UnsupportedKind,
+        Self::Unsupported,
+        Self::Refused,
+        Self::Offline,
+        Self::EmergencyStopLatched,
+        Self::NotLatched,
+        Self::NeedsReset,
+        Self::InvalidRelease,
+        Self::ShuttingDown,
+        Self::Unreadable,
+        Self::Busy,
+        Self::Stale,
+        Self::StaleBeforeStop,
+        Self::Cancelled,
+        Self::Superseded,
+        Self::Nacked,
+        Self::OutcomeUnknown,
+        Self::NotSent,
+        Self::NoAnswer,
+        Self::IdReused,
+    ];
+
+    /// Its name in `error.kind` (and, for every kind but `refused`, in
+    /// `error.rule`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Invalid => "invalid",
+            Self::UnsupportedKind => "unsupported_kind",
+            Self::Unsupported => "unsupported",
+            Self::Refused => "refused",
+            Self::Offline => "offline",
+            Self::EmergencyStopLatched => "emergency_stop_latched",
+            Self::NotLatched => "not_latched",
+            Self::NeedsReset => "needs_reset",
+            Self::InvalidRelease => "invalid_release",
+            Self::ShuttingDown => "shutting_down",
+            Self::Unreadable => "unreadable",
+            Self::Busy => "busy",
+            Self::Stale => "stale",
+            Self::StaleBeforeStop => "stale_before_stop",
+            Self::Cancelled => "cancelled",
+            Self::Superseded => "superseded",
+            Self::Nacked => "nacked",
+            Self::OutcomeUnknown => "outcome_unknown",
+            Self::NotSent => "not_sent",
+            Self::NoAnswer => "no_answer",
+            Self::IdReused => "id_reused",
+        }
+    }
+}
+
+/// The bridge's own rules for a `refused` line, beside the gate's
+/// ([`motorwire_translate::Refusal::rule`]): `error.rule`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum BridgeRule {
+    /// The line names a motor the bus map does not have
+    /// (`unknown_motor`, the gate's name for the same).
+    UnknownMotor,
+    /// A request, reset or trajectory for a motor that is not an iRPC
+    /// joint (`not_an_irpc_joint`).
+    NotAnIrpcJoint,
+    /// One motor named twice where once is the most (`motor_twice`).
+    MotorTwice,
+    /// A trajectory whose first waypoint is not where the joint is
+    /// (`not_at_start`).
+    NotAtStart,
+    /// A time (`start_time`, a waypoint's) no clock of the bridge reaches
+    /// (`time_unreachable`).
+    TimeUnreachable,
+    /// A SafetyLimits line wider than the bus map's limits
+    /// (`wider_than_bus_map`).
+    WiderThanBusMap,
+    /// A SafetyLimits line that motion already accepted would break
+    /// (`motion_outside_new_limits`).
+    MotionOutsideNewLimits,
+    /// A sequential multi-axis line with an axis that never arrives (a
+    /// velocity or torque command) (`sequential_without_arrival`).
+    SequentialWithoutArrival,
+    /// An Orion motor, and no Orion controller attached
+    /// (`orion_not_attached`).
+    OrionNotAttached,
+}
+
+impl BridgeRule {
+    /// Every rule, in the order of the variants.
+    pub const ALL: [Self; 9] = [
+        Self::UnknownMotor,
+        Self::NotAnIrpcJoint,
+        Self::MotorTwice,
+        Self::NotAtStart,
+        Self::TimeUnreachable,
+        Self::WiderThanBusMap,
+        Self::MotionOutsideNewLimits,
+        Self::SequentialWithoutArrival,
+        Self::OrionNotAttached,
+    ];
+
+    /// Its name in `error.rule`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::UnknownMotor => "unknown_motor",
+            Self::NotAnIrpcJoint => "not_an_irpc_joint",
+            Self::MotorTwice => "motor_twice",
+            Self::NotAtStart => "not_at_start",
+            Self::TimeUnreachable => "time_unreachable",
+            Self::WiderThanBusMap => "wider_than_bus_map",
+            Self::MotionOutsideNewLimits => "motion_outside_new_limits",
+            Self::SequentialWithoutArrival => "sequential_without_arrival",
+            Self::OrionNotAttached => "orion_not_attached",
+        }
+    }
+}
+
+/// Every name an `error.rule` of the bridge can be, each once, sorted:
+/// each kind's own name but `refused` (a refused line always names the
+/// rule it broke), the gate's rules and the bridge's own.
+///
+/// ```
+/// let rules = motorwire_bridge::rules();
+/// assert!(rules.contains(&"outside_limit") && rules.contains(&"stale"));
+/// assert!(!rules.contains(&"refused"));
+/// ```
+pub fn rules() -> Vec<&'static str> {
+    let mut all: Vec<&'static str> = ErrorKind::ALL
+        .iter()
+        .filter(|k| **k != ErrorKind::Refused)
+        .map(|k| k.name())
+        .chain(motorwire_translate::Refusal::RULES.iter().copied())
+        .chain(BridgeRule::ALL.iter().map(|r| r.name()))
+        .collect();
+    all.sort_unstable();
+    all.dedup();
+    all
 }
 
 /// What became of one motor's part of a line.
@@ -501,4 +733,95 @@ pub struct LineRef {
     pub origin: Origin,
     /// Its number.
     pub line: u64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_kind_is_listed_once_and_named_as_it_is_written() {
+        for k in ErrorKind::ALL {
+            // A new kind fails to compile here until it is listed.
+            let listed = match k {
+                ErrorKind::Invalid
+                | ErrorKind::UnsupportedKind
+                | ErrorKind::Unsupported
+                | ErrorKind::Refused
+                | ErrorKind::Offline
+                | ErrorKind::EmergencyStopLatched
+                | ErrorKind::NotLatched
+                | ErrorKind::NeedsReset
+                | ErrorKind::InvalidRelease
+                | ErrorKind::ShuttingDown
+                | ErrorKind::Unreadable
+                | ErrorKind::Busy
+                | ErrorKind::Stale
+                | ErrorKind::StaleBeforeStop
+                | ErrorKind::Cancelled
+                | ErrorKind::Superseded
+                | ErrorKind::Nacked
+                | ErrorKind::OutcomeUnknown
+                | ErrorKind::NotSent
+                | ErrorKind::NoAnswer
+                | ErrorKind::IdReused => ErrorKind::ALL.iter().filter(|o| **o == k).count(),
+            };
+            assert_eq!(listed, 1, "{k:?}");
+            assert_eq!(
+                serde_json::to_value(k).ok(),
+                Some(Value::String(k.name().to_owned()))
+            );
+        }
+        for r in BridgeRule::ALL {
+            let listed = match r {
+                BridgeRule::UnknownMotor
+                | BridgeRule::NotAnIrpcJoint
+                | BridgeRule::MotorTwice
+                | BridgeRule::NotAtStart
+                | BridgeRule::TimeUnreachable
+                | BridgeRule::WiderThanBusMap
+                | BridgeRule::MotionOutsideNewLimits
+                | BridgeRule::SequentialWithoutArrival
+                | BridgeRule::OrionNotAttached => {
+                    BridgeRule::ALL.iter().filter(|o| **o == r).count()
+                }
+            };
+            assert_eq!(listed, 1, "{r:?}");
+        }
+        // Kinds (but refused), the gate's 11 and the bridge's 9, with
+        // unknown_motor in both of the last two.
+        assert_eq!(rules().len(), 20 + 11 + 9 - 1);
+    }
+
+    #[test]
+    fn every_rule_is_in_the_readmes_table_and_the_table_has_no_other() {
+        let readme = include_str!("../README.md");
+        let table = readme
+            .split("## Refusal rules")
+            .nth(1)
+            .and_then(|t| t.split("\n## ").next())
+            .unwrap_or_default();
+        let listed: Vec<&str> = table
+            .lines()
+            .filter_map(|l| l.strip_prefix("| `"))
+            .filter_map(|l| l.split('`').next())
+            .collect();
+        let mut sorted = listed.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, rules(), "README table: {listed:?}");
+    }
+
+    #[test]
+    fn a_refusal_by_the_bridges_own_rule_names_it() {
+        let e = ErrorBody::refused(
+            BridgeRule::MotorTwice,
+            "elbow has two trajectories in one line",
+        );
+        assert_eq!(
+            serde_json::to_string(&e).ok().as_deref(),
+            Some(
+                r#"{"kind":"refused","rule":"motor_twice","message":"elbow has two trajectories in one line"}"#
+            )
+        );
+    }
 }

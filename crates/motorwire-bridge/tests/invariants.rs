@@ -1241,8 +1241,13 @@ fn safety_limits_lines_tighten_the_gate_at_runtime() {
     assert_eq!(by(1)["ok"], true, "{}", by(1));
     assert_eq!(by(2)["ok"], false);
     assert_eq!(
-        by(2)["error"]["message"],
-        "elbow: position_limits.min -5 is wider than the bus map's min_position 0"
+        by(2)["error"],
+        serde_json::json!({
+            "kind": "refused",
+            "rule": "wider_than_bus_map",
+            "message": "elbow: position_limits.min -5 is wider than the bus map's min_position 0",
+            "motor": "elbow",
+        })
     );
     assert_eq!(by(3)["ok"], true, "{}", by(3));
     assert_eq!(by(3)["limits"]["effective"]["max_position"], 100.0);
@@ -1250,9 +1255,20 @@ fn safety_limits_lines_tighten_the_gate_at_runtime() {
     assert_eq!(by(3)["limits"]["effective"]["emergency_decel"], 900.0);
     assert_eq!(by(3)["limits"]["bus_map"]["max_position"], 150.0);
     assert_eq!(by(4)["ok"], false);
+    // A refusal says its rule and values for a program, beside the text.
     assert_eq!(
-        by(4)["error"]["message"],
-        "elbow: setpoint 120 is outside max_position (the SafetyLimits line in force) 100"
+        by(4)["error"],
+        serde_json::json!({
+            "kind": "refused",
+            "rule": "outside_limit",
+            "message": "elbow: setpoint 120 is outside max_position (the SafetyLimits line in force) 100",
+            "motor": "elbow",
+            "field": "setpoint",
+            "value": 120.0,
+            "limit": 100.0,
+            "limit_name": "max_position",
+            "limit_source": "the SafetyLimits line in force",
+        })
     );
     assert_eq!(by(5)["limits"], by(3)["limits"]);
     assert_eq!(by(6)["error"]["kind"], "unsupported", "{}", by(6));
@@ -1285,10 +1301,14 @@ fn a_safety_limits_line_that_accepted_motion_would_break_is_refused() {
         .unwrap_or_else(|| panic!("{r:?}"))
         .clone();
     assert_eq!(refused["ok"], false, "{refused}");
-    assert_eq!(refused["error"]["kind"], "refused", "{refused}");
     assert_eq!(
-        refused["error"]["message"],
-        "elbow: its move under way goes to 140, which these limits would not allow; send them once it has ended, or stop it first"
+        refused["error"],
+        serde_json::json!({
+            "kind": "refused",
+            "rule": "motion_outside_new_limits",
+            "message": "elbow: its move under way goes to 140, which these limits would not allow; send them once it has ended, or stop it first",
+            "motor": "elbow",
+        })
     );
     // The limits in force did not change: the move goes on and arrives.
     arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
@@ -1427,8 +1447,18 @@ fn the_compact_gripper_is_driven_gated_and_stopped() {
     assert_eq!(results[0]["acked"], serde_json::json!(["gripper_axis"]));
     assert_eq!(results[1]["ok"], false);
     assert_eq!(
-        results[1]["error"]["message"],
-        "gripper_axis: setpoint 300 is outside max_position (bus map) 90"
+        results[1]["error"],
+        serde_json::json!({
+            "kind": "refused",
+            "rule": "outside_limit",
+            "message": "gripper_axis: setpoint 300 is outside max_position (bus map) 90",
+            "motor": "gripper_axis",
+            "field": "setpoint",
+            "value": 300.0,
+            "limit": 90.0,
+            "limit_name": "max_position",
+            "limit_source": "bus map",
+        })
     );
     let a = arrivals(&out);
     assert_eq!(a.len(), 1, "{a:?}");

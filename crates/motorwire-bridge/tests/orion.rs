@@ -302,10 +302,19 @@ fn a_multi_axis_command_for_orion_motors_is_one_line_and_the_gate_refuses_a_clam
     rig.line(&velocity("turntable", 500.0));
     let r = rig.result(2).unwrap();
     assert_eq!(r["ok"], false);
-    assert_eq!(r["error"]["kind"], "refused");
     assert_eq!(
-        r["error"]["message"],
-        "turntable: setpoint 500 is outside max_velocity (Orion range) 400"
+        r["error"],
+        json!({
+            "kind": "refused",
+            "rule": "outside_limit",
+            "message": "turntable: setpoint 500 is outside max_velocity (Orion range) 400",
+            "motor": "turntable",
+            "field": "setpoint",
+            "value": 500.0,
+            "limit": 400.0,
+            "limit_name": "max_velocity",
+            "limit_source": "Orion range",
+        })
     );
     assert!(rig.commands_since(from).is_empty());
     // A servo position beyond the map's ±90 is refused too.

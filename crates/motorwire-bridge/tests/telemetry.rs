@@ -203,7 +203,7 @@ fn request_lines_are_answered_with_what_the_joint_sent_exactly() {
     assert_eq!(telemetry["data"]["telemetry"]["temperature_c"], 25.0);
     assert_eq!(
         result(&out, 4)["error"],
-        json!({"kind":"unsupported","message":"wrist speaks iRPC v2.1, which has no PowerMetrics (v2.2)","motor":"wrist"})
+        json!({"kind":"unsupported","rule":"unsupported","message":"wrist speaks iRPC v2.1, which has no PowerMetrics (v2.2)","motor":"wrist"})
     );
     assert_eq!(
         result(&out, 5)["error"]["message"],
@@ -349,7 +349,7 @@ fn a_request_acked_without_its_answer_says_no_answer() {
     // Every attempt's Ack timeout (4 × 100 ms) and 500 ms.
     assert_eq!(
         r["error"],
-        json!({"kind":"no_answer","message":"elbow acked the request, but no FaultHistory came within 900 ms"}),
+        json!({"kind":"no_answer","rule":"no_answer","message":"elbow acked the request, but no FaultHistory came within 900 ms"}),
         "{r}"
     );
     assert_eq!(r["acked"], json!(["elbow"]));

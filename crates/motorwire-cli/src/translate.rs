@@ -148,6 +148,10 @@ struct ErrorLine {
     /// the gate's refusal ([`Refusal::rule`]).
     rule: &'static str,
     message: String,
+    /// The gate's values, as the bridge's results carry them: the
+    /// member, its value, the limit, its name and where it came from.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    broke: Option<Box<motorwire_bridge::Broke>>,
     /// The WIA validator's violations, for `invalid`.
     #[serde(skip_serializing_if = "Option::is_none")]
     violations: Option<Value>,
@@ -158,6 +162,7 @@ impl ErrorLine {
         Self {
             rule,
             message: message.into(),
+            broke: None,
             violations: None,
         }
     }
@@ -165,7 +170,10 @@ impl ErrorLine {
 
 impl From<Refusal> for ErrorLine {
     fn from(r: Refusal) -> Self {
-        Self::new(r.rule(), r.to_string())
+        Self {
+            broke: motorwire_bridge::ErrorBody::gate(&r).broke,
+            ..Self::new(r.rule(), r.to_string())
+        }
     }
 }
 
@@ -198,9 +206,8 @@ impl Translator {
                 [first, rest @ ..] => format!("{head}: {first}; and {} more", rest.len()),
             };
             ErrorLine {
-                rule: "invalid",
-                message,
                 violations: serde_json::to_value(v).ok(),
+                ..ErrorLine::new("invalid", message)
             }
         })?;
         match message {

@@ -234,7 +234,7 @@ fn a_refusal_names_its_rule_and_exits_1() {
     assert_eq!(
         lines(&o),
         [
-            r#"{"ok":false,"line":1,"error":{"rule":"outside_limit","message":"elbow: setpoint 170 is outside max_position (bus map) 150"}}"#,
+            r#"{"ok":false,"line":1,"error":{"rule":"outside_limit","message":"elbow: setpoint 170 is outside max_position (bus map) 150","field":"setpoint","value":170.0,"limit":150.0,"limit_name":"max_position","limit_source":"bus map"}}"#,
             r#"{"ok":false,"line":2,"error":{"rule":"unknown_motor","message":"motor \"knee\" is not in the bus map"}}"#,
             r#"{"ok":false,"line":3,"error":{"rule":"mode_not_expressible","message":"elbow: iRPC cannot express control mode torque"}}"#,
             // A refused line uses no msg_id: the first frame is msg_id 1.
@@ -253,7 +253,7 @@ fn a_refusal_names_its_rule_and_exits_1() {
     assert_eq!(
         lines(&o),
         [
-            r#"{"ok":false,"line":1,"error":{"rule":"outside_limit","message":"gripper_axis: setpoint 300 is outside max_position (bus map) 90"}}"#
+            r#"{"ok":false,"line":1,"error":{"rule":"outside_limit","message":"gripper_axis: setpoint 300 is outside max_position (bus map) 90","field":"setpoint","value":300.0,"limit":90.0,"limit_name":"max_position","limit_source":"bus map"}}"#
         ]
     );
 }

@@ -145,6 +145,21 @@ pub enum Refusal {
 }
 
 impl Refusal {
+    /// Every name [`Refusal::rule`] gives, in the order of the variants.
+    pub const RULES: &'static [&'static str] = &[
+        "unknown_motor",
+        "non_finite",
+        "outside_limit",
+        "mode_not_expressible",
+        "missing_limit",
+        "not_representable",
+        "unknown_position",
+        "infeasible",
+        "unsynchronizable",
+        "path_outside_limit",
+        "unplannable",
+    ];
+
     /// The refusal's kind as a stable snake_case name, for machine-readable
     /// output (`motorwire translate`'s `error.rule`): `unknown_motor`,
     /// `non_finite`, `outside_limit`, `mode_not_expressible`,

@@ -616,3 +616,86 @@ fn with_wire_makes_every_joint_speak_one_version() {
         demo().motor("elbow").unwrap().limits
     );
 }
+
+#[test]
+fn every_refusal_names_a_rule_of_the_list_and_says_its_values() {
+    let m = || "elbow".to_owned();
+    let all = [
+        Refusal::UnknownMotor { motor: m() },
+        Refusal::NonFinite {
+            motor: m(),
+            field: "setpoint",
+        },
+        Refusal::OutsideLimit {
+            motor: m(),
+            field: "setpoint",
+            value: 170.0,
+            limit: "max_position",
+            limit_source: "bus map",
+            bound: 150.0,
+        },
+        Refusal::ModeNotExpressible {
+            motor: m(),
+            mode: "torque",
+            dialect: "iRPC",
+        },
+        Refusal::MissingLimit {
+            motor: m(),
+            dialect: "iRPC",
+            field: "max_velocity",
+        },
+        Refusal::NotRepresentable {
+            motor: m(),
+            field: "setpoint",
+            problem: "too large".into(),
+        },
+        Refusal::UnknownPosition { motor: m() },
+        Refusal::Infeasible {
+            motor: m(),
+            waypoint: 1,
+            problem: "late".into(),
+        },
+        Refusal::Unsynchronizable {
+            problem: "no".into(),
+        },
+        Refusal::PathOutsideLimit {
+            motor: m(),
+            segment: Some(0),
+            limit: "max_position",
+            limit_source: "command",
+            bound: 150.0,
+            extreme: 155.0,
+            overshoot: 5.0,
+            at: 0.25,
+        },
+        Refusal::Unplannable {
+            motor: m(),
+            segment: None,
+            problem: "zero".into(),
+        },
+    ];
+    let rules: Vec<&str> = all.iter().map(Refusal::rule).collect();
+    assert_eq!(rules, Refusal::RULES);
+    let d = all[9].detail();
+    assert_eq!(
+        (d.motor, d.field, d.value, d.limit, d.bound, d.source),
+        (
+            Some("elbow"),
+            Some("path"),
+            Some(155.0),
+            Some("max_position"),
+            Some(150.0),
+            Some("command")
+        )
+    );
+    assert_eq!(
+        all[9].to_string(),
+        "elbow: segment 0 (counted from 0): the planned path reaches 155 past max_position (command) 150 by 5 (0.25 s into the move)"
+    );
+    assert_eq!(
+        all[8].detail(),
+        motorwire_translate::RefusalDetail::default()
+    );
+    assert_eq!(all[4].detail().limit, Some("max_velocity"));
+    assert_eq!(all[1].detail().field, Some("setpoint"));
+}

@@ -762,8 +762,8 @@ impl Bridge {
             .map(|(i, j)| (i, j.name.clone()))
             .collect();
         if motors.is_empty() {
-            let e = crate::output::ErrorBody::new(
-                crate::output::ErrorKind::Refused,
+            let e = crate::output::ErrorBody::refused(
+                crate::output::BridgeRule::OrionNotAttached,
                 "no Orion arm controller is attached (motorwire bridge --orion ...)",
             );
             self.refuse(origin, number, label, e);
@@ -795,8 +795,8 @@ impl Bridge {
                 .is_some_and(|m| matches!(m.target, motorwire_translate::Target::Orion { .. }))
         })?;
         Some(
-            crate::output::ErrorBody::new(
-                crate::output::ErrorKind::Refused,
+            crate::output::ErrorBody::refused(
+                crate::output::BridgeRule::OrionNotAttached,
                 format!(
                     "{m} is an Orion motor, and no Orion controller is attached (motorwire bridge --orion ...)"
                 ),

@@ -80,8 +80,8 @@ impl Bridge {
             .filter(|&ji| !self.is_orion(ji))
             .filter(|&ji| self.joints.get(ji).is_some_and(|j| j.compact.is_none()))
         else {
-            return Err(ErrorBody::new(
-                ErrorKind::Refused,
+            return Err(ErrorBody::refused(
+                crate::output::BridgeRule::NotAnIrpcJoint,
                 format!("{motor} is not an iRPC joint of the bus map"),
             )
             .about(motor));
