@@ -192,6 +192,28 @@ fn check(arm: &SimulatedArm, tally: &Tally) {
         tally.sent.values().sum::<u64>(),
         "one result per line"
     );
+    // Every refusal names a rule of the list, and one that names a limit
+    // says the value that broke it.
+    let rules = motorwire_bridge::rules();
+    for r in tally.results.values() {
+        if r["ok"] == false {
+            let e = &r["error"];
+            let rule = e["rule"].as_str().unwrap_or_default();
+            assert!(rules.contains(&rule), "no rule of the list: {r}");
+            if rule == "outside_limit" {
+                let (v, l) = (e["value"].as_f64().unwrap(), e["limit"].as_f64().unwrap());
+                let name = e["limit_name"].as_str().unwrap();
+                // Positions by sign; speeds and torques by magnitude.
+                let broke = match name {
+                    "min_position" => v < l,
+                    "max_position" => v > l,
+                    _ => v.abs() > l,
+                };
+                assert!(broke, "{r}");
+                assert!(e["limit_source"].is_string(), "{r}");
+            }
+        }
+    }
     for (motor, node, lo, hi) in JOINTS {
         let log = arm.joint(node).unwrap().log();
         let mut seen = BTreeSet::new();
