@@ -505,7 +505,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
                 Ok(m) => Input::Message(Box::new(m)),
                 Err(err) => Input::Invalid {
                     message: if serde_json::from_str::<Value>(line).is_ok() {
-                        "not a valid WIA message".to_owned()
+                        invalid_message(&err)
                     } else {
                         format!("not JSON: {e}")
                     },
@@ -690,10 +690,23 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
     match validator.parse_any(line) {
         Ok(m) => Input::Message(Box::new(m)),
         Err(err) => Input::Invalid {
-            message: "not a valid WIA message".to_owned(),
+            message: invalid_message(&err),
             violations: serde_json::to_value(err.violations()).ok(),
             label,
         },
+    }
+}
+
+/// `not a valid WIA message: ` and the first violation (its pointer, what
+/// is wrong, its rule), with how many more: what a person reads first.
+fn invalid_message(err: &motorwire_wia::Error) -> String {
+    match err.violations() {
+        [] => "not a valid WIA message".to_owned(),
+        [one] => format!("not a valid WIA message: {one}"),
+        [first, rest @ ..] => format!(
+            "not a valid WIA message: {first}; and {} more (violations)",
+            rest.len()
+        ),
     }
 }
 

@@ -106,6 +106,12 @@ pub struct BridgeConfig {
     /// voltage, temperature, power and load. `None` (the default): no
     /// subscription (v1 and v2.0 joints have none).
     pub telemetry_hz: Option<u16>,
+    /// Take command lines with members their WIA schema does not name
+    /// (each reported as a loss, `dropped`), as a lenient reader would.
+    /// `false` (the default): such a line is refused `invalid`, naming the
+    /// member and the nearest known one (`velocity_limt`: did you mean
+    /// velocity_limit?): in a motor command a typo is a safety problem.
+    pub allow_unknown_members: bool,
 }
 
 impl Default for BridgeConfig {
@@ -124,6 +130,7 @@ impl Default for BridgeConfig {
             orion: false,
             orion_command_timeout: Duration::from_secs(30),
             telemetry_hz: None,
+            allow_unknown_members: false,
         }
     }
 }
@@ -360,7 +367,7 @@ impl Bridge {
             client.set_wire(j.node, j.wire);
         }
         let base_limits = map.motors().map(|m| (m.name.clone(), m.limits)).collect();
-        let validator = Validator::new();
+        let validator = Validator::new().deny_unknown_members(!config.allow_unknown_members);
         // Warm the paths a stop takes: the first invalid command the
         // schema reports on builds its error machinery lazily (hash seeds
         // drawn from the OS on first use). Better here, before any joint

@@ -2024,3 +2024,103 @@ fn a_trajectory_looping_forever_runs_until_a_stop() {
         .count();
     assert_eq!(after, moves, "a segment was sent after the stop");
 }
+
+/// A misspelled member is refused on every dialect, naming the member and
+/// the one meant, and nothing reaches a device; with
+/// `allow_unknown_members` the same lines run and say what they dropped.
+#[test]
+fn a_misspelled_member_is_refused_on_every_dialect_and_taken_only_when_allowed() {
+    let lines = [
+        (
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"velocity_limt":5}"#,
+            "/velocity_limt",
+            "velocity_limit",
+        ),
+        (
+            r#"{"motor_id":"gripper_axis","timestamp":1,"control_mode":"position","setpoint":20,"safety_limits":{"max_positon":30}}"#,
+            "/safety_limits/max_positon",
+            "max_position",
+        ),
+        (
+            r#"{"motor_id":"grasper_horizontal_servo","timestamp":1,"control_mode":"position","setpiont":20,"setpoint":20}"#,
+            "/setpiont",
+            "setpoint",
+        ),
+        (
+            r#"{"command_id":"m","timestamp":1,"sync_mode":"independent","motors":[{"motor_id":"elbow","control_mode":"position","setpoint":20},{"motor_id":"gripper_axis","control_mode":"position","setpoint":20,"torque_limt":1}]}"#,
+            "/motors/1/torque_limt",
+            "torque_limit",
+        ),
+    ];
+    for allow in [false, true] {
+        let config = BridgeConfig {
+            orion: true,
+            allow_unknown_members: allow,
+            ..BridgeConfig::default()
+        };
+        let bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
+        let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
+        arm.keep_sent();
+        assert!(
+            arm.run_while(Duration::from_secs(5), |a| a.bridge().is_ready())
+                .unwrap()
+        );
+        let (sent, written) = (arm.sent().len(), arm.orion_log().len());
+        for (line, ..) in &lines {
+            arm.line(Origin(1), line);
+        }
+        arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+        let mut r = arm.take_results();
+        r.sort_by_key(|v| v["line"].as_u64());
+        assert_eq!(r.len(), lines.len(), "{r:?}");
+        for (v, (line, pointer, meant)) in r.iter().zip(&lines) {
+            if allow {
+                assert_eq!(v["ok"], true, "{line}: {v}");
+                // Today's loss report: a top-level unknown member is named
+                // (a nested one goes with its object, as before).
+                let name = pointer.rsplit('/').next().unwrap();
+                if pointer.matches('/').count() == 1 {
+                    assert!(
+                        v["losses"]
+                            .to_string()
+                            .contains(&format!("{name}: dropped")),
+                        "{line}: {v}"
+                    );
+                }
+            } else {
+                assert_eq!(v["ok"], false, "{line}: {v}");
+                assert_eq!(v["error"]["kind"], "invalid", "{v}");
+                assert_eq!(v["error"]["rule"], "invalid", "{v}");
+                let found = &v["error"]["violations"][0];
+                assert_eq!(found["rule"], "unknown-member", "{v}");
+                assert_eq!(found["pointer"], *pointer, "{v}");
+                assert!(
+                    found["message"]
+                        .as_str()
+                        .unwrap()
+                        .contains(&format!("did you mean {meant}?")),
+                    "{v}"
+                );
+            }
+        }
+        if !allow {
+            // Nothing went to a joint, the gripper or the Orion controller
+            // but what the bridge sends by itself (heartbeats, feedback
+            // requests): no motion.
+            let moved = arm.sent()[sent..].iter().any(|(_, f)| {
+                f.id().raw() == 0x20
+                    || motorwire_irpc::Message::decode_frame(
+                        motorwire_irpc::WireVersion::V2_0,
+                        f.data(),
+                    )
+                    .is_ok_and(|m| matches!(m.payload, Payload::SetTargetV2(_)))
+            });
+            assert!(!moved, "a refused line moved something");
+            // The Orion controller is polled, and holds what it held.
+            let held = arm.orion_log()[written - 1].values;
+            for w in &arm.orion_log()[written..] {
+                assert_eq!(w.values, held, "{}", w.line);
+            }
+        }
+    }
+}

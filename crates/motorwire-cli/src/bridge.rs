@@ -79,6 +79,11 @@ pub(crate) struct Args {
     /// this many ms in the past or future is refused `stale` (0: not checked).
     #[arg(long, value_name = "MS", default_value_t = 300_000)]
     max_age: u64,
+    /// Take command lines with members their WIA schema does not name,
+    /// reporting each as a loss (`dropped`). Without it such a line is
+    /// refused `invalid`, naming the member and the nearest known one.
+    #[arg(long)]
+    allow_unknown_members: bool,
     /// With `--bus sim`: faults on the simulated bus, as
     /// `drop=R,duplicate=R,corrupt=R,delay=R,reorder=R,max-delay-ms=MS`
     /// (rates 0 to 1, any subset; e.g. `drop=0.1,duplicate=0.1,reorder=0.1`).
@@ -319,6 +324,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
         max_age: (args.max_age > 0).then(|| Duration::from_millis(args.max_age)),
         orion: orion.is_some(),
         telemetry_hz: (args.telemetry_hz > 0).then_some(args.telemetry_hz),
+        allow_unknown_members: args.allow_unknown_members,
         ..BridgeConfig::default()
     };
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;

@@ -62,6 +62,11 @@ pub(crate) struct Args {
     /// The current time (Unix ms): timestamps more than 5 minutes older are stale.
     #[arg(long, value_name = "UNIX_MS")]
     now: Option<u64>,
+    /// Take members a kind's schema does not name (WIA's schemas leave
+    /// objects open). Without it each is reported `unknown-member`, naming
+    /// the nearest known member, as the bridge refuses it.
+    #[arg(long)]
+    allow_unknown: bool,
     /// Read one JSON document per line (JSON Lines); blank lines are skipped.
     #[arg(long)]
     lines: bool,
@@ -125,7 +130,8 @@ pub(crate) fn run(args: &Args) -> u8 {
     let validator = {
         let v = Validator::new()
             .max_document_size(args.max_size)
-            .max_depth(usize::from(args.max_depth));
+            .max_depth(usize::from(args.max_depth))
+            .deny_unknown_members(!args.allow_unknown);
         with_clock(v, args.now)
     };
     let stdout = io::stdout();

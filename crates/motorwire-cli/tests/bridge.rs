@@ -91,6 +91,58 @@ fn stdin_lines_get_one_result_each_then_the_joints_are_stopped() {
     assert_eq!(all.last().unwrap()["event"], "stopped");
 }
 
+/// The issue's case as a user meets it: `"velocity_limt":5` is refused
+/// naming `velocity_limit`, and with `--allow-unknown-members` it runs with
+/// the loss said.
+#[test]
+fn a_misspelled_member_is_refused_unless_the_bridge_is_told_to_take_it() {
+    let line = format!(
+        r#"{{"motor_id":"elbow","timestamp":{},"control_mode":"position","setpoint":20,"velocity_limt":5}}"#,
+        now_ms()
+    );
+    for allow in [false, true] {
+        let mut args = vec!["bridge", "--map", MAP, "--bus", "sim", "--feedback-hz", "0"];
+        if allow {
+            args.push("--allow-unknown-members");
+        }
+        let out = common::run(&args, format!("{line}\n").as_bytes());
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let all = lines(&out.stdout);
+        let r = all
+            .iter()
+            .find(|v| v["line"] == 1 && v.get("ok").is_some())
+            .unwrap();
+        if allow {
+            assert_eq!(r["ok"], true, "{r}");
+            assert!(
+                r["losses"].to_string().contains(
+                    "velocity_limt: dropped: an unknown member; SetTargetV2 has no place for it"
+                ),
+                "{r}"
+            );
+        } else {
+            assert_eq!(r["ok"], false, "{r}");
+            assert_eq!(r["error"]["kind"], "invalid", "{r}");
+            assert_eq!(
+                r["error"]["violations"][0]["pointer"], "/velocity_limt",
+                "{r}"
+            );
+            assert_eq!(r["error"]["violations"][0]["rule"], "unknown-member", "{r}");
+            assert_eq!(
+                r["error"]["message"],
+                "not a valid WIA message: /velocity_limt: \"velocity_limt\" is not a member motor-command has here; did you mean velocity_limit? (the bridge and `motorwire validate` take unknown members only when told to: --allow-unknown-members, --allow-unknown) (unknown-member)",
+                "{r}"
+            );
+            assert!(!all.iter().any(|v| v.get("arrived").is_some()), "{all:?}");
+        }
+    }
+}
+
 fn connect(port: u16) -> TcpStream {
     TcpStream::connect(("127.0.0.1", port)).unwrap()
 }

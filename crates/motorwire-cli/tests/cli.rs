@@ -331,3 +331,28 @@ fn without_the_fleet_feature_zenoh_exits_2_naming_the_build_command() {
         "{help}"
     );
 }
+
+#[test]
+fn a_misspelled_member_is_invalid_unless_allowed_and_schema_only_takes_it() {
+    let file = "fixtures/wia/invalid/unknown-member-typo.json";
+    let out = motorwire(&["validate", file], None);
+    assert_eq!(out.status.code(), Some(1));
+    let why = "(the bridge and `motorwire validate` take unknown members only when told to: --allow-unknown-members, --allow-unknown)";
+    assert_eq!(
+        String::from_utf8(out.stdout).unwrap(),
+        format!(
+            "{file}: motor-command (auto): invalid, 2 violation(s)\n  /velocity_limt  [unknown-member]  \"velocity_limt\" is not a member motor-command has here; did you mean velocity_limit? {why}\n  /safety_limits/max_positon  [unknown-member]  \"max_positon\" is not a member motor-command has here; did you mean max_position? {why}\n"
+        )
+    );
+    for args in [
+        &["validate", "--allow-unknown", file][..],
+        &["validate", "--schema-only", file][..],
+    ] {
+        let out = motorwire(args, None);
+        assert_eq!(out.status.code(), Some(0), "{args:?}");
+        assert_eq!(
+            String::from_utf8(out.stdout).unwrap(),
+            format!("{file}: motor-command (auto): valid\n")
+        );
+    }
+}

@@ -6,6 +6,7 @@ mod command;
 mod error;
 mod feedback;
 mod kind;
+mod members;
 mod mode_config;
 mod path;
 mod pid;

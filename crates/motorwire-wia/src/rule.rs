@@ -130,6 +130,10 @@ rules! {
     LoopCount = "loop-count", Semantic;
     /// A motor appears twice in one multi-axis command.
     DuplicateMotor = "duplicate-motor", Semantic;
+    /// A member the kind's schema does not name where it stands (a typo,
+    /// most often), refused when the validator is told to
+    /// ([`Validator::deny_unknown_members`](crate::Validator::deny_unknown_members)).
+    UnknownMember = "unknown-member", Schema;
 }
 
 impl fmt::Display for Rule {

@@ -33,6 +33,7 @@ pub struct Validator {
     max_document_size: usize,
     max_depth: usize,
     now_ms: Option<f64>,
+    deny_unknown: bool,
 }
 
 impl Default for Validator {
@@ -56,7 +57,34 @@ impl Validator {
             max_document_size: Self::DEFAULT_MAX_DOCUMENT_SIZE,
             max_depth: Self::DEFAULT_MAX_DEPTH,
             now_ms: None,
+            deny_unknown: false,
         }
+    }
+
+    /// Refuses every member a kind's schema does not name where it stands
+    /// ([`Rule::UnknownMember`], naming the nearest known member): WIA's
+    /// schemas leave objects open, so a misspelled `velocity_limt` is
+    /// otherwise valid and ignored. Free-form objects (`metadata`) take any
+    /// member. The bridge and `motorwire validate` turn this on by default.
+    ///
+    /// ```
+    /// use motorwire_wia::{MessageKind, Rule, Validator};
+    /// let doc = r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"velocity_limt":5}"#;
+    /// assert!(Validator::new().validate(MessageKind::MotorCommand, doc).is_valid());
+    /// let r = Validator::new().deny_unknown_members(true).validate(MessageKind::MotorCommand, doc);
+    /// assert_eq!(r.violations[0].rule, Rule::UnknownMember);
+    /// assert_eq!(r.violations[0].pointer, "/velocity_limt");
+    /// assert!(r.violations[0].message.contains("did you mean velocity_limit?"));
+    /// ```
+    #[must_use]
+    pub const fn deny_unknown_members(mut self, deny: bool) -> Self {
+        self.deny_unknown = deny;
+        self
+    }
+
+    /// Whether unknown members are refused.
+    pub const fn denies_unknown_members(&self) -> bool {
+        self.deny_unknown
     }
 
     /// Sets the largest document accepted, in bytes.
@@ -323,7 +351,10 @@ impl Validator {
     fn run<T: WiaMessage>(&self, json: &str) -> (Option<T>, Vec<Violation>) {
         match serde_json::from_str::<T>(json) {
             Ok(msg) => {
-                let violations = msg.violations(self.now_ms);
+                let mut violations = msg.violations(self.now_ms);
+                if self.deny_unknown {
+                    violations.extend(crate::members::unknown_members(T::KIND, json));
+                }
                 (Some(msg), violations)
             }
             Err(e) if e.is_data() => (None, explain_data_error(T::KIND, json, &e)),

@@ -53,6 +53,14 @@ fn valid_fixtures_have_no_violations_by_kind_and_by_auto() {
         let kind = auto.kind.unwrap();
         assert!(v.validate(kind, &text).is_valid());
         assert!(v.validate_schema_only(kind, &text).is_valid());
+        // Every member of the document's examples is one its schema names.
+        let strict = v.clone().deny_unknown_members(true);
+        assert!(
+            strict.validate(kind, &text).is_valid(),
+            "{}: {}",
+            f.display(),
+            strict.validate(kind, &text)
+        );
     }
 }
 
@@ -82,8 +90,10 @@ fn document_examples_are_inferred_as_their_kinds() {
     }
 }
 
+/// The validator `motorwire validate` would judge with, given `args`: it
+/// refuses unknown members unless told otherwise.
 fn validator_for(args: Option<&Value>) -> Validator {
-    let mut v = Validator::new();
+    let mut v = Validator::new().deny_unknown_members(true);
     let Some(args) = args else { return v };
     let args: Vec<&str> = args
         .as_array()
@@ -96,6 +106,7 @@ fn validator_for(args: Option<&Value>) -> Validator {
             "--now" => v = v.now_ms(pair[1].parse().unwrap()),
             "--max-size" => v = v.max_document_size(pair[1].parse().unwrap()),
             "--max-depth" => v = v.max_depth(pair[1].parse().unwrap()),
+            "--allow-unknown" => v = v.deny_unknown_members(false),
             other => panic!("unknown fixture argument {other}"),
         }
     }

@@ -60,16 +60,27 @@ proptest! {
         let v = Validator::new();
         let r = v.validate_auto(&text);
         prop_assert!(!r.is_valid() || r.kind.is_some());
+        let strict = v.clone().deny_unknown_members(true);
         for kind in MessageKind::ALL {
             let _ = v.validate(kind, &text);
             let _ = v.validate_schema_only(kind, &text);
+            let _ = strict.validate(kind, &text);
         }
     }
 
     #[test]
     fn json_like_text_never_panics_and_reports_are_well_formed(text in json_like()) {
         let v = Validator::new().max_depth(8).now_ms(1_704_067_200_000.0);
+        // Strict or not, the same document gets a well-formed report; the
+        // strict one says everything the other does, and unknown members.
+        let strict = v.clone().deny_unknown_members(true);
         for kind in MessageKind::ALL {
+            let lenient = v.validate(kind, &text).violations;
+            let all = strict.validate(kind, &text).violations;
+            for x in &lenient {
+                prop_assert!(all.contains(x), "{x} missing in strict");
+            }
+            prop_assert!(all[lenient.len()..].iter().all(|x| x.rule == motorwire_wia::Rule::UnknownMember));
             let r = v.validate(kind, &text);
             prop_assert_eq!(r.kind, Some(kind));
             for x in &r.violations {

@@ -1221,7 +1221,10 @@ mod tests {
         let Input::Invalid { message, .. } = classify(&v, &text) else {
             panic!("{text} was not refused");
         };
-        assert_eq!(message, "not a valid WIA message");
+        assert_eq!(
+            message,
+            "not a valid WIA message: (document): the document is valid against the schema but a key is given twice (unrepresentable)"
+        );
     }
 
     #[test]

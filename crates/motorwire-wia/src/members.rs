@@ -1,0 +1,332 @@
+//! Unknown members: every object member of a document that its kind's JSON
+//! Schema does not name, found by one scan of the text (nothing parsed
+//! again), with the nearest member the schema does name.
+//!
+//! WIA's schemas leave `additionalProperties` open, so a misspelled
+//! `velocity_limt` is valid WIA and would be ignored: in a motor command a
+//! typo is a safety problem. [`Validator::deny_unknown_members`]
+//! (crate::Validator::deny_unknown_members) refuses them.
+
+use std::borrow::Cow;
+use std::collections::BTreeMap;
+use std::sync::OnceLock;
+
+use serde_json::Value;
+
+use crate::{MessageKind, Rule, Violation};
+
+/// What a kind's schema says of one place in a document: the member names
+/// an object there may have (each with what it says of that member's
+/// value), or nothing (any member, as `metadata`), and what it says of an
+/// array's items.
+#[derive(Debug, Default)]
+struct Known {
+    members: Option<BTreeMap<String, Known>>,
+    items: Option<Box<Known>>,
+}
+
+impl Known {
+    /// `node` of the schema `root`, its `$ref`s (`#/definitions/...`)
+    /// followed at most `depth` times.
+    fn of(root: &Value, node: &Value, depth: usize) -> Self {
+        let node = match node.get("$ref").and_then(Value::as_str) {
+            Some(r) if depth > 0 => r
+                .strip_prefix("#/")
+                .and_then(|path| path.split('/').try_fold(root, |v, k| v.get(k)))
+                .unwrap_or(node),
+            _ => node,
+        };
+        let members = node.get("properties").and_then(Value::as_object).map(|p| {
+            p.iter()
+                .map(|(k, v)| (k.clone(), Self::of(root, v, depth.saturating_sub(1))))
+                .collect()
+        });
+        let items = node
+            .get("items")
+            .map(|i| Box::new(Self::of(root, i, depth.saturating_sub(1))));
+        Self { members, items }
+    }
+}
+
+fn known(kind: MessageKind) -> &'static Known {
+    static ALL: OnceLock<Vec<(MessageKind, Known)>> = OnceLock::new();
+    let all = ALL.get_or_init(|| {
+        MessageKind::ALL
+            .iter()
+            .map(|k| {
+                let schema: Value = serde_json::from_str(k.schema()).unwrap_or(Value::Null);
+                (*k, Known::of(&schema, &schema, 16))
+            })
+            .collect()
+    });
+    static NOTHING: Known = Known {
+        members: None,
+        items: None,
+    };
+    all.iter()
+        .find(|(k, _)| *k == kind)
+        .map_or(&NOTHING, |(_, known)| known)
+}
+
+/// One open object or array of the scan, with what the schema says of it
+/// (`None`: anything goes below).
+enum Frame<'k, 't> {
+    Object {
+        known: Option<&'k Known>,
+        /// The member whose value comes next (its name, and what the
+        /// schema says of it).
+        key: Option<(Cow<'t, str>, Option<&'k Known>)>,
+    },
+    Array {
+        known: Option<&'k Known>,
+        index: usize,
+    },
+}
+
+/// `s` as a JSON Pointer token.
+fn token(s: &str) -> String {
+    s.replace('~', "~0").replace('/', "~1")
+}
+
+/// The pointer to where the scan stands, `/a/0/b`.
+fn pointer(stack: &[Frame<'_, '_>]) -> String {
+    let mut p = String::new();
+    for f in stack {
+        match f {
+            Frame::Object {
+                key: Some((k, _)), ..
+            } => {
+                p.push('/');
+                p.push_str(&token(k));
+            }
+            Frame::Array { index, .. } => {
+                p.push('/');
+                p.push_str(&index.to_string());
+            }
+            Frame::Object { key: None, .. } => {}
+        }
+    }
+    p
+}
+
+/// The member of `names` nearest `key` (an edit or two away, or one of
+/// them contains the other), when one is near enough to be meant.
+fn nearest<'a>(key: &str, names: impl Iterator<Item = &'a String>) -> Option<&'a str> {
+    let folded = key.to_ascii_lowercase();
+    names
+        .map(|n| {
+            let d = strsim::damerau_levenshtein(&folded, n);
+            let within = n.contains(folded.as_str()) || folded.contains(n.as_str());
+            (if within { d.min(2) } else { d }, n)
+        })
+        .filter(|(d, n)| *d <= 2.max(n.len() / 4) && *d < n.len())
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, n)| n.as_str())
+}
+
+/// Every member of `json` (valid JSON: the typed parse took it) that the
+/// schema of `kind` does not name where it stands, in document order.
+pub(crate) fn unknown_members(kind: MessageKind, json: &str) -> Vec<Violation> {
+    let bytes = json.as_bytes();
+    let mut out = Vec::new();
+    let mut stack: Vec<Frame<'_, '_>> = Vec::new();
+    // What the schema says of the value that starts next.
+    let mut next: Option<&Known> = Some(known(kind));
+    let mut i = 0;
+    while let Some(&b) = bytes.get(i) {
+        match b {
+            b'{' => {
+                stack.push(Frame::Object {
+                    known: next,
+                    key: None,
+                });
+                i += 1;
+            }
+            b'[' => {
+                stack.push(Frame::Array {
+                    known: next,
+                    index: 0,
+                });
+                next = match stack.last() {
+                    Some(Frame::Array { known, .. }) => known.and_then(|k| k.items.as_deref()),
+                    _ => None,
+                };
+                i += 1;
+            }
+            b'}' | b']' => {
+                stack.pop();
+                i += 1;
+            }
+            b',' => {
+                match stack.last_mut() {
+                    Some(Frame::Array { known, index }) => {
+                        *index += 1;
+                        next = known.and_then(|k| k.items.as_deref());
+                    }
+                    Some(Frame::Object { key, .. }) => *key = None,
+                    None => {}
+                }
+                i += 1;
+            }
+            b':' => {
+                next = match stack.last() {
+                    Some(Frame::Object {
+                        key: Some((_, k)), ..
+                    }) => *k,
+                    _ => None,
+                };
+                i += 1;
+            }
+            b'"' => {
+                // The string's end: the first quote not escaped.
+                let start = i;
+                let mut j = i + 1;
+                let mut escaped = false;
+                while let Some(&c) = bytes.get(j) {
+                    if escaped {
+                        escaped = false;
+                    } else if c == b'\\' {
+                        escaped = true;
+                    } else if c == b'"' {
+                        break;
+                    }
+                    j += 1;
+                }
+                let text = json.get(start..=j).unwrap_or_default();
+                i = j + 1;
+                let at_key = matches!(stack.last(), Some(Frame::Object { key: None, .. }));
+                if !at_key {
+                    continue; // a string value
+                }
+                let name: Cow<'_, str> = if text.contains('\\') {
+                    Cow::Owned(serde_json::from_str::<String>(text).unwrap_or_default())
+                } else {
+                    Cow::Borrowed(
+                        text.get(1..text.len().saturating_sub(1))
+                            .unwrap_or_default(),
+                    )
+                };
+                let Some(Frame::Object { known, .. }) = stack.last() else {
+                    continue;
+                };
+                let known = *known;
+                let child = match known.and_then(|k| k.members.as_ref()) {
+                    // Anything goes here (or below an unknown member).
+                    None => None,
+                    Some(members) => match members.get(name.as_ref()) {
+                        Some(k) => Some(k),
+                        None => {
+                            let here = pointer(&stack);
+                            let hint = nearest(&name, members.keys())
+                                .map(|n| format!("; did you mean {n}?"))
+                                .unwrap_or_default();
+                            out.push(Violation::new(
+                                format!("{here}/{}", token(&name)),
+                                Rule::UnknownMember,
+                                format!(
+                                    "{name:?} is not a member {kind} has here{hint} (the bridge and `motorwire validate` take unknown members only when told to: --allow-unknown-members, --allow-unknown)"
+                                ),
+                            ));
+                            None
+                        }
+                    },
+                };
+                if let Some(Frame::Object { key, .. }) = stack.last_mut() {
+                    *key = Some((name, child));
+                }
+            }
+            _ => i += 1,
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn found(kind: MessageKind, json: &str) -> Vec<(String, String)> {
+        unknown_members(kind, json)
+            .into_iter()
+            .map(|v| (v.pointer, v.message))
+            .collect()
+    }
+
+    #[test]
+    fn a_misspelled_member_is_found_with_the_member_meant() {
+        let v = found(
+            MessageKind::MotorCommand,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"velocity_limt":5}"#,
+        );
+        assert_eq!(
+            v,
+            [(
+                "/velocity_limt".to_owned(),
+                r#""velocity_limt" is not a member motor-command has here; did you mean velocity_limit? (the bridge and `motorwire validate` take unknown members only when told to: --allow-unknown-members, --allow-unknown)"#.to_owned()
+            )]
+        );
+    }
+
+    #[test]
+    fn nested_members_items_and_references_are_judged_where_they_stand() {
+        let v = found(
+            MessageKind::MultiAxisCommand,
+            r#"{"command_id":"c","timestamp":1,"motors":[{"motor_id":"a","control_mode":"position","setpoint":1},{"motor_id":"b","control_mode":"position","setpoint":2,"safety_limits":{"max_positon":3},"timestamp":4}],"coordination":{"typ":"independent"},"metadata":{"anything":{"goes":[1]}}}"#,
+        );
+        let at: Vec<&str> = v.iter().map(|(p, _)| p.as_str()).collect();
+        assert_eq!(
+            at,
+            [
+                "/motors/1/safety_limits/max_positon",
+                "/motors/1/timestamp",
+                "/coordination/typ"
+            ]
+        );
+        assert!(v[0].1.contains("did you mean max_position?"), "{}", v[0].1);
+        assert!(v[2].1.contains("did you mean type?"), "{}", v[2].1);
+        // Nothing near: no guess.
+        let v = found(
+            MessageKind::MotorCommand,
+            r#"{"motor_id":"m","timestamp":1,"control_mode":"position","setpoint":1,"zzzzzz":{"velocity_limt":1}}"#,
+        );
+        assert_eq!(v.len(), 1, "{v:?}");
+        assert!(!v[0].1.contains("did you mean"), "{}", v[0].1);
+    }
+
+    #[test]
+    fn escapes_strings_and_pointers_are_read_as_json_writes_them() {
+        // A key spelled with an escape is the key; a string value holding
+        // braces, colons and quotes is a value.
+        let v = found(
+            MessageKind::MotorCommand,
+            r#"{"motor_id":"m:{\"x\":1}","timestamp":1,"control_mode":"position","setpoint":1,"a\/b~":2,"setp\u006fint":3}"#,
+        );
+        let at: Vec<&str> = v.iter().map(|(p, _)| p.as_str()).collect();
+        assert_eq!(at, ["/a~1b~0"]);
+        // Every kind's own example members are known.
+        assert!(
+            found(
+                MessageKind::SafetyLimits,
+                r#"{"motor_id":"m","position_limits":{"min":0,"max":1},"velocity_limits":{"max_velocity":1}}"#
+            )
+            .is_empty()
+        );
+    }
+
+    #[test]
+    fn a_near_name_is_offered_and_a_far_one_is_not() {
+        let names: Vec<String> = ["setpoint", "velocity_limit", "torque_limit", "motor_id"]
+            .iter()
+            .map(|s| (*s).to_owned())
+            .collect();
+        assert_eq!(nearest("setpiont", names.iter()), Some("setpoint"));
+        assert_eq!(
+            nearest("Velocity_Limit", names.iter()),
+            Some("velocity_limit")
+        );
+        assert_eq!(nearest("motor", names.iter()), Some("motor_id"));
+        assert_eq!(nearest("torq_limit", names.iter()), Some("torque_limit"));
+        assert_eq!(nearest("colour", names.iter()), None);
+        assert_eq!(nearest("x", names.iter()), None);
+    }
+}
