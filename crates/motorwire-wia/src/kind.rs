@@ -332,6 +332,13 @@ pub trait WiaMessage: Serialize + DeserializeOwned + Sized {
     /// # Ok::<(), motorwire_wia::Error>(())
     /// ```
     fn violations(&self, now_ms: Option<f64>) -> Vec<Violation>;
+
+    /// Whether the typed value may hold members its schema does not name
+    /// (the `extra` maps the parse filled): `false` only when it is known
+    /// to hold none, so a strict validator need not look at the text.
+    fn may_hold_unknown_members(&self) -> bool {
+        true
+    }
 }
 
 macro_rules! wia_message {
@@ -343,6 +350,10 @@ macro_rules! wia_message {
                 let mut sink = Sink::new(now_ms);
                 self.check(&mut sink);
                 sink.finish()
+            }
+
+            fn may_hold_unknown_members(&self) -> bool {
+                crate::members::Unknowns::any_unknown(self)
             }
         }
     )*};

@@ -83,6 +83,65 @@ enum Frame<'k, 't> {
     },
 }
 
+/// Whether a typed message kept any member its schema does not name: the
+/// command types say exactly (their `extra` maps, at every level), so a
+/// clean command skips the scan; the others say `true` (scanned).
+pub(crate) trait Unknowns {
+    /// `false` when no `extra` map of the value holds anything.
+    fn any_unknown(&self) -> bool {
+        true
+    }
+}
+
+impl Unknowns for crate::MotorFeedback {}
+impl Unknowns for crate::Trajectory {}
+impl Unknowns for crate::PidConfig {}
+impl Unknowns for crate::SafetyLimits {}
+impl Unknowns for crate::ControlModeConfig {}
+
+fn any_in_parts(
+    pid: Option<&crate::PidGains>,
+    impedance: Option<&crate::ImpedanceParams>,
+    filter: Option<&crate::FilterConfig>,
+    safety: Option<&crate::CommandSafetyLimits>,
+) -> bool {
+    pid.is_some_and(|p| !p.extra.is_empty())
+        || impedance.is_some_and(|p| !p.extra.is_empty())
+        || filter.is_some_and(|p| !p.extra.is_empty())
+        || safety.is_some_and(|p| !p.extra.is_empty())
+}
+
+impl Unknowns for crate::MotorCommand {
+    fn any_unknown(&self) -> bool {
+        !self.extra.is_empty()
+            || any_in_parts(
+                self.pid_gains.as_ref(),
+                self.impedance_params.as_ref(),
+                self.filter_config.as_ref(),
+                self.safety_limits.as_ref(),
+            )
+    }
+}
+
+impl Unknowns for crate::MultiAxisCommand {
+    fn any_unknown(&self) -> bool {
+        !self.extra.is_empty()
+            || self
+                .coordination
+                .as_ref()
+                .is_some_and(|c| !c.extra.is_empty())
+            || self.motors.iter().any(|a| {
+                !a.extra.is_empty()
+                    || any_in_parts(
+                        a.pid_gains.as_ref(),
+                        a.impedance_params.as_ref(),
+                        a.filter_config.as_ref(),
+                        a.safety_limits.as_ref(),
+                    )
+            })
+    }
+}
+
 /// `s` as a JSON Pointer token.
 fn token(s: &str) -> String {
     s.replace('~', "~0").replace('/', "~1")
@@ -311,6 +370,84 @@ mod tests {
             )
             .is_empty()
         );
+    }
+
+    /// The command types skip the scan when their typed parse kept no
+    /// unknown member: that must be exactly when the scan finds none.
+    #[test]
+    fn the_typed_shortcut_agrees_with_the_scan_at_every_level() {
+        let v = crate::Validator::new().deny_unknown_members(true);
+        let multi = |axis: &str, top: &str| {
+            format!(
+                r#"{{"command_id":"c","timestamp":1,"motors":[{{"motor_id":"a","control_mode":"position","setpoint":1{axis}}}]{top}}}"#
+            )
+        };
+        let cases = [
+            (multi("", ""), vec![]),
+            (multi(r#","timestamp":4"#, ""), vec!["/motors/0/timestamp"]),
+            (
+                multi(r#","pid_gains":{"kq":1}"#, ""),
+                vec!["/motors/0/pid_gains/kq"],
+            ),
+            (
+                multi(r#","impedance_params":{"stifness":1}"#, ""),
+                vec!["/motors/0/impedance_params/stifness"],
+            ),
+            (
+                multi(r#","filter_config":{"cutoff":1}"#, ""),
+                vec!["/motors/0/filter_config/cutoff"],
+            ),
+            (
+                multi(r#","safety_limits":{"max_pos":1}"#, ""),
+                vec!["/motors/0/safety_limits/max_pos"],
+            ),
+            (
+                multi("", r#","coordination":{"duration":1}"#),
+                vec!["/coordination/duration"],
+            ),
+            (multi("", r#","sync":"independent""#), vec!["/sync"]),
+            (
+                multi(r#","metadata":{"x":1}"#, r#","metadata":{"y":{"z":1}}"#),
+                vec![],
+            ),
+        ];
+        for (doc, want) in cases {
+            let r = v.validate(MessageKind::MultiAxisCommand, &doc);
+            let got: Vec<&str> = r.violations.iter().map(|x| x.pointer.as_str()).collect();
+            assert_eq!(got, want, "{doc}");
+            let scanned: Vec<String> = unknown_members(MessageKind::MultiAxisCommand, &doc)
+                .into_iter()
+                .map(|x| x.pointer)
+                .collect();
+            assert_eq!(scanned, want, "{doc}");
+        }
+        let cmd = |more: &str| {
+            format!(
+                r#"{{"motor_id":"m","timestamp":1,"control_mode":"position","setpoint":1{more}}}"#
+            )
+        };
+        for (more, want) in [
+            ("", vec![]),
+            (r#","pid_gains":{"kp":1,"kk":2}"#, vec!["/pid_gains/kk"]),
+            (
+                r#","impedance_params":{"dampng":1}"#,
+                vec!["/impedance_params/dampng"],
+            ),
+            (
+                r#","filter_config":{"ordr":1}"#,
+                vec!["/filter_config/ordr"],
+            ),
+            (
+                r#","safety_limits":{"emergency":false}"#,
+                vec!["/safety_limits/emergency"],
+            ),
+            (r#","metadata":{"anything":1}"#, vec![]),
+        ] {
+            let doc = cmd(more);
+            let r = v.validate(MessageKind::MotorCommand, &doc);
+            let got: Vec<&str> = r.violations.iter().map(|x| x.pointer.as_str()).collect();
+            assert_eq!(got, want, "{doc}");
+        }
     }
 
     #[test]

@@ -352,7 +352,7 @@ impl Validator {
         match serde_json::from_str::<T>(json) {
             Ok(msg) => {
                 let mut violations = msg.violations(self.now_ms);
-                if self.deny_unknown {
+                if self.deny_unknown && msg.may_hold_unknown_members() {
                     violations.extend(crate::members::unknown_members(T::KIND, json));
                 }
                 (Some(msg), violations)
