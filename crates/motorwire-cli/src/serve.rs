@@ -882,7 +882,7 @@ fn refuse(mut conn: Conn, kind: &str, message: &str) {
     conn.set_write_timeout(Duration::from_millis(200));
     let line = serde_json::json!({
         "ok": false,
-        "error": { "kind": kind, "message": message },
+        "error": { "kind": kind, "rule": kind, "message": message },
     });
     let _ = conn.write_all(format!("{line}\n").as_bytes());
     // A lingering close: what the peer still sends is read and dropped
@@ -914,7 +914,7 @@ fn refuse_now(mut conn: Conn, kind: &str, message: &str) {
     conn.set_write_timeout(Duration::from_millis(50));
     let line = serde_json::json!({
         "ok": false,
-        "error": { "kind": kind, "message": message },
+        "error": { "kind": kind, "rule": kind, "message": message },
     });
     let _ = conn.write_all(format!("{line}\n").as_bytes());
     conn.shutdown();

@@ -363,6 +363,7 @@ fn an_http_post_moves_nothing_even_without_a_token() {
     assert_eq!(said.len(), 1, "{said:?}");
     assert_eq!(said[0]["ok"], false);
     assert_eq!(said[0]["error"]["kind"], "http_refused");
+    assert_eq!(said[0]["error"]["rule"], "http_refused");
     // Blank lines first, a lower-case method, tabs: HTTP all the same.
     for request in [
         "\r\n\r\nPOST / HTTP/1.1\r\n",
@@ -393,6 +394,7 @@ fn a_wrong_or_missing_token_is_refused_and_the_right_one_is_served() {
     let said = until_closed(s);
     assert_eq!(said.len(), 1, "{said:?}");
     assert_eq!(said[0]["error"]["kind"], "unauthorized");
+    assert_eq!(said[0]["error"]["rule"], "unauthorized");
     // No token at all: the move is the first line, so it is the token.
     let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
     writeln!(s, "{}", command("elbow", 100.0)).unwrap();
