@@ -14,8 +14,8 @@ Start a bridge on its simulated arm, then run this against it:
     motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --input unix:$XDG_RUNTIME_DIR/motorwire.sock &
     python3 examples/python/bridge_client.py --unix $XDG_RUNTIME_DIR/motorwire.sock
 
-    motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --input tcp:127.0.0.1:7878 --token-file token &
-    python3 examples/python/bridge_client.py --tcp 127.0.0.1:7878 --token-file token
+    motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --input tcp:127.0.0.1:7878 --token-file ~/.config/motorwire/token &
+    python3 examples/python/bridge_client.py --tcp 127.0.0.1:7878 --token-file ~/.config/motorwire/token
 
 It moves the elbow, asks for a move outside the elbow's limits (refused,
 nothing moves), and moves back; it checks each answer and exits 1 if one

@@ -1486,10 +1486,20 @@ impl Bridge {
             let age = now_ms - timestamp;
             if age > skew || -age > skew {
                 let when = if age > 0.0 { "old" } else { "in the future" };
+                // A timestamp in seconds (or microseconds) is the mistake
+                // most often made: say so when the value read in that unit
+                // would have been within the skew.
+                let hint = if (now_ms / 1000.0 - timestamp).abs() * 1000.0 <= skew {
+                    "; it looks like seconds: WIA timestamps are Unix milliseconds (`date +%s%3N`)"
+                } else if (now_ms * 1000.0 - timestamp).abs() / 1000.0 <= skew {
+                    "; it looks like microseconds: WIA timestamps are Unix milliseconds (`date +%s%3N`)"
+                } else {
+                    ""
+                };
                 return Err(ErrorBody::new(
                     ErrorKind::Stale,
                     format!(
-                        "timestamp {timestamp} is {:.1} s {when}; the allowed clock skew is {} s (WIA §10.1)",
+                        "timestamp {timestamp} is {:.1} s {when}; the allowed clock skew is {} s (WIA §10.1){hint}",
                         age.abs() / 1000.0,
                         max_age.as_secs_f64()
                     ),

@@ -733,3 +733,61 @@ limits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 
     assert_eq!(r["ok"], false, "{r}");
     assert!(!out.iter().any(|v| v["event"] == "deadman"), "{out:?}");
 }
+
+/// A timestamp in seconds (or microseconds) is refused `stale` saying so,
+/// with the command that makes milliseconds; one merely old is not given
+/// the hint.
+#[test]
+fn a_timestamp_in_seconds_is_refused_with_the_hint() {
+    const EPOCH: f64 = 1_767_225_600_000.0; // 2026-01-01, the bridge's time zero
+    let config = BridgeConfig {
+        epoch_unix_ms: Some(EPOCH),
+        ..BridgeConfig::default()
+    };
+    let mut arm = started(BusMap::from_toml(MAP).unwrap(), config);
+    let now_ms = EPOCH + arm.now().as_secs_f64() * 1000.0;
+    let line = |ts: f64| {
+        format!(
+            r#"{{"motor_id":"elbow","timestamp":{ts},"control_mode":"position","setpoint":10}}"#
+        )
+    };
+    let seconds = (now_ms / 1000.0).floor();
+    let micros = now_ms * 1000.0;
+    let old = now_ms - 3_600_000.0;
+    for ts in [seconds, micros, old] {
+        arm.line(Origin(1), &line(ts));
+    }
+    let mut r = results(&mut arm, 3, Duration::from_secs(1));
+    r.sort_by_key(|v| v["line"].as_u64());
+    for x in &r {
+        assert_eq!(x["error"]["kind"], "stale", "{x}");
+        assert_eq!(x["error"]["rule"], "stale", "{x}");
+    }
+    let message = |i: usize| r[i]["error"]["message"].as_str().unwrap().to_owned();
+    assert!(
+        message(0).ends_with(
+            "(WIA §10.1); it looks like seconds: WIA timestamps are Unix milliseconds (`date +%s%3N`)"
+        ),
+        "{}",
+        message(0)
+    );
+    assert!(
+        message(1).ends_with(
+            "(WIA §10.1); it looks like microseconds: WIA timestamps are Unix milliseconds (`date +%s%3N`)"
+        ),
+        "{}",
+        message(1)
+    );
+    assert_eq!(
+        message(2),
+        format!("timestamp {old} is 3600.0 s old; the allowed clock skew is 300 s (WIA §10.1)")
+    );
+    // No move reached the elbow.
+    assert!(
+        !arm.joint(ELBOW)
+            .unwrap()
+            .log()
+            .iter()
+            .any(|e| matches!(e.payload, Payload::SetTargetV2(_)))
+    );
+}
