@@ -26,12 +26,13 @@ pub(crate) struct Args {
     bus: String,
     /// Where lines come from: `-` (stdin; the bridge stops at its end),
     /// `unix:PATH` (a local socket only this user can connect to: the
-    /// recommended local input) or `tcp:ADDR` (a loopback address, e.g.
-    /// tcp:127.0.0.1:7878, with `--token-file`). With a socket the bridge
-    /// runs until interrupted; each client gets its own results, and every
-    /// client the feedback and events.
-    #[arg(long, value_name = "INPUT", default_value = "-")]
-    input: String,
+    /// recommended local input), `tcp:ADDR` (a loopback address, e.g.
+    /// tcp:127.0.0.1:7878, with `--token-file`) or `none` (the fleet's
+    /// commands alone). With a socket or `none` the bridge runs until
+    /// interrupted; each client gets its own results, and every client the
+    /// feedback and events. Default: `-`, or `none` with `--zenoh`.
+    #[arg(long, value_name = "INPUT")]
+    input: Option<String>,
     /// A file holding the token (one line, at least 16 bytes, mode 0600)
     /// that a connection's first line must be. Required with `tcp:`.
     #[arg(long, value_name = "FILE")]
@@ -335,13 +336,19 @@ fn bridge(args: &Args) -> Result<u8, String> {
     let input = runner.input();
     let signalled = on_signals(input.clone())?;
 
-    let listen = crate::serve::parse_listen(&args.input)?;
+    // A fleet bridge reads no standard input unless told to: started by a
+    // service manager or in the background, its standard input is closed
+    // or not a terminal, and its end would end the bridge.
+    let input_spec = args
+        .input
+        .clone()
+        .unwrap_or_else(|| if args.zenoh.enabled() { "none" } else { "-" }.to_owned());
+    let listen = crate::serve::parse_listen(&input_spec)?;
     let token = match (&listen, &args.token_file) {
         (_, Some(path)) => Some(crate::serve::read_token(path)?),
         (crate::serve::Listen::Tcp(_), None) if !args.insecure_no_auth => {
             return Err(format!(
-                "--input {}: TCP needs --token-file FILE (a connection's first line is the token), or --insecure-no-auth to let any local process move the motors; unix:PATH needs neither",
-                args.input
+                "--input {input_spec}: TCP needs --token-file FILE (a connection's first line is the token), or --insecure-no-auth to let any local process move the motors; unix:PATH needs neither"
             ));
         }
         _ => None,

@@ -24,8 +24,8 @@ pub(crate) struct ZenohArgs {
     /// Join a Zenoh fleet: commands as queries on motorwire/ROBOT/cmd,
     /// feedback and events published, a liveliness token, and the fleet's
     /// emergency stop (motorwire/fleet/estop), beside the other inputs.
-    /// With `--input -` the bridge still ends at the end of standard input:
-    /// to serve the fleet alone, keep it open or use `--input unix:PATH`.
+    /// The bridge then reads no standard input unless `--input -` says
+    /// to (it ends at the end of standard input).
     #[cfg_attr(
         not(feature = "fleet"),
         doc = "Not in this build: it was built without the fleet (the `fleet` feature). Build it with `cargo build --release -p motorwire-cli --features fleet` in the repository, or install it with `cargo install --path crates/motorwire-cli --features fleet`."
@@ -46,6 +46,13 @@ pub(crate) struct ZenohArgs {
     /// while joints move (or a command is in progress) stops them.
     #[arg(long, value_name = "MS", default_value_t = 500)]
     zenoh_session_timeout: u64,
+}
+
+impl ZenohArgs {
+    /// Whether `--zenoh` was given.
+    pub(crate) const fn enabled(&self) -> bool {
+        self.zenoh
+    }
 }
 
 /// Refuses `--zenoh` in a build without the fleet, before the bridge

@@ -51,6 +51,9 @@ const MIN_TOKEN: usize = 16;
 pub(crate) enum Listen {
     /// Standard input; the bridge stops at its end.
     Stdin,
+    /// No local input (lines come from the fleet alone); the bridge runs
+    /// until a signal.
+    Nothing,
     /// A TCP address on loopback.
     Tcp(SocketAddr),
     /// A local socket at a path.
@@ -61,6 +64,9 @@ pub(crate) enum Listen {
 pub(crate) fn parse_listen(spec: &str) -> Result<Listen, String> {
     if spec == "-" {
         return Ok(Listen::Stdin);
+    }
+    if spec == "none" {
+        return Ok(Listen::Nothing);
     }
     if let Some(path) = spec.strip_prefix("unix:") {
         if path.is_empty() {
@@ -84,7 +90,7 @@ pub(crate) fn parse_listen(spec: &str) -> Result<Listen, String> {
         return Ok(Listen::Tcp(first));
     }
     Err(format!(
-        "--input {spec:?}: expected - (stdin), unix:PATH or tcp:ADDR (e.g. tcp:127.0.0.1:7878)"
+        "--input {spec:?}: expected - (stdin), unix:PATH, tcp:ADDR (e.g. tcp:127.0.0.1:7878) or none (the fleet's commands alone)"
     ))
 }
 
@@ -575,6 +581,12 @@ impl Router {
                 self.serve_stdin();
                 Ok(None)
             }
+            Listen::Nothing => {
+                say(
+                    "motorwire bridge: no local input (--input none): lines come from the fleet; a signal ends the bridge",
+                );
+                Ok(None)
+            }
             Listen::Tcp(addr) => {
                 let listener =
                     TcpListener::bind(addr).map_err(|e| format!("--input tcp:{addr}: {e}"))?;
@@ -1016,6 +1028,12 @@ mod tests {
         assert_eq!(
             parse_listen("unix:/run/x.sock").unwrap(),
             Listen::Unix(PathBuf::from("/run/x.sock"))
+        );
+        assert_eq!(parse_listen("none").unwrap(), Listen::Nothing);
+        assert_eq!(parse_listen("-").unwrap(), Listen::Stdin);
+        assert_eq!(
+            parse_listen("stdin").unwrap_err(),
+            r#"--input "stdin": expected - (stdin), unix:PATH, tcp:ADDR (e.g. tcp:127.0.0.1:7878) or none (the fleet's commands alone)"#
         );
     }
 }

@@ -529,6 +529,40 @@ fn a_controller_is_named_by_its_key_and_a_parameter_never_reaches_its_ids() {
     assert_eq!(release[0]["released"], json!(true), "{release:?}");
 }
 
+/// A fleet bridge started with its standard input closed (a service
+/// manager, a shell's `&`) stays in the fleet and takes its commands: with
+/// `--zenoh` and no `--input` it reads no standard input.
+#[test]
+fn a_fleet_bridge_with_its_standard_input_closed_stays_in_the_fleet() {
+    let dir = scratch("no-stdin");
+    let port = free_port();
+    let _router = router(port);
+    let mut a = bridge(&dir, port, "a", &[]);
+    drop(a.child.stdin.take());
+    let controller = client(port);
+    wait_alive(&controller, &["a"], Duration::from_secs(20));
+    wait_ready(&a);
+    thread::sleep(Duration::from_millis(500));
+    assert!(a.child.try_wait().unwrap().is_none(), "the bridge ended");
+    let replies = query(
+        &controller,
+        "a",
+        &move_line("elbow", 25.0, "n1"),
+        Duration::from_secs(10),
+    );
+    assert_eq!(replies.len(), 2, "{replies:?}");
+    assert_eq!(replies[1]["arrived"], json!(true), "{replies:?}");
+    assert_eq!(moves(&a.log), vec![25.0]);
+    assert!(a.child.try_wait().unwrap().is_none(), "the bridge ended");
+    let said = a.stderr.lock().unwrap().join("\n");
+    assert!(
+        said.contains(
+            "no local input (--input none): lines come from the fleet; a signal ends the bridge"
+        ),
+        "{said}"
+    );
+}
+
 /// A router, one bridge `a` on it, ready, and a controller: the router,
 /// the bridge, the controller, the scratch folder and the router's port.
 fn fleet_of_one(name: &str) -> (zenoh::Session, Bridge, zenoh::Session, PathBuf, u16) {

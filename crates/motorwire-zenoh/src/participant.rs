@@ -1223,7 +1223,7 @@ mod tests {
         };
         assert_eq!(
             message,
-            "not a valid WIA message: (document): the document is valid against the schema but a key is given twice (unrepresentable)"
+            "not a valid WIA message: (document): the document satisfies the motor-command schema but motorwire cannot represent it: duplicate field `motor_id` at line 1 column 30 (unrepresentable)"
         );
     }
 
@@ -1557,6 +1557,7 @@ mod tests {
                 "line": 0,
                 "error": {
                     "kind": "id_reused",
+                    "rule": "id_reused",
                     "message": r#"the id "d1" is this controller's id of another command, {"motor_id":"elbow","setpoint":20}; a retry carries the same command as its first try, a new command a new id; nothing was sent"#,
                 },
             })
