@@ -121,7 +121,11 @@ pub fn feedback_from_irpc(
                 finite(name, "voltage_d", t.voltage_d)?,
                 finite(name, "voltage_q", t.voltage_q)?,
             );
-            fb.voltage = Some(vd.hypot(vq));
+            // In the joint's f32, as its other values are: an f64 hypot
+            // of two f32s is no f32, and would print as f64 noise.
+            #[allow(clippy::cast_possible_truncation)]
+            let v = (vd as f32).hypot(vq as f32);
+            fb.voltage = Some(f64::from(v));
             fb.power = Some(finite(name, "power", t.power)?);
             fb.temperature = Some(finite(name, "temperature_c", t.temperature_c)?);
             fb.control_effort = Some(finite(name, "load_percent", t.load_percent)?);

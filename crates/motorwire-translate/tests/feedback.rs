@@ -107,6 +107,22 @@ fn telemetry_fills_what_wia_has_and_reports_the_rest() {
             .iter()
             .any(|l| l.to_string() == "position: converted: degrees (iRPC's unit) to radians")
     );
+    // A voltage that is no round number is the joint's f32 all the same,
+    // which prints as its shortest decimal (not as an f64's noise).
+    let t = TelemetryStream {
+        voltage_d: 0.1,
+        voltage_q: 0.05,
+        ..t
+    };
+    let fb = feedback_from_irpc(&map, 9, &Payload::TelemetryStream(t), 7.0, None)
+        .unwrap()
+        .value;
+    let v = fb.voltage.unwrap();
+    #[allow(clippy::cast_possible_truncation)]
+    let as_f32 = v as f32;
+    assert_eq!(f64::from(as_f32), v, "{v} is no f32");
+    assert_eq!(as_f32, 0.1f32.hypot(0.05));
+    assert_eq!(as_f32.to_string(), "0.1118034");
     assert!(out.report.losses.iter().any(
         |l| l.to_string() == "foc_loop_time_us: dropped: WIA MotorFeedback has no place for it"
     ));
