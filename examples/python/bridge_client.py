@@ -11,8 +11,8 @@ line of a connection must be the token in FILE.
 
 Start a bridge on its simulated arm, then run this against it:
 
-    motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --input unix:$XDG_RUNTIME_DIR/motorwire.sock &
-    python3 examples/python/bridge_client.py --unix $XDG_RUNTIME_DIR/motorwire.sock
+    motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --input unix: &
+    python3 examples/python/bridge_client.py --unix
 
     motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --input tcp:127.0.0.1:7878 --token-file ~/.config/motorwire/token &
     python3 examples/python/bridge_client.py --tcp 127.0.0.1:7878 --token-file ~/.config/motorwire/token
@@ -24,8 +24,10 @@ is not what the bridge promises (so CI runs it), 0 otherwise.
 
 import argparse
 import json
+import os
 import socket
 import sys
+import tempfile
 import time
 
 
@@ -129,10 +131,23 @@ def session(bridge):
     check(arrival["arrived"] is True, "elbow arrived at 0", arrival)
 
 
+def default_socket():
+    """Where `motorwire bridge --input unix:` listens: in $XDG_RUNTIME_DIR,
+    or without it in a directory of this user's own under the temporary
+    directory."""
+    runtime = os.environ.get("XDG_RUNTIME_DIR")
+    if runtime:
+        return os.path.join(runtime, "motorwire.sock")
+    return os.path.join(tempfile.gettempdir(), f"motorwire-{os.getuid()}", "motorwire.sock")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     where = parser.add_mutually_exclusive_group(required=True)
-    where.add_argument("--unix", metavar="PATH", help="the bridge's --input unix:PATH socket")
+    where.add_argument(
+        "--unix", metavar="PATH", nargs="?", const=default_socket(),
+        help="the bridge's --input unix:PATH socket (alone: the bridge's own default for --input unix:)",
+    )
     where.add_argument("--tcp", metavar="HOST:PORT", help="the bridge's --input tcp:HOST:PORT")
     parser.add_argument("--token-file", help="with --tcp: the bridge's --token-file")
     args = parser.parse_args()

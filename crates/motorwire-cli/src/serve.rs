@@ -20,7 +20,7 @@ use std::collections::BTreeMap;
 use std::fs;
 use std::io::{self, BufReader, Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
-use std::os::unix::fs::{DirBuilderExt, FileTypeExt, PermissionsExt};
+use std::os::unix::fs::{DirBuilderExt, FileTypeExt, MetadataExt, PermissionsExt};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -70,7 +70,17 @@ pub(crate) fn parse_listen(spec: &str) -> Result<Listen, String> {
     }
     if let Some(path) = spec.strip_prefix("unix:") {
         if path.is_empty() {
-            return Err("--input unix:PATH: the path is empty".to_owned());
+            return default_socket(
+                std::env::var_os("XDG_RUNTIME_DIR").filter(|d| !d.is_empty()),
+                &std::env::temp_dir(),
+            )
+            .map(Listen::Unix);
+        }
+        if Path::new(path).parent() == Some(Path::new("/")) {
+            // `unix:$XDG_RUNTIME_DIR/motorwire.sock` with the variable unset.
+            return Err(format!(
+                "--input unix:{path}: a socket at the root of the file system (was a variable such as XDG_RUNTIME_DIR unset?); `--input unix:` alone picks a directory of your own"
+            ));
         }
         return Ok(Listen::Unix(PathBuf::from(path)));
     }
@@ -92,6 +102,44 @@ pub(crate) fn parse_listen(spec: &str) -> Result<Listen, String> {
     Err(format!(
         "--input {spec:?}: expected - (stdin), unix:PATH, tcp:ADDR (e.g. tcp:127.0.0.1:7878) or none (the fleet's commands alone)"
     ))
+}
+
+/// The socket of `--input unix:` alone: `motorwire.sock` in `runtime`
+/// (`$XDG_RUNTIME_DIR`, this user's own), or, without one, in
+/// `<tmp>/motorwire-<uid>`, made with mode 0700; a directory already there
+/// must be this user's and open to no one else.
+///
+/// # Errors
+/// Why the directory cannot be used, naming it.
+pub(crate) fn default_socket(
+    runtime: Option<std::ffi::OsString>,
+    tmp: &Path,
+) -> Result<PathBuf, String> {
+    if let Some(dir) = runtime {
+        return Ok(PathBuf::from(dir).join("motorwire.sock"));
+    }
+    // This process's user: the owner of its /proc entry.
+    let uid = fs::metadata("/proc/self")
+        .map(|m| m.uid())
+        .map_err(|e| format!("--input unix: XDG_RUNTIME_DIR is unset and this user's id cannot be read (/proc/self: {e}); give a path, unix:PATH"))?;
+    let dir = tmp.join(format!("motorwire-{uid}"));
+    let shown = dir.display();
+    match fs::DirBuilder::new().mode(0o700).create(&dir) {
+        Ok(()) => {}
+        Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
+        Err(e) => {
+            return Err(format!(
+                "--input unix: XDG_RUNTIME_DIR is unset, and {shown} cannot be made: {e}; give a path, unix:PATH"
+            ));
+        }
+    }
+    let meta = fs::symlink_metadata(&dir).map_err(|e| format!("--input unix: {shown}: {e}"))?;
+    if !meta.is_dir() || meta.uid() != uid || meta.mode() & 0o077 != 0 {
+        return Err(format!(
+            "--input unix: XDG_RUNTIME_DIR is unset, and {shown} is not a directory of this user's that only it can open (mode 0700); remove it or give a path, unix:PATH"
+        ));
+    }
+    Ok(dir.join("motorwire.sock"))
 }
 
 /// Reads the token in `path`: at most 4 KiB, trimmed, at least 16 bytes,
@@ -1015,6 +1063,47 @@ mod tests {
     }
 
     #[test]
+    fn unix_alone_is_the_runtime_directory_or_a_private_one_of_this_user() {
+        let tmp = std::env::temp_dir().join(format!("mw-default-socket-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&tmp);
+        fs::create_dir_all(&tmp).unwrap();
+        assert_eq!(
+            default_socket(Some("/run/user/7".into()), &tmp).unwrap(),
+            PathBuf::from("/run/user/7/motorwire.sock")
+        );
+        let uid = fs::metadata("/proc/self").unwrap().uid();
+        let dir = tmp.join(format!("motorwire-{uid}"));
+        assert_eq!(
+            default_socket(None, &tmp).unwrap(),
+            dir.join("motorwire.sock")
+        );
+        let mode = fs::metadata(&dir).unwrap().mode() & 0o777;
+        assert_eq!(mode, 0o700);
+        // Again: the directory is there, and still fine.
+        assert_eq!(
+            default_socket(None, &tmp).unwrap(),
+            dir.join("motorwire.sock")
+        );
+        // Opened to others: refused, naming it.
+        fs::set_permissions(&dir, fs::Permissions::from_mode(0o755)).unwrap();
+        assert_eq!(
+            default_socket(None, &tmp).unwrap_err(),
+            format!(
+                "--input unix: XDG_RUNTIME_DIR is unset, and {} is not a directory of this user's that only it can open (mode 0700); remove it or give a path, unix:PATH",
+                dir.display()
+            )
+        );
+        // A file in its place: refused too.
+        fs::remove_dir(&dir).unwrap();
+        fs::write(&dir, "").unwrap();
+        assert!(default_socket(None, &tmp).is_err());
+        // A temporary directory that cannot hold it: named.
+        let err = default_socket(None, Path::new("/proc/self/nonexistent")).unwrap_err();
+        assert!(err.contains("/proc/self/nonexistent/motorwire-"), "{err}");
+        let _ = fs::remove_dir_all(&tmp);
+    }
+
+    #[test]
     fn only_loopback_addresses_are_listened_on() {
         assert_eq!(
             parse_listen("tcp:127.0.0.1:0").unwrap(),
@@ -1030,6 +1119,10 @@ mod tests {
             Listen::Unix(PathBuf::from("/run/x.sock"))
         );
         assert_eq!(parse_listen("none").unwrap(), Listen::Nothing);
+        assert_eq!(
+            parse_listen("unix:/motorwire.sock").unwrap_err(),
+            "--input unix:/motorwire.sock: a socket at the root of the file system (was a variable such as XDG_RUNTIME_DIR unset?); `--input unix:` alone picks a directory of your own"
+        );
         assert_eq!(parse_listen("-").unwrap(), Listen::Stdin);
         assert_eq!(
             parse_listen("stdin").unwrap_err(),
