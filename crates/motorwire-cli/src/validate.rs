@@ -59,9 +59,15 @@ pub(crate) struct Args {
     /// Judge by the JSON Schema alone, without WIA §10's semantic rules.
     #[arg(long)]
     schema_only: bool,
-    /// The current time (Unix ms): timestamps more than 5 minutes older are stale.
+    /// The current time (Unix ms): timestamps more than 5 minutes older,
+    /// or more than `--max-age` ahead, are stale.
     #[arg(long, value_name = "UNIX_MS")]
     now: Option<u64>,
+    /// With `--now`: how far ahead of it a timestamp may be (ms), the
+    /// bridge's `--max-age` clock skew (0: any future timestamp, as WIA
+    /// allows).
+    #[arg(long, value_name = "MS", default_value_t = 300_000)]
+    max_age: u64,
     /// Take members a kind's schema does not name (WIA's schemas leave
     /// objects open). Without it each is reported `unknown-member`, naming
     /// the nearest known member, as the bridge refuses it.
@@ -132,6 +138,12 @@ pub(crate) fn run(args: &Args) -> u8 {
             .max_document_size(args.max_size)
             .max_depth(usize::from(args.max_depth))
             .deny_unknown_members(!args.allow_unknown);
+        #[allow(clippy::cast_precision_loss)] // ms are exact in f64 far beyond any skew
+        let v = if args.max_age > 0 {
+            v.max_ahead_ms(args.max_age as f64)
+        } else {
+            v
+        };
         with_clock(v, args.now)
     };
     let stdout = io::stdout();

@@ -356,3 +356,48 @@ fn a_misspelled_member_is_invalid_unless_allowed_and_schema_only_takes_it() {
         );
     }
 }
+
+#[test]
+fn with_now_a_timestamp_further_ahead_than_the_bridges_skew_is_stale() {
+    let dir = std::env::temp_dir().join(format!("mw-ahead-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("ahead.json");
+    // An hour ahead of --now: WIA allows it, the bridge (5 min) does not.
+    std::fs::write(
+        &file,
+        r#"{"motor_id":"m","timestamp":1704070800000,"control_mode":"position","setpoint":1}"#,
+    )
+    .unwrap();
+    let path = file.display().to_string();
+    let out = motorwire(&["validate", "--now", "1704067200000", &path], None);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        String::from_utf8(out.stdout).unwrap(),
+        format!(
+            "{path}: motor-command (auto): invalid, 1 violation(s)\n  /timestamp  [timestamp-stale]  timestamp 1704070800000 is 3600000 ms ahead of now (1704067200000); at most 300000 ms is tolerated (the bridge's clock skew)\n"
+        )
+    );
+    for args in [
+        &[
+            "validate",
+            "--now",
+            "1704067200000",
+            "--max-age",
+            "0",
+            &path,
+        ][..],
+        &[
+            "validate",
+            "--now",
+            "1704067200000",
+            "--max-age",
+            "3600000",
+            &path,
+        ][..],
+        &["validate", &path][..],
+    ] {
+        let out = motorwire(args, None);
+        assert_eq!(out.status.code(), Some(0), "{args:?}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -10,6 +10,8 @@ pub(crate) const STALE_AFTER_MS: f64 = 300_000.0;
 
 pub(crate) struct Sink {
     pub(crate) now_ms: Option<f64>,
+    /// How far ahead of `now_ms` a timestamp may be (ms); `None`: any.
+    pub(crate) ahead_ms: Option<f64>,
     pub(crate) list: Vec<Violation>,
 }
 
@@ -17,6 +19,7 @@ impl Sink {
     pub(crate) fn new(now_ms: Option<f64>) -> Self {
         Self {
             now_ms,
+            ahead_ms: None,
             list: Vec::new(),
         }
     }
@@ -177,6 +180,18 @@ impl Sink {
                         now - t
                     ),
                 );
+        }
+        if let (Some(now), Some(ahead)) = (self.now_ms, self.ahead_ms)
+            && t > now + ahead
+        {
+            self.push(
+                path,
+                Rule::TimestampStale,
+                format!(
+                    "timestamp {t} is {} ms ahead of now ({now}); at most {ahead} ms is tolerated (the bridge's clock skew)",
+                    t - now
+                ),
+            );
         }
     }
 

@@ -339,6 +339,13 @@ pub trait WiaMessage: Serialize + DeserializeOwned + Sized {
     fn may_hold_unknown_members(&self) -> bool {
         true
     }
+
+    /// [`WiaMessage::violations`], a timestamp more than `ahead_ms` ahead
+    /// of `now_ms` stale too ([`Validator::max_ahead_ms`](crate::Validator::max_ahead_ms)).
+    fn violations_with_skew(&self, now_ms: Option<f64>, ahead_ms: Option<f64>) -> Vec<Violation> {
+        let _ = ahead_ms;
+        self.violations(now_ms)
+    }
 }
 
 macro_rules! wia_message {
@@ -354,6 +361,13 @@ macro_rules! wia_message {
 
             fn may_hold_unknown_members(&self) -> bool {
                 crate::members::Unknowns::any_unknown(self)
+            }
+
+            fn violations_with_skew(&self, now_ms: Option<f64>, ahead_ms: Option<f64>) -> Vec<Violation> {
+                let mut sink = Sink::new(now_ms);
+                sink.ahead_ms = ahead_ms;
+                self.check(&mut sink);
+                sink.finish()
             }
         }
     )*};

@@ -33,6 +33,7 @@ pub struct Validator {
     max_document_size: usize,
     max_depth: usize,
     now_ms: Option<f64>,
+    ahead_ms: Option<f64>,
     deny_unknown: bool,
 }
 
@@ -57,6 +58,7 @@ impl Validator {
             max_document_size: Self::DEFAULT_MAX_DOCUMENT_SIZE,
             max_depth: Self::DEFAULT_MAX_DEPTH,
             now_ms: None,
+            ahead_ms: None,
             deny_unknown: false,
         }
     }
@@ -112,6 +114,25 @@ impl Validator {
     #[must_use]
     pub const fn now_ms(mut self, now_ms: f64) -> Self {
         self.now_ms = Some(now_ms);
+        self
+    }
+
+    /// With a clock ([`Validator::now_ms`]), a timestamp more than
+    /// `ahead_ms` ahead of it is stale too ([`Rule::TimestampStale`]):
+    /// WIA allows future timestamps, the bridge a clock skew (its
+    /// `--max-age`, 5 minutes by default) either way, and `motorwire
+    /// validate --now` judges as the bridge does.
+    ///
+    /// ```
+    /// use motorwire_wia::{MessageKind, Validator};
+    /// let doc = r#"{"motor_id":"m","timestamp":1704070800000,"control_mode":"position","setpoint":1}"#;
+    /// let v = Validator::new().now_ms(1_704_067_200_000.0);
+    /// assert!(v.validate(MessageKind::MotorCommand, doc).is_valid()); // an hour ahead: WIA allows it
+    /// assert!(!v.max_ahead_ms(300_000.0).validate(MessageKind::MotorCommand, doc).is_valid());
+    /// ```
+    #[must_use]
+    pub const fn max_ahead_ms(mut self, ahead_ms: f64) -> Self {
+        self.ahead_ms = Some(ahead_ms);
         self
     }
 
@@ -293,7 +314,7 @@ impl Validator {
     /// Every violation of a typed value (see [`WiaMessage::violations`]),
     /// judged with this validator's clock.
     pub fn check<T: WiaMessage>(&self, msg: &T) -> Vec<Violation> {
-        msg.violations(self.now_ms)
+        msg.violations_with_skew(self.now_ms, self.ahead_ms)
     }
 
     /// Serializes a message to JSON after checking it: a value that breaks a
@@ -351,7 +372,7 @@ impl Validator {
     fn run<T: WiaMessage>(&self, json: &str) -> (Option<T>, Vec<Violation>) {
         match serde_json::from_str::<T>(json) {
             Ok(msg) => {
-                let mut violations = msg.violations(self.now_ms);
+                let mut violations = msg.violations_with_skew(self.now_ms, self.ahead_ms);
                 if self.deny_unknown && msg.may_hold_unknown_members() {
                     violations.extend(crate::members::unknown_members(T::KIND, json));
                 }
