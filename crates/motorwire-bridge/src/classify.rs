@@ -13,7 +13,12 @@
 //!   `false` (a multi-axis command's), valid or not.
 //!
 //! A member named twice counts every time: `{"emergency_stop": false,
-//! "emergency_stop": true}` stops. The release is exact: the line
+//! "emergency_stop": true}` stops, and so does a nested one named twice
+//! (`"safety_limits":{"emergency_stop":true,"emergency_stop":false}`).
+//! When the text names `emergency_stop` more often than those places show
+//! (under `metadata`, under a misspelled member), or spells a name with an
+//! escape, any `emergency_stop` in it that is not `false` stops: when in
+//! doubt, stop. The release is exact: the line
 //! `{"emergency_stop": false}` with no other member and no repeat; any
 //! other line whose every `emergency_stop` is `false` is an
 //! [`Input::BadRelease`] and the latch holds.
@@ -252,14 +257,28 @@ fn stops(v: &Value) -> bool {
     *v != Value::Bool(false)
 }
 
-/// Every `emergency_stop` of a `safety_limits` value, repeats included.
-fn nested_stops(safety_limits: &Value, out: &mut Vec<String>, at: &str) {
+/// The `emergency_stop` of a `safety_limits` value, when it stops; counts
+/// in `seen` each one read (a parsed object keeps only the last of a
+/// repeated member: [`hidden_stop`] looks at the text for the others).
+fn nested_stops(safety_limits: &Value, out: &mut Vec<String>, at: &str, seen: &mut usize) {
     if let Value::Object(m) = safety_limits
         && let Some(v) = m.get("emergency_stop")
-        && stops(v)
     {
-        out.push(format!("{at}.emergency_stop is {v}"));
+        *seen += 1;
+        if stops(v) {
+            out.push(format!("{at}.emergency_stop is {v}"));
+        }
     }
+}
+
+/// A stop the parsed members cannot show: the text names `emergency_stop`
+/// more often than the members read (a nested member named twice, whose
+/// parsed object keeps the last; one under `metadata` or an unknown
+/// member), or spells a name with an escape; then any `emergency_stop` in
+/// it whose value is not `false` stops. When in doubt, stop.
+fn hidden_stop(line: &str, seen: usize) -> bool {
+    let named = line.matches("\"emergency_stop\"").count();
+    (named > seen || line.contains('\\')) && names_a_stop(line)
 }
 
 /// Whether `line` asks for an emergency stop (in any of the forms above):
@@ -281,8 +300,8 @@ pub fn asks_for_stop(line: &str) -> bool {
     let Ok((members, _)) = members_of(line) else {
         return names_a_stop(line);
     };
-    let (top, reasons) = stop_members(&members);
-    top.iter().any(|v| stops(v)) || !reasons.is_empty()
+    let (top, reasons, seen) = stop_members(&members);
+    top.iter().any(|v| stops(v)) || !reasons.is_empty() || hidden_stop(line, seen)
 }
 
 /// For a line that is not a JSON object this bridge can read (truncated,
@@ -406,19 +425,29 @@ fn repair(line: &str) -> Option<String> {
     changed.then_some(out)
 }
 
-/// The top-level `emergency_stop` values, and the nested ones that stop.
-fn stop_members(members: &[(String, Value)]) -> (Vec<&Value>, Vec<String>) {
+/// The top-level `emergency_stop` values, the nested ones that stop, and
+/// how many `emergency_stop` members were read in all.
+fn stop_members(members: &[(String, Value)]) -> (Vec<&Value>, Vec<String>, usize) {
     let mut reasons = Vec::new();
     let mut top = Vec::new();
+    let mut seen = 0;
     for (k, v) in members {
         match k.as_str() {
-            "emergency_stop" => top.push(v),
-            "safety_limits" => nested_stops(v, &mut reasons, "safety_limits"),
+            "emergency_stop" => {
+                top.push(v);
+                seen += 1;
+            }
+            "safety_limits" => nested_stops(v, &mut reasons, "safety_limits", &mut seen),
             "motors" => {
                 if let Value::Array(axes) = v {
                     for (i, a) in axes.iter().enumerate() {
                         if let Some(l) = a.get("safety_limits") {
-                            nested_stops(l, &mut reasons, &format!("motors[{i}].safety_limits"));
+                            nested_stops(
+                                l,
+                                &mut reasons,
+                                &format!("motors[{i}].safety_limits"),
+                                &mut seen,
+                            );
                         }
                     }
                 }
@@ -426,7 +455,7 @@ fn stop_members(members: &[(String, Value)]) -> (Vec<&Value>, Vec<String>) {
             _ => {}
         }
     }
-    (top, reasons)
+    (top, reasons, seen)
 }
 
 /// Decides what `line` asks for. `validator` parses the WIA messages.
@@ -523,7 +552,12 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             ("command_id", Value::String(s)) => Some(("command_id", s.clone())),
             _ => None,
         });
-    let (top, reasons) = stop_members(&members);
+    let (top, mut reasons, seen) = stop_members(&members);
+    if reasons.is_empty() && hidden_stop(line, seen) {
+        reasons.push(
+            "emergency_stop is named where the members read do not show it (a repeated nested member, metadata, an unknown member) with a value that is not false".to_owned(),
+        );
+    }
     let top_stop = top.iter().any(|v| stops(v));
     if let Some(e) = unholdable {
         if top_stop || !reasons.is_empty() {
@@ -777,6 +811,39 @@ mod tests {
             Input::Stop { problems, .. } => problems,
             other => panic!("{line}: {other:?}"),
         }
+    }
+
+    #[test]
+    fn a_stop_the_parsed_members_cannot_show_still_stops() {
+        let v = Validator::new();
+        for line in [
+            // A nested member named twice: the parsed object keeps the last.
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":40,"safety_limits":{"emergency_stop":true,"emergency_stop":false}}"#,
+            r#"{"command_id":"c","timestamp":1,"motors":[{"motor_id":"a","control_mode":"position","setpoint":1,"safety_limits":{"emergency_stop":1,"emergency_stop":false}}]}"#,
+            // Under metadata, under a misspelled member, spelled with an escape.
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":40,"metadata":{"emergency_stop":true}}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":40,"safety_limit":{"emergency_stop":true}}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":40,"safety_limits":{"emergency_stop":false,"emergency_stop":true}}"#,
+            // A release that also names a stop elsewhere.
+            r#"{"emergency_stop":false,"metadata":{"emergency_stop":true}}"#,
+        ] {
+            assert!(
+                matches!(classify(&v, line), Input::Stop { .. }),
+                "{line}: {:?}",
+                classify(&v, line)
+            );
+            assert!(asks_for_stop(line), "{line}");
+        }
+        // What names no stop is not one: false everywhere, or only as a
+        // string value.
+        for line in [
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":40,"safety_limits":{"emergency_stop":false,"emergency_stop":false}}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":40,"metadata":{"emergency_stop":false,"note":"\"emergency_stop\":true"}}"#,
+        ] {
+            assert!(!asks_for_stop(line), "{line}");
+            assert!(!matches!(classify(&v, line), Input::Stop { .. }), "{line}");
+        }
+        assert_eq!(classify(&v, r#"{"emergency_stop": false}"#), Input::Release);
     }
 
     #[test]

@@ -192,6 +192,7 @@ pub(crate) fn unknown_members(kind: MessageKind, json: &str) -> Vec<Violation> {
     // What the schema says of the value that starts next.
     let mut next: Option<&Known> = Some(known(kind));
     let mut i = 0;
+    let mut found = 0usize;
     while let Some(&b) = bytes.get(i) {
         match b {
             b'{' => {
@@ -275,17 +276,15 @@ pub(crate) fn unknown_members(kind: MessageKind, json: &str) -> Vec<Violation> {
                     Some(members) => match members.get(name.as_ref()) {
                         Some(k) => Some(k),
                         None => {
-                            let here = pointer(&stack);
-                            let hint = nearest(&name, members.keys())
-                                .map(|n| format!("; did you mean {n}?"))
-                                .unwrap_or_default();
-                            out.push(Violation::new(
-                                format!("{here}/{}", token(&name)),
-                                Rule::UnknownMember,
-                                format!(
-                                    "{name:?} is not a member {kind} has here{hint} (the bridge and `motorwire validate` take unknown members only when told to: --allow-unknown-members, --allow-unknown)"
-                                ),
-                            ));
+                            found += 1;
+                            if found <= MAX_REPORTED {
+                                let here = pointer(&stack);
+                                out.push(Violation::new(
+                                    format!("{here}/{}", token(shown(&name))),
+                                    Rule::UnknownMember,
+                                    unknown_message(kind, &name, members),
+                                ));
+                            }
                             None
                         }
                     },
@@ -297,7 +296,55 @@ pub(crate) fn unknown_members(kind: MessageKind, json: &str) -> Vec<Violation> {
             _ => i += 1,
         }
     }
+    if found > MAX_REPORTED {
+        out.push(Violation::new(
+            "",
+            Rule::UnknownMember,
+            format!(
+                "and {} more unknown members (the first {MAX_REPORTED} are listed)",
+                found - MAX_REPORTED
+            ),
+        ));
+    }
     out
+}
+
+/// Unknown members listed one by one at most; the rest are counted.
+const MAX_REPORTED: usize = 16;
+
+/// The longest name compared with the known ones, and shown whole: a
+/// longer one is no typo of theirs (they are at most 32 bytes), and
+/// comparing it would cost its length times theirs.
+const MAX_NAME_COMPARED: usize = 64;
+
+/// `name`, cut to [`MAX_NAME_COMPARED`] bytes (on a character boundary).
+fn shown(name: &str) -> &str {
+    let mut end = name.len().min(MAX_NAME_COMPARED);
+    while !name.is_char_boundary(end) {
+        end -= 1;
+    }
+    name.get(..end).unwrap_or_default()
+}
+
+/// What an unknown member's violation says: its name (cut when long), and
+/// the known member meant when one is near.
+fn unknown_message(kind: MessageKind, name: &str, members: &BTreeMap<String, Known>) -> String {
+    let cut = if name.len() > MAX_NAME_COMPARED {
+        format!(" (its first {MAX_NAME_COMPARED} bytes of {})", name.len())
+    } else {
+        String::new()
+    };
+    let hint = if name.len() > MAX_NAME_COMPARED {
+        None
+    } else {
+        nearest(name, members.keys())
+    }
+    .map(|n| format!("; did you mean {n}?"))
+    .unwrap_or_default();
+    format!(
+        "{:?}{cut} is not a member {kind} has here{hint} (the bridge and `motorwire validate` take unknown members only when told to: --allow-unknown-members, --allow-unknown)",
+        shown(name)
+    )
 }
 
 #[cfg(test)]
@@ -448,6 +495,38 @@ mod tests {
             let got: Vec<&str> = r.violations.iter().map(|x| x.pointer.as_str()).collect();
             assert_eq!(got, want, "{doc}");
         }
+    }
+
+    #[test]
+    fn many_or_huge_unknown_members_cost_little_and_say_little() {
+        // 8,000 short unknown members: 16 listed, the rest counted.
+        let many: String = (0..8000).map(|i| format!(",\"k{i}\":0")).collect();
+        let doc = format!(
+            r#"{{"motor_id":"m","timestamp":1,"control_mode":"position","setpoint":1{many}}}"#
+        );
+        let v = unknown_members(MessageKind::MotorCommand, &doc);
+        assert_eq!(v.len(), MAX_REPORTED + 1);
+        assert_eq!(v[0].pointer, "/k0");
+        assert_eq!(
+            v[MAX_REPORTED].message,
+            "and 7984 more unknown members (the first 16 are listed)"
+        );
+        // A 60,000-byte near miss: shown cut, compared with nothing.
+        let key = format!("velocity_limit{}", "x".repeat(60_000));
+        let doc = format!(
+            r#"{{"motor_id":"m","timestamp":1,"control_mode":"position","setpoint":1,"{key}":1}}"#
+        );
+        let v = unknown_members(MessageKind::MotorCommand, &doc);
+        assert_eq!(v.len(), 1);
+        assert_eq!(v[0].pointer, format!("/{}", &key[..64]));
+        assert!(
+            v[0].message.starts_with(&format!(
+                "{:?} (its first 64 bytes of 60014) is not a member motor-command has here (the bridge",
+                &key[..64]
+            )),
+            "{}",
+            v[0].message
+        );
     }
 
     #[test]
