@@ -37,15 +37,6 @@ pub(crate) enum Controller {
     Named(String),
 }
 
-impl std::fmt::Display for Controller {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Key(c) => write!(f, "the controller cmd/{c}"),
-            Self::Named(c) => write!(f, "the controller named {:?}", c),
-        }
-    }
-}
-
 /// What is remembered of one id.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) enum Recalled {

@@ -60,6 +60,15 @@ impl RobotKeys {
         Ok(format!("motorwire/{}/cmd/{controller}", self.robot))
     }
 
+    /// The key the replies to `controller`'s commands go on: this robot's
+    /// `cmd/<controller>`, or `cmd` for a controller named by parameter.
+    pub(crate) fn reply_key(&self, controller: &Controller) -> String {
+        match controller {
+            Controller::Key(c) => format!("motorwire/{}/cmd/{c}", self.robot),
+            Controller::Named(_) => self.cmd(),
+        }
+    }
+
     /// `motorwire/<robot>/cmd/**`: what the bridge's queryable serves
     /// (`cmd` itself and every `cmd/<controller>`).
     pub fn cmd_any(&self) -> String {
@@ -215,6 +224,16 @@ mod tests {
         assert_eq!(
             k.map(RobotKeys::cmd_any).as_deref(),
             Some("motorwire/arm-1/cmd/**")
+        );
+        assert_eq!(
+            k.map(|k| k.reply_key(&Controller::Key("planner".into())))
+                .as_deref(),
+            Some("motorwire/arm-1/cmd/planner")
+        );
+        assert_eq!(
+            k.map(|k| k.reply_key(&Controller::Named("planner".into())))
+                .as_deref(),
+            Some("motorwire/arm-1/cmd")
         );
     }
 

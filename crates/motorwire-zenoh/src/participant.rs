@@ -413,8 +413,11 @@ async fn declare(
 /// A command query's line in progress.
 #[derive(Debug)]
 struct Pending {
-    /// The queries waiting for its replies (the first, and its retries).
+    /// The queries waiting for its replies (the first, and its retries:
+    /// the same controller's, so replied to on the same key).
     queries: Vec<Query>,
+    /// The key its replies go on.
+    on: String,
     /// `(controller, id, body)` when it carried an id (the id as the
     /// memory keys it: [`CommandId`]'s type and value).
     id: Option<(Controller, String, Arc<str>)>,
@@ -928,29 +931,32 @@ impl State {
             }
             _ => controller_of(q.key_expr().as_str(), parameter),
         };
+        // Every reply goes on the robot's own key of the controller the
+        // query names, or on the query's own key when it names no one.
+        let on = match &controller {
+            Ok(c) => self.keys.reply_key(c),
+            Err(_) => q.key_expr().to_string(),
+        };
         let (command, controller) = match controller {
-            Ok(c) => (command(&payload), c),
+            Ok(c) => (command(&payload), Some(c)),
             // A query that names no one controller is refused here, nothing
             // sent; when it names a stop, it stops (the bridge refuses it
-            // as a line and stops). A refused query has no id: the
-            // controller here keys nothing.
+            // as a line and stops). A refused query has no id.
             Err(reason) => {
                 if !asks_for_stop(&String::from_utf8_lossy(&payload)) {
                     let text = refusal(ErrorKind::Invalid, format!("{reason}; nothing was sent"));
-                    self.reply(&q, &text).await;
+                    self.reply(&q, &on, &text).await;
                     return;
                 }
-                (
-                    Command::Refused { reason, stop: true },
-                    Controller::Named(String::new()),
-                )
+                (Command::Refused { reason, stop: true }, None)
             }
         };
         if let Command::Line {
             id: Some(keyed), ..
         } = &command
+            && let Some(controller) = &controller
         {
-            if !self.ids.admit(&controller, Instant::now()) {
+            if !self.ids.admit(controller, Instant::now()) {
                 let text = refusal(
                     ErrorKind::Busy,
                     format!(
@@ -959,24 +965,24 @@ impl State {
                         CONTROLLER_IDLE.as_secs()
                     ),
                 );
-                self.reply(&q, &text).await;
+                self.reply(&q, &on, &text).await;
                 return;
             }
-            match self.ids.recall(&controller, &keyed.id.key()) {
+            match self.ids.recall(controller, &keyed.id.key()) {
                 Some((first, _)) if first != keyed.body => {
-                    self.reply(&q, &id_reused(&keyed.id, &first)).await;
+                    self.reply(&q, &on, &id_reused(&keyed.id, &first)).await;
                     return;
                 }
                 Some((_, Recalled::Done(lines))) => {
                     for line in &lines {
-                        self.reply(&q, line).await;
+                        self.reply(&q, &on, line).await;
                     }
                     return; // dropping the query ends its replies
                 }
                 Some((_, Recalled::InProgress(origin))) => {
                     if let Some(p) = self.pending.get_mut(&origin) {
                         for line in p.sent.clone() {
-                            self.reply(&q, &line).await;
+                            self.reply(&q, &on, &line).await;
                         }
                         if let Some(p) = self.pending.get_mut(&origin) {
                             p.queries.push(q);
@@ -1000,15 +1006,18 @@ impl State {
                     "{MAX_QUERIES_IN_PROGRESS} commands are in progress on this bridge; nothing was sent"
                 ),
             );
-            self.reply(&q, &text).await;
+            self.reply(&q, &on, &text).await;
             return;
         }
         let origin = Origin(self.next_origin);
         self.next_origin += 1;
-        let id = match &command {
-            Command::Line {
-                id: Some(keyed), ..
-            } => {
+        let id = match (&command, controller) {
+            (
+                Command::Line {
+                    id: Some(keyed), ..
+                },
+                Some(controller),
+            ) => {
                 let key = keyed.id.key();
                 self.ids.remember(
                     &controller,
@@ -1024,6 +1033,7 @@ impl State {
             origin,
             Pending {
                 queries: vec![q],
+                on,
                 id,
                 sent: Vec::new(),
             },
@@ -1038,21 +1048,10 @@ impl State {
         }
     }
 
-    /// Replies `line` to `q`, on the robot's own key of the controller the
-    /// query names (`motorwire/<robot>/cmd` or `.../cmd/<controller>`), or
-    /// on the query's own key when it names no one controller.
-    async fn reply(&self, q: &Query, line: &str) {
+    /// Replies `line` to `q` on the key `on`.
+    async fn reply(&self, q: &Query, on: &str, line: &str) {
         let line = signed(line, &self.robot, &self.bridge);
-        let key = match controller_of(q.key_expr().as_str(), None) {
-            Ok(Controller::Key(c)) => self.keys.cmd_of(&c).ok(),
-            Ok(Controller::Named(_)) => Some(self.keys.cmd()),
-            Err(_) => None,
-        }
-        .unwrap_or_else(|| q.key_expr().to_string());
-        let _ = q
-            .reply(key, line)
-            .encoding(Encoding::APPLICATION_JSON)
-            .await;
+        let _ = q.reply(on, line).encoding(Encoding::APPLICATION_JSON).await;
     }
 
     /// A result or completion for one of the participant's origins.
@@ -1085,8 +1084,9 @@ impl State {
         };
         p.sent.push(Arc::clone(&line));
         let queries = std::mem::take(&mut p.queries);
+        let on = p.on.clone();
         for q in &queries {
-            self.reply(q, &line).await;
+            self.reply(q, &on, &line).await;
         }
         if !last {
             if let Some(p) = self.pending.get_mut(&origin) {
