@@ -240,6 +240,22 @@ pub struct Broke {
     pub limit_source: Option<&'static str>,
 }
 
+impl Broke {
+    /// What the gate's refusal `r` names, when it names a field or a limit.
+    pub fn of(r: &motorwire_translate::Refusal) -> Option<Box<Self>> {
+        let d = r.detail();
+        (d.field.is_some() || d.limit.is_some()).then(|| {
+            Box::new(Self {
+                field: d.field,
+                value: d.value,
+                limit: d.bound,
+                limit_name: d.limit,
+                limit_source: d.source,
+            })
+        })
+    }
+}
+
 impl ErrorBody {
     /// An error of `kind` saying `message`, its rule the kind's name. A
     /// `refused` error names its rule: [`ErrorBody::gate`] or
@@ -280,19 +296,10 @@ impl ErrorBody {
     /// # Ok::<(), serde_json::Error>(())
     /// ```
     pub fn gate(r: &motorwire_translate::Refusal) -> Self {
-        let d = r.detail();
-        let broke = Broke {
-            field: d.field,
-            value: d.value,
-            limit: d.bound,
-            limit_name: d.limit,
-            limit_source: d.source,
-        };
-        let named = broke.field.is_some() || broke.limit_name.is_some();
         Self {
             rule: r.rule(),
-            motor: d.motor.map(str::to_owned),
-            broke: named.then(|| Box::new(broke)),
+            motor: r.detail().motor.map(str::to_owned),
+            broke: Broke::of(r),
             ..Self::new(ErrorKind::Refused, r.to_string())
         }
     }
@@ -305,9 +312,9 @@ impl ErrorBody {
     }
 }
 
-/// The kinds of failure a result reports (`error.kind`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+/// The kinds of failure a result reports (`error.kind`, written as
+/// [`ErrorKind::name`] says).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum ErrorKind {
     /// Not JSON, or not valid WIA. Nothing was sent.
@@ -418,6 +425,12 @@ impl ErrorKind {
             Self::NoAnswer => "no_answer",
             Self::IdReused => "id_reused",
         }
+    }
+}
+
+impl Serialize for ErrorKind {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
     }
 }
 
@@ -771,6 +784,20 @@ mod tests {
                 serde_json::to_value(k).ok(),
                 Some(Value::String(k.name().to_owned()))
             );
+            // Its name is its variant's, in snake_case, and no other's.
+            let snake: String = format!("{k:?}")
+                .chars()
+                .enumerate()
+                .flat_map(|(i, c)| {
+                    let lower = c.to_ascii_lowercase();
+                    if c.is_ascii_uppercase() && i > 0 {
+                        vec!['_', lower]
+                    } else {
+                        vec![lower]
+                    }
+                })
+                .collect();
+            assert_eq!(k.name(), snake);
         }
         for r in BridgeRule::ALL {
             let listed = match r {

@@ -171,7 +171,7 @@ impl ErrorLine {
 impl From<Refusal> for ErrorLine {
     fn from(r: Refusal) -> Self {
         Self {
-            broke: motorwire_bridge::ErrorBody::gate(&r).broke,
+            broke: motorwire_bridge::Broke::of(&r),
             ..Self::new(r.rule(), r.to_string())
         }
     }

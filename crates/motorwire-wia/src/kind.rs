@@ -354,9 +354,7 @@ macro_rules! wia_message {
             const KIND: MessageKind = MessageKind::$ty;
 
             fn violations(&self, now_ms: Option<f64>) -> Vec<Violation> {
-                let mut sink = Sink::new(now_ms);
-                self.check(&mut sink);
-                sink.finish()
+                self.violations_with_skew(now_ms, None)
             }
 
             fn may_hold_unknown_members(&self) -> bool {
