@@ -36,6 +36,19 @@ fn lines(bytes: &[u8]) -> Vec<Value> {
         .collect()
 }
 
+/// `motorwire ARGS` fed `input`, run to its end (exit 0): every line it
+/// printed.
+fn run_to_its_end(args: &[&str], input: &str) -> Vec<Value> {
+    let out = common::run(args, input.as_bytes());
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    lines(&out.stdout)
+}
+
 #[test]
 fn stdin_lines_get_one_result_each_then_the_joints_are_stopped() {
     let input = format!(
@@ -44,7 +57,7 @@ fn stdin_lines_get_one_result_each_then_the_joints_are_stopped() {
         command("elbow", 170.0),
         command("shoulder_pitch", -10.0)
     );
-    let out = common::run(
+    let all = run_to_its_end(
         &[
             "bridge",
             "--map",
@@ -54,15 +67,8 @@ fn stdin_lines_get_one_result_each_then_the_joints_are_stopped() {
             "--feedback-hz",
             "20",
         ],
-        input.as_bytes(),
+        &input,
     );
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let all = lines(&out.stdout);
     // Results come as their lines complete; "line" pairs them with input.
     let mut results: Vec<&Value> = all
         .iter()
@@ -105,14 +111,7 @@ fn a_misspelled_member_is_refused_unless_the_bridge_is_told_to_take_it() {
         if allow {
             args.push("--allow-unknown-members");
         }
-        let out = common::run(&args, format!("{line}\n").as_bytes());
-        assert_eq!(
-            out.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let all = lines(&out.stdout);
+        let all = run_to_its_end(&args, &format!("{line}\n"));
         let r = all
             .iter()
             .find(|v| v["line"] == 1 && v.get("ok").is_some())
