@@ -114,6 +114,11 @@ pub struct BridgeConfig {
     pub allow_unknown_members: bool,
 }
 
+/// The default clock skew of [`BridgeConfig::max_age`] (ms): WIA §10.1's
+/// five minutes, applied both ways; `motorwire validate --now` judges with
+/// the same window by default.
+pub const DEFAULT_MAX_AGE_MS: u64 = 300_000;
+
 impl Default for BridgeConfig {
     fn default() -> Self {
         Self {
@@ -124,7 +129,7 @@ impl Default for BridgeConfig {
             heartbeat_period: Duration::from_millis(50),
             drain_timeout: Duration::from_secs(30),
             epoch_unix_ms: None,
-            max_age: Some(Duration::from_secs(300)),
+            max_age: Some(Duration::from_millis(DEFAULT_MAX_AGE_MS)),
             max_pending_lines: 1024,
             max_queue_per_joint: 16,
             orion: false,

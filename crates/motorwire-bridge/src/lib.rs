@@ -13,7 +13,8 @@ pub mod sim;
 
 pub use classify::{DEFAULT_CALIBRATION, Input, RequestKind, asks_for_stop, classify, members};
 pub use engine::{
-    Bridge, BridgeConfig, BridgeStats, JointView, MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, ORION_POLL,
+    Bridge, BridgeConfig, BridgeStats, DEFAULT_MAX_AGE_MS, JointView, MAX_BAD_LINE_EVENTS,
+    MAX_ORION_LINE, ORION_POLL,
 };
 pub use error::BridgeError;
 /// The WIA crate whose [`motorwire_wia::Validator`] [`classify`] takes.
@@ -23,6 +24,7 @@ pub use output::{
     MotorArrival, Origin, Output, StepOutcome, StepReport, rules,
 };
 pub use runtime::{
-    InputSender, MAX_LINE, MAX_ORION_LINES_PER_S, MAX_ORION_QUEUED, MAX_QUEUED_PER_ORIGIN,
-    MAX_SKIP, OrionPort, ReadLine, Runner, feed, read_line,
+    DEFAULT_MAX_LINE, InputSender, MAX_ORION_LINES_PER_S, MAX_ORION_QUEUED,
+    MAX_QUEUED_BYTES_PER_ORIGIN, MAX_QUEUED_PER_ORIGIN, MAX_SKIP, OrionPort, ReadLine, Runner,
+    feed, read_line,
 };

@@ -14,8 +14,16 @@ use std::sync::{Condvar, Mutex, PoisonError};
 
 use crate::{Bridge, BridgeError, Event, Origin, Output, asks_for_stop};
 
-/// The longest input line accepted (bytes, without the newline).
-pub const MAX_LINE: usize = 64 * 1024;
+/// The longest input line accepted by default (bytes, without the
+/// newline): 1 MiB, the size `motorwire validate` takes by default too
+/// (both `--max-size`). [`Runner::max_line`] sets another.
+pub const DEFAULT_MAX_LINE: usize = 1 << 20;
+
+/// Bytes of one origin's lines handed to a [`Runner`] and not yet taken,
+/// at most (beyond its first line waiting): with lines up to
+/// [`DEFAULT_MAX_LINE`] and more, a client's queue is bounded by its bytes
+/// as well as by [`MAX_QUEUED_PER_ORIGIN`] lines.
+pub const MAX_QUEUED_BYTES_PER_ORIGIN: usize = 8 << 20;
 
 /// How much of a line too long to take is skipped looking for its end:
 /// beyond this the input is given up ([`read_line`] fails), so an endless
@@ -43,37 +51,50 @@ pub const MAX_ORION_QUEUED: usize = 64;
 /// bridge's memory or another device's latency.
 pub const MAX_ORION_LINES_PER_S: u32 = 500;
 
-/// Per origin, lines handed over and not yet taken (normal, urgent).
+/// Per origin, lines handed over and not yet taken (normal, urgent): how
+/// many, and their bytes.
 #[derive(Debug, Default)]
 struct Budget {
-    queued: Mutex<BTreeMap<(Origin, bool), usize>>,
+    queued: Mutex<BTreeMap<(Origin, bool), (usize, usize)>>,
     freed: Condvar,
 }
 
 impl Budget {
-    /// Waits until `origin` may hand over one more line.
-    fn take(&self, origin: Origin, urgent: bool) {
+    /// Waits until `origin` may hand over one more line of `bytes`: fewer
+    /// than [`MAX_QUEUED_PER_ORIGIN`] waiting, and their bytes with it
+    /// within [`MAX_QUEUED_BYTES_PER_ORIGIN`] (a line alone always fits).
+    fn take(&self, origin: Origin, urgent: bool, bytes: usize) {
         let mut q = self.queued.lock().unwrap_or_else(PoisonError::into_inner);
-        while q
-            .get(&(origin, urgent))
-            .is_some_and(|n| *n >= MAX_QUEUED_PER_ORIGIN)
-        {
+        while q.get(&(origin, urgent)).is_some_and(|&(n, b)| {
+            n >= MAX_QUEUED_PER_ORIGIN || b.saturating_add(bytes) > MAX_QUEUED_BYTES_PER_ORIGIN
+        }) {
             q = self.freed.wait(q).unwrap_or_else(PoisonError::into_inner);
         }
-        *q.entry((origin, urgent)).or_insert(0) += 1;
+        let e = q.entry((origin, urgent)).or_insert((0, 0));
+        e.0 += 1;
+        e.1 = e.1.saturating_add(bytes);
     }
 
-    /// The runner took one of `origin`'s lines.
-    fn give(&self, origin: Origin, urgent: bool) {
+    /// The runner took one of `origin`'s lines, of `bytes`.
+    fn give(&self, origin: Origin, urgent: bool, bytes: usize) {
         let mut q = self.queued.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some(n) = q.get_mut(&(origin, urgent)) {
-            *n = n.saturating_sub(1);
-            if *n == 0 {
+        if let Some(e) = q.get_mut(&(origin, urgent)) {
+            e.0 = e.0.saturating_sub(1);
+            e.1 = e.1.saturating_sub(bytes);
+            if e.0 == 0 {
                 q.remove(&(origin, urgent));
             }
         }
         drop(q);
         self.freed.notify_all();
+    }
+}
+
+/// The bytes a queued message holds against its origin's budget.
+fn queued_bytes(msg: &Msg) -> usize {
+    match msg {
+        Msg::Line { text, .. } => text.len(),
+        _ => 0,
     }
 }
 
@@ -146,9 +167,26 @@ pub struct InputSender {
     urgent: Sender<Msg>,
     numbers: Arc<Mutex<BTreeMap<Origin, u64>>>,
     budget: Arc<Budget>,
+    max_line: usize,
 }
 
 impl InputSender {
+    /// The longest line taken (bytes, without its newline): what
+    /// [`feed`] and every reader of lines for this runner read with
+    /// [`read_line`]; a longer one is refused ([`InputSender::too_long`]).
+    pub const fn max_line(&self) -> usize {
+        self.max_line
+    }
+
+    /// Why a line over [`InputSender::max_line`] was not taken, as its
+    /// refusal says it.
+    pub fn too_long(&self) -> String {
+        format!(
+            "the line is over {} bytes (the bridge's --max-size)",
+            self.max_line
+        )
+    }
+
     fn number(&self, origin: Origin) -> u64 {
         let mut n = self.numbers.lock().unwrap_or_else(PoisonError::into_inner);
         let c = n.entry(origin).or_insert(0);
@@ -165,7 +203,7 @@ impl InputSender {
             return;
         }
         let urgent = asks_for_stop(text.trim());
-        self.budget.take(origin, urgent);
+        self.budget.take(origin, urgent, text.len());
         let number = self.number(origin);
         let msg = Msg::Line {
             origin,
@@ -184,7 +222,7 @@ impl InputSender {
     /// A line that could not be taken (too long, not UTF-8): answered with
     /// an error, never sent.
     pub fn refused(&self, origin: Origin, reason: impl Into<String>) {
-        self.budget.take(origin, false);
+        self.budget.take(origin, false, 0);
         let number = self.number(origin);
         let _ = self.tx.send(Msg::Refused {
             origin,
@@ -198,7 +236,7 @@ impl InputSender {
     /// doubt, stop. It overtakes the lines queued before it, as a stop does
     /// ([`Bridge::handle_numbered_unreadable_stop`]).
     pub fn refused_stop(&self, origin: Origin, reason: impl Into<String>) {
-        self.budget.take(origin, true);
+        self.budget.take(origin, true, 0);
         let number = self.number(origin);
         let _ = self.urgent.send(Msg::Refused {
             origin,
@@ -259,7 +297,7 @@ impl InputSender {
 pub enum ReadLine {
     /// A whole line (without its newline).
     Line(String),
-    /// A line over [`MAX_LINE`] bytes, skipped to its end.
+    /// A line over the limit read with, skipped to its end.
     TooLong {
         /// The skipped bytes contain `emergency_stop`.
         names_stop: bool,
@@ -275,11 +313,21 @@ pub enum ReadLine {
     End,
 }
 
-/// Reads one line of at most [`MAX_LINE`] bytes, never holding more.
+/// Reads one line of at most `max_line` bytes, never holding more (an
+/// [`InputSender`]'s [`max_line`](InputSender::max_line), or
+/// [`DEFAULT_MAX_LINE`]).
+///
+/// ```
+/// use motorwire_bridge::{ReadLine, read_line};
+/// let mut r = std::io::Cursor::new(b"{\"emergency_stop\":true}\nxxxxxxxxxxxx\n".to_vec());
+/// assert_eq!(read_line(&mut r, 32).unwrap(), ReadLine::Line(r#"{"emergency_stop":true}"#.into()));
+/// assert_eq!(read_line(&mut r, 8).unwrap(), ReadLine::TooLong { names_stop: false });
+/// assert_eq!(read_line(&mut r, 8).unwrap(), ReadLine::End);
+/// ```
 ///
 /// # Errors
 /// The reader's errors.
-pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
+pub fn read_line(reader: &mut impl BufRead, max_line: usize) -> io::Result<ReadLine> {
     let mut bytes = Vec::new();
     let mut too_long = false;
     // While a too-long line is skipped: whether it named a stop, and its
@@ -292,7 +340,7 @@ pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
             return Err(io::Error::new(
                 io::ErrorKind::InvalidData,
                 format!(
-                    "a line over {MAX_LINE} bytes has no end within {} MiB more; the input was given up",
+                    "a line over {max_line} bytes has no end within {} MiB more; the input was given up",
                     MAX_SKIP / (1024 * 1024)
                 ),
             ));
@@ -336,7 +384,7 @@ pub fn read_line(reader: &mut impl BufRead) -> io::Result<ReadLine> {
         if too_long {
             skipped += consumed as u64;
         }
-        if bytes.len() > MAX_LINE {
+        if bytes.len() > max_line {
             too_long = true;
             names_stop |= scan(&mut tail, &bytes);
             bytes = Vec::new();
@@ -395,13 +443,13 @@ pub fn feed(
     partial_is_line: bool,
 ) -> io::Result<()> {
     loop {
-        match read_line(reader)? {
+        match read_line(reader, input.max_line)? {
             ReadLine::Line(s) => input.line(origin, s),
             ReadLine::TooLong { names_stop: false } => {
-                input.refused(origin, format!("the line is over {MAX_LINE} bytes"));
+                input.refused(origin, input.too_long());
             }
             ReadLine::TooLong { names_stop: true } => {
-                input.refused_stop(origin, format!("the line is over {MAX_LINE} bytes"));
+                input.refused_stop(origin, input.too_long());
             }
             ReadLine::NotUtf8 { names_stop: false } => {
                 input.refused(origin, "the line is not UTF-8");
@@ -440,6 +488,7 @@ pub struct Runner {
     numbers: Arc<Mutex<BTreeMap<Origin, u64>>>,
     budget: Arc<Budget>,
     orion: Option<OrionPort>,
+    max_line: usize,
 }
 
 impl Default for Runner {
@@ -461,7 +510,17 @@ impl Runner {
             numbers: Arc::default(),
             budget: Arc::default(),
             orion: None,
+            max_line: DEFAULT_MAX_LINE,
         }
+    }
+
+    /// Takes lines of up to `bytes` (without the newline) from every input
+    /// (the CLI's `--max-size`; [`DEFAULT_MAX_LINE`] unless set). Set it
+    /// before [`Runner::input`]: a sender keeps the limit it was made with.
+    #[must_use]
+    pub const fn max_line(mut self, bytes: usize) -> Self {
+        self.max_line = bytes;
+        self
     }
 
     /// Attaches the Orion arm controller (the bridge must have been made
@@ -479,6 +538,7 @@ impl Runner {
             urgent: self.urgent_tx.clone(),
             numbers: Arc::clone(&self.numbers),
             budget: Arc::clone(&self.budget),
+            max_line: self.max_line,
         }
     }
 
@@ -564,7 +624,7 @@ impl Runner {
             let mut stopped = false;
             while let Ok(msg) = self.urgent.try_recv() {
                 if let Msg::Line { origin, .. } | Msg::Refused { origin, .. } = &msg {
-                    self.budget.give(*origin, true);
+                    self.budget.give(*origin, true, queued_bytes(&msg));
                 }
                 match msg {
                     Msg::Line {
@@ -593,8 +653,8 @@ impl Runner {
                 continue; // its frames go out before anything else is read
             }
             let msg = self.rx.recv_timeout(wait);
-            if let Ok(Msg::Line { origin, .. } | Msg::Refused { origin, .. }) = &msg {
-                self.budget.give(*origin, false);
+            if let Ok(m @ (Msg::Line { origin, .. } | Msg::Refused { origin, .. })) = &msg {
+                self.budget.give(*origin, false, queued_bytes(m));
             }
             match msg {
                 Ok(Msg::Wake) => {}
@@ -692,13 +752,13 @@ fn spawn_orion(
             let mut taken: u32 = 0;
             let mut dropped: u64 = 0;
             loop {
-                let msg = match read_line(&mut reader) {
+                let msg = match read_line(&mut reader, crate::MAX_ORION_LINE) {
                     Ok(ReadLine::Line(text)) => Msg::OrionLine {
                         text,
                         at: Instant::now(),
                     },
                     Ok(ReadLine::TooLong { .. }) => {
-                        Msg::OrionUnreadable(format!("a line over {MAX_LINE} bytes"))
+                        Msg::OrionUnreadable(format!("a line over {} bytes", crate::MAX_ORION_LINE))
                     }
                     Ok(ReadLine::NotUtf8 { .. }) => {
                         Msg::OrionUnreadable("a line that is not UTF-8".to_owned())
@@ -797,4 +857,48 @@ fn fatal(e: &CanError) -> bool {
             | CanError::InterfaceDown { .. }
             | CanError::Io { .. }
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One client's waiting lines are bounded in bytes as well as in
+    /// number: a line that would take them past
+    /// [`MAX_QUEUED_BYTES_PER_ORIGIN`] waits until the runner takes one,
+    /// and a line alone always fits.
+    #[test]
+    fn an_origins_queue_is_bounded_in_bytes() {
+        let budget = Arc::new(Budget::default());
+        let o = Origin(7);
+        let big = MAX_QUEUED_BYTES_PER_ORIGIN - 1000;
+        budget.take(o, false, big);
+        // Another origin, and a stop of the same one, are not held.
+        budget.take(Origin(8), false, big);
+        budget.take(o, true, big);
+        let (done, taken) = mpsc::channel();
+        let waiter = {
+            let budget = Arc::clone(&budget);
+            thread::spawn(move || {
+                budget.take(o, false, 2000);
+                let _ = done.send(());
+            })
+        };
+        assert_eq!(
+            taken.recv_timeout(Duration::from_millis(200)),
+            Err(RecvTimeoutError::Timeout),
+            "2000 bytes more would pass the bound: the sender waits"
+        );
+        budget.give(o, false, big);
+        taken.recv_timeout(Duration::from_secs(10)).unwrap();
+        waiter.join().unwrap();
+        // A line over the bound alone is let in.
+        budget.give(o, false, 2000);
+        budget.take(o, false, MAX_QUEUED_BYTES_PER_ORIGIN * 2);
+        let q = budget.queued.lock().unwrap();
+        assert_eq!(
+            q.get(&(o, false)),
+            Some(&(1, MAX_QUEUED_BYTES_PER_ORIGIN * 2))
+        );
+    }
 }

@@ -113,7 +113,7 @@ fn an_unreadable_line_that_names_a_stop_stops() {
     let (_arm, input, rx, handle) = start();
     let long_stop = format!(
         "{{\"pad\":\"{}\",\"emergency_stop\":true}}\n",
-        "x".repeat(motorwire_bridge::MAX_LINE)
+        "x".repeat(motorwire_bridge::DEFAULT_MAX_LINE)
     );
     let mut text = Vec::new();
     text.extend_from_slice(
@@ -137,7 +137,7 @@ fn an_unreadable_line_that_names_a_stop_stops() {
     assert_eq!(
         stop["problems"],
         serde_json::json!([
-            "the line is over 65536 bytes; it names emergency_stop, so it is taken as a stop"
+            "the line is over 1048576 bytes (the bridge's --max-size); it names emergency_stop, so it is taken as a stop"
         ])
     );
     assert_eq!(

@@ -78,8 +78,15 @@ pub(crate) struct Args {
     retries: u8,
     /// WIA §10.1's clock skew: a command whose timestamp is further than
     /// this many ms in the past or future is refused `stale` (0: not checked).
-    #[arg(long, value_name = "MS", default_value_t = 300_000)]
+    #[arg(long, value_name = "MS", default_value_t = motorwire_bridge::DEFAULT_MAX_AGE_MS)]
     max_age: u64,
+    /// The longest input line taken, in bytes (at most 16777216, 16 MiB),
+    /// on every input: a longer one is refused (`unreadable`), and taken
+    /// as a stop if it names `emergency_stop`. The same limit and default
+    /// as `motorwire validate --max-size`.
+    #[arg(long, value_name = "BYTES", default_value_t = motorwire_bridge::DEFAULT_MAX_LINE,
+          value_parser = crate::validate::parse_max_size)]
+    max_size: usize,
     /// Take command lines with members their WIA schema does not name,
     /// reporting each as a loss (`dropped`). Without it such a line is
     /// refused `invalid`, naming the member and the nearest known one.
@@ -329,7 +336,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
         ..BridgeConfig::default()
     };
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
-    let mut runner = Runner::new();
+    let mut runner = Runner::new().max_line(args.max_size);
     if let Some(spec) = &orion {
         runner = runner.with_orion(crate::orion_link::open(spec)?);
     }

@@ -62,7 +62,7 @@ enum Command {
     /// the bridge with exit status 130, 143 or 129; a second signal exits
     /// at once. Exit status 0 after the end of input, 2 on an error, 74
     /// when standard output stopped being read or failed.
-    Bridge(bridge::Args),
+    Bridge(Box<bridge::Args>),
     /// Run the bridge on a simulated arm (3 iRPC joints, a compact-command
     /// gripper and the Orion arm's 7 motors, no hardware) through a
     /// scripted session, checking each step.

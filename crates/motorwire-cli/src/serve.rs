@@ -764,10 +764,12 @@ impl Router {
         };
         // The first line that is not blank (HTTP allows empty lines before
         // its request line).
-        let mut first_read = read_line(&mut reader);
+        let mut first_read = read_line(&mut reader, self.input.max_line());
         for _ in 0..16 {
             match &first_read {
-                Ok(ReadLine::Line(s)) if s.trim().is_empty() => first_read = read_line(&mut reader),
+                Ok(ReadLine::Line(s)) if s.trim().is_empty() => {
+                    first_read = read_line(&mut reader, self.input.max_line())
+                }
                 _ => break,
             }
         }
@@ -799,7 +801,7 @@ impl Router {
                 let origin = Origin(id);
                 match unreadable {
                     ReadLine::TooLong { names_stop } => {
-                        let why = format!("the line is over {} bytes", motorwire_bridge::MAX_LINE);
+                        let why = self.input.too_long();
                         if names_stop {
                             self.input.refused_stop(origin, why);
                         } else {
@@ -846,7 +848,7 @@ impl Router {
             let command = if first_is_command {
                 Some(first)
             } else {
-                match read_line(&mut reader) {
+                match read_line(&mut reader, self.input.max_line()) {
                     Ok(ReadLine::Line(s)) => Some(s),
                     Err(e) if timed_out(&e) => return late(conn, &mut authenticating),
                     _ => None,

@@ -437,7 +437,11 @@ pub(crate) fn run(args: &Args) -> u8 {
     let mut line_no = 0;
     let mut refused = false;
     loop {
-        let doc = match input::next_line(&mut reader, motorwire_bridge::MAX_LINE, &mut line_no) {
+        let doc = match input::next_line(
+            &mut reader,
+            motorwire_bridge::DEFAULT_MAX_LINE,
+            &mut line_no,
+        ) {
             Ok(Some(doc)) => doc,
             Ok(None) => break,
             Err(e) => {

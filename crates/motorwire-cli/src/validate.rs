@@ -3,7 +3,7 @@
 use std::io::{self, Write};
 
 use clap::ValueEnum;
-use motorwire_wia::{MessageKind, Report, Rule, Validator, Violation};
+use motorwire_wia::{MessageKind, Report, Rule, TimestampWindow, Validator, Violation};
 use serde::Serialize;
 
 use crate::console::note;
@@ -59,14 +59,14 @@ pub(crate) struct Args {
     /// Judge by the JSON Schema alone, without WIA §10's semantic rules.
     #[arg(long)]
     schema_only: bool,
-    /// The current time (Unix ms): timestamps more than 5 minutes older,
-    /// or more than `--max-age` ahead, are stale.
+    /// The current time (Unix ms): timestamps further than `--max-age`
+    /// from it, in the past or the future, are stale.
     #[arg(long, value_name = "UNIX_MS")]
     now: Option<u64>,
-    /// With `--now`: how far ahead of it a timestamp may be (ms), the
-    /// bridge's `--max-age` clock skew (0: any future timestamp, as WIA
-    /// allows).
-    #[arg(long, value_name = "MS", default_value_t = 300_000)]
+    /// With `--now`: the clock skew a timestamp may have either way (ms),
+    /// the same window and default as the bridge's `--max-age` (0: not
+    /// checked).
+    #[arg(long, value_name = "MS", default_value_t = motorwire_bridge::DEFAULT_MAX_AGE_MS)]
     max_age: u64,
     /// Take members a kind's schema does not name (WIA's schemas leave
     /// objects open). Without it each is reported `unknown-member`, naming
@@ -79,10 +79,11 @@ pub(crate) struct Args {
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Text)]
     format: Format,
-    /// The largest document accepted, in bytes (at most 16777216, 16 MiB).
+    /// The largest document accepted, in bytes (at most 16777216, 16 MiB),
+    /// the same limit and default as the bridge's `--max-size` for a line.
     /// A bigger document, or line with --lines, is reported invalid
     /// (`document-too-large`) after reading at most this many bytes of it.
-    #[arg(long, value_name = "BYTES", default_value_t = Validator::DEFAULT_MAX_DOCUMENT_SIZE,
+    #[arg(long, value_name = "BYTES", default_value_t = motorwire_bridge::DEFAULT_MAX_LINE,
           value_parser = parse_max_size)]
     max_size: usize,
     /// The deepest nesting accepted (at most 128).
@@ -98,14 +99,19 @@ pub(crate) struct Args {
 /// parsed, and checked against its schema, so the bound is on all three.
 pub(crate) const MAX_SIZE_CEILING: usize = 16 << 20;
 
-fn parse_max_size(s: &str) -> Result<usize, String> {
+/// `--max-size` of `validate` and of the bridge: a number of bytes, 1 to
+/// [`MAX_SIZE_CEILING`].
+pub(crate) fn parse_max_size(s: &str) -> Result<usize, String> {
     let n: usize = s
         .parse()
         .map_err(|e| format!("{s:?} is not a number of bytes: {e}"))?;
     if n > MAX_SIZE_CEILING {
         return Err(format!(
-            "{n} is over {MAX_SIZE_CEILING} (16 MiB), the largest document validate reads"
+            "{n} is over {MAX_SIZE_CEILING} (16 MiB), the largest line or document motorwire reads"
         ));
+    }
+    if n == 0 {
+        return Err("0 bytes would take no line at all".to_owned());
     }
     Ok(n)
 }
@@ -138,12 +144,13 @@ pub(crate) fn run(args: &Args) -> u8 {
             .max_document_size(args.max_size)
             .max_depth(usize::from(args.max_depth))
             .deny_unknown_members(!args.allow_unknown);
+        // The bridge's window: `--max-age` either way, 0 not checked.
         #[allow(clippy::cast_precision_loss)] // ms are exact in f64 far beyond any skew
-        let v = if args.max_age > 0 {
-            v.max_ahead_ms(args.max_age as f64)
+        let v = v.timestamp_window(if args.max_age > 0 {
+            TimestampWindow::skew(args.max_age as f64)
         } else {
-            v
-        };
+            TimestampWindow::ANY
+        });
         with_clock(v, args.now)
     };
     let stdout = io::stdout();

@@ -142,6 +142,65 @@ fn a_misspelled_member_is_refused_unless_the_bridge_is_told_to_take_it() {
     }
 }
 
+/// `motorwire validate --now` and the bridge judge one line alike: the
+/// same timestamp window (`--max-age`, 5 minutes either way by default)
+/// and the same size limit (`--max-size`, 1 MiB by default), each a flag
+/// of both.
+#[test]
+fn validate_and_the_bridge_share_one_timestamp_window_and_one_size_limit() {
+    let now = now_ms();
+    let dir = std::env::temp_dir().join(format!("mw-window-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // Ten minutes old, and a 200 KB line (its metadata free-form).
+    let old = format!(
+        r#"{{"motor_id":"elbow","timestamp":{},"control_mode":"position","setpoint":20}}"#,
+        now - 600_000
+    );
+    let big = format!(
+        r#"{{"motor_id":"elbow","timestamp":{now},"control_mode":"position","setpoint":20,"metadata":{{"note":"{}"}}}}"#,
+        "x".repeat(200_000)
+    );
+    let judge = |line: &str, flags: &[&str]| -> (bool, Value) {
+        let file = dir.join("line.json");
+        std::fs::write(&file, line).unwrap();
+        let path = file.display().to_string();
+        let now = now.to_string();
+        let mut args = vec!["validate", "--now", &now, "--format", "json"];
+        args.extend_from_slice(flags);
+        args.push(&path);
+        let v = common::run(&args, b"");
+        let valid = lines(&v.stdout)[0]["valid"].as_bool().unwrap();
+        let mut args = vec!["bridge", "--map", MAP, "--bus", "sim", "--feedback-hz", "0"];
+        args.extend_from_slice(flags);
+        let all = run_to_its_end(&args, &format!("{line}\n"));
+        let result = all
+            .iter()
+            .find(|r| r["line"] == 1 && r.get("ok").is_some())
+            .cloned()
+            .unwrap();
+        assert_eq!(
+            result["ok"].as_bool().unwrap(),
+            valid,
+            "validate {flags:?} said valid={valid}, the bridge {result}"
+        );
+        (valid, result)
+    };
+    let (valid, r) = judge(&old, &[]);
+    assert!(!valid);
+    assert_eq!(r["error"]["kind"], "stale", "{r}");
+    assert!(judge(&old, &["--max-age", "900000"]).0);
+    assert!(judge(&old, &["--max-age", "0"]).0);
+    assert!(judge(&big, &[]).0, "a 200 KB line is taken by default");
+    let (valid, r) = judge(&big, &["--max-size", "100000"]);
+    assert!(!valid);
+    assert_eq!(r["error"]["kind"], "unreadable", "{r}");
+    assert_eq!(
+        r["error"]["message"], "the line is over 100000 bytes (the bridge's --max-size)",
+        "{r}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 fn connect(port: u16) -> TcpStream {
     TcpStream::connect(("127.0.0.1", port)).unwrap()
 }
@@ -215,7 +274,7 @@ fn tcp_clients_at_once_garbage_and_a_client_leaving_mid_line() {
         let mut r = BufReader::new(s);
         w.write_all(b"\xff\xfe\x00garbage\n{\"motor_id\":\n")
             .unwrap();
-        w.write_all(&vec![b'x'; 70_000]).unwrap();
+        w.write_all(&vec![b'x'; (1 << 20) + 100]).unwrap();
         w.write_all(b"\n").unwrap();
         let mut got: Vec<Value> = (0..3).map(|_| next_result(&mut r)).collect();
         got.sort_by_key(|v| v["line"].as_u64());

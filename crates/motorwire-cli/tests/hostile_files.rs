@@ -111,7 +111,7 @@ fn dev_zero_as_every_file_argument_ends_at_once_with_a_clear_error() {
             &["validate", "--max-size", "16777217", "/dev/zero"],
             None,
             2,
-            "16777217 is over 16777216 (16 MiB), the largest document validate reads",
+            "16777217 is over 16777216 (16 MiB), the largest line or document motorwire reads",
         ),
         (
             &["validate", "--max-size", "18446744073709551615", "-"],
@@ -260,7 +260,7 @@ fn the_bridge_gives_up_an_endless_standard_input() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("reading standard input: a line over 65536 bytes has no end within 16 MiB more; the input was given up; the joints were stopped"),
+        err.contains("reading standard input: a line over 1048576 bytes has no end within 16 MiB more; the input was given up; the joints were stopped"),
         "{err}"
     );
     let text = String::from_utf8_lossy(&out.stdout);

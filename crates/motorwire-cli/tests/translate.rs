@@ -390,7 +390,7 @@ fn multi_axis_commands_translate_each_axis() {
 fn garbage_and_unreadable_lines_cost_one_line_each() {
     let mut stdin = b"garbage\n\n".to_vec();
     stdin.extend_from_slice(b"{\"motor_id\":\"elbow\xff\"}\n");
-    stdin.extend_from_slice(&vec![b' '; 70_000]);
+    stdin.extend_from_slice(&vec![b' '; (1 << 20) + 100]);
     stdin.extend_from_slice(b"x\n");
     stdin.extend_from_slice(
         br#"{"motor_id":"elbow","timestamp":-1,"control_mode":"warp","setpoint":1}"#,
@@ -413,7 +413,7 @@ fn garbage_and_unreadable_lines_cost_one_line_each() {
             r#"{"ok":false,"line":1,"error":{"rule":"invalid","message":"invalid document: (document): not valid JSON: expected value at line 1 column 1 (json-syntax)","violations":[{"message":"not valid JSON: expected value at line 1 column 1","pointer":"","rule":"json-syntax"}]}}"#,
             // Line 2 is blank: skipped, but counted.
             r#"{"ok":false,"line":3,"error":{"rule":"unreadable","message":"the line is not UTF-8"}}"#,
-            r#"{"ok":false,"line":4,"error":{"rule":"unreadable","message":"the line is over 65536 bytes"}}"#,
+            r#"{"ok":false,"line":4,"error":{"rule":"unreadable","message":"the line is over 1048576 bytes"}}"#,
             r#"{"ok":false,"line":5,"error":{"rule":"invalid","message":"invalid motor-command: /control_mode: \"warp\" is not one of \"position\", \"velocity\" or 8 other candidates (enum); and 1 more","violations":[{"message":"\"warp\" is not one of \"position\", \"velocity\" or 8 other candidates","pointer":"/control_mode","rule":"enum"},{"message":"-1 is less than the minimum of 0","pointer":"/timestamp","rule":"minimum"}]}}"#,
             r#"{"ok":false,"line":6,"error":{"rule":"unsupported_kind","message":"a motor-feedback is valid WIA, but translate takes motor-command and multi-axis-command lines"}}"#,
             r#"{"ok":true,"line":7,"frames":[{"motor_id":"elbow","can_id":"0x000","data":"00120103"}],"report":[]}"#,

@@ -5,13 +5,10 @@ use motorwire_core::{CoreError, MotorId};
 use crate::path::Path;
 use crate::{Rule, Violation};
 
-/// Five minutes: the WIA §10.1 clock-skew tolerance.
-pub(crate) const STALE_AFTER_MS: f64 = 300_000.0;
-
 pub(crate) struct Sink {
     pub(crate) now_ms: Option<f64>,
-    /// How far ahead of `now_ms` a timestamp may be (ms); `None`: any.
-    pub(crate) ahead_ms: Option<f64>,
+    /// How far from `now_ms` a timestamp may be.
+    pub(crate) window: crate::TimestampWindow,
     pub(crate) list: Vec<Violation>,
 }
 
@@ -19,7 +16,7 @@ impl Sink {
     pub(crate) fn new(now_ms: Option<f64>) -> Self {
         Self {
             now_ms,
-            ahead_ms: None,
+            window: crate::TimestampWindow::WIA,
             list: Vec::new(),
         }
     }
@@ -157,7 +154,8 @@ impl Sink {
     // --- semantic rules shared by several messages ------------------------
 
     /// WIA §10.1: a whole number of Unix milliseconds, not older than
-    /// `now - 5 min` (future timestamps are allowed).
+    /// `now - 5 min` (future timestamps are allowed), or within the
+    /// window set.
     pub(crate) fn timestamp(&mut self, path: &Path<'_>, t: f64) {
         if !self.num(path, t) {
             return;
@@ -169,19 +167,19 @@ impl Sink {
                 format!("timestamp {t} is not a whole number of Unix milliseconds"),
             );
         }
-        if let Some(now) = self.now_ms
-            && t < now - STALE_AFTER_MS
+        if let (Some(now), Some(behind)) = (self.now_ms, self.window.behind_ms)
+            && t < now - behind
         {
             self.push(
-                    path,
-                    Rule::TimestampStale,
-                    format!(
-                        "timestamp {t} is {} ms older than now ({now}); at most {STALE_AFTER_MS} ms is tolerated",
-                        now - t
-                    ),
-                );
+                path,
+                Rule::TimestampStale,
+                format!(
+                    "timestamp {t} is {} ms older than now ({now}); at most {behind} ms is tolerated",
+                    now - t
+                ),
+            );
         }
-        if let (Some(now), Some(ahead)) = (self.now_ms, self.ahead_ms)
+        if let (Some(now), Some(ahead)) = (self.now_ms, self.window.ahead_ms)
             && t > now + ahead
         {
             self.push(

@@ -340,10 +340,15 @@ pub trait WiaMessage: Serialize + DeserializeOwned + Sized {
         true
     }
 
-    /// [`WiaMessage::violations`], a timestamp more than `ahead_ms` ahead
-    /// of `now_ms` stale too ([`Validator::max_ahead_ms`](crate::Validator::max_ahead_ms)).
-    fn violations_with_skew(&self, now_ms: Option<f64>, ahead_ms: Option<f64>) -> Vec<Violation> {
-        let _ = ahead_ms;
+    /// [`WiaMessage::violations`], with timestamps judged against
+    /// `window` around `now_ms` instead of WIA's five minutes behind
+    /// ([`Validator::timestamp_window`](crate::Validator::timestamp_window)).
+    fn violations_with_skew(
+        &self,
+        now_ms: Option<f64>,
+        window: crate::TimestampWindow,
+    ) -> Vec<Violation> {
+        let _ = window;
         self.violations(now_ms)
     }
 }
@@ -354,16 +359,16 @@ macro_rules! wia_message {
             const KIND: MessageKind = MessageKind::$ty;
 
             fn violations(&self, now_ms: Option<f64>) -> Vec<Violation> {
-                self.violations_with_skew(now_ms, None)
+                self.violations_with_skew(now_ms, crate::TimestampWindow::WIA)
             }
 
             fn may_hold_unknown_members(&self) -> bool {
                 crate::members::Unknowns::any_unknown(self)
             }
 
-            fn violations_with_skew(&self, now_ms: Option<f64>, ahead_ms: Option<f64>) -> Vec<Violation> {
+            fn violations_with_skew(&self, now_ms: Option<f64>, window: crate::TimestampWindow) -> Vec<Violation> {
                 let mut sink = Sink::new(now_ms);
-                sink.ahead_ms = ahead_ms;
+                sink.window = window;
                 self.check(&mut sink);
                 sink.finish()
             }

@@ -44,7 +44,7 @@ pub use trajectory::{
     DURATION_TOLERANCE_MS, Interpolation, LoopConfig, Timing, Trajectory, TrajectoryConstraints,
     TrajectoryType, Waypoint,
 };
-pub use validate::Validator;
+pub use validate::{TimestampWindow, Validator};
 
 /// Re-exported so users name the shared vocabulary through one crate.
 pub use motorwire_core as core;

@@ -84,7 +84,8 @@ rules! {
     NonFinite = "non-finite", Semantic;
     /// A timestamp is not a whole number of Unix milliseconds.
     TimestampInteger = "timestamp-integer", Semantic;
-    /// A timestamp is more than 5 minutes older than the caller's `now`.
+    /// A timestamp is outside the window around the caller's `now`: by default more
+    /// than 5 minutes older ([`TimestampWindow`](crate::TimestampWindow)).
     TimestampStale = "timestamp-stale", Semantic;
     /// A motor id breaks motorwire's motor-id rules (length, alphabet).
     MotorId = "motor-id", Semantic;

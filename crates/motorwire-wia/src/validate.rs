@@ -33,8 +33,46 @@ pub struct Validator {
     max_document_size: usize,
     max_depth: usize,
     now_ms: Option<f64>,
-    ahead_ms: Option<f64>,
+    window: TimestampWindow,
     deny_unknown: bool,
+}
+
+/// How far from the validator's clock a timestamp may be before it is
+/// stale ([`Rule::TimestampStale`]), each way in milliseconds (`None`: no
+/// bound that way).
+///
+/// WIA §10.1 bounds only the past, at five minutes ([`Self::WIA`]); the
+/// bridge applies its clock skew (`--max-age`) both ways
+/// ([`Self::skew`]), and `motorwire validate --now --max-age` judges as
+/// the bridge does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimestampWindow {
+    /// How far behind the clock a timestamp may be.
+    pub behind_ms: Option<f64>,
+    /// How far ahead of the clock a timestamp may be.
+    pub ahead_ms: Option<f64>,
+}
+
+impl TimestampWindow {
+    /// WIA §10.1: at most five minutes behind, any time ahead.
+    pub const WIA: Self = Self {
+        behind_ms: Some(300_000.0),
+        ahead_ms: None,
+    };
+
+    /// At most `ms` either way (the bridge's clock skew).
+    pub const fn skew(ms: f64) -> Self {
+        Self {
+            behind_ms: Some(ms),
+            ahead_ms: Some(ms),
+        }
+    }
+
+    /// No bound either way: only the form of a timestamp is checked.
+    pub const ANY: Self = Self {
+        behind_ms: None,
+        ahead_ms: None,
+    };
 }
 
 impl Default for Validator {
@@ -58,7 +96,7 @@ impl Validator {
             max_document_size: Self::DEFAULT_MAX_DOCUMENT_SIZE,
             max_depth: Self::DEFAULT_MAX_DEPTH,
             now_ms: None,
-            ahead_ms: None,
+            window: TimestampWindow::WIA,
             deny_unknown: false,
         }
     }
@@ -109,7 +147,8 @@ impl Validator {
     }
 
     /// Sets the current time (Unix milliseconds) for the staleness rule: a
-    /// timestamp more than 5 minutes older than `now_ms` is stale. Future
+    /// timestamp more than 5 minutes older than `now_ms` is stale (unless a
+    /// [`Validator::timestamp_window`] says otherwise). Future
     /// timestamps are allowed (WIA §10.1).
     #[must_use]
     pub const fn now_ms(mut self, now_ms: f64) -> Self {
@@ -132,7 +171,24 @@ impl Validator {
     /// ```
     #[must_use]
     pub const fn max_ahead_ms(mut self, ahead_ms: f64) -> Self {
-        self.ahead_ms = Some(ahead_ms);
+        self.window.ahead_ms = Some(ahead_ms);
+        self
+    }
+
+    /// With a clock ([`Validator::now_ms`]), the window a timestamp must
+    /// fall in, replacing WIA's five minutes behind and any time ahead.
+    ///
+    /// ```
+    /// use motorwire_wia::{MessageKind, TimestampWindow, Validator};
+    /// let doc = r#"{"motor_id":"m","timestamp":1704066600000,"control_mode":"position","setpoint":1}"#;
+    /// let v = Validator::new().now_ms(1_704_067_200_000.0); // doc is 10 minutes old
+    /// assert!(!v.clone().validate(MessageKind::MotorCommand, doc).is_valid());
+    /// let wide = v.timestamp_window(TimestampWindow::skew(900_000.0));
+    /// assert!(wide.validate(MessageKind::MotorCommand, doc).is_valid());
+    /// ```
+    #[must_use]
+    pub const fn timestamp_window(mut self, window: TimestampWindow) -> Self {
+        self.window = window;
         self
     }
 
@@ -314,7 +370,7 @@ impl Validator {
     /// Every violation of a typed value (see [`WiaMessage::violations`]),
     /// judged with this validator's clock.
     pub fn check<T: WiaMessage>(&self, msg: &T) -> Vec<Violation> {
-        msg.violations_with_skew(self.now_ms, self.ahead_ms)
+        msg.violations_with_skew(self.now_ms, self.window)
     }
 
     /// Serializes a message to JSON after checking it: a value that breaks a
@@ -372,7 +428,7 @@ impl Validator {
     fn run<T: WiaMessage>(&self, json: &str) -> (Option<T>, Vec<Violation>) {
         match serde_json::from_str::<T>(json) {
             Ok(msg) => {
-                let mut violations = msg.violations_with_skew(self.now_ms, self.ahead_ms);
+                let mut violations = msg.violations_with_skew(self.now_ms, self.window);
                 if self.deny_unknown && msg.may_hold_unknown_members() {
                     violations.extend(crate::members::unknown_members(T::KIND, json));
                 }

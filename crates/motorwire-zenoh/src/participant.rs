@@ -634,15 +634,15 @@ fn one_line(payload: &[u8]) -> Vec<u8> {
 /// as it came) or else its `command_id` is its id. The bridge then reads
 /// the line exactly as a line on standard input without that member: a
 /// repeated member, a typo or a stop form gets the same result.
-fn command(payload: &[u8]) -> Command {
+fn command(payload: &[u8], max_line: usize) -> Command {
     let mut bytes = one_line(payload);
     bytes.push(b'\n');
-    let text = match read_line(&mut std::io::Cursor::new(bytes)) {
+    let text = match read_line(&mut std::io::Cursor::new(bytes), max_line) {
         // A blank line would get no result at all: refused instead.
         Ok(ReadLine::Line(s)) if !s.trim().is_empty() => s,
         Ok(ReadLine::TooLong { names_stop }) => {
             return Command::Refused {
-                reason: format!("the command is over {} bytes", motorwire_bridge::MAX_LINE),
+                reason: format!("the command is over {max_line} bytes (the bridge's --max-size)"),
                 stop: names_stop,
             };
         }
@@ -938,7 +938,7 @@ impl State {
             Err(_) => q.key_expr().to_string(),
         };
         let (command, controller) = match controller {
-            Ok(c) => (command(&payload), Some(c)),
+            Ok(c) => (command(&payload, self.input.max_line()), Some(c)),
             // A query that names no one controller is refused here, nothing
             // sent; when it names a stop, it stops (the bridge refuses it
             // as a line and stops). A refused query has no id.
@@ -1141,6 +1141,12 @@ impl State {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A query's payload read as a bridge with the default `--max-size`
+    /// reads it.
+    fn command(payload: &[u8]) -> Command {
+        super::command(payload, motorwire_bridge::DEFAULT_MAX_LINE)
+    }
     use motorwire_bridge::motorwire_wia::Validator;
     use motorwire_bridge::{Input, classify};
 
@@ -1524,10 +1530,15 @@ mod tests {
             r#"{{"emergency_stop":true,"pad":"{}"}}"#,
             "x".repeat(70_000)
         );
-        assert!(matches!(
-            command(long.as_bytes()),
-            Command::Refused { stop: true, .. }
-        ));
+        // Over the bridge's --max-size: refused, and a stop.
+        assert_eq!(
+            super::command(long.as_bytes(), 65_536),
+            Command::Refused {
+                reason: "the command is over 65536 bytes (the bridge's --max-size)".to_owned(),
+                stop: true
+            }
+        );
+        assert!(matches!(command(long.as_bytes()), Command::Line { .. }));
     }
 
     #[test]
