@@ -293,7 +293,7 @@ pub struct Bridge {
     /// device index) and the frames to send.
     compact: CompactDriver,
     /// The Orion arm controller's link.
-    orion: orion::Link,
+    orion: orion::OrionDriver,
     /// The input ended during startup: drain (until this deadline) once ready.
     drain_after_start: Option<Duration>,
     timers: Timers,
@@ -404,7 +404,11 @@ impl Bridge {
             base_limits,
             emergency_decel: BTreeMap::new(),
             compact: CompactDriver::new(config.client.timeout, config.client.retries),
-            orion: orion::Link::default(),
+            orion: orion::OrionDriver::new(
+                config.client.timeout,
+                config.client.retries,
+                config.orion_command_timeout,
+            ),
             timers: Timers::default(),
             out: VecDeque::new(),
             now: Duration::ZERO,
@@ -2071,9 +2075,7 @@ impl Bridge {
                         payload: Order::Orion(_),
                         ..
                     } => {
-                        if let Some(p) = self.orion.pending.as_mut() {
-                            p.forget(ji);
-                        }
+                        self.orion.forget(ji);
                     }
                     _ => {}
                 }

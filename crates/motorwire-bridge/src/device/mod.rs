@@ -10,12 +10,21 @@
 //! deadman, arrival, drain and exit. A driver never decides admission,
 //! limits or stops.
 //!
-//! Where this stands: the compact dialect is a driver ([`compact`]); the
-//! iRPC joints are driven through `motorwire_can::client::Client` and the
-//! Orion arm controller through the engine's `orion` link, both still
-//! reached from the engine directly. Moving them here, behind one closed
-//! enum of drivers with one match per operation (smoltcp's `enum Socket`),
-//! is the rest of this layer's work.
+//! A driver is a state machine with no access to the engine (quinn's
+//! `Connection`, smoltcp's sockets): the engine calls it with the time and
+//! what came in, and takes back what it has to send and what ended
+//! ([`orion::Done`], [`compact::Ended`]); its tests drive it with lines or
+//! frames alone.
+//!
+//! Where this stands: the compact dialect ([`compact`]) and the Orion arm
+//! controller ([`orion`]: its encoding, its link with the beacon, the loss
+//! and the stop written first when it comes back, its one line in flight
+//! with resends, its polls and its feedback decoding) are drivers; the
+//! engine's `orion` module keeps only what Orion motors are to the engine
+//! (jobs, the deadman, arrival). The iRPC joints are still driven through
+//! `motorwire_can::client::Client`, reached from the engine directly.
+//! Moving it here, behind one closed enum of drivers with one match per
+//! operation (smoltcp's `enum Socket`), is the rest of this layer's work.
 //!
 //! Adding a dialect (the recipe the moteus driver follows): a driver file
 //! here with its encoding and its requests in flight, its bus map entry
@@ -25,3 +34,4 @@
 //! holds it to every invariant the others keep.
 
 pub(crate) mod compact;
+pub(crate) mod orion;

@@ -1,168 +1,26 @@
-//! The Orion arm controller behind the bridge (WIRE-FACTS §4.1): one JSON
-//! object per line each way on a byte stream.
+//! The engine's side of the Orion arm controller (WIRE-FACTS §4.1): its
+//! motors as devices of the bridge, the controller itself behind
+//! [`OrionDriver`] (its lines, its link, its line in flight).
 //!
 //! - The map's Orion motors are devices of the bridge like joints: gated,
 //!   queued, stopped, watched by the deadman. Their orders become lines to
-//!   the one controller, one line in flight at a time: direct-control
-//!   `DATA` with only the keys whose value changes (the controller
-//!   remembers the rest), or a command (`MODE` 2: stop, fold, unfold).
+//!   the one controller, one line in flight at a time.
 //! - Orders of one input line for several Orion motors go out as one
 //!   `DATA` line; a stop for all of them is one stop command.
-//! - The controller answers every line: direct control with its feedback
-//!   (`MODE` 1), a command with `CMDF` once it has run. The answer of the
-//!   mode awaited acknowledges the line in flight (the controller answers
-//!   in order); one of the other mode answers a line given up before, and
-//!   is feedback only. A line unanswered within the Ack timeout is sent
-//!   again (a direct-control value set twice is set once), then its
-//!   outcome is unknown.
-//! - Nothing but a stop is sent before the boot beacon `{"ID":32}` is
-//!   heard. While idle the bridge asks for feedback with an empty `DATA`
-//!   every [`POLL`], which also keeps the controller from being taken as
-//!   silent.
 //! - An emergency stop goes out at once, whatever is in flight.
 
-use std::collections::VecDeque;
 use std::time::Duration;
 
-use motorwire_can::client::Outcome;
-use motorwire_irpc::NackCode;
-use motorwire_orion::{ArmCommand, CONTROLLER_ID, Motor, MotorValues, Output, Quantity};
+use motorwire_orion::{ArmCommand, CONTROLLER_ID, Motor, Quantity};
 use motorwire_translate::Report;
 
 use super::Bridge;
+use crate::device::orion::{BadLine, Done};
+pub use crate::device::orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL};
+pub(crate) use crate::device::orion::{ORION_NODE, OrionDriver};
 use crate::job::{Axis, AxisState, Order, OrionOrder};
 use crate::joints::StepRef;
 use crate::output::{Event, Output as BridgeOutput};
-
-/// The node id the bridge gives Orion motors: beyond CAN's 11 bits, so no
-/// frame is ever taken for theirs.
-pub(crate) const ORION_NODE: u16 = 0xFFFF;
-
-/// How often an idle bridge asks the controller for its feedback.
-pub const POLL: Duration = Duration::from_millis(100);
-
-/// The longest line taken from the controller (bytes); its feedback is
-/// under 300.
-pub const MAX_ORION_LINE: usize = 4096;
-
-/// Bad lines from the controller reported as events per second, at most;
-/// the rest are counted, and the next event says how many were not
-/// reported (a flooding controller cannot flood the bridge's output).
-pub const MAX_BAD_LINE_EVENTS: u32 = 10;
-
-/// A line to the controller waiting for its answer.
-#[derive(Debug)]
-pub(super) struct Pending {
-    msg_id: u32,
-    /// The devices whose steps it carries (none: a poll, or a line whose
-    /// steps were given up).
-    joints: Vec<usize>,
-    line: String,
-    /// The mode of the answer that acknowledges it.
-    mode: u8,
-    attempts: u8,
-    retries: u8,
-    timeout: Duration,
-    deadline: Duration,
-    /// The values the line sets (its answer must report each of them).
-    sets: Vec<(Motor, f64)>,
-}
-
-impl Pending {
-    /// Device `ji`'s step was given up: the answer no longer acknowledges
-    /// it.
-    pub(super) fn forget(&mut self, ji: usize) {
-        self.joints.retain(|&k| k != ji);
-    }
-}
-
-/// The link to the controller.
-#[derive(Debug, Default)]
-pub(super) struct Link {
-    /// The boot beacon was heard.
-    ready: bool,
-    /// Nothing more comes from the controller: nothing but a stop is sent.
-    lost: bool,
-    /// Lines came again after the link was lost: a stop was sent first,
-    /// and until it is answered the motors stay offline.
-    recovering: bool,
-    pub(super) pending: Option<Pending>,
-    tx: VecDeque<String>,
-    /// What the bridge last set each motor to, answered by the controller
-    /// (never its feedback, which reports what the motor does now): a key
-    /// whose new value equals it is not sent again, unless the value is 0
-    /// (a stop always goes out).
-    commanded: [Option<f64>; 7],
-    /// Lines from the controller reported as bad in the current second,
-    /// when that second began, and how many were not reported since.
-    bad_in_window: u32,
-    bad_window: Duration,
-    bad_suppressed: u64,
-    next_poll: Option<Duration>,
-    next_id: u32,
-}
-
-impl Link {
-    /// Whether the bridge should report one more bad line now (at most
-    /// [`MAX_BAD_LINE_EVENTS`] a second); `Some(n)` with the number not
-    /// reported before it.
-    fn report_bad(&mut self, now: Duration) -> Option<u64> {
-        if now.saturating_sub(self.bad_window) >= Duration::from_secs(1) {
-            self.bad_window = now;
-            self.bad_in_window = 0;
-        }
-        if self.bad_in_window >= MAX_BAD_LINE_EVENTS {
-            self.bad_suppressed += 1;
-            return None;
-        }
-        self.bad_in_window += 1;
-        Some(std::mem::take(&mut self.bad_suppressed))
-    }
-
-    /// Whether a line may go now (a stop always may).
-    pub(super) fn free(&self) -> bool {
-        self.ready && !self.lost && !self.recovering && self.pending.is_none()
-    }
-
-    /// Whether the controller may be polled now: also while the link is
-    /// lost (a link that connects again answers, and is then stopped
-    /// before anything else).
-    fn may_poll(&self) -> bool {
-        self.ready && !self.recovering && self.pending.is_none()
-    }
-
-    /// The line waiting for its answer, if it was never handed out (its
-    /// first sending still waits in the queue) and every device whose step
-    /// it carries is `picked`: taken back (out of the queue, no answer
-    /// awaited); the devices whose steps it carried. A line already handed
-    /// out, or sent again, may have run, and stays.
-    pub(super) fn take_back_unsent(
-        &mut self,
-        picked: impl Fn(usize) -> bool,
-    ) -> Option<Vec<usize>> {
-        let p = self.pending.as_ref()?;
-        if p.attempts != 1 || p.joints.is_empty() || !p.joints.iter().all(|&ji| picked(ji)) {
-            return None;
-        }
-        let at = self.tx.iter().position(|l| *l == p.line)?;
-        self.tx.remove(at);
-        self.pending.take().map(|p| p.joints)
-    }
-
-    /// The next deadline.
-    pub(super) fn deadline(&self) -> Option<Duration> {
-        match &self.pending {
-            Some(p) => Some(p.deadline),
-            None if self.recovering => Some(Duration::ZERO),
-            None if self.ready => self.next_poll,
-            None => None,
-        }
-    }
-}
-
-fn line_of(values: &MotorValues) -> String {
-    motorwire_orion::Input::DirectControl(*values).to_json()
-}
 
 impl Bridge {
     /// Whether device `ji` is an Orion motor.
@@ -194,7 +52,7 @@ impl Bridge {
             .axes
             .get(step.axis)
             .is_some_and(|a| matches!(a.payloads.front(), Some(Order::Orion(_))));
-        !orders || job.kind.is_stop() || self.orion.lost || self.orion.free()
+        !orders || job.kind.is_stop() || self.orion.lost() || self.orion.free()
     }
 
     /// Sends `order` of `step` for Orion motor `ji`, with the orders of
@@ -207,16 +65,12 @@ impl Bridge {
         step: StepRef,
         order: OrionOrder,
     ) -> Result<u32, String> {
-        // Nothing is heard from a lost link; a stop is still written, in
-        // case the controller still reads (it cannot be answered).
-        if self.orion.lost && order != OrionOrder::Command(ArmCommand::Stop) {
-            return Err("the link to the Orion controller is lost".to_owned());
+        if let Some(e) = self.orion.refuses(order) {
+            return Err(e);
         }
-        let id = self.orion.next_id;
-        self.orion.next_id = self.orion.next_id.wrapping_add(1);
         // Others of the same job, same kind of order.
-        let mut joints = vec![ji];
-        let mut orders = vec![order];
+        let mut orders = vec![(ji, order)];
+        let mut others = Vec::new();
         for k in 0..self.joints.len() {
             if k == ji {
                 continue;
@@ -253,185 +107,87 @@ impl Bridge {
             };
             a.begun = true;
             if let Order::Orion(o) = payload {
-                orders.push(o);
+                orders.push((k, o));
             }
-            a.state = AxisState::InFlight {
-                msg_id: id,
-                payload,
-            };
-            a.attempts = 1;
             if let Some(j) = self.joints.get_mut(k) {
                 j.queue.pop_front();
                 j.busy = Some(front);
             }
-            joints.push(k);
+            others.push((front, payload));
         }
-        let (line, mode, timeout, retries) = match order {
-            OrionOrder::Command(c) => {
-                let (timeout, retries) = match c {
-                    // A stop is quick and may be sent again.
-                    ArmCommand::Stop => (self.config.client.timeout, self.config.client.retries),
-                    // Fold and unfold are answered once they have run.
-                    _ => (self.config.orion_command_timeout, 0),
+        let id = self.orion.send(now, &orders);
+        for (front, payload) in others {
+            if let Some(a) = self
+                .jobs
+                .get_mut(&front.job)
+                .and_then(|job| job.axes.get_mut(front.axis))
+            {
+                a.state = AxisState::InFlight {
+                    msg_id: id,
+                    payload,
                 };
-                let line = motorwire_orion::Input::Command(c.into()).to_json();
-                (line, 2, timeout, retries)
+                a.attempts = 1;
             }
-            OrionOrder::Set(..) => {
-                let mut values = MotorValues::new();
-                for o in &orders {
-                    if let OrionOrder::Set(m, v) = *o
-                        && (v == 0.0
-                            || self.orion.commanded.get(m.index()).copied().flatten() != Some(v))
-                    {
-                        values.set(m, v);
-                    }
-                }
-                (
-                    line_of(&values),
-                    1,
-                    self.config.client.timeout,
-                    self.config.client.retries,
-                )
-            }
-        };
-        let sets = match order {
-            OrionOrder::Set(..) => orders
-                .iter()
-                .filter_map(|o| match *o {
-                    OrionOrder::Set(m, v) => Some((m, v)),
-                    OrionOrder::Command(_) => None,
-                })
-                .collect(),
-            OrionOrder::Command(_) => Vec::new(),
-        };
-        self.orion.tx.push_back(line.clone());
-        self.orion.pending = Some(Pending {
-            msg_id: id,
-            joints,
-            line,
-            mode,
-            attempts: 1,
-            retries,
-            timeout,
-            deadline: now.saturating_add(timeout),
-            sets,
-        });
+        }
         Ok(id)
     }
 
     /// The next line for the Orion controller (without its newline).
     pub fn poll_orion_line(&mut self) -> Option<String> {
-        self.orion.tx.pop_front()
+        self.orion.poll_line()
     }
 
     /// One line from the Orion controller, received at `now`.
     pub fn handle_orion_line(&mut self, now: Duration, line: &str) {
         self.now = self.now.max(now);
         let now = self.now;
-        // The controller's lines are under 300 bytes: a longer one is not
-        // parsed (a hostile one would cost every device's time).
-        if line.len() > MAX_ORION_LINE {
-            self.orion_bad_line(now, format!("a line over {MAX_ORION_LINE} bytes"));
-            return;
-        }
-        let output = match Output::parse(line.trim()) {
+        // Its motors held offline (it fell silent): heard again, it is
+        // made safe and known before they are online.
+        let offline = self.joints.iter().any(|j| j.orion.is_some() && !j.online);
+        let output = match self.orion.read(now, line, offline) {
             Ok(o) => o,
-            Err(e) => {
-                self.orion_bad_line(now, e.to_string());
-                return;
-            }
+            Err(bad) => return self.orion_bad_line(bad),
         };
-        // Heard again after the link was lost or went silent: its state is
-        // made safe and known before its motors are online.
-        let offline =
-            self.orion.ready && self.joints.iter().any(|j| j.orion.is_some() && !j.online);
-        if (self.orion.lost || offline) && !self.orion.recovering {
-            self.orion_link_back(now);
-        }
         self.orion_heard(now);
-        match output {
-            Output::Beacon => {
-                let first = !self.orion.ready;
-                if first || self.orion.next_poll.is_some() {
-                    // The first beacon, or one after the controller had
-                    // been commanded: it started again, every value 0.
-                    self.orion.commanded = [None; 7];
-                    self.out
-                        .push_back(BridgeOutput::Event(Event::OrionBeacon { first }));
-                }
-                self.orion.ready = true;
-                // Its motors are online from its boot beacon on: a
-                // controller that (re)started has every value at 0, its
-                // state known, stopped or not.
-                self.orion.recovering = false;
-                self.orion_heard(now);
-                // Answered by the first poll, which ends the beacons.
-                self.orion.next_poll = Some(now);
-                if first {
-                    for ji in 0..self.joints.len() {
-                        if self.is_orion(ji) {
-                            self.pump(ji);
-                        }
+        let ts = self.unix_ms(now);
+        let applied = self.orion.apply(now, &output, &self.map, ts);
+        if let Some(bad) = applied.bad {
+            return self.orion_bad_line(bad);
+        }
+        if let Some((first, reported)) = applied.beacon {
+            if reported {
+                self.out
+                    .push_back(BridgeOutput::Event(Event::OrionBeacon { first }));
+            }
+            self.orion_heard(now);
+            if first {
+                for ji in 0..self.joints.len() {
+                    if self.is_orion(ji) {
+                        self.pump(ji);
                     }
-                    self.finish_jobs();
                 }
+                self.finish_jobs();
             }
-            Output::DirectControl(fb) => {
-                if !self.orion_feedback(&fb, now) {
-                    return;
-                }
-                // It answers the line in flight only if it reports every
-                // motor that line set.
-                let answers = self.orion.pending.as_ref().is_some_and(|p| {
-                    p.mode == 1 && p.sets.iter().all(|(m, _)| fb.get(*m).is_some())
-                });
-                if answers {
-                    if let Some(p) = self.orion.pending.as_ref() {
-                        for &(m, v) in &p.sets {
-                            if let Some(slot) = self.orion.commanded.get_mut(m.index()) {
-                                *slot = Some(v);
-                            }
-                        }
-                    }
-                    self.orion_answered(now, 1, Outcome::Acked);
-                }
-            }
-            Output::Command { succeeded } => {
-                let outcome = if succeeded {
-                    Outcome::Acked
-                } else {
-                    Outcome::Nacked(NackCode(0))
-                };
-                let recovered = succeeded
-                    && self.orion.recovering
-                    && self
-                        .orion
-                        .pending
-                        .as_ref()
-                        .is_some_and(|p| p.mode == 2 && p.joints.is_empty());
-                if self.orion.pending.as_ref().is_some_and(|p| p.mode == 2) {
-                    // Stop, fold and unfold leave the speeds and actuators
-                    // at 0 and move the servo: send every value again.
-                    self.orion.commanded = [None; 7];
-                }
-                self.orion_answered(now, 2, outcome);
-                if recovered {
-                    // Stopped and known: online again, nothing resumed.
-                    self.orion.recovering = false;
-                    self.orion_heard(now);
-                }
-            }
+        }
+        self.orion_feedback(applied.feedback, now);
+        if let Some(done) = applied.done {
+            self.orion_done(done);
+        }
+        if applied.recovered {
+            // Stopped and known: online again, nothing resumed.
+            self.orion.end_recovery();
+            self.orion_heard(now);
         }
     }
 
     /// A line from the controller that is not one of its messages: counted,
-    /// and reported (at most [`MAX_BAD_LINE_EVENTS`] a second).
-    fn orion_bad_line(&mut self, now: Duration, error: String) {
+    /// and reported when the driver says so (at most
+    /// [`MAX_BAD_LINE_EVENTS`] a second).
+    fn orion_bad_line(&mut self, bad: BadLine) {
         self.stats.bad_frames += 1;
-        if let Some(suppressed) = self.orion.report_bad(now) {
+        if let Some(suppressed) = bad.report {
             self.out.push_back(BridgeOutput::Event(Event::BadOrionLine {
-                error,
+                error: bad.error,
                 suppressed,
             }));
         }
@@ -441,26 +197,23 @@ impl Bridge {
     /// UTF-8), at `now`: reported like a bad line.
     pub fn handle_orion_unreadable(&mut self, now: Duration, reason: &str) {
         self.now = self.now.max(now);
-        self.orion_bad_line(self.now, reason.to_owned());
+        let bad = self.orion.unreadable(self.now, reason);
+        self.orion_bad_line(bad);
     }
 
     /// The link to the controller ended (`error` says how): its motors
     /// are offline, and what was in flight has an unknown outcome.
     pub fn orion_link_lost(&mut self, now: Duration, error: &str) {
         self.now = self.now.max(now);
-        if self.orion.lost {
+        let Some(in_flight) = self.orion.link_lost(now) else {
             return;
-        }
-        self.orion.lost = true;
-        self.orion.recovering = false;
-        // Polled on: a link that connects again answers.
-        self.orion.next_poll = Some(now.saturating_add(POLL));
+        };
         self.out
             .push_back(BridgeOutput::Event(Event::OrionLinkLost {
                 error: error.to_owned(),
             }));
-        if let Some(p) = self.orion.pending.take() {
-            self.orion_done(p, Outcome::TimedOut);
+        if let Some(done) = in_flight {
+            self.orion_done(done);
         }
         let orion: Vec<usize> = (0..self.joints.len())
             .filter(|&k| self.is_orion(k))
@@ -490,58 +243,10 @@ impl Bridge {
         self.handle_timeout(now);
     }
 
-    /// Lines come again after the link was lost (a link that connected
-    /// again): what the controller runs now is unknown (it may still turn
-    /// at what it was last told), so a stop goes first, nothing under way
-    /// is resumed, and its motors are online once the stop is answered.
-    fn orion_link_back(&mut self, now: Duration) {
-        self.orion.lost = false;
-        self.orion.recovering = true;
-        self.orion.commanded = [None; 7];
-        if self.orion.pending.is_none() {
-            self.orion_recovery_stop(now);
-        }
-    }
-
-    /// The stop that makes a controller heard again safe and known: sent
-    /// again (each time the one before went unanswered) until answered.
-    fn orion_recovery_stop(&mut self, now: Duration) {
-        let line = motorwire_orion::Input::Command(ArmCommand::Stop.into()).to_json();
-        self.orion_own_line(now, line, 2);
-    }
-
-    /// Writes a line of the bridge's own (a poll, a recovery's stop), no
-    /// device's step: awaited once, in `mode`, within the Ack timeout.
-    fn orion_own_line(&mut self, now: Duration, line: String, mode: u8) {
-        let id = self.orion.next_id;
-        self.orion.next_id = self.orion.next_id.wrapping_add(1);
-        self.orion.tx.push_back(line.clone());
-        let timeout = self.config.client.timeout;
-        self.orion.pending = Some(Pending {
-            msg_id: id,
-            joints: Vec::new(),
-            line,
-            mode,
-            attempts: 1,
-            retries: 0,
-            timeout,
-            deadline: now.saturating_add(timeout),
-            sets: Vec::new(),
-        });
-    }
-
     /// Why the Orion motors are offline now, if the link says so: before
     /// the boot beacon, and while a link that came back is being stopped.
     pub(super) fn orion_offline_reason(&self) -> Option<&'static str> {
-        if !self.orion.ready {
-            Some("the Orion arm controller has not sent its boot beacon")
-        } else if self.orion.recovering {
-            Some("the link to the Orion arm controller came back, and its stop is not answered yet")
-        } else if self.orion.lost {
-            Some("the link to the Orion arm controller is lost")
-        } else {
-            None
-        }
+        self.orion.offline_reason()
     }
 
     /// Something was heard from the controller at `at`; its motors are
@@ -551,7 +256,7 @@ impl Bridge {
         let orion: Vec<usize> = (0..self.joints.len())
             .filter(|&k| self.is_orion(k))
             .collect();
-        let up = self.orion.ready && !self.orion.recovering && !self.orion.lost;
+        let up = self.orion.up();
         for ji in orion {
             let Some(j) = self.joints.get_mut(ji) else {
                 continue;
@@ -567,20 +272,10 @@ impl Bridge {
         }
     }
 
-    /// Direct-control feedback: each mapped motor's WIA feedback, its
-    /// motion and its arrival. False (and reported) when a value is not a
-    /// finite number: such a line is not an answer.
-    fn orion_feedback(&mut self, fb: &motorwire_orion::Feedback, now: Duration) -> bool {
-        let ts = self.unix_ms(now);
-        let Ok(list) = motorwire_translate::feedback_from_orion(&self.map, fb, ts) else {
-            self.orion_bad_line(
-                now,
-                "feedback with a value that is not a finite number".to_owned(),
-            );
-            return false;
-        };
-        for t in list {
-            let f = t.value;
+    /// Direct-control feedback, decoded by the driver: each mapped motor's
+    /// WIA feedback, its motion and its arrival.
+    fn orion_feedback(&mut self, list: Vec<motorwire_wia::MotorFeedback>, now: Duration) {
+        for f in list {
             let Some(ji) = self.joint_index(&f.motor_id) else {
                 continue;
             };
@@ -606,25 +301,13 @@ impl Bridge {
                 self.sequence_progress(ji, motion.0, motion.1);
             }
         }
-        true
     }
 
-    /// An answer of `mode`: it acknowledges the line in flight if that
-    /// awaits this mode.
-    fn orion_answered(&mut self, now: Duration, mode: u8, outcome: Outcome) {
-        if self.orion.pending.as_ref().is_none_or(|p| p.mode != mode) {
-            return;
-        }
-        let Some(p) = self.orion.pending.take() else {
-            return;
-        };
-        self.orion.next_poll = Some(now.saturating_add(POLL));
-        self.orion_done(p, outcome);
-    }
-
-    fn orion_done(&mut self, p: Pending, outcome: Outcome) {
-        for ji in p.joints {
-            self.device_done(ji, p.msg_id, ORION_NODE, outcome, p.attempts);
+    /// A line of the controller's ended: each device whose step it carried
+    /// is done, and what waits for the controller may go.
+    fn orion_done(&mut self, done: Done) {
+        for &ji in &done.joints {
+            self.device_done(ji, done.msg_id, ORION_NODE, done.outcome, done.attempts);
         }
         for ji in 0..self.joints.len() {
             if self.is_orion(ji) {
@@ -636,37 +319,19 @@ impl Bridge {
 
     /// Resends, gives up, and polls when idle.
     pub(super) fn orion_timeouts(&mut self, now: Duration) {
-        if let Some(p) = self.orion.pending.as_mut()
-            && now >= p.deadline
-        {
-            if p.attempts <= p.retries && !p.joints.is_empty() && !self.orion.lost {
-                p.attempts += 1;
-                p.deadline = now.saturating_add(p.timeout);
-                let line = p.line.clone();
-                self.orion.tx.push_back(line);
-            } else if let Some(p) = self.orion.pending.take() {
-                self.orion.next_poll = Some(now);
-                self.orion_done(p, Outcome::TimedOut);
-            }
-        }
-        if self.orion.recovering && self.orion.pending.is_none() {
-            self.orion_recovery_stop(now);
+        if let Some(done) = self.orion.expire(now) {
+            self.orion_done(done);
         }
         // A poll never takes the link from a step waiting for it.
-        if self.orion.may_poll()
-            && self.orion.next_poll.is_some_and(|t| now >= t)
-            && self.joints.iter().any(|j| j.orion.is_some())
+        let idle = self.joints.iter().any(|j| j.orion.is_some())
             && !self.joints.iter().any(|j| {
                 j.orion.is_some()
                     && (j.busy.is_some()
                         || j.queue
                             .front()
                             .is_some_and(|s| !self.after_earlier_axis(*s)))
-            })
-        {
-            self.orion_own_line(now, line_of(&MotorValues::new()), 1);
-            self.orion.next_poll = None;
-        }
+            });
+        self.orion.housekeeping(now, idle);
     }
 
     /// An acked Orion order's effect: a speed or actuator value other than
