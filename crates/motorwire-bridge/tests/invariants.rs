@@ -245,55 +245,59 @@ fn check(arm: &SimulatedArm, tally: &Tally) {
     }
 }
 
-/// Many lines in flight from four clients, under 10 % drop, duplicate and
-/// reorder, stops in every form and releases among them.
+/// Many lines in flight from four clients, on every dialect (the iRPC
+/// joints, the compact gripper, the Orion servo, multi-axis lines over
+/// the three), under 10 % drop, duplicate and reorder, stops in every form
+/// and releases among them.
 #[test]
 fn four_clients_bursts_stops_and_faults_keep_every_invariant() {
-    let mut arm = arm_with(MAP, faults(), 11);
-    let mut tally = Tally::default();
+    let mut arm = every_dialect_arm_with(faults(), 11);
+    let mut t = MixedTally::default();
     let mut ops = Vec::new();
     for round in 0..12u64 {
         for i in 0..60u64 {
-            let joint = ((i + round) % 3) as usize;
-            let (_, _, lo, hi) = JOINTS[joint];
+            let motor = ((i + round) % 5) as usize;
+            let (_, lo, hi) = EVERY_DIALECT[motor];
             // Now and then a setpoint outside the limits: refused, never sent.
             let setpoint = if i % 17 == 0 {
                 hi + 20.0
             } else {
                 lo + (hi - lo) * ((i * 7 + round) % 10) as f64 / 10.0
             };
-            ops.push(Op::Move {
+            ops.push(Mixed::Move {
                 client: i % 4,
-                joint,
+                motor,
                 setpoint,
             });
             if i % 20 == 5 {
-                ops.push(Op::Multi {
+                ops.push(Mixed::Multi {
                     client: 3,
-                    setpoints: [10.0, -10.0, 40.0 + round as f64],
+                    setpoints: [40.0 + round as f64, 45.0, -30.0],
+                    sequential: false,
                 });
             }
         }
-        ops.push(Op::Wait { ms: 3 });
-        ops.push(Op::Stop {
+        ops.push(Mixed::Other(Op::Wait { ms: 3 }));
+        ops.push(Mixed::Other(Op::Stop {
             client: round % 4,
             form: round as usize,
-        });
-        ops.push(Op::BadRelease { client: 1 });
-        ops.push(Op::Move {
+        }));
+        ops.push(Mixed::Other(Op::BadRelease { client: 1 }));
+        ops.push(Mixed::Move {
             client: 0,
-            joint: 0,
+            motor: 0,
             setpoint: 1.0,
         });
-        ops.push(Op::Wait { ms: 30 });
-        ops.push(Op::Release { client: 2 });
-        ops.push(Op::Wait { ms: 300 });
+        ops.push(Mixed::Other(Op::Wait { ms: 30 }));
+        ops.push(Mixed::Other(Op::Release { client: 2 }));
+        ops.push(Mixed::Other(Op::Wait { ms: 300 }));
     }
-    play(&mut arm, &ops, &mut tally);
+    play_mixed(&mut arm, &ops, &mut t);
     arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
-    collect(&mut arm, &mut tally);
-    check(&arm, &tally);
-    let kinds: BTreeSet<String> = tally
+    collect(&mut arm, &mut t.tally);
+    check_mixed(&arm, &t);
+    let kinds: BTreeSet<String> = t
+        .tally
         .results
         .values()
         .filter_map(|r| r["error"]["kind"].as_str().map(str::to_owned))
@@ -308,64 +312,82 @@ fn four_clients_bursts_stops_and_faults_keep_every_invariant() {
     ] {
         assert!(kinds.contains(k), "no {k} among {kinds:?}");
     }
+    // On every dialect: each motor had lines taken and lines refused.
+    for (m, (motor, ..)) in EVERY_DIALECT.iter().enumerate() {
+        let answered = |ok: bool| {
+            t.tally.results.values().any(|r| {
+                r["ok"] == ok
+                    && (r["motor_id"] == *motor
+                        || r["error"]["motor"] == *motor
+                        || r["acked"]
+                            .as_array()
+                            .is_some_and(|a| a.contains(&(*motor).into())))
+            })
+        };
+        assert!(answered(true) && answered(false), "motor {m} ({motor})");
+    }
     let stats = arm.bus().stats();
     assert!(
         stats.dropped > 0 && stats.duplicated > 0 && stats.reordered > 0,
         "{stats:?}"
     );
-    // Invariant 5: one last move per joint, then at rest on its target.
-    for (j, (motor, ..)) in JOINTS.iter().enumerate() {
-        let setpoint = [12.5, -7.5, 33.0][j];
-        arm.line(Origin(9), &command(motor, setpoint));
+    // Invariant 5: one last move per motor, then at rest on its target.
+    let last = [12.5, -7.5, 33.0, 20.0, 15.0];
+    for (m, (motor, ..)) in EVERY_DIALECT.iter().enumerate() {
+        arm.line(Origin(9), &command(motor, last[m]));
     }
     arm.run_until(arm.now() + Duration::from_secs(4)).unwrap();
-    for view in arm.bridge().joints() {
-        let node = view.node;
-        let Some(j) = arm.joint(node) else {
-            continue; // the compact gripper: not commanded here
-        };
-        assert_eq!(j.state(), LifecycleState::Active, "{}", view.name);
-        let target = view.target.unwrap();
+    for (_, node, ..) in JOINTS {
+        assert_eq!(arm.joint(node).unwrap().state(), LifecycleState::Active);
+    }
+    for (m, (motor, ..)) in EVERY_DIALECT.iter().enumerate() {
+        let at = position_of(&arm, m);
         assert!(
-            (j.position() - target).abs() < 1e-3,
-            "{}: at {} for {target}",
-            view.name,
-            j.position()
+            (at - last[m]).abs() < 1e-3,
+            "{motor}: at {at} for {}",
+            last[m]
         );
     }
 }
 
-/// A burst far beyond the bounds: refused `busy` or superseded at once,
-/// never buffered without bound, each answered once.
+/// A burst far beyond the bounds, on each dialect: refused `busy` or
+/// superseded at once, never buffered without bound, each answered once.
 #[test]
 fn a_burst_is_bounded_and_a_newer_move_supersedes_a_waiting_one() {
-    let mut arm = arm_with(MAP, Faults::default(), 0);
-    let mut tally = Tally::default();
-    let ops: Vec<Op> = (0..3000u64)
-        .map(|i| Op::Move {
-            client: i % 2,
-            joint: 2,
-            setpoint: (i % 150) as f64,
-        })
-        .collect();
-    play(&mut arm, &ops, &mut tally);
-    assert!(arm.bridge().pending_lines() <= 1024);
-    arm.run_until(arm.now() + Duration::from_secs(5)).unwrap();
-    collect(&mut arm, &mut tally);
-    check(&arm, &tally);
-    let superseded = tally
-        .results
-        .values()
-        .filter(|r| r["error"]["kind"] == "superseded")
-        .count();
-    assert!(superseded > 2900, "{superseded}");
-    // The last line wins: the elbow ends at the last setpoint.
-    let j = arm.joint(0x12).unwrap();
-    assert!(
-        (j.position() - (2999 % 150) as f64).abs() < 1e-3,
-        "{}",
-        j.position()
-    );
+    // The elbow (iRPC), the gripper (compact), the servo (Orion).
+    for m in [2, 3, 4] {
+        let (motor, lo, hi) = EVERY_DIALECT[m];
+        let span = (hi - lo) as u64;
+        let setpoint = |i: u64| lo + (i % span) as f64;
+        let mut arm = every_dialect_arm_with(Faults::default(), 0);
+        let mut t = MixedTally::default();
+        let ops: Vec<Mixed> = (0..3000u64)
+            .map(|i| Mixed::Move {
+                client: i % 2,
+                motor: m,
+                setpoint: setpoint(i),
+            })
+            .collect();
+        play_mixed(&mut arm, &ops, &mut t);
+        assert!(arm.bridge().pending_lines() <= 1024, "{motor}");
+        arm.run_until(arm.now() + Duration::from_secs(5)).unwrap();
+        collect(&mut arm, &mut t.tally);
+        check_mixed(&arm, &t);
+        let superseded = t
+            .tally
+            .results
+            .values()
+            .filter(|r| r["error"]["kind"] == "superseded")
+            .count();
+        assert!(superseded > 2900, "{motor}: {superseded}");
+        // The last line wins: the motor ends at the last setpoint.
+        let at = position_of(&arm, m);
+        assert!(
+            (at - setpoint(2999)).abs() < 1e-3,
+            "{motor}: at {at} for {}",
+            setpoint(2999)
+        );
+    }
 }
 
 /// A map mixing the four wire versions starts, moves each joint and stops it.
@@ -679,6 +701,9 @@ fn play_mixed(arm: &mut SimulatedArm, ops: &[Mixed], t: &mut MixedTally) {
             Mixed::Other(Op::Release { client }) => {
                 (*client, r#"{"emergency_stop": false}"#.to_owned())
             }
+            Mixed::Other(Op::BadRelease { client }) => {
+                (*client, r#"{"emergency_stop": false, "x": 1}"#.to_owned())
+            }
             Mixed::Other(other) => unreachable!("{other:?}"),
         };
         let line = {
@@ -795,6 +820,13 @@ fn check_mixed(arm: &SimulatedArm, t: &MixedTally) {
 }
 
 fn every_dialect_arm(seed: u64) -> SimulatedArm {
+    every_dialect_arm_with(faults(), seed)
+}
+
+/// The demo arm with its Orion controller attached: iRPC joints, the
+/// compact gripper and the Orion arm on one simulated bus with `faults`,
+/// every frame sent kept.
+fn every_dialect_arm_with(faults: Faults, seed: u64) -> SimulatedArm {
     let config = BridgeConfig {
         orion: true,
         ..BridgeConfig::default()
@@ -804,7 +836,7 @@ fn every_dialect_arm(seed: u64) -> SimulatedArm {
         bridge,
         SimConfig {
             seed,
-            faults: faults(),
+            faults,
             ..SimConfig::default()
         },
     )
@@ -815,6 +847,23 @@ fn every_dialect_arm(seed: u64) -> SimulatedArm {
             .unwrap()
     );
     arm
+}
+
+/// Where motor `m` of [`EVERY_DIALECT`] stands: an iRPC joint's position,
+/// the compact gripper's, or the angle the Orion controller holds for its
+/// servo.
+fn position_of(arm: &SimulatedArm, m: usize) -> f64 {
+    match m {
+        0..=2 => arm.joint(JOINTS[m].1).unwrap().position(),
+        3 => arm.compact_device(0x20).unwrap().position(),
+        _ => {
+            let servo = motorwire_orion::Motor::ALL
+                .iter()
+                .position(|m| m.key() == "GHS")
+                .unwrap();
+            arm.orion_log().last().map_or(0.0, |w| w.values[servo])
+        }
+    }
 }
 
 proptest! {
@@ -890,15 +939,18 @@ fn a_sequential_line_over_three_dialects_is_answered_after_its_last_axis() {
     );
 }
 
-/// A flood of stops from three clients is one stop: every line is
-/// answered with its outcome, and each joint is sent one Deactivate.
+/// A flood of stops from three clients is one stop, on every dialect:
+/// every line is answered with its outcome, each iRPC joint is sent one
+/// Deactivate, the compact gripper one stop frame and the Orion
+/// controller one stop line.
 #[test]
 fn a_flood_of_stops_is_one_stop() {
-    let mut arm = arm_with(MAP, Faults::default(), 0);
+    let mut arm = every_dialect_arm_with(Faults::default(), 0);
     let before: Vec<usize> = JOINTS
         .iter()
         .map(|(_, node, ..)| arm.joint(*node).unwrap().log().len())
         .collect();
+    let (frames_before, orion_before) = (arm.sent().len(), arm.orion_log().len());
     let mut tally = Tally::default();
     let ops: Vec<Op> = (0..5000u64)
         .map(|i| Op::Stop {
@@ -925,6 +977,23 @@ fn a_flood_of_stops_is_one_stop() {
         assert_eq!(new, [Payload::Deactivate], "{motor}");
         assert_eq!(arm.joint(*node).unwrap().state(), LifecycleState::Inactive);
     }
+    let gripper: Vec<motorwire_compact::CompactCommand> = arm.sent()[frames_before..]
+        .iter()
+        .filter(|(_, f)| f.id().raw() == 0x20)
+        .map(|(_, f)| motorwire_compact::CompactCommand::decode(f.data()).unwrap())
+        .collect();
+    assert_eq!(gripper.len(), 1, "{gripper:?}");
+    assert_ne!(
+        gripper[0].flags.bits() & motorwire_compact::Flags::EMERGENCY_STOP.bits(),
+        0,
+        "{gripper:?}"
+    );
+    let orion: Vec<&str> = arm.orion_log()[orion_before..]
+        .iter()
+        .map(|w| w.line.as_str())
+        .filter(|l| *l != r#"{"ID":32,"MODE":1,"DATA":{}}"#)
+        .collect();
+    assert_eq!(orion, [r#"{"ID":32,"MODE":2,"DATA":1}"#]);
     // The release after the flood re-activates the joints once.
     arm.line(Origin(0), r#"{"emergency_stop": false}"#);
     arm.run_until(arm.now() + Duration::from_millis(50))
