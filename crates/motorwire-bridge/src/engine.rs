@@ -28,11 +28,9 @@ mod requests;
 pub use orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL as ORION_POLL};
 
 use motorwire_can::Frame;
-use motorwire_can::client::{Client, ClientConfig, Completion, Event as ClientEvent, Outcome};
-use motorwire_compact::{CompactCommand, ControlMode as CompactMode, Flags, MotorHash};
-use motorwire_irpc::{
-    LifecycleState, NackCode, Payload, PayloadKind, SetTargetPayloadV2, WireVersion,
-};
+use motorwire_can::client::ClientConfig;
+use motorwire_compact::{ControlMode as CompactMode, Flags, MotorHash};
+use motorwire_irpc::{LifecycleState, Payload, PayloadKind};
 use motorwire_translate::{
     AngleUnit, BusMap, Limits, Report, Target, feedback_from_irpc, multi_axis_to_irpc, to_compact,
     to_irpc, trajectory_to_irpc,
@@ -47,8 +45,10 @@ use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Input, classify};
 use crate::device::compact::{self, CompactDriver};
-use crate::job::{Axis, AxisState, Cycle, Job, JobKind, Order, OrionOrder, Rider};
-use crate::joints::{CompactLink, Joint, StepRef, Unresolved};
+use crate::device::irpc::{IrpcDriver, IrpcEvent};
+use crate::device::{Capability, Context, Device, Drivers, Ended, Moving, Outcome, Route};
+use crate::job::{Axis, AxisState, Cycle, Job, JobKind, Order, Rider};
+use crate::joints::{Joint, StepRef, Unresolved};
 use crate::output::{
     BridgeRule, ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output,
     StepOutcome, StepReport,
@@ -260,12 +260,12 @@ pub struct Bridge {
     map: BusMap,
     config: BridgeConfig,
     validator: Validator,
-    client: Client,
+    /// One driver per dialect: every request in flight, every frame and
+    /// line to send.
+    drivers: Drivers,
     joints: Vec<Joint>,
     jobs: BTreeMap<u64, Job>,
     next_job: u64,
-    /// msg_id in flight -> the joint it went to.
-    by_msg: BTreeMap<u32, usize>,
     waiting: VecDeque<Waiting>,
     line_numbers: BTreeMap<Origin, u64>,
     latched: bool,
@@ -289,11 +289,6 @@ pub struct Bridge {
     /// Emergency decelerations given by SafetyLimits lines (recorded and
     /// reported; iRPC cannot carry them).
     emergency_decel: BTreeMap<String, f64>,
-    /// The compact devices' driver: the command in flight for each (by
-    /// device index) and the frames to send.
-    compact: CompactDriver,
-    /// The Orion arm controller's link.
-    orion: orion::OrionDriver,
     /// The input ended during startup: drain (until this deadline) once ready.
     drain_after_start: Option<Duration>,
     timers: Timers,
@@ -331,45 +326,37 @@ impl Bridge {
                 "max_pending_lines and max_queue_per_joint must be at least 1",
             ));
         }
-        let mut client = Client::new(config.client)?;
+        let mut irpc = IrpcDriver::new(config.client)?;
         let joints: Vec<Joint> = map
             .motors()
-            .filter_map(|m| match m.target {
-                Target::Irpc { node, wire } => Some(Joint::new(m.name.clone(), node, wire)),
-                Target::Compact {
-                    node,
-                    feedback_node,
-                } => {
-                    let mut j = Joint::new(m.name.clone(), node, WireVersion::V2_0);
-                    j.compact = Some(CompactLink {
+            .filter_map(|m| {
+                let (node, device) = match m.target {
+                    Target::Irpc { node, wire } => (node, Device::Irpc { wire }),
+                    Target::Compact {
+                        node,
                         feedback_node,
-                        hash: MotorHash::of(&m.name),
-                    });
-                    // A compact device has no lifecycle: it takes commands
-                    // as it is.
-                    j.active = true;
-                    Some(j)
-                }
-                Target::Orion { motor } if config.orion => {
-                    let mut j = Joint::new(m.name.clone(), orion::ORION_NODE, WireVersion::V2_0);
-                    j.orion = Some(motor);
-                    // No lifecycle either.
-                    j.active = true;
-                    // Online from the controller's boot beacon on.
-                    j.online = false;
-                    Some(j)
-                }
-                Target::Orion { .. } => None,
+                    } => (
+                        node,
+                        Device::Compact {
+                            feedback_node,
+                            hash: MotorHash::of(&m.name),
+                        },
+                    ),
+                    Target::Orion { motor } if config.orion => {
+                        (orion::ORION_NODE, Device::Orion(motor))
+                    }
+                    Target::Orion { .. } => return None,
+                };
+                Some(Joint::new(m.name.clone(), node, device))
             })
             .collect();
         if joints.is_empty() {
             return Err(BridgeError::NoJoints);
         }
-        for j in joints
-            .iter()
-            .filter(|j| j.compact.is_none() && j.orion.is_none())
-        {
-            client.set_wire(j.node, j.wire);
+        for j in &joints {
+            if let Device::Irpc { wire } = j.device {
+                irpc.set_wire(j.node, wire);
+            }
         }
         let base_limits = map.motors().map(|m| (m.name.clone(), m.limits)).collect();
         let validator = Validator::new().deny_unknown_members(!config.allow_unknown_members);
@@ -387,11 +374,18 @@ impl Bridge {
             map,
             config,
             validator,
-            client,
+            drivers: Drivers {
+                irpc,
+                compact: CompactDriver::new(config.client.timeout, config.client.retries),
+                orion: orion::OrionDriver::new(
+                    config.client.timeout,
+                    config.client.retries,
+                    config.orion_command_timeout,
+                ),
+            },
             joints,
             jobs: BTreeMap::new(),
             next_job: 0,
-            by_msg: BTreeMap::new(),
             waiting: VecDeque::new(),
             line_numbers: BTreeMap::new(),
             latched: false,
@@ -403,12 +397,6 @@ impl Bridge {
             arrivals: Vec::new(),
             base_limits,
             emergency_decel: BTreeMap::new(),
-            compact: CompactDriver::new(config.client.timeout, config.client.retries),
-            orion: orion::OrionDriver::new(
-                config.client.timeout,
-                config.client.retries,
-                config.orion_command_timeout,
-            ),
             timers: Timers::default(),
             out: VecDeque::new(),
             now: Duration::ZERO,
@@ -461,7 +449,7 @@ impl Bridge {
         self.joints.iter().map(|j| JointView {
             name: j.name.clone(),
             node: j.node,
-            wire: j.wire,
+            wire: j.device.wire(),
             online: j.online,
             state: j.state,
             active: j.active,
@@ -581,8 +569,8 @@ impl Bridge {
                     // sent and not answered (the deadman then watches it).
                     || job.axes.iter().any(|a| {
                         !a.is_done()
-                            && (a.payloads.iter().any(|p| holds_setpoint(*p))
-                                || matches!(a.state, AxisState::InFlight { payload, .. } if holds_setpoint(payload)))
+                            && (a.payloads.iter().any(Order::holds_setpoint)
+                                || matches!(a.state, AxisState::InFlight { payload, .. } if payload.holds_setpoint()))
                     }))
         };
         self.cancel_where(
@@ -937,7 +925,11 @@ impl Bridge {
                     return;
                 }
             };
-            let Some(ji) = self.joint_index(&t.motor_id) else {
+            let Some(ji) = self.joint_index(&t.motor_id).filter(|&ji| {
+                self.joints
+                    .get(ji)
+                    .is_some_and(|j| j.device.supports(Capability::Trajectory))
+            }) else {
                 let e = ErrorBody::refused(
                     BridgeRule::NotAnIrpcJoint,
                     format!("{} is not an iRPC joint", t.motor_id),
@@ -1045,7 +1037,7 @@ impl Bridge {
         }
         // An iRPC joint only: Reset goes to its node alone (an Orion motor's
         // would be the broadcast node, rebooting every joint).
-        let ji = match self.irpc_joint(motor, PayloadKind::Reset, "Reset") {
+        let ji = match self.joint_for(motor, Capability::Reset, PayloadKind::Reset, "Reset") {
             Ok(ji) => ji,
             Err(e) => {
                 self.refuse(origin, number, label, e);
@@ -1173,34 +1165,12 @@ impl Bridge {
                 .chain(a.payloads.iter().copied())
                 .chain(cycle)
             {
-                let (target, speed) = match order {
-                    Order::Irpc(Payload::SetTargetV2(p)) => (
-                        Some(f64::from(p.target_angle)),
-                        Some(f64::from(p.max_velocity)),
-                    ),
-                    Order::Irpc(Payload::SetTarget(p)) => (
-                        Some(f64::from(p.target_angle)),
-                        Some(f64::from(p.velocity_limit)),
-                    ),
-                    Order::Compact(c) if c.control_mode == CompactMode::Position => (
-                        Some(unit.to_degrees(f64::from(c.setpoint))),
-                        c.velocity_limit.map(|l| unit.to_degrees(l.units_per_s())),
-                    ),
-                    Order::Compact(c) if c.control_mode == CompactMode::Velocity => {
-                        (None, Some(unit.to_degrees(f64::from(c.setpoint))))
-                    }
-                    Order::Orion(OrionOrder::Set(m, v))
-                        if m.quantity() == motorwire_orion::Quantity::PositionDegrees =>
-                    {
-                        (Some(v), None)
-                    }
-                    _ => (None, None),
-                };
+                let reach = order.reach(unit);
                 let line = job.number;
-                if let Some(t) = target.filter(|t| outside(*t)) {
+                if let Some(t) = reach.target.filter(|t| outside(*t)) {
                     return Some(format!("line {line} moves it to {}", say(t)));
                 }
-                if let Some(v) = speed.filter(|v| faster(*v)) {
+                if let Some(v) = reach.speed.filter(|v| faster(*v)) {
                     return Some(format!("line {line} moves it at {} a second", say(v.abs())));
                 }
             }
@@ -1433,11 +1403,9 @@ impl Bridge {
     fn telemetry_subscription(&self, ji: usize) -> Option<Payload> {
         let rate_hz = self.config.telemetry_hz.filter(|r| *r > 0)?;
         let j = self.joints.get(ji)?;
-        if j.compact.is_some() || j.orion.is_some() {
+        if !j.device.speaks(PayloadKind::ConfigureTelemetry) {
             return None;
         }
-        j.wire
-            .tag_of(motorwire_irpc::PayloadKind::ConfigureTelemetry)?;
         Some(Payload::ConfigureTelemetry(
             motorwire_irpc::ConfigureTelemetryPayload {
                 mode: motorwire_irpc::TelemetryMode::Periodic,
@@ -1533,16 +1501,12 @@ impl Bridge {
             (!j.online).then(|| {
                 ErrorBody::new(
                     ErrorKind::Offline,
-                    if j.orion.is_some() {
-                        match self.orion_offline_reason() {
-                            Some(why) => format!("{m} is offline: {why}"),
-                            None => format!(
-                                "{m} is offline: nothing heard from {}",
-                                Self::orion_label()
-                            ),
-                        }
-                    } else {
-                        format!("{m} is offline: nothing heard from node 0x{:02X}", j.node)
+                    match self.drivers.offline_reason(j.device) {
+                        Some(why) => format!("{m} is offline: {why}"),
+                        None => format!(
+                            "{m} is offline: nothing heard from {}",
+                            j.device.who(j.node)
+                        ),
                     },
                 )
                 .about(m)
@@ -1582,21 +1546,16 @@ impl Bridge {
             self.refuse(origin, number, label, e);
             return;
         }
-        if let Some(ji) = self.joint_index(&cmd.motor_id)
-            && self.joints.get(ji).is_some_and(|j| j.compact.is_some())
-        {
-            let built = self.compact_axis(ji, cmd);
-            self.device_command(now, origin, number, cmd, built);
-            return;
-        }
         if let Some(e) = self.orion_unattached(std::iter::once(cmd.motor_id.as_str())) {
             self.refuse(origin, number, label, e);
             return;
         }
-        if let Some(ji) = self.joint_index(&cmd.motor_id)
-            && self.is_orion(ji)
+        let device = self
+            .joint_index(&cmd.motor_id)
+            .and_then(|ji| Some((ji, self.joints.get(ji)?.device)));
+        if let Some((ji, device)) = device
+            && let Some(built) = self.single_axis(ji, device, cmd)
         {
-            let built = self.orion_axis(ji, cmd);
             self.device_command(now, origin, number, cmd, built);
             return;
         }
@@ -1619,6 +1578,22 @@ impl Bridge {
                 self.command_job(now, origin, number, label, axes, t.report);
             }
             Err(r) => self.refuse(origin, number, label, ErrorBody::gate(&r)),
+        }
+    }
+
+    /// `cmd` for device `ji`, gated and translated on its own, as its
+    /// axis; `None` for an iRPC joint, whose moves are planned from its
+    /// state (and with the other joints of a multi-axis line).
+    fn single_axis(
+        &self,
+        ji: usize,
+        device: Device,
+        cmd: &MotorCommand,
+    ) -> Option<Result<(Axis, Report), motorwire_translate::Refusal>> {
+        match device {
+            Device::Irpc { .. } => None,
+            Device::Compact { .. } => Some(self.compact_axis(ji, cmd)),
+            Device::Orion(_) => Some(self.orion_axis(ji, cmd)),
         }
     }
 
@@ -1738,7 +1713,7 @@ impl Bridge {
             self.joint_index(&a.motor_id).is_some_and(|ji| {
                 self.joints
                     .get(ji)
-                    .is_some_and(|j| j.compact.is_none() && j.orion.is_none())
+                    .is_some_and(|j| matches!(j.device, Device::Irpc { .. }))
             })
         });
         let mut irpc: Vec<Vec<Payload>> = Vec::new();
@@ -1770,17 +1745,9 @@ impl Bridge {
                     l
                 })
             };
-            if self.joints.get(ji).is_some_and(|j| j.compact.is_some()) {
-                let (axis, r) = self
-                    .compact_axis(ji, &single)
-                    .map_err(|r| refused(&a.motor_id, &r))?;
-                report.losses.extend(prefixed(r));
-                axes.push(axis);
-                others = true;
-            } else if self.is_orion(ji) {
-                let (axis, r) = self
-                    .orion_axis(ji, &single)
-                    .map_err(|r| refused(&a.motor_id, &r))?;
+            let device = self.joints.get(ji).map(|j| j.device);
+            if let Some(built) = device.and_then(|d| self.single_axis(ji, d, &single)) {
+                let (axis, r) = built.map_err(|r| refused(&a.motor_id, &r))?;
                 report.losses.extend(prefixed(r));
                 axes.push(axis);
                 others = true;
@@ -1924,10 +1891,7 @@ impl Bridge {
                 let job = self.jobs.get(&s.job)?;
                 matches!(job.kind, JobKind::Startup | JobKind::Release).then(|| {
                     let a = job.axes.get(s.axis)?;
-                    let irpc = |o: &Order| match o {
-                        Order::Irpc(p) => Some(*p),
-                        Order::Compact(_) | Order::Orion(_) => None,
-                    };
+                    let irpc = Order::lifecycle_payload;
                     let mut p: Vec<Payload> = a.payloads.iter().filter_map(irpc).collect();
                     if let AxisState::InFlight { payload, .. } = a.state
                         && let Some(first) = irpc(&payload)
@@ -2029,18 +1993,10 @@ impl Bridge {
                 .and_then(|j| j.busy)
                 .is_some_and(|s| b.jobs.get(&s.job).is_some_and(&pick))
         };
-        let mut unsent: BTreeSet<usize> = BTreeSet::new();
-        for ji in 0..self.joints.len() {
-            if picked(self, ji) && self.compact.take_back_unsent(ji) {
-                unsent.insert(ji);
-            }
-        }
-        let orion_picked: BTreeSet<usize> = (0..self.joints.len())
-            .filter(|&ji| self.is_orion(ji) && picked(self, ji))
+        let chosen: BTreeSet<usize> = (0..self.joints.len())
+            .filter(|&ji| picked(self, ji))
             .collect();
-        if let Some(joints) = self.orion.take_back_unsent(|ji| orion_picked.contains(&ji)) {
-            unsent.extend(joints);
-        }
+        let unsent = self.drivers.take_back_unsent(&chosen);
         for ji in 0..self.joints.len() {
             let Some(joint) = self.joints.get_mut(ji) else {
                 continue;
@@ -2057,27 +2013,8 @@ impl Bridge {
                 && let Some(job) = self.jobs.get_mut(&s.job)
                 && let Some(a) = job.axes.get_mut(s.axis)
             {
-                match a.state {
-                    AxisState::InFlight {
-                        msg_id,
-                        payload: Order::Irpc(_),
-                    } => {
-                        self.client.cancel(msg_id);
-                        self.by_msg.remove(&msg_id);
-                    }
-                    AxisState::InFlight {
-                        payload: Order::Compact(_),
-                        ..
-                    } => {
-                        self.compact.forget(ji);
-                    }
-                    AxisState::InFlight {
-                        payload: Order::Orion(_),
-                        ..
-                    } => {
-                        self.orion.forget(ji);
-                    }
-                    _ => {}
+                if let AxisState::InFlight { msg_id, payload } = a.state {
+                    self.drivers.forget(ji, msg_id, payload);
                 }
                 joint.wake = None;
                 if unsent.contains(&ji) {
@@ -2098,7 +2035,7 @@ impl Bridge {
                     }
                 } else {
                     if let AxisState::InFlight { payload, .. } = a.state
-                        && holds_setpoint(payload)
+                        && payload.holds_setpoint()
                     {
                         maybe_held.push((ji, payload));
                     }
@@ -2183,7 +2120,7 @@ impl Bridge {
             .joints
             .iter()
             .enumerate()
-            .filter(|(i, j)| !resume.contains_key(i) && j.compact.is_none())
+            .filter(|(i, j)| !resume.contains_key(i) && j.device.supports(Capability::Lifecycle))
             .map(|(_, j)| j.name.clone())
             .collect();
         self.out.push_back(Output::Event(Event::Released {
@@ -2218,45 +2155,14 @@ impl Bridge {
             .collect()
     }
 
-    /// Lifecycle `payloads` as device `ji` takes them: as they are for an
-    /// iRPC joint; for a compact device, which has no lifecycle, a
-    /// Deactivate is its emergency stop (flag 0x01, held until a command
-    /// without it) and the rest is nothing to send.
+    /// Lifecycle `payloads` as device `ji` takes them
+    /// ([`Device::lifecycle_orders`]).
     fn orders_for(&self, ji: usize, payloads: &[Payload]) -> Vec<Order> {
-        let Some(j) = self.joints.get(ji) else {
-            return Vec::new();
-        };
-        if j.orion.is_some() {
-            // The controller has no lifecycle: a Deactivate is its stop
-            // command (one line for all its motors).
-            return payloads
-                .iter()
-                .filter(|p| matches!(p, Payload::Deactivate | Payload::Reset))
-                .take(1)
-                .map(|_| Order::Orion(OrionOrder::Command(motorwire_orion::ArmCommand::Stop)))
-                .collect();
-        }
-        let Some(link) = j.compact else {
-            return payloads.iter().copied().map(Order::Irpc).collect();
-        };
-        payloads
-            .iter()
-            .filter(|p| matches!(p, Payload::Deactivate | Payload::Reset))
-            .take(1)
-            .map(|_| {
-                Order::Compact(CompactCommand {
-                    motor: link.hash,
-                    timestamp_ms: self.unix_ms(self.now) as u64,
-                    control_mode: CompactMode::Disabled,
-                    flags: Flags::EMERGENCY_STOP
-                        .union(Flags::REQUIRE_ACK)
-                        .union(Flags::PRIORITY_HIGH),
-                    setpoint: 0.0,
-                    velocity_limit: None,
-                    torque_limit: None,
-                })
-            })
-            .collect()
+        let now_ms = self.unix_ms(self.now) as u64;
+        self.joints
+            .get(ji)
+            .map(|j| j.device.lifecycle_orders(payloads, now_ms))
+            .unwrap_or_default()
     }
 
     // ---- jobs and the joint queues -------------------------------------------
@@ -2522,81 +2428,47 @@ impl Bridge {
             return false;
         };
         a.begun = true;
-        let orion_order = match payload {
-            Order::Orion(o) => Some(o),
-            _ => None,
-        };
-        if let Some(o) = orion_order {
-            // The line may carry other motors' steps: this one's state first.
-            a.state = AxisState::InFlight { msg_id: 0, payload };
-            a.attempts = 1;
-            job.unflushed = true;
-            if let Some(j) = self.joints.get_mut(ji) {
-                j.busy = Some(step);
-            }
-            return match self.orion_send(now, ji, step, o) {
-                Ok(msg_id) => {
-                    if let Some(a) = self
-                        .jobs
-                        .get_mut(&step.job)
-                        .and_then(|job| job.axes.get_mut(step.axis))
-                    {
-                        a.state = AxisState::InFlight { msg_id, payload };
-                    }
-                    true
-                }
-                Err(e) => {
-                    if let Some(j) = self.joints.get_mut(ji) {
-                        j.busy = None;
-                    }
-                    if let Some(a) = self
-                        .jobs
-                        .get_mut(&step.job)
-                        .and_then(|job| job.axes.get_mut(step.axis))
-                    {
-                        a.finish(StepOutcome::NotSent, None, format!("not sent: {e}"));
-                    }
-                    false
-                }
-            };
+        // In flight before it is handed to its driver: an Orion line may
+        // carry other motors' steps, and reads their state first.
+        a.state = AxisState::InFlight { msg_id: 0, payload };
+        a.attempts = 1;
+        let flushed_before = !job.unflushed;
+        job.unflushed = true;
+        if let Some(j) = self.joints.get_mut(ji) {
+            j.busy = Some(step);
         }
         let sent = match payload {
-            Order::Irpc(p) => self.client.request(now, node, p).map_err(|e| e.to_string()),
-            Order::Orion(_) => Err("an Orion order on the CAN path".to_owned()),
-            Order::Compact(c) => self.compact.send(now, ji, node, c),
+            Order::Orion(o) => self.orion_send(now, ji, step, o),
+            other => self.drivers.send(now, ji, node, other),
+        };
+        let Some(job) = self.jobs.get_mut(&step.job) else {
+            return false;
+        };
+        let Some(a) = job.axes.get_mut(step.axis) else {
+            return false;
         };
         match sent {
             Ok(msg_id) => {
                 a.state = AxisState::InFlight { msg_id, payload };
-                a.attempts = 1;
-                job.unflushed = true;
-                if matches!(payload, Order::Irpc(_)) {
-                    self.by_msg.insert(msg_id, ji);
-                }
-                if let Some(j) = self.joints.get_mut(ji) {
-                    j.busy = Some(step);
-                }
                 true
             }
             Err(e) => {
                 a.finish(StepOutcome::NotSent, None, format!("not sent: {e}"));
+                // Nothing of it was written: it waits for no flush.
+                if flushed_before {
+                    job.unflushed = false;
+                }
+                if let Some(j) = self.joints.get_mut(ji) {
+                    j.busy = None;
+                }
                 false
             }
         }
     }
 
-    fn completed(&mut self, c: Completion) {
-        if c.outcome != Outcome::TimedOut {
-            self.heard(c.target, c.finished_at);
-        }
-        let Some(ji) = self.by_msg.remove(&c.msg_id) else {
-            return;
-        };
-        self.step_done(ji, c);
-    }
-
-    /// The request in flight for device `ji` ended as `c` says.
-    fn step_done(&mut self, ji: usize, c: Completion) {
+    /// The request in flight for device `ji` ended as `c` says (any
+    /// driver's).
+    fn step_done(&mut self, ji: usize, c: Ended) {
         let Some(step) = self.joints.get_mut(ji).and_then(|j| j.busy.take()) else {
             return;
         };
@@ -2612,27 +2484,24 @@ impl Bridge {
         };
         let a_target = a.target.filter(|_| payload.is_position_move());
         a.state = AxisState::Queued;
-        let stopping = kind.is_stop();
-        match c.outcome {
+        match &c.outcome {
             Outcome::Acked => {
                 // A trajectory looping forever has its next cycle to come.
                 if a.payloads.is_empty() && a.cycle.is_none() {
                     a.finish(StepOutcome::Acked, None, "acked");
                 }
             }
-            // Stopping a joint that is already stopped is a stop.
-            Outcome::Nacked(code) if stopping && code == NackCode::DEACTIVATE_WRONG_STATE => {
+            Outcome::AlreadyStopped => {
                 a.finish(StepOutcome::Acked, None, "already stopped");
             }
-            Outcome::Nacked(code) => {
-                a.finish(StepOutcome::Nacked, Some(code.0), format!("nacked: {code}"));
+            Outcome::Nacked { code, why } => {
+                a.finish(StepOutcome::Nacked, *code, why.clone());
             }
             Outcome::TimedOut => {
-                let who = if c.target == orion::ORION_NODE {
-                    Self::orion_label()
-                } else {
-                    format!("node 0x{:02X}", c.target)
-                };
+                let who = self
+                    .joints
+                    .get(ji)
+                    .map_or_else(String::new, |j| j.device.who(j.node));
                 a.finish(
                     StepOutcome::OutcomeUnknown,
                     None,
@@ -2667,9 +2536,9 @@ impl Bridge {
         // A setpoint whose answer never came may be running: the deadman
         // watches it as if it were acked.
         if c.outcome == Outcome::Acked
-            || (c.outcome == Outcome::TimedOut && holds_setpoint(payload))
+            || (c.outcome == Outcome::TimedOut && payload.holds_setpoint())
         {
-            self.track(ji, payload, c.finished_at);
+            self.track(ji, payload, c.at);
         }
         if more {
             let node = self.joints.get(ji).map_or(0, |j| j.node);
@@ -2682,66 +2551,43 @@ impl Bridge {
         self.finish_jobs();
     }
 
-    /// Remembers an acked request's effect on its joint: its lifecycle, and
-    /// for a move its target and (as planned from the last feedback) when
-    /// it ends.
+    /// Remembers an acked request's effect on its device
+    /// ([`Order::effect`]): its lifecycle, a move's target and (as
+    /// planned from the last feedback) when it ends, the deadman of a
+    /// setpoint it holds.
     fn track(&mut self, ji: usize, order: Order, at: Duration) {
-        let payload = match order {
-            Order::Irpc(p) => p,
-            Order::Compact(c) => {
-                self.track_compact(ji, c, at);
-                return;
-            }
-            Order::Orion(o) => {
-                self.track_orion(ji, o, at);
-                return;
-            }
+        let Some(j) = self.joints.get(ji) else { return };
+        let motor = self.map.motor(&j.name);
+        let unit = motor.map_or(AngleUnit::Degrees, |m| m.unit);
+        let cx = Context {
+            at,
+            motion: j.motion,
+            unit,
+            max_velocity: motor.and_then(|m| m.limits.max_velocity.map(|v| unit.to_degrees(v))),
+            max_acceleration: motor
+                .and_then(|m| m.limits.max_acceleration.map(|a| unit.to_degrees(a))),
+            command_timeout: motor.and_then(|m| m.command_timeout),
+            planned: j.planned,
         };
-        let max_acc = self
-            .joints
-            .get(ji)
-            .and_then(|j| self.map.motor(&j.name))
-            .and_then(|m| m.limits.max_acceleration.map(|a| m.unit.to_degrees(a)));
+        let effect = order.effect(&cx);
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
-        let (pos, vel) = j.motion.unwrap_or((0.0, 0.0));
-        let memo = j.planned.take();
-        let planned = |p: &SetTargetPayloadV2| {
-            if let Some((from, q, d)) = memo
-                && from == (pos, vel)
-                && q == *p
-            {
-                return d;
-            }
-            motorwire_planner::plan(&p.planner_request(pos, vel))
-                .ok()
-                .and_then(|plan| Duration::try_from_secs_f64(plan.duration()).ok())
-                .unwrap_or(Duration::from_secs(1))
-        };
-        match payload {
-            Payload::SetTargetV2(p) => {
-                j.target = Some(f64::from(p.target_angle));
-                j.moving_until = at.saturating_add(planned(&p));
-                j.unresolved = None;
-            }
-            Payload::SetTarget(p) => {
-                #[allow(clippy::cast_possible_truncation)]
-                let acc = max_acc.unwrap_or(1000.0) as f32;
-                let v2 = SetTargetPayloadV2::trapezoidal(p.target_angle, p.velocity_limit, acc);
-                j.target = Some(f64::from(p.target_angle));
-                j.moving_until = at.saturating_add(planned(&v2));
-                j.unresolved = None;
-            }
-            Payload::Activate => j.active = true,
-            Payload::Deactivate | Payload::Reset => {
-                j.active = false;
-                // The joint brakes; give it a moment before calling it idle.
-                j.moving_until = j
-                    .moving_until
-                    .min(at.saturating_add(Duration::from_millis(100)));
-            }
-            _ => {}
+        j.planned = None;
+        j.deadman = effect.deadman;
+        if let Some(target) = effect.target {
+            j.target = target;
+        }
+        match effect.moving {
+            Moving::Unchanged => {}
+            Moving::Until(t) => j.moving_until = t,
+            Moving::AtMost(t) => j.moving_until = j.moving_until.min(t),
+        }
+        if let Some(active) = effect.active {
+            j.active = active;
+        }
+        if effect.settles {
+            j.unresolved = None;
         }
     }
 
@@ -3019,28 +2865,16 @@ impl Bridge {
     /// Takes a frame from the bus.
     pub fn handle_frame(&mut self, now: Duration, frame: &Frame) {
         self.now = self.now.max(now);
-        let id = frame.id();
-        if !id.is_extended()
-            && let Some(ji) = self.joints.iter().position(|j| {
-                j.compact
-                    .is_some_and(|c| u32::from(c.feedback_node) == id.raw())
-            })
-        {
-            self.compact_feedback(ji, frame);
-            return;
+        match crate::device::route(frame, self.joints.iter().map(|j| (j.node, j.device))) {
+            Route::CompactFeedback(ji) => self.compact_feedback(ji, frame),
+            // A compact command (ours, heard back on a second socket):
+            // nothing to act on.
+            Route::CompactCommand => {}
+            Route::Irpc => {
+                self.drivers.irpc.handle_frame(self.now, frame);
+                self.drain_client();
+            }
         }
-        if !id.is_extended()
-            && self
-                .joints
-                .iter()
-                .any(|j| j.compact.is_some() && u32::from(j.node) == id.raw())
-        {
-            // A compact command (ours, heard back on a second socket): not
-            // iRPC, and nothing to act on.
-            return;
-        }
-        self.client.handle_frame(self.now, frame);
-        self.drain_client();
     }
 
     // ---- compact devices ----------------------------------------------------
@@ -3051,8 +2885,10 @@ impl Bridge {
     fn compact_feedback(&mut self, ji: usize, frame: &Frame) {
         let now = self.now;
         let Some(j) = self.joints.get(ji) else { return };
-        let Some(link) = j.compact else { return };
-        let record = match compact::feedback_record(frame, &j.name, link.hash) {
+        let Device::Compact { hash, .. } = j.device else {
+            return;
+        };
+        let record = match compact::feedback_record(frame, &j.name, hash) {
             Ok(r) => r,
             Err(error) => {
                 self.stats.bad_frames += 1;
@@ -3077,102 +2913,29 @@ impl Bridge {
             j.feedback = Some(compact::feedback_to_wia(&j.name, ts, &record));
         }
         if let Some((pos, vel)) = self.joints.get(ji).and_then(|j| j.motion) {
-            if !self.arrivals.is_empty() {
-                self.observe(ji, pos, vel, now);
-            }
-            self.sequence_progress(ji, pos, vel);
+            self.moved(ji, pos, vel, now);
         }
-        if let Some(p) = self.compact.acknowledged(ji) {
-            self.device_done(ji, p.msg_id, node, Outcome::Acked, p.attempts);
+        if let Some(ended) = self.drivers.compact.acknowledged(ji, now) {
+            self.step_done(ji, ended);
         }
+    }
+
+    /// Device `ji` was reported at `position` moving at `velocity`
+    /// (degrees) at `at`, by any driver: the lines that have now arrived
+    /// are said so, and sequential axes waiting on it may go.
+    pub(super) fn moved(&mut self, ji: usize, position: f64, velocity: f64, at: Duration) {
+        if !self.arrivals.is_empty() {
+            self.observe(ji, position, velocity, at);
+        }
+        self.sequence_progress(ji, position, velocity);
     }
 
     /// Compact commands not acknowledged in time: sent again (the device
     /// executes a repeat of its last command once), or, after the retries,
     /// their outcome is unknown.
     fn compact_timeouts(&mut self, now: Duration) {
-        for (ji, p) in self.compact.timeouts(now) {
-            let node = self.joints.get(ji).map_or(0, |j| j.node);
-            self.device_done(ji, p.msg_id, node, Outcome::TimedOut, p.attempts);
-        }
-    }
-
-    /// A compact or Orion request of device `ji` ended (`target`: its
-    /// node): the step it carried is done, as an iRPC request's completion
-    /// would say it.
-    pub(super) fn device_done(
-        &mut self,
-        ji: usize,
-        msg_id: u32,
-        target: u16,
-        outcome: Outcome,
-        attempts: u8,
-    ) {
-        let now = self.now;
-        self.step_done(
-            ji,
-            Completion {
-                msg_id,
-                target,
-                kind: PayloadKind::SetTargetV2,
-                outcome,
-                attempts,
-                sent_at: now,
-                finished_at: now,
-            },
-        );
-    }
-
-    /// An acked compact command: its target (a position move) and how long
-    /// the move may take; the deadman for a velocity or torque setpoint.
-    fn track_compact(&mut self, ji: usize, c: CompactCommand, at: Duration) {
-        let Some(j) = self.joints.get(ji) else { return };
-        let motor = self.map.motor(&j.name);
-        let unit = motor.map_or(AngleUnit::Degrees, |m| m.unit);
-        let timeout = motor.and_then(|m| m.command_timeout);
-        let (max_v, max_a) = motor.map_or((None, None), |m| {
-            (
-                m.limits.max_velocity.map(|v| unit.to_degrees(v)),
-                m.limits.max_acceleration.map(|a| unit.to_degrees(a)),
-            )
-        });
-        let Some(j) = self.joints.get_mut(ji) else {
-            return;
-        };
-        j.deadman = None;
-        if c.flags.contains(Flags::EMERGENCY_STOP) {
-            j.moving_until = j.moving_until.min(at);
-            return;
-        }
-        match c.control_mode {
-            CompactMode::Position => {
-                let target = unit.to_degrees(f64::from(c.setpoint));
-                let from = j.motion.map_or(target, |(p, _)| p);
-                let v = c
-                    .velocity_limit
-                    .map(|l| unit.to_degrees(l.units_per_s()))
-                    .or(max_v)
-                    .unwrap_or(60.0)
-                    .max(1e-3);
-                let a = max_a.unwrap_or(500.0).max(1e-3);
-                // A trapezoid's duration, a bound on the device's move.
-                let d = (target - from).abs();
-                let secs = d / v + v / a;
-                j.target = Some(target);
-                j.moving_until = at.saturating_add(Duration::from_secs_f64(secs.min(3600.0)));
-            }
-            // A setpoint of 0 (the deadman's own stop among them) holds the
-            // device still: nothing for the deadman to stop, nothing moving.
-            CompactMode::Velocity | CompactMode::Torque if c.setpoint == 0.0 => {
-                j.target = None;
-                j.moving_until = at;
-            }
-            CompactMode::Velocity | CompactMode::Torque => {
-                j.target = None;
-                j.deadman = timeout.map(|t| at.saturating_add(t));
-                j.moving_until = j.deadman.unwrap_or(at);
-            }
-            _ => j.moving_until = at,
+        for (ji, ended) in self.drivers.compact.timeouts(now) {
+            self.step_done(ji, ended);
         }
     }
 
@@ -3205,25 +2968,10 @@ impl Bridge {
             };
             j.deadman = None;
             let name = j.name.clone();
-            let axis = match j.compact {
-                Some(link) => Axis::of(
-                    name.clone(),
-                    ji,
-                    [Order::Compact(CompactCommand {
-                        motor: link.hash,
-                        timestamp_ms: self.unix_ms(now) as u64,
-                        control_mode: CompactMode::Velocity,
-                        flags: Flags::REQUIRE_ACK.union(Flags::PRIORITY_HIGH),
-                        setpoint: 0.0,
-                        velocity_limit: None,
-                        torque_limit: None,
-                    })],
-                ),
-                None => match self.orion_deadman_axis(ji) {
-                    Some(axis) => axis,
-                    None => continue,
-                },
+            let Some(order) = j.device.hold_still(self.unix_ms(now) as u64) else {
+                continue;
             };
+            let axis = Axis::of(name.clone(), ji, [order]);
             let timeout_ms = self
                 .map
                 .motor(&name)
@@ -3265,29 +3013,15 @@ impl Bridge {
     }
 
     fn drain_client(&mut self) {
-        while let Some(event) = self.client.poll_event() {
+        while let Some(event) = self.drivers.irpc.poll_event() {
             match event {
-                ClientEvent::Completed(c) => self.completed(c),
-                ClientEvent::Feedback { message, at } => self.feedback(message, at),
-                ClientEvent::StrayReply { message } => {
-                    self.heard(message.header.source_id, self.now)
-                }
-                ClientEvent::Undecodable { can_id, error } => {
+                IrpcEvent::Heard { node, at } => self.heard(node, at),
+                IrpcEvent::Ended { device, ended } => self.step_done(device, ended),
+                IrpcEvent::Feedback { message, at } => self.feedback(message, at),
+                IrpcEvent::BadFrame { can_id, error } => {
                     self.stats.bad_frames += 1;
-                    self.out.push_back(Output::Event(Event::BadFrame {
-                        can_id: can_id.to_string(),
-                        error: error.to_string(),
-                    }));
-                }
-                ClientEvent::Misaddressed { can_id, message } => {
-                    self.stats.bad_frames += 1;
-                    self.out.push_back(Output::Event(Event::BadFrame {
-                        can_id: can_id.to_string(),
-                        error: format!(
-                            "the CAN id is not the sender's node id 0x{:02X}",
-                            message.header.source_id
-                        ),
-                    }));
+                    self.out
+                        .push_back(Output::Event(Event::BadFrame { can_id, error }));
                 }
             }
         }
@@ -3379,10 +3113,7 @@ impl Bridge {
             Payload::Encoder(_) | Payload::TelemetryStream(_)
         ) && let Some((pos, vel)) = j.motion
         {
-            if !self.arrivals.is_empty() {
-                self.observe(ji, pos, vel, at);
-            }
-            self.sequence_progress(ji, pos, vel);
+            self.moved(ji, pos, vel, at);
         }
         let Some(j) = self.joints.get_mut(ji) else {
             return;
@@ -3432,7 +3163,7 @@ impl Bridge {
     pub fn handle_timeout(&mut self, now: Duration) {
         self.now = self.now.max(now);
         let now = self.now;
-        self.client.handle_timeout(now);
+        self.drivers.irpc.handle_timeout(now);
         self.drain_client();
         self.compact_timeouts(now);
         // The deadman's stops are queued before the Orion link picks what
@@ -3527,7 +3258,7 @@ impl Bridge {
             self.timers.feedback = Some(now.saturating_add(period));
         }
         if self.any_moving(now) {
-            if self.timers.heartbeat.is_none_or(|t| now >= t) && self.client.arm_ready().is_ok() {
+            if self.timers.heartbeat.is_none_or(|t| now >= t) && self.drivers.irpc.heartbeat() {
                 self.timers.heartbeat = Some(now.saturating_add(self.config.heartbeat_period));
             }
         } else {
@@ -3588,10 +3319,7 @@ impl Bridge {
 
     /// The next frame to put on the bus.
     pub fn poll_transmit(&mut self) -> Option<Frame> {
-        let f = self
-            .client
-            .poll_transmit()
-            .or_else(|| self.compact.poll_transmit())?;
+        let f = self.drivers.poll_transmit()?;
         self.stats.frames_sent += 1;
         Some(f)
     }
@@ -3646,7 +3374,6 @@ impl Bridge {
             _ => None,
         };
         let arrival = self.arrivals.iter().map(|w| w.deadline).min();
-        let compact = self.compact.deadline();
         let deadman = self.joints.iter().filter_map(|j| j.deadman).min();
         let wake = self.joints.iter().filter_map(|j| j.wake).min();
         // A sequential axis waiting on one that must arrive by then.
@@ -3658,17 +3385,15 @@ impl Bridge {
             .filter_map(|a| a.arrive_by)
             .min();
         [
-            self.client.poll_timeout(),
+            self.drivers.deadline(),
             self.timers.feedback,
             liveness,
             heartbeat,
             drain,
             arrival,
             sequence,
-            compact,
             deadman,
             wake,
-            self.orion.deadline(),
             self.jobs
                 .values()
                 .filter_map(|j| j.awaiting.map(|a| a.deadline))
@@ -3751,23 +3476,6 @@ fn failure_error(failures: &[StepReport], cut: Option<&str>) -> ErrorBody {
 /// carries f32: `45.29999923706055` prints as `45.3`); `v` otherwise.
 /// `v` as the shortest decimal of the nearest f32 (for what is said, not
 /// measured).
-/// Whether `order` leaves its device holding a setpoint that does not end
-/// by itself (a compact velocity or torque, an Orion speed or actuator
-/// value, other than 0): what the deadman watches.
-fn holds_setpoint(order: Order) -> bool {
-    match order {
-        Order::Compact(c) => {
-            matches!(c.control_mode, CompactMode::Velocity | CompactMode::Torque)
-                && c.setpoint != 0.0
-                && !c.flags.contains(Flags::EMERGENCY_STOP)
-        }
-        Order::Orion(OrionOrder::Set(m, v)) => {
-            m.quantity() != motorwire_orion::Quantity::PositionDegrees && v != 0.0
-        }
-        _ => false,
-    }
-}
-
 fn short_unit(v: f64) -> f64 {
     #[allow(clippy::cast_possible_truncation)]
     shortest(f64::from(v as f32))

@@ -4,10 +4,10 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use motorwire_compact::{CompactCommand, ControlMode as CompactMode};
 use motorwire_irpc::Payload;
 use motorwire_translate::Report;
 
+pub(crate) use crate::device::{Order, OrionOrder};
 use crate::output::{Origin, StepOutcome, StepReport};
 
 /// What a job is for.
@@ -33,40 +33,6 @@ impl JobKind {
     /// Jobs that go ahead of every queued step and cancel what is in flight.
     pub(crate) fn is_stop(self) -> bool {
         matches!(self, Self::EmergencyStop | Self::Shutdown)
-    }
-}
-
-/// One request for a device: an iRPC payload for a joint, a compact
-/// command for a compact device, or a value or command for the Orion arm
-/// controller.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) enum Order {
-    Irpc(Payload),
-    Compact(CompactCommand),
-    Orion(OrionOrder),
-}
-
-/// One Orion motor's part of a line to the arm controller.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) enum OrionOrder {
-    /// Direct control: the motor's new value (already within its range).
-    Set(motorwire_orion::Motor, f64),
-    /// Command mode: stop, fold or unfold.
-    Command(motorwire_orion::ArmCommand),
-}
-
-impl Order {
-    /// Whether it is a position move (which a newer one may replace while
-    /// it waits, and whose arrival is watched).
-    pub(crate) fn is_position_move(&self) -> bool {
-        match self {
-            Self::Irpc(p) => matches!(p, Payload::SetTargetV2(_) | Payload::SetTarget(_)),
-            Self::Compact(c) => c.control_mode == CompactMode::Position,
-            Self::Orion(OrionOrder::Set(m, _)) => {
-                m.quantity() == motorwire_orion::Quantity::PositionDegrees
-            }
-            Self::Orion(OrionOrder::Command(_)) => false,
-        }
     }
 }
 
@@ -131,11 +97,7 @@ impl Axis {
     /// by the caller (it knows the motor's unit).
     pub(crate) fn of(motor: String, joint: usize, orders: impl IntoIterator<Item = Order>) -> Self {
         let payloads: VecDeque<Order> = orders.into_iter().collect();
-        let target = payloads.iter().rev().find_map(|p| match p {
-            Order::Irpc(Payload::SetTargetV2(p)) => Some(f64::from(p.target_angle)),
-            Order::Irpc(Payload::SetTarget(p)) => Some(f64::from(p.target_angle)),
-            _ => None,
-        });
+        let target = payloads.iter().rev().find_map(Order::own_target);
         Self {
             motor,
             joint,

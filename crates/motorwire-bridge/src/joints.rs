@@ -4,9 +4,10 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use motorwire_irpc::{LifecycleState, WireVersion};
+use motorwire_irpc::LifecycleState;
 use motorwire_wia::MotorFeedback;
 
+use crate::device::Device;
 use crate::output::Origin;
 
 /// A step of a job waiting for (or running on) a joint.
@@ -28,8 +29,11 @@ pub(crate) struct Unresolved {
 #[derive(Debug)]
 pub(crate) struct Joint {
     pub(crate) name: String,
+    /// Its CAN id (iRPC node, compact command id; the Orion motors'
+    /// [`crate::device::orion::ORION_NODE`], which no frame has).
     pub(crate) node: u16,
-    pub(crate) wire: WireVersion,
+    /// Its dialect, and what addresses it there.
+    pub(crate) device: Device,
     pub(crate) last_heard: Option<Duration>,
     pub(crate) online: bool,
     pub(crate) state: Option<LifecycleState>,
@@ -48,9 +52,6 @@ pub(crate) struct Joint {
     /// The step whose request is in flight.
     pub(crate) busy: Option<StepRef>,
     pub(crate) unresolved: Option<Unresolved>,
-    /// A compact device (WIRE-FACTS §2.1) rather than an iRPC joint: where
-    /// its feedback comes from and its motor hash.
-    pub(crate) compact: Option<CompactLink>,
     /// The deadman: when a velocity or torque setpoint it holds must be
     /// renewed by, or it is brought to a stop.
     pub(crate) deadman: Option<Duration>,
@@ -61,8 +62,6 @@ pub(crate) struct Joint {
     pub(crate) resetting: bool,
     /// Its busy step (a trajectory's) sends its next payload then.
     pub(crate) wake: Option<Duration>,
-    /// One of the Orion arm controller's motors rather than a CAN device.
-    pub(crate) orion: Option<motorwire_orion::Motor>,
     /// The last move the gate planned for it: from (position, velocity)
     /// in degrees, the payload, and how long the joint's plan takes. When
     /// its Ack comes from the same state, its arrival time is this plan's
@@ -70,23 +69,16 @@ pub(crate) struct Joint {
     pub(crate) planned: Option<((f64, f64), motorwire_irpc::SetTargetPayloadV2, Duration)>,
 }
 
-/// What a compact device is reached by.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct CompactLink {
-    pub(crate) feedback_node: u16,
-    pub(crate) hash: motorwire_compact::MotorHash,
-}
-
 impl Joint {
-    pub(crate) fn new(name: String, node: u16, wire: WireVersion) -> Self {
+    pub(crate) fn new(name: String, node: u16, device: Device) -> Self {
         Self {
             name,
             node,
-            wire,
+            device,
             last_heard: None,
-            online: true,
+            online: device.online_at_start(),
             state: None,
-            active: false,
+            active: device.active_at_start(),
             feedback: None,
             motion: None,
             target: None,
@@ -94,12 +86,10 @@ impl Joint {
             queue: VecDeque::new(),
             busy: None,
             unresolved: None,
-            compact: None,
             deadman: None,
             needs_reset: None,
             resetting: false,
             wake: None,
-            orion: None,
             planned: None,
         }
     }

@@ -522,6 +522,12 @@ fn fold_and_unfold_are_the_controllers_command_mode_and_cmdf_0_fails_the_line() 
     let r = rig.result(2).unwrap();
     assert_eq!(r["ok"], false, "{r}");
     assert_eq!(r["outcomes"][0]["outcome"], "nacked");
+    // Said as the controller's answer, not as an iRPC Nack code.
+    assert_eq!(
+        r["outcomes"][0]["message"],
+        "the controller answered CMDF 0: the command failed"
+    );
+    assert_eq!(r["outcomes"][0].get("code"), None, "{r}");
     // Anything else is not an Orion command line.
     rig.line(r#"{"orion":"dance"}"#);
     let r = rig.result(3).unwrap();

@@ -16,6 +16,8 @@ use motorwire_can::{CanId, Frame};
 use motorwire_compact::{CompactCommand, FeedbackRecord, MotorHash, StatusFlag};
 use motorwire_wia::MotorFeedback;
 
+use super::{Ended, Outcome};
+
 /// `c` as its CAN-FD frame on `node` (WIRE-FACTS §2.1: the 24 bytes, no
 /// padding).
 ///
@@ -87,14 +89,6 @@ struct Pending {
     deadline: Duration,
 }
 
-/// A request of the driver's that ended: its id (the driver's own
-/// numbering) and how many times it was sent.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Ended {
-    pub(crate) msg_id: u32,
-    pub(crate) attempts: u8,
-}
-
 /// The compact devices' requests in flight and frames to send, by device
 /// index (the engine's).
 #[derive(Debug)]
@@ -147,12 +141,14 @@ impl CompactDriver {
         Ok(msg_id)
     }
 
-    /// A valid feedback record came from `device`: the command it waited
-    /// for, if any, is acknowledged.
-    pub(crate) fn acknowledged(&mut self, device: usize) -> Option<Ended> {
+    /// A valid feedback record came from `device` at `now`: the command
+    /// it waited for, if any, is acknowledged.
+    pub(crate) fn acknowledged(&mut self, device: usize, now: Duration) -> Option<Ended> {
         self.pending.remove(&device).map(|p| Ended {
             msg_id: p.msg_id,
+            outcome: Outcome::Acked,
             attempts: p.attempts,
+            at: now,
         })
     }
 
@@ -203,7 +199,9 @@ impl CompactDriver {
                     device,
                     Ended {
                         msg_id: p.msg_id,
+                        outcome: Outcome::TimedOut,
                         attempts: p.attempts,
+                        at: now,
                     },
                 ));
             }
@@ -273,7 +271,9 @@ mod tests {
                 3,
                 Ended {
                     msg_id: 1,
-                    attempts: 3
+                    outcome: Outcome::TimedOut,
+                    attempts: 3,
+                    at: ms(300)
                 }
             )]
         );
@@ -281,13 +281,15 @@ mod tests {
         // The next command: acknowledged by the device's record.
         assert_eq!(d.send(ms(300), 3, 0x20, command(2.0)), Ok(2));
         assert_eq!(
-            d.acknowledged(3),
+            d.acknowledged(3, ms(310)),
             Some(Ended {
                 msg_id: 2,
-                attempts: 1
+                outcome: Outcome::Acked,
+                attempts: 1,
+                at: ms(310)
             })
         );
-        assert_eq!(d.acknowledged(3), None);
+        assert_eq!(d.acknowledged(3, ms(311)), None);
     }
 
     #[test]
@@ -301,7 +303,7 @@ mod tests {
         assert_eq!(d.poll_transmit().map(|f| f.id().raw()), Some(0x21));
         // Handed out: it stays (it may have run).
         assert!(!d.take_back_unsent(2));
-        assert!(d.acknowledged(2).is_some());
+        assert!(d.acknowledged(2, ms(1)).is_some());
     }
 
     #[test]

@@ -13,25 +13,734 @@
 //! A driver is a state machine with no access to the engine (quinn's
 //! `Connection`, smoltcp's sockets): the engine calls it with the time and
 //! what came in, and takes back what it has to send and what ended
-//! ([`orion::Done`], [`compact::Ended`]); its tests drive it with lines or
-//! frames alone.
+//! ([`Ended`], in one form for every dialect); its tests drive it with
+//! lines or frames alone.
 //!
-//! Where this stands: the compact dialect ([`compact`]) and the Orion arm
-//! controller ([`orion`]: its encoding, its link with the beacon, the loss
-//! and the stop written first when it comes back, its one line in flight
-//! with resends, its polls and its feedback decoding) are drivers; the
-//! engine's `orion` module keeps only what Orion motors are to the engine
-//! (jobs, the deadman, arrival). The iRPC joints are still driven through
-//! `motorwire_can::client::Client`, reached from the engine directly.
-//! Moving it here, behind one closed enum of drivers with one match per
-//! operation (smoltcp's `enum Socket`), is the rest of this layer's work.
+//! What the engine asks of a device is asked here, once, with one match
+//! per question over the closed set of dialects (smoltcp's `enum Socket`):
+//! - [`Device`]: which dialect a motor of the bus map is, what it
+//!   supports ([`Device::supports`]), what a stop, the deadman and the
+//!   release send it ([`Device::lifecycle_orders`], [`Device::hold_still`]);
+//! - [`Order`]: one request for one device, and what it means to the
+//!   engine: whether a newer move may replace it, whether it holds a
+//!   setpoint the deadman watches, where and how fast it moves the device
+//!   ([`Order::reach`], for the limits in force), and what it did once
+//!   acknowledged ([`Order::effect`]);
+//! - [`Drivers`]: the three drivers, sending, forgetting and taking back
+//!   orders, their frames and their deadlines.
+//!
+//! The drivers: [`irpc`] (iRPC joints, through `motorwire_can`'s sans-IO
+//! client), [`compact`] (WIA's 24-byte compact command) and [`orion`] (the
+//! Orion arm controller: its link with the beacon, the loss and the stop
+//! written first when it comes back, its one line in flight with resends,
+//! its polls and its feedback decoding).
+//!
+//! Where this stands: the engine asks every question above through this
+//! module. What it still does per dialect is reading each driver's
+//! feedback (an iRPC joint's lifecycle and its request answers, a compact
+//! record, the Orion controller's values: `engine.rs` `feedback`,
+//! `compact_feedback` and `engine/orion.rs`), the Orion controller's link
+//! events, and the grouping of one input line's Orion orders into one
+//! line to the controller.
 //!
 //! Adding a dialect (the recipe the moteus driver follows): a driver file
-//! here with its encoding and its requests in flight, its bus map entry
-//! (`motorwire_translate::Target`), its simulated device
-//! (`motorwire_sim`, attached by [`crate::sim::SimulatedArm`]), and its
-//! fixtures; the every-dialect property test in `tests/invariants.rs` then
-//! holds it to every invariant the others keep.
+//! here with its encoding and its requests in flight; a variant of
+//! [`Device`] and of [`Order`], each match here answered for it (the
+//! compiler lists them); a field of [`Drivers`]; its bus map entry
+//! (`motorwire_translate::Target`); its simulated device (`motorwire_sim`,
+//! attached by [`crate::sim::SimulatedArm`]); and its fixtures. The
+//! every-dialect property test in `tests/invariants.rs` then holds it to
+//! every invariant the others keep.
+
+use std::collections::BTreeSet;
+use std::time::Duration;
+
+use motorwire_can::Frame;
+use motorwire_compact::{CompactCommand, ControlMode as CompactMode, Flags, MotorHash};
+use motorwire_irpc::{Payload, PayloadKind, SetTargetPayloadV2, WireVersion};
+use motorwire_orion::{ArmCommand, Motor, Quantity};
+use motorwire_translate::AngleUnit;
 
 pub(crate) mod compact;
+pub(crate) mod irpc;
 pub(crate) mod orion;
+
+/// What a motor of the bus map is to the engine: the dialect that reaches
+/// it, and what that dialect needs to address it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Device {
+    /// An iRPC joint, spoken to in its wire version.
+    Irpc {
+        /// Its wire version.
+        wire: WireVersion,
+    },
+    /// A WIA compact-command device (WIRE-FACTS §2.1).
+    Compact {
+        /// The CAN id its feedback records come from.
+        feedback_node: u16,
+        /// Its motor hash, in every command and record.
+        hash: MotorHash,
+    },
+    /// One of the Orion arm controller's motors.
+    Orion(Motor),
+}
+
+/// What a device can be asked to do beyond a motor command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Capability {
+    /// A lifecycle (configure, activate, deactivate), brought back by the
+    /// release.
+    Lifecycle,
+    /// A WIA trajectory, planned by the bridge into timed targets.
+    Trajectory,
+    /// A reset of this one device.
+    Reset,
+    /// A request for telemetry, power metrics or the fault history, or a
+    /// calibration (each also needs its wire version's message).
+    Requests,
+}
+
+impl Device {
+    /// Whether it can do `what`.
+    pub(crate) const fn supports(self, what: Capability) -> bool {
+        match self {
+            Self::Irpc { .. } => matches!(
+                what,
+                Capability::Lifecycle
+                    | Capability::Trajectory
+                    | Capability::Reset
+                    | Capability::Requests
+            ),
+            Self::Compact { .. } | Self::Orion(_) => false,
+        }
+    }
+
+    /// Whether it has the message `kind` (an iRPC joint: in its wire
+    /// version; the other dialects: none).
+    pub(crate) fn speaks(self, kind: PayloadKind) -> bool {
+        match self {
+            Self::Irpc { wire } => wire.tag_of(kind).is_some(),
+            Self::Compact { .. } | Self::Orion(_) => false,
+        }
+    }
+
+    /// The wire version it is spoken to in (v2.0 for the devices that do
+    /// not speak iRPC, as [`crate::JointView`] shows them).
+    pub(crate) const fn wire(self) -> WireVersion {
+        match self {
+            Self::Irpc { wire } => wire,
+            Self::Compact { .. } | Self::Orion(_) => WireVersion::V2_0,
+        }
+    }
+
+    /// Whether it takes commands as it is from the start (no lifecycle to
+    /// bring it up).
+    pub(crate) const fn active_at_start(self) -> bool {
+        !matches!(self, Self::Irpc { .. })
+    }
+
+    /// Whether it is online before anything is heard from it (the Orion
+    /// controller's motors are online from its boot beacon on).
+    pub(crate) const fn online_at_start(self) -> bool {
+        !matches!(self, Self::Orion(_))
+    }
+
+    /// Lifecycle `payloads` as the device takes them: as they are for an
+    /// iRPC joint. The other dialects have no lifecycle: a Deactivate (or
+    /// a Reset) is their stop (a compact device's emergency-stop flag,
+    /// held until a command without it; the Orion controller's stop
+    /// command, one line for all its motors) and the rest is nothing to
+    /// send. `now_ms`: the compact command's timestamp.
+    pub(crate) fn lifecycle_orders(self, payloads: &[Payload], now_ms: u64) -> Vec<Order> {
+        let stops = || {
+            payloads
+                .iter()
+                .filter(|p| matches!(p, Payload::Deactivate | Payload::Reset))
+                .take(1)
+        };
+        match self {
+            Self::Irpc { .. } => payloads.iter().copied().map(Order::Irpc).collect(),
+            Self::Compact { hash, .. } => stops()
+                .map(|_| {
+                    Order::Compact(CompactCommand {
+                        motor: hash,
+                        timestamp_ms: now_ms,
+                        control_mode: CompactMode::Disabled,
+                        flags: Flags::EMERGENCY_STOP
+                            .union(Flags::REQUIRE_ACK)
+                            .union(Flags::PRIORITY_HIGH),
+                        setpoint: 0.0,
+                        velocity_limit: None,
+                        torque_limit: None,
+                    })
+                })
+                .collect(),
+            Self::Orion(_) => stops()
+                .map(|_| Order::Orion(OrionOrder::Command(ArmCommand::Stop)))
+                .collect(),
+        }
+    }
+
+    /// What the deadman (and the end of input) sends a device holding a
+    /// velocity or torque setpoint: that setpoint brought to 0. `None`
+    /// for a device that holds none (an iRPC joint takes position moves).
+    pub(crate) fn hold_still(self, now_ms: u64) -> Option<Order> {
+        match self {
+            Self::Irpc { .. } => None,
+            Self::Compact { hash, .. } => Some(Order::Compact(CompactCommand {
+                motor: hash,
+                timestamp_ms: now_ms,
+                control_mode: CompactMode::Velocity,
+                flags: Flags::REQUIRE_ACK.union(Flags::PRIORITY_HIGH),
+                setpoint: 0.0,
+                velocity_limit: None,
+                torque_limit: None,
+            })),
+            Self::Orion(m) => Some(Order::Orion(OrionOrder::Set(m, 0.0))),
+        }
+    }
+
+    /// Who it is, as a message about an unanswered request says it.
+    pub(crate) fn who(self, node: u16) -> String {
+        match self {
+            Self::Irpc { .. } | Self::Compact { .. } => format!("node 0x{node:02X}"),
+            Self::Orion(_) => orion::LABEL.to_owned(),
+        }
+    }
+}
+
+/// One request for a device: an iRPC payload for a joint, a compact
+/// command for a compact device, or a value or command for the Orion arm
+/// controller.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Order {
+    Irpc(Payload),
+    Compact(CompactCommand),
+    Orion(OrionOrder),
+}
+
+/// One Orion motor's part of a line to the arm controller.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum OrionOrder {
+    /// Direct control: the motor's new value (already within its range).
+    Set(Motor, f64),
+    /// Command mode: stop, fold or unfold.
+    Command(ArmCommand),
+}
+
+/// Where an order takes its device, and how fast (degrees, degrees a
+/// second): what the limits in force are held against.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct Reach {
+    /// The position it moves the device to.
+    pub(crate) target: Option<f64>,
+    /// The speed it moves (or lets it move) at, at most.
+    pub(crate) speed: Option<f64>,
+}
+
+/// What the engine knows of a device when one of its orders is
+/// acknowledged, for [`Order::effect`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Context {
+    /// When it was acknowledged.
+    pub(crate) at: Duration,
+    /// Its position and velocity as last reported (degrees).
+    pub(crate) motion: Option<(f64, f64)>,
+    /// The motor's unit.
+    pub(crate) unit: AngleUnit,
+    /// The limits in force (degrees).
+    pub(crate) max_velocity: Option<f64>,
+    pub(crate) max_acceleration: Option<f64>,
+    /// The motor's command timeout (the deadman's), if any.
+    pub(crate) command_timeout: Option<Duration>,
+    /// The gate's plan for a move: from (position, velocity), the target
+    /// and how long it takes (reused when the acknowledged order is it).
+    pub(crate) planned: Option<((f64, f64), SetTargetPayloadV2, Duration)>,
+}
+
+/// Until when a device moves, after an order's effect.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Moving {
+    /// As before.
+    Unchanged,
+    /// Until then.
+    Until(Duration),
+    /// No later than then (a stop: it brakes).
+    AtMost(Duration),
+}
+
+/// What an acknowledged order did to its device, as the engine tracks it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Effect {
+    /// Its new target (degrees): `Some(None)`, none any more; `None`, as
+    /// before.
+    pub(crate) target: Option<Option<f64>>,
+    /// Until when it moves.
+    pub(crate) moving: Moving,
+    /// When the setpoint it now holds must be renewed by, or the deadman
+    /// stops it (`None`: it holds none).
+    pub(crate) deadman: Option<Duration>,
+    /// Whether it is now active (`None`: as before).
+    pub(crate) active: Option<bool>,
+    /// A move whose outcome was unknown is settled by this one.
+    pub(crate) settles: bool,
+}
+
+impl Effect {
+    const NONE: Self = Self {
+        target: None,
+        moving: Moving::Unchanged,
+        deadman: None,
+        active: None,
+        settles: false,
+    };
+}
+
+impl Order {
+    /// Whether it is a position move (which a newer one may replace while
+    /// it waits, and whose arrival is watched).
+    pub(crate) fn is_position_move(&self) -> bool {
+        match self {
+            Self::Irpc(p) => matches!(p, Payload::SetTargetV2(_) | Payload::SetTarget(_)),
+            Self::Compact(c) => c.control_mode == CompactMode::Position,
+            Self::Orion(OrionOrder::Set(m, _)) => m.quantity() == Quantity::PositionDegrees,
+            Self::Orion(OrionOrder::Command(_)) => false,
+        }
+    }
+
+    /// Whether it leaves its device holding a setpoint that does not end
+    /// by itself (a compact velocity or torque, an Orion speed or actuator
+    /// value, other than 0): what the deadman watches.
+    pub(crate) fn holds_setpoint(&self) -> bool {
+        match self {
+            Self::Irpc(_) => false,
+            Self::Compact(c) => {
+                matches!(c.control_mode, CompactMode::Velocity | CompactMode::Torque)
+                    && c.setpoint != 0.0
+                    && !c.flags.contains(Flags::EMERGENCY_STOP)
+            }
+            Self::Orion(OrionOrder::Set(m, v)) => {
+                m.quantity() != Quantity::PositionDegrees && *v != 0.0
+            }
+            Self::Orion(OrionOrder::Command(_)) => false,
+        }
+    }
+
+    /// The target of a move (degrees) where the order alone says it (an
+    /// iRPC target is in degrees; the others are in the motor's unit and
+    /// are given their target by the engine, which knows it).
+    pub(crate) fn own_target(&self) -> Option<f64> {
+        match self {
+            Self::Irpc(Payload::SetTargetV2(p)) => Some(f64::from(p.target_angle)),
+            Self::Irpc(Payload::SetTarget(p)) => Some(f64::from(p.target_angle)),
+            _ => None,
+        }
+    }
+
+    /// Where it takes the device and how fast, in degrees (`unit`: the
+    /// motor's, in which compact commands are written).
+    pub(crate) fn reach(&self, unit: AngleUnit) -> Reach {
+        match self {
+            Self::Irpc(Payload::SetTargetV2(p)) => Reach {
+                target: Some(f64::from(p.target_angle)),
+                speed: Some(f64::from(p.max_velocity)),
+            },
+            Self::Irpc(Payload::SetTarget(p)) => Reach {
+                target: Some(f64::from(p.target_angle)),
+                speed: Some(f64::from(p.velocity_limit)),
+            },
+            Self::Compact(c) if c.control_mode == CompactMode::Position => Reach {
+                target: Some(unit.to_degrees(f64::from(c.setpoint))),
+                speed: c.velocity_limit.map(|l| unit.to_degrees(l.units_per_s())),
+            },
+            Self::Compact(c) if c.control_mode == CompactMode::Velocity => Reach {
+                target: None,
+                speed: Some(unit.to_degrees(f64::from(c.setpoint))),
+            },
+            Self::Orion(OrionOrder::Set(m, v)) if m.quantity() == Quantity::PositionDegrees => {
+                Reach {
+                    target: Some(*v),
+                    speed: None,
+                }
+            }
+            _ => Reach::default(),
+        }
+    }
+
+    /// What it did to its device once acknowledged, in `cx`.
+    pub(crate) fn effect(&self, cx: &Context) -> Effect {
+        let at = cx.at;
+        match *self {
+            Self::Irpc(p) => irpc::effect(p, cx),
+            Self::Compact(c) => {
+                if c.flags.contains(Flags::EMERGENCY_STOP) {
+                    return Effect {
+                        moving: Moving::AtMost(at),
+                        ..Effect::NONE
+                    };
+                }
+                match c.control_mode {
+                    CompactMode::Position => {
+                        let target = cx.unit.to_degrees(f64::from(c.setpoint));
+                        let from = cx.motion.map_or(target, |(p, _)| p);
+                        let v = c
+                            .velocity_limit
+                            .map(|l| cx.unit.to_degrees(l.units_per_s()))
+                            .or(cx.max_velocity)
+                            .unwrap_or(60.0)
+                            .max(1e-3);
+                        let a = cx.max_acceleration.unwrap_or(500.0).max(1e-3);
+                        // A trapezoid's duration, a bound on the device's move.
+                        let secs = (target - from).abs() / v + v / a;
+                        Effect {
+                            target: Some(Some(target)),
+                            moving: Moving::Until(
+                                at.saturating_add(Duration::from_secs_f64(secs.min(3600.0))),
+                            ),
+                            ..Effect::NONE
+                        }
+                    }
+                    CompactMode::Velocity | CompactMode::Torque => self.holding(cx),
+                    _ => Effect {
+                        moving: Moving::Until(at),
+                        ..Effect::NONE
+                    },
+                }
+            }
+            Self::Orion(OrionOrder::Set(m, v)) => match m.quantity() {
+                Quantity::PositionDegrees => Effect {
+                    target: Some(Some(v)),
+                    moving: Moving::Until(at),
+                    ..Effect::NONE
+                },
+                Quantity::Speed | Quantity::Actuator => self.holding(cx),
+            },
+            Self::Orion(OrionOrder::Command(_)) => Effect {
+                moving: Moving::Until(at),
+                ..Effect::NONE
+            },
+        }
+    }
+
+    /// A velocity or torque setpoint's effect: no target; one other than
+    /// 0 is watched by the deadman (and moves until then), 0 holds the
+    /// device still.
+    fn holding(&self, cx: &Context) -> Effect {
+        let deadman = if self.holds_setpoint() {
+            cx.command_timeout.map(|t| cx.at.saturating_add(t))
+        } else {
+            None
+        };
+        Effect {
+            target: Some(None),
+            moving: Moving::Until(deadman.unwrap_or(cx.at)),
+            deadman,
+            ..Effect::NONE
+        }
+    }
+}
+
+impl Order {
+    /// The iRPC lifecycle payload it is, if it is one (what the release
+    /// sends a joint again).
+    pub(crate) fn lifecycle_payload(&self) -> Option<Payload> {
+        match self {
+            Self::Irpc(p) => Some(*p),
+            Self::Compact(_) | Self::Orion(_) => None,
+        }
+    }
+}
+
+/// Whose a frame from the bus is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Route {
+    /// A compact device's feedback record: device `.0`'s.
+    CompactFeedback(usize),
+    /// A compact command (the bridge's own, heard back on a second
+    /// socket): nothing to act on.
+    CompactCommand,
+    /// Anything else: the iRPC driver's to read (or to call bad).
+    Irpc,
+}
+
+/// Whose `frame` is, among `devices` (each device's CAN id and dialect,
+/// in the engine's order).
+pub(crate) fn route(frame: &Frame, devices: impl Iterator<Item = (u16, Device)>) -> Route {
+    let id = frame.id();
+    if id.is_extended() {
+        return Route::Irpc;
+    }
+    let mut route = Route::Irpc;
+    for (k, (node, device)) in devices.enumerate() {
+        if let Device::Compact { feedback_node, .. } = device {
+            if u32::from(feedback_node) == id.raw() {
+                return Route::CompactFeedback(k);
+            }
+            if u32::from(node) == id.raw() {
+                route = Route::CompactCommand;
+            }
+        }
+    }
+    route
+}
+
+/// How a request of any driver ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum Outcome {
+    /// The device took it.
+    Acked,
+    /// A stop for a device already stopped: taken as done.
+    AlreadyStopped,
+    /// The device refused it: its code, where its dialect has codes, and
+    /// why, said for a person.
+    Nacked { code: Option<u16>, why: String },
+    /// No answer after every try: the device may or may not have run it.
+    TimedOut,
+}
+
+/// A request of a driver that ended, in one form for every dialect.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Ended {
+    /// The driver's number for it.
+    pub(crate) msg_id: u32,
+    pub(crate) outcome: Outcome,
+    /// How many times it was sent.
+    pub(crate) attempts: u8,
+    /// When it ended.
+    pub(crate) at: Duration,
+}
+
+/// The drivers, one per dialect: a closed set, each operation one match.
+#[derive(Debug)]
+pub(crate) struct Drivers {
+    pub(crate) irpc: irpc::IrpcDriver,
+    pub(crate) compact: compact::CompactDriver,
+    pub(crate) orion: orion::OrionDriver,
+}
+
+impl Drivers {
+    /// Sends `order` for device `device` on CAN id `node` and awaits its
+    /// answer; returns the driver's number for it. An Orion order is sent
+    /// by the engine with the other Orion orders of its line
+    /// ([`orion::OrionDriver::send`]), never alone.
+    ///
+    /// # Errors
+    /// Why it could not be sent, said for a person; nothing was queued.
+    pub(crate) fn send(
+        &mut self,
+        now: Duration,
+        device: usize,
+        node: u16,
+        order: Order,
+    ) -> Result<u32, String> {
+        match order {
+            Order::Irpc(p) => self.irpc.send(now, device, node, p),
+            Order::Compact(c) => self.compact.send(now, device, node, c),
+            Order::Orion(_) => Err("an Orion order goes in a line to the controller".to_owned()),
+        }
+    }
+
+    /// Device `device`'s request in flight (`msg_id`, `order`) is given
+    /// up: its answer, if it comes, is no longer awaited, and it is never
+    /// sent again.
+    pub(crate) fn forget(&mut self, device: usize, msg_id: u32, order: Order) {
+        match order {
+            Order::Irpc(_) => self.irpc.forget(msg_id),
+            Order::Compact(_) => self.compact.forget(device),
+            Order::Orion(_) => self.orion.forget(device),
+        }
+    }
+
+    /// Takes back what `picked` devices had made and not yet handed out
+    /// (a compact frame, an Orion line all of whose devices are picked):
+    /// the devices whose request was taken back, and so never sent. An
+    /// iRPC request is handed to the client, which puts it on the bus at
+    /// once: never taken back.
+    pub(crate) fn take_back_unsent(&mut self, picked: &BTreeSet<usize>) -> BTreeSet<usize> {
+        let mut unsent: BTreeSet<usize> = picked
+            .iter()
+            .copied()
+            .filter(|&d| self.compact.take_back_unsent(d))
+            .collect();
+        if let Some(devices) = self.orion.take_back_unsent(|d| picked.contains(&d)) {
+            unsent.extend(devices);
+        }
+        unsent
+    }
+
+    /// The next frame to put on the bus.
+    pub(crate) fn poll_transmit(&mut self) -> Option<Frame> {
+        self.irpc
+            .poll_transmit()
+            .or_else(|| self.compact.poll_transmit())
+    }
+
+    /// Why `device` is offline, where its driver's link says so (the
+    /// Orion controller before its beacon, lost, or being stopped after
+    /// it came back).
+    pub(crate) fn offline_reason(&self, device: Device) -> Option<&'static str> {
+        match device {
+            Device::Irpc { .. } | Device::Compact { .. } => None,
+            Device::Orion(_) => self.orion.offline_reason(),
+        }
+    }
+
+    /// The drivers' next deadline.
+    pub(crate) fn deadline(&self) -> Option<Duration> {
+        [
+            self.irpc.deadline(),
+            self.compact.deadline(),
+            self.orion.deadline(),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use motorwire_compact::VelocityLimit;
+
+    const HASH: MotorHash = MotorHash(0x1234_5678);
+
+    fn compact() -> Device {
+        Device::Compact {
+            feedback_node: 0x31,
+            hash: HASH,
+        }
+    }
+
+    /// A stop is each dialect's own: Deactivate for a joint, the
+    /// emergency-stop flag for a compact device, the stop command for the
+    /// Orion controller; what the release brings back goes to joints only.
+    #[test]
+    fn each_dialect_is_stopped_in_its_own_way() {
+        let irpc = Device::Irpc {
+            wire: WireVersion::V2_1,
+        };
+        let stop = [Payload::Deactivate];
+        assert_eq!(
+            irpc.lifecycle_orders(&stop, 7),
+            [Order::Irpc(Payload::Deactivate)]
+        );
+        let [Order::Compact(c)] = compact().lifecycle_orders(&stop, 7)[..] else {
+            panic!("one compact order");
+        };
+        assert_eq!(c.motor, HASH);
+        assert_eq!(c.timestamp_ms, 7);
+        assert_eq!(c.control_mode, CompactMode::Disabled);
+        assert!(c.flags.contains(Flags::EMERGENCY_STOP));
+        assert_eq!(
+            Device::Orion(Motor::Turntable)
+                .lifecycle_orders(&[Payload::Reset, Payload::Deactivate], 7),
+            [Order::Orion(OrionOrder::Command(ArmCommand::Stop))]
+        );
+        // The release's Activate has nothing to send to either.
+        assert_eq!(compact().lifecycle_orders(&[Payload::Activate], 7), []);
+        assert_eq!(
+            Device::Orion(Motor::GrasperRotation).lifecycle_orders(&[Payload::Activate], 7),
+            []
+        );
+        // The deadman: a held setpoint to 0; a joint holds none.
+        assert_eq!(irpc.hold_still(7), None);
+        assert_eq!(
+            Device::Orion(Motor::Turntable).hold_still(7),
+            Some(Order::Orion(OrionOrder::Set(Motor::Turntable, 0.0)))
+        );
+        let Some(Order::Compact(h)) = compact().hold_still(9) else {
+            panic!("a compact hold");
+        };
+        assert_eq!((h.control_mode, h.setpoint), (CompactMode::Velocity, 0.0));
+        assert!(!h.flags.contains(Flags::EMERGENCY_STOP));
+        assert!(irpc.supports(Capability::Reset) && irpc.speaks(PayloadKind::ConfigureTelemetry));
+        assert!(!compact().supports(Capability::Trajectory));
+        assert!(!Device::Orion(Motor::Turntable).supports(Capability::Reset));
+        assert_eq!(irpc.who(0x12), "node 0x12");
+        assert_eq!(
+            Device::Orion(Motor::Turntable).who(orion::ORION_NODE),
+            "the Orion arm controller (ID 32)"
+        );
+    }
+
+    /// What an order reaches is read in degrees whatever the motor's unit:
+    /// a compact command in radians at 1 rad, limited to 0.5 rad/s.
+    #[test]
+    fn an_orders_reach_is_in_degrees() {
+        let c = CompactCommand {
+            motor: HASH,
+            timestamp_ms: 0,
+            control_mode: CompactMode::Position,
+            flags: Flags::REQUIRE_ACK,
+            setpoint: 1.0,
+            velocity_limit: Some(VelocityLimit::from_units_per_s(0.5).unwrap()),
+            torque_limit: None,
+        };
+        let r = Order::Compact(c).reach(AngleUnit::Radians);
+        assert!(
+            (r.target.unwrap() - 1f64.to_degrees()).abs() < 1e-9,
+            "{r:?}"
+        );
+        assert!(
+            (r.speed.unwrap() - 0.5f64.to_degrees()).abs() < 1e-3,
+            "{r:?}"
+        );
+        let set = Order::Orion(OrionOrder::Set(Motor::GrasperHorizontalServo, 30.0));
+        assert_eq!(
+            set.reach(AngleUnit::Degrees),
+            Reach {
+                target: Some(30.0),
+                speed: None
+            }
+        );
+        assert!(set.is_position_move() && !set.holds_setpoint());
+        let spin = Order::Orion(OrionOrder::Set(Motor::Turntable, 200.0));
+        assert!(spin.holds_setpoint() && !spin.is_position_move());
+        assert_eq!(spin.reach(AngleUnit::Degrees), Reach::default());
+    }
+
+    /// A held setpoint arms the deadman for the motor's command timeout
+    /// and moves until then; 0 holds the device still, with no deadman; a
+    /// compact emergency stop cuts the move short.
+    #[test]
+    fn a_held_setpoint_arms_the_deadman_and_zero_does_not() {
+        let cx = Context {
+            at: Duration::from_millis(1000),
+            motion: Some((10.0, 0.0)),
+            unit: AngleUnit::Degrees,
+            max_velocity: Some(100.0),
+            max_acceleration: Some(1000.0),
+            command_timeout: Some(Duration::from_millis(200)),
+            planned: None,
+        };
+        let spin = Order::Orion(OrionOrder::Set(Motor::Turntable, 200.0)).effect(&cx);
+        assert_eq!(spin.deadman, Some(Duration::from_millis(1200)));
+        assert_eq!(spin.moving, Moving::Until(Duration::from_millis(1200)));
+        assert_eq!(spin.target, Some(None));
+        let still = Order::Orion(OrionOrder::Set(Motor::Turntable, 0.0)).effect(&cx);
+        assert_eq!(still.deadman, None);
+        assert_eq!(still.moving, Moving::Until(Duration::from_millis(1000)));
+        let Some(Order::Compact(stop)) = compact()
+            .lifecycle_orders(&[Payload::Deactivate], 0)
+            .first()
+            .copied()
+        else {
+            panic!("a compact stop");
+        };
+        let e = Order::Compact(stop).effect(&cx);
+        assert_eq!(e.moving, Moving::AtMost(Duration::from_millis(1000)));
+        assert_eq!((e.deadman, e.target), (None, None));
+        // A compact move of 90 degrees at the limit's 100 deg/s and 1000
+        // deg/s²: 0.9 s + 0.1 s.
+        let mv = CompactCommand {
+            setpoint: 100.0,
+            control_mode: CompactMode::Position,
+            flags: Flags::REQUIRE_ACK,
+            ..stop
+        };
+        let e = Order::Compact(mv).effect(&cx);
+        assert_eq!(e.target, Some(Some(100.0)));
+        assert_eq!(e.moving, Moving::Until(Duration::from_millis(2000)));
+    }
+}

@@ -30,17 +30,19 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use motorwire_can::client::Outcome;
-use motorwire_irpc::NackCode;
 use motorwire_orion::{ArmCommand, Motor, MotorValues, Output};
 use motorwire_translate::BusMap;
 use motorwire_wia::MotorFeedback;
 
-use crate::job::OrionOrder;
+use super::{Ended, OrionOrder, Outcome};
 
 /// The node id the bridge gives Orion motors: beyond CAN's 11 bits, so no
 /// frame is ever taken for theirs.
 pub(crate) const ORION_NODE: u16 = 0xFFFF;
+
+/// The controller, as messages name it (its id is
+/// [`motorwire_orion::CONTROLLER_ID`]).
+pub(crate) const LABEL: &str = "the Orion arm controller (ID 32)";
 
 /// How often an idle bridge asks the controller for its feedback.
 pub const POLL: Duration = Duration::from_millis(100);
@@ -93,6 +95,16 @@ pub(crate) struct Done {
 }
 
 impl Done {
+    /// The request as the device layer says every request ended, at `at`.
+    pub(crate) fn ended(&self, at: Duration) -> Ended {
+        Ended {
+            msg_id: self.msg_id,
+            outcome: self.outcome.clone(),
+            attempts: self.attempts,
+            at,
+        }
+    }
+
     fn of(p: Pending, outcome: Outcome) -> Self {
         Self {
             msg_id: p.msg_id,
@@ -453,7 +465,10 @@ impl OrionDriver {
                 let outcome = if *succeeded {
                     Outcome::Acked
                 } else {
-                    Outcome::Nacked(NackCode(0))
+                    Outcome::Nacked {
+                        code: None,
+                        why: "the controller answered CMDF 0: the command failed".to_owned(),
+                    }
                 };
                 applied.recovered = *succeeded
                     && self.recovering
@@ -688,6 +703,18 @@ key = "TRM"
         assert_eq!(a.done.map(|d| d.joints), Some(vec![]));
         d.end_recovery();
         assert!(d.up());
+    }
+
+    /// The label names the controller by its id.
+    #[test]
+    fn the_label_names_the_controllers_id() {
+        assert_eq!(
+            LABEL,
+            format!(
+                "the Orion arm controller (ID {})",
+                motorwire_orion::CONTROLLER_ID
+            )
+        );
     }
 
     /// Bad lines are counted; at most [`MAX_BAD_LINE_EVENTS`] a second are

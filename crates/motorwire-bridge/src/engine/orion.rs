@@ -11,10 +11,11 @@
 
 use std::time::Duration;
 
-use motorwire_orion::{ArmCommand, CONTROLLER_ID, Motor, Quantity};
+use motorwire_orion::{ArmCommand, Motor, Quantity};
 use motorwire_translate::Report;
 
 use super::Bridge;
+use crate::device::Device;
 use crate::device::orion::{BadLine, Done};
 pub use crate::device::orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL};
 pub(crate) use crate::device::orion::{ORION_NODE, OrionDriver};
@@ -25,7 +26,9 @@ use crate::output::{Event, Output as BridgeOutput};
 impl Bridge {
     /// Whether device `ji` is an Orion motor.
     pub(super) fn is_orion(&self, ji: usize) -> bool {
-        self.joints.get(ji).is_some_and(|j| j.orion.is_some())
+        self.joints
+            .get(ji)
+            .is_some_and(|j| matches!(j.device, Device::Orion(_)))
     }
 
     /// Whether `step` is a sequential line's axis whose earlier axis has
@@ -52,7 +55,7 @@ impl Bridge {
             .axes
             .get(step.axis)
             .is_some_and(|a| matches!(a.payloads.front(), Some(Order::Orion(_))));
-        !orders || job.kind.is_stop() || self.orion.lost() || self.orion.free()
+        !orders || job.kind.is_stop() || self.drivers.orion.lost() || self.drivers.orion.free()
     }
 
     /// Sends `order` of `step` for Orion motor `ji`, with the orders of
@@ -65,7 +68,7 @@ impl Bridge {
         step: StepRef,
         order: OrionOrder,
     ) -> Result<u32, String> {
-        if let Some(e) = self.orion.refuses(order) {
+        if let Some(e) = self.drivers.orion.refuses(order) {
             return Err(e);
         }
         // Others of the same job, same kind of order.
@@ -78,7 +81,7 @@ impl Bridge {
             let Some(j) = self.joints.get(k) else {
                 continue;
             };
-            if j.orion.is_none() || j.busy.is_some() {
+            if !matches!(j.device, Device::Orion(_)) || j.busy.is_some() {
                 continue;
             }
             let Some(&front) = j.queue.front() else {
@@ -115,7 +118,7 @@ impl Bridge {
             }
             others.push((front, payload));
         }
-        let id = self.orion.send(now, &orders);
+        let id = self.drivers.orion.send(now, &orders);
         for (front, payload) in others {
             if let Some(a) = self
                 .jobs
@@ -134,7 +137,7 @@ impl Bridge {
 
     /// The next line for the Orion controller (without its newline).
     pub fn poll_orion_line(&mut self) -> Option<String> {
-        self.orion.poll_line()
+        self.drivers.orion.poll_line()
     }
 
     /// One line from the Orion controller, received at `now`.
@@ -143,14 +146,17 @@ impl Bridge {
         let now = self.now;
         // Its motors held offline (it fell silent): heard again, it is
         // made safe and known before they are online.
-        let offline = self.joints.iter().any(|j| j.orion.is_some() && !j.online);
-        let output = match self.orion.read(now, line, offline) {
+        let offline = self
+            .joints
+            .iter()
+            .any(|j| matches!(j.device, Device::Orion(_)) && !j.online);
+        let output = match self.drivers.orion.read(now, line, offline) {
             Ok(o) => o,
             Err(bad) => return self.orion_bad_line(bad),
         };
         self.orion_heard(now);
         let ts = self.unix_ms(now);
-        let applied = self.orion.apply(now, &output, &self.map, ts);
+        let applied = self.drivers.orion.apply(now, &output, &self.map, ts);
         if let Some(bad) = applied.bad {
             return self.orion_bad_line(bad);
         }
@@ -175,7 +181,7 @@ impl Bridge {
         }
         if applied.recovered {
             // Stopped and known: online again, nothing resumed.
-            self.orion.end_recovery();
+            self.drivers.orion.end_recovery();
             self.orion_heard(now);
         }
     }
@@ -197,7 +203,7 @@ impl Bridge {
     /// UTF-8), at `now`: reported like a bad line.
     pub fn handle_orion_unreadable(&mut self, now: Duration, reason: &str) {
         self.now = self.now.max(now);
-        let bad = self.orion.unreadable(self.now, reason);
+        let bad = self.drivers.orion.unreadable(self.now, reason);
         self.orion_bad_line(bad);
     }
 
@@ -205,7 +211,7 @@ impl Bridge {
     /// are offline, and what was in flight has an unknown outcome.
     pub fn orion_link_lost(&mut self, now: Duration, error: &str) {
         self.now = self.now.max(now);
-        let Some(in_flight) = self.orion.link_lost(now) else {
+        let Some(in_flight) = self.drivers.orion.link_lost(now) else {
             return;
         };
         self.out
@@ -243,12 +249,6 @@ impl Bridge {
         self.handle_timeout(now);
     }
 
-    /// Why the Orion motors are offline now, if the link says so: before
-    /// the boot beacon, and while a link that came back is being stopped.
-    pub(super) fn orion_offline_reason(&self) -> Option<&'static str> {
-        self.orion.offline_reason()
-    }
-
     /// Something was heard from the controller at `at`; its motors are
     /// online once its boot beacon was heard (and, after a lost link, its
     /// stop answered).
@@ -256,7 +256,7 @@ impl Bridge {
         let orion: Vec<usize> = (0..self.joints.len())
             .filter(|&k| self.is_orion(k))
             .collect();
-        let up = self.orion.up();
+        let up = self.drivers.orion.up();
         for ji in orion {
             let Some(j) = self.joints.get_mut(ji) else {
                 continue;
@@ -279,7 +279,7 @@ impl Bridge {
             let Some(ji) = self.joint_index(&f.motor_id) else {
                 continue;
             };
-            let Some(motor) = self.joints.get(ji).and_then(|j| j.orion) else {
+            let Some(Device::Orion(motor)) = self.joints.get(ji).map(|j| j.device) else {
                 continue;
             };
             let degrees = self
@@ -295,10 +295,7 @@ impl Bridge {
                 j.feedback = Some(f);
             }
             if motor.quantity() == Quantity::PositionDegrees {
-                if !self.arrivals.is_empty() {
-                    self.observe(ji, motion.0, motion.1, now);
-                }
-                self.sequence_progress(ji, motion.0, motion.1);
+                self.moved(ji, motion.0, motion.1, now);
             }
         }
     }
@@ -306,8 +303,9 @@ impl Bridge {
     /// A line of the controller's ended: each device whose step it carried
     /// is done, and what waits for the controller may go.
     fn orion_done(&mut self, done: Done) {
+        let ended = done.ended(self.now);
         for &ji in &done.joints {
-            self.device_done(ji, done.msg_id, ORION_NODE, done.outcome, done.attempts);
+            self.step_done(ji, ended.clone());
         }
         for ji in 0..self.joints.len() {
             if self.is_orion(ji) {
@@ -319,62 +317,20 @@ impl Bridge {
 
     /// Resends, gives up, and polls when idle.
     pub(super) fn orion_timeouts(&mut self, now: Duration) {
-        if let Some(done) = self.orion.expire(now) {
+        if let Some(done) = self.drivers.orion.expire(now) {
             self.orion_done(done);
         }
         // A poll never takes the link from a step waiting for it.
-        let idle = self.joints.iter().any(|j| j.orion.is_some())
+        let orion = |j: &crate::joints::Joint| matches!(j.device, Device::Orion(_));
+        let idle = self.joints.iter().any(orion)
             && !self.joints.iter().any(|j| {
-                j.orion.is_some()
+                orion(j)
                     && (j.busy.is_some()
                         || j.queue
                             .front()
                             .is_some_and(|s| !self.after_earlier_axis(*s)))
             });
-        self.orion.housekeeping(now, idle);
-    }
-
-    /// An acked Orion order's effect: a speed or actuator value other than
-    /// 0 is watched by the deadman; the servo's value is its target.
-    pub(super) fn track_orion(&mut self, ji: usize, order: OrionOrder, at: Duration) {
-        let timeout = self
-            .joints
-            .get(ji)
-            .and_then(|j| self.map.motor(&j.name))
-            .and_then(|m| m.command_timeout);
-        let Some(j) = self.joints.get_mut(ji) else {
-            return;
-        };
-        j.deadman = None;
-        match order {
-            OrionOrder::Set(m, v) => match m.quantity() {
-                Quantity::PositionDegrees => {
-                    j.target = Some(v);
-                    j.moving_until = at;
-                }
-                Quantity::Speed | Quantity::Actuator => {
-                    j.target = None;
-                    if v != 0.0 {
-                        j.deadman = timeout.map(|t| at.saturating_add(t));
-                    }
-                    j.moving_until = j.deadman.unwrap_or(at);
-                }
-            },
-            OrionOrder::Command(_) => {
-                j.moving_until = at;
-            }
-        }
-    }
-
-    /// The deadman's stop for Orion motor `ji`: its value 0.
-    pub(super) fn orion_deadman_axis(&self, ji: usize) -> Option<Axis> {
-        let j = self.joints.get(ji)?;
-        let m: Motor = j.orion?;
-        Some(Axis::of(
-            j.name.clone(),
-            ji,
-            [Order::Orion(OrionOrder::Set(m, 0.0))],
-        ))
+        self.drivers.orion.housekeeping(now, idle);
     }
 
     /// `cmd` for Orion motor `ji`, gated and translated, as its axis.
@@ -384,11 +340,10 @@ impl Bridge {
         cmd: &motorwire_wia::MotorCommand,
     ) -> Result<(Axis, Report), motorwire_translate::Refusal> {
         let t = motorwire_translate::to_orion_motor(&self.map, cmd)?;
-        let motor = self
-            .joints
-            .get(ji)
-            .and_then(|j| j.orion)
-            .unwrap_or(Motor::Turntable);
+        let motor = match self.joints.get(ji).map(|j| j.device) {
+            Some(Device::Orion(m)) => m,
+            _ => Motor::Turntable,
+        };
         let order = match t.value {
             motorwire_orion::Input::DirectControl(values) => {
                 OrionOrder::Set(motor, values.get(motor).unwrap_or(0.0))
@@ -423,7 +378,7 @@ impl Bridge {
             .joints
             .iter()
             .enumerate()
-            .filter(|(_, j)| j.orion.is_some())
+            .filter(|(_, j)| matches!(j.device, Device::Orion(_)))
             .map(|(i, j)| (i, j.name.clone()))
             .collect();
         if motors.is_empty() {
@@ -468,10 +423,5 @@ impl Bridge {
             )
             .about(m),
         )
-    }
-
-    /// The Orion controller's id, for messages.
-    pub(super) fn orion_label() -> String {
-        format!("the Orion arm controller (ID {CONTROLLER_ID})")
     }
 }

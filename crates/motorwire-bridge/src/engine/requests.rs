@@ -18,6 +18,7 @@ use motorwire_translate::Report;
 
 use super::Bridge;
 use crate::classify::RequestKind;
+use crate::device::Capability;
 use crate::job::{AwaitKind, Awaiting, Axis};
 use crate::output::{ErrorBody, ErrorKind, Event, Origin, Output};
 
@@ -68,26 +69,30 @@ impl Bridge {
             .saturating_add(ANSWER_MARGIN)
     }
 
-    /// The iRPC joint `motor` names, or the refusal to answer with.
-    pub(super) fn irpc_joint(
+    /// The device `motor` names if it can do `needs_to` and has the
+    /// message `needs` (an iRPC joint, in its wire version), or the
+    /// refusal to answer with.
+    pub(super) fn joint_for(
         &self,
         motor: &str,
+        needs_to: Capability,
         needs: PayloadKind,
         what: &str,
     ) -> Result<usize, ErrorBody> {
-        let Some(ji) = self
-            .joint_index(motor)
-            .filter(|&ji| !self.is_orion(ji))
-            .filter(|&ji| self.joints.get(ji).is_some_and(|j| j.compact.is_none()))
-        else {
+        let Some(ji) = self.joint_index(motor).filter(|&ji| {
+            self.joints
+                .get(ji)
+                .is_some_and(|j| j.device.supports(needs_to))
+        }) else {
             return Err(ErrorBody::refused(
                 crate::output::BridgeRule::NotAnIrpcJoint,
                 format!("{motor} is not an iRPC joint of the bus map"),
             )
             .about(motor));
         };
-        let wire = self.joints.get(ji).map(|j| j.wire);
-        if wire.is_none_or(|w| w.tag_of(needs).is_none()) {
+        let device = self.joints.get(ji).map(|j| j.device);
+        if device.is_none_or(|d| !d.speaks(needs)) {
+            let wire = device.map(crate::device::Device::wire);
             return Err(ErrorBody::new(
                 ErrorKind::Unsupported,
                 format!(
@@ -135,7 +140,7 @@ impl Bridge {
                 "FaultHistory (v2.2)",
             ),
         };
-        let ji = match self.irpc_joint(motor, needs, what) {
+        let ji = match self.joint_for(motor, Capability::Requests, needs, what) {
             Ok(ji) => ji,
             Err(e) => return self.refuse(origin, number, label, e),
         };
@@ -164,8 +169,9 @@ impl Bridge {
         start: Option<CalibrationRequest>,
     ) {
         let label = Some(("motor_id", motor.to_owned()));
-        let ji = match self.irpc_joint(
+        let ji = match self.joint_for(
             motor,
+            Capability::Requests,
             PayloadKind::StartCalibration,
             "calibration (v2.1 on)",
         ) {

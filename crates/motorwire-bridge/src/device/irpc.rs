@@ -1,0 +1,371 @@
+//! The iRPC driver: the bus map's iRPC joints, each spoken to in its own
+//! wire version, through `motorwire_can`'s sans-IO client (postcard
+//! frames, msg_ids, Ack and Nack, retries with the same msg_id, segmented
+//! transfers).
+//!
+//! It owns the client, which request in flight is which device's, the
+//! heartbeat (ArmReady, feeding the joints' watchdogs while one moves),
+//! and the translation of the client's events into the device layer's:
+//! an [`Ended`] request for its device (a Deactivate refused because the
+//! joint is already stopped is a stop done), a joint heard, a message that
+//! is feedback, a frame that is not for the bridge. It also says what an
+//! acknowledged payload did to its joint ([`effect`]). The engine decides
+//! what is sent and when; this says how, and what came back.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::time::Duration;
+
+use motorwire_can::Frame;
+use motorwire_can::client::{Client, ClientConfig, Event as ClientEvent, Outcome as ClientOutcome};
+use motorwire_irpc::{Message, NackCode, Payload, PayloadKind, SetTargetPayloadV2, WireVersion};
+
+use super::{Context, Effect, Ended, Moving, Outcome};
+
+/// What the driver has to tell the engine.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum IrpcEvent {
+    /// Joint `node` was heard at `at` (an answer, even a late one).
+    Heard { node: u16, at: Duration },
+    /// The request in flight for device `device` ended.
+    Ended { device: usize, ended: Ended },
+    /// A message from a joint that is not an answer (its status, encoder,
+    /// telemetry, an answer to a request line, its own emergency stop).
+    Feedback { message: Message, at: Duration },
+    /// A frame that is not an iRPC message for the bridge.
+    BadFrame { can_id: String, error: String },
+}
+
+/// The iRPC joints' client, and which device each request in flight is
+/// for.
+#[derive(Debug)]
+pub(crate) struct IrpcDriver {
+    client: Client,
+    /// msg_id in flight -> the device it went to.
+    by_msg: BTreeMap<u32, usize>,
+    events: VecDeque<IrpcEvent>,
+    /// The time of the last frame or timeout handled.
+    now: Duration,
+}
+
+impl IrpcDriver {
+    /// A driver speaking as `config` says.
+    ///
+    /// # Errors
+    /// The client's refusal of `config` (a node id beyond 11 bits).
+    pub(crate) fn new(config: ClientConfig) -> Result<Self, motorwire_can::Error> {
+        Ok(Self {
+            client: Client::new(config)?,
+            by_msg: BTreeMap::new(),
+            events: VecDeque::new(),
+            now: Duration::ZERO,
+        })
+    }
+
+    /// Joint `node` is spoken to, and heard, in `wire`.
+    pub(crate) fn set_wire(&mut self, node: u16, wire: WireVersion) {
+        self.client.set_wire(node, wire);
+    }
+
+    /// Sends `payload` to joint `node` (device `device`) and awaits its
+    /// Ack; returns its msg_id.
+    ///
+    /// # Errors
+    /// The client's refusal (one request in flight per joint, a payload
+    /// its wire version lacks), as text; nothing was queued.
+    pub(crate) fn send(
+        &mut self,
+        now: Duration,
+        device: usize,
+        node: u16,
+        payload: Payload,
+    ) -> Result<u32, String> {
+        let msg_id = self
+            .client
+            .request(now, node, payload)
+            .map_err(|e| e.to_string())?;
+        self.by_msg.insert(msg_id, device);
+        Ok(msg_id)
+    }
+
+    /// Request `msg_id` is given up: never sent again, its answer not
+    /// awaited.
+    pub(crate) fn forget(&mut self, msg_id: u32) {
+        self.client.cancel(msg_id);
+        self.by_msg.remove(&msg_id);
+    }
+
+    /// ArmReady to every joint, each in its own wire version (a broadcast
+    /// when they all speak the bridge's). Whether it was queued.
+    pub(crate) fn heartbeat(&mut self) -> bool {
+        self.client.arm_ready().is_ok()
+    }
+
+    /// A frame from the bus.
+    pub(crate) fn handle_frame(&mut self, now: Duration, frame: &Frame) {
+        self.now = self.now.max(now);
+        self.client.handle_frame(now, frame);
+    }
+
+    /// Resends and time-outs due at `now`.
+    pub(crate) fn handle_timeout(&mut self, now: Duration) {
+        self.now = self.now.max(now);
+        self.client.handle_timeout(now);
+    }
+
+    /// The next frame to send.
+    pub(crate) fn poll_transmit(&mut self) -> Option<Frame> {
+        self.client.poll_transmit()
+    }
+
+    /// The client's next deadline.
+    pub(crate) fn deadline(&self) -> Option<Duration> {
+        self.client.poll_timeout()
+    }
+
+    /// The next thing to tell the engine.
+    pub(crate) fn poll_event(&mut self) -> Option<IrpcEvent> {
+        if let Some(e) = self.events.pop_front() {
+            return Some(e);
+        }
+        let event = self.client.poll_event()?;
+        Some(match event {
+            ClientEvent::Completed(c) => {
+                let outcome = match c.outcome {
+                    ClientOutcome::Acked => Outcome::Acked,
+                    // Stopping a joint that is already stopped is a stop.
+                    ClientOutcome::Nacked(code)
+                        if c.kind == PayloadKind::Deactivate
+                            && code == NackCode::DEACTIVATE_WRONG_STATE =>
+                    {
+                        Outcome::AlreadyStopped
+                    }
+                    ClientOutcome::Nacked(code) => Outcome::Nacked {
+                        code: Some(code.0),
+                        why: format!("nacked: {code}"),
+                    },
+                    ClientOutcome::TimedOut => Outcome::TimedOut,
+                };
+                let ended = self
+                    .by_msg
+                    .remove(&c.msg_id)
+                    .map(|device| IrpcEvent::Ended {
+                        device,
+                        ended: Ended {
+                            msg_id: c.msg_id,
+                            outcome: outcome.clone(),
+                            attempts: c.attempts,
+                            at: c.finished_at,
+                        },
+                    });
+                if outcome == Outcome::TimedOut {
+                    // A request the bridge gave up (a heartbeat): nothing to say.
+                    return ended.or_else(|| self.poll_event());
+                }
+                self.events.extend(ended);
+                IrpcEvent::Heard {
+                    node: c.target,
+                    at: c.finished_at,
+                }
+            }
+            ClientEvent::Feedback { message, at } => IrpcEvent::Feedback { message, at },
+            ClientEvent::StrayReply { message } => IrpcEvent::Heard {
+                node: message.header.source_id,
+                at: self.now,
+            },
+            ClientEvent::Undecodable { can_id, error } => IrpcEvent::BadFrame {
+                can_id: can_id.to_string(),
+                error: error.to_string(),
+            },
+            ClientEvent::Misaddressed { can_id, message } => IrpcEvent::BadFrame {
+                can_id: can_id.to_string(),
+                error: format!(
+                    "the CAN id is not the sender's node id 0x{:02X}",
+                    message.header.source_id
+                ),
+            },
+        })
+    }
+}
+
+/// What an acknowledged `payload` did to its joint: a move's target and,
+/// as planned from the joint's last report, when it ends (the gate's own
+/// plan when it is the same move from the same state); the lifecycle.
+pub(crate) fn effect(payload: Payload, cx: &Context) -> Effect {
+    let (pos, vel) = cx.motion.unwrap_or((0.0, 0.0));
+    let planned = |p: &SetTargetPayloadV2| {
+        if let Some((from, q, d)) = cx.planned
+            && from == (pos, vel)
+            && q == *p
+        {
+            return d;
+        }
+        motorwire_planner::plan(&p.planner_request(pos, vel))
+            .ok()
+            .and_then(|plan| Duration::try_from_secs_f64(plan.duration()).ok())
+            .unwrap_or(Duration::from_secs(1))
+    };
+    let moving_to = |target: f32, p: &SetTargetPayloadV2| Effect {
+        target: Some(Some(f64::from(target))),
+        moving: Moving::Until(cx.at.saturating_add(planned(p))),
+        settles: true,
+        ..Effect::NONE
+    };
+    match payload {
+        Payload::SetTargetV2(p) => moving_to(p.target_angle, &p),
+        Payload::SetTarget(p) => {
+            #[allow(clippy::cast_possible_truncation)]
+            let acc = cx.max_acceleration.unwrap_or(1000.0) as f32;
+            let v2 = SetTargetPayloadV2::trapezoidal(p.target_angle, p.velocity_limit, acc);
+            moving_to(p.target_angle, &v2)
+        }
+        Payload::Activate => Effect {
+            active: Some(true),
+            ..Effect::NONE
+        },
+        // The joint brakes; give it a moment before calling it idle.
+        Payload::Deactivate | Payload::Reset => Effect {
+            active: Some(false),
+            moving: Moving::AtMost(cx.at.saturating_add(Duration::from_millis(100))),
+            ..Effect::NONE
+        },
+        _ => Effect::NONE,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use motorwire_can::CanId;
+    use motorwire_irpc::{Header, MAX_FRAME_LEN};
+
+    const MS: Duration = Duration::from_millis(1);
+
+    fn reply(source: u16, msg_id: u32, payload: Payload) -> Frame {
+        let m = Message {
+            header: Header {
+                source_id: source,
+                target_id: 0x0000,
+                msg_id,
+            },
+            payload,
+        };
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let n = m.encode_frame(WireVersion::V2_0, &mut buf).unwrap();
+        Frame::fd(CanId::standard(source).unwrap(), &buf[..n]).unwrap()
+    }
+
+    fn events(d: &mut IrpcDriver) -> Vec<IrpcEvent> {
+        std::iter::from_fn(|| d.poll_event()).collect()
+    }
+
+    /// A request goes out as its bytes; its Ack says the joint was heard,
+    /// then ends the request for the device that sent it.
+    #[test]
+    fn an_ack_is_heard_then_ends_the_devices_request() {
+        let mut d = IrpcDriver::new(ClientConfig::default()).unwrap();
+        let id = d.send(Duration::ZERO, 4, 0x12, Payload::Activate).unwrap();
+        assert_eq!(id, 1);
+        let f = d.poll_transmit().unwrap();
+        // From 0x0000 to 0x12, msg_id 1, Activate (v2.0 tag 2).
+        assert_eq!(f.data()[..4], [0x00, 0x12, 0x01, 0x02]);
+        assert_eq!(d.deadline(), Some(100 * MS));
+        d.handle_frame(3 * MS, &reply(0x12, id, Payload::Ack(id)));
+        assert_eq!(
+            events(&mut d),
+            [
+                IrpcEvent::Heard {
+                    node: 0x12,
+                    at: 3 * MS
+                },
+                IrpcEvent::Ended {
+                    device: 4,
+                    ended: Ended {
+                        msg_id: id,
+                        outcome: Outcome::Acked,
+                        attempts: 1,
+                        at: 3 * MS
+                    }
+                }
+            ]
+        );
+    }
+
+    /// A Deactivate refused because the joint is already stopped is a
+    /// stop done; any other Nack says its code.
+    #[test]
+    fn a_stop_of_a_stopped_joint_is_done_and_other_nacks_say_their_code() {
+        let mut d = IrpcDriver::new(ClientConfig::default()).unwrap();
+        let stop = d
+            .send(Duration::ZERO, 0, 0x12, Payload::Deactivate)
+            .unwrap();
+        let go = d.send(Duration::ZERO, 1, 0x13, Payload::Activate).unwrap();
+        d.handle_frame(
+            MS,
+            &reply(
+                0x12,
+                stop,
+                Payload::Nack {
+                    id: stop,
+                    error: NackCode::DEACTIVATE_WRONG_STATE.0,
+                },
+            ),
+        );
+        d.handle_frame(MS, &reply(0x13, go, Payload::Nack { id: go, error: 2 }));
+        let ended: Vec<(usize, Outcome)> = events(&mut d)
+            .into_iter()
+            .filter_map(|e| match e {
+                IrpcEvent::Ended { device, ended } => Some((device, ended.outcome)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(
+            ended,
+            [
+                (0, Outcome::AlreadyStopped),
+                (
+                    1,
+                    Outcome::Nacked {
+                        code: Some(2),
+                        why: "nacked: 2 (activate in the wrong state)".to_owned()
+                    }
+                )
+            ]
+        );
+    }
+
+    /// Unanswered, a request is sent again with its msg_id, then ends
+    /// timed out (and says nothing was heard); a forgotten one ends
+    /// nothing.
+    #[test]
+    fn an_unanswered_request_times_out_and_a_forgotten_one_says_nothing() {
+        let mut d = IrpcDriver::new(ClientConfig::default()).unwrap();
+        let id = d.send(Duration::ZERO, 2, 0x12, Payload::Configure).unwrap();
+        for k in 1..=3u32 {
+            d.handle_timeout(100 * MS * k);
+        }
+        // The first sending and three retries.
+        assert_eq!(std::iter::from_fn(|| d.poll_transmit()).count(), 4);
+        d.handle_timeout(400 * MS);
+        assert_eq!(
+            events(&mut d),
+            [IrpcEvent::Ended {
+                device: 2,
+                ended: Ended {
+                    msg_id: id,
+                    outcome: Outcome::TimedOut,
+                    attempts: 4,
+                    at: 400 * MS
+                }
+            }]
+        );
+        let gone = d.send(400 * MS, 2, 0x12, Payload::Activate).unwrap();
+        d.forget(gone);
+        d.handle_frame(401 * MS, &reply(0x12, gone, Payload::Ack(gone)));
+        assert!(
+            !events(&mut d)
+                .iter()
+                .any(|e| matches!(e, IrpcEvent::Ended { .. })),
+            "a forgotten request ends nothing"
+        );
+    }
+}
