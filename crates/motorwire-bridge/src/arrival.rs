@@ -5,7 +5,8 @@ use std::time::Duration;
 
 use motorwire_translate::AngleUnit;
 
-use crate::output::{ArrivalLine, MotorArrival, Origin};
+use crate::job::LineMeta;
+use crate::output::{ArrivalLine, Label, MotorArrival};
 
 /// A motor's speed (degrees per second) below which it counts as at rest,
 /// per degree of its arrival tolerance: 0.1° of tolerance allows 1°/s.
@@ -31,9 +32,7 @@ pub(crate) struct WatchAxis {
 /// A motion line watched for arrival.
 #[derive(Debug, Clone)]
 pub(crate) struct Watch {
-    pub(crate) origin: Origin,
-    pub(crate) line: u64,
-    pub(crate) label: Option<(&'static str, String)>,
+    pub(crate) line: LineMeta,
     /// When its result was given.
     pub(crate) since: Duration,
     /// After this it has not arrived (the planned end and a margin).
@@ -76,14 +75,14 @@ impl Watch {
         let ms = |t: Duration| {
             u64::try_from(t.saturating_sub(self.since).as_millis()).unwrap_or(u64::MAX)
         };
-        let (motor_id, command_id) = match &self.label {
-            Some(("motor_id", v)) => (Some(v.clone()), None),
-            Some((_, v)) => (None, Some(v.clone())),
+        let (motor_id, command_id) = match &self.line.label {
+            Some(Label::Motor(v)) => (Some(v.clone()), None),
+            Some(Label::Command(v) | Label::Orion(v)) => (None, Some(v.clone())),
             None => (None, None),
         };
         ArrivalLine {
             arrived: reason.is_none(),
-            line: self.line,
+            line: self.line.number,
             motor_id,
             command_id,
             reason,

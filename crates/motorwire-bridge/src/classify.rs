@@ -38,6 +38,8 @@
 use std::fmt;
 
 use motorwire_wia::{Message, Validator};
+
+use crate::output::Label;
 use serde::de::{Deserializer, MapAccess, Visitor};
 use serde_json::Value;
 
@@ -46,8 +48,8 @@ use serde_json::Value;
 pub enum Input {
     /// An emergency stop.
     Stop {
-        /// `("motor_id"|"command_id", value)` when the line names one.
-        label: Option<(&'static str, String)>,
+        /// Its `motor_id` or `command_id`, when the line names one.
+        label: Option<Label>,
         /// What else is wrong with the line (reported; it stops anyway).
         problems: Vec<String>,
     },
@@ -108,8 +110,8 @@ pub enum Input {
         message: String,
         /// The WIA violations, when it was JSON.
         violations: Option<Value>,
-        /// `("motor_id"|"command_id", value)` when the line names one.
-        label: Option<(&'static str, String)>,
+        /// Its `motor_id` or `command_id`, when the line names one.
+        label: Option<Label>,
     },
 }
 
@@ -148,14 +150,14 @@ pub const DEFAULT_CALIBRATION: motorwire_irpc::CalibrationRequest =
         return_home: true,
     };
 
-fn calibration_line(members: &[(String, Value)], label: Option<(&'static str, String)>) -> Input {
+fn calibration_line(members: &[(String, Value)], label: Option<Label>) -> Input {
     let usage = r#"a calibration line is {"calibration":"start","motor_id":"..."} (optionally with phases, max_current, max_velocity, max_position_range, phase_timeout, return_home) or {"calibration":"stop","motor_id":"..."}"#;
     let invalid = |message: String| Input::Invalid {
         message,
         violations: None,
         label: label.clone(),
     };
-    let Some(("motor_id", motor_id)) = label.as_ref().map(|(k, v)| (*k, v.clone())) else {
+    let Some(Label::Motor(motor_id)) = label.clone() else {
         return invalid(usage.to_owned());
     };
     let action = members
@@ -548,8 +550,8 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
         .iter()
         .rev()
         .find_map(|(k, v)| match (k.as_str(), v) {
-            ("motor_id", Value::String(s)) => Some(("motor_id", s.clone())),
-            ("command_id", Value::String(s)) => Some(("command_id", s.clone())),
+            ("motor_id", Value::String(s)) => Some(Label::Motor(s.clone())),
+            ("command_id", Value::String(s)) => Some(Label::Command(s.clone())),
             _ => None,
         });
     let (top, mut reasons, seen) = stop_members(&members);
@@ -683,7 +685,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             _ => None,
         };
         return match (kind, members.len(), &label) {
-            (Some(kind), 2, Some(("motor_id", m))) => Input::Request {
+            (Some(kind), 2, Some(Label::Motor(m))) => Input::Request {
                 kind,
                 motor_id: m.clone(),
             },
@@ -711,7 +713,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
     }
     if let Some((_, q)) = members.iter().find(|(k, _)| k == "query") {
         return match (q.as_str(), members.len(), &label) {
-            (Some("limits"), 2, Some(("motor_id", m))) => Input::QueryLimits {
+            (Some("limits"), 2, Some(Label::Motor(m))) => Input::QueryLimits {
                 motor_id: m.clone(),
             },
             _ => Input::Invalid {

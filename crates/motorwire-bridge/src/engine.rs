@@ -47,11 +47,11 @@ use crate::classify::{Input, classify};
 use crate::device::compact::{self, CompactDriver};
 use crate::device::irpc::{IrpcDriver, IrpcEvent};
 use crate::device::{Capability, Context, Device, Drivers, Ended, Moving, Outcome, Route};
-use crate::job::{Axis, AxisState, Cycle, Job, JobKind, Order, Rider};
+use crate::job::{Axis, AxisState, Cycle, Job, JobKind, LineMeta, Order, Rider};
 use crate::joints::{Joint, StepRef, Unresolved};
 use crate::output::{
-    BridgeRule, ErrorBody, ErrorKind, Event, FeedbackLine, LineRef, LineResult, Origin, Output,
-    StepOutcome, StepReport,
+    BridgeRule, ErrorBody, ErrorKind, Event, FeedbackLine, Label, LineRef, LineResult, Origin,
+    Output, StepOutcome, StepReport,
 };
 
 /// How a [`Bridge`] behaves.
@@ -217,8 +217,7 @@ struct Timers {
 #[derive(Debug)]
 struct Waiting {
     at: Duration,
-    origin: Origin,
-    number: u64,
+    meta: LineMeta,
     text: String,
 }
 
@@ -471,7 +470,7 @@ impl Bridge {
                 let joints = self.joints.iter().map(|j| j.name.clone()).collect();
                 self.out.push_back(Output::Event(Event::Ready { joints }));
                 while let Some(w) = self.waiting.pop_front() {
-                    self.take_line(w.at, w.origin, w.number, &w.text);
+                    self.take_line(w.at, w.meta, &w.text);
                 }
                 if let Some(deadline) = self.drain_after_start.take() {
                     self.enter(Phase::Draining { deadline });
@@ -490,8 +489,6 @@ impl Bridge {
                 self.fail_watches(|_| true, "the bridge is stopping the joints");
                 let axes = self.every_joint(&[Payload::Deactivate]);
                 self.open_job(
-                    None,
-                    0,
                     None,
                     JobKind::Shutdown,
                     self.now,
@@ -523,8 +520,6 @@ impl Bridge {
             }
         }
         self.open_job(
-            None,
-            0,
             None,
             JobKind::Startup,
             now,
@@ -601,9 +596,7 @@ impl Bridge {
         for w in waiting {
             self.stats.lines += 1;
             self.refuse(
-                w.origin,
-                w.number,
-                None,
+                &w.meta,
                 ErrorBody::new(
                     ErrorKind::Cancelled,
                     "the bridge was interrupted before the line was served",
@@ -629,7 +622,7 @@ impl Bridge {
             return;
         }
         let number = self.number(origin);
-        self.take_line(now, origin, number, line);
+        self.take_line(now, LineMeta::new(origin, number), line);
     }
 
     /// [`Bridge::handle_line`] for a line its runner already numbered (a
@@ -642,7 +635,7 @@ impl Bridge {
         if line.is_empty() {
             return;
         }
-        self.take_line(now, origin, number, line);
+        self.take_line(now, LineMeta::new(origin, number), line);
     }
 
     /// [`Bridge::handle_unreadable`] for a line its runner already numbered.
@@ -656,9 +649,7 @@ impl Bridge {
         self.now = self.now.max(now);
         self.stats.lines += 1;
         self.refuse(
-            origin,
-            number,
-            None,
+            &LineMeta::new(origin, number),
             ErrorBody::new(ErrorKind::Unreadable, reason),
         );
     }
@@ -677,29 +668,23 @@ impl Bridge {
         self.now = self.now.max(now);
         self.take_stop(
             now,
-            origin,
-            number,
-            None,
+            LineMeta::new(origin, number),
             vec![format!(
                 "{reason}; it names emergency_stop, so it is taken as a stop"
             )],
         );
     }
 
-    fn take_stop(
-        &mut self,
-        now: Duration,
-        origin: Origin,
-        number: u64,
-        label: Option<(&'static str, String)>,
-        problems: Vec<String>,
-    ) {
+    /// A stop line (`meta`, labelled when it names a motor or a
+    /// command).
+    fn take_stop(&mut self, now: Duration, meta: LineMeta, problems: Vec<String>) {
         self.last_stop_arrival = Some(self.last_stop_arrival.map_or(now, |t| t.max(now)));
         self.stats.lines += 1;
-        let cause = label
-            .as_ref()
-            .map_or_else(|| "input".to_owned(), |(_, v)| v.clone());
-        self.emergency_stop(now, Some(origin), number, label, problems, cause);
+        let cause = match &meta.label {
+            Some(Label::Motor(v) | Label::Command(v) | Label::Orion(v)) => v.clone(),
+            None => "input".to_owned(),
+        };
+        self.emergency_stop(now, Some(meta), problems, cause);
     }
 
     /// A line that could not be read as text (not UTF-8, too long): it
@@ -710,9 +695,7 @@ impl Bridge {
         self.stats.lines += 1;
         let number = self.number(origin);
         self.refuse(
-            origin,
-            number,
-            None,
+            &LineMeta::new(origin, number),
             ErrorBody::new(ErrorKind::Unreadable, reason),
         );
     }
@@ -729,28 +712,22 @@ impl Bridge {
         *n
     }
 
-    fn take_line(&mut self, now: Duration, origin: Origin, number: u64, line: &str) {
+    fn take_line(&mut self, now: Duration, meta: LineMeta, line: &str) {
         let input = classify(&self.validator, line);
         // The stop is acted on in every phase but the last, ahead of all.
         if let Input::Stop { label, problems } = input {
-            self.take_stop(now, origin, number, label, problems);
+            self.take_stop(now, meta.with(label), problems);
             return;
         }
         match self.phase {
             Phase::Starting => {
                 if self.waiting.len() >= self.config.max_pending_lines {
                     self.stats.lines += 1;
-                    self.busy(
-                        origin,
-                        number,
-                        None,
-                        "too many lines are waiting for the joints to start",
-                    );
+                    self.busy(&meta, "too many lines are waiting for the joints to start");
                 } else {
                     self.waiting.push_back(Waiting {
                         at: now,
-                        origin,
-                        number,
+                        meta,
                         text: line.to_owned(),
                     });
                 }
@@ -760,9 +737,7 @@ impl Bridge {
             Phase::Draining { .. } | Phase::Stopping | Phase::Finished => {
                 self.stats.lines += 1;
                 self.refuse(
-                    origin,
-                    number,
-                    None,
+                    &meta,
                     ErrorBody::new(ErrorKind::ShuttingDown, "the bridge is shutting down"),
                 );
                 return;
@@ -775,67 +750,53 @@ impl Bridge {
             // overtook the queue, or the release waited for startup):
             // releasing now would let what followed the release run after
             // the stop.
-            Input::Release if self.last_stop_arrival.is_some_and(|t| now < t) => self.refuse(
-                origin,
-                number,
-                None,
-                ErrorBody::new(
+            Input::Release if self.last_stop_arrival.is_some_and(|t| now < t) => self.refuse(&meta, ErrorBody::new(
                     ErrorKind::Cancelled,
                     "an emergency stop sent after this release was acted on before it; the emergency stop stays latched",
                 ),
             ),
-            Input::Release => self.release(now, origin, number),
+            Input::Release => self.release(now, meta),
             Input::BadRelease { reason } => {
-                self.refuse(origin, number, None, ErrorBody::new(ErrorKind::InvalidRelease, reason));
+                self.refuse(&meta, ErrorBody::new(ErrorKind::InvalidRelease, reason));
             }
             Input::Invalid { message, violations, label } => {
                 let mut e = ErrorBody::new(ErrorKind::Invalid, message);
                 e.violations = violations;
-                self.refuse(origin, number, label, e);
+                self.refuse(&meta.with(label), e);
             }
-            Input::QueryLimits { motor_id } => self.query_limits(origin, number, &motor_id),
-            Input::OrionCommand { command } => self.orion_command(now, origin, number, command),
+            Input::QueryLimits { motor_id } => self.query_limits(meta, &motor_id),
+            Input::OrionCommand { command } => self.orion_command(now, meta, command),
             Input::Request { kind, motor_id } => {
-                self.request_line(now, origin, number, kind, &motor_id);
+                self.request_line(now, meta, kind, &motor_id);
             }
             Input::Calibration { motor_id, start } => {
-                self.calibration_line(now, origin, number, &motor_id, start);
+                self.calibration_line(now, meta, &motor_id, start);
             }
-            Input::Reset { motor_id } => self.reset_joint(now, origin, number, &motor_id),
+            Input::Reset { motor_id } => self.reset_joint(now, meta, &motor_id),
             Input::Trajectories { id, trajectories } => {
-                self.trajectories(now, origin, number, &id, &trajectories);
+                self.trajectories(now, meta, &id, &trajectories);
             }
             Input::Message(m) => match *m {
-                Message::MotorCommand(cmd) => self.motor_command(now, origin, number, &cmd),
-                Message::MultiAxisCommand(cmd) => self.multi_axis(now, origin, number, &cmd),
-                Message::SafetyLimits(l) => self.safety_limits(origin, number, &l),
+                Message::MotorCommand(cmd) => self.motor_command(now, meta, &cmd),
+                Message::MultiAxisCommand(cmd) => self.multi_axis(now, meta, &cmd),
+                Message::SafetyLimits(l) => self.safety_limits(meta, &l),
                 Message::Trajectory(t) => {
                     let id = t.trajectory_id.clone();
-                    self.trajectories(now, origin, number, &id, std::slice::from_ref(&t));
+                    self.trajectories(now, meta, &id, std::slice::from_ref(&t));
                 }
                 Message::PidConfig(p) => self.refuse(
-                    origin,
-                    number,
-                    Some(("motor_id", p.motor_id.clone())),
+                    &meta.labelled(Label::Motor(p.motor_id.clone())),
                     ErrorBody::new(
                         ErrorKind::Unsupported,
                         "iRPC carries no PID gains (its joints run their own control loops): nothing was sent",
                     ),
                 ),
-                Message::ControlModeConfig(_) => self.refuse(
-                    origin,
-                    number,
-                    None,
-                    ErrorBody::new(
+                Message::ControlModeConfig(_) => self.refuse(&meta, ErrorBody::new(
                         ErrorKind::Unsupported,
                         "iRPC carries no control-mode configuration (a joint takes position moves and lifecycle requests): nothing was sent",
                     ),
                 ),
-                other => self.refuse(
-                    origin,
-                    number,
-                    None,
-                    ErrorBody::new(
+                other => self.refuse(&meta, ErrorBody::new(
                         ErrorKind::UnsupportedKind,
                         format!(
                             "a {} is valid WIA, but the bridge takes motor-command and multi-axis-command lines",
@@ -854,19 +815,12 @@ impl Bridge {
     /// anything is sent, then each segment sent at its time
     /// (`timing.start_time` in the future schedules the start). Each joint
     /// must stand at its first waypoint.
-    fn trajectories(
-        &mut self,
-        now: Duration,
-        origin: Origin,
-        number: u64,
-        id: &str,
-        all: &[Trajectory],
-    ) {
+    fn trajectories(&mut self, now: Duration, meta: LineMeta, id: &str, all: &[Trajectory]) {
         // One trajectory: labelled by its motor; several: by their id.
-        let label = match all {
-            [one] => Some(("motor_id", one.motor_id.clone())),
-            _ => Some(("command_id", id.to_owned())),
-        };
+        let meta = meta.labelled(match all {
+            [one] => Label::Motor(one.motor_id.clone()),
+            _ => Label::Command(id.to_owned()),
+        });
         let now_ms = self.unix_ms(now);
         // One time base: the first `start_time` given, or now.
         let start_ms = all
@@ -877,7 +831,7 @@ impl Bridge {
             start_ms.min(now_ms),
             all.iter().map(|t| t.motor_id.as_str()),
         ) {
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         }
         if let (Some(_), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age)
@@ -891,7 +845,7 @@ impl Bridge {
                     max_age.as_secs_f64()
                 ),
             );
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         }
         // A start_time so far ahead that no clock reaches it (1e300) is
@@ -901,7 +855,7 @@ impl Bridge {
                 BridgeRule::TimeUnreachable,
                 format!("timing.start_time {start_ms} is beyond any time the bridge can wait for"),
             );
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         };
         let start = now.saturating_add(delay);
@@ -914,14 +868,14 @@ impl Bridge {
                     BridgeRule::MotorTwice,
                     format!("{} has two trajectories in one line", t.motor_id),
                 );
-                self.refuse(origin, number, label, e);
+                self.refuse(&meta, e);
                 return;
             }
             let plan = match trajectory_to_irpc(&self.map, t) {
                 Ok(p) => p,
                 Err(r) => {
                     let e = ErrorBody::gate(&r);
-                    self.refuse(origin, number, label, e);
+                    self.refuse(&meta, e);
                     return;
                 }
             };
@@ -934,7 +888,7 @@ impl Bridge {
                     BridgeRule::NotAnIrpcJoint,
                     format!("{} is not an iRPC joint", t.motor_id),
                 );
-                self.refuse(origin, number, label, e);
+                self.refuse(&meta, e);
                 return;
             };
             let (unit, tolerance) = self
@@ -961,7 +915,7 @@ impl Bridge {
                         short_unit(unit.from_degrees(first))
                     ),
                 );
-                self.refuse(origin, number, label, e);
+                self.refuse(&meta, e);
                 return;
             }
             for mut loss in plan.report.losses {
@@ -981,7 +935,7 @@ impl Bridge {
                         t.motor_id
                     ),
                 );
-                self.refuse(origin, number, label, e);
+                self.refuse(&meta, e);
                 return;
             }
             let mut axis = Axis::new(
@@ -1017,7 +971,7 @@ impl Bridge {
             }
             axes.push(axis);
         }
-        self.command_job(now, origin, number, label, axes, report);
+        self.command_job(now, meta, axes, report);
     }
 
     // ---- faults and resets ----------------------------------------------------
@@ -1025,14 +979,14 @@ impl Bridge {
     /// A reset line: Reset, Configure and Activate for joint `motor`, after
     /// a fault or a reboot (or to start a joint afresh). Refused while the
     /// emergency stop is latched.
-    fn reset_joint(&mut self, now: Duration, origin: Origin, number: u64, motor: &str) {
-        let label = Some(("motor_id", motor.to_owned()));
+    fn reset_joint(&mut self, now: Duration, meta: LineMeta, motor: &str) {
+        let meta = meta.labelled(Label::Motor(motor.to_owned()));
         if self.latched {
             let e = ErrorBody::new(
                 ErrorKind::EmergencyStopLatched,
                 "the emergency stop is latched; release it first, then reset",
             );
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         }
         // An iRPC joint only: Reset goes to its node alone (an Orion motor's
@@ -1040,7 +994,7 @@ impl Bridge {
         let ji = match self.joint_for(motor, Capability::Reset, PayloadKind::Reset, "Reset") {
             Ok(ji) => ji,
             Err(e) => {
-                self.refuse(origin, number, label, e);
+                self.refuse(&meta, e);
                 return;
             }
         };
@@ -1059,9 +1013,7 @@ impl Bridge {
                 .chain(subscription),
         )];
         self.open_job(
-            Some(origin),
-            number,
-            label,
+            Some(meta),
             JobKind::Reset,
             now,
             axes,
@@ -1166,7 +1118,7 @@ impl Bridge {
                 .chain(cycle)
             {
                 let reach = order.reach(unit);
-                let line = job.number;
+                let line = job.number();
                 if let Some(t) = reach.target.filter(|t| outside(*t)) {
                     return Some(format!("line {line} moves it to {}", say(t)));
                 }
@@ -1178,39 +1130,39 @@ impl Bridge {
         None
     }
 
-    fn query_limits(&mut self, origin: Origin, number: u64, motor: &str) {
-        let label = Some(("motor_id", motor.to_owned()));
+    fn query_limits(&mut self, meta: LineMeta, motor: &str) {
+        let meta = meta.labelled(Label::Motor(motor.to_owned()));
         let Some(limits) = self.limits_value(motor) else {
             let e = ErrorBody::refused(
                 BridgeRule::UnknownMotor,
                 format!("motor {motor:?} is not in the bus map"),
             )
             .about(motor);
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         };
         let r = LineResult {
             ok: true,
-            line: number,
+            line: meta.number,
             limits: Some(limits),
             ..LineResult::default()
         };
-        self.answer(origin, r, label);
+        self.answer(&meta, r);
     }
 
     /// A WIA SafetyLimits line: the motor's gate is held to these limits
     /// from now on (until another such line). Each limit must lie within
     /// the bus map's; a wider one refuses the whole line.
-    fn safety_limits(&mut self, origin: Origin, number: u64, l: &SafetyLimits) {
+    fn safety_limits(&mut self, meta: LineMeta, l: &SafetyLimits) {
         let name = l.motor_id.clone();
-        let label = Some(("motor_id", name.clone()));
+        let meta = meta.labelled(Label::Motor(name.clone()));
         let Some(base) = self.base_limits.get(&name).copied() else {
             let e = ErrorBody::refused(
                 BridgeRule::UnknownMotor,
                 format!("motor {name:?} is not in the bus map"),
             )
             .about(&name);
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         };
         let p = &l.position_limits;
@@ -1279,7 +1231,7 @@ impl Bridge {
         );
         if !wider.is_empty() {
             let e = ErrorBody::refused(BridgeRule::WiderThanBusMap, wider.join("; ")).about(&name);
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         }
         // The soft limits, where given, are the gate's; the torque a
@@ -1299,7 +1251,7 @@ impl Bridge {
                 ),
             )
             .about(&name);
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         }
         let torque = match (t.continuous_torque, t.peak_torque) {
@@ -1340,53 +1292,44 @@ impl Bridge {
         }
         let r = LineResult {
             ok: true,
-            line: number,
+            line: meta.number,
             limits: self.limits_value(&name),
             losses,
             ..LineResult::default()
         };
-        self.answer(origin, r, label);
+        self.answer(&meta, r);
     }
 
-    fn refuse(
-        &mut self,
-        origin: Origin,
-        number: u64,
-        label: Option<(&'static str, String)>,
-        error: ErrorBody,
-    ) {
+    fn refuse(&mut self, meta: &LineMeta, error: ErrorBody) {
         let r = LineResult {
             ok: false,
-            line: number,
+            line: meta.number,
             error: Some(error),
             ..LineResult::default()
         };
-        self.answer(origin, r, label);
+        self.answer(meta, r);
     }
 
-    /// Gives `r` (labelled) to `origin`, counting it.
-    fn answer(&mut self, origin: Origin, mut r: LineResult, label: Option<(&'static str, String)>) {
+    /// Gives `r` to `meta`'s origin, labelled as `meta` is, counting it.
+    fn answer(&mut self, meta: &LineMeta, mut r: LineResult) {
         if r.ok {
             self.stats.ok += 1;
         } else {
             self.stats.failed += 1;
         }
-        set_label(&mut r, label);
-        self.out.push_back(Output::Result { origin, result: r });
+        if let Some(label) = meta.label.clone() {
+            label.apply(&mut r);
+        }
+        self.out.push_back(Output::Result {
+            origin: meta.origin,
+            result: r,
+        });
     }
 
-    fn busy(
-        &mut self,
-        origin: Origin,
-        number: u64,
-        label: Option<(&'static str, String)>,
-        why: &str,
-    ) {
+    fn busy(&mut self, meta: &LineMeta, why: &str) {
         self.stats.busy += 1;
         self.refuse(
-            origin,
-            number,
-            label,
+            meta,
             ErrorBody::new(
                 ErrorKind::Busy,
                 format!("{why}; nothing was sent, send it again later"),
@@ -1537,17 +1480,17 @@ impl Bridge {
         Ok(())
     }
 
-    fn motor_command(&mut self, now: Duration, origin: Origin, number: u64, cmd: &MotorCommand) {
-        let label = Some(("motor_id", cmd.motor_id.clone()));
+    fn motor_command(&mut self, now: Duration, meta: LineMeta, cmd: &MotorCommand) {
+        let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
         if let Err(e) = self.admit(cmd.timestamp, std::iter::once(cmd.motor_id.as_str())) {
             if e.kind == ErrorKind::Busy {
                 self.stats.busy += 1;
             }
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         }
         if let Some(e) = self.orion_unattached(std::iter::once(cmd.motor_id.as_str())) {
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         }
         let device = self
@@ -1556,7 +1499,7 @@ impl Bridge {
         if let Some((ji, device)) = device
             && let Some(built) = self.single_axis(ji, device, cmd)
         {
-            self.device_command(now, origin, number, cmd, built);
+            self.device_command(now, meta, cmd, built);
             return;
         }
         match to_irpc(&self.map, cmd) {
@@ -1567,17 +1510,17 @@ impl Bridge {
                         format!("{} is not an iRPC joint of the bus map", cmd.motor_id),
                     )
                     .about(cmd.motor_id.clone());
-                    self.refuse(origin, number, label, e);
+                    self.refuse(&meta, e);
                     return;
                 };
                 if let Err(r) = self.path_within_limits(joint, cmd, &t.value.payloads) {
-                    self.refuse(origin, number, label, ErrorBody::gate(&r));
+                    self.refuse(&meta, ErrorBody::gate(&r));
                     return;
                 }
                 let axes = vec![Axis::new(cmd.motor_id.clone(), joint, t.value.payloads)];
-                self.command_job(now, origin, number, label, axes, t.report);
+                self.command_job(now, meta, axes, t.report);
             }
-            Err(r) => self.refuse(origin, number, label, ErrorBody::gate(&r)),
+            Err(r) => self.refuse(&meta, ErrorBody::gate(&r)),
         }
     }
 
@@ -1622,17 +1565,11 @@ impl Bridge {
     /// Orion motor's axis gated and translated on its own, all sent as one
     /// job. `sync_mode: sequential` runs them one after another, each once
     /// the one before arrived.
-    fn multi_axis_jobs(
-        &mut self,
-        now: Duration,
-        origin: Origin,
-        number: u64,
-        cmd: &MultiAxisCommand,
-    ) {
-        let label = Some(("command_id", cmd.command_id.clone()));
+    fn multi_axis_jobs(&mut self, now: Duration, meta: LineMeta, cmd: &MultiAxisCommand) {
+        let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
         let (mut axes, report) = match self.mixed_axes(cmd) {
             Ok(x) => x,
-            Err(e) => return self.refuse(origin, number, label, e),
+            Err(e) => return self.refuse(&meta, e),
         };
         if cmd.sync_mode == Some(SyncMode::Sequential) {
             // One after another: each starts once the one before it
@@ -1651,35 +1588,18 @@ impl Bridge {
                     ),
                 )
                 .about(a.motor.clone());
-                return self.refuse(origin, number, label, e);
+                return self.refuse(&meta, e);
             }
             for (k, a) in axes.iter_mut().enumerate().skip(1) {
                 a.after = Some(k - 1);
             }
         }
-        self.command_job(now, origin, number, label, axes, report);
+        self.command_job(now, meta, axes, report);
     }
 
     /// Opens the job of a command line: `axes`, `report`'s losses.
-    fn command_job(
-        &mut self,
-        now: Duration,
-        origin: Origin,
-        number: u64,
-        label: Option<(&'static str, String)>,
-        axes: Vec<Axis>,
-        report: Report,
-    ) {
-        self.open_job(
-            Some(origin),
-            number,
-            label,
-            JobKind::Command,
-            now,
-            axes,
-            report,
-            Vec::new(),
-        );
+    fn command_job(&mut self, now: Duration, meta: LineMeta, axes: Vec<Axis>, report: Report) {
+        self.open_job(Some(meta), JobKind::Command, now, axes, report, Vec::new());
     }
 
     /// A MotorCommand for one compact device or Orion motor: its axis as
@@ -1687,17 +1607,16 @@ impl Bridge {
     fn device_command(
         &mut self,
         now: Duration,
-        origin: Origin,
-        number: u64,
+        meta: LineMeta,
         cmd: &MotorCommand,
         built: Result<(Axis, Report), motorwire_translate::Refusal>,
     ) {
-        let label = Some(("motor_id", cmd.motor_id.clone()));
+        let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
         match built {
-            Ok((axis, report)) => self.command_job(now, origin, number, label, vec![axis], report),
+            Ok((axis, report)) => self.command_job(now, meta, vec![axis], report),
             Err(r) => {
                 let e = ErrorBody::gate(&r);
-                self.refuse(origin, number, label, e);
+                self.refuse(&meta, e);
             }
         }
     }
@@ -1802,8 +1721,8 @@ impl Bridge {
         Ok(())
     }
 
-    fn multi_axis(&mut self, now: Duration, origin: Origin, number: u64, cmd: &MultiAxisCommand) {
-        let label = Some(("command_id", cmd.command_id.clone()));
+    fn multi_axis(&mut self, now: Duration, meta: LineMeta, cmd: &MultiAxisCommand) {
+        let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
         if let Err(e) = self.admit(
             cmd.timestamp,
             cmd.motors.iter().map(|a| a.motor_id.as_str()),
@@ -1811,44 +1730,44 @@ impl Bridge {
             if e.kind == ErrorKind::Busy {
                 self.stats.busy += 1;
             }
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         }
         if let Some(e) = self.orion_unattached(cmd.motors.iter().map(|a| a.motor_id.as_str())) {
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         }
-        self.multi_axis_jobs(now, origin, number, cmd);
+        self.multi_axis_jobs(now, meta, cmd);
     }
 
     // ---- the emergency stop ------------------------------------------------
 
+    /// An emergency stop, asked by the line `meta` (or by the bridge
+    /// itself: `None`) because of `cause`.
     fn emergency_stop(
         &mut self,
         now: Duration,
-        origin: Option<Origin>,
-        number: u64,
-        label: Option<(&'static str, String)>,
+        meta: Option<LineMeta>,
         problems: Vec<String>,
         cause: String,
     ) {
         if self.phase == Phase::Finished {
             // Nothing runs any more; the joints were deactivated.
-            self.stats.failed += 1;
-            let mut r = LineResult {
-                ok: false,
-                line: number,
-                emergency_stop: true,
-                problems,
-                error: Some(ErrorBody::new(
-                    ErrorKind::ShuttingDown,
-                    "the bridge has already deactivated every joint",
-                )),
-                ..LineResult::default()
-            };
-            set_label(&mut r, label);
-            if let Some(origin) = origin {
-                self.out.push_back(Output::Result { origin, result: r });
+            if let Some(meta) = meta {
+                let r = LineResult {
+                    ok: false,
+                    line: meta.number,
+                    emergency_stop: true,
+                    problems,
+                    error: Some(ErrorBody::new(
+                        ErrorKind::ShuttingDown,
+                        "the bridge has already deactivated every joint",
+                    )),
+                    ..LineResult::default()
+                };
+                self.answer(&meta, r);
+            } else {
+                self.stats.failed += 1;
             }
             return;
         }
@@ -1869,11 +1788,9 @@ impl Bridge {
                 .find(|j| j.kind == JobKind::EmergencyStop)
         {
             self.stats.stops_coalesced += 1;
-            if let Some(origin) = origin {
+            if let Some(line) = meta {
                 job.riders.push(Rider {
-                    origin,
-                    number,
-                    label,
+                    line,
                     problems,
                     received: now,
                 });
@@ -1914,9 +1831,7 @@ impl Bridge {
             .push_back(Output::Event(Event::EmergencyStop { cause, cancelled }));
         let axes = self.every_joint(&[Payload::Deactivate]);
         self.open_job(
-            origin,
-            number,
-            label,
+            meta,
             JobKind::EmergencyStop,
             now,
             axes,
@@ -1948,10 +1863,10 @@ impl Bridge {
         let before = self.waiting.len();
         let mut cancelled: Vec<LineRef> = Vec::new();
         self.waiting.retain(|w| {
-            if w.origin == origin {
+            if w.meta.origin == origin {
                 cancelled.push(LineRef {
                     origin,
-                    line: w.number,
+                    line: w.meta.number,
                 });
                 false
             } else {
@@ -1961,11 +1876,11 @@ impl Bridge {
         self.stats.cancelled += (before - self.waiting.len()) as u64;
         let why = format!("cancelled: the client was disconnected ({reason})");
         cancelled.extend(self.cancel_where(&why, |job| {
-            job.origin == Some(origin) && job.kind == JobKind::Command
+            job.is_of(origin) && job.kind == JobKind::Command
         }));
         cancelled.sort_by_key(|r| r.line);
         cancelled.dedup();
-        self.arrivals.retain(|w| w.origin != origin);
+        self.arrivals.retain(|w| w.line.origin != origin);
         self.out.push_back(Output::Event(Event::ClientDropped {
             origin,
             reason: reason.to_owned(),
@@ -2059,12 +1974,7 @@ impl Bridge {
                 }
                 job.cut.get_or_insert_with(|| why.to_owned());
                 self.stats.cancelled += 1;
-                if let Some(o) = job.origin {
-                    touched.push(LineRef {
-                        origin: o,
-                        line: job.number,
-                    });
-                }
+                touched.extend(job.line_ref());
             }
             for s in queued {
                 if let Some(job) = self.jobs.get_mut(&s.job)
@@ -2077,12 +1987,7 @@ impl Bridge {
                     );
                     job.cut.get_or_insert_with(|| why.to_owned());
                     self.stats.cancelled += 1;
-                    if let Some(o) = job.origin {
-                        touched.push(LineRef {
-                            origin: o,
-                            line: job.number,
-                        });
-                    }
+                    touched.extend(job.line_ref());
                 }
             }
         }
@@ -2096,12 +2001,10 @@ impl Bridge {
         touched
     }
 
-    fn release(&mut self, now: Duration, origin: Origin, number: u64) {
+    fn release(&mut self, now: Duration, meta: LineMeta) {
         if !self.latched {
             self.refuse(
-                origin,
-                number,
-                None,
+                &meta,
                 ErrorBody::new(
                     ErrorKind::NotLatched,
                     "there is no emergency stop to release",
@@ -2135,9 +2038,7 @@ impl Bridge {
             })
             .collect();
         self.open_job(
-            Some(origin),
-            number,
-            None,
+            Some(meta),
             JobKind::Release,
             now,
             axes,
@@ -2167,12 +2068,9 @@ impl Bridge {
 
     // ---- jobs and the joint queues -------------------------------------------
 
-    #[allow(clippy::too_many_arguments)]
     fn open_job(
         &mut self,
-        origin: Option<Origin>,
-        number: u64,
-        label: Option<(&'static str, String)>,
+        line: Option<LineMeta>,
         kind: JobKind,
         now: Duration,
         axes: Vec<Axis>,
@@ -2192,9 +2090,7 @@ impl Bridge {
         self.jobs.insert(
             id,
             Job {
-                origin,
-                number,
-                label,
+                line,
                 kind,
                 received: now,
                 axes,
@@ -2475,7 +2371,7 @@ impl Bridge {
         let Some(job) = self.jobs.get_mut(&step.job) else {
             return;
         };
-        let (kind, origin, number) = (job.kind, job.origin, job.number);
+        let (kind, line) = (job.kind, job.line_ref());
         let Some(a) = job.axes.get_mut(step.axis) else {
             return;
         };
@@ -2518,8 +2414,8 @@ impl Bridge {
         {
             if let (JobKind::Command, Some(target)) = (kind, a_target) {
                 j.unresolved = Some(Unresolved {
-                    origin,
-                    line: number,
+                    origin: line.map(|l| l.origin),
+                    line: line.map_or(0, |l| l.line),
                     target,
                 });
             }
@@ -2683,8 +2579,6 @@ impl Bridge {
                 self.emergency_stop(
                     now,
                     None,
-                    0,
-                    None,
                     Vec::new(),
                     format!("deadman: could not stop {why}"),
                 );
@@ -2692,7 +2586,7 @@ impl Bridge {
             }
             JobKind::Command | JobKind::EmergencyStop | JobKind::Release | JobKind::Deadman => {}
         }
-        let Some(origin) = job.origin else { return };
+        let Some(meta) = job.line else { return };
         let latency = job.last_frame.map(|t| us(t.saturating_sub(job.received)));
         let ok = failures.is_empty() && job.data_error.is_none();
         let error = if !failures.is_empty() {
@@ -2702,14 +2596,9 @@ impl Bridge {
                 .clone()
                 .map(|why| ErrorBody::new(ErrorKind::NoAnswer, why))
         };
-        if ok {
-            self.stats.ok += 1;
-        } else {
-            self.stats.failed += 1;
-        }
         let mut r = LineResult {
             ok,
-            line: job.number,
+            line: meta.number,
             emergency_stop: job.kind == JobKind::EmergencyStop,
             released: job.kind == JobKind::Release,
             error,
@@ -2732,33 +2621,25 @@ impl Bridge {
             data: job.data.clone(),
             ..LineResult::default()
         };
+        r.arrival_follows = job.kind == JobKind::Command && !moved.is_empty();
+        // The riders' results come before the line's own, as they did
+        // when each was pushed as it was built.
         for rider in job.riders {
-            let mut rr = LineResult {
-                line: rider.number,
+            let rr = LineResult {
+                line: rider.line.number,
                 problems: rider.problems,
                 // The stop frames went out before this line came.
                 latency_us: latency.map(|_| 0),
                 stop_latency_us: latency.map(|_| 0),
                 ack_us: Some(us(now.saturating_sub(rider.received))),
+                arrival_follows: false,
                 ..r.clone()
             };
-            set_label(&mut rr, rider.label);
-            if rr.ok {
-                self.stats.ok += 1;
-            } else {
-                self.stats.failed += 1;
-            }
-            self.out.push_back(Output::Result {
-                origin: rider.origin,
-                result: rr,
-            });
+            self.answer(&rider.line, rr);
         }
-        let watch_label = job.label.clone();
-        r.arrival_follows = job.kind == JobKind::Command && !moved.is_empty();
-        set_label(&mut r, job.label);
-        self.out.push_back(Output::Result { origin, result: r });
+        self.answer(&meta, r);
         if job.kind == JobKind::Command && !moved.is_empty() {
-            self.watch(origin, job.number, watch_label, moved);
+            self.watch(meta, moved);
         }
     }
 
@@ -2766,16 +2647,13 @@ impl Bridge {
 
     /// Watches a motion line's acked moves until they arrive; an older
     /// line still waiting on one of these joints will not arrive now.
-    fn watch(
-        &mut self,
-        origin: Origin,
-        line: u64,
-        label: Option<(&'static str, String)>,
-        moved: Vec<(usize, String, f64)>,
-    ) {
+    fn watch(&mut self, meta: LineMeta, moved: Vec<(usize, String, f64)>) {
         let now = self.now;
         for (ji, ..) in &moved {
-            let why = format!("superseded by line {line} of client {}", origin.0);
+            let why = format!(
+                "superseded by line {} of client {}",
+                meta.number, meta.origin.0
+            );
             self.fail_watches(|w| w.waits_on(*ji), &why);
         }
         let mut axes = Vec::new();
@@ -2799,10 +2677,9 @@ impl Bridge {
         }
         let planned = end.saturating_sub(now);
         let margin = (planned / 4).max(Duration::from_millis(500));
+        let origin = meta.origin;
         let mut w = Watch {
-            origin,
-            line,
-            label,
+            line: meta,
             since: now,
             deadline: end.saturating_add(margin),
             axes,
@@ -2833,7 +2710,7 @@ impl Bridge {
                 let w = self.arrivals.remove(i);
                 let arrival = w.verdict(at, None);
                 self.out.push_back(Output::Arrival {
-                    origin: w.origin,
+                    origin: w.line.origin,
                     arrival,
                 });
             } else {
@@ -2851,7 +2728,7 @@ impl Bridge {
                 let w = self.arrivals.remove(i);
                 let arrival = w.verdict(now, Some(why.to_owned()));
                 self.out.push_back(Output::Arrival {
-                    origin: w.origin,
+                    origin: w.line.origin,
                     arrival,
                 });
             } else {
@@ -3001,8 +2878,6 @@ impl Bridge {
             }
             self.open_job(
                 None,
-                0,
-                None,
                 JobKind::Deadman,
                 now,
                 vec![axis],
@@ -3139,7 +3014,7 @@ impl Bridge {
         if let Some(cause) = joint_stop {
             // A joint's own emergency stop stops every joint: the arm is
             // not safe to move with one of them down.
-            self.emergency_stop(at, None, 0, None, Vec::new(), cause);
+            self.emergency_stop(at, None, Vec::new(), cause);
         }
     }
 
@@ -3213,7 +3088,7 @@ impl Bridge {
                 .join(", ");
             let arrival = w.verdict(now, Some(format!("timed out: {far}")));
             self.out.push_back(Output::Arrival {
-                origin: w.origin,
+                origin: w.line.origin,
                 arrival,
             });
         }
@@ -3402,15 +3277,6 @@ impl Bridge {
         .into_iter()
         .flatten()
         .min()
-    }
-}
-
-fn set_label(r: &mut LineResult, label: Option<(&'static str, String)>) {
-    match label {
-        Some(("motor_id", v)) => r.motor_id = Some(v),
-        Some(("orion", v)) => r.orion = Some(v),
-        Some((_, v)) => r.command_id = Some(v),
-        None => {}
     }
 }
 

@@ -8,7 +8,52 @@ use motorwire_irpc::Payload;
 use motorwire_translate::Report;
 
 pub(crate) use crate::device::{Order, OrionOrder};
-use crate::output::{Origin, StepOutcome, StepReport};
+use crate::output::{Label, LineRef, Origin, StepOutcome, StepReport};
+
+/// One input line's identity as it travels from its reading to its
+/// result: who sent it, its number among their lines, and what its result
+/// is labelled with (set once the line is read far enough to know).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct LineMeta {
+    pub(crate) origin: Origin,
+    pub(crate) number: u64,
+    pub(crate) label: Option<Label>,
+}
+
+impl LineMeta {
+    /// Line `number` of `origin`, not yet labelled.
+    pub(crate) const fn new(origin: Origin, number: u64) -> Self {
+        Self {
+            origin,
+            number,
+            label: None,
+        }
+    }
+
+    /// The same line, labelled.
+    pub(crate) fn labelled(&self, label: Label) -> Self {
+        Self {
+            label: Some(label),
+            ..self.clone()
+        }
+    }
+
+    /// The same line with `label` (when the line named one).
+    pub(crate) fn with(&self, label: Option<Label>) -> Self {
+        Self {
+            label,
+            ..self.clone()
+        }
+    }
+
+    /// Its origin and number, as events name it.
+    pub(crate) const fn at(&self) -> LineRef {
+        LineRef {
+            origin: self.origin,
+            line: self.number,
+        }
+    }
+}
 
 /// What a job is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -154,9 +199,9 @@ pub(crate) struct Cycle {
 /// One job.
 #[derive(Debug)]
 pub(crate) struct Job {
-    pub(crate) origin: Option<Origin>,
-    pub(crate) number: u64,
-    pub(crate) label: Option<(&'static str, String)>,
+    /// The input line it serves (none for the bridge's own: startup, a
+    /// deadman, a stop no line asked for, the shutdown).
+    pub(crate) line: Option<LineMeta>,
     pub(crate) kind: JobKind,
     pub(crate) received: Duration,
     pub(crate) axes: Vec<Axis>,
@@ -204,14 +249,27 @@ pub(crate) struct Awaiting {
 /// A stop line answered by a stop already under way.
 #[derive(Debug)]
 pub(crate) struct Rider {
-    pub(crate) origin: Origin,
-    pub(crate) number: u64,
-    pub(crate) label: Option<(&'static str, String)>,
+    pub(crate) line: LineMeta,
     pub(crate) problems: Vec<String>,
     pub(crate) received: Duration,
 }
 
 impl Job {
+    /// The number of the line it serves (0: none).
+    pub(crate) fn number(&self) -> u64 {
+        self.line.as_ref().map_or(0, |l| l.number)
+    }
+
+    /// The line it serves, as events name it.
+    pub(crate) fn line_ref(&self) -> Option<LineRef> {
+        self.line.as_ref().map(LineMeta::at)
+    }
+
+    /// Whether it serves a line of `origin`.
+    pub(crate) fn is_of(&self, origin: Origin) -> bool {
+        self.line.as_ref().is_some_and(|l| l.origin == origin)
+    }
+
     pub(crate) fn is_done(&self) -> bool {
         let failed = self
             .axes

@@ -739,6 +739,45 @@ pub enum Event {
     },
 }
 
+/// What a line's result (and its arrival line) is labelled with: the
+/// member of the line that names what it is about.
+///
+/// ```
+/// use motorwire_bridge::{Label, LineResult};
+/// let mut r = LineResult::default();
+/// Label::Motor("elbow".to_owned()).apply(&mut r);
+/// assert_eq!(r.motor_id.as_deref(), Some("elbow"));
+/// assert_eq!(Label::Command("pick".to_owned()).motor(), None);
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Label {
+    /// `motor_id`: a motor command, a trajectory, a request, a reset.
+    Motor(String),
+    /// `command_id`: a multi-axis command, several trajectories at once.
+    Command(String),
+    /// `orion`: the Orion controller's fold or unfold.
+    Orion(String),
+}
+
+impl Label {
+    /// The motor it names, if it names one.
+    pub fn motor(&self) -> Option<&str> {
+        match self {
+            Self::Motor(m) => Some(m),
+            Self::Command(_) | Self::Orion(_) => None,
+        }
+    }
+
+    /// Writes it into the member of `r` it is.
+    pub fn apply(self, r: &mut LineResult) {
+        match self {
+            Self::Motor(v) => r.motor_id = Some(v),
+            Self::Command(v) => r.command_id = Some(v),
+            Self::Orion(v) => r.orion = Some(v),
+        }
+    }
+}
+
 /// An input line: its origin and number.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct LineRef {

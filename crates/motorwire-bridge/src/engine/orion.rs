@@ -19,8 +19,10 @@ use crate::device::Device;
 use crate::device::orion::{BadLine, Done};
 pub use crate::device::orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL};
 pub(crate) use crate::device::orion::{ORION_NODE, OrionDriver};
+use crate::job::LineMeta;
 use crate::job::{Axis, AxisState, Order, OrionOrder};
 use crate::joints::StepRef;
+use crate::output::Label;
 use crate::output::{Event, Output as BridgeOutput};
 
 impl Bridge {
@@ -361,19 +363,13 @@ impl Bridge {
 
     /// `{"orion":"fold"}` or `{"orion":"unfold"}`: the controller's command
     /// mode, for every Orion motor of the map (one line).
-    pub(super) fn orion_command(
-        &mut self,
-        now: Duration,
-        origin: crate::output::Origin,
-        number: u64,
-        command: ArmCommand,
-    ) {
+    pub(super) fn orion_command(&mut self, now: Duration, meta: LineMeta, command: ArmCommand) {
         let name = match command {
             ArmCommand::Fold => "fold",
             ArmCommand::Unfold => "unfold",
             ArmCommand::Stop => "stop",
         };
-        let label = Some(("orion", name.to_owned()));
+        let meta = meta.labelled(Label::Orion(name.to_owned()));
         let motors: Vec<(usize, String)> = self
             .joints
             .iter()
@@ -386,18 +382,18 @@ impl Bridge {
                 crate::output::BridgeRule::OrionNotAttached,
                 "no Orion arm controller is attached (motorwire bridge --orion ...)",
             );
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         }
         if let Err(e) = self.admit_now(motors.iter().map(|(_, n)| n.as_str())) {
-            self.refuse(origin, number, label, e);
+            self.refuse(&meta, e);
             return;
         }
         let axes = motors
             .into_iter()
             .map(|(ji, name)| Axis::of(name, ji, [Order::Orion(OrionOrder::Command(command))]))
             .collect();
-        self.command_job(now, origin, number, label, axes, Report::default());
+        self.command_job(now, meta, axes, Report::default());
     }
 
     /// The refusal for an Orion motor among `motors` when no controller

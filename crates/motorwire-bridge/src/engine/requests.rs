@@ -19,8 +19,10 @@ use motorwire_translate::Report;
 use super::Bridge;
 use crate::classify::RequestKind;
 use crate::device::Capability;
+use crate::job::LineMeta;
 use crate::job::{AwaitKind, Awaiting, Axis};
-use crate::output::{ErrorBody, ErrorKind, Event, Origin, Output};
+use crate::output::Label;
+use crate::output::{ErrorBody, ErrorKind, Event, Output};
 
 /// How long past its Ack timeouts a request line waits for its answer.
 const ANSWER_MARGIN: Duration = Duration::from_millis(500);
@@ -114,12 +116,11 @@ impl Bridge {
     pub(super) fn request_line(
         &mut self,
         now: Duration,
-        origin: Origin,
-        number: u64,
+        meta: LineMeta,
         kind: RequestKind,
         motor: &str,
     ) {
-        let label = Some(("motor_id", motor.to_owned()));
+        let meta = meta.labelled(Label::Motor(motor.to_owned()));
         let (needs, payload, awaits, what) = match kind {
             RequestKind::Telemetry => (
                 PayloadKind::RequestTelemetry,
@@ -142,14 +143,12 @@ impl Bridge {
         };
         let ji = match self.joint_for(motor, Capability::Requests, needs, what) {
             Ok(ji) => ji,
-            Err(e) => return self.refuse(origin, number, label, e),
+            Err(e) => return self.refuse(&meta, e),
         };
         let deadline = now.saturating_add(self.answer_wait());
         self.open_waiting(
             now,
-            origin,
-            number,
-            label,
+            meta,
             Axis::new(motor.to_owned(), ji, [payload]),
             Awaiting {
                 joint: ji,
@@ -163,12 +162,11 @@ impl Bridge {
     pub(super) fn calibration_line(
         &mut self,
         now: Duration,
-        origin: Origin,
-        number: u64,
+        meta: LineMeta,
         motor: &str,
         start: Option<CalibrationRequest>,
     ) {
-        let label = Some(("motor_id", motor.to_owned()));
+        let meta = meta.labelled(Label::Motor(motor.to_owned()));
         let ji = match self.joint_for(
             motor,
             Capability::Requests,
@@ -176,16 +174,16 @@ impl Bridge {
             "calibration (v2.1 on)",
         ) {
             Ok(ji) => ji,
-            Err(e) => return self.refuse(origin, number, label, e),
+            Err(e) => return self.refuse(&meta, e),
         };
         let Some(request) = start else {
             let axis = Axis::new(motor.to_owned(), ji, [Payload::StopCalibration]);
-            self.command_job(now, origin, number, label, vec![axis], Report::default());
+            self.command_job(now, meta, vec![axis], Report::default());
             return;
         };
         // A calibration moves the joint: refused as a motion is.
         if let Err(e) = self.admit_now(std::iter::once(motor)) {
-            return self.refuse(origin, number, label, e);
+            return self.refuse(&meta, e);
         }
         let phases = request.phases.count_ones().max(1);
         let per_phase =
@@ -196,9 +194,7 @@ impl Bridge {
             .saturating_add(CALIBRATION_MARGIN);
         self.open_waiting(
             now,
-            origin,
-            number,
-            label,
+            meta,
             Axis::new(motor.to_owned(), ji, [Payload::StartCalibration(request)]),
             Awaiting {
                 joint: ji,
@@ -208,17 +204,9 @@ impl Bridge {
         );
     }
 
-    fn open_waiting(
-        &mut self,
-        now: Duration,
-        origin: Origin,
-        number: u64,
-        label: Option<(&'static str, String)>,
-        axis: Axis,
-        awaiting: Awaiting,
-    ) {
+    fn open_waiting(&mut self, now: Duration, meta: LineMeta, axis: Axis, awaiting: Awaiting) {
         let id = self.next_job;
-        self.command_job(now, origin, number, label, vec![axis], Report::default());
+        self.command_job(now, meta, vec![axis], Report::default());
         // Not done yet (a job is taken out once done): it waits.
         if let Some(job) = self.jobs.get_mut(&id) {
             job.awaiting = Some(awaiting);
