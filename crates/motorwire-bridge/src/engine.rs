@@ -29,11 +29,11 @@ pub use orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL as ORION_POLL};
 
 use motorwire_can::Frame;
 use motorwire_can::client::ClientConfig;
-use motorwire_compact::{ControlMode as CompactMode, Flags, MotorHash};
+use motorwire_compact::MotorHash;
 use motorwire_irpc::{LifecycleState, Payload, PayloadKind};
 use motorwire_translate::{
-    AngleUnit, BusMap, Limits, Report, Target, feedback_from_irpc, multi_axis_to_irpc, to_compact,
-    to_irpc, trajectory_to_irpc,
+    AngleUnit, BusMap, Limits, Report, Target, feedback_from_irpc, multi_axis_to_irpc, to_irpc,
+    trajectory_to_irpc,
 };
 use motorwire_wia::{
     Message, MotorCommand, MotorFeedback, MultiAxisCommand, SafetyLimits, SyncMode, Trajectory,
@@ -1533,31 +1533,12 @@ impl Bridge {
         device: Device,
         cmd: &MotorCommand,
     ) -> Option<Result<(Axis, Report), motorwire_translate::Refusal>> {
-        match device {
-            Device::Irpc { .. } => None,
-            Device::Compact { .. } => Some(self.compact_axis(ji, cmd)),
-            Device::Orion(_) => Some(self.orion_axis(ji, cmd)),
-        }
-    }
-
-    /// `cmd` for compact device `ji`, gated and translated, as its axis.
-    fn compact_axis(
-        &self,
-        ji: usize,
-        cmd: &MotorCommand,
-    ) -> Result<(Axis, Report), motorwire_translate::Refusal> {
-        let t = to_compact(&self.map, cmd)?;
-        let mut c = t.value;
-        c.flags = c.flags.union(Flags::REQUIRE_ACK);
-        let unit = self
-            .map
-            .motor(&cmd.motor_id)
-            .map_or(AngleUnit::Degrees, |m| m.unit);
-        let mut axis = Axis::of(cmd.motor_id.clone(), ji, [Order::Compact(c)]);
-        if c.control_mode == CompactMode::Position {
-            axis.target = Some(unit.to_degrees(f64::from(c.setpoint)));
-        }
-        Ok((axis, t.report))
+        let built = device.single_order(&self.map, cmd)?;
+        Some(built.map(|one| {
+            let mut axis = Axis::of(cmd.motor_id.clone(), ji, [one.order]);
+            axis.target = one.target;
+            (axis, one.report)
+        }))
     }
 
     /// A multi-axis command: the iRPC joints' axes planned together
@@ -1632,7 +1613,7 @@ impl Bridge {
             self.joint_index(&a.motor_id).is_some_and(|ji| {
                 self.joints
                     .get(ji)
-                    .is_some_and(|j| matches!(j.device, Device::Irpc { .. }))
+                    .is_some_and(|j| j.device.planned_together())
             })
         });
         let mut irpc: Vec<Vec<Payload>> = Vec::new();

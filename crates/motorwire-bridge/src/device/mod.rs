@@ -59,7 +59,8 @@ use motorwire_can::Frame;
 use motorwire_compact::{CompactCommand, ControlMode as CompactMode, Flags, MotorHash};
 use motorwire_irpc::{Payload, PayloadKind, SetTargetPayloadV2, WireVersion};
 use motorwire_orion::{ArmCommand, Motor, Quantity};
-use motorwire_translate::AngleUnit;
+use motorwire_translate::{AngleUnit, BusMap, Refusal, Report, to_compact, to_orion_motor};
+use motorwire_wia::MotorCommand;
 
 pub(crate) mod compact;
 pub(crate) mod irpc;
@@ -200,6 +201,58 @@ impl Device {
         }
     }
 
+    /// Whether its moves are planned by the bridge from its state, with
+    /// the other such devices of a multi-axis line (an iRPC joint's
+    /// SetTargetV2); the others take a command on its own
+    /// ([`Device::single_order`]).
+    pub(crate) const fn planned_together(self) -> bool {
+        matches!(self, Self::Irpc { .. })
+    }
+
+    /// `cmd` gated against `map`'s limits in force and translated into
+    /// the device's one order, for a device that takes a command on its
+    /// own; `None` for one whose moves are planned together (an iRPC
+    /// joint).
+    pub(crate) fn single_order(
+        self,
+        map: &BusMap,
+        cmd: &MotorCommand,
+    ) -> Option<Result<Single, Refusal>> {
+        match self {
+            Self::Irpc { .. } => None,
+            Self::Compact { .. } => Some(to_compact(map, cmd).map(|t| {
+                let mut c = t.value;
+                c.flags = c.flags.union(Flags::REQUIRE_ACK);
+                let unit = map
+                    .motor(&cmd.motor_id)
+                    .map_or(AngleUnit::Degrees, |m| m.unit);
+                Single {
+                    order: Order::Compact(c),
+                    target: (c.control_mode == CompactMode::Position)
+                        .then(|| unit.to_degrees(f64::from(c.setpoint))),
+                    report: t.report,
+                }
+            })),
+            Self::Orion(motor) => Some(to_orion_motor(map, cmd).map(|t| {
+                let order = match t.value {
+                    motorwire_orion::Input::DirectControl(values) => {
+                        OrionOrder::Set(motor, values.get(motor).unwrap_or(0.0))
+                    }
+                    motorwire_orion::Input::Command(_) => OrionOrder::Command(ArmCommand::Stop),
+                };
+                let target = match order {
+                    OrionOrder::Set(m, v) if m.quantity() == Quantity::PositionDegrees => Some(v),
+                    _ => None,
+                };
+                Single {
+                    order: Order::Orion(order),
+                    target,
+                    report: t.report,
+                }
+            })),
+        }
+    }
+
     /// Who it is, as a message about an unanswered request says it.
     pub(crate) fn who(self, node: u16) -> String {
         match self {
@@ -207,6 +260,16 @@ impl Device {
             Self::Orion(_) => orion::LABEL.to_owned(),
         }
     }
+}
+
+/// A command translated for a device that takes it on its own.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Single {
+    pub(crate) order: Order,
+    /// The target of a position move (degrees), watched for arrival.
+    pub(crate) target: Option<f64>,
+    /// What the translation could not carry, or defaulted.
+    pub(crate) report: Report,
 }
 
 /// One request for a device: an iRPC payload for a joint, a compact

@@ -11,7 +11,7 @@
 
 use std::time::Duration;
 
-use motorwire_orion::{ArmCommand, Motor, Quantity};
+use motorwire_orion::{ArmCommand, Quantity};
 use motorwire_translate::Report;
 
 use super::Bridge;
@@ -333,32 +333,6 @@ impl Bridge {
                             .is_some_and(|s| !self.after_earlier_axis(*s)))
             });
         self.drivers.orion.housekeeping(now, idle);
-    }
-
-    /// `cmd` for Orion motor `ji`, gated and translated, as its axis.
-    pub(super) fn orion_axis(
-        &self,
-        ji: usize,
-        cmd: &motorwire_wia::MotorCommand,
-    ) -> Result<(Axis, Report), motorwire_translate::Refusal> {
-        let t = motorwire_translate::to_orion_motor(&self.map, cmd)?;
-        let motor = match self.joints.get(ji).map(|j| j.device) {
-            Some(Device::Orion(m)) => m,
-            _ => Motor::Turntable,
-        };
-        let order = match t.value {
-            motorwire_orion::Input::DirectControl(values) => {
-                OrionOrder::Set(motor, values.get(motor).unwrap_or(0.0))
-            }
-            motorwire_orion::Input::Command(_) => OrionOrder::Command(ArmCommand::Stop),
-        };
-        let mut axis = Axis::of(cmd.motor_id.clone(), ji, [Order::Orion(order)]);
-        if let OrionOrder::Set(m, v) = order
-            && m.quantity() == Quantity::PositionDegrees
-        {
-            axis.target = Some(v);
-        }
-        Ok((axis, t.report))
     }
 
     /// `{"orion":"fold"}` or `{"orion":"unfold"}`: the controller's command
