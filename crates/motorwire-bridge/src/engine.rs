@@ -2757,22 +2757,19 @@ impl Bridge {
                 return;
             }
         };
-        let node = j.node;
+        let (node, name) = (j.node, j.name.clone());
         let unit = self
             .map
             .motor(&j.name)
             .map_or(AngleUnit::Degrees, |m| m.unit);
         self.heard(node, now);
         let ts = self.unix_ms(now);
-        if let Some(j) = self.joints.get_mut(ji) {
-            let pos = unit.to_degrees(f64::from(record.position));
-            let vel = unit.to_degrees(f64::from(record.velocity));
-            j.motion = Some((pos, vel));
-            j.feedback = Some(compact::feedback_to_wia(&j.name, ts, &record));
-        }
-        if let Some((pos, vel)) = self.joints.get(ji).and_then(|j| j.motion) {
-            self.moved(ji, pos, vel, now);
-        }
+        let motion = (
+            unit.to_degrees(f64::from(record.position)),
+            unit.to_degrees(f64::from(record.velocity)),
+        );
+        let feedback = compact::feedback_to_wia(&name, ts, &record);
+        self.reading(ji, now, Some(motion), Some(feedback));
         if let Some(ended) = self.drivers.compact.acknowledged(ji, now) {
             self.step_done(ji, ended);
         }
@@ -2884,6 +2881,9 @@ impl Bridge {
         self.finish_jobs();
     }
 
+    /// A message from an iRPC joint that is not an answer: what it says
+    /// ([`crate::device::irpc::heard`]) acted on: its lifecycle, its own
+    /// stop, a request line's answer, its reading.
     fn feedback(&mut self, message: motorwire_irpc::Message, at: Duration) {
         let node = message.header.source_id;
         self.heard(node, at);
@@ -2891,96 +2891,72 @@ impl Bridge {
         let Some(ji) = self.joints.iter().position(|j| j.node == node) else {
             return;
         };
-        let unit = self
-            .joints
-            .get(ji)
-            .and_then(|j| self.map.motor(&j.name))
-            .map(|m| m.unit);
-        let Some(j) = self.joints.get_mut(ji) else {
-            return;
-        };
-        let mut lost: Option<(String, Event)> = None;
-        let mut joint_stop: Option<String> = None;
-        match message.payload {
-            Payload::JointStatus { state, error_code } => {
-                let before = j.state;
-                j.state = Some(state);
-                j.active = state == LifecycleState::Active;
-                if state == LifecycleState::Error {
-                    lost = Some((
-                        format!("faulted (error code {error_code})"),
-                        Event::JointFault {
-                            motor_id: j.name.clone(),
-                            code: error_code,
-                        },
-                    ));
-                } else if state == LifecycleState::Unconfigured
-                    && !j.resetting
-                    && matches!(
-                        before,
-                        Some(LifecycleState::Active | LifecycleState::Inactive)
-                    )
-                {
-                    lost = Some((
-                        "rebooted".to_owned(),
-                        Event::Rebooted {
-                            motor_id: j.name.clone(),
-                        },
-                    ));
-                }
-            }
-            Payload::EmergencyStop(e) => {
-                joint_stop = Some(format!("{}: {:?}", j.name, e.reason));
-                lost = Some((
-                    format!("stopped itself ({:?})", e.reason),
-                    Event::JointFault {
-                        motor_id: j.name.clone(),
-                        code: u16::try_from(e.reason.index()).unwrap_or(u16::MAX),
-                    },
-                ));
-            }
-            Payload::Encoder(e) => j.motion = Some((f64::from(e.position), f64::from(e.velocity))),
-            Payload::TelemetryStream(t) => {
-                j.motion = Some((f64::from(t.position), f64::from(t.velocity)))
-            }
-            _ => {}
-        }
-        let answers = matches!(
-            message.payload,
-            Payload::TelemetryStream(_)
-                | Payload::PowerMetrics(_)
-                | Payload::FaultHistory(_)
-                | Payload::CalibrationStatus(_)
-                | Payload::CalibrationResult(_)
-        );
-        if answers {
+        let said = crate::device::irpc::heard(&message.payload);
+        if said.answers {
             self.answered(ji, &message.payload);
         }
+        let previous = self.joints.get(ji).and_then(|j| j.feedback.as_ref());
+        let feedback = feedback_from_irpc(&self.map, node, &message.payload, ts, previous)
+            .ok()
+            .map(|t| t.value);
+        self.reading(ji, at, said.motion, feedback);
+        if let Some((state, code)) = said.status {
+            self.lifecycle(ji, state, code);
+        }
+        if let Some((reason, code)) = said.stopped_itself {
+            let Some(name) = self.joints.get(ji).map(|j| j.name.clone()) else {
+                return;
+            };
+            self.joint_lost(
+                ji,
+                format!("stopped itself ({reason:?})"),
+                Event::JointFault {
+                    motor_id: name.clone(),
+                    code,
+                },
+            );
+            // A joint's own emergency stop stops every joint: the arm is
+            // not safe to move with one of them down.
+            self.emergency_stop(at, None, Vec::new(), format!("{name}: {reason:?}"));
+        }
+    }
+
+    /// Device `ji` (any dialect) reported at `at`: its position and
+    /// velocity (degrees) where the report has them, and its WIA feedback.
+    /// Lines that have now arrived are said so, sequential axes waiting
+    /// on it may go, and a move whose outcome was unknown is said
+    /// executed once the device stands at its target.
+    pub(super) fn reading(
+        &mut self,
+        ji: usize,
+        at: Duration,
+        motion: Option<(f64, f64)>,
+        feedback: Option<MotorFeedback>,
+    ) {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
-        if let Ok(t) =
-            feedback_from_irpc(&self.map, node, &message.payload, ts, j.feedback.as_ref())
-        {
-            j.feedback = Some(t.value);
+        if feedback.is_some() {
+            j.feedback = feedback;
         }
-        if matches!(
-            message.payload,
-            Payload::Encoder(_) | Payload::TelemetryStream(_)
-        ) && let Some((pos, vel)) = j.motion
-        {
-            self.moved(ji, pos, vel, at);
-        }
+        let Some((pos, vel)) = motion else {
+            return;
+        };
+        j.motion = Some((pos, vel));
+        self.moved(ji, pos, vel, at);
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
-        // A part whose outcome was unknown, shown executed by the joint's position.
-        if let (Some(u), Some((pos, vel))) = (j.unresolved, j.motion)
+        // A part whose outcome was unknown, shown executed by the device's position.
+        if let Some(u) = j.unresolved
             && (pos - u.target).abs() < 0.5
             && vel.abs() < 1.0
         {
             j.unresolved = None;
-            let position = unit.map_or(pos, |u| u.from_degrees(pos));
+            let position = self
+                .map
+                .motor(&j.name)
+                .map_or(pos, |m| m.unit.from_degrees(pos));
             self.out.push_back(Output::Event(Event::Outcome {
                 origin: u.origin,
                 line: u.line,
@@ -2989,13 +2965,35 @@ impl Bridge {
                 position: shortest(position),
             }));
         }
-        if let Some((why, event)) = lost {
-            self.joint_lost(ji, why, event);
-        }
-        if let Some(cause) = joint_stop {
-            // A joint's own emergency stop stops every joint: the arm is
-            // not safe to move with one of them down.
-            self.emergency_stop(at, None, Vec::new(), cause);
+    }
+
+    /// Joint `ji` reported its lifecycle `state` (with `code`, its error
+    /// code): it is active or not; a fault, or a reboot the bridge did not
+    /// ask for, loses it until a reset.
+    fn lifecycle(&mut self, ji: usize, state: LifecycleState, code: u16) {
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
+        let before = j.state;
+        j.state = Some(state);
+        j.active = state == LifecycleState::Active;
+        if state == LifecycleState::Error {
+            let event = Event::JointFault {
+                motor_id: j.name.clone(),
+                code,
+            };
+            self.joint_lost(ji, format!("faulted (error code {code})"), event);
+        } else if state == LifecycleState::Unconfigured
+            && !j.resetting
+            && matches!(
+                before,
+                Some(LifecycleState::Active | LifecycleState::Inactive)
+            )
+        {
+            let event = Event::Rebooted {
+                motor_id: j.name.clone(),
+            };
+            self.joint_lost(ji, "rebooted".to_owned(), event);
         }
     }
 

@@ -791,3 +791,73 @@ fn a_timestamp_in_seconds_is_refused_with_the_hint() {
             .any(|e| matches!(e.payload, Payload::SetTargetV2(_)))
     );
 }
+
+/// A compact command whose acknowledgement never comes (its device silent
+/// past every retry) has an unknown outcome; once the device reports
+/// standing at its target, the bridge says the move was executed, as it
+/// does for an iRPC joint: the rule lives once, for every dialect.
+#[test]
+fn a_compact_move_of_unknown_outcome_is_said_executed_when_the_device_shows_it() {
+    use motorwire_can::{CanId, Frame};
+    use motorwire_compact::{FeedbackRecord, MotorHash, StatusFlags};
+    let map = BusMap::from_toml(
+        "[motors.gripper_axis]\ndialect = \"compact\"\nnode = 0x20\n\
+         limits = { min_position = 0, max_position = 90, max_velocity = 60 }",
+    )
+    .unwrap();
+    let mut bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
+    let ms = Duration::from_millis;
+    bridge.start(Duration::ZERO);
+    bridge.handle_line(ms(1), Origin(3), &command("gripper_axis", 40.0));
+    let mut sent = 0;
+    // The device never answers: the command is sent, then sent again
+    // after each of the client's 100 ms timeouts, then given up.
+    for t in (1..=500).step_by(10) {
+        bridge.handle_timeout(ms(t));
+        while bridge.poll_transmit().is_some() {
+            sent += 1;
+        }
+        bridge.flushed(ms(t));
+    }
+    assert_eq!(sent, 4, "the first sending and three retries");
+    let outputs: Vec<Output> = std::iter::from_fn(|| bridge.poll_output()).collect();
+    let r = outputs.iter().find_map(Output::result).unwrap();
+    assert_eq!(r.error.as_ref().unwrap().kind.name(), "outcome_unknown");
+    let record = |position: f32| {
+        let r = FeedbackRecord {
+            motor: MotorHash::of("gripper_axis"),
+            timestamp_us: 0,
+            position,
+            velocity: 0.0,
+            acceleration: 0.0,
+            torque: 0.0,
+            current: 0.0,
+            voltage: 24.0,
+            temperature: 30.0,
+            status: StatusFlags::EMPTY,
+            health: 100,
+        };
+        Frame::fd(CanId::standard(0x420).unwrap(), &r.encode().unwrap()).unwrap()
+    };
+    // Not there yet: nothing said.
+    bridge.handle_frame(ms(600), &record(20.0));
+    let said = |b: &mut Bridge| -> Vec<Value> {
+        std::iter::from_fn(|| b.poll_output())
+            .filter(|o| matches!(o, Output::Event(motorwire_bridge::Event::Outcome { .. })))
+            .map(|o| serde_json::from_str(&o.to_json()).unwrap())
+            .collect()
+    };
+    assert_eq!(said(&mut bridge), Vec::<Value>::new());
+    bridge.handle_frame(ms(700), &record(40.0));
+    assert_eq!(
+        said(&mut bridge),
+        [serde_json::json!({
+            "event": "outcome",
+            "origin": 3,
+            "line": 1,
+            "motor_id": "gripper_axis",
+            "outcome": "executed",
+            "position": 40.0
+        })]
+    );
+}

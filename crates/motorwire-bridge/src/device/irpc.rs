@@ -17,7 +17,10 @@ use std::time::Duration;
 
 use motorwire_can::Frame;
 use motorwire_can::client::{Client, ClientConfig, Event as ClientEvent, Outcome as ClientOutcome};
-use motorwire_irpc::{Message, NackCode, Payload, PayloadKind, SetTargetPayloadV2, WireVersion};
+use motorwire_irpc::{
+    EmergencyReason, LifecycleState, Message, NackCode, Payload, PayloadKind, SetTargetPayloadV2,
+    WireVersion,
+};
 
 use super::{Context, Effect, Ended, Moving, Outcome};
 
@@ -185,6 +188,53 @@ impl IrpcDriver {
             },
         })
     }
+}
+
+/// What one of a joint's messages that is not an answer says, in the
+/// layer's terms (for the engine to act on once, as it does for every
+/// dialect's feedback).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct Heard {
+    /// Its position and velocity (degrees), where the message reports
+    /// them (Encoder, TelemetryStream).
+    pub(crate) motion: Option<(f64, f64)>,
+    /// Its lifecycle state and error code (JointStatus).
+    pub(crate) status: Option<(LifecycleState, u16)>,
+    /// It stopped itself (its own EmergencyStop): the reason and its code.
+    pub(crate) stopped_itself: Option<(EmergencyReason, u16)>,
+    /// It answers a request line (telemetry, power metrics, the fault
+    /// history, a calibration's status or result).
+    pub(crate) answers: bool,
+}
+
+/// What `payload`, from a joint, says.
+pub(crate) fn heard(payload: &Payload) -> Heard {
+    let mut h = Heard {
+        answers: matches!(
+            payload,
+            Payload::TelemetryStream(_)
+                | Payload::PowerMetrics(_)
+                | Payload::FaultHistory(_)
+                | Payload::CalibrationStatus(_)
+                | Payload::CalibrationResult(_)
+        ),
+        ..Heard::default()
+    };
+    match payload {
+        Payload::JointStatus { state, error_code } => h.status = Some((*state, *error_code)),
+        Payload::EmergencyStop(e) => {
+            h.stopped_itself = Some((
+                e.reason,
+                u16::try_from(e.reason.index()).unwrap_or(u16::MAX),
+            ));
+        }
+        Payload::Encoder(e) => h.motion = Some((f64::from(e.position), f64::from(e.velocity))),
+        Payload::TelemetryStream(t) => {
+            h.motion = Some((f64::from(t.position), f64::from(t.velocity)));
+        }
+        _ => {}
+    }
+    h
 }
 
 /// What an acknowledged `payload` did to its joint: a move's target and,

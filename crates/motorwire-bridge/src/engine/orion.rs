@@ -292,13 +292,7 @@ impl Bridge {
                 Quantity::PositionDegrees => (degrees, 0.0),
                 Quantity::Speed | Quantity::Actuator => (0.0, f.velocity),
             };
-            if let Some(j) = self.joints.get_mut(ji) {
-                j.motion = Some(motion);
-                j.feedback = Some(f);
-            }
-            if motor.quantity() == Quantity::PositionDegrees {
-                self.moved(ji, motion.0, motion.1, now);
-            }
+            self.reading(ji, now, Some(motion), Some(f));
         }
     }
 
