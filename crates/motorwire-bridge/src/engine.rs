@@ -6,8 +6,8 @@
 //! stale, offline, busy); each admitted line becomes one job
 //! ([`crate::job`]) with one step per joint, queued on the joint registry
 //! ([`crate::joints`]) which keeps one request in flight per joint; phase
-//! changes happen in [`Bridge::enter`] only; and every deadline lives in one
-//! timer table ([`Timers`]).
+//! changes happen in [`Bridge::enter`] only; and every kind of deadline is
+//! one entry of the timer table ([`Timer`], [`Bridge::deadline`]).
 //!
 //! The invariants, each tested under faults and random interleavings:
 //! - every input line gets exactly one result;
@@ -206,7 +206,52 @@ enum Phase {
     Finished,
 }
 
-/// Every deadline the bridge keeps, in one place.
+/// Every kind of deadline the bridge keeps: [`Bridge::poll_timeout`] is
+/// the earliest of them, and [`Bridge::handle_timeout`] acts on each that
+/// is due. Each is read where its state lives ([`Bridge::deadline`]), so
+/// no copy of it can go stale.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Timer {
+    /// The drivers' own: an iRPC or compact request's Ack timeout and
+    /// resend, the Orion line in flight, the Orion link's poll.
+    Drivers,
+    /// The next feedback lines.
+    Feedback,
+    /// A device silent for [`BridgeConfig::offline_after`] goes offline.
+    Liveness,
+    /// ArmReady to the joints while one moves.
+    Heartbeat,
+    /// The end of the drain after the end of input.
+    Drain,
+    /// A watched line past its time has not arrived.
+    Arrival,
+    /// A sequential axis waits on one that must arrive by then.
+    Sequence,
+    /// A held setpoint not renewed within its command timeout.
+    Deadman,
+    /// A trajectory's next segment is due.
+    Segment,
+    /// A request line's answer is overdue.
+    Answer,
+}
+
+impl Timer {
+    const ALL: [Self; 10] = [
+        Self::Drivers,
+        Self::Feedback,
+        Self::Liveness,
+        Self::Heartbeat,
+        Self::Drain,
+        Self::Arrival,
+        Self::Sequence,
+        Self::Deadman,
+        Self::Segment,
+        Self::Answer,
+    ];
+}
+
+/// The deadlines the bridge sets itself (the others are read from the
+/// state they belong to).
 #[derive(Debug, Clone, Copy, Default)]
 struct Timers {
     feedback: Option<Duration>,
@@ -290,6 +335,9 @@ pub struct Bridge {
     emergency_decel: BTreeMap<String, f64>,
     /// The input ended during startup: drain (until this deadline) once ready.
     drain_after_start: Option<Duration>,
+    /// Draining, a line just finished: whether the drain may end is
+    /// looked at once.
+    drain_recheck: bool,
     timers: Timers,
     out: VecDeque<Output>,
     now: Duration,
@@ -392,6 +440,7 @@ impl Bridge {
             resume: BTreeMap::new(),
             phase: Phase::Starting,
             drain_after_start: None,
+            drain_recheck: false,
             last_stop_arrival: None,
             arrivals: Vec::new(),
             base_limits,
@@ -2479,6 +2528,8 @@ impl Bridge {
         for id in done {
             if let Some(job) = self.jobs.remove(&id) {
                 self.complete(job);
+                // The drain may end now: looked at once, by its timer.
+                self.drain_recheck = matches!(self.phase, Phase::Draining { .. });
             }
         }
     }
@@ -3119,6 +3170,7 @@ impl Bridge {
             self.timers.heartbeat = None;
         }
         if let Phase::Draining { deadline } = self.phase {
+            self.drain_recheck = false;
             let idle = self.jobs.is_empty() && self.waiting.is_empty() && !self.any_moving(now);
             if idle || now >= deadline {
                 self.enter(Phase::Stopping);
@@ -3202,60 +3254,68 @@ impl Bridge {
         if self.phase == Phase::Finished {
             return None;
         }
-        let liveness = self
-            .joints
-            .iter()
-            .filter(|j| j.online)
-            .map(|j| {
-                j.last_heard
-                    .unwrap_or(Duration::ZERO)
-                    .saturating_add(self.config.offline_after)
-            })
-            .min();
-        let heartbeat = self
-            .any_moving(self.now)
-            .then(|| self.timers.heartbeat.unwrap_or(self.now).max(self.now));
-        let drain = match self.phase {
-            Phase::Draining { deadline } => Some(
-                self.joints
-                    .iter()
-                    .map(|j| j.moving_until)
-                    .max()
-                    .unwrap_or(deadline)
-                    .min(deadline)
-                    .max(self.now),
-            ),
-            _ => None,
-        };
-        let arrival = self.arrivals.iter().map(|w| w.deadline).min();
-        let deadman = self.joints.iter().filter_map(|j| j.deadman).min();
-        let wake = self.joints.iter().filter_map(|j| j.wake).min();
-        // A sequential axis waiting on one that must arrive by then.
-        let sequence = self
-            .jobs
-            .values()
-            .flat_map(|j| j.axes.iter())
-            .filter(|a| !a.arrived)
-            .filter_map(|a| a.arrive_by)
-            .min();
-        [
-            self.drivers.deadline(),
-            self.timers.feedback,
-            liveness,
-            heartbeat,
-            drain,
-            arrival,
-            sequence,
-            deadman,
-            wake,
-            self.jobs
+        Timer::ALL
+            .into_iter()
+            .filter_map(|t| self.deadline(t))
+            .min()
+    }
+
+    /// When timer `t` is next due, if it is set: the timer table, one
+    /// entry per kind of deadline, each read where its state lives.
+    fn deadline(&self, t: Timer) -> Option<Duration> {
+        match t {
+            Timer::Drivers => self.drivers.deadline(),
+            Timer::Feedback => self.timers.feedback,
+            Timer::Liveness => self
+                .joints
+                .iter()
+                .filter(|j| j.online)
+                .map(|j| {
+                    j.last_heard
+                        .unwrap_or(Duration::ZERO)
+                        .saturating_add(self.config.offline_after)
+                })
+                .min(),
+            Timer::Heartbeat => self
+                .any_moving(self.now)
+                .then(|| self.timers.heartbeat.unwrap_or(self.now).max(self.now)),
+            // Due when the drain may end: once motion has ended, at once
+            // when nothing is left (or a line just finished: looked at
+            // once); while a line waits for its device, the device's own
+            // answer or time-out finishes it, and the deadline bounds it.
+            // Never due again at the time it was handled: a runner
+            // waiting for it does not spin.
+            Timer::Drain => match self.phase {
+                Phase::Draining { deadline } => {
+                    let motion_ends = self.joints.iter().map(|j| j.moving_until).max();
+                    Some(if self.drain_recheck {
+                        self.now
+                    } else if let Some(end) = motion_ends.filter(|e| *e > self.now) {
+                        end.min(deadline)
+                    } else if !self.jobs.is_empty() || !self.waiting.is_empty() {
+                        deadline
+                    } else {
+                        self.now
+                    })
+                }
+                _ => None,
+            },
+            Timer::Arrival => self.arrivals.iter().map(|w| w.deadline).min(),
+            Timer::Sequence => self
+                .jobs
+                .values()
+                .flat_map(|j| j.axes.iter())
+                .filter(|a| !a.arrived)
+                .filter_map(|a| a.arrive_by)
+                .min(),
+            Timer::Deadman => self.joints.iter().filter_map(|j| j.deadman).min(),
+            Timer::Segment => self.joints.iter().filter_map(|j| j.wake).min(),
+            Timer::Answer => self
+                .jobs
                 .values()
                 .filter_map(|j| j.awaiting.map(|a| a.deadline))
                 .min(),
-        ]
-        .into_iter()
-        .flatten()
-        .min()
+        }
     }
 }
 
@@ -3351,4 +3411,59 @@ fn shortest_feedback(mut f: MotorFeedback) -> MotorFeedback {
         *x = x.map(shortest);
     }
     f
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// After handle_timeout at the time poll_timeout gave, no timer is
+    /// due at that time again: a runner waiting for poll_timeout never
+    /// spins. Here at the end of input, with a request waiting for its
+    /// Ack and nothing moving.
+    #[test]
+    fn no_timer_is_due_again_once_handled() {
+        let map = BusMap::from_toml(
+            "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n\
+             limits = { max_velocity = 120, max_acceleration = 500 }",
+        )
+        .unwrap();
+        let config = BridgeConfig {
+            activate_on_start: false,
+            ..BridgeConfig::default()
+        };
+        let mut b = Bridge::new(map, config).unwrap();
+        let ms = Duration::from_millis;
+        b.start(Duration::ZERO);
+        b.handle_line(
+            ms(1),
+            Origin(0),
+            r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":10}"#,
+        );
+        while b.poll_transmit().is_some() {}
+        b.flushed(ms(1));
+        b.finish(ms(2));
+        let mut now = ms(2);
+        for _ in 0..500 {
+            let Some(t) = b.poll_timeout() else { break };
+            now = now.max(t);
+            b.handle_timeout(now);
+            while b.poll_transmit().is_some() {}
+            b.flushed(now);
+            let due: Vec<Timer> = Timer::ALL
+                .into_iter()
+                .filter(|t| b.deadline(*t).is_some_and(|d| d <= now))
+                .collect();
+            assert_eq!(due, [], "at {now:?}");
+        }
+        // The request timed out (4 sendings, 100 ms each), its line was
+        // answered, and the drain ended then, not at its 30 s deadline.
+        assert!(b.is_finished(), "{now:?}");
+        assert!(now < ms(1000), "{now:?}");
+        let r = std::iter::from_fn(|| b.poll_output())
+            .find_map(|o| o.result().cloned())
+            .unwrap();
+        assert_eq!(r.error.unwrap().kind, ErrorKind::OutcomeUnknown);
+    }
 }

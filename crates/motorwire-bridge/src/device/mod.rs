@@ -35,13 +35,17 @@
 //! written first when it comes back, its one line in flight with resends,
 //! its polls and its feedback decoding).
 //!
-//! Where this stands: the engine asks every question above through this
-//! module. What it still does per dialect is reading each driver's
-//! feedback (an iRPC joint's lifecycle and its request answers, a compact
-//! record, the Orion controller's values: `engine.rs` `feedback`,
-//! `compact_feedback` and `engine/orion.rs`), the Orion controller's link
-//! events, and the grouping of one input line's Orion orders into one
-//! line to the controller.
+//! Where this stands: the engine asks the questions above through this
+//! module, acts on every driver's ended requests (one [`Ended`]) and every
+//! driver's readings (`Bridge::reading`, once for all dialects). What it
+//! still does per dialect: reading an iRPC joint's lifecycle (its
+//! `JointStatus`, its own stop) and its answers to request lines, which
+//! only iRPC has; decoding a compact record's frame; the Orion
+//! controller's link events (`engine/orion.rs`: its beacon, its loss, its
+//! bad lines) and the grouping of one input line's Orion orders into one
+//! line to the controller; and iRPC's vocabulary for the lifecycle the
+//! engine drives (Configure, Activate, Deactivate, Reset), which each
+//! device translates ([`Device::lifecycle_orders`]).
 //!
 //! Adding a dialect (the recipe the moteus driver follows): a driver file
 //! here with its encoding and its requests in flight; a variant of
