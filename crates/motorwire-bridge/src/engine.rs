@@ -2417,10 +2417,14 @@ impl Bridge {
                     a.finish(StepOutcome::Acked, None, "acked");
                 }
             }
-            Outcome::AlreadyStopped => {
+            // Stopping a device that is already stopped is a stop.
+            Outcome::Nacked {
+                already_stopped: true,
+                ..
+            } if kind.is_stop() => {
                 a.finish(StepOutcome::Acked, None, "already stopped");
             }
-            Outcome::Nacked { code, why } => {
+            Outcome::Nacked { code, why, .. } => {
                 a.finish(StepOutcome::Nacked, *code, why.clone());
             }
             Outcome::TimedOut => {
@@ -2618,7 +2622,12 @@ impl Bridge {
             }
             JobKind::Command | JobKind::EmergencyStop | JobKind::Release | JobKind::Deadman => {}
         }
-        let Some(meta) = job.line else { return };
+        // A stop the bridge made itself (the deadman's, a joint's own)
+        // answers no line, but the stop lines that rode on it are answered.
+        if job.line.is_none() && job.riders.is_empty() {
+            return;
+        }
+        let number = job.line.as_ref().map_or(0, |l| l.number);
         let latency = job.last_frame.map(|t| us(t.saturating_sub(job.received)));
         let ok = failures.is_empty() && job.data_error.is_none();
         let error = if !failures.is_empty() {
@@ -2630,7 +2639,7 @@ impl Bridge {
         };
         let mut r = LineResult {
             ok,
-            line: meta.number,
+            line: number,
             emergency_stop: job.kind == JobKind::EmergencyStop,
             released: job.kind == JobKind::Release,
             error,
@@ -2669,6 +2678,7 @@ impl Bridge {
             };
             self.answer(&rider.line, rr);
         }
+        let Some(meta) = job.line else { return };
         self.answer(&meta, r);
         if job.kind == JobKind::Command && !moved.is_empty() {
             self.watch(meta, moved);
@@ -3465,5 +3475,70 @@ mod tests {
             .find_map(|o| o.result().cloned())
             .unwrap();
         assert_eq!(r.error.unwrap().kind, ErrorKind::OutcomeUnknown);
+    }
+
+    /// A joint's frame to the bridge, in v2.2.
+    fn from_joint(node: u16, msg_id: u32, payload: Payload) -> Frame {
+        use motorwire_irpc::{Header, MAX_FRAME_LEN, Message, WireVersion};
+        let m = Message {
+            header: Header {
+                source_id: node,
+                target_id: 0,
+                msg_id,
+            },
+            payload,
+        };
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let n = m.encode_frame(WireVersion::V2_2, &mut buf).unwrap();
+        Frame::fd(motorwire_can::CanId::standard(node).unwrap(), &buf[..n]).unwrap()
+    }
+
+    /// A stop line that comes while a stop the bridge made itself (a
+    /// joint's own emergency stop) is under way rides on it and is
+    /// answered when that stop ends: every line gets exactly one result,
+    /// whoever started the stop. (Before, such a rider was never answered.)
+    #[test]
+    fn a_stop_line_riding_on_a_stop_the_bridge_made_is_answered() {
+        use motorwire_irpc::{EmergencyReason, EmergencyStop, Message, WireVersion};
+        let map = BusMap::from_toml(
+            "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\nwire = \"v2.2\"\n\
+             limits = { max_velocity = 120, max_acceleration = 500 }",
+        )
+        .unwrap();
+        let config = BridgeConfig {
+            activate_on_start: false,
+            ..BridgeConfig::default()
+        };
+        let mut b = Bridge::new(map, config).unwrap();
+        let ms = Duration::from_millis;
+        b.start(Duration::ZERO);
+        let stop = EmergencyStop {
+            reason: EmergencyReason::Overtemperature,
+            vbus_mv: 24_000,
+            current_ma: 0,
+            temp_c: 90.0,
+            timestamp_ms: 1,
+        };
+        b.handle_frame(ms(1), &from_joint(0x12, 9, Payload::EmergencyStop(stop)));
+        assert!(b.is_latched());
+        let deactivate =
+            Message::decode_frame(WireVersion::V2_2, b.poll_transmit().unwrap().data()).unwrap();
+        assert_eq!(deactivate.payload, Payload::Deactivate);
+        b.flushed(ms(1));
+        // A client's stop while the joint's is under way: it rides on it.
+        b.handle_line(ms(2), Origin(7), r#"{"emergency_stop":true}"#);
+        assert_eq!(b.stats().stops_coalesced, 1);
+        assert!(b.poll_transmit().is_none(), "no second Deactivate");
+        let id = deactivate.header.msg_id;
+        b.handle_frame(ms(3), &from_joint(0x12, id, Payload::Ack(id)));
+        let results: Vec<LineResult> = std::iter::from_fn(|| b.poll_output())
+            .filter_map(|o| o.result().cloned())
+            .collect();
+        assert_eq!(results.len(), 1, "{results:?}");
+        assert_eq!(
+            (results[0].line, results[0].ok, results[0].emergency_stop),
+            (1, true, true)
+        );
+        assert_eq!(results[0].acked.as_deref(), Some(&["elbow".to_owned()][..]));
     }
 }

@@ -2193,3 +2193,38 @@ fn a_misspelled_member_is_refused_on_every_dialect_and_taken_only_when_allowed()
         }
     }
 }
+
+/// A WIA `disabled` command is a Deactivate in an ordinary command line:
+/// refused by a joint that is not active, it is reported refused (only a
+/// stop takes "already stopped" as done).
+#[test]
+fn a_disabled_command_refused_by_an_inactive_joint_is_nacked() {
+    let map = BusMap::from_toml(
+        "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n\
+         limits = { max_velocity = 120, max_acceleration = 500 }",
+    )
+    .unwrap();
+    let config = BridgeConfig {
+        activate_on_start: false,
+        ..BridgeConfig::default()
+    };
+    let mut arm =
+        SimulatedArm::new(Bridge::new(map, config).unwrap(), SimConfig::default()).unwrap();
+    arm.run_until(Duration::from_millis(10)).unwrap();
+    arm.take_outputs();
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"disabled","setpoint":0}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(200))
+        .unwrap();
+    let r = arm.take_results();
+    assert_eq!(r[0]["ok"], false, "{}", r[0]);
+    assert_eq!(r[0]["error"]["kind"], "nacked");
+    assert_eq!(r[0]["outcomes"][0]["outcome"], "nacked");
+    assert_eq!(r[0]["outcomes"][0]["code"], 3);
+    assert_eq!(
+        r[0]["outcomes"][0]["message"],
+        "nacked: 3 (deactivate in the wrong state)"
+    );
+}

@@ -135,16 +135,13 @@ impl IrpcDriver {
             ClientEvent::Completed(c) => {
                 let outcome = match c.outcome {
                     ClientOutcome::Acked => Outcome::Acked,
-                    // Stopping a joint that is already stopped is a stop.
-                    ClientOutcome::Nacked(code)
-                        if c.kind == PayloadKind::Deactivate
-                            && code == NackCode::DEACTIVATE_WRONG_STATE =>
-                    {
-                        Outcome::AlreadyStopped
-                    }
                     ClientOutcome::Nacked(code) => Outcome::Nacked {
                         code: Some(code.0),
                         why: format!("nacked: {code}"),
+                        // A Deactivate refused in the wrong state: the
+                        // joint is not active, so it is stopped already.
+                        already_stopped: c.kind == PayloadKind::Deactivate
+                            && code == NackCode::DEACTIVATE_WRONG_STATE,
                     },
                     ClientOutcome::TimedOut => Outcome::TimedOut,
                 };
@@ -340,8 +337,9 @@ mod tests {
         );
     }
 
-    /// A Deactivate refused because the joint is already stopped is a
-    /// stop done; any other Nack says its code.
+    /// A Deactivate refused because the joint is already stopped says so
+    /// (a stop takes it as done, a command does not); every Nack says
+    /// its code.
     #[test]
     fn a_stop_of_a_stopped_joint_is_done_and_other_nacks_say_their_code() {
         let mut d = IrpcDriver::new(ClientConfig::default()).unwrap();
@@ -371,12 +369,20 @@ mod tests {
         assert_eq!(
             ended,
             [
-                (0, Outcome::AlreadyStopped),
+                (
+                    0,
+                    Outcome::Nacked {
+                        code: Some(3),
+                        why: "nacked: 3 (deactivate in the wrong state)".to_owned(),
+                        already_stopped: true
+                    }
+                ),
                 (
                     1,
                     Outcome::Nacked {
                         code: Some(2),
-                        why: "nacked: 2 (activate in the wrong state)".to_owned()
+                        why: "nacked: 2 (activate in the wrong state)".to_owned(),
+                        already_stopped: false
                     }
                 )
             ]

@@ -556,11 +556,14 @@ pub(crate) fn route(frame: &Frame, devices: impl Iterator<Item = (u16, Device)>)
 pub(crate) enum Outcome {
     /// The device took it.
     Acked,
-    /// A stop for a device already stopped: taken as done.
-    AlreadyStopped,
     /// The device refused it: its code, where its dialect has codes, and
-    /// why, said for a person.
-    Nacked { code: Option<u16>, why: String },
+    /// why, said for a person. `already_stopped`: it refused a stop
+    /// because it is stopped already (which a stop takes as done).
+    Nacked {
+        code: Option<u16>,
+        why: String,
+        already_stopped: bool,
+    },
     /// No answer after every try: the device may or may not have run it.
     TimedOut,
 }

@@ -468,6 +468,7 @@ impl OrionDriver {
                     Outcome::Nacked {
                         code: None,
                         why: "the controller answered CMDF 0: the command failed".to_owned(),
+                        already_stopped: false,
                     }
                 };
                 applied.recovered = *succeeded
