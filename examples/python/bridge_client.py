@@ -80,6 +80,19 @@ class Bridge:
                 raise RuntimeError("the bridge refused the connection: %s" % json.dumps(message))
         raise TimeoutError("no %r for line %d within %.0f s" % (key, line, timeout))
 
+    def wait_event(self, name, timeout=10.0):
+        """The first event `name`. `ready` comes to every client: with
+        everyone's when the bridge becomes ready, or as a client's first
+        line when it connects later, carrying every motor's state."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            message = self.read()
+            if message.get("event") == name:
+                return message
+            if "ok" in message and "line" not in message:
+                raise RuntimeError("the bridge refused the connection: %s" % json.dumps(message))
+        raise TimeoutError("no %r event within %.0f s" % (name, timeout))
+
     def close(self):
         self.reader.close()
         self.sock.close()
@@ -102,6 +115,12 @@ def check(condition, what, message):
 
 
 def session(bridge):
+    # Ready: every motor's state, before the first command.
+    ready = bridge.wait_event("ready")
+    elbow = next(m for m in ready["motors"] if m["motor_id"] == "elbow")
+    check(ready["latched"] is False and elbow["online"] is True and "position" in elbow,
+          "ready: the elbow online at %s" % elbow.get("position"), ready)
+
     # A move within the limits: acked by the joint, then arrives.
     line = bridge.send(command("elbow", 40))
     result = bridge.wait_for(line, "ok")

@@ -102,6 +102,12 @@ pub enum Input {
         /// The motor asked about.
         motor_id: String,
     },
+    /// `{"query":"state"}`, optionally with `"motor_id":M`: every motor's
+    /// state now (or that one's).
+    QueryState {
+        /// The motor asked about, if one.
+        motor_id: Option<String>,
+    },
     /// A valid WIA message.
     Message(Box<Message>),
     /// Not JSON, or not valid WIA.
@@ -716,8 +722,12 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             (Some("limits"), 2, Some(Label::Motor(m))) => Input::QueryLimits {
                 motor_id: m.clone(),
             },
+            (Some("state"), 1, None) => Input::QueryState { motor_id: None },
+            (Some("state"), 2, Some(Label::Motor(m))) => Input::QueryState {
+                motor_id: Some(m.clone()),
+            },
             _ => Input::Invalid {
-                message: r#"a query is exactly {"query":"limits","motor_id":"..."}"#.to_owned(),
+                message: r#"a query is exactly {"query":"state"} (optionally with "motor_id":"..."), or {"query":"limits","motor_id":"..."}"#.to_owned(),
                 violations: None,
                 label,
             },

@@ -50,8 +50,8 @@ use crate::device::{Capability, Context, Device, Drivers, Ended, Moving, Outcome
 use crate::job::{Axis, AxisState, Cycle, Job, JobKind, LineMeta, Order, Rider};
 use crate::joints::{Joint, StepRef, Unresolved};
 use crate::output::{
-    BridgeRule, ErrorBody, ErrorKind, Event, FeedbackLine, Label, LineRef, LineResult, Origin,
-    Output, StepOutcome, StepReport,
+    BridgeRule, BridgeState, ErrorBody, ErrorKind, Event, FeedbackLine, Label, LineRef, LineResult,
+    MotorState, Origin, Output, StepOutcome, StepReport,
 };
 
 /// How a [`Bridge`] behaves.
@@ -233,10 +233,13 @@ enum Timer {
     Segment,
     /// A request line's answer is overdue.
     Answer,
+    /// Started: the devices not yet read are taken as silent, and the
+    /// bridge is ready.
+    Settle,
 }
 
 impl Timer {
-    const ALL: [Self; 10] = [
+    const ALL: [Self; 11] = [
         Self::Drivers,
         Self::Feedback,
         Self::Liveness,
@@ -247,6 +250,7 @@ impl Timer {
         Self::Deadman,
         Self::Segment,
         Self::Answer,
+        Self::Settle,
     ];
 }
 
@@ -338,6 +342,8 @@ pub struct Bridge {
     /// Draining, a line just finished: whether the drain may end is
     /// looked at once.
     drain_recheck: bool,
+    /// Started: ready once every online device has been read, or then.
+    settle_until: Option<Duration>,
     timers: Timers,
     out: VecDeque<Output>,
     now: Duration,
@@ -441,6 +447,7 @@ impl Bridge {
             phase: Phase::Starting,
             drain_after_start: None,
             drain_recheck: false,
+            settle_until: None,
             last_stop_arrival: None,
             arrivals: Vec::new(),
             base_limits,
@@ -507,6 +514,68 @@ impl Bridge {
         })
     }
 
+    /// What the bridge knows of its motors now: latched or not, and each
+    /// motor's state (online, active, position and velocity as last
+    /// reported, the target of its last move, whether it moves, a fault),
+    /// positions in each motor's unit. `ready`, `{"query":"state"}` and
+    /// [`Bridge::greet`] say it.
+    pub fn state(&self) -> BridgeState {
+        BridgeState {
+            latched: self.latched,
+            motors: self.joints.iter().map(|j| self.motor_state(j)).collect(),
+        }
+    }
+
+    fn motor_state(&self, j: &Joint) -> MotorState {
+        let unit = self
+            .map
+            .motor(&j.name)
+            .map_or(AngleUnit::Degrees, |m| m.unit);
+        // Read once it reported where it is (a status alone says not).
+        let read = j.feedback.as_ref().filter(|_| j.motion.is_some());
+        MotorState {
+            motor_id: j.name.clone(),
+            online: j.online,
+            active: j.active,
+            position: read.map(|f| shortest(f.position)),
+            velocity: read.map(|f| shortest(f.velocity)),
+            target: j.target.map(|t| short_unit(unit.from_degrees(t))),
+            moving: j.moving_until > self.now,
+            fault: j.needs_reset.clone(),
+        }
+    }
+
+    fn ready_event(&self) -> Event {
+        Event::Ready {
+            joints: self.joints.iter().map(|j| j.name.clone()).collect(),
+            state: self.state(),
+        }
+    }
+
+    /// A client that connected (and authenticated) at `now`: once the
+    /// bridge is ready, it is greeted with `ready` and the state now
+    /// ([`Output::ToOne`]), as if it had been there when the bridge became
+    /// ready (before, `ready` comes to it with everyone's).
+    pub fn greet(&mut self, now: Duration, origin: Origin) {
+        self.now = self.now.max(now);
+        if self.is_ready() {
+            let event = self.ready_event();
+            self.out.push_back(Output::ToOne { origin, event });
+        }
+    }
+
+    /// Started and every device that answers read (or silent past the
+    /// offline time): ready.
+    fn try_ready(&mut self) {
+        let Some(until) = self.settle_until else {
+            return;
+        };
+        let read = self.joints.iter().all(|j| !j.online || j.motion.is_some());
+        if self.phase == Phase::Starting && (read || self.now >= until) {
+            self.enter(Phase::Running);
+        }
+    }
+
     // ---- phases ---------------------------------------------------------
 
     /// The one place the phase changes.
@@ -516,8 +585,9 @@ impl Bridge {
             (Phase::Finished, _) => {}
             (_, Phase::Running) => {
                 self.phase = Phase::Running;
-                let joints = self.joints.iter().map(|j| j.name.clone()).collect();
-                self.out.push_back(Output::Event(Event::Ready { joints }));
+                self.settle_until = None;
+                let ready = self.ready_event();
+                self.out.push_back(Output::Event(ready));
                 while let Some(w) = self.waiting.pop_front() {
                     self.take_line(w.at, w.meta, &w.text);
                 }
@@ -814,6 +884,7 @@ impl Bridge {
                 self.refuse(&meta.with(label), e);
             }
             Input::QueryLimits { motor_id } => self.query_limits(meta, &motor_id),
+            Input::QueryState { motor_id } => self.query_state(meta, motor_id),
             Input::OrionCommand { command } => self.orion_command(now, meta, command),
             Input::Request { kind, motor_id } => {
                 self.request_line(now, meta, kind, &motor_id);
@@ -1177,6 +1248,36 @@ impl Bridge {
             }
         }
         None
+    }
+
+    /// `{"query":"state"}`, or one motor's with `"motor_id"`: answered at
+    /// once (a line before `ready` waits for it, as every line does).
+    fn query_state(&mut self, meta: LineMeta, motor: Option<String>) {
+        let mut state = self.state();
+        let meta = match motor {
+            None => meta,
+            Some(m) => {
+                state.motors.retain(|s| s.motor_id == m);
+                let meta = meta.labelled(Label::Motor(m.clone()));
+                if state.motors.is_empty() {
+                    let e = ErrorBody::refused(
+                        BridgeRule::UnknownMotor,
+                        format!("motor {m:?} is not a device of the bridge"),
+                    )
+                    .about(&m);
+                    self.refuse(&meta, e);
+                    return;
+                }
+                meta
+            }
+        };
+        let r = LineResult {
+            ok: true,
+            line: meta.number,
+            state: Some(state),
+            ..LineResult::default()
+        };
+        self.answer(&meta, r);
     }
 
     fn query_limits(&mut self, meta: LineMeta, motor: &str) {
@@ -2582,7 +2683,11 @@ impl Bridge {
                     }));
                 }
                 if self.phase == Phase::Starting {
-                    self.enter(Phase::Running);
+                    // Ready once every device that answers has been read
+                    // (its position known from the first line on), or
+                    // after the offline time for those that do not.
+                    self.settle_until = Some(now.saturating_add(self.config.offline_after));
+                    self.try_ready();
                 }
                 return;
             }
@@ -3005,6 +3110,7 @@ impl Bridge {
         };
         j.motion = Some((pos, vel));
         self.moved(ji, pos, vel, at);
+        self.try_ready();
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
@@ -3080,6 +3186,7 @@ impl Bridge {
         let now = self.now;
         self.drivers.irpc.handle_timeout(now);
         self.drain_client();
+        self.try_ready();
         self.compact_timeouts(now);
         // The deadman's stops are queued before the Orion link picks what
         // to send next.
@@ -3325,6 +3432,7 @@ impl Bridge {
                 .values()
                 .filter_map(|j| j.awaiting.map(|a| a.deadline))
                 .min(),
+            Timer::Settle => self.settle_until.filter(|_| self.phase == Phase::Starting),
         }
     }
 }

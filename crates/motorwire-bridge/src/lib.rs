@@ -20,8 +20,8 @@ pub use error::BridgeError;
 /// The WIA crate whose [`motorwire_wia::Validator`] [`classify`] takes.
 pub use motorwire_wia;
 pub use output::{
-    ArrivalLine, BridgeRule, Broke, ErrorBody, ErrorKind, Event, FeedbackLine, Label, LineRef,
-    LineResult, MotorArrival, Origin, Output, StepOutcome, StepReport, rules,
+    ArrivalLine, BridgeRule, BridgeState, Broke, ErrorBody, ErrorKind, Event, FeedbackLine, Label,
+    LineRef, LineResult, MotorArrival, MotorState, Origin, Output, StepOutcome, StepReport, rules,
 };
 pub use runtime::{
     DEFAULT_MAX_LINE, InputSender, MAX_ORION_LINES_PER_S, MAX_ORION_QUEUED,

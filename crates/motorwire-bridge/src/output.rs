@@ -37,6 +37,14 @@ pub enum Output {
     Feedback(FeedbackLine),
     /// Something that happened, for every reader.
     Event(Event),
+    /// An event for one reader only: the `ready` a client that connects
+    /// once the bridge is ready is greeted with ([`crate::Bridge::greet`]).
+    ToOne {
+        /// Who it is for.
+        origin: Origin,
+        /// The event.
+        event: Event,
+    },
 }
 
 impl Output {
@@ -46,7 +54,7 @@ impl Output {
             Self::Result { result, .. } => serde_json::to_string(result),
             Self::Arrival { arrival, .. } => serde_json::to_string(arrival),
             Self::Feedback(f) => serde_json::to_string(f),
-            Self::Event(e) => serde_json::to_string(e),
+            Self::Event(e) | Self::ToOne { event: e, .. } => serde_json::to_string(e),
         };
         // Serializing these types cannot fail: no maps with non-string keys,
         // no non-finite floats (they are refused at the input).
@@ -177,6 +185,52 @@ pub struct LineResult {
     /// force now (`effective`) and the bus map's (`bus_map`), in its unit.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub limits: Option<Value>,
+    /// For a state query (`{"query":"state"}`): the bridge's state now.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub state: Option<BridgeState>,
+}
+
+/// What the bridge knows of its motors now: in `ready`, in the answer to
+/// `{"query":"state"}`, and in the `ready` a client connecting later is
+/// greeted with.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct BridgeState {
+    /// Whether the emergency stop is latched (nothing moves until
+    /// `{"emergency_stop":false}`).
+    pub latched: bool,
+    /// Each motor of the bus map the bridge drives, in the map's order.
+    pub motors: Vec<MotorState>,
+}
+
+/// One motor's state: `{"motor_id":"elbow","online":true,"active":true,
+/// "position":45.0,"velocity":0.0,"moving":false}` (`target`, `fault`
+/// when there are).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MotorState {
+    /// Its name in the bus map.
+    pub motor_id: String,
+    /// Whether it was heard within the offline timeout.
+    pub online: bool,
+    /// Whether it takes motion now (an iRPC joint: Active; the other
+    /// dialects have no lifecycle and always do).
+    pub active: bool,
+    /// Where it is, in its unit, as it last reported (absent: nothing
+    /// reported yet).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub position: Option<f64>,
+    /// How fast it moves, in its unit a second, as it last reported.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<f64>,
+    /// The target of its last move taken, in its unit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub target: Option<f64>,
+    /// Whether a move or a setpoint it took is still under way, as the
+    /// bridge planned it.
+    pub moving: bool,
+    /// Why it takes nothing but a reset line (it faulted, rebooted or
+    /// stopped itself).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fault: Option<String>,
 }
 
 /// Why a line was not done: its kind, the rule it broke (a stable name a
@@ -591,10 +645,15 @@ pub enum Event {
         #[serde(skip_serializing_if = "Option::is_none")]
         error: Option<StepReport>,
     },
-    /// Startup is over: lines are served.
+    /// Startup is over: lines are served. Each device was configured and
+    /// activated, and read once (or found silent: `online` false), so its
+    /// position is known from the first line on.
     Ready {
-        /// The joints.
+        /// The motors, in the bus map's order.
         joints: Vec<String>,
+        /// Their state.
+        #[serde(flatten)]
+        state: BridgeState,
     },
     /// A joint went silent (or a request to it timed out).
     Offline {

@@ -120,6 +120,10 @@ enum Msg {
         origin: Origin,
         reason: String,
     },
+    /// A client connected: greet it.
+    Greet {
+        origin: Origin,
+    },
     Finish,
     Interrupt,
     Frame {
@@ -277,6 +281,13 @@ impl InputSender {
             reason: reason.into(),
         });
         self.forget(origin);
+    }
+
+    /// A client that connected (and authenticated): once the bridge is
+    /// ready it is greeted with `ready` and the state now, for it alone
+    /// ([`Bridge::greet`], [`Output::ToOne`]).
+    pub fn greet(&self, origin: Origin) {
+        let _ = self.tx.send(Msg::Greet { origin });
     }
 
     /// End of input: finish and stop the joints.
@@ -696,6 +707,7 @@ impl Runner {
                     );
                 }
                 Ok(Msg::Frame { frame, at }) => bridge.handle_frame(since(at), &frame),
+                Ok(Msg::Greet { origin }) => bridge.greet(since(Instant::now()), origin),
                 Ok(Msg::Finish) => bridge.finish(since(Instant::now())),
                 Ok(Msg::Interrupt) => bridge.interrupt(since(Instant::now())),
                 Ok(Msg::BusError(e)) => sink(&Output::Event(Event::BusError { error: e })),

@@ -805,7 +805,12 @@ fn a_compact_move_of_unknown_outcome_is_said_executed_when_the_device_shows_it()
          limits = { min_position = 0, max_position = 90, max_velocity = 60 }",
     )
     .unwrap();
-    let mut bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
+    // Ready at once (no startup to wait for, no reading).
+    let config = BridgeConfig {
+        activate_on_start: false,
+        ..BridgeConfig::default()
+    };
+    let mut bridge = Bridge::new(map, config).unwrap();
     let ms = Duration::from_millis;
     bridge.start(Duration::ZERO);
     bridge.handle_line(ms(1), Origin(3), &command("gripper_axis", 40.0));
@@ -860,4 +865,105 @@ fn a_compact_move_of_unknown_outcome_is_said_executed_when_the_device_shows_it()
             "position": 40.0
         })]
     );
+}
+
+/// `ready` comes once every device that answers was read: it carries each
+/// motor's state (online, active, where it stands), and a trajectory sent
+/// with the first line starts from the joint's real position (it was
+/// refused "the joint is at an unknown position" until its first Encoder).
+#[test]
+fn ready_carries_every_motors_state_and_the_first_line_knows_where_the_joints_are() {
+    let map = BusMap::from_toml(MAP).unwrap();
+    let mut arm = SimulatedArm::new(
+        Bridge::new(map, BridgeConfig::default()).unwrap(),
+        SimConfig::default(),
+    )
+    .unwrap();
+    let mut ready = None;
+    while ready.is_none() && arm.now() < Duration::from_secs(2) {
+        arm.step(Duration::from_millis(1)).unwrap();
+        ready = arm
+            .take_outputs()
+            .into_iter()
+            .map(|o| o.to_value())
+            .find(|v| v["event"] == "ready");
+    }
+    let ready = ready.expect("ready within 2 s");
+    assert_eq!(ready["latched"], false);
+    let motors = ready["motors"].as_array().unwrap();
+    let names: Vec<&str> = motors
+        .iter()
+        .map(|m| m["motor_id"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        ["elbow", "gripper_axis", "shoulder_pitch", "shoulder_roll"]
+    );
+    for m in motors {
+        assert_eq!(m["online"], true, "{m}");
+        assert_eq!(m["active"], true, "{m}");
+        assert_eq!(m["position"], 0.0, "{m}");
+        assert_eq!(m["moving"], false, "{m}");
+    }
+    // The first line, in the same instant: a trajectory from where the
+    // elbow stands.
+    arm.line(
+        Origin(1),
+        r#"{"trajectory_id":"t","motor_id":"elbow","waypoints":[{"position":0,"velocity":0,"time":0},{"position":20,"velocity":0,"time":1}],"timing":{}}"#,
+    );
+    let r = results(&mut arm, 1, Duration::from_secs(3));
+    assert_eq!(r[0]["ok"], true, "{}", r[0]);
+}
+
+/// `{"query":"state"}` answers every motor's state now, `"motor_id"` one
+/// motor's; an unknown motor is refused by rule; a client greeted once
+/// the bridge is ready gets `ready` with the state, for it alone.
+#[test]
+fn the_state_is_asked_for_and_a_client_connecting_later_is_greeted_with_it() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.line(Origin(1), &command("elbow", 30.0));
+    arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+    arm.take_outputs();
+    arm.line(Origin(1), r#"{"query":"state","motor_id":"elbow"}"#);
+    arm.line(Origin(1), r#"{"query":"state"}"#);
+    arm.line(Origin(1), r#"{"query":"state","motor_id":"knee"}"#);
+    arm.line(Origin(1), r#"{"query":"state","motor":"elbow"}"#);
+    let r = results(&mut arm, 4, Duration::from_millis(50));
+    assert_eq!(r[0]["ok"], true, "{}", r[0]);
+    assert_eq!(r[0]["motor_id"], "elbow");
+    let elbow = &r[0]["state"]["motors"][0];
+    assert_eq!(r[0]["state"]["motors"].as_array().unwrap().len(), 1);
+    assert_eq!(elbow["motor_id"], "elbow");
+    assert_eq!(elbow["target"], 30.0, "{elbow}");
+    assert!(
+        (elbow["position"].as_f64().unwrap() - 30.0).abs() < 0.1,
+        "{elbow}"
+    );
+    assert_eq!(elbow["moving"], false, "{elbow}");
+    assert_eq!(r[1]["state"]["motors"].as_array().unwrap().len(), 4);
+    assert_eq!(r[1]["state"]["latched"], false);
+    assert_eq!(r[2]["error"]["rule"], "unknown_motor", "{}", r[2]);
+    assert_eq!(r[3]["error"]["kind"], "invalid", "{}", r[3]);
+    // Latched: said in the state.
+    arm.line(Origin(1), r#"{"emergency_stop":true}"#);
+    arm.run_until(arm.now() + Duration::from_millis(200))
+        .unwrap();
+    arm.take_outputs();
+    let now = arm.now();
+    arm.bridge_mut().greet(now, Origin(9));
+    let out = arm.take_outputs();
+    let greeting: Vec<(Origin, Value)> = out
+        .iter()
+        .filter_map(|o| match o {
+            Output::ToOne { origin, .. } => Some((*origin, o.to_value())),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(greeting.len(), 1, "{out:?}");
+    assert_eq!(greeting[0].0, Origin(9));
+    assert_eq!(greeting[0].1["event"], "ready");
+    assert_eq!(greeting[0].1["latched"], true);
+    let motors = greeting[0].1["motors"].as_array().unwrap();
+    let elbow = motors.iter().find(|m| m["motor_id"] == "elbow").unwrap();
+    assert_eq!(elbow["active"], false, "stopped: {elbow}");
 }

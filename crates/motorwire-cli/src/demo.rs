@@ -171,7 +171,7 @@ impl Watch {
                     vel,
                 ));
             }
-            Output::Event(_) | Output::Arrival { .. } => self.events.push(v),
+            Output::Event(_) | Output::ToOne { .. } | Output::Arrival { .. } => self.events.push(v),
         }
         None
     }

@@ -354,6 +354,8 @@ enum Sent {
     Result(bool),
     /// A completion line.
     Arrival,
+    /// An event for it alone (its greeting): owed nothing.
+    Event,
 }
 
 /// A connected, authenticated client: its queue and its socket.
@@ -475,6 +477,9 @@ impl Router {
                 self.to_client(origin.0, line, Sent::Result(result.arrival_follows));
             }
             Output::Arrival { origin, .. } => self.to_client(origin.0, line, Sent::Arrival),
+            // Standard input had it with everyone's.
+            Output::ToOne { origin, .. } if *origin == STDIN || !self.sockets => {}
+            Output::ToOne { origin, .. } => self.to_client(origin.0, line, Sent::Event),
             Output::Feedback(_) if self.sockets => self.to_every_client(&line),
             Output::Event(_) if self.sockets => {
                 self.to_every_client(&line);
@@ -511,6 +516,7 @@ impl Router {
                             c.arrivals_owed += u64::from(arrival_follows);
                         }
                         Sent::Arrival => c.arrivals_sent += 1,
+                        Sent::Event => {}
                     }
                     if c.settled() {
                         clients.remove(&id); // the writer drains, then closes
@@ -762,6 +768,25 @@ impl Router {
                 ),
             );
         };
+        // A local socket is its owner's alone (mode 0600, in a private
+        // directory): without a token, connecting is authenticating. The
+        // client is registered and greeted at once, so one that only
+        // listens sees `ready` and the state; its lines are read as they
+        // come. (Full: as below, a stop is still taken.)
+        if matches!(conn, Conn::Unix(_))
+            && config.token.is_none()
+            && let Some(slot) = self.slot(config)
+        {
+            reader.get_mut().lift();
+            authenticating.done();
+            let _slot = slot;
+            if self.add_client(id, conn, config.client_queue).is_err() {
+                return;
+            }
+            self.input.greet(Origin(id));
+            self.feed_rest(id, &mut reader);
+            return;
+        }
         // The first line that is not blank (HTTP allows empty lines before
         // its request line).
         let mut first_read = read_line(&mut reader, self.input.max_line());
@@ -796,6 +821,7 @@ impl Router {
                 if self.add_client(id, conn, config.client_queue).is_err() {
                     return;
                 }
+                self.input.greet(Origin(id));
                 // Answered as any unreadable line is (and a stop if it
                 // names one).
                 let origin = Origin(id);
@@ -873,6 +899,8 @@ impl Router {
         if self.add_client(id, conn, config.client_queue).is_err() {
             return;
         }
+        // `ready` and the state now, if the bridge is ready already.
+        self.input.greet(Origin(id));
         if first_is_command {
             self.input.line(Origin(id), first);
         }

@@ -720,3 +720,41 @@ fn tcp_results_come_back_without_delay_with_feedback_on() {
         p(&moves, 0.5)
     );
 }
+
+/// A client that connects once the bridge is ready is greeted with
+/// `ready` and every motor's state, as its first line (it was printed on
+/// standard output only), and can ask for the state again.
+#[test]
+fn a_client_connecting_after_ready_is_greeted_with_the_state() {
+    let dir = scratch("greet");
+    let sock = dir.join("bridge.sock");
+    let mut child = unix_bridge(&sock, &["--feedback-hz", "0"]);
+    let _ = listening(&mut child);
+    let events = stdout_lines(&mut child);
+    let _bridge = Bridge(child);
+    let ready = wait_for(&events, Duration::from_secs(10), |v| v["event"] == "ready");
+    assert_eq!(ready["motors"].as_array().unwrap().len(), 4, "{ready}");
+    let s = UnixStream::connect(&sock).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let mut w = s.try_clone().unwrap();
+    let mut r = BufReader::new(s);
+    let mut first = String::new();
+    r.read_line(&mut first).unwrap();
+    let greeting: Value = serde_json::from_str(&first).unwrap();
+    assert_eq!(greeting["event"], "ready", "{greeting}");
+    assert_eq!(greeting["latched"], false);
+    let elbow = greeting["motors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["motor_id"] == "elbow")
+        .unwrap()
+        .clone();
+    assert_eq!(elbow["online"], true, "{elbow}");
+    assert_eq!(elbow["position"], 0.0, "{elbow}");
+    writeln!(w, r#"{{"query":"state","motor_id":"elbow"}}"#).unwrap();
+    let answer = next_result(&mut r);
+    assert_eq!(answer["ok"], true, "{answer}");
+    assert_eq!(answer["line"], 1);
+    assert_eq!(answer["state"]["motors"][0]["motor_id"], "elbow");
+}

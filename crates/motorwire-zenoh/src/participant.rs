@@ -272,6 +272,8 @@ impl Participant {
                 let _ = self.replies.send(Msg::Output(Box::new(o.clone())));
                 true
             }
+            // A greeting for a local client: not the fleet's.
+            Output::ToOne { .. } => false,
             Output::Feedback(_) | Output::Event(_) => {
                 if self
                     .publish
@@ -1066,7 +1068,7 @@ impl State {
                     .is_some_and(|e| e.kind == ErrorKind::Busy),
             ),
             Output::Arrival { origin, .. } => (*origin, true, false),
-            Output::Feedback(_) | Output::Event(_) => return,
+            Output::Feedback(_) | Output::Event(_) | Output::ToOne { .. } => return,
         };
         let line: Arc<str> = Arc::from(o.to_json());
         if origin.0 >= STOP_ORIGINS {
@@ -1127,7 +1129,7 @@ impl State {
                 self.keys.feedback(&f.motor_id)
             }
             Output::Event(_) => Some(self.keys.event()),
-            Output::Result { .. } | Output::Arrival { .. } => None,
+            Output::Result { .. } | Output::Arrival { .. } | Output::ToOne { .. } => None,
         };
         if let Some(key) = key {
             let _ = session
