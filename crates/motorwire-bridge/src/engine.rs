@@ -2234,6 +2234,7 @@ impl Bridge {
                 awaiting: None,
                 data: None,
                 data_error: None,
+                answered: None,
             },
         );
         for &(ji, step, position) in &steps {
@@ -2513,6 +2514,7 @@ impl Bridge {
         a.state = AxisState::Queued;
         match &c.outcome {
             Outcome::Acked => {
+                a.acked += 1;
                 // A trajectory looping forever has its next cycle to come.
                 if a.payloads.is_empty() && a.cycle.is_none() {
                     a.finish(StepOutcome::Acked, None, "acked");
@@ -2571,6 +2573,7 @@ impl Bridge {
         {
             self.track(ji, payload, c.at);
         }
+        self.answer_early(step.job);
         if more {
             let node = self.joints.get(ji).map_or(0, |j| j.node);
             if !self.send_step(self.now, ji, node, step) {
@@ -2580,6 +2583,47 @@ impl Bridge {
             self.pump(ji);
         }
         self.finish_jobs();
+    }
+
+    /// A trajectory line under way: once each of its motors' first
+    /// segment is acknowledged (and nothing of it failed), its result is
+    /// given (`ok:true`, `arrival_follows:true`); the fate of its later
+    /// segments comes in its completion line.
+    fn answer_early(&mut self, id: u64) {
+        let now = self.now;
+        let Some(job) = self.jobs.get_mut(&id) else {
+            return;
+        };
+        if job.answered.is_some() || !job.answers_early() {
+            return;
+        }
+        let failed = job
+            .axes
+            .iter()
+            .any(|a| matches!(&a.state, AxisState::Done(r) if r.outcome != StepOutcome::Acked));
+        if failed || !job.axes.iter().all(|a| a.acked > 0) {
+            return;
+        }
+        let Some(meta) = job.line.clone() else {
+            return;
+        };
+        job.answered = Some(now);
+        let r = LineResult {
+            ok: true,
+            line: meta.number,
+            acked: Some(job.axes.iter().map(|a| a.motor.clone()).collect()),
+            arrival_follows: true,
+            latency_us: job.last_frame.map(|t| us(t.saturating_sub(job.received))),
+            ack_us: Some(us(now.saturating_sub(job.received))),
+            losses: job
+                .report
+                .losses
+                .iter()
+                .map(motorwire_translate::Loss::text)
+                .collect(),
+            ..LineResult::default()
+        };
+        self.answer(&meta, r);
     }
 
     /// Remembers an acked request's effect on its device
@@ -2641,6 +2685,9 @@ impl Bridge {
 
     fn complete(&mut self, job: Job) {
         let now = self.now;
+        if let Some(since) = job.answered {
+            return self.complete_answered(job, since);
+        }
         let moved_joints: Vec<usize> = job.axes.iter().map(|a| a.joint).collect();
         // The moves acked, to watch for arrival.
         let moved: Vec<(usize, String, f64)> = job
@@ -2786,15 +2833,59 @@ impl Bridge {
         let Some(meta) = job.line else { return };
         self.answer(&meta, r);
         if job.kind == JobKind::Command && !moved.is_empty() {
-            self.watch(meta, moved);
+            self.watch(meta, moved, now);
         }
+    }
+
+    /// A trajectory line answered when it got under way ends: every
+    /// segment acknowledged, it is watched until it arrives; otherwise its
+    /// completion line says at once which motor's later segments did not
+    /// go, and why.
+    fn complete_answered(&mut self, job: Job, since: Duration) {
+        let Some(meta) = job.line else { return };
+        let targets: Vec<(usize, String, f64)> = job
+            .axes
+            .iter()
+            .filter_map(|a| Some((a.joint, a.motor.clone(), a.target?)))
+            .collect();
+        let failures: Vec<&StepReport> = job
+            .axes
+            .iter()
+            .filter_map(|a| match &a.state {
+                AxisState::Done(r) if r.outcome != StepOutcome::Acked => Some(r),
+                _ => None,
+            })
+            .collect();
+        if failures.is_empty() {
+            return self.watch(meta, targets, since);
+        }
+        let said = failures
+            .iter()
+            .map(|f| format!("{}: {} ({})", f.motor, f.outcome.name(), f.message))
+            .collect::<Vec<_>>()
+            .join("; ");
+        let reason = match &job.cut {
+            Some(why) => format!("{why}: the rest of the trajectory was not sent"),
+            None => format!("a later segment did not go: {said}"),
+        };
+        let mut w = self.watch_of(meta, targets, since);
+        for (ji, j) in self.joints.iter().enumerate() {
+            if let Some((pos, vel)) = j.motion
+                && w.axes.iter().any(|a| a.joint == ji)
+            {
+                w.observe(ji, pos, vel, self.now);
+            }
+        }
+        let origin = w.line.origin;
+        let arrival = w.verdict(self.now, Some(reason));
+        self.out.push_back(Output::Arrival { origin, arrival });
     }
 
     // ---- arrival ----------------------------------------------------------
 
     /// Watches a motion line's acked moves until they arrive; an older
     /// line still waiting on one of these joints will not arrive now.
-    fn watch(&mut self, meta: LineMeta, moved: Vec<(usize, String, f64)>) {
+    fn watch(&mut self, meta: LineMeta, moved: Vec<(usize, String, f64)>, since: Duration) {
         let now = self.now;
         for (ji, ..) in &moved {
             let why = format!(
@@ -2803,6 +2894,30 @@ impl Bridge {
             );
             self.fail_watches(|w| w.waits_on(*ji), &why);
         }
+        let mut w = self.watch_of(meta, moved, since);
+        let origin = w.line.origin;
+        // Already there (a move to where it stands)?
+        let mut done = false;
+        for (ji, j) in self.joints.iter().enumerate() {
+            if let Some((pos, vel)) = j.motion
+                && w.axes.iter().any(|a| a.joint == ji)
+            {
+                done = w.observe(ji, pos, vel, now) || done;
+            }
+        }
+        if done && w.axes.iter().all(|a| a.arrived.is_some()) {
+            let arrival = w.verdict(now, None);
+            self.out.push_back(Output::Arrival { origin, arrival });
+        } else {
+            self.arrivals.push(w);
+        }
+    }
+
+    /// The watch of line `meta`'s moves (`moved`: device, motor, target in
+    /// degrees), its result given at `since`: due by the end of the
+    /// devices' planned motion and a margin.
+    fn watch_of(&self, meta: LineMeta, moved: Vec<(usize, String, f64)>, since: Duration) -> Watch {
+        let now = self.now;
         let mut axes = Vec::new();
         let mut end = now;
         for (ji, motor, target) in moved {
@@ -2824,27 +2939,11 @@ impl Bridge {
         }
         let planned = end.saturating_sub(now);
         let margin = (planned / 4).max(Duration::from_millis(500));
-        let origin = meta.origin;
-        let mut w = Watch {
+        Watch {
             line: meta,
-            since: now,
+            since,
             deadline: end.saturating_add(margin),
             axes,
-        };
-        // Already there (a move to where it stands)?
-        let mut done = false;
-        for (ji, j) in self.joints.iter().enumerate() {
-            if let Some((pos, vel)) = j.motion
-                && w.axes.iter().any(|a| a.joint == ji)
-            {
-                done = w.observe(ji, pos, vel, now) || done;
-            }
-        }
-        if done && w.axes.iter().all(|a| a.arrived.is_some()) {
-            let arrival = w.verdict(now, None);
-            self.out.push_back(Output::Arrival { origin, arrival });
-        } else {
-            self.arrivals.push(w);
         }
     }
 

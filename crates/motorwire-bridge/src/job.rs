@@ -126,6 +126,8 @@ pub(crate) struct Axis {
     pub(crate) arrived: bool,
     /// A later axis waits for it: past this, it did not arrive in time.
     pub(crate) arrive_by: Option<Duration>,
+    /// Its requests acknowledged so far (a trajectory's segments).
+    pub(crate) acked: u32,
 }
 
 impl Axis {
@@ -156,6 +158,7 @@ impl Axis {
             after: None,
             arrived: false,
             arrive_by: None,
+            acked: 0,
         }
     }
 
@@ -222,6 +225,17 @@ pub(crate) struct Job {
     pub(crate) data: Option<serde_json::Value>,
     /// Why a request line got nothing (or a calibration failed).
     pub(crate) data_error: Option<String>,
+    /// A trajectory line: answered as soon as each motor's first segment
+    /// is acknowledged (its later segments' fate comes in its completion
+    /// line); when it was.
+    pub(crate) answered: Option<Duration>,
+}
+
+impl Job {
+    /// Whether it is a trajectory line, answered when it is under way.
+    pub(crate) fn answers_early(&self) -> bool {
+        self.kind == JobKind::Command && self.axes.iter().any(|a| !a.due.is_empty())
+    }
 }
 
 /// What a request line waits for from its joint.

@@ -615,11 +615,16 @@ limits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 
     );
     arm.run_until(arm.now() + Duration::from_millis(1500))
         .unwrap();
-    let year = arm
-        .take_results()
-        .into_iter()
-        .find(|v| v["line"] == 3)
-        .unwrap();
+    let early = arm.take_results();
+    let year = early.iter().find(|v| v["line"] == 3).unwrap().clone();
+    // The loop is answered once it is under way (its first segment
+    // acked), not when it ends: a loop that never ends was never answered.
+    let pendulum_result = early.iter().find(|v| v["line"] == 1).unwrap();
+    assert_eq!(pendulum_result["ok"], true, "{pendulum_result}");
+    assert_eq!(
+        pendulum_result["arrival_follows"], true,
+        "{pendulum_result}"
+    );
     assert_eq!(year["error"]["kind"], "stale", "{year}");
     assert!(
         year["error"]["message"]
@@ -660,22 +665,30 @@ limits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 
             .find(|v| v["line"] == line && v.get("ok").is_some())
             .unwrap_or_else(|| panic!("no result for line {line}: {out:?}"))
     };
-    for line in [1, 2] {
-        assert_eq!(
-            result(line)["error"]["kind"],
-            "cancelled",
-            "{}",
-            result(line)
-        );
-        assert!(
-            result(line)["error"]["message"]
-                .as_str()
-                .unwrap()
-                .starts_with("cancelled by the end of input: it would not end by itself"),
-            "{}",
-            result(line)
-        );
-    }
+    // The scheduled one never started: its result says it was cancelled.
+    assert_eq!(result(2)["error"]["kind"], "cancelled", "{}", result(2));
+    assert!(
+        result(2)["error"]["message"]
+            .as_str()
+            .unwrap()
+            .starts_with("cancelled by the end of input: it would not end by itself"),
+        "{}",
+        result(2)
+    );
+    // The loop, answered when it got under way: its completion says why
+    // it ended.
+    let completion = out
+        .iter()
+        .find(|v| v["line"] == 1 && v.get("arrived").is_some())
+        .unwrap_or_else(|| panic!("no completion for line 1: {out:?}"));
+    assert_eq!(completion["arrived"], false, "{completion}");
+    assert!(
+        completion["reason"]
+            .as_str()
+            .unwrap()
+            .starts_with("cancelled by the end of input: it would not end by itself: the rest of the trajectory was not sent"),
+        "{completion}"
+    );
     assert!(
         segments(&arm, 0x13) <= pendulum + 1,
         "no new cycle after the end"

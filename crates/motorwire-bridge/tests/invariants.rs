@@ -2056,8 +2056,9 @@ fn a_multi_axis_trajectory_moves_every_joint_on_one_time_base() {
     assert_eq!(arm.joint(0x12).unwrap().log().len(), before);
 }
 
-/// `loop.count` -1: the trajectory runs cycle after cycle until a stop,
-/// whose line answers it.
+/// `loop.count` -1: the trajectory runs cycle after cycle until a stop.
+/// It is answered once under way; the stop ends it, and its completion
+/// line says so.
 #[test]
 fn a_trajectory_looping_forever_runs_until_a_stop() {
     let mut arm = arm_with(PENDULUM_MAP, Faults::default(), 0);
@@ -2078,12 +2079,32 @@ fn a_trajectory_looping_forever_runs_until_a_stop() {
         moves, 7,
         "three cycles of two segments and the fourth begun in 6.5 s"
     );
-    assert!(arm.take_results().is_empty(), "no result while it loops");
+    let r = arm.take_results();
+    assert_eq!(r.len(), 1, "answered once, when under way: {r:?}");
+    assert_eq!(
+        (r[0]["line"].as_u64(), r[0]["ok"].as_bool()),
+        (Some(1), Some(true))
+    );
+    assert_eq!(r[0]["arrival_follows"], true);
     arm.line(Origin(1), r#"{"emergency_stop": true}"#);
     arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
-    let r = arm.take_results();
-    let looped = r.iter().find(|v| v["line"] == 1).unwrap();
-    assert_eq!(looped["error"]["kind"], "cancelled", "{looped}");
+    let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
+    let looped = out
+        .iter()
+        .find(|v| v["line"] == 1 && v.get("arrived").is_some())
+        .unwrap_or_else(|| panic!("no completion for line 1: {out:?}"));
+    assert_eq!(looped["arrived"], false, "{looped}");
+    assert!(
+        looped["reason"].as_str().unwrap().starts_with(
+            "cancelled by the emergency stop: the rest of the trajectory was not sent"
+        ),
+        "{looped}"
+    );
+    assert_eq!(
+        out.iter().filter(|v| v["line"] == 1).count(),
+        1,
+        "one completion, no second result: {out:?}"
+    );
     let after = arm
         .joint(0x20)
         .unwrap()
@@ -2227,4 +2248,62 @@ fn a_disabled_command_refused_by_an_inactive_joint_is_nacked() {
         r[0]["outcomes"][0]["message"],
         "nacked: 3 (deactivate in the wrong state)"
     );
+}
+
+/// A trajectory is answered when it is under way: its result comes once
+/// its first segment is acked (`arrival_follows`), long before its last
+/// waypoint; its later segments' fate comes in its completion line, here
+/// a joint that stops answering mid-way (its next segment's outcome
+/// unknown, said with the motor and why).
+#[test]
+fn a_trajectory_is_answered_under_way_and_its_later_segments_in_its_completion() {
+    let once = PENDULUM.replace(r#","loop":{"enabled":true,"count":-1}"#, "");
+    assert_ne!(once, PENDULUM);
+    // Answered at once, then arrives.
+    let mut arm = arm_with(PENDULUM_MAP, Faults::default(), 0);
+    arm.take_outputs();
+    let sent = arm.now();
+    arm.line(Origin(1), &once);
+    let mut result = None;
+    while result.is_none() && arm.now() < sent + Duration::from_secs(1) {
+        arm.step(Duration::from_millis(1)).unwrap();
+        result = arm.take_results().into_iter().find(|v| v["line"] == 1);
+    }
+    let result = result.expect("a result within 1 s");
+    assert!(
+        arm.now() - sent < Duration::from_millis(100),
+        "{:?}",
+        arm.now() - sent
+    );
+    assert_eq!(result["ok"], true, "{result}");
+    assert_eq!(result["arrival_follows"], true, "{result}");
+    assert_eq!(result["acked"], serde_json::json!(["j"]));
+    arm.run_until(sent + Duration::from_secs(4)).unwrap();
+    let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
+    let done: Vec<&Value> = out.iter().filter(|v| v["line"] == 1).collect();
+    assert_eq!(done.len(), 1, "{out:?}");
+    assert_eq!(done[0]["arrived"], true, "{}", done[0]);
+    assert_eq!(done[0]["motors"][0]["target"], 0.0, "{}", done[0]);
+
+    // A joint that stops answering after the first segment: silent, it
+    // goes offline before the next is due, and what is left is not sent.
+    let mut arm = arm_with(PENDULUM_MAP, Faults::default(), 0);
+    arm.take_outputs();
+    let sent = arm.now();
+    arm.line(Origin(1), &once);
+    arm.run_until(sent + Duration::from_millis(200)).unwrap();
+    let r = arm.take_results();
+    assert_eq!(r[0]["ok"], true, "{}", r[0]);
+    arm.disconnect(0x20);
+    arm.run_until(sent + Duration::from_secs(3)).unwrap();
+    let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
+    let done: Vec<&Value> = out.iter().filter(|v| v["line"] == 1).collect();
+    assert_eq!(done.len(), 1, "one completion, no second result: {out:?}");
+    assert_eq!(done[0]["arrived"], false, "{}", done[0]);
+    let reason = done[0]["reason"].as_str().unwrap();
+    assert_eq!(
+        reason,
+        "cancelled: j went offline before it was sent: the rest of the trajectory was not sent"
+    );
+    assert_eq!(done[0]["motors"][0]["motor_id"], "j");
 }
