@@ -155,6 +155,15 @@ type Handle = std::thread::JoinHandle<Result<Bridge, motorwire_bridge::BridgeErr
 /// map's Orion motors are reached through motorwire's simulated
 /// controller on a pipe, as `--orion sim` does.
 fn started(map: &str, orion: bool) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
+    started_recording(map, orion, None)
+}
+
+/// [`started`], recording the session with `recorder` when given.
+fn started_recording(
+    map: &str,
+    orion: bool,
+    recorder: Option<std::sync::Arc<motorwire_bridge::record::Recorder>>,
+) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
     let map = BusMap::from_toml(map).unwrap();
     let config = BridgeConfig {
         feedback_period: None,
@@ -164,6 +173,9 @@ fn started(map: &str, orion: bool) -> (RealTimeArm, InputSender, mpsc::Receiver<
     let bridge = Bridge::new(map, config).unwrap();
     let arm = RealTimeArm::start(bridge.map()).unwrap();
     let mut runner = Runner::new();
+    if let Some(r) = recorder {
+        runner = runner.with_recorder(r);
+    }
     if orion {
         let (reader, writer) =
             motorwire_sim::orion::spawn_in_process(motorwire_sim::orion::OrionConfig::default())
@@ -236,26 +248,8 @@ fn real_time(n: u64) {
     #[allow(clippy::cast_possible_truncation)]
     let stops = stop_each_released(&input, &rx, n.min(500) as usize);
     // The same with a burst of BURST lines in flight when the stop comes.
-    const BURST: u64 = 1000;
-    let mut loaded = Vec::new();
-    for _ in 0..n.min(50) {
-        for i in 0..BURST {
-            input.line(Origin(2), line(i));
-        }
-        input.line(Origin(3), r#"{"emergency_stop": true}"#);
-        let mut left = BURST + 1;
-        while left > 0 {
-            let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
-            left -= 1;
-            if r["emergency_stop"] == true {
-                loaded.push(r["stop_latency_us"].as_u64().unwrap());
-            }
-        }
-        input.line(Origin(3), r#"{"emergency_stop": false}"#);
-        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
-        assert_eq!(r["released"], true, "{r}");
-    }
-    loaded.sort_unstable();
+    #[allow(clippy::cast_possible_truncation)]
+    let loaded = stops_behind_bursts(&input, &rx, n.min(50) as usize);
     input.interrupt();
     handle.join().unwrap().unwrap();
     latencies.sort_unstable();
@@ -276,6 +270,86 @@ fn real_time(n: u64) {
         percentile(&latencies, 0.5),
         percentile(&latencies, 0.99),
         latencies.last().unwrap()
+    );
+}
+
+/// Lines sent at once before each stop of [`stops_behind_bursts`].
+const BURST: u64 = 1000;
+
+/// `rounds` emergency stops, each behind a burst of [`BURST`] lines in
+/// flight, each released; their latencies (line to the last stop frame,
+/// µs), sorted.
+fn stops_behind_bursts(input: &InputSender, rx: &mpsc::Receiver<Value>, rounds: usize) -> Vec<u64> {
+    let mut loaded = Vec::new();
+    for _ in 0..rounds {
+        for i in 0..BURST {
+            input.line(Origin(2), line(i));
+        }
+        input.line(Origin(3), r#"{"emergency_stop": true}"#);
+        let mut left = BURST + 1;
+        while left > 0 {
+            let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+            left -= 1;
+            if r["emergency_stop"] == true {
+                loaded.push(r["stop_latency_us"].as_u64().unwrap());
+            }
+        }
+        input.line(Origin(3), r#"{"emergency_stop": false}"#);
+        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+        assert_eq!(r["released"], true, "{r}");
+    }
+    loaded.sort_unstable();
+    loaded
+}
+
+/// The stop behind a burst with the session recorded (`--record`) and
+/// without, alternated in the same run (`passes` of `rounds` each way),
+/// the same map and lines: (median, p99) off, then on, in µs.
+fn recording_cost(passes: usize, rounds: usize) {
+    let dir = std::env::temp_dir().join(format!("motorwire-bench-record-{}", std::process::id()));
+    let mut off = Vec::new();
+    let mut on = Vec::new();
+    let mut dropped = 0;
+    for _ in 0..passes {
+        for record in [false, true] {
+            let recorder = record.then(|| {
+                let _ = std::fs::remove_dir_all(&dir);
+                std::sync::Arc::new(
+                    motorwire_bridge::record::Recorder::start(
+                        motorwire_bridge::record::RecordConfig {
+                            dir: dir.clone(),
+                            max_bytes: motorwire_bridge::record::DEFAULT_RECORD_MAX,
+                            interface: "sim".to_owned(),
+                        },
+                    )
+                    .unwrap(),
+                )
+            });
+            let (_arm, input, rx, handle) =
+                started_recording(MAP, false, recorder.as_ref().map(std::sync::Arc::clone));
+            let stops = stops_behind_bursts(&input, &rx, rounds);
+            input.interrupt();
+            handle.join().unwrap().unwrap();
+            if let Some(r) = recorder.and_then(|r| std::sync::Arc::try_unwrap(r).ok()) {
+                dropped += r.finish().dropped;
+            }
+            if record {
+                on.extend(stops)
+            } else {
+                off.extend(stops)
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    off.sort_unstable();
+    on.sort_unstable();
+    println!(
+        "bridge/recording: {} stops behind {BURST} lines each way; line to the last stop frame: median {} us, p99 {} us without recording; median {} us, p99 {} us recording ({dropped} records dropped)",
+        off.len(),
+        percentile(&off, 0.5),
+        percentile(&off, 0.99),
+        percentile(&on, 0.5),
+        percentile(&on, 0.99),
     );
 }
 
@@ -326,14 +400,25 @@ fn stop_per_dialect(n: usize) {
 fn main() {
     // `cargo bench` passes --bench; `cargo test --benches` does not (test mode).
     let test_mode = !std::env::args().any(|a| a == "--bench");
-    let mut c = Criterion::default().configure_from_args();
-    benches(&mut c);
-    c.final_summary();
+    let recording_only = std::env::var_os("MOTORWIRE_BENCH_RECORDING_ONLY").is_some();
+    if !recording_only {
+        let mut c = Criterion::default().configure_from_args();
+        benches(&mut c);
+        c.final_summary();
+    }
     // Under an instruction counter, only the simulated-time benchmarks:
     // `MOTORWIRE_BENCH_SIMULATED_ONLY=1 valgrind --tool=callgrind ...`.
     if std::env::var_os("MOTORWIRE_BENCH_SIMULATED_ONLY").is_some() {
         return;
     }
-    real_time(if test_mode { 20 } else { 5000 });
-    stop_per_dialect(if test_mode { 5 } else { 500 });
+    // `MOTORWIRE_BENCH_RECORDING_ONLY=1`: the recorder's cost alone.
+    if !recording_only {
+        real_time(if test_mode { 20 } else { 5000 });
+        stop_per_dialect(if test_mode { 5 } else { 500 });
+    }
+    if test_mode {
+        recording_cost(1, 2);
+    } else {
+        recording_cost(4, 25);
+    }
 }

@@ -8,6 +8,7 @@ mod error;
 mod job;
 mod joints;
 mod output;
+pub mod record;
 mod runtime;
 pub mod sim;
 

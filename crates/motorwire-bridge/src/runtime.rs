@@ -12,6 +12,7 @@ use motorwire_can::{CanBus, Error as CanError, Frame};
 use std::collections::BTreeMap;
 use std::sync::{Condvar, Mutex, PoisonError};
 
+use crate::record::{Direction, Recorder};
 use crate::{Bridge, BridgeError, Event, Origin, Output, asks_for_stop};
 
 /// The longest input line accepted by default (bytes, without the
@@ -500,6 +501,7 @@ pub struct Runner {
     budget: Arc<Budget>,
     orion: Option<OrionPort>,
     max_line: usize,
+    recorder: Option<Arc<Recorder>>,
 }
 
 impl Default for Runner {
@@ -522,6 +524,7 @@ impl Runner {
             budget: Arc::default(),
             orion: None,
             max_line: DEFAULT_MAX_LINE,
+            recorder: None,
         }
     }
 
@@ -539,6 +542,16 @@ impl Runner {
     #[must_use]
     pub fn with_orion(mut self, port: OrionPort) -> Self {
         self.orion = Some(port);
+        self
+    }
+
+    /// Records the session ([`crate::record`]): every input line, output
+    /// line, frame and Orion line, as it happens. The recorder never makes
+    /// the bridge wait; keep another `Arc` of it to finish it once
+    /// [`Runner::run`] has returned.
+    #[must_use]
+    pub fn with_recorder(mut self, recorder: Arc<Recorder>) -> Self {
+        self.recorder = Some(recorder);
         self
     }
 
@@ -603,6 +616,14 @@ impl Runner {
             .orion
             .take()
             .map(|port| spawn_orion(port, self.tx.clone(), Arc::clone(&orion_queued)));
+        let rec = self.recorder.take();
+        let rec = rec.as_deref();
+        let mut sink = |o: &Output| {
+            if let Some(r) = rec {
+                r.output(Instant::now(), o);
+            }
+            sink(o);
+        };
         bridge.start(since(Instant::now()));
         let result = loop {
             let mut failed = None;
@@ -611,8 +632,14 @@ impl Runner {
                     failed = Some(e);
                     break;
                 }
+                if let Some(r) = rec {
+                    r.frame(Instant::now(), Direction::Tx, &f);
+                }
             }
             while let Some(line) = bridge.poll_orion_line() {
+                if let Some(r) = rec {
+                    r.orion(Instant::now(), Direction::Tx, &line);
+                }
                 if let Some((to_orion, _)) = &orion {
                     let _ = to_orion.send(line);
                 }
@@ -636,6 +663,9 @@ impl Runner {
             while let Ok(msg) = self.urgent.try_recv() {
                 if let Msg::Line { origin, .. } | Msg::Refused { origin, .. } = &msg {
                     self.budget.give(*origin, true, queued_bytes(&msg));
+                }
+                if let Some(r) = rec {
+                    record_input(r, &msg);
                 }
                 match msg {
                     Msg::Line {
@@ -666,6 +696,9 @@ impl Runner {
             let msg = self.rx.recv_timeout(wait);
             if let Ok(m @ (Msg::Line { origin, .. } | Msg::Refused { origin, .. })) = &msg {
                 self.budget.give(*origin, false, queued_bytes(m));
+            }
+            if let (Some(r), Ok(m)) = (rec, &msg) {
+                record_input(r, m);
             }
             match msg {
                 Ok(Msg::Wake) => {}
@@ -738,6 +771,28 @@ impl Runner {
             let _ = written.recv_timeout(Duration::from_secs(1));
         }
         result.map(|()| bridge)
+    }
+}
+
+/// What `msg` brings that a recording keeps: an input line, a frame
+/// received, a line from the Orion controller.
+fn record_input(r: &Recorder, msg: &Msg) {
+    match msg {
+        Msg::Line {
+            origin,
+            number,
+            text,
+            at,
+        } => r.input(*at, *origin, *number, text),
+        Msg::Refused {
+            origin,
+            number,
+            reason,
+            ..
+        } => r.unreadable(Instant::now(), *origin, *number, reason),
+        Msg::Frame { frame, at } => r.frame(*at, Direction::Rx, frame),
+        Msg::OrionLine { text, at } => r.orion(*at, Direction::Rx, text),
+        _ => {}
     }
 }
 

@@ -114,6 +114,16 @@ pub(crate) struct Args {
     /// The bridge's own iRPC node id (its frames' CAN id).
     #[arg(long, value_parser = crate::sim::parse_node, default_value = "0x0000")]
     node: u16,
+    /// Record the session into DIR: every CAN frame to `frames.log` (as
+    /// `candump -L` writes it), every input and output line, frame and
+    /// Orion line to `lines.jsonl`, both clocks; never making the bridge
+    /// wait (what cannot be written in time is dropped and counted).
+    #[arg(long, value_name = "DIR")]
+    record: Option<String>,
+    /// With `--record`: the most the recording holds on disk (MiB); each
+    /// file is rotated at a quarter of it.
+    #[arg(long, value_name = "MIB", default_value_t = 100)]
+    record_max_mb: u64,
     #[command(flatten)]
     zenoh: crate::fleet::ZenohArgs,
 }
@@ -340,6 +350,29 @@ fn bridge(args: &Args) -> Result<u8, String> {
     if let Some(spec) = &orion {
         runner = runner.with_orion(crate::orion_link::open(spec)?);
     }
+    let recorder = match &args.record {
+        Some(dir) => {
+            if args.record_max_mb == 0 {
+                return Err("--record-max-mb must be at least 1".to_owned());
+            }
+            let interface = args
+                .bus
+                .strip_prefix("socketcan:")
+                .unwrap_or(&args.bus)
+                .to_owned();
+            let r =
+                motorwire_bridge::record::Recorder::start(motorwire_bridge::record::RecordConfig {
+                    dir: dir.into(),
+                    max_bytes: args.record_max_mb.saturating_mul(1024 * 1024),
+                    interface,
+                })
+                .map_err(|e| format!("--record {dir}: {e}"))?;
+            let r = std::sync::Arc::new(r);
+            runner = runner.with_recorder(std::sync::Arc::clone(&r));
+            Some(r)
+        }
+        None => None,
+    };
     let input = runner.input();
     let signalled = on_signals(input.clone())?;
 
@@ -421,6 +454,15 @@ fn bridge(args: &Args) -> Result<u8, String> {
     }
     if let Some(fleet) = fleet {
         fleet.close();
+    }
+    if let Some(r) = recorder.and_then(|r| std::sync::Arc::try_unwrap(r).ok()) {
+        let s = r.finish();
+        note!(
+            "motorwire bridge: recorded {} lines and frames ({} bytes), {} dropped",
+            s.written,
+            s.bytes,
+            s.dropped
+        );
     }
     let bridge = result.map_err(|e| e.to_string())?;
     let s = bridge.stats();

@@ -1216,3 +1216,94 @@ fn a_killed_fleet_bridge_leaves_the_fleet_and_its_joint_process_stops() {
     assert!(still.len() >= 10, "{still:?}");
     assert!(still.iter().all(|p| *p == last), "{still:?}");
 }
+
+/// A session recorded with `--record` on vcan0 replays through can-utils'
+/// `canplayer` unchanged: candump sees the recorded frames again, the same
+/// ids, flags and bytes in the same order (issue 28: the recording is the
+/// field's own format).
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn a_recording_replays_through_canplayer_unchanged() {
+    let joint = Killed(
+        motorwire()
+            .args([
+                "sim",
+                "joint",
+                "--bus",
+                "socketcan:vcan0",
+                "--node",
+                "0x10",
+                "--watchdog",
+                "2000",
+            ])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    sleep(Duration::from_millis(300));
+    let map = std::env::temp_dir().join("motorwire-vcan-record-map.toml");
+    std::fs::write(
+        &map,
+        "[motors.j0]\ndialect = \"irpc\"\nnode = 0x10\n\
+         limits = { min_position = -90, max_position = 90, max_velocity = 100, max_acceleration = 400 }\n",
+    )
+    .unwrap();
+    let dir = std::env::temp_dir().join("motorwire-vcan-record");
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut bridge = motorwire()
+        .args([
+            "bridge",
+            "--map",
+            map.to_str().unwrap(),
+            "--bus",
+            "socketcan:vcan0",
+            "--ack-timeout",
+            "500",
+            "--offline-after",
+            "5000",
+            "--feedback-hz",
+            "0",
+            "--max-age",
+            "0",
+            "--record",
+            dir.to_str().unwrap(),
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = bridge.stdin.take().unwrap();
+    stdin
+        .write_all(b"{\"motor_id\":\"j0\",\"timestamp\":1,\"control_mode\":\"position\",\"setpoint\":20}\n")
+        .unwrap();
+    sleep(Duration::from_millis(1500));
+    drop(stdin);
+    let (code, text, err) = finish_within(bridge, Duration::from_secs(60));
+    assert_eq!(code, Some(0), "{text}\n{err}");
+    assert!(err.contains(", 0 dropped"), "{err}");
+    // Nothing else on the bus while it replays.
+    drop(joint);
+    let log = dir.join("frames.log");
+    let recorded: Vec<Frame> = std::fs::read_to_string(&log)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let e = LogEntry::parse(l).unwrap();
+            assert_eq!(e.interface, IFACE);
+            e.frame
+        })
+        .collect();
+    assert!(recorded.len() > 10, "{recorded:?}");
+    let dump = candump();
+    let played = Command::new("canplayer")
+        .args(["-I", log.to_str().unwrap()])
+        .status()
+        .expect("canplayer on the PATH");
+    assert!(played.success());
+    let replayed: Vec<Frame> = finish(dump)
+        .lines()
+        .map(|l| LogEntry::parse(l).unwrap().frame)
+        .collect();
+    assert_eq!(replayed, recorded);
+}

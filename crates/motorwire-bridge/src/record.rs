@@ -1,0 +1,568 @@
+//! The flight recorder: everything a bridge session took in and gave out,
+//! in the field's formats, written beside the session without ever making
+//! it wait.
+//!
+//! A [`Recorder`] writes, into its directory:
+//! - `frames.log`: every CAN frame the bridge sent or received, as
+//!   `candump -L` writes them (`(1733212345.123456) can0 012##1DEADBEEF`),
+//!   which can-utils' `canplayer` and python-can's `LogReader` read
+//!   unchanged; the timestamp is the wall clock;
+//! - `lines.jsonl`: one JSON object per line, in the order the bridge took
+//!   or gave them, each with `t_us` (when it came or went: microseconds on
+//!   one monotonic clock from the start of the recording; a frame or a line
+//!   is stamped when it arrived, so it may be a little earlier than the
+//!   record before it) and `wall_ms` (Unix milliseconds): every input line
+//!   with its client and number (`"in"`), every output line as it was
+//!   given (`"out"`: results, completions, feedback, events), every frame
+//!   again with its direction (`"frame"`: `"dir":"tx"|"rx"`, the id and
+//!   the data in hex), and every line to or from the Orion arm controller
+//!   (`"orion"`);
+//! - `session.json`: when the recording started (both clocks), and, when
+//!   it ended cleanly, how much was written and how much was dropped.
+//!
+//! Bounded: each of the two files is rotated (to `frames.1.log`,
+//! `lines.1.jsonl`) when it reaches a quarter of the recorder's limit, so
+//! the recording never holds more than the limit (`--record-max-mb`).
+//! Never waiting: a record goes into a bounded queue a thread of its own
+//! writes out; when the queue is full (a slow disk) or the disk failed (a
+//! full disk), the record is dropped and counted, and the bridge goes on.
+//! A stop is never behind the recorder.
+
+use std::fmt::Write as _;
+use std::fs::{self, File};
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use motorwire_can::Frame;
+use motorwire_can::candump::LogEntry;
+
+use crate::output::{Origin, Output};
+
+/// Records waiting to be written, at most: beyond, records are dropped.
+pub const RECORD_QUEUE: usize = 65_536;
+
+/// Records the writer takes before it pauses.
+const BATCH: usize = 128;
+
+/// How often the writer looks for records (it never sleeps where a
+/// record would have to wake it).
+const POLL: Duration = Duration::from_millis(2);
+
+/// The default bound of a recording (bytes on disk): 100 MiB.
+pub const DEFAULT_RECORD_MAX: u64 = 100 * 1024 * 1024;
+
+/// Which way a frame or a device line went.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Direction {
+    /// The bridge sent it.
+    Tx,
+    /// The bridge received it.
+    Rx,
+}
+
+impl Direction {
+    const fn name(self) -> &'static str {
+        match self {
+            Self::Tx => "tx",
+            Self::Rx => "rx",
+        }
+    }
+}
+
+/// One thing to write.
+#[derive(Debug)]
+enum Record {
+    Frame {
+        at: Instant,
+        dir: Direction,
+        frame: Frame,
+    },
+    Input {
+        at: Instant,
+        origin: Origin,
+        number: u64,
+        text: String,
+    },
+    Unreadable {
+        at: Instant,
+        origin: Origin,
+        number: u64,
+        reason: String,
+    },
+    /// Rendered by the writer, off the bridge's thread.
+    Output { at: Instant, output: Box<Output> },
+    Orion {
+        at: Instant,
+        dir: Direction,
+        line: String,
+    },
+}
+
+/// What a recording came to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RecordSummary {
+    /// Records written.
+    pub written: u64,
+    /// Records dropped (the queue full, or the disk failed).
+    pub dropped: u64,
+    /// Bytes written, rotated files included.
+    pub bytes: u64,
+}
+
+/// How a recording is made.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RecordConfig {
+    /// The directory (made if missing; files of an earlier recording in it
+    /// are replaced).
+    pub dir: PathBuf,
+    /// The most bytes the recording holds on disk.
+    pub max_bytes: u64,
+    /// The CAN interface name written in `frames.log` (`canplayer` maps
+    /// it: `canplayer -I frames.log vcan0=can0`).
+    pub interface: String,
+}
+
+/// A recording under way; see the module's documentation.
+#[derive(Debug)]
+pub struct Recorder {
+    queue: Option<SyncSender<Record>>,
+    dropped: Arc<AtomicU64>,
+    writer: Option<JoinHandle<RecordSummary>>,
+}
+
+impl Recorder {
+    /// Starts recording as `config` says.
+    ///
+    /// # Errors
+    /// The directory or its files could not be made.
+    pub fn start(config: RecordConfig) -> io::Result<Self> {
+        fs::create_dir_all(&config.dir)?;
+        let t0 = Instant::now();
+        let wall0 = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .unwrap_or_default();
+        let files = Files::open(&config, t0, wall0)?;
+        let (queue, records) = mpsc::sync_channel(RECORD_QUEUE);
+        let dropped = Arc::new(AtomicU64::new(0));
+        let d = Arc::clone(&dropped);
+        let writer = thread::Builder::new()
+            .name("motorwire-recorder".to_owned())
+            .spawn(move || files.write_all(&records, &d))?;
+        Ok(Self {
+            queue: Some(queue),
+            dropped,
+            writer: Some(writer),
+        })
+    }
+
+    fn put(&self, r: Record) {
+        let Some(q) = &self.queue else { return };
+        match q.try_send(r) {
+            Ok(()) => {}
+            Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) => {
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+
+    /// A frame sent or received at `at`.
+    pub fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
+        self.put(Record::Frame {
+            at,
+            dir,
+            frame: *frame,
+        });
+    }
+
+    /// Input line `number` of `origin`, received at `at`.
+    pub fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
+        self.put(Record::Input {
+            at,
+            origin,
+            number,
+            text: text.to_owned(),
+        });
+    }
+
+    /// Input line `number` of `origin` that could not be read (`reason`).
+    pub fn unreadable(&self, at: Instant, origin: Origin, number: u64, reason: &str) {
+        self.put(Record::Unreadable {
+            at,
+            origin,
+            number,
+            reason: reason.to_owned(),
+        });
+    }
+
+    /// An output line given at `at`.
+    pub fn output(&self, at: Instant, output: &Output) {
+        self.put(Record::Output {
+            at,
+            output: Box::new(output.clone()),
+        });
+    }
+
+    /// A line to or from the Orion arm controller.
+    pub fn orion(&self, at: Instant, dir: Direction, line: &str) {
+        self.put(Record::Orion {
+            at,
+            dir,
+            line: line.to_owned(),
+        });
+    }
+
+    /// Records dropped so far.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+
+    /// Ends the recording: what is queued is written, the files closed
+    /// and `session.json` completed.
+    pub fn finish(mut self) -> RecordSummary {
+        self.end()
+    }
+
+    fn end(&mut self) -> RecordSummary {
+        drop(self.queue.take());
+        let mut s = self
+            .writer
+            .take()
+            .and_then(|w| w.join().ok())
+            .unwrap_or_default();
+        s.dropped += self.dropped.load(Ordering::Relaxed);
+        s
+    }
+}
+
+impl Drop for Recorder {
+    fn drop(&mut self) {
+        if self.writer.is_some() {
+            self.end();
+        }
+    }
+}
+
+/// One of the two rotated files.
+#[derive(Debug)]
+struct Rotated {
+    path: PathBuf,
+    old: PathBuf,
+    out: BufWriter<File>,
+    len: u64,
+    limit: u64,
+}
+
+impl Rotated {
+    fn create(dir: &Path, name: &str, old: &str, limit: u64) -> io::Result<Self> {
+        let path = dir.join(name);
+        let old = dir.join(old);
+        let _ = fs::remove_file(&old);
+        Ok(Self {
+            out: BufWriter::new(File::create(&path)?),
+            path,
+            old,
+            len: 0,
+            limit,
+        })
+    }
+
+    fn line(&mut self, s: &str) -> io::Result<u64> {
+        let n = s.len() as u64 + 1;
+        if self.len > 0 && self.len + n > self.limit {
+            self.out.flush()?;
+            fs::rename(&self.path, &self.old)?;
+            self.out = BufWriter::new(File::create(&self.path)?);
+            self.len = 0;
+        }
+        self.out.write_all(s.as_bytes())?;
+        self.out.write_all(b"\n")?;
+        self.len += n;
+        Ok(n)
+    }
+}
+
+#[derive(Debug)]
+struct Files {
+    dir: PathBuf,
+    interface: String,
+    frames: Rotated,
+    lines: Rotated,
+    t0: Instant,
+    wall0: Duration,
+}
+
+impl Files {
+    fn open(config: &RecordConfig, t0: Instant, wall0: Duration) -> io::Result<Self> {
+        // Two files, each with its rotated copy: a quarter of the limit each.
+        let quarter = (config.max_bytes / 4).max(4096);
+        let files = Self {
+            dir: config.dir.clone(),
+            interface: config.interface.clone(),
+            frames: Rotated::create(&config.dir, "frames.log", "frames.1.log", quarter)?,
+            lines: Rotated::create(&config.dir, "lines.jsonl", "lines.1.jsonl", quarter)?,
+            t0,
+            wall0,
+        };
+        files.session(None)?;
+        Ok(files)
+    }
+
+    fn session(&self, end: Option<RecordSummary>) -> io::Result<()> {
+        let mut v = serde_json::json!({
+            "recorder": "motorwire",
+            "version": env!("CARGO_PKG_VERSION"),
+            "started_wall_ms": u64::try_from(self.wall0.as_millis()).unwrap_or(u64::MAX),
+            "interface": self.interface,
+            "files": ["frames.log", "lines.jsonl"],
+        });
+        if let (Some(s), Some(m)) = (end, v.as_object_mut()) {
+            m.insert("written".to_owned(), s.written.into());
+            m.insert("dropped".to_owned(), s.dropped.into());
+            m.insert("bytes".to_owned(), s.bytes.into());
+        }
+        fs::write(self.dir.join("session.json"), format!("{v}\n"))
+    }
+
+    /// (`t_us`, wall microseconds) of `at`.
+    fn clocks(&self, at: Instant) -> (u64, u64) {
+        let t = at.saturating_duration_since(self.t0);
+        let t_us = u64::try_from(t.as_micros()).unwrap_or(u64::MAX);
+        let wall = u64::try_from(self.wall0.saturating_add(t).as_micros()).unwrap_or(u64::MAX);
+        (t_us, wall)
+    }
+
+    fn write(&mut self, r: Record) -> io::Result<u64> {
+        let at = match &r {
+            Record::Frame { at, .. }
+            | Record::Input { at, .. }
+            | Record::Unreadable { at, .. }
+            | Record::Output { at, .. }
+            | Record::Orion { at, .. } => *at,
+        };
+        let (t_us, wall_us) = self.clocks(at);
+        let head =
+            |kind: &str| format!(r#"{{"t_us":{t_us},"wall_ms":{},"{kind}":"#, wall_us / 1000);
+        let line = match r {
+            Record::Frame { dir, frame, .. } => {
+                let entry = LogEntry {
+                    timestamp: Duration::from_micros(wall_us),
+                    interface: self.interface.clone(),
+                    frame,
+                };
+                let mut n = self.frames.line(&entry.to_string())?;
+                let id = frame.id();
+                let mut line = head("frame");
+                let _ = write!(
+                    line,
+                    r#"{{"dir":"{}","id":{},"extended":{},"fd":{},"data":""#,
+                    dir.name(),
+                    id.raw(),
+                    id.is_extended(),
+                    frame.is_fd()
+                );
+                for b in frame.data() {
+                    let _ = write!(line, "{b:02x}");
+                }
+                line.push_str("\"}}");
+                n += self.lines.line(&line)?;
+                return Ok(n);
+            }
+            Record::Input {
+                origin,
+                number,
+                text,
+                ..
+            } => {
+                let body = serde_json::json!({"origin": origin.0, "line": number, "text": text});
+                format!("{}{body}}}", head("in"))
+            }
+            Record::Unreadable {
+                origin,
+                number,
+                reason,
+                ..
+            } => {
+                let body =
+                    serde_json::json!({"origin": origin.0, "line": number, "unreadable": reason});
+                format!("{}{body}}}", head("in"))
+            }
+            // The line as it was given, whole.
+            Record::Output { output, .. } => format!("{}{}}}", head("out"), output.to_json()),
+            Record::Orion { dir, line, .. } => {
+                let body = serde_json::json!({"dir": dir.name(), "line": line});
+                format!("{}{body}}}", head("orion"))
+            }
+        };
+        self.lines.line(&line)
+    }
+
+    fn write_all(mut self, records: &Receiver<Record>, dropped: &AtomicU64) -> RecordSummary {
+        let mut s = RecordSummary::default();
+        let mut failed = false;
+        // The writer polls rather than sleeping in `recv`: a record handed
+        // over then never has to wake it (a system call on the bridge's
+        // thread, for every frame and line).
+        'session: loop {
+            // At most a batch at a time, then a pause: the writer takes a
+            // share of a core, never a core the bridge's thread needs when
+            // a stop comes (its work is spread out; the queue holds the
+            // rest).
+            for _ in 0..BATCH {
+                let r = match records.try_recv() {
+                    Ok(r) => r,
+                    Err(mpsc::TryRecvError::Empty) => break,
+                    Err(mpsc::TryRecvError::Disconnected) => break 'session,
+                };
+                if failed {
+                    // The disk failed: counted, never waited on.
+                    dropped.fetch_add(1, Ordering::Relaxed);
+                    continue;
+                }
+                match self.write(r) {
+                    Ok(n) => {
+                        s.written += 1;
+                        s.bytes += n;
+                    }
+                    Err(_) => {
+                        failed = true;
+                        dropped.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            }
+            // Nothing more waiting: out on disk (a crash loses little).
+            let _ = self.frames.out.flush();
+            let _ = self.lines.out.flush();
+            thread::sleep(POLL);
+        }
+        let _ = self.frames.out.flush();
+        let _ = self.lines.out.flush();
+        let mut end = s;
+        end.dropped = dropped.load(Ordering::Relaxed);
+        let _ = self.session(Some(end));
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use motorwire_can::CanId;
+
+    fn scratch(name: &str) -> PathBuf {
+        let d =
+            std::env::temp_dir().join(format!("motorwire-record-{name}-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&d);
+        d
+    }
+
+    /// Frames go to `frames.log` as candump writes them and, with their
+    /// direction, to `lines.jsonl` among the input and output lines, in
+    /// the order they happened.
+    #[test]
+    fn a_session_is_written_in_both_files_in_order() {
+        let dir = scratch("order");
+        let rec = Recorder::start(RecordConfig {
+            dir: dir.clone(),
+            max_bytes: DEFAULT_RECORD_MAX,
+            interface: "can0".to_owned(),
+        })
+        .unwrap();
+        let t = Instant::now();
+        rec.input(t, Origin(2), 1, r#"{"emergency_stop":true}"#);
+        let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0x00, 0x12, 0x01, 0x03]).unwrap();
+        rec.frame(t, Direction::Tx, &f);
+        rec.orion(t, Direction::Tx, r#"{"ID":32,"MODE":2,"DATA":1}"#);
+        rec.unreadable(t, Origin(2), 2, "the line is not UTF-8");
+        let s = rec.finish();
+        assert_eq!((s.written, s.dropped), (4, 0));
+        let frames = fs::read_to_string(dir.join("frames.log")).unwrap();
+        // As candump writes it, and reads back as the same frame.
+        let entry = LogEntry::parse(frames.trim_end()).unwrap();
+        assert_eq!((entry.interface.as_str(), entry.frame), ("can0", f));
+        let lines: Vec<serde_json::Value> = fs::read_to_string(dir.join("lines.jsonl"))
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert_eq!(frames.lines().count(), 1);
+        assert!(frames.ends_with(" can0 012##100120103\n"), "{frames}");
+        assert_eq!(lines.len(), 4);
+        assert_eq!(lines[0]["in"]["text"], r#"{"emergency_stop":true}"#);
+        assert_eq!(
+            (
+                lines[0]["in"]["origin"].as_u64(),
+                lines[0]["in"]["line"].as_u64()
+            ),
+            (Some(2), Some(1))
+        );
+        assert_eq!(lines[1]["frame"]["dir"], "tx");
+        assert_eq!(lines[1]["frame"]["id"], 0x12);
+        assert_eq!(lines[1]["frame"]["data"], "00120103");
+        assert_eq!(lines[2]["orion"]["line"], r#"{"ID":32,"MODE":2,"DATA":1}"#);
+        assert_eq!(lines[3]["in"]["unreadable"], "the line is not UTF-8");
+        let session: serde_json::Value =
+            serde_json::from_str(&fs::read_to_string(dir.join("session.json")).unwrap()).unwrap();
+        assert_eq!(
+            (session["written"].as_u64(), session["dropped"].as_u64()),
+            (Some(4), Some(0))
+        );
+        let _ = fs::remove_dir_all(dir);
+    }
+
+    /// Rotated at a quarter of the limit per file: however long the
+    /// session, the recording holds at most its limit.
+    #[test]
+    fn a_recording_never_holds_more_than_its_limit() {
+        let dir = scratch("bound");
+        let limit = 64 * 1024;
+        let rec = Recorder::start(RecordConfig {
+            dir: dir.clone(),
+            max_bytes: limit,
+            interface: "can0".to_owned(),
+        })
+        .unwrap();
+        let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0xAB; 64]).unwrap();
+        let t = Instant::now();
+        for _ in 0..5_000 {
+            rec.frame(t, Direction::Rx, &f);
+        }
+        let s = rec.finish();
+        assert_eq!(s.written + s.dropped, 5_000);
+        assert!(s.bytes > 4 * limit, "{s:?}");
+        let on_disk: u64 = fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().metadata().unwrap().len())
+            .sum();
+        assert!(on_disk <= limit + 1024, "{on_disk} bytes on disk");
+        assert!(dir.join("frames.1.log").exists());
+        let _ = fs::remove_dir_all(dir);
+    }
+
+    /// A recorder whose disk is gone drops and counts; the caller never
+    /// waits.
+    #[test]
+    fn a_failed_disk_drops_and_counts_and_never_waits() {
+        let dir = scratch("gone");
+        let rec = Recorder::start(RecordConfig {
+            dir: dir.clone(),
+            max_bytes: 4096,
+            interface: "can0".to_owned(),
+        })
+        .unwrap();
+        fs::remove_dir_all(&dir).unwrap();
+        let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0x11; 64]).unwrap();
+        let t = Instant::now();
+        for _ in 0..200_000 {
+            rec.frame(t, Direction::Tx, &f);
+        }
+        let s = rec.finish();
+        assert_eq!(s.written + s.dropped, 200_000);
+        assert!(s.dropped > 0, "{s:?}");
+    }
+}

@@ -1,0 +1,168 @@
+//! `motorwire bridge --record DIR` as a user runs it: what the session took
+//! in and gave out, in the field's formats (issue 28 part 1).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+mod common;
+
+use std::io::Write;
+
+use motorwire_can::candump::LogEntry;
+use serde_json::Value;
+
+fn now_ms() -> u128 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis()
+}
+
+/// Every output line the bridge printed is in `lines.jsonl`, as printed
+/// and in order; every input line with its client and number; every frame
+/// both as `candump -L` writes it (read back by motorwire's own candump
+/// reader, the same as can-utils writes them) and with its direction; the
+/// Orion controller's lines both ways; nothing dropped.
+#[test]
+fn a_recorded_session_holds_every_line_and_frame_in_both_formats() {
+    let dir = std::env::temp_dir().join(format!("motorwire-record-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let t = now_ms();
+    let moves = format!(
+        "{{\"motor_id\":\"elbow\",\"timestamp\":{t},\"control_mode\":\"position\",\"setpoint\":20}}\n\
+         {{\"motor_id\":\"elbow\",\"timestamp\":{t},\"control_mode\":\"position\",\"setpoint\":170}}\n\
+         {{\"motor_id\":\"turntable\",\"timestamp\":{t},\"control_mode\":\"velocity\",\"setpoint\":100}}\n"
+    );
+    let stop = "{\"emergency_stop\":true}\n";
+    let input = format!("{moves}{stop}");
+    let mut child = common::spawn(&[
+        "bridge",
+        "--map",
+        "fixtures/maps/demo-arm.toml",
+        "--bus",
+        "sim",
+        "--orion",
+        "sim",
+        "--feedback-hz",
+        "5",
+        "--record",
+        dir.to_str().unwrap(),
+    ]);
+    let mut pipe = child.stdin.take().unwrap();
+    pipe.write_all(moves.as_bytes()).unwrap();
+    // The moves run before the stop comes (a stop overtakes the lines
+    // queued before it).
+    std::thread::sleep(std::time::Duration::from_millis(800));
+    pipe.write_all(stop.as_bytes()).unwrap();
+    drop(pipe);
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains(" dropped"), "{stderr}");
+    assert!(stderr.contains(", 0 dropped"), "{stderr}");
+    let printed: Vec<Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let lines: Vec<Value> = std::fs::read_to_string(dir.join("lines.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    for l in &lines {
+        assert!(l["t_us"].is_u64() && l["wall_ms"].is_u64(), "{l}");
+    }
+    // Every output line, as printed, in order.
+    let outs: Vec<&Value> = lines.iter().filter_map(|l| l.get("out")).collect();
+    assert_eq!(outs.len(), printed.len());
+    assert!(outs.iter().zip(&printed).all(|(a, b)| *a == b));
+    // Every input line, with its client and number, in the order the
+    // bridge took them (a stop may overtake the lines queued before it).
+    let mut ins: Vec<&Value> = lines.iter().filter_map(|l| l.get("in")).collect();
+    ins.sort_by_key(|i| i["line"].as_u64());
+    let sent: Vec<&str> = input.lines().collect();
+    assert_eq!(ins.len(), sent.len());
+    for (k, (i, text)) in ins.iter().zip(&sent).enumerate() {
+        assert_eq!(i["origin"], 0);
+        assert_eq!(i["line"], k + 1);
+        assert_eq!(i["text"], *text);
+    }
+    // Every frame in both files, the same frame in the same order.
+    let log = std::fs::read_to_string(dir.join("frames.log")).unwrap();
+    let logged: Vec<LogEntry> = log.lines().map(|l| LogEntry::parse(l).unwrap()).collect();
+    let framed: Vec<&Value> = lines.iter().filter_map(|l| l.get("frame")).collect();
+    assert_eq!(logged.len(), framed.len());
+    for (e, f) in logged.iter().zip(&framed) {
+        assert_eq!(e.interface, "sim");
+        assert_eq!(f["id"], e.frame.id().raw());
+        assert_eq!(f["fd"], e.frame.is_fd());
+        let hex: String = e.frame.data().iter().map(|b| format!("{b:02x}")).collect();
+        assert_eq!(f["data"], hex);
+    }
+    let tx = framed.iter().filter(|f| f["dir"] == "tx").count();
+    assert!(tx >= 4 && framed.len() > tx, "{tx} of {}", framed.len());
+    // The Orion controller's lines, both ways: the beacon in, the
+    // turntable's speed and the stop out.
+    let orion: Vec<&Value> = lines.iter().filter_map(|l| l.get("orion")).collect();
+    assert!(
+        orion
+            .iter()
+            .any(|o| o["dir"] == "rx" && o["line"] == r#"{"ID":32}"#)
+    );
+    assert!(
+        orion
+            .iter()
+            .any(|o| o["dir"] == "tx" && o["line"] == r#"{"ID":32,"MODE":1,"DATA":{"TRM":100}}"#),
+        "{orion:?}"
+    );
+    assert!(
+        orion
+            .iter()
+            .any(|o| o["dir"] == "tx" && o["line"] == r#"{"ID":32,"MODE":2,"DATA":1}"#)
+    );
+    let session: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("session.json")).unwrap()).unwrap();
+    assert_eq!(session["dropped"], 0);
+    assert_eq!(session["written"], lines.len());
+    assert_eq!(session["interface"], "sim");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A directory that cannot be made is refused at start, named; nothing
+/// runs.
+#[test]
+fn a_recording_that_cannot_be_made_is_refused_at_start() {
+    let out = common::run(
+        &[
+            "bridge",
+            "--map",
+            "fixtures/maps/demo-arm.toml",
+            "--bus",
+            "sim",
+            "--record",
+            "/proc/motorwire-record",
+        ],
+        b"",
+    );
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("motorwire bridge: --record /proc/motorwire-record: "),
+        "{stderr}"
+    );
+    let out = common::run(
+        &[
+            "bridge",
+            "--map",
+            "fixtures/maps/demo-arm.toml",
+            "--bus",
+            "sim",
+            "--record",
+            "/tmp/x",
+            "--record-max-mb",
+            "0",
+        ],
+        b"",
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--record-max-mb must be at least 1"));
+}
