@@ -344,6 +344,8 @@ pub struct Bridge {
     drain_recheck: bool,
     /// Started: ready once every online device has been read, or then.
     settle_until: Option<Duration>,
+    /// Clients that connected during startup, greeted when it ends.
+    to_greet: Vec<Origin>,
     timers: Timers,
     out: VecDeque<Output>,
     now: Duration,
@@ -448,6 +450,7 @@ impl Bridge {
             drain_after_start: None,
             drain_recheck: false,
             settle_until: None,
+            to_greet: Vec::new(),
             last_stop_arrival: None,
             arrivals: Vec::new(),
             base_limits,
@@ -552,15 +555,36 @@ impl Bridge {
         }
     }
 
-    /// A client that connected (and authenticated) at `now`: once the
-    /// bridge is ready, it is greeted with `ready` and the state now
-    /// ([`Output::ToOne`]), as if it had been there when the bridge became
-    /// ready (before, `ready` comes to it with everyone's).
+    /// A client that connected (and authenticated) at `now` is greeted,
+    /// for it alone ([`Output::ToOne`]), exactly once: with `ready` and
+    /// the state now once the bridge is ready (at once, or when it becomes
+    /// ready), or with `stopping` when the bridge is past serving. A
+    /// runner holds everyone's feedback and events from such a client
+    /// until its greeting, so the greeting is its first line.
     pub fn greet(&mut self, now: Duration, origin: Origin) {
         self.now = self.now.max(now);
-        if self.is_ready() {
-            let event = self.ready_event();
-            self.out.push_back(Output::ToOne { origin, event });
+        match self.phase {
+            Phase::Starting => self.to_greet.push(origin),
+            Phase::Running | Phase::Draining { .. } => {
+                let event = self.ready_event();
+                self.out.push_back(Output::ToOne { origin, event });
+            }
+            Phase::Stopping | Phase::Finished => {
+                let event = Event::Stopping {
+                    reason: "the bridge is stopping the joints".to_owned(),
+                };
+                self.out.push_back(Output::ToOne { origin, event });
+            }
+        }
+    }
+
+    /// The clients waiting for `ready` greeted with `event`.
+    fn greet_waiting(&mut self, event: &Event) {
+        for origin in std::mem::take(&mut self.to_greet) {
+            self.out.push_back(Output::ToOne {
+                origin,
+                event: event.clone(),
+            });
         }
     }
 
@@ -587,7 +611,11 @@ impl Bridge {
                 self.phase = Phase::Running;
                 self.settle_until = None;
                 let ready = self.ready_event();
-                self.out.push_back(Output::Event(ready));
+                // Everyone's first, then the greetings: a runner holds
+                // everyone's lines from a client until its greeting, so
+                // each waiting client has one ready, as its first line.
+                self.out.push_back(Output::Event(ready.clone()));
+                self.greet_waiting(&ready);
                 while let Some(w) = self.waiting.pop_front() {
                     self.take_line(w.at, w.meta, &w.text);
                 }
@@ -708,9 +736,11 @@ impl Bridge {
         if matches!(self.phase, Phase::Stopping | Phase::Finished) {
             return;
         }
-        self.out.push_back(Output::Event(Event::Stopping {
+        let stopping = Event::Stopping {
             reason: "interrupted".to_owned(),
-        }));
+        };
+        self.out.push_back(Output::Event(stopping.clone()));
+        self.greet_waiting(&stopping);
         let waiting: Vec<Waiting> = self.waiting.drain(..).collect();
         for w in waiting {
             self.stats.lines += 1;
@@ -823,6 +853,7 @@ impl Bridge {
     /// progress are still answered.
     pub fn forget_origin(&mut self, origin: Origin) {
         self.line_numbers.remove(&origin);
+        self.to_greet.retain(|o| *o != origin);
     }
 
     fn number(&mut self, origin: Origin) -> u64 {
@@ -1259,6 +1290,10 @@ impl Bridge {
             Some(m) => {
                 state.motors.retain(|s| s.motor_id == m);
                 let meta = meta.labelled(Label::Motor(m.clone()));
+                if let Some(e) = self.orion_unattached(std::iter::once(m.as_str())) {
+                    self.refuse(&meta, e);
+                    return;
+                }
                 if state.motors.is_empty() {
                     let e = ErrorBody::refused(
                         BridgeRule::UnknownMotor,
@@ -1991,6 +2026,7 @@ impl Bridge {
     pub fn drop_origin(&mut self, now: Duration, origin: Origin, reason: &str) {
         self.now = self.now.max(now);
         self.line_numbers.remove(&origin);
+        self.to_greet.retain(|o| *o != origin);
         let before = self.waiting.len();
         let mut cancelled: Vec<LineRef> = Vec::new();
         self.waiting.retain(|w| {

@@ -588,21 +588,32 @@ impl Runner {
         let start = Instant::now();
         let since = |at: Instant| at.saturating_duration_since(start);
         let stop = Arc::new(AtomicBool::new(false));
+        // Frames from the bus have a channel of their own, read ahead of
+        // the input lines (after the stops): an Ack is never queued behind
+        // a flood of lines (its request would time out, and a stop come
+        // back outcome_unknown). One Wake on the lines' channel rouses the
+        // loop when it waits there.
+        let (frames_tx, frames_rx) = mpsc::channel::<Msg>();
+        let frames_waiting = Arc::new(AtomicBool::new(false));
         let reader = {
             let stop = Arc::clone(&stop);
-            let frames = self.tx.clone();
+            let wake = self.tx.clone();
+            let waiting = Arc::clone(&frames_waiting);
             thread::spawn(move || {
                 while !stop.load(Ordering::Relaxed) {
                     match rx.recv(Duration::from_millis(20)) {
                         Ok(r) => {
-                            let _ = frames.send(Msg::Frame {
+                            let _ = frames_tx.send(Msg::Frame {
                                 frame: r.frame,
                                 at: Instant::now(),
                             });
+                            if !waiting.swap(true, Ordering::SeqCst) {
+                                let _ = wake.send(Msg::Wake);
+                            }
                         }
                         Err(CanError::Timeout(_)) => {}
                         Err(e) => {
-                            let _ = frames.send(Msg::BusError(e.to_string()));
+                            let _ = wake.send(Msg::BusError(e.to_string()));
                             if fatal(&e) {
                                 break;
                             }
@@ -693,6 +704,29 @@ impl Runner {
             if stopped {
                 continue; // its frames go out before anything else is read
             }
+            // Then what came from the bus, ahead of the lines (at most
+            // FRAMES_AHEAD at a time: a bus flooded with frames still lets
+            // a line through between them).
+            frames_waiting.store(false, Ordering::SeqCst);
+            let mut heard = 0;
+            while heard < FRAMES_AHEAD
+                && let Ok(msg) = frames_rx.try_recv()
+            {
+                if let Some(r) = rec {
+                    record_input(r, &msg);
+                }
+                if let Msg::Frame { frame, at } = msg {
+                    bridge.handle_frame(since(at), &frame);
+                }
+                heard += 1;
+            }
+            if heard == FRAMES_AHEAD {
+                // More may wait: looked at again after one line.
+                frames_waiting.store(true, Ordering::SeqCst);
+            }
+            // Frames taken: one line (if one waits) in the same turn, so
+            // a busy bus never holds the lines back; none taken: wait.
+            let wait = if heard > 0 { Duration::ZERO } else { wait };
             let msg = self.rx.recv_timeout(wait);
             if let Ok(m @ (Msg::Line { origin, .. } | Msg::Refused { origin, .. })) = &msg {
                 self.budget.give(*origin, false, queued_bytes(m));
@@ -773,6 +807,9 @@ impl Runner {
         result.map(|()| bridge)
     }
 }
+
+/// Frames from the bus taken ahead of the input lines at a time.
+const FRAMES_AHEAD: usize = 256;
 
 /// What `msg` brings that a recording keeps: an input line, a frame
 /// received, a line from the Orion controller.

@@ -372,12 +372,18 @@ struct Client {
     /// (its queue drained, then its socket closed) when it has them all,
     /// and the completion lines they announced.
     owed: Option<u64>,
+    /// It was greeted (`ready` and the state, or `stopping`): everyone's
+    /// feedback and events reach it from then on, so its greeting is its
+    /// first line; it is not let go before it.
+    greeted: bool,
 }
 
 impl Client {
     fn settled(&self) -> bool {
-        self.owed
-            .is_some_and(|n| self.delivered >= n && self.arrivals_sent >= self.arrivals_owed)
+        self.greeted
+            && self
+                .owed
+                .is_some_and(|n| self.delivered >= n && self.arrivals_sent >= self.arrivals_owed)
     }
 }
 
@@ -516,7 +522,7 @@ impl Router {
                             c.arrivals_owed += u64::from(arrival_follows);
                         }
                         Sent::Arrival => c.arrivals_sent += 1,
-                        Sent::Event => {}
+                        Sent::Event => c.greeted = true,
                     }
                     if c.settled() {
                         clients.remove(&id); // the writer drains, then closes
@@ -536,7 +542,7 @@ impl Router {
     fn to_every_client(&self, line: &Arc<str>) {
         let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
         let mut gone = Vec::new();
-        for (id, c) in clients.iter() {
+        for (id, c) in clients.iter().filter(|(_, c)| c.greeted) {
             match c.queue.try_send(Arc::clone(line)) {
                 Ok(()) => {}
                 Err(TrySendError::Full(_)) => {
@@ -559,7 +565,9 @@ impl Router {
 
     /// Registers an authenticated connection; its writer thread sends its
     /// queue out: whole lines, all that are waiting in one write.
-    fn add_client(&self, id: u64, conn: Conn, queue_len: usize) -> io::Result<()> {
+    /// `greet`: it is greeted by the engine ([`InputSender::greet`], asked
+    /// here) before anyone's feedback and events reach it.
+    fn add_client(&self, id: u64, conn: Conn, queue_len: usize, greet: bool) -> io::Result<()> {
         let (queue, lines) = mpsc::sync_channel::<Arc<str>>(queue_len);
         let mut writer = conn.try_clone()?;
         self.clients
@@ -574,8 +582,13 @@ impl Router {
                     arrivals_owed: 0,
                     arrivals_sent: 0,
                     owed: None,
+                    greeted: !greet,
                 },
             );
+        if greet {
+            // After it is registered: its greeting finds it.
+            self.input.greet(Origin(id));
+        }
         thread::spawn(move || {
             // Whole lines only, and as many as are waiting in one write (up
             // to 64 KiB): a client reading as fast as it can keeps up with
@@ -780,10 +793,12 @@ impl Router {
             reader.get_mut().lift();
             authenticating.done();
             let _slot = slot;
-            if self.add_client(id, conn, config.client_queue).is_err() {
+            if self
+                .add_client(id, conn, config.client_queue, true)
+                .is_err()
+            {
                 return;
             }
-            self.input.greet(Origin(id));
             self.feed_rest(id, &mut reader);
             return;
         }
@@ -818,10 +833,12 @@ impl Router {
                 let Some(_slot) = self.slot(config) else {
                     return refuse_full(conn, config);
                 };
-                if self.add_client(id, conn, config.client_queue).is_err() {
+                if self
+                    .add_client(id, conn, config.client_queue, true)
+                    .is_err()
+                {
                     return;
                 }
-                self.input.greet(Origin(id));
                 // Answered as any unreadable line is (and a stop if it
                 // names one).
                 let origin = Origin(id);
@@ -886,7 +903,11 @@ impl Router {
             };
             self.connected.fetch_add(1, Ordering::SeqCst);
             let _over = Slot(&self.connected);
-            if self.add_client(id, conn, config.client_queue).is_err() {
+            // Only its stop is taken: not greeted.
+            if self
+                .add_client(id, conn, config.client_queue, false)
+                .is_err()
+            {
                 return;
             }
             self.input.line(Origin(id), stop);
@@ -896,11 +917,12 @@ impl Router {
         reader.get_mut().lift();
         authenticating.done();
         let _slot = slot;
-        if self.add_client(id, conn, config.client_queue).is_err() {
+        if self
+            .add_client(id, conn, config.client_queue, true)
+            .is_err()
+        {
             return;
         }
-        // `ready` and the state now, if the bridge is ready already.
-        self.input.greet(Origin(id));
         if first_is_command {
             self.input.line(Origin(id), first);
         }

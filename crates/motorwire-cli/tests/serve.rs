@@ -758,3 +758,108 @@ fn a_client_connecting_after_ready_is_greeted_with_the_state() {
     assert_eq!(answer["line"], 1);
     assert_eq!(answer["state"]["motors"][0]["motor_id"], "elbow");
 }
+
+/// The first line of a client's connection is its greeting, whatever else
+/// flows: at 1,000 feedback lines a second, clients connecting one after
+/// another each see `ready` first (feedback reached some before it); those
+/// connecting during the startup see exactly one `ready` (some saw the
+/// broadcast and their greeting); a listener that closes its sending side
+/// at once is still greeted before the connection ends (it was let go
+/// first, owing nothing).
+#[test]
+fn a_clients_greeting_is_its_first_line_and_comes_exactly_once() {
+    let dir = scratch("greet-first");
+    let sock = dir.join("bridge.sock");
+    let mut child = unix_bridge(&sock, &["--feedback-hz", "1000", "--max-clients", "64"]);
+    let _ = listening(&mut child);
+    let events = stdout_lines(&mut child);
+    let _bridge = Bridge(child);
+    let first_lines = |s: UnixStream, n: usize| -> Vec<Value> {
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        BufReader::new(s)
+            .lines()
+            .take(n)
+            .map(|l| serde_json::from_str(&l.unwrap()).unwrap())
+            .collect()
+    };
+    // During the startup (the socket listens before the joints are read).
+    let early: Vec<UnixStream> = (0..20)
+        .map(|_| UnixStream::connect(&sock).unwrap())
+        .collect();
+    wait_for(&events, Duration::from_secs(10), |v| v["event"] == "ready");
+    for s in early {
+        let lines = first_lines(s, 200);
+        assert_eq!(lines[0]["event"], "ready", "{:?}", &lines[..3]);
+        let readies = lines.iter().filter(|v| v["event"] == "ready").count();
+        assert_eq!(readies, 1, "one ready: {:?}", &lines[..3]);
+    }
+    // After it, one after another, with feedback flowing.
+    for _ in 0..40 {
+        let lines = first_lines(UnixStream::connect(&sock).unwrap(), 1);
+        assert_eq!(lines[0]["event"], "ready", "{}", lines[0]);
+    }
+    // A listener that closes its sending side at once.
+    for _ in 0..10 {
+        let s = UnixStream::connect(&sock).unwrap();
+        s.shutdown(std::net::Shutdown::Write).unwrap();
+        let lines = first_lines(s, 1);
+        assert_eq!(lines.len(), 1, "greeted before the end");
+        assert_eq!(lines[0]["event"], "ready", "{}", lines[0]);
+    }
+}
+
+/// Clients flooding the bridge with queries do not make a stop fail: the
+/// joints' acknowledgements are read ahead of the lines (they waited
+/// behind thousands of queued queries, past their timeouts, and the stop
+/// came back `outcome_unknown` with the joints flapping offline).
+#[test]
+fn a_flood_of_queries_does_not_keep_the_joints_answers_from_a_stop() {
+    let dir = scratch("query-flood");
+    let sock = dir.join("bridge.sock");
+    let mut child = unix_bridge(&sock, &[]);
+    let _ = listening(&mut child);
+    let events = stdout_lines(&mut child);
+    let _bridge = Bridge(child);
+    wait_for(&events, Duration::from_secs(10), |v| v["event"] == "ready");
+    let stop_flood = Arc::new(AtomicBool::new(false));
+    let batch = "{\"query\":\"state\"}\n".repeat(2000);
+    let flooders: Vec<_> = (0..7)
+        .map(|_| {
+            let sock = sock.clone();
+            let stop = Arc::clone(&stop_flood);
+            let batch = batch.clone();
+            thread::spawn(move || {
+                let mut s = UnixStream::connect(&sock).unwrap();
+                let mut r = s.try_clone().unwrap();
+                thread::spawn(move || std::io::copy(&mut r, &mut std::io::sink()));
+                let started = Instant::now();
+                while !stop.load(Ordering::Relaxed)
+                    && started.elapsed() < Duration::from_secs(20)
+                    && s.write_all(batch.as_bytes()).is_ok()
+                {}
+            })
+        })
+        .collect();
+    thread::sleep(Duration::from_millis(1500));
+    let op = UnixStream::connect(&sock).unwrap();
+    op.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let mut w = op.try_clone().unwrap();
+    let mut r = BufReader::new(op);
+    for _ in 0..3 {
+        writeln!(w, r#"{{"emergency_stop":true}}"#).unwrap();
+        let stop = next_result(&mut r);
+        assert_eq!(stop["ok"], true, "{stop}");
+        assert_eq!(stop["acked"].as_array().unwrap().len(), 4, "{stop}");
+        // Its Acks are read as they come, not after the queued queries:
+        // within the Ack timeout (100 ms), past which a request is sent
+        // again and then given up (they took 250 ms and more).
+        assert!(stop["ack_us"].as_u64().unwrap() < 100_000, "{stop}");
+        writeln!(w, r#"{{"emergency_stop":false}}"#).unwrap();
+        let release = next_result(&mut r);
+        assert_eq!(release["ok"], true, "{release}");
+    }
+    stop_flood.store(true, Ordering::Relaxed);
+    for f in flooders {
+        f.join().unwrap();
+    }
+}

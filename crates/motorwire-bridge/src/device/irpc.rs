@@ -269,9 +269,11 @@ pub(crate) fn effect(payload: Payload, cx: &Context) -> Effect {
             active: Some(true),
             ..Effect::NONE
         },
-        // The joint brakes; give it a moment before calling it idle.
+        // The joint brakes (its move abandoned); give it a moment before
+        // calling it idle.
         Payload::Deactivate | Payload::Reset => Effect {
             active: Some(false),
+            target: Some(None),
             moving: Moving::AtMost(cx.at.saturating_add(Duration::from_millis(100))),
             ..Effect::NONE
         },

@@ -441,7 +441,9 @@ impl Order {
             Self::Irpc(p) => irpc::effect(p, cx),
             Self::Compact(c) => {
                 if c.flags.contains(Flags::EMERGENCY_STOP) {
+                    // Its move abandoned.
                     return Effect {
+                        target: Some(None),
                         moving: Moving::AtMost(at),
                         ..Effect::NONE
                     };
@@ -482,7 +484,10 @@ impl Order {
                 },
                 Quantity::Speed | Quantity::Actuator => self.holding(cx),
             },
+            // A stop abandons the move; fold and unfold move the servo
+            // where the controller takes it.
             Self::Orion(OrionOrder::Command(_)) => Effect {
+                target: Some(None),
                 moving: Moving::Until(at),
                 ..Effect::NONE
             },
@@ -800,7 +805,11 @@ mod tests {
         };
         let e = Order::Compact(stop).effect(&cx);
         assert_eq!(e.moving, Moving::AtMost(Duration::from_millis(1000)));
-        assert_eq!((e.deadman, e.target), (None, None));
+        assert_eq!(
+            (e.deadman, e.target),
+            (None, Some(None)),
+            "no target any more"
+        );
         // A compact move of 90 degrees at the limit's 100 deg/s and 1000
         // deg/s²: 0.9 s + 0.1 s.
         let mv = CompactCommand {
