@@ -419,6 +419,6 @@ fn main() {
     if test_mode {
         recording_cost(1, 2);
     } else {
-        recording_cost(4, 25);
+        recording_cost(8, 25);
     }
 }

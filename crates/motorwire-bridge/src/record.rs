@@ -47,7 +47,7 @@ use crate::output::{Origin, Output};
 pub const RECORD_QUEUE: usize = 65_536;
 
 /// Records the writer takes before it pauses.
-const BATCH: usize = 128;
+const BATCH: usize = 64;
 
 /// How often the writer looks for records (it never sleeps where a
 /// record would have to wake it).
