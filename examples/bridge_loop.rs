@@ -103,7 +103,7 @@ fn run(out: &mut dyn Write) -> Result<(), Box<dyn std::error::Error>> {
                     Output::Result { .. } | Output::Arrival { .. } => {
                         writeln!(out, "{:>5} ms  {}", now.as_millis(), output.to_json())?;
                     }
-                    Output::Event(_) | Output::Feedback(_) => {}
+                    Output::Event(_) | Output::Feedback(_) | Output::ToOne { .. } => {}
                 }
             }
             if !busy {
