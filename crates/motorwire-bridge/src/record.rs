@@ -247,6 +247,31 @@ impl Drop for Recorder {
     }
 }
 
+/// A file of the recording, made anew at `path`: what stands there (an
+/// earlier recording's file, a symbolic link, a FIFO) is removed first, and
+/// the file is created only if nothing is there then, so the recording
+/// never writes through a link to another file nor blocks on a FIFO.
+///
+/// # Errors
+/// A directory stands there, or it could not be removed or created.
+fn fresh(path: &Path) -> io::Result<File> {
+    match fs::symlink_metadata(path) {
+        Ok(m) if m.is_dir() => {
+            return Err(io::Error::other(format!(
+                "{} is a directory",
+                path.display()
+            )));
+        }
+        Ok(_) => fs::remove_file(path)?,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+        Err(e) => return Err(e),
+    }
+    fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
+}
+
 /// One of the two rotated files.
 #[derive(Debug)]
 struct Rotated {
@@ -261,9 +286,12 @@ impl Rotated {
     fn create(dir: &Path, name: &str, old: &str, limit: u64) -> io::Result<Self> {
         let path = dir.join(name);
         let old = dir.join(old);
-        let _ = fs::remove_file(&old);
+        match fs::remove_file(&old) {
+            Err(e) if e.kind() != io::ErrorKind::NotFound => return Err(e),
+            _ => {}
+        }
         Ok(Self {
-            out: BufWriter::new(File::create(&path)?),
+            out: BufWriter::new(fresh(&path)?),
             path,
             old,
             len: 0,
@@ -271,18 +299,24 @@ impl Rotated {
         })
     }
 
-    fn line(&mut self, s: &str) -> io::Result<u64> {
+    /// Writes `s` as one line; its bytes, or `None` when it is longer
+    /// than the file may hold (not written: the recording stays within
+    /// its limit).
+    fn line(&mut self, s: &str) -> io::Result<Option<u64>> {
         let n = s.len() as u64 + 1;
+        if n > self.limit {
+            return Ok(None);
+        }
         if self.len > 0 && self.len + n > self.limit {
             self.out.flush()?;
             fs::rename(&self.path, &self.old)?;
-            self.out = BufWriter::new(File::create(&self.path)?);
+            self.out = BufWriter::new(fresh(&self.path)?);
             self.len = 0;
         }
         self.out.write_all(s.as_bytes())?;
         self.out.write_all(b"\n")?;
         self.len += n;
-        Ok(n)
+        Ok(Some(n))
     }
 }
 
@@ -325,7 +359,13 @@ impl Files {
             m.insert("dropped".to_owned(), s.dropped.into());
             m.insert("bytes".to_owned(), s.bytes.into());
         }
-        fs::write(self.dir.join("session.json"), format!("{v}\n"))
+        // Written beside it, then put in its place: never through a link,
+        // never into a FIFO.
+        let tmp = self.dir.join("session.json.part");
+        let mut f = fresh(&tmp)?;
+        f.write_all(format!("{v}\n").as_bytes())?;
+        drop(f);
+        fs::rename(&tmp, self.dir.join("session.json"))
     }
 
     /// (`t_us`, wall microseconds) of `at`.
@@ -336,7 +376,9 @@ impl Files {
         (t_us, wall)
     }
 
-    fn write(&mut self, r: Record) -> io::Result<u64> {
+    /// Writes `r`: its bytes, or `None` when it is too long for the
+    /// recording's limit (not written).
+    fn write(&mut self, r: Record) -> io::Result<Option<u64>> {
         let at = match &r {
             Record::Frame { at, .. }
             | Record::Input { at, .. }
@@ -354,7 +396,9 @@ impl Files {
                     interface: self.interface.clone(),
                     frame,
                 };
-                let mut n = self.frames.line(&entry.to_string())?;
+                let Some(logged) = self.frames.line(&entry.to_string())? else {
+                    return Ok(None);
+                };
                 let id = frame.id();
                 let mut line = head("frame");
                 let _ = write!(
@@ -369,8 +413,7 @@ impl Files {
                     let _ = write!(line, "{b:02x}");
                 }
                 line.push_str("\"}}");
-                n += self.lines.line(&line)?;
-                return Ok(n);
+                return Ok(self.lines.line(&line)?.map(|n| n + logged));
             }
             Record::Input {
                 origin,
@@ -391,8 +434,17 @@ impl Files {
                     serde_json::json!({"origin": origin.0, "line": number, "unreadable": reason});
                 format!("{}{body}}}", head("in"))
             }
-            // The line as it was given, whole.
-            Record::Output { output, .. } => format!("{}{}}}", head("out"), output.to_json()),
+            // The line as it was given, whole, and to whom when it was
+            // one client's (a result, a completion, a greeting).
+            Record::Output { output, .. } => {
+                let to = match &*output {
+                    Output::Result { origin, .. }
+                    | Output::Arrival { origin, .. }
+                    | Output::ToOne { origin, .. } => format!(r#","to":{}"#, origin.0),
+                    Output::Feedback(_) | Output::Event(_) => String::new(),
+                };
+                format!("{}{}{to}}}", head("out"), output.to_json())
+            }
             Record::Orion { dir, line, .. } => {
                 let body = serde_json::json!({"dir": dir.name(), "line": line});
                 format!("{}{body}}}", head("orion"))
@@ -404,6 +456,25 @@ impl Files {
     fn write_all(mut self, records: &Receiver<Record>, dropped: &AtomicU64) -> RecordSummary {
         let mut s = RecordSummary::default();
         let mut failed = false;
+        // Records handed to the files' buffers, counted written once the
+        // buffers are on disk (dropped when that fails: a full disk).
+        let (mut pending, mut pending_bytes) = (0u64, 0u64);
+        let mut settle =
+            |files: &mut Self, pending: &mut u64, bytes: &mut u64, failed: &mut bool| {
+                let flushed = files
+                    .frames
+                    .out
+                    .flush()
+                    .and_then(|()| files.lines.out.flush());
+                if flushed.is_ok() && !*failed {
+                    s.written += *pending;
+                    s.bytes += *bytes;
+                } else {
+                    *failed = true;
+                    dropped.fetch_add(*pending, Ordering::Relaxed);
+                }
+                (*pending, *bytes) = (0, 0);
+            };
         // The writer polls rather than sleeping in `recv`: a record handed
         // over then never has to wake it (a system call on the bridge's
         // thread, for every frame and line).
@@ -424,23 +495,26 @@ impl Files {
                     continue;
                 }
                 match self.write(r) {
-                    Ok(n) => {
-                        s.written += 1;
-                        s.bytes += n;
+                    Ok(Some(n)) => {
+                        pending += 1;
+                        pending_bytes += n;
+                    }
+                    // Longer than the recording may hold: left out, counted.
+                    Ok(None) => {
+                        dropped.fetch_add(1, Ordering::Relaxed);
                     }
                     Err(_) => {
                         failed = true;
-                        dropped.fetch_add(1, Ordering::Relaxed);
+                        dropped.fetch_add(pending + 1, Ordering::Relaxed);
+                        (pending, pending_bytes) = (0, 0);
                     }
                 }
             }
             // Nothing more waiting: out on disk (a crash loses little).
-            let _ = self.frames.out.flush();
-            let _ = self.lines.out.flush();
+            settle(&mut self, &mut pending, &mut pending_bytes, &mut failed);
             thread::sleep(POLL);
         }
-        let _ = self.frames.out.flush();
-        let _ = self.lines.out.flush();
+        settle(&mut self, &mut pending, &mut pending_bytes, &mut failed);
         let mut end = s;
         end.dropped = dropped.load(Ordering::Relaxed);
         let _ = self.session(Some(end));
@@ -564,5 +638,65 @@ mod tests {
         let s = rec.finish();
         assert_eq!(s.written + s.dropped, 200_000);
         assert!(s.dropped > 0, "{s:?}");
+    }
+
+    /// What stands where a file of the recording goes is removed, never
+    /// written through: a symbolic link to another file (that file is left
+    /// as it was), a FIFO nobody reads (the recording neither blocks at
+    /// its start nor at its end).
+    #[test]
+    fn a_link_or_a_fifo_in_the_directory_is_replaced_not_followed() {
+        let dir = scratch("links");
+        fs::create_dir_all(&dir).unwrap();
+        let precious = dir.join("precious.txt");
+        fs::write(&precious, "keep me\n").unwrap();
+        std::os::unix::fs::symlink(&precious, dir.join("frames.log")).unwrap();
+        std::os::unix::fs::symlink(dir.join("elsewhere.txt"), dir.join("lines.jsonl")).unwrap();
+        let made = std::process::Command::new("mkfifo")
+            .arg(dir.join("session.json"))
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let rec = Recorder::start(RecordConfig {
+            dir: dir.clone(),
+            max_bytes: DEFAULT_RECORD_MAX,
+            interface: "can0".to_owned(),
+        })
+        .unwrap();
+        let f = Frame::fd(CanId::standard(0x12).unwrap(), &[1, 2, 3]).unwrap();
+        rec.frame(Instant::now(), Direction::Rx, &f);
+        let s = rec.finish();
+        assert_eq!((s.written, s.dropped), (1, 0));
+        assert_eq!(fs::read_to_string(&precious).unwrap(), "keep me\n");
+        assert!(!dir.join("elsewhere.txt").exists());
+        for name in ["frames.log", "lines.jsonl", "session.json"] {
+            let m = fs::symlink_metadata(dir.join(name)).unwrap();
+            assert!(m.file_type().is_file(), "{name} is a plain file");
+        }
+        assert!(!dir.join("session.json.part").exists());
+        let _ = fs::remove_dir_all(dir);
+    }
+
+    /// A record longer than a file of the recording may hold is left out
+    /// and counted: the recording stays within its limit.
+    #[test]
+    fn a_record_longer_than_the_limit_allows_is_left_out_and_counted() {
+        let dir = scratch("long");
+        let limit = 16 * 1024;
+        let rec = Recorder::start(RecordConfig {
+            dir: dir.clone(),
+            max_bytes: limit,
+            interface: "can0".to_owned(),
+        })
+        .unwrap();
+        let t = Instant::now();
+        rec.input(t, Origin(1), 1, &"x".repeat(5_000));
+        rec.input(t, Origin(1), 2, "{}");
+        let s = rec.finish();
+        assert_eq!((s.written, s.dropped), (1, 1));
+        let lines = fs::read_to_string(dir.join("lines.jsonl")).unwrap();
+        assert_eq!(lines.lines().count(), 1);
+        assert!(lines.contains(r#""line":2"#), "{lines}");
+        let _ = fs::remove_dir_all(dir);
     }
 }

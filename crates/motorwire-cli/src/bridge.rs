@@ -355,6 +355,9 @@ fn bridge(args: &Args) -> Result<u8, String> {
             if args.record_max_mb == 0 {
                 return Err("--record-max-mb must be at least 1".to_owned());
             }
+            if dir.is_empty() {
+                return Err("--record needs a directory (an empty path would record into the working directory)".to_owned());
+            }
             let interface = args
                 .bus
                 .strip_prefix("socketcan:")

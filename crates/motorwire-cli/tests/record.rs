@@ -165,4 +165,23 @@ fn a_recording_that_cannot_be_made_is_refused_at_start() {
     );
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--record-max-mb must be at least 1"));
+    // An empty path would record into the working directory.
+    let out = common::run(
+        &[
+            "bridge",
+            "--map",
+            "fixtures/maps/demo-arm.toml",
+            "--bus",
+            "sim",
+            "--record",
+            "",
+        ],
+        b"",
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--record needs a directory"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
