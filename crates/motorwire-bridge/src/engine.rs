@@ -3722,18 +3722,7 @@ mod tests {
 
     /// A joint's frame to the bridge, in v2.2.
     fn from_joint(node: u16, msg_id: u32, payload: Payload) -> Frame {
-        use motorwire_irpc::{Header, MAX_FRAME_LEN, Message, WireVersion};
-        let m = Message {
-            header: Header {
-                source_id: node,
-                target_id: 0,
-                msg_id,
-            },
-            payload,
-        };
-        let mut buf = [0u8; MAX_FRAME_LEN];
-        let n = m.encode_frame(WireVersion::V2_2, &mut buf).unwrap();
-        Frame::fd(motorwire_can::CanId::standard(node).unwrap(), &buf[..n]).unwrap()
+        crate::device::irpc::joint_frame(node, msg_id, payload, motorwire_irpc::WireVersion::V2_2)
     }
 
     /// A stop line that comes while a stop the bridge made itself (a

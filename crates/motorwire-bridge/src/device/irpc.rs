@@ -281,26 +281,32 @@ pub(crate) fn effect(payload: Payload, cx: &Context) -> Effect {
     }
 }
 
+/// A joint's message to the bridge (node 0x0000) as its frame, in `wire`:
+/// what the tests of the driver and of the engine feed in.
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+pub(crate) fn joint_frame(source: u16, msg_id: u32, payload: Payload, wire: WireVersion) -> Frame {
+    let m = Message {
+        header: motorwire_irpc::Header {
+            source_id: source,
+            target_id: 0x0000,
+            msg_id,
+        },
+        payload,
+    };
+    let mut buf = [0u8; motorwire_irpc::MAX_FRAME_LEN];
+    let n = m.encode_frame(wire, &mut buf).unwrap();
+    Frame::fd(motorwire_can::CanId::standard(source).unwrap(), &buf[..n]).unwrap()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use motorwire_can::CanId;
-    use motorwire_irpc::{Header, MAX_FRAME_LEN};
 
     const MS: Duration = Duration::from_millis(1);
 
     fn reply(source: u16, msg_id: u32, payload: Payload) -> Frame {
-        let m = Message {
-            header: Header {
-                source_id: source,
-                target_id: 0x0000,
-                msg_id,
-            },
-            payload,
-        };
-        let mut buf = [0u8; MAX_FRAME_LEN];
-        let n = m.encode_frame(WireVersion::V2_0, &mut buf).unwrap();
-        Frame::fd(CanId::standard(source).unwrap(), &buf[..n]).unwrap()
+        joint_frame(source, msg_id, payload, WireVersion::V2_0)
     }
 
     fn events(d: &mut IrpcDriver) -> Vec<IrpcEvent> {
