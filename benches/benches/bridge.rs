@@ -320,6 +320,7 @@ fn recording_cost(passes: usize, rounds: usize) {
                             dir: dir.clone(),
                             max_bytes: motorwire_bridge::record::DEFAULT_RECORD_MAX,
                             interface: "sim".to_owned(),
+                            setup: None,
                         },
                     )
                     .unwrap(),

@@ -9,6 +9,7 @@ mod job;
 mod joints;
 mod output;
 pub mod record;
+pub mod replay;
 mod runtime;
 pub mod sim;
 

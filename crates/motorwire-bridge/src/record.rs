@@ -12,7 +12,8 @@
 //!   one monotonic clock from the start of the recording; a frame or a line
 //!   is stamped when it arrived, so it may be a little earlier than the
 //!   record before it) and `wall_ms` (Unix milliseconds): every input line
-//!   with its client and number (`"in"`), every output line as it was
+//!   with its client and number, and when the bridge took it (`"in"`,
+//!   `taken_us`), every output line as it was
 //!   given (`"out"`: results, completions, feedback, events), every frame
 //!   again with its direction (`"frame"`: `"dir":"tx"|"rx"`, the id and
 //!   the data in hex), and every line to or from the Orion arm controller
@@ -84,6 +85,8 @@ enum Record {
     },
     Input {
         at: Instant,
+        /// When the bridge took it (`at` is when it came).
+        taken: Instant,
         origin: Origin,
         number: u64,
         text: String,
@@ -93,14 +96,85 @@ enum Record {
         origin: Origin,
         number: u64,
         reason: String,
+        stop: bool,
+    },
+    Mark {
+        at: Instant,
+        mark: Mark,
     },
     /// Rendered by the writer, off the bridge's thread.
-    Output { at: Instant, output: Box<Output> },
+    Output {
+        at: Instant,
+        output: Box<Output>,
+    },
     Orion {
         at: Instant,
         dir: Direction,
         line: String,
     },
+}
+
+/// Something the bridge was told that is neither a line nor a frame: a
+/// replay ([`crate::replay`]) tells the bridge the same at the same time.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Mark {
+    /// The bridge started: its time zero (`"start"`).
+    Start,
+    /// A client connected and was greeted (`"greet"`).
+    Greet(Origin),
+    /// A client went away; its pending lines were cancelled (`"dropped"`).
+    Dropped(Origin, String),
+    /// The input ended (`"finish"`).
+    Finish,
+    /// A signal asked the bridge to stop (`"interrupt"`).
+    Interrupt,
+    /// The link to the Orion controller was lost (`"orion_lost"`).
+    OrionLost(String),
+    /// A line from the Orion controller could not be read
+    /// (`"orion_unreadable"`).
+    OrionUnreadable(String),
+}
+
+impl Mark {
+    /// The mark as its `lines.jsonl` object: `{"kind":...}` and, where it
+    /// has them, `origin` and `reason`.
+    pub fn to_value(&self) -> serde_json::Value {
+        use serde_json::json;
+        match self {
+            Self::Start => json!({"kind": "start"}),
+            Self::Greet(o) => json!({"kind": "greet", "origin": o.0}),
+            Self::Dropped(o, why) => json!({"kind": "dropped", "origin": o.0, "reason": why}),
+            Self::Finish => json!({"kind": "finish"}),
+            Self::Interrupt => json!({"kind": "interrupt"}),
+            Self::OrionLost(why) => json!({"kind": "orion_lost", "reason": why}),
+            Self::OrionUnreadable(why) => json!({"kind": "orion_unreadable", "reason": why}),
+        }
+    }
+
+    /// The mark a `lines.jsonl` object describes (`None`: not a mark this
+    /// version knows).
+    pub fn from_value(v: &serde_json::Value) -> Option<Self> {
+        let origin = || {
+            v.get("origin")
+                .and_then(serde_json::Value::as_u64)
+                .map(Origin)
+        };
+        let reason = || {
+            v.get("reason")
+                .and_then(serde_json::Value::as_str)
+                .map(str::to_owned)
+        };
+        Some(match v.get("kind")?.as_str()? {
+            "start" => Self::Start,
+            "greet" => Self::Greet(origin()?),
+            "dropped" => Self::Dropped(origin()?, reason()?),
+            "finish" => Self::Finish,
+            "interrupt" => Self::Interrupt,
+            "orion_lost" => Self::OrionLost(reason()?),
+            "orion_unreadable" => Self::OrionUnreadable(reason()?),
+            _ => return None,
+        })
+    }
 }
 
 /// What a recording came to.
@@ -125,6 +199,10 @@ pub struct RecordConfig {
     /// The CAN interface name written in `frames.log` (`canplayer` maps
     /// it: `canplayer -I frames.log vcan0=can0`).
     pub interface: String,
+    /// How the bridge was set up, written into `session.json` as `setup`
+    /// so the session can be replayed as it ran
+    /// ([`crate::replay::Setup`]); `None`: not written.
+    pub setup: Option<serde_json::Value>,
 }
 
 /// A recording under way; see the module's documentation.
@@ -179,24 +257,34 @@ impl Recorder {
         });
     }
 
-    /// Input line `number` of `origin`, received at `at`.
+    /// Input line `number` of `origin`, received at `at` and taken by the
+    /// bridge now (both are written: `t_us` and `taken_us`).
     pub fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
         self.put(Record::Input {
             at,
+            taken: Instant::now(),
             origin,
             number,
             text: text.to_owned(),
         });
     }
 
-    /// Input line `number` of `origin` that could not be read (`reason`).
-    pub fn unreadable(&self, at: Instant, origin: Origin, number: u64, reason: &str) {
+    /// Input line `number` of `origin` that could not be read (`reason`);
+    /// `stop`: it named `emergency_stop` and was taken as a stop.
+    pub fn unreadable(&self, at: Instant, origin: Origin, number: u64, reason: &str, stop: bool) {
         self.put(Record::Unreadable {
             at,
             origin,
             number,
             reason: reason.to_owned(),
+            stop,
         });
+    }
+
+    /// Something the bridge was told at `at` that is neither a line nor a
+    /// frame.
+    pub fn mark(&self, at: Instant, mark: Mark) {
+        self.put(Record::Mark { at, mark });
     }
 
     /// An output line given at `at`.
@@ -324,6 +412,7 @@ impl Rotated {
 struct Files {
     dir: PathBuf,
     interface: String,
+    setup: Option<serde_json::Value>,
     frames: Rotated,
     lines: Rotated,
     t0: Instant,
@@ -337,6 +426,7 @@ impl Files {
         let files = Self {
             dir: config.dir.clone(),
             interface: config.interface.clone(),
+            setup: config.setup.clone(),
             frames: Rotated::create(&config.dir, "frames.log", "frames.1.log", quarter)?,
             lines: Rotated::create(&config.dir, "lines.jsonl", "lines.1.jsonl", quarter)?,
             t0,
@@ -354,6 +444,9 @@ impl Files {
             "interface": self.interface,
             "files": ["frames.log", "lines.jsonl"],
         });
+        if let (Some(setup), Some(m)) = (&self.setup, v.as_object_mut()) {
+            m.insert("setup".to_owned(), setup.clone());
+        }
         if let (Some(s), Some(m)) = (end, v.as_object_mut()) {
             m.insert("written".to_owned(), s.written.into());
             m.insert("dropped".to_owned(), s.dropped.into());
@@ -383,6 +476,7 @@ impl Files {
             Record::Frame { at, .. }
             | Record::Input { at, .. }
             | Record::Unreadable { at, .. }
+            | Record::Mark { at, .. }
             | Record::Output { at, .. }
             | Record::Orion { at, .. } => *at,
         };
@@ -419,21 +513,27 @@ impl Files {
                 origin,
                 number,
                 text,
+                taken,
                 ..
             } => {
-                let body = serde_json::json!({"origin": origin.0, "line": number, "text": text});
+                let body = serde_json::json!({"origin": origin.0, "line": number, "text": text, "taken_us": self.clocks(taken).0});
                 format!("{}{body}}}", head("in"))
             }
             Record::Unreadable {
                 origin,
                 number,
                 reason,
+                stop,
                 ..
             } => {
-                let body =
-                    serde_json::json!({"origin": origin.0, "line": number, "unreadable": reason});
+                let body = if stop {
+                    serde_json::json!({"origin": origin.0, "line": number, "unreadable": reason, "stop": true})
+                } else {
+                    serde_json::json!({"origin": origin.0, "line": number, "unreadable": reason})
+                };
                 format!("{}{body}}}", head("in"))
             }
+            Record::Mark { mark, .. } => format!("{}{}}}", head("mark"), mark.to_value()),
             // The line as it was given, whole, and to whom when it was
             // one client's (a result, a completion, a greeting).
             Record::Output { output, .. } => {
@@ -545,6 +645,7 @@ mod tests {
             dir: dir.clone(),
             max_bytes: DEFAULT_RECORD_MAX,
             interface: "can0".to_owned(),
+            setup: None,
         })
         .unwrap();
         let t = Instant::now();
@@ -552,7 +653,7 @@ mod tests {
         let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0x00, 0x12, 0x01, 0x03]).unwrap();
         rec.frame(t, Direction::Tx, &f);
         rec.orion(t, Direction::Tx, r#"{"ID":32,"MODE":2,"DATA":1}"#);
-        rec.unreadable(t, Origin(2), 2, "the line is not UTF-8");
+        rec.unreadable(t, Origin(2), 2, "the line is not UTF-8", false);
         let s = rec.finish();
         assert_eq!((s.written, s.dropped), (4, 0));
         let frames = fs::read_to_string(dir.join("frames.log")).unwrap();
@@ -599,6 +700,7 @@ mod tests {
             dir: dir.clone(),
             max_bytes: limit,
             interface: "can0".to_owned(),
+            setup: None,
         })
         .unwrap();
         let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0xAB; 64]).unwrap();
@@ -627,6 +729,7 @@ mod tests {
             dir: dir.clone(),
             max_bytes: 4096,
             interface: "can0".to_owned(),
+            setup: None,
         })
         .unwrap();
         fs::remove_dir_all(&dir).unwrap();
@@ -661,6 +764,7 @@ mod tests {
             dir: dir.clone(),
             max_bytes: DEFAULT_RECORD_MAX,
             interface: "can0".to_owned(),
+            setup: None,
         })
         .unwrap();
         let f = Frame::fd(CanId::standard(0x12).unwrap(), &[1, 2, 3]).unwrap();
@@ -687,6 +791,7 @@ mod tests {
             dir: dir.clone(),
             max_bytes: limit,
             interface: "can0".to_owned(),
+            setup: None,
         })
         .unwrap();
         let t = Instant::now();

@@ -12,7 +12,7 @@ use motorwire_can::{CanBus, Error as CanError, Frame};
 use std::collections::BTreeMap;
 use std::sync::{Condvar, Mutex, PoisonError};
 
-use crate::record::{Direction, Recorder};
+use crate::record::{Direction, Mark, Recorder};
 use crate::{Bridge, BridgeError, Event, Origin, Output, asks_for_stop};
 
 /// The longest input line accepted by default (bytes, without the
@@ -635,6 +635,9 @@ impl Runner {
             }
             sink(o);
         };
+        if let Some(r) = rec {
+            r.mark(start, Mark::Start);
+        }
         bridge.start(since(Instant::now()));
         let result = loop {
             let mut failed = None;
@@ -788,7 +791,12 @@ impl Runner {
                 }
                 Ok(Msg::OrionLost(e)) => bridge.orion_link_lost(since(Instant::now()), &e),
                 Err(RecvTimeoutError::Timeout) => bridge.handle_timeout(since(Instant::now())),
-                Err(RecvTimeoutError::Disconnected) => bridge.finish(since(Instant::now())),
+                Err(RecvTimeoutError::Disconnected) => {
+                    if let Some(r) = rec {
+                        r.mark(Instant::now(), Mark::Finish);
+                    }
+                    bridge.finish(since(Instant::now()));
+                }
             }
             // Timers that fell due while a message was handled.
             let now = since(Instant::now());
@@ -812,7 +820,9 @@ impl Runner {
 const FRAMES_AHEAD: usize = 256;
 
 /// What `msg` brings that a recording keeps: an input line, a frame
-/// received, a line from the Orion controller.
+/// received, a line from the Orion controller, and what else the bridge is
+/// told (a client greeted or gone, the end of input, a signal, the Orion
+/// link lost), so a replay can tell it the same.
 fn record_input(r: &Recorder, msg: &Msg) {
     match msg {
         Msg::Line {
@@ -825,11 +835,19 @@ fn record_input(r: &Recorder, msg: &Msg) {
             origin,
             number,
             reason,
-            ..
-        } => r.unreadable(Instant::now(), *origin, *number, reason),
+            stop,
+        } => r.unreadable(Instant::now(), *origin, *number, reason, *stop),
         Msg::Frame { frame, at } => r.frame(*at, Direction::Rx, frame),
         Msg::OrionLine { text, at } => r.orion(*at, Direction::Rx, text),
-        _ => {}
+        Msg::Greet { origin } => r.mark(Instant::now(), Mark::Greet(*origin)),
+        Msg::Dropped { origin, reason } => {
+            r.mark(Instant::now(), Mark::Dropped(*origin, reason.clone()));
+        }
+        Msg::Finish => r.mark(Instant::now(), Mark::Finish),
+        Msg::Interrupt => r.mark(Instant::now(), Mark::Interrupt),
+        Msg::OrionUnreadable(e) => r.mark(Instant::now(), Mark::OrionUnreadable(e.clone())),
+        Msg::OrionLost(e) => r.mark(Instant::now(), Mark::OrionLost(e.clone())),
+        Msg::Wake | Msg::BusError(_) => {}
     }
 }
 

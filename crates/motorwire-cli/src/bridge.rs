@@ -158,9 +158,15 @@ pub(crate) const MAX_MAP_SIZE: usize = 1 << 20;
 
 /// The bus map at `path`, reading at most [`MAX_MAP_SIZE`] bytes of it.
 pub(crate) fn load_map(path: &str) -> Result<BusMap, String> {
+    load_map_text(path).map(|(map, _)| map)
+}
+
+/// The bus map at `path` and its text.
+pub(crate) fn load_map_text(path: &str) -> Result<(BusMap, String), String> {
     let text = crate::input::read_text_file(path, MAX_MAP_SIZE)
         .map_err(|e| format!("--map {path}: {e}"))?;
-    BusMap::from_toml(&text).map_err(|e| format!("--map {path}: {e}"))
+    let map = BusMap::from_toml(&text).map_err(|e| format!("--map {path}: {e}"))?;
+    Ok((map, text))
 }
 
 /// Milliseconds since the Unix epoch, now.
@@ -320,7 +326,7 @@ fn on_signals(input: InputSender) -> Result<SignalStatus, String> {
 
 fn bridge(args: &Args) -> Result<u8, String> {
     crate::fleet::check(&args.zenoh)?;
-    let map = load_map(&args.map)?;
+    let (map, map_text) = load_map_text(&args.map)?;
     let orion = match &args.orion {
         Some(spec) => Some(crate::orion_link::parse(spec)?),
         None => None,
@@ -345,6 +351,12 @@ fn bridge(args: &Args) -> Result<u8, String> {
         allow_unknown_members: args.allow_unknown_members,
         ..BridgeConfig::default()
     };
+    let sim_config = SimConfig {
+        seed: args.sim_seed,
+        faults: parse_faults(&args.sim_faults)?,
+        ..SimConfig::default()
+    };
+    let setup = motorwire_bridge::replay::Setup::of(&map_text, &args.bus, &config, &sim_config);
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
     let mut runner = Runner::new().max_line(args.max_size);
     if let Some(spec) = &orion {
@@ -368,6 +380,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
                     dir: dir.into(),
                     max_bytes: args.record_max_mb.saturating_mul(1024 * 1024),
                     interface,
+                    setup: serde_json::to_value(&setup).ok(),
                 })
                 .map_err(|e| format!("--record {dir}: {e}"))?;
             let r = std::sync::Arc::new(r);
@@ -430,18 +443,12 @@ fn bridge(args: &Args) -> Result<u8, String> {
     };
     let result = match args.bus.as_str() {
         "sim" => {
-            let faults = parse_faults(&args.sim_faults)?;
             let log = match &args.sim_log {
                 Some(path) => Some(execution_log(path)?),
                 None => None,
             };
-            let config = SimConfig {
-                seed: args.sim_seed,
-                faults,
-                ..SimConfig::default()
-            };
-            let arm =
-                RealTimeArm::start_with(bridge.map(), config, log).map_err(|e| e.to_string())?;
+            let arm = RealTimeArm::start_with(bridge.map(), sim_config, log)
+                .map_err(|e| e.to_string())?;
             // The sending half never receives: nothing queues for it.
             let (tx, rx) = (arm.sender(), arm.port());
             runner.run(bridge, tx, rx, sink)

@@ -18,6 +18,7 @@ mod irpc;
 mod lines;
 mod orion_link;
 mod plan;
+mod replay;
 mod serve;
 mod sim;
 mod translate;
@@ -82,6 +83,19 @@ enum Command {
     /// Exit status 0 only if every expectation held, 1 otherwise, 2 when
     /// standard output closes.
     Demo(demo::Args),
+    /// Replay a recording (`motorwire bridge --record DIR`): its input
+    /// lines, at their recorded times, into the bridge on the simulated bus
+    /// (simulated time, faster than real time unless --real-time), and
+    /// compare what comes out with what was recorded: each line's answers,
+    /// the events, the frames sent to each device and the lines written to
+    /// the Orion controller, in order, leaving out what the clock decides
+    /// (latencies, msg_ids, timestamps, heartbeats, retries, feedback).
+    ///
+    /// Prints what was compared and the first divergence with both sides
+    /// and its time. Exit status 0 when the replay gave the same, 1 on a
+    /// divergence, 2 when the recording cannot be replayed (unreadable,
+    /// rotated, records dropped, no setup).
+    Replay(replay::Args),
 }
 
 fn main() -> ExitCode {
@@ -96,6 +110,7 @@ fn main() -> ExitCode {
         Command::Candump(args) => candump::run(&args),
         Command::Bridge(args) => bridge::run(&args),
         Command::Demo(args) => demo::run(&args),
+        Command::Replay(args) => replay::run(&args),
     };
     ExitCode::from(status)
 }

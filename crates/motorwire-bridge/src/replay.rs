@@ -1,0 +1,1273 @@
+//! Replay: a recorded session's inputs fed again into the bridge on the
+//! simulated bus, at their recorded times, and what comes out compared
+//! with what was recorded.
+//!
+//! A recording ([`crate::record`]) holds every input line with its client
+//! and time, what else the bridge was told (a client greeted or gone, the
+//! end of input, a signal: [`Mark`]), every output line, every frame the
+//! bridge sent and every line it wrote to the Orion controller, and in
+//! `session.json` how the bridge was set up ([`Setup`]: its map, its
+//! options, its first msg_id and its wall clock). [`replay`] makes the same
+//! bridge, on a [`SimulatedArm`] in simulated time, and tells it the same
+//! things at the same times (relative to its start); the simulated devices
+//! answer where the recorded ones did. [`compare`] then looks for the first
+//! difference, stream by stream:
+//! - each line's answers (its result, its completion), per client and line;
+//! - each client's own lines (its greeting);
+//! - the events, in order;
+//! - the frames sent to each device, in order, each read in its dialect
+//!   ([`frame_key`]): what the frame says, without what the clock decides
+//!   (a request's msg_id, a compact command's timestamp), without the
+//!   heartbeat (its count follows the clock) and without a request sent
+//!   again (the same msg_id: a retry, which timing decides);
+//! - the lines written to the Orion controller, in order, without its
+//!   polls (one every [`crate::ORION_POLL`] while idle).
+//!
+//! Values are compared as JSON (and the numbers within a text as numbers),
+//! within a [`Tolerance`]: by default 0.05, and 1 unit for a motor's
+//! position or velocity caught in motion (a session recorded in real time
+//! stops or reads a joint a few milliseconds off its replay); without the
+//! members that measure time: `latency_us`, `ack_us`, `stop_latency_us`,
+//! `after_ms`. Feedback lines are not compared (their number follows the
+//! clock); what they show is in the frames and
+//! the answers.
+
+use std::collections::{BTreeMap, HashSet};
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use motorwire_can::{CanId, Faults, Frame, SimConfig};
+use motorwire_irpc::{Header, Message, Payload, WireVersion};
+use motorwire_translate::{BusMap, Target};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::record::{Direction, Mark};
+use crate::sim::SimulatedArm;
+use crate::{Bridge, BridgeConfig, BridgeError, Origin, Output};
+
+/// How the recorded bridge was set up: what a replay needs to make the
+/// same bridge. `motorwire bridge --record` writes it into `session.json`
+/// as `setup`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Setup {
+    /// The bus map, as its TOML text.
+    pub map: String,
+    /// The bus the session ran on (`sim`, `socketcan:can0`).
+    pub bus: String,
+    /// The bridge's iRPC node id.
+    pub node: u16,
+    /// The wire version the bridge speaks by default.
+    pub wire: String,
+    /// Ack timeout (µs).
+    pub ack_timeout_us: u64,
+    /// Retries.
+    pub retries: u8,
+    /// The first msg_id.
+    pub first_msg_id: u32,
+    /// Whether the joints were configured and activated at start.
+    pub activate_on_start: bool,
+    /// The feedback period (µs; `None`: no feedback).
+    pub feedback_period_us: Option<u64>,
+    /// When a silent device is offline (µs).
+    pub offline_after_us: u64,
+    /// The heartbeat's period (µs).
+    pub heartbeat_period_us: u64,
+    /// How long the end of input waits for moves (µs).
+    pub drain_timeout_us: u64,
+    /// Unix milliseconds at the bridge's time zero.
+    pub epoch_unix_ms: Option<f64>,
+    /// The clock skew allowed (µs; `None`: not checked).
+    pub max_age_us: Option<u64>,
+    /// Lines in progress, at most.
+    pub max_pending_lines: usize,
+    /// Steps waiting for one joint, at most.
+    pub max_queue_per_joint: usize,
+    /// An Orion controller was attached.
+    pub orion: bool,
+    /// How long an Orion fold or unfold may take (µs).
+    pub orion_command_timeout_us: u64,
+    /// The telemetry subscription's rate.
+    pub telemetry_hz: Option<u16>,
+    /// Unknown members were taken as losses.
+    pub allow_unknown_members: bool,
+    /// With `bus` `sim`: the fault generator's seed.
+    pub sim_seed: u64,
+    /// With `bus` `sim`: the fault rates (`drop`, `duplicate`, `corrupt`,
+    /// `delay`, `reorder`) and `max_delay_us`.
+    pub sim_faults: BTreeMap<String, f64>,
+}
+
+fn us(d: Duration) -> u64 {
+    u64::try_from(d.as_micros()).unwrap_or(u64::MAX)
+}
+
+impl Setup {
+    /// The setup of a bridge made with `map_text` and `config`, on `bus`
+    /// (with `sim` its simulated bus's `sim` configuration).
+    pub fn of(map_text: &str, bus: &str, config: &BridgeConfig, sim: &SimConfig) -> Self {
+        let f = sim.faults;
+        Self {
+            map: map_text.to_owned(),
+            bus: bus.to_owned(),
+            node: config.client.node_id,
+            wire: config.client.wire.to_string(),
+            ack_timeout_us: us(config.client.timeout),
+            retries: config.client.retries,
+            first_msg_id: config.client.first_msg_id,
+            activate_on_start: config.activate_on_start,
+            feedback_period_us: config.feedback_period.map(us),
+            offline_after_us: us(config.offline_after),
+            heartbeat_period_us: us(config.heartbeat_period),
+            drain_timeout_us: us(config.drain_timeout),
+            epoch_unix_ms: config.epoch_unix_ms,
+            max_age_us: config.max_age.map(us),
+            max_pending_lines: config.max_pending_lines,
+            max_queue_per_joint: config.max_queue_per_joint,
+            orion: config.orion,
+            orion_command_timeout_us: us(config.orion_command_timeout),
+            telemetry_hz: config.telemetry_hz,
+            allow_unknown_members: config.allow_unknown_members,
+            sim_seed: sim.seed,
+            sim_faults: [
+                ("drop", f.drop),
+                ("duplicate", f.duplicate),
+                ("corrupt", f.corrupt),
+                ("delay", f.delay),
+                ("reorder", f.reorder),
+                ("max_delay_us", f.max_delay.as_secs_f64() * 1e6),
+            ]
+            .into_iter()
+            .map(|(k, v)| (k.to_owned(), v))
+            .collect(),
+        }
+    }
+
+    /// The bridge's configuration as recorded.
+    ///
+    /// # Errors
+    /// The recorded wire version is not one motorwire knows.
+    pub fn bridge_config(&self) -> Result<BridgeConfig, ReplayError> {
+        let wire: WireVersion = self.wire.parse().map_err(|_| ReplayError::Setup {
+            reason: format!("wire version {:?} is not one motorwire knows", self.wire),
+        })?;
+        let d = BridgeConfig::default();
+        Ok(BridgeConfig {
+            client: motorwire_can::client::ClientConfig {
+                node_id: self.node,
+                wire,
+                timeout: Duration::from_micros(self.ack_timeout_us),
+                retries: self.retries,
+                first_msg_id: self.first_msg_id,
+                ..d.client
+            },
+            activate_on_start: self.activate_on_start,
+            feedback_period: self.feedback_period_us.map(Duration::from_micros),
+            offline_after: Duration::from_micros(self.offline_after_us),
+            heartbeat_period: Duration::from_micros(self.heartbeat_period_us),
+            drain_timeout: Duration::from_micros(self.drain_timeout_us),
+            epoch_unix_ms: self.epoch_unix_ms,
+            max_age: self.max_age_us.map(Duration::from_micros),
+            max_pending_lines: self.max_pending_lines,
+            max_queue_per_joint: self.max_queue_per_joint,
+            orion: self.orion,
+            orion_command_timeout: Duration::from_micros(self.orion_command_timeout_us),
+            telemetry_hz: self.telemetry_hz,
+            allow_unknown_members: self.allow_unknown_members,
+        })
+    }
+
+    /// The simulated bus of the recorded session: its seed and faults
+    /// (none unless it ran on `sim` with faults), simulated time.
+    ///
+    /// # Errors
+    /// A recorded fault rate is out of range.
+    pub fn sim_config(&self) -> Result<SimConfig, ReplayError> {
+        let rate = |k: &str| self.sim_faults.get(k).copied().unwrap_or(0.0);
+        let faults = if self.bus == "sim" {
+            Faults {
+                drop: rate("drop"),
+                duplicate: rate("duplicate"),
+                corrupt: rate("corrupt"),
+                delay: rate("delay"),
+                reorder: rate("reorder"),
+                max_delay: Duration::try_from_secs_f64(rate("max_delay_us") / 1e6).map_err(
+                    |e| ReplayError::Setup {
+                        reason: format!("max_delay_us: {e}"),
+                    },
+                )?,
+            }
+        } else {
+            // Answers from real devices are replaced by the simulator's,
+            // without faults.
+            Faults::default()
+        };
+        faults.validate().map_err(|e| ReplayError::Setup {
+            reason: format!("sim_faults: {e}"),
+        })?;
+        Ok(SimConfig {
+            seed: self.sim_seed,
+            faults,
+            ..SimConfig::default()
+        })
+    }
+}
+
+/// Why a recording could not be replayed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReplayError {
+    /// A file of the recording could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A line of `lines.jsonl` is not a record.
+    #[error("{path}:{line}: {reason}")]
+    Record {
+        /// The file.
+        path: PathBuf,
+        /// Its line number (from 1).
+        line: usize,
+        /// Why.
+        reason: String,
+    },
+    /// The recording lost its beginning to rotation, or records to a full
+    /// queue or disk: its inputs are not all there.
+    #[error("{0}")]
+    Incomplete(String),
+    /// `session.json` has no usable setup.
+    #[error("the recording's setup: {reason}")]
+    Setup {
+        /// Why.
+        reason: String,
+    },
+    /// The bus map could not be read.
+    #[error("the bus map: {0}")]
+    Map(String),
+    /// The bridge failed while replaying.
+    #[error(transparent)]
+    Bridge(#[from] BridgeError),
+}
+
+/// One record of a session.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Recorded {
+    /// An input line.
+    Line {
+        /// When the bridge took it, from its start (it came at the
+        /// record's time): `None` in a recording that does not say.
+        taken: Option<Duration>,
+        /// Its client.
+        origin: Origin,
+        /// Its number.
+        number: u64,
+        /// Its text.
+        text: String,
+    },
+    /// An input line that could not be read.
+    Unreadable {
+        /// Its client.
+        origin: Origin,
+        /// Its number.
+        number: u64,
+        /// Why.
+        reason: String,
+        /// It named `emergency_stop` and was taken as a stop.
+        stop: bool,
+    },
+    /// Something else the bridge was told.
+    Mark(Mark),
+    /// An output line, and whose it was (`None`: every reader's).
+    Output {
+        /// Whose.
+        to: Option<u64>,
+        /// The line.
+        value: Value,
+    },
+    /// A frame.
+    Frame {
+        /// Sent or received.
+        dir: Direction,
+        /// The frame.
+        frame: Frame,
+    },
+    /// A line to or from the Orion controller.
+    Orion {
+        /// Written or read.
+        dir: Direction,
+        /// The line.
+        line: String,
+    },
+}
+
+impl Recorded {
+    /// Whether the bridge was told this (a replay tells it again).
+    pub const fn is_input(&self) -> bool {
+        matches!(
+            self,
+            Self::Line { .. } | Self::Unreadable { .. } | Self::Mark(_)
+        )
+    }
+}
+
+/// A recording read back: its setup and its records, each at its time
+/// from the bridge's start.
+#[derive(Debug, Clone)]
+pub struct Recording {
+    /// How the bridge was set up (`None`: the recording does not say).
+    pub setup: Option<Setup>,
+    /// The records, in the order they were written.
+    pub records: Vec<(Duration, Recorded)>,
+}
+
+impl Recording {
+    /// Reads the recording in `dir`.
+    ///
+    /// # Errors
+    /// [`ReplayError::Io`] and [`ReplayError::Record`] for a file that
+    /// cannot be read; [`ReplayError::Incomplete`] when the recording was
+    /// rotated (`lines.1.jsonl`: its beginning is gone) or dropped records.
+    pub fn read(dir: &Path) -> Result<Self, ReplayError> {
+        let io = |path: PathBuf| move |source| ReplayError::Io { path, source };
+        let session_path = dir.join("session.json");
+        let session: Value = {
+            let text = fs::read_to_string(&session_path).map_err(io(session_path.clone()))?;
+            serde_json::from_str(&text).map_err(|e| ReplayError::Record {
+                path: session_path.clone(),
+                line: e.line(),
+                reason: e.to_string(),
+            })?
+        };
+        if dir.join("lines.1.jsonl").exists() {
+            return Err(ReplayError::Incomplete(
+                "the recording was rotated (lines.1.jsonl): its beginning is gone; record with a larger --record-max-mb to replay".to_owned(),
+            ));
+        }
+        if let Some(n) = session.get("dropped").and_then(Value::as_u64)
+            && n > 0
+        {
+            return Err(ReplayError::Incomplete(format!(
+                "the recording dropped {n} records (a full queue or disk): its inputs may not all be there"
+            )));
+        }
+        let setup = match session.get("setup") {
+            Some(s) => Some(
+                serde_json::from_value(s.clone()).map_err(|e| ReplayError::Setup {
+                    reason: e.to_string(),
+                })?,
+            ),
+            None => None,
+        };
+        let lines_path = dir.join("lines.jsonl");
+        let text = fs::read_to_string(&lines_path).map_err(io(lines_path.clone()))?;
+        let mut raw = Vec::new();
+        let mut start = None;
+        for (i, line) in text.lines().enumerate() {
+            let bad = |reason: String| ReplayError::Record {
+                path: lines_path.clone(),
+                line: i + 1,
+                reason,
+            };
+            let v: Value = serde_json::from_str(line).map_err(|e| bad(e.to_string()))?;
+            let t = v
+                .get("t_us")
+                .and_then(Value::as_u64)
+                .ok_or_else(|| bad("no t_us".to_owned()))?;
+            let r = parse_record(&v).map_err(bad)?;
+            if r == Recorded::Mark(Mark::Start) && start.is_none() {
+                start = Some(t);
+            }
+            raw.push((t, r));
+        }
+        let start = start.unwrap_or(0);
+        let since = |t: u64| Duration::from_micros(t.saturating_sub(start));
+        let records = raw
+            .into_iter()
+            .map(|(t, mut r)| {
+                if let Recorded::Line { taken, .. } = &mut r {
+                    *taken = taken.map(|k| since(u64::try_from(k.as_micros()).unwrap_or(u64::MAX)));
+                }
+                (since(t), r)
+            })
+            .collect();
+        Ok(Self { setup, records })
+    }
+
+    /// The input records (lines and marks), in the order the bridge took
+    /// them.
+    pub fn inputs(&self) -> impl Iterator<Item = &(Duration, Recorded)> {
+        self.records.iter().filter(|(_, r)| r.is_input())
+    }
+}
+
+fn parse_record(v: &Value) -> Result<Recorded, String> {
+    let origin = |b: &Value| {
+        b.get("origin")
+            .and_then(Value::as_u64)
+            .map(Origin)
+            .ok_or_else(|| "no origin".to_owned())
+    };
+    let number = |b: &Value| {
+        b.get("line")
+            .and_then(Value::as_u64)
+            .ok_or_else(|| "no line number".to_owned())
+    };
+    let dir = |b: &Value| match b.get("dir").and_then(Value::as_str) {
+        Some("tx") => Ok(Direction::Tx),
+        Some("rx") => Ok(Direction::Rx),
+        _ => Err("no dir".to_owned()),
+    };
+    if let Some(b) = v.get("in") {
+        if let Some(text) = b.get("text").and_then(Value::as_str) {
+            return Ok(Recorded::Line {
+                taken: b
+                    .get("taken_us")
+                    .and_then(Value::as_u64)
+                    .map(Duration::from_micros),
+                origin: origin(b)?,
+                number: number(b)?,
+                text: text.to_owned(),
+            });
+        }
+        let reason = b
+            .get("unreadable")
+            .and_then(Value::as_str)
+            .ok_or_else(|| "an input without text or unreadable".to_owned())?;
+        return Ok(Recorded::Unreadable {
+            origin: origin(b)?,
+            number: number(b)?,
+            reason: reason.to_owned(),
+            stop: b.get("stop").and_then(Value::as_bool).unwrap_or(false),
+        });
+    }
+    if let Some(b) = v.get("mark") {
+        return Mark::from_value(b)
+            .map(Recorded::Mark)
+            .ok_or_else(|| format!("an unknown mark {b}"));
+    }
+    if let Some(b) = v.get("out") {
+        return Ok(Recorded::Output {
+            to: v.get("to").and_then(Value::as_u64),
+            value: b.clone(),
+        });
+    }
+    if let Some(b) = v.get("frame") {
+        let raw = b
+            .get("id")
+            .and_then(Value::as_u64)
+            .and_then(|n| u32::try_from(n).ok())
+            .ok_or_else(|| "a frame without id".to_owned())?;
+        let extended = b.get("extended").and_then(Value::as_bool).unwrap_or(false);
+        let id = if extended {
+            CanId::extended(raw).map_err(|e| e.to_string())
+        } else {
+            u16::try_from(raw)
+                .map_err(|e| e.to_string())
+                .and_then(|r| CanId::standard(r).map_err(|e| e.to_string()))
+        }
+        .map_err(|e| format!("frame id {raw}: {e}"))?;
+        let hex = b
+            .get("data")
+            .and_then(Value::as_str)
+            .ok_or_else(|| "a frame without data".to_owned())?;
+        let data = unhex(hex).ok_or_else(|| format!("frame data {hex:?} is not hex"))?;
+        let fd = b.get("fd").and_then(Value::as_bool).unwrap_or(true);
+        let frame = if fd {
+            Frame::fd(id, &data)
+        } else {
+            Frame::classic(id, &data)
+        }
+        .map_err(|e| format!("frame: {e}"))?;
+        return Ok(Recorded::Frame {
+            dir: dir(b)?,
+            frame,
+        });
+    }
+    if let Some(b) = v.get("orion") {
+        return Ok(Recorded::Orion {
+            dir: dir(b)?,
+            line: b
+                .get("line")
+                .and_then(Value::as_str)
+                .ok_or_else(|| "an Orion record without line".to_owned())?
+                .to_owned(),
+        });
+    }
+    Err("not an in, out, mark, frame or orion record".to_owned())
+}
+
+fn unhex(s: &str) -> Option<Vec<u8>> {
+    if !s.len().is_multiple_of(2) {
+        return None;
+    }
+    (0..s.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(s.get(i..i + 2)?, 16).ok())
+        .collect()
+}
+
+/// How a replay runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Pace {
+    /// At the recorded pace (each simulated second takes a second), not
+    /// as fast as the simulation goes.
+    pub real_time: bool,
+    /// After the last input, how long the bridge may take to finish (the
+    /// end of input drains moves for up to 30 s).
+    pub finish_within: Duration,
+}
+
+impl Default for Pace {
+    /// As fast as it goes; a minute to finish.
+    fn default() -> Self {
+        Self {
+            real_time: false,
+            finish_within: Duration::from_secs(60),
+        }
+    }
+}
+
+/// What a replay gave out: output lines, frames sent and Orion lines
+/// written, each at its simulated time, in order.
+#[derive(Debug, Clone, Default)]
+pub struct Replayed {
+    /// The records, as a recording holds them.
+    pub records: Vec<(Duration, Recorded)>,
+    /// Input records told to the bridge.
+    pub inputs: usize,
+    /// The simulated time the replay ran.
+    pub simulated: Duration,
+    /// The wall time it took.
+    pub took: Duration,
+}
+
+/// Replays `recording`'s inputs into `bridge` (made as the recording's
+/// [`Setup`] says, or with another map to see what it changes) on the
+/// simulated bus `sim`, at `pace`.
+///
+/// # Errors
+/// The simulated bus's errors.
+pub fn replay(
+    recording: &Recording,
+    bridge: Bridge,
+    sim: SimConfig,
+    pace: Pace,
+) -> Result<Replayed, ReplayError> {
+    let began = Instant::now();
+    let mut arm = SimulatedArm::new(bridge, sim)?;
+    arm.keep_sent();
+    let mut out = Replayed::default();
+    let mut outputs = Vec::new();
+    let advance = |arm: &mut SimulatedArm,
+                   outputs: &mut Vec<(Duration, Output)>,
+                   t: Duration|
+     -> Result<(), BridgeError> {
+        while arm.now() < t {
+            let left = t.saturating_sub(arm.now());
+            // What a step gives out, it gives at its start (then the clock
+            // moves on).
+            let now = arm.now();
+            outputs.extend(arm.take_outputs().into_iter().map(|o| (now, o)));
+            arm.step(left.min(Duration::from_millis(10)))?;
+            outputs.extend(arm.take_outputs().into_iter().map(|o| (now, o)));
+            let now = arm.now();
+            if pace.real_time {
+                let wall = began.elapsed();
+                if now > wall {
+                    thread::sleep(now - wall);
+                }
+            }
+        }
+        Ok(())
+    };
+    let mut ends = false;
+    let mut last = Duration::ZERO;
+    for (t, r) in recording.inputs() {
+        // A line is told when the bridge took it, as having come when it
+        // came (as the bridge was told it).
+        let taken = match r {
+            Recorded::Line { taken: Some(k), .. } => (*k).max(*t),
+            _ => *t,
+        };
+        advance(&mut arm, &mut outputs, taken)?;
+        let now = arm.now();
+        let b = arm.bridge_mut();
+        match r {
+            Recorded::Line {
+                origin,
+                number,
+                text,
+                ..
+            } => b.handle_numbered_line((*t).min(now), *origin, *number, text),
+            Recorded::Unreadable {
+                origin,
+                number,
+                reason,
+                stop: true,
+            } => b.handle_numbered_unreadable_stop(now, *origin, *number, reason),
+            Recorded::Unreadable {
+                origin,
+                number,
+                reason,
+                stop: false,
+            } => b.handle_numbered_unreadable(now, *origin, *number, reason),
+            Recorded::Mark(Mark::Start) => {}
+            Recorded::Mark(Mark::Greet(o)) => b.greet(now, *o),
+            Recorded::Mark(Mark::Dropped(o, why)) => b.drop_origin(now, *o, why),
+            Recorded::Mark(Mark::Finish) => {
+                ends = true;
+                b.finish(now);
+            }
+            Recorded::Mark(Mark::Interrupt) => {
+                ends = true;
+                b.interrupt(now);
+            }
+            Recorded::Mark(Mark::OrionLost(why)) => b.orion_link_lost(now, why),
+            Recorded::Mark(Mark::OrionUnreadable(why)) => b.handle_orion_unreadable(now, why),
+            Recorded::Output { .. } | Recorded::Frame { .. } | Recorded::Orion { .. } => {}
+        }
+        out.inputs += 1;
+        last = *t;
+    }
+    // The recorded session's end: its last record, or the bridge's own
+    // end once told the input ended.
+    let end = recording.records.last().map_or(last, |(t, _)| *t);
+    if ends {
+        let limit = end.max(arm.now()).saturating_add(pace.finish_within);
+        while !arm.bridge().is_finished() && arm.now() < limit {
+            let t = arm.now().saturating_add(Duration::from_millis(10));
+            advance(&mut arm, &mut outputs, t)?;
+        }
+    } else {
+        advance(&mut arm, &mut outputs, end)?;
+    }
+    let now = arm.now();
+    outputs.extend(arm.take_outputs().into_iter().map(|o| (now, o)));
+    let mut records: Vec<(Duration, Recorded)> = outputs
+        .into_iter()
+        .map(|(t, o)| {
+            let to = match &o {
+                Output::Result { origin, .. }
+                | Output::Arrival { origin, .. }
+                | Output::ToOne { origin, .. } => Some(origin.0),
+                Output::Feedback(_) | Output::Event(_) => None,
+            };
+            (
+                t,
+                Recorded::Output {
+                    to,
+                    value: o.to_value(),
+                },
+            )
+        })
+        .collect();
+    records.extend(arm.sent().iter().map(|(t, f)| {
+        (
+            *t,
+            Recorded::Frame {
+                dir: Direction::Tx,
+                frame: *f,
+            },
+        )
+    }));
+    records.extend(arm.orion_log().iter().map(|w| {
+        (
+            w.at,
+            Recorded::Orion {
+                dir: Direction::Tx,
+                line: w.line.clone(),
+            },
+        )
+    }));
+    records.sort_by_key(|(t, _)| *t);
+    out.records = records;
+    out.simulated = arm.now();
+    out.took = began.elapsed();
+    Ok(out)
+}
+
+/// What a frame the bridge sent says, read in its device's dialect,
+/// without what the clock decides: `None` for a frame a comparison leaves
+/// out (the heartbeat). `seen` holds the requests met so far (a request
+/// met again is a retry: `None`).
+///
+/// Returns the stream (whose it is) and what it says.
+pub fn frame_key(
+    map: &BusMap,
+    wire: WireVersion,
+    frame: &Frame,
+    seen: &mut HashSet<(u16, u32)>,
+) -> Option<(String, String)> {
+    let id = frame.id();
+    let data = frame.data();
+    if id.is_extended() {
+        return Some((format!("frames on {:#x}", id.raw()), hex(data)));
+    }
+    for m in map.motors() {
+        if let Target::Compact { node, .. } = m.target
+            && u32::from(node) == id.raw()
+        {
+            return Some((
+                format!("frames to {}", m.name),
+                match motorwire_compact::CompactCommand::decode(data) {
+                    Ok(c) => format!(
+                        "compact {} setpoint {} flags {:?} velocity_limit {:?} torque_limit {:?}",
+                        c.control_mode.name(),
+                        c.setpoint,
+                        c.flags,
+                        c.velocity_limit,
+                        c.torque_limit
+                    ),
+                    Err(e) => format!("compact, not read: {e}: {}", hex(data)),
+                },
+            ));
+        }
+    }
+    let Ok((header, _)) = Header::decode_prefix(wire, data) else {
+        return Some((format!("frames on {:#x}", id.raw()), hex(data)));
+    };
+    let target = header.target_id;
+    let (name, v) = map.irpc_node(target).map_or_else(
+        || (format!("{target:#06x}"), wire),
+        |m| {
+            let w = match m.target {
+                Target::Irpc { wire, .. } => wire,
+                _ => wire,
+            };
+            (m.name.clone(), w)
+        },
+    );
+    let stream = format!("frames to {name}");
+    match Message::decode_frame(v, data) {
+        Ok(Message {
+            payload: Payload::ArmReady,
+            ..
+        }) => None,
+        Ok(msg) => {
+            if !seen.insert((target, msg.header.msg_id)) {
+                return None;
+            }
+            Some((stream, format!("{:?}", msg.payload)))
+        }
+        Err(e) => Some((stream, format!("not read: {e}: {}", hex(data)))),
+    }
+}
+
+fn hex(data: &[u8]) -> String {
+    use std::fmt::Write as _;
+    data.iter().fold(String::new(), |mut s, b| {
+        let _ = write!(s, "{b:02x}");
+        s
+    })
+}
+
+/// Members that measure time, left out of a comparison.
+const TIMED: [&str; 4] = ["latency_us", "ack_us", "stop_latency_us", "after_ms"];
+
+/// `v` without the members that measure time.
+fn untimed(v: &Value) -> Value {
+    match v {
+        Value::Object(m) => Value::Object(
+            m.iter()
+                .filter(|(k, _)| !TIMED.contains(&k.as_str()))
+                .map(|(k, v)| (k.clone(), untimed(v)))
+                .collect(),
+        ),
+        Value::Array(a) => Value::Array(a.iter().map(untimed).collect()),
+        other => other.clone(),
+    }
+}
+
+/// How far apart two numbers may be and still be the same.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tolerance {
+    /// Any number: this much, plus [`Tolerance::relative`] of the larger.
+    pub absolute: f64,
+    /// Any number: this fraction of the larger, plus
+    /// [`Tolerance::absolute`] (0 by default: a Unix time in milliseconds
+    /// would be let off by far more than it should).
+    pub relative: f64,
+    /// A motor's state caught in motion (members `position`, `velocity`,
+    /// `acceleration`, and an arrival's `error`), in its unit: a session
+    /// recorded in real time takes its stop or its reading a few
+    /// milliseconds off the replay's, and a joint moving at 120°/s is
+    /// 0.6° further in 5 ms. Default: 1.
+    pub motion: f64,
+}
+
+impl Default for Tolerance {
+    /// 0.05; 1 for a motor's state in motion.
+    fn default() -> Self {
+        Self {
+            absolute: 0.05,
+            relative: 0.0,
+            motion: 1.0,
+        }
+    }
+}
+
+/// Members that hold a motor's state, caught in motion.
+const MOTION: [&str; 4] = ["position", "velocity", "acceleration", "error"];
+
+/// Whether `a` and `b` are the same within `tol` (`motion`: they are the
+/// value of a member that holds a motor's state).
+fn same(a: &Value, b: &Value, tol: &Tolerance, motion: bool) -> bool {
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => match (x.as_f64(), y.as_f64()) {
+            (Some(x), Some(y)) => {
+                let slack = tol.absolute + tol.relative * x.abs().max(y.abs());
+                (x - y).abs() <= if motion { slack.max(tol.motion) } else { slack }
+            }
+            _ => x == y,
+        },
+        (Value::Array(x), Value::Array(y)) => {
+            x.len() == y.len() && x.iter().zip(y).all(|(a, b)| same(a, b, tol, motion))
+        }
+        (Value::Object(x), Value::Object(y)) => {
+            x.len() == y.len()
+                && x.iter().all(|(k, a)| {
+                    y.get(k)
+                        .is_some_and(|b| same(a, b, tol, MOTION.contains(&k.as_str())))
+                })
+        }
+        (Value::String(x), Value::String(y)) => same_text(x, y, tol, motion),
+        _ => a == b,
+    }
+}
+
+/// `text` in pieces: runs of digits (with a sign and a decimal point) as
+/// numbers, the rest as it is.
+fn pieces(text: &str) -> Vec<Result<f64, &str>> {
+    let mut out = Vec::new();
+    let mut rest = text;
+    while !rest.is_empty() {
+        let start = rest
+            .char_indices()
+            .find(|&(i, c)| {
+                c.is_ascii_digit()
+                    || (c == '-'
+                        && rest[i + 1..].starts_with(|d: char| d.is_ascii_digit())
+                        && !rest[..i].ends_with(|p: char| p.is_alphanumeric()))
+            })
+            .map_or(rest.len(), |(i, _)| i);
+        if start > 0 {
+            out.push(Err(&rest[..start]));
+            rest = &rest[start..];
+            continue;
+        }
+        let end = rest
+            .char_indices()
+            .skip(1)
+            .find(|&(i, c)| {
+                !(c.is_ascii_digit()
+                    || (c == '.' && rest[i + 1..].starts_with(|d: char| d.is_ascii_digit())))
+            })
+            .map_or(rest.len(), |(i, _)| i);
+        match rest[..end].parse::<f64>() {
+            Ok(n) => out.push(Ok(n)),
+            Err(_) => out.push(Err(&rest[..end])),
+        }
+        rest = &rest[end..];
+    }
+    out
+}
+
+/// Whether two texts say the same, the numbers in them within `tol` (a
+/// message that names a time or a position the clock decided).
+fn same_text(a: &str, b: &str, tol: &Tolerance, motion: bool) -> bool {
+    if a == b {
+        return true;
+    }
+    let (x, y) = (pieces(a), pieces(b));
+    x.len() == y.len()
+        && x.iter().zip(&y).all(|(p, q)| match (p, q) {
+            (Ok(p), Ok(q)) => same(&Value::from(*p), &Value::from(*q), tol, motion),
+            (Err(p), Err(q)) => p == q,
+            _ => false,
+        })
+}
+
+/// One thing compared: when, and what (as JSON, timing left out).
+#[derive(Debug, Clone, PartialEq)]
+struct Item {
+    at: Duration,
+    value: Value,
+}
+
+/// The first difference between a recording and its replay.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Divergence {
+    /// When (the earlier of the two sides' times).
+    pub at: Duration,
+    /// Which stream: `client 1 line 3`, `events`, `frames to elbow`, ...
+    pub stream: String,
+    /// The recorded side (`None`: nothing was recorded there).
+    pub recorded: Option<Value>,
+    /// The recorded side's time.
+    pub recorded_at: Option<Duration>,
+    /// The replayed side (`None`: the replay gave nothing there).
+    pub replayed: Option<Value>,
+    /// The replayed side's time.
+    pub replayed_at: Option<Duration>,
+}
+
+/// What a comparison looked at, and the first difference.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Comparison {
+    /// Answers compared (results, completions, greetings).
+    pub answers: usize,
+    /// Events compared.
+    pub events: usize,
+    /// Frames compared.
+    pub frames: usize,
+    /// Orion lines compared.
+    pub orion_lines: usize,
+    /// The earliest difference, if any.
+    pub divergence: Option<Divergence>,
+}
+
+/// Is the Orion line an idle poll (an empty feedback request)?
+fn orion_poll(line: &str) -> bool {
+    serde_json::from_str::<Value>(line).is_ok_and(|v| {
+        v.get("DATA")
+            .is_some_and(|d| d.as_object().is_some_and(serde_json::Map::is_empty))
+    })
+}
+
+/// The streams of `records` (sent frames, written Orion lines and output
+/// lines only), each in order.
+fn streams(
+    records: &[(Duration, Recorded)],
+    map: &BusMap,
+    wire: WireVersion,
+) -> BTreeMap<String, Vec<Item>> {
+    let mut s: BTreeMap<String, Vec<Item>> = BTreeMap::new();
+    let mut seen = HashSet::new();
+    for (at, r) in records {
+        let at = *at;
+        match r {
+            Recorded::Output { to, value } => {
+                if value.get("feedback").is_some() || value.get("motor_status").is_some() {
+                    continue;
+                }
+                let stream = match (to, value.get("line").and_then(Value::as_u64)) {
+                    (Some(to), Some(line)) => format!("client {to} line {line}"),
+                    (Some(to), None) => format!("client {to}"),
+                    (None, _) => "events".to_owned(),
+                };
+                s.entry(stream).or_default().push(Item {
+                    at,
+                    value: untimed(value),
+                });
+            }
+            Recorded::Frame {
+                dir: Direction::Tx,
+                frame,
+            } => {
+                if let Some((stream, key)) = frame_key(map, wire, frame, &mut seen) {
+                    s.entry(stream).or_default().push(Item {
+                        at,
+                        value: Value::String(key),
+                    });
+                }
+            }
+            Recorded::Orion {
+                dir: Direction::Tx,
+                line,
+            } if !orion_poll(line) => {
+                s.entry("lines to the Orion controller".to_owned())
+                    .or_default()
+                    .push(Item {
+                        at,
+                        value: serde_json::from_str(line)
+                            .unwrap_or_else(|_| Value::String(line.clone())),
+                    });
+            }
+            _ => {}
+        }
+    }
+    s
+}
+
+/// Compares a recording with its replay (see the module's documentation
+/// for what is compared); `map` and `wire` read the frames.
+pub fn compare(
+    recording: &Recording,
+    replayed: &Replayed,
+    map: &BusMap,
+    wire: WireVersion,
+    tolerance: &Tolerance,
+) -> Comparison {
+    let a = streams(&recording.records, map, wire);
+    let b = streams(&replayed.records, map, wire);
+    let mut c = Comparison::default();
+    let names: std::collections::BTreeSet<&String> = a.keys().chain(b.keys()).collect();
+    let empty = Vec::new();
+    for name in names {
+        let (x, y) = (a.get(name).unwrap_or(&empty), b.get(name).unwrap_or(&empty));
+        let n = x.len().max(y.len());
+        let counted = x.len().min(y.len());
+        if name.starts_with("client ") {
+            c.answers += counted;
+        } else if name == "events" {
+            c.events += counted;
+        } else if name.starts_with("frames ") {
+            c.frames += counted;
+        } else {
+            c.orion_lines += counted;
+        }
+        for i in 0..n {
+            let (p, q) = (x.get(i), y.get(i));
+            if let (Some(p), Some(q)) = (p, q)
+                && same(&p.value, &q.value, tolerance, false)
+            {
+                continue;
+            }
+            let at = [p.map(|p| p.at), q.map(|q| q.at)]
+                .into_iter()
+                .flatten()
+                .min()
+                .unwrap_or_default();
+            if c.divergence.as_ref().is_none_or(|d| at < d.at) {
+                c.divergence = Some(Divergence {
+                    at,
+                    stream: name.clone(),
+                    recorded: p.map(|p| p.value.clone()),
+                    recorded_at: p.map(|p| p.at),
+                    replayed: q.map(|q| q.value.clone()),
+                    replayed_at: q.map(|q| q.at),
+                });
+            }
+            break;
+        }
+    }
+    c
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+    use motorwire_compact::{CompactCommand, Flags, MotorHash};
+    use motorwire_core::ControlMode;
+    use serde_json::json;
+
+    const MAP: &str = r#"
+[motors.elbow]
+dialect = "irpc"
+node = 0x12
+wire = "v2.0"
+
+[motors.gripper]
+dialect = "compact"
+node = 0x20
+"#;
+
+    fn irpc(target: u16, msg_id: u32, payload: Payload) -> Frame {
+        let m = Message {
+            header: Header {
+                source_id: 0,
+                target_id: target,
+                msg_id,
+            },
+            payload,
+        };
+        let mut buf = [0u8; motorwire_irpc::MAX_FRAME_LEN];
+        let n = m.encode_frame(WireVersion::V2_0, &mut buf).unwrap();
+        Frame::fd(CanId::standard(0).unwrap(), &buf[..n]).unwrap()
+    }
+
+    fn compact(timestamp_ms: u64, setpoint: f32) -> Frame {
+        let c = CompactCommand {
+            motor: MotorHash::of("gripper"),
+            timestamp_ms,
+            control_mode: ControlMode::Position,
+            flags: Flags::default(),
+            setpoint,
+            velocity_limit: None,
+            torque_limit: None,
+        };
+        Frame::fd(CanId::standard(0x20).unwrap(), &c.encode().unwrap()).unwrap()
+    }
+
+    /// A frame is read in its device's dialect, without what the clock
+    /// decides: the msg_id and the compact timestamp are left out, a
+    /// heartbeat and a request sent again are not compared, and a
+    /// different payload or setpoint is a different key.
+    #[test]
+    fn a_frame_key_leaves_out_what_the_clock_decides() {
+        let map = BusMap::from_toml(MAP).unwrap();
+        let w = WireVersion::V2_0;
+        let mut seen = HashSet::new();
+        let key = |f: &Frame, seen: &mut HashSet<(u16, u32)>| frame_key(&map, w, f, seen);
+        let a = key(&irpc(0x12, 7, Payload::Activate), &mut seen).unwrap();
+        assert_eq!(a, ("frames to elbow".to_owned(), "Activate".to_owned()));
+        // The same request again (a retry): left out.
+        assert_eq!(key(&irpc(0x12, 7, Payload::Activate), &mut seen), None);
+        // Another msg_id, the same payload: the same key.
+        assert_eq!(
+            key(&irpc(0x12, 9, Payload::Activate), &mut seen).unwrap(),
+            a
+        );
+        assert_ne!(
+            key(&irpc(0x12, 10, Payload::Deactivate), &mut seen).unwrap(),
+            a
+        );
+        // The heartbeat, to everyone: left out.
+        assert_eq!(key(&irpc(0xFFFF, 11, Payload::ArmReady), &mut seen), None);
+        // Compact: the timestamp left out, the setpoint kept.
+        let g = key(&compact(1000, 20.0), &mut seen).unwrap();
+        assert_eq!(g.0, "frames to gripper");
+        assert!(g.1.starts_with("compact position setpoint 20 "), "{}", g.1);
+        assert_eq!(key(&compact(2000, 20.0), &mut seen).unwrap(), g);
+        assert_ne!(key(&compact(1000, 21.0), &mut seen).unwrap(), g);
+        // A frame no dialect reads is compared as its bytes.
+        let odd = Frame::fd(CanId::standard(0x7).unwrap(), &[0xff, 0xff, 0xff]).unwrap();
+        assert_eq!(
+            key(&odd, &mut seen).unwrap(),
+            ("frames on 0x7".to_owned(), "ffffff".to_owned())
+        );
+    }
+
+    /// Numbers are the same within the tolerance, a motor's state caught
+    /// in motion within its own, and the numbers inside a text as
+    /// numbers; the members that measure time are left out.
+    #[test]
+    fn values_are_compared_within_the_tolerance_and_without_timing() {
+        let tol = Tolerance::default();
+        let s = |a: &Value, b: &Value| same(&untimed(a), &untimed(b), &tol, false);
+        assert!(s(
+            &json!({"ok": true, "latency_us": 10}),
+            &json!({"ok": true, "latency_us": 99})
+        ));
+        assert!(!s(&json!({"ok": true}), &json!({"ok": false})));
+        assert!(!s(&json!({"ok": true}), &json!({"ok": true, "extra": 1})));
+        assert!(s(&json!({"limit": 150.0}), &json!({"limit": 150.04})));
+        assert!(!s(&json!({"limit": 150.0}), &json!({"limit": 150.06})));
+        // In motion: within 1.
+        assert!(s(
+            &json!({"motors": [{"error": 19.7}]}),
+            &json!({"motors": [{"error": 19.0}]})
+        ));
+        assert!(!s(
+            &json!({"motors": [{"error": 19.7}]}),
+            &json!({"motors": [{"error": 18.6}]})
+        ));
+        // A large number is not let off by its size.
+        assert!(!s(
+            &json!({"t": 1_796_295_440_966.0_f64}),
+            &json!({"t": 1_796_295_440_967.0_f64})
+        ));
+        // Inside a text.
+        assert!(s(
+            &json!("timestamp 17 is 0.992 s before the stop (at 1796295440966.568)"),
+            &json!("timestamp 17 is 0.992 s before the stop (at 1796295440966.5684)")
+        ));
+        assert!(!s(
+            &json!("setpoint 170 is outside max_position 150"),
+            &json!("setpoint 170 is outside max_position 20")
+        ));
+        assert!(!s(&json!("elbow: busy"), &json!("elbow: idle")));
+        assert_eq!(
+            pieces("-3.5 deg, node-2 at 10"),
+            vec![Ok(-3.5), Err(" deg, node-"), Ok(2.0), Err(" at "), Ok(10.0)]
+        );
+    }
+
+    fn out(to: Option<u64>, value: Value) -> Recorded {
+        Recorded::Output { to, value }
+    }
+
+    /// The comparison names the earliest difference among the streams,
+    /// with both sides; a line answered on one side only diverges; the
+    /// order of different lines' answers does not matter, the order within
+    /// one stream does.
+    #[test]
+    fn the_first_divergence_is_the_earliest_of_every_stream() {
+        let map = BusMap::from_toml(MAP).unwrap();
+        let ms = Duration::from_millis;
+        let recording = Recording {
+            setup: None,
+            records: vec![
+                (ms(1), out(Some(1), json!({"ok": true, "line": 1}))),
+                (ms(2), out(Some(2), json!({"ok": true, "line": 1}))),
+                (ms(3), out(None, json!({"event": "emergency_stop"}))),
+                (ms(4), out(None, json!({"feedback": {"position": 1.0}}))),
+                (
+                    ms(5),
+                    Recorded::Frame {
+                        dir: Direction::Tx,
+                        frame: irpc(0x12, 1, Payload::Activate),
+                    },
+                ),
+            ],
+        };
+        let mut replayed = Replayed {
+            records: vec![
+                // Another order across clients, another msg_id, no
+                // feedback: the same.
+                (ms(1), out(Some(2), json!({"ok": true, "line": 1}))),
+                (
+                    ms(1),
+                    out(Some(1), json!({"ok": true, "line": 1, "latency_us": 5})),
+                ),
+                (
+                    ms(2),
+                    Recorded::Frame {
+                        dir: Direction::Tx,
+                        frame: irpc(0x12, 40, Payload::Activate),
+                    },
+                ),
+                (ms(3), out(None, json!({"event": "emergency_stop"}))),
+            ],
+            ..Replayed::default()
+        };
+        let c = compare(
+            &recording,
+            &replayed,
+            &map,
+            WireVersion::V2_0,
+            &Tolerance::default(),
+        );
+        assert_eq!(c.divergence, None);
+        assert_eq!((c.answers, c.events, c.frames, c.orion_lines), (2, 1, 1, 0));
+        // Client 2's line refused in the replay, and an event more later.
+        replayed.records[0].1 = out(Some(2), json!({"ok": false, "line": 1}));
+        replayed
+            .records
+            .push((ms(9), out(None, json!({"event": "deadman"}))));
+        let c = compare(
+            &recording,
+            &replayed,
+            &map,
+            WireVersion::V2_0,
+            &Tolerance::default(),
+        );
+        let d = c.divergence.unwrap();
+        assert_eq!(d.stream, "client 2 line 1");
+        assert_eq!(d.at, ms(1));
+        assert_eq!(d.recorded, Some(json!({"ok": true, "line": 1})));
+        assert_eq!(d.recorded_at, Some(ms(2)));
+        assert_eq!(d.replayed, Some(json!({"ok": false, "line": 1})));
+        // Only the extra event left: it diverges at its time, with
+        // nothing recorded there.
+        replayed.records[0].1 = out(Some(2), json!({"ok": true, "line": 1}));
+        let c = compare(
+            &recording,
+            &replayed,
+            &map,
+            WireVersion::V2_0,
+            &Tolerance::default(),
+        );
+        let d = c.divergence.unwrap();
+        assert_eq!((d.stream.as_str(), d.at), ("events", ms(9)));
+        assert_eq!((d.recorded, d.recorded_at), (None, None));
+        assert_eq!(d.replayed, Some(json!({"event": "deadman"})));
+    }
+}

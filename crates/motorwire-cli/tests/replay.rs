@@ -1,0 +1,245 @@
+//! `motorwire replay DIR` as a user runs it: a session recorded on the
+//! simulated bus replays to the same answers, events, frames and Orion
+//! lines in simulated time; a changed map shows where it changes the
+//! session; a recording that cannot be replayed says why (issue 28 part 2).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+mod common;
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use serde_json::Value;
+
+fn now_ms() -> u128 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("motorwire-replay-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// Records a session on `--bus sim` with the Orion controller simulated:
+/// a move, a refused line, a compact gripper move, the Orion turntable
+/// turned until the deadman stops it, a trajectory through a waypoint at
+/// speed, an emergency stop cutting it short, a line refused while the
+/// stop is latched, the release, a move back; then the end of input.
+fn record_session(dir: &Path) {
+    let t = now_ms();
+    let cmd = |motor: &str, mode: &str, v: f64| {
+        format!(
+            "{{\"motor_id\":\"{motor}\",\"timestamp\":{t},\"control_mode\":\"{mode}\",\"setpoint\":{v}}}\n"
+        )
+    };
+    let steps: Vec<(String, u64)> = vec![
+        (cmd("elbow", "position", 30.0), 100),
+        (cmd("elbow", "position", 170.0), 100),
+        (cmd("gripper_axis", "position", 20.0), 100),
+        (cmd("turntable", "velocity", 20.0), 700),
+        (
+            "{\"trajectory_id\":\"wave\",\"motor_id\":\"elbow\",\"waypoints\":[{\"position\":30,\"velocity\":0,\"time\":0},{\"position\":70,\"velocity\":40,\"time\":1.1},{\"position\":40,\"velocity\":0,\"time\":2.5}],\"timing\":{}}\n".to_owned(),
+            700,
+        ),
+        ("{\"emergency_stop\":true}\n".to_owned(), 200),
+        (cmd("shoulder_pitch", "position", 10.0), 100),
+        ("{\"emergency_stop\":false}\n".to_owned(), 200),
+    ];
+    let mut child = common::spawn(&[
+        "bridge",
+        "--map",
+        "fixtures/maps/demo-arm.toml",
+        "--bus",
+        "sim",
+        "--orion",
+        "sim",
+        "--feedback-hz",
+        "10",
+        "--record",
+        dir.to_str().unwrap(),
+    ]);
+    let mut pipe = child.stdin.take().unwrap();
+    // After `ready`: the lines then come at the times the session says.
+    std::thread::sleep(Duration::from_millis(300));
+    for (line, pause) in &steps {
+        pipe.write_all(line.as_bytes()).unwrap();
+        std::thread::sleep(Duration::from_millis(*pause));
+    }
+    // The move back: two new lines after the release (a line's timestamp
+    // must be after the stop).
+    let t2 = now_ms();
+    let back = format!(
+        "{{\"motor_id\":\"elbow\",\"timestamp\":{t2},\"control_mode\":\"position\",\"setpoint\":0}}\n"
+    );
+    pipe.write_all(back.as_bytes()).unwrap();
+    drop(pipe);
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains(", 0 dropped"), "{stderr}");
+    // The session is what it says: the refusals, the stop, the trajectory
+    // cut short, the deadman.
+    let printed = String::from_utf8(out.stdout).unwrap();
+    for needle in [
+        "\"rule\":\"outside_limit\"",
+        "\"rule\":\"emergency_stop_latched\"",
+        "\"event\":\"emergency_stop\"",
+        "\"event\":\"deadman\"",
+        "cancelled by the emergency stop: the rest of the trajectory was not sent",
+        "\"event\":\"released\"",
+    ] {
+        assert!(printed.contains(needle), "{needle} not in\n{printed}");
+    }
+}
+
+fn replay_json(dir: &Path, extra: &[&str]) -> (Option<i32>, Value, String) {
+    let mut args = vec!["replay", dir.to_str().unwrap(), "--json"];
+    args.extend_from_slice(extra);
+    let out = common::run(&args, b"");
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    let v = serde_json::from_str(stdout.trim()).unwrap_or(Value::Null);
+    (out.status.code(), v, stderr)
+}
+
+/// A recording of a session on the simulated bus replays, in simulated
+/// time and faster than it was recorded, to the same answers (each line's
+/// result and completion), events, frames to each device (read in its
+/// dialect) and lines to the Orion controller; then, with the elbow's
+/// range cut to 20°, the replay diverges at the first line that moved it
+/// past 20°, printing both sides.
+#[test]
+fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() {
+    let dir = scratch("same");
+    record_session(&dir);
+
+    // The recording holds what a replay needs: the setup and the marks.
+    let session: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("session.json")).unwrap()).unwrap();
+    let setup = &session["setup"];
+    assert_eq!(setup["bus"], "sim");
+    assert!(setup["map"].as_str().unwrap().contains("[motors.elbow]"));
+    assert!(setup["first_msg_id"].as_u64().unwrap() > 0);
+    assert_eq!(setup["orion"], true);
+    let lines = std::fs::read_to_string(dir.join("lines.jsonl")).unwrap();
+    let marks: Vec<Value> = lines
+        .lines()
+        .filter_map(|l| {
+            serde_json::from_str::<Value>(l)
+                .unwrap()
+                .get("mark")
+                .cloned()
+        })
+        .collect();
+    assert_eq!(
+        marks,
+        vec![
+            serde_json::json!({"kind": "start"}),
+            serde_json::json!({"kind": "finish"})
+        ]
+    );
+
+    let (code, v, stderr) = replay_json(&dir, &[]);
+    assert_eq!(code, Some(0), "{v}\n{stderr}");
+    assert_eq!(v["same"], true, "{v}");
+    assert_eq!(v["divergence"], Value::Null);
+    assert_eq!(v["inputs"], 11, "9 lines, the start and the end: {v}");
+    // Every line's answers: 9 results and 4 completions (the first move,
+    // the gripper's, the trajectory cut short, the move back).
+    assert!(v["compared"]["answers"].as_u64().unwrap() >= 13, "{v}");
+    assert!(v["compared"]["events"].as_u64().unwrap() >= 10, "{v}");
+    assert!(v["compared"]["frames"].as_u64().unwrap() >= 15, "{v}");
+    assert!(v["compared"]["orion_lines"].as_u64().unwrap() >= 2, "{v}");
+    // Simulated time: faster than the ~3 s it took.
+    assert!(
+        v["took_us"].as_u64().unwrap() < v["simulated_us"].as_u64().unwrap(),
+        "{v}"
+    );
+
+    // The same session against a map whose elbow stops at 20°.
+    let map = std::fs::read_to_string(common::root().join("fixtures/maps/demo-arm.toml"))
+        .unwrap()
+        .replace(
+            "limits = { min_position = 0, max_position = 150,",
+            "limits = { min_position = 0, max_position = 20,",
+        );
+    let map_path = dir.join("narrow.toml");
+    std::fs::write(&map_path, map).unwrap();
+    let (code, v, stderr) = replay_json(&dir, &["--map", map_path.to_str().unwrap()]);
+    assert_eq!(code, Some(1), "{v}\n{stderr}");
+    assert_eq!(v["same"], false);
+    let d = &v["divergence"];
+    assert_eq!(d["stream"], "client 0 line 1", "{v}");
+    assert_eq!(d["recorded"]["ok"], true, "{v}");
+    assert_eq!(d["replayed"]["ok"], false, "{v}");
+    assert_eq!(d["replayed"]["error"]["rule"], "outside_limit", "{v}");
+    assert_eq!(d["replayed"]["error"]["limit"], 20.0, "{v}");
+
+    // As text: the first divergence with both sides and its time.
+    let out = common::run(
+        &[
+            "replay",
+            dir.to_str().unwrap(),
+            "--map",
+            map_path.to_str().unwrap(),
+        ],
+        b"",
+    );
+    assert_eq!(out.status.code(), Some(1));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("first divergence at "), "{text}");
+    assert!(text.contains(", in client 0 line 1:"), "{text}");
+    assert!(text.contains("  recorded: (at "), "{text}");
+    assert!(text.contains("  replayed: (at "), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A recording that cannot be replayed faithfully is refused with the
+/// reason and exit status 2: no setup, its beginning rotated away,
+/// records dropped, a line that is not a record.
+#[test]
+fn a_recording_that_cannot_be_replayed_says_why() {
+    let dir = scratch("refused");
+    std::fs::create_dir_all(&dir).unwrap();
+    let session = |extra: &str| {
+        format!(
+            r#"{{"recorder":"motorwire","version":"0.2.0","started_wall_ms":1,"interface":"sim","files":["frames.log","lines.jsonl"]{extra}}}"#
+        )
+    };
+    std::fs::write(dir.join("lines.jsonl"), "").unwrap();
+    let cases: Vec<(String, Option<&str>, &str)> = vec![
+        (session(""), None, "session.json has no setup"),
+        (
+            session(r#","dropped":3"#),
+            None,
+            "the recording dropped 3 records",
+        ),
+        (
+            session(""),
+            Some("{\"t_us\":5,\"wall_ms\":1,\"what\":1}\n"),
+            "lines.jsonl:1: not an in, out, mark, frame or orion record",
+        ),
+    ];
+    for (s, lines, says) in cases {
+        std::fs::write(dir.join("session.json"), s).unwrap();
+        std::fs::write(dir.join("lines.jsonl"), lines.unwrap_or("")).unwrap();
+        let out = common::run(&["replay", dir.to_str().unwrap()], b"");
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains(says), "{says} not in {stderr}");
+    }
+    std::fs::write(dir.join("session.json"), session("")).unwrap();
+    std::fs::write(dir.join("lines.1.jsonl"), "").unwrap();
+    let out = common::run(&["replay", dir.to_str().unwrap()], b"");
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("rotated"), "{stderr}");
+    let out = common::run(&["replay", "/nonexistent/recording"], b"");
+    assert_eq!(out.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(&dir);
+}
