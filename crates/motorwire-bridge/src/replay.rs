@@ -334,23 +334,50 @@ impl Recording {
     /// cannot be read; [`ReplayError::Incomplete`] when the recording was
     /// rotated (`lines.1.jsonl`: its beginning is gone) or dropped records.
     pub fn read(dir: &Path) -> Result<Self, ReplayError> {
+        Self::read_as(dir, true)
+    }
+
+    /// Reads the recording in `dir` as far as it goes: one rotated, or
+    /// that dropped records, is read too (what it holds; to look at, not
+    /// to replay).
+    ///
+    /// # Errors
+    /// [`ReplayError::Io`] and [`ReplayError::Record`] for a file that
+    /// cannot be read.
+    pub fn read_partial(dir: &Path) -> Result<Self, ReplayError> {
+        Self::read_as(dir, false)
+    }
+
+    fn read_as(dir: &Path, whole: bool) -> Result<Self, ReplayError> {
         let io = |path: PathBuf| move |source| ReplayError::Io { path, source };
+        // A regular file only: a FIFO or a device would be read forever.
+        let read = |path: &Path| -> Result<String, ReplayError> {
+            let meta = fs::metadata(path).map_err(io(path.to_owned()))?;
+            if !meta.is_file() {
+                return Err(ReplayError::Io {
+                    path: path.to_owned(),
+                    source: std::io::Error::other("not a regular file"),
+                });
+            }
+            fs::read_to_string(path).map_err(io(path.to_owned()))
+        };
         let session_path = dir.join("session.json");
         let session: Value = {
-            let text = fs::read_to_string(&session_path).map_err(io(session_path.clone()))?;
+            let text = read(&session_path)?;
             serde_json::from_str(&text).map_err(|e| ReplayError::Record {
                 path: session_path.clone(),
                 line: e.line(),
                 reason: e.to_string(),
             })?
         };
-        if dir.join("lines.1.jsonl").exists() {
+        if whole && dir.join("lines.1.jsonl").exists() {
             return Err(ReplayError::Incomplete(
                 "the recording was rotated (lines.1.jsonl): its beginning is gone; record with a larger --record-max-mb to replay".to_owned(),
             ));
         }
         if let Some(n) = session.get("dropped").and_then(Value::as_u64)
             && n > 0
+            && whole
         {
             return Err(ReplayError::Incomplete(format!(
                 "the recording dropped {n} records (a full queue or disk): its inputs may not all be there"
@@ -365,7 +392,7 @@ impl Recording {
             None => None,
         };
         let lines_path = dir.join("lines.jsonl");
-        let text = fs::read_to_string(&lines_path).map_err(io(lines_path.clone()))?;
+        let text = read(&lines_path)?;
         let mut raw = Vec::new();
         let mut start = None;
         for (i, line) in text.lines().enumerate() {

@@ -5,7 +5,7 @@
 #![allow(clippy::indexing_slicing)]
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
@@ -134,42 +134,40 @@ fn script() -> Vec<Step> {
     ]
 }
 
-/// One feedback sample: seconds since the start, position, velocity.
-type Sample = (f64, f64, f64);
-
 struct Watch {
-    rx: Receiver<Output>,
-    /// Motors left out of the plot (the Orion motors the demo never moves).
+    rx: Receiver<(Instant, Output)>,
+    /// Motors the demo never moves (the Orion motors but the turntable),
+    /// left out of the summary.
     unplotted: Vec<String>,
-    epoch_ms: f64,
+    started: Instant,
     latest: BTreeMap<String, (f64, f64)>,
-    samples: BTreeMap<String, Vec<Sample>>,
+    /// Everything the bridge gave, for the plot.
+    session: crate::chart::Session,
     events: Vec<Value>,
 }
 
 impl Watch {
-    fn take(&mut self, o: Output) -> Option<Value> {
+    fn take(&mut self, (at, o): (Instant, Output)) -> Option<Value> {
         let v = o.to_value();
+        let t = at.saturating_duration_since(self.started).as_secs_f64();
+        let to = match &o {
+            Output::Result { origin, .. }
+            | Output::Arrival { origin, .. }
+            | Output::ToOne { origin, .. } => Some(origin.0),
+            Output::Feedback(_) | Output::Event(_) => None,
+        };
+        self.session.outputs.push((t, to, v.clone()));
         match o {
             Output::Result { .. } => return Some(v),
             Output::Feedback(_) => {
-                let (Some(motor), Some(pos), Some(vel), Some(ts)) = (
+                let (Some(motor), Some(pos), Some(vel)) = (
                     v["motor_id"].as_str(),
                     v["feedback"]["position"].as_f64(),
                     v["feedback"]["velocity"].as_f64(),
-                    v["feedback"]["timestamp"].as_f64(),
                 ) else {
                     return None;
                 };
                 self.latest.insert(motor.to_owned(), (pos, vel));
-                if self.unplotted.iter().any(|m| m == motor) {
-                    return None;
-                }
-                self.samples.entry(motor.to_owned()).or_default().push((
-                    (ts - self.epoch_ms) / 1000.0,
-                    pos,
-                    vel,
-                ));
             }
             Output::Event(_) | Output::ToOne { .. } | Output::Arrival { .. } => self.events.push(v),
         }
@@ -258,6 +256,7 @@ fn demo(args: &Args) -> Result<bool, String> {
         orion: true,
         ..BridgeConfig::default()
     };
+    let plot_map = map.clone();
     let unplotted: Vec<String> = map
         .motors()
         .filter(|m| {
@@ -278,31 +277,26 @@ fn demo(args: &Args) -> Result<bool, String> {
     let input = runner.input();
     let (tx, rx) = mpsc::channel();
     let handle = arm.spawn(runner, bridge, move |o| {
-        let _ = tx.send(o.clone());
+        let _ = tx.send((Instant::now(), o.clone()));
     });
     let mut watch = Watch {
         rx,
         unplotted,
-        epoch_ms,
+        started: Instant::now(),
         latest: BTreeMap::new(),
-        samples: BTreeMap::new(),
+        session: crate::chart::Session::default(),
         events: Vec::new(),
     };
     let steps = script();
     let mut held = true;
     let mut rows = Vec::new();
     let mut targets: BTreeMap<&str, f64> = BTreeMap::new();
-    let mut marks: Vec<(f64, String)> = Vec::new();
     for (i, step) in steps.iter().enumerate() {
-        let sent_s = (crate::bridge::unix_ms() - epoch_ms) / 1000.0;
-        marks.push((
-            sent_s,
-            match step.expect {
-                Expect::Stop => format!("{} stop", i + 1),
-                Expect::Release => format!("{} release", i + 1),
-                _ => format!("{}", i + 1),
-            },
-        ));
+        let sent_s = watch.started.elapsed().as_secs_f64();
+        watch
+            .session
+            .steps
+            .push((sent_s, format!("step {}: {}", i + 1, step.title)));
         input.line(ORIGIN, stamped(&step.line));
         let result = watch.result(Duration::from_secs(3));
         let (ok, detail) = match (&result, step.expect) {
@@ -453,9 +447,19 @@ fn demo(args: &Args) -> Result<bool, String> {
         "  bridge: {} lines ({} ok, {} refused or failed), {} frames sent, {} feedback lines; joints stopped and deactivated: {stopped}",
         s.lines, s.ok, s.failed, s.frames_sent, s.feedback_lines
     ).map_err(stdout_closed)?;
-    match plot(&watch.samples, &marks, &args.svg) {
-        Ok(()) => say!("  plot of positions and velocities: {}", args.svg.display())
-            .map_err(stdout_closed)?,
+    let drawn = crate::chart::draw(
+        &watch.session,
+        &plot_map,
+        &[],
+        "motorwire demo: the bridge on a simulated arm, its gripper and the Orion rover arm",
+        &args.svg,
+    );
+    match drawn {
+        Ok(_) => say!(
+            "  plot of positions, velocities, targets, limits and events: {}",
+            args.svg.display()
+        )
+        .map_err(stdout_closed)?,
         Err(e) => {
             held = false;
             say!("  plot FAILED: {e}").map_err(stdout_closed)?;
@@ -468,132 +472,6 @@ fn demo(args: &Args) -> Result<bool, String> {
         say!("an expectation did not hold (see FAIL above)").map_err(stdout_closed)?;
     }
     Ok(held)
-}
-
-/// Okabe and Ito's palette: told apart with every common colour-vision
-/// deficiency.
-const PALETTE: [(u8, u8, u8); 7] = [
-    (0, 114, 178),   // blue
-    (213, 94, 0),    // vermillion
-    (0, 158, 115),   // bluish green
-    (204, 121, 167), // reddish purple
-    (230, 159, 0),   // orange
-    (86, 180, 233),  // sky blue
-    (0, 0, 0),       // black
-];
-
-/// Two panels (position, velocity) against time, one line per device, a
-/// dashed mark at each step (numbered as the steps are printed; the
-/// emergency stop and its release named), the legend beside the data.
-fn plot(
-    samples: &BTreeMap<String, Vec<Sample>>,
-    marks: &[(f64, String)],
-    path: &Path,
-) -> Result<(), String> {
-    use plotters::prelude::*;
-    let end = samples
-        .values()
-        .flatten()
-        .map(|s| s.0)
-        .fold(0.0f64, f64::max)
-        .max(1e-3);
-    let root = SVGBackend::new(path, (1100, 720)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    // The legend in a column of its own, so it never covers a curve.
-    let (plots, legend) = root.split_horizontally(940);
-    let panels = plots.split_evenly((2, 1));
-    let colors: Vec<RGBColor> = PALETTE.iter().map(|&(r, g, b)| RGBColor(r, g, b)).collect();
-    for (i, motor) in samples.keys().enumerate() {
-        let color = colors.get(i).copied().unwrap_or(BLACK);
-        let y = 60 + 28 * i32::try_from(i).unwrap_or(0);
-        legend
-            .draw(&PathElement::new(
-                vec![(8, y), (36, y)],
-                color.stroke_width(3),
-            ))
-            .map_err(|e| e.to_string())?;
-        legend
-            .draw(&Text::new(
-                // Orion speeds are the controller's units, not °/s.
-                if motor == "turntable" {
-                    "turntable (Orion)".to_owned()
-                } else {
-                    motor.clone()
-                },
-                (42, y - 7),
-                ("sans-serif", 15),
-            ))
-            .map_err(|e| e.to_string())?;
-    }
-    for (k, (area, name)) in panels
-        .iter()
-        .zip(["position (°)", "velocity (°/s)"])
-        .enumerate()
-    {
-        let unit = name;
-        let pick = |s: &Sample| if k == 0 { s.1 } else { s.2 };
-        let (lo, hi) = samples
-            .values()
-            .flatten()
-            .map(pick)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-                (lo.min(v), hi.max(v))
-            });
-        let (lo, hi) = if lo.is_finite() {
-            (lo, hi)
-        } else {
-            (-1.0, 1.0)
-        };
-        let pad = ((hi - lo) * 0.08).max(1.0);
-        let mut chart = ChartBuilder::on(area)
-            .margin(12)
-            .caption(name, ("sans-serif", 22))
-            .x_label_area_size(32)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0.0..end, (lo - pad)..(hi + pad))
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .x_desc("time (s)")
-            .y_desc(unit)
-            .draw()
-            .map_err(|e| e.to_string())?;
-        // Each step's moment, dashed, labelled in the top panel.
-        let (ylo, yhi) = (lo - pad, hi + pad);
-        for (m, (t, label)) in marks.iter().enumerate() {
-            let grey = RGBColor(120, 120, 120);
-            // Steps close together: their labels on three rows.
-            #[allow(clippy::cast_precision_loss)]
-            let row = (m % 3) as f64 * (yhi - ylo) * 0.07;
-            chart
-                .draw_series(DashedLineSeries::new(
-                    [(*t, ylo), (*t, yhi)],
-                    4,
-                    4,
-                    grey.stroke_width(1),
-                ))
-                .map_err(|e| e.to_string())?;
-            if k == 0 {
-                chart
-                    .draw_series(std::iter::once(Text::new(
-                        label.clone(),
-                        (*t, yhi - row),
-                        ("sans-serif", 12),
-                    )))
-                    .map_err(|e| e.to_string())?;
-            }
-        }
-        for (i, s) in samples.values().enumerate() {
-            let color = colors.get(i).copied().unwrap_or(BLACK);
-            chart
-                .draw_series(LineSeries::new(
-                    s.iter().map(|x| (x.0, pick(x))),
-                    color.stroke_width(2),
-                ))
-                .map_err(|e| e.to_string())?;
-        }
-    }
-    root.present().map_err(|e| e.to_string())
 }
 
 /// `line` with its `timestamp` set to now (the bridge refuses commands

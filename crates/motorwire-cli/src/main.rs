@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 mod bridge;
 mod bus;
 mod candump;
+mod chart;
 mod compact;
 mod console;
 mod demo;
@@ -18,6 +19,7 @@ mod irpc;
 mod lines;
 mod orion_link;
 mod plan;
+mod plot;
 mod replay;
 mod serve;
 mod sim;
@@ -96,6 +98,16 @@ enum Command {
     /// divergence, 2 when the recording cannot be replayed (unreadable,
     /// rotated, records dropped, no setup).
     Replay(replay::Args),
+    /// Draw a recording (`motorwire bridge --record DIR`) as an SVG: one
+    /// panel per motor (its position with its target and its limits as
+    /// bands, its velocity with its speed limit; an Orion motor's
+    /// commanded speed in the controller's units), the events (stops,
+    /// releases, refusals with their rule, deadman stops, devices and
+    /// links lost) as numbered marks with a key, units on the axes.
+    ///
+    /// Exit status 0 when drawn, 2 when the recording cannot be read or
+    /// the file written.
+    Plot(plot::Args),
 }
 
 fn main() -> ExitCode {
@@ -111,6 +123,7 @@ fn main() -> ExitCode {
         Command::Bridge(args) => bridge::run(&args),
         Command::Demo(args) => demo::run(&args),
         Command::Replay(args) => replay::run(&args),
+        Command::Plot(args) => plot::run(&args),
     };
     ExitCode::from(status)
 }

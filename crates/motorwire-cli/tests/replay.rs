@@ -1,7 +1,8 @@
 //! `motorwire replay DIR` as a user runs it: a session recorded on the
 //! simulated bus replays to the same answers, events, frames and Orion
 //! lines in simulated time; a changed map shows where it changes the
-//! session; a recording that cannot be replayed says why (issue 28 part 2).
+//! session; a recording that cannot be replayed says why (issue 28 part
+//! 2); the recording drawn (part 4).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 mod common;
@@ -159,6 +160,54 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
     assert!(
         v["took_us"].as_u64().unwrap() < v["simulated_us"].as_u64().unwrap(),
         "{v}"
+    );
+
+    // Drawn for a person (issue 28 part 4): a panel per motor that
+    // moved, in its units, the marks with their key.
+    let svg = dir.join("session.svg");
+    let out = common::run(
+        &[
+            "plot",
+            dir.to_str().unwrap(),
+            "--svg",
+            svg.to_str().unwrap(),
+        ],
+        b"",
+    );
+    let said = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(out.status.code(), Some(0), "{said}");
+    // The elbow, the gripper and the turntable (shoulder_pitch's only
+    // line was refused); two refusals, the deadman, the stop, the release.
+    assert!(said.ends_with(": 3 motors, 5 marks\n"), "{said}");
+    let drawing = std::fs::read_to_string(&svg).unwrap();
+    for needle in [
+        "elbow: position (°)",
+        "gripper_axis: velocity (°/s)",
+        "turntable: speed (controller units, ±400)",
+        "line 2 elbow refused: outside_limit",
+        "deadman: turntable stopped, no command within its timeout",
+        "emergency stop (input)",
+        "line 7 shoulder_pitch refused: emergency_stop_latched",
+        "released",
+    ] {
+        assert!(drawing.contains(needle), "{needle} not in the plot");
+    }
+    let out = common::run(
+        &[
+            "plot",
+            dir.to_str().unwrap(),
+            "--svg",
+            svg.to_str().unwrap(),
+            "--motor",
+            "nose",
+        ],
+        b"",
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8(out.stderr)
+            .unwrap()
+            .contains("--motor nose: not a motor of the map")
     );
 
     // The same session against a map whose elbow stops at 20°.

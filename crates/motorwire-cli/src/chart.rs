@@ -1,0 +1,714 @@
+//! A session drawn for a person: one panel per motor (its position with
+//! its target and its limits as bands, its velocity with its speed limit),
+//! the events as numbered marks across every panel with a key below, the
+//! units on the axes. `motorwire plot` draws a recording with it; the demo
+//! draws its own session with it.
+//!
+//! The session is given as what the bridge took and gave
+//! ([`Session`]: input lines and output lines, each at its time); the map
+//! says each motor's unit and limits.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use motorwire_orion::Quantity;
+use motorwire_translate::{AngleUnit, BusMap, Target};
+use serde_json::Value;
+
+/// What a session took and gave, each at its time (seconds from its
+/// start).
+#[derive(Debug, Default)]
+pub(crate) struct Session {
+    /// Input lines: time, client, line number, text.
+    pub(crate) inputs: Vec<(f64, u64, u64, String)>,
+    /// Output lines: time, whose (`None`: every reader's), the line.
+    pub(crate) outputs: Vec<(f64, Option<u64>, Value)>,
+    /// Marks of the caller's own (the demo's steps), with their labels.
+    pub(crate) steps: Vec<(f64, String)>,
+}
+
+/// What a mark is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum MarkKind {
+    /// A step of the caller's.
+    Step,
+    /// The emergency stop.
+    Stop,
+    /// Its release.
+    Release,
+    /// A line refused.
+    Refused,
+    /// A deadman stop.
+    Deadman,
+    /// A device or a link lost, a fault.
+    Lost,
+}
+
+impl MarkKind {
+    const fn color(self) -> (u8, u8, u8) {
+        match self {
+            Self::Step => (120, 120, 120),
+            Self::Stop => (200, 0, 0),
+            Self::Release => (0, 140, 60),
+            Self::Refused => (213, 94, 0),
+            Self::Deadman => (150, 60, 170),
+            Self::Lost => (90, 90, 200),
+        }
+    }
+}
+
+/// A mark on the time axis.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Mark {
+    pub(crate) t: f64,
+    pub(crate) kind: MarkKind,
+    pub(crate) label: String,
+}
+
+/// What a motor's value is, for its axes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Shown {
+    /// A position with its velocity, in degrees or radians.
+    Angle(AngleUnit),
+    /// An Orion speed motor: its commanded speed in the controller's
+    /// units (it reports no position).
+    OrionSpeed,
+    /// An Orion actuator: its command, -1 to 1 (no position).
+    OrionActuator,
+}
+
+/// One motor's panel.
+#[derive(Debug, Clone)]
+struct Track {
+    motor: String,
+    shown: Shown,
+    /// (t, position, velocity)
+    samples: Vec<(f64, f64, f64)>,
+    /// Each target from its time (`None`: no target from then on).
+    targets: Vec<(f64, Option<f64>)>,
+    position_limits: (Option<f64>, Option<f64>),
+    max_velocity: Option<f64>,
+}
+
+impl Track {
+    fn value_name(&self) -> String {
+        match self.shown {
+            Shown::Angle(AngleUnit::Degrees) => "position (°)".to_owned(),
+            Shown::Angle(AngleUnit::Radians) => "position (rad)".to_owned(),
+            Shown::OrionSpeed => "speed (controller units, ±400)".to_owned(),
+            Shown::OrionActuator => "actuator command (-1 to 1)".to_owned(),
+        }
+    }
+
+    fn velocity_name(&self) -> Option<&'static str> {
+        match self.shown {
+            Shown::Angle(AngleUnit::Degrees) => Some("velocity (°/s)"),
+            Shown::Angle(AngleUnit::Radians) => Some("velocity (rad/s)"),
+            Shown::OrionSpeed | Shown::OrionActuator => None,
+        }
+    }
+
+    /// The value the left chart draws: an angle's position, an Orion
+    /// motor's commanded value (its feedback's velocity).
+    fn value(&self, s: &(f64, f64, f64)) -> f64 {
+        match self.shown {
+            Shown::Angle(_) => s.1,
+            Shown::OrionSpeed | Shown::OrionActuator => s.2,
+        }
+    }
+}
+
+/// The marks of `session`: its steps, emergency stops and releases,
+/// refusals (with their rule), deadman stops, devices and links lost,
+/// faults.
+fn marks(session: &Session) -> Vec<Mark> {
+    let mut out: Vec<Mark> = session
+        .steps
+        .iter()
+        .map(|(t, label)| Mark {
+            t: *t,
+            kind: MarkKind::Step,
+            label: label.clone(),
+        })
+        .collect();
+    for (t, _, v) in &session.outputs {
+        let motor = v.get("motor_id").and_then(Value::as_str).unwrap_or("");
+        let mark = |kind, label: String| Mark { t: *t, kind, label };
+        if v.get("ok") == Some(&Value::Bool(false)) {
+            let rule = v
+                .get("error")
+                .and_then(|e| e.get("rule"))
+                .and_then(Value::as_str)
+                .unwrap_or("refused");
+            let line = v.get("line").and_then(Value::as_u64).unwrap_or(0);
+            let who = if motor.is_empty() {
+                String::new()
+            } else {
+                format!(" {motor}")
+            };
+            out.push(mark(
+                MarkKind::Refused,
+                format!("line {line}{who} refused: {rule}"),
+            ));
+            continue;
+        }
+        let Some(event) = v.get("event").and_then(Value::as_str) else {
+            continue;
+        };
+        match event {
+            "emergency_stop" => out.push(mark(
+                MarkKind::Stop,
+                format!(
+                    "emergency stop ({})",
+                    v.get("cause").and_then(Value::as_str).unwrap_or("?")
+                ),
+            )),
+            "released" => out.push(mark(MarkKind::Release, "released".to_owned())),
+            "deadman" => out.push(mark(
+                MarkKind::Deadman,
+                format!("deadman: {motor} stopped, no command within its timeout"),
+            )),
+            "offline" => out.push(mark(
+                MarkKind::Lost,
+                format!(
+                    "{motor} offline: {}",
+                    v.get("reason").and_then(Value::as_str).unwrap_or("silent")
+                ),
+            )),
+            "orion_link_lost" => out.push(mark(
+                MarkKind::Lost,
+                "the Orion controller's link lost".to_owned(),
+            )),
+            "joint_fault" => out.push(mark(MarkKind::Lost, format!("{motor}: fault"))),
+            "rebooted" => out.push(mark(MarkKind::Lost, format!("{motor}: rebooted"))),
+            _ => {}
+        }
+    }
+    out.sort_by(|a, b| a.t.total_cmp(&b.t));
+    out
+}
+
+/// The motors' panels: every motor of `map` that moved, had a target or
+/// was named by a deadman (or those of `only`, when given).
+fn tracks(session: &Session, map: &BusMap, only: &[String]) -> Vec<Track> {
+    let mut samples: BTreeMap<String, Vec<(f64, f64, f64)>> = BTreeMap::new();
+    let mut targets: BTreeMap<String, Vec<(f64, Option<f64>)>> = BTreeMap::new();
+    // When each line was accepted: its targets start then.
+    let mut accepted: BTreeMap<(Option<u64>, u64), f64> = BTreeMap::new();
+    let mut stops = Vec::new();
+    for (t, to, v) in &session.outputs {
+        if let Some(f) = v.get("feedback") {
+            let (Some(motor), Some(p), Some(vel)) = (
+                f.get("motor_id").and_then(Value::as_str),
+                f.get("position").and_then(Value::as_f64),
+                f.get("velocity").and_then(Value::as_f64),
+            ) else {
+                continue;
+            };
+            samples
+                .entry(motor.to_owned())
+                .or_default()
+                .push((*t, p, vel));
+            continue;
+        }
+        if v.get("ok") == Some(&Value::Bool(true))
+            && let Some(line) = v.get("line").and_then(Value::as_u64)
+        {
+            accepted.insert((*to, line), *t);
+        }
+        if v.get("arrived").is_some() {
+            let line = v.get("line").and_then(Value::as_u64).unwrap_or(0);
+            let from = accepted.get(&(*to, line)).copied().unwrap_or(*t);
+            for m in v
+                .get("motors")
+                .and_then(Value::as_array)
+                .into_iter()
+                .flatten()
+            {
+                if let (Some(motor), Some(target)) = (
+                    m.get("motor_id").and_then(Value::as_str),
+                    m.get("target").and_then(Value::as_f64),
+                ) {
+                    targets
+                        .entry(motor.to_owned())
+                        .or_default()
+                        .push((from, Some(target)));
+                }
+            }
+        }
+        if v.get("event").and_then(Value::as_str) == Some("emergency_stop") {
+            stops.push(*t);
+        }
+    }
+    let deadman: Vec<&str> = session
+        .outputs
+        .iter()
+        .filter(|(_, _, v)| v.get("event").and_then(Value::as_str) == Some("deadman"))
+        .filter_map(|(_, _, v)| v.get("motor_id").and_then(Value::as_str))
+        .collect();
+    let mut out = Vec::new();
+    for m in map.motors() {
+        let s = samples.remove(&m.name).unwrap_or_default();
+        let mut tg = targets.remove(&m.name).unwrap_or_default();
+        // A stop ends every target (a move's completion, and so its
+        // target, may come after the stop that cut it short).
+        if !tg.is_empty() {
+            tg.extend(stops.iter().map(|t| (*t, None)));
+        }
+        tg.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let moved = s
+            .first()
+            .is_some_and(|f| s.iter().any(|x| x.1 != f.1 || x.2 != f.2));
+        let wanted = if only.is_empty() {
+            moved || tg.iter().any(|x| x.1.is_some()) || deadman.contains(&m.name.as_str())
+        } else {
+            only.contains(&m.name)
+        };
+        if !wanted {
+            continue;
+        }
+        let shown = match m.target {
+            Target::Orion { motor } => match motor.quantity() {
+                Quantity::Speed => Shown::OrionSpeed,
+                Quantity::Actuator => Shown::OrionActuator,
+                Quantity::PositionDegrees => Shown::Angle(AngleUnit::Degrees),
+            },
+            _ => Shown::Angle(m.unit),
+        };
+        let (lo, hi) = match m.target {
+            Target::Orion { motor } if shown != Shown::Angle(AngleUnit::Degrees) => {
+                let (lo, hi) = motor.range();
+                (Some(lo), Some(hi))
+            }
+            _ => (m.limits.min_position, m.limits.max_position),
+        };
+        out.push(Track {
+            motor: m.name.clone(),
+            shown,
+            samples: s,
+            targets: tg,
+            position_limits: (lo, hi),
+            max_velocity: m.limits.max_velocity,
+        });
+    }
+    out
+}
+
+/// The row of each label at `xs` (pixels, in time order): the first row
+/// where it clears the label before it by [`LABEL_W`], so no two overlap.
+fn label_rows(xs: impl Iterator<Item = f64>) -> Vec<usize> {
+    let mut rows: Vec<f64> = Vec::new();
+    let mut placed = Vec::new();
+    for x in xs {
+        let row = rows
+            .iter()
+            .position(|last| x - last >= LABEL_W)
+            .unwrap_or_else(|| {
+                rows.push(f64::NEG_INFINITY);
+                rows.len() - 1
+            });
+        if let Some(r) = rows.get_mut(row) {
+            *r = x;
+        }
+        placed.push(row);
+    }
+    placed
+}
+
+/// What [`draw`] drew.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Drawn {
+    pub(crate) panels: usize,
+    pub(crate) marks: usize,
+}
+
+const WIDTH: u32 = 1200;
+const PANEL: u32 = 230;
+const KEY_LINE: u32 = 18;
+const LABEL_W: f64 = 22.0;
+
+/// Draws `session` (its motors' units and limits from `map`; only the
+/// motors `only` names, when it names any) as an SVG at `path`, titled
+/// `title`.
+///
+/// # Errors
+/// The file cannot be written.
+#[allow(clippy::too_many_lines)]
+pub(crate) fn draw(
+    session: &Session,
+    map: &BusMap,
+    only: &[String],
+    title: &str,
+    path: &Path,
+) -> Result<Drawn, String> {
+    use plotters::prelude::*;
+    let tracks = tracks(session, map, only);
+    let marks = marks(session);
+    let end = session
+        .outputs
+        .iter()
+        .map(|o| o.0)
+        .chain(session.inputs.iter().map(|i| i.0))
+        .chain(session.steps.iter().map(|s| s.0))
+        .fold(0.0f64, f64::max)
+        .max(1e-3);
+    // The marks' numbers, in rows above the panels, never overlapping:
+    // each goes in the first row where it clears the number before it.
+    // As ChartBuilder lays a chart out: its margin, then its y labels.
+    let plot_left = 12.0 + 58.0;
+    let plot_right = f64::from(WIDTH) / 2.0 - 12.0;
+    let px = |t: f64| plot_left + (t / end) * (plot_right - plot_left);
+    let placed = label_rows(marks.iter().map(|m| px(m.t)));
+    let rows = placed.iter().max().map_or(0, |r| r + 1);
+    let header = 40 + 16 * u32::try_from(rows).unwrap_or(0);
+    let panels = u32::try_from(tracks.len().max(1)).unwrap_or(1);
+    let key_rows = u32::try_from(marks.len()).unwrap_or(0).div_ceil(2);
+    let height = header + panels * PANEL + 40 + key_rows * KEY_LINE;
+    let root = SVGBackend::new(path, (WIDTH, height)).into_drawing_area();
+    let err = |e: DrawingAreaErrorKind<_>| e.to_string();
+    root.fill(&WHITE).map_err(err)?;
+    root.draw(&Text::new(
+        title.to_owned(),
+        (12, 8),
+        ("sans-serif", 18).into_font().color(&BLACK),
+    ))
+    .map_err(err)?;
+    let (top, rest) = root.split_vertically(header);
+    let (body, key) = rest.split_vertically(panels * PANEL);
+    let rgb = |(r, g, b): (u8, u8, u8)| RGBColor(r, g, b);
+    // The numbers, both halves (position and velocity columns).
+    for (i, (m, row)) in marks.iter().zip(&placed).enumerate() {
+        for half in [0.0, f64::from(WIDTH) / 2.0] {
+            #[allow(clippy::cast_possible_truncation)]
+            let x = (px(m.t) + half) as i32 - 6;
+            let y = 34 + 16 * i32::try_from(*row).unwrap_or(0);
+            top.draw(&Text::new(
+                format!("{}", i + 1),
+                (x, y),
+                ("sans-serif", 12).into_font().color(&rgb(m.kind.color())),
+            ))
+            .map_err(err)?;
+        }
+    }
+    let areas = body.split_evenly((tracks.len().max(1), 1));
+    let blue = RGBColor(0, 114, 178);
+    let band = RGBColor(230, 80, 80).mix(0.12);
+    for (track, area) in tracks.iter().zip(&areas) {
+        let (left, right) = area.split_horizontally(WIDTH / 2);
+        let charts: Vec<(&DrawingArea<_, _>, String, bool)> = match track.velocity_name() {
+            Some(v) => vec![
+                (&left, track.value_name(), false),
+                (&right, v.to_owned(), true),
+            ],
+            None => vec![(&left, track.value_name(), false)],
+        };
+        if track.velocity_name().is_none() {
+            right
+                .draw(&Text::new(
+                    format!(
+                        "{}: the controller reports no position; its value is what it was last told",
+                        track.motor
+                    ),
+                    (10, i32::try_from(PANEL / 2).unwrap_or(100)),
+                    ("sans-serif", 13).into_font().color(&RGBColor(90, 90, 90)),
+                ))
+                .map_err(err)?;
+        }
+        for (chart_area, name, is_velocity) in charts {
+            let pick = |s: &(f64, f64, f64)| if is_velocity { s.2 } else { track.value(s) };
+            let limits = if is_velocity {
+                (track.max_velocity.map(|v| -v), track.max_velocity)
+            } else {
+                track.position_limits
+            };
+            let values = track
+                .samples
+                .iter()
+                .map(pick)
+                .chain(if is_velocity {
+                    Vec::new()
+                } else {
+                    track.targets.iter().filter_map(|t| t.1).collect()
+                })
+                .chain([limits.0, limits.1].into_iter().flatten());
+            let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            });
+            let (lo, hi) = if lo.is_finite() {
+                (lo, hi)
+            } else {
+                (-1.0, 1.0)
+            };
+            let pad = ((hi - lo) * 0.08).max(0.05);
+            let (ylo, yhi) = (lo - pad, hi + pad);
+            let mut chart = ChartBuilder::on(chart_area)
+                .margin(12)
+                .caption(format!("{}: {name}", track.motor), ("sans-serif", 15))
+                .x_label_area_size(30)
+                .y_label_area_size(58)
+                .build_cartesian_2d(0.0..end, ylo..yhi)
+                .map_err(err)?;
+            chart
+                .configure_mesh()
+                .x_desc("time (s)")
+                .y_desc(name.as_str())
+                .label_style(("sans-serif", 11))
+                .draw()
+                .map_err(err)?;
+            // Beyond the limits: a band.
+            if let Some(h) = limits.1 {
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(0.0, h), (end, yhi)],
+                        band.filled(),
+                    )))
+                    .map_err(err)?;
+            }
+            if let Some(l) = limits.0 {
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(0.0, ylo), (end, l)],
+                        band.filled(),
+                    )))
+                    .map_err(err)?;
+            }
+            for m in &marks {
+                chart
+                    .draw_series(DashedLineSeries::new(
+                        [(m.t, ylo), (m.t, yhi)],
+                        3,
+                        3,
+                        rgb(m.kind.color()).stroke_width(1),
+                    ))
+                    .map_err(err)?;
+            }
+            if !is_velocity {
+                // The target: a dashed step line while there is one.
+                for (k, (from, target)) in track.targets.iter().enumerate() {
+                    let Some(target) = target else { continue };
+                    let until = track.targets.get(k + 1).map_or(end, |n| n.0);
+                    chart
+                        .draw_series(DashedLineSeries::new(
+                            [(*from, *target), (until, *target)],
+                            6,
+                            4,
+                            RGBColor(0, 0, 0).stroke_width(1),
+                        ))
+                        .map_err(err)?;
+                }
+            }
+            chart
+                .draw_series(LineSeries::new(
+                    track.samples.iter().map(|s| (s.0, pick(s))),
+                    blue.stroke_width(2),
+                ))
+                .map_err(err)?;
+        }
+    }
+    // The key: what each line and each number is.
+    let legend = [
+        ("measured (feedback)", blue, false),
+        ("target", RGBColor(0, 0, 0), true),
+    ];
+    for (i, (label, color, dashed)) in legend.iter().enumerate() {
+        let x = 12 + 220 * i32::try_from(i).unwrap_or(0);
+        let style = color.stroke_width(if *dashed { 1 } else { 2 });
+        key.draw(&PathElement::new(vec![(x, 14), (x + 28, 14)], style))
+            .map_err(err)?;
+        key.draw(&Text::new(
+            (*label).to_owned(),
+            (x + 34, 7),
+            ("sans-serif", 13),
+        ))
+        .map_err(err)?;
+    }
+    key.draw(&Rectangle::new([(452, 8), (480, 20)], band.filled()))
+        .map_err(err)?;
+    key.draw(&Text::new(
+        "beyond the limits in the bus map".to_owned(),
+        (486, 7),
+        ("sans-serif", 13),
+    ))
+    .map_err(err)?;
+    for (i, m) in marks.iter().enumerate() {
+        let col = i32::try_from(i % 2).unwrap_or(0);
+        let row = i32::try_from(i / 2).unwrap_or(0);
+        key.draw(&Text::new(
+            format!("{}  {:.2} s  {}", i + 1, m.t, m.label),
+            (
+                12 + col * 590,
+                34 + row * i32::try_from(KEY_LINE).unwrap_or(18),
+            ),
+            ("sans-serif", 13).into_font().color(&rgb(m.kind.color())),
+        ))
+        .map_err(err)?;
+    }
+    root.present().map_err(err)?;
+    Ok(Drawn {
+        panels: tracks.len(),
+        marks: marks.len(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+    use serde_json::json;
+
+    const MAP: &str = r#"
+[motors.elbow]
+dialect = "irpc"
+node = 0x12
+limits = { min_position = 0, max_position = 150, max_velocity = 120 }
+
+[motors.wrist]
+dialect = "irpc"
+node = 0x13
+unit = "rad"
+limits = { min_position = -1, max_position = 1 }
+
+[motors.turntable]
+dialect = "orion"
+key = "TRM"
+"#;
+
+    fn feedback(motor: &str, p: f64, v: f64) -> Value {
+        json!({"feedback": {"motor_id": motor, "timestamp": 0, "position": p, "velocity": v}, "motor_id": motor, "online": true})
+    }
+
+    fn session() -> Session {
+        let mut s = Session::default();
+        for i in 0..20 {
+            let t = f64::from(i) * 0.1;
+            s.outputs.push((t, None, feedback("elbow", t * 10.0, 10.0)));
+            s.outputs.push((t, None, feedback("wrist", 0.0, 0.0)));
+            s.outputs.push((
+                t,
+                None,
+                feedback("turntable", 0.0, if i < 5 { 150.0 } else { 0.0 }),
+            ));
+        }
+        s.outputs.push((
+            0.2,
+            Some(1),
+            json!({"ok": true, "line": 1, "motor_id": "elbow"}),
+        ));
+        s.outputs.push((0.3, Some(1), json!({"ok": false, "line": 2, "motor_id": "elbow", "error": {"kind": "refused", "rule": "outside_limit"}})));
+        s.outputs.push((
+            0.6,
+            None,
+            json!({"event": "deadman", "motor_id": "turntable", "timeout_ms": 200}),
+        ));
+        s.outputs.push((
+            1.0,
+            None,
+            json!({"event": "emergency_stop", "cause": "input", "cancelled": []}),
+        ));
+        s.outputs.push((1.5, Some(1), json!({"arrived": false, "line": 1, "motor_id": "elbow", "motors": [{"motor_id": "elbow", "arrived": false, "target": 30.0}]})));
+        s.outputs.push((
+            1.8,
+            None,
+            json!({"event": "released", "reactivated": ["elbow"]}),
+        ));
+        s
+    }
+
+    /// A motor that moved, had a target or was stopped by its deadman has
+    /// a panel (one that never moved has none); an Orion speed motor is
+    /// drawn as its speed in the controller's units within ±400; a target
+    /// starts when its line was accepted and ends at the stop; the marks
+    /// are the refusal with its rule, the deadman, the stop, the release.
+    #[test]
+    fn a_session_becomes_panels_and_marks() {
+        let map = BusMap::from_toml(MAP).unwrap();
+        let s = session();
+        let t = tracks(&s, &map, &[]);
+        let names: Vec<&str> = t.iter().map(|t| t.motor.as_str()).collect();
+        assert_eq!(names, ["elbow", "turntable"]);
+        assert_eq!(t[0].shown, Shown::Angle(AngleUnit::Degrees));
+        assert_eq!(t[0].targets, vec![(0.2, Some(30.0)), (1.0, None)]);
+        assert_eq!(t[0].position_limits, (Some(0.0), Some(150.0)));
+        assert_eq!(t[0].max_velocity, Some(120.0));
+        assert_eq!(t[1].shown, Shown::OrionSpeed);
+        assert_eq!(t[1].position_limits, (Some(-400.0), Some(400.0)));
+        assert_eq!(
+            t[1].value(&t[1].samples[0]),
+            150.0,
+            "its speed, not a flat 0"
+        );
+        assert_eq!(t[1].value_name(), "speed (controller units, ±400)");
+        assert_eq!(t[1].velocity_name(), None);
+        // Asked for: the wrist too, in radians.
+        let t = tracks(&s, &map, &["wrist".to_owned()]);
+        assert_eq!(t.len(), 1);
+        assert_eq!(t[0].value_name(), "position (rad)");
+        assert_eq!(t[0].velocity_name(), Some("velocity (rad/s)"));
+        let m = marks(&s);
+        let labels: Vec<(&str, MarkKind)> = m.iter().map(|m| (m.label.as_str(), m.kind)).collect();
+        assert_eq!(
+            labels,
+            [
+                ("line 2 elbow refused: outside_limit", MarkKind::Refused),
+                (
+                    "deadman: turntable stopped, no command within its timeout",
+                    MarkKind::Deadman
+                ),
+                ("emergency stop (input)", MarkKind::Stop),
+                ("released", MarkKind::Release),
+            ]
+        );
+    }
+
+    /// Labels close together go to rows of their own; in each row, every
+    /// label clears the one before it.
+    #[test]
+    fn mark_labels_never_overlap() {
+        let xs = [10.0, 12.0, 14.0, 40.0, 41.0, 90.0, 91.0, 92.0, 93.0];
+        let rows = label_rows(xs.iter().copied());
+        assert_eq!(rows, [0, 1, 2, 0, 1, 0, 1, 2, 3]);
+        for r in 0..4 {
+            let in_row: Vec<f64> = xs
+                .iter()
+                .zip(&rows)
+                .filter(|(_, row)| **row == r)
+                .map(|(x, _)| *x)
+                .collect();
+            assert!(
+                in_row.windows(2).all(|w| w[1] - w[0] >= LABEL_W),
+                "{in_row:?}"
+            );
+        }
+    }
+
+    /// The SVG has a panel per motor with its units, the limit band and
+    /// the target in its key, and every mark's line in the key.
+    #[test]
+    fn the_svg_names_units_marks_and_key() {
+        let map = BusMap::from_toml(MAP).unwrap();
+        let path = std::env::temp_dir().join(format!("motorwire-chart-{}.svg", std::process::id()));
+        let drawn = draw(&session(), &map, &[], "a session", &path).unwrap();
+        assert_eq!(
+            drawn,
+            Drawn {
+                panels: 2,
+                marks: 4
+            }
+        );
+        let svg = std::fs::read_to_string(&path).unwrap();
+        for needle in [
+            "elbow: position (°)",
+            "elbow: velocity (°/s)",
+            "turntable: speed (controller units, ±400)",
+            "time (s)",
+            "measured (feedback)",
+            "beyond the limits in the bus map",
+            "0.30 s  line 2 elbow refused: outside_limit",
+            "1.00 s  emergency stop (input)",
+            "1.80 s  released",
+        ] {
+            assert!(svg.contains(needle), "{needle} not in the SVG");
+        }
+        let _ = std::fs::remove_file(&path);
+    }
+}

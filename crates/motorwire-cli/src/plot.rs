@@ -1,0 +1,87 @@
+//! `motorwire plot DIR --svg FILE`: a recording drawn for a person.
+
+use std::path::PathBuf;
+
+use motorwire_bridge::replay::{Recorded, Recording};
+use motorwire_translate::BusMap;
+
+use crate::chart::{self, Session};
+use crate::console::{note, say};
+
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// The recording's directory (`motorwire bridge --record DIR`).
+    dir: PathBuf,
+    /// Where to write the SVG.
+    #[arg(long, value_name = "FILE")]
+    svg: PathBuf,
+    /// The bus map for the motors' units and limits, instead of the one
+    /// the recording holds.
+    #[arg(long, value_name = "FILE")]
+    map: Option<String>,
+    /// Draw this motor (repeat for more). Default: every motor that moved,
+    /// had a target or was stopped by its deadman.
+    #[arg(long = "motor", value_name = "NAME")]
+    motors: Vec<String>,
+}
+
+pub(crate) fn run(args: &Args) -> u8 {
+    match plot(args) {
+        Ok(()) => 0,
+        Err(e) => {
+            note!("motorwire plot: {e}");
+            2
+        }
+    }
+}
+
+/// The session a recording holds, for [`chart::draw`].
+pub(crate) fn session_of(recording: &Recording) -> Session {
+    let mut s = Session::default();
+    for (t, r) in &recording.records {
+        let t = t.as_secs_f64();
+        match r {
+            Recorded::Line {
+                origin,
+                number,
+                text,
+                ..
+            } => s.inputs.push((t, origin.0, *number, text.clone())),
+            Recorded::Output { to, value } => s.outputs.push((t, *to, value.clone())),
+            _ => {}
+        }
+    }
+    s
+}
+
+fn plot(args: &Args) -> Result<(), String> {
+    let dir = &args.dir;
+    let recording = Recording::read_partial(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let map = match (&args.map, &recording.setup) {
+        (Some(path), _) => crate::bridge::load_map(path)?,
+        (None, Some(setup)) => {
+            BusMap::from_toml(&setup.map).map_err(|e| format!("the recorded map: {e}"))?
+        }
+        (None, None) => {
+            return Err(format!(
+                "{}: session.json has no setup (its map): give one with --map",
+                dir.display()
+            ));
+        }
+    };
+    for m in &args.motors {
+        if map.motor(m).is_none() {
+            return Err(format!("--motor {m}: not a motor of the map"));
+        }
+    }
+    let session = session_of(&recording);
+    let title = format!("motorwire recording {}", dir.display());
+    let drawn = chart::draw(&session, &map, &args.motors, &title, &args.svg)?;
+    say!(
+        "{}: {} motors, {} marks",
+        args.svg.display(),
+        drawn.panels,
+        drawn.marks
+    )
+    .map_err(|e| format!("standard output: {e}"))
+}
