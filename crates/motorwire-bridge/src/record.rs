@@ -114,6 +114,97 @@ enum Record {
     },
 }
 
+/// What a [`crate::Runner`] tells whoever watches the session (a
+/// [`Recorder`], a live view): every line and frame, as it happens, from
+/// the bridge's own thread. An implementation must never make it wait
+/// (queue and return; drop and count when its queue is full): a stop is
+/// never behind a watcher. Every method does nothing unless implemented.
+pub trait Tap: Send + Sync + std::fmt::Debug {
+    /// Input line `number` of `origin`, received at `at` (and taken now).
+    fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
+        let _ = (at, origin, number, text);
+    }
+    /// Input line `number` of `origin` that could not be read; `stop`: it
+    /// was taken as a stop.
+    fn unreadable(&self, at: Instant, origin: Origin, number: u64, reason: &str, stop: bool) {
+        let _ = (at, origin, number, reason, stop);
+    }
+    /// An output line given at `at`.
+    fn output(&self, at: Instant, output: &Output) {
+        let _ = (at, output);
+    }
+    /// A frame sent or received at `at`.
+    fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
+        let _ = (at, dir, frame);
+    }
+    /// A line to or from the Orion arm controller.
+    fn orion(&self, at: Instant, dir: Direction, line: &str) {
+        let _ = (at, dir, line);
+    }
+    /// Something else the bridge was told.
+    fn mark(&self, at: Instant, mark: Mark) {
+        let _ = (at, mark);
+    }
+}
+
+impl Tap for Recorder {
+    fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
+        Recorder::input(self, at, origin, number, text);
+    }
+    fn unreadable(&self, at: Instant, origin: Origin, number: u64, reason: &str, stop: bool) {
+        Recorder::unreadable(self, at, origin, number, reason, stop);
+    }
+    fn output(&self, at: Instant, output: &Output) {
+        Recorder::output(self, at, output);
+    }
+    fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
+        Recorder::frame(self, at, dir, frame);
+    }
+    fn orion(&self, at: Instant, dir: Direction, line: &str) {
+        Recorder::orion(self, at, dir, line);
+    }
+    fn mark(&self, at: Instant, mark: Mark) {
+        Recorder::mark(self, at, mark);
+    }
+}
+
+/// Several taps as one: each told in turn.
+#[derive(Debug)]
+pub(crate) struct Taps(pub(crate) Vec<Arc<dyn Tap>>);
+
+impl Tap for Taps {
+    fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
+        for t in &self.0 {
+            t.input(at, origin, number, text);
+        }
+    }
+    fn unreadable(&self, at: Instant, origin: Origin, number: u64, reason: &str, stop: bool) {
+        for t in &self.0 {
+            t.unreadable(at, origin, number, reason, stop);
+        }
+    }
+    fn output(&self, at: Instant, output: &Output) {
+        for t in &self.0 {
+            t.output(at, output);
+        }
+    }
+    fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
+        for t in &self.0 {
+            t.frame(at, dir, frame);
+        }
+    }
+    fn orion(&self, at: Instant, dir: Direction, line: &str) {
+        for t in &self.0 {
+            t.orion(at, dir, line);
+        }
+    }
+    fn mark(&self, at: Instant, mark: Mark) {
+        for t in &self.0 {
+            t.mark(at, mark.clone());
+        }
+    }
+}
+
 /// Something the bridge was told that is neither a line nor a frame: a
 /// replay ([`crate::replay`]) tells the bridge the same at the same time.
 #[derive(Debug, Clone, PartialEq, Eq)]

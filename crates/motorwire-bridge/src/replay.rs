@@ -14,7 +14,9 @@
 //! difference, stream by stream:
 //! - each line's answers (its result, its completion), per client and line;
 //! - each client's own lines (its greeting);
-//! - the events, in order;
+//! - the events, in order: each device's in a stream of its own (and
+//!   whether it is heard, `online`/`offline`, in another), the rest in
+//!   one;
 //! - the frames sent to each device, in order, each read in its dialect
 //!   ([`frame_key`]): what the frame says, without what the clock decides
 //!   (a request's msg_id, a compact command's timestamp), without the
@@ -24,13 +26,26 @@
 //!   polls (one every [`crate::ORION_POLL`] while idle).
 //!
 //! Values are compared as JSON (and the numbers within a text as numbers),
-//! within a [`Tolerance`]: by default 0.05, and 1 unit for a motor's
-//! position or velocity caught in motion (a session recorded in real time
-//! stops or reads a joint a few milliseconds off its replay); without the
+//! within a [`Tolerance`]: by default 0.05 (a number printed with
+//! decimals, a unit of its last place), 2 units for a motor's position and
+//! 5 units a second for its velocity caught in motion (a session recorded
+//! in real time stops or reads a joint a few milliseconds off its replay);
+//! without the
 //! members that measure time: `latency_us`, `ack_us`, `stop_latency_us`,
 //! `after_ms`. Feedback lines are not compared (their number follows the
-//! clock); what they show is in the frames and
-//! the answers.
+//! clock); what they show is in the frames and the answers.
+//!
+//! Time is aligned at `ready`: what came before the recorded bridge was
+//! ready comes before the simulated one is, what came after comes as long
+//! after its `ready` (their startups take their own time).
+//!
+//! What a replay does not reproduce, by its nature: a session on a
+//! simulated bus with faults (`--sim-faults`) replays with the same rates
+//! and seed, but the faults fall on other frames (the heartbeats and polls
+//! that draw them follow the clock); lines closer together than a
+//! device's answer (a burst) may supersede one another differently, as
+//! the simulated devices answer at once and the recorded ones did a little
+//! later.
 
 use std::collections::{BTreeMap, HashSet};
 use std::fs;
@@ -324,7 +339,18 @@ pub struct Recording {
     pub setup: Option<Setup>,
     /// The records, in the order they were written.
     pub records: Vec<(Duration, Recorded)>,
+    /// The recording ended cleanly (`session.json` has its counts): one
+    /// that did not (the bridge was killed) is compared up to its last
+    /// record.
+    pub ended: bool,
 }
+
+/// The largest `session.json` read (its map is at most 1 MiB).
+pub const MAX_SESSION_FILE: u64 = 4 << 20;
+
+/// The largest `lines.jsonl` read: 1 GiB (a recording holds at most a
+/// quarter of its `--record-max-mb` there).
+pub const MAX_LINES_FILE: u64 = 1 << 30;
 
 impl Recording {
     /// Reads the recording in `dir`.
@@ -350,20 +376,34 @@ impl Recording {
 
     fn read_as(dir: &Path, whole: bool) -> Result<Self, ReplayError> {
         let io = |path: PathBuf| move |source| ReplayError::Io { path, source };
-        // A regular file only: a FIFO or a device would be read forever.
-        let read = |path: &Path| -> Result<String, ReplayError> {
+        // A regular file only (a FIFO or a device would be read forever),
+        // and no larger than a recording makes.
+        let read = |path: &Path, max: u64| -> Result<String, ReplayError> {
             let meta = fs::metadata(path).map_err(io(path.to_owned()))?;
+            let refuse = |why: String| ReplayError::Io {
+                path: path.to_owned(),
+                source: std::io::Error::other(why),
+            };
             if !meta.is_file() {
-                return Err(ReplayError::Io {
-                    path: path.to_owned(),
-                    source: std::io::Error::other("not a regular file"),
-                });
+                return Err(refuse("not a regular file".to_owned()));
             }
-            fs::read_to_string(path).map_err(io(path.to_owned()))
+            if meta.len() > max {
+                return Err(refuse(format!(
+                    "{} bytes, more than a recording holds ({max})",
+                    meta.len()
+                )));
+            }
+            let mut text = String::new();
+            fs::File::open(path)
+                .and_then(|f| {
+                    std::io::Read::read_to_string(&mut std::io::Read::take(f, max), &mut text)
+                })
+                .map_err(io(path.to_owned()))?;
+            Ok(text)
         };
         let session_path = dir.join("session.json");
         let session: Value = {
-            let text = read(&session_path)?;
+            let text = read(&session_path, MAX_SESSION_FILE)?;
             serde_json::from_str(&text).map_err(|e| ReplayError::Record {
                 path: session_path.clone(),
                 line: e.line(),
@@ -392,7 +432,7 @@ impl Recording {
             None => None,
         };
         let lines_path = dir.join("lines.jsonl");
-        let text = read(&lines_path)?;
+        let text = read(&lines_path, MAX_LINES_FILE)?;
         let mut raw = Vec::new();
         let mut start = None;
         for (i, line) in text.lines().enumerate() {
@@ -412,6 +452,17 @@ impl Recording {
             }
             raw.push((t, r));
         }
+        // A recording that ended cleanly says how many records it wrote:
+        // fewer in the file is a recording cut short.
+        if whole
+            && let Some(n) = session.get("written").and_then(Value::as_u64)
+            && n != u64::try_from(raw.len()).unwrap_or(u64::MAX)
+        {
+            return Err(ReplayError::Incomplete(format!(
+                "session.json says {n} records were written, lines.jsonl holds {}: the recording was cut short or edited",
+                raw.len()
+            )));
+        }
         let start = start.unwrap_or(0);
         let since = |t: u64| Duration::from_micros(t.saturating_sub(start));
         let records = raw
@@ -423,7 +474,12 @@ impl Recording {
                 (since(t), r)
             })
             .collect();
-        Ok(Self { setup, records })
+        let ended = session.get("written").is_some();
+        Ok(Self {
+            setup,
+            records,
+            ended,
+        })
     }
 
     /// The input records (lines and marks), in the order the bridge took
@@ -548,14 +604,18 @@ pub struct Pace {
     /// After the last input, how long the bridge may take to finish (the
     /// end of input drains moves for up to 30 s).
     pub finish_within: Duration,
+    /// The longest recording replayed (from its start to its last
+    /// record): a longer one is refused rather than simulated for hours.
+    pub max_span: Duration,
 }
 
 impl Default for Pace {
-    /// As fast as it goes; a minute to finish.
+    /// As fast as it goes; a minute to finish; recordings up to 6 hours.
     fn default() -> Self {
         Self {
             real_time: false,
             finish_within: Duration::from_secs(60),
+            max_span: Duration::from_secs(6 * 3600),
         }
     }
 }
@@ -587,7 +647,57 @@ pub fn replay(
     pace: Pace,
 ) -> Result<Replayed, ReplayError> {
     let began = Instant::now();
-    let mut arm = SimulatedArm::new(bridge, sim)?;
+    // Its latest time (a damaged clock may put any record late).
+    let span = recording
+        .records
+        .iter()
+        .map(|(t, r)| match r {
+            Recorded::Line { taken: Some(k), .. } => (*t).max(*k),
+            _ => *t,
+        })
+        .max()
+        .unwrap_or_default();
+    if span > pace.max_span {
+        return Err(ReplayError::Incomplete(format!(
+            "the recording spans {:.0} s, more than the {:.0} s a replay runs (its clock may be damaged; a longer limit: --max-span)",
+            span.as_secs_f64(),
+            pace.max_span.as_secs_f64()
+        )));
+    }
+    // The recorded bridge's `ready`: the simulated one starts up in its
+    // own time, and what came after `ready` is told as long after the
+    // simulated one's.
+    let recorded_ready = recording.records.iter().find_map(|(t, r)| match r {
+        Recorded::Output { to: None, value }
+            if value.get("event") == Some(&Value::from("ready")) =>
+        {
+            Some(*t)
+        }
+        _ => None,
+    });
+    // The Orion controller's boot beacon, when the recorded one sent it
+    // (its motors come online then, and the order of their events with
+    // the others' follows).
+    let beacon = recording.records.iter().find_map(|(t, r)| match r {
+        Recorded::Orion {
+            dir: Direction::Rx,
+            line,
+        } if serde_json::from_str::<Value>(line)
+            .is_ok_and(|v| v == serde_json::json!({"ID": 32})) =>
+        {
+            Some(*t)
+        }
+        _ => None,
+    });
+    let mut arm = SimulatedArm::new_unbooted(bridge, sim)?;
+    let mut booted = false;
+    // A controller heard before the recorded bridge was ready is there
+    // from the start (the simulated startup takes no time); one that
+    // booted later, when it did.
+    if beacon.is_none_or(|b| recorded_ready.is_none_or(|r| b <= r)) {
+        arm.orion_boot();
+        booted = true;
+    }
     arm.keep_sent();
     let mut out = Replayed::default();
     let mut outputs = Vec::new();
@@ -600,9 +710,21 @@ pub fn replay(
             // What a step gives out, it gives at its start (then the clock
             // moves on).
             let now = arm.now();
-            outputs.extend(arm.take_outputs().into_iter().map(|o| (now, o)));
+            // Feedback is not compared: not kept (a long replay's memory).
+            let keep = |o: &Output| !matches!(o, Output::Feedback(_));
+            outputs.extend(
+                arm.take_outputs()
+                    .into_iter()
+                    .filter(keep)
+                    .map(|o| (now, o)),
+            );
             arm.step(left.min(Duration::from_millis(10)))?;
-            outputs.extend(arm.take_outputs().into_iter().map(|o| (now, o)));
+            outputs.extend(
+                arm.take_outputs()
+                    .into_iter()
+                    .filter(keep)
+                    .map(|o| (now, o)),
+            );
             let now = arm.now();
             if pace.real_time {
                 let wall = began.elapsed();
@@ -615,15 +737,61 @@ pub fn replay(
     };
     let mut ends = false;
     let mut last = Duration::ZERO;
+    // When the simulated bridge became ready.
+    let mut ready_at: Option<Duration> = None;
+    // Runs to `t` of the recording's clock: before its `ready`, as far as
+    // `t` or the simulated `ready`, whichever comes first; after it, as
+    // long after the simulated `ready`.
+    let mut reach = |arm: &mut SimulatedArm,
+                     outputs: &mut Vec<(Duration, Output)>,
+                     t: Duration|
+     -> Result<Duration, BridgeError> {
+        let Some(r) = recorded_ready else {
+            advance(arm, outputs, t)?;
+            return Ok(t);
+        };
+        while ready_at.is_none() {
+            if arm.bridge().is_ready() {
+                ready_at = Some(arm.now());
+                break;
+            }
+            if t <= r && arm.now() >= t {
+                return Ok(arm.now());
+            }
+            // Startup in steps (a bridge that never gets ready is given
+            // the recorded time and a minute more).
+            if arm.now() > r.saturating_add(Duration::from_secs(60)) {
+                ready_at = Some(arm.now());
+                break;
+            }
+            let next = arm.now().saturating_add(Duration::from_millis(1));
+            advance(arm, outputs, next)?;
+        }
+        let s = ready_at.unwrap_or_default();
+        let to = if t <= r {
+            t.min(s)
+        } else {
+            s.saturating_add(t - r)
+        };
+        advance(arm, outputs, to)?;
+        Ok(to)
+    };
     for (t, r) in recording.inputs() {
+        if !booted && let Some(b) = beacon.filter(|b| b <= t) {
+            reach(&mut arm, &mut outputs, b)?;
+            arm.orion_boot();
+            booted = true;
+        }
         // A line is told when the bridge took it, as having come when it
         // came (as the bridge was told it).
         let taken = match r {
             Recorded::Line { taken: Some(k), .. } => (*k).max(*t),
             _ => *t,
         };
-        advance(&mut arm, &mut outputs, taken)?;
+        let came = reach(&mut arm, &mut outputs, *t)?;
+        reach(&mut arm, &mut outputs, taken)?;
         let now = arm.now();
+        let t = &came;
         let b = arm.bridge_mut();
         match r {
             Recorded::Line {
@@ -664,7 +832,11 @@ pub fn replay(
     }
     // The recorded session's end: its last record, or the bridge's own
     // end once told the input ended.
-    let end = recording.records.last().map_or(last, |(t, _)| *t);
+    if !booted && let Some(b) = beacon {
+        reach(&mut arm, &mut outputs, b)?;
+        arm.orion_boot();
+    }
+    let end = reach(&mut arm, &mut outputs, span.max(last))?;
     if ends {
         let limit = end.max(arm.now()).saturating_add(pace.finish_within);
         while !arm.bridge().is_finished() && arm.now() < limit {
@@ -820,36 +992,65 @@ pub struct Tolerance {
     /// [`Tolerance::absolute`] (0 by default: a Unix time in milliseconds
     /// would be let off by far more than it should).
     pub relative: f64,
-    /// A motor's state caught in motion (members `position`, `velocity`,
-    /// `acceleration`, and an arrival's `error`), in its unit: a session
+    /// A motor's position caught in motion (members `position` and an
+    /// arrival's `error`), in its unit: a session
     /// recorded in real time takes its stop or its reading a few
     /// milliseconds off the replay's, and a joint moving at 120°/s is
-    /// 0.6° further in 5 ms. Default: 1.
+    /// 0.6° further in 5 ms, and a reading is up to a feedback period
+    /// old. Default: 2.
     pub motion: f64,
+    /// A motor's velocity caught in motion (members `velocity` and
+    /// `acceleration`), in its unit per second: a joint accelerating at
+    /// 500°/s² is 2.5°/s faster 5 ms later. Default: 5.
+    pub motion_rate: f64,
 }
 
 impl Default for Tolerance {
-    /// 0.05; 1 for a motor's state in motion.
+    /// 0.05; 2 for a motor's position in motion, 5 for its velocity.
     fn default() -> Self {
         Self {
             absolute: 0.05,
             relative: 0.0,
-            motion: 1.0,
+            motion: 2.0,
+            motion_rate: 5.0,
         }
     }
 }
 
-/// Members that hold a motor's state, caught in motion.
-const MOTION: [&str; 4] = ["position", "velocity", "acceleration", "error"];
+/// Which tolerance a member's value takes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Plain,
+    /// A position caught in motion.
+    Position,
+    /// A velocity caught in motion.
+    Rate,
+}
 
-/// Whether `a` and `b` are the same within `tol` (`motion`: they are the
-/// value of a member that holds a motor's state).
-fn same(a: &Value, b: &Value, tol: &Tolerance, motion: bool) -> bool {
+impl Kind {
+    fn of(member: &str) -> Self {
+        match member {
+            "position" | "error" => Self::Position,
+            "velocity" | "acceleration" => Self::Rate,
+            _ => Self::Plain,
+        }
+    }
+}
+
+/// Whether `a` and `b` are the same within `tol` (`kind`: what the
+/// member holding them is).
+fn same(a: &Value, b: &Value, tol: &Tolerance, kind: Kind) -> bool {
+    let motion = kind;
     match (a, b) {
         (Value::Number(x), Value::Number(y)) => match (x.as_f64(), y.as_f64()) {
             (Some(x), Some(y)) => {
                 let slack = tol.absolute + tol.relative * x.abs().max(y.abs());
-                (x - y).abs() <= if motion { slack.max(tol.motion) } else { slack }
+                (x - y).abs()
+                    <= match kind {
+                        Kind::Plain => slack,
+                        Kind::Position => slack.max(tol.motion),
+                        Kind::Rate => slack.max(tol.motion_rate),
+                    }
             }
             _ => x == y,
         },
@@ -858,10 +1059,8 @@ fn same(a: &Value, b: &Value, tol: &Tolerance, motion: bool) -> bool {
         }
         (Value::Object(x), Value::Object(y)) => {
             x.len() == y.len()
-                && x.iter().all(|(k, a)| {
-                    y.get(k)
-                        .is_some_and(|b| same(a, b, tol, MOTION.contains(&k.as_str())))
-                })
+                && x.iter()
+                    .all(|(k, a)| y.get(k).is_some_and(|b| same(a, b, tol, Kind::of(k))))
         }
         (Value::String(x), Value::String(y)) => same_text(x, y, tol, motion),
         _ => a == b,
@@ -869,8 +1068,9 @@ fn same(a: &Value, b: &Value, tol: &Tolerance, motion: bool) -> bool {
 }
 
 /// `text` in pieces: runs of digits (with a sign and a decimal point) as
-/// numbers, the rest as it is.
-fn pieces(text: &str) -> Vec<Result<f64, &str>> {
+/// numbers (with how many decimals they were printed with), the rest as
+/// it is.
+fn pieces(text: &str) -> Vec<Result<(f64, usize), &str>> {
     let mut out = Vec::new();
     let mut rest = text;
     while !rest.is_empty() {
@@ -896,8 +1096,10 @@ fn pieces(text: &str) -> Vec<Result<f64, &str>> {
                     || (c == '.' && rest[i + 1..].starts_with(|d: char| d.is_ascii_digit())))
             })
             .map_or(rest.len(), |(i, _)| i);
-        match rest[..end].parse::<f64>() {
-            Ok(n) => out.push(Ok(n)),
+        let digits = &rest[..end];
+        let decimals = digits.split_once('.').map_or(0, |(_, d)| d.len());
+        match digits.parse::<f64>() {
+            Ok(n) => out.push(Ok((n, decimals))),
             Err(_) => out.push(Err(&rest[..end])),
         }
         rest = &rest[end..];
@@ -907,14 +1109,28 @@ fn pieces(text: &str) -> Vec<Result<f64, &str>> {
 
 /// Whether two texts say the same, the numbers in them within `tol` (a
 /// message that names a time or a position the clock decided).
-fn same_text(a: &str, b: &str, tol: &Tolerance, motion: bool) -> bool {
+fn same_text(a: &str, b: &str, tol: &Tolerance, motion: Kind) -> bool {
     if a == b {
         return true;
     }
     let (x, y) = (pieces(a), pieces(b));
     x.len() == y.len()
         && x.iter().zip(&y).all(|(p, q)| match (p, q) {
-            (Ok(p), Ok(q)) => same(&Value::from(*p), &Value::from(*q), tol, motion),
+            // A number printed with k decimals may be a unit of its last
+            // place off (rounded on either side of a boundary).
+            (Ok((p, dp)), Ok((q, dq))) => {
+                let last_place = 10f64.powi(-i32::try_from((*dp).min(*dq)).unwrap_or(0));
+                let tol = Tolerance {
+                    // (plus the float's own rounding of a large number)
+                    absolute: tol.absolute.max(if *dp > 0 || *dq > 0 {
+                        last_place + 4.0 * f64::EPSILON * p.abs().max(q.abs())
+                    } else {
+                        0.0
+                    }),
+                    ..*tol
+                };
+                same(&Value::from(*p), &Value::from(*q), &tol, motion)
+            }
             (Err(p), Err(q)) => p == q,
             _ => false,
         })
@@ -986,7 +1202,22 @@ fn streams(
                 let stream = match (to, value.get("line").and_then(Value::as_u64)) {
                     (Some(to), Some(line)) => format!("client {to} line {line}"),
                     (Some(to), None) => format!("client {to}"),
-                    (None, _) => "events".to_owned(),
+                    // A device's events in its own stream: the order of
+                    // different devices' events follows the clock.
+                    // (whether it is heard, in a stream of its own: a
+                    // controller's boot and a startup race).
+                    (None, _) => match value.get("motor_id").and_then(Value::as_str) {
+                        None => "events".to_owned(),
+                        Some(m)
+                            if matches!(
+                                value.get("event").and_then(Value::as_str),
+                                Some("online" | "offline")
+                            ) =>
+                        {
+                            format!("events of {m}: heard")
+                        }
+                        Some(m) => format!("events of {m}"),
+                    },
                 };
                 s.entry(stream).or_default().push(Item {
                     at,
@@ -1042,7 +1273,7 @@ pub fn compare(
         let counted = x.len().min(y.len());
         if name.starts_with("client ") {
             c.answers += counted;
-        } else if name == "events" {
+        } else if name == "events" || name.starts_with("events of ") {
             c.events += counted;
         } else if name.starts_with("frames ") {
             c.frames += counted;
@@ -1052,7 +1283,7 @@ pub fn compare(
         for i in 0..n {
             let (p, q) = (x.get(i), y.get(i));
             if let (Some(p), Some(q)) = (p, q)
-                && same(&p.value, &q.value, tolerance, false)
+                && same(&p.value, &q.value, tolerance, Kind::Plain)
             {
                 continue;
             }
@@ -1168,7 +1399,7 @@ node = 0x20
     #[test]
     fn values_are_compared_within_the_tolerance_and_without_timing() {
         let tol = Tolerance::default();
-        let s = |a: &Value, b: &Value| same(&untimed(a), &untimed(b), &tol, false);
+        let s = |a: &Value, b: &Value| same(&untimed(a), &untimed(b), &tol, Kind::Plain);
         assert!(s(
             &json!({"ok": true, "latency_us": 10}),
             &json!({"ok": true, "latency_us": 99})
@@ -1177,14 +1408,17 @@ node = 0x20
         assert!(!s(&json!({"ok": true}), &json!({"ok": true, "extra": 1})));
         assert!(s(&json!({"limit": 150.0}), &json!({"limit": 150.04})));
         assert!(!s(&json!({"limit": 150.0}), &json!({"limit": 150.06})));
-        // In motion: within 1.
+        // In motion: a position within 2, a velocity within 5.
+        assert!(s(&json!({"velocity": 58.9}), &json!({"velocity": 62.26})));
+        assert!(!s(&json!({"velocity": 58.9}), &json!({"velocity": 64.0})));
+        assert!(!s(&json!({"position": 58.9}), &json!({"position": 61.0})));
         assert!(s(
             &json!({"motors": [{"error": 19.7}]}),
             &json!({"motors": [{"error": 19.0}]})
         ));
         assert!(!s(
             &json!({"motors": [{"error": 19.7}]}),
-            &json!({"motors": [{"error": 18.6}]})
+            &json!({"motors": [{"error": 17.6}]})
         ));
         // A large number is not let off by its size.
         assert!(!s(
@@ -1201,9 +1435,26 @@ node = 0x20
             &json!("setpoint 170 is outside max_position 20")
         ));
         assert!(!s(&json!("elbow: busy"), &json!("elbow: idle")));
+        // A number printed to 0.1 may be rounded either side: one unit of
+        // its last place; an integer is not let off beyond the tolerance.
+        assert!(s(
+            &json!("timestamp 1000 is 1796296047.2 s old"),
+            &json!("timestamp 1000 is 1796296047.1 s old")
+        ));
+        assert!(!s(
+            &json!("timestamp 1000 is 1796296047.3 s old"),
+            &json!("timestamp 1000 is 1796296047.1 s old")
+        ));
+        assert!(!s(&json!("line 7"), &json!("line 8")));
         assert_eq!(
             pieces("-3.5 deg, node-2 at 10"),
-            vec![Ok(-3.5), Err(" deg, node-"), Ok(2.0), Err(" at "), Ok(10.0)]
+            vec![
+                Ok((-3.5, 1)),
+                Err(" deg, node-"),
+                Ok((2.0, 0)),
+                Err(" at "),
+                Ok((10.0, 0))
+            ]
         );
     }
 
@@ -1221,6 +1472,7 @@ node = 0x20
         let ms = Duration::from_millis;
         let recording = Recording {
             setup: None,
+            ended: true,
             records: vec![
                 (ms(1), out(Some(1), json!({"ok": true, "line": 1}))),
                 (ms(2), out(Some(2), json!({"ok": true, "line": 1}))),

@@ -12,7 +12,7 @@ use motorwire_can::{CanBus, Error as CanError, Frame};
 use std::collections::BTreeMap;
 use std::sync::{Condvar, Mutex, PoisonError};
 
-use crate::record::{Direction, Mark, Recorder};
+use crate::record::{Direction, Mark, Recorder, Tap, Taps};
 use crate::{Bridge, BridgeError, Event, Origin, Output, asks_for_stop};
 
 /// The longest input line accepted by default (bytes, without the
@@ -501,7 +501,7 @@ pub struct Runner {
     budget: Arc<Budget>,
     orion: Option<OrionPort>,
     max_line: usize,
-    recorder: Option<Arc<Recorder>>,
+    taps: Vec<Arc<dyn Tap>>,
 }
 
 impl Default for Runner {
@@ -524,7 +524,7 @@ impl Runner {
             budget: Arc::default(),
             orion: None,
             max_line: DEFAULT_MAX_LINE,
-            recorder: None,
+            taps: Vec::new(),
         }
     }
 
@@ -551,7 +551,15 @@ impl Runner {
     /// [`Runner::run`] has returned.
     #[must_use]
     pub fn with_recorder(mut self, recorder: Arc<Recorder>) -> Self {
-        self.recorder = Some(recorder);
+        self.taps.push(recorder);
+        self
+    }
+
+    /// Tells `tap` everything the session takes and gives, as it happens
+    /// (a live view, a recorder of one's own): see [`Tap`].
+    #[must_use]
+    pub fn with_tap(mut self, tap: Arc<dyn Tap>) -> Self {
+        self.taps.push(tap);
         self
     }
 
@@ -627,8 +635,8 @@ impl Runner {
             .orion
             .take()
             .map(|port| spawn_orion(port, self.tx.clone(), Arc::clone(&orion_queued)));
-        let rec = self.recorder.take();
-        let rec = rec.as_deref();
+        let taps = Taps(std::mem::take(&mut self.taps));
+        let rec: Option<&dyn Tap> = (!taps.0.is_empty()).then_some(&taps);
         let mut sink = |o: &Output| {
             if let Some(r) = rec {
                 r.output(Instant::now(), o);
@@ -823,7 +831,7 @@ const FRAMES_AHEAD: usize = 256;
 /// received, a line from the Orion controller, and what else the bridge is
 /// told (a client greeted or gone, the end of input, a signal, the Orion
 /// link lost), so a replay can tell it the same.
-fn record_input(r: &Recorder, msg: &Msg) {
+fn record_input(r: &dyn Tap, msg: &Msg) {
     match msg {
         Msg::Line {
             origin,

@@ -282,7 +282,20 @@ impl SimulatedArm {
     ///
     /// # Errors
     /// The bus's and the joints' configuration errors.
-    pub fn new(mut bridge: Bridge, config: SimConfig) -> Result<Self, BridgeError> {
+    pub fn new(bridge: Bridge, config: SimConfig) -> Result<Self, BridgeError> {
+        let mut arm = Self::new_unbooted(bridge, config)?;
+        arm.orion_boot();
+        Ok(arm)
+    }
+
+    /// As [`SimulatedArm::new`], but the simulated Orion controller (with
+    /// [`crate::BridgeConfig::orion`]) has not sent its boot beacon yet:
+    /// [`SimulatedArm::orion_boot`] sends it (a replay sends it when the
+    /// recorded controller did).
+    ///
+    /// # Errors
+    /// The bus's and the joints' configuration errors.
+    pub fn new_unbooted(mut bridge: Bridge, config: SimConfig) -> Result<Self, BridgeError> {
         let bus = SimBus::new(SimConfig {
             clock: Clock::Simulated,
             ..config
@@ -301,11 +314,7 @@ impl SimulatedArm {
             compact.push((device, bus.port()));
         }
         bridge.start(Duration::ZERO);
-        let orion = bridge.config().orion.then(|| {
-            // The controller's boot beacon.
-            bridge.handle_orion_line(Duration::ZERO, r#"{"ID":32}"#);
-            SimOrion::default()
-        });
+        let orion = bridge.config().orion.then(SimOrion::default);
         Ok(Self {
             bus,
             port,
@@ -316,6 +325,15 @@ impl SimulatedArm {
             sent: None,
             outputs: Vec::new(),
         })
+    }
+
+    /// The simulated Orion controller sends its boot beacon `{"ID":32}`
+    /// now (nothing without one).
+    pub fn orion_boot(&mut self) {
+        if self.orion.is_some() {
+            let now = self.bus.now();
+            self.bridge.handle_orion_line(now, r#"{"ID":32}"#);
+        }
     }
 
     /// The simulated time.

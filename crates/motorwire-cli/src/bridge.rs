@@ -124,6 +124,14 @@ pub(crate) struct Args {
     /// file is rotated at a quarter of it.
     #[arg(long, value_name = "MIB", default_value_t = 100)]
     record_max_mb: u64,
+    /// Serve a live view of the session at ADDR (e.g. 127.0.0.1:8080; port
+    /// 0 picks one, printed on standard error): a page plotting each
+    /// motor's last 30 s with its target and limits, its state, the events
+    /// as marks and the input lines as they come. Read-only. A loopback
+    /// address unless `--token-file` is given: then the page is opened as
+    /// http://ADDR/?token=TOKEN.
+    #[arg(long, value_name = "ADDR")]
+    view: Option<std::net::SocketAddr>,
     #[command(flatten)]
     zenoh: crate::fleet::ZenohArgs,
 }
@@ -389,6 +397,29 @@ fn bridge(args: &Args) -> Result<u8, String> {
         }
         None => None,
     };
+    if let Some(addr) = args.view {
+        let token = match &args.token_file {
+            Some(path) => Some(crate::serve::read_token(path)?),
+            None if !crate::view::is_loopback(&addr) => {
+                return Err(format!(
+                    "--view {addr}: not a loopback address: anyone who reaches it would see the session; give --token-file FILE (the page is then opened with ?token=TOKEN), or use 127.0.0.1"
+                ));
+            }
+            None => None,
+        };
+        let tokened = token.is_some();
+        let view = crate::view::start(crate::view::ViewConfig { addr, token }, bridge.map())?;
+        note!(
+            "motorwire bridge: the live view at http://{}/{}",
+            view.addr,
+            if tokened {
+                "?token=TOKEN (the token file's)"
+            } else {
+                ""
+            }
+        );
+        runner = runner.with_tap(view.tap);
+    }
     let input = runner.input();
     let signalled = on_signals(input.clone())?;
 

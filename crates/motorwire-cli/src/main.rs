@@ -25,6 +25,7 @@ mod serve;
 mod sim;
 mod translate;
 mod validate;
+mod view;
 
 /// Typed, validated, safe messages between the software that decides a
 /// motion and the motors that make it.

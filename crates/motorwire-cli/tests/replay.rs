@@ -148,6 +148,7 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
     let (code, v, stderr) = replay_json(&dir, &[]);
     assert_eq!(code, Some(0), "{v}\n{stderr}");
     assert_eq!(v["same"], true, "{v}");
+    assert_eq!(v["ended_cleanly"], true, "{v}");
     assert_eq!(v["divergence"], Value::Null);
     assert_eq!(v["inputs"], 11, "9 lines, the start and the end: {v}");
     // Every line's answers: 9 results and 4 completions (the first move,
@@ -250,7 +251,8 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
 
 /// A recording that cannot be replayed faithfully is refused with the
 /// reason and exit status 2: no setup, its beginning rotated away,
-/// records dropped, a line that is not a record.
+/// records dropped, a line that is not a record, fewer records than it
+/// says it wrote, a FIFO in place of a file, a damaged clock.
 #[test]
 fn a_recording_that_cannot_be_replayed_says_why() {
     let dir = scratch("refused");
@@ -273,6 +275,11 @@ fn a_recording_that_cannot_be_replayed_says_why() {
             Some("{\"t_us\":5,\"wall_ms\":1,\"what\":1}\n"),
             "lines.jsonl:1: not an in, out, mark, frame or orion record",
         ),
+        (
+            session(r#","written":5,"dropped":0"#),
+            None,
+            "session.json says 5 records were written, lines.jsonl holds 0: the recording was cut short or edited",
+        ),
     ];
     for (s, lines, says) in cases {
         std::fs::write(dir.join("session.json"), s).unwrap();
@@ -282,7 +289,54 @@ fn a_recording_that_cannot_be_replayed_says_why() {
         assert_eq!(out.status.code(), Some(2), "{stderr}");
         assert!(stderr.contains(says), "{says} not in {stderr}");
     }
+    // A FIFO in place of a file is never read (it would be forever).
     std::fs::write(dir.join("session.json"), session("")).unwrap();
+    std::fs::remove_file(dir.join("lines.jsonl")).unwrap();
+    let made = std::process::Command::new("mkfifo")
+        .arg(dir.join("lines.jsonl"))
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let out = common::run(&["replay", dir.to_str().unwrap()], b"");
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("lines.jsonl: not a regular file"),
+        "{stderr}"
+    );
+    std::fs::remove_file(dir.join("lines.jsonl")).unwrap();
+    // A damaged clock: one record a million seconds on. A recording
+    // without its setup is refused first, so the setup of a real one.
+    let real = scratch("real-setup");
+    std::fs::create_dir_all(&real).unwrap();
+    let setup = serde_json::json!({
+        "recorder": "motorwire", "files": ["frames.log", "lines.jsonl"],
+        "setup": {
+            "map": "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n",
+            "bus": "sim", "node": 0, "wire": "v2.0", "ack_timeout_us": 100000, "retries": 3,
+            "first_msg_id": 1, "activate_on_start": true, "feedback_period_us": null,
+            "offline_after_us": 500000, "heartbeat_period_us": 50000, "drain_timeout_us": 30000000,
+            "epoch_unix_ms": null, "max_age_us": null, "max_pending_lines": 1024,
+            "max_queue_per_joint": 16, "orion": false, "orion_command_timeout_us": 30000000,
+            "telemetry_hz": null, "allow_unknown_members": false, "sim_seed": 0, "sim_faults": {}
+        }
+    });
+    std::fs::write(real.join("session.json"), setup.to_string()).unwrap();
+    std::fs::write(
+        real.join("lines.jsonl"),
+        "{\"t_us\":0,\"wall_ms\":1,\"mark\":{\"kind\":\"start\"}}\n\
+         {\"t_us\":1000000000000,\"wall_ms\":1,\"in\":{\"origin\":0,\"line\":1,\"text\":\"{}\"}}\n",
+    )
+    .unwrap();
+    let out = common::run(&["replay", real.to_str().unwrap()], b"");
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("the recording spans 1000000 s, more than the 21600 s a replay runs"),
+        "{stderr}"
+    );
+    let _ = std::fs::remove_dir_all(&real);
+    std::fs::write(dir.join("lines.jsonl"), "").unwrap();
     std::fs::write(dir.join("lines.1.jsonl"), "").unwrap();
     let out = common::run(&["replay", dir.to_str().unwrap()], b"");
     let stderr = String::from_utf8(out.stderr).unwrap();

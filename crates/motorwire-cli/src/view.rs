@@ -1,0 +1,471 @@
+//! `motorwire bridge --view ADDR`: a live view of the session in a
+//! browser. One page (its script and style inside it, no external asset)
+//! and one Server-Sent Events stream: the bus map's motors with their
+//! units and limits, then every input and output line as it happens, each
+//! with its time (seconds from the view's start). The page plots the last
+//! 30 s of each motor and marks the events; it only reads.
+//!
+//! Never in the bridge's way: the bridge hands each line to a bounded
+//! queue and goes on ([`ViewTap`]); a thread of the view's own renders
+//! them and writes them to each page, dropping a page that does not keep
+//! up. Bound: at most [`MAX_PAGES`] pages at once, a request's head at
+//! most 8 KiB read within 2 s.
+
+use std::collections::VecDeque;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use motorwire_bridge::record::Tap;
+use motorwire_bridge::{Origin, Output};
+use motorwire_translate::{AngleUnit, BusMap, Target};
+use serde_json::{Value, json};
+
+/// The page.
+const PAGE: &str = include_str!("view/index.html");
+
+/// Pages served at once, at most.
+pub(crate) const MAX_PAGES: usize = 16;
+
+/// Requests being read at once, at most.
+const MAX_REQUESTS: usize = 32;
+
+/// Lines waiting for the view's thread, at most; beyond, dropped (and
+/// counted in the next line the pages get).
+const QUEUE: usize = 16_384;
+
+/// How much of the session a page that opens gets at once.
+const HISTORY: Duration = Duration::from_secs(30);
+
+/// Lines kept for a page that opens, at most.
+const HISTORY_LINES: usize = 100_000;
+
+/// A request's head, at most.
+const MAX_HEAD: usize = 8192;
+
+/// One line for the pages.
+#[derive(Debug)]
+enum Item {
+    In {
+        at: Instant,
+        origin: Origin,
+        number: u64,
+        text: String,
+    },
+    Out {
+        at: Instant,
+        output: Box<Output>,
+    },
+}
+
+/// What the bridge tells the view: queued, never waited on.
+#[derive(Debug)]
+pub(crate) struct ViewTap {
+    queue: SyncSender<Item>,
+    dropped: Arc<AtomicU64>,
+}
+
+impl ViewTap {
+    fn put(&self, item: Item) {
+        match self.queue.try_send(item) {
+            Ok(()) => {}
+            Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) => {
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+}
+
+impl Tap for ViewTap {
+    fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
+        self.put(Item::In {
+            at,
+            origin,
+            number,
+            text: text.to_owned(),
+        });
+    }
+
+    fn output(&self, at: Instant, output: &Output) {
+        self.put(Item::Out {
+            at,
+            output: Box::new(output.clone()),
+        });
+    }
+}
+
+/// Where the view listens, and who may look.
+#[derive(Debug, Clone)]
+pub(crate) struct ViewConfig {
+    pub(crate) addr: SocketAddr,
+    /// Required in the page's address (`?token=...`) when set.
+    pub(crate) token: Option<String>,
+}
+
+/// The view, serving.
+#[derive(Debug)]
+pub(crate) struct View {
+    /// Where it listens (the port chosen when 0 was asked for).
+    pub(crate) addr: SocketAddr,
+    pub(crate) tap: Arc<ViewTap>,
+}
+
+/// The map's motors as the page needs them: name, dialect, what its
+/// value is, its unit, its limits.
+fn motors_json(map: &BusMap) -> Value {
+    let motors: Vec<Value> = map
+        .motors()
+        .map(|m| {
+            let (quantity, unit, lo, hi) = match m.target {
+                Target::Orion { motor } => match motor.quantity() {
+                    motorwire_orion::Quantity::Speed => {
+                        let (lo, hi) = motor.range();
+                        ("speed", "controller units", Some(lo), Some(hi))
+                    }
+                    motorwire_orion::Quantity::Actuator => {
+                        let (lo, hi) = motor.range();
+                        ("actuator", "-1 to 1", Some(lo), Some(hi))
+                    }
+                    motorwire_orion::Quantity::PositionDegrees => (
+                        "position",
+                        "°",
+                        m.limits.min_position,
+                        m.limits.max_position,
+                    ),
+                },
+                _ => (
+                    "position",
+                    match m.unit {
+                        AngleUnit::Degrees => "°",
+                        AngleUnit::Radians => "rad",
+                    },
+                    m.limits.min_position,
+                    m.limits.max_position,
+                ),
+            };
+            json!({
+                "motor_id": m.name,
+                "dialect": m.target.dialect(),
+                "quantity": quantity,
+                "unit": unit,
+                "min_position": lo,
+                "max_position": hi,
+                "max_velocity": m.limits.max_velocity,
+            })
+        })
+        .collect();
+    Value::Array(motors)
+}
+
+/// Starts the view of a bridge on `map`.
+///
+/// # Errors
+/// The address cannot be listened on.
+pub(crate) fn start(config: ViewConfig, map: &BusMap) -> Result<View, String> {
+    let listener =
+        TcpListener::bind(config.addr).map_err(|e| format!("--view {}: {e}", config.addr))?;
+    let addr = listener
+        .local_addr()
+        .map_err(|e| format!("--view {}: {e}", config.addr))?;
+    let (queue, items) = mpsc::sync_channel(QUEUE);
+    let dropped = Arc::new(AtomicU64::new(0));
+    let started = Instant::now();
+    let hello = json!({"kind": "hello", "motors": motors_json(map)}).to_string();
+    let (pages_tx, pages_rx) = mpsc::channel::<TcpStream>();
+    let open = Arc::new(AtomicUsize::new(0));
+    {
+        let dropped = Arc::clone(&dropped);
+        let open = Arc::clone(&open);
+        thread::Builder::new()
+            .name("motorwire-view".to_owned())
+            .spawn(move || hub(&items, &pages_rx, &dropped, &open, started, &hello))
+            .map_err(|e| e.to_string())?;
+    }
+    let token = config.token.map(Arc::new);
+    thread::Builder::new()
+        .name("motorwire-view-accept".to_owned())
+        .spawn(move || {
+            let busy = Arc::new(AtomicUsize::new(0));
+            for stream in listener.incoming().flatten() {
+                // Requests being read, at most: more are closed at once.
+                if busy.load(Ordering::SeqCst) >= MAX_REQUESTS {
+                    drop(stream);
+                    continue;
+                }
+                busy.fetch_add(1, Ordering::SeqCst);
+                let pages = pages_tx.clone();
+                let token = token.clone();
+                let open = Arc::clone(&open);
+                let done = Arc::clone(&busy);
+                let spawned = thread::Builder::new()
+                    .name("motorwire-view-request".to_owned())
+                    .spawn(move || {
+                        serve(stream, token.as_deref().map(String::as_str), &pages, &open);
+                        done.fetch_sub(1, Ordering::SeqCst);
+                    });
+                if spawned.is_err() {
+                    busy.fetch_sub(1, Ordering::SeqCst);
+                }
+            }
+        })
+        .map_err(|e| e.to_string())?;
+    Ok(View {
+        addr,
+        tap: Arc::new(ViewTap { queue, dropped }),
+    })
+}
+
+/// The request's head: its method and target, or why not.
+fn read_head(stream: &TcpStream) -> Result<(String, String), &'static str> {
+    let mut reader = BufReader::new(stream.take(MAX_HEAD as u64));
+    let mut first = String::new();
+    reader
+        .read_line(&mut first)
+        .map_err(|_| "400 Bad Request")?;
+    // The rest of the head, up to its blank line.
+    loop {
+        let mut line = String::new();
+        match reader.read_line(&mut line) {
+            Ok(0) => return Err("400 Bad Request"),
+            Ok(_) if line == "\r\n" || line == "\n" => break,
+            Ok(_) => {}
+            Err(_) => return Err("400 Bad Request"),
+        }
+    }
+    let mut parts = first.split_whitespace();
+    match (parts.next(), parts.next(), parts.next()) {
+        (Some(m), Some(t), Some(v)) if v.starts_with("HTTP/1.") => Ok((m.to_owned(), t.to_owned())),
+        _ => Err("400 Bad Request"),
+    }
+}
+
+/// Whether `query` carries `token` (compared in constant time).
+fn has_token(query: &str, token: &str) -> bool {
+    query.split('&').any(|kv| {
+        kv.strip_prefix("token=").is_some_and(|given| {
+            given.len() == token.len()
+                && given
+                    .bytes()
+                    .zip(token.bytes())
+                    .fold(0u8, |acc, (a, b)| acc | (a ^ b))
+                    == 0
+        })
+    })
+}
+
+fn respond(mut stream: TcpStream, status: &str, kind: &str, body: &str) {
+    let _ = write!(
+        stream,
+        "HTTP/1.1 {status}\r\nContent-Type: {kind}\r\nContent-Length: {}\r\nCache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nContent-Security-Policy: default-src 'self'; script-src 'unsafe-inline'; style-src 'unsafe-inline'\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    );
+}
+
+/// One request: the page, its stream, or an error.
+fn serve(
+    stream: TcpStream,
+    token: Option<&str>,
+    pages: &mpsc::Sender<TcpStream>,
+    open: &AtomicUsize,
+) {
+    let _ = stream.set_read_timeout(Some(Duration::from_secs(2)));
+    let _ = stream.set_write_timeout(Some(Duration::from_secs(2)));
+    let (method, target) = match read_head(&stream) {
+        Ok(h) => h,
+        Err(status) => return respond(stream, status, "text/plain", "a bad request\n"),
+    };
+    let (path, query) = target.split_once('?').unwrap_or((&target, ""));
+    if method != "GET" {
+        return respond(
+            stream,
+            "405 Method Not Allowed",
+            "text/plain",
+            "the view only reads: GET / and GET /events\n",
+        );
+    }
+    if token.is_some_and(|t| !has_token(query, t)) {
+        return respond(
+            stream,
+            "403 Forbidden",
+            "text/plain",
+            "this view needs its token: open it as /?token=TOKEN\n",
+        );
+    }
+    match path {
+        "/" | "/index.html" => respond(stream, "200 OK", "text/html; charset=utf-8", PAGE),
+        "/events" => {
+            if open.load(Ordering::SeqCst) >= MAX_PAGES {
+                return respond(
+                    stream,
+                    "503 Service Unavailable",
+                    "text/plain",
+                    "too many pages are open\n",
+                );
+            }
+            let mut stream = stream;
+            let head = "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\nCache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nConnection: keep-alive\r\n\r\n";
+            if stream.write_all(head.as_bytes()).is_ok() {
+                let _ = stream.set_write_timeout(Some(Duration::from_millis(250)));
+                open.fetch_add(1, Ordering::SeqCst);
+                let _ = pages.send(stream);
+            }
+        }
+        _ => respond(
+            stream,
+            "404 Not Found",
+            "text/plain",
+            "not here: the view is at /\n",
+        ),
+    }
+}
+
+/// `item` as the page's JSON.
+fn render(item: &Item, started: Instant) -> String {
+    let t = |at: &Instant| at.saturating_duration_since(started).as_secs_f64();
+    match item {
+        Item::In {
+            at,
+            origin,
+            number,
+            text,
+        } => json!({"kind": "in", "t": t(at), "origin": origin.0, "line": number, "text": text})
+            .to_string(),
+        Item::Out { at, output } => {
+            let to = match &**output {
+                Output::Result { origin, .. }
+                | Output::Arrival { origin, .. }
+                | Output::ToOne { origin, .. } => Some(origin.0),
+                Output::Feedback(_) | Output::Event(_) => None,
+            };
+            format!(
+                r#"{{"kind":"out","t":{},"to":{},"line":{}}}"#,
+                t(at),
+                to.map_or_else(|| "null".to_owned(), |o| o.to_string()),
+                output.to_json()
+            )
+        }
+    }
+}
+
+/// The view's thread: renders each line once, keeps the last
+/// [`HISTORY`] for pages that open, writes to every page.
+fn hub(
+    items: &Receiver<Item>,
+    new_pages: &Receiver<TcpStream>,
+    dropped: &AtomicU64,
+    open: &AtomicUsize,
+    started: Instant,
+    hello: &str,
+) {
+    let mut pages: Vec<TcpStream> = Vec::new();
+    // (when, rendered); and the last `ready`, kept past the history.
+    let mut history: VecDeque<(Instant, String)> = VecDeque::new();
+    let mut ready: Option<String> = None;
+    let mut last_beat = Instant::now();
+    let mut reported = 0;
+    loop {
+        while let Ok(mut page) = new_pages.try_recv() {
+            let mut ok = send(&mut page, hello);
+            if let Some(r) = &ready {
+                ok = ok && send(&mut page, r);
+            }
+            for (_, line) in &history {
+                if !ok {
+                    break;
+                }
+                ok = send(&mut page, line);
+            }
+            if ok {
+                pages.push(page);
+            } else {
+                open.fetch_sub(1, Ordering::SeqCst);
+            }
+        }
+        let item = match items.recv_timeout(Duration::from_millis(200)) {
+            Ok(item) => Some(item),
+            Err(RecvTimeoutError::Timeout) => None,
+            Err(RecvTimeoutError::Disconnected) => return,
+        };
+        let mut lines = Vec::new();
+        let lost = dropped.load(Ordering::Relaxed);
+        if lost > reported {
+            lines.push(json!({"kind": "dropped", "count": lost - reported}).to_string());
+            reported = lost;
+        }
+        if let Some(item) = item {
+            let at = match &item {
+                Item::In { at, .. } | Item::Out { at, .. } => *at,
+            };
+            let line = render(&item, started);
+            if matches!(&item, Item::Out { output, .. } if matches!(&**output, Output::Event(motorwire_bridge::Event::Ready { .. })))
+            {
+                ready = Some(line.clone());
+            }
+            history.push_back((at, line.clone()));
+            let now = Instant::now();
+            while history.len() > HISTORY_LINES
+                || history
+                    .front()
+                    .is_some_and(|(t, _)| now.saturating_duration_since(*t) > HISTORY)
+            {
+                history.pop_front();
+            }
+            lines.push(line);
+        }
+        if lines.is_empty() && last_beat.elapsed() >= Duration::from_secs(5) {
+            // A comment: finds the pages that went away.
+            lines.push(String::new());
+            last_beat = Instant::now();
+        }
+        if lines.is_empty() {
+            continue;
+        }
+        pages.retain_mut(|page| {
+            let ok = lines.iter().all(|l| {
+                if l.is_empty() {
+                    page.write_all(b": alive\n\n").is_ok()
+                } else {
+                    send(page, l)
+                }
+            });
+            if !ok {
+                open.fetch_sub(1, Ordering::SeqCst);
+            }
+            ok
+        });
+    }
+}
+
+/// One event to a page; false when the page is gone or too slow.
+fn send(page: &mut TcpStream, line: &str) -> bool {
+    page.write_all(b"data: ")
+        .and_then(|()| page.write_all(line.as_bytes()))
+        .and_then(|()| page.write_all(b"\n\n"))
+        .is_ok()
+}
+
+/// Whether `addr` is a loopback address (the view's default and, without
+/// a token, its only choice).
+pub(crate) fn is_loopback(addr: &SocketAddr) -> bool {
+    addr.ip().is_loopback()
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn a_token_is_compared_whole() {
+        assert!(has_token("token=abcdefabcdefabcd", "abcdefabcdefabcd"));
+        assert!(has_token("x=1&token=abcdefabcdefabcd", "abcdefabcdefabcd"));
+        assert!(!has_token("token=abcdefabcdefabc", "abcdefabcdefabcd"));
+        assert!(!has_token("token=abcdefabcdefabcdX", "abcdefabcdefabcd"));
+        assert!(!has_token("", "abcdefabcdefabcd"));
+        assert!(!has_token("tok=abcdefabcdefabcd", "abcdefabcdefabcd"));
+    }
+}
