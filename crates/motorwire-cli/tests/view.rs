@@ -1,0 +1,199 @@
+//! `motorwire bridge --view ADDR` over HTTP as a browser (or anyone else)
+//! reaches it: the page, its event stream, and what it refuses (issue 28
+//! part 3; the page in a real browser: `.ci/view-test.py`).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+mod common;
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::time::Duration;
+
+/// The address the bridge printed for its view.
+fn view_addr(child: &mut std::process::Child) -> (String, BufReader<std::process::ChildStderr>) {
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    loop {
+        line.clear();
+        assert!(err.read_line(&mut line).unwrap() > 0, "no view address");
+        if let Some(rest) = line.split("the live view at http://").nth(1) {
+            let addr = rest.split('/').next().unwrap().to_owned();
+            return (addr, err);
+        }
+    }
+}
+
+fn get(addr: &str, request: &str) -> String {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    s.write_all(request.as_bytes()).unwrap();
+    let mut out = String::new();
+    let _ = s.read_to_string(&mut out);
+    out
+}
+
+/// The page and its stream on a loopback port: the page is whole (its
+/// script inside, nothing fetched from elsewhere), the stream starts with
+/// the map's motors and the bridge's `ready`, then carries the lines as
+/// they come (an input line and its result); anything but a GET of the
+/// page or the stream is refused.
+#[test]
+fn the_view_serves_its_page_and_stream_and_only_reads() {
+    let mut child = common::spawn(&[
+        "bridge",
+        "--map",
+        "fixtures/maps/demo-arm.toml",
+        "--bus",
+        "sim",
+        "--feedback-hz",
+        "0",
+        "--view",
+        "127.0.0.1:0",
+    ]);
+    let (addr, _err) = view_addr(&mut child);
+    let page = get(&addr, "GET / HTTP/1.1\r\nHost: x\r\n\r\n");
+    assert!(page.starts_with("HTTP/1.1 200 OK\r\n"), "{page}");
+    assert!(page.contains("Content-Type: text/html; charset=utf-8"));
+    assert!(page.contains("new EventSource(\"events\""));
+    assert!(!page.contains("src=\"http"), "an external asset");
+    for (request, status) in [
+        ("POST / HTTP/1.1\r\n\r\n", "405 Method Not Allowed"),
+        ("GET /etc/passwd HTTP/1.1\r\n\r\n", "404 Not Found"),
+        ("nonsense\r\n\r\n", "400 Bad Request"),
+    ] {
+        let r = get(&addr, request);
+        assert!(
+            r.starts_with(&format!("HTTP/1.1 {status}\r\n")),
+            "{request:?}: {r}"
+        );
+    }
+    let mut stream = TcpStream::connect(&addr).unwrap();
+    stream
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    stream
+        .write_all(b"GET /events HTTP/1.1\r\nHost: x\r\n\r\n")
+        .unwrap();
+    let mut events = BufReader::new(stream);
+    let mut head = String::new();
+    events.read_line(&mut head).unwrap();
+    assert_eq!(head, "HTTP/1.1 200 OK\r\n");
+    let mut data = Vec::new();
+    let mut line = String::new();
+    let mut stdin = child.stdin.take().unwrap();
+    let mut sent = false;
+    while data.len() < 40 {
+        line.clear();
+        if events.read_line(&mut line).unwrap() == 0 {
+            break;
+        }
+        if let Some(d) = line.strip_prefix("data: ") {
+            let v: serde_json::Value = serde_json::from_str(d.trim_end()).unwrap();
+            let ready = v["line"]["event"] == "ready";
+            let answered = v["kind"] == "out" && v["line"]["line"] == 1;
+            data.push(v);
+            if ready && !sent {
+                stdin.write_all(b"{\"emergency_stop\":true}\n").unwrap();
+                sent = true;
+            }
+            if answered {
+                break;
+            }
+        }
+    }
+    assert_eq!(data[0]["kind"], "hello");
+    let elbow = data[0]["motors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["motor_id"] == "elbow")
+        .unwrap();
+    assert_eq!(
+        *elbow,
+        serde_json::json!({"motor_id": "elbow", "dialect": "irpc", "quantity": "position", "unit": "°",
+            "min_position": 0.0, "max_position": 150.0, "max_velocity": 120.0})
+    );
+    let turntable = data[0]["motors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["motor_id"] == "turntable")
+        .unwrap();
+    assert_eq!(turntable["quantity"], "speed");
+    assert_eq!(turntable["unit"], "controller units");
+    let input = data
+        .iter()
+        .find(|v| v["kind"] == "in")
+        .expect("the input line");
+    assert_eq!(input["text"], "{\"emergency_stop\":true}");
+    assert_eq!(input["line"], 1);
+    assert!(data.iter().any(|v| v["line"]["event"] == "emergency_stop"));
+    let result = data.last().unwrap();
+    assert_eq!(result["line"]["emergency_stop"], true, "{result}");
+    assert_eq!(result["to"], 0);
+    assert!(result["t"].as_f64().unwrap() >= input["t"].as_f64().unwrap());
+    drop(stdin);
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+}
+
+/// Another address than loopback only with a token, and then the page
+/// and its stream only for who has it.
+#[test]
+fn a_view_beyond_loopback_needs_the_token() {
+    let out = common::run(
+        &[
+            "bridge",
+            "--map",
+            "fixtures/maps/demo-arm.toml",
+            "--bus",
+            "sim",
+            "--view",
+            "0.0.0.0:0",
+        ],
+        b"",
+    );
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        err.contains("--view 0.0.0.0:0: not a loopback address"),
+        "{err}"
+    );
+
+    let dir = std::env::temp_dir().join(format!("motorwire-view-token-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let token = dir.join("token");
+    std::fs::write(&token, "0123456789abcdef0123\n").unwrap();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o600)).unwrap();
+    }
+    let mut child = common::spawn(&[
+        "bridge",
+        "--map",
+        "fixtures/maps/demo-arm.toml",
+        "--bus",
+        "sim",
+        "--view",
+        "127.0.0.1:0",
+        "--token-file",
+        token.to_str().unwrap(),
+    ]);
+    let (addr, _err) = view_addr(&mut child);
+    for path in [
+        "/",
+        "/events",
+        "/?token=0123456789abcdef012",
+        "/?token=wrong",
+    ] {
+        let r = get(&addr, &format!("GET {path} HTTP/1.1\r\n\r\n"));
+        assert!(r.starts_with("HTTP/1.1 403 Forbidden\r\n"), "{path}: {r}");
+    }
+    let r = get(&addr, "GET /?token=0123456789abcdef0123 HTTP/1.1\r\n\r\n");
+    assert!(r.starts_with("HTTP/1.1 200 OK\r\n"), "{r}");
+    drop(child.stdin.take());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let _ = std::fs::remove_dir_all(&dir);
+}
