@@ -34,8 +34,8 @@ use std::fs::{self, File};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::mpsc::{self, Receiver, Sender};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -145,9 +145,18 @@ pub trait Tap: Send + Sync + std::fmt::Debug {
     fn mark(&self, at: Instant, mark: Mark) {
         let _ = (at, mark);
     }
+    /// The bridge is handling a stop (`true`) until its frames are out
+    /// (`false`): a tap with a thread of its own pauses its work meanwhile,
+    /// so the stop has the machine's cores.
+    fn hush(&self, on: bool) {
+        let _ = on;
+    }
 }
 
 impl Tap for Recorder {
+    fn hush(&self, on: bool) {
+        self.hushed.store(on, Ordering::Relaxed);
+    }
     fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
         Recorder::input(self, at, origin, number, text);
     }
@@ -201,6 +210,11 @@ impl Tap for Taps {
     fn mark(&self, at: Instant, mark: Mark) {
         for t in &self.0 {
             t.mark(at, mark.clone());
+        }
+    }
+    fn hush(&self, on: bool) {
+        for t in &self.0 {
+            t.hush(on);
         }
     }
 }
@@ -299,8 +313,15 @@ pub struct RecordConfig {
 /// A recording under way; see the module's documentation.
 #[derive(Debug)]
 pub struct Recorder {
-    queue: Option<SyncSender<Record>>,
+    /// Lock-free (a bounded `sync_channel` takes a lock the writer may
+    /// hold while it is descheduled: the bridge's thread would wait for
+    /// it); bounded by `queued`.
+    queue: Option<Sender<Record>>,
+    /// Records in the queue.
+    queued: Arc<AtomicUsize>,
     dropped: Arc<AtomicU64>,
+    /// A stop is being handled: the writer waits.
+    hushed: Arc<AtomicBool>,
     writer: Option<JoinHandle<RecordSummary>>,
 }
 
@@ -316,26 +337,35 @@ impl Recorder {
             .duration_since(UNIX_EPOCH)
             .unwrap_or_default();
         let files = Files::open(&config, t0, wall0)?;
-        let (queue, records) = mpsc::sync_channel(RECORD_QUEUE);
+        let (queue, records) = mpsc::channel();
+        let queued = Arc::new(AtomicUsize::new(0));
+        let q = Arc::clone(&queued);
         let dropped = Arc::new(AtomicU64::new(0));
         let d = Arc::clone(&dropped);
+        let hushed = Arc::new(AtomicBool::new(false));
+        let h = Arc::clone(&hushed);
         let writer = thread::Builder::new()
             .name("motorwire-recorder".to_owned())
-            .spawn(move || files.write_all(&records, &d))?;
+            .spawn(move || files.write_all(&records, &q, &d, &h))?;
         Ok(Self {
             queue: Some(queue),
+            queued,
             dropped,
+            hushed,
             writer: Some(writer),
         })
     }
 
     fn put(&self, r: Record) {
         let Some(q) = &self.queue else { return };
-        match q.try_send(r) {
-            Ok(()) => {}
-            Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) => {
-                self.dropped.fetch_add(1, Ordering::Relaxed);
-            }
+        if self.queued.load(Ordering::Relaxed) >= RECORD_QUEUE {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        self.queued.fetch_add(1, Ordering::Relaxed);
+        if q.send(r).is_err() {
+            self.queued.fetch_sub(1, Ordering::Relaxed);
+            self.dropped.fetch_add(1, Ordering::Relaxed);
         }
     }
 
@@ -408,6 +438,8 @@ impl Recorder {
 
     fn end(&mut self) -> RecordSummary {
         drop(self.queue.take());
+        // Never left waiting for a stop that ended with the session.
+        self.hushed.store(false, Ordering::Relaxed);
         let mut s = self
             .writer
             .take()
@@ -644,7 +676,13 @@ impl Files {
         self.lines.line(&line)
     }
 
-    fn write_all(mut self, records: &Receiver<Record>, dropped: &AtomicU64) -> RecordSummary {
+    fn write_all(
+        mut self,
+        records: &Receiver<Record>,
+        queued: &AtomicUsize,
+        dropped: &AtomicU64,
+        hushed: &AtomicBool,
+    ) -> RecordSummary {
         let mut s = RecordSummary::default();
         let mut failed = false;
         // Records handed to the files' buffers, counted written once the
@@ -675,8 +713,16 @@ impl Files {
             // a stop comes (its work is spread out; the queue holds the
             // rest).
             for _ in 0..BATCH {
+                // A stop under way: its frames first (at most a stop's
+                // handling, the runner says when it is done).
+                while hushed.load(Ordering::Relaxed) {
+                    thread::sleep(Duration::from_micros(100));
+                }
                 let r = match records.try_recv() {
-                    Ok(r) => r,
+                    Ok(r) => {
+                        queued.fetch_sub(1, Ordering::Relaxed);
+                        r
+                    }
                     Err(mpsc::TryRecvError::Empty) => break,
                     Err(mpsc::TryRecvError::Disconnected) => break 'session,
                 };
@@ -724,6 +770,32 @@ mod tests {
             std::env::temp_dir().join(format!("motorwire-record-{name}-{}", std::process::id()));
         let _ = fs::remove_dir_all(&d);
         d
+    }
+
+    /// While the bridge handles a stop, the writer writes nothing (the
+    /// stop has the cores); once told, it goes on, nothing lost.
+    #[test]
+    fn a_hushed_recorder_waits_for_the_stop_then_writes_everything() {
+        let dir = scratch("hush");
+        let rec = Recorder::start(RecordConfig {
+            dir: dir.clone(),
+            max_bytes: DEFAULT_RECORD_MAX,
+            interface: "can0".to_owned(),
+            setup: None,
+        })
+        .unwrap();
+        Tap::hush(&rec, true);
+        rec.input(Instant::now(), Origin(1), 1, r#"{"emergency_stop":true}"#);
+        thread::sleep(Duration::from_millis(100));
+        assert_eq!(fs::read_to_string(dir.join("lines.jsonl")).unwrap(), "");
+        Tap::hush(&rec, false);
+        let s = rec.finish();
+        assert_eq!((s.written, s.dropped), (1, 0));
+        assert!(
+            fs::read_to_string(dir.join("lines.jsonl"))
+                .unwrap()
+                .contains(r#""text":"{\"emergency_stop\":true}""#)
+        );
     }
 
     /// Frames go to `frames.log` as candump writes them and, with their

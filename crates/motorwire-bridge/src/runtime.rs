@@ -647,6 +647,8 @@ impl Runner {
             r.mark(start, Mark::Start);
         }
         bridge.start(since(Instant::now()));
+        // The taps are hushed while a stop is handled.
+        let mut hushed = false;
         let result = loop {
             let mut failed = None;
             while let Some(f) = bridge.poll_transmit() {
@@ -667,6 +669,13 @@ impl Runner {
                 }
             }
             bridge.flushed(since(Instant::now()));
+            if hushed {
+                // The stop's frames are out: the taps may work again.
+                if let Some(r) = rec {
+                    r.hush(false);
+                }
+                hushed = false;
+            }
             while let Some(o) = bridge.poll_output() {
                 sink(&o);
             }
@@ -683,6 +692,10 @@ impl Runner {
             // Stops first, ahead of every line queued before them.
             let mut stopped = false;
             while let Ok(msg) = self.urgent.try_recv() {
+                if !hushed && let Some(r) = rec {
+                    r.hush(true);
+                    hushed = true;
+                }
                 if let Msg::Line { origin, .. } | Msg::Refused { origin, .. } = &msg {
                     self.budget.give(*origin, true, queued_bytes(&msg));
                 }
@@ -812,6 +825,9 @@ impl Runner {
                 bridge.handle_timeout(now);
             }
         };
+        if hushed && let Some(r) = rec {
+            r.hush(false);
+        }
         stop.store(true, Ordering::Relaxed);
         let _ = reader.join();
         if let Some((to_orion, written)) = orion {
