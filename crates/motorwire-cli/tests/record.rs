@@ -9,12 +9,7 @@ use std::io::Write;
 use motorwire_can::candump::LogEntry;
 use serde_json::Value;
 
-fn now_ms() -> u128 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .as_millis()
-}
+use common::now_ms;
 
 /// Every output line the bridge printed is in `lines.jsonl`, as printed
 /// and in order; every input line with its client and number; every frame

@@ -13,12 +13,7 @@ use std::time::Duration;
 
 use serde_json::Value;
 
-fn now_ms() -> u128 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .as_millis()
-}
+use common::now_ms;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("motorwire-replay-{name}-{}", std::process::id()));

@@ -1217,13 +1217,16 @@ fn a_killed_fleet_bridge_leaves_the_fleet_and_its_joint_process_stops() {
     assert!(still.iter().all(|p| *p == last), "{still:?}");
 }
 
-/// A session recorded with `--record` on vcan0 replays through can-utils'
-/// `canplayer` unchanged: candump sees the recorded frames again, the same
-/// ids, flags and bytes in the same order (issue 28: the recording is the
-/// field's own format).
-#[test]
-#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
-fn a_recording_replays_through_canplayer_unchanged() {
+/// A simulated joint process on vcan0 at 0x10, and a bridge on vcan0
+/// recording into `name` (under the temporary directory) with `map`: the
+/// line given, then `wait`, then the end of input. The recording's
+/// directory, and the bridge's exit status, standard output and error.
+fn record_on_vcan(
+    name: &str,
+    map: &str,
+    extra: &[&str],
+    wait: Duration,
+) -> (std::path::PathBuf, Option<i32>, String, String) {
     let joint = Killed(
         motorwire()
             .args([
@@ -1241,26 +1244,17 @@ fn a_recording_replays_through_canplayer_unchanged() {
             .unwrap(),
     );
     sleep(Duration::from_millis(300));
-    let map = std::env::temp_dir().join("motorwire-vcan-record-map.toml");
-    std::fs::write(
-        &map,
-        "[motors.j0]\ndialect = \"irpc\"\nnode = 0x10\n\
-         limits = { min_position = -90, max_position = 90, max_velocity = 100, max_acceleration = 400 }\n",
-    )
-    .unwrap();
-    let dir = std::env::temp_dir().join("motorwire-vcan-record");
+    let map_path = std::env::temp_dir().join(format!("{name}-map.toml"));
+    std::fs::write(&map_path, map).unwrap();
+    let dir = std::env::temp_dir().join(name);
     let _ = std::fs::remove_dir_all(&dir);
     let mut bridge = motorwire()
         .args([
             "bridge",
             "--map",
-            map.to_str().unwrap(),
+            map_path.to_str().unwrap(),
             "--bus",
             "socketcan:vcan0",
-            "--ack-timeout",
-            "500",
-            "--offline-after",
-            "5000",
             "--feedback-hz",
             "0",
             "--max-age",
@@ -1268,6 +1262,7 @@ fn a_recording_replays_through_canplayer_unchanged() {
             "--record",
             dir.to_str().unwrap(),
         ])
+        .args(extra)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -1277,13 +1272,30 @@ fn a_recording_replays_through_canplayer_unchanged() {
     stdin
         .write_all(b"{\"motor_id\":\"j0\",\"timestamp\":1,\"control_mode\":\"position\",\"setpoint\":20}\n")
         .unwrap();
-    sleep(Duration::from_millis(1500));
+    sleep(wait);
     drop(stdin);
     let (code, text, err) = finish_within(bridge, Duration::from_secs(60));
+    // Nothing else on the bus from here on.
+    drop(joint);
+    (dir, code, text, err)
+}
+
+/// A session recorded with `--record` on vcan0 replays through can-utils'
+/// `canplayer` unchanged: candump sees the recorded frames again, the same
+/// ids, flags and bytes in the same order (issue 28: the recording is the
+/// field's own format).
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn a_recording_replays_through_canplayer_unchanged() {
+    let (dir, code, text, err) = record_on_vcan(
+        "motorwire-vcan-record",
+        "[motors.j0]\ndialect = \"irpc\"\nnode = 0x10\n\
+         limits = { min_position = -90, max_position = 90, max_velocity = 100, max_acceleration = 400 }\n",
+        &["--ack-timeout", "500", "--offline-after", "5000"],
+        Duration::from_millis(1500),
+    );
     assert_eq!(code, Some(0), "{text}\n{err}");
     assert!(err.contains(", 0 dropped"), "{err}");
-    // Nothing else on the bus while it replays.
-    drop(joint);
     let log = dir.join("frames.log");
     let recorded: Vec<Frame> = std::fs::read_to_string(&log)
         .unwrap()
@@ -1312,66 +1324,20 @@ fn a_recording_replays_through_canplayer_unchanged() {
 /// simulator and reports where the real devices answered otherwise: on
 /// vcan0 the map's second joint (0x11) has no process, so the recorded
 /// bridge found it silent; the simulator has it, and the replay's first
-/// divergence is the recorded joint going offline where the simulated
-/// arm starts up whole, with both sides (issue 28 part 2).
+/// divergence is `ready` listing that joint offline where the simulated
+/// arm is up whole, with both sides (issue 28 part 2).
 #[test]
 #[ignore = "needs vcan0: run by .ci/kernel-test in a VM"]
 fn a_real_bus_recording_replays_against_the_simulator_and_names_the_difference() {
-    let joint = Killed(
-        motorwire()
-            .args([
-                "sim",
-                "joint",
-                "--bus",
-                "socketcan:vcan0",
-                "--node",
-                "0x10",
-                "--watchdog",
-                "2000",
-            ])
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
-    sleep(Duration::from_millis(300));
-    let map = std::env::temp_dir().join("motorwire-vcan-replay-map.toml");
-    std::fs::write(
-        &map,
+    let (dir, code, text, err) = record_on_vcan(
+        "motorwire-vcan-replay",
         "[motors.j0]\ndialect = \"irpc\"\nnode = 0x10\n\
          limits = { min_position = -90, max_position = 90, max_velocity = 100, max_acceleration = 400 }\n\
          [motors.j1]\ndialect = \"irpc\"\nnode = 0x11\n\
          limits = { min_position = -90, max_position = 90, max_velocity = 100, max_acceleration = 400 }\n",
-    )
-    .unwrap();
-    let dir = std::env::temp_dir().join("motorwire-vcan-replay");
-    let _ = std::fs::remove_dir_all(&dir);
-    let mut bridge = motorwire()
-        .args([
-            "bridge",
-            "--map",
-            map.to_str().unwrap(),
-            "--bus",
-            "socketcan:vcan0",
-            "--feedback-hz",
-            "0",
-            "--max-age",
-            "0",
-            "--record",
-            dir.to_str().unwrap(),
-        ])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stdin = bridge.stdin.take().unwrap();
-    stdin
-        .write_all(b"{\"motor_id\":\"j0\",\"timestamp\":1,\"control_mode\":\"position\",\"setpoint\":20}\n")
-        .unwrap();
-    sleep(Duration::from_millis(2500));
-    drop(stdin);
-    let (code, text, err) = finish_within(bridge, Duration::from_secs(60));
-    drop(joint);
+        &[],
+        Duration::from_millis(2500),
+    );
     assert_eq!(code, Some(0), "{text}\n{err}");
     assert!(
         text.contains(r#"{"event":"startup","motor_id":"j1","ok":false"#),
@@ -1384,19 +1350,19 @@ fn a_real_bus_recording_replays_against_the_simulator_and_names_the_difference()
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(out.status.code(), Some(1), "{v}");
     assert_eq!(v["recorded_bus"], "socketcan:vcan0", "{v}");
-    // The first event recorded is j1 going offline (its configuration
-    // timed out on the real bus); the simulator's first is the startup,
-    // every joint answering.
+    // The first difference: `ready` lists j1 offline (its configuration
+    // timed out on the real bus); the simulated arm has every joint up.
     let d = &v["divergence"];
     assert_eq!(d["stream"], "events", "{v}");
+    assert_eq!(d["recorded"]["event"], "ready", "{v}");
     assert_eq!(
-        d["recorded"],
-        serde_json::json!({"event": "offline", "motor_id": "j1", "node": 17, "reason": "a request timed out"}),
+        d["recorded"]["motors"][1],
+        serde_json::json!({"motor_id": "j1", "online": false, "active": false, "moving": false}),
         "{v}"
     );
+    assert_eq!(d["replayed"]["motors"][1]["online"], true, "{v}");
     assert_eq!(
-        d["replayed"],
-        serde_json::json!({"event": "startup", "motor_id": "j0", "ok": true}),
+        d["replayed"]["motors"][0], d["recorded"]["motors"][0],
         "{v}"
     );
 }
