@@ -205,6 +205,11 @@ fn tracks(session: &Session, map: &BusMap, only: &[String]) -> Vec<Track> {
             ) else {
                 continue;
             };
+            // Not a number, or beyond any motor's reach: drawn at the
+            // edge, never an axis with no end.
+            let (Some(p), Some(vel)) = (drawable(p), drawable(vel)) else {
+                continue;
+            };
             samples
                 .entry(motor.to_owned())
                 .or_default()
@@ -227,7 +232,7 @@ fn tracks(session: &Session, map: &BusMap, only: &[String]) -> Vec<Track> {
             {
                 if let (Some(motor), Some(target)) = (
                     m.get("motor_id").and_then(Value::as_str),
-                    m.get("target").and_then(Value::as_f64),
+                    m.get("target").and_then(Value::as_f64).and_then(drawable),
                 ) {
                     targets
                         .entry(motor.to_owned())
@@ -296,23 +301,47 @@ fn tracks(session: &Session, map: &BusMap, only: &[String]) -> Vec<Track> {
 
 /// The row of each label at `xs` (pixels, in time order): the first row
 /// where it clears the label before it by [`LABEL_W`], so no two overlap.
-fn label_rows(xs: impl Iterator<Item = f64>) -> Vec<usize> {
+/// At most [`MAX_LABEL_ROWS`] rows: a label that clears none is not
+/// shown above the charts (`None`; its mark is drawn and listed in the
+/// key).
+fn label_rows(xs: impl Iterator<Item = f64>) -> Vec<Option<usize>> {
     let mut rows: Vec<f64> = Vec::new();
     let mut placed = Vec::new();
     for x in xs {
         let row = rows
             .iter()
             .position(|last| x - last >= LABEL_W)
-            .unwrap_or_else(|| {
-                rows.push(f64::NEG_INFINITY);
-                rows.len() - 1
+            .or_else(|| {
+                (rows.len() < MAX_LABEL_ROWS).then(|| {
+                    rows.push(f64::NEG_INFINITY);
+                    rows.len() - 1
+                })
             });
-        if let Some(r) = rows.get_mut(row) {
+        if let Some(r) = row.and_then(|row| rows.get_mut(row)) {
             *r = x;
         }
         placed.push(row);
     }
     placed
+}
+
+/// Rows of mark numbers above the charts, at most.
+const MAX_LABEL_ROWS: usize = 6;
+
+/// `text` fit for an SVG's text: control characters (which XML forbids)
+/// as U+FFFD.
+fn printable(text: &str) -> String {
+    text.chars()
+        .map(|c| if c.is_control() { '\u{FFFD}' } else { c })
+        .collect()
+}
+
+/// The largest magnitude drawn: beyond, a value is drawn at it (no motor
+/// moves that far; an axis over it would have no ticks to compute).
+const MAX_DRAWN: f64 = 1e9;
+
+fn drawable(v: f64) -> Option<f64> {
+    v.is_finite().then(|| v.clamp(-MAX_DRAWN, MAX_DRAWN))
 }
 
 /// What [`draw`] drew.
@@ -359,7 +388,7 @@ pub(crate) fn draw(
     let plot_right = f64::from(WIDTH) / 2.0 - 12.0;
     let px = |t: f64| plot_left + (t / end) * (plot_right - plot_left);
     let placed = label_rows(marks.iter().map(|m| px(m.t)));
-    let rows = placed.iter().max().map_or(0, |r| r + 1);
+    let rows = placed.iter().flatten().max().map_or(0, |r| r + 1);
     let header = 40 + 16 * u32::try_from(rows).unwrap_or(0);
     let panels = u32::try_from(tracks.len().max(1)).unwrap_or(1);
     let key_rows = u32::try_from(marks.len()).unwrap_or(0).div_ceil(2);
@@ -368,7 +397,7 @@ pub(crate) fn draw(
     let err = |e: DrawingAreaErrorKind<_>| e.to_string();
     root.fill(&WHITE).map_err(err)?;
     root.draw(&Text::new(
-        title.to_owned(),
+        printable(title),
         (12, 8),
         ("sans-serif", 18).into_font().color(&BLACK),
     ))
@@ -378,6 +407,7 @@ pub(crate) fn draw(
     let rgb = |(r, g, b): (u8, u8, u8)| RGBColor(r, g, b);
     // The numbers, both halves (position and velocity columns).
     for (i, (m, row)) in marks.iter().zip(&placed).enumerate() {
+        let Some(row) = row else { continue };
         for half in [0.0, f64::from(WIDTH) / 2.0] {
             #[allow(clippy::cast_possible_truncation)]
             let x = (px(m.t) + half) as i32 - 6;
@@ -443,7 +473,10 @@ pub(crate) fn draw(
             let (ylo, yhi) = (lo - pad, hi + pad);
             let mut chart = ChartBuilder::on(chart_area)
                 .margin(12)
-                .caption(format!("{}: {name}", track.motor), ("sans-serif", 15))
+                .caption(
+                    printable(&format!("{}: {name}", track.motor)),
+                    ("sans-serif", 15),
+                )
                 .x_label_area_size(30)
                 .y_label_area_size(58)
                 .build_cartesian_2d(0.0..end, ylo..yhi)
@@ -534,7 +567,7 @@ pub(crate) fn draw(
         let col = i32::try_from(i % 2).unwrap_or(0);
         let row = i32::try_from(i / 2).unwrap_or(0);
         key.draw(&Text::new(
-            format!("{}  {:.2} s  {}", i + 1, m.t, m.label),
+            printable(&format!("{}  {:.2} s  {}", i + 1, m.t, m.label)),
             (
                 12 + col * 590,
                 34 + row * i32::try_from(KEY_LINE).unwrap_or(18),
@@ -666,12 +699,12 @@ key = "TRM"
     fn mark_labels_never_overlap() {
         let xs = [10.0, 12.0, 14.0, 40.0, 41.0, 90.0, 91.0, 92.0, 93.0];
         let rows = label_rows(xs.iter().copied());
-        assert_eq!(rows, [0, 1, 2, 0, 1, 0, 1, 2, 3]);
+        assert_eq!(rows, [0, 1, 2, 0, 1, 0, 1, 2, 3].map(Some));
         for r in 0..4 {
             let in_row: Vec<f64> = xs
                 .iter()
                 .zip(&rows)
-                .filter(|(_, row)| **row == r)
+                .filter(|(_, row)| **row == Some(r))
                 .map(|(x, _)| *x)
                 .collect();
             assert!(
@@ -679,6 +712,42 @@ key = "TRM"
                 "{in_row:?}"
             );
         }
+    }
+
+    /// 300 marks at one moment: six rows of numbers, the rest in the key
+    /// only (the header does not grow without end).
+    #[test]
+    fn too_many_marks_at_once_keep_to_six_rows() {
+        let rows = label_rows(std::iter::repeat_n(100.0, 300));
+        assert_eq!(rows.iter().flatten().count(), MAX_LABEL_ROWS);
+        assert_eq!(rows[..6], [0, 1, 2, 3, 4, 5].map(Some));
+        assert!(rows[6..].iter().all(Option::is_none));
+    }
+
+    /// Control characters (in a refused line's motor id, say) are not
+    /// written into the SVG (XML forbids them); values beyond any motor's
+    /// reach or not numbers are drawn at the edge or left out, and the
+    /// plot ends.
+    #[test]
+    fn hostile_text_and_values_make_a_well_formed_svg() {
+        assert_eq!(printable("a\u{1}\u{1b}[31m"), "a\u{FFFD}\u{FFFD}[31m");
+        let map = BusMap::from_toml(MAP).unwrap();
+        let mut s = session();
+        s.outputs
+            .push((0.5, None, feedback("elbow", 1.7e308, -1.7e308)));
+        s.outputs.push((0.6, Some(1), json!({"ok": false, "line": 9, "motor_id": "a\u{1}\u{1b}[31m", "error": {"rule": "unknown_motor"}})));
+        let path = std::env::temp_dir().join(format!(
+            "motorwire-chart-hostile-{}.svg",
+            std::process::id()
+        ));
+        draw(&s, &map, &[], "a\u{0}session", &path).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        assert!(
+            !svg.chars().any(|c| c.is_control() && c != '\n'),
+            "a control character in the SVG"
+        );
+        assert!(svg.contains("line 9 a\u{FFFD}\u{FFFD}[31m refused: unknown_motor"));
+        let _ = std::fs::remove_file(&path);
     }
 
     /// The SVG has a panel per motor with its units, the limit band and

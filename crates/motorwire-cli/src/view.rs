@@ -36,7 +36,18 @@ const MAX_REQUESTS: usize = 32;
 
 /// Lines waiting for the view's thread, at most; beyond, dropped (and
 /// counted in the next line the pages get).
-const QUEUE: usize = 16_384;
+const QUEUE: usize = 4096;
+
+/// Of an input line, the view keeps this much (the page shows 300
+/// characters of it): a client's long lines cost the view little.
+const MAX_INPUT_KEPT: usize = 4096;
+
+/// A rendered line longer than this is not sent to the pages (counted as
+/// dropped).
+const MAX_RENDERED: usize = 64 * 1024;
+
+/// The history a page that opens gets, at most, in bytes.
+const HISTORY_BYTES: usize = 16 * 1024 * 1024;
 
 /// How much of the session a page that opens gets at once.
 const HISTORY: Duration = Duration::from_secs(30);
@@ -82,11 +93,15 @@ impl ViewTap {
 
 impl Tap for ViewTap {
     fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
+        let mut end = text.len().min(MAX_INPUT_KEPT);
+        while !text.is_char_boundary(end) {
+            end -= 1;
+        }
         self.put(Item::In {
             at,
             origin,
             number,
-            text: text.to_owned(),
+            text: text.get(..end).unwrap_or_default().to_owned(),
         });
     }
 
@@ -219,9 +234,37 @@ pub(crate) fn start(config: ViewConfig, map: &BusMap) -> Result<View, String> {
     })
 }
 
+/// A stream read against one deadline for the whole head (a per-read
+/// timeout lets a client dripping a byte at a time hold a slot for hours).
+struct Deadline<'a> {
+    stream: &'a TcpStream,
+    until: Instant,
+}
+
+impl Read for Deadline<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let left = self.until.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                "the request's head took too long",
+            ));
+        }
+        self.stream.set_read_timeout(Some(left))?;
+        (&mut &*self.stream).read(buf)
+    }
+}
+
+/// How long a request's head may take, whole.
+const HEAD_WITHIN: Duration = Duration::from_secs(2);
+
 /// The request's head: its method and target, or why not.
 fn read_head(stream: &TcpStream) -> Result<(String, String), &'static str> {
-    let mut reader = BufReader::new(stream.take(MAX_HEAD as u64));
+    let deadline = Deadline {
+        stream,
+        until: Instant::now() + HEAD_WITHIN,
+    };
+    let mut reader = BufReader::new(deadline.take(MAX_HEAD as u64));
     let mut first = String::new();
     reader
         .read_line(&mut first)
@@ -236,24 +279,33 @@ fn read_head(stream: &TcpStream) -> Result<(String, String), &'static str> {
             Err(_) => return Err("400 Bad Request"),
         }
     }
-    let mut parts = first.split_whitespace();
-    match (parts.next(), parts.next(), parts.next()) {
-        (Some(m), Some(t), Some(v)) if v.starts_with("HTTP/1.") => Ok((m.to_owned(), t.to_owned())),
+    // `METHOD TARGET HTTP/1.x`, one space apart, nothing else.
+    let first = first.strip_suffix('\n').unwrap_or(&first);
+    let first = first.strip_suffix('\r').unwrap_or(first);
+    let parts: Vec<&str> = first.split(' ').collect();
+    match parts.as_slice() {
+        [m, t, v]
+            if !m.is_empty() && t.starts_with('/') && (*v == "HTTP/1.1" || *v == "HTTP/1.0") =>
+        {
+            Ok(((*m).to_owned(), (*t).to_owned()))
+        }
         _ => Err("400 Bad Request"),
     }
 }
 
-/// Whether `query` carries `token` (compared in constant time).
+/// Whether `query` carries `token`, compared in constant time (its
+/// length too: every byte of the longer is looked at).
 fn has_token(query: &str, token: &str) -> bool {
-    query.split('&').any(|kv| {
-        kv.strip_prefix("token=").is_some_and(|given| {
-            given.len() == token.len()
-                && given
-                    .bytes()
-                    .zip(token.bytes())
-                    .fold(0u8, |acc, (a, b)| acc | (a ^ b))
-                    == 0
-        })
+    query.split('&').fold(false, |found, kv| {
+        let Some(given) = kv.strip_prefix("token=") else {
+            return found;
+        };
+        let (g, t) = (given.as_bytes(), token.as_bytes());
+        let mut diff = u8::from(g.len() != t.len());
+        for i in 0..g.len().max(t.len()) {
+            diff |= g.get(i).copied().unwrap_or(0) ^ t.get(i).copied().unwrap_or(0xff);
+        }
+        found | (diff == 0)
     })
 }
 
@@ -272,21 +324,12 @@ fn serve(
     pages: &mpsc::Sender<TcpStream>,
     open: &AtomicUsize,
 ) {
-    let _ = stream.set_read_timeout(Some(Duration::from_secs(2)));
     let _ = stream.set_write_timeout(Some(Duration::from_secs(2)));
     let (method, target) = match read_head(&stream) {
         Ok(h) => h,
         Err(status) => return respond(stream, status, "text/plain", "a bad request\n"),
     };
     let (path, query) = target.split_once('?').unwrap_or((&target, ""));
-    if method != "GET" {
-        return respond(
-            stream,
-            "405 Method Not Allowed",
-            "text/plain",
-            "the view only reads: GET / and GET /events\n",
-        );
-    }
     if token.is_some_and(|t| !has_token(query, t)) {
         return respond(
             stream,
@@ -295,10 +338,21 @@ fn serve(
             "this view needs its token: open it as /?token=TOKEN\n",
         );
     }
+    if method != "GET" {
+        return respond(
+            stream,
+            "405 Method Not Allowed",
+            "text/plain",
+            "the view only reads: GET / and GET /events\n",
+        );
+    }
     match path {
         "/" | "/index.html" => respond(stream, "200 OK", "text/html; charset=utf-8", PAGE),
         "/events" => {
-            if open.load(Ordering::SeqCst) >= MAX_PAGES {
+            // Its place taken first (taken and checked at once: pages
+            // opening together cannot pass the bound).
+            if open.fetch_add(1, Ordering::SeqCst) >= MAX_PAGES {
+                open.fetch_sub(1, Ordering::SeqCst);
                 return respond(
                     stream,
                     "503 Service Unavailable",
@@ -308,10 +362,9 @@ fn serve(
             }
             let mut stream = stream;
             let head = "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\nCache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nConnection: keep-alive\r\n\r\n";
-            if stream.write_all(head.as_bytes()).is_ok() {
-                let _ = stream.set_write_timeout(Some(Duration::from_millis(250)));
-                open.fetch_add(1, Ordering::SeqCst);
-                let _ = pages.send(stream);
+            let _ = stream.set_write_timeout(Some(Duration::from_millis(250)));
+            if stream.write_all(head.as_bytes()).is_err() || pages.send(stream).is_err() {
+                open.fetch_sub(1, Ordering::SeqCst);
             }
         }
         _ => respond(
@@ -364,6 +417,7 @@ fn hub(
     let mut pages: Vec<TcpStream> = Vec::new();
     // (when, rendered); and the last `ready`, kept past the history.
     let mut history: VecDeque<(Instant, String)> = VecDeque::new();
+    let mut history_bytes = 0usize;
     let mut ready: Option<String> = None;
     let mut last_beat = Instant::now();
     let mut reported = 0;
@@ -401,18 +455,26 @@ fn hub(
                 Item::In { at, .. } | Item::Out { at, .. } => *at,
             };
             let line = render(&item, started);
+            if line.len() > MAX_RENDERED {
+                dropped.fetch_add(1, Ordering::Relaxed);
+                continue;
+            }
             if matches!(&item, Item::Out { output, .. } if matches!(&**output, Output::Event(motorwire_bridge::Event::Ready { .. })))
             {
                 ready = Some(line.clone());
             }
+            history_bytes += line.len();
             history.push_back((at, line.clone()));
             let now = Instant::now();
             while history.len() > HISTORY_LINES
+                || history_bytes > HISTORY_BYTES
                 || history
                     .front()
                     .is_some_and(|(t, _)| now.saturating_duration_since(*t) > HISTORY)
             {
-                history.pop_front();
+                if let Some((_, old)) = history.pop_front() {
+                    history_bytes -= old.len();
+                }
             }
             lines.push(line);
         }
@@ -467,5 +529,9 @@ mod tests {
         assert!(!has_token("token=abcdefabcdefabcdX", "abcdefabcdefabcd"));
         assert!(!has_token("", "abcdefabcdefabcd"));
         assert!(!has_token("tok=abcdefabcdefabcd", "abcdefabcdefabcd"));
+        assert!(has_token(
+            "token=x&token=abcdefabcdefabcd",
+            "abcdefabcdefabcd"
+        ));
     }
 }

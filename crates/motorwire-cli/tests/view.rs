@@ -197,3 +197,74 @@ fn a_view_beyond_loopback_needs_the_token() {
     assert_eq!(out.status.code(), Some(0));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Bounded against hostile clients: a request's head has 2 s in all (a
+/// client dripping a byte a second is closed, not served for hours), and
+/// of 24 pages opening at once, 16 get their stream and the rest 503.
+#[test]
+fn slow_heads_are_cut_and_pages_are_bounded() {
+    let mut child = common::spawn(&[
+        "bridge",
+        "--map",
+        "fixtures/maps/demo-arm.toml",
+        "--bus",
+        "sim",
+        "--feedback-hz",
+        "0",
+        "--view",
+        "127.0.0.1:0",
+    ]);
+    let (addr, _err) = view_addr(&mut child);
+    let mut drip = TcpStream::connect(&addr).unwrap();
+    let began = std::time::Instant::now();
+    let mut closed = None;
+    for b in b"GET / HTTP/1.1\r\nX-Slow: aaaaaaaaaaaaaaaaaaaa" {
+        if drip.write_all(&[*b]).is_err() {
+            closed = Some(began.elapsed());
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    if closed.is_none() {
+        drip.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        let mut got = String::new();
+        let _ = drip.read_to_string(&mut got);
+        assert!(got.is_empty() || got.starts_with("HTTP/1.1 400"), "{got}");
+        closed = Some(began.elapsed());
+    }
+    let closed = closed.unwrap();
+    assert!(closed < Duration::from_secs(8), "held {closed:?}");
+
+    let streams: Vec<std::thread::JoinHandle<String>> = (0..24)
+        .map(|_| {
+            let addr = addr.clone();
+            std::thread::spawn(move || {
+                let mut s = TcpStream::connect(&addr).unwrap();
+                s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+                s.write_all(b"GET /events HTTP/1.1\r\n\r\n").unwrap();
+                // The status line, whole.
+                let mut head = Vec::new();
+                let mut byte = [0u8; 1];
+                while !head.ends_with(b"\r\n") && s.read(&mut byte).unwrap_or(0) == 1 {
+                    head.push(byte[0]);
+                }
+                // Held open a moment, as a page is.
+                std::thread::sleep(Duration::from_millis(500));
+                String::from_utf8_lossy(&head).into_owned()
+            })
+        })
+        .collect();
+    let heads: Vec<String> = streams.into_iter().map(|h| h.join().unwrap()).collect();
+    let served = heads
+        .iter()
+        .filter(|h| h.starts_with("HTTP/1.1 200"))
+        .count();
+    let refused = heads
+        .iter()
+        .filter(|h| h.starts_with("HTTP/1.1 503"))
+        .count();
+    assert_eq!((served, refused), (16, 8), "{heads:?}");
+    drop(child.stdin.take());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+}
