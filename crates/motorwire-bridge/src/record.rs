@@ -513,6 +513,27 @@ impl Rotated {
     /// Writes `s` as one line; its bytes, or `None` when it is longer
     /// than the file may hold (not written: the recording stays within
     /// its limit).
+    /// Whether the file written is still the one at its path (the
+    /// directory removed or the file replaced under the recorder: what is
+    /// written goes nowhere anyone can read).
+    fn still_there(&self) -> bool {
+        let Ok(at_path) = fs::metadata(&self.path) else {
+            return false;
+        };
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            self.out
+                .get_ref()
+                .metadata()
+                .is_ok_and(|open| open.ino() == at_path.ino() && open.dev() == at_path.dev())
+        }
+        #[cfg(not(unix))]
+        {
+            at_path.is_file()
+        }
+    }
+
     fn line(&mut self, s: &str) -> io::Result<Option<u64>> {
         let n = s.len() as u64 + 1;
         if n > self.limit {
@@ -695,7 +716,10 @@ impl Files {
                     .out
                     .flush()
                     .and_then(|()| files.lines.out.flush());
-                if flushed.is_ok() && !*failed {
+                // Written where it can be read: the files are still there.
+                let there =
+                    *pending == 0 || (files.frames.still_there() && files.lines.still_there());
+                if flushed.is_ok() && there && !*failed {
                     s.written += *pending;
                     s.bytes += *bytes;
                 } else {
@@ -770,6 +794,29 @@ mod tests {
             std::env::temp_dir().join(format!("motorwire-record-{name}-{}", std::process::id()));
         let _ = fs::remove_dir_all(&d);
         d
+    }
+
+    /// A recording whose directory is removed under it counts what it
+    /// writes from then on as dropped (written to files nobody can read),
+    /// never as written.
+    #[test]
+    fn a_directory_removed_mid_session_counts_the_rest_dropped() {
+        let dir = scratch("removed");
+        let rec = Recorder::start(RecordConfig {
+            dir: dir.clone(),
+            max_bytes: DEFAULT_RECORD_MAX,
+            interface: "can0".to_owned(),
+            setup: None,
+        })
+        .unwrap();
+        rec.input(Instant::now(), Origin(1), 1, "{}");
+        thread::sleep(Duration::from_millis(100));
+        fs::remove_dir_all(&dir).unwrap();
+        for n in 2..=11 {
+            rec.input(Instant::now(), Origin(1), n, "{}");
+        }
+        let s = rec.finish();
+        assert_eq!((s.written, s.dropped), (1, 10));
     }
 
     /// While the bridge handles a stop, the writer writes nothing (the
