@@ -789,6 +789,17 @@ mod tests {
     use super::*;
     use motorwire_can::CanId;
 
+    /// A recorder into `dir` on `can0`, holding at most `max_bytes`.
+    fn recording(dir: &Path, max_bytes: u64) -> Recorder {
+        Recorder::start(RecordConfig {
+            dir: dir.to_owned(),
+            max_bytes,
+            interface: "can0".to_owned(),
+            setup: None,
+        })
+        .unwrap()
+    }
+
     fn scratch(name: &str) -> PathBuf {
         let d =
             std::env::temp_dir().join(format!("motorwire-record-{name}-{}", std::process::id()));
@@ -802,13 +813,7 @@ mod tests {
     #[test]
     fn a_directory_removed_mid_session_counts_the_rest_dropped() {
         let dir = scratch("removed");
-        let rec = Recorder::start(RecordConfig {
-            dir: dir.clone(),
-            max_bytes: DEFAULT_RECORD_MAX,
-            interface: "can0".to_owned(),
-            setup: None,
-        })
-        .unwrap();
+        let rec = recording(&dir, DEFAULT_RECORD_MAX);
         rec.input(Instant::now(), Origin(1), 1, "{}");
         thread::sleep(Duration::from_millis(100));
         fs::remove_dir_all(&dir).unwrap();
@@ -824,13 +829,7 @@ mod tests {
     #[test]
     fn a_hushed_recorder_waits_for_the_stop_then_writes_everything() {
         let dir = scratch("hush");
-        let rec = Recorder::start(RecordConfig {
-            dir: dir.clone(),
-            max_bytes: DEFAULT_RECORD_MAX,
-            interface: "can0".to_owned(),
-            setup: None,
-        })
-        .unwrap();
+        let rec = recording(&dir, DEFAULT_RECORD_MAX);
         Tap::hush(&rec, true);
         rec.input(Instant::now(), Origin(1), 1, r#"{"emergency_stop":true}"#);
         thread::sleep(Duration::from_millis(100));
@@ -851,13 +850,7 @@ mod tests {
     #[test]
     fn a_session_is_written_in_both_files_in_order() {
         let dir = scratch("order");
-        let rec = Recorder::start(RecordConfig {
-            dir: dir.clone(),
-            max_bytes: DEFAULT_RECORD_MAX,
-            interface: "can0".to_owned(),
-            setup: None,
-        })
-        .unwrap();
+        let rec = recording(&dir, DEFAULT_RECORD_MAX);
         let t = Instant::now();
         rec.input(t, Origin(2), 1, r#"{"emergency_stop":true}"#);
         let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0x00, 0x12, 0x01, 0x03]).unwrap();
@@ -906,13 +899,7 @@ mod tests {
     fn a_recording_never_holds_more_than_its_limit() {
         let dir = scratch("bound");
         let limit = 64 * 1024;
-        let rec = Recorder::start(RecordConfig {
-            dir: dir.clone(),
-            max_bytes: limit,
-            interface: "can0".to_owned(),
-            setup: None,
-        })
-        .unwrap();
+        let rec = recording(&dir, limit);
         let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0xAB; 64]).unwrap();
         let t = Instant::now();
         for _ in 0..5_000 {
@@ -935,13 +922,7 @@ mod tests {
     #[test]
     fn a_failed_disk_drops_and_counts_and_never_waits() {
         let dir = scratch("gone");
-        let rec = Recorder::start(RecordConfig {
-            dir: dir.clone(),
-            max_bytes: 4096,
-            interface: "can0".to_owned(),
-            setup: None,
-        })
-        .unwrap();
+        let rec = recording(&dir, 4096);
         fs::remove_dir_all(&dir).unwrap();
         let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0x11; 64]).unwrap();
         let t = Instant::now();
@@ -970,13 +951,7 @@ mod tests {
             .status()
             .unwrap();
         assert!(made.success());
-        let rec = Recorder::start(RecordConfig {
-            dir: dir.clone(),
-            max_bytes: DEFAULT_RECORD_MAX,
-            interface: "can0".to_owned(),
-            setup: None,
-        })
-        .unwrap();
+        let rec = recording(&dir, DEFAULT_RECORD_MAX);
         let f = Frame::fd(CanId::standard(0x12).unwrap(), &[1, 2, 3]).unwrap();
         rec.frame(Instant::now(), Direction::Rx, &f);
         let s = rec.finish();
@@ -997,13 +972,7 @@ mod tests {
     fn a_record_longer_than_the_limit_allows_is_left_out_and_counted() {
         let dir = scratch("long");
         let limit = 16 * 1024;
-        let rec = Recorder::start(RecordConfig {
-            dir: dir.clone(),
-            max_bytes: limit,
-            interface: "can0".to_owned(),
-            setup: None,
-        })
-        .unwrap();
+        let rec = recording(&dir, limit);
         let t = Instant::now();
         rec.input(t, Origin(1), 1, &"x".repeat(5_000));
         rec.input(t, Origin(1), 2, "{}");

@@ -23,6 +23,32 @@ fn view_addr(child: &mut std::process::Child) -> (String, BufReader<std::process
     }
 }
 
+/// A bridge on the demo arm with its view on a loopback port (and
+/// `extra`): the bridge, the view's address, its standard error.
+fn bridge_with_view(
+    extra: &[&str],
+) -> (
+    std::process::Child,
+    String,
+    BufReader<std::process::ChildStderr>,
+) {
+    let mut args = vec![
+        "bridge",
+        "--map",
+        "fixtures/maps/demo-arm.toml",
+        "--bus",
+        "sim",
+        "--feedback-hz",
+        "0",
+        "--view",
+        "127.0.0.1:0",
+    ];
+    args.extend_from_slice(extra);
+    let mut child = common::spawn(&args);
+    let (addr, err) = view_addr(&mut child);
+    (child, addr, err)
+}
+
 fn get(addr: &str, request: &str) -> String {
     let mut s = TcpStream::connect(addr).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
@@ -39,18 +65,7 @@ fn get(addr: &str, request: &str) -> String {
 /// page or the stream is refused.
 #[test]
 fn the_view_serves_its_page_and_stream_and_only_reads() {
-    let mut child = common::spawn(&[
-        "bridge",
-        "--map",
-        "fixtures/maps/demo-arm.toml",
-        "--bus",
-        "sim",
-        "--feedback-hz",
-        "0",
-        "--view",
-        "127.0.0.1:0",
-    ]);
-    let (addr, _err) = view_addr(&mut child);
+    let (mut child, addr, _err) = bridge_with_view(&[]);
     let page = get(&addr, "GET / HTTP/1.1\r\nHost: x\r\n\r\n");
     assert!(page.starts_with("HTTP/1.1 200 OK\r\n"), "{page}");
     assert!(page.contains("Content-Type: text/html; charset=utf-8"));
@@ -169,18 +184,7 @@ fn a_view_beyond_loopback_needs_the_token() {
         use std::os::unix::fs::PermissionsExt;
         std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o600)).unwrap();
     }
-    let mut child = common::spawn(&[
-        "bridge",
-        "--map",
-        "fixtures/maps/demo-arm.toml",
-        "--bus",
-        "sim",
-        "--view",
-        "127.0.0.1:0",
-        "--token-file",
-        token.to_str().unwrap(),
-    ]);
-    let (addr, _err) = view_addr(&mut child);
+    let (mut child, addr, _err) = bridge_with_view(&["--token-file", token.to_str().unwrap()]);
     for path in [
         "/",
         "/events",
@@ -203,18 +207,7 @@ fn a_view_beyond_loopback_needs_the_token() {
 /// of 24 pages opening at once, 16 get their stream and the rest 503.
 #[test]
 fn slow_heads_are_cut_and_pages_are_bounded() {
-    let mut child = common::spawn(&[
-        "bridge",
-        "--map",
-        "fixtures/maps/demo-arm.toml",
-        "--bus",
-        "sim",
-        "--feedback-hz",
-        "0",
-        "--view",
-        "127.0.0.1:0",
-    ]);
-    let (addr, _err) = view_addr(&mut child);
+    let (mut child, addr, _err) = bridge_with_view(&[]);
     let mut drip = TcpStream::connect(&addr).unwrap();
     let began = std::time::Instant::now();
     let mut closed = None;
