@@ -61,6 +61,17 @@ impl Output {
         text.unwrap_or_else(|e| format!("{{\"event\":\"internal_error\",\"error\":\"{e}\"}}"))
     }
 
+    /// Whose line it is: one client's (a result, a completion, a
+    /// greeting), or `None` for every reader's (feedback, events).
+    pub const fn reader(&self) -> Option<Origin> {
+        match self {
+            Self::Result { origin, .. }
+            | Self::Arrival { origin, .. }
+            | Self::ToOne { origin, .. } => Some(*origin),
+            Self::Feedback(_) | Self::Event(_) => None,
+        }
+    }
+
     /// The line as a JSON value (for tests and tools that inspect it).
     pub fn to_value(&self) -> Value {
         serde_json::from_str(&self.to_json()).unwrap_or(Value::Null)

@@ -681,12 +681,9 @@ impl Files {
             // The line as it was given, whole, and to whom when it was
             // one client's (a result, a completion, a greeting).
             Record::Output { output, .. } => {
-                let to = match &*output {
-                    Output::Result { origin, .. }
-                    | Output::Arrival { origin, .. }
-                    | Output::ToOne { origin, .. } => format!(r#","to":{}"#, origin.0),
-                    Output::Feedback(_) | Output::Event(_) => String::new(),
-                };
+                let to = output
+                    .reader()
+                    .map_or_else(String::new, |o| format!(r#","to":{}"#, o.0));
                 format!("{}{}{to}}}", head("out"), output.to_json())
             }
             Record::Orion { dir, line, .. } => {

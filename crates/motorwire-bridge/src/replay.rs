@@ -559,7 +559,7 @@ fn parse_record(v: &Value) -> Result<Recorded, String> {
             .get("data")
             .and_then(Value::as_str)
             .ok_or_else(|| "a frame without data".to_owned())?;
-        let data = unhex(hex).ok_or_else(|| format!("frame data {hex:?} is not hex"))?;
+        let data = motorwire_can::candump::hex_bytes(hex).map_err(|e| format!("frame {e}"))?;
         let fd = b.get("fd").and_then(Value::as_bool).unwrap_or(true);
         let frame = if fd {
             Frame::fd(id, &data)
@@ -583,16 +583,6 @@ fn parse_record(v: &Value) -> Result<Recorded, String> {
         });
     }
     Err("not an in, out, mark, frame or orion record".to_owned())
-}
-
-fn unhex(s: &str) -> Option<Vec<u8>> {
-    if !s.len().is_multiple_of(2) {
-        return None;
-    }
-    (0..s.len())
-        .step_by(2)
-        .map(|i| u8::from_str_radix(s.get(i..i + 2)?, 16).ok())
-        .collect()
 }
 
 /// How a replay runs.
@@ -851,12 +841,7 @@ pub fn replay(
     let mut records: Vec<(Duration, Recorded)> = outputs
         .into_iter()
         .map(|(t, o)| {
-            let to = match &o {
-                Output::Result { origin, .. }
-                | Output::Arrival { origin, .. }
-                | Output::ToOne { origin, .. } => Some(origin.0),
-                Output::Feedback(_) | Output::Event(_) => None,
-            };
+            let to = o.reader().map(|r| r.0);
             (
                 t,
                 Recorded::Output {

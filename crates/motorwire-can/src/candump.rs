@@ -94,7 +94,16 @@ fn parse_timestamp(s: &str) -> Result<Duration, String> {
     Ok(Duration::new(secs, nanos))
 }
 
-fn hex_bytes(s: &str) -> Result<Vec<u8>, String> {
+/// The bytes hex digits spell (`"deadbeef"`), as a log's data is written.
+///
+/// ```
+/// assert_eq!(motorwire_can::candump::hex_bytes("00ff12"), Ok(vec![0x00, 0xff, 0x12]));
+/// assert!(motorwire_can::candump::hex_bytes("0").is_err());
+/// ```
+///
+/// # Errors
+/// An odd number of digits, or a character that is not a hex digit.
+pub fn hex_bytes(s: &str) -> Result<Vec<u8>, String> {
     if !s.len().is_multiple_of(2) {
         return Err(format!("data {s:?} has an odd number of hex digits"));
     }

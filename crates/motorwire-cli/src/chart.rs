@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use motorwire_orion::Quantity;
-use motorwire_translate::{AngleUnit, BusMap, Target};
+use motorwire_translate::{AngleUnit, BusMap, MappedMotor, Target};
 use serde_json::Value;
 
 /// What a session took and gave, each at its time (seconds from its
@@ -67,7 +67,7 @@ pub(crate) struct Mark {
 
 /// What a motor's value is, for its axes.
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Shown {
+pub(crate) enum Shown {
     /// A position with its velocity, in degrees or radians.
     Angle(AngleUnit),
     /// An Orion speed motor: its commanded speed in the controller's
@@ -75,6 +75,45 @@ enum Shown {
     OrionSpeed,
     /// An Orion actuator: its command, -1 to 1 (no position).
     OrionActuator,
+}
+
+impl Shown {
+    /// What `m`'s value is, and its range: an Orion speed or actuator
+    /// motor's is the controller's own range, a position's the map's
+    /// limits.
+    pub(crate) fn of(m: &MappedMotor) -> (Self, (Option<f64>, Option<f64>)) {
+        let map_limits = (m.limits.min_position, m.limits.max_position);
+        match m.target {
+            Target::Orion { motor } => {
+                let (lo, hi) = motor.range();
+                match motor.quantity() {
+                    Quantity::Speed => (Self::OrionSpeed, (Some(lo), Some(hi))),
+                    Quantity::Actuator => (Self::OrionActuator, (Some(lo), Some(hi))),
+                    Quantity::PositionDegrees => (Self::Angle(AngleUnit::Degrees), map_limits),
+                }
+            }
+            _ => (Self::Angle(m.unit), map_limits),
+        }
+    }
+
+    /// The quantity's name (`position`, `speed`, `actuator`).
+    pub(crate) const fn quantity(self) -> &'static str {
+        match self {
+            Self::Angle(_) => "position",
+            Self::OrionSpeed => "speed",
+            Self::OrionActuator => "actuator",
+        }
+    }
+
+    /// Its unit, as a person reads it.
+    pub(crate) const fn unit(self) -> &'static str {
+        match self {
+            Self::Angle(AngleUnit::Degrees) => "°",
+            Self::Angle(AngleUnit::Radians) => "rad",
+            Self::OrionSpeed => "controller units",
+            Self::OrionActuator => "-1 to 1",
+        }
+    }
 }
 
 /// One motor's panel.
@@ -272,21 +311,7 @@ fn tracks(session: &Session, map: &BusMap, only: &[String]) -> Vec<Track> {
         if !wanted {
             continue;
         }
-        let shown = match m.target {
-            Target::Orion { motor } => match motor.quantity() {
-                Quantity::Speed => Shown::OrionSpeed,
-                Quantity::Actuator => Shown::OrionActuator,
-                Quantity::PositionDegrees => Shown::Angle(AngleUnit::Degrees),
-            },
-            _ => Shown::Angle(m.unit),
-        };
-        let (lo, hi) = match m.target {
-            Target::Orion { motor } if shown != Shown::Angle(AngleUnit::Degrees) => {
-                let (lo, hi) = motor.range();
-                (Some(lo), Some(hi))
-            }
-            _ => (m.limits.min_position, m.limits.max_position),
-        };
+        let (shown, (lo, hi)) = Shown::of(m);
         out.push(Track {
             motor: m.name.clone(),
             shown,

@@ -150,12 +150,7 @@ impl Watch {
     fn take(&mut self, (at, o): (Instant, Output)) -> Option<Value> {
         let v = o.to_value();
         let t = at.saturating_duration_since(self.started).as_secs_f64();
-        let to = match &o {
-            Output::Result { origin, .. }
-            | Output::Arrival { origin, .. }
-            | Output::ToOne { origin, .. } => Some(origin.0),
-            Output::Feedback(_) | Output::Event(_) => None,
-        };
+        let to = o.reader().map(|r| r.0);
         self.session.outputs.push((t, to, v.clone()));
         match o {
             Output::Result { .. } => return Some(v),

@@ -22,7 +22,7 @@ use std::time::{Duration, Instant};
 
 use motorwire_bridge::record::Tap;
 use motorwire_bridge::{Origin, Output};
-use motorwire_translate::{AngleUnit, BusMap, Target};
+use motorwire_translate::BusMap;
 use serde_json::{Value, json};
 
 /// The page.
@@ -135,38 +135,13 @@ fn motors_json(map: &BusMap) -> Value {
     let motors: Vec<Value> = map
         .motors()
         .map(|m| {
-            let (quantity, unit, lo, hi) = match m.target {
-                Target::Orion { motor } => match motor.quantity() {
-                    motorwire_orion::Quantity::Speed => {
-                        let (lo, hi) = motor.range();
-                        ("speed", "controller units", Some(lo), Some(hi))
-                    }
-                    motorwire_orion::Quantity::Actuator => {
-                        let (lo, hi) = motor.range();
-                        ("actuator", "-1 to 1", Some(lo), Some(hi))
-                    }
-                    motorwire_orion::Quantity::PositionDegrees => (
-                        "position",
-                        "°",
-                        m.limits.min_position,
-                        m.limits.max_position,
-                    ),
-                },
-                _ => (
-                    "position",
-                    match m.unit {
-                        AngleUnit::Degrees => "°",
-                        AngleUnit::Radians => "rad",
-                    },
-                    m.limits.min_position,
-                    m.limits.max_position,
-                ),
-            };
+            // As the plots show it.
+            let (shown, (lo, hi)) = crate::chart::Shown::of(m);
             json!({
                 "motor_id": m.name,
                 "dialect": m.target.dialect(),
-                "quantity": quantity,
-                "unit": unit,
+                "quantity": shown.quantity(),
+                "unit": shown.unit(),
                 "min_position": lo,
                 "max_position": hi,
                 "max_velocity": m.limits.max_velocity,
@@ -388,12 +363,7 @@ fn render(item: &Item, started: Instant) -> String {
         } => json!({"kind": "in", "t": t(at), "origin": origin.0, "line": number, "text": text})
             .to_string(),
         Item::Out { at, output } => {
-            let to = match &**output {
-                Output::Result { origin, .. }
-                | Output::Arrival { origin, .. }
-                | Output::ToOne { origin, .. } => Some(origin.0),
-                Output::Feedback(_) | Output::Event(_) => None,
-            };
+            let to = output.reader().map(|r| r.0);
             format!(
                 r#"{{"kind":"out","t":{},"to":{},"line":{}}}"#,
                 t(at),
