@@ -23,17 +23,14 @@
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::Duration;
 
-mod orion;
-mod requests;
-pub use orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL as ORION_POLL};
+pub use crate::device::orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL as ORION_POLL};
 
 use motorwire_can::Frame;
 use motorwire_can::client::ClientConfig;
-use motorwire_compact::MotorHash;
-use motorwire_irpc::{LifecycleState, Payload, PayloadKind};
+use motorwire_irpc::{CalibrationRequest, LifecycleState, Payload, PayloadKind};
+use motorwire_orion::ArmCommand;
 use motorwire_translate::{
-    AngleUnit, BusMap, Limits, Report, Target, feedback_from_irpc, multi_axis_to_irpc, to_irpc,
-    trajectory_to_irpc,
+    AngleUnit, BusMap, Limits, Report, multi_axis_to_irpc, to_irpc, trajectory_to_irpc,
 };
 use motorwire_wia::{
     Message, MotorCommand, MotorFeedback, MultiAxisCommand, SafetyLimits, SyncMode, Trajectory,
@@ -43,11 +40,13 @@ use serde_json::Value;
 
 use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
-use crate::classify::{Input, classify};
-use crate::device::compact::{self, CompactDriver};
-use crate::device::irpc::{IrpcDriver, IrpcEvent};
-use crate::device::{Capability, Context, Device, Drivers, Ended, Moving, Outcome, Route};
-use crate::job::{Axis, AxisState, Cycle, Job, JobKind, LineMeta, Order, Rider};
+use crate::classify::{Input, RequestKind, classify};
+use crate::device::{
+    Answer, Capability, Context, Device, Drivers, Ended, Happened, Moving, Outcome,
+};
+use crate::job::{
+    AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, LineMeta, Order, Rider,
+};
 use crate::joints::{Joint, StepRef, Unresolved};
 use crate::output::{
     BridgeRule, BridgeState, ErrorBody, ErrorKind, Event, FeedbackLine, Label, LineRef, LineResult,
@@ -352,6 +351,12 @@ pub struct Bridge {
     stats: BridgeStats,
 }
 
+/// How long past its Ack timeouts a request line waits for its answer.
+const ANSWER_MARGIN: Duration = Duration::from_millis(500);
+
+/// How long a calibration may run, past its phases' own timeouts.
+const CALIBRATION_MARGIN: Duration = Duration::from_secs(5);
+
 fn us(d: Duration) -> u64 {
     u64::try_from(d.as_micros()).unwrap_or(u64::MAX)
 }
@@ -381,38 +386,22 @@ impl Bridge {
                 "max_pending_lines and max_queue_per_joint must be at least 1",
             ));
         }
-        let mut irpc = IrpcDriver::new(config.client)?;
         let joints: Vec<Joint> = map
             .motors()
             .filter_map(|m| {
-                let (node, device) = match m.target {
-                    Target::Irpc { node, wire } => (node, Device::Irpc { wire }),
-                    Target::Compact {
-                        node,
-                        feedback_node,
-                    } => (
-                        node,
-                        Device::Compact {
-                            feedback_node,
-                            hash: MotorHash::of(&m.name),
-                        },
-                    ),
-                    Target::Orion { motor } if config.orion => {
-                        (orion::ORION_NODE, Device::Orion(motor))
-                    }
-                    Target::Orion { .. } => return None,
-                };
-                Some(Joint::new(m.name.clone(), node, device))
+                let (node, device) = Device::of(m, config.orion)?;
+                Some(Joint::new(m.name.clone(), node, device, m.unit))
             })
             .collect();
         if joints.is_empty() {
             return Err(BridgeError::NoJoints);
         }
-        for j in &joints {
-            if let Device::Irpc { wire } = j.device {
-                irpc.set_wire(j.node, wire);
-            }
-        }
+        let drivers = Drivers::new(
+            config.client,
+            config.orion_command_timeout,
+            config.epoch_unix_ms.unwrap_or(0.0),
+            &joints,
+        )?;
         let base_limits = map.motors().map(|m| (m.name.clone(), m.limits)).collect();
         let validator = Validator::new().deny_unknown_members(!config.allow_unknown_members);
         // Warm the paths a stop takes: the first invalid command the
@@ -429,15 +418,7 @@ impl Bridge {
             map,
             config,
             validator,
-            drivers: Drivers {
-                irpc,
-                compact: CompactDriver::new(config.client.timeout, config.client.retries),
-                orion: orion::OrionDriver::new(
-                    config.client.timeout,
-                    config.client.retries,
-                    config.orion_command_timeout,
-                ),
-            },
+            drivers,
             joints,
             jobs: BTreeMap::new(),
             next_job: 0,
@@ -663,7 +644,7 @@ impl Bridge {
         let mut axes = self.every_joint(&[Payload::Configure, Payload::Activate]);
         for a in &mut axes {
             if let Some(t) = self.telemetry_subscription(a.joint) {
-                a.payloads.push_back(Order::Irpc(t));
+                a.payloads.push_back(Order::from(t));
             }
         }
         self.open_job(
@@ -916,7 +897,7 @@ impl Bridge {
             }
             Input::QueryLimits { motor_id } => self.query_limits(meta, &motor_id),
             Input::QueryState { motor_id } => self.query_state(meta, motor_id),
-            Input::OrionCommand { command } => self.orion_command(now, meta, command),
+            Input::OrionCommand { command } => self.arm_command(now, meta, command),
             Input::Request { kind, motor_id } => {
                 self.request_line(now, meta, kind, &motor_id);
             }
@@ -1262,7 +1243,7 @@ impl Bridge {
             let cycle = a
                 .cycle
                 .iter()
-                .flat_map(|c| c.payloads.iter().map(|(_, p)| Order::Irpc(*p)));
+                .flat_map(|c| c.payloads.iter().map(|(_, p)| Order::from(*p)));
             for order in in_flight
                 .into_iter()
                 .chain(a.payloads.iter().copied())
@@ -1290,7 +1271,7 @@ impl Bridge {
             Some(m) => {
                 state.motors.retain(|s| s.motor_id == m);
                 let meta = meta.labelled(Label::Motor(m.clone()));
-                if let Some(e) = self.orion_unattached(std::iter::once(m.as_str())) {
+                if let Some(e) = self.unattached(std::iter::once(m.as_str())) {
                     self.refuse(&meta, e);
                     return;
                 }
@@ -1674,7 +1655,7 @@ impl Bridge {
             self.refuse(&meta, e);
             return;
         }
-        if let Some(e) = self.orion_unattached(std::iter::once(cmd.motor_id.as_str())) {
+        if let Some(e) = self.unattached(std::iter::once(cmd.motor_id.as_str())) {
             self.refuse(&meta, e);
             return;
         }
@@ -1899,7 +1880,7 @@ impl Bridge {
             self.refuse(&meta, e);
             return;
         }
-        if let Some(e) = self.orion_unattached(cmd.motors.iter().map(|a| a.motor_id.as_str())) {
+        if let Some(e) = self.unattached(cmd.motors.iter().map(|a| a.motor_id.as_str())) {
             self.refuse(&meta, e);
             return;
         }
@@ -2335,8 +2316,8 @@ impl Bridge {
             if self.waits_for_arrival(front, now) {
                 return; // sequential: the axis before it has not arrived
             }
-            if self.is_orion(ji) && !self.orion_may_send(front) {
-                return; // one line in flight to the controller
+            if !self.link_free(front) {
+                return; // one line in flight to the Orion controller
             }
             let Some(joint) = self.joints.get_mut(ji) else {
                 return;
@@ -2467,7 +2448,7 @@ impl Bridge {
         {
             c.started = c.started.saturating_add(c.period);
             for (offset, p) in &c.payloads {
-                a.payloads.push_back(Order::Irpc(*p));
+                a.payloads.push_back(Order::from(*p));
                 a.due.push_back(c.started.saturating_add(*offset));
             }
         }
@@ -2501,9 +2482,10 @@ impl Bridge {
         if let Some(j) = self.joints.get_mut(ji) {
             j.busy = Some(step);
         }
-        let sent = match payload {
-            Order::Orion(o) => self.orion_send(now, ji, step, o),
-            other => self.drivers.send(now, ji, node, other),
+        let sent = if payload.sent_together() {
+            self.send_together(now, ji, step, payload)
+        } else {
+            self.drivers.send(now, ji, node, payload)
         };
         let Some(job) = self.jobs.get_mut(&step.job) else {
             return false;
@@ -2917,6 +2899,397 @@ impl Bridge {
         self.out.push_back(Output::Arrival { origin, arrival });
     }
 
+    // ---- links ------------------------------------------------------------
+
+    /// Whether `step` (queued for a device) may go now as far as its
+    /// device's link goes: a stop always; a step with nothing to send;
+    /// else as the driver says (the Orion controller takes one line at a
+    /// time).
+    fn link_free(&self, step: StepRef) -> bool {
+        let Some(job) = self.jobs.get(&step.job) else {
+            return true;
+        };
+        let order = job.axes.get(step.axis).and_then(|a| a.payloads.front());
+        job.kind.is_stop() || self.drivers.link_free(order)
+    }
+
+    /// Whether `step` is a sequential line's axis whose earlier axis has
+    /// not arrived: it cannot go yet, so it does not keep its link from
+    /// its own work (an Orion controller unpolled would fall silent).
+    fn after_earlier_axis(jobs: &BTreeMap<u64, Job>, step: StepRef) -> bool {
+        jobs.get(&step.job)
+            .and_then(|job| {
+                let before = job.axes.get(job.axes.get(step.axis)?.after?)?;
+                Some(!before.arrived)
+            })
+            .unwrap_or(false)
+    }
+
+    /// Sends `order` of `step` for device `ji` in one message with the
+    /// orders that join it ([`Order::joins`]) waiting at the front of the
+    /// other devices for the same line (the Orion motors of one input
+    /// line: one line to the controller). Returns the message's number.
+    fn send_together(
+        &mut self,
+        now: Duration,
+        ji: usize,
+        step: StepRef,
+        order: Order,
+    ) -> Result<u32, String> {
+        if let Some(e) = self.drivers.refuses(&order) {
+            return Err(e);
+        }
+        let mut orders = vec![(ji, order)];
+        let mut others = Vec::new();
+        for k in 0..self.joints.len() {
+            if k == ji {
+                continue;
+            }
+            let Some(j) = self.joints.get(k) else {
+                continue;
+            };
+            if j.busy.is_some() {
+                continue;
+            }
+            let Some(&front) = j.queue.front() else {
+                continue;
+            };
+            if front.job != step.job {
+                continue;
+            }
+            let Some(a) = self
+                .jobs
+                .get_mut(&front.job)
+                .and_then(|job| job.axes.get_mut(front.axis))
+            else {
+                continue;
+            };
+            let fits = a.after.is_none() && a.payloads.front().is_some_and(|o| order.joins(o));
+            if !fits || !a.due.is_empty() {
+                continue;
+            }
+            let Some(payload) = a.payloads.pop_front() else {
+                continue;
+            };
+            a.begun = true;
+            orders.push((k, payload));
+            if let Some(j) = self.joints.get_mut(k) {
+                j.queue.pop_front();
+                j.busy = Some(front);
+            }
+            others.push((front, payload));
+        }
+        let sent = self.drivers.send_together(now, &orders);
+        for (front, payload) in others {
+            let Some(a) = self
+                .jobs
+                .get_mut(&front.job)
+                .and_then(|job| job.axes.get_mut(front.axis))
+            else {
+                continue;
+            };
+            match &sent {
+                Ok(id) => {
+                    a.state = AxisState::InFlight {
+                        msg_id: *id,
+                        payload,
+                    };
+                    a.attempts = 1;
+                }
+                Err(e) => a.finish(StepOutcome::NotSent, None, format!("not sent: {e}")),
+            }
+        }
+        if sent.is_err() {
+            for (k, _) in orders.iter().skip(1) {
+                if let Some(j) = self.joints.get_mut(*k) {
+                    j.busy = None;
+                }
+            }
+        }
+        sent
+    }
+
+    /// The links' own work due at `now` (the Orion controller's line in
+    /// flight, its recovery stop, its poll when no step waits for it).
+    fn link_timeouts(&mut self, now: Duration) {
+        self.drivers.link_timeouts(now, &self.joints);
+        self.drain_drivers();
+        let jobs = &self.jobs;
+        let busy = |j: &Joint| {
+            j.busy.is_some()
+                || j.queue
+                    .front()
+                    .is_some_and(|s| !Self::after_earlier_axis(jobs, *s))
+        };
+        self.drivers.link_housekeeping(now, &self.joints, busy);
+    }
+
+    /// The next line for the Orion controller (without its newline).
+    pub fn poll_orion_line(&mut self) -> Option<String> {
+        self.drivers.poll_line()
+    }
+
+    /// One line from the Orion controller, received at `now`.
+    pub fn handle_orion_line(&mut self, now: Duration, line: &str) {
+        self.now = self.now.max(now);
+        self.drivers
+            .handle_line(self.now, line, &self.joints, &self.map);
+        self.drain_drivers();
+    }
+
+    /// A line from the Orion controller that could not be read (too long,
+    /// not UTF-8), at `now`: counted, and reported at most
+    /// [`MAX_BAD_LINE_EVENTS`] times a second.
+    pub fn handle_orion_unreadable(&mut self, now: Duration, reason: &str) {
+        self.now = self.now.max(now);
+        self.drivers.handle_unreadable(self.now, reason);
+        self.drain_drivers();
+    }
+
+    /// The link to the Orion controller ended (`error` says how): its
+    /// motors are offline, and what was in flight has an unknown outcome.
+    pub fn orion_link_lost(&mut self, now: Duration, error: &str) {
+        self.now = self.now.max(now);
+        self.drivers.link_lost(self.now, error, &self.joints);
+        self.drain_drivers();
+        self.handle_timeout(now);
+    }
+
+    /// `{"orion":"fold"}` or `{"orion":"unfold"}`: an arm-wide command, for
+    /// every device that takes one (the Orion controller's motors: one
+    /// line).
+    fn arm_command(&mut self, now: Duration, meta: LineMeta, command: ArmCommand) {
+        let name = match command {
+            ArmCommand::Fold => "fold",
+            ArmCommand::Unfold => "unfold",
+            ArmCommand::Stop => "stop",
+        };
+        let meta = meta.labelled(Label::Orion(name.to_owned()));
+        let axes: Vec<Axis> = self
+            .joints
+            .iter()
+            .enumerate()
+            .filter_map(|(ji, j)| {
+                let order = j.device.arm_order(command)?;
+                Some(Axis::of(j.name.clone(), ji, [order]))
+            })
+            .collect();
+        if axes.is_empty() {
+            let e = ErrorBody::refused(
+                BridgeRule::OrionNotAttached,
+                "no Orion arm controller is attached (motorwire bridge --orion ...)",
+            );
+            self.refuse(&meta, e);
+            return;
+        }
+        if let Err(e) = self.admit_now(axes.iter().map(|a| a.motor.as_str())) {
+            self.refuse(&meta, e);
+            return;
+        }
+        self.command_job(now, meta, axes, Report::default());
+    }
+
+    /// The refusal for a motor among `motors` whose driver is not
+    /// attached (an Orion motor without `--orion`).
+    fn unattached<'a>(&self, motors: impl Iterator<Item = &'a str>) -> Option<ErrorBody> {
+        crate::device::unattached(&self.map, self.config.orion, motors)
+    }
+
+    // ---- request lines --------------------------------------------------
+    //
+    // Lines that ask a joint for something and wait for its answer:
+    // telemetry, power metrics, the fault history (`{"request":...}`) and
+    // calibration (`{"calibration":"start"|"stop",...}`). A request line is
+    // one job: its request is sent like any command (one in flight per
+    // joint, retried, acked), and the line's result waits for the message
+    // it asked for, which comes back in `data`. The joint may send it
+    // before or after its Ack. Nothing within the wait
+    // ([`Bridge::answer_wait`]) is the error `no_answer`. A calibration's
+    // status messages are `calibration` events while it runs; its result
+    // ends the start line (`ok` only when it succeeded).
+
+    /// How long a request line waits for its answer after it is sent:
+    /// every attempt's Ack timeout and a margin.
+    fn answer_wait(&self) -> Duration {
+        self.config
+            .client
+            .timeout
+            .saturating_mul(u32::from(self.config.client.retries) + 1)
+            .saturating_add(ANSWER_MARGIN)
+    }
+
+    /// The device `motor` names if it can do `needs_to` and has the
+    /// message `needs` (an iRPC joint, in its wire version), or the
+    /// refusal to answer with.
+    fn joint_for(
+        &self,
+        motor: &str,
+        needs_to: Capability,
+        needs: PayloadKind,
+        what: &str,
+    ) -> Result<usize, ErrorBody> {
+        let Some(ji) = self.joint_index(motor).filter(|&ji| {
+            self.joints
+                .get(ji)
+                .is_some_and(|j| j.device.supports(needs_to))
+        }) else {
+            return Err(ErrorBody::refused(
+                BridgeRule::NotAnIrpcJoint,
+                format!("{motor} is not an iRPC joint of the bus map"),
+            )
+            .about(motor));
+        };
+        let device = self.joints.get(ji).map(|j| j.device);
+        if device.is_none_or(|d| !d.speaks(needs)) {
+            let wire = device.map(Device::wire);
+            return Err(ErrorBody::new(
+                ErrorKind::Unsupported,
+                format!(
+                    "{motor} speaks iRPC {}, which has no {what}",
+                    wire.map_or("?", |w| w.name())
+                ),
+            )
+            .about(motor));
+        }
+        if self.joints.get(ji).is_some_and(|j| !j.online) {
+            return Err(
+                ErrorBody::new(ErrorKind::Offline, format!("{motor} is offline")).about(motor),
+            );
+        }
+        Ok(ji)
+    }
+
+    /// `{"request":K,"motor_id":M}`.
+    fn request_line(&mut self, now: Duration, meta: LineMeta, kind: RequestKind, motor: &str) {
+        let meta = meta.labelled(Label::Motor(motor.to_owned()));
+        let (needs, payload, awaits, what) = crate::device::irpc::request(kind);
+        let ji = match self.joint_for(motor, Capability::Requests, needs, what) {
+            Ok(ji) => ji,
+            Err(e) => return self.refuse(&meta, e),
+        };
+        let deadline = now.saturating_add(self.answer_wait());
+        self.open_waiting(
+            now,
+            meta,
+            Axis::new(motor.to_owned(), ji, [payload]),
+            Awaiting {
+                joint: ji,
+                kind: awaits,
+                deadline,
+            },
+        );
+    }
+
+    /// `{"calibration":"start"|"stop","motor_id":M,...}`.
+    fn calibration_line(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        motor: &str,
+        start: Option<CalibrationRequest>,
+    ) {
+        let meta = meta.labelled(Label::Motor(motor.to_owned()));
+        let ji = match self.joint_for(
+            motor,
+            Capability::Requests,
+            PayloadKind::StartCalibration,
+            "calibration (v2.1 on)",
+        ) {
+            Ok(ji) => ji,
+            Err(e) => return self.refuse(&meta, e),
+        };
+        let payload = crate::device::irpc::calibration(start);
+        let Some(request) = start else {
+            let axis = Axis::new(motor.to_owned(), ji, [payload]);
+            self.command_job(now, meta, vec![axis], Report::default());
+            return;
+        };
+        // A calibration moves the joint: refused as a motion is.
+        if let Err(e) = self.admit_now(std::iter::once(motor)) {
+            return self.refuse(&meta, e);
+        }
+        let phases = request.phases.count_ones().max(1);
+        let per_phase =
+            Duration::try_from_secs_f32(request.phase_timeout).unwrap_or(Duration::ZERO);
+        let deadline = now
+            .saturating_add(self.answer_wait())
+            .saturating_add(per_phase.saturating_mul(phases))
+            .saturating_add(CALIBRATION_MARGIN);
+        self.open_waiting(
+            now,
+            meta,
+            Axis::new(motor.to_owned(), ji, [payload]),
+            Awaiting {
+                joint: ji,
+                kind: AwaitKind::CalibrationResult,
+                deadline,
+            },
+        );
+    }
+
+    fn open_waiting(&mut self, now: Duration, meta: LineMeta, axis: Axis, awaiting: Awaiting) {
+        let id = self.next_job;
+        self.command_job(now, meta, vec![axis], Report::default());
+        // Not done yet (a job is taken out once done): it waits.
+        if let Some(job) = self.jobs.get_mut(&id) {
+            job.awaiting = Some(awaiting);
+        }
+    }
+
+    /// Device `ji` answered what a request line may wait for: progress
+    /// is reported, and the oldest line waiting for this from this device
+    /// gets its data.
+    fn answered(&mut self, ji: usize, answer: Answer) {
+        let (kind, data, error) = match answer {
+            Answer::Progress(e) => {
+                self.out.push_back(Output::Event(e));
+                return;
+            }
+            Answer::Data { kind, data, error } => (kind, data, error),
+        };
+        let Some(job) = self
+            .jobs
+            .values_mut()
+            .find(|j| j.awaiting.is_some_and(|a| a.joint == ji && a.kind == kind))
+        else {
+            return;
+        };
+        job.awaiting = None;
+        job.data_error = error;
+        job.data = Some(data);
+        self.finish_jobs();
+    }
+
+    /// Request lines whose answer did not come in time.
+    fn awaiting_timeouts(&mut self, now: Duration) {
+        let mut any = false;
+        for job in self.jobs.values_mut() {
+            let Some(a) = job.awaiting.filter(|a| now >= a.deadline) else {
+                continue;
+            };
+            job.awaiting = None;
+            let what = match a.kind {
+                AwaitKind::Telemetry => "TelemetryStream",
+                AwaitKind::PowerMetrics => "PowerMetrics",
+                AwaitKind::FaultHistory => "FaultHistory",
+                AwaitKind::CalibrationResult => "CalibrationResult",
+            };
+            let motor = job
+                .axes
+                .first()
+                .map(|x| x.motor.clone())
+                .unwrap_or_default();
+            job.data_error = Some(format!(
+                "{motor} acked the request, but no {what} came within {} ms",
+                now.saturating_sub(job.received).as_millis()
+            ));
+            any = true;
+        }
+        if any {
+            self.finish_jobs();
+        }
+    }
+
     // ---- arrival ----------------------------------------------------------
 
     /// Watches a motion line's acked moves until they arrive; an older
@@ -3024,56 +3397,8 @@ impl Bridge {
     /// Takes a frame from the bus.
     pub fn handle_frame(&mut self, now: Duration, frame: &Frame) {
         self.now = self.now.max(now);
-        match crate::device::route(frame, self.joints.iter().map(|j| (j.node, j.device))) {
-            Route::CompactFeedback(ji) => self.compact_feedback(ji, frame),
-            // A compact command (ours, heard back on a second socket):
-            // nothing to act on.
-            Route::CompactCommand => {}
-            Route::Irpc => {
-                self.drivers.irpc.handle_frame(self.now, frame);
-                self.drain_client();
-            }
-        }
-    }
-
-    // ---- compact devices ----------------------------------------------------
-
-    /// A frame from compact device `ji`'s feedback id: its WIA Phase 3
-    /// feedback record. The first valid one after a command acknowledges
-    /// it (WIRE-FACTS §2.1).
-    fn compact_feedback(&mut self, ji: usize, frame: &Frame) {
-        let now = self.now;
-        let Some(j) = self.joints.get(ji) else { return };
-        let Device::Compact { hash, .. } = j.device else {
-            return;
-        };
-        let record = match compact::feedback_record(frame, &j.name, hash) {
-            Ok(r) => r,
-            Err(error) => {
-                self.stats.bad_frames += 1;
-                self.out.push_back(Output::Event(Event::BadFrame {
-                    can_id: frame.id().to_string(),
-                    error,
-                }));
-                return;
-            }
-        };
-        let (node, name) = (j.node, j.name.clone());
-        let unit = self
-            .map
-            .motor(&j.name)
-            .map_or(AngleUnit::Degrees, |m| m.unit);
-        self.heard(node, now);
-        let ts = self.unix_ms(now);
-        let motion = (
-            unit.to_degrees(f64::from(record.position)),
-            unit.to_degrees(f64::from(record.velocity)),
-        );
-        let feedback = compact::feedback_to_wia(&name, ts, &record);
-        self.reading(ji, now, Some(motion), Some(feedback));
-        if let Some(ended) = self.drivers.compact.acknowledged(ji, now) {
-            self.step_done(ji, ended);
-        }
+        self.drivers.handle_frame(self.now, frame, &self.joints);
+        self.drain_drivers();
     }
 
     /// Device `ji` was reported at `position` moving at `velocity`
@@ -3084,15 +3409,6 @@ impl Bridge {
             self.observe(ji, position, velocity, at);
         }
         self.sequence_progress(ji, position, velocity);
-    }
-
-    /// Compact commands not acknowledged in time: sent again (the device
-    /// executes a repeat of its last command once), or, after the retries,
-    /// their outcome is unknown.
-    fn compact_timeouts(&mut self, now: Duration) {
-        for (ji, ended) in self.drivers.compact.timeouts(now) {
-            self.step_done(ji, ended);
-        }
     }
 
     /// The indices of the devices `pick` chooses.
@@ -3166,60 +3482,91 @@ impl Bridge {
         }
     }
 
-    fn drain_client(&mut self) {
-        while let Some(event) = self.drivers.irpc.poll_event() {
-            match event {
-                IrpcEvent::Heard { node, at } => self.heard(node, at),
-                IrpcEvent::Ended { device, ended } => self.step_done(device, ended),
-                IrpcEvent::Feedback { message, at } => self.feedback(message, at),
-                IrpcEvent::BadFrame { can_id, error } => {
-                    self.stats.bad_frames += 1;
-                    self.out
-                        .push_back(Output::Event(Event::BadFrame { can_id, error }));
-                }
-            }
+    /// Everything the drivers have to tell, acted on in order.
+    fn drain_drivers(&mut self) {
+        while let Some(h) = self.drivers.poll(&self.map, &self.joints) {
+            self.happened(h);
         }
         self.finish_jobs();
     }
 
-    /// A message from an iRPC joint that is not an answer: what it says
-    /// ([`crate::device::irpc::heard`]) acted on: its lifecycle, its own
-    /// stop, a request line's answer, its reading.
-    fn feedback(&mut self, message: motorwire_irpc::Message, at: Duration) {
-        let node = message.header.source_id;
-        self.heard(node, at);
-        let ts = self.unix_ms(at);
-        let Some(ji) = self.joints.iter().position(|j| j.node == node) else {
-            return;
-        };
-        let said = crate::device::irpc::heard(&message.payload);
-        if said.answers {
-            self.answered(ji, &message.payload);
+    /// What a driver told, acted on the same way for every dialect.
+    fn happened(&mut self, h: Happened) {
+        match h {
+            Happened::Heard { device, at, up } => self.heard(device, at, up),
+            Happened::Reading {
+                device,
+                at,
+                motion,
+                feedback,
+            } => self.reading(device, at, motion, feedback),
+            Happened::Ended { device, ended } => self.step_done(device, ended),
+            Happened::Lifecycle {
+                device,
+                state,
+                code,
+            } => self.lifecycle(device, state, code),
+            Happened::StoppedItself {
+                device,
+                at,
+                reason,
+                code,
+            } => {
+                let Some(name) = self.joints.get(device).map(|j| j.name.clone()) else {
+                    return;
+                };
+                self.joint_lost(
+                    device,
+                    format!("stopped itself ({reason})"),
+                    Event::JointFault {
+                        motor_id: name.clone(),
+                        code,
+                    },
+                );
+                // A joint's own emergency stop stops every joint: the arm is
+                // not safe to move with one of them down.
+                self.emergency_stop(at, None, Vec::new(), format!("{name}: {reason}"));
+            }
+            Happened::Answer { device, answer } => self.answered(device, answer),
+            Happened::Bad { report } => {
+                self.stats.bad_frames += 1;
+                if let Some(e) = report {
+                    self.out.push_back(Output::Event(e));
+                }
+            }
+            Happened::Event(e) => self.out.push_back(Output::Event(e)),
+            Happened::LinkLost { devices, error } => self.link_lost(&devices, &error),
+            Happened::MayGo { devices } => {
+                for ji in devices {
+                    self.pump(ji);
+                }
+                self.finish_jobs();
+            }
         }
-        let previous = self.joints.get(ji).and_then(|j| j.feedback.as_ref());
-        let feedback = feedback_from_irpc(&self.map, node, &message.payload, ts, previous)
-            .ok()
-            .map(|t| t.value);
-        self.reading(ji, at, said.motion, feedback);
-        if let Some((state, code)) = said.status {
-            self.lifecycle(ji, state, code);
+    }
+
+    /// The link to `devices` is lost (`why`): they are offline, no
+    /// deadman watches them, and lines waiting on them will not arrive;
+    /// what waits for them is not sent.
+    fn link_lost(&mut self, devices: &[usize], why: &str) {
+        for &ji in devices {
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.deadman = None;
+                if j.online {
+                    j.online = false;
+                    self.out.push_back(Output::Event(Event::Offline {
+                        motor_id: j.name.clone(),
+                        node: j.node,
+                        reason: why.to_owned(),
+                    }));
+                }
+            }
         }
-        if let Some((reason, code)) = said.stopped_itself {
-            let Some(name) = self.joints.get(ji).map(|j| j.name.clone()) else {
-                return;
-            };
-            self.joint_lost(
-                ji,
-                format!("stopped itself ({reason:?})"),
-                Event::JointFault {
-                    motor_id: name.clone(),
-                    code,
-                },
-            );
-            // A joint's own emergency stop stops every joint: the arm is
-            // not safe to move with one of them down.
-            self.emergency_stop(at, None, Vec::new(), format!("{name}: {reason:?}"));
+        self.fail_watches(|w| devices.iter().any(|&ji| w.waits_on(ji)), why);
+        for &ji in devices {
+            self.pump(ji);
         }
+        self.finish_jobs();
     }
 
     /// Device `ji` (any dialect) reported at `at`: its position and
@@ -3299,14 +3646,16 @@ impl Bridge {
         }
     }
 
-    fn heard(&mut self, node: u16, at: Duration) {
-        if let Some(j) = self.joints.iter_mut().find(|j| j.node == node) {
+    /// Device `ji` was heard from at `at`; online, if it was not, when
+    /// its link is `up`.
+    fn heard(&mut self, ji: usize, at: Duration, up: bool) {
+        if let Some(j) = self.joints.get_mut(ji) {
             j.last_heard = Some(at.max(j.last_heard.unwrap_or(Duration::ZERO)));
-            if !j.online {
+            if up && !j.online {
                 j.online = true;
                 self.out.push_back(Output::Event(Event::Online {
                     motor_id: j.name.clone(),
-                    node,
+                    node: j.node,
                 }));
             }
         }
@@ -3319,14 +3668,13 @@ impl Bridge {
     pub fn handle_timeout(&mut self, now: Duration) {
         self.now = self.now.max(now);
         let now = self.now;
-        self.drivers.irpc.handle_timeout(now);
-        self.drain_client();
+        self.drivers.handle_timeout(now);
+        self.drain_drivers();
         self.try_ready();
-        self.compact_timeouts(now);
         // The deadman's stops are queued before the Orion link picks what
         // to send next.
         self.deadman(now);
-        self.orion_timeouts(now);
+        self.link_timeouts(now);
         self.awaiting_timeouts(now);
         // Trajectory segments now due.
         let due = self.joints_where(|j| j.wake.is_some_and(|w| now >= w));
@@ -3415,7 +3763,7 @@ impl Bridge {
             self.timers.feedback = Some(now.saturating_add(period));
         }
         if self.any_moving(now) {
-            if self.timers.heartbeat.is_none_or(|t| now >= t) && self.drivers.irpc.heartbeat() {
+            if self.timers.heartbeat.is_none_or(|t| now >= t) && self.drivers.heartbeat() {
                 self.timers.heartbeat = Some(now.saturating_add(self.config.heartbeat_period));
             }
         } else {
@@ -3639,7 +3987,7 @@ fn short_unit(v: f64) -> f64 {
     shortest(f64::from(v as f32))
 }
 
-fn shortest(v: f64) -> f64 {
+pub(crate) fn shortest(v: f64) -> f64 {
     #[allow(clippy::cast_possible_truncation)]
     let f = v as f32;
     if f64::from(f) == v {

@@ -7,7 +7,7 @@ use std::time::Duration;
 use motorwire_irpc::Payload;
 use motorwire_translate::Report;
 
-pub(crate) use crate::device::{Order, OrionOrder};
+pub(crate) use crate::device::Order;
 use crate::output::{Label, LineRef, Origin, StepOutcome, StepReport};
 
 /// One input line's identity as it travels from its reading to its

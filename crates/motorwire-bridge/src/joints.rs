@@ -5,6 +5,7 @@ use std::collections::VecDeque;
 use std::time::Duration;
 
 use motorwire_irpc::LifecycleState;
+use motorwire_translate::AngleUnit;
 use motorwire_wia::MotorFeedback;
 
 use crate::device::Device;
@@ -34,6 +35,8 @@ pub(crate) struct Joint {
     pub(crate) node: u16,
     /// Its dialect, and what addresses it there.
     pub(crate) device: Device,
+    /// The unit of its positions in the bus map (and in WIA lines).
+    pub(crate) unit: AngleUnit,
     pub(crate) last_heard: Option<Duration>,
     pub(crate) online: bool,
     pub(crate) state: Option<LifecycleState>,
@@ -70,11 +73,12 @@ pub(crate) struct Joint {
 }
 
 impl Joint {
-    pub(crate) fn new(name: String, node: u16, device: Device) -> Self {
+    pub(crate) fn new(name: String, node: u16, device: Device, unit: AngleUnit) -> Self {
         Self {
             name,
             node,
             device,
+            unit,
             last_heard: None,
             online: device.online_at_start(),
             state: None,

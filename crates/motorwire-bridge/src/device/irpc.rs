@@ -22,7 +22,14 @@ use motorwire_irpc::{
     WireVersion,
 };
 
-use super::{Context, Effect, Ended, Moving, Outcome};
+use motorwire_irpc::{CalibrationPhase, CalibrationRequest};
+use motorwire_translate::{BusMap, feedback_from_irpc};
+
+use super::{Answer, Context, Effect, Ended, Happened, Moving, Outcome};
+use crate::classify::RequestKind;
+use crate::job::AwaitKind;
+use crate::joints::Joint;
+use crate::output::Event;
 
 /// What the driver has to tell the engine.
 #[derive(Debug, Clone, PartialEq)]
@@ -232,6 +239,190 @@ pub(crate) fn heard(payload: &Payload) -> Heard {
         _ => {}
     }
     h
+}
+
+/// What the driver's `event` tells the engine, each given to `tell` in
+/// order: its device (by its node among `devices`, the engine's), what
+/// its message says in the layer's terms, its WIA feedback built on the
+/// device's last (`map` for the motor's unit, `epoch` for the timestamp).
+pub(crate) fn tell(
+    event: IrpcEvent,
+    map: &BusMap,
+    devices: &[Joint],
+    epoch: f64,
+    mut tell: impl FnMut(Happened),
+) {
+    let index = |node: u16| devices.iter().position(|j| j.node == node);
+    match event {
+        IrpcEvent::Heard { node, at } => {
+            if let Some(device) = index(node) {
+                tell(Happened::Heard {
+                    device,
+                    at,
+                    up: true,
+                });
+            }
+        }
+        IrpcEvent::Ended { device, ended } => tell(Happened::Ended { device, ended }),
+        IrpcEvent::BadFrame { can_id, error } => tell(Happened::Bad {
+            report: Some(Event::BadFrame { can_id, error }),
+        }),
+        IrpcEvent::Feedback { message, at } => {
+            let node = message.header.source_id;
+            let Some(device) = index(node) else { return };
+            let Some(j) = devices.get(device) else { return };
+            tell(Happened::Heard {
+                device,
+                at,
+                up: true,
+            });
+            let said = heard(&message.payload);
+            if said.answers
+                && let Some(answer) = answer(&j.name, &message.payload)
+            {
+                tell(Happened::Answer { device, answer });
+            }
+            let ts = super::unix_ms(epoch, at);
+            let feedback = feedback_from_irpc(map, node, &message.payload, ts, j.feedback.as_ref())
+                .ok()
+                .map(|t| t.value);
+            if said.motion.is_some() || feedback.is_some() {
+                tell(Happened::Reading {
+                    device,
+                    at,
+                    motion: said.motion,
+                    feedback,
+                });
+            }
+            if let Some((state, code)) = said.status {
+                tell(Happened::Lifecycle {
+                    device,
+                    state,
+                    code,
+                });
+            }
+            if let Some((reason, code)) = said.stopped_itself {
+                tell(Happened::StoppedItself {
+                    device,
+                    at,
+                    reason: format!("{reason:?}"),
+                    code,
+                });
+            }
+        }
+    }
+}
+
+/// A request line's ask of an iRPC joint: the message the joint must
+/// have, the payload asking for it, what the line waits for, and the
+/// message's name for a refusal.
+pub(crate) const fn request(kind: RequestKind) -> (PayloadKind, Payload, AwaitKind, &'static str) {
+    match kind {
+        RequestKind::Telemetry => (
+            PayloadKind::RequestTelemetry,
+            Payload::RequestTelemetry,
+            AwaitKind::Telemetry,
+            "TelemetryStream (v2.1 on)",
+        ),
+        RequestKind::PowerMetrics => (
+            PayloadKind::PowerMetrics,
+            Payload::RequestTelemetry,
+            AwaitKind::PowerMetrics,
+            "PowerMetrics (v2.2)",
+        ),
+        RequestKind::FaultHistory => (
+            PayloadKind::RequestFaultHistory,
+            Payload::RequestFaultHistory,
+            AwaitKind::FaultHistory,
+            "FaultHistory (v2.2)",
+        ),
+    }
+}
+
+/// A calibration line's payload: started as `start` says, or stopped.
+pub(crate) const fn calibration(start: Option<CalibrationRequest>) -> Payload {
+    match start {
+        Some(r) => Payload::StartCalibration(r),
+        None => Payload::StopCalibration,
+    }
+}
+
+/// The name of calibration phase `p`, as a `calibration` event says it.
+const fn phase_name(p: CalibrationPhase) -> &'static str {
+    match p {
+        CalibrationPhase::Idle => "idle",
+        CalibrationPhase::InertiaTest => "inertia_test",
+        CalibrationPhase::FrictionTest => "friction_test",
+        CalibrationPhase::TorqueConstantVerification => "torque_constant_verification",
+        CalibrationPhase::DampingTest => "damping_test",
+        CalibrationPhase::Validation => "validation",
+        CalibrationPhase::Complete => "complete",
+        CalibrationPhase::Failed => "failed",
+    }
+}
+
+/// Every float in `v` written as the shortest decimal that is the same
+/// f32 (the joint's values are f32: `0.01`, not `0.009999999776482582`).
+fn shortest_floats(v: &mut serde_json::Value) {
+    match v {
+        serde_json::Value::Number(n) if n.is_f64() => {
+            if let Some(x) = n.as_f64()
+                && let Some(m) = serde_json::Number::from_f64(crate::engine::shortest(x))
+            {
+                *n = m;
+            }
+        }
+        serde_json::Value::Array(a) => a.iter_mut().for_each(shortest_floats),
+        serde_json::Value::Object(o) => o.values_mut().for_each(shortest_floats),
+        _ => {}
+    }
+}
+
+/// What `payload`, from joint `motor`, answers of a request line: a
+/// calibration's progress, or the message a line waits for as its `data`
+/// (iRPC's field names).
+fn answer(motor: &str, payload: &Payload) -> Option<Answer> {
+    if let Payload::CalibrationStatus(s) = payload {
+        return Some(Answer::Progress(Event::Calibration {
+            motor_id: motor.to_owned(),
+            phase: phase_name(s.phase).to_owned(),
+            progress: f64::from(s.progress),
+            time_remaining: f64::from(s.time_remaining),
+        }));
+    }
+    let (kind, key, value) = match payload {
+        Payload::TelemetryStream(t) => (AwaitKind::Telemetry, "telemetry", serde_json::to_value(t)),
+        Payload::PowerMetrics(p) => (
+            AwaitKind::PowerMetrics,
+            "power_metrics",
+            serde_json::to_value(p),
+        ),
+        Payload::FaultHistory(f) => (
+            AwaitKind::FaultHistory,
+            "fault_history",
+            serde_json::to_value(f),
+        ),
+        Payload::CalibrationResult(r) => (
+            AwaitKind::CalibrationResult,
+            "calibration_result",
+            serde_json::to_value(r),
+        ),
+        _ => return None,
+    };
+    let mut value = value.ok()?;
+    shortest_floats(&mut value);
+    let error = match payload {
+        Payload::CalibrationResult(r) if !r.success => Some(format!(
+            "{motor}: the calibration failed (error code 0x{:X})",
+            r.error_code
+        )),
+        _ => None,
+    };
+    Some(Answer::Data {
+        kind,
+        data: serde_json::json!({ key: value }),
+        error,
+    })
 }
 
 /// What an acknowledged `payload` did to its joint: a move's target and,

@@ -12,22 +12,41 @@
 //!
 //! A driver is a state machine with no access to the engine (quinn's
 //! `Connection`, smoltcp's sockets): the engine calls it with the time and
-//! what came in, and takes back what it has to send and what ended
-//! ([`Ended`], in one form for every dialect); its tests drive it with
-//! lines or frames alone.
+//! what came in, and takes back what it has to send and what happened, in
+//! one form for every dialect ([`Happened`]: a device heard, its reading,
+//! its request ended, its lifecycle, its own stop, an answer a request line
+//! waits for, a bad frame or line, a link lost, devices that may go); its
+//! tests drive it with lines or frames alone.
 //!
 //! What the engine asks of a device is asked here, once, with one match
 //! per question over the closed set of dialects (smoltcp's `enum Socket`):
-//! - [`Device`]: which dialect a motor of the bus map is, what it
-//!   supports ([`Device::supports`]), what a stop, the deadman and the
-//!   release send it ([`Device::lifecycle_orders`], [`Device::hold_still`]);
+//! - [`Device`]: which dialect a motor of the bus map is ([`Device::of`]),
+//!   what it supports ([`Device::supports`]), the link it is reached over
+//!   ([`Device::link`]), what a stop, the deadman, the release and an
+//!   arm-wide command send it ([`Device::lifecycle_orders`],
+//!   [`Device::hold_still`], [`Device::arm_order`]), and a command
+//!   translated for it ([`Device::single_order`]);
 //! - [`Order`]: one request for one device, and what it means to the
 //!   engine: whether a newer move may replace it, whether it holds a
 //!   setpoint the deadman watches, where and how fast it moves the device
-//!   ([`Order::reach`], for the limits in force), and what it did once
-//!   acknowledged ([`Order::effect`]);
-//! - [`Drivers`]: the three drivers, sending, forgetting and taking back
-//!   orders, their frames and their deadlines.
+//!   ([`Order::reach`], for the limits in force), what it did once
+//!   acknowledged ([`Order::effect`]), and whether it goes out in one
+//!   message with other devices' orders of its line ([`Order::joins`]);
+//! - [`Drivers`]: the drivers behind one set of calls: send (alone or
+//!   together), forget, take back, whether a link is free, frames and
+//!   lines in, frames and lines out, timeouts, deadlines, and
+//!   [`Drivers::poll`] for what happened.
+//!
+//! The engine (`engine.rs`, one `impl Bridge`) asks no dialect question:
+//! it reads the bus map into devices through [`Device::of`], sends what
+//! its jobs hold through [`Drivers`], and acts on [`Happened`] the same
+//! way for every device. The dialects' own vocabularies stay in their
+//! drivers: iRPC's lifecycle payloads are the lifecycle the engine drives
+//! (Configure, Activate, Deactivate, Reset), which each device translates
+//! ([`Device::lifecycle_orders`]); request lines (telemetry, calibration)
+//! exist for the devices that say [`Capability::Requests`], and their
+//! payloads and answers are the iRPC driver's ([`irpc::request`],
+//! [`Answer`]).
 //!
 //! The drivers: [`irpc`] (iRPC joints, through `motorwire_can`'s sans-IO
 //! client), [`compact`] (WIA's 24-byte compact command) and [`orion`] (the
@@ -35,36 +54,39 @@
 //! written first when it comes back, its one line in flight with resends,
 //! its polls and its feedback decoding).
 //!
-//! Where this stands: the engine asks the questions above through this
-//! module, acts on every driver's ended requests (one [`Ended`]) and every
-//! driver's readings (`Bridge::reading`, once for all dialects). What it
-//! still does per dialect: reading an iRPC joint's lifecycle (its
-//! `JointStatus`, its own stop) and its answers to request lines, which
-//! only iRPC has; decoding a compact record's frame; the Orion
-//! controller's link events (`engine/orion.rs`: its beacon, its loss, its
-//! bad lines) and the grouping of one input line's Orion orders into one
-//! line to the controller; and iRPC's vocabulary for the lifecycle the
-//! engine drives (Configure, Activate, Deactivate, Reset), which each
-//! device translates ([`Device::lifecycle_orders`]).
+//! Adding a dialect (the recipe the moteus driver follows):
+//! 1. a driver file here: its encoding as pure functions (tested with
+//!    byte vectors), its requests in flight with their answers, resends and
+//!    giving up, its feedback decoded into WIA `MotorFeedback`, all told
+//!    to the engine as [`Happened`];
+//! 2. a variant of [`Device`] and of [`Order`], each match in this file
+//!    answered for it (the compiler lists them), and a field of
+//!    [`Drivers`] (its frames routed in [`Drivers::handle_frame`], its
+//!    deadline in [`Drivers::deadline`]);
+//! 3. its bus map entry (`motorwire_translate::Target`) and its translation
+//!    (`Device::single_order`);
+//! 4. its simulated device (`motorwire_sim`, attached by
+//!    [`crate::sim::SimulatedArm`]) and its fixtures.
 //!
-//! Adding a dialect (the recipe the moteus driver follows): a driver file
-//! here with its encoding and its requests in flight; a variant of
-//! [`Device`] and of [`Order`], each match here answered for it (the
-//! compiler lists them); a field of [`Drivers`]; its bus map entry
-//! (`motorwire_translate::Target`); its simulated device (`motorwire_sim`,
-//! attached by [`crate::sim::SimulatedArm`]); and its fixtures. The
-//! every-dialect property test in `tests/invariants.rs` then holds it to
-//! every invariant the others keep.
+//! The engine is not touched. The every-dialect property test in
+//! `tests/invariants.rs` then holds the new dialect to every invariant the
+//! others keep.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, VecDeque};
 use std::time::Duration;
 
 use motorwire_can::Frame;
+use motorwire_can::client::ClientConfig;
 use motorwire_compact::{CompactCommand, ControlMode as CompactMode, Flags, MotorHash};
-use motorwire_irpc::{Payload, PayloadKind, SetTargetPayloadV2, WireVersion};
+use motorwire_irpc::{LifecycleState, Payload, PayloadKind, SetTargetPayloadV2, WireVersion};
 use motorwire_orion::{ArmCommand, Motor, Quantity};
-use motorwire_translate::{AngleUnit, BusMap, Refusal, Report, to_compact, to_orion_motor};
-use motorwire_wia::MotorCommand;
+use motorwire_translate::{AngleUnit, BusMap, Refusal, Report, Target, to_compact, to_orion_motor};
+use motorwire_wia::{MotorCommand, MotorFeedback};
+use serde_json::Value;
+
+use crate::job::AwaitKind;
+use crate::joints::Joint;
+use crate::output::{BridgeRule, ErrorBody, Event};
 
 pub(crate) mod compact;
 pub(crate) mod irpc;
@@ -585,19 +607,238 @@ pub(crate) struct Ended {
     pub(crate) at: Duration,
 }
 
+/// What a driver tells the engine, in one form for every dialect: the
+/// engine acts on each the same way whatever the device
+/// ([`Drivers::poll`] hands them out in the order they happened).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Happened {
+    /// Device `device` was heard from at `at`. `up`: its link lets it be
+    /// online (the Orion controller's motors only from its boot beacon on,
+    /// and after a lost link only once its stop was answered).
+    Heard {
+        device: usize,
+        at: Duration,
+        up: bool,
+    },
+    /// Device `device` reported at `at`: its position and velocity
+    /// (degrees) where the report has them, and its WIA feedback.
+    Reading {
+        device: usize,
+        at: Duration,
+        motion: Option<(f64, f64)>,
+        feedback: Option<MotorFeedback>,
+    },
+    /// Device `device`'s request in flight ended.
+    Ended { device: usize, ended: Ended },
+    /// Device `device` reported its lifecycle state and error code.
+    Lifecycle {
+        device: usize,
+        state: LifecycleState,
+        code: u16,
+    },
+    /// Device `device` stopped itself at `at`: why, and its code.
+    StoppedItself {
+        device: usize,
+        at: Duration,
+        reason: String,
+        code: u16,
+    },
+    /// A message from device `device` that a request line may wait for.
+    Answer { device: usize, answer: Answer },
+    /// Something on a driver's link that is none of its devices' messages:
+    /// counted, and reported when `report` is there (drivers bound how
+    /// often).
+    Bad { report: Option<Event> },
+    /// An event of a driver's link to pass on as it is (the Orion
+    /// controller's boot beacon, its link lost).
+    Event(Event),
+    /// The link to `devices` is lost (`error` says how): they are offline,
+    /// and lines waiting on them will not arrive.
+    LinkLost { devices: Vec<usize>, error: String },
+    /// What waits for `devices` may go now: their link is free, or up.
+    MayGo { devices: Vec<usize> },
+}
+
+/// A message a request line may wait for, in the engine's terms.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Answer {
+    /// Progress to report while the line waits (a calibration's phase).
+    Progress(Event),
+    /// The message of `kind` a request line waits for, as its result's
+    /// `data`, and the line's error when the message says the request
+    /// failed.
+    Data {
+        kind: AwaitKind,
+        data: Value,
+        error: Option<String>,
+    },
+}
+
+/// What the drivers queue for the engine: something to tell it, or a step
+/// of their own to take once the engine has taken what came before.
+#[derive(Debug)]
+enum Queued {
+    Tell(Happened),
+    /// The Orion controller's recovery stop was answered and its answer
+    /// taken: its motors are up again.
+    EndOrionRecovery {
+        at: Duration,
+    },
+}
+
+/// The link a device is reached over, as far as sending goes: the CAN bus
+/// (a request in flight per device) or the Orion controller's line (one
+/// line in flight for all its motors).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Link {
+    Bus,
+    Controller,
+}
+
+impl Device {
+    /// The device a motor of the bus map is to the bridge, with its CAN
+    /// id; `None` for an Orion motor when no controller is attached
+    /// (`orion`).
+    pub(crate) fn of(motor: &motorwire_translate::MappedMotor, orion: bool) -> Option<(u16, Self)> {
+        Some(match motor.target {
+            Target::Irpc { node, wire } => (node, Self::Irpc { wire }),
+            Target::Compact {
+                node,
+                feedback_node,
+            } => (
+                node,
+                Self::Compact {
+                    feedback_node,
+                    hash: MotorHash::of(&motor.name),
+                },
+            ),
+            Target::Orion { motor } if orion => (orion::ORION_NODE, Self::Orion(motor)),
+            Target::Orion { .. } => return None,
+        })
+    }
+
+    /// The link it is reached over.
+    pub(crate) const fn link(self) -> Link {
+        match self {
+            Self::Irpc { .. } | Self::Compact { .. } => Link::Bus,
+            Self::Orion(_) => Link::Controller,
+        }
+    }
+
+    /// Its order for an arm-wide `command` (fold, unfold), if it takes one.
+    pub(crate) const fn arm_order(self, command: ArmCommand) -> Option<Order> {
+        match self {
+            Self::Orion(_) => Some(Order::Orion(OrionOrder::Command(command))),
+            Self::Irpc { .. } | Self::Compact { .. } => None,
+        }
+    }
+}
+
+/// The refusal of a line for one of `motors` whose driver is not attached
+/// (an Orion motor when no controller is: `orion`).
+pub(crate) fn unattached<'a>(
+    map: &BusMap,
+    orion: bool,
+    mut motors: impl Iterator<Item = &'a str>,
+) -> Option<ErrorBody> {
+    if orion {
+        return None;
+    }
+    let m = motors.find(|m| {
+        map.motor(m)
+            .is_some_and(|m| matches!(m.target, Target::Orion { .. }))
+    })?;
+    Some(
+        ErrorBody::refused(
+            BridgeRule::OrionNotAttached,
+            format!(
+                "{m} is an Orion motor, and no Orion controller is attached (motorwire bridge --orion ...)"
+            ),
+        )
+        .about(m),
+    )
+}
+
+impl Order {
+    /// Whether it goes out in one message with the like orders of its
+    /// line for the other devices of its link (the Orion controller takes
+    /// every motor's value, or one command for all, in one line).
+    pub(crate) const fn sent_together(&self) -> bool {
+        matches!(self, Self::Orion(_))
+    }
+
+    /// Whether `other`, another device's order of the same line, goes in
+    /// one message with this one.
+    pub(crate) fn joins(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Self::Orion(OrionOrder::Set(..)), Self::Orion(OrionOrder::Set(..))) => true,
+            (Self::Orion(OrionOrder::Command(c)), Self::Orion(OrionOrder::Command(d))) => c == d,
+            _ => false,
+        }
+    }
+}
+
+impl From<Payload> for Order {
+    fn from(p: Payload) -> Self {
+        Self::Irpc(p)
+    }
+}
+
+/// `now` on the bridge's clock as Unix ms (`epoch`: the Unix ms of its
+/// zero).
+fn unix_ms(epoch: f64, now: Duration) -> f64 {
+    let ms = u64::try_from(now.as_millis()).unwrap_or(u64::MAX);
+    #[allow(clippy::cast_precision_loss)]
+    let ms = ms as f64;
+    (epoch + ms).floor()
+}
+
 /// The drivers, one per dialect: a closed set, each operation one match.
+/// Every driver's news reaches the engine as [`Happened`], through
+/// [`Drivers::poll`].
 #[derive(Debug)]
 pub(crate) struct Drivers {
-    pub(crate) irpc: irpc::IrpcDriver,
-    pub(crate) compact: compact::CompactDriver,
-    pub(crate) orion: orion::OrionDriver,
+    irpc: irpc::IrpcDriver,
+    compact: compact::CompactDriver,
+    orion: orion::OrionDriver,
+    queued: VecDeque<Queued>,
+    /// The Unix ms of the bridge's zero (feedback timestamps).
+    epoch: f64,
 }
 
 impl Drivers {
+    /// The drivers for `devices` (the engine's, in its order): the iRPC
+    /// client as `client` says, each joint in its own wire version; every
+    /// driver's requests wait `client.timeout` and are sent again up to
+    /// `client.retries` times (an Orion command waits `orion_command_timeout`).
+    ///
+    /// # Errors
+    /// The iRPC client's refusal of `client` (a node id beyond 11 bits).
+    pub(crate) fn new(
+        client: ClientConfig,
+        orion_command_timeout: Duration,
+        epoch: f64,
+        devices: &[Joint],
+    ) -> Result<Self, motorwire_can::Error> {
+        let mut irpc = irpc::IrpcDriver::new(client)?;
+        for j in devices {
+            if let Device::Irpc { wire } = j.device {
+                irpc.set_wire(j.node, wire);
+            }
+        }
+        Ok(Self {
+            irpc,
+            compact: compact::CompactDriver::new(client.timeout, client.retries),
+            orion: orion::OrionDriver::new(client.timeout, client.retries, orion_command_timeout),
+            queued: VecDeque::new(),
+            epoch,
+        })
+    }
+
     /// Sends `order` for device `device` on CAN id `node` and awaits its
-    /// answer; returns the driver's number for it. An Orion order is sent
-    /// by the engine with the other Orion orders of its line
-    /// ([`orion::OrionDriver::send`]), never alone.
+    /// answer; returns the driver's number for it. An order sent together
+    /// with others ([`Order::sent_together`]) goes through
+    /// [`Drivers::send_together`].
     ///
     /// # Errors
     /// Why it could not be sent, said for a person; nothing was queued.
@@ -611,7 +852,52 @@ impl Drivers {
         match order {
             Order::Irpc(p) => self.irpc.send(now, device, node, p),
             Order::Compact(c) => self.compact.send(now, device, node, c),
-            Order::Orion(_) => Err("an Orion order goes in a line to the controller".to_owned()),
+            Order::Orion(o) => self.send_together(now, &[(device, Order::Orion(o))]),
+        }
+    }
+
+    /// Whether `order` cannot be sent now, and why (an Orion value or
+    /// command before the controller's beacon).
+    pub(crate) fn refuses(&self, order: &Order) -> Option<String> {
+        match order {
+            Order::Orion(o) => self.orion.refuses(*o),
+            Order::Irpc(_) | Order::Compact(_) => None,
+        }
+    }
+
+    /// Sends `orders` (each device's, all of one line and joining the
+    /// first: [`Order::joins`]) in one message; returns its number.
+    ///
+    /// # Errors
+    /// Why it could not be sent; nothing was queued.
+    pub(crate) fn send_together(
+        &mut self,
+        now: Duration,
+        orders: &[(usize, Order)],
+    ) -> Result<u32, String> {
+        if let Some(e) = orders.first().and_then(|(_, o)| self.refuses(o)) {
+            return Err(e);
+        }
+        let orion: Vec<(usize, OrionOrder)> = orders
+            .iter()
+            .filter_map(|(d, o)| match o {
+                Order::Orion(o) => Some((*d, *o)),
+                Order::Irpc(_) | Order::Compact(_) => None,
+            })
+            .collect();
+        if orion.len() != orders.len() || orion.is_empty() {
+            return Err("only the Orion controller takes orders together".to_owned());
+        }
+        Ok(self.orion.send(now, &orion))
+    }
+
+    /// Whether the link `order` goes over is free for it now (the Orion
+    /// controller takes one line at a time; a lost link takes the stop
+    /// that is all it is written). `None`: a step with nothing to send.
+    pub(crate) const fn link_free(&self, order: Option<&Order>) -> bool {
+        match order {
+            Some(Order::Orion(_)) => self.orion.lost() || self.orion.free(),
+            Some(Order::Irpc(_) | Order::Compact(_)) | None => true,
         }
     }
 
@@ -650,6 +936,17 @@ impl Drivers {
             .or_else(|| self.compact.poll_transmit())
     }
 
+    /// The next line for the Orion controller (without its newline).
+    pub(crate) fn poll_line(&mut self) -> Option<String> {
+        self.orion.poll_line()
+    }
+
+    /// The heartbeat to the bus's joints (iRPC's ArmReady). Whether it was
+    /// queued.
+    pub(crate) fn heartbeat(&mut self) -> bool {
+        self.irpc.heartbeat()
+    }
+
     /// Why `device` is offline, where its driver's link says so (the
     /// Orion controller before its beacon, lost, or being stopped after
     /// it came back).
@@ -671,6 +968,244 @@ impl Drivers {
         .flatten()
         .min()
     }
+
+    /// A frame from the bus at `now`, for whichever of `devices` it is.
+    pub(crate) fn handle_frame(&mut self, now: Duration, frame: &Frame, devices: &[Joint]) {
+        match route(frame, devices.iter().map(|j| (j.node, j.device))) {
+            Route::CompactFeedback(ji) => {
+                let Some(j) = devices.get(ji) else { return };
+                let Device::Compact { hash, .. } = j.device else {
+                    return;
+                };
+                match compact::feedback_record(frame, &j.name, hash) {
+                    Err(error) => self.tell(Happened::Bad {
+                        report: Some(Event::BadFrame {
+                            can_id: frame.id().to_string(),
+                            error,
+                        }),
+                    }),
+                    Ok(record) => {
+                        self.tell(Happened::Heard {
+                            device: ji,
+                            at: now,
+                            up: true,
+                        });
+                        let motion = (
+                            j.unit.to_degrees(f64::from(record.position)),
+                            j.unit.to_degrees(f64::from(record.velocity)),
+                        );
+                        let ts = unix_ms(self.epoch, now);
+                        let feedback = compact::feedback_to_wia(&j.name, ts, &record);
+                        self.tell(Happened::Reading {
+                            device: ji,
+                            at: now,
+                            motion: Some(motion),
+                            feedback: Some(feedback),
+                        });
+                        if let Some(ended) = self.compact.acknowledged(ji, now) {
+                            self.tell(Happened::Ended { device: ji, ended });
+                        }
+                    }
+                }
+            }
+            // A compact command (ours, heard back on a second socket):
+            // nothing to act on.
+            Route::CompactCommand => {}
+            Route::Irpc => self.irpc.handle_frame(now, frame),
+        }
+    }
+
+    /// Resends and time-outs of the bus's requests due at `now`.
+    pub(crate) fn handle_timeout(&mut self, now: Duration) {
+        self.irpc.handle_timeout(now);
+        for (device, ended) in self.compact.timeouts(now) {
+            self.tell(Happened::Ended { device, ended });
+        }
+    }
+
+    /// The links' requests due at `now`: the Orion line in flight sent
+    /// again or given up.
+    pub(crate) fn link_timeouts(&mut self, now: Duration, devices: &[Joint]) {
+        if let Some(done) = self.orion.expire(now) {
+            self.orion_done(&done, now, devices);
+        }
+    }
+
+    /// The links' own lines due at `now`, once the engine has taken what
+    /// [`Drivers::link_timeouts`] told: a recovery's stop, and a poll when
+    /// none of `devices` on the controller's link is `busy` (a step of
+    /// theirs in flight or ready to go).
+    pub(crate) fn link_housekeeping(
+        &mut self,
+        now: Duration,
+        devices: &[Joint],
+        busy: impl Fn(&Joint) -> bool,
+    ) {
+        let on_link = |j: &&Joint| j.device.link() == Link::Controller;
+        let idle =
+            devices.iter().any(|j| on_link(&j)) && !devices.iter().filter(on_link).any(&busy);
+        self.orion.housekeeping(now, idle);
+    }
+
+    /// One line from the Orion controller, received at `now`.
+    pub(crate) fn handle_line(
+        &mut self,
+        now: Duration,
+        line: &str,
+        devices: &[Joint],
+        map: &BusMap,
+    ) {
+        // Its motors held offline (it fell silent): heard again, it is
+        // made safe and known before they are online.
+        let offline = devices
+            .iter()
+            .any(|j| j.device.link() == Link::Controller && !j.online);
+        let output = match self.orion.read(now, line, offline) {
+            Ok(o) => o,
+            Err(bad) => return self.orion_bad(bad),
+        };
+        self.orion_heard(now, devices);
+        let applied = self
+            .orion
+            .apply(now, &output, map, unix_ms(self.epoch, now));
+        if let Some(bad) = applied.bad {
+            return self.orion_bad(bad);
+        }
+        if let Some((first, reported)) = applied.beacon {
+            if reported {
+                self.tell(Happened::Event(Event::OrionBeacon { first }));
+            }
+            self.orion_heard(now, devices);
+            if first {
+                self.tell(Happened::MayGo {
+                    devices: orion_devices(devices),
+                });
+            }
+        }
+        for f in applied.feedback {
+            let Some((ji, j)) = devices
+                .iter()
+                .enumerate()
+                .find(|(_, j)| j.name == f.motor_id)
+            else {
+                continue;
+            };
+            let Device::Orion(motor) = j.device else {
+                continue;
+            };
+            let degrees = j.unit.to_degrees(f.position);
+            let motion = match motor.quantity() {
+                Quantity::PositionDegrees => (degrees, 0.0),
+                Quantity::Speed | Quantity::Actuator => (0.0, f.velocity),
+            };
+            self.tell(Happened::Reading {
+                device: ji,
+                at: now,
+                motion: Some(motion),
+                feedback: Some(f),
+            });
+        }
+        if let Some(done) = applied.done {
+            self.orion_done(&done, now, devices);
+        }
+        if applied.recovered {
+            // Stopped and known: online again once what came before is
+            // taken, nothing resumed.
+            self.queued.push_back(Queued::EndOrionRecovery { at: now });
+        }
+    }
+
+    /// A line from the Orion controller that could not be read (too long,
+    /// not UTF-8), at `now`: reported like a bad line.
+    pub(crate) fn handle_unreadable(&mut self, now: Duration, reason: &str) {
+        let bad = self.orion.unreadable(now, reason);
+        self.orion_bad(bad);
+    }
+
+    /// The link to the Orion controller ended at `now` (`error` says how):
+    /// its motors are offline, and what was in flight has an unknown
+    /// outcome. Nothing when it was lost already.
+    pub(crate) fn link_lost(&mut self, now: Duration, error: &str, devices: &[Joint]) {
+        let Some(in_flight) = self.orion.link_lost(now) else {
+            return;
+        };
+        self.tell(Happened::Event(Event::OrionLinkLost {
+            error: error.to_owned(),
+        }));
+        if let Some(done) = in_flight {
+            self.orion_done(&done, now, devices);
+        }
+        self.tell(Happened::LinkLost {
+            devices: orion_devices(devices),
+            error: format!("the link to the Orion controller is lost: {error}"),
+        });
+    }
+
+    /// The next thing to tell the engine. `map` and `devices`: the
+    /// engine's, as they are now (an iRPC joint's feedback builds on its
+    /// last).
+    pub(crate) fn poll(&mut self, map: &BusMap, devices: &[Joint]) -> Option<Happened> {
+        loop {
+            match self.queued.pop_front() {
+                Some(Queued::Tell(h)) => return Some(h),
+                Some(Queued::EndOrionRecovery { at }) => {
+                    self.orion.end_recovery();
+                    self.orion_heard(at, devices);
+                }
+                None => {
+                    let event = self.irpc.poll_event()?;
+                    irpc::tell(event, map, devices, self.epoch, |h| {
+                        self.queued.push_back(Queued::Tell(h));
+                    });
+                }
+            }
+        }
+    }
+
+    fn tell(&mut self, h: Happened) {
+        self.queued.push_back(Queued::Tell(h));
+    }
+
+    /// Every Orion motor heard at `at`, online if the link is up.
+    fn orion_heard(&mut self, at: Duration, devices: &[Joint]) {
+        let up = self.orion.up();
+        for device in orion_devices(devices) {
+            self.tell(Happened::Heard { device, at, up });
+        }
+    }
+
+    /// A line of the controller's ended: each device whose step it carried
+    /// is done, and what waits for the controller may go.
+    fn orion_done(&mut self, done: &orion::Done, now: Duration, devices: &[Joint]) {
+        let ended = done.ended(now);
+        for &device in &done.joints {
+            self.tell(Happened::Ended {
+                device,
+                ended: ended.clone(),
+            });
+        }
+        self.tell(Happened::MayGo {
+            devices: orion_devices(devices),
+        });
+    }
+
+    fn orion_bad(&mut self, bad: orion::BadLine) {
+        let report = bad.report.map(|suppressed| Event::BadOrionLine {
+            error: bad.error,
+            suppressed,
+        });
+        self.tell(Happened::Bad { report });
+    }
+}
+
+/// The indices of the Orion controller's motors among `devices`.
+fn orion_devices(devices: &[Joint]) -> Vec<usize> {
+    devices
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| j.device.link() == Link::Controller)
+        .map(|(i, _)| i)
+        .collect()
 }
 
 #[cfg(test)]
