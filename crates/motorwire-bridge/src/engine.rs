@@ -3499,7 +3499,7 @@ impl Bridge {
                 at,
                 motion,
                 feedback,
-            } => self.reading(device, at, motion, feedback),
+            } => self.reading(device, at, motion, feedback.map(|f| *f)),
             Happened::Ended { device, ended } => self.step_done(device, ended),
             Happened::Lifecycle {
                 device,

@@ -81,6 +81,7 @@ use motorwire_irpc::{
 };
 
 use crate::isotp::IsoTpError;
+use crate::retry::{Attempts, Expiry};
 use crate::segmented::{LinkEvent, Links};
 pub use crate::segmented::{SegmentedIds, segmented_ids};
 use crate::{CanBus, CanId, Error, Frame};
@@ -301,9 +302,8 @@ struct Pending {
     target: u16,
     kind: PayloadKind,
     wire: Wire,
-    attempts: u8,
+    attempts: Attempts,
     sent_at: Duration,
-    deadline: Duration,
 }
 
 /// The sans-IO iRPC client.
@@ -483,9 +483,8 @@ impl Client {
                 target,
                 kind: payload.kind(),
                 wire,
-                attempts: 1,
+                attempts: Attempts::first(now, self.config.timeout, self.config.retries),
                 sent_at: now,
-                deadline: now.saturating_add(self.config.timeout),
             },
         );
         self.stats.requests += 1;
@@ -785,7 +784,7 @@ impl Client {
                 target: p.target,
                 kind: p.kind,
                 outcome,
-                attempts: p.attempts,
+                attempts: p.attempts.sent(),
                 sent_at: p.sent_at,
                 finished_at: now,
             }));
@@ -801,16 +800,14 @@ impl Client {
         let due: Vec<u32> = self
             .pending
             .iter()
-            .filter(|(_, p)| p.deadline <= now)
+            .filter(|(_, p)| p.attempts.deadline() <= now)
             .map(|(id, _)| *id)
             .collect();
         for id in due {
             let Some(p) = self.pending.get_mut(&id) else {
                 continue;
             };
-            if p.attempts <= self.config.retries {
-                p.attempts += 1;
-                p.deadline = now.saturating_add(self.config.timeout);
+            if p.attempts.expire(now, true) == Expiry::Resend {
                 let target = p.target;
                 match &p.wire {
                     Wire::Frame(frame) => self.out.push_back(*frame),
@@ -833,7 +830,7 @@ impl Client {
                     target: p.target,
                     kind: p.kind,
                     outcome: Outcome::TimedOut,
-                    attempts: p.attempts,
+                    attempts: p.attempts.sent(),
                     sent_at: p.sent_at,
                     finished_at: now,
                 }));
@@ -857,7 +854,7 @@ impl Client {
     pub fn poll_timeout(&self) -> Option<Duration> {
         self.pending
             .values()
-            .map(|p| p.deadline)
+            .map(|p| p.attempts.deadline())
             .chain(self.links.poll_timeout())
             .min()
     }

@@ -20,6 +20,7 @@ pub mod client;
 mod error;
 mod frame;
 pub mod isotp;
+pub mod retry;
 pub mod segmented;
 mod sim;
 #[cfg(all(feature = "socketcan", target_os = "linux"))]

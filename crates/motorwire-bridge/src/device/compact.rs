@@ -12,6 +12,8 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
+use motorwire_can::retry::{Attempts, Expiry};
+
 use motorwire_can::{CanId, Frame};
 use motorwire_compact::{CompactCommand, FeedbackRecord, MotorHash, StatusFlag};
 use motorwire_wia::MotorFeedback;
@@ -85,8 +87,7 @@ pub(crate) fn feedback_to_wia(motor: &str, timestamp: f64, r: &FeedbackRecord) -
 struct Pending {
     msg_id: u32,
     frame: Frame,
-    attempts: u8,
-    deadline: Duration,
+    attempts: Attempts,
 }
 
 /// The compact devices' requests in flight and frames to send, by device
@@ -134,8 +135,7 @@ impl CompactDriver {
             Pending {
                 msg_id,
                 frame,
-                attempts: 1,
-                deadline: now.saturating_add(self.timeout),
+                attempts: Attempts::first(now, self.timeout, self.retries),
             },
         );
         Ok(msg_id)
@@ -147,7 +147,7 @@ impl CompactDriver {
         self.pending.remove(&device).map(|p| Ended {
             msg_id: p.msg_id,
             outcome: Outcome::Acked,
-            attempts: p.attempts,
+            attempts: p.attempts.sent(),
             at: now,
         })
     }
@@ -164,7 +164,7 @@ impl CompactDriver {
         let Some(p) = self.pending.get(&device) else {
             return false;
         };
-        if p.attempts != 1 {
+        if p.attempts.sent() != 1 {
             return false;
         }
         let Some(at) = self.tx.iter().position(|f| *f == p.frame) else {
@@ -180,27 +180,22 @@ impl CompactDriver {
     /// retries are spent; those given up, by device.
     pub(crate) fn timeouts(&mut self, now: Duration) -> Vec<(usize, Ended)> {
         let mut ended = Vec::new();
-        let due: Vec<usize> = self
-            .pending
-            .iter()
-            .filter(|(_, p)| now >= p.deadline)
-            .map(|(device, _)| *device)
-            .collect();
-        for device in due {
-            let Some(p) = self.pending.get_mut(&device) else {
-                continue;
-            };
-            if p.attempts <= self.retries {
-                p.attempts += 1;
-                p.deadline = now.saturating_add(self.timeout);
-                self.tx.push_back(p.frame);
-            } else if let Some(p) = self.pending.remove(&device) {
+        let mut given_up = Vec::new();
+        for (&device, p) in &mut self.pending {
+            match p.attempts.expire(now, true) {
+                Expiry::Waiting => {}
+                Expiry::Resend => self.tx.push_back(p.frame),
+                Expiry::GiveUp => given_up.push(device),
+            }
+        }
+        for device in given_up {
+            if let Some(p) = self.pending.remove(&device) {
                 ended.push((
                     device,
                     Ended {
                         msg_id: p.msg_id,
                         outcome: Outcome::TimedOut,
-                        attempts: p.attempts,
+                        attempts: p.attempts.sent(),
                         at: now,
                     },
                 ));
@@ -211,7 +206,7 @@ impl CompactDriver {
 
     /// The next acknowledgement deadline.
     pub(crate) fn deadline(&self) -> Option<Duration> {
-        self.pending.values().map(|p| p.deadline).min()
+        self.pending.values().map(|p| p.attempts.deadline()).min()
     }
 
     /// The next frame to send.

@@ -285,7 +285,7 @@ pub(crate) fn tell(
             let ts = super::unix_ms(epoch, at);
             let feedback = feedback_from_irpc(map, node, &message.payload, ts, j.feedback.as_ref())
                 .ok()
-                .map(|t| t.value);
+                .map(|t| Box::new(t.value));
             if said.motion.is_some() || feedback.is_some() {
                 tell(Happened::Reading {
                     device,

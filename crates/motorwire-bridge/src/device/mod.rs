@@ -626,7 +626,7 @@ pub(crate) enum Happened {
         device: usize,
         at: Duration,
         motion: Option<(f64, f64)>,
-        feedback: Option<MotorFeedback>,
+        feedback: Option<Box<MotorFeedback>>,
     },
     /// Device `device`'s request in flight ended.
     Ended { device: usize, ended: Ended },
@@ -1000,7 +1000,7 @@ impl Drivers {
                             device: ji,
                             at: now,
                             motion: Some(motion),
-                            feedback: Some(feedback),
+                            feedback: Some(Box::new(feedback)),
                         });
                         if let Some(ended) = self.compact.acknowledged(ji, now) {
                             self.tell(Happened::Ended { device: ji, ended });
@@ -1102,7 +1102,7 @@ impl Drivers {
                 device: ji,
                 at: now,
                 motion: Some(motion),
-                feedback: Some(f),
+                feedback: Some(Box::new(f)),
             });
         }
         if let Some(done) = applied.done {
@@ -1212,6 +1212,45 @@ fn orion_devices(devices: &[Joint]) -> Vec<usize> {
 mod tests {
     use super::*;
     use motorwire_compact::VelocityLimit;
+
+    /// The layering this module promises, held against the engine's own
+    /// source: it names no dialect (no variant of [`Device`], [`Order`]
+    /// or the bus map's `Target`, no driver of [`Drivers`] by name), and
+    /// it is one `impl Bridge` in one file.
+    #[test]
+    fn the_engine_asks_no_dialect_question() {
+        let engine = include_str!("../engine.rs");
+        let code: String = engine
+            .lines()
+            .map(|l| l.split("//").next().unwrap_or(""))
+            .collect::<Vec<_>>()
+            .join("\n");
+        for dialect in ["Irpc", "Compact", "Orion"] {
+            for name in [
+                format!("Device::{dialect}"),
+                format!("Order::{dialect}"),
+                format!("Target::{dialect}"),
+            ] {
+                assert!(!code.contains(&name), "the engine names {name}");
+            }
+        }
+        for driver in [".irpc", ".compact", ".orion"] {
+            let named = format!("drivers{driver}");
+            assert!(!code.contains(&named), "the engine reaches {named}");
+        }
+        assert_eq!(code.matches(concat!("impl ", "Bridge {")).count(), 1);
+        for other in [
+            include_str!("../job.rs"),
+            include_str!("../joints.rs"),
+            include_str!("../arrival.rs"),
+            include_str!("mod.rs"),
+            include_str!("irpc.rs"),
+            include_str!("compact.rs"),
+            include_str!("orion.rs"),
+        ] {
+            assert!(!other.contains(concat!("impl ", "Bridge {")));
+        }
+    }
 
     const HASH: MotorHash = MotorHash(0x1234_5678);
 

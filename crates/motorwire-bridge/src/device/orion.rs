@@ -30,6 +30,7 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
+use motorwire_can::retry::{Attempts, Expiry};
 use motorwire_orion::{ArmCommand, Motor, MotorValues, Output};
 use motorwire_translate::BusMap;
 use motorwire_wia::MotorFeedback;
@@ -76,10 +77,7 @@ struct Pending {
     line: String,
     /// The mode of the answer that acknowledges it.
     mode: u8,
-    attempts: u8,
-    retries: u8,
-    timeout: Duration,
-    deadline: Duration,
+    attempts: Attempts,
     /// The values the line sets (its answer must report each of them).
     sets: Vec<(Motor, f64)>,
 }
@@ -110,7 +108,7 @@ impl Done {
             msg_id: p.msg_id,
             joints: p.joints,
             outcome,
-            attempts: p.attempts,
+            attempts: p.attempts.sent(),
         }
     }
 }
@@ -239,7 +237,7 @@ impl OrionDriver {
     /// The next deadline.
     pub(crate) fn deadline(&self) -> Option<Duration> {
         match &self.pending {
-            Some(p) => Some(p.deadline),
+            Some(p) => Some(p.attempts.deadline()),
             None if self.recovering => Some(Duration::ZERO),
             None if self.ready => self.next_poll,
             None => None,
@@ -269,7 +267,7 @@ impl OrionDriver {
         picked: impl Fn(usize) -> bool,
     ) -> Option<Vec<usize>> {
         let p = self.pending.as_ref()?;
-        if p.attempts != 1 || p.joints.is_empty() || !p.joints.iter().all(|&ji| picked(ji)) {
+        if p.attempts.sent() != 1 || p.joints.is_empty() || !p.joints.iter().all(|&ji| picked(ji)) {
             return None;
         }
         let at = self.tx.iter().position(|l| *l == p.line)?;
@@ -370,10 +368,7 @@ impl OrionDriver {
             joints: Vec::new(),
             line,
             mode,
-            attempts: 1,
-            retries,
-            timeout,
-            deadline: now.saturating_add(timeout),
+            attempts: Attempts::first(now, timeout, retries),
             sets: Vec::new(),
         });
         id
@@ -523,15 +518,17 @@ impl OrionDriver {
     /// retries (and device steps, and a link), else given up.
     pub(crate) fn expire(&mut self, now: Duration) -> Option<Done> {
         let p = self.pending.as_mut()?;
-        if now < p.deadline {
-            return None;
-        }
-        if p.attempts <= p.retries && !p.joints.is_empty() && !self.lost {
-            p.attempts += 1;
-            p.deadline = now.saturating_add(p.timeout);
-            let line = p.line.clone();
-            self.tx.push_back(line);
-            return None;
+        // A poll or a line whose steps were given up is not repeated, nor
+        // anything while the link is lost.
+        let may_resend = !p.joints.is_empty() && !self.lost;
+        match p.attempts.expire(now, may_resend) {
+            Expiry::Waiting => return None,
+            Expiry::Resend => {
+                let line = p.line.clone();
+                self.tx.push_back(line);
+                return None;
+            }
+            Expiry::GiveUp => {}
         }
         let p = self.pending.take()?;
         self.next_poll = Some(now);
