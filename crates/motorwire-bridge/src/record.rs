@@ -97,6 +97,7 @@ enum Record {
         number: u64,
         reason: String,
         stop: bool,
+        bytes: Option<(Vec<u8>, u64)>,
     },
     Mark {
         at: Instant,
@@ -125,9 +126,18 @@ pub trait Tap: Send + Sync + std::fmt::Debug {
         let _ = (at, origin, number, text);
     }
     /// Input line `number` of `origin` that could not be read; `stop`: it
-    /// was taken as a stop.
-    fn unreadable(&self, at: Instant, origin: Origin, number: u64, reason: &str, stop: bool) {
-        let _ = (at, origin, number, reason, stop);
+    /// was taken as a stop; `bytes`: its first bytes and its length, where
+    /// the reader kept them.
+    fn unreadable(
+        &self,
+        at: Instant,
+        origin: Origin,
+        number: u64,
+        reason: &str,
+        stop: bool,
+        bytes: Option<(&[u8], u64)>,
+    ) {
+        let _ = (at, origin, number, reason, stop, bytes);
     }
     /// An output line given at `at`.
     fn output(&self, at: Instant, output: &Output) {
@@ -160,8 +170,16 @@ impl Tap for Recorder {
     fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
         Recorder::input(self, at, origin, number, text);
     }
-    fn unreadable(&self, at: Instant, origin: Origin, number: u64, reason: &str, stop: bool) {
-        Recorder::unreadable(self, at, origin, number, reason, stop);
+    fn unreadable(
+        &self,
+        at: Instant,
+        origin: Origin,
+        number: u64,
+        reason: &str,
+        stop: bool,
+        bytes: Option<(&[u8], u64)>,
+    ) {
+        Recorder::unreadable(self, at, origin, number, reason, stop, bytes);
     }
     fn output(&self, at: Instant, output: &Output) {
         Recorder::output(self, at, output);
@@ -187,9 +205,17 @@ impl Tap for Taps {
             t.input(at, origin, number, text);
         }
     }
-    fn unreadable(&self, at: Instant, origin: Origin, number: u64, reason: &str, stop: bool) {
+    fn unreadable(
+        &self,
+        at: Instant,
+        origin: Origin,
+        number: u64,
+        reason: &str,
+        stop: bool,
+        bytes: Option<(&[u8], u64)>,
+    ) {
         for t in &self.0 {
-            t.unreadable(at, origin, number, reason, stop);
+            t.unreadable(at, origin, number, reason, stop, bytes);
         }
     }
     fn output(&self, at: Instant, output: &Output) {
@@ -391,14 +417,25 @@ impl Recorder {
     }
 
     /// Input line `number` of `origin` that could not be read (`reason`);
-    /// `stop`: it named `emergency_stop` and was taken as a stop.
-    pub fn unreadable(&self, at: Instant, origin: Origin, number: u64, reason: &str, stop: bool) {
+    /// `stop`: it named `emergency_stop` and was taken as a stop; `bytes`:
+    /// its first bytes (written in hex as `bytes`) and its length
+    /// (`length`).
+    pub fn unreadable(
+        &self,
+        at: Instant,
+        origin: Origin,
+        number: u64,
+        reason: &str,
+        stop: bool,
+        bytes: Option<(&[u8], u64)>,
+    ) {
         self.put(Record::Unreadable {
             at,
             origin,
             number,
             reason: reason.to_owned(),
             stop,
+            bytes: bytes.map(|(b, n)| (b.to_vec(), n)),
         });
     }
 
@@ -668,13 +705,21 @@ impl Files {
                 number,
                 reason,
                 stop,
+                bytes,
                 ..
             } => {
-                let body = if stop {
-                    serde_json::json!({"origin": origin.0, "line": number, "unreadable": reason, "stop": true})
-                } else {
-                    serde_json::json!({"origin": origin.0, "line": number, "unreadable": reason})
-                };
+                let mut body = serde_json::Map::new();
+                body.insert("origin".into(), origin.0.into());
+                body.insert("line".into(), number.into());
+                body.insert("unreadable".into(), reason.into());
+                if stop {
+                    body.insert("stop".into(), true.into());
+                }
+                if let Some((b, length)) = bytes {
+                    body.insert("bytes".into(), motorwire_can::candump::bytes_hex(&b).into());
+                    body.insert("length".into(), length.into());
+                }
+                let body = serde_json::Value::Object(body);
                 format!("{}{body}}}", head("in"))
             }
             Record::Mark { mark, .. } => format!("{}{}}}", head("mark"), mark.to_value()),
@@ -853,7 +898,14 @@ mod tests {
         let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0x00, 0x12, 0x01, 0x03]).unwrap();
         rec.frame(t, Direction::Tx, &f);
         rec.orion(t, Direction::Tx, r#"{"ID":32,"MODE":2,"DATA":1}"#);
-        rec.unreadable(t, Origin(2), 2, "the line is not UTF-8", false);
+        rec.unreadable(
+            t,
+            Origin(2),
+            2,
+            "the line is not UTF-8",
+            false,
+            Some((&[0x7b, 0xff, 0x0d], 3)),
+        );
         let s = rec.finish();
         assert_eq!((s.written, s.dropped), (4, 0));
         let frames = fs::read_to_string(dir.join("frames.log")).unwrap();
@@ -881,6 +933,10 @@ mod tests {
         assert_eq!(lines[1]["frame"]["data"], "00120103");
         assert_eq!(lines[2]["orion"]["line"], r#"{"ID":32,"MODE":2,"DATA":1}"#);
         assert_eq!(lines[3]["in"]["unreadable"], "the line is not UTF-8");
+        // Its bytes, which no text can hold, in hex (as a frame's data),
+        // and its length.
+        assert_eq!(lines[3]["in"]["bytes"], "7bff0d");
+        assert_eq!(lines[3]["in"]["length"], 3);
         let session: serde_json::Value =
             serde_json::from_str(&fs::read_to_string(dir.join("session.json")).unwrap()).unwrap();
         assert_eq!(

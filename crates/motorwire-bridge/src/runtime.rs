@@ -113,6 +113,9 @@ enum Msg {
         reason: String,
         /// It names `emergency_stop`: taken as a stop.
         stop: bool,
+        /// Its first bytes (at most [`UNREADABLE_HEAD`]) and its length,
+        /// for the recording.
+        bytes: Option<(Vec<u8>, u64)>,
     },
     /// A stop is waiting on the urgent channel.
     Wake,
@@ -234,6 +237,7 @@ impl InputSender {
             number,
             reason: reason.into(),
             stop: false,
+            bytes: None,
         });
     }
 
@@ -248,8 +252,40 @@ impl InputSender {
             number,
             reason: reason.into(),
             stop: true,
+            bytes: None,
         });
         let _ = self.tx.send(Msg::Wake);
+    }
+
+    /// A line that could not be read (`reason`: too long, not UTF-8),
+    /// with its first bytes (`head`, at most [`UNREADABLE_HEAD`] kept) and
+    /// its `length`, which a recording keeps: answered with an error and
+    /// never sent, or, when `stop` (it names `emergency_stop`), taken as a
+    /// stop, as [`InputSender::refused_stop`] does.
+    pub fn unreadable(
+        &self,
+        origin: Origin,
+        reason: impl Into<String>,
+        stop: bool,
+        mut head: Vec<u8>,
+        length: u64,
+    ) {
+        head.truncate(UNREADABLE_HEAD);
+        self.budget.take(origin, stop, 0);
+        let number = self.number(origin);
+        let msg = Msg::Refused {
+            origin,
+            number,
+            reason: reason.into(),
+            stop,
+            bytes: Some((head, length)),
+        };
+        if stop {
+            let _ = self.urgent.send(msg);
+            let _ = self.tx.send(Msg::Wake);
+        } else {
+            let _ = self.tx.send(msg);
+        }
     }
 
     /// How many lines of `origin` were handed over (each gets one result),
@@ -304,6 +340,10 @@ impl InputSender {
     }
 }
 
+/// How many of an unreadable line's first bytes are kept for the
+/// recording ([`ReadLine::TooLong`], [`ReadLine::NotUtf8`]).
+pub const UNREADABLE_HEAD: usize = 4096;
+
 /// A line read by [`read_line`].
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ReadLine {
@@ -313,11 +353,19 @@ pub enum ReadLine {
     TooLong {
         /// The skipped bytes contain `emergency_stop`.
         names_stop: bool,
+        /// Its first bytes (at most [`UNREADABLE_HEAD`]).
+        head: Vec<u8>,
+        /// Its length in bytes (without its newline).
+        length: u64,
     },
     /// A line that is not UTF-8.
     NotUtf8 {
         /// Its bytes contain `emergency_stop`.
         names_stop: bool,
+        /// Its first bytes (at most [`UNREADABLE_HEAD`]).
+        head: Vec<u8>,
+        /// Its length in bytes (without its newline).
+        length: u64,
     },
     /// Bytes at the end of input with no newline after them.
     Partial(String),
@@ -333,7 +381,10 @@ pub enum ReadLine {
 /// use motorwire_bridge::{ReadLine, read_line};
 /// let mut r = std::io::Cursor::new(b"{\"emergency_stop\":true}\nxxxxxxxxxxxx\n".to_vec());
 /// assert_eq!(read_line(&mut r, 32).unwrap(), ReadLine::Line(r#"{"emergency_stop":true}"#.into()));
-/// assert_eq!(read_line(&mut r, 8).unwrap(), ReadLine::TooLong { names_stop: false });
+/// assert_eq!(
+///     read_line(&mut r, 8).unwrap(),
+///     ReadLine::TooLong { names_stop: false, head: b"xxxxxxxxxxxx".to_vec(), length: 12 }
+/// );
 /// assert_eq!(read_line(&mut r, 8).unwrap(), ReadLine::End);
 /// ```
 ///
@@ -347,6 +398,9 @@ pub fn read_line(reader: &mut impl BufRead, max_line: usize) -> io::Result<ReadL
     let mut names_stop = false;
     let mut tail: Vec<u8> = Vec::new();
     let mut skipped: u64 = 0;
+    // A too-long line's first bytes and its length, for the recording.
+    let mut head: Vec<u8> = Vec::new();
+    let mut length: u64 = 0;
     loop {
         if skipped > MAX_SKIP {
             return Err(io::Error::new(
@@ -365,7 +419,11 @@ pub fn read_line(reader: &mut impl BufRead, max_line: usize) -> io::Result<ReadL
             };
             if buf.is_empty() {
                 return Ok(if too_long {
-                    ReadLine::TooLong { names_stop }
+                    ReadLine::TooLong {
+                        names_stop,
+                        head,
+                        length,
+                    }
                 } else if bytes.is_empty() {
                     ReadLine::End
                 } else {
@@ -375,6 +433,7 @@ pub fn read_line(reader: &mut impl BufRead, max_line: usize) -> io::Result<ReadL
             match buf.iter().position(|&b| b == b'\n') {
                 Some(i) => {
                     let seg = buf.get(..i).unwrap_or_default();
+                    length += seg.len() as u64;
                     if too_long {
                         names_stop |= scan(&mut tail, seg);
                     } else {
@@ -383,6 +442,7 @@ pub fn read_line(reader: &mut impl BufRead, max_line: usize) -> io::Result<ReadL
                     (i + 1, true)
                 }
                 None => {
+                    length += buf.len() as u64;
                     if too_long {
                         names_stop |= scan(&mut tail, buf);
                     } else {
@@ -399,11 +459,16 @@ pub fn read_line(reader: &mut impl BufRead, max_line: usize) -> io::Result<ReadL
         if bytes.len() > max_line {
             too_long = true;
             names_stop |= scan(&mut tail, &bytes);
-            bytes = Vec::new();
+            bytes.truncate(UNREADABLE_HEAD);
+            head = std::mem::take(&mut bytes);
         }
         if done {
             if too_long {
-                return Ok(ReadLine::TooLong { names_stop });
+                return Ok(ReadLine::TooLong {
+                    names_stop,
+                    head,
+                    length,
+                });
             }
             return Ok(match String::from_utf8(bytes) {
                 Ok(mut s) => {
@@ -412,10 +477,17 @@ pub fn read_line(reader: &mut impl BufRead, max_line: usize) -> io::Result<ReadL
                     }
                     ReadLine::Line(s)
                 }
-                Err(e) => ReadLine::NotUtf8 {
-                    names_stop: e.as_bytes().windows(14).any(|w| w == b"emergency_stop")
-                        || crate::classify::names_a_stop(&String::from_utf8_lossy(e.as_bytes())),
-                },
+                Err(e) => {
+                    let mut head = e.into_bytes();
+                    let names_stop = head.windows(14).any(|w| w == b"emergency_stop")
+                        || crate::classify::names_a_stop(&String::from_utf8_lossy(&head));
+                    head.truncate(UNREADABLE_HEAD);
+                    ReadLine::NotUtf8 {
+                        names_stop,
+                        head,
+                        length,
+                    }
+                }
             });
         }
     }
@@ -457,18 +529,16 @@ pub fn feed(
     loop {
         match read_line(reader, input.max_line)? {
             ReadLine::Line(s) => input.line(origin, s),
-            ReadLine::TooLong { names_stop: false } => {
-                input.refused(origin, input.too_long());
-            }
-            ReadLine::TooLong { names_stop: true } => {
-                input.refused_stop(origin, input.too_long());
-            }
-            ReadLine::NotUtf8 { names_stop: false } => {
-                input.refused(origin, "the line is not UTF-8");
-            }
-            ReadLine::NotUtf8 { names_stop: true } => {
-                input.refused_stop(origin, "the line is not UTF-8");
-            }
+            ReadLine::TooLong {
+                names_stop,
+                head,
+                length,
+            } => input.unreadable(origin, input.too_long(), names_stop, head, length),
+            ReadLine::NotUtf8 {
+                names_stop,
+                head,
+                length,
+            } => input.unreadable(origin, "the line is not UTF-8", names_stop, head, length),
             ReadLine::Partial(s) if partial_is_line => {
                 input.line(origin, s);
                 return Ok(());
@@ -776,6 +846,7 @@ impl Runner {
                     number,
                     reason,
                     stop: true,
+                    ..
                 }) => {
                     bridge.handle_numbered_unreadable_stop(
                         since(Instant::now()),
@@ -789,6 +860,7 @@ impl Runner {
                     number,
                     reason,
                     stop: false,
+                    ..
                 }) => {
                     bridge.handle_numbered_unreadable(
                         since(Instant::now()),
@@ -860,7 +932,15 @@ fn record_input(r: &dyn Tap, msg: &Msg) {
             number,
             reason,
             stop,
-        } => r.unreadable(Instant::now(), *origin, *number, reason, *stop),
+            bytes,
+        } => r.unreadable(
+            Instant::now(),
+            *origin,
+            *number,
+            reason,
+            *stop,
+            bytes.as_ref().map(|(b, n)| (b.as_slice(), *n)),
+        ),
         Msg::Frame { frame, at } => r.frame(*at, Direction::Rx, frame),
         Msg::OrionLine { text, at } => r.orion(*at, Direction::Rx, text),
         Msg::Greet { origin } => r.mark(Instant::now(), Mark::Greet(*origin)),

@@ -94,6 +94,28 @@ fn parse_timestamp(s: &str) -> Result<Duration, String> {
     Ok(Duration::new(secs, nanos))
 }
 
+/// `bytes` as hex digits, two a byte, lower case (as a recording's
+/// `lines.jsonl` writes a frame's data): what [`hex_bytes`] reads back.
+///
+/// ```
+/// let text = motorwire_can::candump::bytes_hex(&[0x00, 0xff, 0x12]);
+/// assert_eq!(text, "00ff12");
+/// assert_eq!(motorwire_can::candump::hex_bytes(&text), Ok(vec![0x00, 0xff, 0x12]));
+/// ```
+#[must_use]
+pub fn bytes_hex(bytes: &[u8]) -> String {
+    const DIGITS: &[u8; 16] = b"0123456789abcdef";
+    let mut s = String::with_capacity(bytes.len() * 2);
+    for &b in bytes {
+        for d in [b >> 4, b & 0x0f] {
+            s.push(char::from(
+                DIGITS.get(usize::from(d)).copied().unwrap_or(b'0'),
+            ));
+        }
+    }
+    s
+}
+
 /// The bytes hex digits spell (`"deadbeef"`), as a log's data is written.
 ///
 /// ```

@@ -843,17 +843,25 @@ impl Router {
                 // names one).
                 let origin = Origin(id);
                 match unreadable {
-                    ReadLine::TooLong { names_stop } => {
+                    ReadLine::TooLong {
+                        names_stop,
+                        head,
+                        length,
+                    } => {
                         let why = self.input.too_long();
-                        if names_stop {
-                            self.input.refused_stop(origin, why);
-                        } else {
-                            self.input.refused(origin, why);
-                        }
+                        self.input.unreadable(origin, why, names_stop, head, length);
                     }
-                    ReadLine::NotUtf8 { names_stop: true } => {
-                        self.input.refused_stop(origin, "the line is not UTF-8");
-                    }
+                    ReadLine::NotUtf8 {
+                        names_stop,
+                        head,
+                        length,
+                    } => self.input.unreadable(
+                        origin,
+                        "the line is not UTF-8",
+                        names_stop,
+                        head,
+                        length,
+                    ),
                     _ => self.input.refused(origin, "the line is not UTF-8"),
                 }
                 self.feed_rest(id, &mut reader);

@@ -26,6 +26,8 @@ fn a_recorded_session_holds_every_line_and_frame_in_both_formats() {
          {{\"motor_id\":\"elbow\",\"timestamp\":{t},\"control_mode\":\"position\",\"setpoint\":170}}\n\
          {{\"motor_id\":\"turntable\",\"timestamp\":{t},\"control_mode\":\"velocity\",\"setpoint\":100}}\n"
     );
+    // A line that is not UTF-8: refused, and recorded by its bytes.
+    let bad: &[u8] = b"{\"motor_id\":\"elbow\",\"x\":\"\xff\"}\n";
     let stop = "{\"emergency_stop\":true}\n";
     let input = format!("{moves}{stop}");
     let mut child = common::spawn(&[
@@ -43,6 +45,7 @@ fn a_recorded_session_holds_every_line_and_frame_in_both_formats() {
     ]);
     let mut pipe = child.stdin.take().unwrap();
     pipe.write_all(moves.as_bytes()).unwrap();
+    pipe.write_all(bad).unwrap();
     // The moves run before the stop comes (a stop overtakes the lines
     // queued before it).
     std::thread::sleep(std::time::Duration::from_millis(800));
@@ -74,11 +77,19 @@ fn a_recorded_session_holds_every_line_and_frame_in_both_formats() {
     // bridge took them (a stop may overtake the lines queued before it).
     let mut ins: Vec<&Value> = lines.iter().filter_map(|l| l.get("in")).collect();
     ins.sort_by_key(|i| i["line"].as_u64());
+    let unread = ins.remove(3);
+    assert_eq!(unread["line"], 4);
+    assert_eq!(unread["unreadable"], "the line is not UTF-8");
+    assert_eq!(
+        unread["bytes"],
+        "7b226d6f746f725f6964223a22656c626f77222c2278223a22ff227d"
+    );
+    assert_eq!(unread["length"], bad.len() - 1);
     let sent: Vec<&str> = input.lines().collect();
     assert_eq!(ins.len(), sent.len());
     for (k, (i, text)) in ins.iter().zip(&sent).enumerate() {
         assert_eq!(i["origin"], 0);
-        assert_eq!(i["line"], k + 1);
+        assert_eq!(i["line"], if k < 3 { k + 1 } else { k + 2 });
         assert_eq!(i["text"], *text);
     }
     // Every frame in both files, the same frame in the same order.

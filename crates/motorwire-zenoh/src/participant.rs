@@ -642,13 +642,13 @@ fn command(payload: &[u8], max_line: usize) -> Command {
     let text = match read_line(&mut std::io::Cursor::new(bytes), max_line) {
         // A blank line would get no result at all: refused instead.
         Ok(ReadLine::Line(s)) if !s.trim().is_empty() => s,
-        Ok(ReadLine::TooLong { names_stop }) => {
+        Ok(ReadLine::TooLong { names_stop, .. }) => {
             return Command::Refused {
                 reason: format!("the command is over {max_line} bytes (the bridge's --max-size)"),
                 stop: names_stop,
             };
         }
-        Ok(ReadLine::NotUtf8 { names_stop }) => {
+        Ok(ReadLine::NotUtf8 { names_stop, .. }) => {
             return Command::Refused {
                 reason: "the command is not UTF-8".to_owned(),
                 stop: names_stop,
