@@ -106,12 +106,11 @@ impl Watch {
     }
 }
 
-/// `v` as the shortest decimal of the nearest f32 (a report, not a
-/// measurement to the last bit).
-fn short(v: f64) -> f64 {
-    #[allow(clippy::cast_possible_truncation)]
-    let f = v as f32;
-    f32_shortest(f).unwrap_or(v)
+/// `v` as the nearest f32 (a report, not a measurement to the last bit;
+/// JSON writes an f32 as its shortest decimal).
+#[allow(clippy::cast_possible_truncation)]
+const fn short(v: f64) -> f32 {
+    v as f32
 }
 
 /// The f64 whose shortest decimal is `f`'s (so `0.1f32` prints `0.1`, not

@@ -492,10 +492,18 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
     // the only other reading. Anything else (a stop, a release, the
     // bridge's own forms, an invalid line) is decided below from all its
     // members, exactly as before.
-    if plain_message(line)
-        && let Ok(m) = validator.parse_any(line)
-    {
-        return Input::Message(Box::new(m));
+    match plain_message(line) {
+        Some(Some(kind)) => {
+            if let Ok(m) = validator.parse_as(kind, line) {
+                return Input::Message(Box::new(m));
+            }
+        }
+        Some(None) => {
+            if let Ok(m) = validator.parse_any(line) {
+                return Input::Message(Box::new(m));
+            }
+        }
+        None => {}
     }
     classify_members(validator, line)
 }
@@ -510,18 +518,20 @@ const OWN_FORMS: [&[u8]; 6] = [
     b"query",
 ];
 
-/// Whether `line` cannot name a stop (no `emergency` and no escape in it)
-/// and is a JSON object none of whose top-level names is one of the
+/// `Some` when `line` cannot name a stop (no `emergency` and no escape in
+/// it) and is a JSON object none of whose top-level names is one of the
 /// bridge's own forms: then [`classify_members`] would take it as a WIA
-/// message if the validator does. A scan of the bytes
-/// ([`motorwire_wia::top_level_names`]), nothing parsed and nothing
-/// allocated; `false` whenever the scan cannot be sure.
-fn plain_message(line: &str) -> bool {
+/// message if the validator does; with the kind its names say, if any.
+/// One scan of the bytes ([`motorwire_wia::scan_kind_noting`]), nothing
+/// parsed and nothing allocated; `None` whenever the scan cannot be sure.
+fn plain_message(line: &str) -> Option<Option<motorwire_wia::MessageKind>> {
     if line.contains("emergency") || line.contains('\\') {
-        return false;
+        return None;
     }
     let mut own = false;
-    motorwire_wia::top_level_names(line, |name| own |= OWN_FORMS.contains(&name)) && !own
+    let kind =
+        motorwire_wia::scan_kind_noting(line, |name| own |= OWN_FORMS.contains(&name)).ok()?;
+    (!own).then_some(kind)
 }
 
 /// [`classify`] from every member of the line.
@@ -788,7 +798,21 @@ mod tests {
             assert_eq!(classify(&v, line), classify_members(&v, line), "{line}");
         }
         // Which lines took the one-parse path: the plain messages only.
-        let plain: Vec<bool> = LINES.iter().map(|l| plain_message(l)).collect();
+        let plain: Vec<bool> = LINES.iter().map(|l| plain_message(l).is_some()).collect();
+        // With the kind their names say, read in the same scan.
+        use motorwire_wia::MessageKind;
+        assert_eq!(
+            plain_message(LINES[0]),
+            Some(Some(MessageKind::MotorCommand))
+        );
+        assert_eq!(
+            plain_message(LINES[11]),
+            Some(Some(MessageKind::MultiAxisCommand))
+        );
+        assert_eq!(
+            plain_message(LINES[15]),
+            Some(Some(MessageKind::SafetyLimits))
+        );
         assert_eq!(
             plain,
             [

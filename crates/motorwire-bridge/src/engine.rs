@@ -3296,12 +3296,14 @@ impl Bridge {
     /// line still waiting on one of these joints will not arrive now.
     fn watch(&mut self, meta: LineMeta, moved: Vec<(usize, String, f64)>, since: Duration) {
         let now = self.now;
-        for (ji, ..) in &moved {
+        if !self.arrivals.is_empty() {
             let why = format!(
                 "superseded by line {} of client {}",
                 meta.number, meta.origin.0
             );
-            self.fail_watches(|w| w.waits_on(*ji), &why);
+            for (ji, ..) in &moved {
+                self.fail_watches(|w| w.waits_on(*ji), &why);
+            }
         }
         let mut w = self.watch_of(meta, moved, since);
         let origin = w.line.origin;

@@ -118,12 +118,15 @@ pub struct MotorArrival {
     pub motor_id: String,
     /// Whether it arrived.
     pub arrived: bool,
-    /// Its target, in its unit.
-    pub target: f64,
+    /// Its target, in its unit (an f32, as the devices' setpoints are:
+    /// written as its shortest decimal, `0.1` and not
+    /// `0.10000000149011612`).
+    pub target: f32,
     /// How far from the target it was when it arrived, or at the verdict
-    /// (in its unit; absent when no position was ever reported).
+    /// (in its unit, an f32 as `target`; absent when no position was ever
+    /// reported).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub error: Option<f64>,
+    pub error: Option<f32>,
     /// When it arrived, from the result (ms).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub after_ms: Option<u64>,

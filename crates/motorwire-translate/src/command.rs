@@ -228,14 +228,49 @@ fn the(source: &str) -> String {
 
 /// `value from the source`, as a defaulted limit's report says it.
 fn from_source(value: f64, source: &str) -> String {
-    use core::fmt::Write;
-    let the = the(source);
-    let mut s = String::with_capacity(the.len() + 16);
-    // Writing to a String cannot fail.
-    let _ = write!(s, "{value}");
+    let mut s = String::with_capacity(source.len() + 24);
+    push_value(&mut s, value);
     s.push_str(" from ");
-    s.push_str(&the);
+    if !source.starts_with("the ") {
+        s.push_str("the ");
+    }
+    s.push_str(source);
     s
+}
+
+/// Writes `v` as `{v}` writes it. A whole number (a limit such as 500,
+/// what every defaulted limit of every command says) is written without
+/// the formatting machinery, whose float path costs a bridge more than
+/// the rest of the report.
+fn push_value(s: &mut String, v: f64) {
+    // Below 2^53 every whole f64 is an exact i64.
+    if v.fract() == 0.0 && v.abs() < 9.0e15 && !(v == 0.0 && v.is_sign_negative()) {
+        #[allow(clippy::cast_possible_truncation)]
+        let n = v as i64;
+        if n < 0 {
+            s.push('-');
+        }
+        let mut digits = [0u8; 20];
+        let mut at = digits.len();
+        let mut m = n.unsigned_abs();
+        loop {
+            at -= 1;
+            if let Some(d) = digits.get_mut(at) {
+                #[allow(clippy::cast_possible_truncation)]
+                let digit = (m % 10) as u8;
+                *d = b'0' + digit;
+            }
+            m /= 10;
+            if m == 0 {
+                break;
+            }
+        }
+        s.push_str(core::str::from_utf8(digits.get(at..).unwrap_or_default()).unwrap_or("0"));
+        return;
+    }
+    use core::fmt::Write;
+    // Writing to a String cannot fail.
+    let _ = write!(s, "{v}");
 }
 
 fn resolve(
@@ -328,7 +363,7 @@ fn set_target(
             report.push(
                 "max_deceleration",
                 LossKind::Defaulted,
-                format!("{d} from {}", the(motor.limits_source)),
+                from_source(d, motor.limits_source),
             );
             d
         }
@@ -348,11 +383,7 @@ fn set_target(
     let (profile, jerk) = match (motor.profile, motor.limits.max_jerk) {
         (MotionProfile::Trapezoidal, _) => (MotionProfile::Trapezoidal, 0.0),
         (p, Some(j)) => {
-            report.push(
-                "max_jerk",
-                LossKind::Defaulted,
-                format!("{j} from the bus map"),
-            );
+            report.push("max_jerk", LossKind::Defaulted, from_source(j, "bus map"));
             (p, j)
         }
         (_, None) => {
@@ -713,4 +744,37 @@ pub fn to_orion(
         value: input,
         report,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    /// A value in a report is written as `{v}` writes it, whole numbers
+    /// (the fast path) and the rest alike.
+    #[test]
+    fn a_reported_value_is_written_as_display_writes_it() {
+        for v in [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            500.0,
+            2000.0,
+            -123_456_789.0,
+            8_999_999_999_999_998.0,
+            9.0e15,
+            1e300,
+            0.5,
+            -2.25,
+            120.000_000_1,
+            f64::MIN_POSITIVE,
+            f64::MAX,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ] {
+            let mut s = String::new();
+            super::push_value(&mut s, v);
+            assert_eq!(s, format!("{v}"), "{v:?}");
+        }
+    }
 }

@@ -219,8 +219,44 @@ impl<'de> Deserialize<'de> for TopLevelKeys {
 /// asks [`MessageKind::infer`], which also says what is wrong. The scan
 /// does not check the syntax: the typed parse that follows does.
 pub(crate) fn scan_kind(json: &str) -> Option<MessageKind> {
+    scan_kind_noting(json, |_| {}).ok()?
+}
+
+/// The kind of WIA message the top-level member names of the JSON object
+/// `json` holds say it is (as [`MessageKind::infer`] says it of a valid
+/// message), from one scan of its bytes ([`top_level_names`]) that also
+/// gives each name to `note`: `Ok(None)` when the names fit no kind,
+/// `Err(())` when the scan cannot be sure of them. What a caller that
+/// looks at the names itself reads the line once for; then
+/// [`crate::Validator::parse_as`].
+///
+/// ```
+/// use motorwire_wia::{MessageKind, scan_kind_noting};
+/// let mut names = 0;
+/// let line = r#"{"motor_id":"m","timestamp":1,"control_mode":"position","setpoint":1}"#;
+/// assert_eq!(scan_kind_noting(line, |_| names += 1), Ok(Some(MessageKind::MotorCommand)));
+/// assert_eq!(names, 4);
+/// assert_eq!(scan_kind_noting(r#"{"a":1}"#, |_| {}), Ok(None));
+/// assert_eq!(scan_kind_noting("[1]", |_| {}), Err(()));
+/// ```
+///
+/// # Errors
+/// `()` when the scan cannot be sure of the names (not an object, an
+/// escaped name, an object that never closes).
+#[allow(clippy::result_unit_err)]
+pub fn scan_kind_noting(
+    json: &str,
+    mut note: impl FnMut(&[u8]),
+) -> Result<Option<MessageKind>, ()> {
     let mut keys = TopLevelKeys::default();
-    top_level_names(json, |name| keys.note(name)).then(|| keys.kind())?
+    if top_level_names(json, |name| {
+        note(name);
+        keys.note(name);
+    }) {
+        Ok(keys.kind())
+    } else {
+        Err(())
+    }
 }
 
 /// Calls `note` with each top-level member name of the JSON object `json`

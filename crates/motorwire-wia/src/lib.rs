@@ -31,7 +31,9 @@ pub use feedback::{MotorFeedback, MotorHealth, MotorStatus};
 /// mistaken for `motorwire_irpc::Message` (an iRPC frame's message, also
 /// `motorwire_irpc::IrpcMessage`): the same type.
 pub use kind::Message as AnyWiaMessage;
-pub use kind::{Message, MessageKind, UnknownKindName, WiaMessage, top_level_names};
+pub use kind::{
+    Message, MessageKind, UnknownKindName, WiaMessage, scan_kind_noting, top_level_names,
+};
 pub use mode_config::{ControlModeConfig, ModeLimits, ModeParameters};
 pub use pid::{OutputLimits, PidConfig, PidConfigGains, SetpointFilter};
 pub use rule::{Level, Rule, Violation};

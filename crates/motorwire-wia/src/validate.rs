@@ -254,6 +254,23 @@ impl Validator {
         self.typed(kind, json)
     }
 
+    /// `json` as a valid message of `kind` (the kind its names say:
+    /// [`crate::scan_kind_noting`]), within the size and depth limits.
+    /// Where this fails, [`Validator::parse_any`] gives the error a caller
+    /// shows (the kind it infers may be another).
+    ///
+    /// # Errors
+    /// [`Error::Invalid`].
+    pub fn parse_as(&self, kind: MessageKind, json: &str) -> Result<Message, Error> {
+        self.precheck(json).map_err(|v| {
+            Error::Invalid(Report {
+                kind: None,
+                violations: vec![v],
+            })
+        })?;
+        self.typed(kind, json)
+    }
+
     /// `json`, which passed the size and depth limits, as a valid message
     /// of `kind`.
     fn typed(&self, kind: MessageKind, json: &str) -> Result<Message, Error> {
