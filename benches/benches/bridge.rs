@@ -400,8 +400,95 @@ fn stop_per_dialect(n: usize) {
     }
 }
 
+/// A policy streaming position setpoints (`"stream":true`) to the
+/// simulated elbow at `hz` for `seconds`: a 0.5 Hz sine of amplitude 20
+/// degrees about 60, in simulated time. Returns the tracking error's RMS
+/// and maximum (degrees, the joint against the sine at each millisecond
+/// after the first second), the lag (the shift of the sine, in ms, that
+/// fits the joint best), output lines per input line, and the wall-clock
+/// time the run took (the bridge and the simulated joint together).
+fn stream_tracking(hz: u32, seconds: u32, stream: bool) -> (f64, f64, u32, f64, Duration) {
+    let mut arm = simulated_arm(MAP);
+    let wave = |t: f64| 60.0 + 20.0 * (std::f64::consts::TAU * 0.5 * t).sin();
+    // From where the stream starts.
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"position","setpoint":60}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    arm.take_outputs();
+    let t0 = arm.now();
+    let period_us = 1_000_000 / u64::from(hz);
+    let (mut inputs, mut outputs) = (0u64, 0u64);
+    let mut track = Vec::new();
+    let mut next_us = 0u64;
+    let wall = Instant::now();
+    for ms in 0..u64::from(seconds) * 1000 {
+        let now_us = ms * 1000;
+        while next_us <= now_us {
+            #[allow(clippy::cast_precision_loss)]
+            let t = next_us as f64 / 1e6;
+            let extra = if stream { r#","stream":true"# } else { "" };
+            arm.line(
+                Origin(1),
+                &format!(
+                    r#"{{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"position","setpoint":{}{extra}}}"#,
+                    wave(t)
+                ),
+            );
+            inputs += 1;
+            next_us += period_us;
+        }
+        arm.run_until(t0 + Duration::from_millis(ms + 1)).unwrap();
+        outputs += arm.take_outputs().len() as u64;
+        #[allow(clippy::cast_precision_loss)]
+        let t = (ms + 1) as f64 / 1000.0;
+        track.push((t, arm.joint(0x12).unwrap().position()));
+    }
+    let wall = wall.elapsed();
+    let error = |lag_ms: u32| {
+        let lag = f64::from(lag_ms) / 1000.0;
+        let e: Vec<f64> = track
+            .iter()
+            .filter(|(t, _)| *t > 1.0)
+            .map(|(t, p)| p - wave(t - lag))
+            .collect();
+        #[allow(clippy::cast_precision_loss)]
+        let rms = (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt();
+        (rms, e.iter().fold(0.0f64, |m, x| m.max(x.abs())))
+    };
+    let (rms, max) = error(0);
+    let lag = (0..=500)
+        .min_by(|a, b| error(*a).0.total_cmp(&error(*b).0))
+        .unwrap_or(0);
+    #[allow(clippy::cast_precision_loss)]
+    let per_line = outputs as f64 / inputs as f64;
+    (rms, max, lag, per_line, wall)
+}
+
+fn stream_benches(seconds: u32) {
+    for hz in [30, 100, 500] {
+        for stream in [true, false] {
+            let (rms, max, lag, per_line, wall) = stream_tracking(hz, seconds, stream);
+            println!(
+                "bridge/stream: {hz} Hz, {}: tracking error RMS {rms:.2} deg, max {max:.2} deg, lag {lag} ms, {per_line:.2} output lines per input line, {seconds} s simulated in {:.0} ms",
+                if stream {
+                    "\"stream\":true"
+                } else {
+                    "ordinary commands"
+                },
+                wall.as_secs_f64() * 1000.0
+            );
+        }
+    }
+}
+
 fn main() {
     // `cargo bench` passes --bench; `cargo test --benches` does not (test mode).
+    if std::env::var_os("MOTORWIRE_BENCH_STREAM_ONLY").is_some() {
+        stream_benches(10);
+        return;
+    }
     let test_mode = !std::env::args().any(|a| a == "--bench");
     let recording_only = std::env::var_os("MOTORWIRE_BENCH_RECORDING_ONLY").is_some();
     if !recording_only {

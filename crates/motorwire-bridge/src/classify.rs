@@ -110,6 +110,10 @@ pub enum Input {
     },
     /// A valid WIA message.
     Message(Box<Message>),
+    /// A MotorCommand with `"stream": true`: a setpoint of a policy's
+    /// stream (it replaces the motor's target; no completion line follows
+    /// it).
+    Stream(Box<motorwire_wia::MotorCommand>),
     /// Not JSON, or not valid WIA.
     Invalid {
         /// Said for a person.
@@ -509,13 +513,14 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
 }
 
 /// The top-level names of the bridge's own forms.
-const OWN_FORMS: [&[u8]; 6] = [
+const OWN_FORMS: [&[u8]; 7] = [
     b"trajectories",
     b"reset",
     b"calibration",
     b"request",
     b"orion",
     b"query",
+    b"stream",
 ];
 
 /// `Some` when `line` cannot name a stop (no `emergency` and no escape in
@@ -743,8 +748,69 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             },
         };
     }
+    if let Some(at) = members.iter().position(|(k, _)| k == "stream") {
+        return stream_line(validator, &members, at, label);
+    }
     match validator.parse_any(line) {
         Ok(m) => Input::Message(Box::new(m)),
+        Err(err) => Input::Invalid {
+            message: invalid_message(&err),
+            violations: serde_json::to_value(err.violations()).ok(),
+            label,
+        },
+    }
+}
+
+/// A line with the bridge's `stream` member (at `at` among `members`):
+/// the rest of it must be a valid MotorCommand, and `stream` a boolean
+/// (`true`: a setpoint of a stream; `false`: an ordinary command).
+fn stream_line(
+    validator: &Validator,
+    members: &[(String, Value)],
+    at: usize,
+    label: Option<Label>,
+) -> Input {
+    let invalid = |message: String| Input::Invalid {
+        message,
+        violations: None,
+        label: label.clone(),
+    };
+    let times = members.iter().filter(|(k, _)| k == "stream").count();
+    if times > 1 {
+        return invalid(format!("stream appears {times} times"));
+    }
+    let stream = match members.get(at) {
+        Some((_, Value::Bool(b))) => *b,
+        Some((_, v)) => {
+            return invalid(format!(
+                "stream is {v}: it is true (the command is a setpoint of a stream) or false"
+            ));
+        }
+        None => false,
+    };
+    // The command without `stream`, each other member as it came.
+    let mut text = String::from("{");
+    for (k, v) in members
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != at)
+        .map(|(_, m)| m)
+    {
+        if text.len() > 1 {
+            text.push(',');
+        }
+        text.push_str(&Value::String(k.clone()).to_string());
+        text.push(':');
+        text.push_str(&v.to_string());
+    }
+    text.push('}');
+    match validator.parse_any(&text) {
+        Ok(Message::MotorCommand(c)) if stream => Input::Stream(Box::new(c)),
+        Ok(m @ Message::MotorCommand(_)) => Input::Message(Box::new(m)),
+        Ok(other) => invalid(format!(
+            "stream is a MotorCommand's (position, velocity or torque); a {} has no stream",
+            other.kind()
+        )),
         Err(err) => Input::Invalid {
             message: invalid_message(&err),
             violations: serde_json::to_value(err.violations()).ok(),
@@ -820,6 +886,51 @@ mod tests {
                 false, false, true
             ]
         );
+    }
+
+    /// `"stream"`: `true` makes a MotorCommand a stream's setpoint,
+    /// `false` leaves it an ordinary command; anything else, a repeated
+    /// one, or a stream on another message is invalid, and the command
+    /// itself is judged as any command is.
+    #[test]
+    fn stream_is_a_motor_commands_boolean() {
+        let v = Validator::new();
+        let cmd = r#""motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20"#;
+        let Input::Stream(c) = classify(&v, &format!("{{{cmd},\"stream\":true}}")) else {
+            panic!("not a stream");
+        };
+        assert_eq!((c.motor_id.as_str(), c.setpoint), ("elbow", 20.0));
+        assert!(c.extra.is_empty());
+        assert!(matches!(
+            classify(&v, &format!("{{\"stream\":false,{cmd}}}")),
+            Input::Message(m) if matches!(*m, Message::MotorCommand(_))
+        ));
+        let message = |line: &str| match classify(&v, line) {
+            Input::Invalid { message, .. } => message,
+            other => panic!("{line}: {other:?}"),
+        };
+        assert_eq!(
+            message(&format!("{{{cmd},\"stream\":1}}")),
+            "stream is 1: it is true (the command is a setpoint of a stream) or false"
+        );
+        assert_eq!(
+            message(&format!("{{{cmd},\"stream\":true,\"stream\":true}}")),
+            "stream appears 2 times"
+        );
+        assert_eq!(
+            message(
+                r#"{"command_id":"c","timestamp":1,"motors":[{"motor_id":"elbow","control_mode":"position","setpoint":1}],"stream":true}"#
+            ),
+            "stream is a MotorCommand's (position, velocity or torque); a multi-axis-command has no stream"
+        );
+        // As the bridge reads lines: a typo in a stream's setpoint is
+        // refused as in any command.
+        let strict = Validator::new().deny_unknown_members(true);
+        let typo = format!("{{{cmd},\"velocity_limt\":5,\"stream\":true}}");
+        let Input::Invalid { message, .. } = classify(&strict, &typo) else {
+            panic!("{typo}");
+        };
+        assert!(message.contains("velocity_limt"), "{message}");
     }
 
     proptest::proptest! {

@@ -908,6 +908,13 @@ impl Bridge {
             Input::Trajectories { id, trajectories } => {
                 self.trajectories(now, meta, &id, &trajectories);
             }
+            Input::Stream(cmd) => {
+                let meta = LineMeta {
+                    stream: true,
+                    ..meta
+                };
+                self.motor_command(now, meta, &cmd);
+            }
             Input::Message(m) => match *m {
                 Message::MotorCommand(cmd) => self.motor_command(now, meta, &cmd),
                 Message::MultiAxisCommand(cmd) => self.multi_axis(now, meta, &cmd),
@@ -2630,7 +2637,7 @@ impl Bridge {
             ok: true,
             line: meta.number,
             acked: Some(job.axes.iter().map(|a| a.motor.clone()).collect()),
-            arrival_follows: true,
+            arrival_follows: Some(true),
             latency_us: job.last_frame.map(|t| us(t.saturating_sub(job.received))),
             ack_us: Some(us(now.saturating_sub(job.received))),
             losses: job
@@ -2727,9 +2734,15 @@ impl Bridge {
             .filter(|r| r.outcome == StepOutcome::Acked)
             .map(|r| r.motor.clone())
             .collect();
+        // A stream's setpoint replaced by a newer one before it was sent
+        // is what a stream does: no failure.
+        let stream = job.line.as_ref().is_some_and(|l| l.stream);
+        let superseded = stream && reports.iter().any(|r| r.outcome == StepOutcome::Superseded);
         let failures: Vec<StepReport> = reports
             .into_iter()
-            .filter(|r| r.outcome != StepOutcome::Acked)
+            .filter(|r| {
+                r.outcome != StepOutcome::Acked && !(stream && r.outcome == StepOutcome::Superseded)
+            })
             .collect();
         match job.kind {
             JobKind::Startup => {
@@ -2832,7 +2845,13 @@ impl Bridge {
             data: job.data.clone(),
             ..LineResult::default()
         };
-        r.arrival_follows = job.kind == JobKind::Command && !moved.is_empty();
+        let watched = job.kind == JobKind::Command && !moved.is_empty();
+        r.arrival_follows = if stream {
+            Some(false)
+        } else {
+            watched.then_some(true)
+        };
+        r.superseded = superseded;
         // The riders' results come before the line's own, as they did
         // when each was pushed as it was built.
         for rider in job.riders {
@@ -2843,14 +2862,18 @@ impl Bridge {
                 latency_us: latency.map(|_| 0),
                 stop_latency_us: latency.map(|_| 0),
                 ack_us: Some(us(now.saturating_sub(rider.received))),
-                arrival_follows: false,
+                arrival_follows: None,
                 ..r.clone()
             };
             self.answer(&rider.line, rr);
         }
         let Some(meta) = job.line else { return };
         self.answer(&meta, r);
-        if job.kind == JobKind::Command && !moved.is_empty() {
+        if watched && stream {
+            // Its target replaces theirs: lines watched on its motors
+            // will not arrive.
+            self.supersede_watches(&meta, &moved);
+        } else if watched {
             self.watch(meta, moved, now);
         }
     }
@@ -3296,15 +3319,7 @@ impl Bridge {
     /// line still waiting on one of these joints will not arrive now.
     fn watch(&mut self, meta: LineMeta, moved: Vec<(usize, String, f64)>, since: Duration) {
         let now = self.now;
-        if !self.arrivals.is_empty() {
-            let why = format!(
-                "superseded by line {} of client {}",
-                meta.number, meta.origin.0
-            );
-            for (ji, ..) in &moved {
-                self.fail_watches(|w| w.waits_on(*ji), &why);
-            }
-        }
+        self.supersede_watches(&meta, &moved);
         let mut w = self.watch_of(meta, moved, since);
         let origin = w.line.origin;
         // Already there (a move to where it stands)?
@@ -3321,6 +3336,21 @@ impl Bridge {
             self.out.push_back(Output::Arrival { origin, arrival });
         } else {
             self.arrivals.push(w);
+        }
+    }
+
+    /// Line `meta` moved `moved`: the lines still watched on those
+    /// devices will not arrive (their targets are replaced).
+    fn supersede_watches(&mut self, meta: &LineMeta, moved: &[(usize, String, f64)]) {
+        if self.arrivals.is_empty() {
+            return;
+        }
+        let why = format!(
+            "superseded by line {} of client {}",
+            meta.number, meta.origin.0
+        );
+        for (ji, ..) in moved {
+            self.fail_watches(|w| w.waits_on(*ji), &why);
         }
     }
 

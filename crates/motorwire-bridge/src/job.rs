@@ -18,6 +18,10 @@ pub(crate) struct LineMeta {
     pub(crate) origin: Origin,
     pub(crate) number: u64,
     pub(crate) label: Option<Label>,
+    /// A setpoint of a stream (`"stream":true`): no completion line
+    /// follows it, and a newer setpoint replacing it before it was sent is
+    /// what a stream does, not a failure.
+    pub(crate) stream: bool,
 }
 
 impl LineMeta {
@@ -27,6 +31,7 @@ impl LineMeta {
             origin,
             number,
             label: None,
+            stream: false,
         }
     }
 

@@ -166,10 +166,15 @@ pub struct LineResult {
     /// The motors whose every request was acked.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub acked: Option<Vec<String>>,
-    /// A completion line (`{"arrived":...}`) for this line will follow:
-    /// it moved something.
+    /// `Some(true)`: a completion line (`{"arrived":...}`) for this line
+    /// will follow (it moved something). `Some(false)`: a stream's
+    /// setpoint, which has none. Absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub arrival_follows: Option<bool>,
+    /// A stream's setpoint replaced by a newer one of the motor before it
+    /// was sent (never sent; what a stream does, so `ok` stays true).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
-    pub arrival_follows: bool,
+    pub superseded: bool,
     /// What became of each motor's part that was not acked.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub outcomes: Vec<StepReport>,

@@ -980,3 +980,118 @@ fn the_state_is_asked_for_and_a_client_connecting_later_is_greeted_with_it() {
     let elbow = motors.iter().find(|m| m["motor_id"] == "elbow").unwrap();
     assert_eq!(elbow["active"], false, "stopped: {elbow}");
 }
+
+/// A stream setpoint for `motor` (`"stream":true`), position `setpoint`.
+fn stream(motor: &str, setpoint: f64) -> String {
+    format!(
+        r#"{{"motor_id":"{motor}","timestamp":1704067200000,"control_mode":"position","setpoint":{setpoint},"stream":true}}"#
+    )
+}
+
+/// A policy streaming position setpoints at 100 Hz: one result per line
+/// (`ok`, `arrival_follows: false`), no completion lines, and each motor
+/// ends where the stream left it, on an iRPC joint and on the compact
+/// gripper. (How closely a joint follows a stream is measured, not
+/// asserted: `MOTORWIRE_BENCH_STREAM_ONLY=1 cargo bench -p motorwire-benches
+/// --bench bridge`, BENCHMARKS.md.)
+#[test]
+fn a_stream_of_setpoints_is_answered_line_by_line() {
+    let mut arm = arm(Faults::default(), 0);
+    // The stream starts where the joints stand.
+    arm.line(Origin(1), &command("elbow", 60.0));
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"gripper_axis","timestamp":1704067200000,"control_mode":"position","setpoint":45}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    arm.take_outputs();
+    let reference = |t: f64| 60.0 + 20.0 * (std::f64::consts::TAU * 0.5 * t).sin();
+    let grip = |t: f64| 45.0 + 10.0 * (std::f64::consts::TAU * 0.5 * t).sin();
+    let start = arm.now();
+    let mut outputs = Vec::new();
+    for k in 0..200u32 {
+        let t = f64::from(k) * 0.01;
+        arm.line(Origin(1), &stream("elbow", reference(t)));
+        arm.line(Origin(1), &stream("gripper_axis", grip(t)));
+        arm.run_until(start + Duration::from_millis(10 * u64::from(k + 1)))
+            .unwrap();
+        outputs.extend(arm.take_outputs());
+    }
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    outputs.extend(arm.take_outputs());
+    let values: Vec<Value> = outputs.iter().map(|o| o.to_value()).collect();
+    let results: Vec<&Value> = values
+        .iter()
+        .filter(|v| v.get("ok").is_some() && v.get("event").is_none())
+        .collect();
+    assert_eq!(results.len(), 400, "{results:?}");
+    for (k, r) in results.iter().enumerate() {
+        assert_eq!(r["line"], k + 3, "{r}");
+        assert_eq!(r["ok"], true, "{r}");
+        assert_eq!(r["arrival_follows"], false, "{r}");
+    }
+    assert!(
+        !values.iter().any(|v| v.get("arrived").is_some()),
+        "no completion line for a stream"
+    );
+    // The last setpoint holds: each motor stands where the stream ended.
+    let elbow = arm.joint(ELBOW).unwrap().position();
+    assert!((elbow - reference(1.99)).abs() < 0.01, "{elbow}");
+    let gripper = arm.compact_device(0x20).unwrap().position();
+    assert!((gripper - grip(1.99)).abs() < 0.5, "{gripper}");
+}
+
+/// A setpoint replaced by a newer one of the stream before it was sent is
+/// answered ok and `superseded`; a refused setpoint is refused with its
+/// rule; a stream's setpoint ends the watch of an ordinary move on the
+/// joint (that line will not arrive), and `"stream"` that is not a
+/// boolean is invalid.
+#[test]
+fn a_stream_supersedes_refuses_and_replaces_ordinary_moves() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.line(Origin(1), &command("elbow", 100.0));
+    let r = results(&mut arm, 1, Duration::from_secs(1));
+    assert_eq!(r[0]["arrival_follows"], true, "{}", r[0]);
+    // Three at once: the first goes, the second waits for it and is
+    // replaced by the third.
+    for s in [40.0, 50.0, 55.0] {
+        arm.line(Origin(1), &stream("elbow", s));
+    }
+    arm.line(Origin(1), &stream("elbow", 170.0));
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"position","setpoint":1,"stream":"yes"}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(200))
+        .unwrap();
+    let out: Vec<Value> = arm.take_outputs().iter().map(|o| o.to_value()).collect();
+    let result = |line: u64| {
+        out.iter()
+            .find(|v| v.get("ok").is_some() && v.get("event").is_none() && v["line"] == line)
+            .unwrap_or_else(|| panic!("no result for line {line}: {out:?}"))
+    };
+    assert_eq!(result(2)["ok"], true);
+    assert_eq!(result(2)["acked"], serde_json::json!(["elbow"]));
+    assert_eq!(result(3)["ok"], true, "{}", result(3));
+    assert_eq!(result(3)["superseded"], true, "{}", result(3));
+    assert_eq!(result(3)["acked"], serde_json::json!([]), "{}", result(3));
+    assert_eq!(result(4)["ok"], true);
+    assert_eq!(result(5)["ok"], false);
+    assert_eq!(result(5)["error"]["rule"], "outside_limit", "{}", result(5));
+    assert_eq!(result(6)["ok"], false);
+    assert_eq!(
+        result(6)["error"]["message"],
+        "stream is \"yes\": it is true (the command is a setpoint of a stream) or false"
+    );
+    // The ordinary move's completion: replaced by the stream's line 2.
+    let arrival = out
+        .iter()
+        .find(|v| v.get("arrived").is_some())
+        .unwrap_or_else(|| panic!("{out:?}"));
+    assert_eq!(arrival["line"], 1);
+    assert_eq!(arrival["arrived"], false);
+    assert_eq!(arrival["reason"], "superseded by line 2 of client 1");
+    assert_eq!(out.iter().filter(|v| v.get("arrived").is_some()).count(), 1);
+    arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+    assert!((arm.joint(ELBOW).unwrap().position() - 55.0).abs() < 0.01);
+}

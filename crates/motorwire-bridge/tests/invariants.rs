@@ -1144,7 +1144,7 @@ fn each_move_says_whether_it_arrived() {
     arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
     let out = arm.take_outputs();
     let r = out.iter().find_map(Output::result).unwrap();
-    assert!(r.arrival_follows);
+    assert_eq!(r.arrival_follows, Some(true));
     let a = arrivals(&out);
     assert_eq!(a.len(), 1, "{a:?}");
     assert_eq!(a[0]["arrived"], true, "{}", a[0]);

@@ -480,7 +480,11 @@ impl Router {
                 self.to_stdout(line);
             }
             Output::Result { origin, result } => {
-                self.to_client(origin.0, line, Sent::Result(result.arrival_follows));
+                self.to_client(
+                    origin.0,
+                    line,
+                    Sent::Result(result.arrival_follows == Some(true)),
+                );
             }
             Output::Arrival { origin, .. } => self.to_client(origin.0, line, Sent::Arrival),
             // Standard input had it with everyone's.

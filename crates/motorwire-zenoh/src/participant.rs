@@ -1061,7 +1061,7 @@ impl State {
         let (origin, last, busy) = match &o {
             Output::Result { origin, result } => (
                 *origin,
-                !result.arrival_follows,
+                result.arrival_follows != Some(true),
                 result
                     .error
                     .as_ref()
