@@ -386,6 +386,9 @@ impl Bridge {
                 "max_pending_lines and max_queue_per_joint must be at least 1",
             ));
         }
+        // The client's configuration is judged first (a node id beyond 11
+        // bits), whatever the map holds.
+        motorwire_can::client::Client::new(config.client)?;
         let joints: Vec<Joint> = map
             .motors()
             .filter_map(|m| {
@@ -3073,7 +3076,9 @@ impl Bridge {
     /// motors are offline, and what was in flight has an unknown outcome.
     pub fn orion_link_lost(&mut self, now: Duration, error: &str) {
         self.now = self.now.max(now);
-        self.drivers.link_lost(self.now, error, &self.joints);
+        if !self.drivers.link_lost(now, error, &self.joints) {
+            return;
+        }
         self.drain_drivers();
         self.handle_timeout(now);
     }
@@ -3567,7 +3572,11 @@ impl Bridge {
                 }
             }
             Happened::Event(e) => self.out.push_back(Output::Event(e)),
-            Happened::LinkLost { devices, error } => self.link_lost(&devices, &error),
+            Happened::LinkLost {
+                devices,
+                offline,
+                arrival,
+            } => self.link_lost(&devices, &offline, &arrival),
             Happened::MayGo { devices } => {
                 for ji in devices {
                     self.pump(ji);
@@ -3577,10 +3586,10 @@ impl Bridge {
         }
     }
 
-    /// The link to `devices` is lost (`why`): they are offline, no
-    /// deadman watches them, and lines waiting on them will not arrive;
-    /// what waits for them is not sent.
-    fn link_lost(&mut self, devices: &[usize], why: &str) {
+    /// The link to `devices` is lost: they are offline (`why`), no
+    /// deadman watches them, and lines waiting on them will not arrive
+    /// (`arrival`); what waits for them is not sent.
+    fn link_lost(&mut self, devices: &[usize], why: &str, arrival: &str) {
         for &ji in devices {
             if let Some(j) = self.joints.get_mut(ji) {
                 j.deadman = None;
@@ -3594,7 +3603,7 @@ impl Bridge {
                 }
             }
         }
-        self.fail_watches(|w| devices.iter().any(|&ji| w.waits_on(ji)), why);
+        self.fail_watches(|w| devices.iter().any(|&ji| w.waits_on(ji)), arrival);
         for &ji in devices {
             self.pump(ji);
         }
@@ -3703,6 +3712,8 @@ impl Bridge {
         self.drivers.handle_timeout(now);
         self.drain_drivers();
         self.try_ready();
+        self.drivers.command_timeouts(now);
+        self.drain_drivers();
         // The deadman's stops are queued before the Orion link picks what
         // to send next.
         self.deadman(now);

@@ -551,6 +551,19 @@ fn a_lost_link_reports_it_and_takes_the_orion_motors_offline() {
             .any(|v| v
                 == &json!({"event":"orion_link_lost","error":"the controller's stream ended"}))
     );
+    // Each motor offline, saying why, the link's error with it.
+    assert!(
+        rig.out.iter().any(|v| v
+            == &json!({"event":"offline","motor_id":"turntable","node":65535,
+                "reason":"the link to the Orion controller is lost: the controller's stream ended"})),
+        "{:?}",
+        rig.out
+    );
+    // Lost already: a second loss says nothing more.
+    let before = rig.out.len();
+    rig.bridge.orion_link_lost(rig.now, "again");
+    rig.pump();
+    assert_eq!(rig.out.len(), before, "{:?}", &rig.out[before..]);
     rig.line(&velocity("turntable", 10.0));
     assert_eq!(rig.result(1).unwrap()["error"]["kind"], "offline");
     // A stop still answers, and the iRPC joint is still served.
@@ -558,6 +571,40 @@ fn a_lost_link_reports_it_and_takes_the_orion_motors_offline() {
     rig.advance(Duration::from_millis(600));
     let stop = rig.result(2).unwrap();
     assert_eq!(stop["emergency_stop"], true, "{stop}");
+}
+
+/// A move acked and still watched when the link is lost: its completion
+/// says the link was lost (without the link's own error, which the
+/// offline event carries).
+#[test]
+fn a_move_watched_when_the_link_is_lost_is_said_so() {
+    let mut rig = Rig::new();
+    rig.boot();
+    // The servo acknowledges the line still standing at 0 (it moves on
+    // its own time).
+    rig.answering = false;
+    rig.line(
+        r#"{"motor_id":"grasper_horizontal_servo","timestamp":0,"control_mode":"position","setpoint":30}"#,
+    );
+    answer(&mut rig, r#"{"GHSF":[0,0,0]}"#);
+    assert_eq!(rig.result(1).unwrap()["ok"], true, "{:?}", rig.out);
+    assert!(
+        !rig.out.iter().any(|v| v.get("arrived").is_some()),
+        "{:?}",
+        rig.out
+    );
+    rig.bridge.orion_link_lost(rig.now, "EOF");
+    rig.pump();
+    let arrival = rig
+        .out
+        .iter()
+        .find(|v| v.get("arrived").is_some())
+        .unwrap_or_else(|| panic!("{:?}", rig.out));
+    assert_eq!(arrival["arrived"], false);
+    assert_eq!(
+        arrival["reason"],
+        "the link to the Orion controller is lost"
+    );
 }
 
 #[test]

@@ -652,9 +652,14 @@ pub(crate) enum Happened {
     /// An event of a driver's link to pass on as it is (the Orion
     /// controller's boot beacon, its link lost).
     Event(Event),
-    /// The link to `devices` is lost (`error` says how): they are offline,
-    /// and lines waiting on them will not arrive.
-    LinkLost { devices: Vec<usize>, error: String },
+    /// The link to `devices` is lost: they are offline (`offline` says
+    /// why, with the link's error), and lines waiting on them will not
+    /// arrive (`arrival` says why).
+    LinkLost {
+        devices: Vec<usize>,
+        offline: String,
+        arrival: String,
+    },
     /// What waits for `devices` may go now: their link is free, or up.
     MayGo { devices: Vec<usize> },
 }
@@ -682,6 +687,13 @@ enum Queued {
     /// The Orion controller's recovery stop was answered and its answer
     /// taken: its motors are up again.
     EndOrionRecovery {
+        at: Duration,
+    },
+    /// A compact device's valid record acknowledges its command in
+    /// flight, once the engine has taken the record (which may have sent
+    /// that command).
+    CompactAck {
+        device: usize,
         at: Duration,
     },
 }
@@ -1002,9 +1014,10 @@ impl Drivers {
                             motion: Some(motion),
                             feedback: Some(Box::new(feedback)),
                         });
-                        if let Some(ended) = self.compact.acknowledged(ji, now) {
-                            self.tell(Happened::Ended { device: ji, ended });
-                        }
+                        self.queued.push_back(Queued::CompactAck {
+                            device: ji,
+                            at: now,
+                        });
                     }
                 }
             }
@@ -1015,9 +1028,14 @@ impl Drivers {
         }
     }
 
-    /// Resends and time-outs of the bus's requests due at `now`.
+    /// Resends and time-outs of the iRPC client's requests due at `now`.
     pub(crate) fn handle_timeout(&mut self, now: Duration) {
         self.irpc.handle_timeout(now);
+    }
+
+    /// Resends and time-outs of the compact commands due at `now` (after
+    /// the iRPC client's have been taken, as the engine orders them).
+    pub(crate) fn command_timeouts(&mut self, now: Duration) {
         for (device, ended) in self.compact.timeouts(now) {
             self.tell(Happened::Ended { device, ended });
         }
@@ -1124,10 +1142,11 @@ impl Drivers {
 
     /// The link to the Orion controller ended at `now` (`error` says how):
     /// its motors are offline, and what was in flight has an unknown
-    /// outcome. Nothing when it was lost already.
-    pub(crate) fn link_lost(&mut self, now: Duration, error: &str, devices: &[Joint]) {
+    /// outcome. Whether it was up: nothing happens when it was lost
+    /// already.
+    pub(crate) fn link_lost(&mut self, now: Duration, error: &str, devices: &[Joint]) -> bool {
         let Some(in_flight) = self.orion.link_lost(now) else {
-            return;
+            return false;
         };
         self.tell(Happened::Event(Event::OrionLinkLost {
             error: error.to_owned(),
@@ -1137,8 +1156,10 @@ impl Drivers {
         }
         self.tell(Happened::LinkLost {
             devices: orion_devices(devices),
-            error: format!("the link to the Orion controller is lost: {error}"),
+            offline: format!("the link to the Orion controller is lost: {error}"),
+            arrival: "the link to the Orion controller is lost".to_owned(),
         });
+        true
     }
 
     /// The next thing to tell the engine. `map` and `devices`: the
@@ -1151,6 +1172,11 @@ impl Drivers {
                 Some(Queued::EndOrionRecovery { at }) => {
                     self.orion.end_recovery();
                     self.orion_heard(at, devices);
+                }
+                Some(Queued::CompactAck { device, at }) => {
+                    if let Some(ended) = self.compact.acknowledged(device, at) {
+                        return Some(Happened::Ended { device, ended });
+                    }
                 }
                 None => {
                     let event = self.irpc.poll_event()?;
