@@ -405,7 +405,7 @@ fn stop_per_dialect(n: usize) {
 /// degrees about 60, in simulated time. Returns the tracking error's RMS
 /// and maximum (degrees, the joint against the sine at each millisecond
 /// after the first second), the lag (the shift of the sine, in ms, that
-/// fits the joint best), output lines per input line, and the wall-clock
+/// fits the joint best, up to 1.5 s), output lines per input line, and the wall-clock
 /// time the run took (the bridge and the simulated joint together).
 fn stream_tracking(hz: u32, seconds: u32, stream: bool) -> (f64, f64, u32, f64, Duration) {
     let mut arm = simulated_arm(MAP);
@@ -458,7 +458,7 @@ fn stream_tracking(hz: u32, seconds: u32, stream: bool) -> (f64, f64, u32, f64, 
         (rms, e.iter().fold(0.0f64, |m, x| m.max(x.abs())))
     };
     let (rms, max) = error(0);
-    let lag = (0..=500)
+    let lag = (0..=1500)
         .min_by(|a, b| error(*a).0.total_cmp(&error(*b).0))
         .unwrap_or(0);
     #[allow(clippy::cast_precision_loss)]

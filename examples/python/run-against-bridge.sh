@@ -43,6 +43,8 @@ echo "--- over a local socket"
 bridge_pid=$!
 wait_until "[ -S '$dir/bridge.sock' ]"
 python3 "$client" --unix "$dir/bridge.sock"
+echo "--- a policy streaming setpoints at 100 Hz"
+python3 examples/python/stream_policy.py --unix "$dir/bridge.sock" --hz 100 --seconds 2
 stop_bridge
 
 echo "--- over TCP, with a token"
