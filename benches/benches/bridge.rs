@@ -407,7 +407,8 @@ fn stop_per_dialect(n: usize) {
 /// after the first second), the lag (the shift of the sine, in ms, that
 /// fits the joint best, up to 1.5 s), output lines per input line, and the wall-clock
 /// time the run took (the bridge and the simulated joint together).
-fn stream_tracking(hz: u32, seconds: u32, stream: bool) -> (f64, f64, u32, f64, Duration) {
+#[allow(clippy::type_complexity)]
+fn stream_tracking(hz: u32, seconds: u32, stream: bool) -> (f64, f64, u32, f64, f64, Duration) {
     let mut arm = simulated_arm(MAP);
     let wave = |t: f64| 60.0 + 20.0 * (std::f64::consts::TAU * 0.5 * t).sin();
     // From where the stream starts.
@@ -463,15 +464,16 @@ fn stream_tracking(hz: u32, seconds: u32, stream: bool) -> (f64, f64, u32, f64, 
         .unwrap_or(0);
     #[allow(clippy::cast_precision_loss)]
     let per_line = outputs as f64 / inputs as f64;
-    (rms, max, lag, per_line, wall)
+    let (rms_lagged, _) = error(lag);
+    (rms, max, lag, rms_lagged, per_line, wall)
 }
 
 fn stream_benches(seconds: u32) {
-    for hz in [30, 100, 500] {
+    for hz in [5, 30, 100, 500] {
         for stream in [true, false] {
-            let (rms, max, lag, per_line, wall) = stream_tracking(hz, seconds, stream);
+            let (rms, max, lag, rms_lagged, per_line, wall) = stream_tracking(hz, seconds, stream);
             println!(
-                "bridge/stream: {hz} Hz, {}: tracking error RMS {rms:.2} deg, max {max:.2} deg, lag {lag} ms, {per_line:.2} output lines per input line, {seconds} s simulated in {:.0} ms",
+                "bridge/stream: {hz} Hz, {}: tracking error RMS {rms:.2} deg, max {max:.2} deg, lag {lag} ms (RMS {rms_lagged:.2} deg behind it), {per_line:.2} output lines per input line, {seconds} s simulated in {:.0} ms",
                 if stream {
                     "\"stream\":true"
                 } else {
