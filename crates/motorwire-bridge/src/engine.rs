@@ -45,7 +45,7 @@ use crate::device::{
     Answer, Capability, Context, Device, Drivers, Ended, Happened, Moving, Outcome,
 };
 use crate::job::{
-    AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, LineMeta, Order, Rider,
+    AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, LineMeta, Order, Rider, axis_mut,
 };
 use crate::joints::{Joint, StepRef, Unresolved};
 use crate::output::{
@@ -2381,11 +2381,13 @@ impl Bridge {
                         b.motor
                     ))
                 } else {
-                    if let Some(a) = self
-                        .jobs
-                        .get_mut(&step.job)
-                        .and_then(|j| j.axes.get_mut(before))
-                    {
+                    if let Some(a) = axis_mut(
+                        &mut self.jobs,
+                        StepRef {
+                            job: step.job,
+                            axis: before,
+                        },
+                    ) {
                         a.arrive_by = Some(by);
                     }
                     None
@@ -2396,11 +2398,7 @@ impl Bridge {
         let Some(why) = failed else {
             return true;
         };
-        if let Some(a) = self
-            .jobs
-            .get_mut(&step.job)
-            .and_then(|j| j.axes.get_mut(step.axis))
-        {
+        if let Some(a) = axis_mut(&mut self.jobs, step) {
             a.finish(StepOutcome::NotSent, None, why);
         }
         false
@@ -2983,11 +2981,7 @@ impl Bridge {
             if front.job != step.job {
                 continue;
             }
-            let Some(a) = self
-                .jobs
-                .get_mut(&front.job)
-                .and_then(|job| job.axes.get_mut(front.axis))
-            else {
+            let Some(a) = axis_mut(&mut self.jobs, front) else {
                 continue;
             };
             let fits = a.after.is_none() && a.payloads.front().is_some_and(|o| order.joins(o));
@@ -3007,11 +3001,7 @@ impl Bridge {
         }
         let sent = self.drivers.send_together(now, &orders);
         for (front, payload) in others {
-            let Some(a) = self
-                .jobs
-                .get_mut(&front.job)
-                .and_then(|job| job.axes.get_mut(front.axis))
-            else {
+            let Some(a) = axis_mut(&mut self.jobs, front) else {
                 continue;
             };
             match &sent {
@@ -3495,11 +3485,7 @@ impl Bridge {
             // Ahead of anything waiting for the device.
             if let Some(j) = self.joints.get_mut(ji) {
                 for s in j.queue.drain(..).collect::<Vec<_>>() {
-                    if let Some(a) = self
-                        .jobs
-                        .get_mut(&s.job)
-                        .and_then(|job| job.axes.get_mut(s.axis))
-                    {
+                    if let Some(a) = axis_mut(&mut self.jobs, s) {
                         a.finish(
                             StepOutcome::Cancelled,
                             None,

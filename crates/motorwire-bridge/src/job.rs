@@ -299,3 +299,11 @@ impl Job {
             && (self.awaiting.is_none() || failed)
     }
 }
+
+/// The axis `step` names, if its job is still open.
+pub(crate) fn axis_mut(
+    jobs: &mut std::collections::BTreeMap<u64, Job>,
+    step: crate::joints::StepRef,
+) -> Option<&mut Axis> {
+    jobs.get_mut(&step.job)?.axes.get_mut(step.axis)
+}

@@ -115,6 +115,25 @@ enum Record {
     },
 }
 
+/// An input line the bridge could not read (too long, not UTF-8), as a
+/// [`Tap`] is told of it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Unreadable<'a> {
+    /// When it came.
+    pub at: Instant,
+    /// Whose it is.
+    pub origin: Origin,
+    /// Its number among its origin's lines.
+    pub number: u64,
+    /// Why it could not be read.
+    pub reason: &'a str,
+    /// It named `emergency_stop` and was taken as a stop.
+    pub stop: bool,
+    /// Its first bytes (at most [`crate::UNREADABLE_HEAD`]) and its
+    /// length, where the reader kept them.
+    pub bytes: Option<(&'a [u8], u64)>,
+}
+
 /// What a [`crate::Runner`] tells whoever watches the session (a
 /// [`Recorder`], a live view): every line and frame, as it happens, from
 /// the bridge's own thread. An implementation must never make it wait
@@ -125,19 +144,9 @@ pub trait Tap: Send + Sync + std::fmt::Debug {
     fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
         let _ = (at, origin, number, text);
     }
-    /// Input line `number` of `origin` that could not be read; `stop`: it
-    /// was taken as a stop; `bytes`: its first bytes and its length, where
-    /// the reader kept them.
-    fn unreadable(
-        &self,
-        at: Instant,
-        origin: Origin,
-        number: u64,
-        reason: &str,
-        stop: bool,
-        bytes: Option<(&[u8], u64)>,
-    ) {
-        let _ = (at, origin, number, reason, stop, bytes);
+    /// An input line that could not be read.
+    fn unreadable(&self, line: &Unreadable<'_>) {
+        let _ = line;
     }
     /// An output line given at `at`.
     fn output(&self, at: Instant, output: &Output) {
@@ -170,16 +179,8 @@ impl Tap for Recorder {
     fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
         Recorder::input(self, at, origin, number, text);
     }
-    fn unreadable(
-        &self,
-        at: Instant,
-        origin: Origin,
-        number: u64,
-        reason: &str,
-        stop: bool,
-        bytes: Option<(&[u8], u64)>,
-    ) {
-        Recorder::unreadable(self, at, origin, number, reason, stop, bytes);
+    fn unreadable(&self, line: &Unreadable<'_>) {
+        Recorder::unreadable(self, line);
     }
     fn output(&self, at: Instant, output: &Output) {
         Recorder::output(self, at, output);
@@ -205,17 +206,9 @@ impl Tap for Taps {
             t.input(at, origin, number, text);
         }
     }
-    fn unreadable(
-        &self,
-        at: Instant,
-        origin: Origin,
-        number: u64,
-        reason: &str,
-        stop: bool,
-        bytes: Option<(&[u8], u64)>,
-    ) {
+    fn unreadable(&self, line: &Unreadable<'_>) {
         for t in &self.0 {
-            t.unreadable(at, origin, number, reason, stop, bytes);
+            t.unreadable(line);
         }
     }
     fn output(&self, at: Instant, output: &Output) {
@@ -416,26 +409,16 @@ impl Recorder {
         });
     }
 
-    /// Input line `number` of `origin` that could not be read (`reason`);
-    /// `stop`: it named `emergency_stop` and was taken as a stop; `bytes`:
-    /// its first bytes (written in hex as `bytes`) and its length
-    /// (`length`).
-    pub fn unreadable(
-        &self,
-        at: Instant,
-        origin: Origin,
-        number: u64,
-        reason: &str,
-        stop: bool,
-        bytes: Option<(&[u8], u64)>,
-    ) {
+    /// An input line that could not be read: its bytes (where the reader
+    /// kept them) written in hex as `bytes`, with `length`.
+    pub fn unreadable(&self, line: &Unreadable<'_>) {
         self.put(Record::Unreadable {
-            at,
-            origin,
-            number,
-            reason: reason.to_owned(),
-            stop,
-            bytes: bytes.map(|(b, n)| (b.to_vec(), n)),
+            at: line.at,
+            origin: line.origin,
+            number: line.number,
+            reason: line.reason.to_owned(),
+            stop: line.stop,
+            bytes: line.bytes.map(|(b, n)| (b.to_vec(), n)),
         });
     }
 
@@ -898,14 +881,14 @@ mod tests {
         let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0x00, 0x12, 0x01, 0x03]).unwrap();
         rec.frame(t, Direction::Tx, &f);
         rec.orion(t, Direction::Tx, r#"{"ID":32,"MODE":2,"DATA":1}"#);
-        rec.unreadable(
-            t,
-            Origin(2),
-            2,
-            "the line is not UTF-8",
-            false,
-            Some((&[0x7b, 0xff, 0x0d], 3)),
-        );
+        rec.unreadable(&Unreadable {
+            at: t,
+            origin: Origin(2),
+            number: 2,
+            reason: "the line is not UTF-8",
+            stop: false,
+            bytes: Some((&[0x7b, 0xff, 0x0d], 3)),
+        });
         let s = rec.finish();
         assert_eq!((s.written, s.dropped), (4, 0));
         let frames = fs::read_to_string(dir.join("frames.log")).unwrap();
