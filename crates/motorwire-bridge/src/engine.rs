@@ -2310,17 +2310,21 @@ impl Bridge {
         joint.queue = keep;
     }
 
+    /// The step at the front of device `ji`'s queue, if none of its
+    /// steps is in flight.
+    fn waiting_front(&self, ji: usize) -> Option<StepRef> {
+        let j = self.joints.get(ji)?;
+        if j.busy.is_some() {
+            return None;
+        }
+        j.queue.front().copied()
+    }
+
     /// Sends the next waiting step of joint `ji` if none is in flight.
     fn pump(&mut self, ji: usize) {
         let now = self.now;
         loop {
-            let Some(joint) = self.joints.get_mut(ji) else {
-                return;
-            };
-            if joint.busy.is_some() {
-                return;
-            }
-            let Some(&front) = joint.queue.front() else {
+            let Some(front) = self.waiting_front(ji) else {
                 return;
             };
             if self.waits_for_arrival(front, now) {
@@ -2969,13 +2973,7 @@ impl Bridge {
             if k == ji {
                 continue;
             }
-            let Some(j) = self.joints.get(k) else {
-                continue;
-            };
-            if j.busy.is_some() {
-                continue;
-            }
-            let Some(&front) = j.queue.front() else {
+            let Some(front) = self.waiting_front(k) else {
                 continue;
             };
             if front.job != step.job {
@@ -3186,16 +3184,7 @@ impl Bridge {
             Err(e) => return self.refuse(&meta, e),
         };
         let deadline = now.saturating_add(self.answer_wait());
-        self.open_waiting(
-            now,
-            meta,
-            Axis::new(motor.to_owned(), ji, [payload]),
-            Awaiting {
-                joint: ji,
-                kind: awaits,
-                deadline,
-            },
-        );
+        self.open_waiting(now, meta, (motor, ji), payload, awaits, deadline);
     }
 
     /// `{"calibration":"start"|"stop","motor_id":M,...}`.
@@ -3233,20 +3222,29 @@ impl Bridge {
             .saturating_add(self.answer_wait())
             .saturating_add(per_phase.saturating_mul(phases))
             .saturating_add(CALIBRATION_MARGIN);
-        self.open_waiting(
-            now,
-            meta,
-            Axis::new(motor.to_owned(), ji, [payload]),
-            Awaiting {
-                joint: ji,
-                kind: AwaitKind::CalibrationResult,
-                deadline,
-            },
-        );
+        let kind = AwaitKind::CalibrationResult;
+        self.open_waiting(now, meta, (motor, ji), payload, kind, deadline);
     }
 
-    fn open_waiting(&mut self, now: Duration, meta: LineMeta, axis: Axis, awaiting: Awaiting) {
+    /// Line `meta`'s request `payload` to `device` (its name and index),
+    /// whose result waits for its answer of `kind` until `deadline`.
+    fn open_waiting(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        device: (&str, usize),
+        payload: Payload,
+        kind: AwaitKind,
+        deadline: Duration,
+    ) {
+        let (motor, ji) = device;
+        let awaiting = Awaiting {
+            joint: ji,
+            kind,
+            deadline,
+        };
         let id = self.next_job;
+        let axis = Axis::new(motor.to_owned(), ji, [payload]);
         self.command_job(now, meta, vec![axis], Report::default());
         // Not done yet (a job is taken out once done): it waits.
         if let Some(job) = self.jobs.get_mut(&id) {
