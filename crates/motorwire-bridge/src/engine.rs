@@ -2240,10 +2240,17 @@ impl Bridge {
         if kind.is_stop() {
             self.cancel_everything("cancelled by the stop");
         }
+        // A stream's setpoint replaces any setpoint waiting for its motor
+        // (position, velocity, torque); an ordinary position move, a
+        // waiting position move.
+        let stream = line.as_ref().is_some_and(|l| l.stream);
         let steps: Vec<(usize, StepRef, bool)> = axes
             .iter()
             .enumerate()
-            .map(|(axis, a)| (a.joint, StepRef { job: id, axis }, a.is_position_move()))
+            .map(|(axis, a)| {
+                let replaces = a.is_position_move() || (stream && a.is_setpoint());
+                (a.joint, StepRef { job: id, axis }, replaces)
+            })
             .collect();
         self.jobs.insert(
             id,
@@ -2264,9 +2271,9 @@ impl Bridge {
                 answered: None,
             },
         );
-        for &(ji, step, position) in &steps {
-            if kind == JobKind::Command && position {
-                self.supersede(ji);
+        for &(ji, step, replaces) in &steps {
+            if kind == JobKind::Command && replaces {
+                self.supersede(ji, stream);
             }
             if let Some(j) = self.joints.get_mut(ji) {
                 j.queue.push_back(step);
@@ -2280,8 +2287,9 @@ impl Bridge {
         self.finish_jobs();
     }
 
-    /// A newer position move for joint `ji`: the waiting one is replaced.
-    fn supersede(&mut self, ji: usize) {
+    /// A newer position move for joint `ji`: the waiting one is replaced;
+    /// a stream's setpoint (`stream`) replaces any waiting setpoint.
+    fn supersede(&mut self, ji: usize, stream: bool) {
         let Some(joint) = self.joints.get_mut(ji) else {
             return;
         };
@@ -2290,13 +2298,18 @@ impl Bridge {
             let replaced = self.jobs.get_mut(&s.job).is_some_and(|job| {
                 job.kind == JobKind::Command
                     && job.axes.get_mut(s.axis).is_some_and(|a| {
-                        let yes = a.is_position_move() && a.state == AxisState::Queued;
+                        let yes = a.state == AxisState::Queued
+                            && (a.is_position_move() || (stream && a.is_setpoint()));
                         if yes {
                             a.finish(
-                            StepOutcome::Superseded,
-                            None,
-                            "a newer position command for the joint replaced it before it was sent",
-                        );
+                                StepOutcome::Superseded,
+                                None,
+                                if stream {
+                                    "a newer setpoint of a stream for the motor replaced it before it was sent"
+                                } else {
+                                    "a newer position command for the joint replaced it before it was sent"
+                                },
+                            );
                         }
                         yes
                     })
@@ -2719,6 +2732,12 @@ impl Bridge {
             return self.complete_answered(job, since);
         }
         let moved_joints: Vec<usize> = job.axes.iter().map(|a| a.joint).collect();
+        let acked_joints: Vec<usize> = job
+            .axes
+            .iter()
+            .filter(|a| matches!(&a.state, AxisState::Done(r) if r.outcome == StepOutcome::Acked))
+            .map(|a| a.joint)
+            .collect();
         // The moves acked, to watch for arrival.
         let moved: Vec<(usize, String, f64)> = job
             .axes
@@ -2851,6 +2870,13 @@ impl Bridge {
             ..LineResult::default()
         };
         let watched = job.kind == JobKind::Command && !moved.is_empty();
+        // A stream's setpoint of any kind (a velocity too) replaces what
+        // its motors were doing.
+        let streamed: Vec<usize> = if stream && job.kind == JobKind::Command {
+            acked_joints
+        } else {
+            Vec::new()
+        };
         r.arrival_follows = if stream {
             Some(false)
         } else {
@@ -2874,10 +2900,10 @@ impl Bridge {
         }
         let Some(meta) = job.line else { return };
         self.answer(&meta, r);
-        if watched && stream {
-            // Its target replaces theirs: lines watched on its motors
-            // will not arrive.
-            self.supersede_watches(&meta, &moved);
+        if stream {
+            // Its setpoint replaces their targets: lines watched on its
+            // motors will not arrive.
+            self.supersede_watches(&meta, &streamed);
         } else if watched {
             self.watch(meta, moved, now);
         }
@@ -3312,7 +3338,8 @@ impl Bridge {
     /// line still waiting on one of these joints will not arrive now.
     fn watch(&mut self, meta: LineMeta, moved: Vec<(usize, String, f64)>, since: Duration) {
         let now = self.now;
-        self.supersede_watches(&meta, &moved);
+        let joints: Vec<usize> = moved.iter().map(|(ji, ..)| *ji).collect();
+        self.supersede_watches(&meta, &joints);
         let mut w = self.watch_of(meta, moved, since);
         let origin = w.line.origin;
         // Already there (a move to where it stands)?
@@ -3334,7 +3361,7 @@ impl Bridge {
 
     /// Line `meta` moved `moved`: the lines still watched on those
     /// devices will not arrive (their targets are replaced).
-    fn supersede_watches(&mut self, meta: &LineMeta, moved: &[(usize, String, f64)]) {
+    fn supersede_watches(&mut self, meta: &LineMeta, moved: &[usize]) {
         if self.arrivals.is_empty() {
             return;
         }
@@ -3342,8 +3369,8 @@ impl Bridge {
             "superseded by line {} of client {}",
             meta.number, meta.origin.0
         );
-        for (ji, ..) in moved {
-            self.fail_watches(|w| w.waits_on(*ji), &why);
+        for &ji in moved {
+            self.fail_watches(|w| w.waits_on(ji), &why);
         }
     }
 

@@ -173,6 +173,12 @@ impl Axis {
         self.payloads.len() == 1 && self.payloads.front().is_some_and(Order::is_position_move)
     }
 
+    /// Whether it is one setpoint (position, velocity or torque), which a
+    /// stream's newer setpoint may replace while it waits.
+    pub(crate) fn is_setpoint(&self) -> bool {
+        self.payloads.len() == 1 && self.payloads.front().is_some_and(Order::is_setpoint)
+    }
+
     pub(crate) fn finish(
         &mut self,
         outcome: StepOutcome,

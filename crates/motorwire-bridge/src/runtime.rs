@@ -673,21 +673,25 @@ impl Runner {
         // loop when it waits there.
         let (frames_tx, frames_rx) = mpsc::channel::<Msg>();
         let frames_waiting = Arc::new(AtomicBool::new(false));
+        // What the devices say, CAN frames and the Orion controller's lines
+        // alike, goes ahead of the clients' lines.
+        let ahead = Ahead {
+            tx: frames_tx,
+            wake: self.tx.clone(),
+            waiting: Arc::clone(&frames_waiting),
+        };
         let reader = {
             let stop = Arc::clone(&stop);
             let wake = self.tx.clone();
-            let waiting = Arc::clone(&frames_waiting);
+            let ahead = ahead.clone();
             thread::spawn(move || {
                 while !stop.load(Ordering::Relaxed) {
                     match rx.recv(Duration::from_millis(20)) {
                         Ok(r) => {
-                            let _ = frames_tx.send(Msg::Frame {
+                            let _ = ahead.send(Msg::Frame {
                                 frame: r.frame,
                                 at: Instant::now(),
                             });
-                            if !waiting.swap(true, Ordering::SeqCst) {
-                                let _ = wake.send(Msg::Wake);
-                            }
                         }
                         Err(CanError::Timeout(_)) => {}
                         Err(e) => {
@@ -704,7 +708,7 @@ impl Runner {
         let orion = self
             .orion
             .take()
-            .map(|port| spawn_orion(port, self.tx.clone(), Arc::clone(&orion_queued)));
+            .map(|port| spawn_orion(port, ahead.clone(), Arc::clone(&orion_queued)));
         let taps = Taps(std::mem::take(&mut self.taps));
         let rec: Option<&dyn Tap> = (!taps.0.is_empty()).then_some(&taps);
         let mut sink = |o: &Output| {
@@ -809,8 +813,18 @@ impl Runner {
                 if let Some(r) = rec {
                     record_input(r, &msg);
                 }
-                if let Msg::Frame { frame, at } = msg {
-                    bridge.handle_frame(since(at), &frame);
+                match msg {
+                    Msg::Frame { frame, at } => bridge.handle_frame(since(at), &frame),
+                    Msg::OrionLine { text, at } => {
+                        orion_queued.fetch_sub(1, Ordering::SeqCst);
+                        bridge.handle_orion_line(since(at), &text);
+                    }
+                    Msg::OrionUnreadable(error) => {
+                        orion_queued.fetch_sub(1, Ordering::SeqCst);
+                        bridge.handle_orion_unreadable(since(Instant::now()), &error);
+                    }
+                    Msg::OrionLost(e) => bridge.orion_link_lost(since(Instant::now()), &e),
+                    _ => {}
                 }
                 heard += 1;
             }
@@ -957,9 +971,30 @@ fn record_input(r: &dyn Tap, msg: &Msg) {
 
 /// Starts the Orion port's reader and writer threads: lines to write go
 /// into the returned sender; the receiver hears when the writer is done.
+/// The channel of what the devices say, read ahead of the clients' lines:
+/// a message on it, and a wake on the lines' channel when the loop may be
+/// waiting there.
+#[derive(Debug, Clone)]
+struct Ahead {
+    tx: Sender<Msg>,
+    wake: Sender<Msg>,
+    waiting: Arc<AtomicBool>,
+}
+
+impl Ahead {
+    /// Hands `msg` to the runner. Whether it is still there.
+    fn send(&self, msg: Msg) -> Result<(), ()> {
+        self.tx.send(msg).map_err(|_| ())?;
+        if !self.waiting.swap(true, Ordering::SeqCst) {
+            let _ = self.wake.send(Msg::Wake);
+        }
+        Ok(())
+    }
+}
+
 fn spawn_orion(
     port: OrionPort,
-    events: Sender<Msg>,
+    events: Ahead,
     queued: Arc<AtomicUsize>,
 ) -> (Sender<String>, Receiver<()>) {
     let OrionPort { reader, mut writer } = port;

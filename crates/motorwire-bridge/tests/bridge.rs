@@ -1095,3 +1095,55 @@ fn a_stream_supersedes_refuses_and_replaces_ordinary_moves() {
     arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
     assert!((arm.joint(ELBOW).unwrap().position() - 55.0).abs() < 0.01);
 }
+
+/// A stream's velocity setpoints, many at once: each waiting one is
+/// replaced by the next (answered ok and superseded, never sent), none is
+/// refused for room, and the device ends on the newest; a velocity
+/// setpoint of a stream ends the watch of an ordinary move on the motor.
+#[test]
+fn a_streams_velocity_setpoints_replace_each_other_and_ordinary_moves() {
+    let mut arm = arm(Faults::default(), 0);
+    let velocity = |v: f64| {
+        format!(
+            r#"{{"motor_id":"gripper_axis","timestamp":1704067200000,"control_mode":"velocity","setpoint":{v},"stream":true}}"#
+        )
+    };
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"gripper_axis","timestamp":1704067200000,"control_mode":"position","setpoint":80}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(20))
+        .unwrap();
+    for k in 0..40u32 {
+        arm.line(Origin(1), &velocity(1.0 + f64::from(k) * 0.1));
+    }
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    let out: Vec<Value> = arm.take_outputs().iter().map(|o| o.to_value()).collect();
+    let results: Vec<&Value> = out
+        .iter()
+        .filter(|v| v.get("ok").is_some() && v.get("event").is_none())
+        .collect();
+    assert_eq!(results.len(), 41, "{results:?}");
+    assert!(results.iter().all(|r| r["ok"] == true), "{results:?}");
+    let superseded = results.iter().filter(|r| r["superseded"] == true).count();
+    assert!(superseded >= 30, "{superseded} of 40 replaced: {results:?}");
+    let last = results.iter().find(|r| r["line"] == 41).unwrap();
+    assert_eq!(last["acked"], serde_json::json!(["gripper_axis"]), "{last}");
+    // The newest setpoint is what the device runs.
+    let device = arm.compact_device(0x20).unwrap();
+    assert!(
+        (device.velocity() - 4.9).abs() < 1e-3,
+        "{}",
+        device.velocity()
+    );
+    // The ordinary move's completion: replaced by the stream's first
+    // setpoint.
+    let arrival = out
+        .iter()
+        .find(|v| v.get("arrived").is_some())
+        .unwrap_or_else(|| panic!("{out:?}"));
+    assert_eq!(arrival["line"], 1);
+    assert_eq!(arrival["arrived"], false);
+    assert_eq!(arrival["reason"], "superseded by line 2 of client 1");
+}

@@ -863,3 +863,75 @@ fn a_flood_of_queries_does_not_keep_the_joints_answers_from_a_stop() {
         f.join().unwrap();
     }
 }
+
+/// Clients flooding the bridge with heavy lines (stream setpoints with
+/// 20 KB of metadata) do not keep the Orion controller's answers from
+/// the bridge: they are read ahead of the clients' lines, as the bus's
+/// frames are. Its motors stay online, and a stop stops every motor (the
+/// controller's answers waited behind the flood: its motors went offline
+/// and the stop came back outcome_unknown).
+#[test]
+fn a_flood_of_lines_does_not_keep_the_orion_controllers_answers_from_a_stop() {
+    let dir = scratch("orion-flood");
+    let sock = dir.join("bridge.sock");
+    let mut child = unix_bridge(&sock, &["--orion", "sim", "--feedback-hz", "0"]);
+    let _ = listening(&mut child);
+    let events = stdout_lines(&mut child);
+    let _bridge = Bridge(child);
+    wait_for(&events, Duration::from_secs(10), |v| v["event"] == "ready");
+    let stop_flood = Arc::new(AtomicBool::new(false));
+    let t = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis();
+    let pad = "x".repeat(20_000);
+    let flooders: Vec<_> = (0..2)
+        .map(|k| {
+            let sock = sock.clone();
+            let stop = Arc::clone(&stop_flood);
+            let pad = pad.clone();
+            thread::spawn(move || {
+                let mut s = UnixStream::connect(&sock).unwrap();
+                let mut r = s.try_clone().unwrap();
+                thread::spawn(move || std::io::copy(&mut r, &mut std::io::sink()));
+                let started = Instant::now();
+                let mut i = 0u32;
+                while !stop.load(Ordering::Relaxed) && started.elapsed() < Duration::from_secs(20)
+                {
+                    i += 1;
+                    let line = format!(
+                        "{{\"motor_id\":\"elbow\",\"timestamp\":{t},\"control_mode\":\"position\",\"setpoint\":{},\"stream\":true,\"metadata\":{{\"pad\":\"{pad}\"}}}}\n",
+                        40 + (i + k) % 20
+                    );
+                    if s.write_all(line.as_bytes()).is_err() {
+                        break;
+                    }
+                }
+            })
+        })
+        .collect();
+    thread::sleep(Duration::from_millis(2000));
+    let op = UnixStream::connect(&sock).unwrap();
+    op.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let mut w = op.try_clone().unwrap();
+    let mut r = BufReader::new(op);
+    for _ in 0..2 {
+        writeln!(w, r#"{{"emergency_stop":true}}"#).unwrap();
+        let stop = next_result(&mut r);
+        assert_eq!(stop["ok"], true, "{stop}");
+        // Every motor: the four on the bus and the controller's seven.
+        assert_eq!(stop["acked"].as_array().unwrap().len(), 11, "{stop}");
+        writeln!(w, r#"{{"emergency_stop":false}}"#).unwrap();
+        let release = next_result(&mut r);
+        assert_eq!(release["ok"], true, "{release}");
+    }
+    stop_flood.store(true, Ordering::Relaxed);
+    for f in flooders {
+        f.join().unwrap();
+    }
+    let offline: Vec<Value> = events
+        .try_iter()
+        .filter(|v| v["event"] == "offline")
+        .collect();
+    assert!(offline.is_empty(), "{offline:?}");
+}

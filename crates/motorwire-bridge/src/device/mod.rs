@@ -397,6 +397,24 @@ impl Order {
         }
     }
 
+    /// Whether it is a motor command's setpoint (a position move, a
+    /// velocity or a torque), which a stream's newer setpoint replaces
+    /// while it waits; a stop, a lifecycle step or an arm-wide command is
+    /// not.
+    pub(crate) fn is_setpoint(&self) -> bool {
+        match self {
+            Self::Irpc(p) => matches!(p, Payload::SetTargetV2(_) | Payload::SetTarget(_)),
+            Self::Compact(c) => {
+                matches!(
+                    c.control_mode,
+                    CompactMode::Position | CompactMode::Velocity | CompactMode::Torque
+                ) && !c.flags.contains(Flags::EMERGENCY_STOP)
+            }
+            Self::Orion(OrionOrder::Set(..)) => true,
+            Self::Orion(OrionOrder::Command(_)) => false,
+        }
+    }
+
     /// Whether it leaves its device holding a setpoint that does not end
     /// by itself (a compact velocity or torque, an Orion speed or actuator
     /// value, other than 0): what the deadman watches.
