@@ -2274,9 +2274,6 @@ impl Bridge {
         for &(ji, step, replaces) in &steps {
             if kind == JobKind::Command && replaces {
                 self.supersede(ji, stream);
-                if let Some(meta) = self.jobs.get(&id).and_then(|j| j.line.clone()) {
-                    self.end_sequences_on(ji, id, &meta);
-                }
             }
             if let Some(j) = self.joints.get_mut(ji) {
                 j.queue.push_back(step);
@@ -2324,40 +2321,6 @@ impl Bridge {
             }
         }
         joint.queue = keep;
-    }
-
-    /// A newer line (`meta`, job `by`) moves device `ji`: a sequential
-    /// line whose axis on `ji` has not arrived will not see it arrive, so
-    /// the axes waiting for that arrival are not sent (at once, not after
-    /// the arrival's time runs out), and the line ends; its completion then
-    /// says it was superseded.
-    fn end_sequences_on(&mut self, ji: usize, by: u64, meta: &LineMeta) {
-        let why = format!(
-            "not sent: the axis before it was replaced by line {} of client {} before it arrived",
-            meta.number, meta.origin.0
-        );
-        let mut any = false;
-        for (id, job) in &mut self.jobs {
-            if *id == by || job.kind != JobKind::Command {
-                continue;
-            }
-            let replaced: Vec<usize> = job
-                .axes
-                .iter()
-                .enumerate()
-                .filter(|(_, a)| a.joint == ji && !a.arrived)
-                .map(|(k, _)| k)
-                .collect();
-            for a in &mut job.axes {
-                if a.after.is_some_and(|b| replaced.contains(&b)) && a.state == AxisState::Queued {
-                    a.finish(StepOutcome::NotSent, None, why.clone());
-                    any = true;
-                }
-            }
-        }
-        if any {
-            self.finish_jobs();
-        }
     }
 
     /// The step at the front of device `ji`'s queue, if none of its
