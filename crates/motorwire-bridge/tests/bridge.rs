@@ -1084,13 +1084,7 @@ fn a_stream_supersedes_refuses_and_replaces_ordinary_moves() {
         "stream is \"yes\": it is true (the command is a setpoint of a stream) or false"
     );
     // The ordinary move's completion: replaced by the stream's line 2.
-    let arrival = out
-        .iter()
-        .find(|v| v.get("arrived").is_some())
-        .unwrap_or_else(|| panic!("{out:?}"));
-    assert_eq!(arrival["line"], 1);
-    assert_eq!(arrival["arrived"], false);
-    assert_eq!(arrival["reason"], "superseded by line 2 of client 1");
+    assert_line_1_superseded_by_line_2(&out);
     assert_eq!(out.iter().filter(|v| v.get("arrived").is_some()).count(), 1);
     arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
     assert!((arm.joint(ELBOW).unwrap().position() - 55.0).abs() < 0.01);
@@ -1139,6 +1133,12 @@ fn a_streams_velocity_setpoints_replace_each_other_and_ordinary_moves() {
     );
     // The ordinary move's completion: replaced by the stream's first
     // setpoint.
+    assert_line_1_superseded_by_line_2(&out);
+}
+
+/// The first completion among `out` is line 1's, not arrived, replaced by
+/// client 1's line 2.
+fn assert_line_1_superseded_by_line_2(out: &[Value]) {
     let arrival = out
         .iter()
         .find(|v| v.get("arrived").is_some())

@@ -141,6 +141,14 @@ fn moves(log: &Path) -> usize {
         .count()
 }
 
+/// A client of the bridge at `sock` that waits at most 10 s for a line:
+/// its writing and reading halves.
+fn operator(sock: &Path) -> (UnixStream, BufReader<UnixStream>) {
+    let op = UnixStream::connect(sock).unwrap();
+    op.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    (op.try_clone().unwrap(), BufReader::new(op))
+}
+
 /// `motorwire bridge` on the simulated arm listening on the local socket
 /// `sock`, with `extra` arguments.
 fn unix_bridge(sock: &Path, extra: &[&str]) -> Child {
@@ -195,10 +203,7 @@ fn a_flooding_and_a_non_reading_client_do_not_delay_anothers_stop() {
     );
     assert_eq!(dropped["origin"], 1, "{dropped}");
     // The operator, while the flood goes on: its stop is acted on at once.
-    let op = UnixStream::connect(&sock).unwrap();
-    op.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    let mut w = op.try_clone().unwrap();
-    let mut r = BufReader::new(op);
+    let (mut w, mut r) = operator(&sock);
     let mut stop_latencies = Vec::new();
     let mut round_trips = Vec::new();
     for _ in 0..200 {
@@ -841,10 +846,7 @@ fn a_flood_of_queries_does_not_keep_the_joints_answers_from_a_stop() {
         })
         .collect();
     thread::sleep(Duration::from_millis(1500));
-    let op = UnixStream::connect(&sock).unwrap();
-    op.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    let mut w = op.try_clone().unwrap();
-    let mut r = BufReader::new(op);
+    let (mut w, mut r) = operator(&sock);
     for _ in 0..3 {
         writeln!(w, r#"{{"emergency_stop":true}}"#).unwrap();
         let stop = next_result(&mut r);
@@ -911,10 +913,7 @@ fn a_flood_of_lines_does_not_keep_the_orion_controllers_answers_from_a_stop() {
         })
         .collect();
     thread::sleep(Duration::from_millis(2000));
-    let op = UnixStream::connect(&sock).unwrap();
-    op.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    let mut w = op.try_clone().unwrap();
-    let mut r = BufReader::new(op);
+    let (mut w, mut r) = operator(&sock);
     for _ in 0..2 {
         writeln!(w, r#"{{"emergency_stop":true}}"#).unwrap();
         let stop = next_result(&mut r);
