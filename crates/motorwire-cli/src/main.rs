@@ -17,6 +17,7 @@ mod fleet;
 mod input;
 mod irpc;
 mod lines;
+mod moteus;
 mod orion_link;
 mod plan;
 mod plot;
@@ -44,6 +45,10 @@ enum Command {
     Irpc(irpc::Args),
     /// Encode and decode the 24-byte WIA compact command.
     Compact(compact::Args),
+    /// Encode and decode mjbots moteus frames (JSON lines with the names of
+    /// mjbots' Python library <-> `{"can_id":N,"data":"hex"}` lines), built
+    /// and read by mjbots' `moteus-protocol` crate.
+    Moteus(moteus::Args),
     /// Translate WIA command lines into one target dialect (iRPC frames,
     /// compact-command frames or Orion JSON) through the bridge's gate:
     /// one result line per input line, with the translation's loss report.
@@ -117,6 +122,7 @@ fn main() -> ExitCode {
         Command::Validate(args) => validate::run(&args),
         Command::Irpc(args) => irpc::run(&args),
         Command::Compact(args) => compact::run(&args),
+        Command::Moteus(args) => moteus::run(&args),
         Command::Translate(args) => translate::run(&args),
         Command::Plan(args) => plan::run(&args),
         Command::Sim(args) => sim::run(&args),

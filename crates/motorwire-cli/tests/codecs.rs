@@ -212,3 +212,48 @@ fn compact_decode_refuses_what_the_codec_refuses() {
         )
     );
 }
+
+#[test]
+fn moteus_encode_and_decode_lines_as_mjbots_library_builds_and_reads_them() {
+    // The bytes mjbots' Python library (moteus 1.1.1) builds for these
+    // calls: Controller(1).make_position(position=0.5, velocity=math.nan,
+    // maximum_torque=1.0, query=True) and Controller(3,
+    // can_prefix=5).make_stop(query=True).
+    let input = concat!(
+        r#"{"command":"position","id":1,"position":0.5,"velocity":null,"maximum_torque":1.0,"query":true}"#,
+        "\n",
+        r#"{"command":"position","id":1,"positon":0.5}"#,
+        "\n",
+        r#"{"command":"stop","id":3,"query":true,"can_prefix":5}"#,
+        "\n",
+    );
+    let o = run(&["moteus", "encode"], input);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stdout(&o),
+        concat!(
+            r#"{"can_id":32769,"data":"01000a0e200000003f0000c07f0d250000803f11001f01130d"}"#,
+            "\n",
+            r#"{"error":"position: unknown member \"positon\" (did you mean \"position\"?)","line":2}"#,
+            "\n",
+            r#"{"can_id":360451,"data":"01000011001f01130d"}"#,
+            "\n",
+        )
+    );
+    // A reply from controller 1 (mode 10, position 0.5 as f32, padding),
+    // then one cut inside its position.
+    let o = run(
+        &["moteus", "decode"],
+        "{\"can_id\":256,\"data\":\"21000a2d010000003f505050\"}\n{\"can_id\":256,\"data\":\"21000a2d01000000\"}\n",
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stdout(&o),
+        concat!(
+            r#"{"errors":[],"id":1,"values":[{"name":"MODE","register":0,"value":10},{"name":"POSITION","register":1,"value":0.5}]}"#,
+            "\n",
+            r#"{"error":"the frame ends inside a subframe at byte 3 (it is 8 bytes)","line":2}"#,
+            "\n",
+        )
+    );
+}

@@ -1,0 +1,36 @@
+#![doc = include_str!("../README.md")]
+
+mod call;
+mod registers;
+mod reply;
+
+pub use call::{
+    COMMANDS, Call, CallError, Command, PositionArgs, QUERY_FIELDS, Resolutions, StayWithinArgs,
+    resolution_by_name,
+};
+pub use moteus_protocol as protocol;
+pub use registers::{
+    NotAnInteger, REGISTERS, Scale, Scaled, register_by_name, register_name, register_scale, scale,
+};
+pub use reply::{RegisterError, RegisterValue, Reply, ReplyError, decode};
+
+/// A frame for a controller: its CAN id and its data (not padded: the
+/// transport pads to the CAN-FD length, with 0x50, the protocol's no-op).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Frame {
+    /// The 29-bit CAN id.
+    pub can_id: u32,
+    /// The data, at most 64 bytes.
+    pub data: Vec<u8>,
+}
+
+/// Lowercase hex, no separators.
+pub fn hex(bytes: &[u8]) -> String {
+    use std::fmt::Write;
+    bytes
+        .iter()
+        .fold(String::with_capacity(bytes.len() * 2), |mut s, b| {
+            let _ = write!(s, "{b:02x}");
+            s
+        })
+}
