@@ -1131,8 +1131,9 @@ impl Bridge {
             self.refuse(&meta, e);
             return;
         }
-        // An iRPC joint only: Reset goes to its node alone (an Orion motor's
-        // would be the broadcast node, rebooting every joint).
+        // A device that takes a reset (an iRPC joint, a moteus controller):
+        // it goes to that device alone (an Orion motor's would be the
+        // broadcast node, rebooting every joint).
         let ji = match self.joint_for(motor, Capability::Reset, PayloadKind::Reset, "Reset") {
             Ok(ji) => ji,
             Err(e) => {
@@ -1146,13 +1147,16 @@ impl Bridge {
         if let Some(j) = self.joints.get_mut(ji) {
             j.resetting = true;
         }
-        let subscription = self.telemetry_subscription(ji);
-        let axes = vec![Axis::new(
+        // As the device takes a reset (an iRPC joint: these payloads; a
+        // moteus controller: its stop, which clears a fault or a timeout).
+        let payloads: Vec<Payload> = [Payload::Reset, Payload::Configure, Payload::Activate]
+            .into_iter()
+            .chain(self.telemetry_subscription(ji))
+            .collect();
+        let axes = vec![Axis::of(
             motor.to_owned(),
             ji,
-            [Payload::Reset, Payload::Configure, Payload::Activate]
-                .into_iter()
-                .chain(subscription),
+            self.orders_for(ji, &payloads),
         )];
         self.open_job(
             Some(meta),

@@ -9,6 +9,7 @@ use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
 use motorwire_can::{CanBus, Clock, SimBus, SimConfig, SimPort};
+use motorwire_sim::moteus::{MoteusConfig, SimMoteus};
 use motorwire_sim::{
     CompactDeviceConfig, CompactDeviceLimits, JointConfig, SimCompactDevice, SimError, SimJoint,
 };
@@ -71,6 +72,40 @@ pub fn compact_config(motor: &MappedMotor) -> Option<CompactDeviceConfig> {
     config.initial_position = 0.0f32
         .max(config.limits.min_position)
         .min(config.limits.max_position);
+    Some(config)
+}
+
+/// A simulated moteus controller for `motor` if the map gives it the
+/// moteus dialect: its id and prefix, the map's position range as its
+/// position bounds and its velocity, acceleration and torque limits as its
+/// defaults (in revolutions), starting at 0 or the nearest bound.
+pub fn moteus_config(motor: &MappedMotor) -> Option<MoteusConfig> {
+    let Target::Moteus { id, bus, .. } = motor.target else {
+        return None;
+    };
+    let mut config = MoteusConfig::new(id);
+    config.prefix = bus;
+    let rev = |v: f64| motorwire_translate::revolutions(motor.unit, v);
+    let l = motor.limits;
+    if let Some(lo) = l.min_position {
+        config.position_min = rev(lo);
+    }
+    if let Some(hi) = l.max_position {
+        config.position_max = rev(hi);
+    }
+    if config.position_min >= config.position_max {
+        config.position_max = config.position_min + 1.0;
+    }
+    if let Some(v) = l.max_velocity {
+        config.default_velocity_limit = rev(v);
+    }
+    if let Some(a) = l.max_acceleration {
+        config.default_accel_limit = rev(a);
+    }
+    if let Some(t) = l.max_torque {
+        config.max_torque = t;
+    }
+    config.initial_position = 0.0f64.max(config.position_min).min(config.position_max);
     Some(config)
 }
 
@@ -138,6 +173,14 @@ impl RealTimeArm {
                 continue;
             };
             let mut device = SimCompactDevice::new(config)?;
+            let mut port = bus.port();
+            let stop = Arc::clone(&stop);
+            threads.push(thread::spawn(move || {
+                let _ = device.run(&mut port, &stop, |_| {});
+            }));
+        }
+        for config in map.motors().filter_map(moteus_config) {
+            let mut device = SimMoteus::new(config)?;
             let mut port = bus.port();
             let stop = Arc::clone(&stop);
             threads.push(thread::spawn(move || {
@@ -269,6 +312,7 @@ pub struct SimulatedArm {
     bridge: Bridge,
     joints: Vec<(SimJoint, Option<SimPort>)>,
     compact: Vec<(SimCompactDevice, SimPort)>,
+    moteus: Vec<(SimMoteus, SimPort)>,
     orion: Option<SimOrion>,
     /// Every frame the bridge sent, with when, once asked for.
     sent: Option<Vec<(Duration, motorwire_can::Frame)>>,
@@ -313,6 +357,10 @@ impl SimulatedArm {
             device.keep_log();
             compact.push((device, bus.port()));
         }
+        let mut moteus = Vec::new();
+        for c in bridge.map().motors().filter_map(moteus_config) {
+            moteus.push((SimMoteus::new(c)?, bus.port()));
+        }
         bridge.start(Duration::ZERO);
         let orion = bridge.config().orion.then(SimOrion::default);
         Ok(Self {
@@ -321,6 +369,7 @@ impl SimulatedArm {
             bridge,
             joints,
             compact,
+            moteus,
             orion,
             sent: None,
             outputs: Vec::new(),
@@ -397,6 +446,14 @@ impl SimulatedArm {
             .iter()
             .map(|(d, _)| d)
             .find(|d| d.config().node == node)
+    }
+
+    /// The moteus controller with id `id`.
+    pub fn moteus(&self, id: u8) -> Option<&SimMoteus> {
+        self.moteus
+            .iter()
+            .map(|(d, _)| d)
+            .find(|d| d.config().id == id)
     }
 
     /// Cuts the joint with node id `node` off the bus (a cable pulled): it
@@ -496,6 +553,9 @@ impl SimulatedArm {
             for (device, port) in &mut self.compact {
                 busy |= device.serve(port, now)?;
             }
+            for (device, port) in &mut self.moteus {
+                busy |= device.serve(port, now)?;
+            }
             while let Some(r) = self.port.try_recv() {
                 self.bridge.handle_frame(now, &r.frame);
                 busy = true;
@@ -518,6 +578,10 @@ impl SimulatedArm {
                 .filter_map(|(j, _)| j.poll_timeout())
                 .min(),
             self.compact
+                .iter()
+                .filter_map(|(d, _)| d.poll_timeout())
+                .min(),
+            self.moteus
                 .iter()
                 .filter_map(|(d, _)| d.poll_timeout())
                 .min(),

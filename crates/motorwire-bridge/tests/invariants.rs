@@ -256,7 +256,7 @@ fn four_clients_bursts_stops_and_faults_keep_every_invariant() {
     let mut ops = Vec::new();
     for round in 0..12u64 {
         for i in 0..60u64 {
-            let motor = ((i + round) % 5) as usize;
+            let motor = ((i + round) % 6) as usize;
             let (_, lo, hi) = EVERY_DIALECT[motor];
             // Now and then a setpoint outside the limits: refused, never sent.
             let setpoint = if i % 17 == 0 {
@@ -332,7 +332,7 @@ fn four_clients_bursts_stops_and_faults_keep_every_invariant() {
         "{stats:?}"
     );
     // Invariant 5: one last move per motor, then at rest on its target.
-    let last = [12.5, -7.5, 33.0, 20.0, 15.0];
+    let last = [12.5, -7.5, 33.0, 20.0, 15.0, -25.0];
     for (m, (motor, ..)) in EVERY_DIALECT.iter().enumerate() {
         arm.line(Origin(9), &command(motor, last[m]));
     }
@@ -354,8 +354,9 @@ fn four_clients_bursts_stops_and_faults_keep_every_invariant() {
 /// superseded at once, never buffered without bound, each answered once.
 #[test]
 fn a_burst_is_bounded_and_a_newer_move_supersedes_a_waiting_one() {
-    // The elbow (iRPC), the gripper (compact), the servo (Orion).
-    for m in [2, 3, 4] {
+    // The elbow (iRPC), the gripper (compact), the servo (Orion), the
+    // wrist (moteus).
+    for m in [2, 3, 4, 5] {
         let (motor, lo, hi) = EVERY_DIALECT[m];
         let span = (hi - lo) as u64;
         let setpoint = |i: u64| lo + (i % span) as f64;
@@ -577,13 +578,50 @@ proptest! {
 /// The demo map's motors the every-dialect scenarios command: (name,
 /// map min, map max); the first three are iRPC joints, then the compact
 /// gripper, then the Orion arm's servo.
-const EVERY_DIALECT: [(&str, f64, f64); 5] = [
+const EVERY_DIALECT: [(&str, f64, f64); 6] = [
     ("shoulder_pitch", -90.0, 90.0),
     ("shoulder_roll", -45.0, 45.0),
     ("elbow", 0.0, 150.0),
     ("gripper_axis", 0.0, 90.0),
     ("grasper_horizontal_servo", -90.0, 90.0),
+    ("wrist", -90.0, 90.0),
 ];
+
+/// The every-dialect scenarios' map: the demo arm and a moteus controller.
+fn every_dialect_map() -> String {
+    format!(
+        "{MAP}\n[motors.wrist]\ndialect = \"moteus\"\nid = 1\n\
+         limits = {{ min_position = -90, max_position = 90, max_velocity = 180, max_acceleration = 720, max_torque = 2 }}\n"
+    )
+}
+
+/// The moteus wrist's frames as sent: the mode each writes (`None`: a
+/// query) and the position it commands in degrees (NaN: none).
+fn moteus_command(frame: &motorwire_can::Frame) -> Option<(Option<i64>, f64)> {
+    use motorwire_moteus::protocol::{Subframe, SubframeType};
+    let raw = frame.id().raw();
+    if !frame.id().is_extended() || raw & 0x7f != 1 || (raw >> 8) & 0x7f != 0 {
+        return None;
+    }
+    let mut mode = None;
+    let mut position = f64::NAN;
+    for s in motorwire_moteus::protocol::parse_frame(frame.data()) {
+        if let Subframe::Register {
+            subframe_type: SubframeType::Write,
+            register,
+            value: Some(v),
+            ..
+        } = s
+        {
+            match (register, motorwire_moteus::scale(register, v)) {
+                (0x000, Ok(motorwire_moteus::Scaled::Int(m))) => mode = Some(m),
+                (0x020, Ok(motorwire_moteus::Scaled::Float(p))) => position = p * 360.0,
+                _ => {}
+            }
+        }
+    }
+    Some((mode, position))
+}
 
 /// What an every-dialect scenario sends, beside [`Op`]'s stops, releases
 /// and waits.
@@ -618,10 +656,10 @@ enum Mixed {
 
 fn mixed_op() -> impl Strategy<Value = Mixed> {
     prop_oneof![
-        6 => (0u64..3, 0usize..5, -100.0f64..160.0).prop_map(|(client, motor, s)| Mixed::Move { client, motor, setpoint: s.round() }),
+        6 => (0u64..3, 0usize..6, -100.0f64..160.0).prop_map(|(client, motor, s)| Mixed::Move { client, motor, setpoint: s.round() }),
         1 => (0u64..3, -450.0f64..450.0).prop_map(|(client, s)| Mixed::Spin { client, speed: s.round() }),
         1 => (0u64..3, 0.0f64..140.0, any::<bool>()).prop_map(|(client, s, sequential)| Mixed::Multi { client, setpoints: [s.round(), (s / 2.0).round(), (s - 60.0).round()], sequential }),
-        2 => (0u64..3, 2usize..5, 0.0f64..1.0).prop_map(|(client, motor, f)| {
+        2 => (0u64..3, 2usize..6, 0.0f64..1.0).prop_map(|(client, motor, f)| {
             let (_, lo, hi) = EVERY_DIALECT[motor];
             Mixed::Limits { client, motor, max: (lo + 1.0 + f * (hi - lo - 1.0)).round() }
         }),
@@ -747,14 +785,29 @@ fn latched_at(t: &MixedTally, at: Duration) -> bool {
 /// Every invariant, on every dialect: one result per line (and the iRPC
 /// joints' own, [`check`]); nothing outside the limits in force (the map,
 /// then each SafetyLimits line taken) sent to a joint, the compact
-/// gripper or the Orion arm; and, while the stop is latched, nothing but
-/// stops sent to the gripper and no Orion motor moving.
+/// gripper, the moteus wrist or the Orion arm; and, while the stop is
+/// latched, nothing but stops sent to the gripper and the wrist and no
+/// Orion motor moving.
 fn check_mixed(arm: &SimulatedArm, t: &MixedTally) {
     check(arm, &t.tally);
-    // iRPC (the elbow) and compact (the gripper): each frame as sent.
+    // iRPC (the elbow), compact (the gripper) and moteus (the wrist): each
+    // frame as sent.
     for (at, frame) in arm.sent() {
         let id = frame.id().raw();
-        if id == 0x20 {
+        if let Some((mode, position)) = moteus_command(frame) {
+            // While latched: stop, brake or a query, nothing else.
+            assert!(
+                mode.is_none_or(|m| m == 0 || m == 15) || !latched_at(t, *at),
+                "at {at:?}, latched: the wrist was sent mode {mode:?}"
+            );
+            if mode == Some(10) && position.is_finite() {
+                let max = max_in_force(t, 5, *at);
+                assert!(
+                    position <= max + 1e-3,
+                    "at {at:?}: the wrist was sent {position} beyond max {max}"
+                );
+            }
+        } else if id == 0x20 {
             let c = motorwire_compact::CompactCommand::decode(frame.data()).unwrap();
             let stop = c.flags.bits() & motorwire_compact::Flags::EMERGENCY_STOP.bits() != 0;
             assert!(
@@ -831,7 +884,7 @@ fn every_dialect_arm_with(faults: Faults, seed: u64) -> SimulatedArm {
         orion: true,
         ..BridgeConfig::default()
     };
-    let bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
+    let bridge = Bridge::new(BusMap::from_toml(&every_dialect_map()).unwrap(), config).unwrap();
     let mut arm = SimulatedArm::new(
         bridge,
         SimConfig {
@@ -856,6 +909,7 @@ fn position_of(arm: &SimulatedArm, m: usize) -> f64 {
     match m {
         0..=2 => arm.joint(JOINTS[m].1).unwrap().position(),
         3 => arm.compact_device(0x20).unwrap().position(),
+        5 => arm.moteus(1).unwrap().position() * 360.0,
         _ => {
             let servo = motorwire_orion::Motor::ALL
                 .iter()

@@ -630,6 +630,9 @@ impl Call {
     pub fn encode(&self) -> Result<Frame, CallError> {
         let mut command = CanFdFrame::new();
         let r = &self.resolutions;
+        // The command's size as written in full (a block the frame cannot
+        // hold is not written, and makes this larger than 64).
+        let mut needed = 0;
         match &self.command {
             Command::Position(a) => {
                 let p = &r.position;
@@ -680,7 +683,7 @@ impl Call {
                     ),
                 ];
                 write_mode(&mut command, Mode::Position);
-                write_block(&mut command, Register::CommandPosition, &fields)?;
+                needed = 3 + write_block(&mut command, Register::CommandPosition, &fields)?;
             }
             Command::StayWithin(a) => {
                 let p = &r.position;
@@ -711,7 +714,8 @@ impl Call {
                     ),
                 ];
                 write_mode(&mut command, Mode::StayWithin);
-                write_block(&mut command, Register::CommandStayWithinLowerBound, &fields)?;
+                needed =
+                    3 + write_block(&mut command, Register::CommandStayWithinLowerBound, &fields)?;
             }
             Command::Current { d_a, q_a } => {
                 let c = &r.current;
@@ -721,13 +725,13 @@ impl Call {
                     (Some(*d_a), c.d_a, CURRENT, "d_A"),
                 ];
                 write_mode(&mut command, Mode::Current);
-                write_block(&mut command, Register::CommandQCurrent, &fields)?;
+                needed = 3 + write_block(&mut command, Register::CommandQCurrent, &fields)?;
             }
             Command::ZeroVelocity { kd_scale } => {
                 write_mode(&mut command, Mode::ZeroVelocity);
                 if kd_scale.is_some() {
                     let fields = [(*kd_scale, r.zero_velocity.kd_scale, PWM, "kd_scale")];
-                    write_block(&mut command, Register::CommandKdScale, &fields)?;
+                    needed = 3 + write_block(&mut command, Register::CommandKdScale, &fields)?;
                 }
             }
             Command::SetOutputNearest(p) => {
@@ -747,10 +751,10 @@ impl Call {
         } else if self.query {
             r.query.serialize(&mut query);
         }
-        let size = usize::from(command.size) + usize::from(query.size);
-        // The codec stops writing at 64 bytes: a part that reached 64 may
-        // have been cut, and the whole must fit.
-        if size > 64 || command.size >= 64 || query.size >= 64 {
+        // A query has no values: it never reaches 64 bytes alone (20
+        // registers at most, a header each at worst).
+        let size = needed.max(usize::from(command.size)) + usize::from(query.size);
+        if size > 64 {
             return Err(CallError::TooLong { size });
         }
         let mut data = Vec::with_capacity(size);
@@ -795,11 +799,16 @@ fn write_block(
     frame: &mut CanFdFrame,
     start: Register,
     fields: &[(Option<f64>, Resolution, Scales, &str)],
-) -> Result<(), CallError> {
+) -> Result<usize, CallError> {
     let resolutions: Vec<Resolution> = fields
         .iter()
         .map(|(v, r, _, _)| if v.is_some() { *r } else { Resolution::Ignore })
         .collect();
+    let needed = block_size(start.address(), &resolutions);
+    if usize::from(frame.size) + needed > 64 {
+        // The codec's writer stops at 64 bytes: nothing is written.
+        return Ok(needed);
+    }
     let mut combiner = WriteCombiner::new(WRITE_INT8, start.address(), &resolutions);
     let mut w = WriteCanData::new(frame);
     for (v, res, scales, member) in fields {
@@ -820,7 +829,8 @@ fn write_block(
                     range: "the numbers (it is sent as int(value))",
                 });
             }
-            v.trunc()
+            // int(-0.5) is 0, written as +0.0.
+            v.trunc() + 0.0
         } else {
             v
         };
@@ -832,7 +842,31 @@ fn write_block(
             _ => w.write_f32(as_f32(member, v)?),
         }
     }
-    Ok(())
+    Ok(needed)
+}
+
+/// How many bytes `WriteCombiner` writes for `resolutions` from register
+/// `start`: for each run of one resolution, its header (the opcode, a
+/// count byte for runs over 3, the register as a varuint) and its values.
+fn block_size(start: u16, resolutions: &[Resolution]) -> usize {
+    let mut size = 0;
+    let mut i = 0;
+    while let Some(&r) = resolutions.get(i) {
+        let run = resolutions.iter().skip(i).take_while(|x| **x == r).count();
+        if r != Resolution::Ignore {
+            let register = u32::from(start) + u32::try_from(i).unwrap_or(u32::MAX);
+            let varuint = if register < 0x80 {
+                1
+            } else if register < 0x4000 {
+                2
+            } else {
+                3
+            };
+            size += 1 + usize::from(run > 3) + varuint + run * r.size();
+        }
+        i += run.max(1);
+    }
+    size
 }
 
 /// The library's `saturate` for an integer resolution: the value over its

@@ -410,9 +410,12 @@ pub enum Scaled {
     Float(f64),
 }
 
-/// Why a value has no scaled form.
+/// Why a value has no scaled form: an integer register holding a float
+/// that is no integer of 64 bits (NaN, an infinity, or beyond ±2^63).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("register {register:#05x} is an integer register and holds the float {value}")]
+#[error(
+    "register {register:#05x} is an integer register and holds the float {value}, which is no integer of 64 bits"
+)]
 pub struct NotAnInteger {
     /// The register.
     pub register: u16,
@@ -450,11 +453,12 @@ pub fn scale(register: u16, value: Value) -> Result<Scaled, NotAnInteger> {
     Ok(match (register_scale(register), raw) {
         (Scale::Int | Scale::Raw, Raw::Int(v, _)) => Scaled::Int(v),
         (Scale::Int, Raw::Float(v)) => {
-            if !v.is_finite() {
+            // Python's int(): toward zero. NaN and the infinities have no
+            // integer; one beyond 64 bits is no register's value either
+            // (the library would give a 20-digit or longer integer): refused.
+            if !v.is_finite() || v.abs() >= 9.223_372e18 {
                 return Err(NotAnInteger { register, value: v });
             }
-            // Python's int(): toward zero. A finite f32 beyond i64 is
-            // beyond any register too; it saturates.
             #[allow(clippy::cast_possible_truncation)]
             Scaled::Int(v.trunc() as i64)
         }

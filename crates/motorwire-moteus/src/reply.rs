@@ -121,7 +121,9 @@ pub enum ReplyError {
 ///
 /// # Errors
 /// [`ReplyError`]: over 64 bytes, cut inside a subframe, an unknown
-/// subframe byte, an integer register holding NaN. `moteus-protocol`'s
+/// subframe byte, an integer register holding a float that is no integer
+/// of 64 bits (NaN, an infinity, beyond ±2^63: the library refuses the
+/// first two and gives a huge integer for the last). `moteus-protocol`'s
 /// parser stops quietly at a cut subframe; this checks the frame's
 /// structure first so that nothing is dropped without saying so.
 pub fn decode(can_id: u32, data: &[u8]) -> Result<Reply, ReplyError> {
@@ -132,6 +134,10 @@ pub fn decode(can_id: u32, data: &[u8]) -> Result<Reply, ReplyError> {
     let (source, destination, can_prefix) = parse_arbitration_id(can_id);
     let mut values: Vec<RegisterValue> = Vec::new();
     let mut errors = Vec::new();
+    // An integer register holding a float beyond 64 bits, until a later
+    // value of the same register replaces it (the library keeps a
+    // register's last value; NaN and the infinities it refuses at once).
+    let mut beyond: Vec<NotAnInteger> = Vec::new();
     for sub in moteus_protocol::parse_frame(data) {
         match sub {
             Subframe::Register {
@@ -140,7 +146,23 @@ pub fn decode(can_id: u32, data: &[u8]) -> Result<Reply, ReplyError> {
                 value: Some(value),
                 ..
             } => {
-                let value = scale(register, value)?;
+                beyond.retain(|e| e.register != register);
+                let value = match scale(register, value) {
+                    Ok(v) => v,
+                    Err(e) if e.value.is_finite() => {
+                        // Its place is kept (the library's dict keeps a
+                        // key where it first came).
+                        if !values.iter().any(|v| v.register == register) {
+                            values.push(RegisterValue {
+                                register,
+                                value: Scaled::Float(f64::NAN),
+                            });
+                        }
+                        beyond.push(e);
+                        continue;
+                    }
+                    Err(e) => return Err(e.into()),
+                };
                 match values.iter_mut().find(|v| v.register == register) {
                     Some(v) => v.value = value,
                     None => values.push(RegisterValue { register, value }),
@@ -157,6 +179,9 @@ pub fn decode(can_id: u32, data: &[u8]) -> Result<Reply, ReplyError> {
             }),
             _ => {}
         }
+    }
+    if let Some(e) = beyond.into_iter().next() {
+        return Err(e.into());
     }
     #[allow(clippy::cast_sign_loss)]
     Ok(Reply {

@@ -3,6 +3,7 @@
 pub mod compact;
 mod device;
 pub mod joint;
+pub mod moteus;
 pub mod orion;
 pub mod rig;
 

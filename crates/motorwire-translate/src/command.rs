@@ -24,12 +24,12 @@ pub struct IrpcCommand {
     pub payloads: Vec<Payload>,
 }
 
-fn emergency(cmd: &MotorCommand) -> bool {
+pub(crate) fn emergency(cmd: &MotorCommand) -> bool {
     cmd.safety_limits.as_ref().and_then(|l| l.emergency_stop) == Some(true)
 }
 
 /// Reports every member of `cmd` that is present and not in `used`.
-fn report_unused(cmd: &MotorCommand, used: &[&str], dialect: &str, report: &mut Report) {
+pub(crate) fn report_unused(cmd: &MotorCommand, used: &[&str], dialect: &str, report: &mut Report) {
     let present = [
         ("velocity_limit", cmd.velocity_limit.is_some()),
         ("acceleration_limit", cmd.acceleration_limit.is_some()),
@@ -183,7 +183,7 @@ pub fn lifecycle(map: &BusMap, motor: &str, enable: bool) -> Result<IrpcCommand,
 /// The gate, except for an emergency stop: a stop is never refused for
 /// the sake of the setpoint or limits it carries (only an unknown motor
 /// refuses it).
-fn gate_unless_emergency<'m>(
+pub(crate) fn gate_unless_emergency<'m>(
     map: &'m BusMap,
     cmd: &MotorCommand,
 ) -> Result<(&'m MappedMotor, Effective), Refusal> {
@@ -198,13 +198,14 @@ fn gate_unless_emergency<'m>(
     gate(map, cmd)
 }
 
-fn not_for(motor: &MappedMotor, cmd: &MotorCommand, dialect: &'static str) -> Refusal {
+pub(crate) fn not_for(motor: &MappedMotor, cmd: &MotorCommand, dialect: &'static str) -> Refusal {
     Refusal::ModeNotExpressible {
         motor: motor.name.clone(),
         mode: cmd.control_mode.name(),
         dialect: match dialect {
             "iRPC" => "iRPC (the bus map says this motor is not an iRPC joint)",
             "compact" => "the compact command (the bus map says this motor does not take it)",
+            "moteus" => "moteus (the bus map says this motor is not a moteus controller)",
             _ => "Orion (the bus map says this motor is not an Orion motor)",
         },
     }
@@ -227,6 +228,10 @@ fn the(source: &str) -> String {
 }
 
 /// `value from the source`, as a defaulted limit's report says it.
+pub(crate) fn from_defaulted(value: f64, source: &str) -> String {
+    from_source(value, source)
+}
+
 fn from_source(value: f64, source: &str) -> String {
     let mut s = String::with_capacity(source.len() + 24);
     push_value(&mut s, value);

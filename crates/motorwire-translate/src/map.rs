@@ -122,6 +122,22 @@ pub enum Target {
         /// Which.
         motor: motorwire_orion::Motor,
     },
+    /// An mjbots moteus controller on CAN-FD (its register protocol,
+    /// `motorwire_moteus`).
+    Moteus {
+        /// Its id (1..=127).
+        id: u8,
+        /// The CAN prefix of its bus (13 bits; the map's `bus`, 0 by
+        /// default).
+        bus: u16,
+        /// How often the bridge queries it for feedback (Hz; the map's
+        /// `query_rate_hz`, 50 by default).
+        query_rate_hz: u16,
+        /// Whether a stop puts it in brake mode (its windings shorted: the
+        /// map's `stop = "brake"`) rather than stopped (no output, the
+        /// default `stop = "stop"`).
+        brake: bool,
+    },
 }
 
 impl Target {
@@ -131,6 +147,7 @@ impl Target {
             Target::Irpc { .. } => "irpc",
             Target::Compact { .. } => "compact",
             Target::Orion { .. } => "orion",
+            Target::Moteus { .. } => "moteus",
         }
     }
 }
@@ -243,13 +260,15 @@ pub struct MappedMotor {
 /// # Ok::<(), motorwire_translate::MapError>(())
 /// ```
 ///
-/// Per motor: `dialect` (`irpc`, `compact` or `orion`); for iRPC `node`
+/// Per motor: `dialect` (`irpc`, `compact`, `orion` or `moteus`); for iRPC `node`
 /// and optionally `wire` (`v1`, `v2.0` the default, `v2.1`, `v2.2`) and
 /// `profile` (`trapezoidal`, `scurve` the default, `adaptive`); for a
 /// compact device `node` (the CAN id of its commands, 0x001..=0x7FF) and
 /// optionally `feedback_node` (the CAN id of its feedback, by default
 /// `node | 0x400`); for Orion
-/// `key` (`TRM` ...); `unit` (`deg` the default, or `rad`);
+/// `key` (`TRM` ...); for a moteus controller `id` (1..=127) and optionally
+/// `bus` (its CAN prefix), `query_rate_hz` (50 by default) and `stop`
+/// (`stop` the default, or `brake`); `unit` (`deg` the default, or `rad`);
 /// `arrival_tolerance` (how close a position move must come to its target
 /// to have arrived, in the motor's unit; 0.1° by default);
 /// `command_timeout_ms` (the deadman for velocity and torque setpoints: 200
@@ -281,6 +300,10 @@ struct RawMotor {
     profile: Option<String>,
     arrival_tolerance: Option<f64>,
     command_timeout_ms: Option<u64>,
+    id: Option<i64>,
+    bus: Option<i64>,
+    query_rate_hz: Option<i64>,
+    stop: Option<String>,
     #[serde(default)]
     limits: RawLimits,
 }
@@ -350,6 +373,73 @@ fn compact_target(
     Ok(Target::Compact {
         node,
         feedback_node,
+    })
+}
+
+/// A moteus controller's entry: `id` required (1..=127); `bus` (the CAN
+/// prefix, 0..=0x1FFF), `query_rate_hz` (1..=1000, 50 by default) and
+/// `stop` (`stop` or `brake`) optional; no iRPC, compact or Orion field.
+fn moteus_target(
+    name: &str,
+    m: &RawMotor,
+    not_for: impl Fn(&'static str, &'static str) -> MapError,
+) -> Result<Target, MapError> {
+    for (field, present) in [
+        ("node", m.node.is_some()),
+        ("feedback_node", m.feedback_node.is_some()),
+        ("wire", m.wire.is_some()),
+        ("key", m.key.is_some()),
+        ("profile", m.profile.is_some()),
+    ] {
+        if present {
+            return Err(not_for(field, "moteus"));
+        }
+    }
+    let id = m.id.ok_or(MapError::Missing {
+        motor: name.to_owned(),
+        dialect: "moteus",
+        field: "id",
+    })?;
+    let id = u8::try_from(id)
+        .ok()
+        .filter(|i| (1..=127).contains(i))
+        .ok_or_else(|| invalid(name, "id", format!("{id} is not a moteus id in 1..=127")))?;
+    let bus = match m.bus {
+        None => 0,
+        Some(b) => u16::try_from(b)
+            .ok()
+            .filter(|b| *b <= 0x1FFF)
+            .ok_or_else(|| {
+                invalid(
+                    name,
+                    "bus",
+                    format!("{b} is not a CAN prefix in 0..=0x1FFF (13 bits)"),
+                )
+            })?,
+    };
+    let query_rate_hz = match m.query_rate_hz {
+        None => 50,
+        Some(r) => u16::try_from(r)
+            .ok()
+            .filter(|r| (1..=1000).contains(r))
+            .ok_or_else(|| invalid(name, "query_rate_hz", format!("{r} is not in 1..=1000")))?,
+    };
+    let brake = match m.stop.as_deref() {
+        None | Some("stop") => false,
+        Some("brake") => true,
+        Some(other) => {
+            return Err(invalid(
+                name,
+                "stop",
+                format!("{other:?} is not stop or brake"),
+            ));
+        }
+    };
+    Ok(Target::Moteus {
+        id,
+        bus,
+        query_rate_hz,
+        brake,
     })
 }
 
@@ -443,7 +533,25 @@ impl BusMap {
             dialect,
             field,
         };
+        if m.dialect != "moteus" {
+            let dialect = match m.dialect.as_str() {
+                "irpc" => "irpc",
+                "compact" => "compact",
+                _ => "orion",
+            };
+            for (field, present) in [
+                ("id", m.id.is_some()),
+                ("bus", m.bus.is_some()),
+                ("query_rate_hz", m.query_rate_hz.is_some()),
+                ("stop", m.stop.is_some()),
+            ] {
+                if present && matches!(m.dialect.as_str(), "irpc" | "compact" | "orion") {
+                    return Err(not_for(field, dialect));
+                }
+            }
+        }
         let target = match m.dialect.as_str() {
+            "moteus" => moteus_target(name, &m, not_for)?,
             "irpc" => {
                 let node = m.node.ok_or(MapError::Missing {
                     motor: name.to_owned(),
@@ -508,7 +616,7 @@ impl BusMap {
                 return Err(invalid(
                     name,
                     "dialect",
-                    format!("{other:?} is not irpc, compact or orion"),
+                    format!("{other:?} is not irpc, compact, orion or moteus"),
                 ));
             }
         };
@@ -613,6 +721,7 @@ impl BusMap {
         enum Address {
             Can(u16),
             Orion(&'static str),
+            Moteus(u16, u8),
         }
         // Each address with the first motor there and whether it is an iRPC joint.
         let mut seen: BTreeMap<Address, (&str, bool)> = BTreeMap::new();
@@ -623,6 +732,17 @@ impl BusMap {
                     node,
                     feedback_node,
                 } => ([Some(node), Some(feedback_node)], false),
+                Target::Moteus { id, bus, .. } => {
+                    if let Some((first, _)) = seen.get(&Address::Moteus(bus, id)) {
+                        return Err(MapError::SharedAddress {
+                            first: (*first).to_owned(),
+                            second: m.name.clone(),
+                            address: format!("moteus id {id} on bus {bus}"),
+                        });
+                    }
+                    seen.insert(Address::Moteus(bus, id), (&m.name, false));
+                    continue;
+                }
                 Target::Orion { motor } => {
                     if let Some((first, _)) = seen.get(&Address::Orion(motor.key())) {
                         return Err(MapError::SharedAddress {

@@ -68,7 +68,7 @@ fn bad_maps_are_refused_naming_motor_and_field() {
     let cases = [
         (
             "[motors.a]\ndialect = \"canopen\"",
-            "bus map: motors.a.dialect: \"canopen\" is not irpc, compact or orion",
+            "bus map: motors.a.dialect: \"canopen\" is not irpc, compact, orion or moteus",
         ),
         (
             "[motors.a]\ndialect = \"irpc\"",
@@ -141,6 +141,30 @@ fn bad_maps_are_refused_naming_motor_and_field() {
         (
             "[motors.a]\ndialect = \"compact\"\nnode = 0x20\n[motors.b]\ndialect = \"compact\"\nnode = 0x21\nfeedback_node = 0x20",
             "bus map: motors.a and motors.b are both CAN id 0x020",
+        ),
+        (
+            "[motors.a]\ndialect = \"moteus\"",
+            "bus map: motors.a speaks moteus and needs id",
+        ),
+        (
+            "[motors.a]\ndialect = \"moteus\"\nid = 128",
+            "bus map: motors.a.id: 128 is not a moteus id in 1..=127",
+        ),
+        (
+            "[motors.a]\ndialect = \"moteus\"\nid = 1\nnode = 0x20",
+            "bus map: motors.a.node means nothing for a moteus motor",
+        ),
+        (
+            "[motors.a]\ndialect = \"moteus\"\nid = 1\nstop = \"coast\"",
+            "bus map: motors.a.stop: \"coast\" is not stop or brake",
+        ),
+        (
+            "[motors.a]\ndialect = \"compact\"\nnode = 0x20\nid = 1",
+            "bus map: motors.a.id means nothing for a compact motor",
+        ),
+        (
+            "[motors.a]\ndialect = \"moteus\"\nid = 3\n[motors.b]\ndialect = \"moteus\"\nid = 3",
+            "bus map: motors.a and motors.b are both moteus id 3 on bus 0",
         ),
         (
             "[motors.\"a b\"]\ndialect = \"compact\"",

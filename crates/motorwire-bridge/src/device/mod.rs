@@ -80,7 +80,10 @@ use motorwire_can::client::ClientConfig;
 use motorwire_compact::{CompactCommand, ControlMode as CompactMode, Flags, MotorHash};
 use motorwire_irpc::{LifecycleState, Payload, PayloadKind, SetTargetPayloadV2, WireVersion};
 use motorwire_orion::{ArmCommand, Motor, Quantity};
-use motorwire_translate::{AngleUnit, BusMap, Refusal, Report, Target, to_compact, to_orion_motor};
+use motorwire_translate::{
+    AngleUnit, BusMap, MoteusCommand, Refusal, Report, Target, to_compact, to_moteus,
+    to_orion_motor,
+};
 use motorwire_wia::{MotorCommand, MotorFeedback};
 use serde_json::Value;
 
@@ -90,6 +93,7 @@ use crate::output::{BridgeRule, ErrorBody, Event};
 
 pub(crate) mod compact;
 pub(crate) mod irpc;
+pub(crate) mod moteus;
 pub(crate) mod orion;
 
 /// What a motor of the bus map is to the engine: the dialect that reaches
@@ -110,6 +114,17 @@ pub(crate) enum Device {
     },
     /// One of the Orion arm controller's motors.
     Orion(Motor),
+    /// An mjbots moteus controller.
+    Moteus {
+        /// Its id (1..=127).
+        id: u8,
+        /// Its bus's CAN prefix.
+        bus: u16,
+        /// How often it is polled (ms).
+        period_ms: u16,
+        /// Whether a stop puts it in brake mode.
+        brake: bool,
+    },
 }
 
 /// What a device can be asked to do beyond a motor command.
@@ -138,15 +153,19 @@ impl Device {
                     | Capability::Reset
                     | Capability::Requests
             ),
+            // A moteus controller's reset is its stop (the one command
+            // that takes it out of a fault or the watchdog's timeout).
+            Self::Moteus { .. } => matches!(what, Capability::Reset),
             Self::Compact { .. } | Self::Orion(_) => false,
         }
     }
 
     /// Whether it has the message `kind` (an iRPC joint: in its wire
-    /// version; the other dialects: none).
+    /// version; a moteus controller: a reset; the others: none).
     pub(crate) fn speaks(self, kind: PayloadKind) -> bool {
         match self {
             Self::Irpc { wire } => wire.tag_of(kind).is_some(),
+            Self::Moteus { .. } => kind == PayloadKind::Reset,
             Self::Compact { .. } | Self::Orion(_) => false,
         }
     }
@@ -156,7 +175,7 @@ impl Device {
     pub(crate) const fn wire(self) -> WireVersion {
         match self {
             Self::Irpc { wire } => wire,
-            Self::Compact { .. } | Self::Orion(_) => WireVersion::V2_0,
+            Self::Compact { .. } | Self::Orion(_) | Self::Moteus { .. } => WireVersion::V2_0,
         }
     }
 
@@ -205,6 +224,9 @@ impl Device {
             Self::Orion(_) => stops()
                 .map(|_| Order::Orion(OrionOrder::Command(ArmCommand::Stop)))
                 .collect(),
+            Self::Moteus { brake, .. } => {
+                stops().map(|_| Order::Moteus(moteus_stop(brake))).collect()
+            }
         }
     }
 
@@ -224,6 +246,8 @@ impl Device {
                 torque_limit: None,
             })),
             Self::Orion(m) => Some(Order::Orion(OrionOrder::Set(m, 0.0))),
+            // Its stop (or brake), as the map says.
+            Self::Moteus { brake, .. } => Some(Order::Moteus(moteus_stop(brake))),
         }
     }
 
@@ -276,6 +300,16 @@ impl Device {
                     report: t.report,
                 }
             })),
+            Self::Moteus { .. } => Some(to_moteus(map, cmd).map(|t| Single {
+                order: Order::Moteus(t.value),
+                target: match t.value {
+                    MoteusCommand::Position(a) => {
+                        a.position.filter(|p| p.is_finite()).map(|p| p * 360.0)
+                    }
+                    MoteusCommand::Stop | MoteusCommand::Brake => None,
+                },
+                report: t.report,
+            })),
         }
     }
 
@@ -284,7 +318,17 @@ impl Device {
         match self {
             Self::Irpc { .. } | Self::Compact { .. } => format!("node 0x{node:02X}"),
             Self::Orion(_) => orion::LABEL.to_owned(),
+            Self::Moteus { id, bus, .. } => format!("moteus id {id} on bus {bus}"),
         }
+    }
+}
+
+/// A moteus controller's stop: stop mode, or brake mode.
+const fn moteus_stop(brake: bool) -> MoteusCommand {
+    if brake {
+        MoteusCommand::Brake
+    } else {
+        MoteusCommand::Stop
     }
 }
 
@@ -306,6 +350,7 @@ pub(crate) enum Order {
     Irpc(Payload),
     Compact(CompactCommand),
     Orion(OrionOrder),
+    Moteus(MoteusCommand),
 }
 
 /// One Orion motor's part of a line to the arm controller.
@@ -394,6 +439,8 @@ impl Order {
             Self::Compact(c) => c.control_mode == CompactMode::Position,
             Self::Orion(OrionOrder::Set(m, _)) => m.quantity() == Quantity::PositionDegrees,
             Self::Orion(OrionOrder::Command(_)) => false,
+            Self::Moteus(MoteusCommand::Position(a)) => a.position.is_some_and(f64::is_finite),
+            Self::Moteus(_) => false,
         }
     }
 
@@ -412,6 +459,7 @@ impl Order {
             }
             Self::Orion(OrionOrder::Set(..)) => true,
             Self::Orion(OrionOrder::Command(_)) => false,
+            Self::Moteus(c) => matches!(c, MoteusCommand::Position(_)),
         }
     }
 
@@ -430,6 +478,13 @@ impl Order {
                 m.quantity() != Quantity::PositionDegrees && *v != 0.0
             }
             Self::Orion(OrionOrder::Command(_)) => false,
+            // A velocity (position NaN) or a torque other than 0.
+            Self::Moteus(MoteusCommand::Position(a)) => {
+                !a.position.is_some_and(f64::is_finite)
+                    && (a.velocity.is_some_and(|v| v != 0.0)
+                        || a.feedforward_torque.is_some_and(|t| t != 0.0))
+            }
+            Self::Moteus(_) => false,
         }
     }
 
@@ -468,6 +523,22 @@ impl Order {
                 Reach {
                     target: Some(*v),
                     speed: None,
+                }
+            }
+            // Revolutions on the wire, whatever the motor's unit.
+            Self::Moteus(MoteusCommand::Position(a)) => {
+                match a.position.filter(|p| p.is_finite()) {
+                    Some(p) => Reach {
+                        target: Some(p * 360.0),
+                        speed: a.velocity_limit.map(|v| v.abs() * 360.0),
+                    },
+                    None => Reach {
+                        target: None,
+                        speed: a
+                            .velocity
+                            .filter(|v| v.is_finite())
+                            .map(|v| v.abs() * 360.0),
+                    },
                 }
             }
             _ => Reach::default(),
@@ -531,6 +602,41 @@ impl Order {
                 moving: Moving::Until(at),
                 ..Effect::NONE
             },
+            Self::Moteus(MoteusCommand::Stop | MoteusCommand::Brake) => Effect {
+                target: Some(None),
+                moving: Moving::AtMost(at),
+                ..Effect::NONE
+            },
+            Self::Moteus(MoteusCommand::Position(a)) => {
+                match a.position.filter(|p| p.is_finite()) {
+                    Some(p) => {
+                        let target = p * 360.0;
+                        let from = cx.motion.map_or(target, |(p, _)| p);
+                        let v = a
+                            .velocity_limit
+                            .map(|v| v.abs() * 360.0)
+                            .or(cx.max_velocity)
+                            .unwrap_or(60.0)
+                            .max(1e-3);
+                        let acc = a
+                            .accel_limit
+                            .map(|v| v.abs() * 360.0)
+                            .or(cx.max_acceleration)
+                            .unwrap_or(500.0)
+                            .max(1e-3);
+                        // A trapezoid's duration, a bound on the controller's move.
+                        let secs = (target - from).abs() / v + v / acc;
+                        Effect {
+                            target: Some(Some(target)),
+                            moving: Moving::Until(
+                                at.saturating_add(Duration::from_secs_f64(secs.min(3600.0))),
+                            ),
+                            ..Effect::NONE
+                        }
+                    }
+                    None => self.holding(cx),
+                }
+            }
         }
     }
 
@@ -558,7 +664,7 @@ impl Order {
     pub(crate) fn lifecycle_payload(&self) -> Option<Payload> {
         match self {
             Self::Irpc(p) => Some(*p),
-            Self::Compact(_) | Self::Orion(_) => None,
+            Self::Compact(_) | Self::Orion(_) | Self::Moteus(_) => None,
         }
     }
 }
@@ -571,6 +677,10 @@ pub(crate) enum Route {
     /// A compact command (the bridge's own, heard back on a second
     /// socket): nothing to act on.
     CompactCommand,
+    /// A moteus controller's reply: device `.0`'s.
+    MoteusReply(usize),
+    /// A moteus command (the bridge's own, heard back): nothing to act on.
+    MoteusCommand,
     /// Anything else: the iRPC driver's to read (or to call bad).
     Irpc,
 }
@@ -580,7 +690,17 @@ pub(crate) enum Route {
 pub(crate) fn route(frame: &Frame, devices: impl Iterator<Item = (u16, Device)>) -> Route {
     let id = frame.id();
     if id.is_extended() {
-        return Route::Irpc;
+        let mut route = Route::Irpc;
+        for (k, (_, device)) in devices.enumerate() {
+            if let Device::Moteus { id: mid, bus, .. } = device {
+                match moteus::addressed(id.raw(), mid, bus) {
+                    Some(true) => return Route::MoteusReply(k),
+                    Some(false) => route = Route::MoteusCommand,
+                    None => {}
+                }
+            }
+        }
+        return route;
     }
     let mut route = Route::Irpc;
     for (k, (node, device)) in devices.enumerate() {
@@ -714,6 +834,12 @@ enum Queued {
         device: usize,
         at: Duration,
     },
+    /// A moteus controller's reply acknowledges its command in flight,
+    /// once the engine has taken the reply.
+    MoteusAck {
+        device: usize,
+        at: Duration,
+    },
 }
 
 /// The link a device is reached over, as far as sending goes: the CAN bus
@@ -744,13 +870,27 @@ impl Device {
             ),
             Target::Orion { motor } if orion => (orion::ORION_NODE, Self::Orion(motor)),
             Target::Orion { .. } => return None,
+            Target::Moteus {
+                id,
+                bus,
+                query_rate_hz,
+                brake,
+            } => (
+                u16::from(id),
+                Self::Moteus {
+                    id,
+                    bus,
+                    period_ms: (1000 / query_rate_hz.max(1)).max(1),
+                    brake,
+                },
+            ),
         })
     }
 
     /// The link it is reached over.
     pub(crate) const fn link(self) -> Link {
         match self {
-            Self::Irpc { .. } | Self::Compact { .. } => Link::Bus,
+            Self::Irpc { .. } | Self::Compact { .. } | Self::Moteus { .. } => Link::Bus,
             Self::Orion(_) => Link::Controller,
         }
     }
@@ -759,7 +899,7 @@ impl Device {
     pub(crate) const fn arm_order(self, command: ArmCommand) -> Option<Order> {
         match self {
             Self::Orion(_) => Some(Order::Orion(OrionOrder::Command(command))),
-            Self::Irpc { .. } | Self::Compact { .. } => None,
+            Self::Irpc { .. } | Self::Compact { .. } | Self::Moteus { .. } => None,
         }
     }
 }
@@ -831,6 +971,7 @@ pub(crate) struct Drivers {
     irpc: irpc::IrpcDriver,
     compact: compact::CompactDriver,
     orion: orion::OrionDriver,
+    moteus: moteus::MoteusDriver,
     queued: VecDeque<Queued>,
     /// The Unix ms of the bridge's zero (feedback timestamps).
     epoch: f64,
@@ -851,15 +992,21 @@ impl Drivers {
         devices: &[Joint],
     ) -> Result<Self, motorwire_can::Error> {
         let mut irpc = irpc::IrpcDriver::new(client)?;
-        for j in devices {
-            if let Device::Irpc { wire } = j.device {
-                irpc.set_wire(j.node, wire);
+        let mut moteus = moteus::MoteusDriver::new(client.timeout, client.retries);
+        for (k, j) in devices.iter().enumerate() {
+            match j.device {
+                Device::Irpc { wire } => irpc.set_wire(j.node, wire),
+                Device::Moteus {
+                    id, bus, period_ms, ..
+                } => moteus.poll_every(k, id, bus, Duration::from_millis(u64::from(period_ms))),
+                Device::Compact { .. } | Device::Orion(_) => {}
             }
         }
         Ok(Self {
             irpc,
             compact: compact::CompactDriver::new(client.timeout, client.retries),
             orion: orion::OrionDriver::new(client.timeout, client.retries, orion_command_timeout),
+            moteus,
             queued: VecDeque::new(),
             epoch,
         })
@@ -883,6 +1030,7 @@ impl Drivers {
             Order::Irpc(p) => self.irpc.send(now, device, node, p),
             Order::Compact(c) => self.compact.send(now, device, node, c),
             Order::Orion(o) => self.send_together(now, &[(device, Order::Orion(o))]),
+            Order::Moteus(c) => self.moteus.send(now, device, &c),
         }
     }
 
@@ -891,7 +1039,7 @@ impl Drivers {
     pub(crate) fn refuses(&self, order: &Order) -> Option<String> {
         match order {
             Order::Orion(o) => self.orion.refuses(*o),
-            Order::Irpc(_) | Order::Compact(_) => None,
+            Order::Irpc(_) | Order::Compact(_) | Order::Moteus(_) => None,
         }
     }
 
@@ -912,7 +1060,7 @@ impl Drivers {
             .iter()
             .filter_map(|(d, o)| match o {
                 Order::Orion(o) => Some((*d, *o)),
-                Order::Irpc(_) | Order::Compact(_) => None,
+                Order::Irpc(_) | Order::Compact(_) | Order::Moteus(_) => None,
             })
             .collect();
         if orion.len() != orders.len() || orion.is_empty() {
@@ -927,7 +1075,7 @@ impl Drivers {
     pub(crate) const fn link_free(&self, order: Option<&Order>) -> bool {
         match order {
             Some(Order::Orion(_)) => self.orion.lost() || self.orion.free(),
-            Some(Order::Irpc(_) | Order::Compact(_)) | None => true,
+            Some(Order::Irpc(_) | Order::Compact(_) | Order::Moteus(_)) | None => true,
         }
     }
 
@@ -939,6 +1087,7 @@ impl Drivers {
             Order::Irpc(_) => self.irpc.forget(msg_id),
             Order::Compact(_) => self.compact.forget(device),
             Order::Orion(_) => self.orion.forget(device),
+            Order::Moteus(_) => self.moteus.forget(device),
         }
     }
 
@@ -951,7 +1100,7 @@ impl Drivers {
         let mut unsent: BTreeSet<usize> = picked
             .iter()
             .copied()
-            .filter(|&d| self.compact.take_back_unsent(d))
+            .filter(|&d| self.compact.take_back_unsent(d) || self.moteus.take_back_unsent(d))
             .collect();
         if let Some(devices) = self.orion.take_back_unsent(|d| picked.contains(&d)) {
             unsent.extend(devices);
@@ -964,6 +1113,7 @@ impl Drivers {
         self.irpc
             .poll_transmit()
             .or_else(|| self.compact.poll_transmit())
+            .or_else(|| self.moteus.poll_transmit())
     }
 
     /// The next line for the Orion controller (without its newline).
@@ -982,7 +1132,7 @@ impl Drivers {
     /// it came back).
     pub(crate) fn offline_reason(&self, device: Device) -> Option<&'static str> {
         match device {
-            Device::Irpc { .. } | Device::Compact { .. } => None,
+            Device::Irpc { .. } | Device::Compact { .. } | Device::Moteus { .. } => None,
             Device::Orion(_) => self.orion.offline_reason(),
         }
     }
@@ -993,6 +1143,7 @@ impl Drivers {
             self.irpc.deadline(),
             self.compact.deadline(),
             self.orion.deadline(),
+            self.moteus.deadline(),
         ]
         .into_iter()
         .flatten()
@@ -1039,9 +1190,10 @@ impl Drivers {
                     }
                 }
             }
-            // A compact command (ours, heard back on a second socket):
-            // nothing to act on.
-            Route::CompactCommand => {}
+            Route::MoteusReply(ji) => self.moteus_reply(now, frame, ji, devices),
+            // A compact or moteus command (ours, heard back on a second
+            // socket): nothing to act on.
+            Route::CompactCommand | Route::MoteusCommand => {}
             Route::Irpc => self.irpc.handle_frame(now, frame),
         }
     }
@@ -1055,6 +1207,9 @@ impl Drivers {
     /// the iRPC client's have been taken, as the engine orders them).
     pub(crate) fn command_timeouts(&mut self, now: Duration) {
         for (device, ended) in self.compact.timeouts(now) {
+            self.tell(Happened::Ended { device, ended });
+        }
+        for (device, ended) in self.moteus.timeouts(now) {
             self.tell(Happened::Ended { device, ended });
         }
     }
@@ -1081,6 +1236,8 @@ impl Drivers {
         let idle =
             devices.iter().any(|j| on_link(&j)) && !devices.iter().filter(on_link).any(&busy);
         self.orion.housekeeping(now, idle);
+        // Each moteus controller's poll: its held command, or the query.
+        self.moteus.polls_due(now);
     }
 
     /// One line from the Orion controller, received at `now`.
@@ -1196,6 +1353,11 @@ impl Drivers {
                         return Some(Happened::Ended { device, ended });
                     }
                 }
+                Some(Queued::MoteusAck { device, at }) => {
+                    if let Some(ended) = self.moteus.acknowledged(device, at) {
+                        return Some(Happened::Ended { device, ended });
+                    }
+                }
                 None => {
                     let event = self.irpc.poll_event()?;
                     irpc::tell(event, map, devices, self.epoch, |h| {
@@ -1208,6 +1370,51 @@ impl Drivers {
 
     fn tell(&mut self, h: Happened) {
         self.queued.push_back(Queued::Tell(h));
+    }
+
+    /// A moteus controller's reply, device `ji`'s, at `now`: heard; its
+    /// own stop if it just stopped itself (a fault by name, its
+    /// watchdog); its reading; its command in flight acknowledged.
+    fn moteus_reply(&mut self, now: Duration, frame: &Frame, ji: usize, devices: &[Joint]) {
+        let Some(j) = devices.get(ji) else { return };
+        let reply = match moteus::reply(frame) {
+            Ok(r) => r,
+            Err(error) => {
+                return self.tell(Happened::Bad {
+                    report: Some(Event::BadFrame {
+                        can_id: frame.id().to_string(),
+                        error,
+                    }),
+                });
+            }
+        };
+        self.tell(Happened::Heard {
+            device: ji,
+            at: now,
+            up: true,
+        });
+        if self.moteus.observe(ji, &reply)
+            && let Some((reason, code)) = moteus::stopped_itself(&reply)
+        {
+            self.tell(Happened::StoppedItself {
+                device: ji,
+                at: now,
+                reason,
+                code,
+            });
+        }
+        let ts = unix_ms(self.epoch, now);
+        let feedback = moteus::feedback_to_wia(&j.name, ts, j.unit, &reply);
+        self.tell(Happened::Reading {
+            device: ji,
+            at: now,
+            motion: moteus::motion(&reply),
+            feedback: Some(Box::new(feedback)),
+        });
+        self.queued.push_back(Queued::MoteusAck {
+            device: ji,
+            at: now,
+        });
     }
 
     /// Every Orion motor heard at `at`, online if the link is up.

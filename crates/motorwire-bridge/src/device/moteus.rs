@@ -1,0 +1,603 @@
+//! The moteus driver: mjbots moteus controllers on CAN-FD, their frames
+//! built by `motorwire_moteus` (mjbots' `moteus-protocol` underneath).
+//!
+//! It owns the dialect's encoding (a command's frame, built by a pure
+//! function first and queued second), its requests in flight (one per
+//! controller: every command asks for a reply, and the reply acknowledges
+//! it; a command not answered in time is sent again, then given up), its
+//! queries (each controller polled at its map's `query_rate_hz`), and its
+//! replies decoded into WIA `MotorFeedback` and into the controller's own
+//! stops (a fault, the watchdog's timeout) by name.
+//!
+//! The controller's watchdog: a velocity or torque command carries the
+//! motor's command timeout (the bridge's deadman) as its
+//! `watchdog_timeout`, and is not renewed by the driver: a controller
+//! whose stream stops times out by itself. A position move (and a
+//! velocity or torque with the deadman disabled) is held: its frame is
+//! sent again at each poll in place of the query, with a watchdog of
+//! three poll periods (at least 0.1 s), so that a controller whose bridge
+//! dies stops by itself within that.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::time::Duration;
+
+use motorwire_can::retry::{Attempts, Expiry};
+use motorwire_can::{CanId, Frame};
+use motorwire_moteus::protocol::Resolution;
+use motorwire_moteus::{Call, Command, Reply, Resolutions, decode};
+use motorwire_translate::{AngleUnit, MoteusCommand};
+use motorwire_wia::MotorFeedback;
+
+use super::{Ended, Outcome};
+
+/// The bridge's own id on the bus (the replies' destination).
+pub(crate) const SOURCE: u8 = 0;
+
+/// The modes a reply reports that the driver acts on.
+const MODE_FAULT: i64 = 1;
+const MODE_POSITION: i64 = 10;
+const MODE_TIMEOUT: i64 = 11;
+
+/// The registers the bridge asks for with every command and poll: the
+/// library's default query (mode, position, velocity, torque as f32;
+/// voltage, temperature, fault as int8) with the q current (f32) and the
+/// trajectory's completion (int8).
+pub(crate) fn resolutions() -> Resolutions {
+    let mut r = Resolutions::default();
+    r.query.q_current = Resolution::Float;
+    r.query.trajectory_complete = Resolution::Int8;
+    r
+}
+
+/// The watchdog of a held command: three poll periods, at least 0.1 s.
+pub(crate) fn hold_watchdog(period: Duration) -> f64 {
+    (3.0 * period.as_secs_f64()).max(0.1)
+}
+
+/// A moteus fault code's name (the controller's reference manual).
+pub(crate) fn fault_name(code: i64) -> &'static str {
+    match code {
+        32 => "calibration fault",
+        33 => "motor driver fault",
+        34 => "over voltage",
+        35 => "encoder fault",
+        36 => "motor not configured",
+        37 => "pwm cycle overrun",
+        38 => "over temperature",
+        39 => "outside limit",
+        40 => "under voltage",
+        41 => "config changed",
+        42 => "theta invalid",
+        43 => "position invalid",
+        44 => "driver enable fault",
+        45 => "stop position deprecated",
+        46 => "timing violation",
+        _ => "fault",
+    }
+}
+
+fn can_frame(can_id: u32, data: &[u8]) -> Result<Frame, String> {
+    let len = motorwire_can::fd_len(data.len())
+        .ok_or_else(|| format!("{} bytes are over CAN-FD's 64", data.len()))?;
+    let mut padded = data.to_vec();
+    // The protocol's no-op, as mjbots' transports pad.
+    padded.resize(len, 0x50);
+    let id = CanId::extended(can_id).map_err(|e| e.to_string())?;
+    Frame::fd(id, &padded).map_err(|e| e.to_string())
+}
+
+/// `cmd` as its frame for controller `id` on prefix `bus`, with the
+/// bridge's query; a held command (`hold`: its watchdog, s) carries that
+/// watchdog where the command has none.
+///
+/// # Errors
+/// The codec's refusal (a frame over 64 bytes), as text.
+pub(crate) fn command_frame(
+    id: u8,
+    bus: u16,
+    cmd: &MoteusCommand,
+    hold: Option<f64>,
+) -> Result<Frame, String> {
+    let command = match *cmd {
+        MoteusCommand::Position(mut args) => {
+            if args.watchdog_timeout.is_none() {
+                args.watchdog_timeout = hold;
+            }
+            Command::Position(args)
+        }
+        MoteusCommand::Stop => Command::Stop,
+        MoteusCommand::Brake => Command::Brake,
+    };
+    let call = Call {
+        id,
+        source: SOURCE,
+        can_prefix: bus,
+        command,
+        query: true,
+        query_override: None,
+        resolutions: resolutions(),
+    };
+    let f = call.encode().map_err(|e| e.to_string())?;
+    can_frame(f.can_id, &f.data)
+}
+
+/// The bridge's query for controller `id` on prefix `bus`.
+pub(crate) fn query_frame(id: u8, bus: u16) -> Result<Frame, String> {
+    let call = Call {
+        id,
+        source: SOURCE,
+        can_prefix: bus,
+        command: Command::Query,
+        query: true,
+        query_override: None,
+        resolutions: resolutions(),
+    };
+    let f = call.encode().map_err(|e| e.to_string())?;
+    can_frame(f.can_id, &f.data)
+}
+
+/// Whether `cmd` is held by the driver (sent again at each poll): a
+/// position move, and any command that carries no watchdog of its own.
+pub(crate) fn held(cmd: &MoteusCommand) -> bool {
+    match cmd {
+        MoteusCommand::Position(a) => {
+            a.position.is_some_and(f64::is_finite) || a.watchdog_timeout.is_none()
+        }
+        MoteusCommand::Stop | MoteusCommand::Brake => false,
+    }
+}
+
+/// Whose a reply from the bus is: `Some(true)` from controller (`id`,
+/// `bus`) to the bridge, `Some(false)` the bridge's own frame to it
+/// (heard back), `None` neither.
+pub(crate) fn addressed(raw: u32, id: u8, bus: u16) -> Option<bool> {
+    if (raw >> 16) & 0x1FFF != u32::from(bus) {
+        return None;
+    }
+    let source = (raw >> 8) & 0x7F;
+    let destination = raw & 0x7F;
+    if source == u32::from(id) && destination == u32::from(SOURCE) {
+        Some(true)
+    } else if source == u32::from(SOURCE) && destination == u32::from(id) {
+        Some(false)
+    } else {
+        None
+    }
+}
+
+/// A reply read for controller `id`.
+///
+/// # Errors
+/// The codec's refusal of the frame, as a bad-frame event says it.
+pub(crate) fn reply(frame: &Frame) -> Result<Reply, String> {
+    decode(frame.id().raw(), frame.data()).map_err(|e| e.to_string())
+}
+
+/// What a reply says of the controller's own stop, if it stopped itself:
+/// its fault by name, or its watchdog.
+pub(crate) fn stopped_itself(r: &Reply) -> Option<(String, u16)> {
+    match r.int(0x000)? {
+        MODE_FAULT => {
+            let code = r.int(0x00f).unwrap_or(0);
+            Some((
+                format!("moteus fault {code}: {}", fault_name(code)),
+                u16::try_from(code).unwrap_or(0),
+            ))
+        }
+        MODE_TIMEOUT => Some((
+            "moteus watchdog timeout (mode 11): no command within its watchdog_timeout".to_owned(),
+            11,
+        )),
+        _ => None,
+    }
+}
+
+/// A reply's position and velocity in degrees, if it has them.
+pub(crate) fn motion(r: &Reply) -> Option<(f64, f64)> {
+    Some((r.float(0x001)? * 360.0, r.float(0x002)? * 360.0))
+}
+
+/// A reply as WIA MotorFeedback (positions in the motor's own unit).
+pub(crate) fn feedback_to_wia(
+    motor: &str,
+    timestamp: f64,
+    unit: AngleUnit,
+    r: &Reply,
+) -> MotorFeedback {
+    let mode = r.int(0x000);
+    let in_unit = |rev: Option<f64>| rev.map_or(f64::NAN, |v| unit.from_degrees(v * 360.0));
+    let mut f = MotorFeedback {
+        motor_id: motor.to_owned(),
+        timestamp,
+        position: in_unit(r.float(0x001)),
+        velocity: in_unit(r.float(0x002)),
+        acceleration: None,
+        torque: r.float(0x003).unwrap_or(f64::NAN),
+        current: r.float(0x004),
+        voltage: r.float(0x00d),
+        temperature: r.float(0x00e),
+        power: None,
+        position_error: None,
+        velocity_error: None,
+        control_effort: None,
+        status: motorwire_wia::MotorStatus::default(),
+        health: None,
+        extra: serde_json::Map::new(),
+    };
+    f.status.enabled = mode.map(|m| !matches!(m, 0 | MODE_FAULT | MODE_TIMEOUT | 15));
+    f.status.fault = mode.map(|m| m == MODE_FAULT);
+    f.status.warning = mode.map(|m| m == MODE_TIMEOUT);
+    f.status.in_motion = r.float(0x002).map(|v| v.abs() > 1e-4);
+    f.status.at_target = match (mode, r.int(0x00b)) {
+        (Some(MODE_POSITION), Some(done)) => Some(done == 1),
+        _ => None,
+    };
+    f
+}
+
+/// A command sent and not yet answered.
+#[derive(Debug)]
+struct Pending {
+    msg_id: u32,
+    frame: Frame,
+    attempts: Attempts,
+}
+
+/// A controller's polling.
+#[derive(Debug)]
+struct Poll {
+    /// Its id and bus.
+    id: u8,
+    bus: u16,
+    next: Duration,
+    period: Duration,
+    /// The held command, sent in place of the query.
+    hold: Option<Frame>,
+    /// The held command's "hold where it stands" form (position NaN,
+    /// velocity 0, its torque limit and watchdog), which replaces it once
+    /// the controller reports its move complete.
+    still: Option<Frame>,
+    /// The mode of its last reply.
+    mode: Option<i64>,
+}
+
+/// The moteus controllers' requests in flight, polls and frames to send,
+/// by device index (the engine's).
+#[derive(Debug)]
+pub(crate) struct MoteusDriver {
+    pending: BTreeMap<usize, Pending>,
+    polls: BTreeMap<usize, Poll>,
+    tx: VecDeque<Frame>,
+    next_id: u32,
+    timeout: Duration,
+    retries: u8,
+}
+
+impl MoteusDriver {
+    /// A driver whose commands wait `timeout` for their reply and are
+    /// sent again up to `retries` times.
+    pub(crate) fn new(timeout: Duration, retries: u8) -> Self {
+        Self {
+            pending: BTreeMap::new(),
+            polls: BTreeMap::new(),
+            tx: VecDeque::new(),
+            next_id: 1,
+            timeout,
+            retries,
+        }
+    }
+
+    /// Device `device`, controller `id` on `bus`, is polled every `period`
+    /// from the start.
+    pub(crate) fn poll_every(&mut self, device: usize, id: u8, bus: u16, period: Duration) {
+        self.polls.insert(
+            device,
+            Poll {
+                id,
+                bus,
+                next: Duration::ZERO,
+                period,
+                hold: None,
+                still: None,
+                mode: None,
+            },
+        );
+    }
+
+    /// Queues `cmd` for `device` and awaits its reply; returns its id.
+    ///
+    /// # Errors
+    /// [`command_frame`]'s; nothing is queued.
+    pub(crate) fn send(
+        &mut self,
+        now: Duration,
+        device: usize,
+        cmd: &MoteusCommand,
+    ) -> Result<u32, String> {
+        let Some(&Poll {
+            id, bus, period, ..
+        }) = self.polls.get(&device)
+        else {
+            return Err(format!("device {device} is not a moteus controller"));
+        };
+        let watchdog = hold_watchdog(period);
+        let frame = command_frame(id, bus, cmd, Some(watchdog))?;
+        let still = match cmd {
+            MoteusCommand::Position(a) if a.position.is_some_and(f64::is_finite) => {
+                let hold = motorwire_moteus::PositionArgs {
+                    position: Some(f64::NAN),
+                    velocity: Some(0.0),
+                    maximum_torque: a.maximum_torque,
+                    ..motorwire_moteus::PositionArgs::default()
+                };
+                Some(command_frame(
+                    id,
+                    bus,
+                    &MoteusCommand::Position(hold),
+                    Some(watchdog),
+                )?)
+            }
+            _ => None,
+        };
+        let msg_id = self.next_id;
+        self.next_id = self.next_id.wrapping_add(1);
+        self.tx.push_back(frame);
+        if let Some(p) = self.polls.get_mut(&device) {
+            p.hold = held(cmd).then_some(frame);
+            p.still = still;
+            p.next = now.saturating_add(p.period);
+        }
+        self.pending.insert(
+            device,
+            Pending {
+                msg_id,
+                frame,
+                attempts: Attempts::first(now, self.timeout, self.retries),
+            },
+        );
+        Ok(msg_id)
+    }
+
+    /// A reply came from `device` at `now`: the command it waited for, if
+    /// any, is acknowledged.
+    pub(crate) fn acknowledged(&mut self, device: usize, now: Duration) -> Option<Ended> {
+        self.pending.remove(&device).map(|p| Ended {
+            msg_id: p.msg_id,
+            outcome: Outcome::Acked,
+            attempts: p.attempts.sent(),
+            at: now,
+        })
+    }
+
+    /// `device`'s reply `r`, taken: whether its mode is a new one (the
+    /// first reply's, or a change). A controller that stopped itself holds
+    /// nothing any more; one whose move is complete is held where it
+    /// stands from now on (its target is not sent again: a limit made
+    /// tighter since may no longer allow it).
+    pub(crate) fn observe(&mut self, device: usize, r: &Reply) -> bool {
+        let mode = r.int(0x000);
+        let Some(p) = self.polls.get_mut(&device) else {
+            return false;
+        };
+        let changed = p.mode != mode;
+        p.mode = mode;
+        if matches!(mode, Some(MODE_FAULT | MODE_TIMEOUT)) {
+            p.hold = None;
+            p.still = None;
+        } else if mode == Some(MODE_POSITION)
+            && r.int(0x00b) == Some(1)
+            && !self.pending.contains_key(&device)
+            && let Some(still) = p.still.take()
+        {
+            p.hold = Some(still);
+        }
+        changed
+    }
+
+    /// `device`'s command is given up (its reply no longer awaited).
+    pub(crate) fn forget(&mut self, device: usize) {
+        self.pending.remove(&device);
+    }
+
+    /// `device`'s command, if its first sending is still queued: taken out
+    /// of the queue and forgotten. Whether it was.
+    pub(crate) fn take_back_unsent(&mut self, device: usize) -> bool {
+        let Some(p) = self.pending.get(&device) else {
+            return false;
+        };
+        if p.attempts.sent() != 1 {
+            return false;
+        }
+        let Some(at) = self.tx.iter().position(|f| *f == p.frame) else {
+            return false;
+        };
+        self.tx.remove(at);
+        self.pending.remove(&device);
+        if let Some(poll) = self.polls.get_mut(&device) {
+            poll.hold = None;
+            poll.still = None;
+        }
+        true
+    }
+
+    /// Commands whose reply is overdue at `now`: each sent again until its
+    /// retries are spent; those given up, by device.
+    pub(crate) fn timeouts(&mut self, now: Duration) -> Vec<(usize, Ended)> {
+        let mut given_up = Vec::new();
+        for (&device, p) in &mut self.pending {
+            match p.attempts.expire(now, true) {
+                Expiry::Waiting => {}
+                Expiry::Resend => self.tx.push_back(p.frame),
+                Expiry::GiveUp => given_up.push(device),
+            }
+        }
+        given_up
+            .into_iter()
+            .filter_map(|device| {
+                let p = self.pending.remove(&device)?;
+                Some((
+                    device,
+                    Ended {
+                        msg_id: p.msg_id,
+                        outcome: Outcome::TimedOut,
+                        attempts: p.attempts.sent(),
+                        at: now,
+                    },
+                ))
+            })
+            .collect()
+    }
+
+    /// The polls due at `now`: each controller without a command in
+    /// flight is sent its held command or the query.
+    pub(crate) fn polls_due(&mut self, now: Duration) {
+        for (&device, p) in &mut self.polls {
+            if p.next > now {
+                continue;
+            }
+            p.next = if p.next.saturating_add(p.period) > now {
+                p.next.saturating_add(p.period)
+            } else {
+                now.saturating_add(p.period)
+            };
+            if self.pending.contains_key(&device) {
+                continue;
+            }
+            if let Some(f) = p.hold.or_else(|| query_frame(p.id, p.bus).ok()) {
+                self.tx.push_back(f);
+            }
+        }
+    }
+
+    /// The next reply deadline or poll.
+    pub(crate) fn deadline(&self) -> Option<Duration> {
+        let replies = self.pending.values().map(|p| p.attempts.deadline());
+        let polls = self.polls.values().map(|p| p.next);
+        replies.chain(polls).min()
+    }
+
+    /// The next frame to send.
+    pub(crate) fn poll_transmit(&mut self) -> Option<Frame> {
+        self.tx.pop_front()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic)]
+    use super::*;
+    use motorwire_moteus::PositionArgs;
+
+    fn position(p: f64) -> MoteusCommand {
+        MoteusCommand::Position(PositionArgs {
+            position: Some(p),
+            velocity: Some(0.0),
+            velocity_limit: Some(0.5),
+            ..PositionArgs::default()
+        })
+    }
+
+    /// The frames are the ones mjbots' Python library builds for the same
+    /// calls (moteus 1.1.1: `Controller(2, can_prefix=1, query_resolution=qr)`
+    /// with `qr.q_current = F32`, `qr.trajectory_complete = INT8`), padded
+    /// with 0x50 as its transports pad.
+    #[test]
+    fn frames_are_the_librarys_padded() {
+        // make_position(position=0.25, velocity=0.0, velocity_limit=0.5,
+        // watchdog_timeout=0.3, query=True)
+        let f = command_frame(2, 1, &position(0.25), Some(0.3)).unwrap();
+        assert_eq!(f.id().raw(), 0x0001_8002);
+        assert_eq!(
+            motorwire_moteus::hex(f.data()),
+            "01000a0e200000803e000000000e279a99993e0000003f11001c0401110b130d"
+        );
+        // make_stop(query=True): 12 bytes, an FD length.
+        let f = command_frame(2, 1, &MoteusCommand::Stop, None).unwrap();
+        assert_eq!(motorwire_moteus::hex(f.data()), "01000011001c0401110b130d");
+        // make_query(): 9 bytes, padded to 12.
+        let f = query_frame(2, 1).unwrap();
+        assert_eq!(f.id().raw(), 0x0001_8002);
+        assert_eq!(motorwire_moteus::hex(f.data()), "11001c0401110b130d505050");
+    }
+
+    #[test]
+    fn a_held_move_is_sent_again_at_each_poll_and_a_reply_acknowledges() {
+        let ms = Duration::from_millis;
+        let mut d = MoteusDriver::new(ms(100), 1);
+        d.poll_every(0, 1, 0, ms(20));
+        d.polls_due(ms(0));
+        let q = d.poll_transmit().unwrap();
+        assert_eq!(q, query_frame(1, 0).unwrap());
+        let id = d.send(ms(5), 0, &position(0.1)).unwrap();
+        let sent = d.poll_transmit().unwrap();
+        // Not polled while the command waits.
+        d.polls_due(ms(25));
+        assert_eq!(d.poll_transmit(), None);
+        assert_eq!(
+            d.acknowledged(0, ms(26)).map(|e| (e.msg_id, e.outcome)),
+            Some((id, Outcome::Acked))
+        );
+        // Held: the move itself at the next poll, not the query.
+        d.polls_due(ms(45));
+        assert_eq!(d.poll_transmit(), Some(sent));
+        // Complete (mode 10, trajectory complete): held where it stands.
+        let done = Frame::fd(
+            CanId::extended(0x100).unwrap(),
+            &[0x21, 0x00, 0x0a, 0x21, 0x0b, 0x01],
+        )
+        .unwrap();
+        assert!(d.observe(0, &reply(&done).unwrap()));
+        d.polls_due(ms(47));
+        d.polls_due(ms(65));
+        let still = d.poll_transmit().unwrap();
+        assert_ne!(still, sent);
+        let r = decode(still.id().raw(), still.data()).unwrap();
+        assert!(r.values.is_empty(), "a command, not a reply");
+        assert!(motorwire_moteus::hex(still.data()).starts_with("01000a0e200000c07f00000000"));
+        // A stop is not held.
+        d.send(ms(50), 0, &MoteusCommand::Stop).unwrap();
+        d.poll_transmit();
+        d.acknowledged(0, ms(51));
+        d.polls_due(ms(70));
+        assert_eq!(d.poll_transmit(), Some(q));
+        // Unanswered: sent again once, then given up.
+        d.send(ms(80), 0, &position(0.2)).unwrap();
+        d.poll_transmit();
+        assert_eq!(d.timeouts(ms(180)), []);
+        assert!(d.poll_transmit().is_some());
+        assert_eq!(d.timeouts(ms(280)).len(), 1);
+    }
+
+    #[test]
+    fn replies_are_addressed_and_read() {
+        assert_eq!(addressed(0x0001_0200, 2, 1), Some(true));
+        assert_eq!(addressed(0x0001_8002, 2, 1), Some(false));
+        assert_eq!(addressed(0x0000_0200, 2, 1), None);
+        assert_eq!(addressed(0x0001_0300, 2, 1), None);
+        // Mode 1 (fault) with fault 39; then mode 11.
+        let fault = Frame::fd(
+            CanId::extended(0x200).unwrap(),
+            &[0x21, 0x00, 0x01, 0x21, 0x0f, 39, 0x50, 0x50],
+        )
+        .unwrap();
+        let r = reply(&fault).unwrap();
+        assert_eq!(
+            stopped_itself(&r),
+            Some(("moteus fault 39: outside limit".to_owned(), 39))
+        );
+        let timeout = Frame::fd(CanId::extended(0x200).unwrap(), &[0x21, 0x00, 11]).unwrap();
+        assert_eq!(
+            stopped_itself(&reply(&timeout).unwrap()).map(|s| s.1),
+            Some(11)
+        );
+        // Position 0.25 rev and velocity -0.5 rev/s as f32, in radians.
+        let mut data = vec![0x2e, 0x01];
+        data.extend_from_slice(&0.25f32.to_le_bytes());
+        data.extend_from_slice(&(-0.5f32).to_le_bytes());
+        let r = reply(&Frame::fd(CanId::extended(0x200).unwrap(), &data).unwrap()).unwrap();
+        assert_eq!(motion(&r), Some((90.0, -180.0)));
+        let f = feedback_to_wia("knee", 1.0, AngleUnit::Radians, &r);
+        assert!((f.position - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert!((f.velocity + std::f64::consts::PI).abs() < 1e-12);
+    }
+}

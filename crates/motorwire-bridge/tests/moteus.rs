@@ -1,0 +1,275 @@
+//! moteus controllers behind the bridge, in simulated time: the bridge's
+//! frames (built by mjbots' `moteus-protocol`) go to simulated controllers
+//! that answer the register protocol, beside an iRPC joint, under one gate
+//! and one emergency stop.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use std::time::Duration;
+
+use motorwire_bridge::sim::SimulatedArm;
+use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output};
+use motorwire_can::SimConfig;
+use motorwire_moteus::{Scaled, decode};
+use motorwire_translate::BusMap;
+use serde_json::Value;
+
+const MAP: &str = r#"
+[motors.elbow]
+dialect = "irpc"
+node = 0x12
+limits = { min_position = 0, max_position = 150, max_velocity = 120, max_acceleration = 500 }
+
+[motors.hip]
+dialect = "moteus"
+id = 1
+limits = { min_position = -90, max_position = 90, max_velocity = 180, max_acceleration = 720, max_torque = 2 }
+
+[motors.knee]
+dialect = "moteus"
+id = 2
+unit = "rad"
+stop = "brake"
+limits = { min_position = -1.5, max_position = 1.5, max_velocity = 3, max_acceleration = 12 }
+"#;
+
+fn arm() -> SimulatedArm {
+    let map = BusMap::from_toml(MAP).unwrap();
+    let bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
+    let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
+    arm.keep_sent();
+    arm.run_until(Duration::from_millis(100)).unwrap();
+    arm
+}
+
+fn ms(n: u64) -> Duration {
+    Duration::from_millis(n)
+}
+
+/// The mode each frame the bridge sent to moteus `id` writes (a query
+/// writes none), in order.
+fn modes_sent(arm: &SimulatedArm, id: u8, since: Duration) -> Vec<i64> {
+    arm.sent()
+        .iter()
+        .filter(|(t, f)| {
+            *t >= since && f.id().is_extended() && f.id().raw() & 0x7f == u32::from(id)
+        })
+        .filter_map(|(_, f)| {
+            motorwire_moteus::protocol::parse_frame(f.data()).find_map(|s| match s {
+                motorwire_moteus::protocol::Subframe::Register {
+                    register: 0,
+                    value: Some(v),
+                    ..
+                } => match motorwire_moteus::scale(0, v) {
+                    Ok(Scaled::Int(m)) => Some(m),
+                    _ => None,
+                },
+                _ => None,
+            })
+        })
+        .collect()
+}
+
+fn results(arm: &mut SimulatedArm) -> Vec<Value> {
+    arm.take_outputs()
+        .into_iter()
+        .filter(|o| matches!(o, Output::Result { .. } | Output::Arrival { .. }))
+        .map(|o| o.to_value())
+        .collect()
+}
+
+#[test]
+fn a_position_move_reaches_its_target_in_the_controllers_units_and_arrives() {
+    let mut arm = arm();
+    let t0 = arm.now();
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":45}"#,
+    );
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"knee","timestamp":0,"control_mode":"position","setpoint":-0.5}"#,
+    );
+    arm.run_until(t0 + Duration::from_secs(2)).unwrap();
+    let out = results(&mut arm);
+    assert_eq!(out[0]["ok"], true, "{out:?}");
+    assert_eq!(
+        out[0]["losses"],
+        serde_json::json!([
+            "torque_limit: defaulted: 2 from the bus map",
+            "acceleration_limit: defaulted: 720 from the bus map",
+            "velocity_limit: defaulted: 180 from the bus map"
+        ])
+    );
+    assert!(
+        out.iter()
+            .any(|v| v["arrived"] == true && v["motor_id"] == "hip"),
+        "{out:?}"
+    );
+    assert!(
+        out.iter()
+            .any(|v| v["arrived"] == true && v["motor_id"] == "knee"),
+        "{out:?}"
+    );
+    // 45° is 0.125 revolution; -0.5 rad is -0.0796 revolution.
+    assert!((arm.moteus(1).unwrap().position() - 0.125).abs() < 1e-6);
+    assert!((arm.moteus(2).unwrap().position() + 0.5 / std::f64::consts::TAU).abs() < 1e-6);
+    // The first frame to the hip: position mode, 0.125 rev, at rest, the
+    // map's 2 Nm, within 0.5 rev/s and 2 rev/s², with the watchdog of a
+    // held move (3 polls of 20 ms: 0.1 s at least), and the bridge's
+    // query; byte for byte what mjbots' Python library builds for
+    // Controller(1, query_resolution=qr).make_position(position=0.125,
+    // velocity=0.0, maximum_torque=2.0, watchdog_timeout=0.1,
+    // velocity_limit=0.5, accel_limit=2.0, query=True) with qr.q_current =
+    // F32 and qr.trajectory_complete = INT8 (42 bytes), padded to 48.
+    let (_, first) = arm
+        .sent()
+        .iter()
+        .find(|(t, f)| *t >= t0 && f.id().raw() == 0x8001)
+        .unwrap();
+    assert_eq!(
+        motorwire_moteus::hex(first.data()),
+        "01000a0e200000003e000000000d25000000400f27cdcccc3d0000003f0000004011001c0401110b130d505050505050"
+    );
+    // Held: sent again at each poll while it holds its target.
+    assert!(modes_sent(&arm, 1, t0).iter().filter(|m| **m == 10).count() > 50);
+}
+
+#[test]
+fn beyond_a_limit_nothing_is_sent_and_the_refusal_is_typed() {
+    let mut arm = arm();
+    let t0 = arm.now();
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"knee","timestamp":0,"control_mode":"position","setpoint":1.6}"#,
+    );
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"hip","timestamp":0,"control_mode":"velocity","setpoint":200}"#,
+    );
+    arm.run_until(t0 + ms(200)).unwrap();
+    let out = results(&mut arm);
+    assert_eq!(out[0]["ok"], false);
+    assert_eq!(out[0]["error"]["rule"], "outside_limit", "{out:?}");
+    assert_eq!(out[1]["error"]["rule"], "outside_limit", "{out:?}");
+    assert_eq!(modes_sent(&arm, 1, t0), Vec::<i64>::new());
+    assert_eq!(modes_sent(&arm, 2, t0), Vec::<i64>::new());
+}
+
+#[test]
+fn a_silent_velocity_stream_is_stopped_by_the_deadman_before_the_controllers_watchdog() {
+    let mut arm = arm();
+    let t0 = arm.now();
+    for k in 0..10u64 {
+        arm.line(Origin(1), r#"{"motor_id":"hip","timestamp":0,"control_mode":"velocity","setpoint":90,"stream":true}"#);
+        arm.run_until(t0 + ms(20 * (k + 1))).unwrap();
+    }
+    assert!(arm.moteus(1).unwrap().velocity() > 0.2);
+    arm.run_until(t0 + ms(800)).unwrap();
+    let m = arm.moteus(1).unwrap();
+    // Stopped by the bridge's deadman (stop mode), not timed out.
+    assert_eq!(m.mode(), motorwire_sim::moteus::mode::STOPPED);
+    let modes = modes_sent(&arm, 1, t0);
+    assert_eq!(modes.last(), Some(&0), "{modes:?}");
+    assert!(modes.iter().filter(|m| **m == 10).count() >= 10);
+    let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
+    assert!(out.iter().any(|v| v["event"] == "deadman"), "{out:?}");
+    assert!(
+        !out.iter().any(|v| v["event"] == "emergency_stop"),
+        "{out:?}"
+    );
+}
+
+#[test]
+fn one_emergency_stop_stops_every_moteus_controller_its_own_way() {
+    let mut arm = arm();
+    let t0 = arm.now();
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":80}"#,
+    );
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"knee","timestamp":0,"control_mode":"position","setpoint":1.4}"#,
+    );
+    arm.run_until(t0 + ms(150)).unwrap();
+    arm.line(Origin(1), r#"{"emergency_stop":true}"#);
+    arm.run_until(t0 + ms(600)).unwrap();
+    // The hip stopped, the knee braked (its map's stop), neither at its target.
+    assert_eq!(
+        arm.moteus(1).unwrap().mode(),
+        motorwire_sim::moteus::mode::STOPPED
+    );
+    assert_eq!(
+        arm.moteus(2).unwrap().mode(),
+        motorwire_sim::moteus::mode::BRAKE
+    );
+    assert!(arm.moteus(1).unwrap().position() < 80.0 / 360.0 - 0.01);
+    // Latched: a move is refused, and nothing but queries goes out.
+    let t1 = arm.now();
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":10}"#,
+    );
+    arm.run_until(t1 + ms(300)).unwrap();
+    assert_eq!(modes_sent(&arm, 1, t1), Vec::<i64>::new());
+    // Not held any more: polls are bare queries.
+    let last = arm
+        .sent()
+        .iter()
+        .rev()
+        .find(|(_, f)| f.id().raw() == 0x8001)
+        .unwrap();
+    assert!(last.1.data().starts_with(&[0x11, 0x00]));
+}
+
+#[test]
+fn replies_become_wia_feedback_in_the_motors_unit() {
+    let mut arm = arm();
+    let t0 = arm.now();
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"knee","timestamp":0,"control_mode":"position","setpoint":1.0}"#,
+    );
+    arm.run_until(t0 + Duration::from_secs(2)).unwrap();
+    let fb: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
+    let fb: Vec<Value> = fb
+        .into_iter()
+        .filter(|v| v["motor_id"] == "knee" && v["feedback"]["voltage"].is_number())
+        .map(|v| v["feedback"].clone())
+        .collect();
+    let last = fb.last().expect("feedback for the knee");
+    assert!(
+        (last["position"].as_f64().unwrap() - 1.0).abs() < 1e-4,
+        "{last}"
+    );
+    assert_eq!(last["voltage"], 24.0);
+    assert_eq!(last["status"]["at_target"], true);
+    // A reply the bridge reads is the library's: decode one it received.
+    let reply = decode(0x0200, &[0x21, 0x00, 0x0a]).unwrap();
+    assert_eq!(reply.int(0), Some(10));
+}
+
+#[test]
+fn a_reset_goes_to_that_controller_alone() {
+    let mut arm = arm();
+    let t0 = arm.now();
+    arm.line(Origin(1), r#"{"reset":"knee"}"#);
+    arm.run_until(t0 + ms(200)).unwrap();
+    let out = results(&mut arm);
+    assert_eq!(out[0]["ok"], true, "{out:?}");
+    assert_eq!(modes_sent(&arm, 2, t0), vec![15]);
+    assert_eq!(modes_sent(&arm, 1, t0), Vec::<i64>::new());
+    // No iRPC frame went out for it (the elbow's node sees only the heartbeat).
+    assert!(
+        arm.sent()
+            .iter()
+            .filter(|(t, f)| *t >= t0 && !f.id().is_extended() && f.data().get(3) == Some(&0x04))
+            .count()
+            == 0
+    );
+}
