@@ -19,6 +19,36 @@ pub use engine::{
     MAX_ORION_LINE, ORION_POLL,
 };
 pub use error::BridgeError;
+
+/// The frame the bridge sends moteus controller `target` for `cmd`: its
+/// CAN id and its data (padded with 0x50, the protocol's no-op): the
+/// command with the bridge's query (the library's default registers with
+/// the q current and the trajectory's completion), and a position move's
+/// watchdog of three polls at the map's `query_rate_hz` (at least 0.1 s).
+///
+/// # Errors
+/// A target that is not a moteus controller, or the codec's refusal.
+pub fn moteus_frame(
+    target: &motorwire_translate::Target,
+    cmd: &motorwire_translate::MoteusCommand,
+) -> Result<(u32, Vec<u8>), String> {
+    let motorwire_translate::Target::Moteus {
+        id,
+        bus,
+        query_rate_hz,
+        ..
+    } = *target
+    else {
+        return Err(format!(
+            "a {} motor is not a moteus controller",
+            target.dialect()
+        ));
+    };
+    let period = std::time::Duration::from_millis(u64::from(1000 / query_rate_hz.max(1)).max(1));
+    let f =
+        device::moteus::command_frame(id, bus, cmd, Some(device::moteus::hold_watchdog(period)))?;
+    Ok((f.id().raw(), f.data().to_vec()))
+}
 /// The WIA crate whose [`motorwire_wia::Validator`] [`classify`] takes.
 pub use motorwire_wia;
 pub use output::{

@@ -456,6 +456,17 @@ impl SimulatedArm {
             .find(|d| d.config().id == id)
     }
 
+    /// Makes moteus controller `id` fault now with `code`
+    /// ([`SimMoteus::inject_fault`]).
+    pub fn moteus_fault(&mut self, id: u8, code: u8) {
+        let now = self.bus.now();
+        for (d, _) in &mut self.moteus {
+            if d.config().id == id {
+                d.inject_fault(now, code);
+            }
+        }
+    }
+
     /// Cuts the joint with node id `node` off the bus (a cable pulled): it
     /// neither hears nor is heard any more.
     pub fn disconnect(&mut self, node: u16) {

@@ -273,3 +273,70 @@ fn a_reset_goes_to_that_controller_alone() {
             == 0
     );
 }
+
+#[test]
+fn a_fault_is_named_stops_everything_and_a_reset_brings_the_controller_back() {
+    let mut arm = arm();
+    let t0 = arm.now();
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":60}"#,
+    );
+    arm.run_until(t0 + ms(100)).unwrap();
+    // A motor driver fault (33) mid-move.
+    arm.moteus_fault(1, 33);
+    arm.run_until(t0 + ms(300)).unwrap();
+    let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
+    let fault = out
+        .iter()
+        .find(|v| v["event"] == "joint_fault")
+        .unwrap_or_else(|| panic!("{out:?}"));
+    assert_eq!(
+        (fault["motor_id"].as_str(), fault["code"].as_u64()),
+        (Some("hip"), Some(33))
+    );
+    assert!(
+        out.iter().any(|v| v["event"] == "emergency_stop"),
+        "{out:?}"
+    );
+    // Every controller stopped its own way: the knee brakes.
+    assert_eq!(
+        arm.moteus(2).unwrap().mode(),
+        motorwire_sim::moteus::mode::BRAKE
+    );
+    // Released, the hip still takes nothing but a reset, which names why.
+    arm.line(Origin(1), r#"{"emergency_stop":false}"#);
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":10}"#,
+    );
+    arm.run_until(t0 + ms(400)).unwrap();
+    let r = results(&mut arm);
+    let refused = r
+        .iter()
+        .find(|v| v["ok"] == false)
+        .unwrap_or_else(|| panic!("{r:?}"));
+    assert_eq!(refused["error"]["kind"], "needs_reset", "{r:?}");
+    assert!(
+        refused["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("moteus fault 33: motor driver fault"),
+        "{refused}"
+    );
+    arm.line(Origin(1), r#"{"reset":"hip"}"#);
+    arm.run_until(t0 + ms(600)).unwrap();
+    assert_eq!(
+        arm.moteus(1).unwrap().mode(),
+        motorwire_sim::moteus::mode::STOPPED
+    );
+    assert_eq!(arm.moteus(1).unwrap().fault(), 0);
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":10}"#,
+    );
+    arm.run_until(t0 + Duration::from_secs(2)).unwrap();
+    let r = results(&mut arm);
+    assert!(r.iter().all(|v| v["ok"] != false), "{r:?}");
+    assert!((arm.moteus(1).unwrap().position() - 10.0 / 360.0).abs() < 1e-6);
+}

@@ -87,6 +87,10 @@ pub enum Error {
     /// the kernel described it.
     #[error("CAN error frame: {0}")]
     ErrorFrame(String),
+    /// An fdcanusb adapter refused a line (`ERR ...`), or said something
+    /// that is not its protocol.
+    #[error("the fdcanusb adapter: {0}")]
+    Adapter(String),
     /// Any other operating-system error.
     #[error("{op}: {message}")]
     Io {

@@ -18,6 +18,9 @@ mod bus;
 pub mod candump;
 pub mod client;
 mod error;
+#[cfg(feature = "fdcanusb")]
+#[cfg_attr(docsrs, doc(cfg(feature = "fdcanusb")))]
+pub mod fdcanusb;
 mod frame;
 pub mod isotp;
 pub mod retry;

@@ -21,7 +21,8 @@ pub(crate) struct Args {
     #[arg(long, value_name = "FILE")]
     map: String,
     /// `sim` (the map's iRPC joints simulated on an in-memory bus, in real
-    /// time) or `socketcan:IFACE` (a Linux CAN-FD interface, e.g. vcan0).
+    /// time), `socketcan:IFACE` (a Linux CAN-FD interface, e.g. vcan0) or
+    /// `fdcanusb:PATH` (mjbots' fdcanusb adapter, e.g. /dev/ttyACM0).
     #[arg(long, value_name = "BUS")]
     bus: String,
     /// Where lines come from: `-` (stdin; the bridge stops at its end),
@@ -485,8 +486,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
             runner.run(bridge, tx, rx, sink)
         }
         spec => {
-            let tx = crate::bus::open(spec)?;
-            let rx = crate::bus::open(spec)?;
+            let (tx, rx) = crate::bus::open_pair(spec)?;
             runner.run(bridge, tx, rx, sink)
         }
     };

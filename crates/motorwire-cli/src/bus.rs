@@ -1,23 +1,92 @@
-//! `--bus` specifications.
+//! `--bus` specifications: `socketcan:IFACE` (Linux SocketCAN) and
+//! `fdcanusb:PATH` (mjbots' fdcanusb adapter, or a moteus UART, on a
+//! serial port).
 
-#[cfg(target_os = "linux")]
-pub(crate) type Bus = motorwire_can::socketcan::SocketCanBus;
+use std::io::{Read, Write};
+use std::time::Duration;
 
-/// Opens `socketcan:IFACE`.
-#[cfg(target_os = "linux")]
-pub(crate) fn open(spec: &str) -> Result<Bus, String> {
-    match spec.split_once(':') {
-        Some(("socketcan", iface)) if !iface.is_empty() => {
-            Bus::open(iface).map_err(|e| e.to_string())
+use motorwire_can::fdcanusb::FdcanusbBus;
+use motorwire_can::{CanBus, Error, Frame, Received};
+
+/// How long a read of an fdcanusb's serial port waits before it gives the
+/// reader's loop its turn (the bridge's reader polls every 20 ms).
+const SERIAL_READ_TIMEOUT: Duration = Duration::from_millis(20);
+
+/// A bus a `--bus` names.
+pub(crate) enum Bus {
+    #[cfg(target_os = "linux")]
+    SocketCan(motorwire_can::socketcan::SocketCanBus),
+    Fdcanusb(FdcanusbBus<Box<dyn Read + Send>, Box<dyn Write + Send>>),
+}
+
+impl CanBus for Bus {
+    fn send(&mut self, frame: &Frame) -> Result<(), Error> {
+        match self {
+            #[cfg(target_os = "linux")]
+            Self::SocketCan(b) => b.send(frame),
+            Self::Fdcanusb(b) => b.send(frame),
         }
-        _ => Err(format!(
-            "--bus {spec:?}: expected socketcan:IFACE (for example socketcan:vcan0)"
-        )),
+    }
+
+    fn recv(&mut self, timeout: Duration) -> Result<Received, Error> {
+        match self {
+            #[cfg(target_os = "linux")]
+            Self::SocketCan(b) => b.recv(timeout),
+            Self::Fdcanusb(b) => b.recv(timeout),
+        }
     }
 }
 
-/// SocketCAN exists only on Linux.
-#[cfg(not(target_os = "linux"))]
-pub(crate) fn open(spec: &str) -> Result<motorwire_can::SimPort, String> {
-    Err(format!("--bus {spec:?}: SocketCAN needs Linux"))
+fn usage(spec: &str) -> String {
+    format!(
+        "--bus {spec:?}: expected socketcan:IFACE (for example socketcan:vcan0) or fdcanusb:PATH (for example fdcanusb:/dev/ttyACM0)"
+    )
+}
+
+/// The serial port of an fdcanusb and a second handle to it (one to read,
+/// one to write).
+fn serial(path: &str) -> Result<(Box<dyn Read + Send>, Box<dyn Write + Send>), String> {
+    // The adapter is a USB CDC device: the baud rate is not on any wire.
+    let port = serialport::new(path, 115_200)
+        .timeout(SERIAL_READ_TIMEOUT)
+        .open()
+        .map_err(|e| format!("--bus fdcanusb:{path}: {e}"))?;
+    let writer = port
+        .try_clone()
+        .map_err(|e| format!("--bus fdcanusb:{path}: {e}"))?;
+    Ok((Box::new(port), Box::new(writer)))
+}
+
+/// Opens one bus for sending and receiving.
+pub(crate) fn open(spec: &str) -> Result<Bus, String> {
+    match spec.split_once(':') {
+        #[cfg(target_os = "linux")]
+        Some(("socketcan", iface)) if !iface.is_empty() => {
+            motorwire_can::socketcan::SocketCanBus::open(iface)
+                .map(Bus::SocketCan)
+                .map_err(|e| e.to_string())
+        }
+        #[cfg(not(target_os = "linux"))]
+        Some(("socketcan", _)) => Err(format!("--bus {spec:?}: SocketCAN needs Linux")),
+        Some(("fdcanusb", path)) if !path.is_empty() => {
+            let (reader, writer) = serial(path)?;
+            Ok(Bus::Fdcanusb(FdcanusbBus::new(reader, writer)))
+        }
+        _ => Err(usage(spec)),
+    }
+}
+
+/// Opens a bus as two: one that sends, one that receives (the bridge's
+/// halves). A SocketCAN interface is opened twice; an fdcanusb's serial
+/// port once, its reading and its writing shared out.
+pub(crate) fn open_pair(spec: &str) -> Result<(Bus, Bus), String> {
+    match spec.split_once(':') {
+        Some(("fdcanusb", path)) if !path.is_empty() => {
+            let (reader, writer) = serial(path)?;
+            let tx = FdcanusbBus::new(Box::new(std::io::empty()) as Box<dyn Read + Send>, writer);
+            let rx = FdcanusbBus::new(reader, Box::new(std::io::sink()) as Box<dyn Write + Send>);
+            Ok((Bus::Fdcanusb(tx), Bus::Fdcanusb(rx)))
+        }
+        _ => Ok((open(spec)?, open(spec)?)),
+    }
 }

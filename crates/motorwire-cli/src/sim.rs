@@ -36,6 +36,53 @@ enum Device {
     /// command, an emergency stop that holds until a command without the
     /// flag. Each command it acts on is logged on stderr.
     Compact(CompactArgs),
+    /// A simulated mjbots moteus controller, in real time, until
+    /// interrupted (or, with `--bus sim`, until the end of input): it
+    /// answers the register protocol (queries at the resolutions asked;
+    /// position mode within its velocity and acceleration limits, velocity
+    /// with position NaN, torque with kp and kd scale 0; stop; brake; the
+    /// watchdog into mode 11; a start outside its bounds as fault 39).
+    /// With `--bus socketcan:IFACE` it is on a CAN-FD interface; with
+    /// `--bus sim` it reads frames as `{"can_id":N,"data":"hex"}` lines on
+    /// stdin (what `motorwire moteus encode` prints) and prints its
+    /// replies the same way (what `motorwire moteus decode` reads). Each
+    /// command it acts on is logged on stderr.
+    Moteus(MoteusArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct MoteusArgs {
+    /// `socketcan:IFACE` (a Linux CAN-FD interface, e.g. vcan0), or `sim`
+    /// (frames as JSON lines on stdin and stdout).
+    #[arg(long, value_name = "BUS")]
+    bus: String,
+    /// Its id, 1..=127.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=127))]
+    id: u8,
+    /// The CAN prefix it answers on (13 bits).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=0x1FFF))]
+    prefix: u16,
+    /// Lowest position (revolutions; servopos.position_min).
+    #[arg(long, default_value_t = -0.5, allow_negative_numbers = true)]
+    min_position: f64,
+    /// Highest position (revolutions; servopos.position_max).
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    max_position: f64,
+    /// The velocity limit of a move that sends none (rev/s).
+    #[arg(long, default_value_t = 2.0)]
+    velocity_limit: f64,
+    /// The acceleration limit of a move that sends none (rev/s²).
+    #[arg(long, default_value_t = 10.0)]
+    accel_limit: f64,
+    /// The watchdog of a command that sends none (s; `nan`: none).
+    #[arg(long, default_value_t = 0.1)]
+    timeout: f64,
+    /// The largest torque (Nm).
+    #[arg(long, default_value_t = 5.0)]
+    max_torque: f64,
+    /// Where it starts (revolutions, at rest, stopped).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    initial_position: f64,
 }
 
 #[derive(Debug, clap::Args)]
@@ -176,7 +223,107 @@ pub(crate) fn run(args: &Args) -> u8 {
         Device::Orion(a) => orion(a),
         Device::Joint(a) => joint(a),
         Device::Compact(a) => compact(a),
+        Device::Moteus(a) => moteus(a),
     }
+}
+
+fn moteus(args: &MoteusArgs) -> u8 {
+    use motorwire_sim::moteus::{MoteusActed, MoteusConfig, SimMoteus};
+    let config = MoteusConfig {
+        prefix: args.prefix,
+        position_min: args.min_position,
+        position_max: args.max_position,
+        default_velocity_limit: args.velocity_limit,
+        default_accel_limit: args.accel_limit,
+        default_timeout: args.timeout,
+        max_torque: args.max_torque,
+        initial_position: args.initial_position,
+        ..MoteusConfig::new(args.id)
+    };
+    let mut device = match SimMoteus::new(config) {
+        Ok(d) => d,
+        Err(e) => {
+            note!("motorwire: {e}");
+            return 2;
+        }
+    };
+    note!(
+        "motorwire sim moteus: id {} prefix {:#x} on {}, bounds [{}, {}] rev",
+        args.id,
+        args.prefix,
+        args.bus,
+        args.min_position,
+        args.max_position
+    );
+    let log = |e: &MoteusActed| {
+        if let Some(m) = e.commanded {
+            note!(
+                "t={:.3}s mode {m} commanded -> mode {}{}",
+                e.at.as_secs_f64(),
+                e.mode,
+                if e.replied { ", replied" } else { "" }
+            );
+        }
+    };
+    if args.bus == "sim" {
+        return moteus_on_lines(&mut device, log);
+    }
+    let mut bus = match crate::bus::open(&args.bus) {
+        Ok(b) => b,
+        Err(e) => {
+            note!("motorwire: {e}");
+            return 2;
+        }
+    };
+    // Runs until the process is interrupted (SIGINT's default action).
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    match device.run(&mut bus, &stop, log) {
+        Ok(()) => 0,
+        Err(e) => {
+            note!("motorwire: {e}");
+            1
+        }
+    }
+}
+
+/// `--bus sim`: frames as `{"can_id":N,"data":"hex"}` lines in, replies out,
+/// on the real clock from the start.
+fn moteus_on_lines(
+    device: &mut motorwire_sim::moteus::SimMoteus,
+    log: impl Fn(&motorwire_sim::moteus::MoteusActed),
+) -> u8 {
+    use motorwire_can::{CanId, Frame};
+    let start = std::time::Instant::now();
+    crate::lines::filter(|line| {
+        #[derive(serde::Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Sent {
+            can_id: u32,
+            data: String,
+        }
+        let sent: Sent = serde_json::from_str(line).map_err(|e| e.to_string())?;
+        let data = crate::lines::from_hex(&sent.data)?;
+        let id = CanId::extended(sent.can_id).map_err(|e| e.to_string())?;
+        let padded = motorwire_sim::moteus::pad(&data);
+        let frame = Frame::fd(id, &padded).map_err(|e| e.to_string())?;
+        let now = start.elapsed();
+        device.handle_timeout(now);
+        if let Some(acted) = device.handle_frame(now, &frame) {
+            log(&acted);
+        }
+        let mut replies = Vec::new();
+        while let Some(f) = device.poll_transmit() {
+            replies.push(
+                serde_json::json!({ "can_id": f.id().raw(), "data": crate::lines::to_hex(f.data()) })
+                    .to_string(),
+            );
+        }
+        if replies.is_empty() {
+            // One output line per input line: a frame it does not answer.
+            return Ok(serde_json::json!({ "can_id": null, "data": null }).to_string());
+        }
+        Ok(replies.join("\n"))
+    })
 }
 
 fn orion(args: &OrionArgs) -> u8 {

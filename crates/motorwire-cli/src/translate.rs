@@ -1,12 +1,14 @@
 //! `motorwire translate`: WIA command lines in, one line out per input
 //! with what the command becomes in one target dialect: iRPC CAN-FD frames,
-//! compact-command frames, or Orion direct-control JSON, and the
-//! translation's loss report; or the refusal, with its rule.
+//! compact-command frames, moteus frames, or Orion direct-control JSON,
+//! and the translation's loss report; or the refusal, with its rule.
 //!
 //! Every step is motorwire-translate's, as the bridge uses it: the gate,
 //! the mapping (`to_irpc`, `multi_axis_to_irpc`, `to_compact`,
-//! `multi_axis_to_compact`, `to_orion_motor`, `to_orion`) and the iRPC
-//! framing (`irpc_frames`). Nothing is sent anywhere.
+//! `multi_axis_to_compact`, `to_moteus`, `multi_axis_to_moteus`,
+//! `to_orion_motor`, `to_orion`), the iRPC framing (`irpc_frames`) and
+//! the bridge's moteus frames (`motorwire_bridge::moteus_frame`). Nothing is
+//! sent anywhere.
 
 use std::collections::HashMap;
 use std::io::{self, Write};
@@ -15,7 +17,7 @@ use clap::ValueEnum;
 use motorwire_irpc::WireVersion;
 use motorwire_translate::{
     BusMap, Refusal, Report, Target, irpc_frames, multi_axis_to_compact, multi_axis_to_irpc,
-    to_compact, to_irpc, to_orion, to_orion_motor,
+    multi_axis_to_moteus, to_compact, to_irpc, to_moteus, to_orion, to_orion_motor,
 };
 use motorwire_wia::{Message, MotorCommand, MultiAxisCommand, Validator};
 use serde::Serialize;
@@ -71,6 +73,9 @@ enum To {
     Compact,
     /// The Orion arm controller's direct-control JSON.
     Orion,
+    /// mjbots moteus position-mode frames on CAN-FD, as the bridge sends
+    /// them (with its query; mjbots' `moteus-protocol` builds them).
+    Moteus,
 }
 
 impl To {
@@ -80,7 +85,7 @@ impl To {
             Self::IrpcV2_0 => Some(WireVersion::V2_0),
             Self::IrpcV2_1 => Some(WireVersion::V2_1),
             Self::IrpcV2_2 => Some(WireVersion::V2_2),
-            Self::Compact | Self::Orion => None,
+            Self::Compact | Self::Orion | Self::Moteus => None,
         }
     }
 
@@ -89,6 +94,7 @@ impl To {
         match self {
             Self::Compact => "compact",
             Self::Orion => "orion",
+            Self::Moteus => "moteus",
             _ => "irpc",
         }
     }
@@ -118,7 +124,8 @@ struct Translation {
 struct FrameLine {
     /// The motor it is for.
     motor_id: String,
-    /// The standard CAN id, `0x` and three lowercase hex digits.
+    /// The CAN id: a standard id as `0x` and three lowercase hex digits,
+    /// an extended one (moteus) as `0x` and eight.
     can_id: String,
     /// The frame's data (padding included), lowercase hex.
     data: String,
@@ -129,6 +136,14 @@ impl FrameLine {
         Self {
             motor_id: motor_id.to_owned(),
             can_id: format!("{can_id:#05x}"),
+            data: to_hex(data),
+        }
+    }
+
+    fn extended(motor_id: &str, can_id: u32, data: &[u8]) -> Self {
+        Self {
+            motor_id: motor_id.to_owned(),
+            can_id: format!("{can_id:#010x}"),
             data: to_hex(data),
         }
     }
@@ -278,8 +293,32 @@ impl Translator {
         Ok(FrameLine::new(motor, node, &bytes))
     }
 
+    /// A moteus controller's frame for `command`, as the bridge sends it.
+    fn moteus_frame(
+        &self,
+        motor: &str,
+        command: &motorwire_translate::MoteusCommand,
+    ) -> Result<FrameLine, ErrorLine> {
+        let target = self.map.motor(motor).map(|m| m.target).ok_or_else(|| {
+            ErrorLine::new("dialect_mismatch", format!("{motor}: not in the bus map"))
+        })?;
+        let (can_id, data) = motorwire_bridge::moteus_frame(&target, command).map_err(|e| {
+            ErrorLine::from(Refusal::NotRepresentable {
+                motor: motor.to_owned(),
+                field: "moteus frame",
+                problem: e,
+            })
+        })?;
+        Ok(FrameLine::extended(motor, can_id, &data))
+    }
+
     fn motor_command(&mut self, cmd: &MotorCommand) -> Result<(Produced, Report), ErrorLine> {
         match self.to {
+            To::Moteus => {
+                let t = to_moteus(&self.map, cmd)?;
+                let frame = self.moteus_frame(&cmd.motor_id, &t.value)?;
+                Ok((Produced::Frames(vec![frame]), t.report))
+            }
             To::Compact => {
                 let t = to_compact(&self.map, cmd)?;
                 let frame = self.compact_frame(&cmd.motor_id, &t.value)?;
@@ -303,6 +342,16 @@ impl Translator {
 
     fn multi_axis(&mut self, cmd: &MultiAxisCommand) -> Result<(Produced, Report), ErrorLine> {
         match self.to {
+            To::Moteus => {
+                let t = multi_axis_to_moteus(&self.map, cmd)?;
+                let frames = cmd
+                    .motors
+                    .iter()
+                    .zip(&t.value)
+                    .map(|(axis, c)| self.moteus_frame(&axis.motor_id, c))
+                    .collect::<Result<_, _>>()?;
+                Ok((Produced::Frames(frames), t.report))
+            }
             To::Compact => {
                 let t = multi_axis_to_compact(&self.map, cmd)?;
                 let frames = cmd

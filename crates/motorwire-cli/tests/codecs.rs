@@ -257,3 +257,46 @@ fn moteus_encode_and_decode_lines_as_mjbots_library_builds_and_reads_them() {
         )
     );
 }
+
+/// `motorwire sim moteus --bus sim` between `motorwire moteus encode` and
+/// `decode`: a position command and a query in, the simulated
+/// controller's replies out, read back by the library's names.
+#[test]
+fn a_simulated_moteus_answers_frames_on_its_lines() {
+    let frames = run(
+        &["moteus", "encode"],
+        concat!(
+            r#"{"command":"position","id":1,"position":0.25,"velocity":0,"velocity_limit":1,"accel_limit":4,"query":true}"#,
+            "\n",
+            r#"{"command":"stop","id":2}"#,
+            "\n",
+            r#"{"command":"brake","id":1,"query":true}"#,
+            "\n",
+        ),
+    );
+    assert_eq!(frames.status.code(), Some(0));
+    let replies = run(
+        &["sim", "moteus", "--id", "1", "--bus", "sim"],
+        &stdout(&frames),
+    );
+    assert_eq!(replies.status.code(), Some(0));
+    let replies = stdout(&replies);
+    let lines: Vec<&str> = replies.lines().collect();
+    assert_eq!(lines.len(), 3, "{replies}");
+    // Frame 2 is for controller 2: no answer from controller 1.
+    assert_eq!(lines[1], r#"{"can_id":null,"data":null}"#);
+    let decoded = run(
+        &["moteus", "decode"],
+        &format!("{}\n{}\n", lines[0], lines[2]),
+    );
+    let decoded = stdout(&decoded);
+    let modes: Vec<&str> = decoded
+        .lines()
+        .map(|l| {
+            let start = l.find(r#""name":"MODE","register":0,"value":"#).unwrap();
+            &l[start + 35..start + 37]
+        })
+        .collect();
+    // Position mode (10), then brake (15).
+    assert_eq!(modes, ["10", "15"], "{decoded}");
+}

@@ -466,3 +466,60 @@ fn usage_errors_exit_2() {
         "{err}"
     );
 }
+
+/// `--to moteus` on the leg map: the frames the bridge sends, byte for
+/// byte what mjbots' Python library (moteus 1.1.1) builds for the same
+/// calls with the bridge's query (`qr.q_current = F32`,
+/// `qr.trajectory_complete = INT8`), padded with 0x50 to the CAN-FD length.
+#[test]
+fn moteus_frames_are_the_librarys_for_the_same_calls() {
+    let lines_in = input(&[
+        // Controller(1).make_position(position=30/360, velocity=0.0,
+        // maximum_torque=3.0, watchdog_timeout=0.1, velocity_limit=0.5,
+        // accel_limit=2.0, query=True): 42 bytes.
+        r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":30}"#,
+        r#"{"motor_id":"knee","timestamp":0,"control_mode":"position","setpoint":150}"#,
+        // Controller(3).make_position(position=nan, velocity=1/(2*pi),
+        // maximum_torque=1.5, watchdog_timeout=0.25 (150 ms + 0.1 s),
+        // accel_limit=16/(2*pi), query=True): 40 bytes.
+        r#"{"motor_id":"ankle","timestamp":0,"control_mode":"velocity","setpoint":1}"#,
+    ]);
+    let o = common::run(
+        &[
+            "translate",
+            "--map",
+            "fixtures/maps/moteus-leg.toml",
+            "--to",
+            "moteus",
+        ],
+        &lines_in,
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let out = lines(&o);
+    assert_eq!(
+        out[0],
+        concat!(
+            r#"{"ok":true,"line":1,"frames":[{"motor_id":"hip","can_id":"0x00008001","data":""#,
+            "01000a0e20abaaaa3d000000000d25000040400f27cdcccc3d0000003f0000004011001c0401110b130d",
+            "505050505050",
+            r#""}],"report":["torque_limit: defaulted: 3 from the bus map","acceleration_limit: defaulted: 720 from the bus map","velocity_limit: defaulted: 180 from the bus map"]}"#
+        )
+    );
+    assert!(out[1].contains(r#""rule":"outside_limit""#), "{}", out[1]);
+    assert!(
+        out[2].contains(concat!(
+            r#""can_id":"0x00008003","data":""#,
+            "01000a0e200000c07f83f9223e0d250000c03f0d270000803e0d2983f9224011001c0401110b130d",
+            "5050505050505050\""
+        )),
+        "{}",
+        out[2]
+    );
+    // A motor of another dialect is refused by name.
+    let o = translate(
+        "moteus",
+        &[],
+        &input(&[r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":30}"#]),
+    );
+    assert!(lines(&o)[0].contains(r#""rule":"dialect_mismatch""#));
+}

@@ -1366,3 +1366,142 @@ fn a_real_bus_recording_replays_against_the_simulator_and_names_the_difference()
         "{v}"
     );
 }
+
+/// The bridge on vcan0 drives a simulated moteus controller process (its
+/// own `motorwire sim moteus`), and candump on the same interface sees
+/// exactly the frames mjbots' Python library (moteus 1.1.1) builds for the
+/// same calls: the move, the polls of a held move, the emergency stop.
+#[test]
+#[ignore = "needs vcan0 and can-utils: run by .ci/kernel-test in a VM"]
+fn the_bridge_drives_a_moteus_process_with_the_librarys_frames() {
+    // Controller(1, query_resolution=qr) with qr.q_current = F32 and
+    // qr.trajectory_complete = INT8 (the bridge's query):
+    // make_position(position=30/360, velocity=0.0, maximum_torque=3.0,
+    // watchdog_timeout=0.3, velocity_limit=0.5, accel_limit=2.0,
+    // query=True), then make_stop(query=True), each padded with 0x50 to
+    // its CAN-FD length, on CAN id 0x8001.
+    const MOVE: &str = "01000A0E20ABAAAA3D000000000D25000040400F279A99993E0000003F0000004011001C0401110B130D505050505050";
+    const STOP: &str = "01000011001C0401110B130D";
+    // Once the move is complete, held where it stands:
+    // make_position(position=math.nan, velocity=0.0, maximum_torque=3.0,
+    // watchdog_timeout=0.3, query=True), 34 bytes padded to 48.
+    const STILL: &str = "01000A0E200000C07F000000000D25000040400D279A99993E11001C0401110B130D5050505050505050505050505050";
+    let device = Killed(
+        motorwire()
+            .args([
+                "sim",
+                "moteus",
+                "--bus",
+                "socketcan:vcan0",
+                "--id",
+                "1",
+                "--min-position",
+                "-0.3",
+                "--max-position",
+                "0.3",
+            ])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let dump = candump();
+    let map = std::env::temp_dir().join("motorwire-vcan-moteus-map.toml");
+    // Polled at 10 Hz: the held move's watchdog is 0.3 s, room enough
+    // under emulation.
+    std::fs::write(
+        &map,
+        "[motors.hip]\ndialect = \"moteus\"\nid = 1\nquery_rate_hz = 10\n\
+         limits = { min_position = -60, max_position = 60, max_velocity = 180, max_acceleration = 720, max_torque = 3 }\n",
+    )
+    .unwrap();
+    let mut bridge = motorwire()
+        .args([
+            "bridge",
+            "--map",
+            map.to_str().unwrap(),
+            "--bus",
+            "socketcan:vcan0",
+            "--ack-timeout",
+            "500",
+            "--offline-after",
+            "5000",
+            "--max-age",
+            "0",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = bridge.stdin.take().unwrap();
+    // Every output line as it comes: the stop waits for the move's arrival
+    // (however slow the emulation is to start the bridge).
+    let (lines_tx, lines_rx) = std::sync::mpsc::channel::<String>();
+    let stdout = bridge.stdout.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        use std::io::BufRead;
+        for line in std::io::BufReader::new(stdout).lines() {
+            let Ok(line) = line else { break };
+            if lines_tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    stdin
+        .write_all(b"{\"motor_id\":\"hip\",\"timestamp\":1704067200000,\"control_mode\":\"position\",\"setpoint\":30}\n")
+        .unwrap();
+    let mut seen: Vec<String> = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !seen.last().is_some_and(|l| l.contains("\"arrived\":true")) {
+        let left = deadline.saturating_duration_since(Instant::now());
+        let line = lines_rx
+            .recv_timeout(left)
+            .unwrap_or_else(|_| panic!("no arrival for the hip: {seen:?}"));
+        seen.push(line);
+    }
+    // Held where it stands for a few polls, then stopped.
+    sleep(Duration::from_millis(500));
+    stdin.write_all(b"{\"emergency_stop\":true}\n").unwrap();
+    sleep(Duration::from_millis(500));
+    drop(stdin);
+    let (status, _, err) = finish_within(bridge, Duration::from_secs(60));
+    reader.join().unwrap();
+    seen.extend(lines_rx.try_iter());
+    let out = seen.join("\n");
+    drop(device);
+    let log = finish(dump);
+    assert_eq!(status, Some(0), "{out}\n{err}");
+    assert!(out.contains("\"arrived\":true"), "{out}");
+    assert!(out.contains("\"emergency_stop\":true"), "{out}");
+    // The bridge's frames to controller 1, as candump logged them.
+    let sent: Vec<&str> = log
+        .lines()
+        .filter_map(|l| l.split_whitespace().nth(2))
+        .filter_map(|f| f.strip_prefix("00008001##"))
+        .map(|f| &f[1..])
+        .collect();
+    let first_move = sent
+        .iter()
+        .position(|d| *d == MOVE)
+        .unwrap_or_else(|| panic!("{log}"));
+    // Held: then held where it stands once complete, until the stop.
+    let still = sent
+        .iter()
+        .position(|d| *d == STILL)
+        .unwrap_or_else(|| panic!("{log}"));
+    let stop = sent
+        .iter()
+        .position(|d| *d == STOP)
+        .unwrap_or_else(|| panic!("{log}"));
+    assert!(first_move < still && still < stop, "{log}");
+    // Nothing but stops and queries after the stop.
+    assert!(
+        sent[stop..]
+            .iter()
+            .all(|d| *d == STOP || d.starts_with("11001C0401110B130D")),
+        "{log}"
+    );
+    // The controller's replies (0x100), decoded by the library's names.
+    let replies = log.lines().filter(|l| l.contains(" 00000100##")).count();
+    assert!(replies >= 3, "{log}");
+}

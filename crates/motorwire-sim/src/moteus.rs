@@ -265,6 +265,17 @@ impl SimMoteus {
             || !matches!(self.drive, Drive::Idle | Drive::Rest { .. } if self.velocity == 0.0)
     }
 
+    /// Faults now with `code` (what a controller does on, say, a motor
+    /// driver fault: 33): mode 1, no output, until a stop.
+    pub fn inject_fault(&mut self, now: Duration, code: u8) {
+        self.advance(now);
+        self.mode = mode::FAULT;
+        self.fault = code;
+        self.drive = Drive::Idle;
+        self.velocity = 0.0;
+        self.watchdog = None;
+    }
+
     /// Takes a frame from the bus at `now`: a command, a query or both, if
     /// it is addressed to this controller (its id, its prefix).
     pub fn handle_frame(&mut self, now: Duration, frame: &Frame) -> Option<MoteusActed> {
@@ -393,7 +404,13 @@ impl SimMoteus {
         } else {
             Drive::At { velocity, alim }
         };
-        self.trajectory_complete = false;
+        // A command it already meets (the same move sent again at its end)
+        // leaves its trajectory complete, as on a controller.
+        self.trajectory_complete = matches!(
+            self.drive,
+            Drive::To { target, end_velocity, .. }
+                if (target - self.position).abs() < 1e-9 && (self.velocity - end_velocity).abs() < 1e-9
+        );
         let timeout = match w(Register::CommandTimeout) {
             Some(t) if t.is_nan() => f64::NAN,
             Some(t) if t > 0.0 => t,

@@ -588,10 +588,23 @@ pub fn multi_axis_to_compact(
     map: &BusMap,
     cmd: &MultiAxisCommand,
 ) -> Result<Translated<Vec<CompactCommand>>, Refusal> {
+    each_axis(map, cmd, to_compact, "the compact command")
+}
+
+/// Each axis of `cmd` translated alone by `one` (behind the gate), in the
+/// command's order, each axis's losses named `motor_id.field`; what a
+/// dialect whose devices each run their own command (`what`) has no place
+/// for (`sync_mode`, `coordination`, `metadata`) reported dropped.
+pub(crate) fn each_axis<T>(
+    map: &BusMap,
+    cmd: &MultiAxisCommand,
+    one: impl Fn(&BusMap, &MotorCommand) -> Result<Translated<T>, Refusal>,
+    what: &str,
+) -> Result<Translated<Vec<T>>, Refusal> {
     let mut report = Report::default();
     let mut commands = Vec::with_capacity(cmd.motors.len());
     for axis in &cmd.motors {
-        let t = to_compact(map, &axis.to_motor_command(cmd.timestamp))?;
+        let t = one(map, &axis.to_motor_command(cmd.timestamp))?;
         for mut loss in t.report.losses {
             loss.field = format!("{}.{}", axis.motor_id, loss.field);
             report.losses.push(loss);
@@ -607,7 +620,7 @@ pub fn multi_axis_to_compact(
             report.push(
                 field,
                 LossKind::Dropped,
-                "the compact command has no place for it; each device runs its own command",
+                format!("{what} has no place for it; each device runs its own command"),
             );
         }
     }

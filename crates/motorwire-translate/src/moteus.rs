@@ -2,9 +2,11 @@
 
 use motorwire_core::ControlMode;
 use motorwire_moteus::PositionArgs;
-use motorwire_wia::MotorCommand;
+use motorwire_wia::{MotorCommand, MultiAxisCommand};
 
-use crate::command::{emergency, from_defaulted, gate_unless_emergency, not_for, report_unused};
+use crate::command::{
+    each_axis, emergency, from_defaulted, gate_unless_emergency, not_for, report_unused,
+};
 use crate::gate::Refusal;
 use crate::map::{AngleUnit, BusMap, Target};
 use crate::report::{LossKind, Report, Translated};
@@ -183,6 +185,20 @@ pub fn to_moteus(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<MoteusCo
         value: MoteusCommand::Position(args),
         report,
     })
+}
+
+/// A WIA multi-axis command for moteus controllers: each axis as
+/// [`to_moteus`] translates it (behind the gate), in the command's order,
+/// each axis's losses named `motor_id.field`. Each controller plans its own
+/// move: `sync_mode`, `coordination` and `metadata` are reported dropped.
+///
+/// # Errors
+/// The first axis's refusal, naming it.
+pub fn multi_axis_to_moteus(
+    map: &BusMap,
+    cmd: &MultiAxisCommand,
+) -> Result<Translated<Vec<MoteusCommand>>, Refusal> {
+    each_axis(map, cmd, to_moteus, "a moteus position-mode command")
 }
 
 #[cfg(test)]
