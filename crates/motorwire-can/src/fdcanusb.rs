@@ -16,8 +16,9 @@
 //! use motorwire_can::fdcanusb::FdcanusbBus;
 //! use motorwire_can::{CanBus, CanId, Frame};
 //!
-//! // What an adapter answers: the OK of a `can send`, then a reply frame.
-//! let adapter: &[u8] = b"OK\r\nrcv 100 21000A F\r\n";
+//! // What an adapter answers: the OK of a `can send`, then a reply frame
+//! // (`E`: an extended id; `B`: bit-rate switching; `F`: CAN-FD).
+//! let adapter: &[u8] = b"OK\r\nrcv 100 21000A E B F\r\n";
 //! let mut bus = FdcanusbBus::new(std::io::Cursor::new(adapter.to_vec()), Vec::new());
 //! let r = bus.recv(Duration::from_millis(10))?;
 //! assert_eq!(r.frame.id(), CanId::extended(0x100)?);
@@ -193,7 +194,7 @@ impl<R: Read, W: Write> CanBus for FdcanusbBus<R, W> {
                     });
                 }
                 // Blank lines and the adapter's own chatter.
-                Line::Other(l) if l.is_empty() => {}
+                Line::Other([]) => {}
                 Line::Other(l) => {
                     return Err(Error::Adapter(format!(
                         "an unexpected line: {}",

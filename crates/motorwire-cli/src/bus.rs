@@ -12,6 +12,9 @@ use motorwire_can::{CanBus, Error, Frame, Received};
 /// reader's loop its turn (the bridge's reader polls every 20 ms).
 const SERIAL_READ_TIMEOUT: Duration = Duration::from_millis(20);
 
+/// The reading and the writing half of a serial port.
+type Halves = (Box<dyn Read + Send>, Box<dyn Write + Send>);
+
 /// A bus a `--bus` names.
 pub(crate) enum Bus {
     #[cfg(target_os = "linux")]
@@ -45,7 +48,7 @@ fn usage(spec: &str) -> String {
 
 /// The serial port of an fdcanusb and a second handle to it (one to read,
 /// one to write).
-fn serial(path: &str) -> Result<(Box<dyn Read + Send>, Box<dyn Write + Send>), String> {
+fn serial(path: &str) -> Result<Halves, String> {
     // The adapter is a USB CDC device: the baud rate is not on any wire.
     let port = serialport::new(path, 115_200)
         .timeout(SERIAL_READ_TIMEOUT)

@@ -476,3 +476,84 @@ fn every_feedback_line_is_valid_wia_with_whole_ms_and_short_floats() {
     assert_eq!(f.to_string(), text.trim_end_matches(".0"), "{text}");
     assert!(text.len() <= 9, "{text}");
 }
+
+/// The second demo map, as its README section runs it: the iRPC elbow, the
+/// compact gripper and the moteus leg on the simulated bus move, then one
+/// emergency stop is acked by every one of them and stops them all (the
+/// moteus ankle braked, as its map says), and the latched stop refuses a
+/// move of the leg.
+#[test]
+fn one_emergency_stop_stops_irpc_compact_and_moteus_motors_alike() {
+    let map = "fixtures/maps/demo-arm-and-leg.toml";
+    // Slow moves (2 s and more): still under way when the stop comes,
+    // however slow the machine is to start the bridge.
+    let slow = |motor: &str, setpoint: f64, velocity: f64| {
+        format!(
+            r#"{{"motor_id":"{motor}","timestamp":{},"control_mode":"position","setpoint":{setpoint},"velocity_limit":{velocity}}}"#,
+            now_ms()
+        )
+    };
+    let moves = [
+        slow("elbow", 40.0, 20.0),
+        command("gripper_axis", 45.0),
+        slow("hip", 50.0, 20.0),
+        slow("knee", 120.0, 40.0),
+        format!(
+            r#"{{"motor_id":"ankle","timestamp":{},"control_mode":"velocity","setpoint":2}}"#,
+            now_ms()
+        ),
+    ];
+    let mut bridge = common::spawn(&["bridge", "--map", map, "--bus", "sim", "--feedback-hz", "0"]);
+    let mut stdin = bridge.stdin.take().unwrap();
+    for m in &moves {
+        writeln!(stdin, "{m}").unwrap();
+    }
+    thread::sleep(Duration::from_millis(300));
+    writeln!(stdin, r#"{{"emergency_stop":true}}"#).unwrap();
+    writeln!(stdin, "{}", command("hip", 0.0)).unwrap();
+    thread::sleep(Duration::from_millis(300));
+    drop(stdin);
+    let out = bridge.wait_with_output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let all = lines(&out.stdout);
+    let result = |line: u64| {
+        all.iter()
+            .find(|v| v["line"] == line && v.get("ok").is_some())
+            .unwrap_or_else(|| panic!("no result for line {line}: {all:?}"))
+    };
+    for line in 1..=5 {
+        assert_eq!(result(line)["ok"], true, "{all:?}");
+    }
+    let stop = result(6);
+    assert_eq!(stop["emergency_stop"], true, "{stop}");
+    let mut acked: Vec<&str> = stop["acked"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    acked.sort_unstable();
+    assert_eq!(
+        acked,
+        ["ankle", "elbow", "gripper_axis", "hip", "knee"],
+        "{stop}"
+    );
+    assert_eq!(
+        result(7)["error"]["kind"],
+        "emergency_stop_latched",
+        "{all:?}"
+    );
+    // Interrupted on the way: none of the three moves arrived.
+    for line in [1, 3, 4] {
+        let done = all
+            .iter()
+            .find(|v| v["line"] == line && v.get("arrived").is_some())
+            .unwrap();
+        assert_eq!(done["arrived"], false, "{done}");
+    }
+}

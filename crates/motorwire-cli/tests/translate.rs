@@ -462,7 +462,7 @@ fn usage_errors_exit_2() {
     let o = common::run(&["translate", "--map", MAP, "--to", "bogus"], b"");
     let err = String::from_utf8(o.stderr).unwrap();
     assert!(
-        err.contains("[possible values: irpc-v1, irpc-v2.0, irpc-v2.1, irpc-v2.2, compact, orion]"),
+        err.contains("[possible values: irpc-v1, irpc-v2.0, irpc-v2.1, irpc-v2.2, compact, orion, moteus]"),
         "{err}"
     );
 }

@@ -239,9 +239,10 @@ mod tests {
         };
         assert!(p.position.unwrap().is_nan());
         assert!((p.velocity.unwrap() - 0.5).abs() < 1e-5);
+        // The deadman's 200 ms and the margin.
         assert_eq!(
             (p.watchdog_timeout, p.maximum_torque),
-            (Some(0.2), Some(2.0))
+            (Some(0.2 + WATCHDOG_MARGIN_S), Some(2.0))
         );
         let t = to_moteus(&map, &cmd(r#"{"motor_id":"hip","timestamp":0,"control_mode":"torque","setpoint":1.5,"torque_limit":1.8}"#)).unwrap();
         let MoteusCommand::Position(p) = t.value else {
