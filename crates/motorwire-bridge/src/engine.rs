@@ -1080,14 +1080,21 @@ impl Bridge {
                 self.refuse(&meta, e);
                 return;
             }
-            let mut axis = Axis::new(
-                t.motor_id.clone(),
-                ji,
-                plan.value
-                    .segments
-                    .iter()
-                    .map(|s| Payload::SetTargetV2(s.payload)),
-            );
+            // Each segment as the device takes it (an iRPC joint its
+            // SetTargetV2; a moteus controller a position-mode move within
+            // the segment's limits, its torque limit the map's in force).
+            let device = self.joints.get(ji).map(|j| j.device);
+            let max_torque = self
+                .map
+                .motor(&t.motor_id)
+                .and_then(|m| m.limits.max_torque);
+            let orders: Vec<Order> = plan
+                .value
+                .segments
+                .iter()
+                .filter_map(|s| device.and_then(|d| d.segment_order(s.payload, max_torque)))
+                .collect();
+            let mut axis = Axis::of(t.motor_id.clone(), ji, orders.iter().copied());
             axis.due = plan
                 .value
                 .segments
@@ -1100,12 +1107,8 @@ impl Bridge {
                         .value
                         .segments
                         .iter()
-                        .map(|s| {
-                            (
-                                Duration::from_secs_f64(s.at.max(0.0)),
-                                Payload::SetTargetV2(s.payload),
-                            )
-                        })
+                        .zip(orders)
+                        .map(|(s, o)| (Duration::from_secs_f64(s.at.max(0.0)), o))
                         .collect(),
                     period: Duration::from_secs_f64(plan.value.duration),
                     started: start,
@@ -1257,7 +1260,7 @@ impl Bridge {
             let cycle = a
                 .cycle
                 .iter()
-                .flat_map(|c| c.payloads.iter().map(|(_, p)| Order::from(*p)));
+                .flat_map(|c| c.payloads.iter().map(|(_, p)| *p));
             for order in in_flight
                 .into_iter()
                 .chain(a.payloads.iter().copied())
@@ -1447,6 +1450,9 @@ impl Bridge {
         };
         self.map
             .set_limits(&name, limits, "the SafetyLimits line in force");
+        if let Some(ji) = self.joint_index(&name) {
+            self.drivers.limits_changed(ji, limits.max_torque);
+        }
         match v.emergency_decel {
             Some(d) => self.emergency_decel.insert(name.clone(), d),
             None => self.emergency_decel.remove(&name),
@@ -2477,7 +2483,7 @@ impl Bridge {
         {
             c.started = c.started.saturating_add(c.period);
             for (offset, p) in &c.payloads {
-                a.payloads.push_back(Order::from(*p));
+                a.payloads.push_back(*p);
                 a.due.push_back(c.started.saturating_add(*offset));
             }
         }
@@ -3179,11 +3185,20 @@ impl Bridge {
                 .get(ji)
                 .is_some_and(|j| j.device.supports(needs_to))
         }) else {
-            return Err(ErrorBody::refused(
-                BridgeRule::NotAnIrpcJoint,
-                format!("{motor} is not an iRPC joint of the bus map"),
-            )
-            .about(motor));
+            if self.joint_index(motor).is_none() {
+                return Err(ErrorBody::refused(
+                    BridgeRule::UnknownMotor,
+                    format!("motor {motor:?} is not in the bus map"),
+                )
+                .about(motor));
+            }
+            let why = match needs_to {
+                Capability::Reset => {
+                    format!("{motor} takes no reset: only iRPC joints and moteus controllers do")
+                }
+                _ => format!("{motor} is not an iRPC joint of the bus map"),
+            };
+            return Err(ErrorBody::refused(BridgeRule::NotAnIrpcJoint, why).about(motor));
         };
         let device = self.joints.get(ji).map(|j| j.device);
         if device.is_none_or(|d| !d.speaks(needs)) {

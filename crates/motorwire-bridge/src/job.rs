@@ -202,8 +202,8 @@ impl Axis {
 /// One cycle of a trajectory that loops forever.
 #[derive(Debug)]
 pub(crate) struct Cycle {
-    /// Its payloads, each with its offset from the cycle's start.
-    pub(crate) payloads: Vec<(Duration, Payload)>,
+    /// Its orders, each with its offset from the cycle's start.
+    pub(crate) payloads: Vec<(Duration, Order)>,
     /// How long a cycle is.
     pub(crate) period: Duration,
     /// When the current cycle started.

@@ -24,7 +24,7 @@ pub use error::BridgeError;
 /// CAN id and its data (padded with 0x50, the protocol's no-op): the
 /// command with the bridge's query (the library's default registers with
 /// the q current and the trajectory's completion), and a position move's
-/// watchdog of three polls at the map's `query_rate_hz` (at least 0.1 s).
+/// watchdog of five polls at the map's `query_rate_hz` (at least 0.25 s).
 ///
 /// # Errors
 /// A target that is not a moteus controller, or the codec's refusal.

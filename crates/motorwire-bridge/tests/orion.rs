@@ -783,7 +783,8 @@ fn a_reset_of_an_orion_motor_is_refused_and_reaches_no_joint() {
     assert_eq!(r["motor_id"], "grasper_horizontal_servo", "{r}");
     assert_eq!(r["error"]["kind"], "refused", "{r}");
     assert_eq!(
-        r["error"]["message"], "grasper_horizontal_servo is not an iRPC joint of the bus map",
+        r["error"]["message"],
+        "grasper_horizontal_servo takes no reset: only iRPC joints and moteus controllers do",
         "{r}"
     );
     assert_eq!(rig.commands_since(lines), Vec::<&str>::new(), "nor a line");

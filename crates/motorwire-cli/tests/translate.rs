@@ -462,7 +462,9 @@ fn usage_errors_exit_2() {
     let o = common::run(&["translate", "--map", MAP, "--to", "bogus"], b"");
     let err = String::from_utf8(o.stderr).unwrap();
     assert!(
-        err.contains("[possible values: irpc-v1, irpc-v2.0, irpc-v2.1, irpc-v2.2, compact, orion, moteus]"),
+        err.contains(
+            "[possible values: irpc-v1, irpc-v2.0, irpc-v2.1, irpc-v2.2, compact, orion, moteus]"
+        ),
         "{err}"
     );
 }
@@ -475,7 +477,7 @@ fn usage_errors_exit_2() {
 fn moteus_frames_are_the_librarys_for_the_same_calls() {
     let lines_in = input(&[
         // Controller(1).make_position(position=30/360, velocity=0.0,
-        // maximum_torque=3.0, watchdog_timeout=0.1, velocity_limit=0.5,
+        // maximum_torque=3.0, watchdog_timeout=0.25, velocity_limit=0.5,
         // accel_limit=2.0, query=True): 42 bytes.
         r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":30}"#,
         r#"{"motor_id":"knee","timestamp":0,"control_mode":"position","setpoint":150}"#,
@@ -500,7 +502,7 @@ fn moteus_frames_are_the_librarys_for_the_same_calls() {
         out[0],
         concat!(
             r#"{"ok":true,"line":1,"frames":[{"motor_id":"hip","can_id":"0x00008001","data":""#,
-            "01000a0e20abaaaa3d000000000d25000040400f27cdcccc3d0000003f0000004011001c0401110b130d",
+            "01000a0e20abaaaa3d000000000d25000040400f270000803e0000003f0000004011001c0401110b130d",
             "505050505050",
             r#""}],"report":["torque_limit: defaulted: 3 from the bus map","acceleration_limit: defaulted: 720 from the bus map","velocity_limit: defaulted: 180 from the bus map"]}"#
         )

@@ -1377,15 +1377,15 @@ fn the_bridge_drives_a_moteus_process_with_the_librarys_frames() {
     // Controller(1, query_resolution=qr) with qr.q_current = F32 and
     // qr.trajectory_complete = INT8 (the bridge's query):
     // make_position(position=30/360, velocity=0.0, maximum_torque=3.0,
-    // watchdog_timeout=0.3, velocity_limit=0.5, accel_limit=2.0,
+    // watchdog_timeout=0.5, velocity_limit=0.5, accel_limit=2.0,
     // query=True), then make_stop(query=True), each padded with 0x50 to
     // its CAN-FD length, on CAN id 0x8001.
-    const MOVE: &str = "01000A0E20ABAAAA3D000000000D25000040400F279A99993E0000003F0000004011001C0401110B130D505050505050";
+    const MOVE: &str = "01000A0E20ABAAAA3D000000000D25000040400F270000003F0000003F0000004011001C0401110B130D505050505050";
     const STOP: &str = "01000011001C0401110B130D";
     // Once the move is complete, held where it stands:
     // make_position(position=math.nan, velocity=0.0, maximum_torque=3.0,
-    // watchdog_timeout=0.3, query=True), 34 bytes padded to 48.
-    const STILL: &str = "01000A0E200000C07F000000000D25000040400D279A99993E11001C0401110B130D5050505050505050505050505050";
+    // watchdog_timeout=0.5, query=True), 34 bytes padded to 48.
+    const STILL: &str = "01000A0E200000C07F000000000D25000040400D270000003F11001C0401110B130D5050505050505050505050505050";
     let device = Killed(
         motorwire()
             .args([
@@ -1406,8 +1406,8 @@ fn the_bridge_drives_a_moteus_process_with_the_librarys_frames() {
     );
     let dump = candump();
     let map = std::env::temp_dir().join("motorwire-vcan-moteus-map.toml");
-    // Polled at 10 Hz: the held move's watchdog is 0.3 s, room enough
-    // under emulation.
+    // Polled at 10 Hz: the held move's watchdog is 0.5 s (five polls),
+    // room enough under emulation.
     std::fs::write(
         &map,
         "[motors.hip]\ndialect = \"moteus\"\nid = 1\nquery_rate_hz = 10\n\

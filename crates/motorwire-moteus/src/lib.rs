@@ -12,7 +12,7 @@ pub use moteus_protocol as protocol;
 pub use registers::{
     NotAnInteger, REGISTERS, Scale, Scaled, register_by_name, register_name, register_scale, scale,
 };
-pub use reply::{RegisterError, RegisterValue, Reply, ReplyError, decode};
+pub use reply::{RegisterError, RegisterValue, Reply, ReplyError, check_structure, decode};
 
 /// A frame for a controller: its CAN id and its data (not padded: the
 /// transport pads to the CAN-FD length, with 0x50, the protocol's no-op).

@@ -100,6 +100,14 @@ pub enum ReplyError {
         /// Where.
         at: usize,
     },
+    /// A register number, count or error code over 16 bits.
+    #[error(
+        "the subframe at byte {at} has a number over 16 bits (a varuint of more than three bytes)"
+    )]
+    VaruintTooLarge {
+        /// Where the subframe starts.
+        at: usize,
+    },
     /// An integer register holding a non-finite float.
     #[error(transparent)]
     NotAnInteger(#[from] NotAnInteger),
@@ -193,23 +201,37 @@ pub fn decode(can_id: u32, data: &[u8]) -> Result<Reply, ReplyError> {
     })
 }
 
-/// Walks the multiplex structure (the same grammar `parse_frame` reads)
-/// and says where it is cut or unknown.
-fn check_structure(data: &[u8]) -> Result<(), ReplyError> {
+/// Walks the multiplex structure of `data` (a reply's or a command's: the
+/// same grammar `moteus-protocol`'s `parse_frame` reads) and says where it
+/// is cut, unknown, or holds a number over 16 bits. Anything that reads
+/// frames from a bus with `parse_frame` checks them with this first (the
+/// parser stops quietly at a cut subframe and overflows on a long varuint).
+///
+/// # Errors
+/// [`ReplyError::Truncated`], [`ReplyError::UnknownSubframe`],
+/// [`ReplyError::VaruintTooLarge`].
+pub fn check_structure(data: &[u8]) -> Result<(), ReplyError> {
     let len = data.len();
     let mut at = 0;
     let cut = |start| ReplyError::Truncated { at: start, len };
+    // A register number, count or code is 16 bits: at most three bytes of
+    // varuint, the third holding the top two bits (`moteus-protocol`'s
+    // parser reads them into 16 bits; a longer one overflows it).
     let varuint = |pos: &mut usize, start: usize| -> Result<u32, ReplyError> {
         let mut v: u32 = 0;
-        for i in 0..5 {
+        for i in 0..3 {
             let b = *data.get(*pos).ok_or(cut(start))?;
             *pos += 1;
             v |= u32::from(b & 0x7f) << (7 * i);
             if b & 0x80 == 0 {
-                return Ok(v);
+                return if v > u32::from(u16::MAX) {
+                    Err(ReplyError::VaruintTooLarge { at: start })
+                } else {
+                    Ok(v)
+                };
             }
         }
-        Ok(v)
+        Err(ReplyError::VaruintTooLarge { at: start })
     };
     while let Some(&byte) = data.get(at) {
         let start = at;
@@ -267,6 +289,25 @@ mod tests {
             Err(ReplyError::UnknownSubframe { byte: 0x60, at: 0 })
         );
         assert_eq!(decode(0x100, &[0x50; 65]), Err(ReplyError::TooLong(65)));
+        // A register number of five varuint bytes (found by a hostile test:
+        // it overflowed the parser's 16 bits and panicked).
+        assert_eq!(
+            decode(0x100, &[0x30, 0x80, 0x80, 0x80, 0x80, 0x01, 0x00, 0x50]),
+            Err(ReplyError::VaruintTooLarge { at: 0 })
+        );
+        assert_eq!(
+            decode(0x100, &[0x01, 0x80, 0x80, 0x80, 0x80, 0x01, 0x0a]),
+            Err(ReplyError::VaruintTooLarge { at: 0 })
+        );
+        // 0xFFFF in three bytes is the largest.
+        assert_eq!(
+            decode(0x100, &[0x31, 0xff, 0xff, 0x03, 0x00]).map(|r| r.errors[0].register),
+            Ok(0xffff)
+        );
+        assert_eq!(
+            decode(0x100, &[0x31, 0x80, 0x80, 0x04, 0x00]),
+            Err(ReplyError::VaruintTooLarge { at: 0 })
+        );
     }
 
     #[test]

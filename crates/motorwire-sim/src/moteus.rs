@@ -6,7 +6,7 @@
 //! - the modes stopped (0), fault (1), position (10), timeout (11) and
 //!   brake (15); a position-mode command with a position plans a move to
 //!   it within its `velocity_limit` and `accel_limit` (the defaults of the
-//!   configuration where it sends none), ending at its `velocity`; with
+//!   configuration where it sends none), ending at its `velocity` (then going on at it); with
 //!   position NaN it runs at its velocity (accelerating within its
 //!   `accel_limit`); with kp and kd scale 0 it applies its feedforward
 //!   torque to a simple inertia; `maximum_torque` bounds the torque;
@@ -153,7 +153,9 @@ enum Drive {
 /// let mut m = SimMoteus::new(MoteusConfig::new(1))?;
 /// // Position 0.25 rev within 1 rev/s and 4 rev/s², with a reply.
 /// let f = Call::from_json(r#"{"command":"position","id":1,"position":0.25,"velocity":0,"velocity_limit":1,"accel_limit":4,"watchdog_timeout":null,"query":true}"#)?.encode()?;
-/// m.handle_frame(Duration::ZERO, &Frame::fd(CanId::extended(f.can_id)?, &f.data)?);
+/// // Padded with the protocol's no-op (0x50) to its CAN-FD length, as mjbots' transports pad.
+/// let frame = Frame::fd(CanId::extended(f.can_id)?, &motorwire_sim::moteus::pad(&f.data))?;
+/// m.handle_frame(Duration::ZERO, &frame);
 /// let reply = m.poll_transmit().expect("a reply");
 /// assert_eq!(reply.id().raw(), 0x100);
 /// assert_eq!(decode(reply.id().raw(), reply.data())?.int(0x000), Some(i64::from(mode::POSITION)));
@@ -285,6 +287,12 @@ impl SimMoteus {
             || raw & 0x7F != u32::from(self.config.id)
             || (raw >> 16) & 0x1FFF != u32::from(self.config.prefix)
         {
+            return None;
+        }
+        // A frame the register protocol cannot read is ignored, as a
+        // controller ignores it (and never parsed: `parse_frame` overflows
+        // on a long varuint).
+        if motorwire_moteus::check_structure(frame.data()).is_err() {
             return None;
         }
         let source = (raw >> 8) & 0x7F;
@@ -555,8 +563,15 @@ impl SimMoteus {
                     self.velocity = end_velocity;
                     self.trajectory_complete = true;
                 } else {
-                    // The fastest speed from which it still stops at the target.
-                    let reachable = (2.0 * alim * err.abs()).sqrt().min(vlim);
+                    // The fastest speed from which it still comes to the
+                    // target at its end velocity (at rest, or passing it
+                    // the same way at that speed).
+                    let through = if end_velocity * err > 0.0 {
+                        end_velocity * end_velocity
+                    } else {
+                        0.0
+                    };
+                    let reachable = (through + 2.0 * alim * err.abs()).sqrt().min(vlim);
                     let want = err.signum() * reachable;
                     let v = toward(v0, want, alim * dt);
                     let moved = 0.5 * (v0 + v) * dt;
@@ -565,6 +580,14 @@ impl SimMoteus {
                         self.velocity = end_velocity;
                         self.trajectory_complete = true;
                         self.torque = 0.0;
+                        if end_velocity != 0.0 {
+                            // Past its target at speed, the setpoint goes on
+                            // at that velocity, as on a controller.
+                            self.drive = Drive::At {
+                                velocity: end_velocity,
+                                alim,
+                            };
+                        }
                         return;
                     }
                     self.velocity = v;

@@ -19,7 +19,9 @@ pub use feedback::{FeedbackError, feedback_from_irpc, feedback_from_orion};
 pub use frames::{IrpcFrame, irpc_frames};
 pub use gate::{Bound, Effective, Refusal, RefusalDetail, gate};
 pub use map::{AngleUnit, BusMap, Limits, MapError, MappedMotor, Target};
-pub use moteus::{MoteusCommand, WATCHDOG_MARGIN_S, multi_axis_to_moteus, revolutions, to_moteus};
+pub use moteus::{
+    MoteusCommand, WATCHDOG_MARGIN_S, f32_within, multi_axis_to_moteus, revolutions, to_moteus,
+};
 pub use path::{PathExtent, check_path, check_trajectory};
 /// [`Report`] (what a translation lost or filled in) under a name that
 /// cannot be mistaken for `motorwire_wia::Report` (a validation verdict,

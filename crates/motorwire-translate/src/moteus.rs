@@ -27,6 +27,38 @@ pub enum MoteusCommand {
     Brake,
 }
 
+/// The f32 nearest `v` that lies within `lo..=hi` (where `v` itself
+/// does): one step of f32 inward when the nearest is just outside. NaN
+/// and values the f32 cannot hold are left as they are (the codec says
+/// what it does with them).
+pub fn f32_within(v: f64, lo: Option<f64>, hi: Option<f64>) -> f64 {
+    #[allow(clippy::cast_possible_truncation)]
+    let f = v as f32;
+    if !f.is_finite() {
+        return v;
+    }
+    let step_down = |x: f32| {
+        if x > 0.0 {
+            f32::from_bits(x.to_bits() - 1)
+        } else {
+            -f32::from_bits((-x).to_bits() + 1)
+        }
+    };
+    let step_up = |x: f32| {
+        if x >= 0.0 {
+            f32::from_bits(x.to_bits() + 1)
+        } else {
+            -f32::from_bits((-x).to_bits() - 1)
+        }
+    };
+    let f = match (lo, hi) {
+        (_, Some(h)) if v <= h && f64::from(f) > h => step_down(f),
+        (Some(l), _) if v >= l && f64::from(f) < l => step_up(f),
+        _ => f,
+    };
+    f64::from(f)
+}
+
 /// What a velocity or torque command's `watchdog_timeout` adds to the
 /// motor's command timeout (s).
 pub const WATCHDOG_MARGIN_S: f64 = 0.1;
@@ -63,7 +95,7 @@ pub fn revolutions(unit: AngleUnit, v: f64) -> f64 {
 /// let t = to_moteus(&map, &cmd)?;
 /// let MoteusCommand::Position(p) = t.value else { unreachable!() };
 /// assert_eq!((p.position, p.velocity_limit, p.accel_limit), (Some(0.125), Some(0.5), Some(2.0)));
-/// assert_eq!(t.report.losses[0].to_string(), "velocity_limit: defaulted: 180 from the bus map");
+/// assert_eq!(t.report.losses[1].to_string(), "velocity_limit: defaulted: 180 from the bus map");
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 ///
@@ -179,6 +211,43 @@ pub fn to_moteus(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<MoteusCo
             args.watchdog_timeout = watchdog;
         }
     }
+    // The frame carries f32: each value is the f32 nearest it that stays
+    // within the limits in force (60° is 0.16666667 revolution, whose
+    // nearest f32 is 60.0000018°).
+    let bound = |b: Option<crate::gate::Bound>| b.map(|b| rev(b.value));
+    let speed = bound(effective.max_velocity);
+    args.position = args.position.map(|p| {
+        f32_within(
+            p,
+            bound(effective.min_position),
+            bound(effective.max_position),
+        )
+    });
+    args.velocity = args
+        .velocity
+        .map(|v| f32_within(v, speed.map(|s| -s), speed));
+    args.velocity_limit = args.velocity_limit.map(|v| f32_within(v, None, speed));
+    args.accel_limit = args
+        .accel_limit
+        .map(|a| f32_within(a, None, bound(effective.max_acceleration)));
+    args.maximum_torque = args
+        .maximum_torque
+        .map(|t| f32_within(t, None, effective.max_torque.map(|b| b.value)));
+    // A limit of 0 (or one the f32 makes 0) is no limit moteus can plan
+    // with: the move would never end.
+    for (field, v) in [
+        ("velocity_limit", args.velocity_limit),
+        ("acceleration_limit", args.accel_limit),
+    ] {
+        if v.is_some_and(|v| v <= 0.0 || f64::from(v as f32) <= 0.0) {
+            return Err(Refusal::NotRepresentable {
+                motor: motor.name.clone(),
+                field,
+                problem: "a moteus move within a limit of 0 never ends; give a positive limit"
+                    .to_owned(),
+            });
+        }
+    }
     // Report order: as the fields are (defaulted limits last).
     report.losses.sort_by_key(|l| l.kind == LossKind::Defaulted);
     Ok(Translated {
@@ -256,7 +325,13 @@ mod tests {
                 p.maximum_torque,
                 p.velocity_limit
             ),
-            (Some(1.5), Some(0.0), Some(0.0), Some(1.8), None)
+            (
+                Some(1.5),
+                Some(0.0),
+                Some(0.0),
+                Some(f64::from(1.8f32)),
+                None
+            )
         );
         let t = to_moteus(&map, &cmd(r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":0,"safety_limits":{"emergency_stop":true}}"#)).unwrap();
         assert_eq!(t.value, MoteusCommand::Brake);
@@ -273,5 +348,38 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e.rule(), "mode_not_expressible");
+        // Found by a hostile test: a velocity limit of 0 (or one the f32
+        // makes 0) went out as a limit of 0.
+        for v in ["0", "1e-320"] {
+            let line = format!(
+                r#"{{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":0.5,"velocity_limit":{v}}}"#
+            );
+            let e = to_moteus(&map, &cmd(&line)).unwrap_err();
+            assert_eq!(e.rule(), "not_representable", "{v}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod f32_tests {
+    use super::*;
+
+    /// Found by a hostile test: 60° went out as 60.0000018° under a 60°
+    /// limit (the f32 nearest 60/360 revolution is above it).
+    #[test]
+    fn what_the_frame_carries_stays_within_the_limits() {
+        let max = 60.0 / 360.0;
+        #[allow(clippy::cast_possible_truncation)]
+        let nearest = f64::from(max as f32);
+        assert!(nearest > max);
+        let inside = f32_within(max, Some(-max), Some(max));
+        assert!(inside <= max && max - inside < 1e-8, "{inside}");
+        assert_eq!(f64::from(inside as f32), inside);
+        // Negative bounds, from below.
+        assert!(f32_within(-max, Some(-max), Some(max)) >= -max);
+        // A value already exact stays.
+        assert_eq!(f32_within(0.5, Some(0.0), Some(0.5)), 0.5);
+        // NaN stays NaN.
+        assert!(f32_within(f64::NAN, None, Some(1.0)).is_nan());
     }
 }

@@ -82,13 +82,16 @@ pub fn trajectory_to_irpc(
             motor: traj.motor_id.clone(),
         })?;
     let name = motor.name.clone();
-    if !matches!(motor.target, Target::Irpc { .. }) {
+    if !matches!(motor.target, Target::Irpc { .. } | Target::Moteus { .. }) {
         return Err(Refusal::ModeNotExpressible {
             motor: name,
             mode: "trajectory",
-            dialect: "this motor's dialect (trajectories run on iRPC joints)",
+            dialect: "this motor's dialect (trajectories run on iRPC joints and moteus controllers)",
         });
     }
+    // A moteus controller plans each segment itself as a trapezoid within
+    // its velocity and acceleration limits: its segments are planned so.
+    let moteus = matches!(motor.target, Target::Moteus { .. });
     let infeasible = |waypoint: usize, problem: String| Refusal::Infeasible {
         motor: name.clone(),
         waypoint,
@@ -213,7 +216,11 @@ pub fn trajectory_to_irpc(
         report.push(
             "timing.interpolation",
             LossKind::Converted,
-            "the joint plans a jerk-limited S-curve between waypoints, through each at its velocity and time",
+            if moteus {
+                "the controller plans a trapezoid between waypoints, through each at its velocity and time"
+            } else {
+                "the joint plans a jerk-limited S-curve between waypoints, through each at its velocity and time"
+            },
         );
     }
     // The waypoints of every pass, in degrees, with absolute times.
@@ -246,7 +253,7 @@ pub fn trajectory_to_irpc(
     let deg = |x: f64| unit.to_degrees(x);
     #[allow(clippy::cast_possible_truncation)]
     let f = |x: f64| x as f32;
-    let scurve = max_j.is_some() && motor.profile != MotionProfile::Trapezoidal;
+    let scurve = !moteus && max_j.is_some() && motor.profile != MotionProfile::Trapezoidal;
     let mut segments = Vec::new();
     // Where the joint is when each segment is sent: the previous
     // segment's own f32 plan, TRAJECTORY_LEAD_S before its waypoint.

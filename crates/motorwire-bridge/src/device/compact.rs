@@ -9,16 +9,9 @@
 //! and its feedback decoding into WIA `MotorFeedback`. The engine decides
 //! what is sent and when; this says how, and what came back.
 
-use std::collections::{BTreeMap, VecDeque};
-use std::time::Duration;
-
-use motorwire_can::retry::{Attempts, Expiry};
-
 use motorwire_can::{CanId, Frame};
 use motorwire_compact::{CompactCommand, FeedbackRecord, MotorHash, StatusFlag};
 use motorwire_wia::MotorFeedback;
-
-use super::{Ended, Outcome};
 
 /// `c` as its CAN-FD frame on `node` (WIRE-FACTS §2.1: the 24 bytes, no
 /// padding).
@@ -82,144 +75,18 @@ pub(crate) fn feedback_to_wia(motor: &str, timestamp: f64, r: &FeedbackRecord) -
     f
 }
 
-/// A command sent and not yet acknowledged by a feedback record.
-#[derive(Debug)]
-struct Pending {
-    msg_id: u32,
-    frame: Frame,
-    attempts: Attempts,
-}
-
-/// The compact devices' requests in flight and frames to send, by device
-/// index (the engine's).
-#[derive(Debug)]
-pub(crate) struct CompactDriver {
-    pending: BTreeMap<usize, Pending>,
-    tx: VecDeque<Frame>,
-    next_id: u32,
-    timeout: Duration,
-    retries: u8,
-}
-
-impl CompactDriver {
-    /// A driver whose commands wait `timeout` for their acknowledgement
-    /// and are sent again up to `retries` times.
-    pub(crate) fn new(timeout: Duration, retries: u8) -> Self {
-        Self {
-            pending: BTreeMap::new(),
-            tx: VecDeque::new(),
-            next_id: 1,
-            timeout,
-            retries,
-        }
-    }
-
-    /// Queues `c` for `device` on CAN id `node` and awaits its
-    /// acknowledgement; returns its id.
-    ///
-    /// # Errors
-    /// [`command_frame`]'s; nothing is queued.
-    pub(crate) fn send(
-        &mut self,
-        now: Duration,
-        device: usize,
-        node: u16,
-        c: CompactCommand,
-    ) -> Result<u32, String> {
-        let frame = command_frame(node, c)?;
-        let msg_id = self.next_id;
-        self.next_id = self.next_id.wrapping_add(1);
-        self.tx.push_back(frame);
-        self.pending.insert(
-            device,
-            Pending {
-                msg_id,
-                frame,
-                attempts: Attempts::first(now, self.timeout, self.retries),
-            },
-        );
-        Ok(msg_id)
-    }
-
-    /// A valid feedback record came from `device` at `now`: the command
-    /// it waited for, if any, is acknowledged.
-    pub(crate) fn acknowledged(&mut self, device: usize, now: Duration) -> Option<Ended> {
-        self.pending.remove(&device).map(|p| Ended {
-            msg_id: p.msg_id,
-            outcome: Outcome::Acked,
-            attempts: p.attempts.sent(),
-            at: now,
-        })
-    }
-
-    /// `device`'s command is given up (sent; its outcome no longer
-    /// awaited).
-    pub(crate) fn forget(&mut self, device: usize) {
-        self.pending.remove(&device);
-    }
-
-    /// `device`'s command, if it was never handed out (its first sending
-    /// still queued): taken out of the queue and forgotten. Whether it was.
-    pub(crate) fn take_back_unsent(&mut self, device: usize) -> bool {
-        let Some(p) = self.pending.get(&device) else {
-            return false;
-        };
-        if p.attempts.sent() != 1 {
-            return false;
-        }
-        let Some(at) = self.tx.iter().position(|f| *f == p.frame) else {
-            return false;
-        };
-        self.tx.remove(at);
-        self.pending.remove(&device);
-        true
-    }
-
-    /// Commands whose acknowledgement is overdue at `now`: each sent again
-    /// (the device executes a repeat of its last command once) until its
-    /// retries are spent; those given up, by device.
-    pub(crate) fn timeouts(&mut self, now: Duration) -> Vec<(usize, Ended)> {
-        let mut ended = Vec::new();
-        let mut given_up = Vec::new();
-        for (&device, p) in &mut self.pending {
-            match p.attempts.expire(now, true) {
-                Expiry::Waiting => {}
-                Expiry::Resend => self.tx.push_back(p.frame),
-                Expiry::GiveUp => given_up.push(device),
-            }
-        }
-        for device in given_up {
-            if let Some(p) = self.pending.remove(&device) {
-                ended.push((
-                    device,
-                    Ended {
-                        msg_id: p.msg_id,
-                        outcome: Outcome::TimedOut,
-                        attempts: p.attempts.sent(),
-                        at: now,
-                    },
-                ));
-            }
-        }
-        ended
-    }
-
-    /// The next acknowledgement deadline.
-    pub(crate) fn deadline(&self) -> Option<Duration> {
-        self.pending.values().map(|p| p.attempts.deadline()).min()
-    }
-
-    /// The next frame to send.
-    pub(crate) fn poll_transmit(&mut self) -> Option<Frame> {
-        self.tx.pop_front()
-    }
-}
+/// The compact devices' requests in flight and frames to send: a
+/// command's frame ([`command_frame`]) sent for its device, acknowledged
+/// by the device's first valid feedback record after it.
+pub(crate) type CompactDriver = super::frames::FrameRequests;
 
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
+    use crate::device::{Ended, Outcome};
     use motorwire_compact::{ControlMode, Flags};
+    use std::time::Duration;
 
     fn command(setpoint: f32) -> CompactCommand {
         CompactCommand {
@@ -250,7 +117,10 @@ mod tests {
     fn a_command_is_sent_again_then_given_up_and_a_record_acknowledges_it() {
         let ms = Duration::from_millis;
         let mut d = CompactDriver::new(ms(100), 2);
-        assert_eq!(d.send(ms(0), 3, 0x20, command(1.0)), Ok(1));
+        assert_eq!(
+            d.send(ms(0), 3, command_frame(0x20, command(1.0)).unwrap()),
+            1
+        );
         let first = d.poll_transmit().unwrap();
         assert_eq!(d.poll_transmit(), None);
         assert_eq!(d.deadline(), Some(ms(100)));
@@ -274,7 +144,10 @@ mod tests {
         );
         assert_eq!((d.deadline(), d.poll_transmit()), (None, None));
         // The next command: acknowledged by the device's record.
-        assert_eq!(d.send(ms(300), 3, 0x20, command(2.0)), Ok(2));
+        assert_eq!(
+            d.send(ms(300), 3, command_frame(0x20, command(2.0)).unwrap()),
+            2
+        );
         assert_eq!(
             d.acknowledged(3, ms(310)),
             Some(Ended {
@@ -291,8 +164,8 @@ mod tests {
     fn only_a_first_sending_still_queued_is_taken_back() {
         let ms = Duration::from_millis;
         let mut d = CompactDriver::new(ms(100), 3);
-        d.send(ms(0), 1, 0x20, command(1.0)).unwrap();
-        d.send(ms(0), 2, 0x21, command(1.0)).unwrap();
+        d.send(ms(0), 1, command_frame(0x20, command(1.0)).unwrap());
+        d.send(ms(0), 2, command_frame(0x21, command(1.0)).unwrap());
         assert!(d.take_back_unsent(1));
         // Device 2's frame is the only one left.
         assert_eq!(d.poll_transmit().map(|f| f.id().raw()), Some(0x21));

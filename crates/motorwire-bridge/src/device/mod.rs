@@ -92,6 +92,7 @@ use crate::joints::Joint;
 use crate::output::{BridgeRule, ErrorBody, Event};
 
 pub(crate) mod compact;
+mod frames;
 pub(crate) mod irpc;
 pub(crate) mod moteus;
 pub(crate) mod orion;
@@ -154,8 +155,10 @@ impl Device {
                     | Capability::Requests
             ),
             // A moteus controller's reset is its stop (the one command
-            // that takes it out of a fault or the watchdog's timeout).
-            Self::Moteus { .. } => matches!(what, Capability::Reset),
+            // that takes it out of a fault or the watchdog's timeout); a
+            // trajectory's segments are its position-mode moves
+            // ([`Device::segment_order`]).
+            Self::Moteus { .. } => matches!(what, Capability::Reset | Capability::Trajectory),
             Self::Compact { .. } | Self::Orion(_) => false,
         }
     }
@@ -310,6 +313,34 @@ impl Device {
                 },
                 report: t.report,
             })),
+        }
+    }
+
+    /// A planned trajectory's segment (degrees; its target, the velocity
+    /// to pass it at and the limits to reach it within) as the device takes
+    /// it: an iRPC joint the SetTargetV2 itself, a moteus controller a
+    /// position-mode move (its own trapezoid within the segment's velocity
+    /// and acceleration, ending at its velocity; `max_torque` the limit in
+    /// force). `None` for a device that takes no trajectory.
+    pub(crate) fn segment_order(
+        self,
+        p: SetTargetPayloadV2,
+        max_torque: Option<f64>,
+    ) -> Option<Order> {
+        let rev = |deg: f32| f64::from(deg) / 360.0;
+        match self {
+            Self::Irpc { .. } => Some(Order::Irpc(Payload::SetTargetV2(p))),
+            Self::Moteus { .. } => Some(Order::Moteus(MoteusCommand::Position(
+                motorwire_moteus::PositionArgs {
+                    position: Some(rev(p.target_angle)),
+                    velocity: Some(rev(p.target_velocity)),
+                    velocity_limit: Some(rev(p.max_velocity)),
+                    accel_limit: Some(rev(p.max_acceleration)),
+                    maximum_torque: max_torque,
+                    ..motorwire_moteus::PositionArgs::default()
+                },
+            ))),
+            Self::Compact { .. } | Self::Orion(_) => None,
         }
     }
 
@@ -495,6 +526,10 @@ impl Order {
         match self {
             Self::Irpc(Payload::SetTargetV2(p)) => Some(f64::from(p.target_angle)),
             Self::Irpc(Payload::SetTarget(p)) => Some(f64::from(p.target_angle)),
+            // Revolutions on the wire, whatever the motor's unit.
+            Self::Moteus(MoteusCommand::Position(a)) => {
+                a.position.filter(|p| p.is_finite()).map(|p| p * 360.0)
+            }
             _ => None,
         }
     }
@@ -1033,7 +1068,9 @@ impl Drivers {
     ) -> Result<u32, String> {
         match order {
             Order::Irpc(p) => self.irpc.send(now, device, node, p),
-            Order::Compact(c) => self.compact.send(now, device, node, c),
+            Order::Compact(c) => {
+                compact::command_frame(node, c).map(|f| self.compact.send(now, device, f))
+            }
             Order::Orion(o) => self.send_together(now, &[(device, Order::Orion(o))]),
             Order::Moteus(c) => self.moteus.send(now, device, &c),
         }
@@ -1082,6 +1119,14 @@ impl Drivers {
             Some(Order::Orion(_)) => self.orion.lost() || self.orion.free(),
             Some(Order::Irpc(_) | Order::Compact(_) | Order::Moteus(_)) | None => true,
         }
+    }
+
+    /// The limits in force on device `device` changed (a SafetyLimits
+    /// line taken), its torque limit now `max_torque` (Nm): what a driver
+    /// sends again by itself (a moteus controller's held move) follows
+    /// them.
+    pub(crate) fn limits_changed(&mut self, device: usize, max_torque: Option<f64>) {
+        self.moteus.limits_changed(device, max_torque);
     }
 
     /// Device `device`'s request in flight (`msg_id`, `order`) is given

@@ -14,21 +14,24 @@
 //! `watchdog_timeout`, and is not renewed by the driver: a controller
 //! whose stream stops times out by itself. A position move (and a
 //! velocity or torque with the deadman disabled) is held: its frame is
-//! sent again at each poll in place of the query, with a watchdog of
-//! three poll periods (at least 0.1 s), so that a controller whose bridge
-//! dies stops by itself within that.
+//! sent again at each poll in place of the query, with a watchdog of five
+//! poll periods (at least 0.25 s), so that a controller whose bridge dies
+//! stops by itself within that. A held move is held where it stands
+//! (position NaN, velocity 0) once the controller reports it complete,
+//! once the limits in force change, and once the bridge gives the command
+//! up: its target is never sent again after any of these.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::time::Duration;
 
-use motorwire_can::retry::{Attempts, Expiry};
 use motorwire_can::{CanId, Frame};
 use motorwire_moteus::protocol::Resolution;
-use motorwire_moteus::{Call, Command, Reply, Resolutions, decode};
+use motorwire_moteus::{Call, Command, PositionArgs, Reply, Resolutions, decode};
 use motorwire_translate::{AngleUnit, MoteusCommand};
 use motorwire_wia::MotorFeedback;
 
-use super::{Ended, Outcome};
+use super::Ended;
+use super::frames::FrameRequests;
 
 /// The bridge's own id on the bus (the replies' destination).
 pub(crate) const SOURCE: u8 = 0;
@@ -49,9 +52,11 @@ pub(crate) fn resolutions() -> Resolutions {
     r
 }
 
-/// The watchdog of a held command: three poll periods, at least 0.1 s.
+/// The watchdog of a held command: five poll periods, at least 0.25 s
+/// (a controller whose bridge dies stops within that; a late poll or two
+/// does not time it out).
 pub(crate) fn hold_watchdog(period: Duration) -> f64 {
-    (3.0 * period.as_secs_f64()).max(0.1)
+    (5.0 * period.as_secs_f64()).max(0.25)
 }
 
 /// A moteus fault code's name (the controller's reference manual).
@@ -235,14 +240,6 @@ pub(crate) fn feedback_to_wia(
     f
 }
 
-/// A command sent and not yet answered.
-#[derive(Debug)]
-struct Pending {
-    msg_id: u32,
-    frame: Frame,
-    attempts: Attempts,
-}
-
 /// A controller's polling.
 #[derive(Debug)]
 struct Poll {
@@ -252,25 +249,44 @@ struct Poll {
     next: Duration,
     period: Duration,
     /// The held command, sent in place of the query.
-    hold: Option<Frame>,
+    hold: Option<PositionArgs>,
     /// The held command's "hold where it stands" form (position NaN,
-    /// velocity 0, its torque limit and watchdog), which replaces it once
-    /// the controller reports its move complete.
-    still: Option<Frame>,
+    /// velocity 0, its torque limit), which replaces it once the controller
+    /// reports its move complete, the limits change, or the bridge gives
+    /// the command up.
+    still: Option<PositionArgs>,
     /// The mode of its last reply.
     mode: Option<i64>,
+}
+
+impl Poll {
+    /// From now on, held where it stands (what was held made still), or
+    /// nothing held.
+    fn hold_still(&mut self) {
+        self.hold = self
+            .still
+            .take()
+            .or_else(|| self.hold.map(|h| still_of(&h)));
+    }
+}
+
+/// `args` held where the controller stands: position NaN (its target where
+/// it is), velocity 0, the same torque limit.
+fn still_of(args: &PositionArgs) -> PositionArgs {
+    PositionArgs {
+        position: Some(f64::NAN),
+        velocity: Some(0.0),
+        maximum_torque: args.maximum_torque,
+        ..PositionArgs::default()
+    }
 }
 
 /// The moteus controllers' requests in flight, polls and frames to send,
 /// by device index (the engine's).
 #[derive(Debug)]
 pub(crate) struct MoteusDriver {
-    pending: BTreeMap<usize, Pending>,
+    requests: FrameRequests,
     polls: BTreeMap<usize, Poll>,
-    tx: VecDeque<Frame>,
-    next_id: u32,
-    timeout: Duration,
-    retries: u8,
 }
 
 impl MoteusDriver {
@@ -278,12 +294,8 @@ impl MoteusDriver {
     /// sent again up to `retries` times.
     pub(crate) fn new(timeout: Duration, retries: u8) -> Self {
         Self {
-            pending: BTreeMap::new(),
+            requests: FrameRequests::new(timeout, retries),
             polls: BTreeMap::new(),
-            tx: VecDeque::new(),
-            next_id: 1,
-            timeout,
-            retries,
         }
     }
 
@@ -320,53 +332,24 @@ impl MoteusDriver {
         else {
             return Err(format!("device {device} is not a moteus controller"));
         };
-        let watchdog = hold_watchdog(period);
-        let frame = command_frame(id, bus, cmd, Some(watchdog))?;
-        let still = match cmd {
-            MoteusCommand::Position(a) if a.position.is_some_and(f64::is_finite) => {
-                let hold = motorwire_moteus::PositionArgs {
-                    position: Some(f64::NAN),
-                    velocity: Some(0.0),
-                    maximum_torque: a.maximum_torque,
-                    ..motorwire_moteus::PositionArgs::default()
-                };
-                Some(command_frame(
-                    id,
-                    bus,
-                    &MoteusCommand::Position(hold),
-                    Some(watchdog),
-                )?)
-            }
-            _ => None,
-        };
-        let msg_id = self.next_id;
-        self.next_id = self.next_id.wrapping_add(1);
-        self.tx.push_back(frame);
+        let frame = command_frame(id, bus, cmd, Some(hold_watchdog(period)))?;
         if let Some(p) = self.polls.get_mut(&device) {
-            p.hold = held(cmd).then_some(frame);
-            p.still = still;
+            (p.hold, p.still) = match cmd {
+                MoteusCommand::Position(a) if held(cmd) => (
+                    Some(*a),
+                    a.position.is_some_and(f64::is_finite).then(|| still_of(a)),
+                ),
+                _ => (None, None),
+            };
             p.next = now.saturating_add(p.period);
         }
-        self.pending.insert(
-            device,
-            Pending {
-                msg_id,
-                frame,
-                attempts: Attempts::first(now, self.timeout, self.retries),
-            },
-        );
-        Ok(msg_id)
+        Ok(self.requests.send(now, device, frame))
     }
 
     /// A reply came from `device` at `now`: the command it waited for, if
     /// any, is acknowledged.
     pub(crate) fn acknowledged(&mut self, device: usize, now: Duration) -> Option<Ended> {
-        self.pending.remove(&device).map(|p| Ended {
-            msg_id: p.msg_id,
-            outcome: Outcome::Acked,
-            attempts: p.attempts.sent(),
-            at: now,
-        })
+        self.requests.acknowledged(device, now)
     }
 
     /// `device`'s reply `r`, taken: whether its mode is a new one (the
@@ -376,6 +359,7 @@ impl MoteusDriver {
     /// tighter since may no longer allow it).
     pub(crate) fn observe(&mut self, device: usize, r: &Reply) -> bool {
         let mode = r.int(0x000);
+        let awaits = self.requests.awaits(device);
         let Some(p) = self.polls.get_mut(&device) else {
             return false;
         };
@@ -386,33 +370,46 @@ impl MoteusDriver {
             p.still = None;
         } else if mode == Some(MODE_POSITION)
             && r.int(0x00b) == Some(1)
-            && !self.pending.contains_key(&device)
-            && let Some(still) = p.still.take()
+            && !awaits
+            && p.still.is_some()
         {
-            p.hold = Some(still);
+            p.hold_still();
         }
         changed
     }
 
-    /// `device`'s command is given up (its reply no longer awaited).
+    /// `device`'s command is given up (its reply no longer awaited): a
+    /// held command is held still from now on (when in doubt, stop).
     pub(crate) fn forget(&mut self, device: usize) {
-        self.pending.remove(&device);
+        self.requests.forget(device);
+        if let Some(p) = self.polls.get_mut(&device) {
+            p.hold_still();
+        }
+    }
+
+    /// The limits in force on `device` changed, its torque limit now
+    /// `max_torque` (Nm): a held move is held where it stands (its target
+    /// is not sent again: the new limits may not allow it; the engine
+    /// takes a line only once the move it would break has ended), and what
+    /// is held is capped at the new torque limit.
+    pub(crate) fn limits_changed(&mut self, device: usize, max_torque: Option<f64>) {
+        let Some(p) = self.polls.get_mut(&device) else {
+            return;
+        };
+        if p.still.is_some() {
+            p.hold_still();
+        }
+        if let (Some(h), Some(limit)) = (p.hold.as_mut(), max_torque) {
+            h.maximum_torque = Some(h.maximum_torque.map_or(limit, |t| t.min(limit)));
+        }
     }
 
     /// `device`'s command, if its first sending is still queued: taken out
-    /// of the queue and forgotten. Whether it was.
+    /// of the queue and forgotten (and no longer held). Whether it was.
     pub(crate) fn take_back_unsent(&mut self, device: usize) -> bool {
-        let Some(p) = self.pending.get(&device) else {
-            return false;
-        };
-        if p.attempts.sent() != 1 {
+        if !self.requests.take_back_unsent(device) {
             return false;
         }
-        let Some(at) = self.tx.iter().position(|f| *f == p.frame) else {
-            return false;
-        };
-        self.tx.remove(at);
-        self.pending.remove(&device);
         if let Some(poll) = self.polls.get_mut(&device) {
             poll.hold = None;
             poll.still = None;
@@ -422,30 +419,15 @@ impl MoteusDriver {
 
     /// Commands whose reply is overdue at `now`: each sent again until its
     /// retries are spent; those given up, by device.
+    /// A command given up is held still from now on, as [`Self::forget`].
     pub(crate) fn timeouts(&mut self, now: Duration) -> Vec<(usize, Ended)> {
-        let mut given_up = Vec::new();
-        for (&device, p) in &mut self.pending {
-            match p.attempts.expire(now, true) {
-                Expiry::Waiting => {}
-                Expiry::Resend => self.tx.push_back(p.frame),
-                Expiry::GiveUp => given_up.push(device),
+        let ended = self.requests.timeouts(now);
+        for (device, _) in &ended {
+            if let Some(p) = self.polls.get_mut(device) {
+                p.hold_still();
             }
         }
-        given_up
-            .into_iter()
-            .filter_map(|device| {
-                let p = self.pending.remove(&device)?;
-                Some((
-                    device,
-                    Ended {
-                        msg_id: p.msg_id,
-                        outcome: Outcome::TimedOut,
-                        attempts: p.attempts.sent(),
-                        at: now,
-                    },
-                ))
-            })
-            .collect()
+        ended
     }
 
     /// The polls due at `now`: each controller without a command in
@@ -455,30 +437,42 @@ impl MoteusDriver {
             if p.next > now {
                 continue;
             }
-            p.next = if p.next.saturating_add(p.period) > now {
-                p.next.saturating_add(p.period)
+            let next = p.next.saturating_add(p.period);
+            p.next = if next > now {
+                next
             } else {
                 now.saturating_add(p.period)
             };
-            if self.pending.contains_key(&device) {
+            if self.requests.awaits(device) {
                 continue;
             }
-            if let Some(f) = p.hold.or_else(|| query_frame(p.id, p.bus).ok()) {
-                self.tx.push_back(f);
+            let frame = match &p.hold {
+                Some(h) => command_frame(
+                    p.id,
+                    p.bus,
+                    &MoteusCommand::Position(*h),
+                    Some(hold_watchdog(p.period)),
+                ),
+                None => query_frame(p.id, p.bus),
+            };
+            if let Ok(f) = frame {
+                self.requests.push(f);
             }
         }
     }
 
     /// The next reply deadline or poll.
     pub(crate) fn deadline(&self) -> Option<Duration> {
-        let replies = self.pending.values().map(|p| p.attempts.deadline());
-        let polls = self.polls.values().map(|p| p.next);
-        replies.chain(polls).min()
+        let polls = self.polls.values().map(|p| p.next).min();
+        [self.requests.deadline(), polls]
+            .into_iter()
+            .flatten()
+            .min()
     }
 
     /// The next frame to send.
     pub(crate) fn poll_transmit(&mut self) -> Option<Frame> {
-        self.tx.pop_front()
+        self.requests.poll_transmit()
     }
 }
 
@@ -486,7 +480,7 @@ impl MoteusDriver {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic)]
     use super::*;
-    use motorwire_moteus::PositionArgs;
+    use crate::device::Outcome;
 
     fn position(p: f64) -> MoteusCommand {
         MoteusCommand::Position(PositionArgs {
@@ -599,5 +593,98 @@ mod tests {
         let f = feedback_to_wia("knee", 1.0, AngleUnit::Radians, &r);
         assert!((f.position - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
         assert!((f.velocity + std::f64::consts::PI).abs() < 1e-12);
+    }
+}
+
+#[cfg(test)]
+mod hold_tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+    use motorwire_moteus::Scaled;
+    use motorwire_moteus::protocol::{Subframe, SubframeType, parse_frame};
+
+    /// The position (revolutions) and torque limit a frame writes.
+    fn written(f: &Frame) -> (Option<f64>, Option<f64>) {
+        let mut out = (None, None);
+        for s in parse_frame(f.data()) {
+            if let Subframe::Register {
+                subframe_type: SubframeType::Write,
+                register,
+                value: Some(v),
+                ..
+            } = s
+            {
+                let Ok(Scaled::Float(x)) = motorwire_moteus::scale(register, v) else {
+                    continue;
+                };
+                match register {
+                    0x020 => out.0 = Some(x),
+                    0x025 => out.1 = Some(x),
+                    _ => {}
+                }
+            }
+        }
+        out
+    }
+
+    fn driver() -> MoteusDriver {
+        let mut d = MoteusDriver::new(Duration::from_millis(100), 1);
+        d.poll_every(0, 1, 0, Duration::from_millis(20));
+        d
+    }
+
+    fn hip_to_50() -> MoteusCommand {
+        MoteusCommand::Position(PositionArgs {
+            position: Some(50.0 / 360.0),
+            velocity: Some(0.0),
+            velocity_limit: Some(10.0 / 360.0),
+            maximum_torque: Some(3.0),
+            ..PositionArgs::default()
+        })
+    }
+
+    fn poll(d: &mut MoteusDriver, ms: u64) -> Frame {
+        d.polls_due(Duration::from_millis(ms));
+        d.poll_transmit().unwrap()
+    }
+
+    /// Found by a hostile test: a SafetyLimits line taken (max 20) while a
+    /// held move to 50 was still sent again at each poll sent 50 after the
+    /// line's result; its torque limit (2) did not bind what was held.
+    #[test]
+    fn new_limits_make_a_held_move_still_and_cap_its_torque() {
+        let mut d = driver();
+        d.send(Duration::ZERO, 0, &hip_to_50()).unwrap();
+        d.poll_transmit();
+        d.acknowledged(0, Duration::from_millis(1));
+        // The frame's f32 of 50/360 revolution.
+        #[allow(clippy::cast_possible_truncation)]
+        let fifty = f64::from((50.0f64 / 360.0) as f32);
+        assert_eq!(written(&poll(&mut d, 20)), (Some(fifty), Some(3.0)));
+        d.limits_changed(0, Some(2.0));
+        let (position, torque) = written(&poll(&mut d, 40));
+        assert!(position.unwrap().is_nan());
+        assert_eq!(torque, Some(2.0));
+        // A wider torque limit later does not raise it.
+        d.limits_changed(0, Some(5.0));
+        assert_eq!(written(&poll(&mut d, 60)).1, Some(2.0));
+    }
+
+    /// Found by a hostile test: a move given up (never answered) was still
+    /// sent again at each poll after its line was answered
+    /// `outcome_unknown`.
+    #[test]
+    fn a_move_given_up_or_forgotten_is_held_still() {
+        let mut d = driver();
+        d.send(Duration::ZERO, 0, &hip_to_50()).unwrap();
+        d.poll_transmit();
+        assert_eq!(d.timeouts(Duration::from_millis(100)), []);
+        d.poll_transmit();
+        assert_eq!(d.timeouts(Duration::from_millis(200)).len(), 1);
+        assert!(written(&poll(&mut d, 220)).0.unwrap().is_nan());
+        d.send(Duration::from_millis(230), 0, &hip_to_50()).unwrap();
+        d.poll_transmit();
+        d.forget(0);
+        assert!(written(&poll(&mut d, 260)).0.unwrap().is_nan());
     }
 }
