@@ -88,38 +88,21 @@ fn the_bridge_drives_a_moteus_through_an_fdcanusb() {
         "0",
     ]);
     let mut stdin = bridge.stdin.take().unwrap();
-    // Every output line as it comes: the stop waits for the move's arrival.
-    let (lines_tx, lines_rx) = std::sync::mpsc::channel::<String>();
-    let stdout = bridge.stdout.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        use std::io::BufRead;
-        for line in std::io::BufReader::new(stdout).lines() {
-            let Ok(line) = line else { break };
-            if lines_tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
+    // The stop waits for the move's arrival.
+    let mut lines = common::Lines::of(bridge.stdout.take().unwrap());
     stdin
         .write_all(b"{\"motor_id\":\"hip\",\"timestamp\":0,\"control_mode\":\"position\",\"setpoint\":45}\n")
         .unwrap();
     // The move is 0.125 rev at 1 rev/s: well within 10 s.
-    let mut seen: Vec<String> = Vec::new();
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while !seen.last().is_some_and(|l| l.contains("\"arrived\":true")) {
-        let left = deadline.saturating_duration_since(Instant::now());
-        let line = lines_rx
-            .recv_timeout(left)
-            .unwrap_or_else(|_| panic!("no arrival for the hip: {seen:?}"));
-        seen.push(line);
-    }
+    lines.until("arrival of the hip", Duration::from_secs(10), |l| {
+        l.contains("\"arrived\":true")
+    });
     assert!((moteus.lock().unwrap().position() - 0.125).abs() < 1e-4);
     stdin.write_all(b"{\"emergency_stop\":true}\n").unwrap();
     std::thread::sleep(Duration::from_millis(300));
     drop(stdin);
     let status = bridge.wait().unwrap();
-    reader.join().unwrap();
-    seen.extend(lines_rx.try_iter());
+    let seen = lines.finish();
     stop.store(true, Ordering::Relaxed);
     let taken = adapter.join().unwrap();
     drop(slave);

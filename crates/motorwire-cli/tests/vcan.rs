@@ -14,6 +14,8 @@
     clippy::indexing_slicing
 )]
 
+mod common;
+
 use std::io::{Read, Write};
 use std::process::{Child, Command, Stdio};
 use std::thread::sleep;
@@ -764,38 +766,20 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
         .spawn()
         .unwrap();
     let mut stdin = bridge.stdin.take().unwrap();
-    // Every output line, as it comes: the test waits for the elbow's
-    // completion line rather than guessing how slow the emulation is.
-    let (lines_tx, lines_rx) = std::sync::mpsc::channel::<String>();
-    let stdout = bridge.stdout.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        use std::io::BufRead;
-        for line in std::io::BufReader::new(stdout).lines() {
-            let Ok(line) = line else { break };
-            if lines_tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
-    let mut seen: Vec<String> = Vec::new();
+    // The test waits for the elbow's completion line rather than guessing
+    // how slow the emulation is.
+    let mut lines = common::Lines::of(bridge.stdout.take().unwrap());
     let cmd = |motor: &str, setpoint: f64| {
         format!(
             "{{\"motor_id\":\"{motor}\",\"timestamp\":1704067200000,\"control_mode\":\"position\",\"setpoint\":{setpoint}}}\n"
         )
     };
     stdin.write_all(cmd("elbow", 20.0).as_bytes()).unwrap();
-    let deadline = Instant::now() + Duration::from_secs(30);
-    loop {
-        let left = deadline.saturating_duration_since(Instant::now());
-        let line = lines_rx
-            .recv_timeout(left)
-            .unwrap_or_else(|_| panic!("no completion line for the elbow: {seen:?}"));
-        let done = line.contains("\"arrived\"") && line.contains("\"line\":1,");
-        seen.push(line);
-        if done {
-            break;
-        }
-    }
+    lines.until(
+        "completion line for the elbow",
+        Duration::from_secs(30),
+        |l| l.contains("\"arrived\"") && l.contains("\"line\":1,"),
+    );
     // CAN id 0x12 (the elbow's), header 12 00 01, then variant 0xFF: no
     // such payload.
     assert!(
@@ -836,9 +820,7 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
     }
     let out = bridge.wait_with_output().unwrap();
     drop(joints);
-    reader.join().unwrap();
-    seen.extend(lines_rx.try_iter());
-    let text = seen.join("\n");
+    let text = lines.finish().join("\n");
     assert_eq!(
         out.status.code(),
         Some(0),
@@ -1434,40 +1416,22 @@ fn the_bridge_drives_a_moteus_process_with_the_librarys_frames() {
         .spawn()
         .unwrap();
     let mut stdin = bridge.stdin.take().unwrap();
-    // Every output line as it comes: the stop waits for the move's arrival
-    // (however slow the emulation is to start the bridge).
-    let (lines_tx, lines_rx) = std::sync::mpsc::channel::<String>();
-    let stdout = bridge.stdout.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        use std::io::BufRead;
-        for line in std::io::BufReader::new(stdout).lines() {
-            let Ok(line) = line else { break };
-            if lines_tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
+    // The stop waits for the move's arrival (however slow the emulation is
+    // to start the bridge).
+    let mut lines = common::Lines::of(bridge.stdout.take().unwrap());
     stdin
         .write_all(b"{\"motor_id\":\"hip\",\"timestamp\":1704067200000,\"control_mode\":\"position\",\"setpoint\":30}\n")
         .unwrap();
-    let mut seen: Vec<String> = Vec::new();
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while !seen.last().is_some_and(|l| l.contains("\"arrived\":true")) {
-        let left = deadline.saturating_duration_since(Instant::now());
-        let line = lines_rx
-            .recv_timeout(left)
-            .unwrap_or_else(|_| panic!("no arrival for the hip: {seen:?}"));
-        seen.push(line);
-    }
+    lines.until("arrival of the hip", Duration::from_secs(30), |l| {
+        l.contains("\"arrived\":true")
+    });
     // Held where it stands for a few polls, then stopped.
     sleep(Duration::from_millis(500));
     stdin.write_all(b"{\"emergency_stop\":true}\n").unwrap();
     sleep(Duration::from_millis(500));
     drop(stdin);
     let (status, _, err) = finish_within(bridge, Duration::from_secs(60));
-    reader.join().unwrap();
-    seen.extend(lines_rx.try_iter());
-    let out = seen.join("\n");
+    let out = lines.finish().join("\n");
     drop(device);
     let log = finish(dump);
     assert_eq!(status, Some(0), "{out}\n{err}");

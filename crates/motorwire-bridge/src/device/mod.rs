@@ -49,12 +49,15 @@
 //! [`Answer`]).
 //!
 //! The drivers: [`irpc`] (iRPC joints, through `motorwire_can`'s sans-IO
-//! client), [`compact`] (WIA's 24-byte compact command) and [`orion`] (the
+//! client), [`compact`] (WIA's 24-byte compact command), [`moteus`] (mjbots
+//! moteus controllers: frames from `moteus-protocol`, polls, held moves
+//! and the controller's own watchdog, faults by name) and [`orion`] (the
 //! Orion arm controller: its link with the beacon, the loss and the stop
 //! written first when it comes back, its one line in flight with resends,
-//! its polls and its feedback decoding).
+//! its polls and its feedback decoding). The compact and moteus drivers
+//! share their requests in flight (`frames::FrameRequests`).
 //!
-//! Adding a dialect (the recipe the moteus driver follows):
+//! Adding a dialect (the recipe the moteus driver followed):
 //! 1. a driver file here: its encoding as pure functions (tested with
 //!    byte vectors), its requests in flight with their answers, resends and
 //!    giving up, its feedback decoded into WIA `MotorFeedback`, all told

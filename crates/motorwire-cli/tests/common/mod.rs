@@ -1,5 +1,5 @@
 //! Running the `motorwire` binary as a user does, from the repository root.
-#![allow(dead_code, unreachable_pub, clippy::unwrap_used)] // each test file uses a part
+#![allow(dead_code, unreachable_pub, clippy::unwrap_used, clippy::panic)] // each test file uses a part
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -49,4 +49,55 @@ pub fn now_ms() -> u128 {
         .duration_since(std::time::UNIX_EPOCH)
         .unwrap()
         .as_millis()
+}
+
+/// The lines a child process writes on its standard output, read as they
+/// come (a test waits for the line it needs rather than guessing how slow
+/// the machine is).
+pub struct Lines {
+    rx: std::sync::mpsc::Receiver<String>,
+    reader: std::thread::JoinHandle<()>,
+    /// Every line read so far.
+    pub seen: Vec<String>,
+}
+
+impl Lines {
+    /// Reads `stdout` on a thread of its own.
+    pub fn of(stdout: std::process::ChildStdout) -> Self {
+        use std::io::BufRead;
+        let (tx, rx) = std::sync::mpsc::channel();
+        let reader = std::thread::spawn(move || {
+            for line in std::io::BufReader::new(stdout).lines() {
+                let Ok(line) = line else { break };
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        Self {
+            rx,
+            reader,
+            seen: Vec::new(),
+        }
+    }
+
+    /// Reads until a line satisfies `done`, within `limit`; panics with
+    /// every line read (`what`: what it waited for) when none did.
+    pub fn until(&mut self, what: &str, limit: std::time::Duration, done: impl Fn(&str) -> bool) {
+        let deadline = std::time::Instant::now() + limit;
+        while !self.seen.last().is_some_and(|l| done(l)) {
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            match self.rx.recv_timeout(left) {
+                Ok(line) => self.seen.push(line),
+                Err(_) => panic!("no {what} within {limit:?}: {:?}", self.seen),
+            }
+        }
+    }
+
+    /// Every line, once the process has closed its output.
+    pub fn finish(mut self) -> Vec<String> {
+        let _ = self.reader.join();
+        self.seen.extend(self.rx.try_iter());
+        self.seen
+    }
 }
