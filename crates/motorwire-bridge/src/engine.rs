@@ -3588,6 +3588,7 @@ impl Bridge {
                     Event::JointFault {
                         motor_id: name.clone(),
                         code,
+                        reason: Some(reason.clone()),
                     },
                 );
                 // A joint's own emergency stop stops every joint: the arm is
@@ -3701,6 +3702,7 @@ impl Bridge {
             let event = Event::JointFault {
                 motor_id: j.name.clone(),
                 code,
+                reason: None,
             };
             self.joint_lost(ji, format!("faulted (error code {code})"), event);
         } else if state == LifecycleState::Unconfigured

@@ -753,8 +753,14 @@ pub enum Event {
     JointFault {
         /// The joint.
         motor_id: String,
-        /// Its `JointStatus.error_code`.
+        /// Its `JointStatus.error_code` (a moteus controller's fault code,
+        /// or 11 for its watchdog's timeout).
         code: u16,
+        /// What the device said of it, where it stopped itself (a moteus
+        /// controller's fault by name: `moteus fault 33: motor driver
+        /// fault`); absent for an iRPC joint's `Error` state.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        reason: Option<String>,
     },
     /// A joint started again (heard `Unconfigured` while it was
     /// configured): it stays inactive, and is never moved by a command

@@ -292,8 +292,16 @@ fn a_fault_is_named_stops_everything_and_a_reset_brings_the_controller_back() {
         .find(|v| v["event"] == "joint_fault")
         .unwrap_or_else(|| panic!("{out:?}"));
     assert_eq!(
-        (fault["motor_id"].as_str(), fault["code"].as_u64()),
-        (Some("hip"), Some(33))
+        (
+            fault["motor_id"].as_str(),
+            fault["code"].as_u64(),
+            fault["reason"].as_str()
+        ),
+        (
+            Some("hip"),
+            Some(33),
+            Some("moteus fault 33: motor driver fault")
+        )
     );
     assert!(
         out.iter().any(|v| v["event"] == "emergency_stop"),
