@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out=fuzz/corpus
 rm -rf "$out"
-mkdir -p "$out"/{compact_decode,compact_feedback_decode,irpc_decode_v1,irpc_decode_v2_0,irpc_decode_v2_1,irpc_decode_v2_2,irpc_decode_frame,wia_validate,orion_parse}
+mkdir -p "$out"/{compact_decode,compact_feedback_decode,irpc_decode_v1,irpc_decode_v2_0,irpc_decode_v2_1,irpc_decode_v2_2,irpc_decode_frame,wia_validate,orion_parse,moteus_decode}
 # Hex digits (spaces allowed) to bytes, with bash's printf alone.
 unhex() { local h; h=$(printf '%s' "$1" | tr -d ' \n' | sed 's/../\\x&/g'); printf '%b' "$h"; }
 i=0
@@ -45,4 +45,12 @@ printf '%s' '{"ID":32,"MODE":2,"DATA":3}' > "$out/orion_parse/unfold"
 printf '%s' '{"ID":32,"MODE":1,"DATA":{"TRM":[200,65,0],"LAA":[1,50,0],"UAA":[1,45,0],"AEM":[400,35,0]}}' > "$out/orion_parse/feedback"
 printf '%s' '{"ID":32,"MODE":2,"DATA":{"CMDF":1}}' > "$out/orion_parse/cmdf"
 printf '%s' '{"ID":32}' > "$out/orion_parse/beacon"
+# moteus replies (motorwire-moteus's golden tests: mjbots' Python library's
+# readings of them), padded and cut.
+i=0
+for h in "21 00 0a 2d 01 00 00 00 3f 50 50 50" \
+    "21 00 0a 26 01 ce 07 20 fd 29 03 0f 2e 00 00 31 82 02 03 50 50" \
+    "26 01 00 80 00 80 31 b0 02 03 50 50" "21 00 0a 2d 01 00 00 00"; do
+    i=$((i + 1)); unhex "$h" > "$out/moteus_decode/golden-$i"
+done
 echo "seeds: $(find "$out" -type f | wc -l) files"

@@ -42,7 +42,7 @@ use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Input, RequestKind, classify};
 use crate::device::{
-    Answer, Capability, Context, Device, Drivers, Ended, Happened, Moving, Outcome,
+    Answer, Capability, Context, Device, Drivers, Ended, Happened, InForce, Moving, Outcome,
 };
 use crate::job::{
     AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, LineMeta, Order, Rider, axis_mut,
@@ -1044,7 +1044,7 @@ impl Bridge {
                 .first()
                 .map_or(0.0, |w| unit.to_degrees(w.position));
             let here = self.joints.get(ji).and_then(|j| j.motion).map(|(p, _)| p);
-            if here.is_none_or(|p| (p - first).abs() > tolerance) {
+            if here.is_none_or(|p| !p.is_finite() || (p - first).abs() > tolerance) {
                 let at = here.map_or_else(
                     || "at an unknown position".to_owned(),
                     |p| format!("at {}", short_unit(unit.from_degrees(p))),
@@ -1451,7 +1451,15 @@ impl Bridge {
         self.map
             .set_limits(&name, limits, "the SafetyLimits line in force");
         if let Some(ji) = self.joint_index(&name) {
-            self.drivers.limits_changed(ji, limits.max_torque);
+            let unit = self.map.motor(&name).map_or(AngleUnit::Degrees, |m| m.unit);
+            let deg = |v: Option<f64>| v.map(|v| unit.to_degrees(v));
+            let in_force = InForce {
+                min_position: deg(limits.min_position),
+                max_position: deg(limits.max_position),
+                max_velocity: deg(limits.max_velocity),
+                max_torque: limits.max_torque,
+            };
+            self.drivers.limits_changed(ji, &in_force);
         }
         match v.emergency_decel {
             Some(d) => self.emergency_decel.insert(name.clone(), d),

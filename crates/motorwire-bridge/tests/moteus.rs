@@ -389,3 +389,45 @@ fn a_trajectory_runs_on_a_moteus_joint_through_its_waypoints() {
     arm.run_until(t1 + ms(500)).unwrap();
     assert!((arm.moteus(1).unwrap().position() * 360.0 - 20.0).abs() < 1e-3);
 }
+
+/// Found by a hostile test: a SafetyLimits line lowering the torque limit,
+/// taken while a trajectory ran, did not bind its later segments (they
+/// went out with the map's 2 Nm).
+#[test]
+fn a_torque_limit_taken_mid_trajectory_binds_its_later_segments() {
+    let mut arm = arm();
+    let t0 = arm.now();
+    arm.line(Origin(1), r#"{"trajectory_id":"t","motor_id":"hip","waypoints":[{"position":0,"velocity":0,"time":0},{"position":40,"velocity":0,"time":1.0},{"position":-20,"velocity":0,"time":2.5},{"position":0,"velocity":0,"time":3.5}],"timing":{"interpolation":"quintic"}}"#);
+    arm.run_until(t0 + ms(500)).unwrap();
+    let t1 = arm.now();
+    arm.line(Origin(1), r#"{"motor_id":"hip","position_limits":{"min":-90,"max":90},"velocity_limits":{"max_velocity":180},"torque_limits":{"continuous_torque":1,"peak_torque":2}}"#);
+    arm.run_until(t0 + Duration::from_secs(5)).unwrap();
+    let out = results(&mut arm);
+    assert!(
+        out.iter().any(|v| v["line"] == 2 && v["ok"] == true),
+        "{out:?}"
+    );
+    assert!(out.iter().any(|v| v["arrived"] == true), "{out:?}");
+    // Every frame to the hip after the line: at most 1 Nm.
+    let torques: Vec<f64> = arm
+        .sent()
+        .iter()
+        .filter(|(t, f)| *t > t1 && f.id().raw() == 0x8001)
+        .filter_map(|(_, f)| {
+            motorwire_moteus::protocol::parse_frame(f.data()).find_map(|s| match s {
+                motorwire_moteus::protocol::Subframe::Register {
+                    register: 0x025,
+                    value: Some(v),
+                    ..
+                } => match motorwire_moteus::scale(0x025, v) {
+                    Ok(Scaled::Float(t)) => Some(t),
+                    _ => None,
+                },
+                _ => None,
+            })
+        })
+        .collect();
+    assert!(torques.len() > 20, "{torques:?}");
+    assert!(torques.iter().all(|t| *t <= 1.0), "{torques:?}");
+    assert!((arm.moteus(1).unwrap().position()).abs() < 1e-6);
+}

@@ -108,6 +108,13 @@ pub enum ReplyError {
         /// Where the subframe starts.
         at: usize,
     },
+    /// A block's register count over 127 (`moteus-protocol` and mjbots'
+    /// Python library read such a count differently).
+    #[error("the subframe at byte {at} counts more than 127 registers")]
+    LongCount {
+        /// Where the subframe starts.
+        at: usize,
+    },
     /// An integer register holding a non-finite float.
     #[error(transparent)]
     NotAnInteger(#[from] NotAnInteger),
@@ -241,12 +248,24 @@ pub fn check_structure(data: &[u8]) -> Result<(), ReplyError> {
             0x00..=0x2f => {
                 let mut count = u32::from(byte & 0x03);
                 if count == 0 {
+                    // `moteus-protocol` reads a long count as one byte,
+                    // the Python library as a varuint: they agree up to
+                    // 127, and no frame of 64 bytes needs more.
+                    if data.get(at).is_some_and(|b| b & 0x80 != 0) {
+                        return Err(ReplyError::LongCount { at: start });
+                    }
                     count = varuint(&mut at, start)?;
                     if count == 0 {
                         continue;
                     }
                 }
-                varuint(&mut at, start)?;
+                // The registers a block names run from its first upward,
+                // one each, within 16 bits (`parse_frame` counts them in a
+                // u16 that would overflow past 0xFFFF).
+                let first = varuint(&mut at, start)?;
+                if first + count > u32::from(u16::MAX) {
+                    return Err(ReplyError::VaruintTooLarge { at: start });
+                }
                 if byte & 0xf0 != 0x10 {
                     let size = match (byte >> 2) & 0x03 {
                         0 => 1,

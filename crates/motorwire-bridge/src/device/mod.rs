@@ -426,6 +426,16 @@ pub(crate) struct Context {
     pub(crate) planned: Option<((f64, f64), SetTargetPayloadV2, Duration)>,
 }
 
+/// The limits in force on a device, in degrees (and Nm), as a driver that
+/// sends by itself holds to them ([`Drivers::limits_changed`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct InForce {
+    pub(crate) min_position: Option<f64>,
+    pub(crate) max_position: Option<f64>,
+    pub(crate) max_velocity: Option<f64>,
+    pub(crate) max_torque: Option<f64>,
+}
+
 /// Until when a device moves, after an order's effect.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Moving {
@@ -1125,11 +1135,10 @@ impl Drivers {
     }
 
     /// The limits in force on device `device` changed (a SafetyLimits
-    /// line taken), its torque limit now `max_torque` (Nm): what a driver
-    /// sends again by itself (a moteus controller's held move) follows
-    /// them.
-    pub(crate) fn limits_changed(&mut self, device: usize, max_torque: Option<f64>) {
-        self.moteus.limits_changed(device, max_torque);
+    /// line taken): what a driver sends from now on, and what it sends
+    /// again by itself (a moteus controller's held move), follows them.
+    pub(crate) fn limits_changed(&mut self, device: usize, limits: &InForce) {
+        self.moteus.limits_changed(device, limits);
     }
 
     /// Device `device`'s request in flight (`msg_id`, `order`) is given
@@ -1431,7 +1440,7 @@ impl Drivers {
     /// watchdog); its reading; its command in flight acknowledged.
     fn moteus_reply(&mut self, now: Duration, frame: &Frame, ji: usize, devices: &[Joint]) {
         let Some(j) = devices.get(ji) else { return };
-        let reply = match moteus::reply(frame) {
+        let reply = match moteus::reply(frame).and_then(moteus::plausible) {
             Ok(r) => r,
             Err(error) => {
                 return self.tell(Happened::Bad {

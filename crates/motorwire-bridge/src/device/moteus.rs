@@ -178,6 +178,21 @@ pub(crate) fn reply(frame: &Frame) -> Result<Reply, String> {
     decode(frame.id().raw(), frame.data()).map_err(|e| e.to_string())
 }
 
+/// `r` if a controller could have sent it: its mode one of moteus's (0 to
+/// 15). A reply in a mode no controller has is a bad frame: it neither
+/// reports nor acknowledges anything.
+///
+/// # Errors
+/// What is wrong with it, as a bad-frame event says it.
+pub(crate) fn plausible(r: Reply) -> Result<Reply, String> {
+    match r.get(0x000) {
+        Some(motorwire_moteus::Scaled::Int(m)) if !(0..=15).contains(&m) => {
+            Err(format!("mode {m} is no moteus mode (0 to 15)"))
+        }
+        _ => Ok(r),
+    }
+}
+
 /// What a reply says of the controller's own stop, if it stopped itself:
 /// its fault by name, or its watchdog.
 pub(crate) fn stopped_itself(r: &Reply) -> Option<(String, u16)> {
@@ -199,7 +214,9 @@ pub(crate) fn stopped_itself(r: &Reply) -> Option<(String, u16)> {
 
 /// A reply's position and velocity in degrees, if it has them.
 pub(crate) fn motion(r: &Reply) -> Option<(f64, f64)> {
-    Some((r.float(0x001)? * 360.0, r.float(0x002)? * 360.0))
+    let (p, v) = (r.float(0x001)?, r.float(0x002)?);
+    // NaN or an infinity is no position: the device's motion is unknown.
+    (p.is_finite() && v.is_finite()).then(|| (p * 360.0, v * 360.0))
 }
 
 /// A reply as WIA MotorFeedback (positions in the motor's own unit).
@@ -257,9 +274,20 @@ struct Poll {
     still: Option<PositionArgs>,
     /// The mode of its last reply.
     mode: Option<i64>,
+    /// The torque limit in force (a SafetyLimits line's), which every
+    /// frame carries at most.
+    torque_cap: Option<f64>,
 }
 
 impl Poll {
+    /// `args` with at most the torque limit in force.
+    fn capped(&self, mut args: PositionArgs) -> PositionArgs {
+        if let Some(cap) = self.torque_cap {
+            args.maximum_torque = Some(args.maximum_torque.map_or(cap, |t| t.min(cap)));
+        }
+        args
+    }
+
     /// From now on, held where it stands (what was held made still), or
     /// nothing held.
     fn hold_still(&mut self) {
@@ -312,6 +340,7 @@ impl MoteusDriver {
                 hold: None,
                 still: None,
                 mode: None,
+                torque_cap: None,
             },
         );
     }
@@ -326,11 +355,13 @@ impl MoteusDriver {
         device: usize,
         cmd: &MoteusCommand,
     ) -> Result<u32, String> {
-        let Some(&Poll {
-            id, bus, period, ..
-        }) = self.polls.get(&device)
-        else {
+        let Some(poll) = self.polls.get(&device) else {
             return Err(format!("device {device} is not a moteus controller"));
+        };
+        let (id, bus, period) = (poll.id, poll.bus, poll.period);
+        let cmd = &match *cmd {
+            MoteusCommand::Position(a) => MoteusCommand::Position(poll.capped(a)),
+            other => other,
         };
         let frame = command_frame(id, bus, cmd, Some(hold_watchdog(period)))?;
         if let Some(p) = self.polls.get_mut(&device) {
@@ -387,20 +418,37 @@ impl MoteusDriver {
         }
     }
 
-    /// The limits in force on `device` changed, its torque limit now
-    /// `max_torque` (Nm): a held move is held where it stands (its target
-    /// is not sent again: the new limits may not allow it; the engine
-    /// takes a line only once the move it would break has ended), and what
-    /// is held is capped at the new torque limit.
-    pub(crate) fn limits_changed(&mut self, device: usize, max_torque: Option<f64>) {
+    /// The limits in force on `device` changed to `limits` (degrees, Nm):
+    /// a held move they no longer allow (its target outside them, or its
+    /// velocity limit above theirs: the engine takes a line only once the
+    /// move it would break has ended, but the controller may not have said
+    /// so yet) is held where it stands, never sent again; and every frame
+    /// from now on, held or new, carries at most their torque limit.
+    pub(crate) fn limits_changed(&mut self, device: usize, limits: &super::InForce) {
         let Some(p) = self.polls.get_mut(&device) else {
             return;
         };
-        if p.still.is_some() {
+        p.torque_cap = limits.max_torque;
+        let broken = p.hold.is_some_and(|h| {
+            let outside = h.position.filter(|x| x.is_finite()).is_some_and(|x| {
+                let deg = x * 360.0;
+                limits.min_position.is_some_and(|lo| deg < lo - 1e-6)
+                    || limits.max_position.is_some_and(|hi| deg > hi + 1e-6)
+            });
+            let faster = h
+                .velocity_limit
+                .or(h
+                    .velocity
+                    .filter(|v| v.is_finite() && !h.position.is_some_and(f64::is_finite)))
+                .is_some_and(|v| {
+                    limits
+                        .max_velocity
+                        .is_some_and(|m| v.abs() * 360.0 > m + 1e-6)
+                });
+            outside || faster
+        });
+        if broken {
             p.hold_still();
-        }
-        if let (Some(h), Some(limit)) = (p.hold.as_mut(), max_torque) {
-            h.maximum_torque = Some(h.maximum_torque.map_or(limit, |t| t.min(limit)));
         }
     }
 
@@ -450,7 +498,7 @@ impl MoteusDriver {
                 Some(h) => command_frame(
                     p.id,
                     p.bus,
-                    &MoteusCommand::Position(*h),
+                    &MoteusCommand::Position(p.capped(*h)),
                     Some(hold_watchdog(p.period)),
                 ),
                 None => query_frame(p.id, p.bus),
@@ -590,6 +638,20 @@ mod tests {
         data.extend_from_slice(&(-0.5f32).to_le_bytes());
         let r = reply(&Frame::fd(CanId::extended(0x200).unwrap(), &data).unwrap()).unwrap();
         assert_eq!(motion(&r), Some((90.0, -180.0)));
+        // Found by a hostile test: a NaN position was a motion (a trajectory
+        // "starting where the joint stands" was taken at NaN).
+        let mut nan = vec![0x2e, 0x01];
+        nan.extend_from_slice(&f32::NAN.to_le_bytes());
+        nan.extend_from_slice(&0f32.to_le_bytes());
+        let unknown = reply(&Frame::fd(CanId::extended(0x200).unwrap(), &nan).unwrap()).unwrap();
+        assert_eq!(motion(&unknown), None);
+        // A mode no controller has is a bad frame.
+        let odd = reply(&Frame::fd(CanId::extended(0x200).unwrap(), &[0x21, 0x00, 0xff]).unwrap())
+            .unwrap();
+        assert_eq!(
+            plausible(odd).unwrap_err(),
+            "mode -1 is no moteus mode (0 to 15)"
+        );
         let f = feedback_to_wia("knee", 1.0, AngleUnit::Radians, &r);
         assert!((f.position - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
         assert!((f.velocity + std::f64::consts::PI).abs() < 1e-12);
@@ -661,13 +723,31 @@ mod hold_tests {
         #[allow(clippy::cast_possible_truncation)]
         let fifty = f64::from((50.0f64 / 360.0) as f32);
         assert_eq!(written(&poll(&mut d, 20)), (Some(fifty), Some(3.0)));
-        d.limits_changed(0, Some(2.0));
-        let (position, torque) = written(&poll(&mut d, 40));
+        // Limits that still allow it: the move goes on, its torque capped.
+        let allow = crate::device::InForce {
+            min_position: Some(-60.0),
+            max_position: Some(60.0),
+            max_velocity: Some(60.0),
+            max_torque: Some(2.0),
+        };
+        d.limits_changed(0, &allow);
+        assert_eq!(written(&poll(&mut d, 40)), (Some(fifty), Some(2.0)));
+        // Found by a hostile test: the next move (a trajectory's segment)
+        // went out with the old torque limit.
+        d.send(Duration::from_millis(45), 0, &hip_to_50()).unwrap();
+        assert_eq!(written(&d.poll_transmit().unwrap()).1, Some(2.0));
+        d.acknowledged(0, Duration::from_millis(46));
+        // Limits that do not: held where it stands.
+        d.limits_changed(
+            0,
+            &crate::device::InForce {
+                max_position: Some(20.0),
+                ..allow
+            },
+        );
+        let (position, torque) = written(&poll(&mut d, 80));
         assert!(position.unwrap().is_nan());
         assert_eq!(torque, Some(2.0));
-        // A wider torque limit later does not raise it.
-        d.limits_changed(0, Some(5.0));
-        assert_eq!(written(&poll(&mut d, 60)).1, Some(2.0));
     }
 
     /// Found by a hostile test: a move given up (never answered) was still
