@@ -216,7 +216,7 @@ pub(crate) fn stopped_itself(r: &Reply) -> Option<(String, u16)> {
 pub(crate) fn motion(r: &Reply) -> Option<(f64, f64)> {
     let (p, v) = (r.float(0x001)?, r.float(0x002)?);
     // NaN or an infinity is no position: the device's motion is unknown.
-    (p.is_finite() && v.is_finite()).then(|| (p * 360.0, v * 360.0))
+    (p.is_finite() && v.is_finite()).then_some((p * 360.0, v * 360.0))
 }
 
 /// A reply as WIA MotorFeedback (positions in the motor's own unit).
