@@ -149,6 +149,33 @@ fn finish_within(mut child: Child, limit: Duration) -> (Option<i32>, String, Str
     (status.code(), out, err)
 }
 
+/// `motorwire bridge` on vcan0 with the map at `map` and `extra`
+/// arguments, its standard streams piped. Under emulation a device can be
+/// slow to answer: longer timeouts; the VM's clock is not the controller's:
+/// no skew check.
+fn bridge_on_vcan0(map: &std::path::Path, extra: &[&str]) -> Child {
+    motorwire()
+        .args([
+            "bridge",
+            "--map",
+            map.to_str().unwrap(),
+            "--bus",
+            "socketcan:vcan0",
+            "--ack-timeout",
+            "500",
+            "--offline-after",
+            "5000",
+            "--max-age",
+            "0",
+        ])
+        .args(extra)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
 fn candump() -> Killed {
     let child = Command::new("candump")
         .args(["-L", IFACE])
@@ -742,29 +769,7 @@ fn the_bridge_drives_joint_processes_and_survives_a_malformed_frame() {
     sleep(Duration::from_millis(300));
     let map = std::env::temp_dir().join("motorwire-vcan-bridge-map.toml");
     std::fs::write(&map, include_str!("../demo/demo-arm.toml")).unwrap();
-    // Under emulation a joint can be slow to answer: longer timeouts.
-    let mut bridge = motorwire()
-        .args([
-            "bridge",
-            "--map",
-            map.to_str().unwrap(),
-            "--bus",
-            "socketcan:vcan0",
-            "--ack-timeout",
-            "500",
-            "--offline-after",
-            "5000",
-            "--feedback-hz",
-            "5",
-            // The VM's clock is not the controller's: no skew check here.
-            "--max-age",
-            "0",
-        ])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut bridge = bridge_on_vcan0(&map, &["--feedback-hz", "5"]);
     let mut stdin = bridge.stdin.take().unwrap();
     // The test waits for the elbow's completion line rather than guessing
     // how slow the emulation is.
@@ -1396,25 +1401,7 @@ fn the_bridge_drives_a_moteus_process_with_the_librarys_frames() {
          limits = { min_position = -60, max_position = 60, max_velocity = 180, max_acceleration = 720, max_torque = 3 }\n",
     )
     .unwrap();
-    let mut bridge = motorwire()
-        .args([
-            "bridge",
-            "--map",
-            map.to_str().unwrap(),
-            "--bus",
-            "socketcan:vcan0",
-            "--ack-timeout",
-            "500",
-            "--offline-after",
-            "5000",
-            "--max-age",
-            "0",
-        ])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut bridge = bridge_on_vcan0(&map, &[]);
     let mut stdin = bridge.stdin.take().unwrap();
     // The stop waits for the move's arrival (however slow the emulation is
     // to start the bridge).
