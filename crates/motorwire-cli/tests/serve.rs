@@ -143,6 +143,52 @@ fn moves(log: &Path) -> usize {
 
 /// A client of the bridge at `sock` that waits at most 10 s for a line:
 /// its writing and reading halves.
+/// Clients on `sock` that each write as fast as the bridge takes it (client
+/// `k`'s `i`th write is `line(k, i)`), reading what they are sent and
+/// throwing it away (so they are never dropped), until stopped or the
+/// bridge goes.
+struct Flood {
+    stop: Arc<AtomicBool>,
+    clients: Vec<thread::JoinHandle<u64>>,
+}
+
+impl Flood {
+    fn start(
+        sock: &Path,
+        clients: usize,
+        line: impl Fn(usize, u64) -> String + Send + Sync + 'static,
+    ) -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let line = Arc::new(line);
+        let clients = (0..clients)
+            .map(|k| {
+                let sock = sock.to_path_buf();
+                let stop = Arc::clone(&stop);
+                let line = Arc::clone(&line);
+                thread::spawn(move || {
+                    let mut s = UnixStream::connect(&sock).unwrap();
+                    let mut r = s.try_clone().unwrap();
+                    thread::spawn(move || std::io::copy(&mut r, &mut std::io::sink()));
+                    let mut sent = 0u64;
+                    while !stop.load(Ordering::Relaxed)
+                        && s.write_all(line(k, sent).as_bytes()).is_ok()
+                    {
+                        sent += 1;
+                    }
+                    sent
+                })
+            })
+            .collect();
+        Self { stop, clients }
+    }
+
+    /// Stops the clients; how many writes they made in all.
+    fn stop(self) -> u64 {
+        self.stop.store(true, Ordering::Relaxed);
+        self.clients.into_iter().map(|c| c.join().unwrap()).sum()
+    }
+}
+
 fn operator(sock: &Path) -> (UnixStream, BufReader<UnixStream>) {
     let op = UnixStream::connect(sock).unwrap();
     op.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
@@ -171,25 +217,10 @@ fn a_flooding_and_a_non_reading_client_do_not_delay_anothers_stop() {
     let mut sleeper = UnixStream::connect(&sock).unwrap();
     writeln!(sleeper, "{}", command("shoulder_roll", 5.0)).unwrap();
     thread::sleep(Duration::from_millis(100));
-    // The flooder (origin 2): writes as fast as it can.
-    let stop_flood = Arc::new(AtomicBool::new(false));
-    let flooder = {
-        let sock = sock.clone();
-        let stop = Arc::clone(&stop_flood);
-        thread::spawn(move || {
-            let mut s = UnixStream::connect(&sock).unwrap();
-            // It reads what it is sent (and throws it away), so it is
-            // never dropped: it floods for as long as the test runs.
-            let mut r = s.try_clone().unwrap();
-            thread::spawn(move || std::io::copy(&mut r, &mut std::io::sink()));
-            let line = format!("{}\n", command("elbow", 20.0));
-            let mut sent = 0u64;
-            while !stop.load(Ordering::Relaxed) && s.write_all(line.as_bytes()).is_ok() {
-                sent += 1;
-            }
-            sent
-        })
-    };
+    // The flooder (origin 2): writes as fast as it can, reading what it is
+    // sent, so it is never dropped.
+    let line = format!("{}\n", command("elbow", 20.0));
+    let flooder = Flood::start(&sock, 1, move |_, _| line.clone());
     // The sleeper is disconnected once its queue is full, and said so.
     let dropped = wait_for(&events, Duration::from_secs(30), |v| {
         v["event"] == "client_dropped"
@@ -218,8 +249,7 @@ fn a_flooding_and_a_non_reading_client_do_not_delay_anothers_stop() {
         let rel = next_result(&mut r);
         assert_eq!(rel["released"], true, "{rel}");
     }
-    stop_flood.store(true, Ordering::Relaxed);
-    let flooded = flooder.join().unwrap();
+    let flooded = flooder.stop();
     // The flooder reads what it is sent, and the operator too: neither was
     // dropped.
     let late: Vec<Value> = events
@@ -826,25 +856,8 @@ fn a_flood_of_queries_does_not_keep_the_joints_answers_from_a_stop() {
     let events = stdout_lines(&mut child);
     let _bridge = Bridge(child);
     wait_for(&events, Duration::from_secs(10), |v| v["event"] == "ready");
-    let stop_flood = Arc::new(AtomicBool::new(false));
     let batch = "{\"query\":\"state\"}\n".repeat(2000);
-    let flooders: Vec<_> = (0..7)
-        .map(|_| {
-            let sock = sock.clone();
-            let stop = Arc::clone(&stop_flood);
-            let batch = batch.clone();
-            thread::spawn(move || {
-                let mut s = UnixStream::connect(&sock).unwrap();
-                let mut r = s.try_clone().unwrap();
-                thread::spawn(move || std::io::copy(&mut r, &mut std::io::sink()));
-                let started = Instant::now();
-                while !stop.load(Ordering::Relaxed)
-                    && started.elapsed() < Duration::from_secs(20)
-                    && s.write_all(batch.as_bytes()).is_ok()
-                {}
-            })
-        })
-        .collect();
+    let flood = Flood::start(&sock, 7, move |_, _| batch.clone());
     thread::sleep(Duration::from_millis(1500));
     let (mut w, mut r) = operator(&sock);
     for _ in 0..3 {
@@ -860,10 +873,7 @@ fn a_flood_of_queries_does_not_keep_the_joints_answers_from_a_stop() {
         let release = next_result(&mut r);
         assert_eq!(release["ok"], true, "{release}");
     }
-    stop_flood.store(true, Ordering::Relaxed);
-    for f in flooders {
-        f.join().unwrap();
-    }
+    flood.stop();
 }
 
 /// Clients flooding the bridge with heavy lines (stream setpoints with
@@ -881,37 +891,17 @@ fn a_flood_of_lines_does_not_keep_the_orion_controllers_answers_from_a_stop() {
     let events = stdout_lines(&mut child);
     let _bridge = Bridge(child);
     wait_for(&events, Duration::from_secs(10), |v| v["event"] == "ready");
-    let stop_flood = Arc::new(AtomicBool::new(false));
     let t = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .unwrap()
         .as_millis();
     let pad = "x".repeat(20_000);
-    let flooders: Vec<_> = (0..2)
-        .map(|k| {
-            let sock = sock.clone();
-            let stop = Arc::clone(&stop_flood);
-            let pad = pad.clone();
-            thread::spawn(move || {
-                let mut s = UnixStream::connect(&sock).unwrap();
-                let mut r = s.try_clone().unwrap();
-                thread::spawn(move || std::io::copy(&mut r, &mut std::io::sink()));
-                let started = Instant::now();
-                let mut i = 0u32;
-                while !stop.load(Ordering::Relaxed) && started.elapsed() < Duration::from_secs(20)
-                {
-                    i += 1;
-                    let line = format!(
-                        "{{\"motor_id\":\"elbow\",\"timestamp\":{t},\"control_mode\":\"position\",\"setpoint\":{},\"stream\":true,\"metadata\":{{\"pad\":\"{pad}\"}}}}\n",
-                        40 + (i + k) % 20
-                    );
-                    if s.write_all(line.as_bytes()).is_err() {
-                        break;
-                    }
-                }
-            })
-        })
-        .collect();
+    let flood = Flood::start(&sock, 2, move |k, i| {
+        format!(
+            "{{\"motor_id\":\"elbow\",\"timestamp\":{t},\"control_mode\":\"position\",\"setpoint\":{},\"stream\":true,\"metadata\":{{\"pad\":\"{pad}\"}}}}\n",
+            40 + (i + 1 + k as u64) % 20
+        )
+    });
     thread::sleep(Duration::from_millis(2000));
     let (mut w, mut r) = operator(&sock);
     for _ in 0..2 {
@@ -924,10 +914,7 @@ fn a_flood_of_lines_does_not_keep_the_orion_controllers_answers_from_a_stop() {
         let release = next_result(&mut r);
         assert_eq!(release["ok"], true, "{release}");
     }
-    stop_flood.store(true, Ordering::Relaxed);
-    for f in flooders {
-        f.join().unwrap();
-    }
+    flood.stop();
     let offline: Vec<Value> = events
         .try_iter()
         .filter(|v| v["event"] == "offline")
