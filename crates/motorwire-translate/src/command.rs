@@ -228,10 +228,6 @@ fn the(source: &str) -> String {
 }
 
 /// `value from the source`, as a defaulted limit's report says it.
-pub(crate) fn from_defaulted(value: f64, source: &str) -> String {
-    from_source(value, source)
-}
-
 fn from_source(value: f64, source: &str) -> String {
     let mut s = String::with_capacity(source.len() + 24);
     push_value(&mut s, value);
@@ -278,6 +274,23 @@ fn push_value(s: &mut String, v: f64) {
     let _ = write!(s, "{v}");
 }
 
+/// A limit from the command (`own`), or else the one in force
+/// (`fallback`), reported `defaulted` with where it came from; `None` when
+/// neither gives one.
+pub(crate) fn own_or_default(
+    field: &'static str,
+    own: Option<f64>,
+    fallback: Option<crate::Bound>,
+    report: &mut Report,
+) -> Option<f64> {
+    own.or_else(|| {
+        let b = fallback?;
+        report.push(field, LossKind::Defaulted, from_source(b.value, b.source));
+        Some(b.value)
+    })
+}
+
+/// [`own_or_default`], or a refusal: iRPC needs the limit.
 fn resolve(
     motor: &str,
     field: &'static str,
@@ -285,18 +298,11 @@ fn resolve(
     fallback: Option<crate::Bound>,
     report: &mut Report,
 ) -> Result<f64, Refusal> {
-    match (own, fallback) {
-        (Some(v), _) => Ok(v),
-        (None, Some(b)) => {
-            report.push(field, LossKind::Defaulted, from_source(b.value, b.source));
-            Ok(b.value)
-        }
-        (None, None) => Err(Refusal::MissingLimit {
-            motor: motor.to_owned(),
-            dialect: "iRPC",
-            field,
-        }),
-    }
+    own_or_default(field, own, fallback, report).ok_or_else(|| Refusal::MissingLimit {
+        motor: motor.to_owned(),
+        dialect: "iRPC",
+        field,
+    })
 }
 
 fn set_target(

@@ -5,7 +5,7 @@ use motorwire_moteus::PositionArgs;
 use motorwire_wia::{MotorCommand, MultiAxisCommand};
 
 use crate::command::{
-    each_axis, emergency, from_defaulted, gate_unless_emergency, not_for, report_unused,
+    each_axis, emergency, gate_unless_emergency, not_for, own_or_default, report_unused,
 };
 use crate::gate::Refusal;
 use crate::map::{AngleUnit, BusMap, Target};
@@ -144,35 +144,24 @@ pub fn to_moteus(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<MoteusCo
             "only emergency_stop has a place (stop mode)",
         );
     }
-    let maximum_torque = match (cmd.torque_limit, effective.max_torque) {
-        (Some(t), _) => Some(t),
-        (None, Some(b)) => {
-            report.push(
-                "torque_limit",
-                LossKind::Defaulted,
-                from_defaulted(b.value, b.source),
-            );
-            Some(b.value)
-        }
-        (None, None) => None,
-    };
+    let maximum_torque = own_or_default(
+        "torque_limit",
+        cmd.torque_limit,
+        effective.max_torque,
+        &mut report,
+    );
     let mut args = PositionArgs {
         maximum_torque,
         ..PositionArgs::default()
     };
     if mode != ControlMode::Torque {
-        args.accel_limit = match (cmd.acceleration_limit, effective.max_acceleration) {
-            (Some(a), _) => Some(rev(a)),
-            (None, Some(b)) => {
-                report.push(
-                    "acceleration_limit",
-                    LossKind::Defaulted,
-                    from_defaulted(b.value, b.source),
-                );
-                Some(rev(b.value))
-            }
-            (None, None) => None,
-        };
+        args.accel_limit = own_or_default(
+            "acceleration_limit",
+            cmd.acceleration_limit,
+            effective.max_acceleration,
+            &mut report,
+        )
+        .map(rev);
     }
     // The controller's own watchdog: the deadman's time and a margin, so
     // that the bridge's deadman (a controlled stop) comes first and the
@@ -184,18 +173,13 @@ pub fn to_moteus(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<MoteusCo
         ControlMode::Position => {
             args.position = Some(rev(cmd.setpoint));
             args.velocity = Some(0.0);
-            args.velocity_limit = match (cmd.velocity_limit, effective.max_velocity) {
-                (Some(v), _) => Some(rev(v)),
-                (None, Some(b)) => {
-                    report.push(
-                        "velocity_limit",
-                        LossKind::Defaulted,
-                        from_defaulted(b.value, b.source),
-                    );
-                    Some(rev(b.value))
-                }
-                (None, None) => None,
-            };
+            args.velocity_limit = own_or_default(
+                "velocity_limit",
+                cmd.velocity_limit,
+                effective.max_velocity,
+                &mut report,
+            )
+            .map(rev);
         }
         ControlMode::Velocity => {
             args.position = Some(f64::NAN);
@@ -248,8 +232,6 @@ pub fn to_moteus(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<MoteusCo
             });
         }
     }
-    // Report order: as the fields are (defaulted limits last).
-    report.losses.sort_by_key(|l| l.kind == LossKind::Defaulted);
     Ok(Translated {
         value: MoteusCommand::Position(args),
         report,
