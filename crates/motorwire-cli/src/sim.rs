@@ -304,7 +304,7 @@ fn moteus_on_lines(
         let sent: Sent = serde_json::from_str(line).map_err(|e| e.to_string())?;
         let data = crate::lines::from_hex(&sent.data)?;
         let id = CanId::extended(sent.can_id).map_err(|e| e.to_string())?;
-        let padded = motorwire_sim::moteus::pad(&data);
+        let padded = motorwire_moteus::padded(&data);
         let frame = Frame::fd(id, &padded).map_err(|e| e.to_string())?;
         let now = start.elapsed();
         device.handle_timeout(now);

@@ -24,6 +24,23 @@ pub struct Frame {
     pub data: Vec<u8>,
 }
 
+/// `data` padded with the protocol's no-op (0x50) to its CAN-FD length
+/// (`moteus-protocol`'s DLC rounding), as mjbots' transports pad a frame;
+/// data over 64 bytes is left as it is.
+///
+/// ```
+/// assert_eq!(motorwire_moteus::padded(&[0x11, 0x00]), [0x11, 0x00]);
+/// assert_eq!(motorwire_moteus::padded(&[0x01; 9]).len(), 12);
+/// assert_eq!(motorwire_moteus::padded(&[0x01; 9])[9..], [0x50, 0x50, 0x50]);
+/// ```
+pub fn padded(data: &[u8]) -> Vec<u8> {
+    let mut v = data.to_vec();
+    if data.len() <= 64 {
+        v.resize(protocol::CanFdFrame::round_up_dlc(data.len()), 0x50);
+    }
+    v
+}
+
 /// Lowercase hex, no separators.
 pub fn hex(bytes: &[u8]) -> String {
     use std::fmt::Write;

@@ -154,7 +154,7 @@ enum Drive {
 /// // Position 0.25 rev within 1 rev/s and 4 rev/s², with a reply.
 /// let f = Call::from_json(r#"{"command":"position","id":1,"position":0.25,"velocity":0,"velocity_limit":1,"accel_limit":4,"watchdog_timeout":null,"query":true}"#)?.encode()?;
 /// // Padded with the protocol's no-op (0x50) to its CAN-FD length, as mjbots' transports pad.
-/// let frame = Frame::fd(CanId::extended(f.can_id)?, &motorwire_sim::moteus::pad(&f.data))?;
+/// let frame = Frame::fd(CanId::extended(f.can_id)?, &motorwire_moteus::padded(&f.data))?;
 /// m.handle_frame(Duration::ZERO, &frame);
 /// let reply = m.poll_transmit().expect("a reply");
 /// assert_eq!(reply.id().raw(), 0x100);
@@ -476,7 +476,7 @@ impl SimMoteus {
             w.write_varuint(u32::from(r));
             w.write_varuint(1);
         }
-        let data = pad(frame.payload());
+        let data = motorwire_moteus::padded(frame.payload());
         let id = (u32::from(self.config.prefix) << 16) | (u32::from(self.config.id) << 8) | to;
         if let (Ok(id), true) = (CanId::extended(id), !data.is_empty())
             && let Ok(f) = Frame::fd(id, &data)
@@ -664,15 +664,6 @@ fn toward(from: f64, to: f64, by: f64) -> f64 {
     } else {
         from + (to - from).signum() * by
     }
-}
-
-/// `data` padded with the protocol's no-op (0x50) to a CAN-FD length, as
-/// mjbots' transports pad it.
-pub fn pad(data: &[u8]) -> Vec<u8> {
-    let len = motorwire_can::fd_len(data.len()).unwrap_or(data.len());
-    let mut v = data.to_vec();
-    v.resize(len, 0x50);
-    v
 }
 
 /// Writes register `r`'s value `v` at `res`, scaled as the register is.

@@ -55,6 +55,9 @@ pub(crate) struct IrpcDriver {
     events: VecDeque<IrpcEvent>,
     /// The time of the last frame or timeout handled.
     now: Duration,
+    /// Whether any joint was given ([`IrpcDriver::set_wire`]): the
+    /// heartbeat is theirs.
+    joints: bool,
 }
 
 impl IrpcDriver {
@@ -68,12 +71,14 @@ impl IrpcDriver {
             by_msg: BTreeMap::new(),
             events: VecDeque::new(),
             now: Duration::ZERO,
+            joints: false,
         })
     }
 
     /// Joint `node` is spoken to, and heard, in `wire`.
     pub(crate) fn set_wire(&mut self, node: u16, wire: WireVersion) {
         self.client.set_wire(node, wire);
+        self.joints = true;
     }
 
     /// Sends `payload` to joint `node` (device `device`) and awaits its
@@ -107,7 +112,9 @@ impl IrpcDriver {
     /// ArmReady to every joint, each in its own wire version (a broadcast
     /// when they all speak the bridge's). Whether it was queued.
     pub(crate) fn heartbeat(&mut self) -> bool {
-        self.client.arm_ready().is_ok()
+        // A bus without iRPC joints (moteus controllers alone) hears no
+        // iRPC broadcast.
+        self.joints && self.client.arm_ready().is_ok()
     }
 
     /// A frame from the bus.

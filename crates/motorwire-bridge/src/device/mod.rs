@@ -1020,8 +1020,6 @@ pub(crate) struct Drivers {
     compact: compact::CompactDriver,
     orion: orion::OrionDriver,
     moteus: moteus::MoteusDriver,
-    /// Whether any device is an iRPC joint (the heartbeat is theirs).
-    has_irpc: bool,
     queued: VecDeque<Queued>,
     /// The Unix ms of the bridge's zero (feedback timestamps).
     epoch: f64,
@@ -1057,9 +1055,6 @@ impl Drivers {
             compact: compact::CompactDriver::new(client.timeout, client.retries),
             orion: orion::OrionDriver::new(client.timeout, client.retries, orion_command_timeout),
             moteus,
-            has_irpc: devices
-                .iter()
-                .any(|j| matches!(j.device, Device::Irpc { .. })),
             queued: VecDeque::new(),
             epoch,
         })
@@ -1184,10 +1179,9 @@ impl Drivers {
     }
 
     /// The heartbeat to the bus's joints (iRPC's ArmReady). Whether it was
-    /// queued: never on a bus without iRPC joints (a moteus-only bus hears
-    /// no iRPC broadcast).
+    /// queued (never on a bus without iRPC joints).
     pub(crate) fn heartbeat(&mut self) -> bool {
-        self.has_irpc && self.irpc.heartbeat()
+        self.irpc.heartbeat()
     }
 
     /// Why `device` is offline, where its driver's link says so (the

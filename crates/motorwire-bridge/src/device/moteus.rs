@@ -82,13 +82,8 @@ pub(crate) fn fault_name(code: i64) -> &'static str {
 }
 
 fn can_frame(can_id: u32, data: &[u8]) -> Result<Frame, String> {
-    let len = motorwire_can::fd_len(data.len())
-        .ok_or_else(|| format!("{} bytes are over CAN-FD's 64", data.len()))?;
-    let mut padded = data.to_vec();
-    // The protocol's no-op, as mjbots' transports pad.
-    padded.resize(len, 0x50);
     let id = CanId::extended(can_id).map_err(|e| e.to_string())?;
-    Frame::fd(id, &padded).map_err(|e| e.to_string())
+    Frame::fd(id, &motorwire_moteus::padded(data)).map_err(|e| e.to_string())
 }
 
 /// `cmd` as its frame for controller `id` on prefix `bus`, with the
