@@ -3900,10 +3900,7 @@ impl Bridge {
 
     /// Whole Unix milliseconds (or milliseconds since start without a wall clock).
     fn unix_ms(&self, now: Duration) -> f64 {
-        let ms = u64::try_from(now.as_millis()).unwrap_or(u64::MAX);
-        #[allow(clippy::cast_precision_loss)]
-        let ms = ms as f64;
-        (self.config.epoch_unix_ms.unwrap_or(0.0) + ms).floor()
+        crate::device::unix_ms(self.config.epoch_unix_ms.unwrap_or(0.0), now)
     }
 
     /// The next frame to put on the bus.

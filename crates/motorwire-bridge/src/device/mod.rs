@@ -1003,8 +1003,8 @@ impl From<Payload> for Order {
 }
 
 /// `now` on the bridge's clock as Unix ms (`epoch`: the Unix ms of its
-/// zero).
-fn unix_ms(epoch: f64, now: Duration) -> f64 {
+/// zero). The engine's clock is read through this one too.
+pub(crate) fn unix_ms(epoch: f64, now: Duration) -> f64 {
     let ms = u64::try_from(now.as_millis()).unwrap_or(u64::MAX);
     #[allow(clippy::cast_precision_loss)]
     let ms = ms as f64;
