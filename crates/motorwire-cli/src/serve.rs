@@ -693,33 +693,23 @@ impl Router {
     }
 
     /// Accepts connections until the process ends. Accept errors (out of
-    /// descriptors) back off from 10 ms to 1 s and are reported once per
-    /// run of them, never spun on.
+    /// descriptors) back off from 10 ms to 1 s and are never spun on; a
+    /// thread that cannot be started closes its connection and backs off
+    /// the same way. Trouble is reported when it starts, then at most every
+    /// 10 s with how many attempts failed meanwhile, so a bridge that stays
+    /// short of descriptors does not fill its standard error.
     fn accept_loop(
         self: &Arc<Self>,
         mut accept: impl FnMut() -> io::Result<Conn>,
         config: &ServeConfig,
     ) {
         let mut next = 1u64;
-        let mut backoff = Duration::ZERO;
+        let mut trouble = Trouble::default();
         loop {
             let conn = match accept() {
-                Ok(c) => {
-                    if !backoff.is_zero() {
-                        say("motorwire bridge: accepting connections again");
-                    }
-                    backoff = Duration::ZERO;
-                    c
-                }
+                Ok(c) => c,
                 Err(e) => {
-                    if backoff.is_zero() {
-                        say(&format!(
-                            "motorwire bridge: accepting a connection failed: {e}; retrying with back-off"
-                        ));
-                    }
-                    backoff =
-                        (backoff * 2).clamp(Duration::from_millis(10), Duration::from_secs(1));
-                    thread::sleep(backoff);
+                    trouble.failed("accepting a connection", &e);
                     continue;
                 }
             };
@@ -751,7 +741,32 @@ impl Router {
             }
             let r = Arc::clone(self);
             let config = config.clone();
-            thread::spawn(move || r.client(id, conn, &config));
+            // The connection is moved into the thread only once it runs:
+            // should it not start, it is still here to be refused.
+            let (hand, take) = mpsc::sync_channel::<Conn>(1);
+            let started = thread::Builder::new().spawn(move || {
+                if let Ok(conn) = take.recv() {
+                    r.client(id, conn, &config);
+                }
+            });
+            match started {
+                Ok(_) => {
+                    let _ = hand.send(conn);
+                    trouble.ok();
+                }
+                Err(e) => {
+                    drop(Authenticating {
+                        router: Some(self),
+                        id,
+                    });
+                    refuse(
+                        conn,
+                        "unavailable",
+                        "the bridge could not start a thread for this connection; try again",
+                    );
+                    trouble.failed("starting a connection's thread", &e);
+                }
+            }
         }
     }
 
@@ -765,8 +780,17 @@ impl Router {
             router: Some(self),
             id,
         };
-        let Ok(read_half) = conn.try_clone() else {
-            return;
+        let read_half = match conn.try_clone() {
+            Ok(r) => r,
+            Err(e) => {
+                authenticating.done();
+                refuse(
+                    conn,
+                    "unavailable",
+                    &format!("the bridge could not take this connection ({e}); try again"),
+                );
+                return;
+            }
         };
         let mut reader = BufReader::new(Timed {
             conn: read_half,
@@ -994,6 +1018,64 @@ fn refuse_full(conn: Conn, config: &ServeConfig) {
             config.max_clients
         ),
     );
+}
+
+/// A run of failures of the accept loop: reported when it starts, then at
+/// most every [`Trouble::EVERY`] with a count, and its end once; each
+/// failure backs off (10 ms doubling to 1 s).
+#[derive(Debug, Default)]
+struct Trouble {
+    backoff: Duration,
+    /// When the run was last reported, while it lasts.
+    said: Option<Instant>,
+    /// Failures since then.
+    unsaid: u64,
+}
+
+impl Trouble {
+    const EVERY: Duration = Duration::from_secs(10);
+
+    fn failed(&mut self, doing: &str, e: &io::Error) {
+        match self.said {
+            Some(at) if at.elapsed() < Self::EVERY => self.unsaid += 1,
+            Some(_) => {
+                say(&format!(
+                    "motorwire bridge: {doing} failed: {e}; {} more failures in the last {} s; retrying with back-off",
+                    self.unsaid,
+                    Self::EVERY.as_secs()
+                ));
+                self.said = Some(Instant::now());
+                self.unsaid = 0;
+            }
+            None => {
+                say(&format!(
+                    "motorwire bridge: {doing} failed: {e}; retrying with back-off"
+                ));
+                self.said = Some(Instant::now());
+            }
+        }
+        self.backoff = (self.backoff * 2).clamp(Duration::from_millis(10), Duration::from_secs(1));
+        thread::sleep(self.backoff);
+    }
+
+    /// A connection was taken: the back-off starts again from 10 ms. The
+    /// run is reported over once a second has passed without a failure
+    /// reported (a connection at a time taken between failures is still
+    /// the same run).
+    fn ok(&mut self) {
+        self.backoff = Duration::ZERO;
+        if self
+            .said
+            .is_some_and(|at| at.elapsed() >= Duration::from_secs(1))
+        {
+            say(&format!(
+                "motorwire bridge: accepting connections again ({} more failures since the last report)",
+                self.unsaid
+            ));
+            self.said = None;
+            self.unsaid = 0;
+        }
+    }
 }
 
 /// A line on standard error; a broken standard error is ignored.
