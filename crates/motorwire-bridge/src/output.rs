@@ -51,8 +51,15 @@ impl Output {
     /// The line as JSON text (no newline).
     pub fn to_json(&self) -> String {
         let text = match self {
-            Self::Result { result, .. } => serde_json::to_string(result),
-            Self::Arrival { arrival, .. } => serde_json::to_string(arrival),
+            // Written for every command: directly ([`crate::json`]).
+            Self::Result { result, .. } => {
+                let mut j = crate::json::Json::with_capacity(result.json_capacity());
+                result.write_json(&mut j).map(|()| j.into_string())
+            }
+            Self::Arrival { arrival, .. } => {
+                let mut j = crate::json::Json::with_capacity(160);
+                arrival.write_json(&mut j).map(|()| j.into_string())
+            }
             Self::Feedback(f) => serde_json::to_string(f),
             Self::Event(e) | Self::ToOne { event: e, .. } => serde_json::to_string(e),
         };
