@@ -2749,43 +2749,41 @@ impl Bridge {
         if let Some(since) = job.answered {
             return self.complete_answered(job, since);
         }
-        let moved_joints: Vec<usize> = job.axes.iter().map(|a| a.joint).collect();
-        let acked_joints: Vec<usize> = job
-            .axes
-            .iter()
-            .filter(|a| matches!(&a.state, AxisState::Done(r) if r.outcome == StepOutcome::Acked))
-            .map(|a| a.joint)
-            .collect();
-        // The moves acked, to watch for arrival.
-        let moved: Vec<(usize, String, f64)> = job
-            .axes
-            .iter()
-            .filter(|a| matches!(&a.state, AxisState::Done(r) if r.outcome == StepOutcome::Acked))
-            .filter_map(|a| Some((a.joint, a.motor.clone(), a.target?)))
-            .collect();
-        let reports: Vec<StepReport> = job
-            .axes
-            .into_iter()
-            .filter_map(|a| match a.state {
-                AxisState::Done(r) => Some(r),
-                _ => None,
-            })
-            .collect();
-        let acked: Vec<String> = reports
-            .iter()
-            .filter(|r| r.outcome == StepOutcome::Acked)
-            .map(|r| r.motor.clone())
-            .collect();
         // A stream's setpoint replaced by a newer one before it was sent
         // is what a stream does: no failure.
         let stream = job.line.as_ref().is_some_and(|l| l.stream);
-        let superseded = stream && reports.iter().any(|r| r.outcome == StepOutcome::Superseded);
-        let failures: Vec<StepReport> = reports
-            .into_iter()
-            .filter(|r| {
-                r.outcome != StepOutcome::Acked && !(stream && r.outcome == StepOutcome::Superseded)
-            })
-            .collect();
+        // Only a reset needs every joint it moved, and only a stream's
+        // command the joints that took it.
+        let moved_joints: Vec<usize> = if job.kind == JobKind::Reset {
+            job.axes.iter().map(|a| a.joint).collect()
+        } else {
+            Vec::new()
+        };
+        let mut acked_joints: Vec<usize> = Vec::new();
+        // The motors acked, the moves acked (to watch for arrival), and
+        // what became of the rest: one pass, each name moved, not copied.
+        let mut acked: Vec<String> = Vec::with_capacity(job.axes.len());
+        let mut moved: Vec<(usize, String, f64)> = Vec::with_capacity(job.axes.len());
+        let mut failures: Vec<StepReport> = Vec::new();
+        let mut superseded = false;
+        for a in job.axes {
+            let AxisState::Done(r) = a.state else {
+                continue;
+            };
+            match r.outcome {
+                StepOutcome::Acked => {
+                    if stream {
+                        acked_joints.push(a.joint);
+                    }
+                    if let Some(target) = a.target {
+                        moved.push((a.joint, a.motor, target));
+                    }
+                    acked.push(r.motor);
+                }
+                StepOutcome::Superseded if stream => superseded = true,
+                _ => failures.push(r),
+            }
+        }
         match job.kind {
             JobKind::Startup => {
                 for name in acked {
