@@ -71,13 +71,14 @@ impl Watch {
     }
 
     /// Its completion line: arrived, or not with `reason`.
-    pub(crate) fn verdict(&self, now: Duration, reason: Option<String>) -> ArrivalLine {
-        let ms = |t: Duration| {
-            u64::try_from(t.saturating_sub(self.since).as_millis()).unwrap_or(u64::MAX)
-        };
-        let (motor_id, command_id) = match &self.line.label {
-            Some(Label::Motor(v)) => (Some(v.clone()), None),
-            Some(Label::Command(v) | Label::Orion(v)) => (None, Some(v.clone())),
+    pub(crate) fn verdict(self, now: Duration, reason: Option<String>) -> ArrivalLine {
+        let since = self.since;
+        let ms =
+            |t: Duration| u64::try_from(t.saturating_sub(since).as_millis()).unwrap_or(u64::MAX);
+        // The watch ends here: its names move into the line.
+        let (motor_id, command_id) = match self.line.label {
+            Some(Label::Motor(v)) => (Some(v), None),
+            Some(Label::Command(v) | Label::Orion(v)) => (None, Some(v)),
             None => (None, None),
         };
         ArrivalLine {
@@ -89,9 +90,8 @@ impl Watch {
             after_ms: ms(now),
             motors: self
                 .axes
-                .iter()
+                .into_iter()
                 .map(|a| MotorArrival {
-                    motor_id: a.motor.clone(),
                     arrived: a.arrived.is_some(),
                     target: short(a.unit.from_degrees(a.target)),
                     error: a
@@ -100,6 +100,7 @@ impl Watch {
                         .or(a.last_error)
                         .map(|e| short(a.unit.from_degrees(e))),
                     after_ms: a.arrived.map(|(t, _)| ms(t)),
+                    motor_id: a.motor,
                 })
                 .collect(),
         }

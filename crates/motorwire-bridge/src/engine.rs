@@ -3390,13 +3390,13 @@ impl Bridge {
         if self.arrivals.is_empty() {
             return;
         }
-        let why = format!(
-            "superseded by line {} of client {}",
-            meta.number, meta.origin.0
-        );
-        for &ji in moved {
-            self.fail_watches(|w| w.waits_on(ji), &why);
-        }
+        let why = || {
+            format!(
+                "superseded by line {} of client {}",
+                meta.number, meta.origin.0
+            )
+        };
+        self.fail_watches_with(|w| moved.iter().any(|&ji| w.waits_on(ji)), why);
     }
 
     /// The watch of line `meta`'s moves (`moved`: device, motor, target in
@@ -3440,11 +3440,9 @@ impl Bridge {
         while let Some(w) = self.arrivals.get_mut(i) {
             if w.axes.iter().any(|a| a.joint == ji) && w.observe(ji, position, velocity, at) {
                 let w = self.arrivals.remove(i);
+                let origin = w.line.origin;
                 let arrival = w.verdict(at, None);
-                self.out.push_back(Output::Arrival {
-                    origin: w.line.origin,
-                    arrival,
-                });
+                self.out.push_back(Output::Arrival { origin, arrival });
             } else {
                 i += 1;
             }
@@ -3453,16 +3451,20 @@ impl Bridge {
 
     /// The watched lines `pick` chooses will not arrive: said, with `why`.
     fn fail_watches(&mut self, pick: impl Fn(&Watch) -> bool, why: &str) {
+        self.fail_watches_with(pick, || why.to_owned());
+    }
+
+    /// [`Self::fail_watches`] with the reason made only when a watch
+    /// fails (a line's own supersession is looked for on every move).
+    fn fail_watches_with(&mut self, pick: impl Fn(&Watch) -> bool, why: impl Fn() -> String) {
         let now = self.now;
         let mut i = 0;
         while let Some(w) = self.arrivals.get(i) {
             if pick(w) {
                 let w = self.arrivals.remove(i);
-                let arrival = w.verdict(now, Some(why.to_owned()));
-                self.out.push_back(Output::Arrival {
-                    origin: w.line.origin,
-                    arrival,
-                });
+                let origin = w.line.origin;
+                let arrival = w.verdict(now, Some(why()));
+                self.out.push_back(Output::Arrival { origin, arrival });
             } else {
                 i += 1;
             }
@@ -3797,11 +3799,9 @@ impl Bridge {
                 })
                 .collect::<Vec<_>>()
                 .join(", ");
+            let origin = w.line.origin;
             let arrival = w.verdict(now, Some(format!("timed out: {far}")));
-            self.out.push_back(Output::Arrival {
-                origin: w.line.origin,
-                arrival,
-            });
+            self.out.push_back(Output::Arrival { origin, arrival });
         }
         let offline_after = self.config.offline_after;
         let mut went_offline = Vec::new();
