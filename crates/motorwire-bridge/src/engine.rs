@@ -2292,6 +2292,7 @@ impl Bridge {
         for &(ji, step, replaces) in &steps {
             if kind == JobKind::Command && replaces {
                 self.supersede(ji, stream);
+                self.end_sequences_on(ji, id);
             }
             if let Some(j) = self.joints.get_mut(ji) {
                 j.queue.push_back(step);
@@ -2341,6 +2342,58 @@ impl Bridge {
         joint.queue = keep;
     }
 
+    /// A newer line (job `by`) moves device `ji`: a sequential line whose
+    /// axis on `ji` was sent and has not arrived will not see it arrive
+    /// (its target is replaced), so the axes waiting for that arrival are
+    /// not sent, at once (not when the arrival's time runs out), and leave
+    /// their devices' queues; the line then ends, and its completion says
+    /// it was superseded when the newer line is taken.
+    fn end_sequences_on(&mut self, ji: usize, by: u64) {
+        let Some(meta) = self.jobs.get(&by).and_then(|j| j.line.as_ref()) else {
+            return;
+        };
+        let (number, origin) = (meta.number, meta.origin.0);
+        let mut ended: Vec<StepRef> = Vec::new();
+        for (&id, job) in &mut self.jobs {
+            if id == by || job.kind != JobKind::Command {
+                continue;
+            }
+            // Its axes on `ji` that went out and have not arrived.
+            let replaced = |a: &Axis| a.joint == ji && !a.arrived && a.state != AxisState::Queued;
+            let waiting: Vec<usize> = job
+                .axes
+                .iter()
+                .enumerate()
+                .filter(|(_, a)| {
+                    a.state == AxisState::Queued
+                        && a.after.and_then(|b| job.axes.get(b)).is_some_and(&replaced)
+                })
+                .map(|(k, _)| k)
+                .collect();
+            for k in waiting {
+                if let Some(a) = job.axes.get_mut(k) {
+                    a.finish(
+                        StepOutcome::NotSent,
+                        None,
+                        format!(
+                            "not sent: the axis before it was replaced by line {number} of client {origin} before it arrived"
+                        ),
+                    );
+                    ended.push(StepRef { job: id, axis: k });
+                }
+            }
+            // Nothing waits for them now.
+            for a in job.axes.iter_mut().filter(|a| replaced(a)) {
+                a.arrive_by = None;
+            }
+        }
+        for step in ended {
+            for j in &mut self.joints {
+                j.queue.retain(|s| *s != step);
+            }
+        }
+    }
+
     /// The step at the front of device `ji`'s queue, if none of its
     /// steps is in flight.
     fn waiting_front(&self, ji: usize) -> Option<StepRef> {
@@ -2384,7 +2437,13 @@ impl Bridge {
         let Some(job) = self.jobs.get(&step.job) else {
             return false;
         };
-        let Some(before) = job.axes.get(step.axis).and_then(|a| a.after) else {
+        // An axis already finished waits for nothing: it leaves its queue.
+        let Some(before) = job
+            .axes
+            .get(step.axis)
+            .filter(|a| !a.is_done())
+            .and_then(|a| a.after)
+        else {
             return false;
         };
         let Some(b) = job.axes.get(before) else {
@@ -3979,12 +4038,21 @@ impl Bridge {
                 _ => None,
             },
             Timer::Arrival => self.arrivals.iter().map(|w| w.deadline).min(),
+            // Due only where pumping would act on it: a sequential axis at
+            // the front of an idle device's queue, waiting for an axis that
+            // has not arrived (behind a busy device, the device's answer
+            // pumps it; a deadline there would be due and do nothing).
             Timer::Sequence => self
-                .jobs
-                .values()
-                .flat_map(|j| j.axes.iter())
-                .filter(|a| !a.arrived)
-                .filter_map(|a| a.arrive_by)
+                .joints
+                .iter()
+                .filter(|j| j.busy.is_none())
+                .filter_map(|j| j.queue.front())
+                .filter_map(|s| {
+                    let job = self.jobs.get(&s.job)?;
+                    let a = job.axes.get(s.axis).filter(|a| !a.is_done())?;
+                    let b = job.axes.get(a.after?)?;
+                    if b.arrived { None } else { b.arrive_by }
+                })
                 .min(),
             Timer::Deadman => self.joints.iter().filter_map(|j| j.deadman).min(),
             Timer::Segment => self.joints.iter().filter_map(|j| j.wake).min(),

@@ -185,7 +185,10 @@ impl Axis {
         code: Option<u16>,
         message: impl Into<String>,
     ) {
+        // Nothing of a finished axis is sent again: not its payloads, nor
+        // a looping trajectory's next cycle.
         self.payloads.clear();
+        self.cycle = None;
         self.state = AxisState::Done(StepReport {
             motor: self.motor.clone(),
             outcome,

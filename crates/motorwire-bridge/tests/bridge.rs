@@ -1147,3 +1147,48 @@ fn assert_line_1_superseded_by_line_2(out: &[Value]) {
     assert_eq!(arrival["arrived"], false);
     assert_eq!(arrival["reason"], "superseded by line 2 of client 1");
 }
+/// A sequential line whose first motor is given a newer line before it
+/// arrived: the axes waiting for that arrival are not sent, at once (not
+/// when the arrival's time runs out), and the line's completion says it
+/// was superseded; by an ordinary line and by a stream's setpoint alike.
+#[test]
+fn a_sequential_line_ends_when_its_first_motor_is_moved_elsewhere() {
+    for extra in ["", r#","stream":true"#] {
+        let mut arm = arm(Faults::default(), 0);
+        arm.line(
+            Origin(1),
+            r#"{"command_id":"seq","timestamp":1704067200000,"sync_mode":"sequential","motors":[{"motor_id":"elbow","control_mode":"position","setpoint":140},{"motor_id":"gripper_axis","control_mode":"position","setpoint":80}]}"#,
+        );
+        arm.run_until(arm.now() + Duration::from_millis(300))
+            .unwrap();
+        arm.take_outputs();
+        arm.line(
+            Origin(1),
+            &format!(
+                r#"{{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"position","setpoint":20{extra}}}"#
+            ),
+        );
+        arm.run_until(arm.now() + Duration::from_millis(50))
+            .unwrap();
+        let out: Vec<Value> = arm.take_outputs().iter().map(|o| o.to_value()).collect();
+        let first = out
+            .iter()
+            .find(|v| v.get("ok").is_some() && v["line"] == 1)
+            .unwrap_or_else(|| panic!("{extra}: {out:?}"));
+        assert_eq!(first["ok"], false, "{first}");
+        assert_eq!(first["outcomes"][0]["motor"], "gripper_axis", "{first}");
+        assert_eq!(first["outcomes"][0]["outcome"], "not_sent", "{first}");
+        assert_eq!(
+            first["outcomes"][0]["message"],
+            "not sent: the axis before it was replaced by line 2 of client 1 before it arrived"
+        );
+        let arrival = out
+            .iter()
+            .find(|v| v.get("arrived").is_some() && v["line"] == 1)
+            .unwrap_or_else(|| panic!("{extra}: {out:?}"));
+        assert_eq!(arrival["arrived"], false);
+        assert_eq!(arrival["reason"], "superseded by line 2 of client 1");
+        // The gripper never moved.
+        assert!(arm.compact_device(0x20).unwrap().position().abs() < 1e-6);
+    }
+}
