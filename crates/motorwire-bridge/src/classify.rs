@@ -108,6 +108,12 @@ pub enum Input {
         /// The motor asked about, if one.
         motor_id: Option<String>,
     },
+    /// `{"feedback_hz":N}`: the rate at which this client is sent each
+    /// motor's feedback (0: none), at most the bridge's own.
+    FeedbackRate {
+        /// The rate asked for (Hz).
+        hz: f64,
+    },
     /// A valid WIA message.
     Message(Box<Message>),
     /// A MotorCommand with `"stream": true`: a setpoint of a policy's
@@ -513,7 +519,7 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
 }
 
 /// The top-level names of the bridge's own forms.
-const OWN_FORMS: [&[u8]; 7] = [
+const OWN_FORMS: [&[u8]; 8] = [
     b"trajectories",
     b"reset",
     b"calibration",
@@ -521,6 +527,7 @@ const OWN_FORMS: [&[u8]; 7] = [
     b"orion",
     b"query",
     b"stream",
+    b"feedback_hz",
 ];
 
 /// `Some` when `line` cannot name a stop (no `emergency` and no escape in
@@ -748,6 +755,16 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             },
         };
     }
+    if let Some((_, hz)) = members.iter().find(|(k, _)| k == "feedback_hz") {
+        return match (hz.as_f64(), members.len()) {
+            (Some(hz), 1) => Input::FeedbackRate { hz },
+            _ => Input::Invalid {
+                message: r#"a feedback rate is exactly {"feedback_hz":N}, N a number of Hz (0: no feedback)"#.to_owned(),
+                violations: None,
+                label,
+            },
+        };
+    }
     if let Some(at) = members.iter().position(|(k, _)| k == "stream") {
         return stream_line(validator, &members, at, label);
     }
@@ -931,6 +948,36 @@ mod tests {
             panic!("{typo}");
         };
         assert!(message.contains("velocity_limt"), "{message}");
+    }
+
+    /// `{"feedback_hz":N}` alone is a client's feedback rate; with other
+    /// members, or not a number, it is invalid (never a command with an
+    /// unknown member taken).
+    #[test]
+    fn feedback_hz_is_a_line_of_its_own() {
+        let v = Validator::new();
+        assert_eq!(
+            classify(&v, r#"{"feedback_hz":12.5}"#),
+            Input::FeedbackRate { hz: 12.5 }
+        );
+        assert_eq!(
+            classify(&v, r#" {"feedback_hz": 0} "#),
+            Input::FeedbackRate { hz: 0.0 }
+        );
+        for line in [
+            r#"{"feedback_hz":"10"}"#,
+            r#"{"feedback_hz":10,"motor_id":"elbow"}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"feedback_hz":10}"#,
+        ] {
+            let Input::Invalid { message, .. } = classify(&v, line) else {
+                panic!("{line}");
+            };
+            assert_eq!(
+                message,
+                r#"a feedback rate is exactly {"feedback_hz":N}, N a number of Hz (0: no feedback)"#,
+                "{line}"
+            );
+        }
     }
 
     proptest::proptest! {

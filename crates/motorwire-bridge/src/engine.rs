@@ -49,8 +49,8 @@ use crate::job::{
 };
 use crate::joints::{Joint, StepRef, Unresolved};
 use crate::output::{
-    BridgeRule, BridgeState, ErrorBody, ErrorKind, Event, FeedbackLine, Label, LineRef, LineResult,
-    MotorState, Origin, Output, StepOutcome, StepReport,
+    BridgeRule, BridgeState, Broke, ErrorBody, ErrorKind, Event, FeedbackLine, Label, LineRef,
+    LineResult, MotorState, Origin, Output, StepOutcome, StepReport,
 };
 
 /// How a [`Bridge`] behaves.
@@ -900,6 +900,7 @@ impl Bridge {
             }
             Input::QueryLimits { motor_id } => self.query_limits(meta, &motor_id),
             Input::QueryState { motor_id } => self.query_state(meta, motor_id),
+            Input::FeedbackRate { hz } => self.feedback_rate(meta, hz),
             Input::OrionCommand { command } => self.arm_command(now, meta, command),
             Input::Request { kind, motor_id } => {
                 self.request_line(now, meta, kind, &motor_id);
@@ -1308,6 +1309,67 @@ impl Bridge {
             ok: true,
             line: meta.number,
             state: Some(state),
+            ..LineResult::default()
+        };
+        self.answer(&meta, r);
+    }
+
+    /// `{"feedback_hz":N}`: the client's own feedback rate, answered with
+    /// the rate it gets: the bridge's rate divided by a whole number k
+    /// (each motor's every k-th feedback line is sent to it), the highest
+    /// such rate not above N (what it gets is said, never silently
+    /// changed); 0 for none. A rate above the bridge's, or any but 0 with
+    /// no feedback at all, is refused.
+    fn feedback_rate(&mut self, meta: LineMeta, hz: f64) {
+        let bridge_hz = self
+            .config
+            .feedback_period
+            .filter(|p| !p.is_zero())
+            .map(|p| 1.0 / p.as_secs_f64());
+        let refusal = |message: String| {
+            let mut e = ErrorBody::new(ErrorKind::Invalid, message);
+            e.broke = Some(Box::new(Broke {
+                field: Some("feedback_hz"),
+                value: Some(hz),
+                limit: Some(bridge_hz.unwrap_or(0.0)),
+                limit_name: Some("feedback_hz"),
+                limit_source: Some("the bridge's --feedback-hz"),
+            }));
+            e
+        };
+        let every = match bridge_hz {
+            _ if hz.is_nan() || hz < 0.0 => {
+                return self.refuse(
+                    &meta,
+                    refusal(format!(
+                        "feedback_hz {hz} is not a rate: 0 (no feedback) or more"
+                    )),
+                );
+            }
+            _ if hz == 0.0 => 0,
+            None => {
+                return self.refuse(&meta, refusal(format!("feedback_hz {hz}: the bridge sends no feedback (--feedback-hz 0); 0 is the only rate")));
+            }
+            Some(b) if hz > b * (1.0 + 1e-9) => {
+                return self.refuse(
+                    &meta,
+                    refusal(format!(
+                        "feedback_hz {hz} is above the bridge's own rate, {}",
+                        crate::output::short_number(b)
+                    )),
+                );
+            }
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            Some(b) => ((b / hz - 1e-9).ceil() as u32).max(1),
+        };
+        let r = LineResult {
+            ok: true,
+            line: meta.number,
+            feedback_every: Some(every),
+            feedback_hz: Some(match (bridge_hz, every) {
+                (Some(b), k) if k > 0 => b / f64::from(k),
+                _ => 0.0,
+            }),
             ..LineResult::default()
         };
         self.answer(&meta, r);

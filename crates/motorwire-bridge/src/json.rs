@@ -293,6 +293,9 @@ impl LineResult {
         if let Some(s) = &self.state {
             j.serde(k!("state"), s)?;
         }
+        if let Some(hz) = self.feedback_hz {
+            j.f64(k!("feedback_hz"), hz)?;
+        }
         j.close();
         Ok(())
     }
@@ -474,6 +477,8 @@ mod tests {
                     fault: Some("overheated".into()),
                 }],
             }),
+            feedback_hz: Some(12.5),
+            feedback_every: Some(4),
         };
         assert_eq!(written(&r), serde_json::to_string(&r).unwrap());
         let plain = LineResult {

@@ -214,6 +214,22 @@ pub struct LineResult {
     /// For a state query (`{"query":"state"}`): the bridge's state now.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub state: Option<BridgeState>,
+    /// For a feedback rate line (`{"feedback_hz":N}`): the rate the client
+    /// now gets each motor's feedback at (Hz; 0: none), the bridge's own
+    /// divided by [`LineResult::feedback_every`].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub feedback_hz: Option<f64>,
+    /// For a feedback rate line: each motor's every k-th feedback line is
+    /// the client's (0: none). For whoever delivers the lines; not written.
+    #[serde(skip)]
+    pub feedback_every: Option<u32>,
+}
+
+/// `v` as a person reads a rate: a whole number without a fraction, else
+/// at most three decimals (`12.5`, `33.333`).
+pub(crate) fn short_number(v: f64) -> String {
+    let s = format!("{v:.3}");
+    s.trim_end_matches('0').trim_end_matches('.').to_owned()
 }
 
 /// What the bridge knows of its motors now: in `ready`, in the answer to

@@ -1192,3 +1192,59 @@ fn a_sequential_line_ends_when_its_first_motor_is_moved_elsewhere() {
         assert!(arm.compact_device(0x20).unwrap().position().abs() < 1e-6);
     }
 }
+
+/// `{"feedback_hz":N}` is answered with the rate the client gets: the
+/// bridge's (10 Hz by default) over the smallest whole k that keeps it at
+/// or below N (the result's `feedback_hz`, and `feedback_every` k for the
+/// runner that delivers); 0 is none; above the bridge's, negative, or any
+/// but 0 on a bridge without feedback, refused naming the limit.
+#[test]
+fn a_feedback_rate_is_answered_with_the_rate_the_client_gets() {
+    let mut arm = arm(Faults::default(), 0);
+    let answer = |arm: &mut SimulatedArm, line: &str| {
+        arm.take_outputs();
+        arm.line(Origin(1), line);
+        let o = arm.take_outputs();
+        let r = o.iter().find_map(Output::result).unwrap().clone();
+        (
+            r.feedback_every,
+            o.iter().find(|o| o.result().is_some()).unwrap().to_value(),
+        )
+    };
+    for (asked, every, hz) in [
+        (10.0, 1, 10.0),
+        (3.0, 4, 2.5),
+        (5.0, 2, 5.0),
+        (0.0, 0, 0.0),
+        (0.001, 10_000, 0.001),
+    ] {
+        let (e, v) = answer(&mut arm, &format!(r#"{{"feedback_hz":{asked}}}"#));
+        assert_eq!(e, Some(every), "{v}");
+        assert_eq!(v["ok"], true, "{v}");
+        assert_eq!(v["feedback_hz"], hz, "{v}");
+    }
+    for asked in ["10.5", "-1", "1e300"] {
+        let (e, v) = answer(&mut arm, &format!(r#"{{"feedback_hz":{asked}}}"#));
+        assert_eq!(e, None, "{v}");
+        assert_eq!(v["ok"], false, "{v}");
+        assert_eq!(v["error"]["kind"], "invalid", "{v}");
+        assert_eq!(v["error"]["limit"], 10.0, "{v}");
+        assert_eq!(
+            v["error"]["limit_source"], "the bridge's --feedback-hz",
+            "{v}"
+        );
+    }
+    let config = BridgeConfig {
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    let mut quiet = started(BusMap::from_toml(MAP).unwrap(), config);
+    let (_, v) = answer(&mut quiet, r#"{"feedback_hz":1}"#);
+    assert_eq!(
+        v["error"]["message"],
+        "feedback_hz 1: the bridge sends no feedback (--feedback-hz 0); 0 is the only rate",
+        "{v}"
+    );
+    let (e, v) = answer(&mut quiet, r#"{"feedback_hz":0}"#);
+    assert_eq!((e, &v["feedback_hz"]), (Some(0), &Value::from(0.0)), "{v}");
+}

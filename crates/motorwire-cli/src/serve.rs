@@ -376,6 +376,50 @@ struct Client {
     /// feedback and events reach it from then on, so its greeting is its
     /// first line; it is not let go before it.
     greeted: bool,
+    /// Its own feedback rate (`{"feedback_hz":N}`).
+    feedback: FeedbackRate,
+}
+
+/// A reader's own feedback rate: each motor's every `every`-th feedback
+/// line (1: all, the default; 0: none), counted per motor.
+#[derive(Debug)]
+struct FeedbackRate {
+    every: u32,
+    seen: BTreeMap<String, u32>,
+}
+
+impl Default for FeedbackRate {
+    fn default() -> Self {
+        Self {
+            every: 1,
+            seen: BTreeMap::new(),
+        }
+    }
+}
+
+impl FeedbackRate {
+    /// Whether this feedback line of `motor` is the reader's.
+    fn takes(&mut self, motor: &str) -> bool {
+        match self.every {
+            0 => false,
+            1 => true,
+            k => {
+                let n = match self.seen.get_mut(motor) {
+                    Some(n) => n,
+                    None => self.seen.entry(motor.to_owned()).or_insert(0),
+                };
+                let take = *n % k == 0;
+                *n = n.wrapping_add(1);
+                take
+            }
+        }
+    }
+
+    /// From now on, every `every`-th line (counted afresh).
+    fn set(&mut self, every: u32) {
+        self.every = every;
+        self.seen.clear();
+    }
 }
 
 impl Client {
@@ -417,6 +461,8 @@ pub(crate) struct Router {
     authenticating: AtomicUsize,
     /// The connections authenticating, oldest first.
     waiting: Mutex<std::collections::VecDeque<(u64, Conn)>>,
+    /// Standard output's own feedback rate (set by a line of standard input).
+    stdout_feedback: Mutex<FeedbackRate>,
 }
 
 impl Router {
@@ -433,6 +479,7 @@ impl Router {
             connected: AtomicUsize::new(0),
             authenticating: AtomicUsize::new(0),
             waiting: Mutex::default(),
+            stdout_feedback: Mutex::default(),
         });
         let r = Arc::clone(&router);
         thread::spawn(move || r.write_stdout(&lines));
@@ -472,6 +519,35 @@ impl Router {
 
     /// Takes one output of the engine; never waits.
     pub(crate) fn route(&self, o: &Output) {
+        // A reader's own feedback rate, answered ok: from this line on.
+        if let Output::Result { origin, result } = o
+            && result.ok
+            && let Some(every) = result.feedback_every
+        {
+            if *origin == STDIN || !self.sockets {
+                self.stdout_feedback
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .set(every);
+            } else if let Some(c) = self
+                .clients
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .get_mut(&origin.0)
+            {
+                c.feedback.set(every);
+            }
+        }
+        if let Output::Feedback(f) = o
+            && !self.sockets
+            && !self
+                .stdout_feedback
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .takes(&f.motor_id)
+        {
+            return;
+        }
         let line: Arc<str> = Arc::from(o.to_json());
         match o {
             Output::Result { origin, .. } | Output::Arrival { origin, .. }
@@ -490,9 +566,9 @@ impl Router {
             // Standard input had it with everyone's.
             Output::ToOne { origin, .. } if *origin == STDIN || !self.sockets => {}
             Output::ToOne { origin, .. } => self.to_client(origin.0, line, Sent::Event),
-            Output::Feedback(_) if self.sockets => self.to_every_client(&line),
+            Output::Feedback(f) if self.sockets => self.to_every_client(&line, Some(&f.motor_id)),
             Output::Event(_) if self.sockets => {
-                self.to_every_client(&line);
+                self.to_every_client(&line, None);
                 self.to_stdout(line);
             }
             Output::Feedback(_) | Output::Event(_) => self.to_stdout(line),
@@ -543,10 +619,17 @@ impl Router {
         }
     }
 
-    fn to_every_client(&self, line: &Arc<str>) {
+    /// `feedback_of`: the line is that motor's feedback, for the clients
+    /// whose rate takes it.
+    fn to_every_client(&self, line: &Arc<str>, feedback_of: Option<&str>) {
         let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
         let mut gone = Vec::new();
-        for (id, c) in clients.iter().filter(|(_, c)| c.greeted) {
+        for (id, c) in clients.iter_mut().filter(|(_, c)| c.greeted) {
+            if let Some(motor) = feedback_of
+                && !c.feedback.takes(motor)
+            {
+                continue;
+            }
             match c.queue.try_send(Arc::clone(line)) {
                 Ok(()) => {}
                 Err(TrySendError::Full(_)) => {
@@ -587,6 +670,7 @@ impl Router {
                     arrivals_sent: 0,
                     owed: None,
                     greeted: !greet,
+                    feedback: FeedbackRate::default(),
                 },
             );
         if greet {

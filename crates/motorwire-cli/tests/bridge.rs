@@ -557,3 +557,44 @@ fn one_emergency_stop_stops_irpc_compact_and_moteus_motors_alike() {
         assert_eq!(done["arrived"], false, "{done}");
     }
 }
+
+/// Standard input sets standard output's own feedback rate: after
+/// `{"feedback_hz":0}` is answered, a move's whole run prints no feedback
+/// (at 50 Hz without it, it printed some).
+#[test]
+fn standard_input_sets_its_own_feedback_rate() {
+    for (rate_line, quiet) in [("{\"feedback_hz\":0}\n", true), ("", false)] {
+        let input = format!("{rate_line}{}\n", command("elbow", 20.0));
+        let all = run_to_its_end(
+            &[
+                "bridge",
+                "--map",
+                MAP,
+                "--bus",
+                "sim",
+                "--feedback-hz",
+                "50",
+            ],
+            &input,
+        );
+        let answered = if quiet {
+            let at = all
+                .iter()
+                .position(|v| v["line"] == 1 && v.get("ok").is_some())
+                .unwrap();
+            assert_eq!(all[at]["feedback_hz"], 0.0, "{}", all[at]);
+            at
+        } else {
+            0
+        };
+        let feedback = all[answered..]
+            .iter()
+            .filter(|v| v.get("feedback").is_some())
+            .count();
+        assert_eq!(
+            feedback == 0,
+            quiet,
+            "{feedback} feedback lines after the rate's answer"
+        );
+    }
+}

@@ -941,3 +941,84 @@ fn a_flood_of_lines_does_not_keep_the_orion_controllers_answers_from_a_stop() {
         .collect();
     assert!(offline.is_empty(), "{offline:?}");
 }
+
+/// Each client's own feedback rate: on a bridge at 50 Hz, a client that
+/// asks `{"feedback_hz":10}` gets each motor's every fifth feedback line
+/// (told so: `"feedback_hz":10.0`), one that asks 0 gets none, one that
+/// asks nothing gets all, at the same time; 20 Hz is answered with the
+/// rate it gets (16.67: the bridge's divided by 3), and a rate above the
+/// bridge's is refused with the bridge's rate as its limit.
+#[test]
+fn each_client_gets_feedback_at_its_own_rate() {
+    let dir = scratch("feedback-rate");
+    let sock = dir.join("bridge.sock");
+    let mut child = unix_bridge(&sock, &["--feedback-hz", "50"]);
+    let _ = listening(&mut child);
+    let events = stdout_lines(&mut child);
+    let _bridge = Bridge(child);
+    wait_for(&events, Duration::from_secs(10), |v| v["event"] == "ready");
+    let ask = |line: &str| {
+        let (mut w, mut r) = operator(&sock);
+        if !line.is_empty() {
+            writeln!(w, "{line}").unwrap();
+            let answer = next_result(&mut r);
+            return (w, r, Some(answer));
+        }
+        (w, r, None)
+    };
+    let (_w10, mut r10, a10) = ask(r#"{"feedback_hz":10}"#);
+    let a10 = a10.unwrap();
+    assert_eq!(a10["ok"], true, "{a10}");
+    assert_eq!(a10["feedback_hz"], 10.0, "{a10}");
+    let (_w0, mut r0, a0) = ask(r#"{"feedback_hz":0}"#);
+    assert_eq!(a0.unwrap()["feedback_hz"], 0.0);
+    let (_wall, mut rall, _) = ask("");
+    let (_w20, _r20, a20) = ask(r#"{"feedback_hz":20}"#);
+    // Not above what was asked: the bridge's 50 Hz over 3.
+    assert_eq!(a20.unwrap()["feedback_hz"], 50.0 / 3.0);
+    let (_wx, _rx, too_fast) = ask(r#"{"feedback_hz":51}"#);
+    let too_fast = too_fast.unwrap();
+    assert_eq!(too_fast["ok"], false, "{too_fast}");
+    assert_eq!(too_fast["error"]["kind"], "invalid", "{too_fast}");
+    assert_eq!(too_fast["error"]["field"], "feedback_hz", "{too_fast}");
+    assert_eq!(too_fast["error"]["value"], 51.0, "{too_fast}");
+    assert_eq!(too_fast["error"]["limit"], 50.0, "{too_fast}");
+    let (_wb, _rb, bad) = ask(r#"{"feedback_hz":"fast"}"#);
+    assert_eq!(bad.unwrap()["error"]["kind"], "invalid");
+    // The elbow's feedback lines each client reads in the same two seconds.
+    let elbow_lines = |r: &mut BufReader<UnixStream>, until: Instant| {
+        r.get_ref()
+            .set_read_timeout(Some(Duration::from_millis(100)))
+            .unwrap();
+        let mut n = 0u32;
+        let mut line = String::new();
+        while Instant::now() < until {
+            line.clear();
+            if r.read_line(&mut line).is_ok_and(|k| k > 0)
+                && let Ok(v) = serde_json::from_str::<Value>(&line)
+                && v["motor_id"] == "elbow"
+                && v.get("feedback").is_some()
+            {
+                n += 1;
+            }
+        }
+        n
+    };
+    let until = Instant::now() + Duration::from_secs(2);
+    let (all, ten) = thread::scope(|s| {
+        let all = s.spawn(|| elbow_lines(&mut rall, until));
+        let ten = s.spawn(|| elbow_lines(&mut r10, until));
+        (all.join().unwrap(), ten.join().unwrap())
+    });
+    let none = elbow_lines(&mut r0, Instant::now() + Duration::from_millis(300));
+    assert_eq!(none, 0, "a client at 0 Hz gets no feedback");
+    assert!(
+        (80..=110).contains(&all),
+        "at 50 Hz for 2 s: {all} elbow lines"
+    );
+    // Every fifth of the same lines (the counts started at different lines).
+    assert!(
+        (all / 5).abs_diff(ten) <= 2,
+        "at 10 Hz: {ten} elbow lines where the full rate had {all}"
+    );
+}

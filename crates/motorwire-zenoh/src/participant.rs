@@ -1057,7 +1057,23 @@ impl State {
     }
 
     /// A result or completion for one of the participant's origins.
-    async fn answer(&mut self, session: &zenoh::Session, o: Output) {
+    async fn answer(&mut self, session: &zenoh::Session, mut o: Output) {
+        // A feedback rate is a socket or standard-input reader's: a fleet
+        // controller takes feedback from its key expression as published.
+        if let Output::Result { result, .. } = &mut o
+            && result.ok
+            && result.feedback_every.is_some()
+        {
+            *result = LineResult {
+                ok: false,
+                line: result.line,
+                error: Some(ErrorBody::new(
+                    ErrorKind::Unsupported,
+                    "feedback_hz sets a socket or standard-input client's feedback rate; a fleet controller takes each motor's feedback from the fleet's feedback key expression, at the rate the bridge publishes it",
+                )),
+                ..LineResult::default()
+            };
+        }
         let (origin, last, busy) = match &o {
             Output::Result { origin, result } => (
                 *origin,
