@@ -45,7 +45,8 @@ use crate::device::{
     Answer, Capability, Context, Device, Drivers, Ended, Happened, InForce, Moving, Outcome,
 };
 use crate::job::{
-    AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, LineMeta, Order, Rider, axis_mut,
+    AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, LineMeta, Order,
+    REPLACED_TRAJECTORY, Rider, axis_mut,
 };
 use crate::joints::{Joint, StepRef, Unresolved};
 use crate::output::{
@@ -2402,6 +2403,29 @@ impl Bridge {
             }
         }
         joint.queue = keep;
+        // A trajectory running on the joint: its later segments are not
+        // sent. Waiting for its next segment, it ends now and frees the
+        // joint; with a segment in flight, once that is answered.
+        let Some(running) = joint.busy else {
+            return;
+        };
+        let Some(a) = self
+            .jobs
+            .get_mut(&running.job)
+            .filter(|job| job.kind == JobKind::Command)
+            .and_then(|job| job.axes.get_mut(running.axis))
+            .filter(|a| a.is_running_trajectory())
+        else {
+            return;
+        };
+        self.stats.superseded += 1;
+        if a.state == AxisState::Queued {
+            a.finish(StepOutcome::Superseded, None, REPLACED_TRAJECTORY);
+            joint.busy = None;
+            joint.wake = None;
+        } else {
+            a.replaced = true;
+        }
     }
 
     /// A newer line (job `by`) moves device `ji`: a sequential line whose
@@ -2697,8 +2721,10 @@ impl Bridge {
         match &c.outcome {
             Outcome::Acked => {
                 a.acked += 1;
-                // A trajectory looping forever has its next cycle to come.
-                if a.payloads.is_empty() && a.cycle.is_none() {
+                if a.replaced {
+                    a.finish(StepOutcome::Superseded, None, REPLACED_TRAJECTORY);
+                } else if a.payloads.is_empty() && a.cycle.is_none() {
+                    // A trajectory looping forever has its next cycle to come.
                     a.finish(StepOutcome::Acked, None, "acked");
                 }
             }

@@ -133,7 +133,14 @@ pub(crate) struct Axis {
     pub(crate) arrive_by: Option<Duration>,
     /// Its requests acknowledged so far (a trajectory's segments).
     pub(crate) acked: u32,
+    /// A running trajectory a newer position command for its joint
+    /// replaced while a segment was in flight: once that segment is
+    /// answered, the rest is not sent ([`REPLACED_TRAJECTORY`]).
+    pub(crate) replaced: bool,
 }
+
+/// Why a running trajectory's later segments were not sent.
+pub(crate) const REPLACED_TRAJECTORY: &str = "a newer position command for the joint replaced the rest of the trajectory: its later segments were not sent";
 
 impl Axis {
     /// An axis of iRPC payloads for a joint.
@@ -164,6 +171,7 @@ impl Axis {
             arrived: false,
             arrive_by: None,
             acked: 0,
+            replaced: false,
         }
     }
 
@@ -195,6 +203,12 @@ impl Axis {
             code,
             message: message.into(),
         });
+    }
+
+    /// Whether it is a trajectory under way: segments timed, or a cycle
+    /// to come, and something of it sent.
+    pub(crate) fn is_running_trajectory(&self) -> bool {
+        self.begun && !self.is_done() && (!self.due.is_empty() || self.cycle.is_some())
     }
 
     pub(crate) fn is_done(&self) -> bool {

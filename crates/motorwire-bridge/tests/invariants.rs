@@ -2169,6 +2169,88 @@ fn a_trajectory_looping_forever_runs_until_a_stop() {
     assert_eq!(after, moves, "a segment was sent after the stop");
 }
 
+/// A newer position command for a joint running a trajectory (here one
+/// looping forever) replaces the rest of it: the command goes at once
+/// (it waited for the trajectory to end: forever), no segment of the
+/// trajectory is sent after it, and the trajectory's completion says it
+/// was replaced. Between two segments (the joint waiting for the next) and
+/// with a segment in flight (20 ms each way on the bus: the rest goes once
+/// that one is answered) alike.
+#[test]
+fn a_newer_position_command_replaces_a_running_trajectory() {
+    // The segments the joint receives from the command on: with one in
+    // flight, that one (30, sent at 2 s, before the command), then the
+    // command's.
+    for (latency_ms, at_ms, then) in [(0, 1500, &[-50.0f32][..]), (20, 2010, &[30.0, -50.0][..])] {
+        let bridge = Bridge::new(
+            BusMap::from_toml(PENDULUM_MAP).unwrap(),
+            BridgeConfig::default(),
+        )
+        .unwrap();
+        let sim = SimConfig {
+            latency: Duration::from_millis(latency_ms),
+            ..SimConfig::default()
+        };
+        let mut arm = SimulatedArm::new(bridge, sim).unwrap();
+        assert!(
+            arm.run_while(Duration::from_secs(5), |a| a.bridge().is_ready())
+                .unwrap()
+        );
+        let t0 = arm.now();
+        arm.line(Origin(1), PENDULUM);
+        arm.run_until(t0 + Duration::from_millis(at_ms)).unwrap();
+        let segments = |arm: &SimulatedArm| {
+            arm.joint(0x20)
+                .unwrap()
+                .log()
+                .iter()
+                .filter_map(|e| match e.payload {
+                    Payload::SetTargetV2(p) => Some(p.target_angle),
+                    _ => None,
+                })
+                .collect::<Vec<f32>>()
+        };
+        let before = segments(&arm);
+        arm.take_outputs();
+        let sent = arm.now();
+        arm.line(Origin(2), &command("j", -50.0));
+        arm.run_until(sent + Duration::from_millis(4 * latency_ms + 5))
+            .unwrap();
+        let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
+        let result = out
+            .iter()
+            .find(|v| v.get("ok").is_some() && v["line"] == 1)
+            .unwrap_or_else(|| {
+                panic!("{latency_ms} ms: the command was not answered at once: {out:?}")
+            });
+        assert_eq!(result["ok"], true, "{result}");
+        let replaced = out
+            .iter()
+            .find(|v| v.get("arrived").is_some() && v["line"] == 1)
+            .unwrap_or_else(|| {
+                panic!("{latency_ms} ms: no completion for the trajectory: {out:?}")
+            });
+        assert_eq!(replaced["arrived"], false, "{replaced}");
+        assert_eq!(
+            replaced["reason"],
+            "a later segment did not go: j: superseded (a newer position command for the joint replaced the rest of the trajectory: its later segments were not sent)",
+        );
+        arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+        let after = segments(&arm);
+        assert_eq!(
+            after.get(before.len()..),
+            Some(then),
+            "{latency_ms} ms: after the command only its own move was sent: {before:?} then {after:?}"
+        );
+        let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
+        let arrived = out
+            .iter()
+            .find(|v| v.get("arrived").is_some() && v["line"] == 1)
+            .unwrap_or_else(|| panic!("{latency_ms} ms: the command did not complete: {out:?}"));
+        assert_eq!(arrived["arrived"], true, "{arrived}");
+    }
+}
+
 /// A misspelled member is refused on every dialect, naming the member and
 /// the one meant, and nothing reaches a device; with
 /// `allow_unknown_members` the same lines run and say what they dropped.
