@@ -30,7 +30,7 @@ use motorwire_can::client::ClientConfig;
 use motorwire_irpc::{CalibrationRequest, LifecycleState, Payload, PayloadKind};
 use motorwire_orion::ArmCommand;
 use motorwire_translate::{
-    AngleUnit, BusMap, Limits, Report, multi_axis_to_irpc, to_irpc, trajectory_to_irpc,
+    AngleUnit, BusMap, Limits, Report, multi_axis_to_irpc_from, to_irpc, trajectory_to_irpc,
 };
 use motorwire_wia::{
     Message, MotorCommand, MotorFeedback, MultiAxisCommand, SafetyLimits, SyncMode, Trajectory,
@@ -1875,12 +1875,16 @@ impl Bridge {
         });
         let mut irpc: Vec<Vec<Payload>> = Vec::new();
         if !sub.motors.is_empty() {
-            let position = |m: &str| {
+            // Each joint from where it is now, moving or not.
+            let state = |m: &str| {
                 let j = self.joints.get(self.joint_index(m)?)?;
-                j.feedback.as_ref().map(|f| f.position)
+                match j.state_at(self.now) {
+                    Some((p, v)) => Some((j.unit.from_degrees(p), j.unit.from_degrees(v))),
+                    None => j.feedback.as_ref().map(|f| (f.position, 0.0)),
+                }
             };
-            let t =
-                multi_axis_to_irpc(&self.map, &sub, &position).map_err(|r| ErrorBody::gate(&r))?;
+            let t = multi_axis_to_irpc_from(&self.map, &sub, &state)
+                .map_err(|r| ErrorBody::gate(&r))?;
             irpc = t.value.commands.into_iter().map(|c| c.payloads).collect();
             report.losses.extend(t.report.losses);
         }
@@ -1934,7 +1938,11 @@ impl Bridge {
         cmd: &MotorCommand,
         payloads: &[Payload],
     ) -> Result<(), motorwire_translate::Refusal> {
-        let Some((position, velocity)) = self.joints.get(joint).and_then(|j| j.motion) else {
+        // Where it is now (reckoned from its reports, or read from the
+        // move it makes as the bridge planned it).
+        let now = self.now;
+        let Some((position, velocity)) = self.joints.get(joint).and_then(|j| j.state_at(now))
+        else {
             return Ok(());
         };
         let (motor, limits) = motorwire_translate::gate(&self.map, cmd)?;
@@ -1950,11 +1958,13 @@ impl Bridge {
                 )?;
                 planned = Duration::try_from_secs_f64(path.duration)
                     .ok()
-                    .map(|d| ((position, velocity), *p, d));
+                    .map(|d| (((position, velocity), *p, d), path.profile));
             }
         }
         if let Some(j) = self.joints.get_mut(joint) {
+            let (planned, profile) = planned.unzip();
             j.planned = planned;
+            j.planned_profile = profile.map(Box::new);
         }
         Ok(())
     }
@@ -2669,6 +2679,8 @@ impl Bridge {
         job.unflushed = true;
         if let Some(j) = self.joints.get_mut(ji) {
             j.busy = Some(step);
+            // Where the move starts from, for the model of it once acked.
+            j.sending = j.state_at(now).map(|s| (now, s));
         }
         let sent = if payload.sent_together() {
             self.send_together(now, ji, step, payload)
@@ -2842,9 +2854,12 @@ impl Bridge {
         let Some(j) = self.joints.get(ji) else { return };
         let motor = self.map.motor(&j.name);
         let unit = motor.map_or(AngleUnit::Degrees, |m| m.unit);
+        // Planned from where it was when the order was sent, as the
+        // device plans it.
+        let sent_from = j.sending.map(|(_, from)| from);
         let cx = Context {
             at,
-            motion: j.motion,
+            motion: sent_from.or(j.motion),
             unit,
             max_velocity: motor.and_then(|m| m.limits.max_velocity.map(|v| unit.to_degrees(v))),
             max_acceleration: motor
@@ -2856,6 +2871,18 @@ impl Bridge {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
+        // The move as the device plans it, from where it was sent (the
+        // gate's own plan when it is the same move from the same state);
+        // any other order leaves the device to its reports.
+        let gate_plan = j
+            .planned
+            .zip(j.planned_profile.take())
+            .filter(|((from, ..), _)| Some(*from) == sent_from)
+            .map(|((_, p, _), profile)| (p, profile));
+        j.model = j
+            .sending
+            .take()
+            .and_then(|(t, from)| Some((t, order.device_plan(from, gate_plan)?)));
         j.planned = None;
         j.deadman = effect.deadman;
         if let Some(target) = effect.target {
@@ -3817,7 +3844,16 @@ impl Bridge {
         let Some((pos, vel)) = motion else {
             return;
         };
+        // Its acceleration, from this report and the one before.
+        let acceleration = match (j.motion, j.motion_at) {
+            (Some((_, v0)), Some((t0, _))) if at > t0 && at - t0 <= Duration::from_millis(100) => {
+                (vel - v0) / (at - t0).as_secs_f64()
+            }
+            _ => 0.0,
+        };
         j.motion = Some((pos, vel));
+        j.motion_at = Some((at, acceleration));
+        j.check_model(at, pos, vel);
         self.moved(ji, pos, vel, at);
         self.try_ready();
         let Some(j) = self.joints.get_mut(ji) else {

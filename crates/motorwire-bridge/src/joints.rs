@@ -5,6 +5,7 @@ use std::collections::VecDeque;
 use std::time::Duration;
 
 use motorwire_irpc::LifecycleState;
+use motorwire_planner::Profile;
 use motorwire_translate::AngleUnit;
 use motorwire_wia::MotorFeedback;
 
@@ -46,6 +47,17 @@ pub(crate) struct Joint {
     pub(crate) feedback: Option<MotorFeedback>,
     /// Its position and velocity (degrees) as last reported.
     pub(crate) motion: Option<(f64, f64)>,
+    /// When [`Joint::motion`] was reported, and its acceleration then
+    /// (degrees/s², from the last two reports): where it is now is
+    /// reckoned from them ([`Joint::state_at`]).
+    pub(crate) motion_at: Option<(Duration, f64)>,
+    /// The move it makes now as the bridge planned it, where the bridge
+    /// plans as the device does (an iRPC `SetTargetV2`): when it began,
+    /// and its profile. Where it is now is read from it while its reports
+    /// agree with it ([`Joint::state_at`]).
+    pub(crate) model: Option<(Duration, Box<Profile<f64>>)>,
+    /// The move being sent: when, and the state it starts from.
+    pub(crate) sending: Option<(Duration, (f64, f64))>,
     /// The target of its last acked move (degrees).
     pub(crate) target: Option<f64>,
     /// Until when its last acked move runs (as the bridge plans it).
@@ -70,9 +82,70 @@ pub(crate) struct Joint {
     /// its Ack comes from the same state, its arrival time is this plan's
     /// (the same inputs make the same plan), not a second planning.
     pub(crate) planned: Option<((f64, f64), motorwire_irpc::SetTargetPayloadV2, Duration)>,
+    /// That move's profile (the bridge's model of it once it is acked).
+    pub(crate) planned_profile: Option<Box<Profile<f64>>>,
 }
 
+/// How far a report may be from the bridge's model of the move before the
+/// model is set aside (degrees; degrees a second): a report is an f32.
+const MODEL_AGREES: (f64, f64) = (0.01, 0.5);
+
+/// How far a report is carried forward to `now` at the most: beyond, the
+/// last report stands as it is (the device is silent, or stands still).
+const RECKONED_AT_MOST: Duration = Duration::from_millis(50);
+
 impl Joint {
+    /// Its position and velocity at `now` (degrees), reckoned from its last
+    /// report and the acceleration then (a device reports every few
+    /// milliseconds; a move planned now must start from where it is, not
+    /// where it was). A velocity that would change sign is taken to stop.
+    pub(crate) fn state_at(&self, now: Duration) -> Option<(f64, f64)> {
+        if let Some((start, profile)) = &self.model {
+            let t = now.saturating_sub(*start).as_secs_f64();
+            if t <= profile.duration() {
+                let s = profile.sample(t);
+                return Some((s.position, s.velocity));
+            }
+            let end = profile.end_state();
+            if end.velocity == 0.0 {
+                return Some((end.position, 0.0));
+            }
+        }
+        let (p, v) = self.motion?;
+        let Some((at, a)) = self.motion_at else {
+            return Some((p, v));
+        };
+        let dt = now.saturating_sub(at);
+        if dt > RECKONED_AT_MOST || a == 0.0 && v == 0.0 {
+            return Some((p, v));
+        }
+        let mut t = dt.as_secs_f64();
+        if a != 0.0 && (v + a * t) * v < 0.0 {
+            // It comes to rest on the way.
+            t = -v / a;
+            return Some((p + v * t + 0.5 * a * t * t, 0.0));
+        }
+        Some((p + v * t + 0.5 * a * t * t, v + a * t))
+    }
+
+    /// A report of `position` and `velocity` at `at`: the model stands
+    /// while the report agrees with it.
+    pub(crate) fn check_model(&mut self, at: Duration, position: f64, velocity: f64) {
+        if let Some((start, profile)) = &self.model {
+            let t = at.saturating_sub(*start).as_secs_f64();
+            let s = if t <= profile.duration() {
+                profile.sample(t)
+            } else {
+                profile.end_state()
+            };
+            if (s.position - position).abs() > MODEL_AGREES.0
+                || (s.velocity - velocity).abs() > MODEL_AGREES.1
+            {
+                self.model = None;
+            }
+        }
+    }
+
     pub(crate) fn new(name: String, node: u16, device: Device, unit: AngleUnit) -> Self {
         Self {
             name,
@@ -85,6 +158,9 @@ impl Joint {
             active: device.active_at_start(),
             feedback: None,
             motion: None,
+            motion_at: None,
+            model: None,
+            sending: None,
             target: None,
             moving_until: Duration::ZERO,
             queue: VecDeque::new(),
@@ -95,6 +171,72 @@ impl Joint {
             resetting: false,
             wake: None,
             planned: None,
+            planned_profile: None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+    use crate::device::Device;
+
+    fn joint() -> Joint {
+        let map =
+            motorwire_translate::BusMap::from_toml("[motors.j]\ndialect = \"irpc\"\nnode = 0x10\n")
+                .unwrap();
+        let (node, device) = Device::of(map.motor("j").unwrap(), false).unwrap();
+        Joint::new("j".into(), node, device, AngleUnit::Degrees)
+    }
+
+    /// From its reports: carried forward at the acceleration the last two
+    /// gave, to rest where the velocity would change sign, and not beyond
+    /// 50 ms; from the bridge's model of its move while reports agree.
+    #[test]
+    fn where_a_joint_is_now_is_reckoned_from_its_reports_or_its_move() {
+        let mut j = joint();
+        let ms = Duration::from_millis;
+        assert_eq!(j.state_at(ms(5)), None, "nothing reported");
+        j.motion = Some((10.0, 20.0));
+        j.motion_at = Some((ms(100), 100.0));
+        // 10 ms on: 10 + 20 * 0.01 + 100 * 0.01² / 2, 20 + 100 * 0.01.
+        let (p, v) = j.state_at(ms(110)).unwrap();
+        assert!(
+            (p - 10.205).abs() < 1e-12 && (v - 21.0).abs() < 1e-12,
+            "{p} {v}"
+        );
+        assert_eq!(
+            j.state_at(ms(151)),
+            Some((10.0, 20.0)),
+            "beyond 50 ms, as reported"
+        );
+        // Braking at 1,000: at rest after 20 ms, 0.2 further on.
+        j.motion_at = Some((ms(100), -1000.0));
+        let (p, v) = j.state_at(ms(140)).unwrap();
+        assert!((p - 10.2).abs() < 1e-12 && v == 0.0, "{p} {v}");
+        // A model of its move: read from it, until a report disagrees.
+        let plan = motorwire_planner::plan(
+            &motorwire_irpc::SetTargetPayloadV2::scurve(90.0, 100.0, 500.0, 2000.0)
+                .planner_request(0.0, 0.0),
+        )
+        .unwrap();
+        let at = plan.sample(0.3);
+        j.model = Some((ms(1000), Box::new(plan)));
+        let (p, v) = j.state_at(ms(1300)).unwrap();
+        assert!((p - at.position).abs() < 1e-9 && (v - at.velocity).abs() < 1e-9);
+        assert_eq!(
+            j.state_at(ms(10_000)),
+            Some((90.0, 0.0)),
+            "at rest at its end"
+        );
+        j.check_model(ms(1300), at.position + 0.001, at.velocity);
+        assert!(j.model.is_some(), "a report within an f32's reach agrees");
+        j.check_model(ms(1300), at.position + 1.0, at.velocity);
+        assert!(
+            j.model.is_none(),
+            "a report 1 degree off sets the model aside"
+        );
     }
 }

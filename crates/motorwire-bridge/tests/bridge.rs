@@ -1248,3 +1248,111 @@ fn a_feedback_rate_is_answered_with_the_rate_the_client_gets() {
     let (e, v) = answer(&mut quiet, r#"{"feedback_hz":0}"#);
     assert_eq!((e, &v["feedback_hz"]), (Some(0), &Value::from(0.0)), "{v}");
 }
+
+/// The issue's case of a simultaneous line: sent 0.2 s after a trajectory
+/// started on the elbow, it replaces the rest of the trajectory and plans
+/// the elbow from where it is and how fast it moves. Both joints come to
+/// rest at their targets within 1 ms of each other, at the time the
+/// result's losses promise (within 1.5 ms), and each motor's `after_ms` in
+/// the completion is its own arrival (within its arrival tolerance, seen
+/// by a report: its reports come every 10 ms).
+/// Also from rest, and with the elbow moving toward, and away from, its
+/// new target.
+#[test]
+fn a_simultaneous_line_is_simultaneous_from_a_moving_start() {
+    let trajectory = |to: f64| {
+        format!(
+            r#"{{"trajectory_id":"t","motor_id":"elbow","waypoints":[{{"position":0,"velocity":0,"time":0}},{{"position":{to},"velocity":0,"time":1.5}}],"timing":{{}}}}"#
+        )
+    };
+    // (the elbow's trajectory first, if any; the elbow's and the
+    // shoulder's targets)
+    for (first, elbow, shoulder) in [
+        (Some(60.0), 100.0, 30.0),
+        (Some(60.0), 10.0, -40.0),
+        (None, 100.0, 30.0),
+        (Some(90.0), 40.0, 5.0),
+    ] {
+        let mut arm = arm(Faults::default(), 0);
+        if let Some(to) = first {
+            arm.line(Origin(1), &trajectory(to));
+            arm.run_until(arm.now() + Duration::from_millis(200))
+                .unwrap();
+            assert!(arm.joint(ELBOW).unwrap().velocity().abs() > 1.0, "moving");
+        }
+        arm.take_outputs();
+        let sent = arm.now();
+        arm.line(
+            Origin(1),
+            &format!(
+                r#"{{"command_id":"sync","timestamp":1704067200000,"sync_mode":"simultaneous","motors":[{{"motor_id":"elbow","control_mode":"position","setpoint":{elbow}}},{{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":{shoulder}}}]}}"#
+            ),
+        );
+        // Each joint's arrival: when it first stands at its target.
+        let mut arrived: [Option<Duration>; 2] = [None, None];
+        let mut out: Vec<Value> = Vec::new();
+        while arrived.iter().any(Option::is_none) && arm.now() < sent + Duration::from_secs(6) {
+            arm.run_until(arm.now() + Duration::from_micros(250))
+                .unwrap();
+            out.extend(arm.take_outputs().iter().map(Output::to_value));
+            for (k, (node, target)) in [(ELBOW, elbow), (PITCH, shoulder)].into_iter().enumerate() {
+                let j = arm.joint(node).unwrap();
+                if arrived[k].is_none()
+                    && (j.position() - target).abs() < 1e-3
+                    && j.velocity().abs() < 1e-3
+                {
+                    arrived[k] = Some(arm.now());
+                }
+            }
+        }
+        let [Some(e), Some(s)] = arrived else {
+            panic!("{first:?}: not both arrived: {arrived:?} {out:?}");
+        };
+        let apart = e.abs_diff(s);
+        assert!(
+            apart <= Duration::from_millis(1),
+            "{first:?}: the elbow at {e:?}, the shoulder at {s:?}: {apart:?} apart"
+        );
+        let result = out
+            .iter()
+            .find(|v| v.get("ok").is_some() && v["line"] == 2 - u64::from(first.is_none()))
+            .unwrap();
+        assert_eq!(result["ok"], true, "{result}");
+        let promised: f64 = result["losses"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find_map(|l| {
+                let l = l.as_str()?;
+                let at = l.find("every joint arrives after ")? + "every joint arrives after ".len();
+                l.get(at..)?.strip_suffix(" s")?.parse().ok()
+            })
+            .unwrap_or_else(|| panic!("{first:?}: no promise in {result}"));
+        let last = e.max(s).saturating_sub(sent).as_secs_f64();
+        assert!(
+            (last - promised).abs() <= 0.0015,
+            "{first:?}: promised {promised} s, both at rest after {last} s"
+        );
+        // Run on until the completion comes.
+        arm.run_until(arm.now() + Duration::from_millis(300))
+            .unwrap();
+        out.extend(arm.take_outputs().iter().map(Output::to_value));
+        let done = out
+            .iter()
+            .find(|v| v.get("arrived").is_some() && v["command_id"] == "sync")
+            .unwrap_or_else(|| panic!("{first:?}: no completion: {out:?}"));
+        assert_eq!(done["arrived"], true, "{done}");
+        for m in done["motors"].as_array().unwrap() {
+            let at = if m["motor_id"] == "elbow" { e } else { s };
+            let own = at.saturating_sub(sent).as_millis() as i64;
+            let said = m["after_ms"].as_i64().unwrap();
+            // Within its arrival tolerance (0.1°) a little before it is
+            // at rest, seen by a report (every 10 ms) after.
+            assert!(
+                (own - 50..=own + 12).contains(&said),
+                "{first:?}: {} said after_ms {said}, it came to rest after {own} ms: {done}",
+                m["motor_id"]
+            );
+        }
+    }
+}

@@ -28,7 +28,7 @@ pub use path::{PathExtent, check_path, check_trajectory};
 /// also `motorwire_wia::ValidationReport`): the same type.
 pub use report::Report as TranslationReport;
 pub use report::{Loss, LossKind, Report, Translated};
-pub use sync::{MultiAxisMove, SYNC_TOLERANCE_S, multi_axis_to_irpc};
+pub use sync::{MultiAxisMove, SYNC_TOLERANCE_S, multi_axis_to_irpc, multi_axis_to_irpc_from};
 pub use trajectory::{
     MAX_TRAJECTORY_SEGMENTS, TRAJECTORY_LEAD_S, TrajectoryPlan, TrajectorySegment,
     WAYPOINT_TOLERANCE_S, trajectory_to_irpc,

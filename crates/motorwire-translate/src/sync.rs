@@ -1,8 +1,8 @@
 //! Synchronized multi-axis moves on iRPC joints.
 
 use motorwire_core::ControlMode;
-use motorwire_irpc::{Payload, SetTargetPayloadV2};
-use motorwire_planner::{Request, minimum_duration, plan, plan_with_duration};
+use motorwire_irpc::Payload;
+use motorwire_planner::{minimum_duration, plan, plan_with_duration};
 use motorwire_wia::{MultiAxisCommand, SyncMode};
 
 use crate::command::to_irpc;
@@ -51,6 +51,55 @@ pub fn multi_axis_to_irpc(
     map: &BusMap,
     cmd: &MultiAxisCommand,
     position: &dyn Fn(&str) -> Option<f64>,
+) -> Result<Translated<MultiAxisMove>, Refusal> {
+    multi_axis_to_irpc_from(map, cmd, &|m| position(m).map(|p| (p, 0.0)))
+}
+
+/// [`multi_axis_to_irpc`] from each joint's current state, moving or not:
+/// `state(motor_id)` is its position and velocity now (in the motor's
+/// unit, a second). A joint already moving (on a trajectory, a stream, a
+/// move the line replaces) is planned as the joint plans a new
+/// `SetTargetV2`: from that position and velocity, acceleration zero. Its
+/// `max_velocity` is the one, at most the command's, whose time-optimal
+/// profile from that state takes the common duration; found from the
+/// exact-duration plan's cruise, and where the joint's own plan from a
+/// moving start does not take that duration, by bisection on it.
+///
+/// ```
+/// use motorwire_translate::{BusMap, multi_axis_to_irpc_from, SYNC_TOLERANCE_S};
+/// use motorwire_irpc::Payload;
+/// use motorwire_wia::MultiAxisCommand;
+///
+/// let map = BusMap::from_toml(r#"
+///     [motors.a]
+///     dialect = "irpc"
+///     node = 0x10
+///     limits = { min_position = -180, max_position = 180, max_velocity = 120, max_acceleration = 500, max_jerk = 2000 }
+///     [motors.b]
+///     dialect = "irpc"
+///     node = 0x11
+///     limits = { min_position = -180, max_position = 180, max_velocity = 120, max_acceleration = 500, max_jerk = 2000 }
+/// "#)?;
+/// let cmd: MultiAxisCommand = serde_json::from_str(r#"{"command_id":"c","timestamp":1,"sync_mode":"simultaneous",
+///     "motors":[{"motor_id":"a","control_mode":"position","setpoint":90},{"motor_id":"b","control_mode":"position","setpoint":30}]}"#)?;
+/// // `a` stands at 0; `b` passes 10 at 40 units a second.
+/// let t = multi_axis_to_irpc_from(&map, &cmd, &|m| Some(if m == "a" { (0.0, 0.0) } else { (10.0, 40.0) }))?;
+/// let duration = t.value.duration.unwrap();
+/// for (c, start) in t.value.commands.iter().zip([(0.0f32, 0.0f32), (10.0, 40.0)]) {
+///     let Payload::SetTargetV2(p) = c.payloads[0] else { unreachable!() };
+///     // Each joint's own plan, in f32, from its state: the same arrival.
+///     let plan = motorwire_planner::plan(&p.planner_request(start.0, start.1))?;
+///     assert!((f64::from(plan.duration()) - duration).abs() <= SYNC_TOLERANCE_S);
+/// }
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// As [`multi_axis_to_irpc`]'s.
+pub fn multi_axis_to_irpc_from(
+    map: &BusMap,
+    cmd: &MultiAxisCommand,
+    state: &dyn Fn(&str) -> Option<(f64, f64)>,
 ) -> Result<Translated<MultiAxisMove>, Refusal> {
     let total = cmd.coordination.as_ref().and_then(|c| c.total_duration_ms);
     let synchronized = cmd.sync_mode == Some(SyncMode::Simultaneous) || total.is_some();
@@ -101,10 +150,11 @@ pub fn multi_axis_to_irpc(
                 dialect: "a synchronized move on iRPC v1 (SetTarget has no acceleration limit to plan with)",
             });
         };
-        let start = position(&motor.name).ok_or_else(|| Refusal::UnknownPosition {
-            motor: motor.name.clone(),
-        })?;
-        if !start.is_finite() {
+        let (start, start_velocity) =
+            state(&motor.name).ok_or_else(|| Refusal::UnknownPosition {
+                motor: motor.name.clone(),
+            })?;
+        if !start.is_finite() || !start_velocity.is_finite() {
             return Err(Refusal::UnknownPosition {
                 motor: motor.name.clone(),
             });
@@ -113,12 +163,14 @@ pub fn multi_axis_to_irpc(
             loss.field = format!("{}.{}", motor.name, loss.field);
             report.losses.push(loss);
         }
-        let start_deg = motor.unit.to_degrees(start);
+        // As the joint reads them: f32 degrees.
+        let start_deg = f64::from(motor.unit.to_degrees(start) as f32);
+        let velocity_deg = f64::from(motor.unit.to_degrees(start_velocity) as f32);
         axes.push((
             t.value,
             p,
-            joint_request(f64::from(start_deg as f32), &p),
-            (motor, limits, start),
+            p.planner_request(start_deg, velocity_deg),
+            (motor, limits, start, start_velocity),
         ));
     }
     let mut slowest: (f64, &str) = (0.0, "");
@@ -147,11 +199,11 @@ pub fn multi_axis_to_irpc(
         None => slowest.0,
     };
     let mut commands = Vec::new();
-    for ((mut command, mut p, req, (motor, limits, start)), axis) in
+    for ((mut command, mut p, req, (motor, limits, start, start_velocity)), axis) in
         axes.into_iter().zip(&cmd.motors)
     {
         let name = axis.motor_id.as_str();
-        if req.start == req.target {
+        if req.start == req.target && req.start_velocity == 0.0 {
             report.push(
                 format!("{name}.max_velocity"),
                 LossKind::Converted,
@@ -163,33 +215,60 @@ pub fn multi_axis_to_irpc(
                     problem: format!("{name}: {e}"),
                 })?;
             #[allow(clippy::cast_possible_truncation)]
-            let cruise = profile.peak_velocity().0 as f32;
-            if cruise < p.max_velocity {
+            let cruise = (profile.peak_velocity().0.abs() as f32).min(p.max_velocity);
+            // The joint's own plan, in f32, from the same state, with
+            // `max_velocity` v: how long it takes.
+            let base = p;
+            #[allow(clippy::cast_possible_truncation)]
+            let joint_time = |v: f32| {
+                let mut q = base;
+                q.max_velocity = v;
+                plan(&q.planner_request(req.start as f32, req.start_velocity as f32))
+                    .map(|j| f64::from(j.duration()))
+                    .map_err(|e| Refusal::Unsynchronizable {
+                        problem: format!("{name}: the joint's own plan fails: {e}"),
+                    })
+            };
+            let mut v = cruise;
+            if cruise > 0.0 && (joint_time(cruise)? - duration).abs() > SYNC_TOLERANCE_S / 2.0 {
+                // From a moving start the exact-duration plan's cruise is
+                // not always what the joint makes of it: the velocity
+                // limit whose time-optimal profile takes the duration (the
+                // time falls as the limit rises), by bisection.
+                let (mut lo, mut hi) = (0.0f32, p.max_velocity);
+                for _ in 0..60 {
+                    let mid = lo + (hi - lo) / 2.0;
+                    if mid <= lo || mid >= hi {
+                        break;
+                    }
+                    match joint_time(mid) {
+                        Ok(t) if t > duration => lo = mid,
+                        Ok(_) => hi = mid,
+                        Err(_) => lo = mid,
+                    }
+                }
+                v = hi;
+            }
+            if v < p.max_velocity {
                 report.push(
                     format!("{name}.max_velocity"),
                     LossKind::Converted,
                     format!(
-                        "{} lowered to {cruise} so every joint arrives after {duration:.4} s",
+                        "{} lowered to {v} so every joint arrives after {duration:.4} s",
                         p.max_velocity
                     ),
                 );
-                p.max_velocity = cruise;
+                p.max_velocity = v;
             }
-            // The check: the joint's own plan, in f32, from the same start.
-            #[allow(clippy::cast_possible_truncation)]
-            let joint = plan(&joint_request_f32(req.start as f32, &p)).map_err(|e| {
-                Refusal::Unsynchronizable {
-                    problem: format!("{name}: the joint's own plan fails: {e}"),
-                }
-            })?;
-            let arrival = f64::from(joint.duration());
+            // The check: the joint's own plan, in f32, from the same state.
+            let arrival = joint_time(p.max_velocity)?;
             if (arrival - duration).abs() > SYNC_TOLERANCE_S {
                 return Err(Refusal::Unsynchronizable {
                     problem: format!("{name} would arrive after {arrival} s, not {duration} s"),
                 });
             }
         }
-        check_path(motor, &limits, &p, start, 0.0)?;
+        check_path(motor, &limits, &p, start, start_velocity)?;
         command.payloads = vec![Payload::SetTargetV2(p)];
         commands.push(command);
     }
@@ -219,15 +298,4 @@ pub fn multi_axis_to_irpc(
         },
         report,
     })
-}
-
-/// The planner's request for the move a joint makes on `p` from rest at
-/// `start` (degrees), in f64: the joint's own reading of a `SetTargetV2`.
-fn joint_request(start: f64, p: &SetTargetPayloadV2) -> Request<f64> {
-    p.planner_request(start, 0.0)
-}
-
-/// The same request as the joint sees it, in f32.
-fn joint_request_f32(start: f32, p: &SetTargetPayloadV2) -> Request<f32> {
-    p.planner_request(start, 0.0)
 }

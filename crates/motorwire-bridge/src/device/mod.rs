@@ -547,6 +547,28 @@ impl Order {
         }
     }
 
+    /// The motion the device plans for this order from `from` (position
+    /// and velocity, degrees), where the bridge plans it as the device does
+    /// (an iRPC `SetTargetV2`: the joint plans it from where it is and how
+    /// fast it moves, acceleration zero, with motorwire's planner).
+    /// `planned`: the gate's plan of a move from the same state, taken
+    /// when it is this order's.
+    pub(crate) fn device_plan(
+        &self,
+        from: (f64, f64),
+        planned: Option<(SetTargetPayloadV2, Box<motorwire_planner::Profile<f64>>)>,
+    ) -> Option<Box<motorwire_planner::Profile<f64>>> {
+        match self {
+            Self::Irpc(Payload::SetTargetV2(p)) => match planned {
+                Some((q, profile)) if q == *p => Some(profile),
+                _ => motorwire_planner::plan(&p.planner_request(from.0, from.1))
+                    .ok()
+                    .map(Box::new),
+            },
+            _ => None,
+        }
+    }
+
     /// Where it takes the device and how fast, in degrees (`unit`: the
     /// motor's, in which compact commands are written).
     pub(crate) fn reach(&self, unit: AngleUnit) -> Reach {
