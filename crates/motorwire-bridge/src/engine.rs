@@ -1338,25 +1338,44 @@ impl Bridge {
             }));
             e
         };
+        // The number as a person reads it (1e308, not 309 digits).
+        let asked = if hz != 0.0 && !(1e-4..1e6).contains(&hz.abs()) {
+            format!("{hz:e}")
+        } else {
+            format!("{hz}")
+        };
         let every = match bridge_hz {
             _ if hz.is_nan() || hz < 0.0 => {
                 return self.refuse(
                     &meta,
                     refusal(format!(
-                        "feedback_hz {hz} is not a rate: 0 (no feedback) or more"
+                        "feedback_hz {asked} is not a rate: 0 (no feedback) or more"
                     )),
                 );
             }
             _ if hz == 0.0 => 0,
             None => {
-                return self.refuse(&meta, refusal(format!("feedback_hz {hz}: the bridge sends no feedback (--feedback-hz 0); 0 is the only rate")));
+                return self.refuse(&meta, refusal(format!("feedback_hz {asked}: the bridge sends no feedback (--feedback-hz 0); 0 is the only rate")));
             }
+            // Beyond the rounding of the bridge's rate from its period.
             Some(b) if hz > b * (1.0 + 1e-9) => {
                 return self.refuse(
                     &meta,
                     refusal(format!(
-                        "feedback_hz {hz} is above the bridge's own rate, {}",
+                        "feedback_hz {asked} is above the bridge's own rate, {}",
                         crate::output::short_number(b)
+                    )),
+                );
+            }
+            // Every k-th line for a k that fits the count (2^32 - 1): a
+            // slower rate than that would be answered with a faster one.
+            Some(b) if b / hz - 1e-9 > f64::from(u32::MAX) => {
+                return self.refuse(
+                    &meta,
+                    refusal(format!(
+                        "feedback_hz {asked} is below the slowest rate, the bridge's divided by {} ({:e}); 0 turns feedback off",
+                        u32::MAX,
+                        b / f64::from(u32::MAX)
                     )),
                 );
             }
@@ -2365,7 +2384,6 @@ impl Bridge {
         for &(ji, step, replaces) in &steps {
             if kind == JobKind::Command && replaces {
                 self.supersede(ji, stream);
-                self.end_sequences_on(ji, id);
             }
             if let Some(j) = self.joints.get_mut(ji) {
                 j.queue.push_back(step);
@@ -2438,17 +2456,34 @@ impl Bridge {
         }
     }
 
-    /// A newer line (job `by`) moves device `ji`: a sequential line whose
-    /// axis on `ji` was sent and has not arrived will not see it arrive
-    /// (its target is replaced), so the axes waiting for that arrival are
-    /// not sent, at once (not when the arrival's time runs out), and leave
-    /// their devices' queues; the line then ends, and its completion says
-    /// it was superseded when the newer line is taken.
-    fn end_sequences_on(&mut self, ji: usize, by: u64) {
-        let Some(meta) = self.jobs.get(&by).and_then(|j| j.line.as_ref()) else {
-            return;
+    /// Device `ji` took a move or setpoint of job `by`, of `line` (`None`:
+    /// the bridge's own): the lines watched on it for an earlier move will
+    /// not arrive (superseded by `line`), and a sequential line whose axis
+    /// on it was sent and has not arrived ends at once
+    /// ([`Self::end_sequences_on`]).
+    fn taken(&mut self, ji: usize, by: u64, line: Option<LineRef>) {
+        if let Some(j) = self.joints.get_mut(ji) {
+            j.moved_by = line;
+        }
+        let Some(line) = line else { return };
+        let why = || {
+            format!(
+                "superseded by line {} of client {}",
+                line.line, line.origin.0
+            )
         };
-        let (number, origin) = (meta.number, meta.origin.0);
+        self.fail_watches_with(|w| w.line.at() != line && w.waits_on(ji), why);
+        self.end_sequences_on(ji, by, line);
+    }
+
+    /// A newer line (job `by`, `line`) moved device `ji`: a sequential
+    /// line whose axis on `ji` was sent and has not arrived will not see
+    /// it arrive (its target is replaced), so the axes waiting for that
+    /// arrival (and those waiting for them) are not sent, at once (not
+    /// when the arrival's time runs out), and leave their devices' queues;
+    /// the line then ends, and its completion says it was superseded.
+    fn end_sequences_on(&mut self, ji: usize, by: u64, line: LineRef) {
+        let (number, origin) = (line.line, line.origin.0);
         let mut ended: Vec<StepRef> = Vec::new();
         for (&id, job) in &mut self.jobs {
             if id == by || job.kind != JobKind::Command {
@@ -2456,26 +2491,36 @@ impl Bridge {
             }
             // Its axes on `ji` that went out and have not arrived.
             let replaced = |a: &Axis| a.joint == ji && !a.arrived && a.state != AxisState::Queued;
-            let waiting: Vec<usize> = job
+            let mut cut: Vec<usize> = job
                 .axes
                 .iter()
                 .enumerate()
-                .filter(|(_, a)| {
-                    a.state == AxisState::Queued
-                        && a.after.and_then(|b| job.axes.get(b)).is_some_and(&replaced)
-                })
+                .filter(|(_, a)| replaced(a))
                 .map(|(k, _)| k)
                 .collect();
-            for k in waiting {
-                if let Some(a) = job.axes.get_mut(k) {
-                    a.finish(
-                        StepOutcome::NotSent,
-                        None,
-                        format!(
-                            "not sent: the axis before it was replaced by line {number} of client {origin} before it arrived"
-                        ),
-                    );
-                    ended.push(StepRef { job: id, axis: k });
+            // Every axis waiting on one of them, and on those in turn.
+            let mut k = 0;
+            while let Some(&b) = cut.get(k) {
+                k += 1;
+                let waiting: Vec<usize> = job
+                    .axes
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, a)| a.state == AxisState::Queued && a.after == Some(b))
+                    .map(|(w, _)| w)
+                    .collect();
+                for w in waiting {
+                    if let Some(a) = job.axes.get_mut(w) {
+                        a.finish(
+                            StepOutcome::NotSent,
+                            None,
+                            format!(
+                                "not sent: the axis before it was replaced by line {number} of client {origin} before it arrived"
+                            ),
+                        );
+                        ended.push(StepRef { job: id, axis: w });
+                        cut.push(w);
+                    }
                 }
             }
             // Nothing waits for them now.
@@ -2792,6 +2837,13 @@ impl Bridge {
             || (c.outcome == Outcome::TimedOut && payload.holds_setpoint())
         {
             self.track(ji, payload, c.at);
+            if payload.is_setpoint() {
+                self.taken(
+                    ji,
+                    step.job,
+                    (kind == JobKind::Command).then_some(line).flatten(),
+                );
+            }
         }
         self.answer_early(step.job);
         if more {
@@ -2926,14 +2978,12 @@ impl Bridge {
         // A stream's setpoint replaced by a newer one before it was sent
         // is what a stream does: no failure.
         let stream = job.line.as_ref().is_some_and(|l| l.stream);
-        // Only a reset needs every joint it moved, and only a stream's
-        // command the joints that took it.
+        // Only a reset needs every joint it moved.
         let moved_joints: Vec<usize> = if job.kind == JobKind::Reset {
             job.axes.iter().map(|a| a.joint).collect()
         } else {
             Vec::new()
         };
-        let mut acked_joints: Vec<usize> = Vec::new();
         // The motors acked, the moves acked (to watch for arrival), and
         // what became of the rest: one pass, each name moved, not copied.
         let mut acked: Vec<String> = Vec::with_capacity(job.axes.len());
@@ -2946,9 +2996,6 @@ impl Bridge {
             };
             match r.outcome {
                 StepOutcome::Acked => {
-                    if stream {
-                        acked_joints.push(a.joint);
-                    }
                     if let Some(target) = a.target {
                         moved.push((a.joint, a.motor, target));
                     }
@@ -3060,13 +3107,6 @@ impl Bridge {
             ..LineResult::default()
         };
         let watched = job.kind == JobKind::Command && !moved.is_empty();
-        // A stream's setpoint of any kind (a velocity too) replaces what
-        // its motors were doing.
-        let streamed: Vec<usize> = if stream && job.kind == JobKind::Command {
-            acked_joints
-        } else {
-            Vec::new()
-        };
         r.arrival_follows = if stream {
             Some(false)
         } else {
@@ -3090,11 +3130,9 @@ impl Bridge {
         }
         let Some(meta) = job.line else { return };
         self.answer(&meta, r);
-        if stream {
-            // Its setpoint replaces their targets: lines watched on its
-            // motors will not arrive.
-            self.supersede_watches(&meta, &streamed);
-        } else if watched {
+        // (Lines watched on the motors it moved were superseded when each
+        // took its setpoint: [`Self::taken`].)
+        if watched && !stream {
             self.watch(meta, moved, now);
         }
     }
@@ -3533,14 +3571,31 @@ impl Bridge {
 
     // ---- arrival ----------------------------------------------------------
 
-    /// Watches a motion line's acked moves until they arrive; an older
-    /// line still waiting on one of these joints will not arrive now.
+    /// Watches a motion line's acked moves until they arrive. A line that
+    /// ends after a newer line moved one of its joints (a sequential line
+    /// ends with its last axis), or after a stop, has its verdict at once.
     fn watch(&mut self, meta: LineMeta, moved: Vec<(usize, String, f64)>, since: Duration) {
         let now = self.now;
-        let joints: Vec<usize> = moved.iter().map(|(ji, ..)| *ji).collect();
-        self.supersede_watches(&meta, &joints);
+        let line = meta.at();
+        let replaced_by = moved.iter().find_map(|(ji, ..)| {
+            self.joints
+                .get(*ji)
+                .and_then(|j| j.moved_by)
+                .filter(|by| *by != line)
+        });
         let mut w = self.watch_of(meta, moved, since);
         let origin = w.line.origin;
+        let verdict = if self.latched {
+            Some("stopped by the emergency stop".to_owned())
+        } else {
+            replaced_by
+                .map(|by| format!("superseded by line {} of client {}", by.line, by.origin.0))
+        };
+        if let Some(why) = verdict {
+            let arrival = w.verdict(now, Some(why));
+            self.out.push_back(Output::Arrival { origin, arrival });
+            return;
+        }
         // Already there (a move to where it stands)?
         let mut done = false;
         for (ji, j) in self.joints.iter().enumerate() {
@@ -3556,21 +3611,6 @@ impl Bridge {
         } else {
             self.arrivals.push(w);
         }
-    }
-
-    /// Line `meta` moved `moved`: the lines still watched on those
-    /// devices will not arrive (their targets are replaced).
-    fn supersede_watches(&mut self, meta: &LineMeta, moved: &[usize]) {
-        if self.arrivals.is_empty() {
-            return;
-        }
-        let why = || {
-            format!(
-                "superseded by line {} of client {}",
-                meta.number, meta.origin.0
-            )
-        };
-        self.fail_watches_with(|w| moved.iter().any(|&ji| w.waits_on(ji)), why);
     }
 
     /// The watch of line `meta`'s moves (`moved`: device, motor, target in

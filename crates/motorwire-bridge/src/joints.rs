@@ -58,6 +58,10 @@ pub(crate) struct Joint {
     pub(crate) model: Option<(Duration, Box<Profile<f64>>)>,
     /// The move being sent: when, and the state it starts from.
     pub(crate) sending: Option<(Duration, (f64, f64))>,
+    /// The line whose move or setpoint the device last took (`None`: the
+    /// bridge's own, a stop): a line watched on it whose move came before
+    /// will not arrive.
+    pub(crate) moved_by: Option<crate::output::LineRef>,
     /// The target of its last acked move (degrees).
     pub(crate) target: Option<f64>,
     /// Until when its last acked move runs (as the bridge plans it).
@@ -161,6 +165,7 @@ impl Joint {
             motion_at: None,
             model: None,
             sending: None,
+            moved_by: None,
             target: None,
             moving_until: Duration::ZERO,
             queue: VecDeque::new(),

@@ -1223,7 +1223,7 @@ fn a_feedback_rate_is_answered_with_the_rate_the_client_gets() {
         assert_eq!(v["ok"], true, "{v}");
         assert_eq!(v["feedback_hz"], hz, "{v}");
     }
-    for asked in ["10.5", "-1", "1e300"] {
+    for asked in ["10.5", "-1", "1e300", "1e-300", "5e-324"] {
         let (e, v) = answer(&mut arm, &format!(r#"{{"feedback_hz":{asked}}}"#));
         assert_eq!(e, None, "{v}");
         assert_eq!(v["ok"], false, "{v}");
@@ -1234,6 +1234,20 @@ fn a_feedback_rate_is_answered_with_the_rate_the_client_gets() {
             "{v}"
         );
     }
+    // Found by a hostile test: extreme numbers are said in short, and a
+    // rate slower than every 2^32 - 1-th line is refused, not answered
+    // with a faster one.
+    let (_, v) = answer(&mut arm, r#"{"feedback_hz":1e300}"#);
+    assert_eq!(
+        v["error"]["message"], "feedback_hz 1e300 is above the bridge's own rate, 10",
+        "{v}"
+    );
+    let (_, v) = answer(&mut arm, r#"{"feedback_hz":1e-300}"#);
+    assert_eq!(
+        v["error"]["message"],
+        "feedback_hz 1e-300 is below the slowest rate, the bridge's divided by 4294967295 (2.3283064370807974e-9); 0 turns feedback off",
+        "{v}"
+    );
     let config = BridgeConfig {
         feedback_period: None,
         ..BridgeConfig::default()
@@ -1265,19 +1279,39 @@ fn a_simultaneous_line_is_simultaneous_from_a_moving_start() {
             r#"{{"trajectory_id":"t","motor_id":"elbow","waypoints":[{{"position":0,"velocity":0,"time":0}},{{"position":{to},"velocity":0,"time":1.5}}],"timing":{{}}}}"#
         )
     };
-    // (the elbow's trajectory first, if any; the elbow's and the
-    // shoulder's targets)
+    // (the elbow's trajectory first, if any, a negative one: a stream of
+    // setpoints at 100 Hz up to it; the elbow's and the shoulder's
+    // targets)
     for (first, elbow, shoulder) in [
         (Some(60.0), 100.0, 30.0),
         (Some(60.0), 10.0, -40.0),
         (None, 100.0, 30.0),
         (Some(90.0), 40.0, 5.0),
+        (Some(-50.0), 20.0, 10.0),
     ] {
         let mut arm = arm(Faults::default(), 0);
-        if let Some(to) = first {
-            arm.line(Origin(1), &trajectory(to));
-            arm.run_until(arm.now() + Duration::from_millis(200))
-                .unwrap();
+        match first {
+            Some(to) if to > 0.0 => {
+                arm.line(Origin(1), &trajectory(to));
+                arm.run_until(arm.now() + Duration::from_millis(200))
+                    .unwrap();
+            }
+            Some(to) => {
+                for k in 1..=20 {
+                    let setpoint = -to * f64::from(k) / 20.0;
+                    arm.line(
+                        Origin(1),
+                        &format!(
+                            r#"{{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"position","setpoint":{setpoint},"stream":true}}"#
+                        ),
+                    );
+                    arm.run_until(arm.now() + Duration::from_millis(10))
+                        .unwrap();
+                }
+            }
+            None => {}
+        }
+        if first.is_some() {
             assert!(arm.joint(ELBOW).unwrap().velocity().abs() > 1.0, "moving");
         }
         arm.take_outputs();
@@ -1315,7 +1349,7 @@ fn a_simultaneous_line_is_simultaneous_from_a_moving_start() {
         );
         let result = out
             .iter()
-            .find(|v| v.get("ok").is_some() && v["line"] == 2 - u64::from(first.is_none()))
+            .find(|v| v.get("ok").is_some() && v["command_id"] == "sync")
             .unwrap();
         assert_eq!(result["ok"], true, "{result}");
         let promised: f64 = result["losses"]
@@ -1355,4 +1389,145 @@ fn a_simultaneous_line_is_simultaneous_from_a_moving_start() {
             );
         }
     }
+}
+
+fn sequential(id: &str, motors: &[(&str, f64)]) -> String {
+    let motors: Vec<String> = motors
+        .iter()
+        .map(|(m, s)| format!(r#"{{"motor_id":"{m}","control_mode":"position","setpoint":{s}}}"#))
+        .collect();
+    format!(
+        r#"{{"command_id":"{id}","timestamp":1704067200000,"sync_mode":"sequential","motors":[{}]}}"#,
+        motors.join(",")
+    )
+}
+
+/// Runs `arm` for `ms` and returns its output lines.
+fn run_for(arm: &mut SimulatedArm, ms: u64) -> Vec<Value> {
+    arm.run_until(arm.now() + Duration::from_millis(ms))
+        .unwrap();
+    arm.take_outputs().iter().map(Output::to_value).collect()
+}
+
+fn completion<'a>(out: &'a [Value], origin_line: (&str, u64)) -> &'a Value {
+    out.iter()
+        .find(|v| {
+            v.get("arrived").is_some()
+                && v["line"] == origin_line.1
+                && (v["command_id"] == origin_line.0 || v["motor_id"] == origin_line.0)
+        })
+        .unwrap_or_else(|| panic!("no completion for {origin_line:?}: {out:?}"))
+}
+
+/// Found by a hostile test: a sequential line of three or four axes whose
+/// first motor is moved by a newer line ends at once, every waiting axis
+/// not sent (not only the next one), its completion superseded by the
+/// newer line; the newer line, which the elbow carries out, arrives (it
+/// was called superseded by the older line, which timed out).
+#[test]
+fn a_long_sequential_line_ends_whole_and_never_supersedes_the_newer_line() {
+    for axes in [3, 4] {
+        let mut arm = arm(Faults::default(), 0);
+        let all = [
+            ("elbow", 60.0),
+            ("shoulder_roll", 20.0),
+            ("gripper_axis", 40.0),
+            ("shoulder_pitch", 30.0),
+        ];
+        arm.line(Origin(1), &sequential("seq", &all[..axes]));
+        run_for(&mut arm, 300);
+        arm.line(Origin(2), &command("elbow", 10.0));
+        let out = run_for(&mut arm, 30);
+        let first = out
+            .iter()
+            .find(|v| v.get("ok").is_some() && v["command_id"] == "seq")
+            .unwrap_or_else(|| panic!("{axes}: {out:?}"));
+        assert_eq!(first["ok"], false, "{first}");
+        let outcomes = first["outcomes"].as_array().unwrap();
+        assert_eq!(outcomes.len(), axes - 1, "{first}");
+        assert!(
+            outcomes.iter().all(|o| o["outcome"] == "not_sent"),
+            "{first}"
+        );
+        let seq = completion(&out, ("seq", 1));
+        assert_eq!(seq["arrived"], false, "{seq}");
+        assert_eq!(seq["reason"], "superseded by line 1 of client 2", "{seq}");
+        let out = run_for(&mut arm, 3000);
+        let newer = completion(&out, ("elbow", 1));
+        assert_eq!(newer["arrived"], true, "{axes}: {newer}");
+        assert!(arm.compact_device(0x20).unwrap().position().abs() < 1e-6);
+        assert!(arm.joint(ROLL).unwrap().position().abs() < 1e-6);
+    }
+}
+
+/// Found by a hostile test: a line whose move a newer sequential line (or
+/// any line) replaces is superseded when the newer move is taken, not when
+/// the newer line ends (a sequential line ends with its last axis: the
+/// older one had timed out by then).
+#[test]
+fn a_move_replaced_by_a_sequential_lines_axis_is_superseded_when_it_is_taken() {
+    for older in [
+        sequential("a", &[("elbow", 20.0), ("gripper_axis", 80.0)]),
+        command("elbow", 30.0),
+    ] {
+        let mut arm = arm(Faults::default(), 0);
+        arm.line(Origin(1), &older);
+        run_for(&mut arm, 200);
+        arm.line(
+            Origin(2),
+            &sequential("b", &[("elbow", 140.0), ("shoulder_pitch", 30.0)]),
+        );
+        let out = run_for(&mut arm, 30);
+        let replaced = out
+            .iter()
+            .find(|v| v.get("arrived").is_some() && v["line"] == 1 && v["command_id"] != "b")
+            .unwrap_or_else(|| panic!("{older}: not superseded at once: {out:?}"));
+        assert_eq!(replaced["arrived"], false, "{replaced}");
+        assert_eq!(
+            replaced["reason"], "superseded by line 1 of client 2",
+            "{replaced}"
+        );
+        let out = run_for(&mut arm, 5000);
+        assert_eq!(completion(&out, ("b", 1))["arrived"], true, "{out:?}");
+    }
+}
+
+/// Found by a hostile test: a sequential line that an emergency stop cuts
+/// says so in its completion at once (it said `timed out` a second later,
+/// where a single command says `stopped by the emergency stop`).
+#[test]
+fn a_sequential_line_cut_by_a_stop_says_so_at_once() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.line(
+        Origin(1),
+        &sequential("seq", &[("elbow", 60.0), ("gripper_axis", 40.0)]),
+    );
+    run_for(&mut arm, 300);
+    arm.line(Origin(2), r#"{"emergency_stop":true}"#);
+    let out = run_for(&mut arm, 30);
+    let seq = completion(&out, ("seq", 1));
+    assert_eq!(seq["arrived"], false, "{seq}");
+    assert_eq!(seq["reason"], "stopped by the emergency stop", "{seq}");
+}
+
+/// Found by a hostile test: a newer line's axis that waits (its own
+/// sequence's earlier axis not arrived) has replaced nothing yet: the
+/// older line's sequence goes on until that axis is sent.
+#[test]
+fn a_waiting_axis_replaces_nothing_until_it_is_sent() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.line(
+        Origin(1),
+        &sequential("a", &[("elbow", 100.0), ("gripper_axis", 80.0)]),
+    );
+    arm.line(
+        Origin(2),
+        &sequential("c", &[("shoulder_roll", -30.0), ("elbow", 30.0)]),
+    );
+    let out = run_for(&mut arm, 50);
+    assert!(
+        !out.iter()
+            .any(|v| v["command_id"] == "a" && v.get("ok").is_some()),
+        "line a was answered before c's elbow axis went: {out:?}"
+    );
 }
