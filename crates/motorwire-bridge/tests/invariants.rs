@@ -2443,3 +2443,50 @@ fn a_trajectory_is_answered_under_way_and_its_later_segments_in_its_completion()
     );
     assert_eq!(done[0]["motors"][0]["motor_id"], "j");
 }
+
+/// A waypoint to pass at speed long after the joint could (45 at 30 deg/s
+/// at 3 s from rest at 0) is no longer refused (`the joint would pass it
+/// at 1.12 s, not 3 s`): the bridge splits its segment (a stop, then a
+/// take-off timed to reach the waypoint at its speed at its time), and on
+/// the simulated joint the waypoint is passed within 1 ms of 3 s, the
+/// next at rest by its time.
+#[test]
+fn a_waypoint_the_joint_would_reach_early_at_speed_is_passed_at_its_time() {
+    let map = r#"
+[motors.gripper_axis]
+dialect = "irpc"
+node = 0x20
+limits = { min_position = -10, max_position = 100, max_velocity = 200, max_acceleration = 500, max_jerk = 5000 }
+"#;
+    let mut arm = arm_with(map, Faults::default(), 0);
+    arm.line(
+        Origin(1),
+        r#"{"trajectory_id":"late","motor_id":"gripper_axis","waypoints":[{"position":0,"velocity":0,"time":0},{"position":45,"velocity":30,"time":3.0},{"position":90,"velocity":0,"time":5.0}],"timing":{},"constraints":{"max_velocity":90,"max_acceleration":200,"max_jerk":1000}}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_millis(20))
+        .unwrap();
+    let start = first_move_at(&arm, 0x20);
+    let at = start + Duration::from_secs(3);
+    arm.run_until(at).unwrap();
+    let j = arm.joint(0x20).unwrap();
+    let off = (j.position_at(at) - 45.0).abs() / 30.0;
+    assert!(
+        off <= 0.001,
+        "at 3 s the joint is at {}, {off} s off",
+        j.position_at(at)
+    );
+    let at = start + Duration::from_secs(5);
+    arm.run_until(at).unwrap();
+    assert!((arm.joint(0x20).unwrap().position_at(at) - 90.0).abs() < 0.05);
+    arm.run_until(arm.now() + Duration::from_secs(1)).unwrap();
+    let out = arm.take_outputs();
+    let r = out.iter().find_map(Output::result).unwrap();
+    assert!(r.ok, "{r:?}");
+    assert!(
+        r.losses
+            .iter()
+            .any(|l| l.starts_with("waypoints[1]: converted: the joint would pass it early")),
+        "{r:?}"
+    );
+    assert_eq!(arrivals(&out)[0]["arrived"], true);
+}

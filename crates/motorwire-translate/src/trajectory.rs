@@ -56,7 +56,11 @@ pub struct TrajectoryPlan {
 /// previous waypoint (at its velocity) to the next (at its velocity)
 /// exactly in the time between them (a waypoint to be reached at rest may
 /// be reached early: the joint holds there until the next segment starts
-/// at the waypoint's time). Each is checked by planning it in
+/// at the waypoint's time; one to be passed at speed that the joint would
+/// reach early is split in two, said in the report: a stop at rest short
+/// of it, then a take-off from there that is the joint's acceleration to
+/// the waypoint's velocity, sent so it passes the waypoint at its time).
+/// Each is checked by planning it in
 /// f32 as the joint does, from the state the joint will be in when it
 /// arrives ([`TRAJECTORY_LEAD_S`] before the waypoint's time): the
 /// waypoint is passed within [`WAYPOINT_TOLERANCE_S`]. The path of each
@@ -261,12 +265,12 @@ pub fn trajectory_to_irpc(
         Some(&(_, t, p, v)) => (p, v, t),
         None => return Err(infeasible(0, "no waypoints".to_owned())),
     };
-    for pair in points.windows(2) {
+    for (k, pair) in points.windows(2).enumerate() {
         let (&(_, _, _, _), &(index, t1, p1, v1)) = match pair {
             [a, b] => (a, b),
             _ => continue,
         };
-        let last = segments.len() + 2 == points.len();
+        let last = k + 2 == points.len();
         let lead = if last { 0.0 } else { TRAJECTORY_LEAD_S };
         let duration = t1 - from_t;
         if duration <= 0.0 {
@@ -317,6 +321,50 @@ pub fn trajectory_to_irpc(
         // A waypoint to reach at rest may be reached early: the joint holds
         // there until its time, when the next segment starts from rest.
         let early_at_rest = v1 == 0.0 && arrives < t1;
+        // One to pass at speed that the joint would reach early (no
+        // SetTargetV2 takes longer than its time-optimal profile): split
+        // in two, a stop where the joint takes off from rest to pass the
+        // waypoint at its speed, and that take-off, sent so it passes the
+        // waypoint at its time.
+        if v1 != 0.0 && arrives < t1 - WAYPOINT_TOLERANCE_S {
+            // (The stop at the fastest the limits allow.)
+            let fastest = SetTargetPayloadV2 {
+                max_velocity: base.max_velocity,
+                ..payload
+            };
+            let split =
+                split_at_speed(&fastest, (from_pos, from_vel, from_t), (p1, v1, t1), scurve)
+                    .map_err(|problem| infeasible(index, problem))?;
+            for (sub, from) in [
+                (&split.stop, (from_pos, from_vel)),
+                (&split.takeoff, (split.stop_at, 0.0)),
+            ] {
+                check_path(
+                    motor,
+                    &e,
+                    &sub.payload,
+                    unit.from_degrees(from.0),
+                    unit.from_degrees(from.1),
+                )
+                .map_err(|r| infeasible(index, r.to_string()))?;
+            }
+            report.push(
+                format!("waypoints[{index}]"),
+                LossKind::Converted,
+                format!(
+                    "the joint would pass it early at {arrives:.4} s: it stops at {} and takes off at {:.4} s to pass it at {t1:.4} s at its velocity",
+                    split.stop_at, split.takeoff.at
+                ),
+            );
+            segments.push(split.stop);
+            segments.push(split.takeoff);
+            let send = split.takeoff_duration - lead;
+            let s = split.takeoff_plan.sample(f(send.max(0.0)));
+            from_pos = f64::from(s.position);
+            from_vel = f64::from(s.velocity);
+            from_t = split.takeoff.at + send.max(0.0);
+            continue;
+        }
         if (arrives - t1).abs() > WAYPOINT_TOLERANCE_S && !early_at_rest {
             return Err(infeasible(
                 index,
@@ -351,6 +399,15 @@ pub fn trajectory_to_irpc(
         }
     }
     let duration = points.last().map_or(0.0, |p| p.1);
+    if segments.len() > MAX_TRAJECTORY_SEGMENTS {
+        return Err(infeasible(
+            w.len() - 1,
+            format!(
+                "split where the joint would be early, it plans {} segments, more than the {MAX_TRAJECTORY_SEGMENTS} one line may plan",
+                segments.len()
+            ),
+        ));
+    }
     let forever = traj
         .loop_config
         .as_ref()
@@ -362,5 +419,85 @@ pub fn trajectory_to_irpc(
             forever,
         },
         report,
+    })
+}
+
+/// A segment to a waypoint at speed split where the joint would be early:
+/// a stop (at rest at `stop_at`, reached early, held), then a take-off
+/// from there that is the joint's acceleration from rest to the
+/// waypoint's velocity, sent so it ends at the waypoint's time.
+struct SplitAtSpeed {
+    stop: TrajectorySegment,
+    stop_at: f64,
+    takeoff: TrajectorySegment,
+    takeoff_duration: f64,
+    takeoff_plan: motorwire_planner::Profile<f32>,
+}
+
+/// Splits `payload` (to `to`: position, velocity, time, degrees) from
+/// `from` (position, velocity, time): the take-off starts from rest the
+/// distance before the waypoint that accelerating to its velocity takes
+/// (jerk-limited when `scurve`), its `max_velocity` that velocity, so its
+/// time-optimal profile is that acceleration alone; the stop must be
+/// reached before the take-off is due. Each is planned in f32 as the
+/// joint plans it.
+fn split_at_speed(
+    payload: &SetTargetPayloadV2,
+    from: (f64, f64, f64),
+    to: (f64, f64, f64),
+    scurve: bool,
+) -> Result<SplitAtSpeed, String> {
+    #[allow(clippy::cast_possible_truncation)]
+    let f = |x: f64| x as f32;
+    let (p1, v1, t1) = to;
+    let speed = v1.abs();
+    let a = f64::from(payload.max_acceleration);
+    let j = f64::from(payload.max_jerk);
+    // The distance from rest to `speed` at the limits.
+    let ramp = if scurve && j > 0.0 {
+        if speed >= a * a / j {
+            speed / 2.0 * (speed / a + a / j)
+        } else {
+            speed * (speed / j).sqrt()
+        }
+    } else {
+        speed * speed / (2.0 * a)
+    };
+    let stop_at = f(p1 - v1.signum() * ramp);
+    let takeoff_payload = SetTargetPayloadV2 {
+        max_velocity: f(speed),
+        ..*payload
+    };
+    let takeoff_plan = plan(&takeoff_payload.planner_request(stop_at, 0.0))
+        .map_err(|e| format!("the take-off's own plan fails: {e}"))?;
+    let takeoff_duration = f64::from(takeoff_plan.duration());
+    let takeoff_at = t1 - takeoff_duration;
+    let stop_payload = SetTargetPayloadV2 {
+        target_angle: stop_at,
+        target_velocity: 0.0,
+        ..*payload
+    };
+    let stop_plan = plan(&stop_payload.planner_request(f(from.0), f(from.1)))
+        .map_err(|e| format!("the stop's own plan fails: {e}"))?;
+    let stopped = from.2 + f64::from(stop_plan.duration());
+    if stopped > takeoff_at + WAYPOINT_TOLERANCE_S {
+        return Err(format!(
+            "the joint would pass it early without a stop, and with one (at {stop_at}, to take off at {takeoff_at:.4} s) it would stand there only at {stopped:.4} s"
+        ));
+    }
+    Ok(SplitAtSpeed {
+        stop: TrajectorySegment {
+            at: from.2,
+            payload: stop_payload,
+            arrives: stopped,
+        },
+        stop_at: f64::from(stop_at),
+        takeoff: TrajectorySegment {
+            at: takeoff_at,
+            payload: takeoff_payload,
+            arrives: t1,
+        },
+        takeoff_duration,
+        takeoff_plan,
     })
 }

@@ -123,3 +123,62 @@ fn a_trajectory_too_long_to_plan_at_once_is_refused_and_the_longest_is_quick() {
     assert_eq!(plan.segments.len(), 1000);
     eprintln!("1000 segments planned in {:?}", started.elapsed());
 }
+
+/// A waypoint to pass at speed long after the joint could (45 at 30 deg/s
+/// at 3 s, from rest at 0): no single SetTargetV2 takes that long (a
+/// time-optimal profile does not dawdle), so the segment is split, and
+/// said so: a stop short of the waypoint, then the take-off from rest
+/// that reaches 30 deg/s exactly at 45, sent so it does at 3 s. Planned
+/// as the joint plans each (f32), the waypoint is passed at 3 s.
+#[test]
+fn a_waypoint_the_joint_would_pass_early_at_speed_is_split_and_passed_on_time() {
+    let t: Trajectory = serde_json::from_str(
+        r#"{"trajectory_id":"late","motor_id":"gripper_axis","waypoints":[
+            {"position":0,"velocity":0,"time":0},{"position":45,"velocity":30,"time":3.0},
+            {"position":90,"velocity":0,"time":5.0}],
+            "timing":{},"constraints":{"max_velocity":90,"max_acceleration":200,"max_jerk":1000}}"#,
+    )
+    .unwrap();
+    let translated = trajectory_to_irpc(&map(), &t).unwrap();
+    let plan = translated.value;
+    assert_eq!(plan.segments.len(), 3, "{:?}", plan.segments);
+    let (stop, takeoff) = (&plan.segments[0], &plan.segments[1]);
+    assert_eq!(
+        (
+            stop.payload.target_velocity,
+            takeoff.payload.target_velocity
+        ),
+        (0.0, 30.0)
+    );
+    assert_eq!(takeoff.payload.target_angle, 45.0);
+    assert_eq!(takeoff.payload.max_velocity, 30.0);
+    assert!(stop.arrives <= takeoff.at, "at rest before it takes off");
+    // The take-off as the joint plans it, from rest where the stop ends.
+    let own = motorwire_planner::plan(
+        &takeoff
+            .payload
+            .planner_request(stop.payload.target_angle, 0.0),
+    )
+    .unwrap();
+    let passes = takeoff.at + f64::from(own.duration());
+    assert!(
+        (passes - 3.0).abs() <= WAYPOINT_TOLERANCE_S,
+        "passes at {passes}"
+    );
+    let end = own.end_state();
+    assert!(
+        (end.position - 45.0).abs() < 1e-4 && (end.velocity - 30.0).abs() < 1e-3,
+        "{end:?}"
+    );
+    assert!(
+        translated
+            .report
+            .losses
+            .iter()
+            .any(|l| l.field == "waypoints[1]"
+                && l.detail.starts_with("the joint would pass it early at ")
+                && l.detail.ends_with("to pass it at 3.0000 s at its velocity")),
+        "{:?}",
+        translated.report
+    );
+}
