@@ -75,6 +75,39 @@ impl Json {
         push_str(&mut self.text, v);
     }
 
+    /// The member `name` when there is a value.
+    fn opt_str(&mut self, name: &'static str, v: Option<&str>) {
+        if let Some(v) = v {
+            self.str(name, v);
+        }
+    }
+
+    /// The member `name` when there is a value.
+    fn opt_u64(&mut self, name: &'static str, v: Option<u64>) {
+        if let Some(v) = v {
+            self.u64(name, v);
+        }
+    }
+
+    /// The member `name`: an array of `items`, each written by `each`.
+    fn array<T>(
+        &mut self,
+        name: &'static str,
+        items: &[T],
+        mut each: impl FnMut(&T, &mut Self) -> Result<(), serde_json::Error>,
+    ) -> Result<(), serde_json::Error> {
+        self.key(name);
+        self.text.push('[');
+        for (i, item) in items.iter().enumerate() {
+            if i > 0 {
+                self.text.push(',');
+            }
+            each(item, self)?;
+        }
+        self.text.push(']');
+        Ok(())
+    }
+
     fn strs(&mut self, name: &'static str, v: &[String]) {
         self.key(name);
         self.text.push('[');
@@ -230,15 +263,9 @@ impl LineResult {
         j.open();
         j.bool(k!("ok"), self.ok);
         j.u64(k!("line"), self.line);
-        if let Some(m) = &self.motor_id {
-            j.str(k!("motor_id"), m);
-        }
-        if let Some(c) = &self.command_id {
-            j.str(k!("command_id"), c);
-        }
-        if let Some(o) = &self.orion {
-            j.str(k!("orion"), o);
-        }
+        j.opt_str(k!("motor_id"), self.motor_id.as_deref());
+        j.opt_str(k!("command_id"), self.command_id.as_deref());
+        j.opt_str(k!("orion"), self.orion.as_deref());
         if self.emergency_stop {
             j.bool(k!("emergency_stop"), true);
         }
@@ -259,28 +286,17 @@ impl LineResult {
             j.bool(k!("superseded"), true);
         }
         if !self.outcomes.is_empty() {
-            j.key(k!("outcomes"));
-            j.text.push('[');
-            for (i, o) in self.outcomes.iter().enumerate() {
-                if i > 0 {
-                    j.text.push(',');
-                }
+            j.array(k!("outcomes"), &self.outcomes, |o, j| {
                 o.write_json(j);
-            }
-            j.text.push(']');
+                Ok(())
+            })?;
         }
         if !self.problems.is_empty() {
             j.strs(k!("problems"), &self.problems);
         }
-        if let Some(v) = self.latency_us {
-            j.u64(k!("latency_us"), v);
-        }
-        if let Some(v) = self.ack_us {
-            j.u64(k!("ack_us"), v);
-        }
-        if let Some(v) = self.stop_latency_us {
-            j.u64(k!("stop_latency_us"), v);
-        }
+        j.opt_u64(k!("latency_us"), self.latency_us);
+        j.opt_u64(k!("ack_us"), self.ack_us);
+        j.opt_u64(k!("stop_latency_us"), self.stop_latency_us);
         if !self.losses.is_empty() {
             j.strs(k!("losses"), &self.losses);
         }
@@ -307,26 +323,18 @@ impl ErrorBody {
         j.str(k!("kind"), self.kind.name());
         j.str(k!("rule"), self.rule);
         j.str(k!("message"), &self.message);
-        if let Some(m) = &self.motor {
-            j.str(k!("motor"), m);
-        }
+        j.opt_str(k!("motor"), self.motor.as_deref());
         if let Some(b) = &self.broke {
             // Flattened: its members are the error's own.
-            if let Some(f) = b.field {
-                j.str(k!("field"), f);
-            }
+            j.opt_str(k!("field"), b.field);
             if let Some(v) = b.value {
                 j.f64(k!("value"), v)?;
             }
             if let Some(l) = b.limit {
                 j.f64(k!("limit"), l)?;
             }
-            if let Some(n) = b.limit_name {
-                j.str(k!("limit_name"), n);
-            }
-            if let Some(s) = b.limit_source {
-                j.str(k!("limit_source"), s);
-            }
+            j.opt_str(k!("limit_name"), b.limit_name);
+            j.opt_str(k!("limit_source"), b.limit_source);
         }
         if let Some(v) = &self.violations {
             j.serde(k!("violations"), v)?;
@@ -355,25 +363,11 @@ impl ArrivalLine {
         j.open();
         j.bool(k!("arrived"), self.arrived);
         j.u64(k!("line"), self.line);
-        if let Some(m) = &self.motor_id {
-            j.str(k!("motor_id"), m);
-        }
-        if let Some(c) = &self.command_id {
-            j.str(k!("command_id"), c);
-        }
-        if let Some(r) = &self.reason {
-            j.str(k!("reason"), r);
-        }
+        j.opt_str(k!("motor_id"), self.motor_id.as_deref());
+        j.opt_str(k!("command_id"), self.command_id.as_deref());
+        j.opt_str(k!("reason"), self.reason.as_deref());
         j.u64(k!("after_ms"), self.after_ms);
-        j.key(k!("motors"));
-        j.text.push('[');
-        for (i, m) in self.motors.iter().enumerate() {
-            if i > 0 {
-                j.text.push(',');
-            }
-            m.write_json(j)?;
-        }
-        j.text.push(']');
+        j.array(k!("motors"), &self.motors, MotorArrival::write_json)?;
         j.close();
         Ok(())
     }

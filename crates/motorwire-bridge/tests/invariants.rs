@@ -1847,17 +1847,20 @@ fn faults_and_reboots_hold_a_joint_until_a_reset_brings_it_back() {
     assert!(arm.bridge().is_latched());
 }
 
-/// WIRE-FACTS §3's feasible variant of the WIA §5.2 trajectory on an iRPC
-/// joint: each waypoint passed at its time; the document's own version
-/// refused before motion, naming waypoint 4.
-#[test]
-fn a_trajectory_passes_each_waypoint_at_its_time() {
-    let map = r#"
+/// The WIA §5.2 trajectory's motor as an iRPC joint with room for it.
+const GRIPPER_JOINT: &str = r#"
 [motors.gripper_axis]
 dialect = "irpc"
 node = 0x20
 limits = { min_position = -10, max_position = 100, max_velocity = 200, max_acceleration = 500, max_jerk = 5000 }
 "#;
+
+/// WIRE-FACTS §3's feasible variant of the WIA §5.2 trajectory on an iRPC
+/// joint: each waypoint passed at its time; the document's own version
+/// refused before motion, naming waypoint 4.
+#[test]
+fn a_trajectory_passes_each_waypoint_at_its_time() {
+    let map = GRIPPER_JOINT;
     let doc = include_str!("../../../fixtures/wia/valid/doc-5.2-trajectory.json");
     let mut arm = arm_with(map, Faults::default(), 0);
     // As the document has it: refused, nothing sent.
@@ -1908,16 +1911,17 @@ limits = { min_position = -10, max_position = 100, max_velocity = 200, max_accel
         );
     }
     eprintln!("worst waypoint timing error: {:.3} ms", worst * 1000.0);
+    answered_saying_then_arrived(&mut arm, "timing.interpolation");
+}
+
+/// A second on: the trajectory's result is `ok` with a loss that starts
+/// with `loss`, and its completion says it arrived.
+fn answered_saying_then_arrived(arm: &mut SimulatedArm, loss: &str) {
     arm.run_until(arm.now() + Duration::from_secs(1)).unwrap();
     let out = arm.take_outputs();
     let r = out.iter().find_map(Output::result).unwrap();
     assert!(r.ok, "{r:?}");
-    assert!(
-        r.losses
-            .iter()
-            .any(|l| l.starts_with("timing.interpolation")),
-        "{r:?}"
-    );
+    assert!(r.losses.iter().any(|l| l.starts_with(loss)), "{r:?}");
     let a = arrivals(&out);
     assert_eq!(a[0]["arrived"], true, "{}", a[0]);
 }
@@ -2452,12 +2456,7 @@ fn a_trajectory_is_answered_under_way_and_its_later_segments_in_its_completion()
 /// next at rest by its time.
 #[test]
 fn a_waypoint_the_joint_would_reach_early_at_speed_is_passed_at_its_time() {
-    let map = r#"
-[motors.gripper_axis]
-dialect = "irpc"
-node = 0x20
-limits = { min_position = -10, max_position = 100, max_velocity = 200, max_acceleration = 500, max_jerk = 5000 }
-"#;
+    let map = GRIPPER_JOINT;
     let mut arm = arm_with(map, Faults::default(), 0);
     arm.line(
         Origin(1),
@@ -2478,15 +2477,8 @@ limits = { min_position = -10, max_position = 100, max_velocity = 200, max_accel
     let at = start + Duration::from_secs(5);
     arm.run_until(at).unwrap();
     assert!((arm.joint(0x20).unwrap().position_at(at) - 90.0).abs() < 0.05);
-    arm.run_until(arm.now() + Duration::from_secs(1)).unwrap();
-    let out = arm.take_outputs();
-    let r = out.iter().find_map(Output::result).unwrap();
-    assert!(r.ok, "{r:?}");
-    assert!(
-        r.losses
-            .iter()
-            .any(|l| l.starts_with("waypoints[1]: converted: the joint would pass it early")),
-        "{r:?}"
+    answered_saying_then_arrived(
+        &mut arm,
+        "waypoints[1]: converted: the joint would pass it early",
     );
-    assert_eq!(arrivals(&out)[0]["arrived"], true);
 }
