@@ -189,6 +189,9 @@ pub struct BridgeStats {
     pub superseded: u64,
     /// Steps cancelled by an emergency stop or an interrupt.
     pub cancelled: u64,
+    /// Moves not sent because, from where the device was when their turn
+    /// came, their path would have left the limits in force.
+    pub refused_at_send: u64,
 }
 
 /// The bridge's phases. Every change goes through [`Bridge::enter`].
@@ -1824,6 +1827,21 @@ impl Bridge {
     /// the one before arrived.
     fn multi_axis_jobs(&mut self, now: Duration, meta: LineMeta, cmd: &MultiAxisCommand) {
         let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
+        // One after another, or together in one duration: not both (each
+        // axis took the duration, one after the other, and the result
+        // promised them all after it).
+        if cmd.sync_mode == Some(SyncMode::Sequential)
+            && cmd
+                .coordination
+                .as_ref()
+                .is_some_and(|c| c.total_duration_ms.is_some())
+        {
+            let e = ErrorBody::new(
+                ErrorKind::Invalid,
+                "sync_mode sequential runs the axes one after another; coordination.total_duration_ms has them all arrive together after it: a line has one or the other",
+            );
+            return self.refuse(&meta, e);
+        }
         let (mut axes, report) = match self.mixed_axes(cmd) {
             Ok(x) => x,
             Err(e) => return self.refuse(&meta, e),
@@ -2354,12 +2372,19 @@ impl Bridge {
         // (position, velocity, torque); an ordinary position move, a
         // waiting position move.
         let stream = line.as_ref().is_some_and(|l| l.stream);
-        let steps: Vec<(usize, StepRef, bool)> = axes
+        // What each step takes over on its device: `Some(replaces)` for a
+        // motion step that goes as soon as it can (one that waits for a
+        // sequence takes its device when its turn comes:
+        // `Self::sequence_progress`); `replaces`, a position move or a
+        // stream's setpoint.
+        let steps: Vec<(usize, StepRef, Option<bool>)> = axes
             .iter()
             .enumerate()
             .map(|(axis, a)| {
                 let replaces = a.is_position_move() || (stream && a.is_setpoint());
-                (a.joint, StepRef { job: id, axis }, replaces)
+                let motion = a.payloads.front().is_some_and(Order::is_setpoint);
+                let takes = (a.after.is_none() && (replaces || motion)).then_some(replaces);
+                (a.joint, StepRef { job: id, axis }, takes)
             })
             .collect();
         self.jobs.insert(
@@ -2381,12 +2406,18 @@ impl Bridge {
                 answered: None,
             },
         );
-        for &(ji, step, replaces) in &steps {
-            if kind == JobKind::Command && replaces {
-                self.supersede(ji, stream);
-            }
+        for &(ji, step, takes) in &steps {
+            let scheduled = match takes {
+                Some(replaces) if kind == JobKind::Command => {
+                    self.supersede(ji, stream, replaces, None)
+                }
+                _ => None,
+            };
             if let Some(j) = self.joints.get_mut(ji) {
                 j.queue.push_back(step);
+                // A trajectory scheduled to start later goes at its time,
+                // after this step.
+                j.queue.extend(scheduled);
             }
         }
         // Every step queued before any is sent: the Orion motors of one
@@ -2397,33 +2428,53 @@ impl Bridge {
         self.finish_jobs();
     }
 
-    /// A newer position move for joint `ji`: the waiting one is replaced;
-    /// a stream's setpoint (`stream`) replaces any waiting setpoint.
-    fn supersede(&mut self, ji: usize, stream: bool) {
-        let Some(joint) = self.joints.get_mut(ji) else {
-            return;
-        };
+    /// A newer motion step for device `ji` (a position move or a stream's
+    /// setpoint: `replaces`), other than `except`, is about to go: what
+    /// waits for the device and would run before it is replaced. A
+    /// position move waiting is replaced by a newer position move; any
+    /// setpoint by a stream's (`stream`); an axis of a sequential line
+    /// waiting for its turn by any newer motion (it would hold the device
+    /// for another motor's arrival). A trajectory running on the device is
+    /// replaced by a position move or a stream's setpoint: its later
+    /// segments are not sent (between segments it ends now and frees the
+    /// device; with a segment in flight, once that is answered). A
+    /// trajectory scheduled to start later and not begun is not replaced:
+    /// it is taken off the device and returned, to be queued again after
+    /// the newer step (it starts at its time).
+    fn supersede(
+        &mut self,
+        ji: usize,
+        stream: bool,
+        replaces: bool,
+        except: Option<StepRef>,
+    ) -> Option<StepRef> {
+        let joint = self.joints.get_mut(ji)?;
         let mut keep = VecDeque::new();
+        // Only what is older than the newer step: queued before it.
+        let mut newer = false;
         for s in joint.queue.drain(..) {
-            let replaced = self.jobs.get_mut(&s.job).is_some_and(|job| {
-                job.kind == JobKind::Command
-                    && job.axes.get_mut(s.axis).is_some_and(|a| {
-                        let yes = a.state == AxisState::Queued
-                            && (a.is_position_move() || (stream && a.is_setpoint()));
-                        if yes {
-                            a.finish(
-                                StepOutcome::Superseded,
-                                None,
-                                if stream {
-                                    "a newer setpoint of a stream for the motor replaced it before it was sent"
-                                } else {
-                                    "a newer position command for the joint replaced it before it was sent"
-                                },
-                            );
-                        }
-                        yes
-                    })
-            });
+            newer |= Some(s) == except;
+            let replaced = !newer
+                && self.jobs.get_mut(&s.job).is_some_and(|job| {
+                    job.kind == JobKind::Command
+                        && job.axes.get_mut(s.axis).is_some_and(|a| {
+                            let why = if a.state != AxisState::Queued {
+                                None
+                            } else if stream && a.is_setpoint() {
+                                Some("a newer setpoint of a stream for the motor replaced it before it was sent")
+                            } else if replaces && a.is_position_move() {
+                                Some("a newer position command for the joint replaced it before it was sent")
+                            } else if a.after.is_some() && !a.begun {
+                                Some("a newer line for the motor replaced it while it waited for its turn")
+                            } else {
+                                None
+                            };
+                            if let Some(why) = why {
+                                a.finish(StepOutcome::Superseded, None, why);
+                            }
+                            why.is_some()
+                        })
+                });
             if replaced {
                 self.stats.superseded += 1;
             } else {
@@ -2431,21 +2482,21 @@ impl Bridge {
             }
         }
         joint.queue = keep;
-        // A trajectory running on the joint: its later segments are not
-        // sent. Waiting for its next segment, it ends now and frees the
-        // joint; with a segment in flight, once that is answered.
-        let Some(running) = joint.busy else {
-            return;
-        };
-        let Some(a) = self
+        let running = joint.busy?;
+        let a = self
             .jobs
             .get_mut(&running.job)
             .filter(|job| job.kind == JobKind::Command)
-            .and_then(|job| job.axes.get_mut(running.axis))
-            .filter(|a| a.is_running_trajectory())
-        else {
-            return;
-        };
+            .and_then(|job| job.axes.get_mut(running.axis))?;
+        // Scheduled, not begun: it waits for its time, holding the device.
+        if a.state == AxisState::Queued && !a.begun && !a.due.is_empty() {
+            joint.busy = None;
+            joint.wake = None;
+            return Some(running);
+        }
+        if !replaces || !a.is_running_trajectory() {
+            return None;
+        }
         self.stats.superseded += 1;
         if a.state == AxisState::Queued {
             a.finish(StepOutcome::Superseded, None, REPLACED_TRAJECTORY);
@@ -2454,6 +2505,7 @@ impl Bridge {
         } else {
             a.replaced = true;
         }
+        None
     }
 
     /// Device `ji` took a move or setpoint of job `by`, of `line` (`None`:
@@ -2533,6 +2585,24 @@ impl Bridge {
                 j.queue.retain(|s| *s != step);
             }
         }
+    }
+
+    /// Why `order` may not go to device `ji` now: its path, planned from
+    /// where the device is now, leaves the limits in force (`None` when
+    /// it stays within them, or nothing is known to plan from: the
+    /// device's own check stands).
+    fn path_at_send(&self, ji: usize, order: &Order) -> Option<String> {
+        let j = self.joints.get(ji)?;
+        let from = j.state_at(self.now)?;
+        let motor = self.map.motor(&j.name)?;
+        let limits = motorwire_translate::Effective::from_bus_map(motor);
+        let checked = j.planned.map(|(from, p, _)| (from, p));
+        let refusal = order.path_refusal(motor, &limits, from, checked)?;
+        Some(format!(
+            "not sent: from where it was when its turn came ({} at {} a second), {refusal}",
+            short_unit(j.unit.from_degrees(from.0)),
+            short_unit(j.unit.from_degrees(from.1))
+        ))
     }
 
     /// The step at the front of device `ji`'s queue, if none of its
@@ -2643,16 +2713,28 @@ impl Bridge {
     /// sequential axes on it that have arrived let the next ones go.
     fn sequence_progress(&mut self, ji: usize, position: f64, velocity: f64) {
         let mut freed = Vec::new();
-        for job in self.jobs.values_mut() {
-            let waited: Vec<(usize, usize)> = job
+        for (&id, job) in &mut self.jobs {
+            // (the axis waited for, and the one waiting: its device, its
+            // step, whether it is a position move)
+            let waited: Vec<(usize, usize, StepRef, bool)> = job
                 .axes
                 .iter()
-                .filter_map(|x| Some((x.after?, x.joint)))
+                .enumerate()
+                .filter_map(|(w, x)| {
+                    Some((
+                        x.after?,
+                        x.joint,
+                        StepRef { job: id, axis: w },
+                        x.is_position_move(),
+                    ))
+                })
                 .collect();
             for (k, a) in job.axes.iter_mut().enumerate() {
-                let Some(&(_, next)) = waited.iter().find(|(b, _)| *b == k) else {
+                let Some(&(_, joint, step, replaces)) = waited.iter().find(|(b, ..)| *b == k)
+                else {
                     continue;
                 };
+                let next = (joint, step, replaces);
                 let Some(target) = a.target else { continue };
                 if a.joint != ji
                     || a.arrived
@@ -2670,7 +2752,14 @@ impl Bridge {
                 }
             }
         }
-        for ji in freed {
+        for (ji, step, replaces) in freed {
+            // Its turn: it takes its device now, as a line's step that
+            // goes at once does when it is queued.
+            if let Some(scheduled) = self.supersede(ji, false, replaces, Some(step))
+                && let Some(j) = self.joints.get_mut(ji)
+            {
+                j.queue.push_back(scheduled);
+            }
             self.pump(ji);
         }
         self.finish_jobs();
@@ -2713,6 +2802,22 @@ impl Bridge {
             if !a.is_done() {
                 a.finish(StepOutcome::Acked, None, "acked");
             }
+            return false;
+        };
+        // Its path from where the device is now, within the limits in
+        // force: the line's own check was when it came, and by its turn
+        // the device may move otherwise (a move in flight, a slow Ack).
+        if let Some(why) = self.path_at_send(ji, &payload) {
+            self.stats.refused_at_send += 1;
+            if let Some(a) = axis_mut(&mut self.jobs, step) {
+                a.finish(StepOutcome::NotSent, None, why);
+            }
+            return false;
+        }
+        let Some(job) = self.jobs.get_mut(&step.job) else {
+            return false;
+        };
+        let Some(a) = job.axes.get_mut(step.axis) else {
             return false;
         };
         a.begun = true;

@@ -1531,3 +1531,176 @@ fn a_waiting_axis_replaces_nothing_until_it_is_sent() {
         "line a was answered before c's elbow axis went: {out:?}"
     );
 }
+
+/// Found by a hostile test: a move is held to the limits from where the
+/// joint is when its turn comes, not only when its line came (a sequential
+/// or independent multi-axis line had no path check at all). A sequential
+/// line's slow-braking elbow move to 149 waits for the shoulder to arrive
+/// while an earlier line drives the elbow to 140 at full speed: when its
+/// turn comes its path would run far past 150. It is not sent, and its
+/// result says why.
+#[test]
+fn a_move_is_held_to_the_limits_from_where_the_joint_is_when_it_is_sent() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.take_outputs();
+    arm.line(Origin(1), &command("elbow", 140.0));
+    arm.line(
+        Origin(1),
+        r#"{"command_id":"seq","timestamp":1704067200000,"sync_mode":"sequential","motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":10},{"motor_id":"elbow","control_mode":"position","setpoint":149,"acceleration_limit":20}]}"#,
+    );
+    let out = run_for(&mut arm, 3000);
+    let second = out
+        .iter()
+        .find(|v| v.get("ok").is_some() && v["line"] == 2)
+        .unwrap_or_else(|| panic!("{out:?}"));
+    assert_eq!(second["ok"], false, "{second}");
+    assert_eq!(second["outcomes"][0]["outcome"], "not_sent", "{second}");
+    let why = second["outcomes"][0]["message"].as_str().unwrap();
+    assert!(
+        why.starts_with("not sent: from where it was when its turn came (")
+            && why.contains("past max_position (bus map) 150"),
+        "{why}"
+    );
+    let targets: Vec<f32> = arm
+        .joint(ELBOW)
+        .unwrap()
+        .log()
+        .iter()
+        .filter_map(|e| match e.payload {
+            Payload::SetTargetV2(p) => Some(p.target_angle),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(targets, [140.0], "only the first move reached the elbow");
+    assert_eq!(arm.bridge().stats().refused_at_send, 1);
+}
+
+/// Found by a hostile test: a trajectory scheduled to start later holds
+/// nothing meanwhile. A command for its joint sent before it starts goes
+/// at once (it waited for the trajectory, forever behind one looping
+/// forever); the trajectory still starts at its time, replacing that move.
+#[test]
+fn a_scheduled_trajectory_does_not_hold_its_joint_until_it_starts() {
+    const EPOCH: f64 = 1_767_225_600_000.0;
+    let config = BridgeConfig {
+        epoch_unix_ms: Some(EPOCH),
+        ..BridgeConfig::default()
+    };
+    let mut arm = started(BusMap::from_toml(MAP).unwrap(), config);
+    let t0 = EPOCH + arm.now().as_secs_f64() * 1000.0;
+    arm.line(
+        Origin(1),
+        &format!(
+            r#"{{"trajectory_id":"later","motor_id":"elbow","waypoints":[{{"position":0,"velocity":0,"time":0}},{{"position":60,"velocity":0,"time":1.5}},{{"position":0,"velocity":0,"time":3}}],"timing":{{"start_time":{}}},"loop":{{"enabled":true,"count":-1}}}}"#,
+            t0 + 1500.0
+        ),
+    );
+    run_for(&mut arm, 300);
+    arm.line(
+        Origin(2),
+        &format!(
+            r#"{{"motor_id":"elbow","timestamp":{},"control_mode":"position","setpoint":30}}"#,
+            t0 + 300.0
+        ),
+    );
+    let out = run_for(&mut arm, 30);
+    let moved = out
+        .iter()
+        .find(|v| v.get("ok").is_some() && v["motor_id"] == "elbow")
+        .unwrap_or_else(|| panic!("the command was not answered at once: {out:?}"));
+    assert_eq!(moved["ok"], true, "{moved}");
+    let out = run_for(&mut arm, 2500);
+    let to_30 = completion(&out, ("elbow", 1));
+    assert_eq!(
+        to_30["arrived"], true,
+        "it got to 30 before the trajectory's start: {to_30}"
+    );
+    let targets: Vec<f32> = arm
+        .joint(ELBOW)
+        .unwrap()
+        .log()
+        .iter()
+        .filter_map(|e| match e.payload {
+            Payload::SetTargetV2(p) => Some(p.target_angle),
+            _ => None,
+        })
+        .collect();
+    // The command's move, then the trajectory's first segment at its time.
+    assert_eq!(targets, [30.0, 60.0], "{targets:?}");
+}
+
+/// Found by a hostile test: an axis of a sequential line waiting for its
+/// turn replaces nothing (a running trajectory on its motor went on until
+/// the axis was sent: it was cut when the line came), and it holds its
+/// motor for nobody: a newer line for that motor (here a trajectory, and
+/// a velocity setpoint for the gripper) replaces it at once.
+#[test]
+fn a_waiting_sequential_axis_neither_cuts_nor_holds_its_motor() {
+    let mut arm = arm(Faults::default(), 0);
+    let pitch_loop = r#"{"trajectory_id":"t2","motor_id":"shoulder_pitch","waypoints":[{"position":0,"velocity":0,"time":0},{"position":-40,"velocity":0,"time":1.2},{"position":0,"velocity":0,"time":2.4}],"timing":{},"loop":{"enabled":true,"count":-1}}"#;
+    arm.line(Origin(1), pitch_loop);
+    run_for(&mut arm, 500);
+    arm.line(
+        Origin(2),
+        &sequential("seq", &[("elbow", 100.0), ("shoulder_pitch", 30.0)]),
+    );
+    let out = run_for(&mut arm, 500);
+    assert!(
+        !out.iter().any(|v| v.get("arrived").is_some()
+            && v["line"] == 1
+            && v["motor_id"] == "shoulder_pitch"),
+        "the waiting axis cut the trajectory: {out:?}"
+    );
+    // Its turn comes once the elbow is at 100: then it replaces the loop.
+    let out = run_for(&mut arm, 3000);
+    let looped = completion(&out, ("shoulder_pitch", 1));
+    assert_eq!(looped["arrived"], false, "{looped}");
+    // A newer line for a motor a waiting axis holds takes it at once.
+    let mut arm = self::arm(Faults::default(), 0);
+    arm.line(
+        Origin(1),
+        &sequential("seq", &[("elbow", 140.0), ("gripper_axis", 60.0)]),
+    );
+    run_for(&mut arm, 100);
+    arm.line(
+        Origin(2),
+        r#"{"motor_id":"gripper_axis","timestamp":1704067200000,"control_mode":"velocity","setpoint":5}"#,
+    );
+    let out = run_for(&mut arm, 30);
+    let velocity = out
+        .iter()
+        .find(|v| v.get("ok").is_some() && v["motor_id"] == "gripper_axis")
+        .unwrap_or_else(|| panic!("the velocity line waited: {out:?}"));
+    assert_eq!(velocity["ok"], true, "{velocity}");
+    let seq = out
+        .iter()
+        .find(|v| v.get("ok").is_some() && v["command_id"] == "seq")
+        .unwrap_or_else(|| panic!("{out:?}"));
+    assert_eq!(seq["outcomes"][0]["motor"], "gripper_axis", "{seq}");
+    assert_eq!(seq["outcomes"][0]["outcome"], "superseded", "{seq}");
+}
+
+/// Found by a hostile test: `sync_mode: sequential` with
+/// `coordination.total_duration_ms` ran each axis over the whole duration,
+/// one after another, and promised them all after it: refused.
+#[test]
+fn sequential_with_a_total_duration_is_refused() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.line(
+        Origin(1),
+        r#"{"command_id":"c","timestamp":1704067200000,"sync_mode":"sequential","coordination":{"total_duration_ms":2500},"motors":[{"motor_id":"elbow","control_mode":"position","setpoint":10},{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":30}]}"#,
+    );
+    let out = run_for(&mut arm, 20);
+    let r = out
+        .iter()
+        .find(|v| v.get("ok").is_some() && v["line"] == 1)
+        .unwrap();
+    assert_eq!(r["ok"], false, "{r}");
+    assert_eq!(r["error"]["kind"], "invalid", "{r}");
+    assert!(
+        r["error"]["message"]
+            .as_str()
+            .unwrap()
+            .starts_with("sync_mode sequential runs the axes one after another")
+    );
+}

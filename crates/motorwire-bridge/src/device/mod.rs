@@ -569,6 +569,37 @@ impl Order {
         }
     }
 
+    /// Whether the path this order sends `motor` along, planned as the
+    /// device plans it from `from` (position and velocity, degrees), stays
+    /// within `limits` (the limits in force); `checked`: a move whose path
+    /// was already checked from that state (the gate's, when the line
+    /// came), which is not planned again. Only for the orders the bridge
+    /// plans as the device does (an iRPC `SetTargetV2`); the others are
+    /// held to the limits by their targets alone.
+    pub(crate) fn path_refusal(
+        &self,
+        motor: &motorwire_translate::MappedMotor,
+        limits: &motorwire_translate::Effective,
+        from: (f64, f64),
+        checked: Option<((f64, f64), SetTargetPayloadV2)>,
+    ) -> Option<motorwire_translate::Refusal> {
+        let Self::Irpc(Payload::SetTargetV2(p)) = self else {
+            return None;
+        };
+        if checked == Some((from, *p)) {
+            return None;
+        }
+        let unit = motor.unit;
+        motorwire_translate::check_path(
+            motor,
+            limits,
+            p,
+            unit.from_degrees(from.0),
+            unit.from_degrees(from.1),
+        )
+        .err()
+    }
+
     /// Where it takes the device and how fast, in degrees (`unit`: the
     /// motor's, in which compact commands are written).
     pub(crate) fn reach(&self, unit: AngleUnit) -> Reach {
