@@ -2002,6 +2002,7 @@ impl Bridge {
             let (planned, profile) = planned.unzip();
             j.planned = planned;
             j.planned_profile = profile.map(Box::new);
+            j.planned_at = now;
         }
         Ok(())
     }
@@ -2587,6 +2588,54 @@ impl Bridge {
         }
     }
 
+    /// A move in flight whose answer is late is sent again by its
+    /// driver's retries; sent again, it goes now: its path is held to the
+    /// limits in force from where the device is now, as a move's is when
+    /// it is first sent. One that would leave them is withdrawn instead:
+    /// never sent again, its outcome unknown (its first sending may have
+    /// been taken).
+    fn withdraw_stale_resends(&mut self, now: Duration) {
+        for ji in 0..self.joints.len() {
+            let Some(step) = self.joints.get(ji).and_then(|j| j.busy) else {
+                continue;
+            };
+            let Some(AxisState::InFlight { msg_id, payload }) = self
+                .jobs
+                .get(&step.job)
+                .and_then(|job| job.axes.get(step.axis))
+                .map(|a| a.state.clone())
+            else {
+                continue;
+            };
+            if !self.drivers.resend_due(msg_id, &payload, now) {
+                continue;
+            }
+            let Some(why) = self.path_at_send(ji, &payload) else {
+                continue;
+            };
+            self.drivers.forget(ji, msg_id, payload);
+            self.stats.refused_at_send += 1;
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.busy = None;
+                j.sending = None;
+            }
+            if let Some(a) = axis_mut(&mut self.jobs, step) {
+                let why = why.replacen(
+                    "not sent:",
+                    "sent once and not answered; not sent again:",
+                    1,
+                );
+                a.finish(
+                    StepOutcome::OutcomeUnknown,
+                    None,
+                    format!("{why}; the joint may or may not have taken its first sending"),
+                );
+            }
+            self.pump(ji);
+        }
+        self.finish_jobs();
+    }
+
     /// Why `order` may not go to device `ji` now: its path, planned from
     /// where the device is now, leaves the limits in force (`None` when
     /// it stays within them, or nothing is known to plan from: the
@@ -2596,7 +2645,11 @@ impl Bridge {
         let from = j.state_at(self.now)?;
         let motor = self.map.motor(&j.name)?;
         let limits = motorwire_translate::Effective::from_bus_map(motor);
-        let checked = j.planned.map(|(from, p, _)| (from, p));
+        // Checked already when its line came, this instant, from there.
+        let checked = j
+            .planned
+            .filter(|_| j.planned_at == self.now)
+            .map(|(from, p, _)| (from, p));
         let refusal = order.path_refusal(motor, &limits, from, checked)?;
         Some(format!(
             "not sent: from where it was when its turn came ({} at {} a second), {refusal}",
@@ -4077,6 +4130,7 @@ impl Bridge {
     pub fn handle_timeout(&mut self, now: Duration) {
         self.now = self.now.max(now);
         let now = self.now;
+        self.withdraw_stale_resends(now);
         self.drivers.handle_timeout(now);
         self.drain_drivers();
         self.try_ready();

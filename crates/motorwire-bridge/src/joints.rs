@@ -88,6 +88,8 @@ pub(crate) struct Joint {
     pub(crate) planned: Option<((f64, f64), motorwire_irpc::SetTargetPayloadV2, Duration)>,
     /// That move's profile (the bridge's model of it once it is acked).
     pub(crate) planned_profile: Option<Box<Profile<f64>>>,
+    /// When that move's path was checked.
+    pub(crate) planned_at: Duration,
 }
 
 /// How far a report may be from the bridge's model of the move before the
@@ -120,8 +122,24 @@ impl Joint {
             return Some((p, v));
         };
         let dt = now.saturating_sub(at);
-        if dt > RECKONED_AT_MOST || a == 0.0 && v == 0.0 {
+        if a == 0.0 && v == 0.0 {
             return Some((p, v));
+        }
+        if dt > RECKONED_AT_MOST {
+            // Reports missing (dropped, late): carried forward as far as
+            // the acceleration reckons, then at that velocity, up to
+            // half a second (a device silent for longer is offline).
+            let t = RECKONED_AT_MOST.as_secs_f64();
+            let (p1, v1) = if a != 0.0 && (v + a * t) * v < 0.0 {
+                let t = -v / a;
+                (p + v * t + 0.5 * a * t * t, 0.0)
+            } else {
+                (p + v * t + 0.5 * a * t * t, v + a * t)
+            };
+            let rest = dt
+                .min(Duration::from_millis(500))
+                .saturating_sub(RECKONED_AT_MOST);
+            return Some((p1 + v1 * rest.as_secs_f64(), v1));
         }
         let mut t = dt.as_secs_f64();
         if a != 0.0 && (v + a * t) * v < 0.0 {
@@ -177,6 +195,7 @@ impl Joint {
             wake: None,
             planned: None,
             planned_profile: None,
+            planned_at: Duration::ZERO,
         }
     }
 }
@@ -212,10 +231,17 @@ mod tests {
             (p - 10.205).abs() < 1e-12 && (v - 21.0).abs() < 1e-12,
             "{p} {v}"
         );
+        // Beyond 50 ms (reports missing): reckoned to 50 ms, then at that
+        // velocity (25), up to half a second.
+        let (p, v) = j.state_at(ms(250)).unwrap();
+        assert!(
+            (p - (10.0 + 1.125 + 25.0 * 0.1)).abs() < 1e-9 && (v - 25.0).abs() < 1e-9,
+            "{p} {v}"
+        );
         assert_eq!(
-            j.state_at(ms(151)),
-            Some((10.0, 20.0)),
-            "beyond 50 ms, as reported"
+            j.state_at(ms(700)),
+            j.state_at(ms(600)),
+            "not beyond half a second"
         );
         // Braking at 1,000: at rest after 20 ms, 0.2 further on.
         j.motion_at = Some((ms(100), -1000.0));

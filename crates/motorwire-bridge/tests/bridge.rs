@@ -1704,3 +1704,161 @@ fn sequential_with_a_total_duration_is_refused() {
             .starts_with("sync_mode sequential runs the axes one after another")
     );
 }
+
+/// Found by a hostile test: a compact device's emergency stop is
+/// acknowledged only by a record that shows the device stopped (`enabled`
+/// clear). Its stop frame lost on the bus, the device's next periodic
+/// record (still driving) acknowledged it, the stop was reported `acked`
+/// and the gripper ran on to its target; now the stop is sent again until
+/// a record says the device holds still.
+#[test]
+fn a_compact_stop_is_acknowledged_only_by_a_record_that_shows_it() {
+    use motorwire_can::{CanId, Frame};
+    use motorwire_compact::{FeedbackRecord, MotorHash, StatusFlag, StatusFlags};
+    let map = BusMap::from_toml(
+        r#"
+[motors.gripper_axis]
+dialect = "compact"
+node = 0x20
+limits = { min_position = 0, max_position = 90, max_velocity = 60, max_torque = 5 }
+"#,
+    )
+    .unwrap();
+    let config = BridgeConfig {
+        activate_on_start: false,
+        ..BridgeConfig::default()
+    };
+    let mut bridge = Bridge::new(map, config).unwrap();
+    let ms = Duration::from_millis;
+    bridge.start(Duration::ZERO);
+    let record = |enabled: bool| {
+        let r = FeedbackRecord {
+            motor: MotorHash::of("gripper_axis"),
+            timestamp_us: 0,
+            position: 30.0,
+            velocity: if enabled { 60.0 } else { 0.0 },
+            acceleration: 0.0,
+            torque: 0.0,
+            current: 0.0,
+            voltage: 24.0,
+            temperature: 30.0,
+            status: StatusFlags::EMPTY.set(StatusFlag::Enabled, enabled),
+            health: 100,
+        };
+        Frame::fd(CanId::standard(0x420).unwrap(), &r.encode().unwrap()).unwrap()
+    };
+    bridge.handle_line(ms(1), Origin(1), r#"{"emergency_stop":true}"#);
+    // Runs the bridge at `t`: how many frames it sent.
+    let drain = |b: &mut Bridge, t: u64| {
+        b.handle_timeout(ms(t));
+        let mut sent = 0;
+        while b.poll_transmit().is_some() {
+            sent += 1;
+        }
+        b.flushed(ms(t));
+        sent
+    };
+    let mut stops = 0;
+    stops += drain(&mut bridge, 1);
+    // A record the device sent before the (lost) stop reached it.
+    bridge.handle_frame(ms(20), &record(true));
+    stops += drain(&mut bridge, 20);
+    let results = |b: &mut Bridge| -> Vec<Value> {
+        std::iter::from_fn(|| b.poll_output())
+            .filter(|o| o.result().is_some())
+            .map(|o| o.to_value())
+            .collect()
+    };
+    assert_eq!(
+        results(&mut bridge),
+        Vec::<Value>::new(),
+        "not acked by a driving record"
+    );
+    // Its time-out: sent again; then a record that shows it stopped.
+    stops += drain(&mut bridge, 150);
+    assert_eq!(stops, 2, "sent again");
+    bridge.handle_frame(ms(160), &record(false));
+    drain(&mut bridge, 160);
+    let r = results(&mut bridge);
+    assert_eq!(r[0]["ok"], true, "{r:?}");
+    assert_eq!(r[0]["acked"], serde_json::json!(["gripper_axis"]), "{r:?}");
+}
+
+/// Found by a hostile test: a move sent again by the client's retries (its
+/// first sending unanswered: lost, or its Ack lost) goes now, and is held
+/// to the limits from where the joint is now. Sent with the elbow at 100
+/// moving 100 deg/s toward 150 (braking at 400 it stops by 112.5), its
+/// answer lost; at its resend the elbow is at 142 still moving 100 deg/s
+/// (it would stop past 150): withdrawn, never sent again, its outcome
+/// unknown, saying why.
+#[test]
+fn a_move_sent_again_is_held_to_the_limits_from_where_the_joint_is_then() {
+    use motorwire_can::{CanId, Frame};
+    use motorwire_irpc::{EncoderTelemetry, Header, Message, WireVersion};
+    let config = BridgeConfig {
+        activate_on_start: false,
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    let mut bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
+    bridge.start(Duration::ZERO);
+    let ms = Duration::from_millis;
+    let mut msg_id = 0;
+    let mut encoder = |b: &mut Bridge, t: u64, position: f32, velocity: f32| {
+        msg_id += 1;
+        let m = Message {
+            header: Header {
+                source_id: ELBOW,
+                target_id: 0,
+                msg_id,
+            },
+            payload: Payload::Encoder(EncoderTelemetry { position, velocity }),
+        };
+        let mut buf = [0u8; 64];
+        let n = m.encode_frame(WireVersion::V2_0, &mut buf).unwrap();
+        b.handle_frame(
+            ms(t),
+            &Frame::fd(CanId::standard(ELBOW).unwrap(), &buf[..n]).unwrap(),
+        );
+    };
+    encoder(&mut bridge, 0, 99.0, 100.0);
+    encoder(&mut bridge, 10, 100.0, 100.0);
+    bridge.handle_line(ms(10), Origin(1), &command("elbow", 105.0));
+    let mut moves = 0;
+    let mut run = |b: &mut Bridge, t: u64| {
+        b.handle_timeout(ms(t));
+        while let Some(f) = b.poll_transmit() {
+            let m = Message::decode_frame(WireVersion::V2_0, f.data()).unwrap();
+            if matches!(m.payload, Payload::SetTargetV2(_)) {
+                moves += 1;
+            }
+        }
+        b.flushed(ms(t));
+    };
+    run(&mut bridge, 10);
+    // No answer; the elbow reports it goes on at 100 deg/s.
+    for t in (20..=110).step_by(10) {
+        #[allow(clippy::cast_precision_loss)]
+        encoder(&mut bridge, t, 100.0 + (t - 10) as f32 * 0.42, 100.0);
+        run(&mut bridge, t);
+    }
+    assert_eq!(moves, 1, "sent once, not again");
+    let out: Vec<Value> = std::iter::from_fn(|| bridge.poll_output())
+        .map(|o| o.to_value())
+        .collect();
+    let r = out
+        .iter()
+        .find(|v| v.get("ok").is_some() && v["line"] == 1)
+        .unwrap_or_else(|| panic!("{out:?}"));
+    assert_eq!(r["ok"], false, "{r}");
+    assert_eq!(r["outcomes"][0]["outcome"], "outcome_unknown", "{r}");
+    let why = r["outcomes"][0]["message"].as_str().unwrap();
+    assert!(
+        why.starts_with(
+            "sent once and not answered; not sent again: from where it was when its turn came ("
+        ) && why.contains("past max_position (bus map) 150")
+            && why.ends_with("the joint may or may not have taken its first sending"),
+        "{why}"
+    );
+    assert_eq!(bridge.stats().refused_at_send, 1);
+}

@@ -331,6 +331,21 @@ fn four_clients_bursts_stops_and_faults_keep_every_invariant() {
         stats.dropped > 0 && stats.duplicated > 0 && stats.reordered > 0,
         "{stats:?}"
     );
+    // A device that stopped itself under the faults (a moteus controller
+    // whose watchdog ran out while its stop frame was lost, say) is
+    // brought back by a reset line, as a controller must do.
+    let faulted: Vec<String> = arm
+        .bridge()
+        .state()
+        .motors
+        .into_iter()
+        .filter(|m| m.fault.is_some())
+        .map(|m| m.motor_id)
+        .collect();
+    for motor in &faulted {
+        arm.line(Origin(9), &format!(r#"{{"reset":"{motor}"}}"#));
+    }
+    arm.run_until(arm.now() + Duration::from_secs(1)).unwrap();
     // Invariant 5: one last move per motor, then at rest on its target.
     let last = [12.5, -7.5, 33.0, 20.0, 15.0, -25.0];
     for (m, (motor, ..)) in EVERY_DIALECT.iter().enumerate() {

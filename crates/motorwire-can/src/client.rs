@@ -401,6 +401,17 @@ impl Client {
         self.wires.get(&node).copied().unwrap_or(self.config.wire)
     }
 
+    /// Whether request `msg_id` is due to be sent again at `now` (its
+    /// answer is late and it has retries left): a caller that must judge
+    /// each sending afresh (a move whose path depends on where the joint
+    /// is when it goes) asks before [`Client::handle_timeout`] resends it,
+    /// and [`Client::cancel`]s it rather than let it go.
+    pub fn resend_due(&self, msg_id: u32, now: Duration) -> bool {
+        self.pending
+            .get(&msg_id)
+            .is_some_and(|p| p.attempts.resend_due(now))
+    }
+
     /// Forgets the request `msg_id`: it is never sent again and completes
     /// with no event (a late answer to it is a [`Event::StrayReply`]).
     /// Returns whether it was in flight. An emergency stop cancels what it

@@ -67,6 +67,14 @@ impl Attempts {
         self.deadline
     }
 
+    /// Whether at `now` it is due to be sent again (not waiting, and not
+    /// to be given up): what [`Attempts::expire`] would answer `Resend`
+    /// to, without counting it.
+    #[must_use]
+    pub const fn resend_due(&self, now: Duration) -> bool {
+        now.as_nanos() >= self.deadline.as_nanos() && self.sent <= self.retries
+    }
+
     /// What to do with it at `now`: wait, send it again (when it has
     /// retries left and `may_resend`: a driver gives up early a request
     /// it has no reason to repeat), or give it up.

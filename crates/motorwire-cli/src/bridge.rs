@@ -453,6 +453,14 @@ fn bridge(args: &Args) -> Result<u8, String> {
             args.client_queue
         ));
     }
+    // Files are opened before the first connection is taken: clients that
+    // use up the descriptors the moment the bridge listens (a flood, or a
+    // low `ulimit -n`) cannot then keep it from starting (it exited: `--sim-log
+    // ...: Too many open files`).
+    let sim_log = match (&args.sim_log, args.bus.as_str()) {
+        (Some(path), "sim") => Some(execution_log(path)?),
+        _ => None,
+    };
     let router = crate::serve::Router::new(input.clone(), listen != crate::serve::Listen::Stdin);
     let socket_path = router.serve(
         &listen,
@@ -475,11 +483,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
     };
     let result = match args.bus.as_str() {
         "sim" => {
-            let log = match &args.sim_log {
-                Some(path) => Some(execution_log(path)?),
-                None => None,
-            };
-            let arm = RealTimeArm::start_with(bridge.map(), sim_config, log)
+            let arm = RealTimeArm::start_with(bridge.map(), sim_config, sim_log)
                 .map_err(|e| e.to_string())?;
             // The sending half never receives: nothing queues for it.
             let (tx, rx) = (arm.sender(), arm.port());

@@ -45,6 +45,12 @@ pub(crate) fn feedback_record(
     }
 }
 
+/// Whether `frame` is a compact command with the EMERGENCY_STOP flag.
+pub(crate) fn is_stop(frame: &Frame) -> bool {
+    CompactCommand::decode(frame.data())
+        .is_ok_and(|c| c.flags.contains(motorwire_compact::Flags::EMERGENCY_STOP))
+}
+
 /// A device's feedback record as WIA MotorFeedback (positions in the
 /// motor's own unit, as the device reports them).
 pub(crate) fn feedback_to_wia(motor: &str, timestamp: f64, r: &FeedbackRecord) -> MotorFeedback {

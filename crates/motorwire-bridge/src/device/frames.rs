@@ -73,6 +73,11 @@ impl FrameRequests {
 
     /// An answer came from `device` at `now`: the request it waited for,
     /// if any, is acknowledged.
+    /// The frame of `device`'s request in flight, if one is.
+    pub(crate) fn in_flight(&self, device: usize) -> Option<&Frame> {
+        self.pending.get(&device).map(|p| &p.frame)
+    }
+
     pub(crate) fn acknowledged(&mut self, device: usize, now: Duration) -> Option<Ended> {
         self.pending.remove(&device).map(|p| Ended {
             msg_id: p.msg_id,

@@ -102,6 +102,11 @@ impl IrpcDriver {
         Ok(msg_id)
     }
 
+    /// Whether request `msg_id` is due to be sent again at `now`.
+    pub(crate) fn resend_due(&self, msg_id: u32, now: Duration) -> bool {
+        self.client.resend_due(msg_id, now)
+    }
+
     /// Request `msg_id` is given up: never sent again, its answer not
     /// awaited.
     pub(crate) fn forget(&mut self, msg_id: u32) {

@@ -934,6 +934,10 @@ enum Queued {
     CompactAck {
         device: usize,
         at: Duration,
+        /// The record says the device is not driving (`enabled` clear):
+        /// only such a record acknowledges an emergency stop (a record the
+        /// device sent before the stop reached it says nothing of it).
+        stopped: bool,
     },
     /// A moteus controller's reply acknowledges its command in flight,
     /// once the engine has taken the reply.
@@ -1296,6 +1300,9 @@ impl Drivers {
                         self.queued.push_back(Queued::CompactAck {
                             device: ji,
                             at: now,
+                            stopped: !record
+                                .status
+                                .contains(motorwire_compact::StatusFlag::Enabled),
                         });
                     }
                 }
@@ -1311,6 +1318,16 @@ impl Drivers {
     /// Resends and time-outs of the iRPC client's requests due at `now`.
     pub(crate) fn handle_timeout(&mut self, now: Duration) {
         self.irpc.handle_timeout(now);
+    }
+
+    /// Whether `order`, in flight as request `msg_id`, is due to be sent
+    /// again at `now` by its driver's retries (the iRPC client's: the
+    /// orders whose path the engine holds to the limits when they go).
+    pub(crate) fn resend_due(&self, msg_id: u32, order: &Order, now: Duration) -> bool {
+        match order {
+            Order::Irpc(_) => self.irpc.resend_due(msg_id, now),
+            Order::Compact(_) | Order::Orion(_) | Order::Moteus(_) => false,
+        }
     }
 
     /// Resends and time-outs of the compact commands due at `now` (after
@@ -1458,7 +1475,16 @@ impl Drivers {
                     self.orion.end_recovery();
                     self.orion_heard(at, devices);
                 }
-                Some(Queued::CompactAck { device, at }) => {
+                Some(Queued::CompactAck {
+                    device,
+                    at,
+                    stopped,
+                }) => {
+                    // An emergency stop in flight waits for a record that
+                    // shows it (sent again at its time-out otherwise).
+                    if !stopped && self.compact.in_flight(device).is_some_and(compact::is_stop) {
+                        continue;
+                    }
                     if let Some(ended) = self.compact.acknowledged(device, at) {
                         return Some(Happened::Ended { device, ended });
                     }
