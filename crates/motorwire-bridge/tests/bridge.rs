@@ -1561,16 +1561,7 @@ fn a_move_is_held_to_the_limits_from_where_the_joint_is_when_it_is_sent() {
             && why.contains("past max_position (bus map) 150"),
         "{why}"
     );
-    let targets: Vec<f32> = arm
-        .joint(ELBOW)
-        .unwrap()
-        .log()
-        .iter()
-        .filter_map(|e| match e.payload {
-            Payload::SetTargetV2(p) => Some(p.target_angle),
-            _ => None,
-        })
-        .collect();
+    let targets = targets_taken(&arm, ELBOW);
     assert_eq!(targets, [140.0], "only the first move reached the elbow");
     assert_eq!(arm.bridge().stats().refused_at_send, 1);
 }
@@ -1615,16 +1606,7 @@ fn a_scheduled_trajectory_does_not_hold_its_joint_until_it_starts() {
         to_30["arrived"], true,
         "it got to 30 before the trajectory's start: {to_30}"
     );
-    let targets: Vec<f32> = arm
-        .joint(ELBOW)
-        .unwrap()
-        .log()
-        .iter()
-        .filter_map(|e| match e.payload {
-            Payload::SetTargetV2(p) => Some(p.target_angle),
-            _ => None,
-        })
-        .collect();
+    let targets = targets_taken(&arm, ELBOW);
     // The command's move, then the trajectory's first segment at its time.
     assert_eq!(targets, [30.0, 60.0], "{targets:?}");
 }
@@ -1861,4 +1843,17 @@ fn a_move_sent_again_is_held_to_the_limits_from_where_the_joint_is_then() {
         "{why}"
     );
     assert_eq!(bridge.stats().refused_at_send, 1);
+}
+
+/// The targets of the `SetTargetV2`s joint `node` received, in order.
+fn targets_taken(arm: &SimulatedArm, node: u16) -> Vec<f32> {
+    arm.joint(node)
+        .unwrap()
+        .log()
+        .iter()
+        .filter_map(|e| match e.payload {
+            Payload::SetTargetV2(p) => Some(p.target_angle),
+            _ => None,
+        })
+        .collect()
 }
