@@ -2378,13 +2378,18 @@ impl Bridge {
         // sequence takes its device when its turn comes:
         // `Self::sequence_progress`); `replaces`, a position move or a
         // stream's setpoint.
-        let steps: Vec<(usize, StepRef, Option<bool>)> = axes
+        let steps: Vec<(usize, StepRef, Option<(bool, bool)>)> = axes
             .iter()
             .enumerate()
             .map(|(axis, a)| {
                 let replaces = a.is_position_move() || (stream && a.is_setpoint());
                 let motion = a.payloads.front().is_some_and(Order::is_setpoint);
-                let takes = (a.after.is_none() && (replaces || motion)).then_some(replaces);
+                // A trajectory's steps are timed: it replaces a waiting
+                // sequential axis, and otherwise queues behind what is
+                // there (one running, one scheduled), as it always did.
+                let timed = !a.due.is_empty();
+                let takes =
+                    (a.after.is_none() && (replaces || motion)).then_some((replaces, timed));
                 (a.joint, StepRef { job: id, axis }, takes)
             })
             .collect();
@@ -2409,8 +2414,8 @@ impl Bridge {
         );
         for &(ji, step, takes) in &steps {
             let scheduled = match takes {
-                Some(replaces) if kind == JobKind::Command => {
-                    self.supersede(ji, stream, replaces, None)
+                Some((replaces, timed)) if kind == JobKind::Command => {
+                    self.supersede(ji, stream, replaces, timed, None)
                 }
                 _ => None,
             };
@@ -2430,7 +2435,8 @@ impl Bridge {
     }
 
     /// A newer motion step for device `ji` (a position move or a stream's
-    /// setpoint: `replaces`), other than `except`, is about to go: what
+    /// setpoint: `replaces`; a trajectory's timed step: `timed`), other
+    /// than `except`, is about to go: what
     /// waits for the device and would run before it is replaced. A
     /// position move waiting is replaced by a newer position move; any
     /// setpoint by a stream's (`stream`); an axis of a sequential line
@@ -2447,6 +2453,7 @@ impl Bridge {
         ji: usize,
         stream: bool,
         replaces: bool,
+        timed: bool,
         except: Option<StepRef>,
     ) -> Option<StepRef> {
         let joint = self.joints.get_mut(ji)?;
@@ -2483,6 +2490,10 @@ impl Bridge {
             }
         }
         joint.queue = keep;
+        // A trajectory (`timed`) waits its turn behind what holds the device.
+        if timed {
+            return None;
+        }
         let running = joint.busy?;
         let a = self
             .jobs
@@ -2808,7 +2819,7 @@ impl Bridge {
         for (ji, step, replaces) in freed {
             // Its turn: it takes its device now, as a line's step that
             // goes at once does when it is queued.
-            if let Some(scheduled) = self.supersede(ji, false, replaces, Some(step))
+            if let Some(scheduled) = self.supersede(ji, false, replaces, false, Some(step))
                 && let Some(j) = self.joints.get_mut(ji)
             {
                 j.queue.push_back(scheduled);

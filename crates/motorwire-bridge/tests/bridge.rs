@@ -1857,3 +1857,27 @@ fn targets_taken(arm: &SimulatedArm, node: u16) -> Vec<f32> {
         })
         .collect()
 }
+
+/// Found by a review of the change: a trajectory line queues behind a
+/// trajectory already scheduled on the joint, as it always did (taking the
+/// scheduled one off the joint is for a step that goes at once): two
+/// scheduled trajectories run in the order of their times.
+#[test]
+fn scheduled_trajectories_run_in_their_order() {
+    const EPOCH: f64 = 1_767_225_600_000.0;
+    let config = BridgeConfig {
+        epoch_unix_ms: Some(EPOCH),
+        ..BridgeConfig::default()
+    };
+    let mut arm = started(BusMap::from_toml(MAP).unwrap(), config);
+    let t0 = EPOCH + arm.now().as_secs_f64() * 1000.0;
+    let trajectory = |to: f64, start: f64| {
+        format!(
+            r#"{{"trajectory_id":"t{to}","motor_id":"elbow","waypoints":[{{"position":0,"velocity":0,"time":0}},{{"position":{to},"velocity":0,"time":1.5}}],"timing":{{"start_time":{start}}}}}"#
+        )
+    };
+    arm.line(Origin(1), &trajectory(40.0, t0 + 300.0));
+    arm.line(Origin(1), &trajectory(60.0, t0 + 3000.0));
+    run_for(&mut arm, 5000);
+    assert_eq!(targets_taken(&arm, ELBOW), [40.0, 60.0]);
+}
