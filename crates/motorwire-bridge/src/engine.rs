@@ -2378,7 +2378,7 @@ impl Bridge {
         // sequence takes its device when its turn comes:
         // `Self::sequence_progress`); `replaces`, a position move or a
         // stream's setpoint.
-        let steps: Vec<(usize, StepRef, Option<(bool, bool)>)> = axes
+        let steps: Vec<(usize, StepRef, Option<Takes>)> = axes
             .iter()
             .enumerate()
             .map(|(axis, a)| {
@@ -2388,8 +2388,8 @@ impl Bridge {
                 // sequential axis, and otherwise queues behind what is
                 // there (one running, one scheduled), as it always did.
                 let timed = !a.due.is_empty();
-                let takes =
-                    (a.after.is_none() && (replaces || motion)).then_some((replaces, timed));
+                let takes = (a.after.is_none() && (replaces || motion))
+                    .then_some(Takes { replaces, timed });
                 (a.joint, StepRef { job: id, axis }, takes)
             })
             .collect();
@@ -2414,7 +2414,7 @@ impl Bridge {
         );
         for &(ji, step, takes) in &steps {
             let scheduled = match takes {
-                Some((replaces, timed)) if kind == JobKind::Command => {
+                Some(Takes { replaces, timed }) if kind == JobKind::Command => {
                     self.supersede(ji, stream, replaces, timed, None)
                 }
                 _ => None,
@@ -4398,6 +4398,15 @@ impl Bridge {
             Timer::Settle => self.settle_until.filter(|_| self.phase == Phase::Starting),
         }
     }
+}
+
+/// What a newer motion step takes over on its device when it is queued
+/// (`Bridge::supersede`): `replaces`, a position move or a stream's
+/// setpoint; `timed`, a trajectory's step.
+#[derive(Debug, Clone, Copy)]
+struct Takes {
+    replaces: bool,
+    timed: bool,
 }
 
 /// The error of a job whose parts did not all succeed: the gravest first
