@@ -2610,11 +2610,11 @@ impl Bridge {
             let Some(step) = self.joints.get(ji).and_then(|j| j.busy) else {
                 continue;
             };
-            let Some(AxisState::InFlight { msg_id, payload }) = self
+            let Some(&AxisState::InFlight { msg_id, payload }) = self
                 .jobs
                 .get(&step.job)
                 .and_then(|job| job.axes.get(step.axis))
-                .map(|a| a.state.clone())
+                .map(|a| &a.state)
             else {
                 continue;
             };

@@ -1572,13 +1572,7 @@ fn a_move_is_held_to_the_limits_from_where_the_joint_is_when_it_is_sent() {
 /// forever); the trajectory still starts at its time, replacing that move.
 #[test]
 fn a_scheduled_trajectory_does_not_hold_its_joint_until_it_starts() {
-    const EPOCH: f64 = 1_767_225_600_000.0;
-    let config = BridgeConfig {
-        epoch_unix_ms: Some(EPOCH),
-        ..BridgeConfig::default()
-    };
-    let mut arm = started(BusMap::from_toml(MAP).unwrap(), config);
-    let t0 = EPOCH + arm.now().as_secs_f64() * 1000.0;
+    let (mut arm, t0) = with_wall_clock();
     arm.line(
         Origin(1),
         &format!(
@@ -1864,13 +1858,7 @@ fn targets_taken(arm: &SimulatedArm, node: u16) -> Vec<f32> {
 /// scheduled trajectories run in the order of their times.
 #[test]
 fn scheduled_trajectories_run_in_their_order() {
-    const EPOCH: f64 = 1_767_225_600_000.0;
-    let config = BridgeConfig {
-        epoch_unix_ms: Some(EPOCH),
-        ..BridgeConfig::default()
-    };
-    let mut arm = started(BusMap::from_toml(MAP).unwrap(), config);
-    let t0 = EPOCH + arm.now().as_secs_f64() * 1000.0;
+    let (mut arm, t0) = with_wall_clock();
     let trajectory = |to: f64, start: f64| {
         format!(
             r#"{{"trajectory_id":"t{to}","motor_id":"elbow","waypoints":[{{"position":0,"velocity":0,"time":0}},{{"position":{to},"velocity":0,"time":1.5}}],"timing":{{"start_time":{start}}}}}"#
@@ -1880,4 +1868,17 @@ fn scheduled_trajectories_run_in_their_order() {
     arm.line(Origin(1), &trajectory(60.0, t0 + 3000.0));
     run_for(&mut arm, 5000);
     assert_eq!(targets_taken(&arm, ELBOW), [40.0, 60.0]);
+}
+
+/// The demo arm, ready, its bridge with a wall clock: and the Unix ms it
+/// reads now (for `start_time` and timestamps).
+fn with_wall_clock() -> (SimulatedArm, f64) {
+    const EPOCH: f64 = 1_767_225_600_000.0;
+    let config = BridgeConfig {
+        epoch_unix_ms: Some(EPOCH),
+        ..BridgeConfig::default()
+    };
+    let arm = started(BusMap::from_toml(MAP).unwrap(), config);
+    let t0 = EPOCH + arm.now().as_secs_f64() * 1000.0;
+    (arm, t0)
 }
