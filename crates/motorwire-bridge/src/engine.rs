@@ -1916,8 +1916,12 @@ impl Bridge {
             let state = |m: &str| {
                 let j = self.joints.get(self.joint_index(m)?)?;
                 match j.state_at(self.now) {
-                    Some((p, v)) => Some((j.unit.from_degrees(p), j.unit.from_degrees(v))),
-                    None => j.feedback.as_ref().map(|f| (f.position, 0.0)),
+                    Some((p, v, a)) => Some((
+                        j.unit.from_degrees(p),
+                        j.unit.from_degrees(v),
+                        j.unit.from_degrees(a),
+                    )),
+                    None => j.feedback.as_ref().map(|f| (f.position, 0.0, 0.0)),
                 }
             };
             let t = multi_axis_to_irpc_from(&self.map, &sub, &state)
@@ -1964,8 +1968,8 @@ impl Bridge {
         Ok((axes, report))
     }
 
-    /// A move's whole planned path, from the joint's last reported
-    /// position and velocity (as the joint will plan it), stays within the
+    /// A move's whole planned path, from where the joint is now, how fast
+    /// it moves and how that changes (as the joint will plan it), stays within the
     /// limits (issue: a joint moving fast toward a limit overshoots a target
     /// inside it). Without a report yet there is nothing to plan from: the
     /// joint's own check stands.
@@ -1978,24 +1982,27 @@ impl Bridge {
         // Where it is now (reckoned from its reports, or read from the
         // move it makes as the bridge planned it).
         let now = self.now;
-        let Some((position, velocity)) = self.joints.get(joint).and_then(|j| j.state_at(now))
-        else {
+        let Some(from) = self.joints.get(joint).and_then(|j| j.state_at(now)) else {
             return Ok(());
         };
         let (motor, limits) = motorwire_translate::gate(&self.map, cmd)?;
         let mut planned = None;
         for p in payloads {
             if let Payload::SetTargetV2(p) = p {
-                let path = motorwire_translate::check_path(
+                let unit = motor.unit;
+                let path = motorwire_translate::check_path_from(
                     motor,
                     &limits,
                     p,
-                    motor.unit.from_degrees(position),
-                    motor.unit.from_degrees(velocity),
+                    (
+                        unit.from_degrees(from.0),
+                        unit.from_degrees(from.1),
+                        unit.from_degrees(from.2),
+                    ),
                 )?;
                 planned = Duration::try_from_secs_f64(path.duration)
                     .ok()
-                    .map(|d| (((position, velocity), *p, d), path.profile));
+                    .map(|d| ((from, *p, d), path.profile));
             }
         }
         if let Some(j) = self.joints.get_mut(joint) {
@@ -3080,7 +3087,7 @@ impl Bridge {
         let sent_from = j.sending.map(|(_, from)| from);
         let cx = Context {
             at,
-            motion: sent_from.or(j.motion),
+            motion: sent_from.or(j.motion.map(|(p, v)| (p, v, 0.0))),
             unit,
             max_velocity: motor.and_then(|m| m.limits.max_velocity.map(|v| unit.to_degrees(v))),
             max_acceleration: motor

@@ -19,6 +19,11 @@ pub(crate) struct StepRef {
     pub(crate) axis: usize,
 }
 
+/// Where a device is and how it moves: position, velocity and
+/// acceleration (degrees, a second, a second squared). A jerk-limited iRPC
+/// joint plans a new move from all three.
+pub(crate) type Kinematics = (f64, f64, f64);
+
 /// A part sent and never answered: the joint may have executed it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Unresolved {
@@ -57,7 +62,7 @@ pub(crate) struct Joint {
     /// agree with it ([`Joint::state_at`]).
     pub(crate) model: Option<(Duration, Box<Profile<f64>>)>,
     /// The move being sent: when, and the state it starts from.
-    pub(crate) sending: Option<(Duration, (f64, f64))>,
+    pub(crate) sending: Option<(Duration, Kinematics)>,
     /// The line whose move or setpoint the device last took (`None`: the
     /// bridge's own, a stop): a line watched on it whose move came before
     /// will not arrive.
@@ -81,11 +86,11 @@ pub(crate) struct Joint {
     pub(crate) resetting: bool,
     /// Its busy step (a trajectory's) sends its next payload then.
     pub(crate) wake: Option<Duration>,
-    /// The last move the gate planned for it: from (position, velocity)
-    /// in degrees, the payload, and how long the joint's plan takes. When
+    /// The last move the gate planned for it: from its kinematics, the
+    /// payload, and how long the joint's plan takes. When
     /// its Ack comes from the same state, its arrival time is this plan's
     /// (the same inputs make the same plan), not a second planning.
-    pub(crate) planned: Option<((f64, f64), motorwire_irpc::SetTargetPayloadV2, Duration)>,
+    pub(crate) planned: Option<(Kinematics, motorwire_irpc::SetTargetPayloadV2, Duration)>,
     /// That move's profile (the bridge's model of it once it is acked).
     pub(crate) planned_profile: Option<Box<Profile<f64>>>,
     /// When that move's path was checked.
@@ -101,29 +106,38 @@ const MODEL_AGREES: (f64, f64) = (0.01, 0.5);
 const RECKONED_AT_MOST: Duration = Duration::from_millis(50);
 
 impl Joint {
-    /// Its position and velocity at `now` (degrees), reckoned from its last
-    /// report and the acceleration then (a device reports every few
+    /// Its position, velocity and acceleration at `now` (degrees),
+    /// read from the bridge's model of its move, else reckoned from its
+    /// last report and the acceleration then, with the acceleration taken
+    /// as zero (as before a model existed; a device reports every few
     /// milliseconds; a move planned now must start from where it is, not
     /// where it was). A velocity that would change sign is taken to stop.
-    pub(crate) fn state_at(&self, now: Duration) -> Option<(f64, f64)> {
+    pub(crate) fn state_at(&self, now: Duration) -> Option<Kinematics> {
         if let Some((start, profile)) = &self.model {
             let t = now.saturating_sub(*start).as_secs_f64();
             if t <= profile.duration() {
                 let s = profile.sample(t);
-                return Some((s.position, s.velocity));
+                // As the device plans from it: a jerk-limited move's
+                // acceleration carries on; a trapezoidal one's steps.
+                let a = if profile.is_jerk_limited() {
+                    s.acceleration
+                } else {
+                    0.0
+                };
+                return Some((s.position, s.velocity, a));
             }
             let end = profile.end_state();
             if end.velocity == 0.0 {
-                return Some((end.position, 0.0));
+                return Some((end.position, 0.0, 0.0));
             }
         }
         let (p, v) = self.motion?;
         let Some((at, a)) = self.motion_at else {
-            return Some((p, v));
+            return Some((p, v, 0.0));
         };
         let dt = now.saturating_sub(at);
         if a == 0.0 && v == 0.0 {
-            return Some((p, v));
+            return Some((p, v, 0.0));
         }
         if dt > RECKONED_AT_MOST {
             // Reports missing (dropped, late): carried forward as far as
@@ -139,15 +153,19 @@ impl Joint {
             let rest = dt
                 .min(Duration::from_millis(500))
                 .saturating_sub(RECKONED_AT_MOST);
-            return Some((p1 + v1 * rest.as_secs_f64(), v1));
+            return Some((p1 + v1 * rest.as_secs_f64(), v1, 0.0));
         }
         let mut t = dt.as_secs_f64();
         if a != 0.0 && (v + a * t) * v < 0.0 {
             // It comes to rest on the way.
             t = -v / a;
-            return Some((p + v * t + 0.5 * a * t * t, 0.0));
+            return Some((p + v * t + 0.5 * a * t * t, 0.0, 0.0));
         }
-        Some((p + v * t + 0.5 * a * t * t, v + a * t))
+        // The acceleration reckoned from two reports is carried into the
+        // position and velocity, not passed on: it is an average over their
+        // interval, and under late or reordered reports no more than a
+        // guess, which a plan from it would turn into a path it is not.
+        Some((p + v * t + 0.5 * a * t * t, v + a * t, 0.0))
     }
 
     /// A report of `position` and `velocity` at `at`: the model stands
@@ -226,14 +244,14 @@ mod tests {
         j.motion = Some((10.0, 20.0));
         j.motion_at = Some((ms(100), 100.0));
         // 10 ms on: 10 + 20 * 0.01 + 100 * 0.01² / 2, 20 + 100 * 0.01.
-        let (p, v) = j.state_at(ms(110)).unwrap();
+        let (p, v, _) = j.state_at(ms(110)).unwrap();
         assert!(
             (p - 10.205).abs() < 1e-12 && (v - 21.0).abs() < 1e-12,
             "{p} {v}"
         );
         // Beyond 50 ms (reports missing): reckoned to 50 ms, then at that
         // velocity (25), up to half a second.
-        let (p, v) = j.state_at(ms(250)).unwrap();
+        let (p, v, _) = j.state_at(ms(250)).unwrap();
         assert!(
             (p - (10.0 + 1.125 + 25.0 * 0.1)).abs() < 1e-9 && (v - 25.0).abs() < 1e-9,
             "{p} {v}"
@@ -245,7 +263,7 @@ mod tests {
         );
         // Braking at 1,000: at rest after 20 ms, 0.2 further on.
         j.motion_at = Some((ms(100), -1000.0));
-        let (p, v) = j.state_at(ms(140)).unwrap();
+        let (p, v, _) = j.state_at(ms(140)).unwrap();
         assert!((p - 10.2).abs() < 1e-12 && v == 0.0, "{p} {v}");
         // A model of its move: read from it, until a report disagrees.
         let plan = motorwire_planner::plan(
@@ -255,11 +273,11 @@ mod tests {
         .unwrap();
         let at = plan.sample(0.3);
         j.model = Some((ms(1000), Box::new(plan)));
-        let (p, v) = j.state_at(ms(1300)).unwrap();
+        let (p, v, _) = j.state_at(ms(1300)).unwrap();
         assert!((p - at.position).abs() < 1e-9 && (v - at.velocity).abs() < 1e-9);
         assert_eq!(
             j.state_at(ms(10_000)),
-            Some((90.0, 0.0)),
+            Some((90.0, 0.0, 0.0)),
             "at rest at its end"
         );
         j.check_model(ms(1300), at.position + 0.001, at.velocity);

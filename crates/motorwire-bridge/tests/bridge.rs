@@ -1041,6 +1041,52 @@ fn a_stream_of_setpoints_is_answered_line_by_line() {
     assert!((gripper - grip(1.99)).abs() < 0.5, "{gripper}");
 }
 
+/// A 100 Hz stream replans the joint at every setpoint from where it is,
+/// how fast it moves and how its speed changes: its acceleration never
+/// steps at a switch (each millisecond it changes by no more than the
+/// elbow's jerk limit allows, 2,000 deg/s³), it stays within 500 deg/s²,
+/// and the joint follows the sine's shape. (Planned from position and
+/// velocity alone, every switch set the acceleration back to zero: the
+/// joint crept, more than 10 degrees from the sine.)
+#[test]
+fn a_streamed_joint_is_replanned_without_a_step_in_acceleration() {
+    let mut arm = arm(Faults::default(), 0);
+    arm.line(Origin(1), &command("elbow", 60.0));
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    arm.take_outputs();
+    let reference = |t: f64| 60.0 + 20.0 * (std::f64::consts::TAU * 0.5 * t).sin();
+    let start = arm.now();
+    let (mut last, mut steepest, mut largest) = (0.0f64, 0.0f64, 0.0f64);
+    let mut worst_after_lag = 0.0f64;
+    for ms in 0..3000u64 {
+        if ms % 10 == 0 {
+            arm.line(Origin(1), &stream("elbow", reference(ms as f64 / 1000.0)));
+        }
+        let at = start + Duration::from_millis(ms + 1);
+        arm.run_until(at).unwrap();
+        let joint = arm.joint(ELBOW).unwrap();
+        let a = joint.acceleration_at(at);
+        steepest = steepest.max((a - last).abs());
+        largest = largest.max(a.abs());
+        last = a;
+        // Once under way, it follows the sine a fifth of a second behind.
+        if ms >= 1000 {
+            let behind = reference((ms as f64 + 1.0) / 1000.0 - 0.2);
+            worst_after_lag = worst_after_lag.max((joint.position_at(at) - behind).abs());
+        }
+        arm.take_outputs();
+    }
+    assert!(
+        steepest <= 2.0 + 1e-6,
+        "the acceleration stepped by {steepest} in 1 ms"
+    );
+    assert!(largest <= 500.0 + 1e-6, "{largest}");
+    assert!(
+        worst_after_lag < 3.0,
+        "{worst_after_lag} degrees from the sine 200 ms before"
+    );
+}
+
 /// A setpoint replaced by a newer one of the stream before it was sent is
 /// answered ok and `superseded`; a refused setpoint is refused with its
 /// rule; a stream's setpoint ends the watch of an ordinary move on the

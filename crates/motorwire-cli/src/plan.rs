@@ -52,6 +52,8 @@ struct Move {
     start_velocity: f64,
     #[serde(default)]
     target_velocity: f64,
+    #[serde(default)]
+    start_acceleration: f64,
     max_velocity: f64,
     max_acceleration: f64,
     max_deceleration: Option<f64>,
@@ -82,6 +84,7 @@ impl Move {
             target: F::from_f64(self.target),
             start_velocity: F::from_f64(self.start_velocity),
             target_velocity: F::from_f64(self.target_velocity),
+            start_acceleration: F::from_f64(self.start_acceleration),
             max_velocity: F::from_f64(self.max_velocity),
             max_acceleration: F::from_f64(self.max_acceleration),
             max_deceleration: self.max_deceleration.map(F::from_f64),

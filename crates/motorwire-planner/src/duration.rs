@@ -81,6 +81,9 @@ fn model<F: Float>(
 pub fn minimum_duration<F: Float>(req: &Request<F>) -> Result<F, PlanError> {
     let (_, dist, v0, v1) = req.forward_frame();
     let (m, peak) = model(req, dist, v0, v1)?;
+    if req.start_acceleration != F::ZERO && req.wants_scurve() {
+        return crate::plan_scurve(req).map(|p| p.duration());
+    }
     if dist == F::ZERO && v0 == F::ZERO && v1 == F::ZERO {
         return Ok(F::ZERO);
     }
@@ -417,7 +420,9 @@ fn search<F: Float>(
 /// `duration`; [`PlanError::DurationTooShort`] below the minimum;
 /// [`PlanError::DurationBlocked`] inside an infeasible interval;
 /// [`PlanError::OvershootForbidden`] when the profile for that duration
-/// passes the target and the request forbids it.
+/// passes the target and the request forbids it;
+/// [`PlanError::StartAcceleration`] for a jerk-limited request with a
+/// non-zero start acceleration.
 pub fn plan_with_duration<F: Float>(
     req: &Request<F>,
     duration: F,
@@ -427,6 +432,11 @@ pub fn plan_with_duration<F: Float>(
     }
     let (dir, dist, v0, v1) = req.forward_frame();
     let (m, peak) = model(req, dist, v0, v1)?;
+    if req.start_acceleration != F::ZERO && req.wants_scurve() {
+        return Err(PlanError::StartAcceleration {
+            value: req.start_acceleration.to_f64(),
+        });
+    }
     if dist == F::ZERO && v0 == F::ZERO && v1 == F::ZERO {
         // Nothing moves: at rest for as long as asked.
         return Ok(Profile::at_rest(req.target));

@@ -77,6 +77,14 @@ pub enum PlanError {
         /// The axis's index in the request slice.
         axis: usize,
     },
+    /// Exact-duration planning of a jerk-limited move starts from zero
+    /// acceleration; this request starts from another
+    /// ([`Request::start_acceleration`](crate::Request::start_acceleration)).
+    /// [`plan`](crate::plan) plans it from there.
+    StartAcceleration {
+        /// The start acceleration given.
+        value: f64,
+    },
     /// The numbers are finite but so extreme that the profile's durations,
     /// positions or velocities would not be, at some instant (for example a
     /// distance of 1e300 at 1e-300 per second).
@@ -118,6 +126,10 @@ impl fmt::Display for PlanError {
             Self::NotAtRest { axis } => write!(
                 f,
                 "axis {axis} does not start and end at rest; phase synchronization needs rest-to-rest moves"
+            ),
+            Self::StartAcceleration { value } => write!(
+                f,
+                "a jerk-limited move of a given duration starts from zero acceleration, not {value}"
             ),
             Self::Unrepresentable => {
                 f.write_str("the profile's durations or positions are not finite numbers")

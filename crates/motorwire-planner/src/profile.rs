@@ -4,8 +4,10 @@ use core::num::NonZeroU64;
 
 use crate::Float;
 
-/// The most phases a profile has (a jerk-limited profile's seven).
-pub const MAX_PHASES: usize = 7;
+/// The most phases a profile has: a jerk-limited profile's seven, and one
+/// more to bring a start acceleration to zero first
+/// ([`Request::start_acceleration`](crate::Request::start_acceleration)).
+pub const MAX_PHASES: usize = 8;
 
 /// Position, velocity, acceleration and jerk at one instant.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -82,8 +84,8 @@ pub struct Phase<F> {
 /// the phase the time falls in: no accumulated error. At and after the end
 /// it returns the target state exactly.
 ///
-/// The layout is packed so that `Profile<f32>` is at most 128 bytes and
-/// `Profile<f64>` at most 256.
+/// The layout is packed so that `Profile<f32>` is at most 144 bytes and
+/// `Profile<f64>` at most 288.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Profile<F> {
     /// Each phase's own duration, kept exactly (not as end times, whose
@@ -141,6 +143,93 @@ impl<F: Float> Profile<F> {
             acceleration: F::ZERO,
             jerk: F::ZERO,
         }
+    }
+
+    /// Phase `i`'s jerk sign (-1, 0 or 1) and duration, if it exists.
+    pub(crate) fn phase_shape(&self, i: usize) -> Option<(i8, F)> {
+        if i >= usize::from(self.count) {
+            return None;
+        }
+        let sign = match (self.jerk_signs >> (2 * i)) & 0b11 {
+            1 => 1,
+            2 => -1,
+            _ => 0,
+        };
+        self.durations.get(i).map(|d| (sign, *d))
+    }
+
+    /// Appends phase `i` of `other` (same jerk magnitude) as it is: its
+    /// duration and stored start state, not re-integrated. Returns whether
+    /// there was room.
+    pub(crate) fn push_phase_of(&mut self, other: &Self, i: usize) -> bool {
+        let (Some((sign, d)), Some(&p), Some(&v), Some(&a)) = (
+            other.phase_shape(i),
+            other.p.get(i),
+            other.v.get(i),
+            other.a.get(i),
+        ) else {
+            return false;
+        };
+        self.push_phase(d, p, v, a, sign)
+    }
+
+    /// Appends a phase of `duration` from the start state `(p, v, a)` with
+    /// jerk sign `sign`; returns whether there was room (a phase of zero
+    /// duration is dropped, and counts as room).
+    pub(crate) fn push_phase(&mut self, duration: F, p: F, v: F, a: F, sign: i8) -> bool {
+        if duration.partial_cmp(&F::ZERO) != Some(core::cmp::Ordering::Greater) {
+            return true;
+        }
+        let i = usize::from(self.count);
+        let (Some(d_slot), Some(p_slot), Some(v_slot), Some(a_slot)) = (
+            self.durations.get_mut(i),
+            self.p.get_mut(i),
+            self.v.get_mut(i),
+            self.a.get_mut(i),
+        ) else {
+            return false;
+        };
+        *d_slot = duration;
+        *p_slot = p;
+        *v_slot = v;
+        *a_slot = a;
+        let code: u16 = match sign {
+            1 => 1,
+            -1 => 2,
+            _ => 0,
+        };
+        self.jerk_signs |= code << (2 * i);
+        self.count += 1;
+        true
+    }
+
+    /// An empty profile with jerk magnitude `jerk`, ending at `(position,
+    /// velocity)`: phases are appended with [`Self::push_phase`].
+    pub(crate) fn empty(jerk: F, position: F, velocity: F) -> Self {
+        let mut p = Self::at_rest(position);
+        p.jerk = jerk;
+        p.end_velocity = velocity;
+        p
+    }
+
+    /// The jerk magnitude the phases' signs scale.
+    pub(crate) fn jerk_magnitude(&self) -> F {
+        self.jerk
+    }
+
+    /// Whether its jerk is limited (an S-curve): its acceleration is
+    /// continuous, so a motion that replaces it mid-way starts from its
+    /// acceleration ([`Request::start_acceleration`](crate::Request::start_acceleration)).
+    /// A trapezoidal profile's acceleration steps, and so may the next.
+    ///
+    /// ```
+    /// use motorwire_planner::{Request, plan};
+    /// assert!(plan(&Request::new(0.0f64, 90.0, 100.0, 500.0).with_jerk(2000.0))?.is_jerk_limited());
+    /// assert!(!plan(&Request::new(0.0f64, 90.0, 100.0, 500.0))?.is_jerk_limited());
+    /// # Ok::<(), motorwire_planner::PlanError>(())
+    /// ```
+    pub fn is_jerk_limited(&self) -> bool {
+        self.jerk > F::ZERO
     }
 
     fn jerk_of(&self, i: usize) -> F {

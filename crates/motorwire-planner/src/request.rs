@@ -55,6 +55,12 @@ pub struct Request<F> {
     pub start_velocity: F,
     /// Velocity on arrival (default 0); `|target_velocity| <= max_velocity`.
     pub target_velocity: F,
+    /// Acceleration at the start (default 0): the acceleration of the motion
+    /// in progress when this one replaces it. An S-curve continues from it
+    /// (its acceleration does not step, so its jerk stays within
+    /// `max_jerk`); a trapezoidal profile, whose acceleration steps anyway,
+    /// ignores it. See [`with_start_acceleration`](Self::with_start_acceleration).
+    pub start_acceleration: F,
     /// Largest speed, `> 0`.
     pub max_velocity: F,
     /// Largest acceleration while speeding up, `> 0`.
@@ -80,6 +86,7 @@ impl<F: Float> Request<F> {
             target,
             start_velocity: F::ZERO,
             target_velocity: F::ZERO,
+            start_acceleration: F::ZERO,
             max_velocity,
             max_acceleration,
             max_deceleration: None,
@@ -94,6 +101,32 @@ impl<F: Float> Request<F> {
     pub fn with_velocities(mut self, start_velocity: F, target_velocity: F) -> Self {
         self.start_velocity = start_velocity;
         self.target_velocity = target_velocity;
+        self
+    }
+
+    /// Sets the acceleration at the start: a jerk-limited profile then
+    /// continues the motion in progress without a step in acceleration.
+    /// It may exceed the acceleration limits (a motion braked harder than
+    /// this one allows): the profile then brings it within them at
+    /// `max_jerk` first.
+    ///
+    /// ```
+    /// use motorwire_planner::{Request, plan};
+    /// // Mid-move: at 10 deg, 40 deg/s, still speeding up at 300 deg/s²,
+    /// // a new target. The new profile starts where the old one was.
+    /// let req = Request::new(10.0f64, 60.0, 120.0, 500.0)
+    ///     .with_jerk(2000.0)
+    ///     .with_velocities(40.0, 0.0)
+    ///     .with_start_acceleration(300.0);
+    /// let p = plan(&req)?;
+    /// let s = p.sample(0.0);
+    /// assert_eq!((s.position, s.velocity, s.acceleration), (10.0, 40.0, 300.0));
+    /// assert_eq!(p.sample(p.duration()).position, 60.0);
+    /// # Ok::<(), motorwire_planner::PlanError>(())
+    /// ```
+    #[must_use]
+    pub fn with_start_acceleration(mut self, start_acceleration: F) -> Self {
+        self.start_acceleration = start_acceleration;
         self
     }
 
@@ -134,6 +167,7 @@ impl<F: Float> Request<F> {
             ("target", self.target),
             ("start_velocity", self.start_velocity),
             ("target_velocity", self.target_velocity),
+            ("start_acceleration", self.start_acceleration),
             ("max_velocity", self.max_velocity),
             ("max_acceleration", self.max_acceleration),
         ] {
@@ -187,6 +221,7 @@ impl<F: Float> Request<F> {
             && in_range(self.target)
             && in_range(self.start_velocity)
             && in_range(self.target_velocity)
+            && in_range(self.start_acceleration)
             && limit(self.max_velocity)
             && limit(self.max_acceleration)
             && self.max_deceleration.is_none_or(limit)

@@ -591,6 +591,30 @@ impl<F: Float> Model<F> {
 pub fn plan_scurve<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> {
     let (vmax, acc, dec) = req.limits()?;
     let jerk = req.jerk()?;
+    let profile = if req.start_acceleration == F::ZERO {
+        plan_from_rest_acceleration(req, vmax, acc, dec, jerk)?
+    } else {
+        plan_from_acceleration(req, vmax, acc, dec, jerk)?
+    };
+    if req.overshoot == Overshoot::Forbid
+        && let Some(by) = profile.overshoot()
+    {
+        return Err(PlanError::OvershootForbidden {
+            overshoot: by.to_f64(),
+        });
+    }
+    Ok(profile)
+}
+
+/// The time-optimal profile of a request whose start acceleration is zero
+/// (its limits already checked), without the overshoot policy.
+fn plan_from_rest_acceleration<F: Float>(
+    req: &Request<F>,
+    vmax: F,
+    acc: F,
+    dec: F,
+    jerk: F,
+) -> Result<Profile<F>, PlanError> {
     let (dir, dist, v0, v1) = req.forward_frame();
     if !dist.is_finite() {
         return Err(PlanError::Unrepresentable);
@@ -601,12 +625,124 @@ pub fn plan_scurve<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> 
     let (model, peak) = solve(dist, v0, v1, vmax, acc, dec, jerk);
     let mut profile = Profile::at_rest(req.target);
     build(req, &model, peak, dir, &mut profile)?;
-    if req.overshoot == Overshoot::Forbid
-        && let Some(by) = profile.overshoot()
+    Ok(profile)
+}
+
+/// A profile from a non-zero start acceleration `a0` (see the crate
+/// README's "Start acceleration"). Two constructions, the first that
+/// applies:
+///
+/// 1. **The motion continues.** The state `a0 / J` seconds earlier from
+///    which jerk `sign(a0) J` from zero acceleration reaches the start
+///    state exactly (the *virtual start*) is planned from; when that plan
+///    begins with the same jerk for at least `a0 / J`, it passes through the
+///    start state, and its remainder from there is the profile. This is the
+///    case of a motion still building its acceleration towards where it is
+///    going, which is what a stream of setpoints asks for.
+/// 2. **The acceleration is brought to zero first**, at jerk `J`, and the
+///    move planned from the state reached; the braking phase merges with
+///    the plan's first when their jerks agree, so the profile has at most
+///    eight phases.
+///
+/// Either way the acceleration is continuous at the start and every phase
+/// is within the limits, except that a start acceleration above them is
+/// brought down at `J` (it cannot step).
+fn plan_from_acceleration<F: Float>(
+    req: &Request<F>,
+    vmax: F,
+    acc: F,
+    dec: F,
+    jerk: F,
+) -> Result<Profile<F>, PlanError> {
+    let a0 = req.start_acceleration;
+    let (p0, v0) = (req.start, req.start_velocity);
+    let sign: i8 = if a0 > F::ZERO { 1 } else { -1 };
+    let t = a0.abs() / jerk;
+    let sixth = F::from_f64(1.0 / 6.0);
+    // 1. The virtual start: p0 = pv + vv t + a0 t²/6, v0 = vv + a0 t/2.
+    let vv = v0 - a0 * t * F::HALF;
+    let pv = p0 - t * (vv + a0 * t * sixth);
+    if pv.is_finite() && vv.is_finite() {
+        let mut virt = *req;
+        virt.start = pv;
+        virt.start_velocity = vv;
+        virt.start_acceleration = F::ZERO;
+        if let Ok(whole) = plan_from_rest_acceleration(&virt, vmax, acc, dec, jerk) {
+            // A leading phase of a few ulps of the whole (a cruise of 1e-17 s
+            // where rounding put the virtual start a hair short of the
+            // braking point) is rounding, not a phase.
+            let tiny = F::from_f64(64.0) * F::EPSILON * whole.duration();
+            let lead = (0..whole.phase_count())
+                .take_while(|&i| whole.phase_shape(i).is_some_and(|(_, d)| d <= tiny))
+                .count();
+            if let Some((first_sign, first)) = whole.phase_shape(lead)
+                && first_sign == sign
+                && first >= t
+            {
+                let mut profile =
+                    Profile::empty(whole.jerk_magnitude(), req.target, req.target_velocity);
+                let mut next = lead + 1;
+                let mut room = true;
+                if first - t > F::from_f64(64.0) * F::EPSILON * first {
+                    room &= profile.push_phase(first - t, p0, v0, a0, sign);
+                } else if let Some((s, d)) = whole.phase_shape(next) {
+                    // The start state is where the next phase begins: it
+                    // starts there exactly, as the request says.
+                    room &= profile.push_phase(d, p0, v0, a0, s);
+                    next += 1;
+                }
+                for i in next..whole.phase_count() {
+                    room &= profile.push_phase_of(&whole, i);
+                }
+                if room {
+                    return checked(req, profile);
+                }
+            }
+        }
+    }
+    // 2. Acceleration to zero first: p1 = p0 + v0 t + a0 t²/3, v1 = v0 + a0 t/2.
+    let mut rest = *req;
+    rest.start = p0 + t * (v0 + a0 * t / F::from_f64(3.0));
+    rest.start_velocity = v0 + a0 * t * F::HALF;
+    rest.start_acceleration = F::ZERO;
+    // Where that state is the target's to rounding (a motion ending with
+    // its acceleration coming back to zero), nothing follows the braking.
+    let ulps = F::from_f64(1024.0) * F::EPSILON;
+    let position_scale = p0.abs().max(req.target.abs()).max((req.target - p0).abs());
+    let velocity_scale = vmax.max(v0.abs());
+    let then = if (rest.start - req.target).abs() <= ulps * position_scale
+        && (rest.start_velocity - req.target_velocity).abs() <= ulps * velocity_scale
     {
-        return Err(PlanError::OvershootForbidden {
-            overshoot: by.to_f64(),
-        });
+        Profile::at_rest(req.target)
+    } else {
+        plan_from_rest_acceleration(&rest, vmax, acc, dec, jerk)?
+    };
+    let mut profile = Profile::empty(jerk, req.target, req.target_velocity);
+    let mut room = true;
+    let merged = matches!(then.phase_shape(0), Some((s, _)) if s == -sign);
+    if merged {
+        let first = then.phase_shape(0).map_or(F::ZERO, |(_, d)| d);
+        room &= profile.push_phase(t + first, p0, v0, a0, -sign);
+        for i in 1..then.phase_count() {
+            room &= profile.push_phase_of(&then, i);
+        }
+    } else {
+        room &= profile.push_phase(t, p0, v0, a0, -sign);
+        for i in 0..then.phase_count() {
+            room &= profile.push_phase_of(&then, i);
+        }
+    }
+    if !room {
+        // Seven phases after one: never more than MAX_PHASES.
+        return Err(PlanError::Unrepresentable);
+    }
+    checked(req, profile)
+}
+
+/// A built profile, if every value in it is finite with headroom.
+fn checked<F: Float>(req: &Request<F>, profile: Profile<F>) -> Result<Profile<F>, PlanError> {
+    if !req.moderate() && !profile.representable() {
+        return Err(PlanError::Unrepresentable);
     }
     Ok(profile)
 }

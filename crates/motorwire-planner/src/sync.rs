@@ -41,7 +41,7 @@ use crate::{Float, PlanError, Profile, Request, plan_trapezoidal};
 /// # Errors
 /// [`PlanError::AxisCountMismatch`] when `out` is not as long as
 /// `requests`; [`PlanError::NotAtRest`] for a request with a non-zero start
-/// or target velocity (phase synchronization is defined for rest-to-rest
+/// or target velocity or start acceleration (phase synchronization is defined for rest-to-rest
 /// moves); and any error of the request itself, from the first axis that has one.
 pub fn synchronize_phases<F: Float>(
     requests: &[Request<F>],
@@ -57,7 +57,10 @@ pub fn synchronize_phases<F: Float>(
     let mut limits: Option<(F, F, F)> = None;
     for (axis, req) in requests.iter().enumerate() {
         let (vmax, acc, dec) = req.limits()?;
-        if req.start_velocity != F::ZERO || req.target_velocity != F::ZERO {
+        if req.start_velocity != F::ZERO
+            || req.target_velocity != F::ZERO
+            || req.start_acceleration != F::ZERO
+        {
             return Err(PlanError::NotAtRest { axis });
         }
         let d = (req.target - req.start).abs();

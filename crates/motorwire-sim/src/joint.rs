@@ -16,7 +16,11 @@
 //!   Nack 4).
 //! - **Motion**: `SetTargetV2` is answered with **Ack** (the public firmware
 //!   Nacks it and moves anyway) and planned by motorwire-planner from the
-//!   joint's current position and velocity, with every limit it carries
+//!   joint's current position, velocity and acceleration (an S-curve
+//!   continues a jerk-limited motion it replaces without a step in
+//!   acceleration, so a stream of targets is followed within the jerk
+//!   limit; after a trapezoidal motion or a brake, whose acceleration
+//!   steps, from zero acceleration), with every limit it carries
 //!   (`max_deceleration <= 0` means "as `max_acceleration`"; `max_jerk <= 0`
 //!   means no jerk limit). v1 `SetTarget` moves trapezoidally at its velocity
 //!   limit and the joint's acceleration limit.
@@ -668,6 +672,36 @@ impl SimJoint {
     /// The counters.
     pub fn stats(&self) -> JointStats {
         self.stats
+    }
+
+    /// The joint's acceleration at `t` (degrees/s²) on the motion it runs
+    /// now, as [`SimJoint::position_at`] reads its position.
+    pub fn acceleration_at(&self, t: Duration) -> f64 {
+        let t = t.max(self.now);
+        match self.motion {
+            Motion::Holding => 0.0,
+            Motion::Profile { profile, start } => {
+                let s = t.saturating_sub(start).as_secs_f64();
+                if s >= profile.duration() {
+                    0.0
+                } else {
+                    profile.sample(s).acceleration
+                }
+            }
+            Motion::Braking {
+                start,
+                velocity,
+                deceleration,
+                ..
+            } => {
+                let stop = velocity.abs() / deceleration;
+                if t.saturating_sub(start).as_secs_f64() >= stop {
+                    0.0
+                } else {
+                    -velocity.signum() * deceleration
+                }
+            }
+        }
     }
 
     /// Where the joint is at `t` (degrees) on the motion it runs now, without
@@ -1532,7 +1566,15 @@ impl SimJoint {
         if !within {
             return nack(NackCode::OUT_OF_LIMITS);
         }
-        let req = cmd.planner_request(self.position, self.velocity);
+        // From where it is, how fast it moves and how its speed changes:
+        // an S-curve continues a jerk-limited motion in progress without a
+        // step in acceleration. After a trapezoidal motion or a brake,
+        // whose acceleration steps, it starts from zero acceleration.
+        let continuing =
+            matches!(self.motion, Motion::Profile { profile, .. } if profile.is_jerk_limited());
+        let req = cmd
+            .planner_request(self.position, self.velocity)
+            .with_start_acceleration(if continuing { self.acceleration } else { 0.0 });
         let Ok(planned) = motorwire_planner::plan(&req) else {
             return nack(NackCode::OUT_OF_LIMITS);
         };

@@ -22,7 +22,7 @@ pub use map::{AngleUnit, BusMap, Limits, MapError, MappedMotor, Target};
 pub use moteus::{
     MoteusCommand, WATCHDOG_MARGIN_S, f32_within, multi_axis_to_moteus, revolutions, to_moteus,
 };
-pub use path::{PathExtent, check_path, check_trajectory};
+pub use path::{JointState, PathExtent, check_path, check_path_from, check_trajectory};
 /// [`Report`] (what a translation lost or filled in) under a name that
 /// cannot be mistaken for `motorwire_wia::Report` (a validation verdict,
 /// also `motorwire_wia::ValidationReport`): the same type.

@@ -7,6 +7,11 @@ use motorwire_planner::{Profile, plan};
 use crate::gate::{Bound, Effective};
 use crate::{MappedMotor, Refusal};
 
+/// Where a joint is and how it moves: its position, velocity and
+/// acceleration, in the motor's unit (the bus map's `unit`), a second, a
+/// second squared.
+pub type JointState = (f64, f64, f64);
+
 /// A move's planned path, as [`check_path`] found it within the limits.
 /// Positions are in the motor's unit (the bus map's `unit`), velocities in
 /// that unit per second, times in seconds after the move starts.
@@ -106,8 +111,59 @@ pub fn check_path(
     start_position: f64,
     start_velocity: f64,
 ) -> Result<PathExtent, Refusal> {
-    let start = in_degrees(motor, start_position, start_velocity)?;
-    check_segment(motor, limits, payload, start, None)
+    check_path_from(
+        motor,
+        limits,
+        payload,
+        (start_position, start_velocity, 0.0),
+    )
+}
+
+/// [`check_path`] from a joint whose speed is changing: `start` is its
+/// position, velocity and acceleration (in the motor's unit, a second, a
+/// second squared). A jerk-limited joint continues the motion it is in
+/// from its acceleration
+/// ([`Request::start_acceleration`](motorwire_planner::Request::start_acceleration)),
+/// so its path is planned from it too; a trapezoidal one's is not.
+///
+/// ```
+/// use motorwire_irpc::SetTargetPayloadV2;
+/// use motorwire_translate::{BusMap, Effective, check_path, check_path_from};
+///
+/// let map = BusMap::from_toml(r#"
+///     [motors.elbow]
+///     dialect = "irpc"
+///     node = 0x12
+///     limits = { min_position = 0, max_position = 150, max_velocity = 120, max_acceleration = 500, max_jerk = 2000 }
+/// "#)?;
+/// let elbow = map.motor("elbow").unwrap();
+/// let limits = Effective::from_bus_map(elbow);
+/// let to_148 = SetTargetPayloadV2::scurve(148.0, 120.0, 500.0, 2000.0);
+/// // At 128°, 60°/s towards 148: from a steady speed it stops in time...
+/// assert!(check_path(elbow, &limits, &to_148, 128.0, 60.0).is_ok());
+/// // ...but still speeding up at 400°/s², it passes 150 before it can stop.
+/// let err = check_path_from(elbow, &limits, &to_148, (128.0, 60.0, 400.0)).unwrap_err();
+/// assert!(err.to_string().contains("past max_position"), "{err}");
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// As [`check_path`]'s.
+pub fn check_path_from(
+    motor: &MappedMotor,
+    limits: &Effective,
+    payload: &SetTargetPayloadV2,
+    start: JointState,
+) -> Result<PathExtent, Refusal> {
+    let (p, v) = in_degrees(motor, start.0, start.1)?;
+    let a = motor.unit.to_degrees(start.2);
+    if !a.is_finite() {
+        return Err(Refusal::NonFinite {
+            motor: motor.name.clone(),
+            field: "start_acceleration",
+        });
+    }
+    check_segment(motor, limits, payload, (p, v, a), None)
 }
 
 /// [`check_path`] for a trajectory sent as a sequence of `SetTargetV2`
@@ -161,12 +217,13 @@ pub fn check_trajectory(
     start_position: f64,
     start_velocity: f64,
 ) -> Result<Vec<PathExtent>, Refusal> {
-    let mut state = in_degrees(motor, start_position, start_velocity)?;
+    let (p, v) = in_degrees(motor, start_position, start_velocity)?;
+    let mut state = (p, v, 0.0);
     let mut paths = Vec::with_capacity(segments.len());
     for (i, payload) in segments.iter().enumerate() {
         let path = check_segment(motor, limits, payload, state, Some(i))?;
         let end = path.profile.end_state();
-        state = (end.position, end.velocity);
+        state = (end.position, end.velocity, 0.0);
         paths.push(path);
     }
     Ok(paths)
@@ -198,22 +255,24 @@ fn tolerance(motor: &MappedMotor, bound: f64) -> f64 {
     unit.from_degrees(degrees)
 }
 
-/// Plans one move from `(position, velocity)` in degrees and checks its
-/// path.
+/// Plans one move from `(position, velocity, acceleration)` in degrees
+/// and checks its path.
 fn check_segment(
     motor: &MappedMotor,
     limits: &Effective,
     payload: &SetTargetPayloadV2,
-    (position, velocity): (f64, f64),
+    (position, velocity, acceleration): (f64, f64, f64),
     segment: Option<usize>,
 ) -> Result<PathExtent, Refusal> {
     let unit = motor.unit;
-    let profile =
-        plan(&payload.planner_request(position, velocity)).map_err(|e| Refusal::Unplannable {
-            motor: motor.name.clone(),
-            segment,
-            problem: e.to_string(),
-        })?;
+    let req = payload
+        .planner_request(position, velocity)
+        .with_start_acceleration(acceleration);
+    let profile = plan(&req).map_err(|e| Refusal::Unplannable {
+        motor: motor.name.clone(),
+        segment,
+        problem: e.to_string(),
+    })?;
     let e = profile.position_extrema();
     let start = unit.from_degrees(position);
     let (lowest, highest) = (unit.from_degrees(e.min), unit.from_degrees(e.max));

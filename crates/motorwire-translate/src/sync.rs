@@ -7,7 +7,7 @@ use motorwire_wia::{MultiAxisCommand, SyncMode};
 
 use crate::command::to_irpc;
 use crate::gate::gate;
-use crate::path::check_path;
+use crate::path::{JointState, check_path_from};
 use crate::report::{LossKind, Report, Translated};
 use crate::{BusMap, IrpcCommand, Refusal, Target};
 
@@ -52,18 +52,21 @@ pub fn multi_axis_to_irpc(
     cmd: &MultiAxisCommand,
     position: &dyn Fn(&str) -> Option<f64>,
 ) -> Result<Translated<MultiAxisMove>, Refusal> {
-    multi_axis_to_irpc_from(map, cmd, &|m| position(m).map(|p| (p, 0.0)))
+    multi_axis_to_irpc_from(map, cmd, &|m| position(m).map(|p| (p, 0.0, 0.0)))
 }
 
 /// [`multi_axis_to_irpc`] from each joint's current state, moving or not:
 /// `state(motor_id)` is its position and velocity now (in the motor's
-/// unit, a second). A joint already moving (on a trajectory, a stream, a
-/// move the line replaces) is planned as the joint plans a new
-/// `SetTargetV2`: from that position and velocity, acceleration zero. Its
+/// unit, a second) and its acceleration (a second squared). A joint
+/// already moving (on a trajectory, a stream, a move the line replaces) is
+/// planned as the joint plans a new `SetTargetV2`: from that position,
+/// velocity and acceleration (an S-curve continues from it; see
+/// [`Request::start_acceleration`](motorwire_planner::Request::start_acceleration)). Its
 /// `max_velocity` is the one, at most the command's, whose time-optimal
 /// profile from that state takes the common duration; found from the
 /// exact-duration plan's cruise, and where the joint's own plan from a
-/// moving start does not take that duration, by bisection on it.
+/// moving start does not take that duration (or its speed is changing),
+/// by bisection on it.
 ///
 /// ```
 /// use motorwire_translate::{BusMap, multi_axis_to_irpc_from, SYNC_TOLERANCE_S};
@@ -82,13 +85,14 @@ pub fn multi_axis_to_irpc(
 /// "#)?;
 /// let cmd: MultiAxisCommand = serde_json::from_str(r#"{"command_id":"c","timestamp":1,"sync_mode":"simultaneous",
 ///     "motors":[{"motor_id":"a","control_mode":"position","setpoint":90},{"motor_id":"b","control_mode":"position","setpoint":30}]}"#)?;
-/// // `a` stands at 0; `b` passes 10 at 40 units a second.
-/// let t = multi_axis_to_irpc_from(&map, &cmd, &|m| Some(if m == "a" { (0.0, 0.0) } else { (10.0, 40.0) }))?;
+/// // `a` stands at 0; `b` passes 10 at 40 units a second, speeding up at 200.
+/// let t = multi_axis_to_irpc_from(&map, &cmd, &|m| Some(if m == "a" { (0.0, 0.0, 0.0) } else { (10.0, 40.0, 200.0) }))?;
 /// let duration = t.value.duration.unwrap();
-/// for (c, start) in t.value.commands.iter().zip([(0.0f32, 0.0f32), (10.0, 40.0)]) {
+/// for (c, start) in t.value.commands.iter().zip([(0.0f32, 0.0f32, 0.0f32), (10.0, 40.0, 200.0)]) {
 ///     let Payload::SetTargetV2(p) = c.payloads[0] else { unreachable!() };
 ///     // Each joint's own plan, in f32, from its state: the same arrival.
-///     let plan = motorwire_planner::plan(&p.planner_request(start.0, start.1))?;
+///     let req = p.planner_request(start.0, start.1).with_start_acceleration(start.2);
+///     let plan = motorwire_planner::plan(&req)?;
 ///     assert!((f64::from(plan.duration()) - duration).abs() <= SYNC_TOLERANCE_S);
 /// }
 /// # Ok::<(), Box<dyn std::error::Error>>(())
@@ -99,7 +103,7 @@ pub fn multi_axis_to_irpc(
 pub fn multi_axis_to_irpc_from(
     map: &BusMap,
     cmd: &MultiAxisCommand,
-    state: &dyn Fn(&str) -> Option<(f64, f64)>,
+    state: &dyn Fn(&str) -> Option<JointState>,
 ) -> Result<Translated<MultiAxisMove>, Refusal> {
     let total = cmd.coordination.as_ref().and_then(|c| c.total_duration_ms);
     let synchronized = cmd.sync_mode == Some(SyncMode::Simultaneous) || total.is_some();
@@ -150,11 +154,11 @@ pub fn multi_axis_to_irpc_from(
                 dialect: "a synchronized move on iRPC v1 (SetTarget has no acceleration limit to plan with)",
             });
         };
-        let (start, start_velocity) =
+        let (start, start_velocity, start_acceleration) =
             state(&motor.name).ok_or_else(|| Refusal::UnknownPosition {
                 motor: motor.name.clone(),
             })?;
-        if !start.is_finite() || !start_velocity.is_finite() {
+        if !start.is_finite() || !start_velocity.is_finite() || !start_acceleration.is_finite() {
             return Err(Refusal::UnknownPosition {
                 motor: motor.name.clone(),
             });
@@ -166,11 +170,13 @@ pub fn multi_axis_to_irpc_from(
         // As the joint reads them: f32 degrees.
         let start_deg = f64::from(motor.unit.to_degrees(start) as f32);
         let velocity_deg = f64::from(motor.unit.to_degrees(start_velocity) as f32);
+        let acceleration_deg = f64::from(motor.unit.to_degrees(start_acceleration) as f32);
         axes.push((
             t.value,
             p,
-            p.planner_request(start_deg, velocity_deg),
-            (motor, limits, start, start_velocity),
+            p.planner_request(start_deg, velocity_deg)
+                .with_start_acceleration(acceleration_deg),
+            (motor, limits, (start, start_velocity, start_acceleration)),
         ));
     }
     let mut slowest: (f64, &str) = (0.0, "");
@@ -199,23 +205,30 @@ pub fn multi_axis_to_irpc_from(
         None => slowest.0,
     };
     let mut commands = Vec::new();
-    for ((mut command, mut p, req, (motor, limits, start, start_velocity)), axis) in
+    for ((mut command, mut p, req, (motor, limits, start)), axis) in
         axes.into_iter().zip(&cmd.motors)
     {
         let name = axis.motor_id.as_str();
-        if req.start == req.target && req.start_velocity == 0.0 {
+        if req.start == req.target && req.start_velocity == 0.0 && req.start_acceleration == 0.0 {
             report.push(
                 format!("{name}.max_velocity"),
                 LossKind::Converted,
                 "already at its target: no move to synchronize",
             );
         } else {
-            let profile =
-                plan_with_duration(&req, duration).map_err(|e| Refusal::Unsynchronizable {
-                    problem: format!("{name}: {e}"),
-                })?;
+            // The exact-duration plan's cruise, where there is one: from
+            // a joint whose speed is changing, the bisection below finds
+            // the velocity limit.
             #[allow(clippy::cast_possible_truncation)]
-            let cruise = (profile.peak_velocity().0.abs() as f32).min(p.max_velocity);
+            let cruise = if req.start_acceleration == 0.0 {
+                let profile =
+                    plan_with_duration(&req, duration).map_err(|e| Refusal::Unsynchronizable {
+                        problem: format!("{name}: {e}"),
+                    })?;
+                (profile.peak_velocity().0.abs() as f32).min(p.max_velocity)
+            } else {
+                p.max_velocity
+            };
             // The joint's own plan, in f32, from the same state, with
             // `max_velocity` v: how long it takes.
             let base = p;
@@ -223,11 +236,14 @@ pub fn multi_axis_to_irpc_from(
             let joint_time = |v: f32| {
                 let mut q = base;
                 q.max_velocity = v;
-                plan(&q.planner_request(req.start as f32, req.start_velocity as f32))
-                    .map(|j| f64::from(j.duration()))
-                    .map_err(|e| Refusal::Unsynchronizable {
-                        problem: format!("{name}: the joint's own plan fails: {e}"),
-                    })
+                plan(
+                    &q.planner_request(req.start as f32, req.start_velocity as f32)
+                        .with_start_acceleration(req.start_acceleration as f32),
+                )
+                .map(|j| f64::from(j.duration()))
+                .map_err(|e| Refusal::Unsynchronizable {
+                    problem: format!("{name}: the joint's own plan fails: {e}"),
+                })
             };
             let mut v = cruise;
             if cruise > 0.0 && (joint_time(cruise)? - duration).abs() > SYNC_TOLERANCE_S / 2.0 {
@@ -268,7 +284,7 @@ pub fn multi_axis_to_irpc_from(
                 });
             }
         }
-        check_path(motor, &limits, &p, start, start_velocity)?;
+        check_path_from(motor, &limits, &p, start)?;
         command.payloads = vec![Payload::SetTargetV2(p)];
         commands.push(command);
     }

@@ -7,7 +7,7 @@ use motorwire_wia::Trajectory;
 
 use crate::gate::Effective;
 use crate::report::{LossKind, Report, Translated};
-use crate::{BusMap, Refusal, Target, check_path};
+use crate::{BusMap, Refusal, Target, check_path_from};
 
 /// How long before a waypoint's time the next segment is sent (s): the
 /// joint replans from where it then is, still on its way to the waypoint
@@ -64,7 +64,7 @@ pub struct TrajectoryPlan {
 /// f32 as the joint does, from the state the joint will be in when it
 /// arrives ([`TRAJECTORY_LEAD_S`] before the waypoint's time): the
 /// waypoint is passed within [`WAYPOINT_TOLERANCE_S`]. The path of each
-/// segment is held to the position limits ([`check_path`]).
+/// segment is held to the position limits ([`check_path`](crate::check_path)).
 ///
 /// Waypoint `time` is in seconds from the start (WIRE-FACTS §3); the first
 /// waypoint is where the joint must be. `loop` with a `count` repeats it
@@ -265,6 +265,10 @@ pub fn trajectory_to_irpc(
         Some(&(_, t, p, v)) => (p, v, t),
         None => return Err(infeasible(0, "no waypoints".to_owned())),
     };
+    // And how its speed changes then: a jerk-limited joint continues from
+    // it (zero where the previous segment ends at rest, and after a
+    // trapezoidal segment, whose acceleration steps).
+    let mut from_acc = 0.0f64;
     for (k, pair) in points.windows(2).enumerate() {
         let (&(_, _, _, _), &(index, t1, p1, v1)) = match pair {
             [a, b] => (a, b),
@@ -295,7 +299,9 @@ pub fn trajectory_to_irpc(
         } else {
             MotionProfile::Trapezoidal
         };
-        let req = payload.planner_request(from_pos, from_vel);
+        let req = payload
+            .planner_request(from_pos, from_vel)
+            .with_start_acceleration(from_acc);
         let fastest = minimum_duration(&req).map_err(|e| infeasible(index, e.to_string()))?;
         if fastest > duration + 1e-9 {
             return Err(infeasible(
@@ -308,14 +314,37 @@ pub fn trajectory_to_irpc(
                 ),
             ));
         }
-        let profile =
-            plan_with_duration(&req, duration).map_err(|e| infeasible(index, e.to_string()))?;
+        // The exact-duration plan's cruise (from zero acceleration: the
+        // exact-duration planner starts there).
+        let at_rest_acc = payload.planner_request(from_pos, from_vel);
+        let profile = plan_with_duration(&at_rest_acc, duration)
+            .map_err(|e| infeasible(index, e.to_string()))?;
         let cruise = profile.peak_velocity().0.abs();
         if cruise < f64::from(payload.max_velocity) {
             payload.max_velocity = f(cruise).max(f(v1.abs())).max(f(from_vel.abs()));
         }
         // The joint's own plan, in f32, from where it will be.
-        let joint = plan(&payload.planner_request(f(from_pos), f(from_vel)))
+        let own = |p: &SetTargetPayloadV2| {
+            plan(
+                &p.planner_request(f(from_pos), f(from_vel))
+                    .with_start_acceleration(f(from_acc)),
+            )
+        };
+        if from_acc != 0.0 {
+            // From a changing speed that cruise is not exactly what the
+            // joint makes of it: where it must pass the waypoint at its
+            // time (at speed), or would reach it late, the velocity limit
+            // whose plan takes the duration, by bisection (the time falls
+            // as the limit rises). A waypoint reached at rest early is
+            // held, as from a steady speed.
+            let takes = own(&payload).map(|p| f64::from(p.duration()));
+            let late = takes.is_ok_and(|t| t > duration + WAYPOINT_TOLERANCE_S / 2.0);
+            if v1 != 0.0 || late {
+                payload.max_velocity =
+                    limit_for_duration(&payload, duration, base.max_velocity, &own);
+            }
+        }
+        let joint = own(&payload)
             .map_err(|e| infeasible(index, format!("the joint's own plan fails: {e}")))?;
         let arrives = from_t + f64::from(joint.duration());
         // A waypoint to reach at rest may be reached early: the joint holds
@@ -332,19 +361,26 @@ pub fn trajectory_to_irpc(
                 max_velocity: base.max_velocity,
                 ..payload
             };
-            let split =
-                split_at_speed(&fastest, (from_pos, from_vel, from_t), (p1, v1, t1), scurve)
-                    .map_err(|problem| infeasible(index, problem))?;
+            let split = split_at_speed(
+                &fastest,
+                (from_pos, from_vel, from_acc, from_t),
+                (p1, v1, t1),
+                scurve,
+            )
+            .map_err(|problem| infeasible(index, problem))?;
             for (sub, from) in [
-                (&split.stop, (from_pos, from_vel)),
-                (&split.takeoff, (split.stop_at, 0.0)),
+                (&split.stop, (from_pos, from_vel, from_acc)),
+                (&split.takeoff, (split.stop_at, 0.0, 0.0)),
             ] {
-                check_path(
+                check_path_from(
                     motor,
                     &e,
                     &sub.payload,
-                    unit.from_degrees(from.0),
-                    unit.from_degrees(from.1),
+                    (
+                        unit.from_degrees(from.0),
+                        unit.from_degrees(from.1),
+                        unit.from_degrees(from.2),
+                    ),
                 )
                 .map_err(|r| infeasible(index, r.to_string()))?;
             }
@@ -362,6 +398,11 @@ pub fn trajectory_to_irpc(
             let s = split.takeoff_plan.sample(f(send.max(0.0)));
             from_pos = f64::from(s.position);
             from_vel = f64::from(s.velocity);
+            from_acc = if scurve {
+                f64::from(s.acceleration)
+            } else {
+                0.0
+            };
             from_t = split.takeoff.at + send.max(0.0);
             continue;
         }
@@ -371,12 +412,15 @@ pub fn trajectory_to_irpc(
                 format!("the joint would pass it at {arrives:.4} s, not {t1:.4} s"),
             ));
         }
-        check_path(
+        check_path_from(
             motor,
             &e,
             &payload,
-            unit.from_degrees(from_pos),
-            unit.from_degrees(from_vel),
+            (
+                unit.from_degrees(from_pos),
+                unit.from_degrees(from_vel),
+                unit.from_degrees(from_acc),
+            ),
         )
         .map_err(|r| infeasible(index, r.to_string()))?;
         segments.push(TrajectorySegment {
@@ -388,6 +432,7 @@ pub fn trajectory_to_irpc(
             // At rest on the waypoint at its time.
             from_pos = p1;
             from_vel = 0.0;
+            from_acc = 0.0;
             from_t = t1;
         } else {
             // The next segment is sent `lead` before this one's end.
@@ -395,6 +440,11 @@ pub fn trajectory_to_irpc(
             let s = joint.sample(f(send.max(0.0)));
             from_pos = f64::from(s.position);
             from_vel = f64::from(s.velocity);
+            from_acc = if scurve {
+                f64::from(s.acceleration)
+            } else {
+                0.0
+            };
             from_t += send.max(0.0);
         }
     }
@@ -422,6 +472,40 @@ pub fn trajectory_to_irpc(
     })
 }
 
+/// The velocity limit, at most `highest`, with which the joint's own plan
+/// of `payload` (`own`) takes `duration`: a bisection, the time falling as
+/// the limit rises; never below the payload's target velocity. The caller
+/// checks the arrival it gives.
+fn limit_for_duration(
+    payload: &SetTargetPayloadV2,
+    duration: f64,
+    highest: f32,
+    own: &dyn Fn(
+        &SetTargetPayloadV2,
+    ) -> Result<motorwire_planner::Profile<f32>, motorwire_planner::PlanError>,
+) -> f32 {
+    let time = |v: f32| {
+        own(&SetTargetPayloadV2 {
+            max_velocity: v,
+            ..*payload
+        })
+        .map(|p| f64::from(p.duration()))
+    };
+    let (mut lo, mut hi) = (payload.target_velocity.abs(), highest);
+    for _ in 0..60 {
+        let mid = lo + (hi - lo) / 2.0;
+        if mid <= lo || mid >= hi {
+            break;
+        }
+        match time(mid) {
+            Ok(t) if t > duration => lo = mid,
+            Ok(_) => hi = mid,
+            Err(_) => lo = mid,
+        }
+    }
+    hi
+}
+
 /// A segment to a waypoint at speed split where the joint would be early:
 /// a stop (at rest at `stop_at`, reached early, held), then a take-off
 /// from there that is the joint's acceleration from rest to the
@@ -435,7 +519,7 @@ struct SplitAtSpeed {
 }
 
 /// Splits `payload` (to `to`: position, velocity, time, degrees) from
-/// `from` (position, velocity, time): the take-off starts from rest the
+/// `from` (position, velocity, acceleration, time): the take-off starts from rest the
 /// distance before the waypoint that accelerating to its velocity takes
 /// (jerk-limited when `scurve`), its `max_velocity` that velocity, so its
 /// time-optimal profile is that acceleration alone; the stop must be
@@ -443,7 +527,7 @@ struct SplitAtSpeed {
 /// joint plans it.
 fn split_at_speed(
     payload: &SetTargetPayloadV2,
-    from: (f64, f64, f64),
+    from: (f64, f64, f64, f64),
     to: (f64, f64, f64),
     scurve: bool,
 ) -> Result<SplitAtSpeed, String> {
@@ -477,9 +561,13 @@ fn split_at_speed(
         target_velocity: 0.0,
         ..*payload
     };
-    let stop_plan = plan(&stop_payload.planner_request(f(from.0), f(from.1)))
-        .map_err(|e| format!("the stop's own plan fails: {e}"))?;
-    let stopped = from.2 + f64::from(stop_plan.duration());
+    let stop_plan = plan(
+        &stop_payload
+            .planner_request(f(from.0), f(from.1))
+            .with_start_acceleration(f(from.2)),
+    )
+    .map_err(|e| format!("the stop's own plan fails: {e}"))?;
+    let stopped = from.3 + f64::from(stop_plan.duration());
     if stopped > takeoff_at + WAYPOINT_TOLERANCE_S {
         return Err(format!(
             "the joint would pass it early without a stop, and with one (at {stop_at}, to take off at {takeoff_at:.4} s) it would stand there only at {stopped:.4} s"
@@ -487,7 +575,7 @@ fn split_at_speed(
     }
     Ok(SplitAtSpeed {
         stop: TrajectorySegment {
-            at: from.2,
+            at: from.3,
             payload: stop_payload,
             arrives: stopped,
         },

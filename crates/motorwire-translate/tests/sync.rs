@@ -142,7 +142,8 @@ fn independent_axes_translate_one_by_one() {
 proptest::proptest! {
     #![proptest_config(proptest::prelude::ProptestConfig { cases: 256, failure_persistence: None, ..Default::default() })]
     /// From any state, moving or not (the demo arm's shoulder and elbow,
-    /// anywhere in their range, at any velocity within their limits), a
+    /// anywhere in their range, at any velocity and acceleration within
+    /// their limits), a
     /// simultaneous move is either refused or arrives together: each
     /// joint's own plan of its `SetTargetV2`, from the state it was given,
     /// takes the promised duration within `SYNC_TOLERANCE_S`.
@@ -150,6 +151,7 @@ proptest::proptest! {
     fn from_any_state_a_synchronized_move_arrives_together_or_is_refused(
         pitch in -80.0f64..80.0, pitch_v in -100.0f64..100.0, pitch_to in -85.0f64..85.0,
         elbow in 5.0f64..145.0, elbow_v in -100.0f64..100.0, elbow_to in 5.0f64..145.0,
+        pitch_a in -400.0f64..400.0, elbow_a in -400.0f64..400.0,
     ) {
         let cmd: MultiAxisCommand = serde_json::from_value(serde_json::json!({
             "command_id": "c", "timestamp": 1, "sync_mode": "simultaneous",
@@ -158,13 +160,13 @@ proptest::proptest! {
                 {"motor_id": "elbow", "control_mode": "position", "setpoint": elbow_to},
             ]
         })).unwrap();
-        let state = |m: &str| Some(if m == "elbow" { (elbow, elbow_v) } else { (pitch, pitch_v) });
+        let state = |m: &str| Some(if m == "elbow" { (elbow, elbow_v, elbow_a) } else { (pitch, pitch_v, pitch_a) });
         match multi_axis_to_irpc_from(&demo(), &cmd, &state) {
             Ok(t) => {
                 let duration = t.value.duration.unwrap();
-                for (c, (x, v)) in t.value.commands.iter().zip([(pitch, pitch_v), (elbow, elbow_v)]) {
+                for (c, (x, v, a)) in t.value.commands.iter().zip([(pitch, pitch_v, pitch_a), (elbow, elbow_v, elbow_a)]) {
                     let Payload::SetTargetV2(p) = c.payloads[0] else { panic!() };
-                    let own = plan(&p.planner_request(x, v)).unwrap().duration();
+                    let own = plan(&p.planner_request(x, v).with_start_acceleration(a)).unwrap().duration();
                     proptest::prop_assert!(
                         (own - duration).abs() <= SYNC_TOLERANCE_S,
                         "{own} s, promised {duration} s: {p:?}"

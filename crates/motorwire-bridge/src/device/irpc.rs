@@ -441,15 +441,15 @@ fn answer(motor: &str, payload: &Payload) -> Option<Answer> {
 /// as planned from the joint's last report, when it ends (the gate's own
 /// plan when it is the same move from the same state); the lifecycle.
 pub(crate) fn effect(payload: Payload, cx: &Context) -> Effect {
-    let (pos, vel) = cx.motion.unwrap_or((0.0, 0.0));
+    let (pos, vel, acc) = cx.motion.unwrap_or((0.0, 0.0, 0.0));
     let planned = |p: &SetTargetPayloadV2| {
         if let Some((from, q, d)) = cx.planned
-            && from == (pos, vel)
+            && from == (pos, vel, acc)
             && q == *p
         {
             return d;
         }
-        motorwire_planner::plan(&p.planner_request(pos, vel))
+        motorwire_planner::plan(&p.planner_request(pos, vel).with_start_acceleration(acc))
             .ok()
             .and_then(|plan| Duration::try_from_secs_f64(plan.duration()).ok())
             .unwrap_or(Duration::from_secs(1))

@@ -412,8 +412,8 @@ pub(crate) struct Reach {
 pub(crate) struct Context {
     /// When it was acknowledged.
     pub(crate) at: Duration,
-    /// Its position and velocity as last reported (degrees).
-    pub(crate) motion: Option<(f64, f64)>,
+    /// Its kinematics when the order was sent (or as last reported).
+    pub(crate) motion: Option<crate::joints::Kinematics>,
     /// The motor's unit.
     pub(crate) unit: AngleUnit,
     /// The limits in force (degrees).
@@ -421,9 +421,9 @@ pub(crate) struct Context {
     pub(crate) max_acceleration: Option<f64>,
     /// The motor's command timeout (the deadman's), if any.
     pub(crate) command_timeout: Option<Duration>,
-    /// The gate's plan for a move: from (position, velocity), the target
-    /// and how long it takes (reused when the acknowledged order is it).
-    pub(crate) planned: Option<((f64, f64), SetTargetPayloadV2, Duration)>,
+    /// The gate's plan for a move: from its kinematics, the target and how
+    /// long it takes (reused when the acknowledged order is it).
+    pub(crate) planned: Option<(crate::joints::Kinematics, SetTargetPayloadV2, Duration)>,
 }
 
 /// The limits in force on a device, in degrees (and Nm), as a driver that
@@ -547,30 +547,33 @@ impl Order {
         }
     }
 
-    /// The motion the device plans for this order from `from` (position
-    /// and velocity, degrees), where the bridge plans it as the device does
-    /// (an iRPC `SetTargetV2`: the joint plans it from where it is and how
-    /// fast it moves, acceleration zero, with motorwire's planner).
+    /// The motion the device plans for this order from `from` (its
+    /// kinematics, degrees), where the bridge plans it as the device does
+    /// (an iRPC `SetTargetV2`: the joint plans it from where it is, how
+    /// fast it moves and how that changes, with motorwire's planner).
     /// `planned`: the gate's plan of a move from the same state, taken
     /// when it is this order's.
     pub(crate) fn device_plan(
         &self,
-        from: (f64, f64),
+        from: crate::joints::Kinematics,
         planned: Option<(SetTargetPayloadV2, Box<motorwire_planner::Profile<f64>>)>,
     ) -> Option<Box<motorwire_planner::Profile<f64>>> {
         match self {
             Self::Irpc(Payload::SetTargetV2(p)) => match planned {
                 Some((q, profile)) if q == *p => Some(profile),
-                _ => motorwire_planner::plan(&p.planner_request(from.0, from.1))
-                    .ok()
-                    .map(Box::new),
+                _ => motorwire_planner::plan(
+                    &p.planner_request(from.0, from.1)
+                        .with_start_acceleration(from.2),
+                )
+                .ok()
+                .map(Box::new),
             },
             _ => None,
         }
     }
 
     /// Whether the path this order sends `motor` along, planned as the
-    /// device plans it from `from` (position and velocity, degrees), stays
+    /// device plans it from `from` (its kinematics, degrees), stays
     /// within `limits` (the limits in force); `checked`: a move whose path
     /// was already checked from that state (the gate's, when the line
     /// came), which is not planned again. Only for the orders the bridge
@@ -580,8 +583,8 @@ impl Order {
         &self,
         motor: &motorwire_translate::MappedMotor,
         limits: &motorwire_translate::Effective,
-        from: (f64, f64),
-        checked: Option<((f64, f64), SetTargetPayloadV2)>,
+        from: crate::joints::Kinematics,
+        checked: Option<(crate::joints::Kinematics, SetTargetPayloadV2)>,
     ) -> Option<motorwire_translate::Refusal> {
         let Self::Irpc(Payload::SetTargetV2(p)) = self else {
             return None;
@@ -590,12 +593,15 @@ impl Order {
             return None;
         }
         let unit = motor.unit;
-        motorwire_translate::check_path(
+        motorwire_translate::check_path_from(
             motor,
             limits,
             p,
-            unit.from_degrees(from.0),
-            unit.from_degrees(from.1),
+            (
+                unit.from_degrees(from.0),
+                unit.from_degrees(from.1),
+                unit.from_degrees(from.2),
+            ),
         )
         .err()
     }
@@ -663,7 +669,7 @@ impl Order {
                 match c.control_mode {
                     CompactMode::Position => {
                         let target = cx.unit.to_degrees(f64::from(c.setpoint));
-                        let from = cx.motion.map_or(target, |(p, _)| p);
+                        let from = cx.motion.map_or(target, |(p, ..)| p);
                         let v = c
                             .velocity_limit
                             .map(|l| cx.unit.to_degrees(l.units_per_s()))
@@ -712,7 +718,7 @@ impl Order {
                 match a.position.filter(|p| p.is_finite()) {
                     Some(p) => {
                         let target = p * 360.0;
-                        let from = cx.motion.map_or(target, |(p, _)| p);
+                        let from = cx.motion.map_or(target, |(p, ..)| p);
                         let v = a
                             .velocity_limit
                             .map(|v| v.abs() * 360.0)
@@ -1743,7 +1749,7 @@ mod tests {
     fn a_held_setpoint_arms_the_deadman_and_zero_does_not() {
         let cx = Context {
             at: Duration::from_millis(1000),
-            motion: Some((10.0, 0.0)),
+            motion: Some((10.0, 0.0, 0.0)),
             unit: AngleUnit::Degrees,
             max_velocity: Some(100.0),
             max_acceleration: Some(1000.0),
