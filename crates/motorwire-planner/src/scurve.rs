@@ -591,11 +591,14 @@ impl<F: Float> Model<F> {
 pub fn plan_scurve<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> {
     let (vmax, acc, dec) = req.limits()?;
     let jerk = req.jerk()?;
-    let profile = if req.start_acceleration == F::ZERO {
-        plan_from_rest_acceleration(req, vmax, acc, dec, jerk)?
+    // Built in place (a profile is 288 bytes in f64: copying it is a
+    // measurable share of planning a rest-to-rest move).
+    let mut profile = Profile::at_rest(req.target);
+    if req.start_acceleration == F::ZERO {
+        plan_from_rest_acceleration(req, vmax, acc, dec, jerk, &mut profile)?;
     } else {
-        plan_from_acceleration(req, vmax, acc, dec, jerk)?
-    };
+        profile = plan_from_acceleration(req, vmax, acc, dec, jerk)?;
+    }
     if req.overshoot == Overshoot::Forbid
         && let Some(by) = profile.overshoot()
     {
@@ -607,25 +610,27 @@ pub fn plan_scurve<F: Float>(req: &Request<F>) -> Result<Profile<F>, PlanError> 
 }
 
 /// The time-optimal profile of a request whose start acceleration is zero
-/// (its limits already checked), without the overshoot policy.
+/// (its limits already checked), without the overshoot policy, written
+/// into `profile` (at rest at the target when nothing moves).
+#[inline(always)]
 fn plan_from_rest_acceleration<F: Float>(
     req: &Request<F>,
     vmax: F,
     acc: F,
     dec: F,
     jerk: F,
-) -> Result<Profile<F>, PlanError> {
+    profile: &mut Profile<F>,
+) -> Result<(), PlanError> {
     let (dir, dist, v0, v1) = req.forward_frame();
     if !dist.is_finite() {
         return Err(PlanError::Unrepresentable);
     }
     if dist == F::ZERO && v0 == F::ZERO && v1 == F::ZERO {
-        return Ok(Profile::at_rest(req.target));
+        *profile = Profile::at_rest(req.target);
+        return Ok(());
     }
     let (model, peak) = solve(dist, v0, v1, vmax, acc, dec, jerk);
-    let mut profile = Profile::at_rest(req.target);
-    build(req, &model, peak, dir, &mut profile)?;
-    Ok(profile)
+    build(req, &model, peak, dir, profile)
 }
 
 /// A profile from a non-zero start acceleration `a0` (see the crate
@@ -667,7 +672,8 @@ fn plan_from_acceleration<F: Float>(
         virt.start = pv;
         virt.start_velocity = vv;
         virt.start_acceleration = F::ZERO;
-        if let Ok(whole) = plan_from_rest_acceleration(&virt, vmax, acc, dec, jerk) {
+        let mut whole = Profile::at_rest(req.target);
+        if plan_from_rest_acceleration(&virt, vmax, acc, dec, jerk, &mut whole).is_ok() {
             // A leading phase of a few ulps of the whole (a cruise of 1e-17 s
             // where rounding put the virtual start a hair short of the
             // braking point) is rounding, not a phase.
@@ -710,13 +716,12 @@ fn plan_from_acceleration<F: Float>(
     let ulps = F::from_f64(1024.0) * F::EPSILON;
     let position_scale = p0.abs().max(req.target.abs()).max((req.target - p0).abs());
     let velocity_scale = vmax.max(v0.abs());
-    let then = if (rest.start - req.target).abs() <= ulps * position_scale
-        && (rest.start_velocity - req.target_velocity).abs() <= ulps * velocity_scale
+    let mut then = Profile::at_rest(req.target);
+    if (rest.start - req.target).abs() > ulps * position_scale
+        || (rest.start_velocity - req.target_velocity).abs() > ulps * velocity_scale
     {
-        Profile::at_rest(req.target)
-    } else {
-        plan_from_rest_acceleration(&rest, vmax, acc, dec, jerk)?
-    };
+        plan_from_rest_acceleration(&rest, vmax, acc, dec, jerk, &mut then)?;
+    }
     let mut profile = Profile::empty(jerk, req.target, req.target_velocity);
     let mut room = true;
     let merged = matches!(then.phase_shape(0), Some((s, _)) if s == -sign);
