@@ -1,7 +1,7 @@
 //! Synchronized multi-axis moves on iRPC joints.
 
 use motorwire_core::ControlMode;
-use motorwire_irpc::Payload;
+use motorwire_irpc::{Payload, SetTargetPayloadV2};
 use motorwire_planner::{minimum_duration, plan, plan_with_duration};
 use motorwire_wia::{MultiAxisCommand, SyncMode};
 
@@ -9,6 +9,7 @@ use crate::command::to_irpc;
 use crate::gate::gate;
 use crate::path::{JointState, check_path_from};
 use crate::report::{LossKind, Report, Translated};
+use crate::trajectory::limit_for_duration;
 use crate::{BusMap, IrpcCommand, Refusal, Target};
 
 /// The most two synchronized joints' planned arrivals may differ by (s).
@@ -229,17 +230,20 @@ pub fn multi_axis_to_irpc_from(
             } else {
                 p.max_velocity
             };
-            // The joint's own plan, in f32, from the same state, with
-            // `max_velocity` v: how long it takes.
-            let base = p;
+            // The joint's own plan, in f32, from the same state.
             #[allow(clippy::cast_possible_truncation)]
-            let joint_time = |v: f32| {
-                let mut q = base;
-                q.max_velocity = v;
+            let own = |q: &SetTargetPayloadV2| {
                 plan(
                     &q.planner_request(req.start as f32, req.start_velocity as f32)
                         .with_start_acceleration(req.start_acceleration as f32),
                 )
+            };
+            // How long it takes with `max_velocity` v.
+            let joint_time = |v: f32| {
+                own(&SetTargetPayloadV2 {
+                    max_velocity: v,
+                    ..p
+                })
                 .map(|j| f64::from(j.duration()))
                 .map_err(|e| Refusal::Unsynchronizable {
                     problem: format!("{name}: the joint's own plan fails: {e}"),
@@ -249,21 +253,8 @@ pub fn multi_axis_to_irpc_from(
             if cruise > 0.0 && (joint_time(cruise)? - duration).abs() > SYNC_TOLERANCE_S / 2.0 {
                 // From a moving start the exact-duration plan's cruise is
                 // not always what the joint makes of it: the velocity
-                // limit whose time-optimal profile takes the duration (the
-                // time falls as the limit rises), by bisection.
-                let (mut lo, mut hi) = (0.0f32, p.max_velocity);
-                for _ in 0..60 {
-                    let mid = lo + (hi - lo) / 2.0;
-                    if mid <= lo || mid >= hi {
-                        break;
-                    }
-                    match joint_time(mid) {
-                        Ok(t) if t > duration => lo = mid,
-                        Ok(_) => hi = mid,
-                        Err(_) => lo = mid,
-                    }
-                }
-                v = hi;
+                // limit whose time-optimal profile takes the duration.
+                v = limit_for_duration(&p, duration, p.max_velocity, &own);
             }
             if v < p.max_velocity {
                 report.push(

@@ -474,9 +474,10 @@ pub fn trajectory_to_irpc(
 
 /// The velocity limit, at most `highest`, with which the joint's own plan
 /// of `payload` (`own`) takes `duration`: a bisection, the time falling as
-/// the limit rises; never below the payload's target velocity. The caller
-/// checks the arrival it gives.
-fn limit_for_duration(
+/// the limit rises (a limit whose plan fails counts as too slow); never
+/// below the payload's target velocity. The caller checks the arrival it
+/// gives.
+pub(crate) fn limit_for_duration(
     payload: &SetTargetPayloadV2,
     duration: f64,
     highest: f32,
