@@ -450,6 +450,19 @@ impl Bridge {
         })
     }
 
+    /// Anchors a bridge that keeps a wall clock
+    /// ([`BridgeConfig::epoch_unix_ms`] given) at `unix_ms` for its time
+    /// zero: the runner calls it where its clock starts, so the Unix time
+    /// the bridge reckons (a stop's, which commands stamped before it are
+    /// held to; feedback timestamps) is the host's, not behind it by the
+    /// time it took to start.
+    pub(crate) fn anchor_epoch(&mut self, unix_ms: f64) {
+        if self.config.epoch_unix_ms.is_some() && unix_ms.is_finite() {
+            self.config.epoch_unix_ms = Some(unix_ms);
+            self.drivers.set_epoch(unix_ms);
+        }
+    }
+
     /// The bus map.
     pub fn map(&self) -> &BusMap {
         &self.map
@@ -1251,6 +1264,23 @@ impl Bridge {
                 return Some(format!("it moves at {} a second now", say(v.abs())));
             }
         }
+        // The rest of the move under way as the bridge planned it (a
+        // move braking from speed toward a target inside passes it).
+        if let Some((start, profile)) = &j.model {
+            let t = self.now.saturating_sub(*start).as_secs_f64();
+            if t < profile.duration() {
+                let e = profile.position_extrema_from(t);
+                for (extreme, at) in [(e.max, e.t_max), (e.min, e.t_min)] {
+                    if outside(extreme) {
+                        return Some(format!(
+                            "its move under way reaches {} in {:.3} s",
+                            say(extreme),
+                            (at - t).max(0.0)
+                        ));
+                    }
+                }
+            }
+        }
         for step in j.busy.iter().chain(j.queue.iter()) {
             let Some(job) = self.jobs.get(&step.job) else {
                 continue;
@@ -1664,7 +1694,9 @@ impl Bridge {
         }
         // Only where timestamps are held to the bridge's clock (a max age
         // in force): without one they may be any number.
-        if let Some(stop_ms) = self.last_stop_unix_ms
+        // To the millisecond, the timestamps' resolution: one stamped in
+        // the millisecond the stop came in may have been written after it.
+        if let Some(stop_ms) = self.last_stop_unix_ms.map(f64::floor)
             && self.config.max_age.is_some()
             && timestamp < stop_ms
         {

@@ -98,8 +98,15 @@ pub(crate) struct Joint {
 }
 
 /// How far a report may be from the bridge's model of the move before the
-/// model is set aside (degrees; degrees a second): a report is an f32.
+/// model is set aside (degrees; degrees a second): a report is an f32, and
+/// besides, as old as [`REPORT_AGE`] at most, by as much as the model moves
+/// in that time.
 const MODEL_AGREES: (f64, f64) = (0.01, 0.5);
+
+/// How much older than its time of arrival a report may be (the joint
+/// wrote it, the bus and the reader's thread carried it; and the joint
+/// started the move a frame's latency after the bridge sent it).
+const REPORT_AGE: f64 = 0.005;
 
 /// How far a report is carried forward to `now` at the most: beyond, the
 /// last report stands as it is (the device is silent, or stands still).
@@ -178,8 +185,10 @@ impl Joint {
             } else {
                 profile.end_state()
             };
-            if (s.position - position).abs() > MODEL_AGREES.0
-                || (s.velocity - velocity).abs() > MODEL_AGREES.1
+            let position_slack = MODEL_AGREES.0 + s.velocity.abs() * REPORT_AGE;
+            let velocity_slack = MODEL_AGREES.1 + s.acceleration.abs() * REPORT_AGE;
+            if (s.position - position).abs() > position_slack
+                || (s.velocity - velocity).abs() > velocity_slack
             {
                 self.model = None;
             }

@@ -144,6 +144,14 @@ pub trait Tap: Send + Sync + std::fmt::Debug {
     fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
         let _ = (at, origin, number, text);
     }
+    /// The same, the line given to keep and told once the bridge has
+    /// handled it (`taken`: when it began to): a tap that keeps lines takes
+    /// it without a copy. The bridge's runner tells its taps of each line
+    /// this way.
+    fn input_owned(&self, at: Instant, taken: Instant, origin: Origin, number: u64, text: String) {
+        let _ = taken;
+        self.input(at, origin, number, &text);
+    }
     /// An input line that could not be read.
     fn unreadable(&self, line: &Unreadable<'_>) {
         let _ = line;
@@ -151,6 +159,12 @@ pub trait Tap: Send + Sync + std::fmt::Debug {
     /// An output line given at `at`.
     fn output(&self, at: Instant, output: &Output) {
         let _ = (at, output);
+    }
+    /// The same, the output given to keep: a tap that keeps outputs takes
+    /// it without a copy. The bridge's runner tells its taps of each output
+    /// this way, once the caller's sink has had it.
+    fn output_owned(&self, at: Instant, output: Output) {
+        self.output(at, &output);
     }
     /// A frame sent or received at `at`.
     fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
@@ -179,11 +193,23 @@ impl Tap for Recorder {
     fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
         Recorder::input(self, at, origin, number, text);
     }
+    fn input_owned(&self, at: Instant, taken: Instant, origin: Origin, number: u64, text: String) {
+        self.put(Record::Input {
+            at,
+            taken,
+            origin,
+            number,
+            text,
+        });
+    }
     fn unreadable(&self, line: &Unreadable<'_>) {
         Recorder::unreadable(self, line);
     }
     fn output(&self, at: Instant, output: &Output) {
         Recorder::output(self, at, output);
+    }
+    fn output_owned(&self, at: Instant, output: Output) {
+        Recorder::output_owned(self, at, output);
     }
     fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
         Recorder::frame(self, at, dir, frame);
@@ -206,6 +232,14 @@ impl Tap for Taps {
             t.input(at, origin, number, text);
         }
     }
+    fn input_owned(&self, at: Instant, taken: Instant, origin: Origin, number: u64, text: String) {
+        if let Some((last, others)) = self.0.split_last() {
+            for t in others {
+                t.input(at, origin, number, &text);
+            }
+            last.input_owned(at, taken, origin, number, text);
+        }
+    }
     fn unreadable(&self, line: &Unreadable<'_>) {
         for t in &self.0 {
             t.unreadable(line);
@@ -214,6 +248,15 @@ impl Tap for Taps {
     fn output(&self, at: Instant, output: &Output) {
         for t in &self.0 {
             t.output(at, output);
+        }
+    }
+    fn output_owned(&self, at: Instant, output: Output) {
+        // Each but the last sees it; the last keeps it.
+        if let Some((last, others)) = self.0.split_last() {
+            for t in others {
+                t.output(at, &output);
+            }
+            last.output_owned(at, output);
         }
     }
     fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
@@ -433,6 +476,14 @@ impl Recorder {
         self.put(Record::Output {
             at,
             output: Box::new(output.clone()),
+        });
+    }
+
+    /// An output line given at `at`, kept as it is (no copy).
+    pub fn output_owned(&self, at: Instant, output: Output) {
+        self.put(Record::Output {
+            at,
+            output: Box::new(output),
         });
     }
 

@@ -164,6 +164,23 @@ impl std::fmt::Debug for OrionPort {
     }
 }
 
+/// The channel of stops, and a flag the runner reads between the items of
+/// its longer loops (outputs to hand out, frames heard): a stop waiting
+/// ends them early, so it waits behind one item, not hundreds.
+#[derive(Debug, Clone)]
+struct Urgent {
+    tx: Sender<Msg>,
+    waiting: Arc<AtomicBool>,
+}
+
+impl Urgent {
+    fn send(&self, msg: Msg) -> Result<(), mpsc::SendError<Msg>> {
+        let sent = self.tx.send(msg);
+        self.waiting.store(true, Ordering::Release);
+        sent
+    }
+}
+
 /// Hands input to a running [`Runner`]; clone it for each input.
 ///
 /// Lines are numbered per origin as they arrive (blank lines not
@@ -172,7 +189,7 @@ impl std::fmt::Debug for OrionPort {
 #[derive(Debug, Clone)]
 pub struct InputSender {
     tx: Sender<Msg>,
-    urgent: Sender<Msg>,
+    urgent: Urgent,
     numbers: Arc<Mutex<BTreeMap<Origin, u64>>>,
     budget: Arc<Budget>,
     max_line: usize,
@@ -565,7 +582,7 @@ pub fn feed(
 pub struct Runner {
     tx: Sender<Msg>,
     rx: Receiver<Msg>,
-    urgent_tx: Sender<Msg>,
+    urgent_tx: Urgent,
     urgent: Receiver<Msg>,
     numbers: Arc<Mutex<BTreeMap<Origin, u64>>>,
     budget: Arc<Budget>,
@@ -588,7 +605,10 @@ impl Runner {
         Self {
             tx,
             rx,
-            urgent_tx,
+            urgent_tx: Urgent {
+                tx: urgent_tx,
+                waiting: Arc::new(AtomicBool::new(false)),
+            },
             urgent,
             numbers: Arc::default(),
             budget: Arc::default(),
@@ -629,7 +649,9 @@ impl Runner {
     /// (a live view, a recorder of one's own): see [`Tap`].
     #[must_use]
     pub fn with_tap(mut self, tap: Arc<dyn Tap>) -> Self {
-        self.taps.push(tap);
+        // Ahead of the recorders: the last tap keeps each output
+        // ([`Tap::output_owned`]), and a recorder is the one that does.
+        self.taps.insert(0, tap);
         self
     }
 
@@ -664,7 +686,12 @@ impl Runner {
         R: CanBus + Send + 'static,
     {
         let start = Instant::now();
+        // The bridge's time zero is now: its wall clock too.
+        if let Ok(d) = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH) {
+            bridge.anchor_epoch(d.as_secs_f64() * 1000.0);
+        }
         let since = |at: Instant| at.saturating_duration_since(start);
+        let stop_waiting = Arc::clone(&self.urgent_tx.waiting);
         let stop = Arc::new(AtomicBool::new(false));
         // Frames from the bus have a channel of their own, read ahead of
         // the input lines (after the stops): an Ack is never queued behind
@@ -711,11 +738,14 @@ impl Runner {
             .map(|port| spawn_orion(port, ahead.clone(), Arc::clone(&orion_queued)));
         let taps = Taps(std::mem::take(&mut self.taps));
         let rec: Option<&dyn Tap> = (!taps.0.is_empty()).then_some(&taps);
-        let mut sink = |o: &Output| {
+        // Each output to the caller's sink, then to the taps, which take
+        // it as it is: the bridge's thread copies nothing for them.
+        let mut sink = |o: Output| {
+            let at = Instant::now();
+            sink(&o);
             if let Some(r) = rec {
-                r.output(Instant::now(), o);
+                r.output_owned(at, o);
             }
-            sink(o);
         };
         if let Some(r) = rec {
             r.mark(start, Mark::Start);
@@ -750,8 +780,12 @@ impl Runner {
                 }
                 hushed = false;
             }
-            while let Some(o) = bridge.poll_output() {
-                sink(&o);
+            // Outputs to hand out, until a stop waits (the rest go
+            // after its frames).
+            while !stop_waiting.load(Ordering::Acquire)
+                && let Some(o) = bridge.poll_output()
+            {
+                sink(o);
             }
             if let Some(e) = failed {
                 break Err(BridgeError::Bus(e));
@@ -765,6 +799,7 @@ impl Runner {
                 .map_or(Duration::from_millis(100), |t| t.saturating_sub(now));
             // Stops first, ahead of every line queued before them.
             let mut stopped = false;
+            stop_waiting.store(false, Ordering::Release);
             while let Ok(msg) = self.urgent.try_recv() {
                 if !hushed && let Some(r) = rec {
                     r.hush(true);
@@ -773,7 +808,9 @@ impl Runner {
                 if let Msg::Line { origin, .. } | Msg::Refused { origin, .. } = &msg {
                     self.budget.give(*origin, true, queued_bytes(&msg));
                 }
-                if let Some(r) = rec {
+                if let Some(r) = rec
+                    && !matches!(msg, Msg::Line { .. })
+                {
                     record_input(r, &msg);
                 }
                 match msg {
@@ -782,7 +819,13 @@ impl Runner {
                         number,
                         text,
                         at,
-                    } => bridge.handle_numbered_line(since(at), origin, number, &text),
+                    } => {
+                        let taken = Instant::now();
+                        bridge.handle_numbered_line(since(at), origin, number, &text);
+                        if let Some(r) = rec {
+                            r.input_owned(at, taken, origin, number, text);
+                        }
+                    }
                     Msg::Refused {
                         origin,
                         number,
@@ -808,6 +851,7 @@ impl Runner {
             frames_waiting.store(false, Ordering::SeqCst);
             let mut heard = 0;
             while heard < FRAMES_AHEAD
+                && !stop_waiting.load(Ordering::Acquire)
                 && let Ok(msg) = frames_rx.try_recv()
             {
                 if let Some(r) = rec {
@@ -832,6 +876,12 @@ impl Runner {
                 // More may wait: looked at again after one line.
                 frames_waiting.store(true, Ordering::SeqCst);
             }
+            if stop_waiting.load(Ordering::Acquire) {
+                // A stop came while frames were taken: it goes first, the
+                // frames left after it.
+                frames_waiting.store(true, Ordering::SeqCst);
+                continue;
+            }
             // Frames taken: one line (if one waits) in the same turn, so
             // a busy bus never holds the lines back; none taken: wait.
             let wait = if heard > 0 { Duration::ZERO } else { wait };
@@ -839,7 +889,9 @@ impl Runner {
             if let Ok(m @ (Msg::Line { origin, .. } | Msg::Refused { origin, .. })) = &msg {
                 self.budget.give(*origin, false, queued_bytes(m));
             }
-            if let (Some(r), Ok(m)) = (rec, &msg) {
+            if let (Some(r), Ok(m)) = (rec, &msg)
+                && !matches!(m, Msg::Line { .. })
+            {
                 record_input(r, m);
             }
             match msg {
@@ -853,7 +905,12 @@ impl Runner {
                     text,
                     at,
                 }) => {
+                    // Told to the taps once handled, the line moved to them.
+                    let taken = Instant::now();
                     bridge.handle_numbered_line(since(at), origin, number, &text);
+                    if let Some(r) = rec {
+                        r.input_owned(at, taken, origin, number, text);
+                    }
                 }
                 Ok(Msg::Refused {
                     origin,
@@ -887,7 +944,7 @@ impl Runner {
                 Ok(Msg::Greet { origin }) => bridge.greet(since(Instant::now()), origin),
                 Ok(Msg::Finish) => bridge.finish(since(Instant::now())),
                 Ok(Msg::Interrupt) => bridge.interrupt(since(Instant::now())),
-                Ok(Msg::BusError(e)) => sink(&Output::Event(Event::BusError { error: e })),
+                Ok(Msg::BusError(e)) => sink(Output::Event(Event::BusError { error: e })),
                 Ok(Msg::OrionLine { text, at }) => {
                     orion_queued.fetch_sub(1, Ordering::SeqCst);
                     bridge.handle_orion_line(since(at), &text);

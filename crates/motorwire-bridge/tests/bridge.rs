@@ -544,6 +544,26 @@ fn commands_written_before_a_stop_are_refused_after_the_release() {
     let now_ms = arm.now().as_secs_f64() * 1000.0;
     arm.line(Origin(2), &at(now_ms, "elbow", 20.0));
     assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    // Timestamps are whole milliseconds: one stamped in the millisecond a
+    // stop came in (0.6 ms after its start here) may have been written
+    // after it, and runs; one a millisecond earlier does not.
+    arm.run_until(arm.now() + Duration::from_micros(100_600))
+        .unwrap();
+    let stop_ms = arm.now().as_secs_f64() * 1000.0;
+    arm.line(Origin(3), r#"{"emergency_stop": true}"#);
+    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    arm.line(Origin(1), r#"{"emergency_stop": false}"#);
+    assert_eq!(
+        results(&mut arm, 1, Duration::from_secs(1))[0]["released"],
+        true
+    );
+    let same_ms = at(stop_ms.floor(), "elbow", 30.0);
+    let before = at(stop_ms.floor() - 1.0, "elbow", 40.0);
+    arm.line(Origin(2), &before);
+    let r = results(&mut arm, 1, Duration::from_secs(1));
+    assert_eq!(r[0]["error"]["kind"], "stale_before_stop", "{}", r[0]);
+    arm.line(Origin(2), &same_ms);
+    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
 }
 
 /// At the end of input, motion that would not end by itself stops at once
@@ -1085,6 +1105,51 @@ fn a_streamed_joint_is_replanned_without_a_step_in_acceleration() {
         worst_after_lag < 3.0,
         "{worst_after_lag} degrees from the sine 200 ms before"
     );
+}
+
+/// A stream that repeats its target near a limit, while the joint brakes
+/// toward it at speed, is answered `ok` at every setpoint: each is planned
+/// from where the joint is, how fast it moves and how it brakes (the
+/// bridge's model of its move), so the path it checks is the one the joint
+/// takes, stopping on the target, not one that ignores the braking and
+/// passes the limit.
+#[test]
+fn a_stream_repeating_its_target_near_a_limit_is_not_refused() {
+    // Frames take half a millisecond each way: the joint starts each move
+    // that much after the bridge sent it, and its reports are that old.
+    let config = SimConfig {
+        latency: Duration::from_micros(500),
+        ..SimConfig::default()
+    };
+    let bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), BridgeConfig::default()).unwrap();
+    let mut arm = SimulatedArm::new(bridge, config).unwrap();
+    assert!(
+        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
+            .unwrap()
+    );
+    arm.line(Origin(1), &stream("elbow", 150.0));
+    let mut results = Vec::new();
+    let mut highest = 0.0f64;
+    for _ in 0..200 {
+        arm.run_until(arm.now() + Duration::from_millis(10))
+            .unwrap();
+        let p = arm.joint(ELBOW).unwrap().position();
+        highest = highest.max(p);
+        if p > 100.0 {
+            arm.line(Origin(1), &stream("elbow", 150.0));
+        }
+        results.extend(
+            arm.take_outputs()
+                .iter()
+                .map(|o| o.to_value())
+                .filter(|v| v.get("ok").is_some()),
+        );
+    }
+    assert!(results.len() > 50, "{}", results.len());
+    for r in &results {
+        assert_eq!(r["ok"], true, "{r}");
+    }
+    assert!((highest - 150.0).abs() < 1e-3, "{highest}");
 }
 
 /// A setpoint replaced by a newer one of the stream before it was sent is

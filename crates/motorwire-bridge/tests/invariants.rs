@@ -1495,6 +1495,42 @@ fn a_safety_limits_line_that_accepted_motion_would_break_is_refused() {
         "elbow: setpoint 60 is outside max_position (the SafetyLimits line in force) 50"
     );
 
+    // A move under way whose target is inside the new limits and whose
+    // path is not: cruising toward 150 at 120 deg/s, sent back to 95 near
+    // 85, the elbow brakes past 100 before it turns.
+    let mut arm = arm_with(MAP, Faults::default(), 0);
+    arm.line(Origin(1), &command("elbow", 150.0));
+    while arm.joint(0x12).unwrap().position() < 85.0 {
+        arm.run_until(arm.now() + Duration::from_millis(1)).unwrap();
+    }
+    arm.line(Origin(1), &command("elbow", 95.0));
+    arm.run_until(arm.now() + Duration::from_millis(5)).unwrap();
+    arm.line(Origin(1), &limits("elbow", 100.0));
+    arm.run_until(arm.now() + Duration::from_millis(20))
+        .unwrap();
+    let r = arm.take_results();
+    let refused = r
+        .iter()
+        .find(|v| v["line"] == 3)
+        .unwrap_or_else(|| panic!("{r:?}"));
+    assert_eq!(
+        refused["error"]["rule"], "motion_outside_new_limits",
+        "{refused}"
+    );
+    let message = refused["error"]["message"].as_str().unwrap();
+    assert!(
+        message.starts_with("elbow: its move under way reaches 11"),
+        "{message}"
+    );
+    let mut highest = 0.0f64;
+    for _ in 0..1500 {
+        arm.run_until(arm.now() + Duration::from_millis(1)).unwrap();
+        highest = highest.max(arm.joint(0x12).unwrap().position());
+    }
+    // What the refusal said is what the joint did: past 100, back to 95.
+    assert!(highest > 110.0 && highest < 120.0, "{highest}");
+    assert!((arm.joint(0x12).unwrap().position() - 95.0).abs() < 1e-3);
+
     // A later axis of a sequential line, waiting for the one before it.
     let mut arm = arm_with(MAP, Faults::default(), 0);
     arm.line(

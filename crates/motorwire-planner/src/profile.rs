@@ -380,12 +380,51 @@ impl<F: Float> Profile<F> {
     /// time it is reached: `((min, t_min), (max, t_max))`, as
     /// [`Self::position_extrema`] has them.
     pub fn position_extremes(&self) -> ((F, F), (F, F)) {
+        self.extremes_from(F::ZERO)
+    }
+
+    /// [`Profile::position_extrema`] of what is left of the move from
+    /// `from` seconds after its start (the position then counts; before
+    /// the start, the whole path; after the end, the end).
+    ///
+    /// ```
+    /// use motorwire_planner::{Request, plan};
+    /// // 10 deg/s towards a target 1 deg away, braking at 10 deg/s²: 5 past it at 1 s.
+    /// let p = plan(&Request::new(0.0f64, 1.0, 10.0, 10.0).with_velocities(10.0, 0.0))?;
+    /// let whole = p.position_extrema();
+    /// assert_eq!((whole.min, whole.max), (0.0, 5.0));
+    /// // From 1.5 s on, the way back from 3.75 to the target.
+    /// let rest = p.position_extrema_from(1.5);
+    /// assert!((rest.max - 3.75).abs() < 1e-9 && rest.t_max == 1.5, "{rest:?}");
+    /// assert_eq!(rest.min, 1.0);
+    /// # Ok::<(), motorwire_planner::PlanError>(())
+    /// ```
+    pub fn position_extrema_from(&self, from: F) -> PositionExtrema<F> {
+        let ((min, t_min), (max, t_max)) = self.extremes_from(from);
+        PositionExtrema {
+            min,
+            t_min,
+            max,
+            t_max,
+        }
+    }
+
+    fn extremes_from(&self, from: F) -> ((F, F), (F, F)) {
         let end = (self.end_position, self.duration());
         let mut lo = end;
         let mut hi = end;
+        if from > F::ZERO && from < end.1 {
+            let here = (self.sample(from).position, from);
+            if here.0 < lo.0 {
+                lo = here;
+            }
+            if here.0 > hi.0 {
+                hi = here;
+            }
+        }
         for ph in self.phases() {
             let mut consider = |t: F| {
-                if t >= F::ZERO && t <= ph.duration {
+                if t >= F::ZERO && t <= ph.duration && ph.start_time + t >= from {
                     let p = self.eval_phase(&ph, t).position;
                     let at = ph.start_time + t;
                     if p < lo.0 {

@@ -1096,6 +1096,12 @@ impl Drivers {
     ///
     /// # Errors
     /// The iRPC client's refusal of `client` (a node id beyond 11 bits).
+    /// The Unix ms of the bridge's time zero, set again where the clock
+    /// starts ([`crate::Bridge::anchor_epoch`]).
+    pub(crate) fn set_epoch(&mut self, epoch: f64) {
+        self.epoch = epoch;
+    }
+
     pub(crate) fn new(
         client: ClientConfig,
         orion_command_timeout: Duration,
