@@ -146,3 +146,67 @@ fn an_unreadable_line_that_names_a_stop_stops() {
         results[2]
     );
 }
+
+/// The bridge's wall clock is the host's from the moment the runner
+/// starts, whatever epoch its config was built with (here one a whole
+/// second behind, as a bridge slow to start would have had): a command
+/// stamped half a second before a stop, by the host's clock, was written
+/// before it and does not run after the release; one stamped after it
+/// does.
+#[test]
+fn the_stop_is_timed_on_the_hosts_clock() {
+    let host_ms = || {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64()
+            * 1000.0
+    };
+    let map = BusMap::from_toml(MAP).unwrap();
+    let config = BridgeConfig {
+        feedback_period: None,
+        epoch_unix_ms: Some(host_ms() - 1000.0),
+        max_age: Some(Duration::from_secs(60)),
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(map, config).unwrap();
+    let arm = RealTimeArm::start(bridge.map()).unwrap();
+    let runner = Runner::new();
+    let input = runner.input();
+    let (tx, rx) = mpsc::channel();
+    let handle = arm.spawn(runner, bridge, move |o| {
+        if let Output::Result { .. } = o {
+            let _ = tx.send(o.to_value());
+        }
+    });
+    let command = |stamp: f64| {
+        format!(
+            r#"{{"motor_id":"elbow","timestamp":{},"control_mode":"position","setpoint":5}}"#,
+            stamp.floor()
+        )
+    };
+    input.line(Origin(1), command(host_ms()));
+    let first = rx.recv_timeout(Duration::from_secs(10)).unwrap();
+    assert_eq!(first["ok"], true, "{first}");
+    let before_stop = host_ms();
+    input.line(Origin(1), r#"{"emergency_stop": true}"#);
+    assert_eq!(
+        rx.recv_timeout(Duration::from_secs(10)).unwrap()["ok"],
+        true
+    );
+    thread::sleep(Duration::from_millis(5));
+    let after_stop = host_ms();
+    input.line(Origin(1), r#"{"emergency_stop": false}"#);
+    assert_eq!(
+        rx.recv_timeout(Duration::from_secs(10)).unwrap()["released"],
+        true
+    );
+    input.line(Origin(2), command(before_stop - 500.0));
+    let stale = rx.recv_timeout(Duration::from_secs(10)).unwrap();
+    assert_eq!(stale["error"]["kind"], "stale_before_stop", "{stale}");
+    input.line(Origin(2), command(after_stop + 1.0));
+    let fresh = rx.recv_timeout(Duration::from_secs(10)).unwrap();
+    assert_eq!(fresh["ok"], true, "{fresh}");
+    input.interrupt();
+    handle.join().unwrap().unwrap();
+}
