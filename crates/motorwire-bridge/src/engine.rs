@@ -1264,20 +1264,51 @@ impl Bridge {
                 return Some(format!("it moves at {} a second now", say(v.abs())));
             }
         }
-        // The rest of the move under way as the bridge planned it (a
-        // move braking from speed toward a target inside passes it).
-        if let Some((start, profile)) = &j.model {
-            let t = self.now.saturating_sub(*start).as_secs_f64();
-            if t < profile.duration() {
-                let e = profile.position_extrema_from(t);
-                for (extreme, at) in [(e.max, e.t_max), (e.min, e.t_min)] {
-                    if outside(extreme) {
-                        return Some(format!(
-                            "its move under way reaches {} in {:.3} s",
-                            say(extreme),
-                            (at - t).max(0.0)
-                        ));
+        // The rest of the move under way (a move braking from speed
+        // toward a target inside passes it): as the bridge planned it, or
+        // without that plan, at least the stop from where the joint is at
+        // its limits. A joint already past a new limit is held to going no
+        // farther (as one standing there is: the limits bind what comes
+        // next); going farther out is refused.
+        if let Some((p_now, v_now, _)) = j.state_at(self.now) {
+            let farther = |x: f64| {
+                (x > hi_d + SLACK && x > p_now + SLACK) || (x < lo_d - SLACK && x < p_now - SLACK)
+            };
+            let rest = match &j.model {
+                Some((start, profile)) => {
+                    let t = self.now.saturating_sub(*start).as_secs_f64();
+                    (t < profile.duration()).then(|| {
+                        let e = profile.position_extrema_from(t);
+                        [(e.max, e.t_max - t), (e.min, e.t_min - t)]
+                    })
+                }
+                None if v_now != 0.0 => self.map.motor(&j.name).and_then(|m| {
+                    let l = m.limits;
+                    let deg = |x: Option<f64>| x.map(|v| unit.to_degrees(v));
+                    let acc = deg(l.max_acceleration).unwrap_or(1000.0);
+                    let mut req = motorwire_planner::Request::new(
+                        p_now,
+                        p_now,
+                        deg(l.max_velocity).unwrap_or(v_now.abs()).max(v_now.abs()),
+                        acc,
+                    )
+                    .with_velocities(v_now, 0.0)
+                    .with_max_deceleration(deg(l.max_deceleration).unwrap_or(acc));
+                    if let Some(jerk) = deg(l.max_jerk).filter(|j| *j > 0.0) {
+                        req = req.with_jerk(jerk);
                     }
+                    let e = motorwire_planner::plan(&req).ok()?.position_extrema();
+                    Some([(e.max, e.t_max), (e.min, e.t_min)])
+                }),
+                None => None,
+            };
+            for (extreme, after) in rest.into_iter().flatten() {
+                if farther(extreme) {
+                    return Some(format!(
+                        "its move under way reaches {} in {:.3} s",
+                        say(extreme),
+                        after.max(0.0)
+                    ));
                 }
             }
         }

@@ -1523,12 +1523,34 @@ fn a_safety_limits_line_that_accepted_motion_would_break_is_refused() {
         "{message}"
     );
     let mut highest = 0.0f64;
+    // Past its peak and on its way back, still above 100: the same line is
+    // taken (the joint goes no farther out, as one standing there would
+    // not), every time, and the joint never comes back above where it was.
+    let mut accepted_at = None;
+    let mut line = 3;
     for _ in 0..1500 {
         arm.run_until(arm.now() + Duration::from_millis(1)).unwrap();
-        highest = highest.max(arm.joint(0x12).unwrap().position());
+        let joint = arm.joint(0x12).unwrap();
+        let p = joint.position();
+        highest = highest.max(p);
+        if accepted_at.is_none() && joint.velocity() < -20.0 && p > 102.0 {
+            arm.line(Origin(1), &limits("elbow", 100.0));
+            line += 1;
+            arm.run_until(arm.now() + Duration::from_millis(2)).unwrap();
+            let r = arm.take_results();
+            let taken = r
+                .iter()
+                .find(|v| v["line"] == line)
+                .unwrap_or_else(|| panic!("{r:?}"));
+            assert_eq!(taken["ok"], true, "{taken}");
+            accepted_at = Some((p, highest));
+        } else if let Some((at, _)) = accepted_at {
+            assert!(p <= at + 1e-6, "{p} after the limits were taken at {at}");
+        }
     }
     // What the refusal said is what the joint did: past 100, back to 95.
     assert!(highest > 110.0 && highest < 120.0, "{highest}");
+    assert!(accepted_at.is_some());
     assert!((arm.joint(0x12).unwrap().position() - 95.0).abs() < 1e-3);
 
     // A later axis of a sequential line, waiting for the one before it.
