@@ -494,20 +494,22 @@ fn commands_written_before_a_stop_are_refused_after_the_release() {
             EPOCH + ms
         )
     };
+    // A stop from `origin` at `after` from now, then a release; when the
+    // stop came (ms on the bridge's clock).
+    let stop_then_release = |arm: &mut SimulatedArm, origin: u64, after: Duration| {
+        arm.run_until(arm.now() + after).unwrap();
+        let stop_ms = arm.now().as_secs_f64() * 1000.0;
+        arm.line(Origin(origin), r#"{"emergency_stop": true}"#);
+        assert_eq!(results(arm, 1, Duration::from_secs(1))[0]["ok"], true);
+        arm.line(Origin(1), r#"{"emergency_stop": false}"#);
+        assert_eq!(results(arm, 1, Duration::from_secs(1))[0]["released"], true);
+        stop_ms
+    };
     arm.line(Origin(1), r#"{"emergency_stop": true}"#);
     assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
     // A second stop while the first is latched counts too: the last stop
     // is the later one.
-    arm.run_until(arm.now() + Duration::from_millis(100))
-        .unwrap();
-    let stop_ms = arm.now().as_secs_f64() * 1000.0;
-    arm.line(Origin(3), r#"{"emergency_stop": true}"#);
-    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
-    arm.line(Origin(1), r#"{"emergency_stop": false}"#);
-    assert_eq!(
-        results(&mut arm, 1, Duration::from_secs(1))[0]["released"],
-        true
-    );
+    let stop_ms = stop_then_release(&mut arm, 3, Duration::from_millis(100));
     let executed = arm.joint(ELBOW).unwrap().stats().executed;
     let gripper = arm.compact_device(0x20).unwrap().log().len();
     // 37 lines written 1 to 37 ms before the stop, by a second client.
@@ -547,16 +549,7 @@ fn commands_written_before_a_stop_are_refused_after_the_release() {
     // Timestamps are whole milliseconds: one stamped in the millisecond a
     // stop came in (0.6 ms after its start here) may have been written
     // after it, and runs; one a millisecond earlier does not.
-    arm.run_until(arm.now() + Duration::from_micros(100_600))
-        .unwrap();
-    let stop_ms = arm.now().as_secs_f64() * 1000.0;
-    arm.line(Origin(3), r#"{"emergency_stop": true}"#);
-    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
-    arm.line(Origin(1), r#"{"emergency_stop": false}"#);
-    assert_eq!(
-        results(&mut arm, 1, Duration::from_secs(1))[0]["released"],
-        true
-    );
+    let stop_ms = stop_then_release(&mut arm, 3, Duration::from_micros(100_600));
     let same_ms = at(stop_ms.floor(), "elbow", 30.0);
     let before = at(stop_ms.floor() - 1.0, "elbow", 40.0);
     arm.line(Origin(2), &before);

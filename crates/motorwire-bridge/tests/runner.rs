@@ -18,11 +18,15 @@ type Handle = thread::JoinHandle<Result<Bridge, motorwire_bridge::BridgeError>>;
 /// The demo arm in real time, its bridge run by a [`Runner`] without
 /// feedback; results come on the receiver.
 fn start() -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
-    let map = BusMap::from_toml(MAP).unwrap();
-    let config = BridgeConfig {
+    start_with(BridgeConfig {
         feedback_period: None,
         ..BridgeConfig::default()
-    };
+    })
+}
+
+/// [`start`] with `config`.
+fn start_with(config: BridgeConfig) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
+    let map = BusMap::from_toml(MAP).unwrap();
     let bridge = Bridge::new(map, config).unwrap();
     let arm = RealTimeArm::start(bridge.map()).unwrap();
     let runner = Runner::new();
@@ -162,22 +166,11 @@ fn the_stop_is_timed_on_the_hosts_clock() {
             .as_secs_f64()
             * 1000.0
     };
-    let map = BusMap::from_toml(MAP).unwrap();
-    let config = BridgeConfig {
+    let (_arm, input, rx, handle) = start_with(BridgeConfig {
         feedback_period: None,
         epoch_unix_ms: Some(host_ms() - 1000.0),
         max_age: Some(Duration::from_secs(60)),
         ..BridgeConfig::default()
-    };
-    let bridge = Bridge::new(map, config).unwrap();
-    let arm = RealTimeArm::start(bridge.map()).unwrap();
-    let runner = Runner::new();
-    let input = runner.input();
-    let (tx, rx) = mpsc::channel();
-    let handle = arm.spawn(runner, bridge, move |o| {
-        if let Output::Result { .. } = o {
-            let _ = tx.send(o.to_value());
-        }
     });
     let command = |stamp: f64| {
         format!(
