@@ -1979,11 +1979,7 @@ impl Bridge {
             let state = |m: &str| {
                 let j = self.joints.get(self.joint_index(m)?)?;
                 match j.state_at(self.now) {
-                    Some((p, v, a)) => Some((
-                        j.unit.from_degrees(p),
-                        j.unit.from_degrees(v),
-                        j.unit.from_degrees(a),
-                    )),
+                    Some(k) => Some(crate::joints::in_unit(j.unit, k)),
                     None => j.feedback.as_ref().map(|f| (f.position, 0.0, 0.0)),
                 }
             };
@@ -2052,17 +2048,8 @@ impl Bridge {
         let mut planned = None;
         for p in payloads {
             if let Payload::SetTargetV2(p) = p {
-                let unit = motor.unit;
-                let path = motorwire_translate::check_path_from(
-                    motor,
-                    &limits,
-                    p,
-                    (
-                        unit.from_degrees(from.0),
-                        unit.from_degrees(from.1),
-                        unit.from_degrees(from.2),
-                    ),
-                )?;
+                let start = crate::joints::in_unit(motor.unit, from);
+                let path = motorwire_translate::check_path_from(motor, &limits, p, start)?;
                 planned = Duration::try_from_secs_f64(path.duration)
                     .ok()
                     .map(|d| ((from, *p, d), path.profile));

@@ -24,6 +24,16 @@ pub(crate) struct StepRef {
 /// joint plans a new move from all three.
 pub(crate) type Kinematics = (f64, f64, f64);
 
+/// [`Kinematics`] in a motor's unit (its bus map's, in which the gate and
+/// the path check read positions).
+pub(crate) fn in_unit(unit: AngleUnit, (p, v, a): Kinematics) -> motorwire_translate::JointState {
+    (
+        unit.from_degrees(p),
+        unit.from_degrees(v),
+        unit.from_degrees(a),
+    )
+}
+
 /// A part sent and never answered: the joint may have executed it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Unresolved {

@@ -443,13 +443,7 @@ impl Recorder {
     /// Input line `number` of `origin`, received at `at` and taken by the
     /// bridge now (both are written: `t_us` and `taken_us`).
     pub fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
-        self.put(Record::Input {
-            at,
-            taken: Instant::now(),
-            origin,
-            number,
-            text: text.to_owned(),
-        });
+        Tap::input_owned(self, at, Instant::now(), origin, number, text.to_owned());
     }
 
     /// An input line that could not be read: its bytes (where the reader
@@ -473,10 +467,7 @@ impl Recorder {
 
     /// An output line given at `at`.
     pub fn output(&self, at: Instant, output: &Output) {
-        self.put(Record::Output {
-            at,
-            output: Box::new(output.clone()),
-        });
+        self.output_owned(at, output.clone());
     }
 
     /// An output line given at `at`, kept as it is (no copy).

@@ -176,6 +176,7 @@ impl<F: Float> Profile<F> {
     /// Appends a phase of `duration` from the start state `(p, v, a)` with
     /// jerk sign `sign`; returns whether there was room (a phase of zero
     /// duration is dropped, and counts as room).
+    #[inline(always)]
     pub(crate) fn push_phase(&mut self, duration: F, p: F, v: F, a: F, sign: i8) -> bool {
         if duration.partial_cmp(&F::ZERO) != Some(core::cmp::Ordering::Greater) {
             return true;
@@ -607,34 +608,17 @@ impl<'a, F: Float> Builder<'a, F> {
     /// sign `sign` (-1, 0, 1); phases of zero duration are dropped.
     #[inline(always)]
     pub(crate) fn phase(&mut self, duration: F, a: F, sign: i8) {
-        // Drops zero, negative and NaN durations alike.
-        if duration.partial_cmp(&F::ZERO) != Some(core::cmp::Ordering::Greater) {
+        let before = self.profile.count;
+        let s = self.state;
+        // Drops zero, negative and NaN durations alike; the planners never
+        // build more than MAX_PHASES phases.
+        self.profile
+            .push_phase(duration, s.position, s.velocity, a, sign);
+        if self.profile.count == before {
             return;
         }
-        let i = usize::from(self.profile.count);
-        let (Some(d_slot), Some(p), Some(v), Some(a_slot)) = (
-            self.profile.durations.get_mut(i),
-            self.profile.p.get_mut(i),
-            self.profile.v.get_mut(i),
-            self.profile.a.get_mut(i),
-        ) else {
-            // The planners never build more than MAX_PHASES phases.
-            return;
-        };
-        *d_slot = duration;
-        *p = self.state.position;
-        *v = self.state.velocity;
-        *a_slot = a;
-        let code: u16 = match sign {
-            1 => 1,
-            -1 => 2,
-            _ => 0,
-        };
-        self.profile.jerk_signs |= code << (2 * i);
-        self.profile.count += 1;
-        let j = self.profile.jerk_of(i);
+        let j = self.profile.jerk_of(usize::from(before));
         let sixth = F::from_f64(1.0 / 6.0);
-        let s = self.state;
         self.state = State {
             position: s.position
                 + duration * (s.velocity + duration * (a * F::HALF + duration * j * sixth)),

@@ -257,7 +257,7 @@ fn tolerance(motor: &MappedMotor, bound: f64) -> f64 {
 
 /// Plans one move from `(position, velocity, acceleration)` in degrees
 /// and checks its path.
-fn check_segment(
+pub(crate) fn check_segment(
     motor: &MappedMotor,
     limits: &Effective,
     payload: &SetTargetPayloadV2,

@@ -6,8 +6,9 @@ use motorwire_planner::{minimum_duration, plan, plan_with_duration};
 use motorwire_wia::Trajectory;
 
 use crate::gate::Effective;
+use crate::path::check_segment;
 use crate::report::{LossKind, Report, Translated};
-use crate::{BusMap, Refusal, Target, check_path_from};
+use crate::{BusMap, Refusal, Target};
 
 /// How long before a waypoint's time the next segment is sent (s): the
 /// joint replans from where it then is, still on its way to the waypoint
@@ -269,6 +270,17 @@ pub fn trajectory_to_irpc(
     // it (zero where the previous segment ends at rest, and after a
     // trapezoidal segment, whose acceleration steps).
     let mut from_acc = 0.0f64;
+    // The joint's state `send` s into its own plan of a segment, when the
+    // next one is sent.
+    let sent_from = |plan: &motorwire_planner::Profile<f32>, send: f64| {
+        let s = plan.sample(f(send));
+        let a = if scurve {
+            f64::from(s.acceleration)
+        } else {
+            0.0
+        };
+        (f64::from(s.position), f64::from(s.velocity), a)
+    };
     for (k, pair) in points.windows(2).enumerate() {
         let (&(_, _, _, _), &(index, t1, p1, v1)) = match pair {
             [a, b] => (a, b),
@@ -372,17 +384,8 @@ pub fn trajectory_to_irpc(
                 (&split.stop, (from_pos, from_vel, from_acc)),
                 (&split.takeoff, (split.stop_at, 0.0, 0.0)),
             ] {
-                check_path_from(
-                    motor,
-                    &e,
-                    &sub.payload,
-                    (
-                        unit.from_degrees(from.0),
-                        unit.from_degrees(from.1),
-                        unit.from_degrees(from.2),
-                    ),
-                )
-                .map_err(|r| infeasible(index, r.to_string()))?;
+                check_segment(motor, &e, &sub.payload, from, None)
+                    .map_err(|r| infeasible(index, r.to_string()))?;
             }
             report.push(
                 format!("waypoints[{index}]"),
@@ -394,16 +397,9 @@ pub fn trajectory_to_irpc(
             );
             segments.push(split.stop);
             segments.push(split.takeoff);
-            let send = split.takeoff_duration - lead;
-            let s = split.takeoff_plan.sample(f(send.max(0.0)));
-            from_pos = f64::from(s.position);
-            from_vel = f64::from(s.velocity);
-            from_acc = if scurve {
-                f64::from(s.acceleration)
-            } else {
-                0.0
-            };
-            from_t = split.takeoff.at + send.max(0.0);
+            let send = (split.takeoff_duration - lead).max(0.0);
+            (from_pos, from_vel, from_acc) = sent_from(&split.takeoff_plan, send);
+            from_t = split.takeoff.at + send;
             continue;
         }
         if (arrives - t1).abs() > WAYPOINT_TOLERANCE_S && !early_at_rest {
@@ -412,17 +408,8 @@ pub fn trajectory_to_irpc(
                 format!("the joint would pass it at {arrives:.4} s, not {t1:.4} s"),
             ));
         }
-        check_path_from(
-            motor,
-            &e,
-            &payload,
-            (
-                unit.from_degrees(from_pos),
-                unit.from_degrees(from_vel),
-                unit.from_degrees(from_acc),
-            ),
-        )
-        .map_err(|r| infeasible(index, r.to_string()))?;
+        check_segment(motor, &e, &payload, (from_pos, from_vel, from_acc), None)
+            .map_err(|r| infeasible(index, r.to_string()))?;
         segments.push(TrajectorySegment {
             at: from_t,
             payload,
@@ -436,16 +423,9 @@ pub fn trajectory_to_irpc(
             from_t = t1;
         } else {
             // The next segment is sent `lead` before this one's end.
-            let send = f64::from(joint.duration()) - lead;
-            let s = joint.sample(f(send.max(0.0)));
-            from_pos = f64::from(s.position);
-            from_vel = f64::from(s.velocity);
-            from_acc = if scurve {
-                f64::from(s.acceleration)
-            } else {
-                0.0
-            };
-            from_t += send.max(0.0);
+            let send = (f64::from(joint.duration()) - lead).max(0.0);
+            (from_pos, from_vel, from_acc) = sent_from(&joint, send);
+            from_t += send;
         }
     }
     let duration = points.last().map_or(0.0, |p| p.1);

@@ -592,16 +592,11 @@ impl Order {
         if checked == Some((from, *p)) {
             return None;
         }
-        let unit = motor.unit;
         motorwire_translate::check_path_from(
             motor,
             limits,
             p,
-            (
-                unit.from_degrees(from.0),
-                unit.from_degrees(from.1),
-                unit.from_degrees(from.2),
-            ),
+            crate::joints::in_unit(motor.unit, from),
         )
         .err()
     }
