@@ -345,6 +345,9 @@ pub struct Bridge {
     /// Draining, a line just finished: whether the drain may end is
     /// looked at once.
     drain_recheck: bool,
+    /// The ids of the jobs [`Self::finish_jobs`] found done, kept between
+    /// calls so that finding them allocates nothing.
+    done_scratch: Vec<u64>,
     /// Started: ready once every online device has been read, or then.
     settle_until: Option<Duration>,
     /// Clients that connected during startup, greeted when it ends.
@@ -437,6 +440,7 @@ impl Bridge {
             phase: Phase::Starting,
             drain_after_start: None,
             drain_recheck: false,
+            done_scratch: Vec::new(),
             settle_until: None,
             to_greet: Vec::new(),
             last_stop_arrival: None,
@@ -1080,7 +1084,7 @@ impl Bridge {
             }
             for mut loss in plan.report.losses {
                 if all.len() > 1 {
-                    loss.field = format!("{}.{}", t.motor_id, loss.field);
+                    loss.field = format!("{}.{}", t.motor_id, loss.field).into();
                 }
                 report.losses.push(loss);
             }
@@ -1613,7 +1617,11 @@ impl Bridge {
         };
         let mut losses = Vec::new();
         if v.emergency_decel.is_some() {
-            losses.push("velocity_limits.emergency_decel: recorded, not carried: an iRPC joint brakes from a Deactivate at its own rate".to_owned());
+            losses.push(motorwire_translate::Loss {
+                field: "velocity_limits.emergency_decel".into(),
+                kind: motorwire_translate::LossKind::Dropped,
+                detail: "recorded; an iRPC joint brakes from a Deactivate at its own rate".into(),
+            });
         }
         for (field, given) in [
             ("thermal_limits", l.thermal_limits.is_some()),
@@ -1625,9 +1633,11 @@ impl Bridge {
             ),
         ] {
             if given {
-                losses.push(format!(
-                    "{field}: not carried: iRPC has no such setting; the joint keeps its own"
-                ));
+                losses.push(motorwire_translate::Loss {
+                    field: field.into(),
+                    kind: motorwire_translate::LossKind::Dropped,
+                    detail: "iRPC has no such setting; the joint keeps its own".into(),
+                });
             }
         }
         let r = LineResult {
@@ -2002,7 +2012,7 @@ impl Bridge {
             let single = a.to_motor_command(cmd.timestamp);
             let prefixed = |r: Report| {
                 r.losses.into_iter().map(|mut l| {
-                    l.field = format!("{}.{}", a.motor_id, l.field);
+                    l.field = format!("{}.{}", a.motor_id, l.field).into();
                     l
                 })
             };
@@ -2019,9 +2029,9 @@ impl Bridge {
         }
         if others && !sub.motors.is_empty() && cmd.sync_mode != Some(SyncMode::Sequential) {
             report.losses.push(motorwire_translate::Loss {
-                field: "sync_mode".to_owned(),
+                field: "sync_mode".into(),
                 kind: motorwire_translate::LossKind::Converted,
-                detail: "compact and Orion axes are sent at the same time as the others, but only iRPC joints are planned to a common duration".to_owned(),
+                detail: "compact and Orion axes are sent at the same time as the others, but only iRPC joints are planned to a common duration".into(),
             });
         }
         Ok((axes, report))
@@ -2587,12 +2597,7 @@ impl Bridge {
             j.moved_by = line;
         }
         let Some(line) = line else { return };
-        let why = || {
-            format!(
-                "superseded by line {} of client {}",
-                line.line, line.origin.0
-            )
-        };
+        let why = || crate::json::superseded_by(line);
         self.fail_watches_with(|w| w.line.at() != line && w.waits_on(ji), why);
         self.end_sequences_on(ji, by, line);
     }
@@ -3113,12 +3118,7 @@ impl Bridge {
             arrival_follows: Some(true),
             latency_us: job.last_frame.map(|t| us(t.saturating_sub(job.received))),
             ack_us: Some(us(now.saturating_sub(job.received))),
-            losses: job
-                .report
-                .losses
-                .iter()
-                .map(motorwire_translate::Loss::text)
-                .collect(),
+            losses: std::mem::take(&mut job.report.losses),
             ..LineResult::default()
         };
         self.answer(&meta, r);
@@ -3181,18 +3181,25 @@ impl Bridge {
 
     /// Emits the result of every job that is done.
     fn finish_jobs(&mut self) {
-        let done: Vec<u64> = self
-            .jobs
-            .iter()
-            .filter(|(_, j)| j.is_done())
-            .map(|(id, _)| *id)
-            .collect();
-        for id in done {
+        let mut done = std::mem::take(&mut self.done_scratch);
+        done.clear();
+        done.extend(
+            self.jobs
+                .iter()
+                .filter(|(_, j)| j.is_done())
+                .map(|(id, _)| *id),
+        );
+        for &id in &done {
             if let Some(job) = self.jobs.remove(&id) {
                 self.complete(job);
                 // The drain may end now: looked at once, by its timer.
                 self.drain_recheck = matches!(self.phase, Phase::Draining { .. });
             }
+        }
+        // Kept for the next call (a nested call, from a completion, found
+        // it empty and allocated its own: the larger is kept).
+        if done.capacity() >= self.done_scratch.capacity() {
+            self.done_scratch = done;
         }
     }
 
@@ -3323,12 +3330,7 @@ impl Bridge {
             } else {
                 None
             },
-            losses: job
-                .report
-                .losses
-                .iter()
-                .map(motorwire_translate::Loss::text)
-                .collect(),
+            losses: job.report.losses,
             data: job.data.clone(),
             ..LineResult::default()
         };
@@ -3814,8 +3816,7 @@ impl Bridge {
         let verdict = if self.latched {
             Some("stopped by the emergency stop".to_owned())
         } else {
-            replaced_by
-                .map(|by| format!("superseded by line {} of client {}", by.line, by.origin.0))
+            replaced_by.map(crate::json::superseded_by)
         };
         if let Some(why) = verdict {
             let arrival = w.verdict(now, Some(why));
@@ -3844,7 +3845,7 @@ impl Bridge {
     /// devices' planned motion and a margin.
     fn watch_of(&self, meta: LineMeta, moved: Vec<(usize, String, f64)>, since: Duration) -> Watch {
         let now = self.now;
-        let mut axes = Vec::new();
+        let mut axes = Vec::with_capacity(moved.len());
         let mut end = now;
         for (ji, motor, target) in moved {
             let m = self.map.motor(&motor);

@@ -120,6 +120,25 @@ impl Json {
         self.text.push(']');
     }
 
+    /// Each loss as its text, `field: kind: detail`, written in place.
+    fn losses(&mut self, name: &'static str, v: &[motorwire_translate::Loss]) {
+        self.key(name);
+        self.text.push('[');
+        for (i, l) in v.iter().enumerate() {
+            if i > 0 {
+                self.text.push(',');
+            }
+            self.text.push('"');
+            push_unquoted(&mut self.text, &l.field);
+            self.text.push_str(": ");
+            self.text.push_str(l.kind.name());
+            self.text.push_str(": ");
+            push_unquoted(&mut self.text, &l.detail);
+            self.text.push('"');
+        }
+        self.text.push(']');
+    }
+
     fn f32(&mut self, name: &'static str, v: f32) -> Result<(), serde_json::Error> {
         self.key(name);
         // A whole number of up to seven digits (a target such as 30) is
@@ -168,6 +187,18 @@ fn push_number<T: Serialize>(s: &mut String, v: &T) -> Result<(), serde_json::Er
 }
 
 /// `v` in decimal, as `serde_json` writes a `u64`.
+/// `superseded by line N of client C`, the reason of a watched line whose
+/// motor took a newer line's move: made for every move that replaces one
+/// under way, so built without the formatting machinery.
+pub(crate) fn superseded_by(by: crate::LineRef) -> String {
+    let mut s = String::with_capacity(64);
+    s.push_str("superseded by line ");
+    push_u64(&mut s, by.line);
+    s.push_str(" of client ");
+    push_u64(&mut s, by.origin.0);
+    s
+}
+
 fn push_u64(s: &mut String, mut v: u64) {
     if v < 10 {
         // One digit: v < 10.
@@ -196,6 +227,12 @@ fn push_u64(s: &mut String, mut v: u64) {
 /// others as `\\u00XX`); nothing else.
 fn push_str(s: &mut String, v: &str) {
     s.push('"');
+    push_unquoted(s, v);
+    s.push('"');
+}
+
+/// `v` escaped as inside a JSON string, without its quotes.
+fn push_unquoted(s: &mut String, v: &str) {
     // Nearly every string has nothing to escape: one pass over its bytes
     // that does not stop early (so the compiler can take many at a time),
     // then the whole string at once.
@@ -207,7 +244,6 @@ fn push_str(s: &mut String, v: &str) {
     } else {
         s.push_str(v);
     }
-    s.push('"');
 }
 
 #[cold]
@@ -249,7 +285,11 @@ impl LineResult {
     /// Room for the result's line: its strings, and its members' names
     /// and numbers (most results fit, so the line is not grown as written).
     pub(crate) fn json_capacity(&self) -> usize {
-        let strings: usize = self.losses.iter().map(|l| l.len() + 3).sum::<usize>()
+        let strings: usize = self
+            .losses
+            .iter()
+            .map(|l| l.field.len() + l.detail.len() + 16)
+            .sum::<usize>()
             + self
                 .acked
                 .as_ref()
@@ -298,7 +338,7 @@ impl LineResult {
         j.opt_u64(k!("ack_us"), self.ack_us);
         j.opt_u64(k!("stop_latency_us"), self.stop_latency_us);
         if !self.losses.is_empty() {
-            j.strs(k!("losses"), &self.losses);
+            j.losses(k!("losses"), &self.losses);
         }
         if let Some(d) = &self.data {
             j.serde(k!("data"), d)?;
@@ -358,6 +398,18 @@ impl StepReport {
 }
 
 impl ArrivalLine {
+    /// Room for the completion's line: its strings, its members' names and
+    /// numbers, and each motor's (so the line is not grown as written).
+    pub(crate) fn json_capacity(&self) -> usize {
+        let strings = [&self.motor_id, &self.command_id, &self.reason]
+            .into_iter()
+            .flatten()
+            .map(|s| s.len() + 16)
+            .sum::<usize>();
+        let motors: usize = self.motors.iter().map(|m| m.motor_id.len() + 96).sum();
+        strings + motors + 64
+    }
+
     /// Writes the completion as `serde_json` writes its `Serialize`.
     pub(crate) fn write_json(&self, j: &mut Json) -> Result<(), serde_json::Error> {
         j.open();
@@ -455,7 +507,11 @@ mod tests {
             latency_us: Some(0),
             ack_us: Some(17),
             stop_latency_us: Some(99),
-            losses: vec!["max_jerk: defaulted: 2000 from the bus map".into()],
+            losses: vec![motorwire_translate::Loss {
+                field: "max_jerk".into(),
+                kind: motorwire_translate::LossKind::Defaulted,
+                detail: "2000 from the \"bus\" map\n".into(),
+            }],
             data: Some(serde_json::json!({"telemetry": {"voltage": 0.1}})),
             limits: Some(serde_json::json!({"effective": {"max_position": 150.0}})),
             state: Some(BridgeState {
@@ -543,6 +599,15 @@ mod tests {
 
     proptest! {
         #[test]
+        fn the_superseded_reason_is_what_format_writes(line in any::<u64>(), origin in any::<u64>()) {
+            let by = crate::LineRef { origin: crate::Origin(origin), line };
+            prop_assert_eq!(
+                superseded_by(by),
+                format!("superseded by line {line} of client {origin}")
+            );
+        }
+
+        #[test]
         fn written_as_serde_json_writes_them(
             texts in proptest::collection::vec(any::<String>(), 6),
             numbers in proptest::collection::vec(any::<u64>(), 3),
@@ -556,7 +621,11 @@ mod tests {
                 error: flags[2].then(|| ErrorBody::new(ErrorKind::Busy, texts[1].clone()).about(texts[2].clone())),
                 acked: flags[3].then(|| vec![texts[3].clone(), texts[4].clone()]),
                 latency_us: Some(numbers[1]),
-                losses: vec![texts[5].clone()],
+                losses: vec![motorwire_translate::Loss {
+                    field: texts[5].clone().into(),
+                    kind: motorwire_translate::LossKind::Converted,
+                    detail: texts[0].clone().into(),
+                }],
                 outcomes: vec![StepReport {
                     motor: texts[4].clone(),
                     outcome: StepOutcome::Cancelled,

@@ -57,7 +57,7 @@ impl Output {
                 result.write_json(&mut j).map(|()| j.into_string())
             }
             Self::Arrival { arrival, .. } => {
-                let mut j = crate::json::Json::with_capacity(160);
+                let mut j = crate::json::Json::with_capacity(arrival.json_capacity());
                 arrival.write_json(&mut j).map(|()| j.into_string())
             }
             Self::Feedback(f) => serde_json::to_string(f),
@@ -143,6 +143,14 @@ fn is_zero(n: &u64) -> bool {
     *n == 0
 }
 
+/// Losses written as their texts.
+fn loss_texts<S: serde::Serializer>(
+    losses: &[motorwire_translate::Loss],
+    s: S,
+) -> Result<S::Ok, S::Error> {
+    s.collect_seq(losses.iter().map(motorwire_translate::Loss::text))
+}
+
 /// The result of one input line: `{"ok":true,...}` or
 /// `{"ok":false,"error":{...},...}`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize)]
@@ -199,9 +207,12 @@ pub struct LineResult {
     /// frame on the bus (µs).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stop_latency_us: Option<u64>,
-    /// What the translation could not carry exactly.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub losses: Vec<String>,
+    /// What the translation could not carry exactly, each written as its
+    /// text (`field: kind: detail`, [`motorwire_translate::Loss::text`]).
+    /// Kept as the losses themselves: a result is written once, and the
+    /// text is made only there.
+    #[serde(skip_serializing_if = "Vec::is_empty", serialize_with = "loss_texts")]
+    pub losses: Vec<motorwire_translate::Loss>,
     /// For a request or calibration line: what the joint answered,
     /// `{"telemetry"|"power_metrics"|"fault_history"|"calibration_result": {...}}`
     /// (iRPC's field names, WIRE-FACTS §1.3).

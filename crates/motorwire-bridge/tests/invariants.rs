@@ -1994,7 +1994,7 @@ fn answered_saying_then_arrived(arm: &mut SimulatedArm, loss: &str) {
     let out = arm.take_outputs();
     let r = out.iter().find_map(Output::result).unwrap();
     assert!(r.ok, "{r:?}");
-    assert!(r.losses.iter().any(|l| l.starts_with(loss)), "{r:?}");
+    assert!(r.losses.iter().any(|l| l.text().starts_with(loss)), "{r:?}");
     let a = arrivals(&out);
     assert_eq!(a[0]["arrived"], true, "{}", a[0]);
 }

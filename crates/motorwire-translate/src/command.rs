@@ -477,7 +477,7 @@ pub fn compact_command(cmd: &MotorCommand) -> Result<Translated<CompactCommand>,
     );
     if let Some(loss) = report.losses.iter_mut().find(|l| l.field == "priority") {
         loss.kind = LossKind::Converted;
-        loss.detail = format!("to the PRIORITY_HIGH flag (set from {HIGH_PRIORITY})");
+        loss.detail = format!("to the PRIORITY_HIGH flag (set from {HIGH_PRIORITY})").into();
     }
     if let Some(l) = &cmd.safety_limits {
         let others = l.min_position.is_some()
@@ -612,7 +612,7 @@ pub(crate) fn each_axis<T>(
     for axis in &cmd.motors {
         let t = one(map, &axis.to_motor_command(cmd.timestamp))?;
         for mut loss in t.report.losses {
-            loss.field = format!("{}.{}", axis.motor_id, loss.field);
+            loss.field = format!("{}.{}", axis.motor_id, loss.field).into();
             report.losses.push(loss);
         }
         commands.push(t.value);
@@ -736,7 +736,7 @@ pub fn to_orion(
         let mut axis_report = Report::default();
         report_unused(&single, &[], "Orion direct control", &mut axis_report);
         for mut loss in axis_report.losses {
-            loss.field = format!("{}.{}", motor.name, loss.field);
+            loss.field = format!("{}.{}", motor.name, loss.field).into();
             report.losses.push(loss);
         }
         values.set(orion, value);

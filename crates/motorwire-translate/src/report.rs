@@ -1,5 +1,6 @@
 //! What a translation could not carry over exactly.
 
+use std::borrow::Cow;
 use std::fmt;
 
 /// The kind of a lossy step.
@@ -15,16 +16,34 @@ pub enum LossKind {
     Filled,
 }
 
+impl LossKind {
+    /// The kind as a loss's text names it: `dropped`, `converted`,
+    /// `defaulted` or `filled`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Dropped => "dropped",
+            Self::Converted => "converted",
+            Self::Defaulted => "defaulted",
+            Self::Filled => "filled",
+        }
+    }
+}
+
 /// One lossy step.
+///
+/// The field and the detail are [`Cow`]s: a field's name and most details
+/// are fixed text, which a bridge translating every command should not
+/// copy into a new string each time (`"x".into()` and `String`s both
+/// convert).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Loss {
     /// The field, as the source (or, for `Defaulted`/`Filled`, the target)
     /// names it.
-    pub field: String,
+    pub field: Cow<'static, str>,
     /// What happened.
     pub kind: LossKind,
     /// How, in words.
-    pub detail: String,
+    pub detail: Cow<'static, str>,
 }
 
 impl Loss {
@@ -50,12 +69,7 @@ impl Loss {
     }
 
     const fn kind_name(&self) -> &'static str {
-        match self.kind {
-            LossKind::Dropped => "dropped",
-            LossKind::Converted => "converted",
-            LossKind::Defaulted => "defaulted",
-            LossKind::Filled => "filled",
-        }
+        self.kind.name()
     }
 }
 
@@ -75,9 +89,9 @@ pub struct Report {
 impl Report {
     pub(crate) fn push(
         &mut self,
-        field: impl Into<String>,
+        field: impl Into<Cow<'static, str>>,
         kind: LossKind,
-        detail: impl Into<String>,
+        detail: impl Into<Cow<'static, str>>,
     ) {
         self.losses.push(Loss {
             field: field.into(),

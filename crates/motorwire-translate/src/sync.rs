@@ -114,7 +114,7 @@ pub fn multi_axis_to_irpc_from(
         for axis in &cmd.motors {
             let t = to_irpc(map, &axis.to_motor_command(cmd.timestamp))?;
             for mut loss in t.report.losses {
-                loss.field = format!("{}.{}", axis.motor_id, loss.field);
+                loss.field = format!("{}.{}", axis.motor_id, loss.field).into();
                 report.losses.push(loss);
             }
             commands.push(t.value);
@@ -165,7 +165,7 @@ pub fn multi_axis_to_irpc_from(
             });
         }
         for mut loss in t.report.losses {
-            loss.field = format!("{}.{}", motor.name, loss.field);
+            loss.field = format!("{}.{}", motor.name, loss.field).into();
             report.losses.push(loss);
         }
         // As the joint reads them: f32 degrees.

@@ -216,7 +216,7 @@ fn position_commands_become_set_target_v2_with_the_maps_limits() {
         .report
         .losses
         .iter()
-        .map(|l| (l.field.as_str(), l.kind))
+        .map(|l| (l.field.as_ref(), l.kind))
         .collect();
     assert_eq!(
         fields,
