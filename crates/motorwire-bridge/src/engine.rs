@@ -938,10 +938,10 @@ impl Bridge {
                     stream: true,
                     ..meta
                 };
-                self.motor_command(now, meta, &cmd);
+                self.motor_command(now, meta, *cmd);
             }
             Input::Message(m) => match *m {
-                Message::MotorCommand(cmd) => self.motor_command(now, meta, &cmd),
+                Message::MotorCommand(cmd) => self.motor_command(now, meta, cmd),
                 Message::MultiAxisCommand(cmd) => self.multi_axis(now, meta, &cmd),
                 Message::SafetyLimits(l) => self.safety_limits(meta, &l),
                 Message::Trajectory(t) => {
@@ -1832,7 +1832,8 @@ impl Bridge {
         Ok(())
     }
 
-    fn motor_command(&mut self, now: Duration, meta: LineMeta, cmd: &MotorCommand) {
+    fn motor_command(&mut self, now: Duration, meta: LineMeta, mut cmd: MotorCommand) {
+        let cmd = &mut cmd;
         let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
         if let Err(e) = self.admit(cmd.timestamp, std::iter::once(cmd.motor_id.as_str())) {
             if e.kind == ErrorKind::Busy {
@@ -1869,7 +1870,9 @@ impl Bridge {
                     self.refuse(&meta, ErrorBody::gate(&r));
                     return;
                 }
-                let axes = vec![Axis::new(cmd.motor_id.clone(), joint, t.value.payloads)];
+                // The line's motor name, moved: the command is not read again.
+                let motor = std::mem::take(&mut cmd.motor_id);
+                let axes = vec![Axis::new(motor, joint, t.value.payloads)];
                 self.command_job(now, meta, axes, t.report);
             }
             Err(r) => self.refuse(&meta, ErrorBody::gate(&r)),

@@ -1414,6 +1414,13 @@ fn safety_limits_lines_tighten_the_gate_at_runtime() {
     assert_eq!(by(3)["limits"]["effective"]["max_torque"], 2.0);
     assert_eq!(by(3)["limits"]["effective"]["emergency_decel"], 900.0);
     assert_eq!(by(3)["limits"]["bus_map"]["max_position"], 150.0);
+    // What the joint is not told is said as every loss is said.
+    assert_eq!(
+        by(3)["losses"],
+        serde_json::json!([
+            "velocity_limits.emergency_decel: dropped: recorded; an iRPC joint brakes from a Deactivate at its own rate"
+        ])
+    );
     assert_eq!(by(4)["ok"], false);
     // A refusal says its rule and values for a program, beside the text.
     assert_eq!(
