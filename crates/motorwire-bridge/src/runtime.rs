@@ -685,10 +685,10 @@ impl Runner {
         T: CanBus,
         R: CanBus + Send + 'static,
     {
-        let start = Instant::now();
-        // The bridge's time zero is now: its wall clock too.
-        if let Ok(d) = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH) {
-            bridge.anchor_epoch(d.as_secs_f64() * 1000.0);
+        // The bridge's time zero is now: its wall clock too, read with it.
+        let (start, unix_ms) = clocks_together();
+        if let Some(ms) = unix_ms {
+            bridge.anchor_epoch(ms);
         }
         let since = |at: Instant| at.saturating_duration_since(start);
         let stop_waiting = Arc::clone(&self.urgent_tx.waiting);
@@ -1177,9 +1177,76 @@ fn fatal(e: &CanError) -> bool {
     )
 }
 
+/// The monotonic clock and the host's wall clock (Unix milliseconds) at
+/// the same moment, to within a few microseconds: the wall clock is read
+/// on both sides of the monotonic one, and the pair whose two wall readings
+/// are closest (a thread preempted between two readings would put the
+/// bridge's wall clock that far ahead of the host's, and a command stamped
+/// just after a stop's release before the stop) gives the middle of its
+/// two. `None` for a wall clock before 1970.
+pub(crate) fn clocks_together() -> (Instant, Option<f64>) {
+    use std::time::{SystemTime, UNIX_EPOCH};
+    let mut best: Option<(Duration, Instant, f64)> = None;
+    for _ in 0..8 {
+        let before = SystemTime::now().duration_since(UNIX_EPOCH);
+        let at = Instant::now();
+        let after = SystemTime::now().duration_since(UNIX_EPOCH);
+        let (Ok(before), Ok(after)) = (before, after) else {
+            return (at, None);
+        };
+        let gap = after.saturating_sub(before);
+        let middle_ms = (before.as_secs_f64() + after.as_secs_f64()) * 500.0;
+        if best.is_none_or(|(g, ..)| gap < g) {
+            best = Some((gap, at, middle_ms));
+        }
+        if gap <= Duration::from_micros(20) {
+            break;
+        }
+    }
+    match best {
+        Some((_, at, ms)) => (at, Some(ms)),
+        None => (Instant::now(), None),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The bridge's wall clock is read with its monotonic one: the pair
+    /// lies between readings taken before and after, and many pairs agree
+    /// with each other to well under a millisecond (a pair 1 ms apart
+    /// made a command stamped after a stop's release `stale_before_stop`).
+    #[test]
+    #[allow(clippy::unwrap_used)]
+    fn the_wall_clock_is_read_with_the_monotonic_clock() {
+        use std::time::{SystemTime, UNIX_EPOCH};
+        let wall = || {
+            SystemTime::now()
+                .duration_since(UNIX_EPOCH)
+                .unwrap()
+                .as_secs_f64()
+                * 1000.0
+        };
+        let (first_at, first_ms) = clocks_together();
+        let first_ms = first_ms.unwrap();
+        for _ in 0..1000 {
+            let before_ms = wall();
+            let before = Instant::now();
+            let (at, ms) = clocks_together();
+            let after = Instant::now();
+            let after_ms = wall();
+            let ms = ms.unwrap();
+            assert!(before <= at && at <= after);
+            assert!(
+                before_ms <= ms && ms <= after_ms,
+                "{before_ms} {ms} {after_ms}"
+            );
+            // The same offset between the clocks as the first pair's.
+            let offset = (ms - first_ms) - at.duration_since(first_at).as_secs_f64() * 1000.0;
+            assert!(offset.abs() < 0.5, "{offset} ms");
+        }
+    }
 
     /// One client's waiting lines are bounded in bytes as well as in
     /// number: a line that would take them past

@@ -745,7 +745,8 @@ fn tcp_results_come_back_without_delay_with_feedback_on() {
     for i in 0..200 {
         let t = Instant::now();
         writeln!(w, "{}", command("elbow", f64::from(i % 50))).unwrap();
-        assert_eq!(next_result(&mut r)["ok"], true);
+        let res = next_result(&mut r);
+        assert_eq!(res["ok"], true, "move {i}: {res}");
         moves.push(t.elapsed());
         let t = Instant::now();
         writeln!(w, r#"{{"emergency_stop": true}}"#).unwrap();
