@@ -285,6 +285,17 @@ const BURST: u64 = 1000;
 /// flight, each released; their latencies (line to the last stop frame,
 /// µs), sorted.
 fn stops_behind_bursts(input: &InputSender, rx: &mpsc::Receiver<Value>, rounds: usize) -> Vec<u64> {
+    let mut loaded = stops_behind_bursts_in_order(input, rx, rounds);
+    loaded.sort_unstable();
+    loaded
+}
+
+/// [`stops_behind_bursts`], each round's stop in the order they came.
+fn stops_behind_bursts_in_order(
+    input: &InputSender,
+    rx: &mpsc::Receiver<Value>,
+    rounds: usize,
+) -> Vec<u64> {
     let mut loaded = Vec::new();
     for _ in 0..rounds {
         for i in 0..BURST {
@@ -303,7 +314,6 @@ fn stops_behind_bursts(input: &InputSender, rx: &mpsc::Receiver<Value>, rounds: 
         let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
         assert_eq!(r["released"], true, "{r}");
     }
-    loaded.sort_unstable();
     loaded
 }
 
@@ -312,8 +322,13 @@ fn stops_behind_bursts(input: &InputSender, rx: &mpsc::Receiver<Value>, rounds: 
 /// the same map and lines: (median, p99) off, then on, in µs.
 fn recording_cost(passes: usize, rounds: usize) {
     let dir = std::env::temp_dir().join(format!("motorwire-bench-record-{}", std::process::id()));
+    // The first stops of each pass, after the bridge (and the recorder)
+    // started, apart from the rest.
+    const FIRST: usize = 3;
     let mut off = Vec::new();
     let mut on = Vec::new();
+    let mut off_first = Vec::new();
+    let mut on_first = Vec::new();
     let mut dropped = 0;
     for _ in 0..passes {
         for record in [false, true] {
@@ -333,24 +348,38 @@ fn recording_cost(passes: usize, rounds: usize) {
             });
             let (_arm, input, rx, handle) =
                 started_recording(MAP, false, recorder.as_ref().map(std::sync::Arc::clone));
-            let stops = stops_behind_bursts(&input, &rx, rounds);
+            let stops = stops_behind_bursts_in_order(&input, &rx, rounds);
             input.interrupt();
             handle.join().unwrap().unwrap();
             if let Some(r) = recorder.and_then(|r| std::sync::Arc::try_unwrap(r).ok()) {
                 dropped += r.finish().dropped;
             }
-            if record {
-                on.extend(stops)
+            let (first, steady) = if record {
+                (&mut on_first, &mut on)
             } else {
-                off.extend(stops)
-            }
+                (&mut off_first, &mut off)
+            };
+            first.extend(stops.iter().take(FIRST));
+            steady.extend(stops.iter().skip(FIRST));
         }
     }
     let _ = std::fs::remove_dir_all(&dir);
     off.sort_unstable();
     on.sort_unstable();
+    off_first.sort_unstable();
+    on_first.sort_unstable();
     println!(
-        "bridge/recording: {} stops behind {BURST} lines each way; line to the last stop frame: median {} us, p95 {} us, p99 {} us without recording; median {} us, p95 {} us, p99 {} us recording ({dropped} records dropped)",
+        "bridge/recording: the first {FIRST} stops of each pass ({} each way): median {} us, p99 {} us, max {} us without recording; median {} us, p99 {} us, max {} us recording",
+        off_first.len(),
+        percentile(&off_first, 0.5),
+        percentile(&off_first, 0.99),
+        off_first.last().copied().unwrap_or(0),
+        percentile(&on_first, 0.5),
+        percentile(&on_first, 0.99),
+        on_first.last().copied().unwrap_or(0),
+    );
+    println!(
+        "bridge/recording: {} stops behind {BURST} lines each way, after the first {FIRST} of each pass; line to the last stop frame: median {} us, p95 {} us, p99 {} us without recording; median {} us, p95 {} us, p99 {} us recording ({dropped} records dropped)",
         off.len(),
         percentile(&off, 0.5),
         percentile(&off, 0.95),
