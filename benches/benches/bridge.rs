@@ -148,7 +148,11 @@ fn client_request_to_ack(rig: &mut Rig, k: u32) {
     black_box(done);
 }
 
+/// The `p` quantile of `sorted` (0 for none).
 fn percentile(sorted: &[u64], p: f64) -> u64 {
+    if sorted.is_empty() {
+        return 0;
+    }
     let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
     sorted[i.min(sorted.len() - 1)]
 }
@@ -543,7 +547,7 @@ fn main() {
         stop_per_dialect(if test_mode { 5 } else { 500 });
     }
     if test_mode {
-        recording_cost(1, 2);
+        recording_cost(1, 4);
     } else {
         // More passes narrow the tail's run-to-run spread (the p99 of 200
         // stops is their third worst).
