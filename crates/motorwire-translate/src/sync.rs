@@ -267,12 +267,25 @@ pub fn multi_axis_to_irpc_from(
                 );
                 p.max_velocity = v;
             }
-            // The check: the joint's own plan, in f32, from the same state.
+            // The check: the joint's own plan, in f32, from the same state,
+            // and in f64 (a joint, as motorwire's simulated one, may plan
+            // in either; with a velocity limit near zero the two can differ
+            // by more than the tolerance).
             let arrival = joint_time(p.max_velocity)?;
-            if (arrival - duration).abs() > SYNC_TOLERANCE_S {
-                return Err(Refusal::Unsynchronizable {
-                    problem: format!("{name} would arrive after {arrival} s, not {duration} s"),
-                });
+            let arrival_f64 = plan(
+                &p.planner_request(req.start, req.start_velocity)
+                    .with_start_acceleration(req.start_acceleration),
+            )
+            .map(|j| j.duration())
+            .map_err(|e| Refusal::Unsynchronizable {
+                problem: format!("{name}: the joint's own plan fails: {e}"),
+            })?;
+            for arrival in [arrival, arrival_f64] {
+                if (arrival - duration).abs() > SYNC_TOLERANCE_S {
+                    return Err(Refusal::Unsynchronizable {
+                        problem: format!("{name} would arrive after {arrival} s, not {duration} s"),
+                    });
+                }
             }
         }
         check_path_from(motor, &limits, &p, start)?;
