@@ -119,43 +119,25 @@ pub fn to_f64(r: &Request<f32>) -> Request<f64> {
 pub fn check_scurve(req: &Request<f64>, p: &Profile<f64>) {
     let (vmax, acc) = (req.max_velocity, req.max_acceleration);
     let dec = req.max_deceleration.unwrap_or(acc);
-    let jerk = req.max_jerk.unwrap();
     let rel = 1e-9;
     let dir = if req.target < req.start { -1.0 } else { 1.0 };
     let scale = req.start.abs().max(req.target.abs()).max(1.0);
     let ((lo, _), (hi, _)) = p.position_extremes();
     let extent = scale.max(lo.abs()).max(hi.abs());
     let vscale = vmax.max(req.start_velocity.abs());
-    let mut state = State {
+    let state = State {
         position: req.start,
         velocity: req.start_velocity,
         ..State::default()
     };
     let mut above = req.start_velocity.abs() > vmax;
     assert!(p.phase_count() <= 7, "{req:?}");
-    for ph in p.phases() {
-        let s = ph.start;
-        let d = ph.duration;
-        assert!(d > 0.0 && d.is_finite(), "{req:?}");
-        assert!(s.jerk == 0.0 || s.jerk.abs() == jerk, "{req:?} {s:?}");
-        assert!(
-            (s.position - state.position).abs() <= 1e-11 * extent,
-            "{req:?} {s:?} vs {state:?}"
-        );
-        assert!(
-            (s.velocity - state.velocity).abs() <= 1e-9 * vscale,
-            "{req:?} {s:?} vs {state:?}"
-        );
-        assert!(
-            (s.acceleration - state.acceleration).abs() <= 1e-9 * acc.max(dec),
-            "{req:?} {s:?} vs {state:?}"
-        );
-        let end = State {
-            position: s.position + d * (s.velocity + d * (s.acceleration / 2.0 + d * s.jerk / 6.0)),
-            velocity: s.velocity + d * (s.acceleration + d * s.jerk / 2.0),
-            acceleration: s.acceleration + d * s.jerk,
-            jerk: s.jerk,
-        };
+    let tolerance = Continuity {
+        position: 1e-11 * extent,
+        velocity: 1e-9 * vscale,
+        acceleration: 1e-9 * acc.max(dec),
+    };
+    let state = walk_phases(req, p, state, tolerance, |s, end, d| {
         // Acceleration is linear in a phase: its ends bound it.
         for (a, v) in [
             (s.acceleration, s.velocity),
@@ -191,8 +173,7 @@ pub fn check_scurve(req: &Request<f64>, p: &Profile<f64>) {
         if above && end.velocity.abs() <= vmax * (1.0 + rel) {
             above = false;
         }
-        state = end;
-    }
+    });
     assert!(
         (state.position - req.target).abs() <= 1e-8 * extent,
         "{req:?}: ends at {} not {}",
@@ -210,4 +191,53 @@ pub fn check_scurve(req: &Request<f64>, p: &Profile<f64>) {
         (end.position, end.velocity, end.acceleration),
         (req.target, req.target_velocity, 0.0)
     );
+}
+
+/// How far a phase's start may be from where the phase before it ended.
+pub struct Continuity {
+    pub position: f64,
+    pub velocity: f64,
+    pub acceleration: f64,
+}
+
+/// Walks `p`'s phases from `state`: each lasts a positive, finite time,
+/// its jerk is 0 or ±`req`'s max_jerk, and it starts where the one before
+/// ended (within `tolerance`). `each` is given each phase's start, its
+/// end (integrated analytically) and its duration; the end of the last is
+/// returned.
+pub fn walk_phases(
+    req: &Request<f64>,
+    p: &Profile<f64>,
+    mut state: State<f64>,
+    tolerance: Continuity,
+    mut each: impl FnMut(&State<f64>, &State<f64>, f64),
+) -> State<f64> {
+    let jerk = req.max_jerk.unwrap();
+    for ph in p.phases() {
+        let s = ph.start;
+        let d = ph.duration;
+        assert!(d > 0.0 && d.is_finite(), "{req:?}");
+        assert!(s.jerk == 0.0 || s.jerk.abs() == jerk, "{req:?} {s:?}");
+        assert!(
+            (s.position - state.position).abs() <= tolerance.position,
+            "{req:?} {s:?} vs {state:?}"
+        );
+        assert!(
+            (s.velocity - state.velocity).abs() <= tolerance.velocity,
+            "{req:?} {s:?} vs {state:?}"
+        );
+        assert!(
+            (s.acceleration - state.acceleration).abs() <= tolerance.acceleration,
+            "{req:?} {s:?} vs {state:?}"
+        );
+        let end = State {
+            position: s.position + d * (s.velocity + d * (s.acceleration / 2.0 + d * s.jerk / 6.0)),
+            velocity: s.velocity + d * (s.acceleration + d * s.jerk / 2.0),
+            acceleration: s.acceleration + d * s.jerk,
+            jerk: s.jerk,
+        };
+        each(&s, &end, d);
+        state = end;
+    }
+    state
 }
