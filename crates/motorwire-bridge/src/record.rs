@@ -37,7 +37,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::thread::{self, JoinHandle};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use motorwire_can::Frame;
 use motorwire_can::candump::LogEntry;
@@ -394,10 +394,9 @@ impl Recorder {
     /// The directory or its files could not be made.
     pub fn start(config: RecordConfig) -> io::Result<Self> {
         fs::create_dir_all(&config.dir)?;
-        let t0 = Instant::now();
-        let wall0 = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .unwrap_or_default();
+        // The two clocks read together, as the bridge's are.
+        let (t0, wall0) = crate::runtime::clocks_together();
+        let wall0 = wall0.unwrap_or_default();
         let files = Files::open(&config, t0, wall0)?;
         let (queue, records) = mpsc::channel();
         let queued = Arc::new(AtomicUsize::new(0));

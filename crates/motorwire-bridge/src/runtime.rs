@@ -686,9 +686,9 @@ impl Runner {
         R: CanBus + Send + 'static,
     {
         // The bridge's time zero is now: its wall clock too, read with it.
-        let (start, unix_ms) = clocks_together();
-        if let Some(ms) = unix_ms {
-            bridge.anchor_epoch(ms);
+        let (start, wall) = clocks_together();
+        if let Some(wall) = wall {
+            bridge.anchor_epoch(wall.as_secs_f64() * 1000.0);
         }
         let since = |at: Instant| at.saturating_duration_since(start);
         let stop_waiting = Arc::clone(&self.urgent_tx.waiting);
@@ -1177,16 +1177,18 @@ fn fatal(e: &CanError) -> bool {
     )
 }
 
-/// The monotonic clock and the host's wall clock (Unix milliseconds) at
-/// the same moment, to within a few microseconds: the wall clock is read
-/// on both sides of the monotonic one, and the pair whose two wall readings
-/// are closest (a thread preempted between two readings would put the
-/// bridge's wall clock that far ahead of the host's, and a command stamped
-/// just after a stop's release before the stop) gives the middle of its
-/// two. `None` for a wall clock before 1970.
-pub(crate) fn clocks_together() -> (Instant, Option<f64>) {
+/// The monotonic clock and the host's wall clock (since the Unix epoch)
+/// at the same moment, to within a few microseconds: the wall clock is
+/// read on both sides of the monotonic one, and the pair whose two wall
+/// readings are closest gives the middle of its two. Read one after the
+/// other, a thread preempted between the two readings puts a wall clock
+/// reckoned from them ahead of the host's by that time (the bridge's: a
+/// command stamped just after a stop's release came out before the stop;
+/// a recording's: its wall times late). `None` for a wall clock before
+/// 1970.
+pub(crate) fn clocks_together() -> (Instant, Option<Duration>) {
     use std::time::{SystemTime, UNIX_EPOCH};
-    let mut best: Option<(Duration, Instant, f64)> = None;
+    let mut best: Option<(Duration, Instant, Duration)> = None;
     for _ in 0..8 {
         let before = SystemTime::now().duration_since(UNIX_EPOCH);
         let at = Instant::now();
@@ -1195,16 +1197,15 @@ pub(crate) fn clocks_together() -> (Instant, Option<f64>) {
             return (at, None);
         };
         let gap = after.saturating_sub(before);
-        let middle_ms = (before.as_secs_f64() + after.as_secs_f64()) * 500.0;
         if best.is_none_or(|(g, ..)| gap < g) {
-            best = Some((gap, at, middle_ms));
+            best = Some((gap, at, before + gap / 2));
         }
         if gap <= Duration::from_micros(20) {
             break;
         }
     }
     match best {
-        Some((_, at, ms)) => (at, Some(ms)),
+        Some((_, at, wall)) => (at, Some(wall)),
         None => (Instant::now(), None),
     }
 }
@@ -1228,15 +1229,16 @@ mod tests {
                 .as_secs_f64()
                 * 1000.0
         };
-        let (first_at, first_ms) = clocks_together();
-        let first_ms = first_ms.unwrap();
+        let ms = |wall: Option<Duration>| wall.unwrap().as_secs_f64() * 1000.0;
+        let (first_at, first) = clocks_together();
+        let first_ms = ms(first);
         for _ in 0..1000 {
             let before_ms = wall();
             let before = Instant::now();
-            let (at, ms) = clocks_together();
+            let (at, pair) = clocks_together();
             let after = Instant::now();
             let after_ms = wall();
-            let ms = ms.unwrap();
+            let ms = ms(pair);
             assert!(before <= at && at <= after);
             assert!(
                 before_ms <= ms && ms <= after_ms,
