@@ -54,6 +54,10 @@ const BATCH: usize = 64;
 /// record would have to wake it).
 const POLL: Duration = Duration::from_millis(2);
 
+/// How long [`Recorder::finish_within`] waits, once told to give up, for
+/// the writer to drop what is left and complete `session.json`.
+const ABANDON_GRACE: Duration = Duration::from_secs(2);
+
 /// The default bound of a recording (bytes on disk): 100 MiB.
 pub const DEFAULT_RECORD_MAX: u64 = 100 * 1024 * 1024;
 
@@ -344,6 +348,73 @@ impl Mark {
     }
 }
 
+/// Whether `name` can stand as the interface of a `candump -L` line that
+/// can-utils' `canplayer` (at most 15 bytes, the kernel's `IFNAMSIZ` less
+/// its terminator; `=` maps one name to another) and python-can's
+/// `LogReader` (split on white space) read, and that a Linux interface
+/// could have: 1 to 15 printable ASCII characters, none of them white
+/// space, `/`, `:` or `=`.
+///
+/// ```
+/// use motorwire_bridge::record::is_interface_name;
+///
+/// assert!(is_interface_name("can0"));
+/// assert!(is_interface_name("fdcanusb"));
+/// assert!(!is_interface_name("fdcanusb:/dev/ttyACM0"));
+/// assert!(!is_interface_name("my port"));
+/// assert!(!is_interface_name(""));
+/// assert!(!is_interface_name("a_name_of_16_chr"));
+/// ```
+#[must_use]
+pub fn is_interface_name(name: &str) -> bool {
+    (1..=15).contains(&name.len())
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_graphic() && !matches!(b, b'/' | b':' | b'='))
+}
+
+/// The text of `session.json`: its start, with the end's counts when
+/// given.
+fn session_text(
+    interface: &str,
+    setup: Option<&serde_json::Value>,
+    wall0: Duration,
+    end: Option<RecordSummary>,
+) -> String {
+    let mut v = serde_json::json!({
+        "recorder": "motorwire",
+        "version": env!("CARGO_PKG_VERSION"),
+        "started_wall_ms": u64::try_from(wall0.as_millis()).unwrap_or(u64::MAX),
+        "interface": interface,
+        "files": ["frames.log", "lines.jsonl"],
+    });
+    if let (Some(setup), Some(m)) = (setup, v.as_object_mut()) {
+        m.insert("setup".to_owned(), setup.clone());
+    }
+    if let (Some(s), Some(m)) = (end, v.as_object_mut()) {
+        m.insert("written".to_owned(), s.written.into());
+        m.insert("dropped".to_owned(), s.dropped.into());
+        m.insert("bytes".to_owned(), s.bytes.into());
+    }
+    format!("{v}\n")
+}
+
+/// What the end's counts add to `session.json`, at most: three members
+/// of up to 20 digits.
+const SESSION_END_ROOM: u64 = 3 * (12 + 20);
+
+/// The least a rotated file may hold.
+const MIN_FILE: u64 = 4096;
+
+/// What the bridge's side tells the writer.
+#[derive(Debug)]
+struct WriterFlags {
+    hushed: Arc<AtomicBool>,
+    abandon: Arc<AtomicBool>,
+    #[cfg(test)]
+    stall: Arc<AtomicBool>,
+}
+
 /// What a recording came to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RecordSummary {
@@ -364,7 +435,8 @@ pub struct RecordConfig {
     /// The most bytes the recording holds on disk.
     pub max_bytes: u64,
     /// The CAN interface name written in `frames.log` (`canplayer` maps
-    /// it: `canplayer -I frames.log vcan0=can0`).
+    /// it: `canplayer -I frames.log vcan0=can0`); only a name
+    /// [`is_interface_name`] takes, or [`Recorder::start`] refuses it.
     pub interface: String,
     /// How the bridge was set up, written into `session.json` as `setup`
     /// so the session can be replayed as it ran
@@ -384,6 +456,12 @@ pub struct Recorder {
     dropped: Arc<AtomicU64>,
     /// A stop is being handled: the writer waits.
     hushed: Arc<AtomicBool>,
+    /// The session is over and its end may not wait longer: the writer
+    /// drops (and counts) what is left instead of writing it.
+    abandon: Arc<AtomicBool>,
+    /// Tests: the writer stalls as on a disk that does not answer.
+    #[cfg(test)]
+    stall: Arc<AtomicBool>,
     writer: Option<JoinHandle<RecordSummary>>,
 }
 
@@ -393,6 +471,15 @@ impl Recorder {
     /// # Errors
     /// The directory or its files could not be made.
     pub fn start(config: RecordConfig) -> io::Result<Self> {
+        if !is_interface_name(&config.interface) {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!(
+                    "{:?} cannot be the interface of a candump log: 1 to 15 printable ASCII characters, none of them '/', ':' or '=' (canplayer and python-can read no other)",
+                    config.interface
+                ),
+            ));
+        }
         fs::create_dir_all(&config.dir)?;
         // The two clocks read together, as the bridge's are.
         let (t0, wall0) = crate::runtime::clocks_together();
@@ -404,15 +491,26 @@ impl Recorder {
         let dropped = Arc::new(AtomicU64::new(0));
         let d = Arc::clone(&dropped);
         let hushed = Arc::new(AtomicBool::new(false));
-        let h = Arc::clone(&hushed);
+        let abandon = Arc::new(AtomicBool::new(false));
+        #[cfg(test)]
+        let stall = Arc::new(AtomicBool::new(false));
+        let flags = WriterFlags {
+            hushed: Arc::clone(&hushed),
+            abandon: Arc::clone(&abandon),
+            #[cfg(test)]
+            stall: Arc::clone(&stall),
+        };
         let writer = thread::Builder::new()
             .name("motorwire-recorder".to_owned())
-            .spawn(move || files.write_all(&records, &q, &d, &h))?;
+            .spawn(move || files.write_all(&records, &q, &d, &flags))?;
         Ok(Self {
             queue: Some(queue),
             queued,
             dropped,
             hushed,
+            abandon,
+            #[cfg(test)]
+            stall,
             writer: Some(writer),
         })
     }
@@ -495,6 +593,55 @@ impl Recorder {
     /// and `session.json` completed.
     pub fn finish(mut self) -> RecordSummary {
         self.end()
+    }
+
+    /// [`Recorder::finish`], waiting at most about `limit` for the writer
+    /// (a disk that is slow or does not answer must not hold the end of a
+    /// session that has already stopped its joints): past `limit`, what is
+    /// still queued is dropped and counted, and `session.json` completed
+    /// with those counts. `None` when even that did not end within two
+    /// seconds more (the writer is blocked in a write): the writer is left
+    /// to end on its own (or with the process), the recording lacks its
+    /// end and [`crate::replay`] says so; [`Recorder::dropped`], read
+    /// before, says what was dropped until then.
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use motorwire_bridge::record::{Recorder, RecordConfig, DEFAULT_RECORD_MAX};
+    ///
+    /// let dir = std::env::temp_dir().join(format!("motorwire-doc-finish-{}", std::process::id()));
+    /// let recorder = Recorder::start(RecordConfig {
+    ///     dir: dir.clone(),
+    ///     max_bytes: DEFAULT_RECORD_MAX,
+    ///     interface: "can0".to_owned(),
+    ///     setup: None,
+    /// })?;
+    /// let summary = recorder.finish_within(Duration::from_secs(5)).expect("a disk that answers");
+    /// assert_eq!(summary.dropped, 0);
+    /// # std::fs::remove_dir_all(&dir)?;
+    /// # Ok::<(), std::io::Error>(())
+    /// ```
+    #[must_use]
+    pub fn finish_within(mut self, limit: Duration) -> Option<RecordSummary> {
+        drop(self.queue.take());
+        self.hushed.store(false, Ordering::Relaxed);
+        let writer = self.writer.take()?;
+        let begun = Instant::now();
+        while !writer.is_finished() {
+            let waited = begun.elapsed();
+            if waited >= limit {
+                self.abandon.store(true, Ordering::Relaxed);
+            }
+            if waited >= limit.saturating_add(ABANDON_GRACE) {
+                // Detached: it ends when its write returns, or with the
+                // process.
+                return None;
+            }
+            thread::sleep(Duration::from_millis(5));
+        }
+        let mut s = writer.join().ok().unwrap_or_default();
+        s.dropped += self.dropped.load(Ordering::Relaxed);
+        Some(s)
     }
 
     fn end(&mut self) -> RecordSummary {
@@ -626,8 +773,25 @@ struct Files {
 
 impl Files {
     fn open(config: &RecordConfig, t0: Instant, wall0: Duration) -> io::Result<Self> {
-        // Two files, each with its rotated copy: a quarter of the limit each.
-        let quarter = (config.max_bytes / 4).max(4096);
+        // `session.json` counts against the limit (it holds the map's
+        // text): what it takes at its largest (with the end's counts), then
+        // two files, each with its rotated copy, a quarter of the rest each.
+        let session = session_text(&config.interface, config.setup.as_ref(), wall0, None).len();
+        let room = config
+            .max_bytes
+            .checked_sub(u64::try_from(session).unwrap_or(u64::MAX) + SESSION_END_ROOM)
+            .filter(|room| *room >= 4 * MIN_FILE)
+            .ok_or_else(|| {
+                io::Error::new(
+                    io::ErrorKind::InvalidInput,
+                    format!(
+                        "the recording's limit of {} bytes leaves too little room: its session.json (how the bridge was set up, the map's text with it) takes {session} bytes, and the frames and lines need at least {} more",
+                        config.max_bytes,
+                        4 * MIN_FILE + SESSION_END_ROOM
+                    ),
+                )
+            })?;
+        let quarter = room / 4;
         let files = Self {
             dir: config.dir.clone(),
             interface: config.interface.clone(),
@@ -642,26 +806,12 @@ impl Files {
     }
 
     fn session(&self, end: Option<RecordSummary>) -> io::Result<()> {
-        let mut v = serde_json::json!({
-            "recorder": "motorwire",
-            "version": env!("CARGO_PKG_VERSION"),
-            "started_wall_ms": u64::try_from(self.wall0.as_millis()).unwrap_or(u64::MAX),
-            "interface": self.interface,
-            "files": ["frames.log", "lines.jsonl"],
-        });
-        if let (Some(setup), Some(m)) = (&self.setup, v.as_object_mut()) {
-            m.insert("setup".to_owned(), setup.clone());
-        }
-        if let (Some(s), Some(m)) = (end, v.as_object_mut()) {
-            m.insert("written".to_owned(), s.written.into());
-            m.insert("dropped".to_owned(), s.dropped.into());
-            m.insert("bytes".to_owned(), s.bytes.into());
-        }
+        let text = session_text(&self.interface, self.setup.as_ref(), self.wall0, end);
         // Written beside it, then put in its place: never through a link,
         // never into a FIFO.
         let tmp = self.dir.join("session.json.part");
         let mut f = fresh(&tmp)?;
-        f.write_all(format!("{v}\n").as_bytes())?;
+        f.write_all(text.as_bytes())?;
         drop(f);
         fs::rename(&tmp, self.dir.join("session.json"))
     }
@@ -768,7 +918,7 @@ impl Files {
         records: &Receiver<Record>,
         queued: &AtomicUsize,
         dropped: &AtomicU64,
-        hushed: &AtomicBool,
+        flags: &WriterFlags,
     ) -> RecordSummary {
         let mut s = RecordSummary::default();
         let mut failed = false;
@@ -805,8 +955,12 @@ impl Files {
             for _ in 0..BATCH {
                 // A stop under way: its frames first (at most a stop's
                 // handling, the runner says when it is done).
-                while hushed.load(Ordering::Relaxed) {
+                while flags.hushed.load(Ordering::Relaxed) {
                     thread::sleep(Duration::from_micros(100));
+                }
+                #[cfg(test)]
+                while flags.stall.load(Ordering::Relaxed) {
+                    thread::sleep(Duration::from_millis(1));
                 }
                 let r = match records.try_recv() {
                     Ok(r) => {
@@ -816,8 +970,9 @@ impl Files {
                     Err(mpsc::TryRecvError::Empty) => break,
                     Err(mpsc::TryRecvError::Disconnected) => break 'session,
                 };
-                if failed {
-                    // The disk failed: counted, never waited on.
+                if failed || flags.abandon.load(Ordering::Relaxed) {
+                    // The disk failed, or the session's end may not wait
+                    // for it: counted, never waited on.
                     dropped.fetch_add(1, Ordering::Relaxed);
                     continue;
                 }
@@ -839,7 +994,9 @@ impl Files {
             }
             // Nothing more waiting: out on disk (a crash loses little).
             settle(&mut self, &mut pending, &mut pending_bytes, &mut failed);
-            thread::sleep(POLL);
+            if !flags.abandon.load(Ordering::Relaxed) {
+                thread::sleep(POLL);
+            }
         }
         settle(&mut self, &mut pending, &mut pending_bytes, &mut failed);
         let mut end = s;
@@ -908,6 +1065,61 @@ mod tests {
                 .unwrap()
                 .contains(r#""text":"{\"emergency_stop\":true}""#)
         );
+    }
+
+    /// A disk that does not answer never holds the end of a session past
+    /// its limit: what is queued is dropped and counted, `session.json`
+    /// says so, and nothing queued is counted twice or lost uncounted.
+    #[test]
+    fn a_stalled_writer_is_given_up_at_the_limit_and_its_records_counted_dropped() {
+        let dir = scratch("stalled");
+        let rec = recording(&dir, DEFAULT_RECORD_MAX);
+        rec.stall.store(true, Ordering::Relaxed);
+        let t = Instant::now();
+        for n in 0..1_000 {
+            rec.input(t, Origin(1), n, r#"{"emergency_stop":false}"#);
+        }
+        // The disk answers again only after the limit: past it, nothing
+        // more is written.
+        let stall = Arc::clone(&rec.stall);
+        let unstall = thread::spawn(move || {
+            thread::sleep(Duration::from_millis(300));
+            stall.store(false, Ordering::Relaxed);
+        });
+        let begun = Instant::now();
+        let s = rec.finish_within(Duration::from_millis(100)).unwrap();
+        let waited = begun.elapsed();
+        unstall.join().unwrap();
+        assert!(waited < Duration::from_secs(2), "{waited:?}");
+        // The writer may have taken one record before it stalled.
+        assert!(s.written <= 1, "{s:?}");
+        assert_eq!(s.written + s.dropped, 1_000, "{s:?}");
+        let session: serde_json::Value =
+            serde_json::from_str(&fs::read_to_string(dir.join("session.json")).unwrap()).unwrap();
+        assert_eq!(session["dropped"], s.dropped, "{session}");
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    /// A writer still blocked after the grace is left behind: the end
+    /// returns, at about the limit and the grace, with `None`.
+    #[test]
+    fn a_writer_blocked_past_the_grace_is_left_behind() {
+        let dir = scratch("blocked");
+        let rec = recording(&dir, DEFAULT_RECORD_MAX);
+        rec.stall.store(true, Ordering::Relaxed);
+        rec.input(Instant::now(), Origin(1), 1, r#"{"emergency_stop":false}"#);
+        rec.input(Instant::now(), Origin(1), 2, r#"{"emergency_stop":false}"#);
+        let stall = Arc::clone(&rec.stall);
+        let begun = Instant::now();
+        assert_eq!(rec.finish_within(Duration::from_millis(50)), None);
+        let waited = begun.elapsed();
+        assert!(
+            waited >= ABANDON_GRACE && waited < ABANDON_GRACE + Duration::from_secs(1),
+            "{waited:?}"
+        );
+        // Let the detached writer end.
+        stall.store(false, Ordering::Relaxed);
+        let _ = fs::remove_dir_all(&dir);
     }
 
     /// Frames go to `frames.log` as candump writes them and, with their
@@ -989,9 +1201,71 @@ mod tests {
             .unwrap()
             .map(|e| e.unwrap().metadata().unwrap().len())
             .sum();
-        assert!(on_disk <= limit + 1024, "{on_disk} bytes on disk");
+        assert!(on_disk <= limit, "{on_disk} bytes on disk");
         assert!(dir.join("frames.1.log").exists());
         let _ = fs::remove_dir_all(dir);
+    }
+
+    /// `session.json` holds the map's text: it counts against the limit,
+    /// and a setup that leaves too little room is refused at the start.
+    #[test]
+    fn the_setup_counts_against_the_limit() {
+        let dir = scratch("setup");
+        let limit = 64 * 1024;
+        let start = |setup_len: usize| {
+            Recorder::start(RecordConfig {
+                dir: dir.clone(),
+                max_bytes: limit,
+                interface: "can0".to_owned(),
+                setup: Some(serde_json::json!({ "map": "#".repeat(setup_len) })),
+            })
+        };
+        let rec = start(30_000).unwrap();
+        let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0xAB; 64]).unwrap();
+        for _ in 0..5_000 {
+            rec.frame(Instant::now(), Direction::Rx, &f);
+        }
+        let s = rec.finish();
+        assert_eq!(s.written + s.dropped, 5_000);
+        let on_disk: u64 = fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().metadata().unwrap().len())
+            .sum();
+        assert!(on_disk <= limit, "{on_disk} bytes on disk");
+        assert!(fs::metadata(dir.join("session.json")).unwrap().len() > 30_000);
+        let e = start(60_000).unwrap_err();
+        assert_eq!(e.kind(), io::ErrorKind::InvalidInput);
+        assert!(
+            e.to_string().starts_with(
+                "the recording's limit of 65536 bytes leaves too little room: its session.json"
+            ),
+            "{e}"
+        );
+        let _ = fs::remove_dir_all(dir);
+    }
+
+    /// Only a name `canplayer` and python-can read stands as the
+    /// interface: anything else is refused before anything is made.
+    #[test]
+    fn an_interface_the_log_readers_cannot_read_is_refused() {
+        let dir = scratch("iface");
+        for bad in [
+            "fdcanusb:/dev/ttyACM0",
+            "my port",
+            "",
+            "can0=vcan0",
+            "sixteen_chars_ab",
+        ] {
+            let e = Recorder::start(RecordConfig {
+                dir: dir.clone(),
+                max_bytes: DEFAULT_RECORD_MAX,
+                interface: bad.to_owned(),
+                setup: None,
+            })
+            .unwrap_err();
+            assert_eq!(e.kind(), io::ErrorKind::InvalidInput, "{bad}");
+            assert!(!dir.exists(), "{bad}");
+        }
     }
 
     /// A recorder whose disk is gone drops and counts; the caller never
@@ -999,7 +1273,7 @@ mod tests {
     #[test]
     fn a_failed_disk_drops_and_counts_and_never_waits() {
         let dir = scratch("gone");
-        let rec = recording(&dir, 4096);
+        let rec = recording(&dir, 64 * 1024);
         fs::remove_dir_all(&dir).unwrap();
         let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0x11; 64]).unwrap();
         let t = Instant::now();
@@ -1048,10 +1322,11 @@ mod tests {
     #[test]
     fn a_record_longer_than_the_limit_allows_is_left_out_and_counted() {
         let dir = scratch("long");
-        let limit = 16 * 1024;
+        // A quarter of what session.json leaves of it: about 5,060 bytes.
+        let limit = 20 * 1024;
         let rec = recording(&dir, limit);
         let t = Instant::now();
-        rec.input(t, Origin(1), 1, &"x".repeat(5_000));
+        rec.input(t, Origin(1), 1, &"x".repeat(6_000));
         rec.input(t, Origin(1), 2, "{}");
         let s = rec.finish();
         assert_eq!((s.written, s.dropped), (1, 1));

@@ -32,7 +32,8 @@
 //! in real time stops or reads a joint a few milliseconds off its replay);
 //! without the
 //! members that measure time: `latency_us`, `ack_us`, `stop_latency_us`,
-//! `after_ms`. Feedback lines are not compared (their number follows the
+//! `after_ms`, and a device's clock in a request's answer (`timestamp_us`,
+//! `active_time_ms`, `timestamp_ms`, `timestamp_sec`). Feedback lines are not compared (their number follows the
 //! clock); what they show is in the frames and the answers.
 //!
 //! Time is aligned at `ready`: what came before the recorded bridge was
@@ -53,6 +54,7 @@ use std::path::{Path, PathBuf};
 use std::thread;
 use std::time::{Duration, Instant};
 
+use motorwire_can::candump::LogEntry;
 use motorwire_can::{CanId, Faults, Frame, SimConfig};
 use motorwire_irpc::{Header, Message, Payload, WireVersion};
 use motorwire_translate::{BusMap, Target};
@@ -415,7 +417,20 @@ impl Recording {
                 "the recording was rotated (lines.1.jsonl): its beginning is gone; record with a larger --record-max-mb to replay".to_owned(),
             ));
         }
-        if let Some(n) = session.get("dropped").and_then(Value::as_u64)
+        // The end's counts, where there: whole numbers, or the file was
+        // edited.
+        let count = |name: &str| -> Result<Option<u64>, ReplayError> {
+            session.get(name).map_or(Ok(None), |v| {
+                v.as_u64().map(Some).ok_or_else(|| ReplayError::Record {
+                    path: session_path.clone(),
+                    line: 1,
+                    reason: format!("{name} is {v}, not a whole number"),
+                })
+            })
+        };
+        let (written, dropped) = (count("written")?, count("dropped")?);
+        count("bytes")?;
+        if let Some(n) = dropped
             && n > 0
             && whole
         {
@@ -455,13 +470,27 @@ impl Recording {
         // A recording that ended cleanly says how many records it wrote:
         // fewer in the file is a recording cut short.
         if whole
-            && let Some(n) = session.get("written").and_then(Value::as_u64)
+            && let Some(n) = written
             && n != u64::try_from(raw.len()).unwrap_or(u64::MAX)
         {
             return Err(ReplayError::Incomplete(format!(
                 "session.json says {n} records were written, lines.jsonl holds {}: the recording was cut short or edited",
                 raw.len()
             )));
+        }
+        if whole && written.is_some() {
+            let frames = raw.iter().filter_map(|(_, r)| match r {
+                Recorded::Frame { frame, .. } => Some(*frame),
+                _ => None,
+            });
+            let frames_path = dir.join("frames.log");
+            let log = read(&frames_path, MAX_LINES_FILE)?;
+            same_frames(
+                &frames_path,
+                &log,
+                frames.collect(),
+                dir.join("frames.1.log").exists(),
+            )?;
         }
         let start = start.unwrap_or(0);
         let since = |t: u64| Duration::from_micros(t.saturating_sub(start));
@@ -487,6 +516,58 @@ impl Recording {
     pub fn inputs(&self) -> impl Iterator<Item = &(Duration, Recorded)> {
         self.records.iter().filter(|(_, r)| r.is_input())
     }
+}
+
+/// Checks that `frames.log` (its text `log`) holds the frames of
+/// `lines.jsonl` (`frames`), in their order: all of them, or, where it
+/// was rotated, the last of them.
+///
+/// # Errors
+/// [`ReplayError::Record`] naming the first line of `frames.log` that is
+/// not a candump line or not the frame `lines.jsonl` has there, or
+/// [`ReplayError::Incomplete`] when the two hold different numbers of
+/// frames.
+fn same_frames(
+    path: &Path,
+    log: &str,
+    frames: Vec<Frame>,
+    rotated: bool,
+) -> Result<(), ReplayError> {
+    let logged = log
+        .lines()
+        .enumerate()
+        .map(|(i, line)| {
+            LogEntry::parse(line)
+                .map(|e| e.frame)
+                .map_err(|reason| ReplayError::Record {
+                    path: path.to_owned(),
+                    line: i + 1,
+                    reason,
+                })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let skip = if rotated {
+        frames.len().saturating_sub(logged.len())
+    } else {
+        0
+    };
+    let expected = frames.get(skip..).unwrap_or_default();
+    if let Some(i) = logged.iter().zip(expected).position(|(a, b)| a != b) {
+        return Err(ReplayError::Record {
+            path: path.to_owned(),
+            line: i + 1,
+            reason: "not the frame lines.jsonl has there: the recording was edited".to_owned(),
+        });
+    }
+    if logged.len() != expected.len() {
+        return Err(ReplayError::Incomplete(format!(
+            "{} holds {} frames, lines.jsonl {}: the recording was cut short or edited",
+            path.display(),
+            logged.len(),
+            expected.len()
+        )));
+    }
+    Ok(())
 }
 
 fn parse_record(v: &Value) -> Result<Recorded, String> {
@@ -951,8 +1032,20 @@ fn hex(data: &[u8]) -> String {
     })
 }
 
-/// Members that measure time, left out of a comparison.
-const TIMED: [&str; 4] = ["latency_us", "ack_us", "stop_latency_us", "after_ms"];
+/// Members that measure time, left out of a comparison: the bridge's, and
+/// a device's clock in what it answers a request (a telemetry sample's
+/// time, a power report's active time, a fault's time), which follows the
+/// time the request reached it.
+const TIMED: [&str; 8] = [
+    "latency_us",
+    "ack_us",
+    "stop_latency_us",
+    "after_ms",
+    "timestamp_us",
+    "active_time_ms",
+    "timestamp_ms",
+    "timestamp_sec",
+];
 
 /// `v` without the members that measure time.
 fn untimed(v: &Value) -> Value {
@@ -1388,6 +1481,16 @@ node = 0x20
         assert!(s(
             &json!({"ok": true, "latency_us": 10}),
             &json!({"ok": true, "latency_us": 99})
+        ));
+        // A device's clock in a request's answer follows when the request
+        // reached it; the rest of the answer is compared.
+        assert!(s(
+            &json!({"ok": true, "data": {"telemetry": {"timestamp_us": 389_135, "position": 1.0}}}),
+            &json!({"ok": true, "data": {"telemetry": {"timestamp_us": 378_971, "position": 1.0}}})
+        ));
+        assert!(!s(
+            &json!({"data": {"telemetry": {"timestamp_us": 1, "position": 1.0}}}),
+            &json!({"data": {"telemetry": {"timestamp_us": 1, "position": 9.0}}})
         ));
         assert!(!s(&json!({"ok": true}), &json!({"ok": false})));
         assert!(!s(&json!({"ok": true}), &json!({"ok": true, "extra": 1})));

@@ -1,7 +1,7 @@
 //! `motorwire bridge`: WIA JSON lines in, iRPC frames on a CAN bus out.
 
 use std::io::{self, Write};
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -248,6 +248,27 @@ fn first_msg_id() -> u32 {
     id.max(1)
 }
 
+/// The interface named in the recording's `frames.log` for the bus `spec`:
+/// a SocketCAN interface's own name, `sim` for the simulated bus, and
+/// `fdcanusb` for an fdcanusb adapter (its device path, which `canplayer`
+/// and python-can cannot read as an interface, is in `session.json`'s
+/// setup); `canplayer -I frames.log can0=fdcanusb` plays it on can0.
+fn frames_log_interface(spec: &str) -> String {
+    if spec.starts_with("fdcanusb:") {
+        return "fdcanusb".to_owned();
+    }
+    spec.strip_prefix("socketcan:").unwrap_or(spec).to_owned()
+}
+
+/// How long the end of a session waits for the recording's writer to put
+/// what is queued on disk, once the joints are stopped; past it, the rest
+/// is dropped and counted (a slow or stuck disk never holds the exit).
+const RECORD_FINISH_LIMIT: Duration = Duration::from_secs(5);
+
+/// The bridge has ended and its joints are stopped: a signal then ends the
+/// process at once (what is left is the recording's writer).
+static BRIDGE_ENDED: AtomicBool = AtomicBool::new(false);
+
 /// The exit status a signal gives: 128 plus its number, as a shell reports
 /// a process the signal ended (SIGHUP 129, SIGINT 130, SIGTERM 143).
 pub(crate) type SignalStatus = Arc<AtomicU8>;
@@ -289,6 +310,12 @@ fn on_signals(input: InputSender) -> Result<SignalStatus, String> {
                     Some(()) = hup.0.recv() => (hup.1, hup.2),
                     else => return,
                 };
+                if BRIDGE_ENDED.load(Ordering::SeqCst) {
+                    note!(
+                        "motorwire bridge: {name}: the joints are stopped; exiting without waiting for the recording's last records"
+                    );
+                    std::process::exit(i32::from(status));
+                }
                 if seen
                     .compare_exchange(0, status, Ordering::SeqCst, Ordering::SeqCst)
                     .is_err()
@@ -379,11 +406,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
             if dir.is_empty() {
                 return Err("--record needs a directory (an empty path would record into the working directory)".to_owned());
             }
-            let interface = args
-                .bus
-                .strip_prefix("socketcan:")
-                .unwrap_or(&args.bus)
-                .to_owned();
+            let interface = frames_log_interface(&args.bus);
             let r =
                 motorwire_bridge::record::Recorder::start(motorwire_bridge::record::RecordConfig {
                     dir: dir.into(),
@@ -500,14 +523,23 @@ fn bridge(args: &Args) -> Result<u8, String> {
     if let Some(fleet) = fleet {
         fleet.close();
     }
+    // The joints are stopped: from now on a signal ends the process at
+    // once, without waiting for the recording's writer.
+    BRIDGE_ENDED.store(true, Ordering::SeqCst);
     if let Some(r) = recorder.and_then(|r| std::sync::Arc::try_unwrap(r).ok()) {
-        let s = r.finish();
-        note!(
-            "motorwire bridge: recorded {} lines and frames ({} bytes), {} dropped",
-            s.written,
-            s.bytes,
-            s.dropped
-        );
+        let dropped = r.dropped();
+        match r.finish_within(RECORD_FINISH_LIMIT) {
+            Some(s) => note!(
+                "motorwire bridge: recorded {} lines and frames ({} bytes), {} dropped",
+                s.written,
+                s.bytes,
+                s.dropped
+            ),
+            None => note!(
+                "motorwire bridge: the recording's disk did not take its last records within {} s: they are lost and session.json is not completed ({dropped} dropped before)",
+                RECORD_FINISH_LIMIT.as_secs()
+            ),
+        }
     }
     let bridge = result.map_err(|e| e.to_string())?;
     let s = bridge.stats();
@@ -529,4 +561,26 @@ fn bridge(args: &Args) -> Result<u8, String> {
     }
     // 0, or the status of the signal that ended the bridge.
     Ok(signalled.load(Ordering::SeqCst))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The interface a recording's `frames.log` names is one candump's
+    /// readers take, for every kind of bus.
+    #[test]
+    fn every_bus_names_an_interface_the_log_readers_take() {
+        for (spec, name) in [
+            ("sim", "sim"),
+            ("socketcan:can0", "can0"),
+            ("socketcan:vcan12", "vcan12"),
+            ("fdcanusb:/dev/ttyACM0", "fdcanusb"),
+            ("fdcanusb:/tmp/my port", "fdcanusb"),
+        ] {
+            let got = frames_log_interface(spec);
+            assert_eq!(got, name, "{spec}");
+            assert!(motorwire_bridge::record::is_interface_name(&got), "{spec}");
+        }
+    }
 }

@@ -241,6 +241,56 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
     assert!(text.contains(", in client 0 line 1:"), "{text}");
     assert!(text.contains("  recorded: (at "), "{text}");
     assert!(text.contains("  replayed: (at "), "{text}");
+
+    // Edited after the fact: refused (exit 2), never "the same". A frame
+    // of frames.log changed, frames.log cut, a count that is not a number.
+    let log = std::fs::read_to_string(dir.join("frames.log")).unwrap();
+    let first = log.lines().next().unwrap();
+    let (head, data) = first.rsplit_once('#').unwrap();
+    let flipped = format!(
+        "{head}#{}",
+        if data.starts_with('0') { "1" } else { "0" }.to_owned() + &data[1..]
+    );
+    let session_text = std::fs::read_to_string(dir.join("session.json")).unwrap();
+    let cases: Vec<(&str, String, &str)> = vec![
+        (
+            "frames.log",
+            log.replacen(first, &flipped, 1),
+            "frames.log:1: not the frame lines.jsonl has there",
+        ),
+        (
+            "frames.log",
+            log.lines().skip(1).map(|l| format!("{l}\n")).collect(),
+            "frames.log:1: not the frame lines.jsonl has there",
+        ),
+        (
+            "frames.log",
+            log.lines().take(3).map(|l| format!("{l}\n")).collect(),
+            "frames.log holds 3 frames, lines.jsonl",
+        ),
+        ("frames.log", "garbage\n".to_owned(), "frames.log:1:"),
+        (
+            "session.json",
+            {
+                let mut v: Value = serde_json::from_str(&session_text).unwrap();
+                v["written"] = Value::from(v["written"].to_string());
+                v.to_string()
+            },
+            "session.json:1: written is \"",
+        ),
+    ];
+    for (file, text, says) in cases {
+        std::fs::write(dir.join(file), &text).unwrap();
+        let out = common::run(&["replay", dir.to_str().unwrap()], b"");
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(out.status.code(), Some(2), "{file}: {stderr}");
+        assert!(stderr.contains(says), "{says} not in {stderr}");
+        std::fs::write(dir.join("frames.log"), &log).unwrap();
+        std::fs::write(dir.join("session.json"), &session_text).unwrap();
+    }
+    std::fs::remove_file(dir.join("frames.log")).unwrap();
+    let out = common::run(&["replay", dir.to_str().unwrap()], b"");
+    assert_eq!(out.status.code(), Some(2));
     let _ = std::fs::remove_dir_all(&dir);
 }
 
