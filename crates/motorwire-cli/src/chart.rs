@@ -325,25 +325,24 @@ fn tracks(session: &Session, map: &BusMap, only: &[String]) -> Vec<Track> {
 }
 
 /// The row of each label at `xs` (pixels, in time order): the first row
-/// where it clears the label before it by [`LABEL_W`], so no two overlap.
+/// where it clears the label before it by that label's width
+/// ([`label_width`]: more for more digits), so no two overlap.
 /// At most [`MAX_LABEL_ROWS`] rows: a label that clears none is not
 /// shown above the charts (`None`; its mark is drawn and listed in the
 /// key).
 fn label_rows(xs: impl Iterator<Item = f64>) -> Vec<Option<usize>> {
+    // Where each row's last number ends.
     let mut rows: Vec<f64> = Vec::new();
     let mut placed = Vec::new();
-    for x in xs {
-        let row = rows
-            .iter()
-            .position(|last| x - last >= LABEL_W)
-            .or_else(|| {
-                (rows.len() < MAX_LABEL_ROWS).then(|| {
-                    rows.push(f64::NEG_INFINITY);
-                    rows.len() - 1
-                })
-            });
+    for (i, x) in xs.enumerate() {
+        let row = rows.iter().position(|end| x >= *end).or_else(|| {
+            (rows.len() < MAX_LABEL_ROWS).then(|| {
+                rows.push(f64::NEG_INFINITY);
+                rows.len() - 1
+            })
+        });
         if let Some(r) = row.and_then(|row| rows.get_mut(row)) {
-            *r = x;
+            *r = x + label_width(i + 1);
         }
         placed.push(row);
     }
@@ -379,7 +378,26 @@ pub(crate) struct Drawn {
 const WIDTH: u32 = 1200;
 const PANEL: u32 = 230;
 const KEY_LINE: u32 = 18;
-const LABEL_W: f64 = 22.0;
+/// The room a mark's number takes above the charts: 22 pixels for up to
+/// two digits (12-pixel type, and a gap), 7 more for each more digit.
+fn label_width(n: usize) -> f64 {
+    let digits = n.checked_ilog10().map_or(1, |d| d + 1);
+    22.0 + 7.0 * f64::from(digits.saturating_sub(2))
+}
+
+/// A line of the key: at most this many characters (its column is 590
+/// pixels wide, about 7 a character at 13 pixels).
+const KEY_CHARS: usize = 80;
+
+/// `text` cut to `max` characters, its end marked with `…` where cut.
+fn cut(text: &str, max: usize) -> String {
+    if text.chars().count() <= max {
+        return text.to_owned();
+    }
+    let mut s: String = text.chars().take(max.saturating_sub(1)).collect();
+    s.push('…');
+    s
+}
 
 /// Draws `session` (its motors' units and limits from `map`; only the
 /// motors `only` names, when it names any) as an SVG at `path`, titled
@@ -570,9 +588,22 @@ pub(crate) fn draw(
     ];
     for (i, (label, color, dashed)) in legend.iter().enumerate() {
         let x = 12 + 220 * i32::try_from(i).unwrap_or(0);
-        let style = color.stroke_width(if *dashed { 1 } else { 2 });
-        key.draw(&PathElement::new(vec![(x, 14), (x + 28, 14)], style))
+        if *dashed {
+            // As on the charts: 6 on, 4 off.
+            for from in [x, x + 10, x + 20] {
+                key.draw(&PathElement::new(
+                    vec![(from, 14), (from + 6, 14)],
+                    color.stroke_width(1),
+                ))
+                .map_err(err)?;
+            }
+        } else {
+            key.draw(&PathElement::new(
+                vec![(x, 14), (x + 28, 14)],
+                color.stroke_width(2),
+            ))
             .map_err(err)?;
+        }
         key.draw(&Text::new(
             (*label).to_owned(),
             (x + 34, 7),
@@ -592,7 +623,10 @@ pub(crate) fn draw(
         let col = i32::try_from(i % 2).unwrap_or(0);
         let row = i32::try_from(i / 2).unwrap_or(0);
         key.draw(&Text::new(
-            printable(&format!("{}  {:.2} s  {}", i + 1, m.t, m.label)),
+            printable(&cut(
+                &format!("{}  {:.2} s  {}", i + 1, m.t, m.label),
+                KEY_CHARS,
+            )),
             (
                 12 + col * 590,
                 34 + row * i32::try_from(KEY_LINE).unwrap_or(18),
@@ -732,11 +766,42 @@ key = "TRM"
                 .filter(|(_, row)| **row == Some(r))
                 .map(|(x, _)| *x)
                 .collect();
-            assert!(
-                in_row.windows(2).all(|w| w[1] - w[0] >= LABEL_W),
-                "{in_row:?}"
-            );
+            assert!(in_row.windows(2).all(|w| w[1] - w[0] >= 22.0), "{in_row:?}");
         }
+    }
+
+    /// A number of five digits takes more room than one of two (found by
+    /// a hostile test: with 12,000 marks, 10202 and 11002 were drawn over
+    /// each other): marks 22 pixels apart share a row up to 99, not past.
+    #[test]
+    fn long_mark_numbers_take_their_room() {
+        assert_eq!(label_width(9), 22.0);
+        assert_eq!(label_width(99), 22.0);
+        assert_eq!(label_width(100), 29.0);
+        assert_eq!(label_width(10_202), 43.0);
+        // Marks 1..=12000, each 22 px after the one before: every label in
+        // a row clears the one before it by its own width.
+        let xs: Vec<f64> = (0..12_000).map(|i| f64::from(i) * 22.0).collect();
+        let rows = label_rows(xs.iter().copied());
+        let mut ends: Vec<f64> = vec![f64::NEG_INFINITY; MAX_LABEL_ROWS];
+        for (i, (x, row)) in xs.iter().zip(&rows).enumerate() {
+            let Some(r) = row else { continue };
+            assert!(*x >= ends[*r], "mark {} at {x} overlaps", i + 1);
+            ends[*r] = x + label_width(i + 1);
+        }
+        assert_eq!(rows[98], Some(0));
+        // Past 99 the numbers no longer fit one row.
+        assert!(rows[100..].contains(&Some(1)));
+    }
+
+    /// A key line is cut to its column, its end marked.
+    #[test]
+    fn a_long_key_line_is_cut_to_its_column() {
+        assert_eq!(cut("short", KEY_CHARS), "short");
+        let long = format!("1  0.35 s  refused unknown_motor {}", "a".repeat(400));
+        let got = cut(&long, KEY_CHARS);
+        assert_eq!(got.chars().count(), KEY_CHARS);
+        assert!(got.ends_with("a…"), "{got}");
     }
 
     /// 300 marks at one moment: six rows of numbers, the rest in the key

@@ -7,15 +7,17 @@
 //!
 //! Never in the bridge's way: the bridge hands each line to a bounded
 //! queue and goes on ([`ViewTap`]); a thread of the view's own renders
-//! them and writes them to each page, dropping a page that does not keep
-//! up. Bound: at most [`MAX_PAGES`] pages at once, a request's head at
+//! them and hands them to each page's own thread, through a queue of
+//! [`PAGE_QUEUE`] lines: a page that does not keep up (its queue full) is
+//! cut, and a page that does not read holds only its own thread, never
+//! the other pages. Bound: at most [`MAX_PAGES`] pages at once, a request's head at
 //! most 8 KiB read within 2 s.
 
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::thread;
 use std::time::{Duration, Instant};
@@ -57,6 +59,12 @@ const HISTORY_LINES: usize = 100_000;
 
 /// A request's head, at most.
 const MAX_HEAD: usize = 8192;
+
+/// The pause after an accept that failed (no file descriptor left).
+const ACCEPT_BACKOFF: Duration = Duration::from_millis(50);
+
+/// Lines waiting for one page, at most: a page further behind is cut.
+const PAGE_QUEUE: usize = 4096;
 
 /// One line for the pages.
 #[derive(Debug)]
@@ -180,7 +188,13 @@ pub(crate) fn start(config: ViewConfig, map: &BusMap) -> Result<View, String> {
         .name("motorwire-view-accept".to_owned())
         .spawn(move || {
             let busy = Arc::new(AtomicUsize::new(0));
-            for stream in listener.incoming().flatten() {
+            for stream in listener.incoming() {
+                let Ok(stream) = stream else {
+                    // Out of file descriptors (or another failed accept):
+                    // a pause, never a loop that spins on a core.
+                    thread::sleep(ACCEPT_BACKOFF);
+                    continue;
+                };
                 // Requests being read, at most: more are closed at once.
                 if busy.load(Ordering::SeqCst) >= MAX_REQUESTS {
                     drop(stream);
@@ -269,19 +283,49 @@ fn read_head(stream: &TcpStream) -> Result<(String, String), &'static str> {
 }
 
 /// Whether `query` carries `token`, compared in constant time (its
-/// length too: every byte of the longer is looked at).
+/// length too: every byte of the longer is looked at). The value is read
+/// as a browser writes it in a URL: `%XX` is the byte XX and `+` a space
+/// (a token may hold any character but a line's end).
 fn has_token(query: &str, token: &str) -> bool {
     query.split('&').fold(false, |found, kv| {
         let Some(given) = kv.strip_prefix("token=") else {
             return found;
         };
-        let (g, t) = (given.as_bytes(), token.as_bytes());
+        let given = percent_decoded(given);
+        let (g, t) = (given.as_slice(), token.as_bytes());
         let mut diff = u8::from(g.len() != t.len());
         for i in 0..g.len().max(t.len()) {
             diff |= g.get(i).copied().unwrap_or(0) ^ t.get(i).copied().unwrap_or(0xff);
         }
         found | (diff == 0)
     })
+}
+
+/// `text` with each `%XX` made the byte XX and each `+` a space (a `%`
+/// not followed by two hex digits is kept as it is).
+fn percent_decoded(text: &str) -> Vec<u8> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while let Some(&b) = bytes.get(i) {
+        let hex = |at: usize| bytes.get(at).and_then(|c| char::from(*c).to_digit(16));
+        match (b, hex(i + 1), hex(i + 2)) {
+            (b'%', Some(hi), Some(lo)) => {
+                // Two hex digits: at most 0xFF.
+                out.push(u8::try_from(hi * 16 + lo).unwrap_or(u8::MAX));
+                i += 3;
+            }
+            (b'+', _, _) => {
+                out.push(b' ');
+                i += 1;
+            }
+            _ => {
+                out.push(b);
+                i += 1;
+            }
+        }
+    }
+    out
 }
 
 fn respond(mut stream: TcpStream, status: &str, kind: &str, body: &str) {
@@ -375,38 +419,38 @@ fn render(item: &Item, started: Instant) -> String {
 }
 
 /// The view's thread: renders each line once, keeps the last
-/// [`HISTORY`] for pages that open, writes to every page.
+/// [`HISTORY`] for pages that open, hands each line to every page's own
+/// queue ([`PageQueue`]).
 fn hub(
     items: &Receiver<Item>,
     new_pages: &Receiver<TcpStream>,
     dropped: &AtomicU64,
-    open: &AtomicUsize,
+    open: &Arc<AtomicUsize>,
     started: Instant,
     hello: &str,
 ) {
-    let mut pages: Vec<TcpStream> = Vec::new();
+    let hello: Arc<str> = Arc::from(hello);
+    // Each page's own queue, written by a thread of its own: a page that
+    // does not read holds only its own thread (until its write times out)
+    // and is cut once its queue is full, never making the others wait.
+    let mut pages: Vec<PageQueue> = Vec::new();
     // (when, rendered); and the last `ready`, kept past the history.
-    let mut history: VecDeque<(Instant, String)> = VecDeque::new();
+    let mut history: VecDeque<(Instant, Arc<str>)> = VecDeque::new();
     let mut history_bytes = 0usize;
-    let mut ready: Option<String> = None;
+    let mut ready: Option<Arc<str>> = None;
     let mut last_beat = Instant::now();
     let mut reported = 0;
     loop {
-        while let Ok(mut page) = new_pages.try_recv() {
-            let mut ok = send(&mut page, hello);
-            if let Some(r) = &ready {
-                ok = ok && send(&mut page, r);
-            }
-            for (_, line) in &history {
-                if !ok {
-                    break;
+        while let Ok(page) = new_pages.try_recv() {
+            let first: Vec<Arc<str>> = std::iter::once(Arc::clone(&hello))
+                .chain(ready.clone())
+                .chain(history.iter().map(|(_, l)| Arc::clone(l)))
+                .collect();
+            match PageQueue::start(page, first, Arc::clone(open)) {
+                Some(q) => pages.push(q),
+                None => {
+                    open.fetch_sub(1, Ordering::SeqCst);
                 }
-                ok = send(&mut page, line);
-            }
-            if ok {
-                pages.push(page);
-            } else {
-                open.fetch_sub(1, Ordering::SeqCst);
             }
         }
         let item = match items.recv_timeout(Duration::from_millis(200)) {
@@ -414,10 +458,12 @@ fn hub(
             Err(RecvTimeoutError::Timeout) => None,
             Err(RecvTimeoutError::Disconnected) => return,
         };
-        let mut lines = Vec::new();
+        let mut lines: Vec<Arc<str>> = Vec::new();
         let lost = dropped.load(Ordering::Relaxed);
         if lost > reported {
-            lines.push(json!({"kind": "dropped", "count": lost - reported}).to_string());
+            lines.push(Arc::from(
+                json!({"kind": "dropped", "count": lost - reported}).to_string(),
+            ));
             reported = lost;
         }
         if let Some(item) = item {
@@ -429,12 +475,13 @@ fn hub(
                 dropped.fetch_add(1, Ordering::Relaxed);
                 continue;
             }
+            let line: Arc<str> = Arc::from(line);
             if matches!(&item, Item::Out { output, .. } if matches!(&**output, Output::Event(motorwire_bridge::Event::Ready { .. })))
             {
-                ready = Some(line.clone());
+                ready = Some(Arc::clone(&line));
             }
             history_bytes += line.len();
-            history.push_back((at, line.clone()));
+            history.push_back((at, Arc::clone(&line)));
             let now = Instant::now();
             while history.len() > HISTORY_LINES
                 || history_bytes > HISTORY_BYTES
@@ -450,25 +497,64 @@ fn hub(
         }
         if lines.is_empty() && last_beat.elapsed() >= Duration::from_secs(5) {
             // A comment: finds the pages that went away.
-            lines.push(String::new());
+            lines.push(Arc::from(""));
             last_beat = Instant::now();
         }
         if lines.is_empty() {
             continue;
         }
-        pages.retain_mut(|page| {
-            let ok = lines.iter().all(|l| {
-                if l.is_empty() {
-                    page.write_all(b": alive\n\n").is_ok()
-                } else {
-                    send(page, l)
+        pages.retain(|page| lines.iter().all(|l| page.offer(l)));
+    }
+}
+
+/// A page's queue and the thread that writes it.
+struct PageQueue {
+    queue: SyncSender<Arc<str>>,
+    /// Set when the page is cut: its thread writes nothing more.
+    cut: Arc<AtomicBool>,
+}
+
+impl PageQueue {
+    /// The page's thread, which writes `first` (the greeting, `ready` and
+    /// the history), then what it is offered, and counts the page out of
+    /// `open` when it ends. `None` when no thread could be made.
+    fn start(mut page: TcpStream, first: Vec<Arc<str>>, open: Arc<AtomicUsize>) -> Option<Self> {
+        let (queue, lines) = mpsc::sync_channel::<Arc<str>>(PAGE_QUEUE);
+        let cut = Arc::new(AtomicBool::new(false));
+        let stop = Arc::clone(&cut);
+        thread::Builder::new()
+            .name("motorwire-view-page".to_owned())
+            .spawn(move || {
+                let live = |page: &mut TcpStream, line: &str| {
+                    !stop.load(Ordering::Relaxed)
+                        && if line.is_empty() {
+                            page.write_all(b": alive\n\n").is_ok()
+                        } else {
+                            send(page, line)
+                        }
+                };
+                if first.iter().all(|l| live(&mut page, l)) {
+                    while let Ok(line) = lines.recv() {
+                        if !live(&mut page, &line) {
+                            break;
+                        }
+                    }
                 }
-            });
-            if !ok {
+                let _ = page.shutdown(std::net::Shutdown::Both);
                 open.fetch_sub(1, Ordering::SeqCst);
-            }
-            ok
-        });
+            })
+            .ok()?;
+        Some(Self { queue, cut })
+    }
+
+    /// Hands `line` to the page; false (and the page cut) when it is gone
+    /// or its queue is full: it does not keep up.
+    fn offer(&self, line: &Arc<str>) -> bool {
+        let kept = self.queue.try_send(Arc::clone(line)).is_ok();
+        if !kept {
+            self.cut.store(true, Ordering::Relaxed);
+        }
+        kept
     }
 }
 
@@ -503,5 +589,16 @@ mod tests {
             "token=x&token=abcdefabcdefabcd",
             "abcdefabcdefabcd"
         ));
+        // As a browser writes a token of any characters in a URL.
+        let token = "abcdefghij klmnop&q#r%";
+        for query in [
+            "token=abcdefghij%20klmnop%26q%23r%25",
+            "token=abcdefghij+klmnop%26q%23r%25",
+        ] {
+            assert!(has_token(query, token), "{query}");
+        }
+        assert!(!has_token("token=abcdefghij%2", "abcdefghij%2X"));
+        assert_eq!(percent_decoded("a%2"), b"a%2");
+        assert_eq!(percent_decoded("%zz%41"), b"%zzA");
     }
 }

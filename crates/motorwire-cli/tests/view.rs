@@ -261,3 +261,72 @@ fn slow_heads_are_cut_and_pages_are_bounded() {
     let out = child.wait_with_output().unwrap();
     assert_eq!(out.status.code(), Some(0));
 }
+
+/// Pages that never read hold up only themselves (found by a hostile
+/// test: each stuck page held the view's one thread for its write
+/// time-out, and 15 of them kept a stop from an honest page for seconds):
+/// with 4 MB of history that no stuck page takes, an honest page opened
+/// after them gets its history and then the stop at once.
+#[test]
+fn pages_that_never_read_never_hold_up_an_honest_one() {
+    let (mut child, addr, _err) = bridge_with_view(&[]);
+    let mut stdin = child.stdin.take().unwrap();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    // History: a thousand long lines (each refused, each kept 4 KiB).
+    let long = format!("{{\"note\":\"{}\"}}\n", "x".repeat(4_000));
+    for _ in 0..1_000 {
+        stdin.write_all(long.as_bytes()).unwrap();
+    }
+    stdin.flush().unwrap();
+    let mut line = String::new();
+    let mut answered = 0;
+    while answered < 1_000 {
+        line.clear();
+        assert!(stdout.read_line(&mut line).unwrap() > 0);
+        if line.starts_with("{\"ok\":") {
+            answered += 1;
+        }
+    }
+    // Fifteen pages that ask for the stream and never read it.
+    let stuck: Vec<TcpStream> = (0..15)
+        .map(|_| {
+            let mut s = TcpStream::connect(&addr).unwrap();
+            s.write_all(b"GET /events HTTP/1.1\r\n\r\n").unwrap();
+            s
+        })
+        .collect();
+    std::thread::sleep(Duration::from_millis(300));
+    let mut honest = TcpStream::connect(&addr).unwrap();
+    honest
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    honest.write_all(b"GET /events HTTP/1.1\r\n\r\n").unwrap();
+    let mut events = BufReader::new(honest);
+    // Its history, to the last of the thousand lines.
+    let mut seen = 0;
+    while seen < 1_000 {
+        line.clear();
+        assert!(events.read_line(&mut line).unwrap() > 0);
+        if line.starts_with("data: {\"kind\":\"in\"") && line.contains("xxxx") {
+            seen += 1;
+        }
+    }
+    let began = std::time::Instant::now();
+    stdin.write_all(b"{\"emergency_stop\":true}\n").unwrap();
+    stdin.flush().unwrap();
+    loop {
+        line.clear();
+        assert!(events.read_line(&mut line).unwrap() > 0, "the page was cut");
+        if line.starts_with("data: {\"kind\":\"out\"") && line.contains("\"emergency_stop\":true") {
+            break;
+        }
+    }
+    let waited = began.elapsed();
+    assert!(
+        waited < Duration::from_millis(500),
+        "the stop reached the page after {waited:?}"
+    );
+    drop(stuck);
+    drop(stdin);
+    assert_eq!(child.wait().unwrap().code(), Some(0));
+}
