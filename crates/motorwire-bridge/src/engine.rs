@@ -1082,11 +1082,12 @@ impl Bridge {
                 self.refuse(&meta, e);
                 return;
             }
-            for mut loss in plan.report.losses {
-                if all.len() > 1 {
-                    loss.field = format!("{}.{}", t.motor_id, loss.field).into();
-                }
-                report.losses.push(loss);
+            for loss in plan.report.losses {
+                report.losses.push(if all.len() > 1 {
+                    loss.under(&t.motor_id)
+                } else {
+                    loss
+                });
             }
             // Times no clock reaches are refused, never a panic.
             let timeable = |secs: f64| Duration::try_from_secs_f64(secs.max(0.0)).is_ok();
@@ -2013,12 +2014,7 @@ impl Bridge {
                 .about(a.motor_id.clone()));
             };
             let single = a.to_motor_command(cmd.timestamp);
-            let prefixed = |r: Report| {
-                r.losses.into_iter().map(|mut l| {
-                    l.field = format!("{}.{}", a.motor_id, l.field).into();
-                    l
-                })
-            };
+            let prefixed = |r: Report| r.losses.into_iter().map(|l| l.under(&a.motor_id));
             let device = self.joints.get(ji).map(|j| j.device);
             if let Some(built) = device.and_then(|d| self.single_axis(ji, d, &single)) {
                 let (axis, r) = built.map_err(|r| refused(&a.motor_id, &r))?;

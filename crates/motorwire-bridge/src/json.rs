@@ -186,7 +186,6 @@ fn push_number<T: Serialize>(s: &mut String, v: &T) -> Result<(), serde_json::Er
     Ok(())
 }
 
-/// `v` in decimal, as `serde_json` writes a `u64`.
 /// `superseded by line N of client C`, the reason of a watched line whose
 /// motor took a newer line's move: made for every move that replaces one
 /// under way, so built without the formatting machinery.
@@ -199,6 +198,7 @@ pub(crate) fn superseded_by(by: crate::LineRef) -> String {
     s
 }
 
+/// `v` in decimal, as `serde_json` writes a `u64`.
 fn push_u64(s: &mut String, mut v: u64) {
     if v < 10 {
         // One digit: v < 10.

@@ -592,7 +592,7 @@ impl Recorder {
     /// Ends the recording: what is queued is written, the files closed
     /// and `session.json` completed.
     pub fn finish(mut self) -> RecordSummary {
-        self.end()
+        self.end(None).unwrap_or_default()
     }
 
     /// [`Recorder::finish`], waiting at most about `limit` for the writer
@@ -623,45 +623,48 @@ impl Recorder {
     /// ```
     #[must_use]
     pub fn finish_within(mut self, limit: Duration) -> Option<RecordSummary> {
-        drop(self.queue.take());
-        self.hushed.store(false, Ordering::Relaxed);
-        let writer = self.writer.take()?;
-        let begun = Instant::now();
-        while !writer.is_finished() {
-            let waited = begun.elapsed();
-            if waited >= limit {
-                self.abandon.store(true, Ordering::Relaxed);
-            }
-            if waited >= limit.saturating_add(ABANDON_GRACE) {
-                // Detached: it ends when its write returns, or with the
-                // process.
-                return None;
-            }
-            thread::sleep(Duration::from_millis(5));
-        }
-        let mut s = writer.join().ok().unwrap_or_default();
-        s.dropped += self.dropped.load(Ordering::Relaxed);
-        Some(s)
+        self.end(Some(limit))
     }
 
-    fn end(&mut self) -> RecordSummary {
+    /// Ends the recording: the writer is waited for until it has written
+    /// what is queued, or, with a `limit`, as [`Recorder::finish_within`]
+    /// says.
+    fn end(&mut self, limit: Option<Duration>) -> Option<RecordSummary> {
         drop(self.queue.take());
         // Never left waiting for a stop that ended with the session.
         self.hushed.store(false, Ordering::Relaxed);
-        let mut s = self
-            .writer
-            .take()
-            .and_then(|w| w.join().ok())
-            .unwrap_or_default();
-        s.dropped += self.dropped.load(Ordering::Relaxed);
-        s
+        let dropped = || self.dropped.load(Ordering::Relaxed);
+        let Some(writer) = self.writer.take() else {
+            return Some(RecordSummary {
+                dropped: dropped(),
+                ..RecordSummary::default()
+            });
+        };
+        if let Some(limit) = limit {
+            let begun = Instant::now();
+            while !writer.is_finished() {
+                let waited = begun.elapsed();
+                if waited >= limit {
+                    self.abandon.store(true, Ordering::Relaxed);
+                }
+                if waited >= limit.saturating_add(ABANDON_GRACE) {
+                    // Detached: it ends when its write returns, or with
+                    // the process.
+                    return None;
+                }
+                thread::sleep(Duration::from_millis(5));
+            }
+        }
+        let mut s = writer.join().ok().unwrap_or_default();
+        s.dropped += dropped();
+        Some(s)
     }
 }
 
 impl Drop for Recorder {
     fn drop(&mut self) {
         if self.writer.is_some() {
-            self.end();
+            let _ = self.end(None);
         }
     }
 }
@@ -776,7 +779,8 @@ impl Files {
         // `session.json` counts against the limit (it holds the map's
         // text): what it takes at its largest (with the end's counts), then
         // two files, each with its rotated copy, a quarter of the rest each.
-        let session = session_text(&config.interface, config.setup.as_ref(), wall0, None).len();
+        let start = session_text(&config.interface, config.setup.as_ref(), wall0, None);
+        let session = start.len();
         let room = config
             .max_bytes
             .checked_sub(u64::try_from(session).unwrap_or(u64::MAX) + SESSION_END_ROOM)
@@ -801,12 +805,21 @@ impl Files {
             t0,
             wall0,
         };
-        files.session(None)?;
+        files.write_session(&start)?;
         Ok(files)
     }
 
-    fn session(&self, end: Option<RecordSummary>) -> io::Result<()> {
-        let text = session_text(&self.interface, self.setup.as_ref(), self.wall0, end);
+    /// Completes `session.json` with the end's counts.
+    fn session(&self, end: RecordSummary) -> io::Result<()> {
+        self.write_session(&session_text(
+            &self.interface,
+            self.setup.as_ref(),
+            self.wall0,
+            Some(end),
+        ))
+    }
+
+    fn write_session(&self, text: &str) -> io::Result<()> {
         // Written beside it, then put in its place: never through a link,
         // never into a FIFO.
         let tmp = self.dir.join("session.json.part");
@@ -1001,7 +1014,7 @@ impl Files {
         settle(&mut self, &mut pending, &mut pending_bytes, &mut failed);
         let mut end = s;
         end.dropped = dropped.load(Ordering::Relaxed);
-        let _ = self.session(Some(end));
+        let _ = self.session(end);
         s
     }
 }

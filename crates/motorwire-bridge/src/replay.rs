@@ -30,11 +30,11 @@
 //! decimals, a unit of its last place), 2 units for a motor's position and
 //! 5 units a second for its velocity caught in motion (a session recorded
 //! in real time stops or reads a joint a few milliseconds off its replay);
-//! without the
-//! members that measure time: `latency_us`, `ack_us`, `stop_latency_us`,
-//! `after_ms`, and a device's clock in a request's answer (`timestamp_us`,
-//! `active_time_ms`, `timestamp_ms`, `timestamp_sec`). Feedback lines are not compared (their number follows the
-//! clock); what they show is in the frames and the answers.
+//! without the members that measure time: `latency_us`, `ack_us`,
+//! `stop_latency_us`, `after_ms`, and a device's clock in a request's
+//! answer (`timestamp_us`, `active_time_ms`, `timestamp_ms`,
+//! `timestamp_sec`). Feedback lines are not compared (their number follows
+//! the clock); what they show is in the frames and the answers.
 //!
 //! Time is aligned at `ready`: what came before the recorded bridge was
 //! ready comes before the simulated one is, what came after comes as long

@@ -611,10 +611,9 @@ pub(crate) fn each_axis<T>(
     let mut commands = Vec::with_capacity(cmd.motors.len());
     for axis in &cmd.motors {
         let t = one(map, &axis.to_motor_command(cmd.timestamp))?;
-        for mut loss in t.report.losses {
-            loss.field = format!("{}.{}", axis.motor_id, loss.field).into();
-            report.losses.push(loss);
-        }
+        report
+            .losses
+            .extend(t.report.losses.into_iter().map(|l| l.under(&axis.motor_id)));
         commands.push(t.value);
     }
     for (field, present) in [
@@ -735,10 +734,9 @@ pub fn to_orion(
         };
         let mut axis_report = Report::default();
         report_unused(&single, &[], "Orion direct control", &mut axis_report);
-        for mut loss in axis_report.losses {
-            loss.field = format!("{}.{}", motor.name, loss.field).into();
-            report.losses.push(loss);
-        }
+        report
+            .losses
+            .extend(axis_report.losses.into_iter().map(|l| l.under(&motor.name)));
         values.set(orion, value);
     }
     for (field, present) in [

@@ -68,6 +68,24 @@ impl Loss {
         s
     }
 
+    /// The loss of one motor of a line that names several: its field as
+    /// `owner.field`.
+    ///
+    /// ```
+    /// use motorwire_translate::{Loss, LossKind};
+    /// let l = Loss { field: "max_jerk".into(), kind: LossKind::Defaulted, detail: "2000 from the bus map".into() };
+    /// assert_eq!(l.under("elbow").text(), "elbow.max_jerk: defaulted: 2000 from the bus map");
+    /// ```
+    #[must_use]
+    pub fn under(mut self, owner: &str) -> Self {
+        let mut field = String::with_capacity(owner.len() + 1 + self.field.len());
+        field.push_str(owner);
+        field.push('.');
+        field.push_str(&self.field);
+        self.field = field.into();
+        self
+    }
+
     const fn kind_name(&self) -> &'static str {
         self.kind.name()
     }

@@ -113,10 +113,9 @@ pub fn multi_axis_to_irpc_from(
         let mut commands = Vec::new();
         for axis in &cmd.motors {
             let t = to_irpc(map, &axis.to_motor_command(cmd.timestamp))?;
-            for mut loss in t.report.losses {
-                loss.field = format!("{}.{}", axis.motor_id, loss.field).into();
-                report.losses.push(loss);
-            }
+            report
+                .losses
+                .extend(t.report.losses.into_iter().map(|l| l.under(&axis.motor_id)));
             commands.push(t.value);
         }
         return Ok(Translated {
@@ -164,10 +163,9 @@ pub fn multi_axis_to_irpc_from(
                 motor: motor.name.clone(),
             });
         }
-        for mut loss in t.report.losses {
-            loss.field = format!("{}.{}", motor.name, loss.field).into();
-            report.losses.push(loss);
-        }
+        report
+            .losses
+            .extend(t.report.losses.into_iter().map(|l| l.under(&motor.name)));
         // As the joint reads them: f32 degrees.
         let start_deg = f64::from(motor.unit.to_degrees(start) as f32);
         let velocity_deg = f64::from(motor.unit.to_degrees(start_velocity) as f32);
