@@ -345,6 +345,11 @@ pub struct Recording {
     /// that did not (the bridge was killed) is compared up to its last
     /// record.
     pub ended: bool,
+    /// The last line of `lines.jsonl` was cut in the middle of its write
+    /// (a recording that did not end cleanly: the process was killed, the
+    /// machine lost power) and was left out; every record before it is
+    /// read.
+    pub cut: bool,
 }
 
 /// The largest `session.json` read (its map is at most 1 MiB).
@@ -450,13 +455,28 @@ impl Recording {
         let text = read(&lines_path, MAX_LINES_FILE)?;
         let mut raw = Vec::new();
         let mut start = None;
-        for (i, line) in text.lines().enumerate() {
+        let ended = written.is_some();
+        let mut cut = false;
+        for (i, piece) in text.split_inclusive('\n').enumerate() {
             let bad = |reason: String| ReplayError::Record {
                 path: lines_path.clone(),
                 line: i + 1,
                 reason,
             };
-            let v: Value = serde_json::from_str(line).map_err(|e| bad(e.to_string()))?;
+            let line = piece.strip_suffix('\n').unwrap_or(piece);
+            let line = line.strip_suffix('\r').unwrap_or(line);
+            let v: Value = match serde_json::from_str(line) {
+                Ok(v) => v,
+                // The last line of a recording that never ended, with no
+                // newline: a write the kill cut short. What came before
+                // it is the recording; anywhere else a line that is not
+                // JSON is damage, and refused.
+                Err(_) if !ended && !piece.ends_with('\n') => {
+                    cut = true;
+                    break;
+                }
+                Err(e) => return Err(bad(e.to_string())),
+            };
             let t = v
                 .get("t_us")
                 .and_then(Value::as_u64)
@@ -503,11 +523,11 @@ impl Recording {
                 (since(t), r)
             })
             .collect();
-        let ended = session.get("written").is_some();
         Ok(Self {
             setup,
             records,
             ended,
+            cut,
         })
     }
 
@@ -1360,6 +1380,12 @@ pub fn compare(
         }
         for i in 0..n {
             let (p, q) = (x.get(i), y.get(i));
+            if p.is_none() && !recording.ended {
+                // A recording that did not end (the bridge was killed) is
+                // compared up to its last record: what the replay gave
+                // after it has nothing recorded to be compared with.
+                break;
+            }
             if let (Some(p), Some(q)) = (p, q)
                 && same(&p.value, &q.value, tolerance, Kind::Plain)
             {
@@ -1546,6 +1572,57 @@ node = 0x20
         );
     }
 
+    /// A recording whose bridge was killed in the middle of a write ends
+    /// in a line with no newline: it is left out and said, and everything
+    /// before it is read. A recording that ended cleanly, or a bad line
+    /// that has its newline, is damage and refused, naming the line.
+    #[test]
+    fn a_last_line_cut_by_a_kill_is_left_out_and_said() {
+        let dir = std::env::temp_dir().join(format!("motorwire-replay-cut-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let session = r#"{"recorder":"motorwire","files":["frames.log","lines.jsonl"]}"#;
+        let whole = "{\"t_us\":0,\"wall_ms\":1,\"mark\":{\"kind\":\"start\"}}\n\
+                     {\"t_us\":5,\"wall_ms\":1,\"in\":{\"origin\":0,\"line\":1,\"text\":\"{}\"}}\n";
+        let cut = format!("{whole}{{\"t_us\":9,\"wall_ms\":1,\"in\":{{\"origin\":0,\"li");
+        fs::write(dir.join("session.json"), session).unwrap();
+        fs::write(dir.join("lines.jsonl"), &cut).unwrap();
+        let r = Recording::read(&dir).unwrap();
+        assert!(!r.ended);
+        assert!(r.cut);
+        assert_eq!(r.records.len(), 2);
+        assert_eq!(
+            r.records[1],
+            (
+                Duration::from_micros(5),
+                Recorded::Line {
+                    taken: None,
+                    origin: Origin(0),
+                    number: 1,
+                    text: "{}".to_owned()
+                }
+            )
+        );
+        // Cut at a line's end: nothing is left out.
+        fs::write(dir.join("lines.jsonl"), whole).unwrap();
+        let r = Recording::read_partial(&dir).unwrap();
+        assert!(!r.cut);
+        assert_eq!(r.records.len(), 2);
+        // A bad line with its newline is not a cut write.
+        fs::write(dir.join("lines.jsonl"), format!("{whole}{{\"t_us\":\n")).unwrap();
+        let e = Recording::read(&dir).unwrap_err().to_string();
+        assert!(e.contains("lines.jsonl:3: EOF while parsing"), "{e}");
+        // A recording that ended cleanly was not cut by a kill.
+        fs::write(
+            dir.join("session.json"),
+            r#"{"recorder":"motorwire","files":["frames.log","lines.jsonl"],"written":3,"dropped":0,"bytes":300}"#,
+        )
+        .unwrap();
+        fs::write(dir.join("lines.jsonl"), &cut).unwrap();
+        let e = Recording::read(&dir).unwrap_err().to_string();
+        assert!(e.contains("lines.jsonl:3: EOF while parsing"), "{e}");
+        let _ = fs::remove_dir_all(&dir);
+    }
+
     fn out(to: Option<u64>, value: Value) -> Recorded {
         Recorded::Output { to, value }
     }
@@ -1561,6 +1638,7 @@ node = 0x20
         let recording = Recording {
             setup: None,
             ended: true,
+            cut: false,
             records: vec![
                 (ms(1), out(Some(1), json!({"ok": true, "line": 1}))),
                 (ms(2), out(Some(2), json!({"ok": true, "line": 1}))),
@@ -1636,5 +1714,29 @@ node = 0x20
         assert_eq!((d.stream.as_str(), d.at), ("events", ms(9)));
         assert_eq!((d.recorded, d.recorded_at), (None, None));
         assert_eq!(d.replayed, Some(json!({"event": "deadman"})));
+        // The same recording, had its bridge been killed: compared up to
+        // its end, the replay's event after it has nothing to differ from;
+        // a difference before its end still diverges.
+        let mut killed = recording.clone();
+        killed.ended = false;
+        let c = compare(
+            &killed,
+            &replayed,
+            &map,
+            WireVersion::V2_0,
+            &Tolerance::default(),
+        );
+        assert_eq!(c.divergence, None);
+        assert_eq!((c.answers, c.events, c.frames, c.orion_lines), (2, 1, 1, 0));
+        replayed.records[3].1 = out(None, json!({"event": "released"}));
+        let c = compare(
+            &killed,
+            &replayed,
+            &map,
+            WireVersion::V2_0,
+            &Tolerance::default(),
+        );
+        let d = c.divergence.unwrap();
+        assert_eq!((d.stream.as_str(), d.at), ("events", ms(3)));
     }
 }

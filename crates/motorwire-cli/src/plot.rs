@@ -57,6 +57,12 @@ pub(crate) fn session_of(recording: &Recording) -> Session {
 fn plot(args: &Args) -> Result<(), String> {
     let dir = &args.dir;
     let recording = Recording::read_partial(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    if recording.cut {
+        note!(
+            "motorwire plot: {}: the recording did not end cleanly: its last line, cut in the middle of its write, is left out",
+            dir.display()
+        );
+    }
     let map = match (&args.map, &recording.setup) {
         (Some(path), _) => crate::bridge::load_map(path)?,
         (None, Some(setup)) => {

@@ -99,8 +99,13 @@ fn replay_dir(args: &Args) -> Result<u8, String> {
     .map_err(|e| e.to_string())?;
     if !recording.ended {
         note!(
-            "motorwire replay: {}: the recording did not end cleanly (session.json has no counts: the bridge was killed?); compared up to its last record",
-            dir.display()
+            "motorwire replay: {}: the recording did not end cleanly (session.json has no counts: the bridge was killed?); compared up to its last record{}",
+            dir.display(),
+            if recording.cut {
+                " (lines.jsonl's last line, cut in the middle of its write, left out)"
+            } else {
+                ""
+            }
         );
     }
     let c = replay::compare(

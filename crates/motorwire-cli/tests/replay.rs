@@ -288,6 +288,48 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
         std::fs::write(dir.join("frames.log"), &log).unwrap();
         std::fs::write(dir.join("session.json"), &session_text).unwrap();
     }
+    // The bridge killed in the middle of a write: session.json without its
+    // end's counts, lines.jsonl's last line cut short. What came before
+    // it replays and plots, and both say what was left out.
+    let lines = std::fs::read_to_string(dir.join("lines.jsonl")).unwrap();
+    let mut killed: Value = serde_json::from_str(&session_text).unwrap();
+    for count in ["written", "dropped", "bytes"] {
+        killed.as_object_mut().unwrap().remove(count);
+    }
+    std::fs::write(dir.join("session.json"), killed.to_string()).unwrap();
+    std::fs::write(dir.join("lines.jsonl"), &lines[..lines.len() - 20]).unwrap();
+    let out = common::run(&["replay", dir.to_str().unwrap()], b"");
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("the recording did not end cleanly (session.json has no counts: the bridge was killed?); compared up to its last record (lines.jsonl's last line, cut in the middle of its write, left out)"),
+        "{stderr}"
+    );
+    assert!(
+        String::from_utf8(out.stdout)
+            .unwrap()
+            .contains("the same: no divergence"),
+        "killed and cut: not the same"
+    );
+    let svg = dir.join("killed.svg");
+    let out = common::run(
+        &[
+            "plot",
+            dir.to_str().unwrap(),
+            "--svg",
+            svg.to_str().unwrap(),
+        ],
+        b"",
+    );
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("the recording did not end cleanly: its last line, cut in the middle of its write, is left out"),
+        "{stderr}"
+    );
+    assert!(std::fs::read_to_string(&svg).unwrap().contains("elbow"));
+    std::fs::write(dir.join("lines.jsonl"), &lines).unwrap();
+    std::fs::write(dir.join("session.json"), &session_text).unwrap();
     std::fs::remove_file(dir.join("frames.log")).unwrap();
     let out = common::run(&["replay", dir.to_str().unwrap()], b"");
     assert_eq!(out.status.code(), Some(2));
