@@ -1635,6 +1635,9 @@ node = 0x20
     fn the_first_divergence_is_the_earliest_of_every_stream() {
         let map = BusMap::from_toml(MAP).unwrap();
         let ms = Duration::from_millis;
+        let cmp = |r: &Recording, p: &Replayed| {
+            compare(r, p, &map, WireVersion::V2_0, &Tolerance::default())
+        };
         let recording = Recording {
             setup: None,
             ended: true,
@@ -1673,13 +1676,7 @@ node = 0x20
             ],
             ..Replayed::default()
         };
-        let c = compare(
-            &recording,
-            &replayed,
-            &map,
-            WireVersion::V2_0,
-            &Tolerance::default(),
-        );
+        let c = cmp(&recording, &replayed);
         assert_eq!(c.divergence, None);
         assert_eq!((c.answers, c.events, c.frames, c.orion_lines), (2, 1, 1, 0));
         // Client 2's line refused in the replay, and an event more later.
@@ -1687,13 +1684,7 @@ node = 0x20
         replayed
             .records
             .push((ms(9), out(None, json!({"event": "deadman"}))));
-        let c = compare(
-            &recording,
-            &replayed,
-            &map,
-            WireVersion::V2_0,
-            &Tolerance::default(),
-        );
+        let c = cmp(&recording, &replayed);
         let d = c.divergence.unwrap();
         assert_eq!(d.stream, "client 2 line 1");
         assert_eq!(d.at, ms(1));
@@ -1703,13 +1694,7 @@ node = 0x20
         // Only the extra event left: it diverges at its time, with
         // nothing recorded there.
         replayed.records[0].1 = out(Some(2), json!({"ok": true, "line": 1}));
-        let c = compare(
-            &recording,
-            &replayed,
-            &map,
-            WireVersion::V2_0,
-            &Tolerance::default(),
-        );
+        let c = cmp(&recording, &replayed);
         let d = c.divergence.unwrap();
         assert_eq!((d.stream.as_str(), d.at), ("events", ms(9)));
         assert_eq!((d.recorded, d.recorded_at), (None, None));
@@ -1719,23 +1704,11 @@ node = 0x20
         // a difference before its end still diverges.
         let mut killed = recording.clone();
         killed.ended = false;
-        let c = compare(
-            &killed,
-            &replayed,
-            &map,
-            WireVersion::V2_0,
-            &Tolerance::default(),
-        );
+        let c = cmp(&killed, &replayed);
         assert_eq!(c.divergence, None);
         assert_eq!((c.answers, c.events, c.frames, c.orion_lines), (2, 1, 1, 0));
         replayed.records[3].1 = out(None, json!({"event": "released"}));
-        let c = compare(
-            &killed,
-            &replayed,
-            &map,
-            WireVersion::V2_0,
-            &Tolerance::default(),
-        );
+        let c = cmp(&killed, &replayed);
         let d = c.divergence.unwrap();
         assert_eq!((d.stream.as_str(), d.at), ("events", ms(3)));
     }

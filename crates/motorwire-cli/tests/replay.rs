@@ -93,6 +93,19 @@ fn record_session(dir: &Path) {
     }
 }
 
+/// `motorwire plot DIR --svg SVG`.
+fn plot(dir: &Path, svg: &Path) -> std::process::Output {
+    common::run(
+        &[
+            "plot",
+            dir.to_str().unwrap(),
+            "--svg",
+            svg.to_str().unwrap(),
+        ],
+        b"",
+    )
+}
+
 fn replay_json(dir: &Path, extra: &[&str]) -> (Option<i32>, Value, String) {
     let mut args = vec!["replay", dir.to_str().unwrap(), "--json"];
     args.extend_from_slice(extra);
@@ -161,15 +174,7 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
     // Drawn for a person (issue 28 part 4): a panel per motor that
     // moved, in its units, the marks with their key.
     let svg = dir.join("session.svg");
-    let out = common::run(
-        &[
-            "plot",
-            dir.to_str().unwrap(),
-            "--svg",
-            svg.to_str().unwrap(),
-        ],
-        b"",
-    );
+    let out = plot(&dir, &svg);
     let said = String::from_utf8(out.stdout).unwrap();
     assert_eq!(out.status.code(), Some(0), "{said}");
     // The elbow, the gripper and the turntable (shoulder_pitch's only
@@ -312,15 +317,7 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
         "killed and cut: not the same"
     );
     let svg = dir.join("killed.svg");
-    let out = common::run(
-        &[
-            "plot",
-            dir.to_str().unwrap(),
-            "--svg",
-            svg.to_str().unwrap(),
-        ],
-        b"",
-    );
+    let out = plot(&dir, &svg);
     let stderr = String::from_utf8(out.stderr).unwrap();
     assert_eq!(out.status.code(), Some(0), "{stderr}");
     assert!(
