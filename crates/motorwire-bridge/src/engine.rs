@@ -315,7 +315,7 @@ pub struct Bridge {
     /// line to send.
     drivers: Drivers,
     joints: Vec<Joint>,
-    jobs: BTreeMap<u64, Job>,
+    jobs: BTreeMap<u64, Box<Job>>,
     next_job: u64,
     waiting: VecDeque<Waiting>,
     line_numbers: BTreeMap<Origin, u64>,
@@ -933,20 +933,22 @@ impl Bridge {
             Input::Trajectories { id, trajectories } => {
                 self.trajectories(now, meta, &id, &trajectories);
             }
-            Input::Stream(cmd) => {
+            Input::Stream(mut cmd) => {
                 let meta = LineMeta {
                     stream: true,
                     ..meta
                 };
-                self.motor_command(now, meta, *cmd);
+                self.motor_command(now, meta, &mut cmd);
             }
-            Input::Message(m) => match *m {
+            // Read where it lies: a command is the largest message, and
+            // every line is one.
+            Input::Message(mut m) => match m.as_mut() {
                 Message::MotorCommand(cmd) => self.motor_command(now, meta, cmd),
-                Message::MultiAxisCommand(cmd) => self.multi_axis(now, meta, &cmd),
-                Message::SafetyLimits(l) => self.safety_limits(meta, &l),
+                Message::MultiAxisCommand(cmd) => self.multi_axis(now, meta, cmd),
+                Message::SafetyLimits(l) => self.safety_limits(meta, l),
                 Message::Trajectory(t) => {
                     let id = t.trajectory_id.clone();
-                    self.trajectories(now, meta, &id, std::slice::from_ref(&t));
+                    self.trajectories(now, meta, &id, std::slice::from_ref(t));
                 }
                 Message::PidConfig(p) => self.refuse(
                     &meta.labelled(Label::Motor(p.motor_id.clone())),
@@ -1673,7 +1675,7 @@ impl Bridge {
         }
         self.out.push_back(Output::Result {
             origin: meta.origin,
-            result: r,
+            result: Box::new(r),
         });
     }
 
@@ -1833,8 +1835,7 @@ impl Bridge {
         Ok(())
     }
 
-    fn motor_command(&mut self, now: Duration, meta: LineMeta, mut cmd: MotorCommand) {
-        let cmd = &mut cmd;
+    fn motor_command(&mut self, now: Duration, meta: LineMeta, cmd: &mut MotorCommand) {
         let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
         if let Err(e) = self.admit(cmd.timestamp, std::iter::once(cmd.motor_id.as_str())) {
             if e.kind == ErrorKind::Busy {
@@ -2259,7 +2260,7 @@ impl Bridge {
             b.joints
                 .get(ji)
                 .and_then(|j| j.busy)
-                .is_some_and(|s| b.jobs.get(&s.job).is_some_and(&pick))
+                .is_some_and(|s| b.jobs.get(&s.job).is_some_and(|j| pick(j)))
         };
         let chosen: BTreeSet<usize> = (0..self.joints.len())
             .filter(|&ji| picked(self, ji))
@@ -2271,11 +2272,11 @@ impl Bridge {
             };
             let busy = joint
                 .busy
-                .take_if(|s| self.jobs.get(&s.job).is_some_and(&pick));
+                .take_if(|s| self.jobs.get(&s.job).is_some_and(|j| pick(j)));
             let (queued, kept): (Vec<StepRef>, Vec<StepRef>) = joint
                 .queue
                 .drain(..)
-                .partition(|s| self.jobs.get(&s.job).is_some_and(&pick));
+                .partition(|s| self.jobs.get(&s.job).is_some_and(|j| pick(j)));
             joint.queue.extend(kept);
             if let Some(s) = busy
                 && let Some(job) = self.jobs.get_mut(&s.job)
@@ -2461,7 +2462,7 @@ impl Bridge {
             .collect();
         self.jobs.insert(
             id,
-            Job {
+            Box::new(Job {
                 line,
                 kind,
                 received: now,
@@ -2476,7 +2477,7 @@ impl Bridge {
                 data: None,
                 data_error: None,
                 answered: None,
-            },
+            }),
         );
         for &(ji, step, takes) in &steps {
             let scheduled = match takes {
@@ -2523,10 +2524,12 @@ impl Bridge {
         except: Option<StepRef>,
     ) -> Option<StepRef> {
         let joint = self.joints.get_mut(ji)?;
-        let mut keep = VecDeque::new();
-        // Only what is older than the newer step: queued before it.
+        // Only what is older than the newer step: queued before it. Kept
+        // in place, in order (the queue keeps its room: no allocation a
+        // line).
         let mut newer = false;
-        for s in joint.queue.drain(..) {
+        joint.queue.retain_mut(|s| {
+            let s = *s;
             newer |= Some(s) == except;
             let replaced = !newer
                 && self.jobs.get_mut(&s.job).is_some_and(|job| {
@@ -2551,11 +2554,9 @@ impl Bridge {
                 });
             if replaced {
                 self.stats.superseded += 1;
-            } else {
-                keep.push_back(s);
             }
-        }
-        joint.queue = keep;
+            !replaced
+        });
         // A trajectory (`timed`) waits its turn behind what holds the device.
         if timed {
             return None;
@@ -3202,7 +3203,8 @@ impl Bridge {
         }
     }
 
-    fn complete(&mut self, job: Job) {
+    fn complete(&mut self, job: Box<Job>) {
+        let job = *job;
         let now = self.now;
         if let Some(since) = job.answered {
             return self.complete_answered(job, since);
@@ -3425,7 +3427,7 @@ impl Bridge {
     /// Whether `step` is a sequential line's axis whose earlier axis has
     /// not arrived: it cannot go yet, so it does not keep its link from
     /// its own work (an Orion controller unpolled would fall silent).
-    fn after_earlier_axis(jobs: &BTreeMap<u64, Job>, step: StepRef) -> bool {
+    fn after_earlier_axis(jobs: &BTreeMap<u64, Box<Job>>, step: StepRef) -> bool {
         jobs.get(&step.job)
             .and_then(|job| {
                 let before = job.axes.get(job.axes.get(step.axis)?.after?)?;
@@ -4338,11 +4340,11 @@ impl Bridge {
                 continue; // nothing heard yet, and not yet overdue
             }
             self.stats.feedback_lines += 1;
-            self.out.push_back(Output::Feedback(FeedbackLine {
+            self.out.push_back(Output::Feedback(Box::new(FeedbackLine {
                 feedback: fb,
                 motor_id: j.name.clone(),
                 online: j.online,
-            }));
+            })));
         }
     }
 

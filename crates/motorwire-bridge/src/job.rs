@@ -191,7 +191,7 @@ impl Axis {
         &mut self,
         outcome: StepOutcome,
         code: Option<u16>,
-        message: impl Into<String>,
+        message: impl Into<std::borrow::Cow<'static, str>>,
     ) {
         // Nothing of a finished axis is sent again: not its payloads, nor
         // a looping trajectory's next cycle.
@@ -325,7 +325,7 @@ impl Job {
 
 /// The axis `step` names, if its job is still open.
 pub(crate) fn axis_mut(
-    jobs: &mut std::collections::BTreeMap<u64, Job>,
+    jobs: &mut std::collections::BTreeMap<u64, Box<Job>>,
     step: crate::joints::StepRef,
 ) -> Option<&mut Axis> {
     jobs.get_mut(&step.job)?.axes.get_mut(step.axis)

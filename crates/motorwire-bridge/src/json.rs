@@ -500,7 +500,7 @@ mod tests {
                     motor: "wrist".into(),
                     outcome: StepOutcome::OutcomeUnknown,
                     code: None,
-                    message: String::new(),
+                    message: "".into(),
                 },
             ],
             problems: vec!["a".into(), "b\u{1f}".into()],
@@ -630,7 +630,7 @@ mod tests {
                     motor: texts[4].clone(),
                     outcome: StepOutcome::Cancelled,
                     code: flags[4].then_some(7),
-                    message: texts[1].clone(),
+                    message: texts[1].clone().into(),
                 }],
                 ..LineResult::default()
             };

@@ -22,8 +22,9 @@ pub enum Output {
     Result {
         /// Whose line it answers.
         origin: Origin,
-        /// The result.
-        result: LineResult,
+        /// The result (boxed: a result is the largest line, and every
+        /// output is moved through the bridge's queues).
+        result: Box<LineResult>,
     },
     /// Whether a motion line's moves arrived, for its origin: one per
     /// motion line that moved something, after its result.
@@ -33,8 +34,8 @@ pub enum Output {
         /// The completion.
         arrival: ArrivalLine,
     },
-    /// One joint's feedback, for every reader.
-    Feedback(FeedbackLine),
+    /// One joint's feedback, for every reader (boxed, as a result is).
+    Feedback(Box<FeedbackLine>),
     /// Something that happened, for every reader.
     Event(Event),
     /// An event for one reader only: the `ready` a client that connects
@@ -636,8 +637,9 @@ pub struct StepReport {
     /// The Nack code, for `nacked`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub code: Option<u16>,
-    /// Said for a person.
-    pub message: String,
+    /// Said for a person (most are fixed texts, not copied for each
+    /// step).
+    pub message: std::borrow::Cow<'static, str>,
 }
 
 /// What became of one motor's part of a line.

@@ -765,11 +765,11 @@ const SHOWN_OF_FIRST: usize = 256;
 fn refusal(kind: ErrorKind, message: String) -> String {
     Output::Result {
         origin: Origin(0),
-        result: LineResult {
+        result: Box::new(LineResult {
             ok: false,
             error: Some(ErrorBody::new(kind, message)),
             ..LineResult::default()
-        },
+        }),
     }
     .to_json()
 }
@@ -1064,7 +1064,7 @@ impl State {
             && result.ok
             && result.feedback_every.is_some()
         {
-            *result = LineResult {
+            **result = LineResult {
                 ok: false,
                 line: result.line,
                 error: Some(ErrorBody::new(
