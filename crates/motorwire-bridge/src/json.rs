@@ -199,27 +199,8 @@ pub(crate) fn superseded_by(by: crate::LineRef) -> String {
 }
 
 /// `v` in decimal, as `serde_json` writes a `u64`.
-fn push_u64(s: &mut String, mut v: u64) {
-    if v < 10 {
-        // One digit: v < 10.
-        #[allow(clippy::cast_possible_truncation)]
-        s.push(char::from(b'0' + v as u8));
-        return;
-    }
-    let mut digits = [0u8; 20];
-    let mut at = digits.len();
-    loop {
-        at -= 1;
-        if let Some(d) = digits.get_mut(at) {
-            // A digit: v % 10 < 10.
-            *d = b'0' + (v % 10) as u8;
-        }
-        v /= 10;
-        if v == 0 {
-            break;
-        }
-    }
-    s.push_str(core::str::from_utf8(digits.get(at..).unwrap_or_default()).unwrap_or("0"));
+fn push_u64(s: &mut String, v: u64) {
+    s.push_str(itoa::Buffer::new().format(v));
 }
 
 /// `v` as a JSON string, escaped as `serde_json` escapes it: `"`, `\\` and

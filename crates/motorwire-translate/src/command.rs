@@ -248,25 +248,7 @@ fn push_value(s: &mut String, v: f64) {
     if v.fract() == 0.0 && v.abs() < 9.0e15 && !(v == 0.0 && v.is_sign_negative()) {
         #[allow(clippy::cast_possible_truncation)]
         let n = v as i64;
-        if n < 0 {
-            s.push('-');
-        }
-        let mut digits = [0u8; 20];
-        let mut at = digits.len();
-        let mut m = n.unsigned_abs();
-        loop {
-            at -= 1;
-            if let Some(d) = digits.get_mut(at) {
-                #[allow(clippy::cast_possible_truncation)]
-                let digit = (m % 10) as u8;
-                *d = b'0' + digit;
-            }
-            m /= 10;
-            if m == 0 {
-                break;
-            }
-        }
-        s.push_str(core::str::from_utf8(digits.get(at..).unwrap_or_default()).unwrap_or("0"));
+        s.push_str(itoa::Buffer::new().format(n));
         return;
     }
     use core::fmt::Write;
