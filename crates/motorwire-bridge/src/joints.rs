@@ -161,7 +161,7 @@ impl Joint {
             // the acceleration reckons, then at that velocity, up to
             // half a second (a device silent for longer is offline).
             let t = RECKONED_AT_MOST.as_secs_f64();
-            let (p1, v1) = if a != 0.0 && (v + a * t) * v < 0.0 {
+            let (p1, v1) = if a != 0.0 && (v + a * t) * v <= 0.0 {
                 let t = -v / a;
                 (p + v * t + 0.5 * a * t * t, 0.0)
             } else {
@@ -173,7 +173,11 @@ impl Joint {
             return Some((p1 + v1 * rest.as_secs_f64(), v1, 0.0));
         }
         let mut t = dt.as_secs_f64();
-        if a != 0.0 && (v + a * t) * v < 0.0 {
+        // At rest (`v` 0) with an acceleration reckoned from the report
+        // before: the velocity reached zero, and would change sign (a joint
+        // braked to rest was reckoned moving back, and a move from there,
+        // at a limit, refused for the path's dip below it).
+        if a != 0.0 && (v + a * t) * v <= 0.0 {
             // It comes to rest on the way.
             t = -v / a;
             return Some((p + v * t + 0.5 * a * t * t, 0.0, 0.0));
@@ -284,6 +288,15 @@ mod tests {
         j.motion_at = Some((ms(100), -1000.0));
         let (p, v, _) = j.state_at(ms(140)).unwrap();
         assert!((p - 10.2).abs() < 1e-12 && v == 0.0, "{p} {v}");
+        // Reported at rest, the braking that brought it there reckoned
+        // from the report before: at rest where it is, not moving back
+        // (within 50 ms and beyond it).
+        let saved = (j.motion, j.motion_at);
+        j.motion = Some((0.0, 0.0));
+        j.motion_at = Some((ms(100), -0.1));
+        assert_eq!(j.state_at(ms(130)), Some((0.0, 0.0, 0.0)));
+        assert_eq!(j.state_at(ms(400)), Some((0.0, 0.0, 0.0)));
+        (j.motion, j.motion_at) = saved;
         // A model of its move: read from it, until a report disagrees.
         let plan = motorwire_planner::plan(
             &motorwire_irpc::SetTargetPayloadV2::scurve(90.0, 100.0, 500.0, 2000.0)
