@@ -107,10 +107,13 @@ enum Record {
         at: Instant,
         mark: Mark,
     },
-    /// Rendered by the writer, off the bridge's thread.
+    /// Rendered by the writer, off the bridge's thread. Held as it is,
+    /// not boxed: an `Output` keeps its large lines boxed already, so a
+    /// box here would be a second allocation on the bridge's thread (and
+    /// a free on the writer's) for every output.
     Output {
         at: Instant,
-        output: Box<Output>,
+        output: Output,
     },
     Orion {
         at: Instant,
@@ -569,10 +572,7 @@ impl Recorder {
 
     /// An output line given at `at`, kept as it is (no copy).
     pub fn output_owned(&self, at: Instant, output: Output) {
-        self.put(Record::Output {
-            at,
-            output: Box::new(output),
-        });
+        self.put(Record::Output { at, output });
     }
 
     /// A line to or from the Orion arm controller.

@@ -75,10 +75,8 @@ enum Item {
         number: u64,
         text: String,
     },
-    Out {
-        at: Instant,
-        output: Box<Output>,
-    },
+    /// Held as it is: an `Output` keeps its large lines boxed already.
+    Out { at: Instant, output: Output },
 }
 
 /// What the bridge tells the view: queued, never waited on.
@@ -116,7 +114,7 @@ impl Tap for ViewTap {
     fn output(&self, at: Instant, output: &Output) {
         self.put(Item::Out {
             at,
-            output: Box::new(output.clone()),
+            output: output.clone(),
         });
     }
 }
@@ -476,7 +474,7 @@ fn hub(
                 continue;
             }
             let line: Arc<str> = Arc::from(line);
-            if matches!(&item, Item::Out { output, .. } if matches!(&**output, Output::Event(motorwire_bridge::Event::Ready { .. })))
+            if matches!(&item, Item::Out { output, .. } if matches!(output, Output::Event(motorwire_bridge::Event::Ready { .. })))
             {
                 ready = Some(Arc::clone(&line));
             }
