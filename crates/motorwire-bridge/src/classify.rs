@@ -496,12 +496,34 @@ fn stop_members(members: &[(String, Value)]) -> (Vec<&Value>, Vec<String>, usize
 /// assert!(matches!(classify(&v, r#"{"emergency_stop": false, "emergency_stop": false}"#), Input::BadRelease { .. }));
 /// ```
 pub fn classify(validator: &Validator, line: &str) -> Input {
-    // The line is read once when it is an ordinary valid message: a scan
-    // of its top-level names (no value kept) says it is none of the
-    // bridge's own forms and it cannot name a stop, and the typed parse is
-    // the only other reading. Anything else (a stop, a release, the
-    // bridge's own forms, an invalid line) is decided below from all its
-    // members, exactly as before.
+    if let Some(c) = plain_command(validator, line) {
+        return Input::Message(Box::new(Message::MotorCommand(c)));
+    }
+    classify_scanned(validator, line)
+}
+
+/// A valid motor command and nothing else, the commonest line, that names
+/// no stop: read once ([`Validator::parse_plain_command`]). That parse
+/// stops at the first name a command does not have (a top-level
+/// `emergency_stop`, the bridge's own forms, another kind) and says no
+/// member is unknown anywhere in it; then the only places a stop can be
+/// named are the command's own `safety_limits` and its `metadata`.
+fn plain_command(validator: &Validator, line: &str) -> Option<motorwire_wia::MotorCommand> {
+    validator.parse_plain_command(line).filter(|c| {
+        c.metadata.is_none()
+            && c.safety_limits
+                .as_ref()
+                .is_none_or(|s| s.emergency_stop.is_none())
+    })
+}
+
+/// [`classify`] without its one-parse path for a plain motor command: any
+/// other ordinary valid message is read twice, a scan of its top-level
+/// names (no value kept) saying it is none of the bridge's own forms and
+/// it cannot name a stop, then the typed parse. Anything else (a stop, a
+/// release, the bridge's own forms, an invalid line) is decided from all
+/// its members ([`classify_members`]).
+fn classify_scanned(validator: &Validator, line: &str) -> Input {
     match plain_message(line) {
         Some(Some(kind)) => {
             if let Ok(m) = validator.parse_as(kind, line) {
@@ -905,6 +927,73 @@ mod tests {
         );
     }
 
+    /// The one-parse path for a plain motor command gives every line what
+    /// the scan and the typed parse give, and what every member read gives:
+    /// above all, each way a line can name a stop still stops.
+    #[test]
+    fn a_plain_command_read_once_is_read_as_before() {
+        let cmd = r#""motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20"#;
+        let cases: Vec<(String, bool)> = [
+            // (the line after the command's members, whether it is plain)
+            ("", true),
+            (r#","velocity_limit":50,"pid_gains":{"kp":1},"priority":3"#, true),
+            (r#","safety_limits":{"max_position":90}"#, true),
+            // A stop in the command's own limits, true or false.
+            (r#","safety_limits":{"emergency_stop":true}"#, false),
+            (r#","safety_limits":{"emergency_stop":false}"#, false),
+            (r#","safety_limits":{"emergency\u005fstop":true}"#, false),
+            // Named twice in the limits: the parse refuses, the stop stands.
+            (r#","safety_limits":{"emergency_stop":false,"emergency_stop":true}"#, false),
+            // Under an unknown nested member, under metadata, at the top.
+            (r#","pid_gains":{"kp":1,"emergency_stop":true}"#, false),
+            (r#","metadata":{"emergency_stop":true}"#, false),
+            (r#","metadata":{"note":"x"}"#, false),
+            (r#","emergency_stop":true"#, false),
+            (r#","emergency\u005fstop":true"#, false),
+            (r#","emergency_stop":false"#, false),
+            // The bridge's own forms, a misspelling, another kind's name.
+            (r#","stream":true"#, false),
+            (r#","velocity_limt":5"#, false),
+            (r#","position_limits":{"min":0,"max":50}"#, false),
+            // Invalid: a value out of range, a wrong type.
+            (r#","velocity_limit":-1"#, false),
+            (r#","priority":"high""#, false),
+        ]
+        .into_iter()
+        .map(|(rest, plain)| (format!("{{{cmd}{rest}}}"), plain))
+        .chain([
+            // A motor named after the stop is only a name.
+            (r#"{"motor_id":"emergency_stop","timestamp":1,"control_mode":"position","setpoint":2}"#.to_owned(), true),
+            (r#"{"motor_id":"el\u0062ow","timestamp":1,"control_mode":"position","setpoint":2}"#.to_owned(), true),
+            (r#"{"timestamp":1,"control_mode":"position","setpoint":2}"#.to_owned(), false),
+        ])
+        .collect();
+        for v in [
+            Validator::new(),
+            Validator::new().deny_unknown_members(true),
+            Validator::new().max_depth(1),
+        ] {
+            for (line, plain) in &cases {
+                let once = classify(&v, line);
+                assert_eq!(once, classify_scanned(&v, line), "{line}");
+                assert_eq!(once, classify_members(&v, line), "{line}");
+                let deep = v == Validator::new().max_depth(1)
+                    && line.contains('{')
+                    && line.matches('{').count() > 1;
+                assert_eq!(plain_command(&v, line).is_some(), *plain && !deep, "{line}");
+            }
+        }
+        // The stops stop.
+        let v = Validator::new();
+        for (line, _) in &cases {
+            if line.contains(r#"emergency_stop":true"#)
+                || line.contains(r#"emergency\u005fstop":true"#)
+            {
+                assert!(matches!(classify(&v, line), Input::Stop { .. }), "{line}");
+            }
+        }
+    }
+
     /// `"stream"`: `true` makes a MotorCommand a stream's setpoint,
     /// `false` leaves it an ordinary command; anything else, a repeated
     /// one, or a stream on another message is invalid, and the command
@@ -991,12 +1080,27 @@ mod tests {
                 r#""setpoint":20"#, r#""setpoint":1e400"#, r#""query":"limits""#, r#""reset":"elbow""#,
                 r#""orion":"fold""#, r#""x":{"query":1}"#, r#""motors":[]"#, r#""velocity_limit":5"#,
                 r#""y":[1,{"a":"}"}]"#, r#""command_id":"c""#, r#""trajectories":[1]"#,
+                // Stops, where the one parse of a command must see them.
+                r#""emergency_stop":true"#, r#""emergency_stop":false"#,
+                r#""emergency\u005fstop":true"#, r#""safety_limits":{"emergency_stop":true}"#,
+                r#""safety_limits":{"emergency_stop":false}"#, r#""safety_limits":{"max_position":90}"#,
+                r#""pid_gains":{"kp":1,"emergency_stop":true}"#, r#""pid_gains":{"kp":1}"#,
+                r#""metadata":{"emergency_stop":true}"#, r#""metadata":{}"#, r#""stream":true"#,
+                r#""priority":2"#, r#""velocity_limit":-1"#,
             ]), 0..8),
+            // A whole command first, or not: the one-parse path's lines.
+            command in proptest::bool::ANY,
             tail in proptest::sample::select(vec!["", " ", "x", "}", "]", ","]),
         ) {
+            let mut parts = parts;
+            if command {
+                parts.splice(0..0, [r#""motor_id":"elbow""#, r#""timestamp":1"#, r#""control_mode":"position""#, r#""setpoint":20"#]);
+            }
             let line = format!("{{{}}}{tail}", parts.join(","));
             let v = Validator::new();
-            proptest::prop_assert_eq!(classify(&v, &line), classify_members(&v, &line), "{}", line);
+            let once = classify(&v, &line);
+            proptest::prop_assert_eq!(&once, &classify_scanned(&v, &line), "{}", line);
+            proptest::prop_assert_eq!(&once, &classify_members(&v, &line), "{}", line);
         }
     }
 

@@ -10,6 +10,7 @@ mod members;
 mod mode_config;
 mod path;
 mod pid;
+mod plain;
 mod rule;
 mod safety;
 mod schema;

@@ -254,6 +254,54 @@ impl Validator {
         self.typed(kind, json)
     }
 
+    /// `json` as a valid [`MotorCommand`] that is nothing but one, from a
+    /// single parse of its text: what a bridge reads for nearly every line.
+    /// The parse stops at the first top-level name a `MotorCommand` does
+    /// not have (its value not read); the typed value then says what a scan
+    /// of the text would (no member unknown anywhere in it; how deep it
+    /// nests, read from the text only under `metadata`, which is free-form).
+    ///
+    /// `None` whenever the document is anything else or is not valid:
+    /// another kind, a member a `MotorCommand` does not name at any depth,
+    /// a violation, a document over the limits. [`Validator::parse_any`]
+    /// then says what it is or what is wrong; where both give a command,
+    /// it is the same one.
+    ///
+    /// ```
+    /// use motorwire_wia::Validator;
+    /// let v = Validator::new().deny_unknown_members(true);
+    /// let line = r#"{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"position","setpoint":30}"#;
+    /// assert_eq!(v.parse_plain_command(line).unwrap().setpoint, 30.0);
+    /// // A misspelled member: not a plain command (parse_any says why).
+    /// let typo = r#"{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"position","setpoint":30,"velocity_limt":5}"#;
+    /// assert!(v.parse_plain_command(typo).is_none());
+    /// assert!(v.parse_any(typo).is_err());
+    /// ```
+    pub fn parse_plain_command(&self, json: &str) -> Option<MotorCommand> {
+        use crate::members::Unknowns as _;
+        if json.len() > self.max_document_size {
+            return None;
+        }
+        let c: MotorCommand =
+            crate::plain::parse_named(json, &crate::plain::MOTOR_COMMAND_MEMBERS)?;
+        if c.any_unknown() {
+            return None;
+        }
+        // Without `metadata`, a command nests two objects deep at most.
+        let parts = c.pid_gains.is_some()
+            || c.impedance_params.is_some()
+            || c.filter_config.is_some()
+            || c.safety_limits.is_some();
+        if (c.metadata.is_some() || 1 + usize::from(parts) > self.max_depth)
+            && self.precheck(json).is_err()
+        {
+            return None;
+        }
+        c.violations_with_skew(self.now_ms, self.window)
+            .is_empty()
+            .then_some(c)
+    }
+
     /// `json` as a valid message of `kind` (the kind its names say:
     /// [`crate::scan_kind_noting`]), within the size and depth limits.
     /// Where this fails, [`Validator::parse_any`] gives the error a caller

@@ -1,0 +1,216 @@
+//! One parse for the commonest document a bridge reads: a `MotorCommand`
+//! and nothing else ([`crate::Validator::parse_plain_command`]).
+//!
+//! The typed parse is told which top-level names a `MotorCommand` has: it
+//! stops at the first other name (another kind's, a bridge's own form, a
+//! misspelling), before reading that member's value. Nothing is scanned
+//! before the parse to tell the kind, and nothing after it to find
+//! unknown members or the nesting depth: the typed value says both.
+
+use std::borrow::Cow;
+use std::fmt;
+use std::marker::PhantomData;
+
+use serde::de::value::{BorrowedStrDeserializer, StringDeserializer};
+use serde::de::{self, Deserialize, DeserializeSeed, Deserializer, Error as _, MapAccess, Visitor};
+use serde::forward_to_deserialize_any;
+
+/// Every top-level member a WIA `MotorCommand` has: its schema's
+/// `properties` (a test holds the two equal).
+pub(crate) const MOTOR_COMMAND_MEMBERS: [&str; 13] = [
+    "motor_id",
+    "timestamp",
+    "control_mode",
+    "setpoint",
+    "velocity_limit",
+    "acceleration_limit",
+    "torque_limit",
+    "pid_gains",
+    "impedance_params",
+    "filter_config",
+    "safety_limits",
+    "priority",
+    "metadata",
+];
+
+/// `T` from the JSON object `json` whose top-level names are all in
+/// `names`: `None` at the first other name (its value not read), on any
+/// parse error, or when text other than white space follows the object.
+pub(crate) fn parse_named<'de, T: Deserialize<'de>>(
+    json: &'de str,
+    names: &'static [&'static str],
+) -> Option<T> {
+    let mut de = serde_json::Deserializer::from_str(json);
+    let value = T::deserialize(Only {
+        inner: &mut de,
+        names,
+    })
+    .ok()?;
+    de.end().ok()?;
+    Some(value)
+}
+
+/// A deserializer of one JSON object that refuses a member whose name is
+/// not in `names` (nested objects are read as they are).
+struct Only<D> {
+    inner: D,
+    names: &'static [&'static str],
+}
+
+impl<'de, D: Deserializer<'de>> Deserializer<'de> for Only<D> {
+    type Error = D::Error;
+
+    fn deserialize_any<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, D::Error> {
+        self.inner.deserialize_map(OnlyVisitor {
+            inner: visitor,
+            names: self.names,
+        })
+    }
+
+    forward_to_deserialize_any! {
+        bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string
+        bytes byte_buf option unit unit_struct newtype_struct seq tuple
+        tuple_struct map struct enum identifier ignored_any
+    }
+}
+
+struct OnlyVisitor<V> {
+    inner: V,
+    names: &'static [&'static str],
+}
+
+impl<'de, V: Visitor<'de>> Visitor<'de> for OnlyVisitor<V> {
+    type Value = V::Value;
+
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.inner.expecting(f)
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<V::Value, A::Error> {
+        self.inner.visit_map(OnlyMap {
+            inner: map,
+            names: self.names,
+        })
+    }
+}
+
+struct OnlyMap<A> {
+    inner: A,
+    names: &'static [&'static str],
+}
+
+impl<'de, A: MapAccess<'de>> MapAccess<'de> for OnlyMap<A> {
+    type Error = A::Error;
+
+    fn next_key_seed<K: DeserializeSeed<'de>>(
+        &mut self,
+        seed: K,
+    ) -> Result<Option<K::Value>, A::Error> {
+        let Some(name) = self.inner.next_key_seed(Name(PhantomData))? else {
+            return Ok(None);
+        };
+        if !self.names.contains(&&*name) {
+            return Err(A::Error::custom("a member this parse does not take"));
+        }
+        match name {
+            Cow::Borrowed(s) => seed.deserialize(BorrowedStrDeserializer::new(s)),
+            Cow::Owned(s) => seed.deserialize(StringDeserializer::new(s)),
+        }
+        .map(Some)
+    }
+
+    fn next_value_seed<S: DeserializeSeed<'de>>(&mut self, seed: S) -> Result<S::Value, A::Error> {
+        self.inner.next_value_seed(seed)
+    }
+
+    fn size_hint(&self) -> Option<usize> {
+        self.inner.size_hint()
+    }
+}
+
+/// A member name, borrowed from the text when it has no escape.
+struct Name<'de>(PhantomData<&'de ()>);
+
+impl<'de> DeserializeSeed<'de> for Name<'de> {
+    type Value = Cow<'de, str>;
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<Cow<'de, str>, D::Error> {
+        d.deserialize_str(self)
+    }
+}
+
+impl<'de> Visitor<'de> for Name<'de> {
+    type Value = Cow<'de, str>;
+
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("a member name")
+    }
+
+    fn visit_borrowed_str<E: de::Error>(self, v: &'de str) -> Result<Cow<'de, str>, E> {
+        Ok(Cow::Borrowed(v))
+    }
+
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<Cow<'de, str>, E> {
+        Ok(Cow::Owned(v.to_owned()))
+    }
+
+    fn visit_string<E: de::Error>(self, v: String) -> Result<Cow<'de, str>, E> {
+        Ok(Cow::Owned(v))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+    use super::*;
+    use crate::MotorCommand;
+
+    #[test]
+    fn the_member_list_is_the_schema_s() {
+        let schema: serde_json::Value =
+            serde_json::from_str(crate::MessageKind::MotorCommand.schema()).unwrap();
+        let mut from_schema: Vec<&str> = schema["properties"]
+            .as_object()
+            .unwrap()
+            .keys()
+            .map(String::as_str)
+            .collect();
+        let mut ours = MOTOR_COMMAND_MEMBERS.to_vec();
+        from_schema.sort_unstable();
+        ours.sort_unstable();
+        assert_eq!(ours, from_schema);
+    }
+
+    #[test]
+    fn a_name_not_taken_stops_the_parse_and_escaped_names_are_read() {
+        let ok = r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":2}"#;
+        let c: MotorCommand = parse_named(ok, &MOTOR_COMMAND_MEMBERS).unwrap();
+        assert_eq!((c.motor_id.as_str(), c.setpoint), ("elbow", 2.0));
+        // An escaped name is the name it spells.
+        let escaped =
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","set\u0070oint":3}"#;
+        let c: MotorCommand = parse_named(escaped, &MOTOR_COMMAND_MEMBERS).unwrap();
+        assert_eq!(c.setpoint, 3.0);
+        for refused in [
+            // Another member, wherever it stands.
+            r#"{"reset":"elbow","motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":2}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":2,"emergency_stop":true}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":2,"velocity_limt":5}"#,
+            // A name taken twice, text after the object, not an object.
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":2,"setpoint":3}"#,
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":2} x"#,
+            r#"[{"motor_id":"elbow"}]"#,
+        ] {
+            assert!(
+                parse_named::<MotorCommand>(refused, &MOTOR_COMMAND_MEMBERS).is_none(),
+                "{refused}"
+            );
+        }
+        // Nested members are the nested parts' own: an unknown one is kept
+        // in that part's `extra`, for the caller to see.
+        let nested = r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":2,"pid_gains":{"kq":1}}"#;
+        let c: MotorCommand = parse_named(nested, &MOTOR_COMMAND_MEMBERS).unwrap();
+        assert_eq!(c.pid_gains.unwrap().extra.len(), 1);
+    }
+}
