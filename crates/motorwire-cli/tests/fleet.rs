@@ -1009,7 +1009,12 @@ fn a_killed_bridge_leaves_the_liveliness_tokens_within_its_lease() {
     assert_eq!(s.key_expr().as_str(), "motorwire/kb/alive");
     assert_eq!(s.kind(), zenoh::sample::SampleKind::Delete);
     assert!(after <= Duration::from_millis(500), "{after:?}");
-    assert_eq!(alive(&controller), ["ka", "kc"]);
+    // The others stay: no withdrawal of theirs comes (the next sample on
+    // `gone` is kc's, below), and a query finds both. One query alone can
+    // come back empty while the router is busy with the closed session
+    // (seen once with the whole suite running in parallel), so it is
+    // asked again for a while.
+    wait_alive(&controller, &["ka", "kc"], Duration::from_secs(5));
     // SIGSTOP: a machine that froze or whose cable is out; its socket
     // stays open and only the lease tells.
     let frozen = Instant::now();
@@ -1027,7 +1032,7 @@ fn a_killed_bridge_leaves_the_liveliness_tokens_within_its_lease() {
             && after <= Duration::from_millis(LEASE_MS + 1000),
         "{after:?}"
     );
-    assert_eq!(alive(&controller), ["ka"]);
+    wait_alive(&controller, &["ka"], Duration::from_secs(5));
     drop(a);
     drop(c); // killed (SIGKILL ends a stopped process too)
 }
