@@ -68,6 +68,28 @@ fn known(kind: MessageKind) -> &'static Known {
         .map_or(&NOTHING, |(_, known)| known)
 }
 
+/// The names `kind`'s schema gives a document's top-level members, made
+/// once from the schema as the scan reads it.
+pub(crate) fn top_level_members(kind: MessageKind) -> &'static [&'static str] {
+    static ALL: OnceLock<Vec<(MessageKind, Vec<&'static str>)>> = OnceLock::new();
+    let all = ALL.get_or_init(|| {
+        MessageKind::ALL
+            .iter()
+            .map(|k| {
+                let names = known(*k)
+                    .members
+                    .iter()
+                    .flat_map(|m| m.keys().map(String::as_str))
+                    .collect();
+                (*k, names)
+            })
+            .collect()
+    });
+    all.iter()
+        .find(|(k, _)| *k == kind)
+        .map_or(&[], |(_, names)| names.as_slice())
+}
+
 /// One open object or array of the scan, with what the schema says of it
 /// (`None`: anything goes below).
 enum Frame<'k, 't> {

@@ -1,11 +1,12 @@
 //! One parse for the commonest document a bridge reads: a `MotorCommand`
 //! and nothing else ([`crate::Validator::parse_plain_command`]).
 //!
-//! The typed parse is told which top-level names a `MotorCommand` has: it
-//! stops at the first other name (another kind's, a bridge's own form, a
-//! misspelling), before reading that member's value. Nothing is scanned
-//! before the parse to tell the kind, and nothing after it to find
-//! unknown members or the nesting depth: the typed value says both.
+//! The typed parse is told the kind's top-level names (its schema's, as
+//! the unknown-member check reads them): it stops at the first other name
+//! (another kind's, a bridge's own form, a misspelling), before reading
+//! that member's value. Nothing is scanned before the parse to tell the
+//! kind, and nothing after it to find unknown members or the nesting
+//! depth: the typed value says both.
 
 use std::borrow::Cow;
 use std::fmt;
@@ -15,27 +16,10 @@ use serde::de::value::{BorrowedStrDeserializer, StringDeserializer};
 use serde::de::{self, Deserialize, DeserializeSeed, Deserializer, Error as _, MapAccess, Visitor};
 use serde::forward_to_deserialize_any;
 
-/// Every top-level member a WIA `MotorCommand` has: its schema's
-/// `properties` (a test holds the two equal).
-pub(crate) const MOTOR_COMMAND_MEMBERS: [&str; 13] = [
-    "motor_id",
-    "timestamp",
-    "control_mode",
-    "setpoint",
-    "velocity_limit",
-    "acceleration_limit",
-    "torque_limit",
-    "pid_gains",
-    "impedance_params",
-    "filter_config",
-    "safety_limits",
-    "priority",
-    "metadata",
-];
-
 /// `T` from the JSON object `json` whose top-level names are all in
-/// `names`: `None` at the first other name (its value not read), on any
-/// parse error, or when text other than white space follows the object.
+/// `names` (a kind's: [`crate::members::top_level_members`]): `None` at
+/// the first other name (its value not read), on any parse error, or when
+/// text other than white space follows the object.
 pub(crate) fn parse_named<'de, T: Deserialize<'de>>(
     json: &'de str,
     names: &'static [&'static str],
@@ -164,33 +148,27 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
     use super::*;
+    use crate::MessageKind;
     use crate::MotorCommand;
-
-    #[test]
-    fn the_member_list_is_the_schema_s() {
-        let schema: serde_json::Value =
-            serde_json::from_str(crate::MessageKind::MotorCommand.schema()).unwrap();
-        let mut from_schema: Vec<&str> = schema["properties"]
-            .as_object()
-            .unwrap()
-            .keys()
-            .map(String::as_str)
-            .collect();
-        let mut ours = MOTOR_COMMAND_MEMBERS.to_vec();
-        from_schema.sort_unstable();
-        ours.sort_unstable();
-        assert_eq!(ours, from_schema);
-    }
+    use crate::members::top_level_members;
 
     #[test]
     fn a_name_not_taken_stops_the_parse_and_escaped_names_are_read() {
+        // A command's names, as its schema gives them.
+        let names = top_level_members(MessageKind::MotorCommand);
+        assert_eq!(names.len(), 13);
+        for n in ["motor_id", "setpoint", "safety_limits", "metadata"] {
+            assert!(names.contains(&n), "{n}");
+        }
         let ok = r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":2}"#;
-        let c: MotorCommand = parse_named(ok, &MOTOR_COMMAND_MEMBERS).unwrap();
+        let c: MotorCommand =
+            parse_named(ok, top_level_members(MessageKind::MotorCommand)).unwrap();
         assert_eq!((c.motor_id.as_str(), c.setpoint), ("elbow", 2.0));
         // An escaped name is the name it spells.
         let escaped =
             r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","set\u0070oint":3}"#;
-        let c: MotorCommand = parse_named(escaped, &MOTOR_COMMAND_MEMBERS).unwrap();
+        let c: MotorCommand =
+            parse_named(escaped, top_level_members(MessageKind::MotorCommand)).unwrap();
         assert_eq!(c.setpoint, 3.0);
         for refused in [
             // Another member, wherever it stands.
@@ -203,14 +181,16 @@ mod tests {
             r#"[{"motor_id":"elbow"}]"#,
         ] {
             assert!(
-                parse_named::<MotorCommand>(refused, &MOTOR_COMMAND_MEMBERS).is_none(),
+                parse_named::<MotorCommand>(refused, top_level_members(MessageKind::MotorCommand))
+                    .is_none(),
                 "{refused}"
             );
         }
         // Nested members are the nested parts' own: an unknown one is kept
         // in that part's `extra`, for the caller to see.
         let nested = r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":2,"pid_gains":{"kq":1}}"#;
-        let c: MotorCommand = parse_named(nested, &MOTOR_COMMAND_MEMBERS).unwrap();
+        let c: MotorCommand =
+            parse_named(nested, top_level_members(MessageKind::MotorCommand)).unwrap();
         assert_eq!(c.pid_gains.unwrap().extra.len(), 1);
     }
 }

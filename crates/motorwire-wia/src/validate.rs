@@ -282,8 +282,10 @@ impl Validator {
         if json.len() > self.max_document_size {
             return None;
         }
-        let c: MotorCommand =
-            crate::plain::parse_named(json, &crate::plain::MOTOR_COMMAND_MEMBERS)?;
+        let c: MotorCommand = crate::plain::parse_named(
+            json,
+            crate::members::top_level_members(MessageKind::MotorCommand),
+        )?;
         if c.any_unknown() {
             return None;
         }
