@@ -499,6 +499,9 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
     if let Some(c) = plain_command(validator, line) {
         return Input::Message(Box::new(Message::MotorCommand(c)));
     }
+    if let Some(c) = plain_multi_axis(validator, line) {
+        return Input::Message(Box::new(Message::MultiAxisCommand(c)));
+    }
     classify_scanned(validator, line)
 }
 
@@ -517,8 +520,24 @@ fn plain_command(validator: &Validator, line: &str) -> Option<motorwire_wia::Mot
     })
 }
 
-/// [`classify`] without its one-parse path for a plain motor command: any
-/// other ordinary valid message is read twice, a scan of its top-level
+/// A valid multi-axis command and nothing else that names no stop, read
+/// once ([`Validator::parse_plain_multi_axis`]), as [`plain_command`]: the
+/// only places a stop can then be named are each axis's own
+/// `safety_limits` and the `metadata` (the command's or an axis's).
+fn plain_multi_axis(validator: &Validator, line: &str) -> Option<motorwire_wia::MultiAxisCommand> {
+    validator.parse_plain_multi_axis(line).filter(|c| {
+        c.metadata.is_none()
+            && c.motors.iter().all(|a| {
+                a.metadata.is_none()
+                    && a.safety_limits
+                        .as_ref()
+                        .is_none_or(|s| s.emergency_stop.is_none())
+            })
+    })
+}
+
+/// [`classify`] without its one-parse paths for a plain motor command or
+/// multi-axis command: any other ordinary valid message is read twice, a scan of its top-level
 /// names (no value kept) saying it is none of the bridge's own forms and
 /// it cannot name a stop, then the typed parse. Anything else (a stop, a
 /// release, the bridge's own forms, an invalid line) is decided from all
@@ -994,6 +1013,134 @@ mod tests {
         }
     }
 
+    /// A multi-axis command read once is classified as the scanned and the
+    /// member-by-member readings classify it, on lines that hide a stop in
+    /// every place an axis can carry one; and only the plain ones are read
+    /// once.
+    #[test]
+    fn a_plain_multi_axis_command_read_once_is_read_as_before() {
+        let axis = |rest: &str| {
+            format!(r#"{{"motor_id":"elbow","control_mode":"position","setpoint":20{rest}}}"#)
+        };
+        let line = |axes: &[String], rest: &str| {
+            format!(
+                r#"{{"command_id":"c","timestamp":1,"motors":[{}]{rest}}}"#,
+                axes.join(",")
+            )
+        };
+        let wrist = r#"{"motor_id":"wrist","control_mode":"position","setpoint":5}"#.to_owned();
+        let cases: Vec<(String, bool)> = vec![
+            // (the line, whether it is plain)
+            (line(&[axis("")], ""), true),
+            (
+                line(
+                    &[
+                        axis(r#","velocity_limit":50,"pid_gains":{"kp":1}"#),
+                        wrist.clone(),
+                    ],
+                    r#","sync_mode":"sequential""#,
+                ),
+                true,
+            ),
+            (
+                line(&[axis(r#","safety_limits":{"max_position":90}"#)], ""),
+                true,
+            ),
+            // A stop in an axis's own limits (the second axis's), true or false.
+            (
+                line(
+                    &[
+                        wrist.clone(),
+                        axis(r#","safety_limits":{"emergency_stop":true}"#),
+                    ],
+                    "",
+                ),
+                false,
+            ),
+            (
+                line(&[axis(r#","safety_limits":{"emergency_stop":false}"#)], ""),
+                false,
+            ),
+            (
+                line(&[axis(r#","safety_limits":{"emergency_stop":true}"#)], ""),
+                false,
+            ),
+            (
+                line(
+                    &[axis(
+                        r#","safety_limits":{"emergency_stop":false,"emergency_stop":true}"#,
+                    )],
+                    "",
+                ),
+                false,
+            ),
+            // Under an unknown nested member, under metadata (the command's
+            // or an axis's), at the top.
+            (
+                line(
+                    &[axis(r#","pid_gains":{"kp":1,"emergency_stop":true}"#)],
+                    "",
+                ),
+                false,
+            ),
+            (
+                line(&[axis(r#","metadata":{"emergency_stop":true}"#)], ""),
+                false,
+            ),
+            (line(&[axis(r#","metadata":{"note":"x"}"#)], ""), false),
+            (
+                line(&[axis("")], r#","metadata":{"emergency_stop":true}"#),
+                false,
+            ),
+            (
+                line(&[axis("")], r#","coordination":{"emergency_stop":true}"#),
+                false,
+            ),
+            (line(&[axis("")], r#","emergency_stop":true"#), false),
+            (line(&[axis("")], r#","emergency_stop":true"#), false),
+            (line(&[axis("")], r#","emergency_stop":false"#), false),
+            (line(&[axis(r#","emergency_stop":true"#)], ""), false),
+            // The bridge's own forms, a misspelling, invalid values.
+            (line(&[axis("")], r#","stream":true"#), false),
+            (line(&[axis("")], r#","trajectories":[]"#), false),
+            (line(&[axis(r#","velocity_limt":5"#)], ""), false),
+            (line(&[axis(r#","velocity_limit":-1"#)], ""), false),
+            (line(&[], ""), false),
+            // A motor named after the stop is only a name.
+            (
+                line(&[axis("").replace("elbow", "emergency_stop")], ""),
+                true,
+            ),
+        ];
+        for v in [
+            Validator::new(),
+            Validator::new().deny_unknown_members(true),
+            Validator::new().max_depth(3),
+        ] {
+            for (line, plain) in &cases {
+                let once = classify(&v, line);
+                assert_eq!(once, classify_scanned(&v, line), "{line}");
+                assert_eq!(once, classify_members(&v, line), "{line}");
+                let deep = v == Validator::new().max_depth(3)
+                    && (line.contains("pid_gains") || line.contains("safety_limits"));
+                assert_eq!(
+                    plain_multi_axis(&v, line).is_some(),
+                    *plain && !deep,
+                    "{line}"
+                );
+                assert!(plain_command(&v, line).is_none(), "{line}");
+            }
+        }
+        // The stops stop.
+        let v = Validator::new();
+        for (line, _) in &cases {
+            if line.contains(r#"emergency_stop":true"#) || line.contains(r#"emergency_stop":true"#)
+            {
+                assert!(matches!(classify(&v, line), Input::Stop { .. }), "{line}");
+            }
+        }
+    }
+
     /// `"stream"`: `true` makes a MotorCommand a stream's setpoint,
     /// `false` leaves it an ordinary command; anything else, a repeated
     /// one, or a stream on another message is invalid, and the command
@@ -1101,6 +1248,51 @@ mod tests {
             let once = classify(&v, &line);
             proptest::prop_assert_eq!(&once, &classify_scanned(&v, &line), "{}", line);
             proptest::prop_assert_eq!(&once, &classify_members(&v, &line), "{}", line);
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 256, failure_persistence: None, ..Default::default() })]
+        /// Multi-axis commands made of random axes (stops, metadata,
+        /// typos and invalid values among their members) and random
+        /// top-level members: the three readings agree on every line.
+        #[test]
+        fn all_readings_agree_on_random_multi_axis_lines(
+            axes in proptest::collection::vec(proptest::collection::vec(proptest::sample::select(vec![
+                r#""velocity_limit":5"#, r#""velocity_limit":-1"#, r#""priority":2"#,
+                r#""emergency_stop":true"#, r#""safety_limits":{"emergency_stop":true}"#,
+                r#""safety_limits":{"emergency_stop":false}"#, r#""safety_limits":{"max_position":90}"#,
+                r#""safety_limits":{"emergency_stop":1}"#, r#""pid_gains":{"kp":1}"#,
+                r#""pid_gains":{"kp":1,"emergency_stop":true}"#, r#""metadata":{"emergency_stop":true}"#,
+                r#""metadata":{}"#, r#""velocity_limt":5"#, r#""setpoint":3"#,
+            ]), 0..4), 0..4),
+            top in proptest::collection::vec(proptest::sample::select(vec![
+                r#""sync_mode":"simultaneous""#, r#""sync_mode":"warp""#, r#""metadata":{"emergency_stop":true}"#,
+                r#""coordination":{"type":"independent"}"#, r#""coordination":{"emergency_stop":true}"#,
+                r#""emergency_stop":true"#, r#""emergency_stop":false"#, r#""stream":true"#,
+                r#""reset":"elbow""#, r#""command_id":"d""#,
+            ]), 0..3),
+            tail in proptest::sample::select(vec!["", " ", "x", "}"]),
+        ) {
+            let axes: Vec<String> = axes
+                .iter()
+                .enumerate()
+                .map(|(i, parts)| {
+                    let mut members = vec![format!(r#""motor_id":"m{i}""#), r#""control_mode":"position""#.to_owned(), r#""setpoint":1"#.to_owned()];
+                    members.extend(parts.iter().map(|p| (*p).to_owned()));
+                    format!("{{{}}}", members.join(","))
+                })
+                .collect();
+            let mut members = vec![r#""command_id":"c""#.to_owned(), r#""timestamp":1"#.to_owned(), format!(r#""motors":[{}]"#, axes.join(","))];
+            members.extend(top.iter().map(|p| (*p).to_owned()));
+            let line = format!("{{{}}}{tail}", members.join(","));
+            let v = Validator::new();
+            let once = classify(&v, &line);
+            proptest::prop_assert_eq!(&once, &classify_scanned(&v, &line), "{}", line);
+            proptest::prop_assert_eq!(&once, &classify_members(&v, &line), "{}", line);
+            if line.contains(r#"emergency_stop":true"#) {
+                proptest::prop_assert!(matches!(once, Input::Stop { .. }), "{}", line);
+            }
         }
     }
 

@@ -1,5 +1,7 @@
-//! One parse for the commonest document a bridge reads: a `MotorCommand`
-//! and nothing else ([`crate::Validator::parse_plain_command`]).
+//! One parse for the commonest documents a bridge reads: a `MotorCommand`
+//! or a multi-axis command, and nothing else
+//! ([`crate::Validator::parse_plain_command`],
+//! [`crate::Validator::parse_plain_multi_axis`]).
 //!
 //! The typed parse is told the kind's top-level names (its schema's, as
 //! the unknown-member check reads them): it stops at the first other name
@@ -192,5 +194,95 @@ mod tests {
         let c: MotorCommand =
             parse_named(nested, top_level_members(MessageKind::MotorCommand)).unwrap();
         assert_eq!(c.pid_gains.unwrap().extra.len(), 1);
+    }
+
+    /// A multi-axis command read once is the command `parse_any` reads,
+    /// and every other line (a member unknown at any level, a violation,
+    /// too deep, another kind) is `None`, under three validators.
+    #[test]
+    fn a_plain_multi_axis_command_is_the_one_parse_any_reads() {
+        use crate::{Message, Validator};
+        let axis = r#"{"motor_id":"elbow","control_mode":"position","setpoint":20}"#;
+        let line = |axes: &str, rest: &str| {
+            format!(r#"{{"command_id":"c","timestamp":1,"motors":[{axes}]{rest}}}"#)
+        };
+        let cases = [
+            // (the line, whether it is a plain multi-axis command)
+            (line(axis, ""), true),
+            (
+                line(
+                    &format!("{axis},{}", axis.replace("elbow", "wrist")),
+                    r#","sync_mode":"simultaneous""#,
+                ),
+                true,
+            ),
+            (
+                line(
+                    r#"{"motor_id":"elbow","control_mode":"position","setpoint":20,"pid_gains":{"kp":1},"safety_limits":{"max_position":90}}"#,
+                    r#","coordination":{"type":"linear_interpolation","total_duration_ms":500}"#,
+                ),
+                true,
+            ),
+            // A member unknown at the top, in the coordination, in an axis,
+            // in an axis's part.
+            (line(axis, r#","velocity_limit":5"#), false),
+            (line(axis, r#","coordination":{"typo":1}"#), false),
+            (
+                line(
+                    r#"{"motor_id":"elbow","control_mode":"position","setpoint":20,"velocity_limt":5}"#,
+                    "",
+                ),
+                false,
+            ),
+            (
+                line(
+                    r#"{"motor_id":"elbow","control_mode":"position","setpoint":20,"pid_gains":{"kq":1}}"#,
+                    "",
+                ),
+                false,
+            ),
+            // The bridge's own forms and a stop at the top.
+            (line(axis, r#","stream":true"#), false),
+            (line(axis, r#","emergency_stop":true"#), false),
+            // Invalid: no axis, a negative limit, a name twice.
+            (line("", ""), false),
+            (
+                line(
+                    r#"{"motor_id":"elbow","control_mode":"position","setpoint":20,"velocity_limit":-1}"#,
+                    "",
+                ),
+                false,
+            ),
+            (line(axis, r#","command_id":"d""#), false),
+            // Another kind.
+            (
+                r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":2}"#
+                    .to_owned(),
+                false,
+            ),
+        ];
+        let deep_metadata = line(axis, r#","metadata":{"a":{"b":{"c":1}}}"#);
+        for v in [
+            Validator::new(),
+            Validator::new().deny_unknown_members(true),
+            Validator::new().max_depth(3),
+        ] {
+            for (line, plain) in &cases {
+                let once = v.parse_plain_multi_axis(line);
+                // Read once, it is the command `parse_any` reads; whatever
+                // `parse_any` does not read as one is not read as one once.
+                match (&once, v.parse_any(line)) {
+                    (Some(o), Ok(Message::MultiAxisCommand(c))) => assert_eq!(o, &c, "{line}"),
+                    (Some(_), other) => panic!("{line}: {other:?}"),
+                    (None, _) => {}
+                }
+                let deep = v == Validator::new().max_depth(3) && line.contains("pid_gains");
+                assert_eq!(once.is_some(), *plain && !deep, "{line}");
+            }
+            // Free-form metadata is read for its depth.
+            let once = v.parse_plain_multi_axis(&deep_metadata);
+            let any = v.parse_any(&deep_metadata);
+            assert_eq!(once.is_some(), any.is_ok(), "{v:?}");
+        }
     }
 }

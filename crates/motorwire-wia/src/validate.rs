@@ -304,6 +304,53 @@ impl Validator {
             .then_some(c)
     }
 
+    /// [`Validator::parse_plain_command`] for a [`MultiAxisCommand`]: `json`
+    /// as a valid multi-axis command that is nothing but one, from a single
+    /// parse of its text. The parse stops at the first top-level name a
+    /// multi-axis command does not have; the typed value says no member is
+    /// unknown at any level (its own, its coordination's, each axis's and
+    /// their parts'), and how deep it nests (four levels at most: the
+    /// command, its `motors`, an axis, an axis's gains or limits), the text
+    /// being read again for depth only under a `metadata`, which is
+    /// free-form.
+    ///
+    /// `None` whenever the document is anything else or is not valid;
+    /// [`Validator::parse_any`] then says what it is or what is wrong.
+    ///
+    /// ```
+    /// use motorwire_wia::Validator;
+    /// let v = Validator::new().deny_unknown_members(true);
+    /// let line = r#"{"command_id":"c1","timestamp":1704067200000,"motors":[
+    ///     {"motor_id":"shoulder","control_mode":"position","setpoint":30},
+    ///     {"motor_id":"elbow","control_mode":"position","setpoint":-10}]}"#;
+    /// let c = v.parse_plain_multi_axis(line).unwrap();
+    /// assert_eq!(c.motors.iter().map(|a| a.setpoint).collect::<Vec<_>>(), [30.0, -10.0]);
+    /// // A misspelled member of an axis: not a plain command (parse_any says why).
+    /// let typo = line.replace(r#""setpoint":30"#, r#""setpoint":30,"velocity_limt":5"#);
+    /// assert!(v.parse_plain_multi_axis(&typo).is_none());
+    /// assert!(v.parse_any(&typo).is_err());
+    /// ```
+    pub fn parse_plain_multi_axis(&self, json: &str) -> Option<MultiAxisCommand> {
+        use crate::members::Unknowns as _;
+        if json.len() > self.max_document_size {
+            return None;
+        }
+        let c: MultiAxisCommand = crate::plain::parse_named(
+            json,
+            crate::members::top_level_members(MessageKind::MultiAxisCommand),
+        )?;
+        if c.any_unknown() {
+            return None;
+        }
+        let free = c.metadata.is_some() || c.motors.iter().any(|a| a.metadata.is_some());
+        if (free || self.max_depth < 4) && self.precheck(json).is_err() {
+            return None;
+        }
+        c.violations_with_skew(self.now_ms, self.window)
+            .is_empty()
+            .then_some(c)
+    }
+
     /// `json` as a valid message of `kind` (the kind its names say:
     /// [`crate::scan_kind_noting`]), within the size and depth limits.
     /// Where this fails, [`Validator::parse_any`] gives the error a caller
