@@ -16,7 +16,8 @@
 //!   `taken_us`), every output line as it was
 //!   given (`"out"`: results, completions, feedback, events), every frame
 //!   again with its direction (`"frame"`: `"dir":"tx"|"rx"`, the id and
-//!   the data in hex), and every line to or from the Orion arm controller
+//!   the data in hex; a frame received also says when the bridge took it,
+//!   `taken_us`), and every line to or from the Orion arm controller
 //!   (`"orion"`);
 //! - `session.json`: when the recording started (both clocks), and, when
 //!   it ended cleanly, how much was written and how much was dropped.
@@ -84,6 +85,8 @@ impl Direction {
 enum Record {
     Frame {
         at: Instant,
+        /// A frame received: when the bridge took it.
+        taken: Option<Instant>,
         dir: Direction,
         frame: Frame,
     },
@@ -177,6 +180,12 @@ pub trait Tap: Send + Sync + std::fmt::Debug {
     fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
         let _ = (at, dir, frame);
     }
+    /// A frame received at `at` and taken by the bridge at `taken` (what a
+    /// replay hands its bridge then).
+    fn frame_taken(&self, at: Instant, taken: Instant, frame: &Frame) {
+        let _ = taken;
+        self.frame(at, Direction::Rx, frame);
+    }
     /// A line to or from the Orion arm controller.
     fn orion(&self, at: Instant, dir: Direction, line: &str) {
         let _ = (at, dir, line);
@@ -220,6 +229,14 @@ impl Tap for Recorder {
     }
     fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
         Recorder::frame(self, at, dir, frame);
+    }
+    fn frame_taken(&self, at: Instant, taken: Instant, frame: &Frame) {
+        self.put(Record::Frame {
+            at,
+            taken: Some(taken),
+            dir: Direction::Rx,
+            frame: *frame,
+        });
     }
     fn orion(&self, at: Instant, dir: Direction, line: &str) {
         Recorder::orion(self, at, dir, line);
@@ -269,6 +286,11 @@ impl Tap for Taps {
     fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
         for t in &self.0 {
             t.frame(at, dir, frame);
+        }
+    }
+    fn frame_taken(&self, at: Instant, taken: Instant, frame: &Frame) {
+        for t in &self.0 {
+            t.frame_taken(at, taken, frame);
         }
     }
     fn orion(&self, at: Instant, dir: Direction, line: &str) {
@@ -535,6 +557,7 @@ impl Recorder {
     pub fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
         self.put(Record::Frame {
             at,
+            taken: None,
             dir,
             frame: *frame,
         });
@@ -852,7 +875,9 @@ impl Files {
         let head =
             |kind: &str| format!(r#"{{"t_us":{t_us},"wall_ms":{},"{kind}":"#, wall_us / 1000);
         let line = match r {
-            Record::Frame { dir, frame, .. } => {
+            Record::Frame {
+                dir, frame, taken, ..
+            } => {
                 let entry = LogEntry {
                     timestamp: Duration::from_micros(wall_us),
                     interface: self.interface.clone(),
@@ -874,7 +899,11 @@ impl Files {
                 for b in frame.data() {
                     let _ = write!(line, "{b:02x}");
                 }
-                line.push_str("\"}}");
+                line.push('"');
+                if let Some(taken) = taken {
+                    let _ = write!(line, r#","taken_us":{}"#, self.clocks(taken).0);
+                }
+                line.push_str("}}");
                 return Ok(self.lines.line(&line)?.map(|n| n + logged));
             }
             Record::Input {

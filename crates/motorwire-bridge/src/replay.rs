@@ -9,8 +9,14 @@
 //! `session.json` how the bridge was set up ([`Setup`]: its map, its
 //! options, its first msg_id and its wall clock). [`replay`] makes the same
 //! bridge, on a [`SimulatedArm`] in simulated time, and tells it the same
-//! things at the same times (relative to its start); the simulated devices
-//! answer where the recorded ones did. [`compare`] then looks for the first
+//! things at the same times (relative to its start), and sends what each
+//! line set going before the next is taken. The simulated devices answer
+//! where the recorded ones did, at once; an iRPC joint's answer to a
+//! request (counted: [`crate::sim::AnswerKey`]) is handed to the bridge
+//! when the recorded bridge took the recorded one (`taken_us` of a frame
+//! received), with what the joint said with it, so a line taken between a
+//! request and its answer finds the bridge as the recorded line did.
+//! [`compare`] then looks for the first
 //! difference, stream by stream:
 //! - each line's answers (its result, its completion), per client and line;
 //! - each client's own lines (its greeting);
@@ -43,10 +49,13 @@
 //! What a replay does not reproduce, by its nature: a session on a
 //! simulated bus with faults (`--sim-faults`) replays with the same rates
 //! and seed, but the faults fall on other frames (the heartbeats and polls
-//! that draw them follow the clock); lines closer together than a
-//! device's answer (a burst) may supersede one another differently, as
-//! the simulated devices answer at once and the recorded ones did a little
-//! later.
+//! that draw them follow the clock); what the clock decides on the
+//! simulated joints stays theirs: their telemetry, which says when a
+//! stopped joint is at rest, and a lifecycle report sent apart from its
+//! Ack (a query right after a release may find a joint moving or
+//! reactivated a few milliseconds off); the compact, moteus and Orion
+//! devices answer at once; a recording made before frames received said
+//! `taken_us` holds their answers to when they came off the bus.
 
 use std::collections::{BTreeMap, HashSet};
 use std::fs;
@@ -313,6 +322,10 @@ pub enum Recorded {
         dir: Direction,
         /// The frame.
         frame: Frame,
+        /// A frame received: when the bridge took it (`taken_us`), where
+        /// the recording says (the record's own time is when it came off
+        /// the bus).
+        taken: Option<Duration>,
     },
     /// A line to or from the Orion controller.
     Orion {
@@ -517,7 +530,7 @@ impl Recording {
         let records = raw
             .into_iter()
             .map(|(t, mut r)| {
-                if let Recorded::Line { taken, .. } = &mut r {
+                if let Recorded::Line { taken, .. } | Recorded::Frame { taken, .. } = &mut r {
                     *taken = taken.map(|k| since(u64::try_from(k.as_micros()).unwrap_or(u64::MAX)));
                 }
                 (since(t), r)
@@ -671,6 +684,10 @@ fn parse_record(v: &Value) -> Result<Recorded, String> {
         return Ok(Recorded::Frame {
             dir: dir(b)?,
             frame,
+            taken: b
+                .get("taken_us")
+                .and_then(Value::as_u64)
+                .map(Duration::from_micros),
         });
     }
     if let Some(b) = v.get("orion") {
@@ -780,7 +797,50 @@ pub fn replay(
         }
         _ => None,
     });
+    // Each answer the recorded devices gave a request, with when: the
+    // simulated devices' are handed to the bridge no earlier (they answer
+    // at once; a line taken between a request and its recorded answer
+    // finds the bridge as it was then).
+    let mut answers: Option<Vec<(crate::sim::AnswerKey, Duration)>> = {
+        let mut counter = crate::sim::AnswerCounter::new(bridge.map());
+        for (_, r) in &recording.records {
+            if let Recorded::Frame {
+                dir: Direction::Tx,
+                frame,
+                ..
+            } = r
+            {
+                counter.sent(frame);
+            }
+        }
+        // Received, in the order the bridge took them.
+        let mut received: Vec<(Duration, &Frame)> = recording
+            .records
+            .iter()
+            .filter_map(|(t, r)| match r {
+                Recorded::Frame {
+                    dir: Direction::Rx,
+                    frame,
+                    taken,
+                } => Some((taken.unwrap_or(*t).max(*t), frame)),
+                _ => None,
+            })
+            .collect();
+        received.sort_by_key(|(t, _)| *t);
+        Some(
+            received
+                .into_iter()
+                .filter_map(|(t, frame)| Some((counter.answer(frame)?, t)))
+                .collect(),
+        )
+    };
     let mut arm = SimulatedArm::new_unbooted(bridge, sim)?;
+    arm.count_requests();
+    if recorded_ready.is_none()
+        && let Some(a) = answers.take()
+    {
+        arm.hold_answers(a);
+    }
     let mut booted = false;
     // A controller heard before the recorded bridge was ready is there
     // from the start (the simulated startup takes no time); one that
@@ -859,6 +919,16 @@ pub fn replay(
             advance(arm, outputs, next)?;
         }
         let s = ready_at.unwrap_or_default();
+        // Once ready: the answers after the recorded `ready`, as long
+        // after the simulated one (those of the startup come in its own
+        // time).
+        if let Some(a) = answers.take() {
+            arm.hold_answers(
+                a.into_iter()
+                    .filter(|(_, t)| *t > r)
+                    .map(|(k, t)| (k, s.saturating_add(t - r))),
+            );
+        }
         let to = if t <= r {
             t.min(s)
         } else {
@@ -881,6 +951,9 @@ pub fn replay(
         };
         let came = reach(&mut arm, &mut outputs, *t)?;
         reach(&mut arm, &mut outputs, taken)?;
+        // What is due by then (a device's answer held to its recorded
+        // time) comes first, as it came before the line was taken.
+        arm.settle()?;
         let now = arm.now();
         let t = &came;
         let b = arm.bridge_mut();
@@ -918,6 +991,10 @@ pub fn replay(
             Recorded::Mark(Mark::OrionUnreadable(why)) => b.handle_orion_unreadable(now, why),
             Recorded::Output { .. } | Recorded::Frame { .. } | Recorded::Orion { .. } => {}
         }
+        // What the line set going goes out before the next is taken, as
+        // the recorded bridge sent it (a line taken right after finds it
+        // sent).
+        arm.settle()?;
         out.inputs += 1;
         last = *t;
     }
@@ -958,6 +1035,7 @@ pub fn replay(
             Recorded::Frame {
                 dir: Direction::Tx,
                 frame: *f,
+                taken: None,
             },
         )
     }));
@@ -1325,6 +1403,7 @@ fn streams(
             Recorded::Frame {
                 dir: Direction::Tx,
                 frame,
+                ..
             } => {
                 if let Some((stream, key)) = frame_key(map, wire, frame, &mut seen) {
                     s.entry(stream).or_default().push(Item {
@@ -1652,6 +1731,7 @@ node = 0x20
                     Recorded::Frame {
                         dir: Direction::Tx,
                         frame: irpc(0x12, 1, Payload::Activate),
+                        taken: None,
                     },
                 ),
             ],
@@ -1670,6 +1750,7 @@ node = 0x20
                     Recorded::Frame {
                         dir: Direction::Tx,
                         frame: irpc(0x12, 40, Payload::Activate),
+                        taken: None,
                     },
                 ),
                 (ms(3), out(None, json!({"event": "emergency_stop"}))),

@@ -1012,7 +1012,7 @@ fn record_input(r: &dyn Tap, msg: &Msg) {
             stop: *stop,
             bytes: bytes.as_ref().map(|(b, n)| (b.as_slice(), *n)),
         }),
-        Msg::Frame { frame, at } => r.frame(*at, Direction::Rx, frame),
+        Msg::Frame { frame, at } => r.frame_taken(*at, Instant::now(), frame),
         Msg::OrionLine { text, at } => r.orion(*at, Direction::Rx, text),
         Msg::Greet { origin } => r.mark(Instant::now(), Mark::Greet(*origin)),
         Msg::Dropped { origin, reason } => {

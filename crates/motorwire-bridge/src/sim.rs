@@ -317,6 +317,95 @@ pub struct SimulatedArm {
     /// Every frame the bridge sent, with when, once asked for.
     sent: Option<Vec<(Duration, motorwire_can::Frame)>>,
     outputs: Vec<Output>,
+    /// When each answer a device gives is handed to the bridge, at the
+    /// earliest ([`SimulatedArm::hold_answers`]): the times of each
+    /// answer to one request, in order.
+    answer_times: std::collections::HashMap<AnswerKey, std::collections::VecDeque<Duration>>,
+    /// The requests sent, counted once asked for
+    /// ([`SimulatedArm::count_requests`]).
+    answers: Option<AnswerCounter>,
+    /// Frames from a device waiting to be handed to the bridge, each with
+    /// when, per CAN id in the order they came (one held holds those of
+    /// its device behind it).
+    held: std::collections::BTreeMap<
+        u32,
+        std::collections::VecDeque<(Duration, motorwire_can::Frame)>,
+    >,
+}
+
+/// What names a joint's answer to a request on the bus, the same in a
+/// recording and in its replay: the node that gave it and which of the
+/// requests the bridge sent that node it answers (counted from 0 in the
+/// order they were first sent; a request sent again is the same request).
+/// Counted, not named by msg_id: a replay's msg_ids follow the clock (the
+/// heartbeat takes them too).
+pub type AnswerKey = (u16, usize);
+
+/// The requests the bridge sent each iRPC joint, in order: the
+/// [`AnswerKey`] of a joint's answer, as a recording and its replay both
+/// count it.
+#[derive(Debug, Default, Clone)]
+pub struct AnswerCounter {
+    /// The iRPC joints' nodes.
+    nodes: std::collections::HashSet<u16>,
+    /// Each (node, msg_id) sent, with its place among that node's.
+    sent: std::collections::HashMap<(u16, u32), usize>,
+    /// How many requests each node was sent.
+    per_node: std::collections::HashMap<u16, usize>,
+}
+
+impl AnswerCounter {
+    /// A counter for the iRPC joints of `map`.
+    pub fn new(map: &BusMap) -> Self {
+        Self {
+            nodes: map
+                .motors()
+                .filter_map(|m| match m.target {
+                    Target::Irpc { node, .. } => Some(node),
+                    _ => None,
+                })
+                .collect(),
+            ..Self::default()
+        }
+    }
+
+    /// A frame the bridge sent: counted when it is an iRPC request to one
+    /// joint (not a broadcast).
+    pub fn sent(&mut self, frame: &motorwire_can::Frame) {
+        let Ok((header, _)) =
+            motorwire_irpc::Header::decode_prefix(motorwire_irpc::WireVersion::V2_0, frame.data())
+        else {
+            return;
+        };
+        if header.source_id != 0 || !self.nodes.contains(&header.target_id) {
+            return;
+        }
+        let per_node = &mut self.per_node;
+        self.sent
+            .entry((header.target_id, header.msg_id))
+            .or_insert_with(|| {
+                let n = per_node.entry(header.target_id).or_default();
+                *n += 1;
+                *n - 1
+            });
+    }
+
+    /// The key of a frame the bridge received, when it is a joint's answer
+    /// to a request counted: its header's source is the CAN id it came on
+    /// and names a request sent to it.
+    pub fn answer(&self, frame: &motorwire_can::Frame) -> Option<AnswerKey> {
+        let (header, _) =
+            motorwire_irpc::Header::decode_prefix(motorwire_irpc::WireVersion::V2_0, frame.data())
+                .ok()?;
+        if !self.nodes.contains(&header.source_id)
+            || u32::from(header.source_id) != frame.id().raw()
+        {
+            return None;
+        }
+        self.sent
+            .get(&(header.source_id, header.msg_id))
+            .map(|i| (header.source_id, *i))
+    }
 }
 
 impl SimulatedArm {
@@ -373,7 +462,96 @@ impl SimulatedArm {
             orion,
             sent: None,
             outputs: Vec::new(),
+            answer_times: std::collections::HashMap::new(),
+            answers: None,
+            held: std::collections::BTreeMap::new(),
         })
+    }
+
+    /// Counts, from now, the requests the bridge sends each device, as
+    /// [`SimulatedArm::hold_answers`] names their answers: asked for
+    /// before the bridge sends anything (at its start), so that they are
+    /// counted as a recording counts them.
+    pub fn count_requests(&mut self) {
+        if self.answers.is_none() {
+            self.answers = Some(AnswerCounter::new(self.bridge.map()));
+        }
+    }
+
+    /// Hands each device's answer to a request to the bridge no earlier
+    /// than the time `times` gives it ([`AnswerKey`]: the node and which
+    /// of its requests; the times of its answers, in order), and the
+    /// frames of that device that follow it behind it: what a replay uses
+    /// so that its devices answer when the recorded ones did (the
+    /// simulated ones answer at once). An answer not named, or named for
+    /// a time already past, is handed over as it comes. The requests are
+    /// counted from the first call of this or of
+    /// [`SimulatedArm::count_requests`].
+    pub fn hold_answers(&mut self, times: impl IntoIterator<Item = (AnswerKey, Duration)>) {
+        self.count_requests();
+        for (key, t) in times {
+            self.answer_times.entry(key).or_default().push_back(t);
+        }
+    }
+
+    /// The frames the bridge's port received at `now`, in order: those
+    /// handed over now; the others are held. A device's frames that came
+    /// together (what one request made it say: a lifecycle report, then
+    /// its answer) are handed over together, at the latest time any answer
+    /// among them is held to, and behind any of that device's still held.
+    fn receive(
+        &mut self,
+        now: Duration,
+        batch: Vec<motorwire_can::Frame>,
+    ) -> Vec<motorwire_can::Frame> {
+        let Some(counter) = &self.answers else {
+            return batch;
+        };
+        let mut at: std::collections::BTreeMap<u32, Duration> = std::collections::BTreeMap::new();
+        for frame in &batch {
+            let id = frame.id().raw();
+            let own = counter
+                .answer(frame)
+                .and_then(|k| {
+                    let times = self.answer_times.get_mut(&k)?;
+                    let t = times.pop_front();
+                    if times.is_empty() {
+                        self.answer_times.remove(&k);
+                    }
+                    t
+                })
+                .unwrap_or(Duration::ZERO);
+            let behind = self
+                .held
+                .get(&id)
+                .and_then(|q| q.back())
+                .map_or(Duration::ZERO, |(t, _)| *t);
+            let t = at.entry(id).or_default();
+            *t = (*t).max(own).max(behind);
+        }
+        let mut now_due = Vec::new();
+        for frame in batch {
+            let id = frame.id().raw();
+            match at.get(&id) {
+                Some(t) if *t > now => self.held.entry(id).or_default().push_back((*t, frame)),
+                _ => now_due.push(frame),
+            }
+        }
+        now_due
+    }
+
+    /// The held frames whose time has come, by device, each in order.
+    fn release_held(&mut self, now: Duration) -> Vec<motorwire_can::Frame> {
+        let mut due = Vec::new();
+        self.held.retain(|_, q| {
+            while q.front().is_some_and(|(t, _)| *t <= now) {
+                if let Some((_, f)) = q.pop_front() {
+                    due.push(f);
+                }
+            }
+            !q.is_empty()
+        });
+        due
     }
 
     /// The simulated Orion controller sends its boot beacon `{"ID":32}`
@@ -513,11 +691,54 @@ impl SimulatedArm {
     /// The bus's errors.
     pub fn step(&mut self, max: Duration) -> Result<(), BridgeError> {
         let now = self.bus.now();
+        self.settle()?;
+        let next = [
+            self.bridge.poll_timeout(),
+            self.bus.next_delivery(),
+            self.held
+                .values()
+                .filter_map(|q| q.front())
+                .map(|(t, _)| *t)
+                .min(),
+            self.joints
+                .iter()
+                .filter(|(_, p)| p.is_some())
+                .filter_map(|(j, _)| j.poll_timeout())
+                .min(),
+            self.compact
+                .iter()
+                .filter_map(|(d, _)| d.poll_timeout())
+                .min(),
+            self.moteus
+                .iter()
+                .filter_map(|(d, _)| d.poll_timeout())
+                .min(),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+        .map_or(now.saturating_add(max), |t| t.min(now.saturating_add(max)));
+        self.bus
+            .advance_to(next.max(now.saturating_add(Duration::from_nanos(1))));
+        Ok(())
+    }
+
+    /// Runs everything due now, without moving the clock: the bridge's
+    /// frames and lines go out, the devices answer what they can, the
+    /// bridge hears it; until nothing more happens.
+    ///
+    /// # Errors
+    /// The bus's errors.
+    pub fn settle(&mut self) -> Result<(), BridgeError> {
+        let now = self.bus.now();
         loop {
             let mut busy = false;
             let mut sent = false;
             while let Some(f) = self.bridge.poll_transmit() {
                 self.port.send(&f)?;
+                if let Some(a) = &mut self.answers {
+                    a.sent(&f);
+                }
                 if let Some(log) = &mut self.sent {
                     log.push((now, f));
                 }
@@ -567,9 +788,24 @@ impl SimulatedArm {
             for (device, port) in &mut self.moteus {
                 busy |= device.serve(port, now)?;
             }
-            while let Some(r) = self.port.try_recv() {
-                self.bridge.handle_frame(now, &r.frame);
+            for f in self.release_held(now) {
+                self.bridge.handle_frame(now, &f);
                 busy = true;
+            }
+            if self.answers.is_none() {
+                while let Some(r) = self.port.try_recv() {
+                    self.bridge.handle_frame(now, &r.frame);
+                    busy = true;
+                }
+            } else {
+                let mut batch = Vec::new();
+                while let Some(r) = self.port.try_recv() {
+                    batch.push(r.frame);
+                    busy = true;
+                }
+                for f in self.receive(now, batch) {
+                    self.bridge.handle_frame(now, &f);
+                }
             }
             if self.bridge.poll_timeout().is_some_and(|t| t <= now) {
                 self.bridge.handle_timeout(now);
@@ -580,29 +816,6 @@ impl SimulatedArm {
                 break;
             }
         }
-        let next = [
-            self.bridge.poll_timeout(),
-            self.bus.next_delivery(),
-            self.joints
-                .iter()
-                .filter(|(_, p)| p.is_some())
-                .filter_map(|(j, _)| j.poll_timeout())
-                .min(),
-            self.compact
-                .iter()
-                .filter_map(|(d, _)| d.poll_timeout())
-                .min(),
-            self.moteus
-                .iter()
-                .filter_map(|(d, _)| d.poll_timeout())
-                .min(),
-        ]
-        .into_iter()
-        .flatten()
-        .min()
-        .map_or(now.saturating_add(max), |t| t.min(now.saturating_add(max)));
-        self.bus
-            .advance_to(next.max(now.saturating_add(Duration::from_nanos(1))));
         Ok(())
     }
 
