@@ -18,6 +18,35 @@ use serde::de::value::{BorrowedStrDeserializer, StringDeserializer};
 use serde::de::{self, Deserialize, DeserializeSeed, Deserializer, Error as _, MapAccess, Visitor};
 use serde::forward_to_deserialize_any;
 
+/// A kind a bridge reads with one parse: its typed value says all a scan
+/// of its text would (the `extra` maps hold any unknown member, at every
+/// level), except how deep a free-form member nests.
+pub(crate) trait Plain: crate::kind::WiaMessage + crate::members::Unknowns {
+    /// Whether the value may nest deeper than `max_depth` (a free-form
+    /// member, or its own parts deeper than that): then the text is read
+    /// for its depth.
+    fn may_nest_beyond(&self, max_depth: usize) -> bool;
+}
+
+impl Plain for crate::MotorCommand {
+    /// Without `metadata`, two objects deep at most: the command, a part.
+    fn may_nest_beyond(&self, max_depth: usize) -> bool {
+        let parts = self.pid_gains.is_some()
+            || self.impedance_params.is_some()
+            || self.filter_config.is_some()
+            || self.safety_limits.is_some();
+        self.metadata.is_some() || 1 + usize::from(parts) > max_depth
+    }
+}
+
+impl Plain for crate::MultiAxisCommand {
+    /// Without a `metadata`, four levels at most: the command, its
+    /// `motors`, an axis, an axis's gains or limits.
+    fn may_nest_beyond(&self, max_depth: usize) -> bool {
+        self.metadata.is_some() || self.motors.iter().any(|a| a.metadata.is_some()) || max_depth < 4
+    }
+}
+
 /// `T` from the JSON object `json` whose top-level names are all in
 /// `names` (a kind's: [`crate::members::top_level_members`]): `None` at
 /// the first other name (its value not read), on any parse error, or when

@@ -278,30 +278,7 @@ impl Validator {
     /// assert!(v.parse_any(typo).is_err());
     /// ```
     pub fn parse_plain_command(&self, json: &str) -> Option<MotorCommand> {
-        use crate::members::Unknowns as _;
-        if json.len() > self.max_document_size {
-            return None;
-        }
-        let c: MotorCommand = crate::plain::parse_named(
-            json,
-            crate::members::top_level_members(MessageKind::MotorCommand),
-        )?;
-        if c.any_unknown() {
-            return None;
-        }
-        // Without `metadata`, a command nests two objects deep at most.
-        let parts = c.pid_gains.is_some()
-            || c.impedance_params.is_some()
-            || c.filter_config.is_some()
-            || c.safety_limits.is_some();
-        if (c.metadata.is_some() || 1 + usize::from(parts) > self.max_depth)
-            && self.precheck(json).is_err()
-        {
-            return None;
-        }
-        c.violations_with_skew(self.now_ms, self.window)
-            .is_empty()
-            .then_some(c)
+        self.parse_plain(json)
     }
 
     /// [`Validator::parse_plain_command`] for a [`MultiAxisCommand`]: `json`
@@ -331,24 +308,24 @@ impl Validator {
     /// assert!(v.parse_any(&typo).is_err());
     /// ```
     pub fn parse_plain_multi_axis(&self, json: &str) -> Option<MultiAxisCommand> {
-        use crate::members::Unknowns as _;
+        self.parse_plain(json)
+    }
+
+    /// `json` as a valid `T` that is nothing but one, from a single parse
+    /// stopped at the first top-level name `T`'s schema does not give; the
+    /// text read again only for the depth of what may nest deeper than the
+    /// limit.
+    fn parse_plain<T: crate::plain::Plain>(&self, json: &str) -> Option<T> {
         if json.len() > self.max_document_size {
             return None;
         }
-        let c: MultiAxisCommand = crate::plain::parse_named(
-            json,
-            crate::members::top_level_members(MessageKind::MultiAxisCommand),
-        )?;
-        if c.any_unknown() {
+        let m: T = crate::plain::parse_named(json, crate::members::top_level_members(T::KIND))?;
+        if m.any_unknown() || (m.may_nest_beyond(self.max_depth) && self.precheck(json).is_err()) {
             return None;
         }
-        let free = c.metadata.is_some() || c.motors.iter().any(|a| a.metadata.is_some());
-        if (free || self.max_depth < 4) && self.precheck(json).is_err() {
-            return None;
-        }
-        c.violations_with_skew(self.now_ms, self.window)
+        m.violations_with_skew(self.now_ms, self.window)
             .is_empty()
-            .then_some(c)
+            .then_some(m)
     }
 
     /// `json` as a valid message of `kind` (the kind its names say:
