@@ -52,8 +52,8 @@
 //! that draw them follow the clock); what the clock decides on the
 //! simulated joints stays theirs: their telemetry, which says when a
 //! stopped joint is at rest, and a lifecycle report sent apart from its
-//! Ack (a query right after a release may find a joint moving or
-//! reactivated a few milliseconds off); the compact, moteus and Orion
+//! Ack (a query right after a stop or a release may find a joint moving,
+//! active or inactive a few milliseconds off); the compact, moteus and Orion
 //! devices answer at once; a recording made before frames received said
 //! `taken_us` holds their answers to when they came off the bus.
 

@@ -317,13 +317,20 @@ pub struct SimulatedArm {
     /// Every frame the bridge sent, with when, once asked for.
     sent: Option<Vec<(Duration, motorwire_can::Frame)>>,
     outputs: Vec<Output>,
-    /// When each answer a device gives is handed to the bridge, at the
-    /// earliest ([`SimulatedArm::hold_answers`]): the times of each
-    /// answer to one request, in order.
-    answer_times: std::collections::HashMap<AnswerKey, std::collections::VecDeque<Duration>>,
-    /// The requests sent, counted once asked for
-    /// ([`SimulatedArm::count_requests`]).
-    answers: Option<AnswerCounter>,
+    /// Joints' answers held to given times, once asked for
+    /// ([`SimulatedArm::count_requests`], [`SimulatedArm::hold_answers`]).
+    holding: Option<Holding>,
+}
+
+/// What a replay's arm keeps to hand joints' answers to the bridge when
+/// the recorded ones were taken.
+#[derive(Debug)]
+struct Holding {
+    /// The requests sent, counted.
+    counter: AnswerCounter,
+    /// When each answer is handed over, at the earliest: the times of the
+    /// answers to one request, in order.
+    times: std::collections::HashMap<AnswerKey, std::collections::VecDeque<Duration>>,
     /// Frames from a device waiting to be handed to the bridge, each with
     /// when, per CAN id in the order they came (one held holds those of
     /// its device behind it).
@@ -331,6 +338,75 @@ pub struct SimulatedArm {
         u32,
         std::collections::VecDeque<(Duration, motorwire_can::Frame)>,
     >,
+}
+
+impl Holding {
+    /// The frames the bridge's port received at `now`, in order: those
+    /// handed over now; the others are held. A device's frames that came
+    /// together (what one request made it say: a lifecycle report, then
+    /// its answer) are handed over together, at the latest time any answer
+    /// among them is held to, and behind any of that device's still held.
+    fn receive(
+        &mut self,
+        now: Duration,
+        batch: Vec<motorwire_can::Frame>,
+    ) -> Vec<motorwire_can::Frame> {
+        let mut at: std::collections::BTreeMap<u32, Duration> = std::collections::BTreeMap::new();
+        for frame in &batch {
+            let id = frame.id().raw();
+            let own = self
+                .counter
+                .answer(frame)
+                .and_then(|k| {
+                    let times = self.times.get_mut(&k)?;
+                    let t = times.pop_front();
+                    if times.is_empty() {
+                        self.times.remove(&k);
+                    }
+                    t
+                })
+                .unwrap_or(Duration::ZERO);
+            let behind = self
+                .held
+                .get(&id)
+                .and_then(|q| q.back())
+                .map_or(Duration::ZERO, |(t, _)| *t);
+            let t = at.entry(id).or_default();
+            *t = (*t).max(own).max(behind);
+        }
+        let mut now_due = Vec::new();
+        for frame in batch {
+            let id = frame.id().raw();
+            match at.get(&id) {
+                Some(t) if *t > now => self.held.entry(id).or_default().push_back((*t, frame)),
+                _ => now_due.push(frame),
+            }
+        }
+        now_due
+    }
+
+    /// The held frames whose time has come, by device, each in order.
+    fn release(&mut self, now: Duration) -> Vec<motorwire_can::Frame> {
+        let mut due = Vec::new();
+        self.held.retain(|_, q| {
+            while q.front().is_some_and(|(t, _)| *t <= now) {
+                if let Some((_, f)) = q.pop_front() {
+                    due.push(f);
+                }
+            }
+            !q.is_empty()
+        });
+        due
+    }
+
+    /// When the next held frame is due.
+    fn next(&self) -> Option<Duration> {
+        self.held
+            .values()
+            .filter_map(|q| q.front())
+            .map(|(t, _)| *t)
+            .min()
+    }
 }
 
 /// What names a joint's answer to a request on the bus, the same in a
@@ -462,9 +538,7 @@ impl SimulatedArm {
             orion,
             sent: None,
             outputs: Vec::new(),
-            answer_times: std::collections::HashMap::new(),
-            answers: None,
-            held: std::collections::BTreeMap::new(),
+            holding: None,
         })
     }
 
@@ -473,8 +547,12 @@ impl SimulatedArm {
     /// before the bridge sends anything (at its start), so that they are
     /// counted as a recording counts them.
     pub fn count_requests(&mut self) {
-        if self.answers.is_none() {
-            self.answers = Some(AnswerCounter::new(self.bridge.map()));
+        if self.holding.is_none() {
+            self.holding = Some(Holding {
+                counter: AnswerCounter::new(self.bridge.map()),
+                times: std::collections::HashMap::new(),
+                held: std::collections::BTreeMap::new(),
+            });
         }
     }
 
@@ -489,69 +567,11 @@ impl SimulatedArm {
     /// [`SimulatedArm::count_requests`].
     pub fn hold_answers(&mut self, times: impl IntoIterator<Item = (AnswerKey, Duration)>) {
         self.count_requests();
-        for (key, t) in times {
-            self.answer_times.entry(key).or_default().push_back(t);
-        }
-    }
-
-    /// The frames the bridge's port received at `now`, in order: those
-    /// handed over now; the others are held. A device's frames that came
-    /// together (what one request made it say: a lifecycle report, then
-    /// its answer) are handed over together, at the latest time any answer
-    /// among them is held to, and behind any of that device's still held.
-    fn receive(
-        &mut self,
-        now: Duration,
-        batch: Vec<motorwire_can::Frame>,
-    ) -> Vec<motorwire_can::Frame> {
-        let Some(counter) = &self.answers else {
-            return batch;
-        };
-        let mut at: std::collections::BTreeMap<u32, Duration> = std::collections::BTreeMap::new();
-        for frame in &batch {
-            let id = frame.id().raw();
-            let own = counter
-                .answer(frame)
-                .and_then(|k| {
-                    let times = self.answer_times.get_mut(&k)?;
-                    let t = times.pop_front();
-                    if times.is_empty() {
-                        self.answer_times.remove(&k);
-                    }
-                    t
-                })
-                .unwrap_or(Duration::ZERO);
-            let behind = self
-                .held
-                .get(&id)
-                .and_then(|q| q.back())
-                .map_or(Duration::ZERO, |(t, _)| *t);
-            let t = at.entry(id).or_default();
-            *t = (*t).max(own).max(behind);
-        }
-        let mut now_due = Vec::new();
-        for frame in batch {
-            let id = frame.id().raw();
-            match at.get(&id) {
-                Some(t) if *t > now => self.held.entry(id).or_default().push_back((*t, frame)),
-                _ => now_due.push(frame),
+        if let Some(h) = &mut self.holding {
+            for (key, t) in times {
+                h.times.entry(key).or_default().push_back(t);
             }
         }
-        now_due
-    }
-
-    /// The held frames whose time has come, by device, each in order.
-    fn release_held(&mut self, now: Duration) -> Vec<motorwire_can::Frame> {
-        let mut due = Vec::new();
-        self.held.retain(|_, q| {
-            while q.front().is_some_and(|(t, _)| *t <= now) {
-                if let Some((_, f)) = q.pop_front() {
-                    due.push(f);
-                }
-            }
-            !q.is_empty()
-        });
-        due
     }
 
     /// The simulated Orion controller sends its boot beacon `{"ID":32}`
@@ -695,11 +715,7 @@ impl SimulatedArm {
         let next = [
             self.bridge.poll_timeout(),
             self.bus.next_delivery(),
-            self.held
-                .values()
-                .filter_map(|q| q.front())
-                .map(|(t, _)| *t)
-                .min(),
+            self.holding.as_ref().and_then(Holding::next),
             self.joints
                 .iter()
                 .filter(|(_, p)| p.is_some())
@@ -736,8 +752,8 @@ impl SimulatedArm {
             let mut sent = false;
             while let Some(f) = self.bridge.poll_transmit() {
                 self.port.send(&f)?;
-                if let Some(a) = &mut self.answers {
-                    a.sent(&f);
+                if let Some(h) = &mut self.holding {
+                    h.counter.sent(&f);
                 }
                 if let Some(log) = &mut self.sent {
                     log.push((now, f));
@@ -788,23 +804,22 @@ impl SimulatedArm {
             for (device, port) in &mut self.moteus {
                 busy |= device.serve(port, now)?;
             }
-            for f in self.release_held(now) {
-                self.bridge.handle_frame(now, &f);
-                busy = true;
-            }
-            if self.answers.is_none() {
-                while let Some(r) = self.port.try_recv() {
-                    self.bridge.handle_frame(now, &r.frame);
-                    busy = true;
-                }
-            } else {
+            if let Some(h) = &mut self.holding {
                 let mut batch = Vec::new();
                 while let Some(r) = self.port.try_recv() {
                     batch.push(r.frame);
-                    busy = true;
                 }
-                for f in self.receive(now, batch) {
+                busy |= !batch.is_empty();
+                let mut due = h.release(now);
+                busy |= !due.is_empty();
+                due.extend(h.receive(now, batch));
+                for f in due {
                     self.bridge.handle_frame(now, &f);
+                }
+            } else {
+                while let Some(r) = self.port.try_recv() {
+                    self.bridge.handle_frame(now, &r.frame);
+                    busy = true;
                 }
             }
             if self.bridge.poll_timeout().is_some_and(|t| t <= now) {
@@ -850,5 +865,63 @@ impl SimulatedArm {
             self.step(left)?;
         }
         Ok(done(self))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+    use super::*;
+    use crate::BridgeConfig;
+
+    fn ms(n: u64) -> Duration {
+        Duration::from_millis(n)
+    }
+
+    /// When the result of a move comes: the arm's time before the step
+    /// that gave it, the move sent at 50 ms, its Ack held to `hold` (ms
+    /// after the start) when given.
+    fn result_at(hold: Option<u64>) -> Duration {
+        let map = BusMap::from_toml(
+            "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\nlimits = { max_velocity = 120, max_acceleration = 500 }",
+        )
+        .unwrap();
+        let mut arm = SimulatedArm::new(
+            Bridge::new(map, BridgeConfig::default()).unwrap(),
+            SimConfig::default(),
+        )
+        .unwrap();
+        arm.count_requests();
+        arm.run_until(ms(50)).unwrap();
+        arm.take_results();
+        // The move is the elbow's next request.
+        let next = arm.holding.as_ref().unwrap().counter.per_node[&0x12];
+        if let Some(h) = hold {
+            arm.hold_answers([((0x12, next), ms(h))]);
+        }
+        arm.line(
+            Origin(1),
+            r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":30}"#,
+        );
+        while arm.now() < ms(100) {
+            let t = arm.now();
+            arm.step(ms(1)).unwrap();
+            if let Some(r) = arm.take_results().first() {
+                assert_eq!(r["ok"], true, "{r}");
+                return t;
+            }
+        }
+        panic!("no result by 100 ms");
+    }
+
+    /// A joint's Ack held to a later time reaches the bridge then (the
+    /// arm's clock stops there), not before; not held, it comes at once.
+    #[test]
+    fn a_held_answer_reaches_the_bridge_at_its_time() {
+        assert_eq!(result_at(None), ms(50));
+        assert_eq!(result_at(Some(55)), ms(55));
+        // Held to a time already past: at once.
+        assert_eq!(result_at(Some(10)), ms(50));
     }
 }

