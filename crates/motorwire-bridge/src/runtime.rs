@@ -753,6 +753,11 @@ impl Runner {
         bridge.start(since(Instant::now()));
         // The taps are hushed while a stop is handled.
         let mut hushed = false;
+        // What the taps are told once the frames are out: the frames sent
+        // (each with when it went) and the lines handled since the last
+        // time. A stop's frames never wait for its recording.
+        let mut sent: Vec<(Instant, Frame)> = Vec::new();
+        let mut handled: Vec<(Instant, Instant, Origin, u64, String)> = Vec::new();
         let result = loop {
             let mut failed = None;
             while let Some(f) = bridge.poll_transmit() {
@@ -760,8 +765,8 @@ impl Runner {
                     failed = Some(e);
                     break;
                 }
-                if let Some(r) = rec {
-                    r.frame(Instant::now(), Direction::Tx, &f);
+                if rec.is_some() {
+                    sent.push((Instant::now(), f));
                 }
             }
             while let Some(line) = bridge.poll_orion_line() {
@@ -773,6 +778,14 @@ impl Runner {
                 }
             }
             bridge.flushed(since(Instant::now()));
+            if let Some(r) = rec {
+                for (at, f) in sent.drain(..) {
+                    r.frame(at, Direction::Tx, &f);
+                }
+                for (at, taken, origin, number, text) in handled.drain(..) {
+                    r.input_owned(at, taken, origin, number, text);
+                }
+            }
             if hushed {
                 // The stop's frames are out: the taps may work again.
                 if let Some(r) = rec {
@@ -822,8 +835,8 @@ impl Runner {
                     } => {
                         let taken = Instant::now();
                         bridge.handle_numbered_line(since(at), origin, number, &text);
-                        if let Some(r) = rec {
-                            r.input_owned(at, taken, origin, number, text);
+                        if rec.is_some() {
+                            handled.push((at, taken, origin, number, text));
                         }
                     }
                     Msg::Refused {
@@ -905,11 +918,12 @@ impl Runner {
                     text,
                     at,
                 }) => {
-                    // Told to the taps once handled, the line moved to them.
+                    // Told to the taps once its frames are out, the line
+                    // moved to them.
                     let taken = Instant::now();
                     bridge.handle_numbered_line(since(at), origin, number, &text);
-                    if let Some(r) = rec {
-                        r.input_owned(at, taken, origin, number, text);
+                    if rec.is_some() {
+                        handled.push((at, taken, origin, number, text));
                     }
                 }
                 Ok(Msg::Refused {

@@ -203,3 +203,156 @@ fn the_stop_is_timed_on_the_hosts_clock() {
     input.interrupt();
     handle.join().unwrap().unwrap();
 }
+
+/// What a tap was told and what went on the bus, in the order it happened.
+#[derive(Debug, Clone, PartialEq)]
+enum Seen {
+    /// A frame the runner sent on the bus (only their count matters).
+    OnBus,
+    /// A tap was told of an input line (its number and text).
+    Line(u64, String),
+    /// A tap was told of a frame the bridge sent.
+    TappedTx,
+}
+
+/// A tap that writes what it is told into `log`.
+#[derive(Debug)]
+struct OrderTap(std::sync::Arc<std::sync::Mutex<Vec<Seen>>>);
+
+impl motorwire_bridge::record::Tap for OrderTap {
+    fn input_owned(
+        &self,
+        _at: std::time::Instant,
+        _taken: std::time::Instant,
+        _origin: Origin,
+        number: u64,
+        text: String,
+    ) {
+        self.0.lock().unwrap().push(Seen::Line(number, text));
+    }
+    fn frame(
+        &self,
+        _at: std::time::Instant,
+        dir: motorwire_bridge::record::Direction,
+        _frame: &motorwire_can::Frame,
+    ) {
+        if dir == motorwire_bridge::record::Direction::Tx {
+            self.0.lock().unwrap().push(Seen::TappedTx);
+        }
+    }
+}
+
+/// The bridge's sending half of the simulated bus, writing each frame it
+/// sends into `log` as it goes.
+struct LoggedSender {
+    port: motorwire_can::SimPort,
+    log: std::sync::Arc<std::sync::Mutex<Vec<Seen>>>,
+}
+
+impl motorwire_can::CanBus for LoggedSender {
+    fn send(&mut self, frame: &motorwire_can::Frame) -> Result<(), motorwire_can::Error> {
+        self.port.send(frame)?;
+        self.log.lock().unwrap().push(Seen::OnBus);
+        Ok(())
+    }
+    fn recv(&mut self, timeout: Duration) -> Result<motorwire_can::Received, motorwire_can::Error> {
+        self.port.recv(timeout)
+    }
+}
+
+/// A stop's frames go on the bus before the taps (a recorder, a live view)
+/// are told of its line or of those frames: the stop never waits for its
+/// recording. Checked with a burst of moves in flight, so the stop's line
+/// is handled while other lines and frames are being told.
+#[test]
+fn a_stop_is_on_the_bus_before_its_taps_are_told() {
+    let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let map = BusMap::from_toml(MAP).unwrap();
+    let bridge = Bridge::new(
+        map,
+        BridgeConfig {
+            feedback_period: None,
+            ..BridgeConfig::default()
+        },
+    )
+    .unwrap();
+    let arm = RealTimeArm::start(bridge.map()).unwrap();
+    let runner = Runner::new().with_tap(std::sync::Arc::new(OrderTap(std::sync::Arc::clone(&log))));
+    let input = runner.input();
+    let (tx, rx) = mpsc::channel();
+    let sender = LoggedSender {
+        port: arm.sender(),
+        log: std::sync::Arc::clone(&log),
+    };
+    let port = arm.port();
+    let handle = thread::spawn(move || {
+        runner.run(bridge, sender, port, move |o: &Output| {
+            if let Output::Result { .. } = o {
+                let _ = tx.send(o.to_value());
+            }
+        })
+    });
+    input.line(
+        Origin(3),
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":5}"#,
+    );
+    assert_eq!(
+        rx.recv_timeout(Duration::from_secs(10)).unwrap()["ok"],
+        true
+    );
+    let n = 200;
+    for i in 0..n {
+        input.line(
+            Origin(1),
+            format!(
+                r#"{{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":{}}}"#,
+                10 + i % 40
+            ),
+        );
+    }
+    let stop = r#"{"emergency_stop": true}"#;
+    input.line(Origin(2), stop);
+    let mut stop_result = None;
+    for _ in 0..=n {
+        let r = rx.recv_timeout(Duration::from_secs(10)).unwrap();
+        if r["emergency_stop"] == true {
+            stop_result = Some(r);
+        }
+    }
+    input.interrupt();
+    handle.join().unwrap().unwrap();
+    let stop_result = stop_result.expect("the stop's result");
+    assert_eq!(stop_result["ok"], true, "{stop_result}");
+    let log = log.lock().unwrap().clone();
+    let told = log
+        .iter()
+        .position(|s| *s == Seen::Line(1, stop.to_owned()))
+        .expect("the taps were told of the stop's line");
+    // Every frame on the bus was told to the taps, once each, and never
+    // before it was on the bus.
+    let (mut on_bus, mut tapped) = (0usize, 0usize);
+    for s in &log {
+        match s {
+            Seen::OnBus => on_bus += 1,
+            Seen::TappedTx => {
+                tapped += 1;
+                assert!(tapped <= on_bus, "a frame told before it was sent");
+            }
+            Seen::Line(..) => {}
+        }
+    }
+    assert_eq!(tapped, on_bus);
+    // The stop's frames (a Deactivate for each of the map's lifecycle
+    // devices, at least the three iRPC joints) went on the bus before its
+    // line was told: the frames sent just before the line was told.
+    let before: Vec<&Seen> = log[..told]
+        .iter()
+        .rev()
+        .take_while(|s| !matches!(s, Seen::Line(..)))
+        .collect();
+    let sent_just_before = before.iter().filter(|s| ***s == Seen::OnBus).count();
+    assert!(
+        sent_just_before >= 3,
+        "the stop's frames were not on the bus before its line was told: {before:?}"
+    );
+}
