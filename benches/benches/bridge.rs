@@ -18,6 +18,12 @@
     clippy::indexing_slicing
 )]
 
+/// The allocator of the `motorwire` binary (the `jemalloc` feature, on by
+/// default), so that the bridge is measured as it runs there.
+#[cfg(all(feature = "jemalloc", not(target_env = "msvc")))]
+#[global_allocator]
+static ALLOCATOR: tikv_jemallocator::Jemalloc = tikv_jemallocator::Jemalloc;
+
 use std::hint::black_box;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};

@@ -28,7 +28,15 @@
 //! Never waiting: a record goes into a bounded queue a thread of its own
 //! writes out; when the queue is full (a slow disk) or the disk failed (a
 //! full disk), the record is dropped and counted, and the bridge goes on.
-//! A stop is never behind the recorder.
+//! A stop is never behind the recorder: the [`crate::Runner`] hands a line
+//! and the frames it sent to its taps once those frames are out.
+//!
+//! The records are made on the bridge's thread and freed on the writer's.
+//! With glibc's malloc, that memory went back to the kernel and was
+//! faulted in again on the bridge's thread, in the middle of a stop: a
+//! program that records should use an allocator that keeps it, as the
+//! `motorwire` binary does (its `jemalloc` feature; BENCHMARKS.md has the
+//! stop's latency under both).
 
 use std::fmt::Write as _;
 use std::fs::{self, File};

@@ -28,6 +28,13 @@ mod translate;
 mod validate;
 mod view;
 
+/// The allocator (the `jemalloc` feature, on by default): memory a thread
+/// frees for another is kept for reuse, not given back to the kernel and
+/// faulted in again on the bridge's thread in the middle of a stop.
+#[cfg(all(feature = "jemalloc", not(target_env = "msvc")))]
+#[global_allocator]
+static ALLOCATOR: tikv_jemallocator::Jemalloc = tikv_jemallocator::Jemalloc;
+
 /// Typed, validated, safe messages between the software that decides a
 /// motion and the motors that make it.
 #[derive(Debug, Parser)]
