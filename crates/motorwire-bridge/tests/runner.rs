@@ -40,10 +40,8 @@ fn start_with(config: BridgeConfig) -> (RealTimeArm, InputSender, mpsc::Receiver
     (arm, input, rx, handle)
 }
 
-#[test]
-fn a_stop_overtakes_the_lines_queued_before_it() {
-    let (_arm, input, rx, handle) = start();
-    // Ready first: one move, answered.
+/// Ready first: one move of the elbow, answered.
+fn ready(input: &InputSender, rx: &mpsc::Receiver<Value>) {
     input.line(
         Origin(3),
         r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":5}"#,
@@ -52,6 +50,12 @@ fn a_stop_overtakes_the_lines_queued_before_it() {
         rx.recv_timeout(Duration::from_secs(10)).unwrap()["ok"],
         true
     );
+}
+
+#[test]
+fn a_stop_overtakes_the_lines_queued_before_it() {
+    let (_arm, input, rx, handle) = start();
+    ready(&input, &rx);
     let n = 2000;
     for i in 0..n {
         let motor = ["shoulder_pitch", "shoulder_roll", "elbow"][i % 3];
@@ -292,14 +296,7 @@ fn a_stop_is_on_the_bus_before_its_taps_are_told() {
             }
         })
     });
-    input.line(
-        Origin(3),
-        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":5}"#,
-    );
-    assert_eq!(
-        rx.recv_timeout(Duration::from_secs(10)).unwrap()["ok"],
-        true
-    );
+    ready(&input, &rx);
     let n = 200;
     for i in 0..n {
         input.line(
