@@ -247,13 +247,7 @@ fn validate_lines_one_bad_byte_costs_one_line() {
 #[test]
 fn the_bridge_gives_up_an_endless_standard_input() {
     let out = run_bounded(
-        &[
-            "bridge",
-            "--map",
-            "fixtures/maps/demo-arm.toml",
-            "--bus",
-            "sim",
-        ],
+        &common::sim_bridge(&[]),
         Some(File::open("/dev/zero").unwrap()),
         Duration::from_secs(20),
     );

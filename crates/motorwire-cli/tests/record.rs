@@ -30,19 +30,14 @@ fn a_recorded_session_holds_every_line_and_frame_in_both_formats() {
     let bad: &[u8] = b"{\"motor_id\":\"elbow\",\"x\":\"\xff\"}\n";
     let stop = "{\"emergency_stop\":true}\n";
     let input = format!("{moves}{stop}");
-    let mut child = common::spawn(&[
-        "bridge",
-        "--map",
-        "fixtures/maps/demo-arm.toml",
-        "--bus",
-        "sim",
+    let mut child = common::spawn(&common::sim_bridge(&[
         "--orion",
         "sim",
         "--feedback-hz",
         "5",
         "--record",
         dir.to_str().unwrap(),
-    ]);
+    ]));
     let mut pipe = child.stdin.take().unwrap();
     pipe.write_all(moves.as_bytes()).unwrap();
     pipe.write_all(bad).unwrap();
@@ -138,15 +133,7 @@ fn a_recorded_session_holds_every_line_and_frame_in_both_formats() {
 #[test]
 fn a_recording_that_cannot_be_made_is_refused_at_start() {
     let out = common::run(
-        &[
-            "bridge",
-            "--map",
-            "fixtures/maps/demo-arm.toml",
-            "--bus",
-            "sim",
-            "--record",
-            "/proc/motorwire-record",
-        ],
+        &common::sim_bridge(&["--record", "/proc/motorwire-record"]),
         b"",
     );
     assert_eq!(out.status.code(), Some(2));
@@ -156,34 +143,13 @@ fn a_recording_that_cannot_be_made_is_refused_at_start() {
         "{stderr}"
     );
     let out = common::run(
-        &[
-            "bridge",
-            "--map",
-            "fixtures/maps/demo-arm.toml",
-            "--bus",
-            "sim",
-            "--record",
-            "/tmp/x",
-            "--record-max-mb",
-            "0",
-        ],
+        &common::sim_bridge(&["--record", "/tmp/x", "--record-max-mb", "0"]),
         b"",
     );
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--record-max-mb must be at least 1"));
     // An empty path would record into the working directory.
-    let out = common::run(
-        &[
-            "bridge",
-            "--map",
-            "fixtures/maps/demo-arm.toml",
-            "--bus",
-            "sim",
-            "--record",
-            "",
-        ],
-        b"",
-    );
+    let out = common::run(&common::sim_bridge(&["--record", ""]), b"");
     assert_eq!(out.status.code(), Some(2));
     assert!(
         String::from_utf8_lossy(&out.stderr).contains("--record needs a directory"),

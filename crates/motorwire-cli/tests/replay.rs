@@ -46,19 +46,14 @@ fn record_session(dir: &Path) {
         (cmd("shoulder_pitch", "position", 10.0), 100),
         ("{\"emergency_stop\":false}\n".to_owned(), 200),
     ];
-    let mut child = common::spawn(&[
-        "bridge",
-        "--map",
-        "fixtures/maps/demo-arm.toml",
-        "--bus",
-        "sim",
+    let mut child = common::spawn(&common::sim_bridge(&[
         "--orion",
         "sim",
         "--feedback-hz",
         "10",
         "--record",
         dir.to_str().unwrap(),
-    ]);
+    ]));
     let mut pipe = child.stdin.take().unwrap();
     // After `ready`: the lines then come at the times the session says.
     std::thread::sleep(Duration::from_millis(300));
@@ -347,15 +342,7 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
 fn lines_taken_before_a_devices_answer_replay_as_recorded() {
     let dir = scratch("racing");
     let t = now_ms();
-    let mut child = common::spawn(&[
-        "bridge",
-        "--map",
-        "fixtures/maps/demo-arm.toml",
-        "--bus",
-        "sim",
-        "--record",
-        dir.to_str().unwrap(),
-    ]);
+    let mut child = common::spawn(&common::sim_bridge(&["--record", dir.to_str().unwrap()]));
     let mut pipe = child.stdin.take().unwrap();
     std::thread::sleep(Duration::from_millis(300));
     for j in 1..=6 {

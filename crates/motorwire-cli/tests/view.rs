@@ -32,17 +32,7 @@ fn bridge_with_view(
     String,
     BufReader<std::process::ChildStderr>,
 ) {
-    let mut args = vec![
-        "bridge",
-        "--map",
-        "fixtures/maps/demo-arm.toml",
-        "--bus",
-        "sim",
-        "--feedback-hz",
-        "0",
-        "--view",
-        "127.0.0.1:0",
-    ];
+    let mut args = common::sim_bridge(&["--feedback-hz", "0", "--view", "127.0.0.1:0"]);
     args.extend_from_slice(extra);
     let mut child = common::spawn(&args);
     let (addr, err) = view_addr(&mut child);
@@ -156,18 +146,7 @@ fn the_view_serves_its_page_and_stream_and_only_reads() {
 /// and its stream only for who has it.
 #[test]
 fn a_view_beyond_loopback_needs_the_token() {
-    let out = common::run(
-        &[
-            "bridge",
-            "--map",
-            "fixtures/maps/demo-arm.toml",
-            "--bus",
-            "sim",
-            "--view",
-            "0.0.0.0:0",
-        ],
-        b"",
-    );
+    let out = common::run(&common::sim_bridge(&["--view", "0.0.0.0:0"]), b"");
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(

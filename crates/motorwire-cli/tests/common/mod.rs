@@ -101,3 +101,18 @@ impl Lines {
         self.seen
     }
 }
+
+/// `motorwire bridge` on the demo map and the simulated bus, then `extra`:
+/// the arguments of a bridge run as the README's first bridge command runs
+/// it.
+pub fn sim_bridge<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec![
+        "bridge",
+        "--map",
+        "fixtures/maps/demo-arm.toml",
+        "--bus",
+        "sim",
+    ];
+    args.extend_from_slice(extra);
+    args
+}
