@@ -262,25 +262,42 @@ fn query_on(
 
 /// As a controller should over a network that may break: sends the query,
 /// and while its replies end before the completion (a session lost and
-/// made again drops the query in progress), sends it again with the same
-/// id, at most three times. The replies of the last try, and the tries.
-/// The query is on `key` (`motorwire/<robot>/cmd/<controller>`), and so
-/// are its replies.
+/// made again drops the query in progress; a query sent while the session
+/// has no route to the robot is answered by nobody at once), waits until
+/// the robot is alive again in its session and sends it again with the
+/// same id, at most five times. The replies of the last try, and the
+/// tries. The query is on `key` (`motorwire/<robot>/cmd/<controller>`),
+/// and so are its replies.
 fn query_to_completion(
     session: &zenoh::Session,
     key: &str,
     payload: &str,
     limit: Duration,
 ) -> (Vec<Value>, usize) {
+    let robot = key.split('/').nth(1).expect("motorwire/<robot>/...");
     let mut tries = 0;
     loop {
         tries += 1;
+        let started = Instant::now();
         let replies = query_on(session, key, key, payload, limit);
         let complete = replies.last().is_some_and(|r| r.get("arrived").is_some());
-        if complete || tries == 3 {
+        if complete || tries == 5 {
             return (replies, tries);
         }
-        eprintln!("try {tries}: {replies:?}; again with the same id");
+        eprintln!(
+            "try {tries}: {replies:?} after {:?}; again with the same id once {robot} is alive",
+            started.elapsed()
+        );
+        let end = Instant::now() + limit;
+        while !alive(session).iter().any(|r| r == robot) {
+            assert!(
+                Instant::now() < end,
+                "{robot} not alive again within {limit:?}"
+            );
+            thread::sleep(Duration::from_millis(100));
+        }
+        // The robot's token and its queryable travel separately.
+        thread::sleep(Duration::from_millis(200));
     }
 }
 
