@@ -210,6 +210,91 @@ fn started_recording(
     (arm, input, rx, handle)
 }
 
+/// What [`started_lean`]'s sink hands the benchmark: results counted,
+/// and the stops' and releases' results themselves.
+struct Lean {
+    /// Results given so far.
+    results: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    /// The stops' and releases' results.
+    stops: mpsc::Receiver<Value>,
+}
+
+impl Lean {
+    /// Waits until `n` results in all were given.
+    fn wait_results(&self, n: u64) {
+        let end = Instant::now() + Duration::from_secs(10);
+        while self.results.load(std::sync::atomic::Ordering::Acquire) < n {
+            assert!(Instant::now() < end, "results: {n} not given in 10 s");
+            std::thread::sleep(Duration::from_micros(200));
+        }
+    }
+}
+
+/// [`started_recording`] with the sink a controller's reader would be:
+/// each result written as its JSON line on the bridge's thread (as the
+/// CLI writes it), counted, and only the stops' and releases' handed to
+/// the benchmark's thread. [`started`] hands every result over as a
+/// `Value`: behind a stop, the benchmark's thread took a thousand of them
+/// at once, for 600 µs and more, on the core the bridge's thread had just
+/// been woken on (the other one idle: a thread that ran within the last
+/// half millisecond is not moved), and the stop waited for it
+/// (`perf sched timehist`). That is the benchmark's own work, not the
+/// bridge's, and it fell on either side of a comparison.
+fn started_lean(
+    map: &str,
+    recorder: Option<std::sync::Arc<motorwire_bridge::record::Recorder>>,
+) -> (RealTimeArm, InputSender, Lean, Handle) {
+    let map = BusMap::from_toml(map).unwrap();
+    let config = BridgeConfig {
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(map, config).unwrap();
+    let arm = RealTimeArm::start(bridge.map()).unwrap();
+    let mut runner = Runner::new();
+    if let Some(r) = recorder {
+        runner = runner.with_recorder(r);
+    }
+    let input = runner.input();
+    let results = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let given = std::sync::Arc::clone(&results);
+    let (tx, stops) = mpsc::channel();
+    let handle = arm.spawn(runner, bridge, move |o| {
+        if let Output::Result { result, .. } = o {
+            let text = black_box(o.to_json());
+            // Counted before it is handed over: a round that begins once
+            // the release's result came counts it in.
+            given.fetch_add(1, std::sync::atomic::Ordering::Release);
+            if result.emergency_stop || result.released {
+                let _ = tx.send(serde_json::from_str(&text).unwrap());
+            }
+        }
+    });
+    (arm, input, Lean { results, stops }, handle)
+}
+
+/// [`stops_behind_bursts_in_order`] on a [`started_lean`] bridge: the
+/// benchmark's thread sleeps until the stop's result.
+fn stops_behind_bursts_lean(input: &InputSender, lean: &Lean, rounds: usize) -> Vec<u64> {
+    let mut loaded = Vec::new();
+    for _ in 0..rounds {
+        let before = lean.results.load(std::sync::atomic::Ordering::Acquire);
+        for i in 0..BURST {
+            input.line(Origin(2), line(i));
+        }
+        input.line(Origin(3), r#"{"emergency_stop": true}"#);
+        let r = lean.stops.recv_timeout(Duration::from_secs(5)).unwrap();
+        assert_eq!(r["emergency_stop"], true, "{r}");
+        loaded.push(r["stop_latency_us"].as_u64().unwrap());
+        // The burst answered (cut by the stop, most of it) before the release.
+        lean.wait_results(before + BURST + 1);
+        input.line(Origin(3), r#"{"emergency_stop": false}"#);
+        let r = lean.stops.recv_timeout(Duration::from_secs(5)).unwrap();
+        assert_eq!(r["released"], true, "{r}");
+    }
+    loaded
+}
+
 /// `n` emergency stops, each released; their latencies (line to the last
 /// stop frame, µs), sorted.
 fn stop_each_released(input: &InputSender, rx: &mpsc::Receiver<Value>, n: usize) -> Vec<u64> {
@@ -340,7 +425,11 @@ fn recording_cost(passes: usize, rounds: usize) {
     let mut off_first = Vec::new();
     let mut on_first = Vec::new();
     let mut dropped = 0;
+    // Each pass's median on over its median off: the machine's drift
+    // between passes cancels in a pair.
+    let mut ratios = Vec::new();
     for _ in 0..passes {
+        let mut medians = [0u64; 2];
         for record in [false, true] {
             let recorder = record.then(|| {
                 let _ = std::fs::remove_dir_all(&dir);
@@ -356,9 +445,9 @@ fn recording_cost(passes: usize, rounds: usize) {
                     .unwrap(),
                 )
             });
-            let (_arm, input, rx, handle) =
-                started_recording(MAP, false, recorder.as_ref().map(std::sync::Arc::clone));
-            let stops = stops_behind_bursts_in_order(&input, &rx, rounds);
+            let (_arm, input, lean, handle) =
+                started_lean(MAP, recorder.as_ref().map(std::sync::Arc::clone));
+            let stops = stops_behind_bursts_lean(&input, &lean, rounds);
             input.interrupt();
             handle.join().unwrap().unwrap();
             if let Some(r) = recorder.and_then(|r| std::sync::Arc::try_unwrap(r).ok()) {
@@ -371,8 +460,14 @@ fn recording_cost(passes: usize, rounds: usize) {
             };
             first.extend(stops.iter().take(FIRST));
             steady.extend(stops.iter().skip(FIRST));
+            let mut this: Vec<u64> = stops.iter().skip(FIRST).copied().collect();
+            this.sort_unstable();
+            medians[usize::from(record)] = percentile(&this, 0.5);
         }
+        #[allow(clippy::cast_precision_loss)]
+        ratios.push(medians[1] as f64 / medians[0].max(1) as f64);
     }
+    ratios.sort_by(f64::total_cmp);
     let _ = std::fs::remove_dir_all(&dir);
     off.sort_unstable();
     on.sort_unstable();
@@ -397,6 +492,22 @@ fn recording_cost(passes: usize, rounds: usize) {
         percentile(&on, 0.5),
         percentile(&on, 0.95),
         percentile(&on, 0.99),
+    );
+    let ratio = |p: f64| {
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            clippy::cast_precision_loss
+        )]
+        let i = ((ratios.len() as f64 - 1.0) * p).round() as usize;
+        ratios.get(i).copied().unwrap_or(0.0)
+    };
+    println!(
+        "bridge/recording: each pass's median on over its median off ({} pairs): median {:.2}, quartiles {:.2} and {:.2}",
+        ratios.len(),
+        ratio(0.5),
+        ratio(0.25),
+        ratio(0.75),
     );
 }
 
