@@ -165,20 +165,15 @@ fn percentile(sorted: &[u64], p: f64) -> u64 {
 
 type Handle = std::thread::JoinHandle<Result<Bridge, motorwire_bridge::BridgeError>>;
 
-/// The bridge for `map` (no feedback) run by a `Runner` on its real-time
-/// simulated devices; results come on the receiver. With `orion`, the
-/// map's Orion motors are reached through motorwire's simulated
-/// controller on a pipe, as `--orion sim` does.
-fn started(map: &str, orion: bool) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
-    started_recording(map, orion, None)
-}
-
-/// [`started`], recording the session with `recorder` when given.
-fn started_recording(
+/// The bridge for `map` (no feedback), its real-time simulated devices
+/// and a `Runner` for it, recording the session with `recorder` when
+/// given. With `orion`, the map's Orion motors are reached through
+/// motorwire's simulated controller on a pipe, as `--orion sim` does.
+fn prepared(
     map: &str,
     orion: bool,
     recorder: Option<std::sync::Arc<motorwire_bridge::record::Recorder>>,
-) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
+) -> (Bridge, RealTimeArm, Runner) {
     let map = BusMap::from_toml(map).unwrap();
     let config = BridgeConfig {
         feedback_period: None,
@@ -200,6 +195,13 @@ fn started_recording(
             writer: Box::new(writer),
         });
     }
+    (bridge, arm, runner)
+}
+
+/// [`prepared`] and run, without recording; every result comes on the
+/// receiver.
+fn started(map: &str, orion: bool) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
+    let (bridge, arm, runner) = prepared(map, orion, None);
     let input = runner.input();
     let (tx, rx) = mpsc::channel();
     let handle = arm.spawn(runner, bridge, move |o| {
@@ -230,7 +232,7 @@ impl Lean {
     }
 }
 
-/// [`started_recording`] with the sink a controller's reader would be:
+/// [`prepared`] and run with the sink a controller's reader would be:
 /// each result written as its JSON line on the bridge's thread (as the
 /// CLI writes it), counted, and only the stops' and releases' handed to
 /// the benchmark's thread. [`started`] hands every result over as a
@@ -244,17 +246,7 @@ fn started_lean(
     map: &str,
     recorder: Option<std::sync::Arc<motorwire_bridge::record::Recorder>>,
 ) -> (RealTimeArm, InputSender, Lean, Handle) {
-    let map = BusMap::from_toml(map).unwrap();
-    let config = BridgeConfig {
-        feedback_period: None,
-        ..BridgeConfig::default()
-    };
-    let bridge = Bridge::new(map, config).unwrap();
-    let arm = RealTimeArm::start(bridge.map()).unwrap();
-    let mut runner = Runner::new();
-    if let Some(r) = recorder {
-        runner = runner.with_recorder(r);
-    }
+    let (bridge, arm, runner) = prepared(map, false, recorder);
     let input = runner.input();
     let results = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
     let given = std::sync::Arc::clone(&results);
