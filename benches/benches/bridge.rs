@@ -154,10 +154,10 @@ fn client_request_to_ack(rig: &mut Rig, k: u32) {
     black_box(done);
 }
 
-/// The `p` quantile of `sorted` (0 for none).
-fn percentile(sorted: &[u64], p: f64) -> u64 {
+/// The `p` quantile of `sorted` (zero for none): latencies in µs, ratios.
+fn percentile<T: Copy + Default>(sorted: &[T], p: f64) -> T {
     if sorted.is_empty() {
-        return 0;
+        return T::default();
     }
     let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
     sorted[i.min(sorted.len() - 1)]
@@ -412,10 +412,10 @@ fn recording_cost(passes: usize, rounds: usize) {
     // The first stops of each pass, after the bridge (and the recorder)
     // started, apart from the rest.
     const FIRST: usize = 3;
-    let mut off = Vec::new();
-    let mut on = Vec::new();
-    let mut off_first = Vec::new();
-    let mut on_first = Vec::new();
+    let mut off: Vec<u64> = Vec::new();
+    let mut on: Vec<u64> = Vec::new();
+    let mut off_first: Vec<u64> = Vec::new();
+    let mut on_first: Vec<u64> = Vec::new();
     let mut dropped = 0;
     // Each pass's median on over its median off: the machine's drift
     // between passes cancels in a pair.
@@ -485,21 +485,12 @@ fn recording_cost(passes: usize, rounds: usize) {
         percentile(&on, 0.95),
         percentile(&on, 0.99),
     );
-    let ratio = |p: f64| {
-        #[allow(
-            clippy::cast_possible_truncation,
-            clippy::cast_sign_loss,
-            clippy::cast_precision_loss
-        )]
-        let i = ((ratios.len() as f64 - 1.0) * p).round() as usize;
-        ratios.get(i).copied().unwrap_or(0.0)
-    };
     println!(
         "bridge/recording: each pass's median on over its median off ({} pairs): median {:.2}, quartiles {:.2} and {:.2}",
         ratios.len(),
-        ratio(0.5),
-        ratio(0.25),
-        ratio(0.75),
+        percentile(&ratios, 0.5),
+        percentile(&ratios, 0.25),
+        percentile(&ratios, 0.75),
     );
 }
 
