@@ -346,6 +346,18 @@ impl Recorded {
     }
 }
 
+/// What [`Recording::scan_partial`] found besides the records it handed
+/// out.
+#[derive(Debug, Clone)]
+pub struct Scanned {
+    /// How the bridge was set up (`None`: the recording does not say).
+    pub setup: Option<Setup>,
+    /// The recording ended cleanly (see [`Recording::ended`]).
+    pub ended: bool,
+    /// Its last line was cut (see [`Recording::cut`]).
+    pub cut: bool,
+}
+
 /// A recording read back: its setup and its records, each at its time
 /// from the bridge's start.
 #[derive(Debug, Clone)]
@@ -394,11 +406,43 @@ impl Recording {
         Self::read_as(dir, false)
     }
 
+    /// [`Recording::read_partial`] a record at a time: each record is
+    /// handed to `each` with its time from the bridge's start, in the
+    /// order it was written, and none is kept. What reads a long
+    /// recording to summarize it (`motorwire plot`) holds only its
+    /// summary, never the recording's records all at once.
+    ///
+    /// # Errors
+    /// As [`Recording::read_partial`]; the records before the one that
+    /// could not be read have been handed to `each`.
+    pub fn scan_partial(
+        dir: &Path,
+        mut each: impl FnMut(Duration, Recorded),
+    ) -> Result<Scanned, ReplayError> {
+        Self::scan_as(dir, false, &mut each)
+    }
+
     fn read_as(dir: &Path, whole: bool) -> Result<Self, ReplayError> {
+        let mut records = Vec::new();
+        let scanned = Self::scan_as(dir, whole, &mut |t, r| records.push((t, r)))?;
+        Ok(Self {
+            setup: scanned.setup,
+            records,
+            ended: scanned.ended,
+            cut: scanned.cut,
+        })
+    }
+
+    #[allow(clippy::too_many_lines)]
+    fn scan_as(
+        dir: &Path,
+        whole: bool,
+        each: &mut dyn FnMut(Duration, Recorded),
+    ) -> Result<Scanned, ReplayError> {
         let io = |path: PathBuf| move |source| ReplayError::Io { path, source };
         // A regular file only (a FIFO or a device would be read forever),
         // and no larger than a recording makes.
-        let read = |path: &Path, max: u64| -> Result<String, ReplayError> {
+        let open = |path: &Path, max: u64| -> Result<std::io::Take<fs::File>, ReplayError> {
             let meta = fs::metadata(path).map_err(io(path.to_owned()))?;
             let refuse = |why: String| ReplayError::Io {
                 path: path.to_owned(),
@@ -413,11 +457,12 @@ impl Recording {
                     meta.len()
                 )));
             }
+            let f = fs::File::open(path).map_err(io(path.to_owned()))?;
+            Ok(std::io::Read::take(f, max))
+        };
+        let read = |path: &Path, max: u64| -> Result<String, ReplayError> {
             let mut text = String::new();
-            fs::File::open(path)
-                .and_then(|f| {
-                    std::io::Read::read_to_string(&mut std::io::Read::take(f, max), &mut text)
-                })
+            std::io::Read::read_to_string(&mut open(path, max)?, &mut text)
                 .map_err(io(path.to_owned()))?;
             Ok(text)
         };
@@ -465,26 +510,47 @@ impl Recording {
             None => None,
         };
         let lines_path = dir.join("lines.jsonl");
-        let text = read(&lines_path, MAX_LINES_FILE)?;
-        let mut raw = Vec::new();
+        let mut lines = std::io::BufReader::new(open(&lines_path, MAX_LINES_FILE)?);
+        // The records before the start mark (a recording's first record),
+        // held until it says where time zero is.
+        let mut before_start = Vec::new();
         let mut start = None;
         let ended = written.is_some();
         let mut cut = false;
-        for (i, piece) in text.split_inclusive('\n').enumerate() {
+        let (mut count, mut frames) = (0u64, Vec::new());
+        // Times from the start; a record's `taken` too.
+        let hand =
+            |start: u64, t: u64, mut r: Recorded, each: &mut dyn FnMut(Duration, Recorded)| {
+                let since = |t: u64| Duration::from_micros(t.saturating_sub(start));
+                if let Recorded::Line { taken, .. } | Recorded::Frame { taken, .. } = &mut r {
+                    *taken = taken.map(|k| since(u64::try_from(k.as_micros()).unwrap_or(u64::MAX)));
+                }
+                each(since(t), r);
+            };
+        let mut piece = Vec::new();
+        for i in 0.. {
+            piece.clear();
+            if std::io::BufRead::read_until(&mut lines, b'\n', &mut piece)
+                .map_err(io(lines_path.clone()))?
+                == 0
+            {
+                break;
+            }
             let bad = |reason: String| ReplayError::Record {
                 path: lines_path.clone(),
                 line: i + 1,
                 reason,
             };
-            let line = piece.strip_suffix('\n').unwrap_or(piece);
-            let line = line.strip_suffix('\r').unwrap_or(line);
-            let v: Value = match serde_json::from_str(line) {
+            let complete = piece.ends_with(b"\n");
+            let line = piece.strip_suffix(b"\n").unwrap_or(&piece);
+            let line = line.strip_suffix(b"\r").unwrap_or(line);
+            let v: Value = match serde_json::from_slice(line) {
                 Ok(v) => v,
                 // The last line of a recording that never ended, with no
                 // newline: a write the kill cut short. What came before
                 // it is the recording; anywhere else a line that is not
                 // JSON is damage, and refused.
-                Err(_) if !ended && !piece.ends_with('\n') => {
+                Err(_) if !ended && !complete => {
                     cut = true;
                     break;
                 }
@@ -495,53 +561,50 @@ impl Recording {
                 .and_then(Value::as_u64)
                 .ok_or_else(|| bad("no t_us".to_owned()))?;
             let r = parse_record(&v).map_err(bad)?;
-            if r == Recorded::Mark(Mark::Start) && start.is_none() {
-                start = Some(t);
+            count += 1;
+            if whole
+                && ended
+                && let Recorded::Frame { frame, .. } = &r
+            {
+                frames.push(*frame);
             }
-            raw.push((t, r));
+            match start {
+                Some(start) => hand(start, t, r, each),
+                None if r == Recorded::Mark(Mark::Start) => {
+                    start = Some(t);
+                    for (before, r) in before_start.drain(..) {
+                        hand(t, before, r, each);
+                    }
+                    hand(t, t, r, each);
+                }
+                None => before_start.push((t, r)),
+            }
+        }
+        // No start mark: times as they were written.
+        for (t, r) in before_start {
+            hand(0, t, r, each);
         }
         // A recording that ended cleanly says how many records it wrote:
         // fewer in the file is a recording cut short.
         if whole
             && let Some(n) = written
-            && n != u64::try_from(raw.len()).unwrap_or(u64::MAX)
+            && n != count
         {
             return Err(ReplayError::Incomplete(format!(
-                "session.json says {n} records were written, lines.jsonl holds {}: the recording was cut short or edited",
-                raw.len()
+                "session.json says {n} records were written, lines.jsonl holds {count}: the recording was cut short or edited"
             )));
         }
-        if whole && written.is_some() {
-            let frames = raw.iter().filter_map(|(_, r)| match r {
-                Recorded::Frame { frame, .. } => Some(*frame),
-                _ => None,
-            });
+        if whole && ended {
             let frames_path = dir.join("frames.log");
             let log = read(&frames_path, MAX_LINES_FILE)?;
             same_frames(
                 &frames_path,
                 &log,
-                frames.collect(),
+                frames,
                 dir.join("frames.1.log").exists(),
             )?;
         }
-        let start = start.unwrap_or(0);
-        let since = |t: u64| Duration::from_micros(t.saturating_sub(start));
-        let records = raw
-            .into_iter()
-            .map(|(t, mut r)| {
-                if let Recorded::Line { taken, .. } | Recorded::Frame { taken, .. } = &mut r {
-                    *taken = taken.map(|k| since(u64::try_from(k.as_micros()).unwrap_or(u64::MAX)));
-                }
-                (since(t), r)
-            })
-            .collect();
-        Ok(Self {
-            setup,
-            records,
-            ended,
-            cut,
-        })
+        Ok(Scanned { setup, ended, cut })
     }
 
     /// The input records (lines and marks), in the order the bridge took
@@ -1699,6 +1762,58 @@ node = 0x20
         fs::write(dir.join("lines.jsonl"), &cut).unwrap();
         let e = Recording::read(&dir).unwrap_err().to_string();
         assert!(e.contains("lines.jsonl:3: EOF while parsing"), "{e}");
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    /// Read a record at a time, a recording hands out what `read_partial`
+    /// holds, in order, each at its time from the start mark (a record
+    /// written before the mark at 0); a line that is not UTF-8 is named.
+    #[test]
+    fn a_recording_scanned_a_record_at_a_time_is_the_one_read_whole() {
+        let dir =
+            std::env::temp_dir().join(format!("motorwire-replay-scan-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let session = r#"{"recorder":"motorwire","files":["frames.log","lines.jsonl"]}"#;
+        let lines = "{\"t_us\":40,\"wall_ms\":1,\"out\":{\"event\":\"ready\"}}\n\
+                     {\"t_us\":100,\"wall_ms\":1,\"mark\":{\"kind\":\"start\"}}\n\
+                     {\"t_us\":150,\"wall_ms\":1,\"in\":{\"origin\":2,\"line\":1,\"text\":\"{}\",\"taken_us\":160}}\n\
+                     {\"t_us\":300,\"wall_ms\":1,\"out\":{\"ok\":true,\"line\":1},\"to\":2}\n";
+        fs::write(dir.join("session.json"), session).unwrap();
+        fs::write(dir.join("lines.jsonl"), lines).unwrap();
+        let mut scanned = Vec::new();
+        let s = Recording::scan_partial(&dir, |t, r| scanned.push((t, r))).unwrap();
+        assert!(!s.ended && !s.cut && s.setup.is_none());
+        let us = Duration::from_micros;
+        assert_eq!(
+            scanned,
+            vec![
+                (us(0), out(None, json!({"event": "ready"}))),
+                (us(0), Recorded::Mark(Mark::Start)),
+                (
+                    us(50),
+                    Recorded::Line {
+                        taken: Some(us(60)),
+                        origin: Origin(2),
+                        number: 1,
+                        text: "{}".to_owned()
+                    }
+                ),
+                (us(200), out(Some(2), json!({"ok": true, "line": 1}))),
+            ]
+        );
+        assert_eq!(Recording::read_partial(&dir).unwrap().records, scanned);
+        // Bytes that are not UTF-8 in line 2: named, with what came before
+        // handed out.
+        let mut bad = lines.as_bytes().to_vec();
+        let at = lines.find("start").unwrap();
+        bad[at] = 0xff;
+        fs::write(dir.join("lines.jsonl"), bad).unwrap();
+        let mut n = 0;
+        let e = Recording::scan_partial(&dir, |_, _| n += 1)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("lines.jsonl:2: invalid unicode"), "{e}");
+        assert_eq!(n, 0, "before the start mark, held and not handed out");
         let _ = fs::remove_dir_all(&dir);
     }
 

@@ -4,11 +4,13 @@
 //! units on the axes. `motorwire plot` draws a recording with it; the demo
 //! draws its own session with it.
 //!
-//! The session is given as what the bridge took and gave
-//! ([`Session`]: input lines and output lines, each at its time); the map
-//! says each motor's unit and limits.
+//! The session is given as what the bridge took and gave, each at its
+//! time, reduced as it is read to what the chart draws ([`Digest`]: the
+//! motors' samples and targets, the marks): a long recording is never held
+//! whole. [`Session`] keeps a session's lines for a caller that has them
+//! already (the demo). The map says each motor's unit and limits.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use motorwire_orion::Quantity;
@@ -157,22 +159,76 @@ impl Track {
     }
 }
 
-/// The marks of `session`: its steps, emergency stops and releases,
-/// refusals (with their rule), deadman stops, devices and links lost,
-/// faults.
-fn marks(session: &Session) -> Vec<Mark> {
-    let mut out: Vec<Mark> = session
-        .steps
-        .iter()
-        .map(|(t, label)| Mark {
-            t: *t,
+impl Session {
+    /// What [`draw`] draws of it: its steps, then its outputs, in order.
+    pub(crate) fn digest(&self) -> Digest {
+        let mut d = Digest::default();
+        for (t, label) in &self.steps {
+            d.step(*t, label.clone());
+        }
+        for (t, to, v) in &self.outputs {
+            d.output(*t, *to, v);
+        }
+        for i in &self.inputs {
+            d.at(i.0);
+        }
+        d
+    }
+}
+
+/// What a chart is drawn from, taken from a session one line at a time:
+/// each motor's feedback samples and targets, the stops, the marks, and
+/// the session's end. Memory grows with the samples and marks (a few
+/// numbers each), never with the lines themselves.
+#[derive(Debug, Default)]
+pub(crate) struct Digest {
+    /// Each motor's (t, position, velocity).
+    samples: BTreeMap<String, Vec<(f64, f64, f64)>>,
+    /// Each motor's targets, each from its time (`None`: none from then).
+    targets: BTreeMap<String, Vec<(f64, Option<f64>)>>,
+    /// When each line was accepted, until its completion: its targets
+    /// start then.
+    accepted: BTreeMap<(Option<u64>, u64), f64>,
+    /// The emergency stops.
+    stops: Vec<f64>,
+    /// The motors a deadman stopped.
+    deadman: BTreeSet<String>,
+    /// The marks, in the order they came.
+    marks: Vec<Mark>,
+    /// The latest time seen.
+    end: f64,
+}
+
+impl Digest {
+    /// Something happened at `t` (an input line): the time axis reaches it.
+    pub(crate) fn at(&mut self, t: f64) {
+        self.end = self.end.max(t);
+    }
+
+    /// A step of the caller's, labelled.
+    pub(crate) fn step(&mut self, t: f64, label: String) {
+        self.at(t);
+        self.marks.push(Mark {
+            t,
             kind: MarkKind::Step,
-            label: label.clone(),
-        })
-        .collect();
-    for (t, _, v) in &session.outputs {
+            label,
+        });
+    }
+
+    /// An output line `v` given at `t` (to client `to`, `None`: every
+    /// reader's).
+    pub(crate) fn output(&mut self, t: f64, to: Option<u64>, v: &Value) {
+        self.at(t);
+        self.mark(t, v);
+        self.track(t, to, v);
+    }
+
+    /// The mark `v` makes, if any: an emergency stop or its release, a
+    /// refusal (with its rule), a deadman stop, a device or link lost, a
+    /// fault.
+    fn mark(&mut self, t: f64, v: &Value) {
         let motor = v.get("motor_id").and_then(Value::as_str).unwrap_or("");
-        let mark = |kind, label: String| Mark { t: *t, kind, label };
+        let mark = |kind, label: String| Mark { t, kind, label };
         if v.get("ok") == Some(&Value::Bool(false)) {
             let rule = v
                 .get("error")
@@ -185,84 +241,80 @@ fn marks(session: &Session) -> Vec<Mark> {
             } else {
                 format!(" {motor}")
             };
-            out.push(mark(
+            self.marks.push(mark(
                 MarkKind::Refused,
                 format!("line {line}{who} refused: {rule}"),
             ));
-            continue;
+            return;
         }
         let Some(event) = v.get("event").and_then(Value::as_str) else {
-            continue;
+            return;
         };
-        match event {
-            "emergency_stop" => out.push(mark(
+        let made = match event {
+            "emergency_stop" => mark(
                 MarkKind::Stop,
                 format!(
                     "emergency stop ({})",
                     v.get("cause").and_then(Value::as_str).unwrap_or("?")
                 ),
-            )),
-            "released" => out.push(mark(MarkKind::Release, "released".to_owned())),
-            "deadman" => out.push(mark(
+            ),
+            "released" => mark(MarkKind::Release, "released".to_owned()),
+            "deadman" => mark(
                 MarkKind::Deadman,
                 format!("deadman: {motor} stopped, no command within its timeout"),
-            )),
-            "offline" => out.push(mark(
+            ),
+            "offline" => mark(
                 MarkKind::Lost,
                 format!(
                     "{motor} offline: {}",
                     v.get("reason").and_then(Value::as_str).unwrap_or("silent")
                 ),
-            )),
-            "orion_link_lost" => out.push(mark(
+            ),
+            "orion_link_lost" => mark(
                 MarkKind::Lost,
                 "the Orion controller's link lost".to_owned(),
-            )),
-            "joint_fault" => out.push(mark(MarkKind::Lost, format!("{motor}: fault"))),
-            "rebooted" => out.push(mark(MarkKind::Lost, format!("{motor}: rebooted"))),
-            _ => {}
-        }
+            ),
+            "joint_fault" => mark(MarkKind::Lost, format!("{motor}: fault")),
+            "rebooted" => mark(MarkKind::Lost, format!("{motor}: rebooted")),
+            _ => return,
+        };
+        self.marks.push(made);
     }
-    out.sort_by(|a, b| a.t.total_cmp(&b.t));
-    out
-}
 
-/// The motors' panels: every motor of `map` that moved, had a target or
-/// was named by a deadman (or those of `only`, when given).
-fn tracks(session: &Session, map: &BusMap, only: &[String]) -> Vec<Track> {
-    let mut samples: BTreeMap<String, Vec<(f64, f64, f64)>> = BTreeMap::new();
-    let mut targets: BTreeMap<String, Vec<(f64, Option<f64>)>> = BTreeMap::new();
-    // When each line was accepted: its targets start then.
-    let mut accepted: BTreeMap<(Option<u64>, u64), f64> = BTreeMap::new();
-    let mut stops = Vec::new();
-    for (t, to, v) in &session.outputs {
+    /// What `v` says of the motors' panels: a feedback sample, a line
+    /// accepted, a move's target (from when its line was accepted), a
+    /// stop, a deadman.
+    fn track(&mut self, t: f64, to: Option<u64>, v: &Value) {
         if let Some(f) = v.get("feedback") {
             let (Some(motor), Some(p), Some(vel)) = (
                 f.get("motor_id").and_then(Value::as_str),
                 f.get("position").and_then(Value::as_f64),
                 f.get("velocity").and_then(Value::as_f64),
             ) else {
-                continue;
+                return;
             };
             // Not a number, or beyond any motor's reach: drawn at the
             // edge, never an axis with no end.
             let (Some(p), Some(vel)) = (drawable(p), drawable(vel)) else {
-                continue;
+                return;
             };
-            samples
-                .entry(motor.to_owned())
-                .or_default()
-                .push((*t, p, vel));
-            continue;
+            match self.samples.get_mut(motor) {
+                Some(s) => s.push((t, p, vel)),
+                None => {
+                    self.samples.insert(motor.to_owned(), vec![(t, p, vel)]);
+                }
+            }
+            return;
         }
         if v.get("ok") == Some(&Value::Bool(true))
             && let Some(line) = v.get("line").and_then(Value::as_u64)
         {
-            accepted.insert((*to, line), *t);
+            self.accepted.insert((to, line), t);
         }
         if v.get("arrived").is_some() {
             let line = v.get("line").and_then(Value::as_u64).unwrap_or(0);
-            let from = accepted.get(&(*to, line)).copied().unwrap_or(*t);
+            // A line completes once: its acceptance is forgotten then.
+            let from = self.accepted.remove(&(to, line)).unwrap_or(t);
             for m in v
                 .get("motors")
                 .and_then(Value::as_array)
@@ -273,38 +325,56 @@ fn tracks(session: &Session, map: &BusMap, only: &[String]) -> Vec<Track> {
                     m.get("motor_id").and_then(Value::as_str),
                     m.get("target").and_then(Value::as_f64).and_then(drawable),
                 ) {
-                    targets
+                    self.targets
                         .entry(motor.to_owned())
                         .or_default()
                         .push((from, Some(target)));
                 }
             }
         }
-        if v.get("event").and_then(Value::as_str) == Some("emergency_stop") {
-            stops.push(*t);
+        match v.get("event").and_then(Value::as_str) {
+            Some("emergency_stop") => self.stops.push(t),
+            Some("deadman") => {
+                if let Some(m) = v.get("motor_id").and_then(Value::as_str) {
+                    self.deadman.insert(m.to_owned());
+                }
+            }
+            _ => {}
         }
     }
-    let deadman: Vec<&str> = session
-        .outputs
-        .iter()
-        .filter(|(_, _, v)| v.get("event").and_then(Value::as_str) == Some("deadman"))
-        .filter_map(|(_, _, v)| v.get("motor_id").and_then(Value::as_str))
-        .collect();
+
+    /// The session's end on the time axis (at least a millisecond).
+    fn end(&self) -> f64 {
+        self.end.max(1e-3)
+    }
+}
+
+/// The marks of a session, in time order (those at one time in the
+/// order they came).
+fn marks(d: &Digest) -> Vec<Mark> {
+    let mut out = d.marks.clone();
+    out.sort_by(|a, b| a.t.total_cmp(&b.t));
+    out
+}
+
+/// The motors' panels: every motor of `map` that moved, had a target or
+/// was named by a deadman (or those of `only`, when given).
+fn tracks(d: &Digest, map: &BusMap, only: &[String]) -> Vec<Track> {
     let mut out = Vec::new();
     for m in map.motors() {
-        let s = samples.remove(&m.name).unwrap_or_default();
-        let mut tg = targets.remove(&m.name).unwrap_or_default();
+        let s = d.samples.get(&m.name).cloned().unwrap_or_default();
+        let mut tg = d.targets.get(&m.name).cloned().unwrap_or_default();
         // A stop ends every target (a move's completion, and so its
         // target, may come after the stop that cut it short).
         if !tg.is_empty() {
-            tg.extend(stops.iter().map(|t| (*t, None)));
+            tg.extend(d.stops.iter().map(|t| (*t, None)));
         }
         tg.sort_by(|a, b| a.0.total_cmp(&b.0));
         let moved = s
             .first()
             .is_some_and(|f| s.iter().any(|x| x.1 != f.1 || x.2 != f.2));
         let wanted = if only.is_empty() {
-            moved || tg.iter().any(|x| x.1.is_some()) || deadman.contains(&m.name.as_str())
+            moved || tg.iter().any(|x| x.1.is_some()) || d.deadman.contains(&m.name)
         } else {
             only.contains(&m.name)
         };
@@ -399,31 +469,24 @@ fn cut(text: &str, max: usize) -> String {
     s
 }
 
-/// Draws `session` (its motors' units and limits from `map`; only the
-/// motors `only` names, when it names any) as an SVG at `path`, titled
-/// `title`.
+/// Draws a session (its digest `d`; its motors' units and limits from
+/// `map`; only the motors `only` names, when it names any) as an SVG at
+/// `path`, titled `title`.
 ///
 /// # Errors
 /// The file cannot be written.
 #[allow(clippy::too_many_lines)]
 pub(crate) fn draw(
-    session: &Session,
+    d: &Digest,
     map: &BusMap,
     only: &[String],
     title: &str,
     path: &Path,
 ) -> Result<Drawn, String> {
     use plotters::prelude::*;
-    let tracks = tracks(session, map, only);
-    let marks = marks(session);
-    let end = session
-        .outputs
-        .iter()
-        .map(|o| o.0)
-        .chain(session.inputs.iter().map(|i| i.0))
-        .chain(session.steps.iter().map(|s| s.0))
-        .fold(0.0f64, f64::max)
-        .max(1e-3);
+    let tracks = tracks(d, map, only);
+    let marks = marks(d);
+    let end = d.end();
     // The marks' numbers, in rows above the panels, never overlapping:
     // each goes in the first row where it clears the number before it.
     // As ChartBuilder lays a chart out: its margin, then its y labels.
@@ -715,7 +778,7 @@ key = "TRM"
     fn a_session_becomes_panels_and_marks() {
         let map = BusMap::from_toml(MAP).unwrap();
         let s = session();
-        let t = tracks(&s, &map, &[]);
+        let t = tracks(&s.digest(), &map, &[]);
         let names: Vec<&str> = t.iter().map(|t| t.motor.as_str()).collect();
         assert_eq!(names, ["elbow", "turntable"]);
         assert_eq!(t[0].shown, Shown::Angle(AngleUnit::Degrees));
@@ -732,11 +795,11 @@ key = "TRM"
         assert_eq!(t[1].value_name(), "speed (controller units, ±400)");
         assert_eq!(t[1].velocity_name(), None);
         // Asked for: the wrist too, in radians.
-        let t = tracks(&s, &map, &["wrist".to_owned()]);
+        let t = tracks(&s.digest(), &map, &["wrist".to_owned()]);
         assert_eq!(t.len(), 1);
         assert_eq!(t[0].value_name(), "position (rad)");
         assert_eq!(t[0].velocity_name(), Some("velocity (rad/s)"));
-        let m = marks(&s);
+        let m = marks(&s.digest());
         let labels: Vec<(&str, MarkKind)> = m.iter().map(|m| (m.label.as_str(), m.kind)).collect();
         assert_eq!(
             labels,
@@ -830,7 +893,7 @@ key = "TRM"
             "motorwire-chart-hostile-{}.svg",
             std::process::id()
         ));
-        draw(&s, &map, &[], "a\u{0}session", &path).unwrap();
+        draw(&s.digest(), &map, &[], "a\u{0}session", &path).unwrap();
         let svg = std::fs::read_to_string(&path).unwrap();
         assert!(
             !svg.chars().any(|c| c.is_control() && c != '\n'),
@@ -846,7 +909,7 @@ key = "TRM"
     fn the_svg_names_units_marks_and_key() {
         let map = BusMap::from_toml(MAP).unwrap();
         let path = std::env::temp_dir().join(format!("motorwire-chart-{}.svg", std::process::id()));
-        let drawn = draw(&session(), &map, &[], "a session", &path).unwrap();
+        let drawn = draw(&session().digest(), &map, &[], "a session", &path).unwrap();
         assert_eq!(
             drawn,
             Drawn {

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use motorwire_bridge::replay::{Recorded, Recording};
 use motorwire_translate::BusMap;
 
-use crate::chart::{self, Session};
+use crate::chart::{self, Digest};
 use crate::console::{note, say};
 
 #[derive(Debug, clap::Args)]
@@ -35,28 +35,23 @@ pub(crate) fn run(args: &Args) -> u8 {
     }
 }
 
-/// The session a recording holds, for [`chart::draw`].
-pub(crate) fn session_of(recording: &Recording) -> Session {
-    let mut s = Session::default();
-    for (t, r) in &recording.records {
-        let t = t.as_secs_f64();
-        match r {
-            Recorded::Line {
-                origin,
-                number,
-                text,
-                ..
-            } => s.inputs.push((t, origin.0, *number, text.clone())),
-            Recorded::Output { to, value } => s.outputs.push((t, *to, value.clone())),
-            _ => {}
-        }
+/// One record of a recording, taken into `d` for [`chart::draw`]: its
+/// output lines, and its input lines' times.
+fn take(d: &mut Digest, t: std::time::Duration, r: &Recorded) {
+    let t = t.as_secs_f64();
+    match r {
+        Recorded::Line { .. } => d.at(t),
+        Recorded::Output { to, value } => d.output(t, *to, value),
+        _ => {}
     }
-    s
 }
 
 fn plot(args: &Args) -> Result<(), String> {
     let dir = &args.dir;
-    let recording = Recording::read_partial(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    // Read a record at a time: only what the chart draws is kept.
+    let mut digest = Digest::default();
+    let recording = Recording::scan_partial(dir, |t, r| take(&mut digest, t, &r))
+        .map_err(|e| format!("{}: {e}", dir.display()))?;
     if recording.cut {
         note!(
             "motorwire plot: {}: the recording did not end cleanly: its last line, cut in the middle of its write, is left out",
@@ -80,9 +75,8 @@ fn plot(args: &Args) -> Result<(), String> {
             return Err(format!("--motor {m}: not a motor of the map"));
         }
     }
-    let session = session_of(&recording);
     let title = format!("motorwire recording {}", dir.display());
-    let drawn = chart::draw(&session, &map, &args.motors, &title, &args.svg)?;
+    let drawn = chart::draw(&digest, &map, &args.motors, &title, &args.svg)?;
     say!(
         "{}: {} motors, {} marks",
         args.svg.display(),
