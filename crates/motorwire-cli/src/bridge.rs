@@ -129,10 +129,18 @@ pub(crate) struct Args {
     /// 0 picks one, printed on standard error): a page plotting each
     /// motor's last 30 s with its target and limits, its state, the events
     /// as marks and the input lines as they come. Read-only. A loopback
-    /// address unless `--token-file` is given: then the page is opened as
-    /// http://ADDR/?token=TOKEN.
+    /// address unless `--view-token-file` is given: then the page is opened
+    /// as http://ADDR/?token=TOKEN.
     #[arg(long, value_name = "ADDR")]
     view: Option<std::net::SocketAddr>,
+    /// A file holding the live view's own token (one line, at least 16
+    /// bytes, mode 0600): every request to the view then needs
+    /// `?token=TOKEN`. Required for a `--view` address other than loopback.
+    /// Never the control token (`--token-file`'s): a page's address is
+    /// seen and kept (a browser's history, a screen shared), and whoever
+    /// held that token could move the motors.
+    #[arg(long, value_name = "FILE", requires = "view")]
+    view_token_file: Option<String>,
     #[command(flatten)]
     zenoh: crate::fleet::ZenohArgs,
 }
@@ -422,11 +430,21 @@ fn bridge(args: &Args) -> Result<u8, String> {
         None => None,
     };
     if let Some(addr) = args.view {
-        let token = match &args.token_file {
-            Some(path) => Some(crate::serve::read_token(path)?),
+        let token = match &args.view_token_file {
+            Some(path) => {
+                let token = crate::serve::read_token("--view-token-file", path)?;
+                if let Some(control) = &args.token_file
+                    && crate::serve::read_token("--token-file", control)? == token
+                {
+                    return Err(format!(
+                        "--view-token-file {path}: the control token (--token-file's): whoever has the page's address could move the motors with it; give the view a token of its own"
+                    ));
+                }
+                Some(token)
+            }
             None if !crate::view::is_loopback(&addr) => {
                 return Err(format!(
-                    "--view {addr}: not a loopback address: anyone who reaches it would see the session; give --token-file FILE (the page is then opened with ?token=TOKEN), or use 127.0.0.1"
+                    "--view {addr}: not a loopback address: anyone who reaches it would see the session; give --view-token-file FILE (a token of the view's own; the page is then opened with ?token=TOKEN), or use 127.0.0.1"
                 ));
             }
             None => None,
@@ -437,7 +455,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
             "motorwire bridge: the live view at http://{}/{}",
             view.addr,
             if tokened {
-                "?token=TOKEN (the token file's)"
+                "?token=TOKEN (the view's token file's)"
             } else {
                 ""
             }
@@ -456,7 +474,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
         .unwrap_or_else(|| if args.zenoh.enabled() { "none" } else { "-" }.to_owned());
     let listen = crate::serve::parse_listen(&input_spec)?;
     let token = match (&listen, &args.token_file) {
-        (_, Some(path)) => Some(crate::serve::read_token(path)?),
+        (_, Some(path)) => Some(crate::serve::read_token("--token-file", path)?),
         (crate::serve::Listen::Tcp(_), None) if !args.insecure_no_auth => {
             return Err(format!(
                 "--input {input_spec}: TCP needs --token-file FILE (a connection's first line is the token), or --insecure-no-auth to let any local process move the motors; unix:PATH needs neither"

@@ -142,32 +142,33 @@ pub(crate) fn default_socket(
     Ok(dir.join("motorwire.sock"))
 }
 
-/// Reads the token in `path`: at most 4 KiB, trimmed, at least 16 bytes,
-/// in a file only its owner can read.
-pub(crate) fn read_token(path: &str) -> Result<String, String> {
-    let meta = fs::metadata(path).map_err(|e| format!("--token-file {path}: {e}"))?;
+/// Reads the token in `path` (given as `flag`, which errors name): at
+/// most 4 KiB, trimmed, at least 16 bytes, in a file only its owner can
+/// read.
+pub(crate) fn read_token(flag: &str, path: &str) -> Result<String, String> {
+    let meta = fs::metadata(path).map_err(|e| format!("{flag} {path}: {e}"))?;
     if !meta.is_file() {
-        return Err(format!("--token-file {path}: not a regular file"));
+        return Err(format!("{flag} {path}: not a regular file"));
     }
     if meta.permissions().mode() & 0o077 != 0 {
         return Err(format!(
-            "--token-file {path}: others can read it (mode {:o}); chmod 600 it",
+            "{flag} {path}: others can read it (mode {:o}); chmod 600 it",
             meta.permissions().mode() & 0o777
         ));
     }
     let mut text = String::new();
     fs::File::open(path)
         .and_then(|f| f.take(MAX_TOKEN_FILE + 1).read_to_string(&mut text))
-        .map_err(|e| format!("--token-file {path}: {e}"))?;
+        .map_err(|e| format!("{flag} {path}: {e}"))?;
     if text.len() as u64 > MAX_TOKEN_FILE {
         return Err(format!(
-            "--token-file {path}: over {MAX_TOKEN_FILE} bytes; a token is one line"
+            "{flag} {path}: over {MAX_TOKEN_FILE} bytes; a token is one line"
         ));
     }
     let token = text.trim().to_owned();
     if token.len() < MIN_TOKEN || token.contains('\n') {
         return Err(format!(
-            "--token-file {path}: the token must be one line of at least {MIN_TOKEN} bytes"
+            "{flag} {path}: the token must be one line of at least {MIN_TOKEN} bytes"
         ));
     }
     Ok(token)

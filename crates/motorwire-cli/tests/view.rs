@@ -142,33 +142,61 @@ fn the_view_serves_its_page_and_stream_and_only_reads() {
     assert_eq!(out.status.code(), Some(0));
 }
 
-/// Another address than loopback only with a token, and then the page
-/// and its stream only for who has it.
+/// Another address than loopback only with the view's own token, and
+/// then the page and its stream only for who has it; never the control
+/// token (it would let whoever has the page's address move the motors).
 #[test]
-fn a_view_beyond_loopback_needs_the_token() {
-    let out = common::run(&common::sim_bridge(&["--view", "0.0.0.0:0"]), b"");
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8(out.stderr).unwrap();
-    assert!(
-        err.contains("--view 0.0.0.0:0: not a loopback address"),
-        "{err}"
-    );
-
+fn a_view_beyond_loopback_needs_a_token_of_its_own() {
     let dir = std::env::temp_dir().join(format!("motorwire-view-token-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let token = dir.join("token");
-    std::fs::write(&token, "0123456789abcdef0123\n").unwrap();
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let write_token = |name: &str, text: &str| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
+        }
+        path.to_str().unwrap().to_owned()
+    };
+    let control = write_token("control", "control-token-0123456789\n");
+    let same = write_token("same", "control-token-0123456789\n");
+    let token = write_token("view", "0123456789abcdef0123\n");
+    for (args, needle) in [
+        (
+            vec!["--view", "0.0.0.0:0"],
+            "--view 0.0.0.0:0: not a loopback address: anyone who reaches it would see the session; give --view-token-file FILE",
+        ),
+        // The control token does not open a view beyond loopback.
+        (
+            vec!["--view", "0.0.0.0:0", "--token-file", &control],
+            "--view 0.0.0.0:0: not a loopback address",
+        ),
+        (
+            vec![
+                "--view",
+                "127.0.0.1:0",
+                "--token-file",
+                &control,
+                "--view-token-file",
+                &same,
+            ],
+            "the control token (--token-file's): whoever has the page's address could move the motors with it",
+        ),
+    ] {
+        let out = common::run(&common::sim_bridge(&args), b"");
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8(out.stderr).unwrap();
+        assert!(err.contains(needle), "{args:?}: {err}");
     }
-    let (mut child, addr, _err) = bridge_with_view(&["--token-file", token.to_str().unwrap()]);
+    let (mut child, addr, _err) =
+        bridge_with_view(&["--token-file", &control, "--view-token-file", &token]);
     for path in [
         "/",
         "/events",
         "/?token=0123456789abcdef012",
         "/?token=wrong",
+        "/?token=control-token-0123456789",
     ] {
         let r = get(&addr, &format!("GET {path} HTTP/1.1\r\n\r\n"));
         assert!(r.starts_with("HTTP/1.1 403 Forbidden\r\n"), "{path}: {r}");
