@@ -346,6 +346,34 @@ impl Recorded {
     }
 }
 
+/// Records before a recording's start mark held until it comes, at most:
+/// beyond, the start is found by reading the file once first.
+const HELD_BEFORE_START: usize = 4_096;
+
+/// A line of `lines.jsonl` (its end, `\n` or `\r\n`, left out) as JSON.
+fn parse_line(piece: &[u8]) -> serde_json::Result<Value> {
+    let line = piece.strip_suffix(b"\n").unwrap_or(piece);
+    let line = line.strip_suffix(b"\r").unwrap_or(line);
+    serde_json::from_slice(line)
+}
+
+/// The time of the first start mark in `lines` (`None`: none before the
+/// end or the first line that cannot be read, which the full reading
+/// then refuses or leaves out as cut).
+fn first_start(mut lines: impl std::io::BufRead) -> Option<u64> {
+    let mut piece = Vec::new();
+    loop {
+        piece.clear();
+        if lines.read_until(b'\n', &mut piece).ok()? == 0 {
+            return None;
+        }
+        let v = parse_line(&piece).ok()?;
+        if parse_record(&v).ok()? == Recorded::Mark(Mark::Start) {
+            return v.get("t_us").and_then(Value::as_u64);
+        }
+    }
+}
+
 /// What [`Recording::scan_partial`] found besides the records it handed
 /// out.
 #[derive(Debug, Clone)]
@@ -510,14 +538,7 @@ impl Recording {
             None => None,
         };
         let lines_path = dir.join("lines.jsonl");
-        let mut lines = std::io::BufReader::new(open(&lines_path, MAX_LINES_FILE)?);
-        // The records before the start mark (a recording's first record),
-        // held until it says where time zero is.
-        let mut before_start = Vec::new();
-        let mut start = None;
         let ended = written.is_some();
-        let mut cut = false;
-        let (mut count, mut frames) = (0u64, Vec::new());
         // Times from the start; a record's `taken` too.
         let hand =
             |start: u64, t: u64, mut r: Recorded, each: &mut dyn FnMut(Duration, Recorded)| {
@@ -527,63 +548,89 @@ impl Recording {
                 }
                 each(since(t), r);
             };
-        let mut piece = Vec::new();
-        for i in 0.. {
-            piece.clear();
-            if std::io::BufRead::read_until(&mut lines, b'\n', &mut piece)
-                .map_err(io(lines_path.clone()))?
-                == 0
-            {
-                break;
-            }
-            let bad = |reason: String| ReplayError::Record {
-                path: lines_path.clone(),
-                line: i + 1,
-                reason,
-            };
-            let complete = piece.ends_with(b"\n");
-            let line = piece.strip_suffix(b"\n").unwrap_or(&piece);
-            let line = line.strip_suffix(b"\r").unwrap_or(line);
-            let v: Value = match serde_json::from_slice(line) {
-                Ok(v) => v,
-                // The last line of a recording that never ended, with no
-                // newline: a write the kill cut short. What came before
-                // it is the recording; anywhere else a line that is not
-                // JSON is damage, and refused.
-                Err(_) if !ended && !complete => {
-                    cut = true;
+        // Time zero once known: from the start mark (a recording's first
+        // record), or, when more than HELD_BEFORE_START records come
+        // before it (or there is none), from reading the file once first,
+        // so those need not all be held.
+        let mut known_start = None;
+        let (count, frames, cut) = 'read: loop {
+            let mut lines = std::io::BufReader::new(open(&lines_path, MAX_LINES_FILE)?);
+            // The records before the start mark, held until it comes.
+            let mut before_start = Vec::new();
+            let mut start = known_start;
+            let mut cut = false;
+            let (mut count, mut frames) = (0u64, Vec::new());
+            let mut piece = Vec::new();
+            for i in 0.. {
+                piece.clear();
+                if std::io::BufRead::read_until(&mut lines, b'\n', &mut piece)
+                    .map_err(io(lines_path.clone()))?
+                    == 0
+                {
                     break;
                 }
-                Err(e) => return Err(bad(e.to_string())),
-            };
-            let t = v
-                .get("t_us")
-                .and_then(Value::as_u64)
-                .ok_or_else(|| bad("no t_us".to_owned()))?;
-            let r = parse_record(&v).map_err(bad)?;
-            count += 1;
-            if whole
-                && ended
-                && let Recorded::Frame { frame, .. } = &r
-            {
-                frames.push(*frame);
-            }
-            match start {
-                Some(start) => hand(start, t, r, each),
-                None if r == Recorded::Mark(Mark::Start) => {
-                    start = Some(t);
-                    for (before, r) in before_start.drain(..) {
-                        hand(t, before, r, each);
+                let bad = |reason: String| ReplayError::Record {
+                    path: lines_path.clone(),
+                    line: i + 1,
+                    reason,
+                };
+                let complete = piece.ends_with(b"\n");
+                let v: Value = match parse_line(&piece) {
+                    Ok(v) => v,
+                    // The last line of a recording that never ended, with
+                    // no newline: a write the kill cut short. What came
+                    // before it is the recording; anywhere else a line
+                    // that is not JSON is damage, and refused.
+                    Err(_) if !ended && !complete => {
+                        cut = true;
+                        break;
                     }
-                    hand(t, t, r, each);
+                    Err(e) => return Err(bad(e.to_string())),
+                };
+                let t = v
+                    .get("t_us")
+                    .and_then(Value::as_u64)
+                    .ok_or_else(|| bad("no t_us".to_owned()))?;
+                let r = parse_record(&v).map_err(bad)?;
+                count += 1;
+                if whole
+                    && ended
+                    && let Recorded::Frame { frame, .. } = &r
+                {
+                    frames.push(*frame);
                 }
-                None => before_start.push((t, r)),
+                match start {
+                    Some(start) => hand(start, t, r, each),
+                    None if r == Recorded::Mark(Mark::Start) => {
+                        start = Some(t);
+                        for (before, r) in before_start.drain(..) {
+                            hand(t, before, r, each);
+                        }
+                        hand(t, t, r, each);
+                    }
+                    None if before_start.len() < HELD_BEFORE_START => {
+                        before_start.push((t, r));
+                    }
+                    None => {
+                        // Read again from the top, time zero known (none
+                        // was handed out yet).
+                        known_start = Some(
+                            first_start(std::io::BufReader::new(open(
+                                &lines_path,
+                                MAX_LINES_FILE,
+                            )?))
+                            .unwrap_or(0),
+                        );
+                        continue 'read;
+                    }
+                }
             }
-        }
-        // No start mark: times as they were written.
-        for (t, r) in before_start {
-            hand(0, t, r, each);
-        }
+            // No start mark: times as they were written.
+            for (t, r) in before_start {
+                hand(0, t, r, each);
+            }
+            break (count, frames, cut);
+        };
         // A recording that ended cleanly says how many records it wrote:
         // fewer in the file is a recording cut short.
         if whole
@@ -1814,6 +1861,40 @@ node = 0x20
             .to_string();
         assert!(e.contains("lines.jsonl:2: invalid unicode"), "{e}");
         assert_eq!(n, 0, "before the start mark, held and not handed out");
+        // More records before the start mark than are held: the start is
+        // found first, and each is at its time from it all the same; with
+        // no start mark, at its time as written.
+        let many = HELD_BEFORE_START + 10;
+        let mut text: String = (0..many)
+            .map(|i| {
+                format!(
+                    "{{\"t_us\":{},\"wall_ms\":1,\"out\":{{\"n\":{i}}}}}\n",
+                    1_000 + i
+                )
+            })
+            .collect();
+        let without_start = text.clone();
+        text.push_str("{\"t_us\":3000,\"wall_ms\":1,\"mark\":{\"kind\":\"start\"}}\n");
+        text.push_str("{\"t_us\":9000,\"wall_ms\":1,\"mark\":{\"kind\":\"finish\"}}\n");
+        fs::write(dir.join("lines.jsonl"), &text).unwrap();
+        let mut scanned = Vec::new();
+        Recording::scan_partial(&dir, |t, r| scanned.push((t, r))).unwrap();
+        assert_eq!(scanned.len(), many + 2);
+        assert_eq!(scanned[0], (us(0), out(None, json!({"n": 0}))));
+        assert_eq!(scanned[many], (us(0), Recorded::Mark(Mark::Start)));
+        assert_eq!(scanned[many + 1], (us(6_000), Recorded::Mark(Mark::Finish)));
+        assert_eq!(Recording::read_partial(&dir).unwrap().records, scanned);
+        fs::write(dir.join("lines.jsonl"), &without_start).unwrap();
+        let mut scanned = Vec::new();
+        Recording::scan_partial(&dir, |t, r| scanned.push((t, r))).unwrap();
+        assert_eq!(scanned.len(), many);
+        assert_eq!(
+            scanned[many - 1],
+            (
+                us(1_000 + many as u64 - 1),
+                out(None, json!({"n": many - 1}))
+            )
+        );
         let _ = fs::remove_dir_all(&dir);
     }
 

@@ -186,8 +186,7 @@ pub(crate) struct Digest {
     samples: BTreeMap<String, Vec<(f64, f64, f64)>>,
     /// Each motor's targets, each from its time (`None`: none from then).
     targets: BTreeMap<String, Vec<(f64, Option<f64>)>>,
-    /// When each line was accepted, until its completion: its targets
-    /// start then.
+    /// When each line was accepted: its targets start then.
     accepted: BTreeMap<(Option<u64>, u64), f64>,
     /// The emergency stops.
     stops: Vec<f64>,
@@ -285,6 +284,12 @@ impl Digest {
     /// accepted, a move's target (from when its line was accepted), a
     /// stop, a deadman.
     fn track(&mut self, t: f64, to: Option<u64>, v: &Value) {
+        // A deadman names its motor whatever else its line holds.
+        if v.get("event").and_then(Value::as_str) == Some("deadman")
+            && let Some(m) = v.get("motor_id").and_then(Value::as_str)
+        {
+            self.deadman.insert(m.to_owned());
+        }
         if let Some(f) = v.get("feedback") {
             let (Some(motor), Some(p), Some(vel)) = (
                 f.get("motor_id").and_then(Value::as_str),
@@ -313,8 +318,7 @@ impl Digest {
         }
         if v.get("arrived").is_some() {
             let line = v.get("line").and_then(Value::as_u64).unwrap_or(0);
-            // A line completes once: its acceptance is forgotten then.
-            let from = self.accepted.remove(&(to, line)).unwrap_or(t);
+            let from = self.accepted.get(&(to, line)).copied().unwrap_or(t);
             for m in v
                 .get("motors")
                 .and_then(Value::as_array)
@@ -332,14 +336,8 @@ impl Digest {
                 }
             }
         }
-        match v.get("event").and_then(Value::as_str) {
-            Some("emergency_stop") => self.stops.push(t),
-            Some("deadman") => {
-                if let Some(m) = v.get("motor_id").and_then(Value::as_str) {
-                    self.deadman.insert(m.to_owned());
-                }
-            }
-            _ => {}
+        if v.get("event").and_then(Value::as_str) == Some("emergency_stop") {
+            self.stops.push(t);
         }
     }
 
@@ -767,6 +765,33 @@ key = "TRM"
             json!({"event": "released", "reactivated": ["elbow"]}),
         ));
         s
+    }
+
+    /// Taken a line at a time, a session is what it was taken whole: a
+    /// deadman names its motor whatever else its line holds, and every
+    /// completion of a line draws its target from the line's acceptance.
+    #[test]
+    fn a_digest_keeps_what_the_whole_session_said() {
+        let map = BusMap::from_toml(MAP).unwrap();
+        let mut d = Digest::default();
+        d.output(
+            0.1,
+            None,
+            &json!({"event": "deadman", "motor_id": "wrist", "feedback": null}),
+        );
+        d.output(0.2, Some(0), &json!({"ok": true, "line": 1}));
+        for (t, target) in [(0.3, 30.0), (0.6, 60.0)] {
+            d.output(
+                t,
+                Some(0),
+                &json!({"arrived": true, "line": 1, "motors": [{"motor_id": "elbow", "target": target}]}),
+            );
+        }
+        let t = tracks(&d, &map, &[]);
+        let names: Vec<&str> = t.iter().map(|t| t.motor.as_str()).collect();
+        assert_eq!(names, ["elbow", "wrist"]);
+        assert_eq!(t[0].targets, vec![(0.2, Some(30.0)), (0.2, Some(60.0))]);
+        assert_eq!(d.end(), 0.6);
     }
 
     /// A motor that moved, had a target or was stopped by its deadman has

@@ -152,7 +152,7 @@ pub(crate) fn read_token(flag: &str, path: &str) -> Result<String, String> {
     }
     if meta.permissions().mode() & 0o077 != 0 {
         return Err(format!(
-            "{flag} {path}: others can read it (mode {:o}); chmod 600 it",
+            "{flag} {path}: others than its owner can read it (mode {:o}); chmod 600 it",
             meta.permissions().mode() & 0o777
         ));
     }
@@ -166,9 +166,9 @@ pub(crate) fn read_token(flag: &str, path: &str) -> Result<String, String> {
         ));
     }
     let token = text.trim().to_owned();
-    if token.len() < MIN_TOKEN || token.contains('\n') {
+    if token.len() < MIN_TOKEN || token.contains(char::is_control) {
         return Err(format!(
-            "{flag} {path}: the token must be one line of at least {MIN_TOKEN} bytes"
+            "{flag} {path}: the token must be one line of at least {MIN_TOKEN} bytes, with no control characters"
         ));
     }
     Ok(token)
