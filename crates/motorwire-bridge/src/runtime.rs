@@ -543,9 +543,27 @@ pub fn feed(
     reader: &mut impl BufRead,
     partial_is_line: bool,
 ) -> io::Result<()> {
+    feed_withholding(input, origin, reader, partial_is_line, |_| None)
+}
+
+/// [`feed`], except that a line `withhold` gives a reason for is refused
+/// with that reason and goes no further: the bridge never reads it, and
+/// its taps (a recording, the live view) are told only the reason, never
+/// its text. A TCP client's token sent again as a line is withheld so
+/// (`motorwire bridge --input tcp:`): a secret never reaches a recording.
+pub fn feed_withholding(
+    input: &InputSender,
+    origin: Origin,
+    reader: &mut impl BufRead,
+    partial_is_line: bool,
+    withhold: impl Fn(&str) -> Option<&'static str>,
+) -> io::Result<()> {
     loop {
         match read_line(reader, input.max_line)? {
-            ReadLine::Line(s) => input.line(origin, s),
+            ReadLine::Line(s) => match withhold(&s) {
+                Some(reason) => input.refused(origin, reason),
+                None => input.line(origin, s),
+            },
             ReadLine::TooLong {
                 names_stop,
                 head,
@@ -557,7 +575,10 @@ pub fn feed(
                 length,
             } => input.unreadable(origin, "the line is not UTF-8", names_stop, head, length),
             ReadLine::Partial(s) if partial_is_line => {
-                input.line(origin, s);
+                match withhold(&s) {
+                    Some(reason) => input.refused(origin, reason),
+                    None => input.line(origin, s),
+                }
                 return Ok(());
             }
             ReadLine::Partial(s) => {

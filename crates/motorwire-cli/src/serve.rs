@@ -29,7 +29,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use motorwire_bridge::{InputSender, Origin, Output, ReadLine, feed, read_line};
+use motorwire_bridge::{InputSender, Origin, Output, ReadLine, feed, feed_withholding, read_line};
 
 /// The origin of standard input's lines.
 pub(crate) const STDIN: Origin = Origin(0);
@@ -42,6 +42,10 @@ const STDOUT_QUEUE: usize = 4096;
 
 /// The longest token file read (bytes).
 const MAX_TOKEN_FILE: u64 = 4096;
+
+/// Why a line that is the token again, after the connection's first, is
+/// refused: it is not recorded, shown or read.
+const TOKEN_AGAIN: &str = "the bridge's token again: this connection is already authenticated; the line was neither read nor recorded";
 
 /// The shortest token accepted (bytes).
 const MIN_TOKEN: usize = 16;
@@ -912,7 +916,7 @@ impl Router {
             {
                 return;
             }
-            self.feed_rest(id, &mut reader);
+            self.feed_rest(id, &mut reader, None);
             return;
         }
         // The first line that is not blank (HTTP allows empty lines before
@@ -977,7 +981,7 @@ impl Router {
                     ),
                     _ => self.input.refused(origin, "the line is not UTF-8"),
                 }
-                self.feed_rest(id, &mut reader);
+                self.feed_rest(id, &mut reader, None);
                 return;
             }
         };
@@ -1047,7 +1051,7 @@ impl Router {
         if first_is_command {
             self.input.line(Origin(id), first);
         }
-        self.feed_rest(id, &mut reader);
+        self.feed_rest(id, &mut reader, config.token.as_deref());
     }
 
     /// A place among the authenticated clients, if one is free: held until
@@ -1061,10 +1065,16 @@ impl Router {
     }
 
     /// Feeds the rest of a client's lines; lets it go once it has all its
-    /// results.
-    fn feed_rest(&self, id: u64, reader: &mut BufReader<Timed>) {
+    /// results. A line that is the `token` again is refused and withheld:
+    /// neither the recording nor the live view ever holds the token.
+    fn feed_rest(&self, id: u64, reader: &mut BufReader<Timed>, token: Option<&str>) {
+        let withhold = |line: &str| {
+            token
+                .is_some_and(|t| same_secret(line.trim().as_bytes(), t.as_bytes()))
+                .then_some(TOKEN_AGAIN)
+        };
         // A client that goes away mid-line: its partial line is not taken.
-        let _ = feed(&self.input, Origin(id), reader, false);
+        let _ = feed_withholding(&self.input, Origin(id), reader, false, withhold);
         self.let_go(id);
     }
 

@@ -421,7 +421,16 @@ fn a_wrong_or_missing_token_is_refused_and_the_right_one_is_served() {
     let token = dir.join("token");
     std::fs::write(&token, "correct-horse-battery-staple\n").unwrap();
     std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o600)).unwrap();
-    let (_bridge, port, log) = tcp_bridge(&dir, &["--token-file", token.to_str().unwrap()]);
+    let record = dir.join("recording");
+    let (_bridge, port, log) = tcp_bridge(
+        &dir,
+        &[
+            "--token-file",
+            token.to_str().unwrap(),
+            "--record",
+            record.to_str().unwrap(),
+        ],
+    );
     // A wrong token, then a move: one error line, closed, nothing moved.
     let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
     writeln!(s, "correct-horse-battery-stapler").unwrap();
@@ -443,10 +452,30 @@ fn a_wrong_or_missing_token_is_refused_and_the_right_one_is_served() {
     let mut w = s.try_clone().unwrap();
     writeln!(w, "correct-horse-battery-staple").unwrap();
     writeln!(w, "{}", command("elbow", 10.0)).unwrap();
-    let r = next_result(&mut BufReader::new(s));
-    assert_eq!(r["ok"], true, "{r}");
-    assert_eq!(r["line"], 1, "the token is not a line: {r}");
+    let mut r = BufReader::new(s);
+    let first = next_result(&mut r);
+    assert_eq!(first["ok"], true, "{first}");
+    assert_eq!(first["line"], 1, "the token is not a line: {first}");
     assert_eq!(moves(&log), 1);
+    // The token again (a client's mistake): refused, and neither the
+    // recording nor anything else holds it.
+    writeln!(w, " correct-horse-battery-staple").unwrap();
+    let again = next_result(&mut r);
+    assert_eq!(again["ok"], false, "{again}");
+    assert_eq!(again["line"], 2, "{again}");
+    assert!(
+        again
+            .to_string()
+            .contains("the bridge's token again: this connection is already authenticated"),
+        "{again}"
+    );
+    thread::sleep(Duration::from_millis(300));
+    let lines = std::fs::read_to_string(record.join("lines.jsonl")).unwrap();
+    assert!(lines.contains("already authenticated"), "{lines}");
+    assert!(
+        !lines.contains("battery-staple"),
+        "the token recorded:\n{lines}"
+    );
 }
 
 #[test]
