@@ -496,41 +496,37 @@ fn tcp_needs_a_token_and_loopback_and_the_token_file_its_owner() {
     let out = run(&["--input", "tcp:0.0.0.0:0", "--insecure-no-auth"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("is not a loopback address"));
-    let token = dir.join("open-token");
-    std::fs::write(&token, "0123456789abcdef0123").unwrap();
-    std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o644)).unwrap();
-    let out = run(&[
-        "--input",
-        "tcp:127.0.0.1:0",
-        "--token-file",
-        token.to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(
-        String::from_utf8_lossy(&out.stderr)
-            .contains("others than its owner can read it (mode 644)"),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let out = run(&["--input", "tcp:127.0.0.1:0", "--token-file", "/dev/zero"]);
     assert_eq!(out.status.code(), Some(2));
-    // Two lines split by a carriage return are not one token.
-    let split = dir.join("split-token");
-    std::fs::write(&split, "0123456789abcdef\rsecond-line-0123\n").unwrap();
-    std::fs::set_permissions(&split, std::fs::Permissions::from_mode(0o600)).unwrap();
-    let out = run(&[
-        "--input",
-        "tcp:127.0.0.1:0",
-        "--token-file",
-        split.to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(
-        String::from_utf8_lossy(&out.stderr)
-            .contains("must be one line of at least 16 bytes, with no control characters"),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    // A file others can read; two lines split by a carriage return (not
+    // one token).
+    for (name, text, mode, needle) in [
+        (
+            "open-token",
+            "0123456789abcdef0123",
+            0o644,
+            "others than its owner can read it (mode 644)",
+        ),
+        (
+            "split-token",
+            "0123456789abcdef\rsecond-line-0123\n",
+            0o600,
+            "must be one line of at least 16 bytes, with no control characters",
+        ),
+    ] {
+        let token = dir.join(name);
+        std::fs::write(&token, text).unwrap();
+        std::fs::set_permissions(&token, std::fs::Permissions::from_mode(mode)).unwrap();
+        let out = run(&[
+            "--input",
+            "tcp:127.0.0.1:0",
+            "--token-file",
+            token.to_str().unwrap(),
+        ]);
+        assert_eq!(out.status.code(), Some(2), "{name}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{name}: {err}");
+    }
 }
 
 #[test]
