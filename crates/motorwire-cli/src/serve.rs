@@ -29,7 +29,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use motorwire_bridge::{InputSender, Origin, Output, ReadLine, feed, feed_withholding, read_line};
+use motorwire_bridge::{InputSender, Origin, Output, ReadLine, feed_withholding, read_line};
 
 /// The origin of standard input's lines.
 pub(crate) const STDIN: Origin = Origin(0);
@@ -43,9 +43,16 @@ const STDOUT_QUEUE: usize = 4096;
 /// The longest token file read (bytes).
 const MAX_TOKEN_FILE: u64 = 4096;
 
-/// Why a line that is the token again, after the connection's first, is
-/// refused: it is not recorded, shown or read.
-const TOKEN_AGAIN: &str = "the bridge's token again: this connection is already authenticated; the line was neither read nor recorded";
+/// Why a line that is the token (again, after a connection's first; or
+/// on standard input) is refused: it is not recorded, shown or read.
+const TOKEN_AGAIN: &str = "the bridge's token as a line: it is never a command (a connection sends it once, first); the line was neither read nor recorded";
+
+/// Why `line` is withheld: it is the `token`.
+fn withheld(line: &str, token: Option<&str>) -> Option<&'static str> {
+    token
+        .is_some_and(|t| same_secret(line.trim().as_bytes(), t.as_bytes()))
+        .then_some(TOKEN_AGAIN)
+}
 
 /// The shortest token accepted (bytes).
 const MIN_TOKEN: usize = 16;
@@ -704,12 +711,15 @@ impl Router {
         Ok(())
     }
 
-    /// Standard input fed to the bridge, which stops at its end.
-    pub(crate) fn serve_stdin(self: &Arc<Self>) {
+    /// Standard input fed to the bridge, which stops at its end. A line
+    /// that is the `token` (`--token-file`'s, when given) is refused and
+    /// withheld, as on a connection: it is never recorded or shown.
+    pub(crate) fn serve_stdin(self: &Arc<Self>, token: Option<String>) {
         let r = Arc::clone(self);
         thread::spawn(move || {
             let mut reader = BufReader::new(io::stdin());
-            if let Err(e) = feed(&r.input, STDIN, &mut reader, true) {
+            let withhold = |line: &str| withheld(line, token.as_deref());
+            if let Err(e) = feed_withholding(&r.input, STDIN, &mut reader, true, withhold) {
                 *r.input_failure
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner) =
@@ -738,7 +748,7 @@ impl Router {
     ) -> Result<Option<PathBuf>, String> {
         match at {
             Listen::Stdin => {
-                self.serve_stdin();
+                self.serve_stdin(config.token);
                 Ok(None)
             }
             Listen::Nothing => {
@@ -1068,11 +1078,7 @@ impl Router {
     /// results. A line that is the `token` again is refused and withheld:
     /// neither the recording nor the live view ever holds the token.
     fn feed_rest(&self, id: u64, reader: &mut BufReader<Timed>, token: Option<&str>) {
-        let withhold = |line: &str| {
-            token
-                .is_some_and(|t| same_secret(line.trim().as_bytes(), t.as_bytes()))
-                .then_some(TOKEN_AGAIN)
-        };
+        let withhold = |line: &str| withheld(line, token);
         // A client that goes away mid-line: its partial line is not taken.
         let _ = feed_withholding(&self.input, Origin(id), reader, false, withhold);
         self.let_go(id);

@@ -466,16 +466,60 @@ fn a_wrong_or_missing_token_is_refused_and_the_right_one_is_served() {
     assert!(
         again
             .to_string()
-            .contains("the bridge's token again: this connection is already authenticated"),
+            .contains("the bridge's token as a line: it is never a command"),
         "{again}"
     );
     thread::sleep(Duration::from_millis(300));
     let lines = std::fs::read_to_string(record.join("lines.jsonl")).unwrap();
-    assert!(lines.contains("already authenticated"), "{lines}");
+    assert!(lines.contains("the bridge's token as a line"), "{lines}");
     assert!(
         !lines.contains("battery-staple"),
         "the token recorded:\n{lines}"
     );
+}
+
+/// A line of standard input that is `--token-file`'s token is refused and
+/// withheld as on a connection: the recording never holds it.
+#[test]
+fn the_token_on_standard_input_is_refused_and_not_recorded() {
+    let dir = scratch("stdin-token");
+    let token = dir.join("token");
+    std::fs::write(&token, "correct-horse-battery-staple\n").unwrap();
+    std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let record = dir.join("recording");
+    let out = common::run(
+        &[
+            "bridge",
+            "--map",
+            MAP,
+            "--bus",
+            "sim",
+            "--token-file",
+            token.to_str().unwrap(),
+            "--record",
+            record.to_str().unwrap(),
+        ],
+        b"correct-horse-battery-staple\r\n",
+    );
+    assert_eq!(out.status.code(), Some(0));
+    let printed = String::from_utf8(out.stdout).unwrap();
+    let result = printed
+        .lines()
+        .map(|l| serde_json::from_str::<Value>(l).unwrap())
+        .find(|v| v["line"] == 1)
+        .unwrap();
+    assert_eq!(result["ok"], false, "{result}");
+    assert!(
+        result.to_string().contains("the bridge's token as a line"),
+        "{result}"
+    );
+    let lines = std::fs::read_to_string(record.join("lines.jsonl")).unwrap();
+    assert!(lines.contains("the bridge's token as a line"), "{lines}");
+    assert!(
+        !lines.contains("battery-staple"),
+        "the token recorded:\n{lines}"
+    );
+    assert!(!printed.contains("battery-staple"), "{printed}");
 }
 
 #[test]
