@@ -488,17 +488,12 @@ fn the_token_on_standard_input_is_refused_and_not_recorded() {
     std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o600)).unwrap();
     let record = dir.join("recording");
     let out = common::run(
-        &[
-            "bridge",
-            "--map",
-            MAP,
-            "--bus",
-            "sim",
+        &common::sim_bridge(&[
             "--token-file",
             token.to_str().unwrap(),
             "--record",
             record.to_str().unwrap(),
-        ],
+        ]),
         b"correct-horse-battery-staple\r\n",
     );
     assert_eq!(out.status.code(), Some(0));
