@@ -558,12 +558,13 @@ pub fn feed_withholding(
     partial_is_line: bool,
     withhold: impl Fn(&str) -> Option<&'static str>,
 ) -> io::Result<()> {
+    let take = |s: String| match withhold(&s) {
+        Some(reason) => input.refused(origin, reason),
+        None => input.line(origin, s),
+    };
     loop {
         match read_line(reader, input.max_line)? {
-            ReadLine::Line(s) => match withhold(&s) {
-                Some(reason) => input.refused(origin, reason),
-                None => input.line(origin, s),
-            },
+            ReadLine::Line(s) => take(s),
             ReadLine::TooLong {
                 names_stop,
                 head,
@@ -575,10 +576,7 @@ pub fn feed_withholding(
                 length,
             } => input.unreadable(origin, "the line is not UTF-8", names_stop, head, length),
             ReadLine::Partial(s) if partial_is_line => {
-                match withhold(&s) {
-                    Some(reason) => input.refused(origin, reason),
-                    None => input.line(origin, s),
-                }
+                take(s);
                 return Ok(());
             }
             ReadLine::Partial(s) => {

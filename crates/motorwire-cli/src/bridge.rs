@@ -429,13 +429,17 @@ fn bridge(args: &Args) -> Result<u8, String> {
         }
         None => None,
     };
+    // The control token, read once: the view's must differ from it.
+    let control_token = args
+        .token_file
+        .as_deref()
+        .map(|path| crate::serve::read_token("--token-file", path))
+        .transpose()?;
     if let Some(addr) = args.view {
         let token = match &args.view_token_file {
             Some(path) => {
                 let token = crate::serve::read_token("--view-token-file", path)?;
-                if let Some(control) = &args.token_file
-                    && crate::serve::read_token("--token-file", control)? == token
-                {
+                if control_token.as_ref() == Some(&token) {
                     return Err(format!(
                         "--view-token-file {path}: the control token (--token-file's): whoever has the page's address could move the motors with it; give the view a token of its own"
                     ));
@@ -473,8 +477,8 @@ fn bridge(args: &Args) -> Result<u8, String> {
         .clone()
         .unwrap_or_else(|| if args.zenoh.enabled() { "none" } else { "-" }.to_owned());
     let listen = crate::serve::parse_listen(&input_spec)?;
-    let token = match (&listen, &args.token_file) {
-        (_, Some(path)) => Some(crate::serve::read_token("--token-file", path)?),
+    let token = match (&listen, control_token) {
+        (_, Some(token)) => Some(token),
         (crate::serve::Listen::Tcp(_), None) if !args.insecure_no_auth => {
             return Err(format!(
                 "--input {input_spec}: TCP needs --token-file FILE (a connection's first line is the token), or --insecure-no-auth to let any local process move the motors; unix:PATH needs neither"

@@ -349,19 +349,19 @@ impl Digest {
 
 /// The marks of a session, in time order (those at one time in the
 /// order they came).
-fn marks(d: &Digest) -> Vec<Mark> {
-    let mut out = d.marks.clone();
+fn marks(d: &mut Digest) -> Vec<Mark> {
+    let mut out = std::mem::take(&mut d.marks);
     out.sort_by(|a, b| a.t.total_cmp(&b.t));
     out
 }
 
 /// The motors' panels: every motor of `map` that moved, had a target or
 /// was named by a deadman (or those of `only`, when given).
-fn tracks(d: &Digest, map: &BusMap, only: &[String]) -> Vec<Track> {
+fn tracks(d: &mut Digest, map: &BusMap, only: &[String]) -> Vec<Track> {
     let mut out = Vec::new();
     for m in map.motors() {
-        let s = d.samples.get(&m.name).cloned().unwrap_or_default();
-        let mut tg = d.targets.get(&m.name).cloned().unwrap_or_default();
+        let s = d.samples.remove(&m.name).unwrap_or_default();
+        let mut tg = d.targets.remove(&m.name).unwrap_or_default();
         // A stop ends every target (a move's completion, and so its
         // target, may come after the stop that cut it short).
         if !tg.is_empty() {
@@ -475,15 +475,17 @@ fn cut(text: &str, max: usize) -> String {
 /// The file cannot be written.
 #[allow(clippy::too_many_lines)]
 pub(crate) fn draw(
-    d: &Digest,
+    mut d: Digest,
     map: &BusMap,
     only: &[String],
     title: &str,
     path: &Path,
 ) -> Result<Drawn, String> {
     use plotters::prelude::*;
-    let tracks = tracks(d, map, only);
-    let marks = marks(d);
+    // Taken out of the digest, not copied: a long recording's samples and
+    // marks are held once.
+    let tracks = tracks(&mut d, map, only);
+    let marks = marks(&mut d);
     let end = d.end();
     // The marks' numbers, in rows above the panels, never overlapping:
     // each goes in the first row where it clears the number before it.
@@ -787,7 +789,7 @@ key = "TRM"
                 &json!({"arrived": true, "line": 1, "motors": [{"motor_id": "elbow", "target": target}]}),
             );
         }
-        let t = tracks(&d, &map, &[]);
+        let t = tracks(&mut d, &map, &[]);
         let names: Vec<&str> = t.iter().map(|t| t.motor.as_str()).collect();
         assert_eq!(names, ["elbow", "wrist"]);
         assert_eq!(t[0].targets, vec![(0.2, Some(30.0)), (0.2, Some(60.0))]);
@@ -803,7 +805,7 @@ key = "TRM"
     fn a_session_becomes_panels_and_marks() {
         let map = BusMap::from_toml(MAP).unwrap();
         let s = session();
-        let t = tracks(&s.digest(), &map, &[]);
+        let t = tracks(&mut s.digest(), &map, &[]);
         let names: Vec<&str> = t.iter().map(|t| t.motor.as_str()).collect();
         assert_eq!(names, ["elbow", "turntable"]);
         assert_eq!(t[0].shown, Shown::Angle(AngleUnit::Degrees));
@@ -820,11 +822,11 @@ key = "TRM"
         assert_eq!(t[1].value_name(), "speed (controller units, ±400)");
         assert_eq!(t[1].velocity_name(), None);
         // Asked for: the wrist too, in radians.
-        let t = tracks(&s.digest(), &map, &["wrist".to_owned()]);
+        let t = tracks(&mut s.digest(), &map, &["wrist".to_owned()]);
         assert_eq!(t.len(), 1);
         assert_eq!(t[0].value_name(), "position (rad)");
         assert_eq!(t[0].velocity_name(), Some("velocity (rad/s)"));
-        let m = marks(&s.digest());
+        let m = marks(&mut s.digest());
         let labels: Vec<(&str, MarkKind)> = m.iter().map(|m| (m.label.as_str(), m.kind)).collect();
         assert_eq!(
             labels,
@@ -918,7 +920,7 @@ key = "TRM"
             "motorwire-chart-hostile-{}.svg",
             std::process::id()
         ));
-        draw(&s.digest(), &map, &[], "a\u{0}session", &path).unwrap();
+        draw(s.digest(), &map, &[], "a\u{0}session", &path).unwrap();
         let svg = std::fs::read_to_string(&path).unwrap();
         assert!(
             !svg.chars().any(|c| c.is_control() && c != '\n'),
@@ -934,7 +936,7 @@ key = "TRM"
     fn the_svg_names_units_marks_and_key() {
         let map = BusMap::from_toml(MAP).unwrap();
         let path = std::env::temp_dir().join(format!("motorwire-chart-{}.svg", std::process::id()));
-        let drawn = draw(&session().digest(), &map, &[], "a session", &path).unwrap();
+        let drawn = draw(session().digest(), &map, &[], "a session", &path).unwrap();
         assert_eq!(
             drawn,
             Drawn {

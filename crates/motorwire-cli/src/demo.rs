@@ -443,7 +443,7 @@ fn demo(args: &Args) -> Result<bool, String> {
         s.lines, s.ok, s.failed, s.frames_sent, s.feedback_lines
     ).map_err(stdout_closed)?;
     let drawn = crate::chart::draw(
-        &watch.session.digest(),
+        watch.session.digest(),
         &plot_map,
         &[],
         "motorwire demo: the bridge on a simulated arm, its gripper and the Orion rover arm",

@@ -76,7 +76,7 @@ fn plot(args: &Args) -> Result<(), String> {
         }
     }
     let title = format!("motorwire recording {}", dir.display());
-    let drawn = chart::draw(&digest, &map, &args.motors, &title, &args.svg)?;
+    let drawn = chart::draw(digest, &map, &args.motors, &title, &args.svg)?;
     say!(
         "{}: {} motors, {} marks",
         args.svg.display(),
