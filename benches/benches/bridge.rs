@@ -233,8 +233,9 @@ impl Lean {
 }
 
 /// [`prepared`] and run with the sink a controller's reader would be:
-/// each result written as its JSON line on the bridge's thread (as the
-/// CLI writes it), counted, and only the stops' and releases' handed to
+/// each output rendered as its JSON line once on the bridge's thread
+/// (`run_rendered`, as the CLI runs it; the recording keeps the same
+/// line), the results counted, and only the stops' and releases' handed to
 /// the benchmark's thread. [`started`] hands every result over as a
 /// `Value`: behind a stop, the benchmark's thread took a thousand of them
 /// at once, for 600 µs and more, on the core the bridge's thread had just
@@ -251,14 +252,14 @@ fn started_lean(
     let results = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
     let given = std::sync::Arc::clone(&results);
     let (tx, stops) = mpsc::channel();
-    let handle = arm.spawn(runner, bridge, move |o| {
+    let handle = arm.spawn_rendered(runner, bridge, move |o, line| {
         if let Output::Result { result, .. } = o {
-            let text = black_box(o.to_json());
+            let text = black_box(line);
             // Counted before it is handed over: a round that begins once
             // the release's result came counts it in.
             given.fetch_add(1, std::sync::atomic::Ordering::Release);
             if result.emergency_stop || result.released {
-                let _ = tx.send(serde_json::from_str(&text).unwrap());
+                let _ = tx.send(serde_json::from_str(text).unwrap());
             }
         }
     });

@@ -126,6 +126,18 @@ enum Record {
         at: Instant,
         output: Output,
     },
+    /// An output as its line, rendered once on the bridge's thread for the
+    /// runner's sink and shared with it: the output itself was let go
+    /// there, so a recording holds a few hundred bytes for it, not the
+    /// output's boxes (a burst of results kept whole, waiting for the
+    /// writer, pushed the stop's own code and data out of the bridge
+    /// core's cache: BENCHMARKS.md).
+    OutputLine {
+        at: Instant,
+        /// The client it went to, when it was one client's.
+        to: Option<Origin>,
+        line: Arc<str>,
+    },
     Orion {
         at: Instant,
         dir: Direction,
@@ -184,6 +196,21 @@ pub trait Tap: Send + Sync + std::fmt::Debug {
     fn output_owned(&self, at: Instant, output: Output) {
         self.output(at, &output);
     }
+    /// An output given at `at` with its JSON line (`output.to_json()`),
+    /// rendered once by [`crate::Runner::run_rendered`] for its sink and
+    /// its taps alike: a tap that writes outputs as text keeps the line
+    /// (shared, not copied) rather than the output.
+    fn output_line(&self, at: Instant, output: &Output, line: &Arc<str>) {
+        let _ = line;
+        self.output(at, output);
+    }
+    /// The same, the output given to keep (the runner has no more use for
+    /// it): a tap that keeps only the line lets the output go here, on the
+    /// bridge's thread, where it was made.
+    fn output_line_owned(&self, at: Instant, output: Output, line: &Arc<str>) {
+        let _ = line;
+        self.output_owned(at, output);
+    }
     /// A frame sent or received at `at`.
     fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
         let _ = (at, dir, frame);
@@ -234,6 +261,16 @@ impl Tap for Recorder {
     }
     fn output_owned(&self, at: Instant, output: Output) {
         Recorder::output_owned(self, at, output);
+    }
+    fn output_line(&self, at: Instant, output: &Output, line: &Arc<str>) {
+        self.put(Record::OutputLine {
+            at,
+            to: output.reader(),
+            line: Arc::clone(line),
+        });
+    }
+    fn output_line_owned(&self, at: Instant, output: Output, line: &Arc<str>) {
+        Tap::output_line(self, at, &output, line);
     }
     fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
         Recorder::frame(self, at, dir, frame);
@@ -289,6 +326,19 @@ impl Tap for Taps {
                 t.output(at, &output);
             }
             last.output_owned(at, output);
+        }
+    }
+    fn output_line(&self, at: Instant, output: &Output, line: &Arc<str>) {
+        for t in &self.0 {
+            t.output_line(at, output, line);
+        }
+    }
+    fn output_line_owned(&self, at: Instant, output: Output, line: &Arc<str>) {
+        if let Some((last, others)) = self.0.split_last() {
+            for t in others {
+                t.output_line(at, &output, line);
+            }
+            last.output_line_owned(at, output, line);
         }
     }
     fn frame(&self, at: Instant, dir: Direction, frame: &Frame) {
@@ -877,6 +927,7 @@ impl Files {
             | Record::Unreadable { at, .. }
             | Record::Mark { at, .. }
             | Record::Output { at, .. }
+            | Record::OutputLine { at, .. }
             | Record::Orion { at, .. } => *at,
         };
         let (t_us, wall_us) = self.clocks(at);
@@ -954,6 +1005,10 @@ impl Files {
                     .reader()
                     .map_or_else(String::new, |o| format!(r#","to":{}"#, o.0));
                 format!("{}{}{to}}}", head("out"), output.to_json())
+            }
+            Record::OutputLine { to, line, .. } => {
+                let to = to.map_or_else(String::new, |o| format!(r#","to":{}"#, o.0));
+                format!("{}{line}{to}}}", head("out"))
             }
             Record::Orion { dir, line, .. } => {
                 let body = serde_json::json!({"dir": dir.name(), "line": line});
@@ -1170,6 +1225,64 @@ mod tests {
         // Let the detached writer end.
         stall.store(false, Ordering::Relaxed);
         let _ = fs::remove_dir_all(&dir);
+    }
+
+    /// An output told with its line (as [`crate::Runner::run_rendered`]
+    /// tells it) is written as the same record as the output itself: the
+    /// line as given, and to whom.
+    #[test]
+    fn an_output_told_as_its_line_is_recorded_as_the_output_is() {
+        let result = || Output::Result {
+            origin: Origin(3),
+            result: Box::new(crate::output::LineResult {
+                ok: true,
+                line: 7,
+                ..crate::output::LineResult::default()
+            }),
+        };
+        let event = || {
+            Output::Event(crate::output::Event::BusError {
+                error: "bus off".to_owned(),
+            })
+        };
+        let mut written = Vec::new();
+        for as_line in [false, true] {
+            let dir = scratch(if as_line { "as-line" } else { "as-output" });
+            // Before the recording's start: written at 0 µs.
+            let t = Instant::now();
+            let rec = recording(&dir, DEFAULT_RECORD_MAX);
+            for o in [result(), event()] {
+                if as_line {
+                    let line: Arc<str> = Arc::from(o.to_json());
+                    Tap::output_line_owned(&rec, t, o, &line);
+                } else {
+                    Tap::output_owned(&rec, t, o);
+                }
+            }
+            let s = rec.finish();
+            assert_eq!((s.written, s.dropped), (2, 0));
+            let text = fs::read_to_string(dir.join("lines.jsonl")).unwrap();
+            // Each line but its wall clock (the two recorders started apart).
+            let lines: Vec<serde_json::Value> = text
+                .lines()
+                .map(|l| {
+                    let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
+                    v.as_object_mut().unwrap().remove("wall_ms");
+                    v
+                })
+                .collect();
+            written.push(lines);
+            let _ = fs::remove_dir_all(&dir);
+        }
+        assert_eq!(written[0], written[1]);
+        assert_eq!(
+            written[1][0],
+            serde_json::json!({"t_us": 0, "out": {"ok": true, "line": 7}, "to": 3})
+        );
+        assert_eq!(
+            written[1][1],
+            serde_json::json!({"t_us": 0, "out": {"event": "bus_error", "error": "bus off"}})
+        );
     }
 
     /// Frames go to `frames.log` as candump writes them and, with their

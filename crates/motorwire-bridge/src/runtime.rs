@@ -694,11 +694,83 @@ impl Runner {
     /// [`BridgeError::Bus`] when sending on the bus fails for good (bus off,
     /// interface down).
     pub fn run<T, R>(
+        self,
+        bridge: Bridge,
+        tx: T,
+        rx: R,
+        mut sink: impl FnMut(&Output),
+    ) -> Result<Bridge, BridgeError>
+    where
+        T: CanBus,
+        R: CanBus + Send + 'static,
+    {
+        self.run_inner(bridge, tx, rx, false, |o, _| sink(o))
+    }
+
+    /// [`Runner::run`] for a sink that writes each output as its JSON line
+    /// (`Output::to_json`): the runner renders each output once and hands
+    /// `sink` the output with its line, and its taps the same line (a
+    /// recording keeps that line, shared, rather than the output, and
+    /// writes it as it is).
+    ///
+    /// ```
+    /// use std::sync::Arc;
+    /// use motorwire_bridge::{Bridge, BridgeConfig, Output, Runner};
+    /// use motorwire_bridge::sim::RealTimeArm;
+    /// use motorwire_translate::BusMap;
+    ///
+    /// let map = BusMap::from_toml(
+    ///     r#"
+    ///     [motors.elbow]
+    ///     dialect = "irpc"
+    ///     node = 0x12
+    ///     limits = { min_position = 0, max_position = 150, max_velocity = 90 }
+    ///     "#,
+    /// )?;
+    /// let bridge = Bridge::new(map, BridgeConfig::default())?;
+    /// let arm = RealTimeArm::start(bridge.map())?;
+    /// let runner = Runner::new();
+    /// let input = runner.input();
+    /// input.finish();
+    /// let (tx, rx) = (arm.sender(), arm.port());
+    /// let mut lines = Vec::new();
+    /// let bridge = runner.run_rendered(bridge, tx, rx, |o: &Output, line: &Arc<str>| {
+    ///     assert_eq!(**line, o.to_json());
+    ///     lines.push(Arc::clone(line));
+    /// })?;
+    /// assert!(bridge.is_finished());
+    /// assert!(lines.iter().any(|l| l.starts_with(r#"{"event":"stopped""#)));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// As [`Runner::run`].
+    pub fn run_rendered<T, R>(
+        self,
+        bridge: Bridge,
+        tx: T,
+        rx: R,
+        mut sink: impl FnMut(&Output, &Arc<str>),
+    ) -> Result<Bridge, BridgeError>
+    where
+        T: CanBus,
+        R: CanBus + Send + 'static,
+    {
+        self.run_inner(bridge, tx, rx, true, |o, line| {
+            if let Some(line) = line {
+                sink(o, line);
+            }
+        })
+    }
+
+    /// [`Runner::run`], each output rendered first when `render`.
+    fn run_inner<T, R>(
         mut self,
         mut bridge: Bridge,
         mut tx: T,
         mut rx: R,
-        mut sink: impl FnMut(&Output),
+        render: bool,
+        mut sink: impl FnMut(&Output, Option<&Arc<str>>),
     ) -> Result<Bridge, BridgeError>
     where
         T: CanBus,
@@ -758,12 +830,21 @@ impl Runner {
         let taps = Taps(std::mem::take(&mut self.taps));
         let rec: Option<&dyn Tap> = (!taps.0.is_empty()).then_some(&taps);
         // Each output to the caller's sink, then to the taps, which take
-        // it as it is: the bridge's thread copies nothing for them.
+        // it as it is (or its line, when rendered for the sink): the
+        // bridge's thread copies nothing for them.
         let mut sink = |o: Output| {
             let at = Instant::now();
-            sink(&o);
-            if let Some(r) = rec {
-                r.output_owned(at, o);
+            if render {
+                let line: Arc<str> = Arc::from(o.to_json());
+                sink(&o, Some(&line));
+                if let Some(r) = rec {
+                    r.output_line_owned(at, o, &line);
+                }
+            } else {
+                sink(&o, None);
+                if let Some(r) = rec {
+                    r.output_owned(at, o);
+                }
             }
         };
         if let Some(r) = rec {

@@ -243,6 +243,18 @@ impl RealTimeArm {
         let (tx, rx) = (self.sender(), self.port());
         thread::spawn(move || runner.run(bridge, tx, rx, |o| sink(o)))
     }
+
+    /// [`RealTimeArm::spawn`] with [`crate::Runner::run_rendered`]: `sink`
+    /// is given each output with its JSON line, rendered once.
+    pub fn spawn_rendered(
+        &self,
+        runner: crate::Runner,
+        bridge: Bridge,
+        mut sink: impl FnMut(&Output, &std::sync::Arc<str>) + Send + 'static,
+    ) -> JoinHandle<Result<Bridge, BridgeError>> {
+        let (tx, rx) = (self.sender(), self.port());
+        thread::spawn(move || runner.run_rendered(bridge, tx, rx, |o, l| sink(o, l)))
+    }
 }
 
 impl Drop for RealTimeArm {

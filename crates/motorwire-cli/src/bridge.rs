@@ -520,9 +520,9 @@ fn bridge(args: &Args) -> Result<u8, String> {
     let sink = {
         let router = std::sync::Arc::clone(&router);
         let fleet = fleet.as_ref();
-        move |o: &Output| {
+        move |o: &Output, line: &std::sync::Arc<str>| {
             if !fleet.is_some_and(|f| f.route(o)) {
-                router.route(o);
+                router.route(o, line);
             }
         }
     };
@@ -532,11 +532,11 @@ fn bridge(args: &Args) -> Result<u8, String> {
                 .map_err(|e| e.to_string())?;
             // The sending half never receives: nothing queues for it.
             let (tx, rx) = (arm.sender(), arm.port());
-            runner.run(bridge, tx, rx, sink)
+            runner.run_rendered(bridge, tx, rx, sink)
         }
         spec => {
             let (tx, rx) = crate::bus::open_pair(spec)?;
-            runner.run(bridge, tx, rx, sink)
+            runner.run_rendered(bridge, tx, rx, sink)
         }
     };
     if let Some(path) = socket_path {

@@ -529,8 +529,9 @@ impl Router {
         }
     }
 
-    /// Takes one output of the engine; never waits.
-    pub(crate) fn route(&self, o: &Output) {
+    /// Takes one output of the engine, with its line (`o.to_json()`, rendered
+    /// once by the runner); never waits.
+    pub(crate) fn route(&self, o: &Output, line: &Arc<str>) {
         // A reader's own feedback rate, answered ok: from this line on.
         if let Output::Result { origin, result } = o
             && result.ok
@@ -560,7 +561,7 @@ impl Router {
         {
             return;
         }
-        let line: Arc<str> = Arc::from(o.to_json());
+        let line = Arc::clone(line);
         match o {
             Output::Result { origin, .. } | Output::Arrival { origin, .. }
                 if *origin == STDIN || !self.sockets =>

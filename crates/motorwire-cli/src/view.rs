@@ -77,6 +77,16 @@ enum Item {
     },
     /// Held as it is: an `Output` keeps its large lines boxed already.
     Out { at: Instant, output: Output },
+    /// An output as the runner rendered it for its sink (shared, not
+    /// rendered again).
+    OutLine {
+        at: Instant,
+        /// The client it went to, when it was one client's.
+        to: Option<u64>,
+        line: Arc<str>,
+        /// It is the `ready` event (kept for pages that open later).
+        ready: bool,
+    },
 }
 
 /// What the bridge tells the view: queued, never waited on.
@@ -115,6 +125,15 @@ impl Tap for ViewTap {
         self.put(Item::Out {
             at,
             output: output.clone(),
+        });
+    }
+
+    fn output_line(&self, at: Instant, output: &Output, line: &Arc<str>) {
+        self.put(Item::OutLine {
+            at,
+            to: output.reader().map(|r| r.0),
+            line: Arc::clone(line),
+            ready: matches!(output, Output::Event(motorwire_bridge::Event::Ready { .. })),
         });
     }
 }
@@ -405,15 +424,18 @@ fn render(item: &Item, started: Instant) -> String {
         } => json!({"kind": "in", "t": t(at), "origin": origin.0, "line": number, "text": text})
             .to_string(),
         Item::Out { at, output } => {
-            let to = output.reader().map(|r| r.0);
-            format!(
-                r#"{{"kind":"out","t":{},"to":{},"line":{}}}"#,
-                t(at),
-                to.map_or_else(|| "null".to_owned(), |o| o.to_string()),
-                output.to_json()
-            )
+            out_line(t(at), output.reader().map(|r| r.0), &output.to_json())
         }
+        Item::OutLine { at, to, line, .. } => out_line(t(at), *to, line),
     }
+}
+
+/// An output's line for the pages: when (`t`, seconds), to whom, the line.
+fn out_line(t: f64, to: Option<u64>, line: &str) -> String {
+    format!(
+        r#"{{"kind":"out","t":{t},"to":{},"line":{line}}}"#,
+        to.map_or_else(|| "null".to_owned(), |o| o.to_string()),
+    )
 }
 
 /// The view's thread: renders each line once, keeps the last
@@ -466,7 +488,7 @@ fn hub(
         }
         if let Some(item) = item {
             let at = match &item {
-                Item::In { at, .. } | Item::Out { at, .. } => *at,
+                Item::In { at, .. } | Item::Out { at, .. } | Item::OutLine { at, .. } => *at,
             };
             let line = render(&item, started);
             if line.len() > MAX_RENDERED {
@@ -474,7 +496,8 @@ fn hub(
                 continue;
             }
             let line: Arc<str> = Arc::from(line);
-            if matches!(&item, Item::Out { output, .. } if matches!(output, Output::Event(motorwire_bridge::Event::Ready { .. })))
+            if matches!(&item, Item::OutLine { ready: true, .. })
+                || matches!(&item, Item::Out { output, .. } if matches!(output, Output::Event(motorwire_bridge::Event::Ready { .. })))
             {
                 ready = Some(Arc::clone(&line));
             }
