@@ -47,6 +47,39 @@ pub(crate) enum MarkKind {
 }
 
 impl MarkKind {
+    /// Every kind, in the order the key counts those not drawn.
+    const ALL: [Self; 6] = [
+        Self::Step,
+        Self::Stop,
+        Self::Release,
+        Self::Refused,
+        Self::Deadman,
+        Self::Lost,
+    ];
+
+    const fn index(self) -> usize {
+        match self {
+            Self::Step => 0,
+            Self::Stop => 1,
+            Self::Release => 2,
+            Self::Refused => 3,
+            Self::Deadman => 4,
+            Self::Lost => 5,
+        }
+    }
+
+    /// What marks of this kind are, in the key's count of those not drawn.
+    const fn plural(self) -> &'static str {
+        match self {
+            Self::Step => "steps",
+            Self::Stop => "emergency stops",
+            Self::Release => "releases",
+            Self::Refused => "refused lines",
+            Self::Deadman => "deadman stops",
+            Self::Lost => "devices or links lost and faults",
+        }
+    }
+
     const fn color(self) -> (u8, u8, u8) {
         match self {
             Self::Step => (120, 120, 120),
@@ -192,8 +225,13 @@ pub(crate) struct Digest {
     stops: Vec<f64>,
     /// The motors a deadman stopped.
     deadman: BTreeSet<String>,
-    /// The marks, in the order they came.
+    /// The marks, in the order they came: at most [`MAX_MARKS_OF_A_KIND`]
+    /// of each kind, each label at most [`KEY_CHARS`] characters.
     marks: Vec<Mark>,
+    /// Of each kind ([`MarkKind::index`]): the marks kept, and those not
+    /// (counted only).
+    kept: [usize; 6],
+    not_kept: [u64; 6],
     /// The latest time seen.
     end: f64,
 }
@@ -207,11 +245,31 @@ impl Digest {
     /// A step of the caller's, labelled.
     pub(crate) fn step(&mut self, t: f64, label: String) {
         self.at(t);
-        self.marks.push(Mark {
+        self.keep(Mark {
             t,
             kind: MarkKind::Step,
             label,
         });
+    }
+
+    /// `m` kept, its label cut to what the key shows, while fewer than
+    /// [`MAX_MARKS_OF_A_KIND`] of its kind are; else counted only (a
+    /// flood of refused lines neither grows the chart without end nor
+    /// hides the stops among them).
+    fn keep(&mut self, mut m: Mark) {
+        let k = m.kind.index();
+        let (Some(kept), Some(not_kept)) = (self.kept.get_mut(k), self.not_kept.get_mut(k)) else {
+            return;
+        };
+        if *kept >= MAX_MARKS_OF_A_KIND {
+            *not_kept += 1;
+            return;
+        }
+        *kept += 1;
+        if m.label.len() > KEY_CHARS {
+            m.label = cut(&m.label, KEY_CHARS);
+        }
+        self.marks.push(m);
     }
 
     /// An output line `v` given at `t` (to client `to`, `None`: every
@@ -240,7 +298,7 @@ impl Digest {
             } else {
                 format!(" {motor}")
             };
-            self.marks.push(mark(
+            self.keep(mark(
                 MarkKind::Refused,
                 format!("line {line}{who} refused: {rule}"),
             ));
@@ -277,7 +335,7 @@ impl Digest {
             "rebooted" => mark(MarkKind::Lost, format!("{motor}: rebooted")),
             _ => return,
         };
-        self.marks.push(made);
+        self.keep(made);
     }
 
     /// What `v` says of the motors' panels: a feedback sample, a line
@@ -443,6 +501,13 @@ pub(crate) struct Drawn {
     pub(crate) marks: usize,
 }
 
+/// Marks of one kind drawn, at most; the key counts the rest.
+const MAX_MARKS_OF_A_KIND: usize = 100;
+
+/// Points of a line drawn in one pixel column, at most: its first, its
+/// lowest, its highest and its last (what a person sees of a line there).
+const POINTS_A_COLUMN: usize = 4;
+
 const WIDTH: u32 = 1200;
 const PANEL: u32 = 230;
 const KEY_LINE: u32 = 18;
@@ -465,6 +530,71 @@ fn cut(text: &str, max: usize) -> String {
     let mut s: String = text.chars().take(max.saturating_sub(1)).collect();
     s.push('…');
     s
+}
+
+/// A pixel column's first, lowest, highest and last points, each with its
+/// place in the line.
+type Column = [(usize, (f64, f64)); POINTS_A_COLUMN];
+
+/// The points of a line through `points` (`len` of them, in time order)
+/// that a chart `columns` pixels wide over `0..end` shows: all of them
+/// while there are at most [`POINTS_A_COLUMN`] a column; else, in each
+/// column, its first, lowest, highest and last point, in time order (the
+/// line a person sees there is the same; a long recording's SVG is not
+/// as long as the recording).
+fn thinned(
+    points: impl Iterator<Item = (f64, f64)>,
+    len: usize,
+    end: f64,
+    columns: usize,
+) -> Vec<(f64, f64)> {
+    if len <= POINTS_A_COLUMN * columns || columns == 0 {
+        return points.collect();
+    }
+    let mut out = Vec::with_capacity(POINTS_A_COLUMN * (columns + 1));
+    // The column being read: its number, and its first, lowest, highest
+    // and last points with their places in the line.
+    let mut open: Option<(usize, Column)> = None;
+    let flush = |out: &mut Vec<(f64, f64)>, mut four: Column| {
+        four.sort_by_key(|p| p.0);
+        let mut last = None;
+        for (i, p) in four {
+            if last != Some(i) {
+                out.push(p);
+                last = Some(i);
+            }
+        }
+    };
+    #[allow(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        clippy::cast_precision_loss
+    )]
+    let column_of = |t: f64| ((t / end).clamp(0.0, 1.0) * columns as f64) as usize;
+    for (i, p) in points.enumerate() {
+        let c = column_of(p.0);
+        match &mut open {
+            Some((col, four)) if *col == c => {
+                if p.1 < four[1].1.1 {
+                    four[1] = (i, p);
+                }
+                if p.1 > four[2].1.1 {
+                    four[2] = (i, p);
+                }
+                four[3] = (i, p);
+            }
+            _ => {
+                if let Some((_, four)) = open.take() {
+                    flush(&mut out, four);
+                }
+                open = Some((c, [(i, p); POINTS_A_COLUMN]));
+            }
+        }
+    }
+    if let Some((_, four)) = open {
+        flush(&mut out, four);
+    }
+    out
 }
 
 /// Draws a session (its digest `d`; its motors' units and limits from
@@ -497,7 +627,21 @@ pub(crate) fn draw(
     let rows = placed.iter().flatten().max().map_or(0, |r| r + 1);
     let header = 40 + 16 * u32::try_from(rows).unwrap_or(0);
     let panels = u32::try_from(tracks.len().max(1)).unwrap_or(1);
-    let key_rows = u32::try_from(marks.len()).unwrap_or(0).div_ceil(2);
+    // Marks not drawn: a line of the key for each kind that had some.
+    let not_drawn: Vec<String> = MarkKind::ALL
+        .iter()
+        .filter_map(|k| {
+            let n = d.not_kept.get(k.index()).copied().unwrap_or(0);
+            (n > 0).then(|| {
+                format!(
+                    "{n} more {} not drawn (the first {MAX_MARKS_OF_A_KIND} of each kind are)",
+                    k.plural()
+                )
+            })
+        })
+        .collect();
+    let key_rows = u32::try_from(marks.len()).unwrap_or(0).div_ceil(2)
+        + u32::try_from(not_drawn.len()).unwrap_or(0);
     let height = header + panels * PANEL + 40 + key_rows * KEY_LINE;
     let root = SVGBackend::new(path, (WIDTH, height)).into_drawing_area();
     let err = |e: DrawingAreaErrorKind<_>| e.to_string();
@@ -636,9 +780,16 @@ pub(crate) fn draw(
                         .map_err(err)?;
                 }
             }
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let columns = (plot_right - plot_left) as usize;
             chart
                 .draw_series(LineSeries::new(
-                    track.samples.iter().map(|s| (s.0, pick(s))),
+                    thinned(
+                        track.samples.iter().map(|s| (s.0, pick(s))),
+                        track.samples.len(),
+                        end,
+                        columns,
+                    ),
                     blue.stroke_width(2),
                 ))
                 .map_err(err)?;
@@ -695,6 +846,16 @@ pub(crate) fn draw(
                 34 + row * i32::try_from(KEY_LINE).unwrap_or(18),
             ),
             ("sans-serif", 13).into_font().color(&rgb(m.kind.color())),
+        ))
+        .map_err(err)?;
+    }
+    let first = u32::try_from(marks.len()).unwrap_or(0).div_ceil(2);
+    for (i, line) in not_drawn.iter().enumerate() {
+        let row = first + u32::try_from(i).unwrap_or(0);
+        key.draw(&Text::new(
+            line.clone(),
+            (12, 34 + i32::try_from(row * KEY_LINE).unwrap_or(0)),
+            ("sans-serif", 13).into_font().color(&RGBColor(90, 90, 90)),
         ))
         .map_err(err)?;
     }
@@ -928,6 +1089,72 @@ key = "TRM"
         );
         assert!(svg.contains("line 9 a\u{FFFD}\u{FFFD}[31m refused: unknown_motor"));
         let _ = std::fs::remove_file(&path);
+    }
+
+    /// A flood of refused lines with long motor ids (a hostile client's):
+    /// the digest keeps the first 100 refusals, each label cut to what the
+    /// key shows, and counts the rest; the stops among them are all kept
+    /// and drawn, and the key says how many refusals are not.
+    #[test]
+    fn a_flood_of_refusals_is_counted_not_kept_and_the_stops_stay() {
+        let map = BusMap::from_toml(MAP).unwrap();
+        let mut d = Digest::default();
+        let long = "m".repeat(10_000);
+        for i in 0..5_000_u64 {
+            #[allow(clippy::cast_precision_loss)]
+            let t = i as f64 * 1e-3;
+            d.output(t, Some(1), &json!({"ok": false, "line": i, "motor_id": long, "error": {"rule": "unknown_motor"}}));
+            if i % 1_000 == 500 {
+                d.output(
+                    t,
+                    None,
+                    &json!({"event": "emergency_stop", "cause": "input", "cancelled": []}),
+                );
+            }
+        }
+        assert_eq!(d.marks.len(), MAX_MARKS_OF_A_KIND + 5);
+        assert!(d.marks.iter().all(|m| m.label.chars().count() <= KEY_CHARS));
+        assert_eq!(d.not_kept[MarkKind::Refused.index()], 4_900);
+        assert_eq!(d.not_kept[MarkKind::Stop.index()], 0);
+        let path =
+            std::env::temp_dir().join(format!("motorwire-chart-flood-{}.svg", std::process::id()));
+        let drawn = draw(d, &map, &[], "a flood", &path).unwrap();
+        assert_eq!(drawn.marks, MAX_MARKS_OF_A_KIND + 5);
+        let svg = std::fs::read_to_string(&path).unwrap();
+        assert!(svg.contains("4900 more refused lines not drawn (the first 100 of each kind are)"));
+        assert_eq!(svg.matches("emergency stop (input)").count(), 5);
+        let _ = std::fs::remove_file(&path);
+    }
+
+    /// A line with more points than its chart has pixel columns (four a
+    /// column) keeps, in each column, its first, lowest, highest and last
+    /// points in time order; a shorter one is drawn whole.
+    #[test]
+    fn a_long_line_keeps_each_columns_first_lowest_highest_and_last() {
+        let few: Vec<(f64, f64)> = (0..8).map(|i| (f64::from(i), f64::from(i % 3))).collect();
+        assert_eq!(thinned(few.iter().copied(), few.len(), 8.0, 2), few);
+        // Nine points in each of two columns over 0..2 (t 0 to 0.8, then
+        // 1 to 1.8); the second column's values 100 higher.
+        let values = [5.0, 1.0, 9.0, 3.0, 0.5, 7.0, 2.0, 8.0, 4.0];
+        let many: Vec<(f64, f64)> = (0..18_u32)
+            .map(|i| {
+                let (col, k) = (f64::from(i / 9), i % 9);
+                (col + f64::from(k) / 10.0, values[k as usize] + 100.0 * col)
+            })
+            .collect();
+        assert_eq!(
+            thinned(many.iter().copied(), many.len(), 2.0, 2),
+            [
+                (0.0, 5.0),
+                (0.2, 9.0),
+                (0.4, 0.5),
+                (0.8, 4.0),
+                (1.0, 105.0),
+                (1.2, 109.0),
+                (1.4, 100.5),
+                (1.8, 104.0),
+            ]
+        );
     }
 
     /// The SVG has a panel per motor with its units, the limit band and
