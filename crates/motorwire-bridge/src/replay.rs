@@ -344,6 +344,14 @@ impl Recorded {
             Self::Line { .. } | Self::Unreadable { .. } | Self::Mark(_)
         )
     }
+
+    /// Whether this is a feedback line (a motor's `feedback`, an Orion
+    /// motor's `motor_status`): what a replay's comparison leaves out (the
+    /// simulated devices' motion is their own).
+    pub fn is_feedback(&self) -> bool {
+        matches!(self, Self::Output { value, .. }
+            if value.get("feedback").is_some() || value.get("motor_status").is_some())
+    }
 }
 
 /// Records before a recording's start mark held until it comes, at most:
@@ -421,6 +429,54 @@ impl Recording {
     /// rotated (`lines.1.jsonl`: its beginning is gone) or dropped records.
     pub fn read(dir: &Path) -> Result<Self, ReplayError> {
         Self::read_as(dir, true)
+    }
+
+    /// [`Recording::read`] for a replay: every record but the feedback
+    /// lines, which neither [`replay`] nor [`compare`] reads (most of a
+    /// long recording's lines, and most of its memory once read), except
+    /// one that is later than every record after it (the recording's span
+    /// is the same).
+    ///
+    /// # Errors
+    /// As [`Recording::read`].
+    pub fn read_to_replay(dir: &Path) -> Result<Self, ReplayError> {
+        let mut records: Vec<(Duration, Recorded)> = Vec::new();
+        // The latest time of the records kept for good, and that of the
+        // last record kept when it is a feedback line kept only while
+        // nothing later comes.
+        let mut latest = Duration::ZERO;
+        let mut tail: Option<Duration> = None;
+        let scanned = Self::scan_as(dir, true, &mut |t, r| {
+            let at = match &r {
+                Recorded::Line { taken: Some(k), .. } => t.max(*k),
+                _ => t,
+            };
+            if r.is_feedback() {
+                if at > latest.max(tail.unwrap_or_default()) || records.is_empty() {
+                    if tail.is_some() {
+                        records.pop();
+                    }
+                    records.push((t, r));
+                    tail = Some(at);
+                }
+                return;
+            }
+            if let Some(kept) = tail.take() {
+                if at >= kept {
+                    records.pop();
+                } else {
+                    latest = latest.max(kept);
+                }
+            }
+            latest = latest.max(at);
+            records.push((t, r));
+        })?;
+        Ok(Self {
+            setup: scanned.setup,
+            records,
+            ended: scanned.ended,
+            cut: scanned.cut,
+        })
     }
 
     /// Reads the recording in `dir` as far as it goes: one rotated, or
@@ -1482,7 +1538,7 @@ fn streams(
         let at = *at;
         match r {
             Recorded::Output { to, value } => {
-                if value.get("feedback").is_some() || value.get("motor_status").is_some() {
+                if r.is_feedback() {
                     continue;
                 }
                 let stream = match (to, value.get("line").and_then(Value::as_u64)) {
@@ -1815,6 +1871,65 @@ node = 0x20
     /// Read a record at a time, a recording hands out what `read_partial`
     /// holds, in order, each at its time from the start mark (a record
     /// written before the mark at 0); a line that is not UTF-8 is named.
+    #[test]
+    fn a_recording_read_to_replay_leaves_out_feedback_but_not_its_span() {
+        let dir = std::env::temp_dir().join(format!("motorwire-replay-fb-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let session = r#"{"recorder":"motorwire","files":["frames.log","lines.jsonl"]}"#;
+        let fb = |t: u64, p: u64| {
+            format!(
+                "{{\"t_us\":{t},\"wall_ms\":1,\"out\":{{\"feedback\":{{\"motor_id\":\"elbow\",\"position\":{p}}}}}}}\n"
+            )
+        };
+        let lines = [
+            "{\"t_us\":100,\"wall_ms\":1,\"mark\":{\"kind\":\"start\"}}\n".to_owned(),
+            fb(200, 1),
+            "{\"t_us\":300,\"wall_ms\":1,\"in\":{\"origin\":2,\"line\":1,\"text\":\"{}\",\"taken_us\":310}}\n".to_owned(),
+            fb(400, 2),
+            // Stamped before the feedback written ahead of it.
+            "{\"t_us\":350,\"wall_ms\":1,\"out\":{\"ok\":true,\"line\":1},\"to\":2}\n".to_owned(),
+            fb(380, 3),
+            "{\"t_us\":450,\"wall_ms\":1,\"out\":{\"motor_status\":{\"turntable\":0}}}\n".to_owned(),
+            fb(500, 4),
+        ]
+        .concat();
+        fs::write(dir.join("session.json"), session).unwrap();
+        fs::write(dir.join("lines.jsonl"), lines).unwrap();
+        let all = Recording::read(&dir).unwrap().records;
+        assert_eq!(all.len(), 8);
+        let us = Duration::from_micros;
+        let feedback = |p: u64| {
+            out(
+                None,
+                json!({"feedback": {"motor_id": "elbow", "position": p}}),
+            )
+        };
+        let got = Recording::read_to_replay(&dir).unwrap().records;
+        assert_eq!(
+            got,
+            vec![
+                (us(0), Recorded::Mark(Mark::Start)),
+                (
+                    us(200),
+                    Recorded::Line {
+                        taken: Some(us(210)),
+                        origin: Origin(2),
+                        number: 1,
+                        text: "{}".to_owned()
+                    }
+                ),
+                // Later than the line after it: kept.
+                (us(300), feedback(2)),
+                (us(250), out(Some(2), json!({"ok": true, "line": 1}))),
+                // The last, and the latest.
+                (us(400), feedback(4)),
+            ]
+        );
+        let span = |r: &[(Duration, Recorded)]| r.iter().map(|(t, _)| *t).max();
+        assert_eq!(span(&got), span(&all));
+        let _ = fs::remove_dir_all(&dir);
+    }
+
     #[test]
     fn a_recording_scanned_a_record_at_a_time_is_the_one_read_whole() {
         let dir =

@@ -72,7 +72,8 @@ fn replay_dir(args: &Args) -> Result<u8, String> {
         }
     }
     let dir = &args.dir;
-    let recording = Recording::read(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let recording =
+        Recording::read_to_replay(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let setup = recording.setup.clone().ok_or_else(|| {
         format!(
             "{}: session.json has no setup (recorded by a motorwire without replay)",
