@@ -59,5 +59,5 @@ pub use output::{
 pub use runtime::{
     DEFAULT_MAX_LINE, InputSender, MAX_ORION_LINES_PER_S, MAX_ORION_QUEUED,
     MAX_QUEUED_BYTES_PER_ORIGIN, MAX_QUEUED_PER_ORIGIN, MAX_SKIP, OrionPort, ReadLine, Runner,
-    UNREADABLE_HEAD, feed, feed_withholding, read_line,
+    Secret, UNREADABLE_HEAD, feed, feed_withholding, read_line,
 };

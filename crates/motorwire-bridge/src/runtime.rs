@@ -543,38 +543,82 @@ pub fn feed(
     reader: &mut impl BufRead,
     partial_is_line: bool,
 ) -> io::Result<()> {
-    feed_withholding(input, origin, reader, partial_is_line, |_| None)
+    feed_withholding(input, origin, reader, partial_is_line, None)
 }
 
-/// [`feed`], except that a line `withhold` gives a reason for is refused
-/// with that reason and goes no further: the bridge never reads it, and
-/// its taps (a recording, the live view) are told only the reason, never
-/// its text. A TCP client's token sent again as a line is withheld so
+/// A secret that no line may carry past the reader (a connection's token):
+/// a line that holds it anywhere is refused with its `reason` and goes no
+/// further ([`feed_withholding`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Secret<'a> {
+    text: &'a str,
+    reason: &'static str,
+}
+
+impl<'a> Secret<'a> {
+    /// `text` (not empty: an empty secret is none, `None`), withheld with
+    /// `reason`.
+    #[must_use]
+    pub fn new(text: &'a str, reason: &'static str) -> Option<Self> {
+        (!text.is_empty()).then_some(Self { text, reason })
+    }
+
+    /// Whether `line` holds the secret.
+    #[must_use]
+    pub fn in_line(&self, line: &str) -> bool {
+        line.contains(self.text)
+    }
+
+    /// Whether the first bytes kept of an unreadable line hold the secret,
+    /// or end with its first 8 bytes or more (the line was cut in the
+    /// middle of it).
+    #[must_use]
+    pub fn in_head(&self, head: &[u8]) -> bool {
+        let s = self.text.as_bytes();
+        let whole = head.windows(s.len()).any(|w| w == s);
+        let cut = (8..s.len()).any(|n| s.get(..n).is_some_and(|p| head.ends_with(p)));
+        whole || cut
+    }
+}
+
+/// [`feed`], except that a line holding `secret` is refused with the
+/// secret's reason and goes no further: the bridge never reads it, and its
+/// taps (a recording, the live view) are told only the reason, never its
+/// text; an unreadable line's first bytes are kept (for the recording)
+/// only where they hold no part of it ([`Secret::in_head`]). A TCP
+/// client's token sent again, alone or inside a line, is withheld so
 /// (`motorwire bridge --input tcp:`): a secret never reaches a recording.
 pub fn feed_withholding(
     input: &InputSender,
     origin: Origin,
     reader: &mut impl BufRead,
     partial_is_line: bool,
-    withhold: impl Fn(&str) -> Option<&'static str>,
+    secret: Option<Secret<'_>>,
 ) -> io::Result<()> {
-    let take = |s: String| match withhold(&s) {
-        Some(reason) => input.refused(origin, reason),
+    let take = |s: String| match secret.filter(|k| k.in_line(&s)) {
+        Some(k) => input.refused(origin, k.reason),
         None => input.line(origin, s),
+    };
+    let head = |h: Vec<u8>| {
+        if secret.is_some_and(|k| k.in_head(&h)) {
+            Vec::new()
+        } else {
+            h
+        }
     };
     loop {
         match read_line(reader, input.max_line)? {
             ReadLine::Line(s) => take(s),
             ReadLine::TooLong {
                 names_stop,
-                head,
+                head: h,
                 length,
-            } => input.unreadable(origin, input.too_long(), names_stop, head, length),
+            } => input.unreadable(origin, input.too_long(), names_stop, head(h), length),
             ReadLine::NotUtf8 {
                 names_stop,
-                head,
+                head: h,
                 length,
-            } => input.unreadable(origin, "the line is not UTF-8", names_stop, head, length),
+            } => input.unreadable(origin, "the line is not UTF-8", names_stop, head(h), length),
             ReadLine::Partial(s) if partial_is_line => {
                 take(s);
                 return Ok(());
@@ -1327,6 +1371,23 @@ pub(crate) fn clocks_together() -> (Instant, Option<Duration>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A secret is found anywhere in a line, and in an unreadable line's
+    /// first bytes whole or cut at their end (8 of its bytes or more).
+    #[test]
+    #[allow(clippy::unwrap_used)]
+    fn a_secret_is_found_whole_in_a_line_or_cut_at_a_heads_end() {
+        assert!(Secret::new("", "r").is_none());
+        let k = Secret::new("correct-horse-battery", "r").unwrap();
+        assert!(k.in_line("correct-horse-battery"));
+        assert!(k.in_line(r#"{"token":"correct-horse-battery"}"#));
+        assert!(!k.in_line("correct-horse-batter"));
+        assert!(k.in_head(b"\xff correct-horse-battery \xff"));
+        assert!(k.in_head(b"\xff\xff correct-h"));
+        assert!(!k.in_head(b"\xff\xff correct"));
+        assert!(!k.in_head(b"\xff horse-battery"));
+        assert!(!k.in_head(b""));
+    }
 
     /// The bridge's wall clock is read with its monotonic one: the pair
     /// lies between readings taken before and after, and many pairs agree

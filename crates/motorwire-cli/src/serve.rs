@@ -29,7 +29,9 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use motorwire_bridge::{InputSender, Origin, Output, ReadLine, feed_withholding, read_line};
+use motorwire_bridge::{
+    InputSender, Origin, Output, ReadLine, Secret, feed_withholding, read_line,
+};
 
 /// The origin of standard input's lines.
 pub(crate) const STDIN: Origin = Origin(0);
@@ -45,13 +47,12 @@ const MAX_TOKEN_FILE: u64 = 4096;
 
 /// Why a line that is the token (again, after a connection's first; or
 /// on standard input) is refused: it is not recorded, shown or read.
-const TOKEN_AGAIN: &str = "the bridge's token as a line: it is never a command (a connection sends it once, first); the line was neither read nor recorded";
+const TOKEN_AGAIN: &str = "the bridge's token in a line: it is never part of a command (a connection sends it once, first, alone on its line); the line was neither read nor recorded";
 
-/// Why `line` is withheld: it is the `token`.
-fn withheld(line: &str, token: Option<&str>) -> Option<&'static str> {
-    token
-        .is_some_and(|t| same_secret(line.trim().as_bytes(), t.as_bytes()))
-        .then_some(TOKEN_AGAIN)
+/// The `token`, as what no line may carry to the bridge, a recording or
+/// the live view.
+fn secret(token: Option<&str>) -> Option<Secret<'_>> {
+    token.and_then(|t| Secret::new(t, TOKEN_AGAIN))
 }
 
 /// The shortest token accepted (bytes).
@@ -713,14 +714,14 @@ impl Router {
     }
 
     /// Standard input fed to the bridge, which stops at its end. A line
-    /// that is the `token` (`--token-file`'s, when given) is refused and
+    /// that holds the `token` (`--token-file`'s, when given) is refused and
     /// withheld, as on a connection: it is never recorded or shown.
     pub(crate) fn serve_stdin(self: &Arc<Self>, token: Option<String>) {
         let r = Arc::clone(self);
         thread::spawn(move || {
             let mut reader = BufReader::new(io::stdin());
-            let withhold = |line: &str| withheld(line, token.as_deref());
-            if let Err(e) = feed_withholding(&r.input, STDIN, &mut reader, true, withhold) {
+            let secret = secret(token.as_deref());
+            if let Err(e) = feed_withholding(&r.input, STDIN, &mut reader, true, secret) {
                 *r.input_failure
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner) =
@@ -1076,12 +1077,12 @@ impl Router {
     }
 
     /// Feeds the rest of a client's lines; lets it go once it has all its
-    /// results. A line that is the `token` again is refused and withheld:
-    /// neither the recording nor the live view ever holds the token.
+    /// results. A line that holds the `token` again (alone or inside it) is
+    /// refused and withheld: neither the recording nor the live view ever
+    /// holds the token.
     fn feed_rest(&self, id: u64, reader: &mut BufReader<Timed>, token: Option<&str>) {
-        let withhold = |line: &str| withheld(line, token);
         // A client that goes away mid-line: its partial line is not taken.
-        let _ = feed_withholding(&self.input, Origin(id), reader, false, withhold);
+        let _ = feed_withholding(&self.input, Origin(id), reader, false, secret(token));
         self.let_go(id);
     }
 

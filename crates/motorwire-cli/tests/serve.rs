@@ -466,20 +466,22 @@ fn a_wrong_or_missing_token_is_refused_and_the_right_one_is_served() {
     assert!(
         again
             .to_string()
-            .contains("the bridge's token as a line: it is never a command"),
+            .contains("the bridge's token in a line: it is never part of a command"),
         "{again}"
     );
     thread::sleep(Duration::from_millis(300));
     let lines = std::fs::read_to_string(record.join("lines.jsonl")).unwrap();
-    assert!(lines.contains("the bridge's token as a line"), "{lines}");
+    assert!(lines.contains("the bridge's token in a line"), "{lines}");
     assert!(
         !lines.contains("battery-staple"),
         "the token recorded:\n{lines}"
     );
 }
 
-/// A line of standard input that is `--token-file`'s token is refused and
-/// withheld as on a connection: the recording never holds it.
+/// A line of standard input that holds `--token-file`'s token (alone, in
+/// a command, behind a byte-order mark, or in a line that is not UTF-8)
+/// is refused and withheld as on a connection: neither the output nor the
+/// recording ever holds it, in text or in the hex of a line's first bytes.
 #[test]
 fn the_token_on_standard_input_is_refused_and_not_recorded() {
     let dir = scratch("stdin-token");
@@ -494,26 +496,53 @@ fn the_token_on_standard_input_is_refused_and_not_recorded() {
             "--record",
             record.to_str().unwrap(),
         ]),
-        b"correct-horse-battery-staple\r\n",
+        b"correct-horse-battery-staple\r\n\
+          {\"motor_id\":\"elbow\",\"token\":\"correct-horse-battery-staple\"}\n\
+          \xef\xbb\xbfcorrect-horse-battery-staple\n\
+          \xff correct-horse-battery-staple\n\
+          \xff not the token\n",
     );
     assert_eq!(out.status.code(), Some(0));
     let printed = String::from_utf8(out.stdout).unwrap();
-    let result = printed
-        .lines()
-        .map(|l| serde_json::from_str::<Value>(l).unwrap())
-        .find(|v| v["line"] == 1)
-        .unwrap();
-    assert_eq!(result["ok"], false, "{result}");
-    assert!(
-        result.to_string().contains("the bridge's token as a line"),
-        "{result}"
-    );
+    let result = |n: u64| {
+        printed
+            .lines()
+            .map(|l| serde_json::from_str::<Value>(l).unwrap())
+            .find(|v| v["line"] == n)
+            .unwrap()
+    };
+    for n in 1..=3 {
+        let r = result(n);
+        assert_eq!(r["ok"], false, "{r}");
+        assert!(
+            r.to_string().contains("the bridge's token in a line"),
+            "{r}"
+        );
+    }
+    for n in 4..=5 {
+        let r = result(n);
+        assert!(r.to_string().contains("the line is not UTF-8"), "{r}");
+    }
     let lines = std::fs::read_to_string(record.join("lines.jsonl")).unwrap();
-    assert!(lines.contains("the bridge's token as a line"), "{lines}");
+    assert_eq!(
+        lines.matches("the bridge's token in a line").count(),
+        6,
+        "three refusals, each as its input and its result:\n{lines}"
+    );
+    let hex: String = b"battery-staple"
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
     assert!(
-        !lines.contains("battery-staple"),
+        !lines.contains("battery-staple") && !lines.contains(&hex),
         "the token recorded:\n{lines}"
     );
+    // The line without the token keeps its first bytes for the recording.
+    let not_the_token: String = b" not the token"
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    assert!(lines.contains(&not_the_token), "{lines}");
     assert!(!printed.contains("battery-staple"), "{printed}");
 }
 
