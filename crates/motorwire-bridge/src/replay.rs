@@ -1909,15 +1909,7 @@ node = 0x20
             got,
             vec![
                 (us(0), Recorded::Mark(Mark::Start)),
-                (
-                    us(200),
-                    Recorded::Line {
-                        taken: Some(us(210)),
-                        origin: Origin(2),
-                        number: 1,
-                        text: "{}".to_owned()
-                    }
-                ),
+                first_line(200, 210),
                 // Later than the line after it: kept.
                 (us(300), feedback(2)),
                 (us(250), out(Some(2), json!({"ok": true, "line": 1}))),
@@ -1951,15 +1943,7 @@ node = 0x20
             vec![
                 (us(0), out(None, json!({"event": "ready"}))),
                 (us(0), Recorded::Mark(Mark::Start)),
-                (
-                    us(50),
-                    Recorded::Line {
-                        taken: Some(us(60)),
-                        origin: Origin(2),
-                        number: 1,
-                        text: "{}".to_owned()
-                    }
-                ),
+                first_line(50, 60),
                 (us(200), out(Some(2), json!({"ok": true, "line": 1}))),
             ]
         );
@@ -2011,6 +1995,20 @@ node = 0x20
             )
         );
         let _ = fs::remove_dir_all(&dir);
+    }
+
+    /// Client 2's line 1, `{}`, at `at` µs, taken at `taken` µs.
+    fn first_line(at: u64, taken: u64) -> (Duration, Recorded) {
+        let us = Duration::from_micros;
+        (
+            us(at),
+            Recorded::Line {
+                taken: Some(us(taken)),
+                origin: Origin(2),
+                number: 1,
+                text: "{}".to_owned(),
+            },
+        )
     }
 
     fn out(to: Option<u64>, value: Value) -> Recorded {
