@@ -420,7 +420,74 @@ pub const MAX_SESSION_FILE: u64 = 4 << 20;
 /// quarter of its `--record-max-mb` there).
 pub const MAX_LINES_FILE: u64 = 1 << 30;
 
+/// The file at `path` opened to read at most `max` bytes: a regular file
+/// only (a FIFO or a device would be read forever), and no larger than a
+/// recording makes.
+fn open_capped(path: &Path, max: u64) -> Result<std::io::Take<fs::File>, ReplayError> {
+    let io = |source| ReplayError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let meta = fs::metadata(path).map_err(io)?;
+    let refuse = |why: String| ReplayError::Io {
+        path: path.to_owned(),
+        source: std::io::Error::other(why),
+    };
+    if !meta.is_file() {
+        return Err(refuse("not a regular file".to_owned()));
+    }
+    if meta.len() > max {
+        return Err(refuse(format!(
+            "{} bytes, more than a recording holds ({max})",
+            meta.len()
+        )));
+    }
+    let f = fs::File::open(path).map_err(io)?;
+    Ok(std::io::Read::take(f, max))
+}
+
+/// The recording's `session.json` in `dir`: its path and what it says.
+fn session_of(dir: &Path) -> Result<(PathBuf, Value), ReplayError> {
+    let path = dir.join("session.json");
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut open_capped(&path, MAX_SESSION_FILE)?, &mut text).map_err(
+        |source| ReplayError::Io {
+            path: path.clone(),
+            source,
+        },
+    )?;
+    let session = serde_json::from_str(&text).map_err(|e| ReplayError::Record {
+        path: path.clone(),
+        line: e.line(),
+        reason: e.to_string(),
+    })?;
+    Ok((path, session))
+}
+
+/// The `setup` a `session.json` holds, if it holds one.
+fn setup_in(session: &Value) -> Result<Option<Setup>, ReplayError> {
+    session.get("setup").map_or(Ok(None), |s| {
+        serde_json::from_value(s.clone())
+            .map(Some)
+            .map_err(|e| ReplayError::Setup {
+                reason: e.to_string(),
+            })
+    })
+}
+
 impl Recording {
+    /// How the bridge of the recording in `dir` was set up, from its
+    /// `session.json` alone (`None`: it does not say): what a reader needs
+    /// before the records (`motorwire plot` keeps only the map's motors).
+    ///
+    /// # Errors
+    /// [`ReplayError::Io`] and [`ReplayError::Record`] for a `session.json`
+    /// that cannot be read; [`ReplayError::Setup`] for a setup that is not
+    /// one.
+    pub fn setup_of(dir: &Path) -> Result<Option<Setup>, ReplayError> {
+        setup_in(&session_of(dir)?.1)
+    }
+
     /// Reads the recording in `dir`.
     ///
     /// # Errors
@@ -524,41 +591,14 @@ impl Recording {
         each: &mut dyn FnMut(Duration, Recorded),
     ) -> Result<Scanned, ReplayError> {
         let io = |path: PathBuf| move |source| ReplayError::Io { path, source };
-        // A regular file only (a FIFO or a device would be read forever),
-        // and no larger than a recording makes.
-        let open = |path: &Path, max: u64| -> Result<std::io::Take<fs::File>, ReplayError> {
-            let meta = fs::metadata(path).map_err(io(path.to_owned()))?;
-            let refuse = |why: String| ReplayError::Io {
-                path: path.to_owned(),
-                source: std::io::Error::other(why),
-            };
-            if !meta.is_file() {
-                return Err(refuse("not a regular file".to_owned()));
-            }
-            if meta.len() > max {
-                return Err(refuse(format!(
-                    "{} bytes, more than a recording holds ({max})",
-                    meta.len()
-                )));
-            }
-            let f = fs::File::open(path).map_err(io(path.to_owned()))?;
-            Ok(std::io::Read::take(f, max))
-        };
+        let open = open_capped;
         let read = |path: &Path, max: u64| -> Result<String, ReplayError> {
             let mut text = String::new();
             std::io::Read::read_to_string(&mut open(path, max)?, &mut text)
                 .map_err(io(path.to_owned()))?;
             Ok(text)
         };
-        let session_path = dir.join("session.json");
-        let session: Value = {
-            let text = read(&session_path, MAX_SESSION_FILE)?;
-            serde_json::from_str(&text).map_err(|e| ReplayError::Record {
-                path: session_path.clone(),
-                line: e.line(),
-                reason: e.to_string(),
-            })?
-        };
+        let (session_path, session) = session_of(dir)?;
         if whole && dir.join("lines.1.jsonl").exists() {
             return Err(ReplayError::Incomplete(
                 "the recording was rotated (lines.1.jsonl): its beginning is gone; record with a larger --record-max-mb to replay".to_owned(),
@@ -585,14 +625,7 @@ impl Recording {
                 "the recording dropped {n} records (a full queue or disk): its inputs may not all be there"
             )));
         }
-        let setup = match session.get("setup") {
-            Some(s) => Some(
-                serde_json::from_value(s.clone()).map_err(|e| ReplayError::Setup {
-                    reason: e.to_string(),
-                })?,
-            ),
-            None => None,
-        };
+        let setup = setup_in(&session)?;
         let lines_path = dir.join("lines.jsonl");
         let ended = written.is_some();
         // Times from the start; a record's `taken` too.

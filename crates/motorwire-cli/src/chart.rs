@@ -219,8 +219,13 @@ pub(crate) struct Digest {
     samples: BTreeMap<String, Vec<(f64, f64, f64)>>,
     /// Each motor's targets, each from its time (`None`: none from then).
     targets: BTreeMap<String, Vec<(f64, Option<f64>)>>,
-    /// When each line was accepted: its targets start then.
+    /// The motors drawn, when known before the session is read (a map's):
+    /// samples, targets and deadman stops of others are not kept.
+    motors: Option<BTreeSet<String>>,
+    /// When each line was accepted: its targets start then. At most
+    /// [`MAX_ACCEPTED`], the oldest let go first (`accepted_order`).
     accepted: BTreeMap<(Option<u64>, u64), f64>,
+    accepted_order: std::collections::VecDeque<(Option<u64>, u64)>,
     /// The emergency stops.
     stops: Vec<f64>,
     /// The motors a deadman stopped.
@@ -237,6 +242,20 @@ pub(crate) struct Digest {
 }
 
 impl Digest {
+    /// A digest that keeps the samples, targets and deadman stops of
+    /// `motors` only (a map's: no other is drawn).
+    pub(crate) fn of_motors<'a>(motors: impl IntoIterator<Item = &'a str>) -> Self {
+        Self {
+            motors: Some(motors.into_iter().map(str::to_owned).collect()),
+            ..Self::default()
+        }
+    }
+
+    /// Whether `motor`'s samples and targets are kept.
+    fn drawn(&self, motor: &str) -> bool {
+        self.motors.as_ref().is_none_or(|m| m.contains(motor))
+    }
+
     /// Something happened at `t` (an input line): the time axis reaches it.
     pub(crate) fn at(&mut self, t: f64) {
         self.end = self.end.max(t);
@@ -345,6 +364,7 @@ impl Digest {
         // A deadman names its motor whatever else its line holds.
         if v.get("event").and_then(Value::as_str) == Some("deadman")
             && let Some(m) = v.get("motor_id").and_then(Value::as_str)
+            && self.drawn(m)
         {
             self.deadman.insert(m.to_owned());
         }
@@ -361,6 +381,9 @@ impl Digest {
             let (Some(p), Some(vel)) = (drawable(p), drawable(vel)) else {
                 return;
             };
+            if !self.drawn(motor) {
+                return;
+            }
             match self.samples.get_mut(motor) {
                 Some(s) => s.push((t, p, vel)),
                 None => {
@@ -372,7 +395,16 @@ impl Digest {
         if v.get("ok") == Some(&Value::Bool(true))
             && let Some(line) = v.get("line").and_then(Value::as_u64)
         {
-            self.accepted.insert((to, line), t);
+            if self.accepted.insert((to, line), t).is_none() {
+                self.accepted_order.push_back((to, line));
+            }
+            // A completion comes soon after its acceptance: the oldest
+            // let go (a completion of one is drawn from its own time).
+            while self.accepted_order.len() > MAX_ACCEPTED {
+                if let Some(k) = self.accepted_order.pop_front() {
+                    self.accepted.remove(&k);
+                }
+            }
         }
         if v.get("arrived").is_some() {
             let line = v.get("line").and_then(Value::as_u64).unwrap_or(0);
@@ -386,7 +418,8 @@ impl Digest {
                 if let (Some(motor), Some(target)) = (
                     m.get("motor_id").and_then(Value::as_str),
                     m.get("target").and_then(Value::as_f64).and_then(drawable),
-                ) {
+                ) && self.drawn(motor)
+                {
                     self.targets
                         .entry(motor.to_owned())
                         .or_default()
@@ -417,15 +450,26 @@ fn marks(d: &mut Digest) -> Vec<Mark> {
 /// was named by a deadman (or those of `only`, when given).
 fn tracks(d: &mut Digest, map: &BusMap, only: &[String]) -> Vec<Track> {
     let mut out = Vec::new();
+    d.stops.sort_by(f64::total_cmp);
     for m in map.motors() {
-        let s = d.samples.remove(&m.name).unwrap_or_default();
-        let mut tg = d.targets.remove(&m.name).unwrap_or_default();
+        let mut s = d.samples.remove(&m.name).unwrap_or_default();
+        // In time order (a record is stamped when it came, so it may be a
+        // little earlier than the one before it): a line through time.
+        s.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut targets = d.targets.remove(&m.name).unwrap_or_default();
+        targets.sort_by(|a, b| a.0.total_cmp(&b.0));
         // A stop ends every target (a move's completion, and so its
-        // target, may come after the stop that cut it short).
-        if !tg.is_empty() {
-            tg.extend(d.stops.iter().map(|t| (*t, None)));
+        // target, may come after the stop that cut it short): each target,
+        // and the first stop after it before the next target.
+        let mut tg = Vec::with_capacity(targets.len() * 2);
+        for (k, target) in targets.iter().enumerate() {
+            tg.push(*target);
+            let next = targets.get(k + 1).map_or(f64::INFINITY, |n| n.0);
+            let first = d.stops.partition_point(|t| *t < target.0);
+            if let Some(stop) = d.stops.get(first).filter(|t| **t < next) {
+                tg.push((*stop, None));
+            }
         }
-        tg.sort_by(|a, b| a.0.total_cmp(&b.0));
         let moved = s
             .first()
             .is_some_and(|f| s.iter().any(|x| x.1 != f.1 || x.2 != f.2));
@@ -481,8 +525,16 @@ const MAX_LABEL_ROWS: usize = 6;
 /// `text` fit for an SVG's text: control characters (which XML forbids)
 /// as U+FFFD.
 fn printable(text: &str) -> String {
+    // XML 1.0 forbids the control characters (but tab and line ends, which
+    // a label has no use for) and U+FFFE and U+FFFF.
     text.chars()
-        .map(|c| if c.is_control() { '\u{FFFD}' } else { c })
+        .map(|c| {
+            if c.is_control() || matches!(c, '\u{FFFE}' | '\u{FFFF}') {
+                '\u{FFFD}'
+            } else {
+                c
+            }
+        })
         .collect()
 }
 
@@ -500,6 +552,10 @@ pub(crate) struct Drawn {
     pub(crate) panels: usize,
     pub(crate) marks: usize,
 }
+
+/// Acceptances remembered, at most, for the targets of the completions
+/// that follow them.
+const MAX_ACCEPTED: usize = 65_536;
 
 /// Marks of one kind drawn, at most; the key counts the rest.
 const MAX_MARKS_OF_A_KIND: usize = 100;
@@ -1124,6 +1180,77 @@ key = "TRM"
         assert!(svg.contains("4900 more refused lines not drawn (the first 100 of each kind are)"));
         assert_eq!(svg.matches("emergency stop (input)").count(), 5);
         let _ = std::fs::remove_file(&path);
+    }
+
+    /// What no chart draws is not kept: samples, targets and deadman
+    /// stops of motors not in the map; acceptances beyond the last
+    /// [`MAX_ACCEPTED`]. A stop is kept once, not once for every motor with
+    /// a target: each target ends at the first stop after it.
+    #[test]
+    fn what_no_chart_draws_is_not_kept() {
+        let map = BusMap::from_toml(MAP).unwrap();
+        let mut d = Digest::of_motors(map.motors().map(|m| m.name.as_str()));
+        for i in 0..1_000_u32 {
+            let t = f64::from(i) * 1e-3;
+            let stranger = format!("stranger-{i}-{}", "x".repeat(1_000));
+            d.output(t, None, &feedback(&stranger, 1.0, 1.0));
+            d.output(t, None, &json!({"event": "deadman", "motor_id": stranger}));
+            d.output(t, Some(1), &json!({"arrived": true, "line": 1, "motors": [{"motor_id": stranger, "target": 3.0}]}));
+        }
+        assert!(d.samples.is_empty() && d.targets.is_empty() && d.deadman.is_empty());
+        for line in 0..(MAX_ACCEPTED as u64 + 10) {
+            d.output(1.0, Some(1), &json!({"ok": true, "line": line}));
+        }
+        assert_eq!(d.accepted.len(), MAX_ACCEPTED);
+        assert_eq!(d.accepted_order.len(), MAX_ACCEPTED);
+        assert!(!d.accepted.contains_key(&(Some(1), 9)));
+        assert!(d.accepted.contains_key(&(Some(1), 10)));
+        // Targets at 2 and 5 s; stops at 1, 3, 4 and 6 s: the first ends at
+        // the stop at 3, the second at the stop at 6.
+        for (t, line) in [(2.0, 100), (5.0, 101)] {
+            d.output(t, Some(1), &json!({"ok": true, "line": line}));
+            d.output(t + 0.5, Some(1), &json!({"arrived": true, "line": line, "motors": [{"motor_id": "elbow", "target": line}]}));
+        }
+        for t in [6.0, 1.0, 4.0, 3.0] {
+            d.output(
+                t,
+                None,
+                &json!({"event": "emergency_stop", "cause": "input", "cancelled": []}),
+            );
+        }
+        let tracks = tracks(&mut d, &map, &[]);
+        let elbow = tracks.iter().find(|t| t.motor == "elbow").unwrap();
+        assert_eq!(
+            elbow.targets,
+            [
+                (2.0, Some(100.0)),
+                (3.0, None),
+                (5.0, Some(101.0)),
+                (6.0, None)
+            ]
+        );
+    }
+
+    /// Samples out of time order are drawn in time order, and a long line
+    /// of them is thinned all the same; a label's characters that XML
+    /// forbids are replaced.
+    #[test]
+    fn samples_out_of_order_are_drawn_in_order_and_thinned() {
+        let map = BusMap::from_toml(MAP).unwrap();
+        let mut d = Digest::of_motors(map.motors().map(|m| m.name.as_str()));
+        // Every other sample stamped a second late.
+        for i in 0..100_000_u32 {
+            let t = f64::from(i) * 1e-3 + if i % 2 == 0 { 1.0 } else { 0.0 };
+            d.output(t, None, &feedback("elbow", f64::from(i % 150), 1.0));
+        }
+        d.output(0.5, Some(1), &json!({"ok": false, "line": 1, "motor_id": "a\u{ffff}b\u{fffe}", "error": {"rule": "invalid"}}));
+        let tracks = tracks(&mut d, &map, &[]);
+        let elbow = tracks.iter().find(|t| t.motor == "elbow").unwrap();
+        assert!(elbow.samples.windows(2).all(|w| w[0].0 <= w[1].0));
+        let n = elbow.samples.len();
+        let drawn = thinned(elbow.samples.iter().map(|s| (s.0, s.1)), n, 101.0, 518);
+        assert!(drawn.len() <= POINTS_A_COLUMN * 519, "{}", drawn.len());
+        assert_eq!(printable("a\u{ffff}b\u{fffe}"), "a\u{FFFD}b\u{FFFD}");
     }
 
     /// A line with more points than its chart has pixel columns (four a

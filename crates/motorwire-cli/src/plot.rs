@@ -48,8 +48,27 @@ fn take(d: &mut Digest, t: std::time::Duration, r: &Recorded) {
 
 fn plot(args: &Args) -> Result<(), String> {
     let dir = &args.dir;
+    // The map first: only its motors' samples and targets are kept.
+    let map = match &args.map {
+        Some(path) => crate::bridge::load_map(path)?,
+        None => {
+            let setup = Recording::setup_of(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+            let Some(setup) = setup else {
+                return Err(format!(
+                    "{}: session.json has no setup (its map): give one with --map",
+                    dir.display()
+                ));
+            };
+            BusMap::from_toml(&setup.map).map_err(|e| format!("the recorded map: {e}"))?
+        }
+    };
+    for m in &args.motors {
+        if map.motor(m).is_none() {
+            return Err(format!("--motor {m}: not a motor of the map"));
+        }
+    }
     // Read a record at a time: only what the chart draws is kept.
-    let mut digest = Digest::default();
+    let mut digest = Digest::of_motors(map.motors().map(|m| m.name.as_str()));
     let recording = Recording::scan_partial(dir, |t, r| take(&mut digest, t, &r))
         .map_err(|e| format!("{}: {e}", dir.display()))?;
     if recording.cut {
@@ -57,23 +76,6 @@ fn plot(args: &Args) -> Result<(), String> {
             "motorwire plot: {}: the recording did not end cleanly: its last line, cut in the middle of its write, is left out",
             dir.display()
         );
-    }
-    let map = match (&args.map, &recording.setup) {
-        (Some(path), _) => crate::bridge::load_map(path)?,
-        (None, Some(setup)) => {
-            BusMap::from_toml(&setup.map).map_err(|e| format!("the recorded map: {e}"))?
-        }
-        (None, None) => {
-            return Err(format!(
-                "{}: session.json has no setup (its map): give one with --map",
-                dir.display()
-            ));
-        }
-    };
-    for m in &args.motors {
-        if map.motor(m).is_none() {
-            return Err(format!("--motor {m}: not a motor of the map"));
-        }
     }
     let title = format!("motorwire recording {}", dir.display());
     let drawn = chart::draw(digest, &map, &args.motors, &title, &args.svg)?;
