@@ -446,16 +446,22 @@ fn open_capped(path: &Path, max: u64) -> Result<std::io::Take<fs::File>, ReplayE
     Ok(std::io::Read::take(f, max))
 }
 
+/// The text of the file at `path`, as [`open_capped`] opens it.
+fn read_capped(path: &Path, max: u64) -> Result<String, ReplayError> {
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut open_capped(path, max)?, &mut text).map_err(|source| {
+        ReplayError::Io {
+            path: path.to_owned(),
+            source,
+        }
+    })?;
+    Ok(text)
+}
+
 /// The recording's `session.json` in `dir`: its path and what it says.
 fn session_of(dir: &Path) -> Result<(PathBuf, Value), ReplayError> {
     let path = dir.join("session.json");
-    let mut text = String::new();
-    std::io::Read::read_to_string(&mut open_capped(&path, MAX_SESSION_FILE)?, &mut text).map_err(
-        |source| ReplayError::Io {
-            path: path.clone(),
-            source,
-        },
-    )?;
+    let text = read_capped(&path, MAX_SESSION_FILE)?;
     let session = serde_json::from_str(&text).map_err(|e| ReplayError::Record {
         path: path.clone(),
         line: e.line(),
@@ -591,13 +597,6 @@ impl Recording {
         each: &mut dyn FnMut(Duration, Recorded),
     ) -> Result<Scanned, ReplayError> {
         let io = |path: PathBuf| move |source| ReplayError::Io { path, source };
-        let open = open_capped;
-        let read = |path: &Path, max: u64| -> Result<String, ReplayError> {
-            let mut text = String::new();
-            std::io::Read::read_to_string(&mut open(path, max)?, &mut text)
-                .map_err(io(path.to_owned()))?;
-            Ok(text)
-        };
         let (session_path, session) = session_of(dir)?;
         if whole && dir.join("lines.1.jsonl").exists() {
             return Err(ReplayError::Incomplete(
@@ -643,7 +642,7 @@ impl Recording {
         // so those need not all be held.
         let mut known_start = None;
         let (count, frames, cut) = 'read: loop {
-            let mut lines = std::io::BufReader::new(open(&lines_path, MAX_LINES_FILE)?);
+            let mut lines = std::io::BufReader::new(open_capped(&lines_path, MAX_LINES_FILE)?);
             // The records before the start mark, held until it comes.
             let mut before_start = Vec::new();
             let mut start = known_start;
@@ -704,7 +703,7 @@ impl Recording {
                         // Read again from the top, time zero known (none
                         // was handed out yet).
                         known_start = Some(
-                            first_start(std::io::BufReader::new(open(
+                            first_start(std::io::BufReader::new(open_capped(
                                 &lines_path,
                                 MAX_LINES_FILE,
                             )?))
@@ -732,7 +731,7 @@ impl Recording {
         }
         if whole && ended {
             let frames_path = dir.join("frames.log");
-            let log = read(&frames_path, MAX_LINES_FILE)?;
+            let log = read_capped(&frames_path, MAX_LINES_FILE)?;
             same_frames(
                 &frames_path,
                 &log,

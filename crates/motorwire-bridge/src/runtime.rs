@@ -576,7 +576,11 @@ impl<'a> Secret<'a> {
     pub fn in_head(&self, head: &[u8]) -> bool {
         let s = self.text.as_bytes();
         let whole = head.windows(s.len()).any(|w| w == s);
-        let cut = (8..s.len()).any(|n| s.get(..n).is_some_and(|p| head.ends_with(p)));
+        // Where a cut secret could begin: within its length of the end.
+        let from = head.len().saturating_sub(s.len().saturating_sub(1));
+        let cut = (from..head.len())
+            .filter_map(|i| head.get(i..))
+            .any(|rest| rest.len() >= 8 && s.starts_with(rest));
         whole || cut
     }
 }

@@ -58,14 +58,7 @@ impl MarkKind {
     ];
 
     const fn index(self) -> usize {
-        match self {
-            Self::Step => 0,
-            Self::Stop => 1,
-            Self::Release => 2,
-            Self::Refused => 3,
-            Self::Deadman => 4,
-            Self::Lost => 5,
-        }
+        self as usize
     }
 
     /// What marks of this kind are, in the key's count of those not drawn.
@@ -679,6 +672,9 @@ pub(crate) fn draw(
     let plot_left = 12.0 + 58.0;
     let plot_right = f64::from(WIDTH) / 2.0 - 12.0;
     let px = |t: f64| plot_left + (t / end) * (plot_right - plot_left);
+    // The plots' width in pixels: a measured line is thinned to it.
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let columns = (plot_right - plot_left) as usize;
     let placed = label_rows(marks.iter().map(|m| px(m.t)));
     let rows = placed.iter().flatten().max().map_or(0, |r| r + 1);
     let header = 40 + 16 * u32::try_from(rows).unwrap_or(0);
@@ -836,8 +832,6 @@ pub(crate) fn draw(
                         .map_err(err)?;
                 }
             }
-            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-            let columns = (plot_right - plot_left) as usize;
             chart
                 .draw_series(LineSeries::new(
                     thinned(

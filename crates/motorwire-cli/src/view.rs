@@ -75,11 +75,9 @@ enum Item {
         number: u64,
         text: String,
     },
-    /// Held as it is: an `Output` keeps its large lines boxed already.
-    Out { at: Instant, output: Output },
-    /// An output as the runner rendered it for its sink (shared, not
-    /// rendered again).
-    OutLine {
+    /// An output as its line: the runner's, rendered once for its sink
+    /// (shared, not rendered again).
+    Out {
         at: Instant,
         /// The client it went to, when it was one client's.
         to: Option<u64>,
@@ -121,15 +119,14 @@ impl Tap for ViewTap {
         });
     }
 
+    /// An output told without its line (a runner that does not render):
+    /// rendered here.
     fn output(&self, at: Instant, output: &Output) {
-        self.put(Item::Out {
-            at,
-            output: output.clone(),
-        });
+        self.output_line(at, output, &Arc::from(output.to_json()));
     }
 
     fn output_line(&self, at: Instant, output: &Output, line: &Arc<str>) {
-        self.put(Item::OutLine {
+        self.put(Item::Out {
             at,
             to: output.reader().map(|r| r.0),
             line: Arc::clone(line),
@@ -423,19 +420,12 @@ fn render(item: &Item, started: Instant) -> String {
             text,
         } => json!({"kind": "in", "t": t(at), "origin": origin.0, "line": number, "text": text})
             .to_string(),
-        Item::Out { at, output } => {
-            out_line(t(at), output.reader().map(|r| r.0), &output.to_json())
-        }
-        Item::OutLine { at, to, line, .. } => out_line(t(at), *to, line),
+        Item::Out { at, to, line, .. } => format!(
+            r#"{{"kind":"out","t":{},"to":{},"line":{line}}}"#,
+            t(at),
+            to.map_or_else(|| "null".to_owned(), |o| o.to_string()),
+        ),
     }
-}
-
-/// An output's line for the pages: when (`t`, seconds), to whom, the line.
-fn out_line(t: f64, to: Option<u64>, line: &str) -> String {
-    format!(
-        r#"{{"kind":"out","t":{t},"to":{},"line":{line}}}"#,
-        to.map_or_else(|| "null".to_owned(), |o| o.to_string()),
-    )
 }
 
 /// The view's thread: renders each line once, keeps the last
@@ -488,7 +478,7 @@ fn hub(
         }
         if let Some(item) = item {
             let at = match &item {
-                Item::In { at, .. } | Item::Out { at, .. } | Item::OutLine { at, .. } => *at,
+                Item::In { at, .. } | Item::Out { at, .. } => *at,
             };
             let line = render(&item, started);
             if line.len() > MAX_RENDERED {
@@ -496,9 +486,7 @@ fn hub(
                 continue;
             }
             let line: Arc<str> = Arc::from(line);
-            if matches!(&item, Item::OutLine { ready: true, .. })
-                || matches!(&item, Item::Out { output, .. } if matches!(output, Output::Event(motorwire_bridge::Event::Ready { .. })))
-            {
+            if matches!(&item, Item::Out { ready: true, .. }) {
                 ready = Some(Arc::clone(&line));
             }
             history_bytes += line.len();

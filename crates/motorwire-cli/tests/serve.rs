@@ -47,6 +47,14 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
+/// A token file in `dir` holding `token`, readable by its owner only.
+fn token_file(dir: &Path, token: &str) -> PathBuf {
+    let path = dir.join("token");
+    std::fs::write(&path, format!("{token}\n")).unwrap();
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
+    path
+}
+
 /// The bridge process, killed when dropped.
 struct Bridge(Child);
 
@@ -418,9 +426,7 @@ fn an_http_post_moves_nothing_even_without_a_token() {
 #[test]
 fn a_wrong_or_missing_token_is_refused_and_the_right_one_is_served() {
     let dir = scratch("token");
-    let token = dir.join("token");
-    std::fs::write(&token, "correct-horse-battery-staple\n").unwrap();
-    std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let token = token_file(&dir, "correct-horse-battery-staple");
     let record = dir.join("recording");
     let (_bridge, port, log) = tcp_bridge(
         &dir,
@@ -485,9 +491,7 @@ fn a_wrong_or_missing_token_is_refused_and_the_right_one_is_served() {
 #[test]
 fn the_token_on_standard_input_is_refused_and_not_recorded() {
     let dir = scratch("stdin-token");
-    let token = dir.join("token");
-    std::fs::write(&token, "correct-horse-battery-staple\n").unwrap();
-    std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let token = token_file(&dir, "correct-horse-battery-staple");
     let record = dir.join("recording");
     let out = common::run(
         &common::sim_bridge(&[
@@ -695,9 +699,7 @@ fn connections_beyond_the_limit_are_refused_but_a_stop_is_taken() {
 #[test]
 fn idle_connections_are_closed_unauthenticated_and_never_keep_a_stop_out() {
     let dir = scratch("idle");
-    let token = dir.join("token");
-    std::fs::write(&token, "correct-horse-battery-staple\n").unwrap();
-    std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let token = token_file(&dir, "correct-horse-battery-staple");
     let (_bridge, port, _) = tcp_bridge(
         &dir,
         &[
@@ -833,9 +835,7 @@ fn out_of_descriptors_the_accept_loop_backs_off_instead_of_spinning() {
 #[test]
 fn tcp_results_come_back_without_delay_with_feedback_on() {
     let dir = scratch("nodelay");
-    let token = dir.join("token");
-    std::fs::write(&token, "a-token-for-the-latency-test\n").unwrap();
-    std::fs::set_permissions(&token, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let token = token_file(&dir, "a-token-for-the-latency-test");
     let (_bridge, port, _) = tcp_bridge(
         &dir,
         &[
