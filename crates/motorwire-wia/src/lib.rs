@@ -5,6 +5,7 @@ mod check;
 mod command;
 mod error;
 mod feedback;
+mod flat;
 mod kind;
 mod members;
 mod mode_config;

@@ -278,7 +278,15 @@ impl Validator {
     /// assert!(v.parse_any(typo).is_err());
     /// ```
     pub fn parse_plain_command(&self, json: &str) -> Option<MotorCommand> {
-        self.parse_plain(json)
+        if json.len() > self.max_document_size {
+            return None;
+        }
+        // The commonest line, one flat object, is read without serde (to
+        // the bit as serde reads it); anything else by serde.
+        match crate::flat::flat_command(json) {
+            Some(m) => self.plain_valid(m, json),
+            None => self.parse_plain(json),
+        }
     }
 
     /// [`Validator::parse_plain_command`] for a [`MultiAxisCommand`]: `json`
@@ -320,6 +328,12 @@ impl Validator {
             return None;
         }
         let m: T = crate::plain::parse_named(json, crate::members::top_level_members(T::KIND))?;
+        self.plain_valid(m, json)
+    }
+
+    /// `m`, read from `json`, where it is a valid message that is nothing
+    /// but one.
+    fn plain_valid<T: crate::plain::Plain>(&self, m: T, json: &str) -> Option<T> {
         if m.any_unknown() || (m.may_nest_beyond(self.max_depth) && self.precheck(json).is_err()) {
             return None;
         }
