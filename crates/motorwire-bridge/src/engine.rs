@@ -30,7 +30,7 @@ use motorwire_can::client::ClientConfig;
 use motorwire_irpc::{CalibrationRequest, LifecycleState, Payload, PayloadKind};
 use motorwire_orion::ArmCommand;
 use motorwire_translate::{
-    AngleUnit, BusMap, Limits, Report, multi_axis_to_irpc_from, to_irpc, trajectory_to_irpc,
+    AngleUnit, BusMap, Limits, Report, multi_axis_to_irpc_from, trajectory_to_irpc,
 };
 use motorwire_wia::{
     Message, MotorCommand, MotorFeedback, MultiAxisCommand, SafetyLimits, SyncMode, Trajectory,
@@ -1857,8 +1857,8 @@ impl Bridge {
             self.device_command(now, meta, cmd, built);
             return;
         }
-        match to_irpc(&self.map, cmd) {
-            Ok(t) => {
+        match motorwire_translate::to_irpc_gated(&self.map, cmd) {
+            Ok((t, motor, limits)) => {
                 let Some(joint) = self.joint_index(&cmd.motor_id) else {
                     let e = ErrorBody::refused(
                         BridgeRule::NotAnIrpcJoint,
@@ -1868,9 +1868,19 @@ impl Bridge {
                     self.refuse(&meta, e);
                     return;
                 };
-                if let Err(r) = self.path_within_limits(joint, cmd, &t.value.payloads) {
-                    self.refuse(&meta, ErrorBody::gate(&r));
-                    return;
+                let planned = planned_within_limits(
+                    self.joints.get(joint),
+                    self.now,
+                    motor,
+                    &limits,
+                    &t.value.payloads,
+                );
+                match planned {
+                    Ok(planned) => self.keep_plan(joint, planned),
+                    Err(r) => {
+                        self.refuse(&meta, ErrorBody::gate(&r));
+                        return;
+                    }
                 }
                 // The line's motor name, moved: the command is not read again.
                 let motor = std::mem::take(&mut cmd.motor_id);
@@ -2037,41 +2047,15 @@ impl Bridge {
         Ok((axes, report))
     }
 
-    /// A move's whole planned path, from where the joint is now, how fast
-    /// it moves and how that changes (as the joint will plan it), stays within the
-    /// limits (issue: a joint moving fast toward a limit overshoots a target
-    /// inside it). Without a report yet there is nothing to plan from: the
-    /// joint's own check stands.
-    fn path_within_limits(
-        &mut self,
-        joint: usize,
-        cmd: &MotorCommand,
-        payloads: &[Payload],
-    ) -> Result<(), motorwire_translate::Refusal> {
-        // Where it is now (reckoned from its reports, or read from the
-        // move it makes as the bridge planned it).
+    /// Keeps the plan [`planned_within_limits`] made for `joint`'s move.
+    fn keep_plan(&mut self, joint: usize, planned: Option<Plan>) {
         let now = self.now;
-        let Some(from) = self.joints.get(joint).and_then(|j| j.state_at(now)) else {
-            return Ok(());
-        };
-        let (motor, limits) = motorwire_translate::gate(&self.map, cmd)?;
-        let mut planned = None;
-        for p in payloads {
-            if let Payload::SetTargetV2(p) = p {
-                let start = crate::joints::in_unit(motor.unit, from);
-                let path = motorwire_translate::check_path_from(motor, &limits, p, start)?;
-                planned = Duration::try_from_secs_f64(path.duration)
-                    .ok()
-                    .map(|d| ((from, *p, d), path.profile));
-            }
-        }
         if let Some(j) = self.joints.get_mut(joint) {
             let (planned, profile) = planned.unzip();
             j.planned = planned;
             j.planned_profile = profile.map(Box::new);
             j.planned_at = now;
         }
-        Ok(())
     }
 
     fn multi_axis(&mut self, now: Duration, meta: LineMeta, cmd: &MultiAxisCommand) {
@@ -4457,6 +4441,48 @@ impl Bridge {
             Timer::Settle => self.settle_until.filter(|_| self.phase == Phase::Starting),
         }
     }
+}
+
+/// A joint's move as the bridge planned it: where it started, what it was
+/// told, how long it takes, and its profile.
+type Plan = (
+    (
+        crate::joints::Kinematics,
+        motorwire_irpc::SetTargetPayloadV2,
+        Duration,
+    ),
+    motorwire_planner::Profile<f64>,
+);
+
+/// A move's whole planned path, from where `joint` is `now`, how fast it
+/// moves and how that changes (as the joint will plan it), stays within
+/// the limits `limits` gated the command against (issue: a joint moving
+/// fast toward a limit overshoots a target inside it); its plan, which
+/// the bridge keeps. Without a report yet there is nothing to plan from:
+/// the joint's own check stands.
+fn planned_within_limits(
+    joint: Option<&Joint>,
+    now: Duration,
+    motor: &motorwire_translate::MappedMotor,
+    limits: &motorwire_translate::Effective,
+    payloads: &[Payload],
+) -> Result<Option<Plan>, motorwire_translate::Refusal> {
+    // Where it is now (reckoned from its reports, or read from the move
+    // it makes as the bridge planned it).
+    let Some(from) = joint.and_then(|j| j.state_at(now)) else {
+        return Ok(None);
+    };
+    let mut planned = None;
+    for p in payloads {
+        if let Payload::SetTargetV2(p) = p {
+            let start = crate::joints::in_unit(motor.unit, from);
+            let path = motorwire_translate::check_path_from(motor, limits, p, start)?;
+            planned = Duration::try_from_secs_f64(path.duration)
+                .ok()
+                .map(|d| ((from, *p, d), path.profile));
+        }
+    }
+    Ok(planned)
 }
 
 /// What a newer motion step takes over on its device when it is queued

@@ -102,6 +102,36 @@ fn f32_of(motor: &str, field: &'static str, v: f64, report: &mut Report) -> Resu
 /// [`Refusal::MissingLimit`] when a move has no velocity or acceleration
 /// limit; [`Refusal::NotRepresentable`] for a value beyond f32.
 pub fn to_irpc(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<IrpcCommand>, Refusal> {
+    to_irpc_gated(map, cmd).map(|(t, ..)| t)
+}
+
+/// [`to_irpc`], with the motor the command is for and the limits in force
+/// it was gated against (the defaults of an emergency stop, which passes
+/// the gate whatever it carries): what a bridge checks the joint's whole
+/// planned path against, without gating the command a second time.
+///
+/// ```
+/// use motorwire_translate::{BusMap, to_irpc_gated};
+/// use motorwire_wia::MotorCommand;
+/// let map = BusMap::from_toml(
+///     "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\nlimits = { max_position = 90, max_velocity = 60, max_acceleration = 200 }",
+/// )?;
+/// let cmd: MotorCommand = serde_json::from_str(
+///     r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":30}"#,
+/// )?;
+/// let (t, motor, limits) = to_irpc_gated(&map, &cmd)?;
+/// assert_eq!(motor.name, "elbow");
+/// assert_eq!(limits.max_position.map(|b| b.value), Some(90.0));
+/// assert_eq!(t.value.payloads.len(), 1);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// As [`to_irpc`].
+pub fn to_irpc_gated<'m>(
+    map: &'m BusMap,
+    cmd: &MotorCommand,
+) -> Result<(Translated<IrpcCommand>, &'m MappedMotor, Effective), Refusal> {
     let (motor, effective) = gate_unless_emergency(map, cmd)?;
     let Target::Irpc { node, wire } = motor.target else {
         return Err(not_for(motor, cmd, "iRPC"));
@@ -132,14 +162,18 @@ pub fn to_irpc(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<IrpcComman
             }
         }
     };
-    Ok(Translated {
-        value: IrpcCommand {
-            node,
-            wire,
-            payloads: vec![payload],
+    Ok((
+        Translated {
+            value: IrpcCommand {
+                node,
+                wire,
+                payloads: vec![payload],
+            },
+            report,
         },
-        report,
-    })
+        motor,
+        effective,
+    ))
 }
 
 /// `Activate` (`enable: true`) or `Deactivate` for the iRPC joint named

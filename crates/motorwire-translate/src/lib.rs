@@ -13,7 +13,7 @@ mod trajectory;
 
 pub use command::{
     HIGH_PRIORITY, IrpcCommand, compact_command, lifecycle, multi_axis_to_compact, to_compact,
-    to_irpc, to_orion, to_orion_motor,
+    to_irpc, to_irpc_gated, to_orion, to_orion_motor,
 };
 pub use feedback::{FeedbackError, feedback_from_irpc, feedback_from_orion};
 pub use frames::{IrpcFrame, irpc_frames};
