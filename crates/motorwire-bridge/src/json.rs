@@ -40,11 +40,13 @@ impl Json {
         self.text
     }
 
+    #[inline(always)]
     fn open(&mut self) {
         self.text.push('{');
         self.first = true;
     }
 
+    #[inline(always)]
     fn close(&mut self) {
         self.text.push('}');
         self.first = false;
@@ -52,6 +54,7 @@ impl Json {
 
     /// A member's name, written whole by [`k!`] (a field's name, which
     /// needs no escape).
+    #[inline(always)]
     fn key(&mut self, name: &'static str) {
         if !self.first {
             self.text.push(',');
@@ -60,22 +63,26 @@ impl Json {
         self.text.push_str(name);
     }
 
+    #[inline(always)]
     fn bool(&mut self, name: &'static str, v: bool) {
         self.key(name);
         self.text.push_str(if v { "true" } else { "false" });
     }
 
+    #[inline(always)]
     fn u64(&mut self, name: &'static str, v: u64) {
         self.key(name);
         push_u64(&mut self.text, v);
     }
 
+    #[inline(always)]
     fn str(&mut self, name: &'static str, v: &str) {
         self.key(name);
         push_str(&mut self.text, v);
     }
 
     /// The member `name` when there is a value.
+    #[inline(always)]
     fn opt_str(&mut self, name: &'static str, v: Option<&str>) {
         if let Some(v) = v {
             self.str(name, v);
@@ -83,6 +90,7 @@ impl Json {
     }
 
     /// The member `name` when there is a value.
+    #[inline(always)]
     fn opt_u64(&mut self, name: &'static str, v: Option<u64>) {
         if let Some(v) = v {
             self.u64(name, v);
