@@ -723,9 +723,9 @@ impl SimulatedArm {
     /// The bus's errors.
     pub fn step(&mut self, max: Duration) -> Result<(), BridgeError> {
         let now = self.bus.now();
-        self.settle()?;
+        let bridge_next = self.settled()?;
         let next = [
-            self.bridge.poll_timeout(),
+            bridge_next,
             self.bus.next_delivery(),
             self.holding.as_ref().and_then(Holding::next),
             self.joints
@@ -758,6 +758,13 @@ impl SimulatedArm {
     /// # Errors
     /// The bus's errors.
     pub fn settle(&mut self) -> Result<(), BridgeError> {
+        self.settled().map(drop)
+    }
+
+    /// [`SimulatedArm::settle`], saying when the bridge next has work (its
+    /// [`Bridge::poll_timeout`] once nothing more happens: taking its
+    /// outputs does not change it).
+    fn settled(&mut self) -> Result<Option<Duration>, BridgeError> {
         let now = self.bus.now();
         loop {
             let mut busy = false;
@@ -834,16 +841,16 @@ impl SimulatedArm {
                     busy = true;
                 }
             }
-            if self.bridge.poll_timeout().is_some_and(|t| t <= now) {
+            let next = self.bridge.poll_timeout();
+            if next.is_some_and(|t| t <= now) {
                 self.bridge.handle_timeout(now);
                 busy = true;
             }
             self.pump_outputs();
             if !busy {
-                break;
+                return Ok(next);
             }
         }
-        Ok(())
     }
 
     /// Runs until the clock reaches `t`.
