@@ -88,9 +88,8 @@ fn line_to_result(arm: &mut SimulatedArm, line: &str) {
         // Each output as the line a runner prints; the result's `ok` read
         // from the typed result, not by parsing the line back (which is
         // the reader's work, not the bridge's).
-        let outputs = arm.take_outputs();
         let mut done = false;
-        for o in &outputs {
+        for o in arm.drain_outputs() {
             let text = black_box(o.to_json());
             if let Some(r) = o.result() {
                 assert!(r.ok, "{text}");

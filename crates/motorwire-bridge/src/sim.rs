@@ -699,6 +699,30 @@ impl SimulatedArm {
         std::mem::take(&mut self.outputs)
     }
 
+    /// Every output so far, oldest first, drained: the arm keeps its room
+    /// for the next ones (what a caller taking outputs after every step
+    /// uses, as a runner hands each to its sink without collecting them).
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use motorwire_bridge::{Bridge, BridgeConfig, Origin, sim::SimulatedArm};
+    /// use motorwire_can::SimConfig;
+    /// use motorwire_translate::BusMap;
+    /// let map = BusMap::from_toml("[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\nlimits = { max_velocity = 60, max_acceleration = 200 }")?;
+    /// let mut arm = SimulatedArm::new(Bridge::new(map, BridgeConfig::default())?, SimConfig::default())?;
+    /// arm.run_while(Duration::from_secs(1), |a| a.bridge().is_ready())?;
+    /// arm.drain_outputs().for_each(drop);
+    /// arm.line(Origin(1), r#"{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"position","setpoint":10}"#);
+    /// arm.step(Duration::from_millis(5))?;
+    /// let results: Vec<bool> = arm.drain_outputs().filter_map(|o| o.result().map(|r| r.ok)).collect();
+    /// assert_eq!(results, [true]);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn drain_outputs(&mut self) -> std::vec::Drain<'_, Output> {
+        self.pump_outputs();
+        self.outputs.drain(..)
+    }
+
     /// The result lines so far, taken (other outputs are dropped).
     pub fn take_results(&mut self) -> Vec<serde_json::Value> {
         self.take_outputs()

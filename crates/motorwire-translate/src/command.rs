@@ -136,7 +136,10 @@ pub fn to_irpc_gated<'m>(
     let Target::Irpc { node, wire } = motor.target else {
         return Err(not_for(motor, cmd, "iRPC"));
     };
-    let mut report = Report::default();
+    // Room for what a move reports: its defaulted limits, its profile.
+    let mut report = Report {
+        losses: Vec::with_capacity(4),
+    };
     let name = motor.name.as_str();
     let payload = if emergency(cmd) {
         report.push(

@@ -206,7 +206,9 @@ impl<'a> Cursor<'a> {
         self.eat(b'"')?;
         let start = self.at;
         let rest = self.text.as_bytes().get(start..)?;
-        let len = rest.iter().position(|&b| STOPS.get(usize::from(b)) != Some(&false))?;
+        let len = rest
+            .iter()
+            .position(|&b| STOPS.get(usize::from(b)) != Some(&false))?;
         if rest.get(len) != Some(&b'"') {
             return None;
         }
