@@ -42,9 +42,9 @@ use std::fmt::Write as _;
 use std::fs::{self, File};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
-use std::sync::{Arc, OnceLock};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
@@ -235,21 +235,11 @@ pub trait Tap: Send + Sync + std::fmt::Debug {
     fn hush(&self, on: bool) {
         let _ = on;
     }
-    /// The flag a runner raises from the moment a stop line is read until
-    /// its loop takes it (before [`Tap::hush`]): a tap with a thread of its
-    /// own pauses its work from then too, so that the stop finds the cores
-    /// free. Told once, before anything else.
-    fn stops_waiting(&self, flag: Arc<AtomicBool>) {
-        let _ = flag;
-    }
 }
 
 impl Tap for Recorder {
     fn hush(&self, on: bool) {
         self.hushed.store(on, Ordering::Relaxed);
-    }
-    fn stops_waiting(&self, flag: Arc<AtomicBool>) {
-        let _ = self.stop_waiting.set(flag);
     }
     fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
         Recorder::input(self, at, origin, number, text);
@@ -503,44 +493,10 @@ const MIN_FILE: u64 = 4096;
 #[derive(Debug)]
 struct WriterFlags {
     hushed: Arc<AtomicBool>,
-    /// A stop line read and not yet taken ([`Tap::stops_waiting`]).
-    stop_waiting: Arc<OnceLock<Arc<AtomicBool>>>,
     abandon: Arc<AtomicBool>,
     #[cfg(test)]
     stall: Arc<AtomicBool>,
 }
-
-impl WriterFlags {
-    /// Waits while a stop line waits to be taken (from the moment it is
-    /// read: the writer's work then never takes the core the stop needs)
-    /// and while the stop is handled (until the runner says its frames
-    /// are out). The flag is the runner's: a stop still untaken after
-    /// [`STOP_TAKEN_WITHIN`] (a runner that ended without taking it) holds
-    /// the writer no longer until the flag falls (`gave_up`), so nothing
-    /// queued waits on it twice.
-    fn pause_for_stops(&self, gave_up: &mut bool) {
-        if let Some(waiting) = self.stop_waiting.get() {
-            if !waiting.load(Ordering::Acquire) {
-                *gave_up = false;
-            } else if !*gave_up {
-                let begun = Instant::now();
-                while waiting.load(Ordering::Acquire) && !self.hushed.load(Ordering::Relaxed) {
-                    if begun.elapsed() >= STOP_TAKEN_WITHIN {
-                        *gave_up = true;
-                        break;
-                    }
-                    thread::sleep(Duration::from_micros(100));
-                }
-            }
-        }
-        while self.hushed.load(Ordering::Relaxed) {
-            thread::sleep(Duration::from_micros(100));
-        }
-    }
-}
-
-/// How long the writer waits, at most, for a stop line read to be taken.
-const STOP_TAKEN_WITHIN: Duration = Duration::from_millis(100);
 
 /// What a recording came to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -583,8 +539,6 @@ pub struct Recorder {
     dropped: Arc<AtomicU64>,
     /// A stop is being handled: the writer waits.
     hushed: Arc<AtomicBool>,
-    /// The runner's flag: a stop line read and not yet taken.
-    stop_waiting: Arc<OnceLock<Arc<AtomicBool>>>,
     /// The session is over and its end may not wait longer: the writer
     /// drops (and counts) what is left instead of writing it.
     abandon: Arc<AtomicBool>,
@@ -620,13 +574,11 @@ impl Recorder {
         let dropped = Arc::new(AtomicU64::new(0));
         let d = Arc::clone(&dropped);
         let hushed = Arc::new(AtomicBool::new(false));
-        let stop_waiting = Arc::new(OnceLock::new());
         let abandon = Arc::new(AtomicBool::new(false));
         #[cfg(test)]
         let stall = Arc::new(AtomicBool::new(false));
         let flags = WriterFlags {
             hushed: Arc::clone(&hushed),
-            stop_waiting: Arc::clone(&stop_waiting),
             abandon: Arc::clone(&abandon),
             #[cfg(test)]
             stall: Arc::clone(&stall),
@@ -639,7 +591,6 @@ impl Recorder {
             queued,
             dropped,
             hushed,
-            stop_waiting,
             abandon,
             #[cfg(test)]
             stall,
@@ -1101,8 +1052,6 @@ impl Files {
         // The writer polls rather than sleeping in `recv`: a record handed
         // over then never has to wake it (a system call on the bridge's
         // thread, for every frame and line).
-        // A stop the writer stopped waiting for (see `pause_for_stops`).
-        let mut gave_up = false;
         'session: loop {
             // At most a batch at a time, then a pause: the writer takes a
             // share of a core, never a core the bridge's thread needs when
@@ -1111,7 +1060,9 @@ impl Files {
             for _ in 0..BATCH {
                 // A stop under way: its frames first (at most a stop's
                 // handling, the runner says when it is done).
-                flags.pause_for_stops(&mut gave_up);
+                while flags.hushed.load(Ordering::Relaxed) {
+                    thread::sleep(Duration::from_micros(100));
+                }
                 #[cfg(test)]
                 while flags.stall.load(Ordering::Relaxed) {
                     thread::sleep(Duration::from_millis(1));
@@ -1219,41 +1170,6 @@ mod tests {
                 .unwrap()
                 .contains(r#""text":"{\"emergency_stop\":true}""#)
         );
-    }
-
-    /// From the moment a stop line is read (the runner's flag raised,
-    /// before its loop takes the stop and hushes the taps), the writer
-    /// writes nothing; once the flag falls it goes on, nothing lost. A flag
-    /// left raised (a runner that ended with a stop untaken) holds the
-    /// writer once, for `STOP_TAKEN_WITHIN`, not once a record.
-    #[test]
-    fn a_stop_read_and_not_yet_taken_pauses_the_writer_once() {
-        let dir = scratch("stop-waiting");
-        let rec = recording(&dir, DEFAULT_RECORD_MAX);
-        let waiting = Arc::new(AtomicBool::new(false));
-        Tap::stops_waiting(&rec, Arc::clone(&waiting));
-        waiting.store(true, Ordering::Release);
-        rec.input(Instant::now(), Origin(1), 1, r#"{"emergency_stop":true}"#);
-        thread::sleep(Duration::from_millis(10));
-        assert_eq!(fs::read_to_string(dir.join("lines.jsonl")).unwrap(), "");
-        waiting.store(false, Ordering::Release);
-        // Raised again and never lowered: 1,000 records still end at once.
-        let t = Instant::now();
-        waiting.store(true, Ordering::Release);
-        for n in 2..1_002 {
-            rec.input(t, Origin(1), n, r#"{"emergency_stop":false}"#);
-        }
-        let begun = Instant::now();
-        let s = rec.finish();
-        assert!(
-            begun.elapsed() < Duration::from_secs(2),
-            "{:?}",
-            begun.elapsed()
-        );
-        assert_eq!((s.written, s.dropped), (1_001, 0));
-        let lines = fs::read_to_string(dir.join("lines.jsonl")).unwrap();
-        assert!(lines.contains(r#""text":"{\"emergency_stop\":true}""#));
-        assert_eq!(lines.lines().count(), 1_001);
     }
 
     /// A disk that does not answer never holds the end of a session past

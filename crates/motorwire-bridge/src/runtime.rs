@@ -896,7 +896,6 @@ impl Runner {
             }
         };
         if let Some(r) = rec {
-            r.stops_waiting(Arc::clone(&stop_waiting));
             r.mark(start, Mark::Start);
         }
         bridge.start(since(Instant::now()));
