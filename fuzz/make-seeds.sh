@@ -39,6 +39,10 @@ unhex "22 cb 57 81 60 e3 16 00 00 00 00 00 00 00 34 42 00 00 20 c0 00 00 00 00 0
 for f in fixtures/wia/valid/*.json fixtures/wia/invalid/*.json; do
     cp "$f" "$out/wia_validate/$(basename "$f")"
 done
+# The commonest line a controller writes: one flat command (the one-pass
+# reading's shape), with a fraction, a negative and a priority.
+printf '%s' '{"motor_id":"elbow","timestamp":1704067200000,"control_mode":"position","setpoint":-30.25,"velocity_limit":100,"priority":7}' \
+    > "$out/wia_validate/flat-command"
 # The Orion document's examples.
 printf '%s' '{"ID":32,"MODE":1,"DATA":{"TRM":200,"LAA":1,"UAA":1,"AEM":400}}' > "$out/orion_parse/direct"
 printf '%s' '{"ID":32,"MODE":2,"DATA":3}' > "$out/orion_parse/unfold"
