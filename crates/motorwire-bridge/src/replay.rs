@@ -1900,9 +1900,9 @@ node = 0x20
         let _ = fs::remove_dir_all(&dir);
     }
 
-    /// Read a record at a time, a recording hands out what `read_partial`
-    /// holds, in order, each at its time from the start mark (a record
-    /// written before the mark at 0); a line that is not UTF-8 is named.
+    /// Read for a replay, a recording leaves out its feedback lines but
+    /// the one later than every record after it: what is compared is all
+    /// there, and the span is the same.
     #[test]
     fn a_recording_read_to_replay_leaves_out_feedback_but_not_its_span() {
         let dir = std::env::temp_dir().join(format!("motorwire-replay-fb-{}", std::process::id()));
@@ -1954,6 +1954,9 @@ node = 0x20
         let _ = fs::remove_dir_all(&dir);
     }
 
+    /// Read a record at a time, a recording hands out what `read_partial`
+    /// holds, in order, each at its time from the start mark (a record
+    /// written before the mark at 0); a line that is not UTF-8 is named.
     #[test]
     fn a_recording_scanned_a_record_at_a_time_is_the_one_read_whole() {
         let dir =

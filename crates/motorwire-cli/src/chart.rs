@@ -228,8 +228,8 @@ pub(crate) struct Digest {
     marks: Vec<Mark>,
     /// Of each kind ([`MarkKind::index`]): the marks kept, and those not
     /// (counted only).
-    kept: [usize; 6],
-    not_kept: [u64; 6],
+    kept: [usize; MarkKind::ALL.len()],
+    not_kept: [u64; MarkKind::ALL.len()],
     /// The latest time seen.
     end: f64,
 }

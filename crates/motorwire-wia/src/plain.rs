@@ -26,6 +26,17 @@ pub(crate) trait Plain: crate::kind::WiaMessage + crate::members::Unknowns {
     /// member, or its own parts deeper than that): then the text is read
     /// for its depth.
     fn may_nest_beyond(&self, max_depth: usize) -> bool;
+
+    /// The value read from `json` without serde where the text has the
+    /// kind's commonest shape, to the bit as serde reads it; `None` where
+    /// serde must read it (the default: every other kind).
+    fn read_flat(json: &str) -> Option<Self>
+    where
+        Self: Sized,
+    {
+        let _ = json;
+        None
+    }
 }
 
 impl Plain for crate::MotorCommand {
@@ -36,6 +47,12 @@ impl Plain for crate::MotorCommand {
             || self.filter_config.is_some()
             || self.safety_limits.is_some();
         self.metadata.is_some() || 1 + usize::from(parts) > max_depth
+    }
+
+    /// One flat object, the commonest line a controller writes
+    /// ([`crate::flat`]).
+    fn read_flat(json: &str) -> Option<Self> {
+        crate::flat::flat_command(json)
     }
 }
 

@@ -278,15 +278,7 @@ impl Validator {
     /// assert!(v.parse_any(typo).is_err());
     /// ```
     pub fn parse_plain_command(&self, json: &str) -> Option<MotorCommand> {
-        if json.len() > self.max_document_size {
-            return None;
-        }
-        // The commonest line, one flat object, is read without serde (to
-        // the bit as serde reads it); anything else by serde.
-        match crate::flat::flat_command(json) {
-            Some(m) => self.plain_valid(m, json),
-            None => self.parse_plain(json),
-        }
+        self.parse_plain(json)
     }
 
     /// [`Validator::parse_plain_command`] for a [`MultiAxisCommand`]: `json`
@@ -327,13 +319,12 @@ impl Validator {
         if json.len() > self.max_document_size {
             return None;
         }
-        let m: T = crate::plain::parse_named(json, crate::members::top_level_members(T::KIND))?;
-        self.plain_valid(m, json)
-    }
-
-    /// `m`, read from `json`, where it is a valid message that is nothing
-    /// but one.
-    fn plain_valid<T: crate::plain::Plain>(&self, m: T, json: &str) -> Option<T> {
+        // The kind's commonest shape (a flat command) read without serde,
+        // to the bit as serde reads it; anything else by serde.
+        let m: T = match T::read_flat(json) {
+            Some(m) => m,
+            None => crate::plain::parse_named(json, crate::members::top_level_members(T::KIND))?,
+        };
         if m.any_unknown() || (m.may_nest_beyond(self.max_depth) && self.precheck(json).is_err()) {
             return None;
         }
