@@ -308,6 +308,11 @@ struct Waiting {
 /// ```
 #[derive(Debug)]
 pub struct Bridge {
+    /// [`Bridge::poll_timeout`] as last computed, until the bridge next
+    /// changes (`None`: to be computed). Every `&mut self` entry point
+    /// clears it; in debug builds each read is checked against a fresh
+    /// computation.
+    next_deadline: std::cell::Cell<Option<Option<Duration>>>,
     map: BusMap,
     config: BridgeConfig,
     validator: Validator,
@@ -425,6 +430,7 @@ impl Bridge {
             r#"{"motor_id":"-","control_mode":"warp","safety_limits":{"emergency_stop":true}}"#,
         );
         Ok(Self {
+            next_deadline: std::cell::Cell::new(None),
             map,
             config,
             validator,
@@ -461,6 +467,7 @@ impl Bridge {
     /// held to; feedback timestamps) is the host's, not behind it by the
     /// time it took to start.
     pub(crate) fn anchor_epoch(&mut self, unix_ms: f64) {
+        self.changed();
         if self.config.epoch_unix_ms.is_some() && unix_ms.is_finite() {
             self.config.epoch_unix_ms = Some(unix_ms);
             self.drivers.set_epoch(unix_ms);
@@ -567,6 +574,7 @@ impl Bridge {
     /// runner holds everyone's feedback and events from such a client
     /// until its greeting, so the greeting is its first line.
     pub fn greet(&mut self, now: Duration, origin: Origin) {
+        self.changed();
         self.now = self.now.max(now);
         match self.phase {
             Phase::Starting => self.to_greet.push(origin),
@@ -659,6 +667,7 @@ impl Bridge {
     /// before the joints are ready wait for them (an emergency stop does
     /// not: it is acted on at once).
     pub fn start(&mut self, now: Duration) {
+        self.changed();
         self.now = now;
         self.timers.feedback = self.config.feedback_period.map(|_| now);
         if !self.config.activate_on_start {
@@ -684,6 +693,7 @@ impl Bridge {
     /// End of input: lines in flight and moves in progress finish (up to
     /// [`BridgeConfig::drain_timeout`]), then every joint is deactivated.
     pub fn finish(&mut self, now: Duration) {
+        self.changed();
         self.now = self.now.max(now);
         if matches!(self.phase, Phase::Starting | Phase::Running) {
             // Lines still waiting for startup are served first.
@@ -737,6 +747,7 @@ impl Bridge {
     /// Interrupted (a signal): everything queued or in flight is cancelled
     /// and every joint deactivated now.
     pub fn interrupt(&mut self, now: Duration) {
+        self.changed();
         self.now = self.now.max(now);
         if matches!(self.phase, Phase::Stopping | Phase::Finished) {
             return;
@@ -770,6 +781,7 @@ impl Bridge {
     /// non-blank lines (from 1), so a reader can pair every result, an
     /// unlabelled refusal included, with what it sent.
     pub fn handle_line(&mut self, now: Duration, origin: Origin, line: &str) {
+        self.changed();
         self.now = self.now.max(now);
         let line = line.trim();
         if line.is_empty() {
@@ -784,6 +796,7 @@ impl Bridge {
     /// them numbers lines as they arrive). The bridge's own count for
     /// `origin` is not used.
     pub fn handle_numbered_line(&mut self, now: Duration, origin: Origin, number: u64, line: &str) {
+        self.changed();
         self.now = self.now.max(now);
         let line = line.trim();
         if line.is_empty() {
@@ -845,6 +858,7 @@ impl Bridge {
     /// counts as a line of `origin` and is answered
     /// `{"ok":false,"error":{"kind":"unreadable",...}}`.
     pub fn handle_unreadable(&mut self, now: Duration, origin: Origin, reason: &str) {
+        self.changed();
         self.now = self.now.max(now);
         self.stats.lines += 1;
         let number = self.number(origin);
@@ -857,6 +871,7 @@ impl Bridge {
     /// Forgets `origin`'s line count (a client that left); its lines in
     /// progress are still answered.
     pub fn forget_origin(&mut self, origin: Origin) {
+        self.changed();
         self.line_numbers.remove(&origin);
         self.to_greet.retain(|o| *o != origin);
     }
@@ -2053,7 +2068,7 @@ impl Bridge {
         if let Some(j) = self.joints.get_mut(joint) {
             let (planned, profile) = planned.unzip();
             j.planned = planned;
-            j.planned_profile = profile.map(Box::new);
+            j.planned_profile = profile;
             j.planned_at = now;
         }
     }
@@ -2195,6 +2210,7 @@ impl Bridge {
     /// event stream as `client_dropped`, since the client cannot be told.
     /// Its line count is forgotten.
     pub fn drop_origin(&mut self, now: Duration, origin: Origin, reason: &str) {
+        self.changed();
         self.now = self.now.max(now);
         self.line_numbers.remove(&origin);
         self.to_greet.retain(|o| *o != origin);
@@ -2667,7 +2683,8 @@ impl Bridge {
             if !self.drivers.resend_due(msg_id, &payload, now) {
                 continue;
             }
-            let Some(why) = self.path_at_send(ji, &payload) else {
+            let from = self.joints.get(ji).and_then(|j| j.state_at(now));
+            let Some(why) = self.path_at_send(ji, &payload, from) else {
                 continue;
             };
             self.drivers.forget(ji, msg_id, payload);
@@ -2697,16 +2714,25 @@ impl Bridge {
     /// where the device is now, leaves the limits in force (`None` when
     /// it stays within them, or nothing is known to plan from: the
     /// device's own check stands).
-    fn path_at_send(&self, ji: usize, order: &Order) -> Option<String> {
+    /// `from`: where the device is now ([`Joint::state_at`]), when known.
+    fn path_at_send(
+        &self,
+        ji: usize,
+        order: &Order,
+        from: Option<crate::joints::Kinematics>,
+    ) -> Option<String> {
         let j = self.joints.get(ji)?;
-        let from = j.state_at(self.now)?;
-        let motor = self.map.motor(&j.name)?;
-        let limits = motorwire_translate::Effective::from_bus_map(motor);
+        let from = from?;
         // Checked already when its line came, this instant, from there.
         let checked = j
             .planned
             .filter(|_| j.planned_at == self.now)
             .map(|(from, p, _)| (from, p));
+        if !order.path_unchecked(from, checked) {
+            return None;
+        }
+        let motor = self.map.motor(&j.name)?;
+        let limits = motorwire_translate::Effective::from_bus_map(motor);
         let refusal = order.path_refusal(motor, &limits, from, checked)?;
         Some(format!(
             "not sent: from where it was when its turn came ({} at {} a second), {refusal}",
@@ -2917,7 +2943,8 @@ impl Bridge {
         // Its path from where the device is now, within the limits in
         // force: the line's own check was when it came, and by its turn
         // the device may move otherwise (a move in flight, a slow Ack).
-        if let Some(why) = self.path_at_send(ji, &payload) {
+        let from = self.joints.get(ji).and_then(|j| j.state_at(now));
+        if let Some(why) = self.path_at_send(ji, &payload, from) {
             self.stats.refused_at_send += 1;
             if let Some(a) = axis_mut(&mut self.jobs, step) {
                 a.finish(StepOutcome::NotSent, None, why);
@@ -2940,7 +2967,7 @@ impl Bridge {
         if let Some(j) = self.joints.get_mut(ji) {
             j.busy = Some(step);
             // Where the move starts from, for the model of it once acked.
-            j.sending = j.state_at(now).map(|s| (now, s));
+            j.sending = from.map(|s| (now, s));
         }
         let sent = if payload.sent_together() {
             self.send_together(now, ji, step, payload)
@@ -3165,6 +3192,10 @@ impl Bridge {
 
     /// Emits the result of every job that is done.
     fn finish_jobs(&mut self) {
+        // Looked at after every event, and most find nothing done.
+        if !self.jobs.values().any(|j| j.is_done()) {
+            return;
+        }
         let mut done = std::mem::take(&mut self.done_scratch);
         done.clear();
         done.extend(
@@ -3507,11 +3538,14 @@ impl Bridge {
 
     /// The next line for the Orion controller (without its newline).
     pub fn poll_orion_line(&mut self) -> Option<String> {
-        self.drivers.poll_line()
+        let line = self.drivers.poll_line()?;
+        self.changed();
+        Some(line)
     }
 
     /// One line from the Orion controller, received at `now`.
     pub fn handle_orion_line(&mut self, now: Duration, line: &str) {
+        self.changed();
         self.now = self.now.max(now);
         self.drivers
             .handle_line(self.now, line, &self.joints, &self.map);
@@ -3522,6 +3556,7 @@ impl Bridge {
     /// not UTF-8), at `now`: counted, and reported at most
     /// [`MAX_BAD_LINE_EVENTS`] times a second.
     pub fn handle_orion_unreadable(&mut self, now: Duration, reason: &str) {
+        self.changed();
         self.now = self.now.max(now);
         self.drivers.handle_unreadable(self.now, reason);
         self.drain_drivers();
@@ -3530,6 +3565,7 @@ impl Bridge {
     /// The link to the Orion controller ended (`error` says how): its
     /// motors are offline, and what was in flight has an unknown outcome.
     pub fn orion_link_lost(&mut self, now: Duration, error: &str) {
+        self.changed();
         self.now = self.now.max(now);
         if !self.drivers.link_lost(now, error, &self.joints) {
             return;
@@ -3901,6 +3937,7 @@ impl Bridge {
 
     /// Takes a frame from the bus.
     pub fn handle_frame(&mut self, now: Duration, frame: &Frame) {
+        self.changed();
         self.now = self.now.max(now);
         self.drivers.handle_frame(self.now, frame, &self.joints);
         self.drain_drivers();
@@ -4182,6 +4219,7 @@ impl Bridge {
     /// Advances to `now`: retransmissions and timeouts, feedback, liveness,
     /// heartbeats, the end of a drain.
     pub fn handle_timeout(&mut self, now: Duration) {
+        self.changed();
         self.now = self.now.max(now);
         let now = self.now;
         self.withdraw_stale_resends(now);
@@ -4340,6 +4378,7 @@ impl Bridge {
     /// The next frame to put on the bus.
     pub fn poll_transmit(&mut self) -> Option<Frame> {
         let f = self.drivers.poll_transmit()?;
+        self.changed();
         self.stats.frames_sent += 1;
         Some(f)
     }
@@ -4348,6 +4387,7 @@ impl Bridge {
     /// out is on the bus as of `now`: the lines that sent them take `now`
     /// as their input-to-bus latency.
     pub fn flushed(&mut self, now: Duration) {
+        self.changed();
         self.now = self.now.max(now);
         for job in self.jobs.values_mut() {
             if job.unflushed {
@@ -4365,6 +4405,22 @@ impl Bridge {
 
     /// When [`Bridge::handle_timeout`] next has work.
     pub fn poll_timeout(&self) -> Option<Duration> {
+        if let Some(next) = self.next_deadline.get() {
+            debug_assert_eq!(
+                next,
+                self.next_deadline_now(),
+                "the next deadline changed without an entry point clearing it"
+            );
+            return next;
+        }
+        let next = self.next_deadline_now();
+        self.next_deadline.set(Some(next));
+        next
+    }
+
+    /// [`Bridge::poll_timeout`], computed: the earliest deadline of the
+    /// timer table.
+    fn next_deadline_now(&self) -> Option<Duration> {
         if self.phase == Phase::Finished {
             return None;
         }
@@ -4372,6 +4428,11 @@ impl Bridge {
             .into_iter()
             .filter_map(|t| self.deadline(t))
             .min()
+    }
+
+    /// The bridge is about to change: its next deadline is computed again.
+    fn changed(&mut self) {
+        self.next_deadline.set(None);
     }
 
     /// When timer `t` is next due, if it is set: the timer table, one
@@ -4451,7 +4512,9 @@ type Plan = (
         motorwire_irpc::SetTargetPayloadV2,
         Duration,
     ),
-    motorwire_planner::Profile<f64>,
+    // Boxed where it is made: a profile is some 300 bytes, and a plan is
+    // moved several times on its way to the joint.
+    Box<motorwire_planner::Profile<f64>>,
 );
 
 /// A move's whole planned path, from where `joint` is `now`, how fast it
@@ -4479,7 +4542,7 @@ fn planned_within_limits(
             let path = motorwire_translate::check_path_from(motor, limits, p, start)?;
             planned = Duration::try_from_secs_f64(path.duration)
                 .ok()
-                .map(|d| ((from, *p, d), path.profile));
+                .map(|d| ((from, *p, d), Box::new(path.profile)));
         }
     }
     Ok(planned)

@@ -572,6 +572,16 @@ impl Order {
         }
     }
 
+    /// Whether its path from `from` is still to be checked: an iRPC move
+    /// not already checked (`checked`) from there.
+    pub(crate) fn path_unchecked(
+        &self,
+        from: crate::joints::Kinematics,
+        checked: Option<(crate::joints::Kinematics, SetTargetPayloadV2)>,
+    ) -> bool {
+        matches!(self, Self::Irpc(Payload::SetTargetV2(p)) if checked != Some((from, *p)))
+    }
+
     /// Whether the path this order sends `motor` along, planned as the
     /// device plans it from `from` (its kinematics, degrees), stays
     /// within `limits` (the limits in force); `checked`: a move whose path
