@@ -1,5 +1,8 @@
 //! WIA commands to iRPC, the compact command and Orion.
 
+use std::cell::RefCell;
+use std::sync::Arc;
+
 use motorwire_compact::{CompactCommand, Flags, MotorHash, TorqueLimit, VelocityLimit};
 use motorwire_core::ControlMode;
 use motorwire_irpc::{MotionProfile, Payload, SetTargetPayload, SetTargetPayloadV2, WireVersion};
@@ -7,7 +10,7 @@ use motorwire_orion::{MotorValues, Quantity};
 use motorwire_wia::{AxisCommand, MotorCommand, MultiAxisCommand};
 
 use crate::gate::{Effective, gate};
-use crate::report::{LossKind, Report, Translated};
+use crate::report::{LossKind, LossText, Report, Translated};
 use crate::{BusMap, MappedMotor, Refusal, Target};
 
 /// WIA `priority` from which the compact command's `PRIORITY_HIGH` is set.
@@ -265,7 +268,54 @@ fn the(source: &str) -> String {
 }
 
 /// `value from the source`, as a defaulted limit's report says it.
-fn from_source(value: f64, source: &str) -> String {
+///
+/// Every command that leaves a limit out says the same words (a bridge,
+/// three of them for every move), so each thread keeps the last
+/// [`SAID_KEPT`] it made and shares them ([`LossText`]) rather than
+/// writing and freeing them again.
+fn from_source(value: f64, source: &'static str) -> LossText {
+    thread_local! {
+        static SAID: RefCell<Said> = const { RefCell::new(Said::new()) };
+    }
+    SAID.with(|said| said.borrow_mut().text(value, source))
+}
+
+/// How many defaulted limits' words [`from_source`] keeps, per thread.
+const SAID_KEPT: usize = 16;
+
+/// The words [`from_source`] made last: the value's bits, the source,
+/// the text; the oldest made way for the newest.
+struct Said {
+    kept: [Option<(u64, &'static str, Arc<str>)>; SAID_KEPT],
+    next: usize,
+}
+
+impl Said {
+    const fn new() -> Self {
+        Self {
+            kept: [const { None }; SAID_KEPT],
+            next: 0,
+        }
+    }
+
+    fn text(&mut self, value: f64, source: &'static str) -> LossText {
+        let bits = value.to_bits();
+        for (b, s, text) in self.kept.iter().flatten() {
+            if *b == bits && *s == source {
+                return LossText::from(Arc::clone(text));
+            }
+        }
+        let text: Arc<str> = Arc::from(source_text(value, source));
+        if let Some(slot) = self.kept.get_mut(self.next % SAID_KEPT) {
+            *slot = Some((bits, source, Arc::clone(&text)));
+        }
+        self.next = self.next.wrapping_add(1);
+        LossText::from(text)
+    }
+}
+
+/// [`from_source`]'s words, written.
+fn source_text(value: f64, source: &str) -> String {
     let mut s = String::with_capacity(source.len() + 24);
     push_value(&mut s, value);
     s.push_str(" from ");
@@ -789,6 +839,39 @@ pub fn to_orion(
 
 #[cfg(test)]
 mod tests {
+    /// The words a defaulted limit is reported with are the same whether
+    /// made now or kept from before: for more values than are kept (so
+    /// each is made again after it made way), values whose bits differ
+    /// and whose text may not (0 and -0), and each source.
+    #[test]
+    fn a_defaulted_limit_says_the_same_words_made_or_kept() {
+        let values = (0..super::SAID_KEPT * 3)
+            .map(|i| f64::from(u32::try_from(i).unwrap_or(0)) * 12.5)
+            .chain([0.0, -0.0, 1e300, f64::MIN_POSITIVE]);
+        for round in 0..3 {
+            for v in values.clone() {
+                for source in [
+                    "bus map",
+                    "the command's safety_limits",
+                    "SafetyLimits line 4",
+                ] {
+                    let said = super::from_source(v, source);
+                    assert_eq!(
+                        said.as_str(),
+                        super::source_text(v, source),
+                        "{v} {source} {round}"
+                    );
+                }
+            }
+        }
+        assert_eq!(super::from_source(-0.0, "bus map"), "-0 from the bus map");
+        assert_eq!(
+            super::from_source(500.0, "the bus map"),
+            "500 from the bus map"
+        );
+        assert_eq!(super::from_source(12.5, "bus map"), "12.5 from the bus map");
+    }
+
     /// A value in a report is written as `{v}` writes it, whole numbers
     /// (the fast path) and the rest alike.
     #[test]

@@ -27,7 +27,7 @@ pub use path::{JointState, PathExtent, check_path, check_path_from, check_trajec
 /// cannot be mistaken for `motorwire_wia::Report` (a validation verdict,
 /// also `motorwire_wia::ValidationReport`): the same type.
 pub use report::Report as TranslationReport;
-pub use report::{Loss, LossKind, Report, Translated};
+pub use report::{Loss, LossKind, LossText, Report, Translated};
 pub use sync::{MultiAxisMove, SYNC_TOLERANCE_S, multi_axis_to_irpc, multi_axis_to_irpc_from};
 pub use trajectory::{
     MAX_TRAJECTORY_SEGMENTS, TRAJECTORY_LEAD_S, TrajectoryPlan, TrajectorySegment,

@@ -2,6 +2,7 @@
 
 use std::borrow::Cow;
 use std::fmt;
+use std::sync::Arc;
 
 /// The kind of a lossy step.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -29,12 +30,120 @@ impl LossKind {
     }
 }
 
+/// A loss's words ([`Loss::detail`]): fixed text, a string made for this
+/// loss, or text made once and shared by every loss that says the same
+/// (a defaulted limit's `500 from the bus map`, the same for every
+/// command that leaves the limit out). It reads as the `str` it holds;
+/// `&'static str`, `String`, `Cow<'static, str>` and `Arc<str>` convert.
+///
+/// ```
+/// use motorwire_translate::LossText;
+/// let fixed = LossText::from("500 from the bus map");
+/// let made = LossText::from(format!("{} from the bus map", 500));
+/// assert_eq!(fixed, made);
+/// assert_eq!(made, "500 from the bus map");
+/// assert!(made.ends_with("bus map"));
+/// assert_eq!(format!("{made} / {made:?}"), r#"500 from the bus map / "500 from the bus map""#);
+/// ```
+#[derive(Clone)]
+pub struct LossText(TextRepr);
+
+#[derive(Clone)]
+enum TextRepr {
+    Fixed(&'static str),
+    Made(String),
+    Shared(Arc<str>),
+}
+
+impl LossText {
+    /// The text.
+    pub fn as_str(&self) -> &str {
+        match &self.0 {
+            TextRepr::Fixed(s) => s,
+            TextRepr::Made(s) => s,
+            TextRepr::Shared(s) => s,
+        }
+    }
+}
+
+impl std::ops::Deref for LossText {
+    type Target = str;
+    fn deref(&self) -> &str {
+        self.as_str()
+    }
+}
+
+impl AsRef<str> for LossText {
+    fn as_ref(&self) -> &str {
+        self.as_str()
+    }
+}
+
+impl fmt::Display for LossText {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl fmt::Debug for LossText {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(self.as_str(), f)
+    }
+}
+
+impl PartialEq for LossText {
+    fn eq(&self, other: &Self) -> bool {
+        self.as_str() == other.as_str()
+    }
+}
+
+impl Eq for LossText {}
+
+impl PartialEq<str> for LossText {
+    fn eq(&self, other: &str) -> bool {
+        self.as_str() == other
+    }
+}
+
+impl PartialEq<&str> for LossText {
+    fn eq(&self, other: &&str) -> bool {
+        self.as_str() == *other
+    }
+}
+
+impl From<&'static str> for LossText {
+    fn from(s: &'static str) -> Self {
+        Self(TextRepr::Fixed(s))
+    }
+}
+
+impl From<String> for LossText {
+    fn from(s: String) -> Self {
+        Self(TextRepr::Made(s))
+    }
+}
+
+impl From<Cow<'static, str>> for LossText {
+    fn from(s: Cow<'static, str>) -> Self {
+        match s {
+            Cow::Borrowed(s) => s.into(),
+            Cow::Owned(s) => s.into(),
+        }
+    }
+}
+
+impl From<Arc<str>> for LossText {
+    fn from(s: Arc<str>) -> Self {
+        Self(TextRepr::Shared(s))
+    }
+}
+
 /// One lossy step.
 ///
-/// The field and the detail are [`Cow`]s: a field's name and most details
-/// are fixed text, which a bridge translating every command should not
-/// copy into a new string each time (`"x".into()` and `String`s both
-/// convert).
+/// The field is a [`Cow`] and the detail a [`LossText`]: a field's name
+/// and most details are fixed text, which a bridge translating every
+/// command should not copy into a new string each time (`"x".into()` and
+/// `String`s both convert).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Loss {
     /// The field, as the source (or, for `Defaulted`/`Filled`, the target)
@@ -43,7 +152,7 @@ pub struct Loss {
     /// What happened.
     pub kind: LossKind,
     /// How, in words.
-    pub detail: Cow<'static, str>,
+    pub detail: LossText,
 }
 
 impl Loss {
@@ -109,7 +218,7 @@ impl Report {
         &mut self,
         field: impl Into<Cow<'static, str>>,
         kind: LossKind,
-        detail: impl Into<Cow<'static, str>>,
+        detail: impl Into<LossText>,
     ) {
         self.losses.push(Loss {
             field: field.into(),
