@@ -45,7 +45,7 @@ use crate::device::{
     Answer, Capability, Context, Device, Drivers, Ended, Happened, InForce, Moving, Outcome,
 };
 use crate::job::{
-    AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, LineMeta, Order,
+    AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, Jobs, LineMeta, Order,
     REPLACED_TRAJECTORY, Rider, axis_mut,
 };
 use crate::joints::{Joint, StepRef, Unresolved};
@@ -320,7 +320,7 @@ pub struct Bridge {
     /// line to send.
     drivers: Drivers,
     joints: Vec<Joint>,
-    jobs: BTreeMap<u64, Box<Job>>,
+    jobs: Jobs,
     next_job: u64,
     waiting: VecDeque<Waiting>,
     line_numbers: BTreeMap<Origin, u64>,
@@ -405,7 +405,13 @@ impl Bridge {
             .motors()
             .filter_map(|m| {
                 let (node, device) = Device::of(m, config.orion)?;
-                Some(Joint::new(m.name.clone(), node, device, m.unit))
+                Some(Joint::new(
+                    m.name.clone(),
+                    node,
+                    device,
+                    m.unit,
+                    m.arrival_tolerance,
+                ))
             })
             .collect();
         if joints.is_empty() {
@@ -436,7 +442,7 @@ impl Bridge {
             validator,
             drivers,
             joints,
-            jobs: BTreeMap::new(),
+            jobs: Jobs::default(),
             next_job: 0,
             waiting: VecDeque::new(),
             line_numbers: BTreeMap::new(),
@@ -2260,7 +2266,7 @@ impl Bridge {
             b.joints
                 .get(ji)
                 .and_then(|j| j.busy)
-                .is_some_and(|s| b.jobs.get(&s.job).is_some_and(|j| pick(j)))
+                .is_some_and(|s| b.jobs.get(&s.job).is_some_and(&pick))
         };
         let chosen: BTreeSet<usize> = (0..self.joints.len())
             .filter(|&ji| picked(self, ji))
@@ -2272,11 +2278,11 @@ impl Bridge {
             };
             let busy = joint
                 .busy
-                .take_if(|s| self.jobs.get(&s.job).is_some_and(|j| pick(j)));
+                .take_if(|s| self.jobs.get(&s.job).is_some_and(&pick));
             let (queued, kept): (Vec<StepRef>, Vec<StepRef>) = joint
                 .queue
                 .drain(..)
-                .partition(|s| self.jobs.get(&s.job).is_some_and(|j| pick(j)));
+                .partition(|s| self.jobs.get(&s.job).is_some_and(&pick));
             joint.queue.extend(kept);
             if let Some(s) = busy
                 && let Some(job) = self.jobs.get_mut(&s.job)
@@ -2611,7 +2617,7 @@ impl Bridge {
     fn end_sequences_on(&mut self, ji: usize, by: u64, line: LineRef) {
         let (number, origin) = (line.line, line.origin.0);
         let mut ended: Vec<StepRef> = Vec::new();
-        for (&id, job) in &mut self.jobs {
+        for (&id, job) in self.jobs.iter_mut() {
             if id == by || job.kind != JobKind::Command {
                 continue;
             }
@@ -2849,7 +2855,7 @@ impl Bridge {
     /// sequential axes on it that have arrived let the next ones go.
     fn sequence_progress(&mut self, ji: usize, position: f64, velocity: f64) {
         let mut freed = Vec::new();
-        for (&id, job) in &mut self.jobs {
+        for (&id, job) in self.jobs.iter_mut() {
             // (the axis waited for, and the one waiting: its device, its
             // step, whether it is a position move)
             let waited: Vec<(usize, usize, StepRef, bool)> = job
@@ -3236,7 +3242,7 @@ impl Bridge {
         // The motors acked, the moves acked (to watch for arrival), and
         // what became of the rest: one pass, each name moved, not copied.
         let mut acked: Vec<String> = Vec::with_capacity(job.axes.len());
-        let mut moved: Vec<(usize, String, f64)> = Vec::with_capacity(job.axes.len());
+        let mut moved: Vec<WatchAxis> = Vec::with_capacity(job.axes.len());
         let mut failures: Vec<StepReport> = Vec::new();
         let mut superseded = false;
         for a in job.axes {
@@ -3246,7 +3252,7 @@ impl Bridge {
             match r.outcome {
                 StepOutcome::Acked => {
                     if let Some(target) = a.target {
-                        moved.push((a.joint, a.motor, target));
+                        moved.push(self.watch_axis(a.joint, a.motor, target));
                     }
                     acked.push(r.motor);
                 }
@@ -3387,10 +3393,10 @@ impl Bridge {
     /// go, and why.
     fn complete_answered(&mut self, job: Job, since: Duration) {
         let Some(meta) = job.line else { return };
-        let targets: Vec<(usize, String, f64)> = job
+        let targets: Vec<WatchAxis> = job
             .axes
             .iter()
-            .filter_map(|a| Some((a.joint, a.motor.clone(), a.target?)))
+            .filter_map(|a| Some(self.watch_axis(a.joint, a.motor.clone(), a.target?)))
             .collect();
         let failures: Vec<&StepReport> = job
             .axes
@@ -3442,7 +3448,7 @@ impl Bridge {
     /// Whether `step` is a sequential line's axis whose earlier axis has
     /// not arrived: it cannot go yet, so it does not keep its link from
     /// its own work (an Orion controller unpolled would fall silent).
-    fn after_earlier_axis(jobs: &BTreeMap<u64, Box<Job>>, step: StepRef) -> bool {
+    fn after_earlier_axis(jobs: &Jobs, step: StepRef) -> bool {
         jobs.get(&step.job)
             .and_then(|job| {
                 let before = job.axes.get(job.axes.get(step.axis)?.after?)?;
@@ -3823,12 +3829,12 @@ impl Bridge {
     /// Watches a motion line's acked moves until they arrive. A line that
     /// ends after a newer line moved one of its joints (a sequential line
     /// ends with its last axis), or after a stop, has its verdict at once.
-    fn watch(&mut self, meta: LineMeta, moved: Vec<(usize, String, f64)>, since: Duration) {
+    fn watch(&mut self, meta: LineMeta, moved: Vec<WatchAxis>, since: Duration) {
         let now = self.now;
         let line = meta.at();
-        let replaced_by = moved.iter().find_map(|(ji, ..)| {
+        let replaced_by = moved.iter().find_map(|a| {
             self.joints
-                .get(*ji)
+                .get(a.joint)
                 .and_then(|j| j.moved_by)
                 .filter(|by| *by != line)
         });
@@ -3861,30 +3867,34 @@ impl Bridge {
         }
     }
 
-    /// The watch of line `meta`'s moves (`moved`: device, motor, target in
-    /// degrees), its result given at `since`: due by the end of the
-    /// devices' planned motion and a margin.
-    fn watch_of(&self, meta: LineMeta, moved: Vec<(usize, String, f64)>, since: Duration) -> Watch {
-        let now = self.now;
-        let mut axes = Vec::with_capacity(moved.len());
-        let mut end = now;
-        for (ji, motor, target) in moved {
-            let m = self.map.motor(&motor);
-            let unit = m.map_or(motorwire_translate::AngleUnit::Degrees, |m| m.unit);
-            let tolerance = m.map_or(0.1, |m| unit.to_degrees(m.arrival_tolerance));
-            if let Some(j) = self.joints.get(ji) {
-                end = end.max(j.moving_until);
-            }
-            axes.push(WatchAxis {
-                joint: ji,
-                motor,
-                target,
-                tolerance,
-                unit,
-                arrived: None,
-                last_error: None,
-            });
+    /// Device `ji`'s part of a watch: `motor`'s move to `target`
+    /// (degrees), within the map's arrival tolerance.
+    fn watch_axis(&self, ji: usize, motor: String, target: f64) -> WatchAxis {
+        let (unit, tolerance) = self
+            .joints
+            .get(ji)
+            .map_or((AngleUnit::Degrees, 0.1), |j| (j.unit, j.tolerance));
+        WatchAxis {
+            joint: ji,
+            motor,
+            target,
+            tolerance,
+            unit,
+            arrived: None,
+            last_error: None,
         }
+    }
+
+    /// The watch of line `meta`'s moves (`axes`, [`Bridge::watch_axis`]),
+    /// its result given at `since`: due by the end of the devices'
+    /// planned motion and a margin.
+    fn watch_of(&self, meta: LineMeta, axes: Vec<WatchAxis>, since: Duration) -> Watch {
+        let now = self.now;
+        let end = axes
+            .iter()
+            .filter_map(|a| self.joints.get(a.joint))
+            .map(|j| j.moving_until)
+            .fold(now, Duration::max);
         let planned = end.saturating_sub(now);
         let margin = (planned / 4).max(Duration::from_millis(500));
         Watch {

@@ -323,10 +323,135 @@ impl Job {
     }
 }
 
+/// The open jobs by id, oldest first: a list kept in order of id (ids
+/// only grow, so a new job goes at the end), looked up by halving. A
+/// bridge has a few jobs open at a time and looks at them after every
+/// event, which a tree of nodes does more slowly.
+#[derive(Debug, Default)]
+pub(crate) struct Jobs(Vec<(u64, Box<Job>)>);
+
+impl Jobs {
+    fn at(&self, id: u64) -> Result<usize, usize> {
+        self.0.binary_search_by_key(&id, |(i, _)| *i)
+    }
+
+    pub(crate) fn get(&self, id: &u64) -> Option<&Job> {
+        let i = self.at(*id).ok()?;
+        self.0.get(i).map(|(_, j)| &**j)
+    }
+
+    pub(crate) fn get_mut(&mut self, id: &u64) -> Option<&mut Job> {
+        let i = self.at(*id).ok()?;
+        self.0.get_mut(i).map(|(_, j)| &mut **j)
+    }
+
+    /// Opens job `id` (replacing one of that id, as a map would).
+    pub(crate) fn insert(&mut self, id: u64, job: Box<Job>) {
+        if self.0.last().is_none_or(|(last, _)| *last < id) {
+            self.0.push((id, job));
+            return;
+        }
+        match self.at(id) {
+            Ok(i) => {
+                if let Some(slot) = self.0.get_mut(i) {
+                    slot.1 = job;
+                }
+            }
+            Err(i) => self.0.insert(i, (id, job)),
+        }
+    }
+
+    pub(crate) fn remove(&mut self, id: &u64) -> Option<Box<Job>> {
+        let i = self.at(*id).ok()?;
+        Some(self.0.remove(i).1)
+    }
+
+    pub(crate) fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// Each job with its id, oldest first.
+    pub(crate) fn iter(&self) -> impl DoubleEndedIterator<Item = (&u64, &Job)> {
+        self.0.iter().map(|(i, j)| (i, &**j))
+    }
+
+    /// Each job with its id, oldest first.
+    pub(crate) fn iter_mut(&mut self) -> impl DoubleEndedIterator<Item = (&u64, &mut Job)> {
+        self.0.iter_mut().map(|(i, j)| (&*i, &mut **j))
+    }
+
+    pub(crate) fn values(&self) -> impl DoubleEndedIterator<Item = &Job> {
+        self.0.iter().map(|(_, j)| &**j)
+    }
+
+    pub(crate) fn values_mut(&mut self) -> impl DoubleEndedIterator<Item = &mut Job> {
+        self.0.iter_mut().map(|(_, j)| &mut **j)
+    }
+}
+
 /// The axis `step` names, if its job is still open.
-pub(crate) fn axis_mut(
-    jobs: &mut std::collections::BTreeMap<u64, Box<Job>>,
-    step: crate::joints::StepRef,
-) -> Option<&mut Axis> {
+pub(crate) fn axis_mut(jobs: &mut Jobs, step: crate::joints::StepRef) -> Option<&mut Axis> {
     jobs.get_mut(&step.job)?.axes.get_mut(step.axis)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn job(received_ms: u64) -> Box<Job> {
+        Box::new(Job {
+            line: None,
+            kind: JobKind::Command,
+            received: Duration::from_millis(received_ms),
+            axes: Vec::new(),
+            report: Report::default(),
+            problems: Vec::new(),
+            last_frame: None,
+            unflushed: false,
+            riders: Vec::new(),
+            cut: None,
+            awaiting: None,
+            data: None,
+            data_error: None,
+            answered: None,
+        })
+    }
+
+    fn ids(jobs: &Jobs) -> Vec<(u64, u64)> {
+        jobs.iter()
+            .map(|(id, j)| (*id, u64::try_from(j.received.as_millis()).unwrap()))
+            .collect()
+    }
+
+    #[test]
+    fn jobs_are_kept_by_id_as_a_map_keeps_them() {
+        let mut jobs = Jobs::default();
+        assert!(jobs.is_empty());
+        for id in [3, 5, 9] {
+            jobs.insert(id, job(id * 10));
+        }
+        // Out of order, and over an id already open.
+        jobs.insert(4, job(40));
+        jobs.insert(1, job(10));
+        jobs.insert(5, job(55));
+        assert_eq!(ids(&jobs), [(1, 10), (3, 30), (4, 40), (5, 55), (9, 90)]);
+        assert_eq!(jobs.get(&4).unwrap().received, Duration::from_millis(40));
+        assert!(jobs.get(&2).is_none() && jobs.get(&10).is_none());
+        jobs.get_mut(&9).unwrap().unflushed = true;
+        assert!(jobs.values().filter(|j| j.unflushed).count() == 1);
+        assert_eq!(jobs.remove(&3).unwrap().received, Duration::from_millis(30));
+        assert!(jobs.remove(&3).is_none());
+        assert_eq!(
+            jobs.values_mut()
+                .rev()
+                .map(|j| j.received.as_millis())
+                .collect::<Vec<_>>(),
+            [90, 55, 40, 10]
+        );
+        for id in [1, 4, 5, 9] {
+            jobs.remove(&id).unwrap();
+        }
+        assert!(jobs.is_empty());
+    }
 }

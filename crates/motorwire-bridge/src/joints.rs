@@ -53,6 +53,9 @@ pub(crate) struct Joint {
     pub(crate) device: Device,
     /// The unit of its positions in the bus map (and in WIA lines).
     pub(crate) unit: AngleUnit,
+    /// How close to its target a move must come to have arrived
+    /// (degrees): the bus map's `arrival_tolerance`.
+    pub(crate) tolerance: f64,
     pub(crate) last_heard: Option<Duration>,
     pub(crate) online: bool,
     pub(crate) state: Option<LifecycleState>,
@@ -209,12 +212,20 @@ impl Joint {
         }
     }
 
-    pub(crate) fn new(name: String, node: u16, device: Device, unit: AngleUnit) -> Self {
+    /// `tolerance`: the bus map's `arrival_tolerance`, in `unit`.
+    pub(crate) fn new(
+        name: String,
+        node: u16,
+        device: Device,
+        unit: AngleUnit,
+        tolerance: f64,
+    ) -> Self {
         Self {
             name,
             node,
             device,
             unit,
+            tolerance: unit.to_degrees(tolerance),
             last_heard: None,
             online: device.online_at_start(),
             state: None,
@@ -253,7 +264,7 @@ mod tests {
             motorwire_translate::BusMap::from_toml("[motors.j]\ndialect = \"irpc\"\nnode = 0x10\n")
                 .unwrap();
         let (node, device) = Device::of(map.motor("j").unwrap(), false).unwrap();
-        Joint::new("j".into(), node, device, AngleUnit::Degrees)
+        Joint::new("j".into(), node, device, AngleUnit::Degrees, 0.1)
     }
 
     /// From its reports: carried forward at the acceleration the last two

@@ -12,7 +12,7 @@
 //! acknowledged payload did to its joint ([`effect`]). The engine decides
 //! what is sent and when; this says how, and what came back.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::VecDeque;
 use std::time::Duration;
 
 use motorwire_can::Frame;
@@ -50,8 +50,9 @@ pub(crate) enum IrpcEvent {
 #[derive(Debug)]
 pub(crate) struct IrpcDriver {
     client: Client,
-    /// msg_id in flight -> the device it went to.
-    by_msg: BTreeMap<u32, usize>,
+    /// Each msg_id in flight and the device it went to: at most one a
+    /// joint (the client's rule), so a short list looked through.
+    by_msg: Vec<(u32, usize)>,
     events: VecDeque<IrpcEvent>,
     /// The time of the last frame or timeout handled.
     now: Duration,
@@ -68,7 +69,7 @@ impl IrpcDriver {
     pub(crate) fn new(config: ClientConfig) -> Result<Self, motorwire_can::Error> {
         Ok(Self {
             client: Client::new(config)?,
-            by_msg: BTreeMap::new(),
+            by_msg: Vec::new(),
             events: VecDeque::new(),
             now: Duration::ZERO,
             joints: false,
@@ -98,8 +99,17 @@ impl IrpcDriver {
             .client
             .request(now, node, payload)
             .map_err(|e| e.to_string())?;
-        self.by_msg.insert(msg_id, device);
+        // A msg_id comes round again only long after its request ended;
+        // a leftover entry for it is replaced, as a map's would be.
+        self.take_device(msg_id);
+        self.by_msg.push((msg_id, device));
         Ok(msg_id)
+    }
+
+    /// The device request `msg_id` went to, no longer in flight.
+    fn take_device(&mut self, msg_id: u32) -> Option<usize> {
+        let i = self.by_msg.iter().position(|(m, _)| *m == msg_id)?;
+        Some(self.by_msg.swap_remove(i).1)
     }
 
     /// Whether request `msg_id` is due to be sent again at `now`.
@@ -111,7 +121,7 @@ impl IrpcDriver {
     /// awaited.
     pub(crate) fn forget(&mut self, msg_id: u32) {
         self.client.cancel(msg_id);
-        self.by_msg.remove(&msg_id);
+        self.take_device(msg_id);
     }
 
     /// ArmReady to every joint, each in its own wire version (a broadcast
@@ -164,18 +174,15 @@ impl IrpcDriver {
                     },
                     ClientOutcome::TimedOut => Outcome::TimedOut,
                 };
-                let ended = self
-                    .by_msg
-                    .remove(&c.msg_id)
-                    .map(|device| IrpcEvent::Ended {
-                        device,
-                        ended: Ended {
-                            msg_id: c.msg_id,
-                            outcome: outcome.clone(),
-                            attempts: c.attempts,
-                            at: c.finished_at,
-                        },
-                    });
+                let ended = self.take_device(c.msg_id).map(|device| IrpcEvent::Ended {
+                    device,
+                    ended: Ended {
+                        msg_id: c.msg_id,
+                        outcome: outcome.clone(),
+                        attempts: c.attempts,
+                        at: c.finished_at,
+                    },
+                });
                 if outcome == Outcome::TimedOut {
                     // A request the bridge gave up (a heartbeat): nothing to say.
                     return ended.or_else(|| self.poll_event());

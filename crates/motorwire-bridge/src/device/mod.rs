@@ -1513,9 +1513,20 @@ impl Drivers {
                 }
                 None => {
                     let event = self.irpc.poll_event()?;
+                    // The first thing it tells is told now (nothing is
+                    // queued before it); the rest wait their turn.
+                    let mut first = None;
+                    let queued = &mut self.queued;
                     irpc::tell(event, map, devices, self.epoch, |h| {
-                        self.queued.push_back(Queued::Tell(h));
+                        if first.is_none() {
+                            first = Some(h);
+                        } else {
+                            queued.push_back(Queued::Tell(h));
+                        }
                     });
+                    if first.is_some() {
+                        return first;
+                    }
                 }
             }
         }
