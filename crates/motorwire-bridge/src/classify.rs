@@ -512,12 +512,14 @@ pub fn classify(validator: &Validator, line: &str) -> Input {
 /// member is unknown anywhere in it; then the only places a stop can be
 /// named are the command's own `safety_limits` and its `metadata`.
 fn plain_command(validator: &Validator, line: &str) -> Option<motorwire_wia::MotorCommand> {
-    validator.parse_plain_command(line).filter(|c| {
+    let c = validator.parse_plain_command(line);
+    let plain = c.as_ref().is_some_and(|c| {
         c.metadata.is_none()
             && c.safety_limits
                 .as_ref()
                 .is_none_or(|s| s.emergency_stop.is_none())
-    })
+    });
+    if plain { c } else { None }
 }
 
 /// A valid multi-axis command and nothing else that names no stop, read

@@ -320,17 +320,19 @@ impl Validator {
             return None;
         }
         // The kind's commonest shape (a flat command) read without serde,
-        // to the bit as serde reads it; anything else by serde.
-        let m: T = match T::read_flat(json) {
-            Some(m) => m,
-            None => crate::plain::parse_named(json, crate::members::top_level_members(T::KIND))?,
-        };
-        if m.any_unknown() || (m.may_nest_beyond(self.max_depth) && self.precheck(json).is_err()) {
-            return None;
+        // to the bit as serde reads it; anything else by serde. Judged
+        // where it lies: a command is some 500 bytes, and each move out
+        // of the `Option` and back copies them.
+        let mut m: Option<T> = T::read_flat(json);
+        if m.is_none() {
+            m = crate::plain::parse_named(json, crate::members::top_level_members(T::KIND));
         }
-        m.violations_with_skew(self.now_ms, self.window)
-            .is_empty()
-            .then_some(m)
+        let valid = m.as_ref().is_some_and(|m| {
+            let unreadable = m.any_unknown()
+                || (m.may_nest_beyond(self.max_depth) && self.precheck(json).is_err());
+            !unreadable && m.violations_with_skew(self.now_ms, self.window).is_empty()
+        });
+        if valid { m } else { None }
     }
 
     /// `json` as a valid message of `kind` (the kind its names say:

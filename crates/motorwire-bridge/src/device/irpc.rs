@@ -12,7 +12,6 @@
 //! acknowledged payload did to its joint ([`effect`]). The engine decides
 //! what is sent and when; this says how, and what came back.
 
-use std::collections::VecDeque;
 use std::time::Duration;
 
 use motorwire_can::Frame;
@@ -36,6 +35,14 @@ use crate::output::Event;
 pub(crate) enum IrpcEvent {
     /// Joint `node` was heard at `at` (an answer, even a late one).
     Heard { node: u16, at: Duration },
+    /// Joint `node` answered a request at `at` (an Ack or a Nack): it
+    /// was heard, and the request ended for the device it went to
+    /// (`None`: one the bridge no longer waits for).
+    Answered {
+        node: u16,
+        at: Duration,
+        ended: Option<(usize, Ended)>,
+    },
     /// The request in flight for device `device` ended.
     Ended { device: usize, ended: Ended },
     /// A message from a joint that is not an answer (its status, encoder,
@@ -53,7 +60,6 @@ pub(crate) struct IrpcDriver {
     /// Each msg_id in flight and the device it went to: at most one a
     /// joint (the client's rule), so a short list looked through.
     by_msg: Vec<(u32, usize)>,
-    events: VecDeque<IrpcEvent>,
     /// The time of the last frame or timeout handled.
     now: Duration,
     /// Whether any joint was given ([`IrpcDriver::set_wire`]): the
@@ -70,7 +76,6 @@ impl IrpcDriver {
         Ok(Self {
             client: Client::new(config)?,
             by_msg: Vec::new(),
-            events: VecDeque::new(),
             now: Duration::ZERO,
             joints: false,
         })
@@ -156,9 +161,6 @@ impl IrpcDriver {
 
     /// The next thing to tell the engine.
     pub(crate) fn poll_event(&mut self) -> Option<IrpcEvent> {
-        if let Some(e) = self.events.pop_front() {
-            return Some(e);
-        }
         let event = self.client.poll_event()?;
         Some(match event {
             ClientEvent::Completed(c) => {
@@ -174,23 +176,28 @@ impl IrpcDriver {
                     },
                     ClientOutcome::TimedOut => Outcome::TimedOut,
                 };
-                let ended = self.take_device(c.msg_id).map(|device| IrpcEvent::Ended {
-                    device,
-                    ended: Ended {
+                let timed_out = outcome == Outcome::TimedOut;
+                let ended = self.take_device(c.msg_id).map(|device| {
+                    let ended = Ended {
                         msg_id: c.msg_id,
-                        outcome: outcome.clone(),
+                        outcome,
                         attempts: c.attempts,
                         at: c.finished_at,
-                    },
+                    };
+                    (device, ended)
                 });
-                if outcome == Outcome::TimedOut {
-                    // A request the bridge gave up (a heartbeat): nothing to say.
-                    return ended.or_else(|| self.poll_event());
+                if timed_out {
+                    // Nothing was heard. A request the bridge gave up (a
+                    // heartbeat): nothing to say.
+                    return match ended {
+                        Some((device, ended)) => Some(IrpcEvent::Ended { device, ended }),
+                        None => self.poll_event(),
+                    };
                 }
-                self.events.extend(ended);
-                IrpcEvent::Heard {
+                IrpcEvent::Answered {
                     node: c.target,
                     at: c.finished_at,
+                    ended,
                 }
             }
             ClientEvent::Feedback { message, at } => IrpcEvent::Feedback { message, at },
@@ -280,6 +287,18 @@ pub(crate) fn tell(
                     at,
                     up: true,
                 });
+            }
+        }
+        IrpcEvent::Answered { node, at, ended } => {
+            if let Some(device) = index(node) {
+                tell(Happened::Heard {
+                    device,
+                    at,
+                    up: true,
+                });
+            }
+            if let Some((device, ended)) = ended {
+                tell(Happened::Ended { device, ended });
             }
         }
         IrpcEvent::Ended { device, ended } => tell(Happened::Ended { device, ended }),
@@ -537,21 +556,19 @@ mod tests {
         d.handle_frame(3 * MS, &reply(0x12, id, Payload::Ack(id)));
         assert_eq!(
             events(&mut d),
-            [
-                IrpcEvent::Heard {
-                    node: 0x12,
-                    at: 3 * MS
-                },
-                IrpcEvent::Ended {
-                    device: 4,
-                    ended: Ended {
+            [IrpcEvent::Answered {
+                node: 0x12,
+                at: 3 * MS,
+                ended: Some((
+                    4,
+                    Ended {
                         msg_id: id,
                         outcome: Outcome::Acked,
                         attempts: 1,
                         at: 3 * MS
                     }
-                }
-            ]
+                ))
+            }]
         );
     }
 
@@ -580,7 +597,10 @@ mod tests {
         let ended: Vec<(usize, Outcome)> = events(&mut d)
             .into_iter()
             .filter_map(|e| match e {
-                IrpcEvent::Ended { device, ended } => Some((device, ended.outcome)),
+                IrpcEvent::Answered {
+                    ended: Some((device, ended)),
+                    ..
+                } => Some((device, ended.outcome)),
                 _ => None,
             })
             .collect();
@@ -635,11 +655,13 @@ mod tests {
         let gone = d.send(400 * MS, 2, 0x12, Payload::Activate).unwrap();
         d.forget(gone);
         d.handle_frame(401 * MS, &reply(0x12, gone, Payload::Ack(gone)));
-        assert!(
-            !events(&mut d)
-                .iter()
-                .any(|e| matches!(e, IrpcEvent::Ended { .. })),
-            "a forgotten request ends nothing"
+        assert_eq!(
+            events(&mut d),
+            [IrpcEvent::Heard {
+                node: 0x12,
+                at: 401 * MS
+            }],
+            "a forgotten request ends nothing (its answer is a stray, heard)"
         );
     }
 }
