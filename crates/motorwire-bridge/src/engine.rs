@@ -353,6 +353,9 @@ pub struct Bridge {
     /// The ids of the jobs [`Self::finish_jobs`] found done, kept between
     /// calls so that finding them allocates nothing.
     done_scratch: Vec<u64>,
+    /// [`Bridge::open_job`]'s list of the steps it queues, kept between
+    /// jobs.
+    steps_scratch: Vec<(usize, StepRef, Option<Takes>)>,
     /// Started: ready once every online device has been read, or then.
     settle_until: Option<Duration>,
     /// Clients that connected during startup, greeted when it ends.
@@ -405,13 +408,7 @@ impl Bridge {
             .motors()
             .filter_map(|m| {
                 let (node, device) = Device::of(m, config.orion)?;
-                Some(Joint::new(
-                    m.name.clone(),
-                    node,
-                    device,
-                    m.unit,
-                    m.arrival_tolerance,
-                ))
+                Some(Joint::of(m, node, device))
             })
             .collect();
         if joints.is_empty() {
@@ -453,6 +450,7 @@ impl Bridge {
             drain_after_start: None,
             drain_recheck: false,
             done_scratch: Vec::new(),
+            steps_scratch: Vec::new(),
             settle_until: None,
             to_greet: Vec::new(),
             last_stop_arrival: None,
@@ -1625,6 +1623,9 @@ impl Bridge {
         self.map
             .set_limits(&name, limits, "the SafetyLimits line in force");
         if let Some(ji) = self.joint_index(&name) {
+            if let (Some(j), Some(m)) = (self.joints.get_mut(ji), self.map.motor(&name)) {
+                j.pace = crate::joints::Pace::of(m);
+            }
             let unit = self.map.motor(&name).map_or(AngleUnit::Degrees, |m| m.unit);
             let deg = |v: Option<f64>| v.map(|v| unit.to_degrees(v));
             let in_force = InForce {
@@ -1685,7 +1686,10 @@ impl Bridge {
     }
 
     /// Gives `r` to `meta`'s origin, labelled as `meta` is, counting it.
-    fn answer(&mut self, meta: &LineMeta, mut r: LineResult) {
+    /// (A result is some 460 bytes: one made in its box where it is built
+    /// is not copied there.)
+    fn answer(&mut self, meta: &LineMeta, r: impl Into<Box<LineResult>>) {
+        let mut r: Box<LineResult> = r.into();
         if r.ok {
             self.stats.ok += 1;
         } else {
@@ -1696,7 +1700,7 @@ impl Bridge {
         }
         self.out.push_back(Output::Result {
             origin: meta.origin,
-            result: Box::new(r),
+            result: r,
         });
     }
 
@@ -1865,13 +1869,17 @@ impl Bridge {
             self.refuse(&meta, e);
             return;
         }
-        if let Some(e) = self.unattached(std::iter::once(cmd.motor_id.as_str())) {
+        // Its joint, looked for once.
+        let ji = self.joint_index(&cmd.motor_id);
+        let device = ji.and_then(|ji| Some((ji, self.joints.get(ji)?.device)));
+        // A joint is attached (an Orion motor is one only with its
+        // controller); anything else may be an Orion motor without one.
+        if ji.is_none()
+            && let Some(e) = self.unattached(std::iter::once(cmd.motor_id.as_str()))
+        {
             self.refuse(&meta, e);
             return;
         }
-        let device = self
-            .joint_index(&cmd.motor_id)
-            .and_then(|ji| Some((ji, self.joints.get(ji)?.device)));
         if let Some((ji, device)) = device
             && let Some(built) = self.single_axis(ji, device, cmd)
         {
@@ -1880,7 +1888,7 @@ impl Bridge {
         }
         match motorwire_translate::to_irpc_gated(&self.map, cmd) {
             Ok((t, motor, limits)) => {
-                let Some(joint) = self.joint_index(&cmd.motor_id) else {
+                let Some(joint) = ji else {
                     let e = ErrorBody::refused(
                         BridgeRule::NotAnIrpcJoint,
                         format!("{} is not an iRPC joint of the bus map", cmd.motor_id),
@@ -2451,21 +2459,21 @@ impl Bridge {
         // sequence takes its device when its turn comes:
         // `Self::sequence_progress`); `replaces`, a position move or a
         // stream's setpoint.
-        let steps: Vec<(usize, StepRef, Option<Takes>)> = axes
-            .iter()
-            .enumerate()
-            .map(|(axis, a)| {
-                let replaces = a.is_position_move() || (stream && a.is_setpoint());
-                let motion = a.payloads.front().is_some_and(Order::is_setpoint);
-                // A trajectory's steps are timed: it replaces a waiting
-                // sequential axis, and otherwise queues behind what is
-                // there (one running, one scheduled), as it always did.
-                let timed = !a.due.is_empty();
-                let takes = (a.after.is_none() && (replaces || motion))
-                    .then_some(Takes { replaces, timed });
-                (a.joint, StepRef { job: id, axis }, takes)
-            })
-            .collect();
+        // (Collected into a list kept from the last job: a line's job is
+        // opened for every line.)
+        let mut steps = std::mem::take(&mut self.steps_scratch);
+        steps.clear();
+        steps.extend(axes.iter().enumerate().map(|(axis, a)| {
+            let replaces = a.is_position_move() || (stream && a.is_setpoint());
+            let motion = a.payloads.front().is_some_and(Order::is_setpoint);
+            // A trajectory's steps are timed: it replaces a waiting
+            // sequential axis, and otherwise queues behind what is
+            // there (one running, one scheduled), as it always did.
+            let timed = !a.due.is_empty();
+            let takes =
+                (a.after.is_none() && (replaces || motion)).then_some(Takes { replaces, timed });
+            (a.joint, StepRef { job: id, axis }, takes)
+        }));
         self.jobs.insert(
             id,
             Box::new(Job {
@@ -2501,8 +2509,13 @@ impl Bridge {
         }
         // Every step queued before any is sent: the Orion motors of one
         // line go out as one line.
-        for (ji, _, _) in steps {
+        for &(ji, _, _) in &steps {
             self.pump(ji);
+        }
+        // Kept for the next job (one opened meanwhile found it empty and
+        // made its own: the larger is kept).
+        if steps.capacity() >= self.steps_scratch.capacity() {
+            self.steps_scratch = steps;
         }
         self.finish_jobs();
     }
@@ -3147,19 +3160,16 @@ impl Bridge {
     /// setpoint it holds.
     fn track(&mut self, ji: usize, order: Order, at: Duration) {
         let Some(j) = self.joints.get(ji) else { return };
-        let motor = self.map.motor(&j.name);
-        let unit = motor.map_or(AngleUnit::Degrees, |m| m.unit);
         // Planned from where it was when the order was sent, as the
         // device plans it.
         let sent_from = j.sending.map(|(_, from)| from);
         let cx = Context {
             at,
             motion: sent_from.or(j.motion.map(|(p, v)| (p, v, 0.0))),
-            unit,
-            max_velocity: motor.and_then(|m| m.limits.max_velocity.map(|v| unit.to_degrees(v))),
-            max_acceleration: motor
-                .and_then(|m| m.limits.max_acceleration.map(|a| unit.to_degrees(a))),
-            command_timeout: motor.and_then(|m| m.command_timeout),
+            unit: j.unit,
+            max_velocity: j.pace.max_velocity,
+            max_acceleration: j.pace.max_acceleration,
+            command_timeout: j.pace.command_timeout,
             planned: j.planned,
         };
         let effect = order.effect(&cx);
@@ -3336,7 +3346,7 @@ impl Bridge {
                 .clone()
                 .map(|why| ErrorBody::new(ErrorKind::NoAnswer, why))
         };
-        let mut r = LineResult {
+        let mut r = Box::new(LineResult {
             ok,
             line: number,
             emergency_stop: job.kind == JobKind::EmergencyStop,
@@ -3355,7 +3365,7 @@ impl Bridge {
             losses: job.report.losses,
             data: job.data.clone(),
             ..LineResult::default()
-        };
+        });
         let watched = job.kind == JobKind::Command && !moved.is_empty();
         r.arrival_follows = if stream {
             Some(false)
@@ -3374,7 +3384,7 @@ impl Bridge {
                 stop_latency_us: latency.map(|_| 0),
                 ack_us: Some(us(now.saturating_sub(rider.received))),
                 arrival_follows: None,
-                ..r.clone()
+                ..LineResult::clone(&r)
             };
             self.answer(&rider.line, rr);
         }

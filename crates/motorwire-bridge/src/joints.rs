@@ -56,6 +56,9 @@ pub(crate) struct Joint {
     /// How close to its target a move must come to have arrived
     /// (degrees): the bus map's `arrival_tolerance`.
     pub(crate) tolerance: f64,
+    /// The limits in force that say how long its moves take and how long
+    /// a setpoint holds (kept as the bus map's change: [`Pace::of`]).
+    pub(crate) pace: Pace,
     pub(crate) last_heard: Option<Duration>,
     pub(crate) online: bool,
     pub(crate) state: Option<LifecycleState>,
@@ -124,6 +127,28 @@ const REPORT_AGE: f64 = 0.005;
 /// How far a report is carried forward to `now` at the most: beyond, the
 /// last report stands as it is (the device is silent, or stands still).
 const RECKONED_AT_MOST: Duration = Duration::from_millis(50);
+
+/// A motor's limits in force that say how long its moves take and how
+/// long a setpoint holds, in degrees: what tracking an acknowledged order
+/// reads from the bus map, kept on the joint.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct Pace {
+    pub(crate) max_velocity: Option<f64>,
+    pub(crate) max_acceleration: Option<f64>,
+    /// Its command timeout (the deadman's), if any.
+    pub(crate) command_timeout: Option<Duration>,
+}
+
+impl Pace {
+    /// `m`'s, as the bus map now has them.
+    pub(crate) fn of(m: &motorwire_translate::MappedMotor) -> Self {
+        Self {
+            max_velocity: m.limits.max_velocity.map(|v| m.unit.to_degrees(v)),
+            max_acceleration: m.limits.max_acceleration.map(|a| m.unit.to_degrees(a)),
+            command_timeout: m.command_timeout,
+        }
+    }
+}
 
 impl Joint {
     /// Its position, velocity and acceleration at `now` (degrees),
@@ -213,6 +238,14 @@ impl Joint {
     }
 
     /// `tolerance`: the bus map's `arrival_tolerance`, in `unit`.
+    /// A joint of the bus map: `m`'s name, unit, arrival tolerance and
+    /// limits.
+    pub(crate) fn of(m: &motorwire_translate::MappedMotor, node: u16, device: Device) -> Self {
+        let mut j = Self::new(m.name.clone(), node, device, m.unit, m.arrival_tolerance);
+        j.pace = Pace::of(m);
+        j
+    }
+
     pub(crate) fn new(
         name: String,
         node: u16,
@@ -226,6 +259,7 @@ impl Joint {
             device,
             unit,
             tolerance: unit.to_degrees(tolerance),
+            pace: Pace::default(),
             last_heard: None,
             online: device.online_at_start(),
             state: None,

@@ -68,7 +68,14 @@ impl MotorId {
         if id.is_empty() {
             return Err(CoreError::MotorIdEmpty);
         }
-        if let Some((index, ch)) = id.char_indices().find(|&(_, c)| !Self::is_id_char(c)) {
+        // Byte by byte: every allowed character is ASCII, so the first
+        // byte that is not one starts the first character that is not
+        // (a character beyond ASCII starts with a byte above 0x7F).
+        if let Some(index) = id.bytes().position(|b| !Self::is_id_char(char::from(b))) {
+            let ch = id
+                .get(index..)
+                .and_then(|s| s.chars().next())
+                .unwrap_or('\u{FFFD}');
             return Err(CoreError::MotorIdInvalidChar { index, ch });
         }
         if id.len() > Self::MAX_LEN {
@@ -151,6 +158,43 @@ mod tests {
             MotorId::new(&"a".repeat(65)),
             Err(CoreError::MotorIdTooLong { len: 65, max: 64 })
         );
+    }
+
+    /// The first offending character, found byte by byte, is the one a
+    /// walk over the characters finds, wherever it falls and however
+    /// long its encoding.
+    #[test]
+    fn the_offending_character_is_the_first_by_characters() {
+        let parts = [
+            "a",
+            "Z9",
+            "_-",
+            ".",
+            " ",
+            "\u{e9}",
+            "\u{4e2d}",
+            "\u{1f916}",
+            "\u{7f}",
+            "\u{80}",
+        ];
+        for a in parts {
+            for b in parts {
+                for c in parts {
+                    let mut buf = [0u8; 16];
+                    let mut at = 0;
+                    for p in [a, b, c] {
+                        buf[at..at + p.len()].copy_from_slice(p.as_bytes());
+                        at += p.len();
+                    }
+                    let id = core::str::from_utf8(&buf[..at]).unwrap();
+                    let expected = id
+                        .char_indices()
+                        .find(|&(_, ch)| !MotorId::is_id_char(ch))
+                        .map(|(index, ch)| CoreError::MotorIdInvalidChar { index, ch });
+                    assert_eq!(MotorId::validate(id).err(), expected, "{id:?}");
+                }
+            }
+        }
     }
 
     #[test]

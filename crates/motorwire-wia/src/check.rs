@@ -122,7 +122,9 @@ impl Sink {
 
     /// The schema pattern `^[a-zA-Z0-9_-]+$`.
     pub(crate) fn id_pattern(&mut self, path: &Path<'_>, id: &str) {
-        if id.is_empty() || !id.chars().all(MotorId::is_id_char) {
+        // Byte by byte: every allowed character is ASCII, and a character
+        // beyond it has no byte below 0x80.
+        if id.is_empty() || !id.bytes().all(|b| MotorId::is_id_char(char::from(b))) {
             self.push(
                 path,
                 Rule::Pattern,
@@ -262,5 +264,42 @@ impl Sink {
             });
         }
         self.list
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// The schema's `^[a-zA-Z0-9_-]+$`, judged byte by byte, refuses
+    /// what a walk over the characters refuses, whatever characters
+    /// (one byte or four) stand where.
+    #[test]
+    fn the_id_pattern_is_the_character_pattern() {
+        let parts = [
+            "a",
+            "Z9",
+            "_-",
+            ".",
+            " ",
+            "\u{e9}",
+            "\u{4e2d}",
+            "\u{1f916}",
+            "\u{7f}",
+        ];
+        let mut ids = vec![String::new()];
+        for a in parts {
+            for b in parts {
+                ids.push(format!("{a}{b}"));
+            }
+        }
+        for id in ids {
+            let mut s = Sink::new(None);
+            s.id_pattern(&Path::ROOT, &id);
+            let refused = !s.finish().is_empty();
+            let by_characters = id.is_empty() || !id.chars().all(MotorId::is_id_char);
+            assert_eq!(refused, by_characters, "{id:?}");
+        }
     }
 }
