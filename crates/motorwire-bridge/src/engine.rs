@@ -3184,10 +3184,11 @@ impl Bridge {
             .zip(j.planned_profile.take())
             .filter(|((from, ..), _)| Some(*from) == sent_from)
             .map(|((_, p, _), profile)| (p, profile));
-        j.model = j
+        let model = j
             .sending
             .take()
             .and_then(|(t, from)| Some((t, order.device_plan(from, gate_plan)?)));
+        j.set_model(model);
         j.planned = None;
         j.deadman = effect.deadman;
         if let Some(target) = effect.target {
@@ -4160,8 +4161,7 @@ impl Bridge {
             }
             _ => 0.0,
         };
-        j.motion = Some((pos, vel));
-        j.motion_at = Some((at, acceleration));
+        j.set_motion((pos, vel), at, acceleration);
         j.check_model(at, pos, vel);
         self.moved(ji, pos, vel, at);
         self.try_ready();

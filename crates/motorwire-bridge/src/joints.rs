@@ -77,6 +77,8 @@ pub(crate) struct Joint {
     /// and its profile. Where it is now is read from it while its reports
     /// agree with it ([`Joint::state_at`]).
     pub(crate) model: Option<(Duration, Box<Profile<f64>>)>,
+    /// [`Joint::state_at`] as last read, and when for.
+    state_kept: std::cell::Cell<Option<(Duration, Option<Kinematics>)>>,
     /// The move being sent: when, and the state it starts from.
     pub(crate) sending: Option<(Duration, Kinematics)>,
     /// The line whose move or setpoint the device last took (`None`: the
@@ -157,7 +159,42 @@ impl Joint {
     /// as zero (as before a model existed; a device reports every few
     /// milliseconds; a move planned now must start from where it is, not
     /// where it was). A velocity that would change sign is taken to stop.
+    ///
+    /// Kept for the instant it was last read at until the model or the
+    /// report changes ([`Joint::set_model`], [`Joint::set_motion`]): a
+    /// line reads it when it is gated and again when it is sent. Debug
+    /// builds check every kept value against a fresh reading.
     pub(crate) fn state_at(&self, now: Duration) -> Option<Kinematics> {
+        if let Some((at, kept)) = self.state_kept.get()
+            && at == now
+        {
+            debug_assert!(
+                same_state(kept, self.state_now(now)),
+                "{}: the state changed without set_model or set_motion",
+                self.name
+            );
+            return kept;
+        }
+        let s = self.state_now(now);
+        self.state_kept.set(Some((now, s)));
+        s
+    }
+
+    /// Its model of the move it makes now (when it began, its profile).
+    pub(crate) fn set_model(&mut self, model: Option<(Duration, Box<Profile<f64>>)>) {
+        self.model = model;
+        self.state_kept.set(None);
+    }
+
+    /// Its report: position and velocity, when, and its acceleration then.
+    pub(crate) fn set_motion(&mut self, motion: (f64, f64), at: Duration, acceleration: f64) {
+        self.motion = Some(motion);
+        self.motion_at = Some((at, acceleration));
+        self.state_kept.set(None);
+    }
+
+    /// [`Joint::state_at`], computed.
+    fn state_now(&self, now: Duration) -> Option<Kinematics> {
         if let Some((start, profile)) = &self.model {
             let t = now.saturating_sub(*start).as_secs_f64();
             if t <= profile.duration() {
@@ -232,7 +269,7 @@ impl Joint {
             if (s.position - position).abs() > position_slack
                 || (s.velocity - velocity).abs() > velocity_slack
             {
-                self.model = None;
+                self.set_model(None);
             }
         }
     }
@@ -268,6 +305,7 @@ impl Joint {
             motion: None,
             motion_at: None,
             model: None,
+            state_kept: std::cell::Cell::new(None),
             sending: None,
             moved_by: None,
             target: None,
@@ -286,6 +324,12 @@ impl Joint {
     }
 }
 
+/// Whether two readings are the same, to the bit (a NaN is itself).
+fn same_state(a: Option<Kinematics>, b: Option<Kinematics>) -> bool {
+    let bits = |k: Option<Kinematics>| k.map(|(p, v, a)| (p.to_bits(), v.to_bits(), a.to_bits()));
+    bits(a) == bits(b)
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -299,6 +343,29 @@ mod tests {
                 .unwrap();
         let (node, device) = Device::of(map.motor("j").unwrap(), false).unwrap();
         Joint::new("j".into(), node, device, AngleUnit::Degrees, 0.1)
+    }
+
+    /// Read twice at one instant, the state is the same; a report or a
+    /// model that comes in that instant is read at once.
+    #[test]
+    fn a_state_kept_for_an_instant_gives_way_to_a_report_or_a_model() {
+        let mut j = joint();
+        let t = Duration::from_millis(100);
+        assert_eq!(j.state_at(t), None);
+        j.set_motion((10.0, 0.0), t, 0.0);
+        assert_eq!(j.state_at(t), Some((10.0, 0.0, 0.0)));
+        assert_eq!(j.state_at(t), Some((10.0, 0.0, 0.0)));
+        j.set_motion((12.0, 5.0), t, 0.0);
+        assert_eq!(j.state_at(t), Some((12.0, 5.0, 0.0)));
+        let plan = motorwire_planner::plan(
+            &motorwire_irpc::SetTargetPayloadV2::scurve(90.0, 100.0, 500.0, 2000.0)
+                .planner_request(30.0, 0.0),
+        )
+        .unwrap();
+        j.set_model(Some((t, Box::new(plan))));
+        assert_eq!(j.state_at(t).map(|s| s.0), Some(30.0), "the model's start");
+        j.set_model(None);
+        assert_eq!(j.state_at(t), Some((12.0, 5.0, 0.0)));
     }
 
     /// From its reports: carried forward at the acceleration the last two
