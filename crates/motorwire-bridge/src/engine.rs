@@ -817,6 +817,7 @@ impl Bridge {
         number: u64,
         reason: &str,
     ) {
+        self.changed();
         self.now = self.now.max(now);
         self.stats.lines += 1;
         self.refuse(
@@ -836,6 +837,7 @@ impl Bridge {
         number: u64,
         reason: &str,
     ) {
+        self.changed();
         self.now = self.now.max(now);
         self.take_stop(
             now,
@@ -2476,22 +2478,7 @@ impl Bridge {
         }));
         self.jobs.insert(
             id,
-            Box::new(Job {
-                line,
-                kind,
-                received: now,
-                axes,
-                report,
-                problems,
-                last_frame: None,
-                unflushed: false,
-                riders: Vec::new(),
-                cut: None,
-                awaiting: None,
-                data: None,
-                data_error: None,
-                answered: None,
-            }),
+            Box::new(Job::new(line, kind, now, axes, report, problems)),
         );
         for &(ji, step, takes) in &steps {
             let scheduled = match takes {
@@ -3967,7 +3954,7 @@ impl Bridge {
     /// Device `ji` was reported at `position` moving at `velocity`
     /// (degrees) at `at`, by any driver: the lines that have now arrived
     /// are said so, and sequential axes waiting on it may go.
-    pub(super) fn moved(&mut self, ji: usize, position: f64, velocity: f64, at: Duration) {
+    fn moved(&mut self, ji: usize, position: f64, velocity: f64, at: Duration) {
         if !self.arrivals.is_empty() {
             self.observe(ji, position, velocity, at);
         }
@@ -4138,7 +4125,7 @@ impl Bridge {
     /// Lines that have now arrived are said so, sequential axes waiting
     /// on it may go, and a move whose outcome was unknown is said
     /// executed once the device stands at its target.
-    pub(super) fn reading(
+    fn reading(
         &mut self,
         ji: usize,
         at: Duration,

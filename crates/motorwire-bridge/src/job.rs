@@ -260,6 +260,35 @@ pub(crate) struct Job {
 }
 
 impl Job {
+    /// A job of `kind` for `line` (`None`: the bridge's own), received at
+    /// `received`: its axes, what its translation lost, a stop line's
+    /// problems; nothing of it sent yet.
+    pub(crate) fn new(
+        line: Option<LineMeta>,
+        kind: JobKind,
+        received: Duration,
+        axes: Vec<Axis>,
+        report: Report,
+        problems: Vec<String>,
+    ) -> Self {
+        Self {
+            line,
+            kind,
+            received,
+            axes,
+            report,
+            problems,
+            last_frame: None,
+            unflushed: false,
+            riders: Vec::new(),
+            cut: None,
+            awaiting: None,
+            data: None,
+            data_error: None,
+            answered: None,
+        }
+    }
+
     /// Whether it is a trajectory line, answered when it is under way.
     pub(crate) fn answers_early(&self) -> bool {
         self.kind == JobKind::Command && self.axes.iter().any(|a| !a.due.is_empty())
@@ -425,22 +454,14 @@ mod tests {
     use super::*;
 
     fn job(received_ms: u64) -> Box<Job> {
-        Box::new(Job {
-            line: None,
-            kind: JobKind::Command,
-            received: Duration::from_millis(received_ms),
-            axes: Vec::new(),
-            report: Report::default(),
-            problems: Vec::new(),
-            last_frame: None,
-            unflushed: false,
-            riders: Vec::new(),
-            cut: None,
-            awaiting: None,
-            data: None,
-            data_error: None,
-            answered: None,
-        })
+        Box::new(Job::new(
+            None,
+            JobKind::Command,
+            Duration::from_millis(received_ms),
+            Vec::new(),
+            Report::default(),
+            Vec::new(),
+        ))
     }
 
     fn ids(jobs: &Jobs) -> Vec<(u64, u64)> {

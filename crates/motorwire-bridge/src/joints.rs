@@ -376,8 +376,7 @@ mod tests {
         let mut j = joint();
         let ms = Duration::from_millis;
         assert_eq!(j.state_at(ms(5)), None, "nothing reported");
-        j.motion = Some((10.0, 20.0));
-        j.motion_at = Some((ms(100), 100.0));
+        j.set_motion((10.0, 20.0), ms(100), 100.0);
         // 10 ms on: 10 + 20 * 0.01 + 100 * 0.01² / 2, 20 + 100 * 0.01.
         let (p, v, _) = j.state_at(ms(110)).unwrap();
         assert!(
@@ -397,18 +396,16 @@ mod tests {
             "not beyond half a second"
         );
         // Braking at 1,000: at rest after 20 ms, 0.2 further on.
-        j.motion_at = Some((ms(100), -1000.0));
+        j.set_motion((10.0, 20.0), ms(100), -1000.0);
         let (p, v, _) = j.state_at(ms(140)).unwrap();
         assert!((p - 10.2).abs() < 1e-12 && v == 0.0, "{p} {v}");
         // Reported at rest, the braking that brought it there reckoned
         // from the report before: at rest where it is, not moving back
         // (within 50 ms and beyond it).
-        let saved = (j.motion, j.motion_at);
-        j.motion = Some((0.0, 0.0));
-        j.motion_at = Some((ms(100), -0.1));
+        j.set_motion((0.0, 0.0), ms(100), -0.1);
         assert_eq!(j.state_at(ms(130)), Some((0.0, 0.0, 0.0)));
         assert_eq!(j.state_at(ms(400)), Some((0.0, 0.0, 0.0)));
-        (j.motion, j.motion_at) = saved;
+        j.set_motion((10.0, 20.0), ms(100), -1000.0);
         // A model of its move: read from it, until a report disagrees.
         let plan = motorwire_planner::plan(
             &motorwire_irpc::SetTargetPayloadV2::scurve(90.0, 100.0, 500.0, 2000.0)
@@ -416,7 +413,7 @@ mod tests {
         )
         .unwrap();
         let at = plan.sample(0.3);
-        j.model = Some((ms(1000), Box::new(plan)));
+        j.set_model(Some((ms(1000), Box::new(plan))));
         let (p, v, _) = j.state_at(ms(1300)).unwrap();
         assert!((p - at.position).abs() < 1e-9 && (v - at.velocity).abs() < 1e-9);
         assert_eq!(

@@ -277,22 +277,13 @@ mod tests {
     /// (one byte or four) stand where.
     #[test]
     fn the_id_pattern_is_the_character_pattern() {
-        let parts = [
-            "a",
-            "Z9",
-            "_-",
-            ".",
-            " ",
-            "\u{e9}",
-            "\u{4e2d}",
-            "\u{1f916}",
-            "\u{7f}",
-        ];
-        let mut ids = vec![String::new()];
-        for a in parts {
-            for b in parts {
-                ids.push(format!("{a}{b}"));
-            }
+        let chars: Vec<char> = "aZ9_-. \u{7f}\u{80}\u{e9}\u{4e2d}\u{1f916}"
+            .chars()
+            .collect();
+        let mut ids: Vec<String> = vec![String::new()];
+        for a in &chars {
+            ids.push(a.to_string());
+            ids.extend(chars.iter().map(|b| format!("{a}{b}")));
         }
         for id in ids {
             let mut s = Sink::new(None);

@@ -1628,6 +1628,45 @@ mod tests {
     use super::*;
     use motorwire_compact::VelocityLimit;
 
+    /// `Bridge::poll_timeout` keeps its deadline until an entry point
+    /// runs, held against the engine's own source: every `&mut self`
+    /// method the engine's users can call clears it first, but those
+    /// that only hand out what is queued (and clear it when they hand
+    /// something out).
+    #[test]
+    fn every_entry_point_that_changes_the_bridge_forgets_its_next_deadline() {
+        let engine = include_str!("../engine.rs");
+        let mut entry_points = 0;
+        let mut rest = engine;
+        while let Some(at) = rest.find("\n    pub") {
+            rest = rest.get(at + 1..).unwrap_or("");
+            let head = rest.split('{').next().unwrap_or("");
+            if !head.contains("fn ") || !head.contains("&mut self") {
+                continue;
+            }
+            let name = head
+                .split("fn ")
+                .nth(1)
+                .and_then(|n| n.split(['(', '<']).next())
+                .unwrap_or("");
+            let body = rest.get(head.len() + 1..).unwrap_or("");
+            let own = body.split("\n    }").next().unwrap_or("");
+            entry_points += 1;
+            match name {
+                "poll_output" => assert!(!own.contains("changed()"), "{name}"),
+                "poll_transmit" | "poll_orion_line" => assert!(
+                    own.contains("self.changed();"),
+                    "{name} clears the deadline when it hands something out"
+                ),
+                _ => assert!(
+                    own.trim_start().starts_with("self.changed();"),
+                    "Bridge::{name} changes the bridge without clearing its next deadline"
+                ),
+            }
+        }
+        assert!(entry_points >= 20, "{entry_points} entry points found");
+    }
+
     /// The layering this module promises, held against the engine's own
     /// source: it names no dialect (no variant of [`Device`], [`Order`]
     /// or the bus map's `Target`, no driver of [`Drivers`] by name), and
