@@ -1625,10 +1625,11 @@ impl Bridge {
         self.map
             .set_limits(&name, limits, "the SafetyLimits line in force");
         if let Some(ji) = self.joint_index(&name) {
-            if let (Some(j), Some(m)) = (self.joints.get_mut(ji), self.map.motor(&name)) {
+            let motor = self.map.motor(&name);
+            if let (Some(j), Some(m)) = (self.joints.get_mut(ji), motor) {
                 j.pace = crate::joints::Pace::of(m);
             }
-            let unit = self.map.motor(&name).map_or(AngleUnit::Degrees, |m| m.unit);
+            let unit = motor.map_or(AngleUnit::Degrees, |m| m.unit);
             let deg = |v: Option<f64>| v.map(|v| unit.to_degrees(v));
             let in_force = InForce {
                 min_position: deg(limits.min_position),
@@ -2689,8 +2690,7 @@ impl Bridge {
             if !self.drivers.resend_due(msg_id, &payload, now) {
                 continue;
             }
-            let from = self.joints.get(ji).and_then(|j| j.state_at(now));
-            let Some(why) = self.path_at_send(ji, &payload, from) else {
+            let Some(why) = self.path_at_send(ji, &payload) else {
                 continue;
             };
             self.drivers.forget(ji, msg_id, payload);
@@ -2720,26 +2720,18 @@ impl Bridge {
     /// where the device is now, leaves the limits in force (`None` when
     /// it stays within them, or nothing is known to plan from: the
     /// device's own check stands).
-    /// `from`: where the device is now ([`Joint::state_at`]), when known.
-    fn path_at_send(
-        &self,
-        ji: usize,
-        order: &Order,
-        from: Option<crate::joints::Kinematics>,
-    ) -> Option<String> {
+    fn path_at_send(&self, ji: usize, order: &Order) -> Option<String> {
         let j = self.joints.get(ji)?;
-        let from = from?;
+        let from = j.state_at(self.now)?;
         // Checked already when its line came, this instant, from there.
         let checked = j
             .planned
             .filter(|_| j.planned_at == self.now)
             .map(|(from, p, _)| (from, p));
-        if !order.path_unchecked(from, checked) {
-            return None;
-        }
-        let motor = self.map.motor(&j.name)?;
-        let limits = motorwire_translate::Effective::from_bus_map(motor);
-        let refusal = order.path_refusal(motor, &limits, from, checked)?;
+        let refusal = order.path_refusal(from, checked, || {
+            let motor = self.map.motor(&j.name)?;
+            Some((motor, motorwire_translate::Effective::from_bus_map(motor)))
+        })?;
         Some(format!(
             "not sent: from where it was when its turn came ({} at {} a second), {refusal}",
             short_unit(j.unit.from_degrees(from.0)),
@@ -2949,8 +2941,7 @@ impl Bridge {
         // Its path from where the device is now, within the limits in
         // force: the line's own check was when it came, and by its turn
         // the device may move otherwise (a move in flight, a slow Ack).
-        let from = self.joints.get(ji).and_then(|j| j.state_at(now));
-        if let Some(why) = self.path_at_send(ji, &payload, from) {
+        if let Some(why) = self.path_at_send(ji, &payload) {
             self.stats.refused_at_send += 1;
             if let Some(a) = axis_mut(&mut self.jobs, step) {
                 a.finish(StepOutcome::NotSent, None, why);
@@ -2973,7 +2964,7 @@ impl Bridge {
         if let Some(j) = self.joints.get_mut(ji) {
             j.busy = Some(step);
             // Where the move starts from, for the model of it once acked.
-            j.sending = from.map(|s| (now, s));
+            j.sending = j.state_at(now).map(|s| (now, s));
         }
         let sent = if payload.sent_together() {
             self.send_together(now, ji, step, payload)

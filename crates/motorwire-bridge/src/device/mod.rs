@@ -572,29 +572,22 @@ impl Order {
         }
     }
 
-    /// Whether its path from `from` is still to be checked: an iRPC move
-    /// not already checked (`checked`) from there.
-    pub(crate) fn path_unchecked(
-        &self,
-        from: crate::joints::Kinematics,
-        checked: Option<(crate::joints::Kinematics, SetTargetPayloadV2)>,
-    ) -> bool {
-        matches!(self, Self::Irpc(Payload::SetTargetV2(p)) if checked != Some((from, *p)))
-    }
-
-    /// Whether the path this order sends `motor` along, planned as the
+    /// Whether the path this order sends its motor along, planned as the
     /// device plans it from `from` (its kinematics, degrees), stays
-    /// within `limits` (the limits in force); `checked`: a move whose path
-    /// was already checked from that state (the gate's, when the line
-    /// came), which is not planned again. Only for the orders the bridge
-    /// plans as the device does (an iRPC `SetTargetV2`); the others are
-    /// held to the limits by their targets alone.
-    pub(crate) fn path_refusal(
+    /// within the limits in force (`in_force`: the motor and its limits,
+    /// looked up only when there is a path to check); `checked`: a move
+    /// whose path was already checked from that state (the gate's, when
+    /// the line came), which is not planned again. Only for the orders
+    /// the bridge plans as the device does (an iRPC `SetTargetV2`); the
+    /// others are held to the limits by their targets alone.
+    pub(crate) fn path_refusal<'m>(
         &self,
-        motor: &motorwire_translate::MappedMotor,
-        limits: &motorwire_translate::Effective,
         from: crate::joints::Kinematics,
         checked: Option<(crate::joints::Kinematics, SetTargetPayloadV2)>,
+        in_force: impl FnOnce() -> Option<(
+            &'m motorwire_translate::MappedMotor,
+            motorwire_translate::Effective,
+        )>,
     ) -> Option<motorwire_translate::Refusal> {
         let Self::Irpc(Payload::SetTargetV2(p)) = self else {
             return None;
@@ -602,9 +595,10 @@ impl Order {
         if checked == Some((from, *p)) {
             return None;
         }
+        let (motor, limits) = in_force()?;
         motorwire_translate::check_path_from(
             motor,
-            limits,
+            &limits,
             p,
             crate::joints::in_unit(motor.unit, from),
         )
