@@ -602,9 +602,16 @@ fn a_controller_heard_again_after_an_outage_is_stopped_first() {
 /// An Orion controller that floods its link (as fast as the socket takes
 /// it) costs the bridge neither its memory nor the iRPC joints' service:
 /// the elbow's lines are served at once meanwhile, and the end is prompt.
+/// The flood lasts 5 s (`MOTORWIRE_FLOOD_SECS` for longer: BENCHMARKS.md
+/// has a minute of it, in release); the latencies and the peak are
+/// printed (`--nocapture`).
 #[cfg(unix)]
 #[test]
 fn a_flooding_controller_costs_neither_memory_nor_the_joints_latency() {
+    let flood_for = std::env::var("MOTORWIRE_FLOOD_SECS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .map_or(Duration::from_secs(5), Duration::from_secs);
     use std::net::TcpListener;
     let listener = TcpListener::bind("127.0.0.1:0").unwrap();
     let addr = listener.local_addr().unwrap();
@@ -639,7 +646,7 @@ fn a_flooding_controller_costs_neither_memory_nor_the_joints_latency() {
     let mut peak = 0;
     let mut answers = Vec::new();
     let mut line = 0u64;
-    while started.elapsed() < Duration::from_secs(5) {
+    while started.elapsed() < flood_for {
         line += 1;
         let setpoint = if line.is_multiple_of(2) { 10 } else { 20 };
         let sent = Instant::now();
@@ -661,6 +668,23 @@ fn a_flooding_controller_costs_neither_memory_nor_the_joints_latency() {
     let status = bridge.wait().unwrap();
     let took = ending.elapsed();
     let bytes = server.join().unwrap();
+    let mut latencies: Vec<u64> = answers
+        .iter()
+        .filter_map(|(_, r)| r["latency_us"].as_u64())
+        .collect();
+    latencies.sort_unstable();
+    let at = |q: usize| {
+        let i = (latencies.len() * q / 100).min(latencies.len().saturating_sub(1));
+        latencies.get(i).copied().unwrap_or(0)
+    };
+    eprintln!(
+        "orion flood for {flood_for:?} ({} MB sent): {} elbow lines, latency to the bus median {} us, p99 {} us, max {} us; the bridge's peak RSS {peak} KiB; the end took {took:?}",
+        bytes / 1_000_000,
+        latencies.len(),
+        at(50),
+        at(99),
+        at(100),
+    );
     assert_eq!(status.code(), Some(0));
     assert!(bytes > 10_000_000, "the controller sent only {bytes} bytes");
     assert!(peak < 100 * 1024, "the bridge grew to {peak} KiB");
