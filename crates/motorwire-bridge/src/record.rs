@@ -26,7 +26,9 @@
 //! `lines.1.jsonl`) when it reaches a quarter of the recorder's limit, so
 //! the recording never holds more than the limit (`--record-max-mb`).
 //! Never waiting: a record goes into a bounded queue a thread of its own
-//! writes out; when the queue is full (a slow disk) or the disk failed (a
+//! writes out (it looks for records every 2 ms while they come, and sleeps
+//! after 20 ms without one until the next wakes it: an idle recording
+//! costs nothing); when the queue is full (a slow disk) or the disk failed (a
 //! full disk), the record is dropped and counted, and the bridge goes on.
 //! A stop is never behind the recorder: the [`crate::Runner`] hands a line
 //! and the frames it sent to its taps once those frames are out.
@@ -62,6 +64,19 @@ const BATCH: usize = 64;
 /// How often the writer looks for records (it never sleeps where a
 /// record would have to wake it).
 const POLL: Duration = Duration::from_millis(2);
+
+/// Polls that find nothing before the writer goes to sleep until a record
+/// wakes it: an idle session costs no wake-ups (20 ms without a record).
+const IDLE_POLLS: u32 = 10;
+
+/// The longest the writer sleeps when idle before it looks again on its
+/// own (it is woken by the first record; this only bounds the cost of a
+/// wake-up that never came). In tests, long enough that a missed wake-up
+/// fails the test waiting for its record.
+#[cfg(not(test))]
+const IDLE_SLEEP: Duration = Duration::from_secs(1);
+#[cfg(test)]
+const IDLE_SLEEP: Duration = Duration::from_secs(60);
 
 /// How long [`Recorder::finish_within`] waits, once told to give up, for
 /// the writer to drop what is left and complete `session.json`.
@@ -494,8 +509,12 @@ const MIN_FILE: u64 = 4096;
 struct WriterFlags {
     hushed: Arc<AtomicBool>,
     abandon: Arc<AtomicBool>,
+    asleep: Arc<AtomicBool>,
     #[cfg(test)]
     stall: Arc<AtomicBool>,
+    /// Tests: the writer's rounds (each a look at the queue).
+    #[cfg(test)]
+    rounds: Arc<AtomicU64>,
 }
 
 /// What a recording came to.
@@ -542,9 +561,15 @@ pub struct Recorder {
     /// The session is over and its end may not wait longer: the writer
     /// drops (and counts) what is left instead of writing it.
     abandon: Arc<AtomicBool>,
+    /// The writer found nothing to write for a while and sleeps until the
+    /// next record wakes it (whoever clears this wakes it).
+    asleep: Arc<AtomicBool>,
     /// Tests: the writer stalls as on a disk that does not answer.
     #[cfg(test)]
     stall: Arc<AtomicBool>,
+    /// Tests: the writer's rounds.
+    #[cfg(test)]
+    rounds: Arc<AtomicU64>,
     writer: Option<JoinHandle<RecordSummary>>,
 }
 
@@ -575,13 +600,19 @@ impl Recorder {
         let d = Arc::clone(&dropped);
         let hushed = Arc::new(AtomicBool::new(false));
         let abandon = Arc::new(AtomicBool::new(false));
+        let asleep = Arc::new(AtomicBool::new(false));
         #[cfg(test)]
         let stall = Arc::new(AtomicBool::new(false));
+        #[cfg(test)]
+        let rounds = Arc::new(AtomicU64::new(0));
         let flags = WriterFlags {
             hushed: Arc::clone(&hushed),
             abandon: Arc::clone(&abandon),
+            asleep: Arc::clone(&asleep),
             #[cfg(test)]
             stall: Arc::clone(&stall),
+            #[cfg(test)]
+            rounds: Arc::clone(&rounds),
         };
         let writer = thread::Builder::new()
             .name("motorwire-recorder".to_owned())
@@ -592,8 +623,11 @@ impl Recorder {
             dropped,
             hushed,
             abandon,
+            asleep,
             #[cfg(test)]
             stall,
+            #[cfg(test)]
+            rounds,
             writer: Some(writer),
         })
     }
@@ -604,11 +638,56 @@ impl Recorder {
             self.dropped.fetch_add(1, Ordering::Relaxed);
             return;
         }
-        self.queued.fetch_add(1, Ordering::Relaxed);
+        // Counted before the writer is looked at, in one order with the
+        // writer's own (it says it sleeps, then looks at the count): either
+        // it sees this record, or this sees it asleep and wakes it.
+        self.queued.fetch_add(1, Ordering::SeqCst);
         if q.send(r).is_err() {
             self.queued.fetch_sub(1, Ordering::Relaxed);
             self.dropped.fetch_add(1, Ordering::Relaxed);
         }
+        // Only the first record after a quiet spell makes the system call.
+        if self.asleep.load(Ordering::SeqCst) && self.asleep.swap(false, Ordering::SeqCst) {
+            self.wake();
+        }
+    }
+
+    /// Wakes the writer from its sleep.
+    fn wake(&self) {
+        if let Some(w) = &self.writer {
+            w.thread().unpark();
+        }
+    }
+
+    /// Whether the writer has written everything it was handed and sleeps
+    /// until the next record: nothing was recorded for a while (about
+    /// 20 ms), and the recording costs the session nothing until the next
+    /// record (no thread waking to look for work). The next record wakes
+    /// it.
+    ///
+    /// ```
+    /// use std::time::{Duration, Instant};
+    /// use motorwire_bridge::record::{Recorder, RecordConfig, DEFAULT_RECORD_MAX};
+    ///
+    /// let dir = std::env::temp_dir().join(format!("motorwire-doc-idle-{}", std::process::id()));
+    /// let recorder = Recorder::start(RecordConfig {
+    ///     dir: dir.clone(),
+    ///     max_bytes: DEFAULT_RECORD_MAX,
+    ///     interface: "can0".to_owned(),
+    ///     setup: None,
+    /// })?;
+    /// let begun = Instant::now();
+    /// while !recorder.is_idle() && begun.elapsed() < Duration::from_secs(10) {
+    ///     std::thread::sleep(Duration::from_millis(5));
+    /// }
+    /// assert!(recorder.is_idle());
+    /// recorder.finish();
+    /// # std::fs::remove_dir_all(&dir)?;
+    /// # Ok::<(), std::io::Error>(())
+    /// ```
+    #[must_use]
+    pub fn is_idle(&self) -> bool {
+        self.asleep.load(Ordering::SeqCst)
     }
 
     /// A frame sent or received at `at`.
@@ -712,8 +791,11 @@ impl Recorder {
     /// says.
     fn end(&mut self, limit: Option<Duration>) -> Option<RecordSummary> {
         drop(self.queue.take());
-        // Never left waiting for a stop that ended with the session.
+        // Never left waiting for a stop that ended with the session, nor
+        // asleep: it finds the queue closed.
         self.hushed.store(false, Ordering::Relaxed);
+        self.asleep.store(false, Ordering::SeqCst);
+        self.wake();
         let dropped = || self.dropped.load(Ordering::Relaxed);
         let Some(writer) = self.writer.take() else {
             return Some(RecordSummary {
@@ -1051,12 +1133,19 @@ impl Files {
             };
         // The writer polls rather than sleeping in `recv`: a record handed
         // over then never has to wake it (a system call on the bridge's
-        // thread, for every frame and line).
+        // thread, for every frame and line). Only after a quiet spell
+        // (`IDLE_POLLS` rounds without a record) does it sleep until woken,
+        // and then only the first record after it makes that call.
+        // Polls in a row that found nothing.
+        let mut idle = 0;
         'session: loop {
             // At most a batch at a time, then a pause: the writer takes a
             // share of a core, never a core the bridge's thread needs when
             // a stop comes (its work is spread out; the queue holds the
             // rest).
+            idle += 1;
+            #[cfg(test)]
+            flags.rounds.fetch_add(1, Ordering::Relaxed);
             for _ in 0..BATCH {
                 // A stop under way: its frames first (at most a stop's
                 // handling, the runner says when it is done).
@@ -1070,6 +1159,7 @@ impl Files {
                 let r = match records.try_recv() {
                     Ok(r) => {
                         queued.fetch_sub(1, Ordering::Relaxed);
+                        idle = 0;
                         r
                     }
                     Err(mpsc::TryRecvError::Empty) => break,
@@ -1099,7 +1189,21 @@ impl Files {
             }
             // Nothing more waiting: out on disk (a crash loses little).
             settle(&mut self, &mut pending, &mut pending_bytes, &mut failed);
-            if !flags.abandon.load(Ordering::Relaxed) {
+            if flags.abandon.load(Ordering::Relaxed) {
+                continue;
+            }
+            if idle >= IDLE_POLLS {
+                // Asleep until a record wakes it: said first, then the
+                // queue looked at (the other half of `Recorder::put`'s
+                // order), so a record handed over meanwhile is never left
+                // waiting.
+                flags.asleep.store(true, Ordering::SeqCst);
+                if queued.load(Ordering::SeqCst) == 0 {
+                    thread::park_timeout(IDLE_SLEEP);
+                }
+                flags.asleep.store(false, Ordering::SeqCst);
+                idle = 0;
+            } else {
                 thread::sleep(POLL);
             }
         }
@@ -1170,6 +1274,91 @@ mod tests {
                 .unwrap()
                 .contains(r#""text":"{\"emergency_stop\":true}""#)
         );
+    }
+
+    /// Waits until `rec` is idle (at most 10 s).
+    fn until_idle(rec: &Recorder) {
+        let begun = Instant::now();
+        while !rec.is_idle() {
+            assert!(begun.elapsed() < Duration::from_secs(10), "never idle");
+            thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// An idle recording costs nothing: its writer sleeps (no rounds
+    /// while nothing comes), and the next record wakes it.
+    #[test]
+    fn an_idle_writer_sleeps_until_the_next_record_wakes_it() {
+        let dir = scratch("idle");
+        let rec = recording(&dir, DEFAULT_RECORD_MAX);
+        until_idle(&rec);
+        let rounds = rec.rounds.load(Ordering::Relaxed);
+        thread::sleep(Duration::from_millis(200));
+        // Polling every 2 ms, it would have looked 100 times.
+        assert_eq!(rec.rounds.load(Ordering::Relaxed), rounds);
+        assert!(rec.is_idle());
+        rec.input(Instant::now(), Origin(1), 1, "{}");
+        // Woken at once (asleep, it would not look again for a minute in
+        // tests): written well within the test's patience.
+        let begun = Instant::now();
+        while !fs::read_to_string(dir.join("lines.jsonl"))
+            .unwrap()
+            .contains(r#""text":"{}""#)
+        {
+            assert!(begun.elapsed() < Duration::from_secs(10), "not woken");
+            thread::sleep(Duration::from_millis(1));
+        }
+        until_idle(&rec);
+        let s = rec.finish();
+        assert_eq!((s.written, s.dropped), (1, 0));
+    }
+
+    /// No record is left asleep in the queue however it falls against
+    /// the writer going to sleep: records from four threads, each after a
+    /// quiet spell of about the writer's idle time (so many land as it
+    /// says it sleeps), each written before the next (a record left
+    /// behind would wait the tests' minute of sleep).
+    #[test]
+    fn a_record_that_comes_as_the_writer_falls_asleep_still_wakes_it() {
+        let dir = scratch("asleep-race");
+        let rec = Arc::new(recording(&dir, DEFAULT_RECORD_MAX));
+        let mut seed = 0x9e37_79b9_u32;
+        let mut slept = 0;
+        for round in 0..60u64 {
+            // 15 to 25 ms: around the writer's 20 ms without a record.
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            thread::sleep(Duration::from_micros(15_000 + u64::from(seed % 10_000)));
+            slept += u64::from(rec.is_idle());
+            let writers: Vec<_> = (0..4u64)
+                .map(|k| {
+                    let rec = Arc::clone(&rec);
+                    thread::spawn(move || rec.input(Instant::now(), Origin(k), round, "{}"))
+                })
+                .collect();
+            for w in writers {
+                w.join().unwrap();
+            }
+            let begun = Instant::now();
+            let want = 4 * (round as usize + 1);
+            while fs::read_to_string(dir.join("lines.jsonl"))
+                .unwrap()
+                .lines()
+                .count()
+                < want
+            {
+                assert!(
+                    begun.elapsed() < Duration::from_secs(10),
+                    "round {round} left asleep"
+                );
+                thread::sleep(Duration::from_micros(200));
+            }
+        }
+        // The race was run: the writer was found asleep before some rounds.
+        assert!(slept > 0, "the writer never slept");
+        let s = Arc::try_unwrap(rec).unwrap().finish();
+        assert_eq!((s.written, s.dropped), (240, 0));
     }
 
     /// A disk that does not answer never holds the end of a session past
