@@ -29,6 +29,7 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use criterion::{Criterion, Throughput};
+use motorwire_bridge::record::{Direction, Tap};
 use motorwire_bridge::sim::{RealTimeArm, SimulatedArm};
 use motorwire_bridge::{Bridge, BridgeConfig, InputSender, Origin, Output, Runner};
 use motorwire_can::SimConfig;
@@ -171,7 +172,7 @@ type Handle = std::thread::JoinHandle<Result<Bridge, motorwire_bridge::BridgeErr
 fn prepared(
     map: &str,
     orion: bool,
-    recorder: Option<std::sync::Arc<motorwire_bridge::record::Recorder>>,
+    recorder: Option<std::sync::Arc<dyn motorwire_bridge::record::Tap>>,
 ) -> (Bridge, RealTimeArm, Runner) {
     let map = BusMap::from_toml(map).unwrap();
     let config = BridgeConfig {
@@ -183,7 +184,7 @@ fn prepared(
     let arm = RealTimeArm::start(bridge.map()).unwrap();
     let mut runner = Runner::new();
     if let Some(r) = recorder {
-        runner = runner.with_recorder(r);
+        runner = runner.with_tap(r);
     }
     if orion {
         let (reader, writer) =
@@ -244,7 +245,7 @@ impl Lean {
 /// bridge's, and it fell on either side of a comparison.
 fn started_lean(
     map: &str,
-    recorder: Option<std::sync::Arc<motorwire_bridge::record::Recorder>>,
+    recorder: Option<std::sync::Arc<dyn motorwire_bridge::record::Tap>>,
 ) -> (RealTimeArm, InputSender, Lean, Handle) {
     let (bridge, arm, runner) = prepared(map, false, recorder);
     let input = runner.input();
@@ -437,8 +438,12 @@ fn recording_cost(passes: usize, rounds: usize) {
                     .unwrap(),
                 )
             });
-            let (_arm, input, lean, handle) =
-                started_lean(MAP, recorder.as_ref().map(std::sync::Arc::clone));
+            let (_arm, input, lean, handle) = started_lean(
+                MAP,
+                recorder
+                    .as_ref()
+                    .map(|r| std::sync::Arc::clone(r) as std::sync::Arc<dyn Tap>),
+            );
             let stops = stops_behind_bursts_lean(&input, &lean, rounds);
             input.interrupt();
             handle.join().unwrap().unwrap();
@@ -476,14 +481,9 @@ fn recording_cost(passes: usize, rounds: usize) {
         on_first.last().copied().unwrap_or(0),
     );
     println!(
-        "bridge/recording: {} stops behind {BURST} lines each way, after the first {FIRST} of each pass; line to the last stop frame: median {} us, p95 {} us, p99 {} us without recording; median {} us, p95 {} us, p99 {} us recording ({dropped} records dropped)",
+        "bridge/recording: {} stops behind {BURST} lines each way, after the first {FIRST} of each pass; line to the last stop frame: {} ({dropped} records dropped)",
         off.len(),
-        percentile(&off, 0.5),
-        percentile(&off, 0.95),
-        percentile(&off, 0.99),
-        percentile(&on, 0.5),
-        percentile(&on, 0.95),
-        percentile(&on, 0.99),
+        off_and_on(&off, &on),
     );
     println!(
         "bridge/recording: each pass's median on over its median off ({} pairs): median {:.2}, quartiles {:.2} and {:.2}",
@@ -492,6 +492,281 @@ fn recording_cost(passes: usize, rounds: usize) {
         percentile(&ratios, 0.25),
         percentile(&ratios, 0.75),
     );
+}
+
+/// A recorder that records only while open: the paired comparison's
+/// recording bridge, closed while the other bridge's round runs, so its
+/// recorder (its devices' telemetry coming every 10 ms) is idle and asleep
+/// then.
+#[derive(Debug)]
+struct Switched {
+    open: std::sync::atomic::AtomicBool,
+    recorder: std::sync::Arc<motorwire_bridge::record::Recorder>,
+}
+
+impl Switched {
+    fn open(&self) -> bool {
+        self.open.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+impl Tap for Switched {
+    fn input(&self, at: Instant, origin: Origin, number: u64, text: &str) {
+        if self.open() {
+            Tap::input(&*self.recorder, at, origin, number, text);
+        }
+    }
+    fn input_owned(&self, at: Instant, taken: Instant, origin: Origin, number: u64, text: String) {
+        if self.open() {
+            self.recorder.input_owned(at, taken, origin, number, text);
+        }
+    }
+    fn unreadable(&self, line: &motorwire_bridge::record::Unreadable<'_>) {
+        if self.open() {
+            Tap::unreadable(&*self.recorder, line);
+        }
+    }
+    fn output_owned(&self, at: Instant, output: Output) {
+        if self.open() {
+            self.recorder.output_owned(at, output);
+        }
+    }
+    fn output_line_owned(&self, at: Instant, output: Output, line: &std::sync::Arc<str>) {
+        if self.open() {
+            self.recorder.output_line_owned(at, output, line);
+        }
+    }
+    fn output_line(&self, at: Instant, output: &Output, line: &std::sync::Arc<str>) {
+        if self.open() {
+            self.recorder.output_line(at, output, line);
+        }
+    }
+    fn frame(&self, at: Instant, dir: Direction, frame: &motorwire_can::Frame) {
+        if self.open() {
+            Tap::frame(&*self.recorder, at, dir, frame);
+        }
+    }
+    fn frame_taken(&self, at: Instant, taken: Instant, frame: &motorwire_can::Frame) {
+        if self.open() {
+            self.recorder.frame_taken(at, taken, frame);
+        }
+    }
+    fn orion(&self, at: Instant, dir: Direction, line: &str) {
+        if self.open() {
+            Tap::orion(&*self.recorder, at, dir, line);
+        }
+    }
+    fn mark(&self, at: Instant, mark: motorwire_bridge::record::Mark) {
+        if self.open() {
+            Tap::mark(&*self.recorder, at, mark);
+        }
+    }
+    fn hush(&self, on: bool) {
+        self.recorder.hush(on);
+    }
+}
+
+/// The recorder's cost on the stop behind a burst, with the machine's
+/// drift cancelled stop by stop: two bridges at once, each on its own
+/// simulated arm, one recording the session (`--record`) and one not,
+/// their rounds (a burst, its stop, the release) alternated in the order
+/// on, off, off, on, ... (so a steady drift falls on both alike). Before
+/// every round the recorder has written all it was handed and its writer
+/// sleeps (`Recorder::is_idle`): a round without recording runs with no
+/// recorder at work beside it, and a round with one starts the same way
+/// each time. `pairs` rounds each way after three warming ones each way.
+///
+/// [`recording_cost`] alternates whole passes (a bridge started for each);
+/// the passes' medians moved by more than the 10 % looked for between runs
+/// of one build (0.92 to 1.28, BENCHMARKS.md), which the pairing here
+/// takes out of the comparison.
+fn recording_paired(pairs: usize) {
+    use motorwire_bridge::record::{DEFAULT_RECORD_MAX, RecordConfig, Recorder};
+    use std::sync::Arc;
+    let dir = std::env::temp_dir().join(format!("motorwire-bench-paired-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let recorder = Arc::new(
+        Recorder::start(RecordConfig {
+            dir: dir.clone(),
+            max_bytes: DEFAULT_RECORD_MAX,
+            interface: "sim".to_owned(),
+            setup: None,
+        })
+        .unwrap(),
+    );
+    let switched = Arc::new(Switched {
+        open: std::sync::atomic::AtomicBool::new(false),
+        recorder: Arc::clone(&recorder),
+    });
+    let (arm_on, input_on, lean_on, handle_on) =
+        started_lean(MAP, Some(Arc::clone(&switched) as Arc<dyn Tap>));
+    let (arm_off, input_off, lean_off, handle_off) = started_lean(MAP, None);
+    let until_idle = || {
+        let end = Instant::now() + Duration::from_secs(30);
+        while !recorder.is_idle() {
+            assert!(Instant::now() < end, "the recorder never idle");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    };
+    let round = |record: bool| {
+        until_idle();
+        if record {
+            switched
+                .open
+                .store(true, std::sync::atomic::Ordering::Relaxed);
+            let stop = stops_behind_bursts_lean(&input_on, &lean_on, 1)[0];
+            switched
+                .open
+                .store(false, std::sync::atomic::Ordering::Relaxed);
+            stop
+        } else {
+            stops_behind_bursts_lean(&input_off, &lean_off, 1)[0]
+        }
+    };
+    for _ in 0..3 {
+        round(true);
+        round(false);
+    }
+    let (mut on, mut off) = (Vec::with_capacity(pairs), Vec::with_capacity(pairs));
+    for k in 0..pairs {
+        let first = k % 2 == 0;
+        let a = round(first);
+        let b = round(!first);
+        let (with, without) = if first { (a, b) } else { (b, a) };
+        on.push(with);
+        off.push(without);
+    }
+    input_on.interrupt();
+    input_off.interrupt();
+    handle_on.join().unwrap().unwrap();
+    handle_off.join().unwrap().unwrap();
+    drop((arm_on, arm_off, switched));
+    let dropped = Arc::try_unwrap(recorder)
+        .ok()
+        .map_or(0, |r| r.finish().dropped);
+    let _ = std::fs::remove_dir_all(&dir);
+
+    // Every pair as measured, for runs pooled later or a look of one's own
+    // (`MOTORWIRE_BENCH_RECORDING_SAMPLES=FILE`: "on off" in µs, a line a
+    // pair, in the order run).
+    if let Some(path) = std::env::var_os("MOTORWIRE_BENCH_RECORDING_SAMPLES") {
+        let text: String = on
+            .iter()
+            .zip(&off)
+            .map(|(a, b)| format!("{a} {b}\n"))
+            .collect();
+        std::fs::write(path, text).unwrap();
+    }
+    println!(
+        "bridge/recording_paired: {pairs} stops behind {BURST} lines each way, two bridges alternated round by round ({dropped} records dropped)"
+    );
+    paired_report(on, off);
+}
+
+/// The pairs of several runs of [`recording_paired`] as one sample
+/// (`MOTORWIRE_BENCH_RECORDING_POOL=FILE:FILE:...`, each file written by
+/// `MOTORWIRE_BENCH_RECORDING_SAMPLES`): the intervals of one run are
+/// wider than 10 %.
+fn recording_pooled(files: &std::ffi::OsStr) {
+    let (mut on, mut off) = (Vec::new(), Vec::new());
+    for path in std::env::split_paths(files) {
+        let text = std::fs::read_to_string(&path).unwrap();
+        for l in text.lines() {
+            let mut v = l.split(' ').map(|x| x.parse::<u64>().unwrap());
+            on.push(v.next().unwrap());
+            off.push(v.next().unwrap());
+        }
+    }
+    println!(
+        "bridge/recording_paired: {} pairs pooled from {}",
+        on.len(),
+        files.to_string_lossy()
+    );
+    paired_report(on, off);
+}
+
+/// The median, p95 and p99 of stops without recording (`off`) and with
+/// (`on`), both sorted.
+fn off_and_on(off: &[u64], on: &[u64]) -> String {
+    let said = |v: &[u64]| {
+        format!(
+            "median {} us, p95 {} us, p99 {} us",
+            percentile(v, 0.5),
+            percentile(v, 0.95),
+            percentile(v, 0.99)
+        )
+    };
+    format!("{} without recording; {} recording", said(off), said(on))
+}
+
+/// The statistics of paired stops with recording (`on`) and without.
+fn paired_report(on: Vec<u64>, off: Vec<u64>) {
+    // On over off over the pairs `idx`: of the medians, the means, the
+    // p95s and the p99s.
+    #[allow(clippy::cast_precision_loss)]
+    let ratios = |idx: &[usize]| -> [f64; 4] {
+        let mut a: Vec<u64> = idx.iter().map(|&i| on[i]).collect();
+        let mut b: Vec<u64> = idx.iter().map(|&i| off[i]).collect();
+        a.sort_unstable();
+        b.sort_unstable();
+        let sum = |v: &[u64]| v.iter().sum::<u64>().max(1) as f64;
+        let at = |p: f64| percentile(&a, p) as f64 / percentile(&b, p).max(1) as f64;
+        [at(0.5), sum(&a) / sum(&b), at(0.95), at(0.99)]
+    };
+    let all: Vec<usize> = (0..on.len()).collect();
+    let measured = ratios(&all);
+    // Their 95 % intervals: the pairs resampled (a bootstrap of 2,000, a
+    // fixed seed, so a run is repeatable from its samples).
+    let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+    let mut next = |n: usize| {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        #[allow(clippy::cast_possible_truncation)]
+        let i = (seed % n as u64) as usize;
+        i
+    };
+    let mut resampled: [Vec<f64>; 4] = Default::default();
+    for _ in 0..2000 {
+        let idx: Vec<usize> = (0..on.len()).map(|_| next(on.len())).collect();
+        for (k, r) in ratios(&idx).into_iter().enumerate() {
+            resampled[k].push(r);
+        }
+    }
+    for r in &mut resampled {
+        r.sort_by(f64::total_cmp);
+    }
+    let (mut on, mut off) = (on, off);
+    on.sort_unstable();
+    off.sort_unstable();
+    println!(
+        "bridge/recording_paired: line to the last stop frame: {}",
+        off_and_on(&off, &on)
+    );
+    let deciles = |v: &[u64]| {
+        (1..10)
+            .map(|d| percentile(v, f64::from(d) / 10.0).to_string())
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    println!(
+        "bridge/recording_paired: deciles without recording {} us; recording {} us",
+        deciles(&off),
+        deciles(&on)
+    );
+    let said: Vec<String> = ["median", "mean", "p95", "p99"]
+        .iter()
+        .zip(measured)
+        .zip(&resampled)
+        .map(|((name, m), r)| {
+            format!(
+                "{name} {m:.3} (95 % interval {:.3} to {:.3})",
+                percentile(r, 0.025),
+                percentile(r, 0.975)
+            )
+        })
+        .collect();
+    println!("bridge/recording_paired: on / off: {}", said.join(", "));
 }
 
 /// Emergency stop latency (line to the last stop frame on the bus) for a
@@ -630,6 +905,10 @@ fn main() {
         return;
     }
     let test_mode = !std::env::args().any(|a| a == "--bench");
+    if let Some(files) = std::env::var_os("MOTORWIRE_BENCH_RECORDING_POOL") {
+        recording_pooled(&files);
+        return;
+    }
     let recording_only = std::env::var_os("MOTORWIRE_BENCH_RECORDING_ONLY").is_some();
     if !recording_only {
         let mut c = Criterion::default().configure_from_args();
@@ -647,14 +926,26 @@ fn main() {
         stop_per_dialect(if test_mode { 5 } else { 500 });
     }
     if test_mode {
+        recording_paired(2);
         recording_cost(1, 4);
-    } else {
-        // More passes narrow the tail's run-to-run spread (the p99 of 200
-        // stops is their third worst).
-        let passes = std::env::var("MOTORWIRE_BENCH_RECORDING_PASSES")
-            .ok()
-            .and_then(|p| p.parse().ok())
-            .unwrap_or(8);
+        return;
+    }
+    // `MOTORWIRE_BENCH_RECORDING_PAIRS`: stops each way of the paired
+    // comparison (0: not run).
+    let pairs = std::env::var("MOTORWIRE_BENCH_RECORDING_PAIRS")
+        .ok()
+        .and_then(|p| p.parse().ok())
+        .unwrap_or(400);
+    if pairs > 0 {
+        recording_paired(pairs);
+    }
+    // More passes narrow the tail's run-to-run spread (the p99 of 200
+    // stops is their third worst); 0: not run.
+    let passes = std::env::var("MOTORWIRE_BENCH_RECORDING_PASSES")
+        .ok()
+        .and_then(|p| p.parse().ok())
+        .unwrap_or(8);
+    if passes > 0 {
         recording_cost(passes, 25);
     }
 }
