@@ -405,6 +405,20 @@ fn stops_behind_bursts_in_order(
     loaded
 }
 
+/// A recorder as `--record DIR` starts it, into `dir` made anew.
+fn recording_into(dir: &std::path::Path) -> std::sync::Arc<motorwire_bridge::record::Recorder> {
+    let _ = std::fs::remove_dir_all(dir);
+    std::sync::Arc::new(
+        motorwire_bridge::record::Recorder::start(motorwire_bridge::record::RecordConfig {
+            dir: dir.to_owned(),
+            max_bytes: motorwire_bridge::record::DEFAULT_RECORD_MAX,
+            interface: "sim".to_owned(),
+            setup: None,
+        })
+        .unwrap(),
+    )
+}
+
 /// The stop behind a burst with the session recorded (`--record`) and
 /// without, alternated in the same run (`passes` of `rounds` each way),
 /// the same map and lines: (median, p99) off, then on, in µs.
@@ -424,20 +438,7 @@ fn recording_cost(passes: usize, rounds: usize) {
     for _ in 0..passes {
         let mut medians = [0u64; 2];
         for record in [false, true] {
-            let recorder = record.then(|| {
-                let _ = std::fs::remove_dir_all(&dir);
-                std::sync::Arc::new(
-                    motorwire_bridge::record::Recorder::start(
-                        motorwire_bridge::record::RecordConfig {
-                            dir: dir.clone(),
-                            max_bytes: motorwire_bridge::record::DEFAULT_RECORD_MAX,
-                            interface: "sim".to_owned(),
-                            setup: None,
-                        },
-                    )
-                    .unwrap(),
-                )
-            });
+            let recorder = record.then(|| recording_into(&dir));
             let (_arm, input, lean, handle) = started_lean(
                 MAP,
                 recorder
@@ -581,19 +582,9 @@ impl Tap for Switched {
 /// of one build (0.92 to 1.28, BENCHMARKS.md), which the pairing here
 /// takes out of the comparison.
 fn recording_paired(pairs: usize) {
-    use motorwire_bridge::record::{DEFAULT_RECORD_MAX, RecordConfig, Recorder};
     use std::sync::Arc;
     let dir = std::env::temp_dir().join(format!("motorwire-bench-paired-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let recorder = Arc::new(
-        Recorder::start(RecordConfig {
-            dir: dir.clone(),
-            max_bytes: DEFAULT_RECORD_MAX,
-            interface: "sim".to_owned(),
-            setup: None,
-        })
-        .unwrap(),
-    );
+    let recorder = recording_into(&dir);
     let switched = Arc::new(Switched {
         open: std::sync::atomic::AtomicBool::new(false),
         recorder: Arc::clone(&recorder),

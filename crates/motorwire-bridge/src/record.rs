@@ -1315,13 +1315,25 @@ mod tests {
         );
     }
 
+    /// Waits until `done` (at most 10 s, then fails saying `what`).
+    fn within_10s(what: &str, mut done: impl FnMut() -> bool) {
+        let begun = Instant::now();
+        while !done() {
+            assert!(begun.elapsed() < Duration::from_secs(10), "{what}");
+            thread::sleep(Duration::from_micros(200));
+        }
+    }
+
     /// Waits until `rec` is idle (at most 10 s).
     fn until_idle(rec: &Recorder) {
-        let begun = Instant::now();
-        while !rec.is_idle() {
-            assert!(begun.elapsed() < Duration::from_secs(10), "never idle");
-            thread::sleep(Duration::from_millis(1));
-        }
+        within_10s("never idle", || rec.is_idle());
+    }
+
+    /// Whether `dir`'s `lines.jsonl` holds at least `n` lines, the last
+    /// one containing `text`.
+    fn written(dir: &Path, n: usize, text: &str) -> bool {
+        let lines = fs::read_to_string(dir.join("lines.jsonl")).unwrap();
+        lines.lines().count() >= n && lines.lines().last().is_some_and(|l| l.contains(text))
     }
 
     /// An idle recording costs nothing: its writer sleeps (no rounds
@@ -1339,14 +1351,7 @@ mod tests {
         rec.input(Instant::now(), Origin(1), 1, "{}");
         // Woken at once (asleep, it would not look again for a minute in
         // tests): written well within the test's patience.
-        let begun = Instant::now();
-        while !fs::read_to_string(dir.join("lines.jsonl"))
-            .unwrap()
-            .contains(r#""text":"{}""#)
-        {
-            assert!(begun.elapsed() < Duration::from_secs(10), "not woken");
-            thread::sleep(Duration::from_millis(1));
-        }
+        within_10s("not woken", || written(&dir, 1, r#""text":"{}""#));
         until_idle(&rec);
         let s = rec.finish();
         assert_eq!((s.written, s.dropped), (1, 0));
@@ -1362,24 +1367,13 @@ mod tests {
         let dir = scratch("asleep-window");
         let rec = recording(&dir, DEFAULT_RECORD_MAX);
         rec.hold.store(true, Ordering::SeqCst);
-        let begun = Instant::now();
-        while !rec.held.load(Ordering::SeqCst) {
-            assert!(begun.elapsed() < Duration::from_secs(10), "never held");
-            thread::sleep(Duration::from_millis(1));
-        }
+        within_10s("never held", || rec.held.load(Ordering::SeqCst));
         assert!(rec.is_idle());
         rec.input(Instant::now(), Origin(1), 1, "{}");
         // Not idle with a record queued, whatever the writer said.
         assert!(!rec.is_idle());
         rec.hold.store(false, Ordering::SeqCst);
-        let begun = Instant::now();
-        while !fs::read_to_string(dir.join("lines.jsonl"))
-            .unwrap()
-            .contains(r#""text":"{}""#)
-        {
-            assert!(begun.elapsed() < Duration::from_secs(10), "left asleep");
-            thread::sleep(Duration::from_millis(1));
-        }
+        within_10s("left asleep", || written(&dir, 1, r#""text":"{}""#));
         let s = rec.finish();
         assert_eq!((s.written, s.dropped), (1, 0));
     }
@@ -1411,20 +1405,10 @@ mod tests {
             for w in writers {
                 w.join().unwrap();
             }
-            let begun = Instant::now();
             let want = 4 * (round as usize + 1);
-            while fs::read_to_string(dir.join("lines.jsonl"))
-                .unwrap()
-                .lines()
-                .count()
-                < want
-            {
-                assert!(
-                    begun.elapsed() < Duration::from_secs(10),
-                    "round {round} left asleep"
-                );
-                thread::sleep(Duration::from_micros(200));
-            }
+            within_10s(&format!("round {round} left asleep"), || {
+                written(&dir, want, &format!(r#""line":{round},"#))
+            });
         }
         let s = Arc::try_unwrap(rec).unwrap().finish();
         assert_eq!((s.written, s.dropped), (240, 0));
