@@ -10,6 +10,9 @@ pub(crate) struct Sink {
     /// How far from `now_ms` a timestamp may be.
     pub(crate) window: crate::TimestampWindow,
     pub(crate) list: Vec<Violation>,
+    /// Violations found beyond those kept (the list holds at most twice
+    /// [`crate::MAX_VIOLATIONS`]: some are dropped at `finish`).
+    pub(crate) more: usize,
 }
 
 impl Sink {
@@ -18,10 +21,15 @@ impl Sink {
             now_ms,
             window: crate::TimestampWindow::WIA,
             list: Vec::new(),
+            more: 0,
         }
     }
 
     pub(crate) fn push(&mut self, path: &Path<'_>, rule: Rule, message: String) {
+        if self.list.len() >= 2 * crate::MAX_VIOLATIONS {
+            self.more += 1;
+            return;
+        }
         self.list.push(Violation {
             pointer: path.render(),
             rule,
@@ -250,7 +258,9 @@ impl Sink {
 
     /// Removes semantic violations at a pointer that already has a schema
     /// violation: `kp: -1` is a `minimum` violation, not also `kp-positive`.
-    pub(crate) fn finish(mut self) -> Vec<Violation> {
+    /// At most [`crate::MAX_VIOLATIONS`] are kept, with the count of the
+    /// rest.
+    pub(crate) fn finish_counted(mut self) -> (Vec<Violation>, usize) {
         use crate::rule::Level;
         let schema_pointers: Vec<String> = self
             .list
@@ -263,7 +273,9 @@ impl Sink {
                 v.rule.level() != Level::Semantic || !schema_pointers.contains(&v.pointer)
             });
         }
-        self.list
+        let over = self.list.len().saturating_sub(crate::MAX_VIOLATIONS);
+        self.list.truncate(crate::MAX_VIOLATIONS);
+        (self.list, self.more.saturating_add(over))
     }
 }
 
@@ -288,7 +300,7 @@ mod tests {
         for id in ids {
             let mut s = Sink::new(None);
             s.id_pattern(&Path::ROOT, &id);
-            let refused = !s.finish().is_empty();
+            let refused = !s.finish_counted().0.is_empty();
             let by_characters = id.is_empty() || !id.chars().all(MotorId::is_id_char);
             assert_eq!(refused, by_characters, "{id:?}");
         }

@@ -387,6 +387,21 @@ pub trait WiaMessage: Serialize + DeserializeOwned + Sized {
         let _ = window;
         self.violations(now_ms)
     }
+
+    /// [`WiaMessage::violations_with_skew`], the first
+    /// [`MAX_VIOLATIONS`](crate::MAX_VIOLATIONS) of them, with how many
+    /// more were found.
+    fn violations_counted(
+        &self,
+        now_ms: Option<f64>,
+        window: crate::TimestampWindow,
+    ) -> (Vec<Violation>, usize) {
+        let list = self.violations_with_skew(now_ms, window);
+        let more = list.len().saturating_sub(crate::MAX_VIOLATIONS);
+        let mut list = list;
+        list.truncate(crate::MAX_VIOLATIONS);
+        (list, more)
+    }
 }
 
 macro_rules! wia_message {
@@ -403,10 +418,14 @@ macro_rules! wia_message {
             }
 
             fn violations_with_skew(&self, now_ms: Option<f64>, window: crate::TimestampWindow) -> Vec<Violation> {
+                self.violations_counted(now_ms, window).0
+            }
+
+            fn violations_counted(&self, now_ms: Option<f64>, window: crate::TimestampWindow) -> (Vec<Violation>, usize) {
                 let mut sink = Sink::new(now_ms);
                 sink.window = window;
                 self.check(&mut sink);
-                sink.finish()
+                sink.finish_counted()
             }
         }
     )*};

@@ -27,7 +27,7 @@ pub use command::{
 /// be mistaken for `motorwire_translate::Report` (what a translation lost,
 /// also `motorwire_translate::TranslationReport`): the same type.
 pub use error::Report as ValidationReport;
-pub use error::{Error, Report};
+pub use error::{Error, MAX_VIOLATIONS, Report};
 pub use feedback::{MotorFeedback, MotorHealth, MotorStatus};
 /// [`Message`] (any of the seven WIA messages) under a name that cannot be
 /// mistaken for `motorwire_irpc::Message` (an iRPC frame's message, also

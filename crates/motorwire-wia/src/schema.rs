@@ -49,14 +49,17 @@ pub fn schema_validator(kind: MessageKind) -> Result<&'static jsonschema::Valida
     compiled(kind).as_ref().map_err(String::as_str)
 }
 
-/// Every JSON Schema violation of `value` as a [`Violation`].
-pub(crate) fn violations(kind: MessageKind, value: &Value) -> Vec<Violation> {
+/// The JSON Schema violations of `value` as [`Violation`]s: the first
+/// [`crate::MAX_VIOLATIONS`], and how many more (counted, not described).
+pub(crate) fn violations(kind: MessageKind, value: &Value) -> (Vec<Violation>, usize) {
     let validator = match schema_validator(kind) {
         Ok(v) => v,
-        Err(e) => return vec![Violation::new("", Rule::SchemaOther, e)],
+        Err(e) => return (vec![Violation::new("", Rule::SchemaOther, e)], 0),
     };
-    validator
-        .iter_errors(value)
+    let mut errors = validator.iter_errors(value);
+    let listed = errors
+        .by_ref()
+        .take(crate::MAX_VIOLATIONS)
         .map(|e| {
             let at = e.instance_path().as_str().to_owned();
             let (rule, pointer) = match e.kind() {
@@ -77,7 +80,8 @@ pub(crate) fn violations(kind: MessageKind, value: &Value) -> Vec<Violation> {
             };
             Violation::new(pointer, rule, e.to_string())
         })
-        .collect()
+        .collect();
+    (listed, errors.count())
 }
 
 #[cfg(test)]
@@ -97,11 +101,11 @@ mod tests {
 
     #[test]
     fn required_points_at_the_missing_member() {
-        let v = violations(
+        let (v, more) = violations(
             MessageKind::MotorCommand,
             &serde_json::json!({"motor_id": "m", "timestamp": 0, "control_mode": "position"}),
         );
-        assert_eq!(v.len(), 1);
+        assert_eq!((v.len(), more), (1, 0));
         assert_eq!(v[0].pointer, "/setpoint");
         assert_eq!(v[0].rule, Rule::Required);
     }

@@ -212,16 +212,17 @@ impl Validator {
     /// # Errors
     /// [`Error::Invalid`] with every violation found.
     pub fn parse<T: WiaMessage>(&self, json: &str) -> Result<T, Error> {
-        let (msg, violations) = match self.precheck(json) {
+        let (msg, violations, more) = match self.precheck(json) {
             Ok(()) => self.run::<T>(json),
-            Err(v) => (None, vec![v]),
+            Err(v) => (None, vec![v], 0),
         };
         match msg {
-            Some(msg) if violations.is_empty() => Ok(msg),
-            _ => Err(Error::Invalid(Report {
-                kind: Some(T::KIND),
+            Some(msg) if violations.is_empty() && more == 0 => Ok(msg),
+            _ => Err(Error::Invalid(Report::bounded(
+                Some(T::KIND),
                 violations,
-            })),
+                more,
+            ))),
         }
     }
 
@@ -245,12 +246,7 @@ impl Validator {
         let kind = self
             .precheck(json)
             .and_then(|()| infer(json))
-            .map_err(|v| {
-                Error::Invalid(Report {
-                    kind: None,
-                    violations: vec![v],
-                })
-            })?;
+            .map_err(|v| Error::Invalid(Report::bounded(None, vec![v], 0)))?;
         self.typed(kind, json)
     }
 
@@ -343,12 +339,8 @@ impl Validator {
     /// # Errors
     /// [`Error::Invalid`].
     pub fn parse_as(&self, kind: MessageKind, json: &str) -> Result<Message, Error> {
-        self.precheck(json).map_err(|v| {
-            Error::Invalid(Report {
-                kind: None,
-                violations: vec![v],
-            })
-        })?;
+        self.precheck(json)
+            .map_err(|v| Error::Invalid(Report::bounded(None, vec![v], 0)))?;
         self.typed(kind, json)
     }
 
@@ -357,11 +349,12 @@ impl Validator {
     fn typed(&self, kind: MessageKind, json: &str) -> Result<Message, Error> {
         fn typed<T: WiaMessage>(v: &Validator, json: &str) -> Result<T, Error> {
             match v.run::<T>(json) {
-                (Some(msg), violations) if violations.is_empty() => Ok(msg),
-                (_, violations) => Err(Error::Invalid(Report {
-                    kind: Some(T::KIND),
+                (Some(msg), violations, 0) if violations.is_empty() => Ok(msg),
+                (_, violations, more) => Err(Error::Invalid(Report::bounded(
+                    Some(T::KIND),
                     violations,
-                })),
+                    more,
+                ))),
             }
         }
         Ok(match kind {
@@ -377,26 +370,28 @@ impl Validator {
 
     /// Validates a document as `kind`, returning every violation.
     pub fn validate(&self, kind: MessageKind, json: &str) -> Report {
-        let violations = match self.precheck(json) {
+        let (violations, more) = match self.precheck(json) {
             Ok(()) => self.checked(kind, json),
-            Err(v) => vec![v],
+            Err(v) => (vec![v], 0),
         };
-        Report {
-            kind: Some(kind),
-            violations,
-        }
+        Report::bounded(Some(kind), violations, more)
     }
 
-    /// Every violation of a document that passed the size and depth limits.
-    fn checked(&self, kind: MessageKind, json: &str) -> Vec<Violation> {
+    /// The violations of a document that passed the size and depth
+    /// limits (the first [`MAX_VIOLATIONS`](crate::MAX_VIOLATIONS)), and
+    /// how many more.
+    fn checked(&self, kind: MessageKind, json: &str) -> (Vec<Violation>, usize) {
+        fn of<T>((_, list, more): (Option<T>, Vec<Violation>, usize)) -> (Vec<Violation>, usize) {
+            (list, more)
+        }
         match kind {
-            MessageKind::MotorCommand => self.run::<MotorCommand>(json).1,
-            MessageKind::MultiAxisCommand => self.run::<MultiAxisCommand>(json).1,
-            MessageKind::MotorFeedback => self.run::<MotorFeedback>(json).1,
-            MessageKind::Trajectory => self.run::<Trajectory>(json).1,
-            MessageKind::PidConfig => self.run::<PidConfig>(json).1,
-            MessageKind::SafetyLimits => self.run::<SafetyLimits>(json).1,
-            MessageKind::ControlModeConfig => self.run::<ControlModeConfig>(json).1,
+            MessageKind::MotorCommand => of(self.run::<MotorCommand>(json)),
+            MessageKind::MultiAxisCommand => of(self.run::<MultiAxisCommand>(json)),
+            MessageKind::MotorFeedback => of(self.run::<MotorFeedback>(json)),
+            MessageKind::Trajectory => of(self.run::<Trajectory>(json)),
+            MessageKind::PidConfig => of(self.run::<PidConfig>(json)),
+            MessageKind::SafetyLimits => of(self.run::<SafetyLimits>(json)),
+            MessageKind::ControlModeConfig => of(self.run::<ControlModeConfig>(json)),
         }
     }
 
@@ -410,34 +405,25 @@ impl Validator {
     /// ```
     pub fn validate_auto(&self, json: &str) -> Report {
         if let Err(v) = self.precheck(json) {
-            return Report {
-                kind: None,
-                violations: vec![v],
-            };
+            return Report::bounded(None, vec![v], 0);
         }
         // The document is parsed once: the kind comes from a scan of its
         // top-level member names. Only when the scan cannot tell, or the
         // text turns out not to be JSON, does `infer` parse it to say why,
         // exactly as before.
         if let Some(kind) = crate::kind::scan_kind(json) {
-            let violations = self.checked(kind, json);
+            let (violations, more) = self.checked(kind, json);
             let not_json = matches!(violations.as_slice(), [v] if v.rule == Rule::JsonSyntax);
             if !not_json {
-                return Report {
-                    kind: Some(kind),
-                    violations,
-                };
+                return Report::bounded(Some(kind), violations, more);
             }
         }
         match infer(json) {
-            Ok(kind) => Report {
-                kind: Some(kind),
-                violations: self.checked(kind, json),
-            },
-            Err(v) => Report {
-                kind: None,
-                violations: vec![v],
-            },
+            Ok(kind) => {
+                let (violations, more) = self.checked(kind, json);
+                Report::bounded(Some(kind), violations, more)
+            }
+            Err(v) => Report::bounded(None, vec![v], 0),
         }
     }
 
@@ -452,17 +438,14 @@ impl Validator {
     /// assert!(!Validator::new().validate(MessageKind::PidConfig, doc).is_valid());
     /// ```
     pub fn validate_schema_only(&self, kind: MessageKind, json: &str) -> Report {
-        let violations = match self.precheck(json) {
-            Err(v) => vec![v],
+        let (violations, more) = match self.precheck(json) {
+            Err(v) => (vec![v], 0),
             Ok(()) => match serde_json::from_str::<serde_json::Value>(json) {
                 Ok(value) => schema::violations(kind, &value),
-                Err(e) => vec![json_error(&e)],
+                Err(e) => (vec![json_error(&e)], 0),
             },
         };
-        Report {
-            kind: Some(kind),
-            violations,
-        }
+        Report::bounded(Some(kind), violations, more)
     }
 
     /// Every violation of a typed value (see [`WiaMessage::violations`]),
@@ -486,12 +469,13 @@ impl Validator {
     /// # Errors
     /// [`Error::Invalid`] with the value's violations.
     pub fn to_json<T: WiaMessage>(&self, msg: &T) -> Result<String, Error> {
-        let violations = self.check(msg);
-        if !violations.is_empty() {
-            return Err(Error::Invalid(Report {
-                kind: Some(T::KIND),
+        let (violations, more) = msg.violations_counted(self.now_ms, self.window);
+        if !violations.is_empty() || more > 0 {
+            return Err(Error::Invalid(Report::bounded(
+                Some(T::KIND),
                 violations,
-            }));
+                more,
+            )));
         }
         to_string(msg)
     }
@@ -522,18 +506,22 @@ impl Validator {
         Ok(())
     }
 
-    /// Parses and checks a document that passed [`Validator::precheck`].
-    fn run<T: WiaMessage>(&self, json: &str) -> (Option<T>, Vec<Violation>) {
+    /// Parses and checks a document that passed [`Validator::precheck`]:
+    /// the value, the first violations and how many more.
+    fn run<T: WiaMessage>(&self, json: &str) -> (Option<T>, Vec<Violation>, usize) {
         match serde_json::from_str::<T>(json) {
             Ok(msg) => {
-                let mut violations = msg.violations_with_skew(self.now_ms, self.window);
+                let (mut violations, more) = msg.violations_counted(self.now_ms, self.window);
                 if self.deny_unknown && msg.may_hold_unknown_members() {
                     violations.extend(crate::members::unknown_members(T::KIND, json));
                 }
-                (Some(msg), violations)
+                (Some(msg), violations, more)
             }
-            Err(e) if e.is_data() => (None, explain_data_error(T::KIND, json, &e)),
-            Err(e) => (None, vec![json_error(&e)]),
+            Err(e) if e.is_data() => {
+                let (list, more) = explain_data_error(T::KIND, json, &e);
+                (None, list, more)
+            }
+            Err(e) => (None, vec![json_error(&e)], 0),
         }
     }
 }
@@ -559,22 +547,29 @@ fn infer(json: &str) -> Result<MessageKind, Violation> {
 /// The typed parse refused a well-formed document: the JSON Schema says
 /// where and why, with every violation; what it accepts is something
 /// motorwire cannot represent (an integer beyond 64 bits, a repeated key).
-fn explain_data_error(kind: MessageKind, json: &str, error: &serde_json::Error) -> Vec<Violation> {
+fn explain_data_error(
+    kind: MessageKind,
+    json: &str,
+    error: &serde_json::Error,
+) -> (Vec<Violation>, usize) {
     let value: serde_json::Value = match serde_json::from_str(json) {
         Ok(v) => v,
-        Err(e) => return vec![json_error(&e)],
+        Err(e) => return (vec![json_error(&e)], 0),
     };
-    let violations = schema::violations(kind, &value);
+    let (violations, more) = schema::violations(kind, &value);
     if violations.is_empty() {
-        vec![Violation::new(
-            "",
-            Rule::Unrepresentable,
-            format!(
-                "the document satisfies the {kind} schema but motorwire cannot represent it: {error}"
-            ),
-        )]
+        (
+            vec![Violation::new(
+                "",
+                Rule::Unrepresentable,
+                format!(
+                    "the document satisfies the {kind} schema but motorwire cannot represent it: {error}"
+                ),
+            )],
+            0,
+        )
     } else {
-        violations
+        (violations, more)
     }
 }
 
@@ -624,10 +619,11 @@ fn depth_exceeding(bytes: &[u8], max: usize) -> Option<usize> {
 /// Serializes any WIA message to compact JSON, without checking it.
 fn to_string<T: Serialize>(msg: &T) -> Result<String, Error> {
     serde_json::to_string(msg).map_err(|e| {
-        Error::Invalid(Report {
-            kind: None,
-            violations: vec![Violation::new("", Rule::Unrepresentable, e.to_string())],
-        })
+        Error::Invalid(Report::bounded(
+            None,
+            vec![Violation::new("", Rule::Unrepresentable, e.to_string())],
+            0,
+        ))
     })
 }
 

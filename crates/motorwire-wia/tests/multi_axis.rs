@@ -1,6 +1,7 @@
 //! A multi-axis command as large as the default document size allows:
-//! every repeated motor reported exactly as for a small one, in one pass
-//! (the check was a search per axis, 0.1 s for 8,192 axes; issue 15).
+//! every repeated motor found exactly as for a small one, in one pass
+//! (the check was a search per axis, 0.1 s for 8,192 axes; issue 15); the
+//! first 100 listed and the rest counted (issue 58 part 3).
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
 use std::time::Instant;
@@ -49,7 +50,8 @@ fn eight_thousand_axes_report_each_repeat_with_its_first_place() {
             )
         })
         .collect();
-    assert_eq!(got.len(), expected.len(), "{:?}", got.first());
+    assert_eq!(got.len(), 100, "{:?}", got.first());
+    assert_eq!(report.more, expected.len() - 100);
     for ((rule, pointer, message), (want_pointer, want_message)) in got.iter().zip(&expected) {
         assert_eq!(*rule, Rule::DuplicateMotor);
         assert_eq!(pointer, want_pointer);
