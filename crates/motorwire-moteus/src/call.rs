@@ -67,12 +67,15 @@ const STAY_WITHIN_FIELDS: &[&str] = &[
     "kp_scale",
     "kd_scale",
     "maximum_torque",
+    "stop_position",
     "watchdog_timeout",
     "ilimit_scale",
     "ignore_position_bounds",
 ];
 
-/// `QueryResolution`'s attributes, in the order the query writes them.
+/// `QueryResolution`'s attributes, in the order the query writes them
+/// (`rezero_state` is the older name of `home_state`'s register: the
+/// library merges the two, the finer resolution winning).
 pub const QUERY_FIELDS: &[&str] = &[
     "mode",
     "position",
@@ -84,6 +87,7 @@ pub const QUERY_FIELDS: &[&str] = &[
     "power",
     "motor_temperature",
     "trajectory_complete",
+    "rezero_state",
     "home_state",
     "voltage",
     "temperature",
@@ -136,7 +140,8 @@ pub struct PositionArgs {
     pub ilimit_scale: Option<f64>,
     /// Fixed current override, A.
     pub fixed_current_override: Option<f64>,
-    /// Sent as `int(value)`, as the library sends it.
+    /// Sent as `int(value)`, as the library sends it (a JSON `true` is 1,
+    /// `false` 0, as Python's `int(True)`).
     pub ignore_position_bounds: Option<f64>,
 }
 
@@ -155,11 +160,14 @@ pub struct StayWithinArgs {
     pub kd_scale: Option<f64>,
     /// Torque limit, Nm.
     pub maximum_torque: Option<f64>,
+    /// Taken and never sent: the library (1.1.1) accepts `stop_position`
+    /// here and writes no register for it (stay-within mode has none).
+    pub stop_position: Option<f64>,
     /// The controller's watchdog: with no new command for this long (s) it enters mode TIMEOUT.
     pub watchdog_timeout: Option<f64>,
     /// Scale of the integrator limit.
     pub ilimit_scale: Option<f64>,
-    /// Sent as `int(value)`.
+    /// Sent as `int(value)` (`true` is 1, `false` 0).
     pub ignore_position_bounds: Option<f64>,
 }
 
@@ -220,7 +228,8 @@ pub struct Call {
     pub command: Command,
     /// Whether the default query is appended (a reply is asked for).
     pub query: bool,
-    /// A query of its own, in place of the default one.
+    /// A query of its own, in place of the default one (`null` is the
+    /// library's default, None).
     pub query_override: Option<QueryFormat>,
     /// The controller's resolutions.
     pub resolutions: Resolutions,
@@ -376,6 +385,38 @@ fn value(obj: &Map<String, Value>, member: &str) -> Result<Option<f64>, CallErro
     }
 }
 
+/// A flag the library sends as `int(value)` (`ignore_position_bounds`):
+/// `true` or `false` as Python's `True` and `False` (1 and 0), or a value.
+fn flag(obj: &Map<String, Value>, member: &str) -> Result<Option<f64>, CallError> {
+    match obj.get(member) {
+        Some(Value::Bool(b)) => Ok(Some(if *b { 1.0 } else { 0.0 })),
+        Some(v) if !v.is_number() && !v.is_null() => Err(CallError::WrongType {
+            member: member.to_owned(),
+            expected: "true or false, a number, or null for NaN",
+            got: type_name(v),
+        }),
+        _ => value(obj, member),
+    }
+}
+
+/// The library's `_merge_resolutions`: one of two resolutions for one
+/// register, the finer when both are sent.
+fn merge_resolutions(a: Resolution, b: Resolution) -> Resolution {
+    let rank = |r: Resolution| match r {
+        Resolution::Int8 => 0,
+        Resolution::Int16 => 1,
+        Resolution::Int32 => 2,
+        _ => 3,
+    };
+    if a == Resolution::Ignore {
+        b
+    } else if b == Resolution::Ignore || rank(a) >= rank(b) {
+        a
+    } else {
+        b
+    }
+}
+
 fn query_format(name: &str, v: &Value, base: QueryFormat) -> Result<QueryFormat, CallError> {
     let obj = v.as_object().ok_or_else(|| CallError::WrongType {
         member: name.to_owned(),
@@ -383,6 +424,7 @@ fn query_format(name: &str, v: &Value, base: QueryFormat) -> Result<QueryFormat,
         got: type_name(v),
     })?;
     let mut q = base;
+    let mut rezero_state = None;
     for (k, v) in obj {
         let r = resolution(&format!("{name}.{k}"), v)?;
         let slot = match k.as_str() {
@@ -396,6 +438,10 @@ fn query_format(name: &str, v: &Value, base: QueryFormat) -> Result<QueryFormat,
             "power" => &mut q.power,
             "motor_temperature" => &mut q.motor_temperature,
             "trajectory_complete" => &mut q.trajectory_complete,
+            "rezero_state" => {
+                rezero_state = Some(r);
+                continue;
+            }
             "home_state" => &mut q.home_state,
             "voltage" => &mut q.voltage,
             "temperature" => &mut q.temperature,
@@ -409,6 +455,11 @@ fn query_format(name: &str, v: &Value, base: QueryFormat) -> Result<QueryFormat,
             _ => return Err(unknown(name, k, QUERY_FIELDS)),
         };
         *slot = r;
+    }
+    if let Some(r) = rezero_state {
+        // The register's resolution is `_merge_resolutions(rezero_state,
+        // home_state)`.
+        q.home_state = merge_resolutions(r, q.home_state);
     }
     Ok(q)
 }
@@ -554,10 +605,10 @@ impl Call {
         for (_, r) in resolutions_object(obj, "zero_velocity_resolution", ZERO_VELOCITY_FIELDS)? {
             res.zero_velocity.kd_scale = r;
         }
-        let query_override = obj
-            .get("query_override")
-            .map(|v| query_format("query_override", v, QueryFormat::default()))
-            .transpose()?;
+        let query_override = match obj.get("query_override") {
+            None | Some(Value::Null) => None,
+            Some(v) => Some(query_format("query_override", v, QueryFormat::default())?),
+        };
 
         let v = |m: &str| value(obj, m);
         let command = match command {
@@ -575,7 +626,7 @@ impl Call {
                 fixed_voltage_override: v("fixed_voltage_override")?,
                 ilimit_scale: v("ilimit_scale")?,
                 fixed_current_override: v("fixed_current_override")?,
-                ignore_position_bounds: v("ignore_position_bounds")?,
+                ignore_position_bounds: flag(obj, "ignore_position_bounds")?,
             }),
             "stay_within" => Command::StayWithin(StayWithinArgs {
                 lower_bound: v("lower_bound")?,
@@ -584,9 +635,10 @@ impl Call {
                 kp_scale: v("kp_scale")?,
                 kd_scale: v("kd_scale")?,
                 maximum_torque: v("maximum_torque")?,
+                stop_position: v("stop_position")?,
                 watchdog_timeout: v("watchdog_timeout")?,
                 ilimit_scale: v("ilimit_scale")?,
-                ignore_position_bounds: v("ignore_position_bounds")?,
+                ignore_position_bounds: flag(obj, "ignore_position_bounds")?,
             }),
             "current" => Command::Current {
                 d_a: v("d_A")?.ok_or(CallError::Missing {

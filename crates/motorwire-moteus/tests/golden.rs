@@ -112,6 +112,99 @@ fn what_the_library_would_do_wrong_or_cannot_send_is_refused() {
     assert_eq!(encode(&all.replace(r#","query":true"#, "")).1.len(), 62 * 2);
 }
 
+/// Every keyword of the library's `make_*` signatures, with the types Python
+/// passes: the bytes are the library's own (moteus 1.1.1,
+/// `Controller(...).make_*(...).data` and the transport's arbitration id).
+#[test]
+fn keywords_take_the_types_python_passes() {
+    let cases: &[(&str, u32, &str)] = &[
+        // make_position(position=0.5, ignore_position_bounds=True): True is
+        // int(True), 1, as an f32.
+        (
+            r#"{"command":"position","id":1,"position":0.5,"ignore_position_bounds":true}"#,
+            1,
+            "01000a0d200000003f0d2d0000803f",
+        ),
+        // ignore_position_bounds=False at int8, position at int16, query=True.
+        (
+            r#"{"command":"position","id":3,"position":0.5,"ignore_position_bounds":false,"query":true,"position_resolution":{"position":"int16","ignore_position_bounds":"int8"}}"#,
+            0x8003,
+            "01000a05208813012d0011001f01130d",
+        ),
+        // make_stay_within(..., stop_position=0.1): taken, and not sent.
+        (
+            r#"{"command":"stay_within","id":1,"lower_bound":-0.25,"upper_bound":0.25,"stop_position":0.1}"#,
+            1,
+            "01000d0e40000080be0000803e",
+        ),
+        // stop_position=1e300 (no f32 holds it: ignored all the same) with
+        // ignore_position_bounds=True and query=True.
+        (
+            r#"{"command":"stay_within","id":1,"lower_bound":-0.25,"upper_bound":0.25,"stop_position":1e300,"ignore_position_bounds":true,"query":true}"#,
+            0x8001,
+            "01000d0e40000080be0000803e0d480000803f11001f01130d",
+        ),
+        // query_override=None: the default query (or none).
+        (
+            r#"{"command":"stop","id":1,"query":true,"query_override":null}"#,
+            0x8001,
+            "01000011001f01130d",
+        ),
+        (
+            r#"{"command":"query","id":1,"query_override":null}"#,
+            0x8001,
+            "11001f01130d",
+        ),
+        // A QueryResolution's rezero_state, merged with home_state as the
+        // library merges them (the finer wins; alone, its own).
+        (
+            r#"{"command":"query","id":1,"query_override":{"rezero_state":"int16","home_state":"int8"}}"#,
+            0x8001,
+            "11001f01150c130d",
+        ),
+        (
+            r#"{"command":"brake","id":1,"query_override":{"rezero_state":"f32"}}"#,
+            0x8001,
+            "01000f11001f011d0c130d",
+        ),
+        (
+            r#"{"command":"brake","id":1,"query_override":{"rezero_state":"int8","home_state":"int32"}}"#,
+            0x8001,
+            "01000f11001f01190c130d",
+        ),
+    ];
+    for (json, can_id, data) in cases {
+        assert_eq!(encode(json), (*can_id, (*data).to_owned()), "{json}");
+    }
+}
+
+#[test]
+fn keywords_the_library_does_not_take_are_still_refused() {
+    let err = |json: &str| Call::from_json(json).and_then(|c| c.encode()).unwrap_err();
+    assert_eq!(
+        err(r#"{"command":"stay_within","id":1,"stop_positon":0.5}"#).to_string(),
+        "stay_within: unknown member \"stop_positon\" (did you mean \"stop_position\"?)"
+    );
+    // make_query has no `query` keyword (the library raises TypeError).
+    assert!(matches!(
+        err(r#"{"command":"query","id":1,"query":true}"#),
+        CallError::UnknownMember { member, .. } if member == "query"
+    ));
+    assert_eq!(
+        err(r#"{"command":"position","id":1,"ignore_position_bounds":"yes"}"#).to_string(),
+        "ignore_position_bounds: expected true or false, a number, or null for NaN, got the string \"yes\""
+    );
+    // A bool only where the library takes a flag.
+    assert!(matches!(
+        err(r#"{"command":"position","id":1,"kp_scale":true}"#),
+        CallError::WrongType { .. }
+    ));
+    assert!(matches!(
+        err(r#"{"command":"query","id":1,"query_override":{"rezero":"int8"}}"#),
+        CallError::UnknownMember { .. }
+    ));
+}
+
 #[test]
 fn replies_decode_as_the_library_values_them() {
     // Mode 10 (int8); position 1998 and velocity -736 (int16); torque 11791

@@ -12,7 +12,13 @@ What it proves, on seeded random cases:
   motorwire prints the same `{"can_id": N, "data": "hex"}` as the library:
   `data` is the library's `Command.data` byte for byte, `can_id` the
   arbitration id the library's transport builds for it
-  (`Transport._command_to_frame`).
+  (`Transport._command_to_frame`). The calls are drawn from the library's
+  own signatures (`inspect.signature` of each `Controller.make_*`): every
+  keyword it takes is drawn, with the types Python passes (`query` and
+  `ignore_position_bounds` as true/false, numbers as ints and floats, NaN
+  as null, `query_override` as an object or null for None). A keyword, or
+  an attribute of a resolution class, that this script cannot draw values
+  for stops it at once (exit 1, naming it), before anything is generated.
 - decode: for each reply frame (`{"can_id": N, "data": "hex"}`), motorwire
   prints the same `{"id", "values", "errors"}` as the library reads it:
   `id` from `protocol.parse_message`, `values` the RESPONSE registers of
@@ -41,8 +47,9 @@ Run (the binary built beforehand; Python with `moteus` installed):
     python3 moteus_reference.py --motorwire path/to/motorwire --seed 1 \\
         --calls 10000 --replies 10000 [--show 10]
 
-It exits 1 on any mismatch, or when motorwire prints a different number of
-lines than it was given; 0 otherwise. To check the generator alone (no
+It exits 1 on any mismatch, when motorwire prints a different number of
+lines than it was given, or when the library has a keyword the generator
+does not know; 0 otherwise. To check the generator alone (no
 motorwire needed), write the cases with the library's answers as JSON lines
 `{"input": ..., "expected": ...}` and exit:
 
@@ -54,6 +61,7 @@ Only the standard library and `moteus` are used.
 
 import argparse
 import collections
+import inspect
 import json
 import math
 import random
@@ -102,9 +110,12 @@ FAMILIES = {
 }
 PWM_STEPS = (127.0, 32767.0, 2147483647.0)
 
-# Each command's arguments: (argument, attribute of the resolution object,
-# scale family, register it is written to). "int" is write_int (sent as
-# int(value)), "raw" a plain f32 (set_output's position).
+# Each command's value arguments: (argument, attribute of the resolution
+# object, scale family, register it is written to). "int" is write_int (sent
+# as int(value); drawn as a bool too, as ignore_position_bounds=True is
+# written), "raw" a plain f32 (set_output's position), "ignored" an argument
+# the library takes and never sends (no attribute, no register). `query`
+# and `query_override` are every command's (see KEYWORD_KINDS).
 POSITION_ARGS = [
     ("position", "position", "position", 0x020),
     ("velocity", "velocity", "velocity", 0x021),
@@ -122,7 +133,8 @@ POSITION_ARGS = [
     ("ignore_position_bounds", "ignore_position_bounds", "int", 0x02d),
 ]
 # stay_within takes the position resolutions (both bounds at `position`'s).
-# Its stop_position is not generated: the library accepts and ignores it.
+# Its stop_position the library accepts and ignores (1.1.1 writes no
+# register for it): drawn like a position, beyond f32's range too.
 STAY_WITHIN_ARGS = [
     ("lower_bound", "position", "position", 0x040),
     ("upper_bound", "position", "position", 0x041),
@@ -130,6 +142,7 @@ STAY_WITHIN_ARGS = [
     ("kp_scale", "kp_scale", "pwm", 0x043),
     ("kd_scale", "kd_scale", "pwm", 0x044),
     ("maximum_torque", "maximum_torque", "torque", 0x045),
+    ("stop_position", None, "ignored", None),
     ("watchdog_timeout", "watchdog_timeout", "time", 0x046),
     ("ilimit_scale", "ilimit_scale", "pwm", 0x047),
     ("ignore_position_bounds", "ignore_position_bounds", "int", 0x048),
@@ -156,13 +169,15 @@ COMMAND_NAMES = list(COMMANDS)
 # d_A and q_A are required arguments).
 ALWAYS_SENT = {"current", "set_output_nearest", "set_output_exact"}
 
-# QueryResolution's attributes used here (not rezero_state, not _extra):
-# registers 0x000..0x007, 0x00a..0x00f, 0x05e, 0x05f, 0x072..0x075.
+# QueryResolution's attributes: registers 0x000..0x007, 0x00a..0x00f,
+# 0x05e, 0x05f, 0x072..0x075; rezero_state is the older name of 0x00c
+# (home_state), the library merging the two. Its `_extra` (a dict of
+# further registers) is not drawn.
 QUERY_ATTRS = [
     "mode", "position", "velocity", "torque", "q_current", "d_current",
     "abs_position", "power", "motor_temperature", "trajectory_complete",
-    "home_state", "voltage", "temperature", "fault", "aux1_gpio", "aux2_gpio",
-    "aux1_pwm_input_period_us", "aux1_pwm_input_duty_cycle",
+    "rezero_state", "home_state", "voltage", "temperature", "fault", "aux1_gpio",
+    "aux2_gpio", "aux1_pwm_input_period_us", "aux1_pwm_input_duty_cycle",
     "aux2_pwm_input_period_us", "aux2_pwm_input_duty_cycle",
 ]
 
@@ -173,6 +188,82 @@ RES_OBJECTS = {
     "current_resolution": (CurrentResolution, ["d_A", "q_A"]),
     "zero_velocity_resolution": (ZeroVelocityResolution, ["kd_scale"]),
 }
+
+# The keywords every make_* may take besides its value arguments, and what
+# is drawn for them.
+KEYWORD_KINDS = {
+    "query": "true or false (absent: the default False)",
+    "query_override": "a QueryResolution as an object, or null for None",
+}
+
+
+def expected_default(command, keyword):
+    """The default the generator assumes for a keyword (absent from a line
+    means this default): a changed default changes what absence means."""
+    if keyword == "query":
+        return False
+    if command in ("set_output_nearest", "set_output_exact") and keyword == "position":
+        return 0.0
+    if command == "current" and keyword in ("d_A", "q_A"):
+        return inspect.Parameter.empty  # required
+    return None
+
+
+def drawn_keywords(command):
+    """The keywords the generator draws for make_<command>, in its order."""
+    names = [a[0] for a in COMMANDS[command][1]]
+    if command != "query":
+        names.append("query")
+    return names + ["query_override"]
+
+
+def signature_problems():
+    """What the library takes that the generator cannot draw (or draws and
+    the library no longer takes): a list of texts, empty when none."""
+    problems = []
+    for command in COMMAND_NAMES:
+        method = "Controller.make_%s" % command
+        try:
+            sig = inspect.signature(getattr(Controller, "make_" + command))
+        except (AttributeError, TypeError, ValueError) as e:
+            problems.append("%s: no signature (%s)" % (method, e))
+            continue
+        known = drawn_keywords(command)
+        taken = []
+        for p in sig.parameters.values():
+            if p.name == "self":
+                continue
+            if p.kind == p.VAR_POSITIONAL:
+                continue  # set_output's *args: the library refuses any
+            if p.kind in (p.VAR_KEYWORD, p.POSITIONAL_ONLY):
+                problems.append("%s takes %s (%s), which a JSON line cannot name" % (
+                    method, p.name, p.kind.description))
+                continue
+            taken.append(p.name)
+            if p.name not in known:
+                problems.append(
+                    "%s takes keyword %r (default %r), which the generator cannot draw"
+                    " values for: teach it (and motorwire) this keyword" % (
+                        method, p.name, p.default))
+            elif p.default != expected_default(command, p.name):
+                problems.append("%s: keyword %r defaults to %r, the generator assumes %r" % (
+                    method, p.name, p.default, expected_default(command, p.name)))
+        for name in known:
+            if name not in taken:
+                problems.append("the generator draws keyword %r, which %s does not take" % (
+                    name, method))
+    for key, (cls, attrs) in RES_OBJECTS.items():
+        public = [a for a in vars(cls) if not a.startswith("_")]
+        for a in public:
+            if a not in attrs:
+                problems.append("%s has attribute %r (%s's), which the generator cannot draw" % (
+                    cls.__name__, a, key))
+        for a in attrs:
+            if a not in public:
+                problems.append("the generator draws %s.%s, which the library has not" % (
+                    cls.__name__, a))
+    return problems
+
 
 # A transport with no devices: only its frame builder is used, so that the
 # CAN id is the one the library's transport would send.
@@ -243,8 +334,8 @@ RAW_CLASSES = [
 # library refuses a whole call for one such value sent as an f32).
 WIDE_CLASSES = ("f32-max-as-text", "beyond-f32")
 INTEGRAL_CLASSES = [
-    ("small-int", 40), ("non-integer", 25), ("integral-float", 10), ("saturating-int", 20),
-    ("large-non-integer", 5),
+    ("bool", 30), ("small-int", 40), ("non-integer", 25), ("integral-float", 10), ("saturating-int", 20),
+    ("large-non-integer", 5), ("nan", 3),
 ]
 
 
@@ -284,6 +375,9 @@ def gen_value(rng, family, res, wide):
     """A JSON value for an argument of `family` sent at `res`, and its class."""
     if family == "int":
         return gen_integral(rng)
+    if family == "ignored":
+        # Not sent: any number the caller might pass, NaN and over f32 too.
+        return gen_value(rng, "position", mp.IGNORE, wide)
     if family == "raw":
         return gen_raw_position(rng, wide)
     cls = draw_class(rng, SCALED_CLASSES, wide)
@@ -363,8 +457,13 @@ def gen_raw_position(rng, wide):
 
 
 def gen_integral(rng):
-    """ignore_position_bounds: the library sends int(value); finite only."""
+    """ignore_position_bounds: the library sends int(value); finite only.
+    A flag: most often passed as True or False."""
     cls = weighted(rng, INTEGRAL_CLASSES)
+    if cls == "bool":
+        return rng.choice((True, False)), cls
+    if cls == "nan":
+        return None, cls  # int(NaN): the library raises
     if cls == "small-int":
         return rng.randint(-3, 3), cls
     if cls == "non-integer":
@@ -405,7 +504,9 @@ def gen_call(rng):
     for arg, attr, family, _reg in args:
         if command not in ALWAYS_SENT and rng.random() >= density:
             continue
-        if attr is None:
+        if family == "ignored":
+            res = mp.IGNORE  # taken, never sent
+        elif attr is None:
             res = mp.F32  # set_output: always an f32
         elif attr in line.get(res_key, {}):
             res = RESOLUTIONS[line[res_key][attr]]
@@ -414,10 +515,13 @@ def gen_call(rng):
         value, cls = gen_value(rng, family, res, wide)
         line[arg] = value
         meta[arg] = (RES_NAME[res], cls)
-    if command != "query":
+    if command != "query" and rng.random() < 0.85:
         line["query"] = rng.random() < 0.5
-    if rng.random() < 0.25:
+    r = rng.random()
+    if r < 0.25:
         line["query_override"] = random_resolutions(rng, "query_resolution")
+    elif r < 0.3:
+        line["query_override"] = None  # the default, passed explicitly
     return line, meta
 
 
@@ -461,13 +565,16 @@ def library_encode(obj):
             can_prefix=obj.get("can_prefix", 0),
             **resolutions)
         kwargs = {}
-        for arg, _attr, _family, _reg in COMMANDS[command][1]:
-            if arg in obj:
-                kwargs[arg] = math.nan if obj[arg] is None else obj[arg]
-        if command != "query":
-            kwargs["query"] = obj.get("query", False)
-        if "query_override" in obj:
-            kwargs["query_override"] = resolution_object("query_resolution", obj["query_override"])
+        for name in drawn_keywords(command):
+            if name not in obj:
+                continue  # the library's default
+            v = obj[name]
+            if name == "query_override":
+                kwargs[name] = None if v is None else resolution_object("query_resolution", v)
+            elif name == "query":
+                kwargs[name] = v
+            else:
+                kwargs[name] = math.nan if v is None else v
         cmd = getattr(controller, "make_" + command)(**kwargs)
         frame = TRANSPORT._command_to_frame(cmd)
         data = bytes(cmd.data)
@@ -752,7 +859,7 @@ def explain_call(line, meta, expected, actual):
     if is_refusal(actual):
         message = str(actual["error"])
         arg = message.split(":")[0]
-        if arg in meta:
+        if arg in meta and not message.startswith(command + ": "):
             res, cls = meta[arg]
             return [Cell("%s.%s" % (command, arg), res, cls + ", motorwire refuses")]
         return ["%s: motorwire refuses (%s)" % (command, message[:70])]
@@ -939,6 +1046,22 @@ def compare(what, cases, outputs, explain, kinds_of, show, row_title, kind_title
 # --------------------------------------------------------------------------
 # Coverage of the generator.
 
+JSON_TYPES = ("absent", "bool", "int", "float", "null", "object")
+
+
+def json_type(v):
+    """A JSON value's type, as counted in the coverage."""
+    if v is None:
+        return "null"
+    if isinstance(v, bool):
+        return "bool"
+    if isinstance(v, int):
+        return "int"
+    if isinstance(v, float):
+        return "float"
+    return "object" if isinstance(v, dict) else type(v).__name__
+
+
 def call_coverage(cases):
     """Prints what the generated calls cover."""
     commands = collections.Counter()
@@ -946,8 +1069,11 @@ def call_coverage(cases):
     classes = collections.defaultdict(collections.Counter)
     flags = collections.Counter()
     refused = collections.Counter()
+    by_type = collections.defaultdict(collections.Counter)
     for text, obj, meta, expected in cases:
         commands[obj["command"]] += 1
+        for name in drawn_keywords(obj["command"]):
+            by_type[(obj["command"], name)][json_type(obj[name]) if name in obj else "absent"] += 1
         for arg, (res, cls) in meta.items():
             per_arg[(obj["command"], arg)][res] += 1
             classes[cls][res] += 1
@@ -966,14 +1092,33 @@ def call_coverage(cases):
     print("  arguments by resolution  %s" % " ".join("%7s" % r for r in res_names))
     gaps = []
     for command in COMMAND_NAMES:
-        for arg, attr, _f, _r in COMMANDS[command][1]:
+        for arg, attr, family, _r in COMMANDS[command][1]:
             row = per_arg[(command, arg)]
             print("    %-34s %s" % ("%s.%s" % (command, arg),
                                    " ".join("%7d" % row[r] for r in res_names)))
-            expected_res = ["f32"] if attr is None else res_names
+            if family == "ignored":
+                expected_res = ["ignore"]
+            else:
+                expected_res = ["f32"] if attr is None else res_names
             gaps += ["%s.%s at %s" % (command, arg, r) for r in expected_res if not row[r]]
         if not commands[command]:
             gaps.append("command %s" % command)
+    print("  keywords (make_*'s signature) by JSON type  %s" % " ".join(
+        "%7s" % t for t in JSON_TYPES))
+    for command in COMMAND_NAMES:
+        for name in drawn_keywords(command):
+            row = by_type[(command, name)]
+            print("    %-41s %s" % ("%s.%s" % (command, name),
+                                    " ".join("%7d" % row[t] for t in JSON_TYPES)))
+            if commands[command] and all(not row[t] for t in JSON_TYPES if t != "absent"):
+                gaps.append("keyword %s.%s never drawn" % (command, name))
+    for command, name, t in [(c, "query_override", t) for c in COMMAND_NAMES
+                             for t in ("object", "null")] + [
+                                 ("position", "ignore_position_bounds", "bool"),
+                                 ("stay_within", "ignore_position_bounds", "bool")] + [
+                                 (c, "query", "bool") for c in COMMAND_NAMES if c != "query"]:
+        if commands[command] and not by_type[(command, name)][t]:
+            gaps.append("keyword %s.%s never %s" % (command, name, t))
     print("  value classes by resolution")
     for cls in sorted(classes):
         print("    %-34s %s" % (cls, " ".join("%7d" % classes[cls][r] for r in res_names)))
@@ -1069,6 +1214,13 @@ def main():
     parser.add_argument("--dump-calls", metavar="FILE")
     parser.add_argument("--dump-replies", metavar="FILE")
     args = parser.parse_args()
+    problems = signature_problems()
+    if problems:
+        print("moteus %s: the library's calls are not all covered by this script:" % moteus.VERSION)
+        for p in problems:
+            print("  " + p)
+        print("FAILED: the generator must draw every keyword the library takes")
+        return 1
     dumping = args.dump_calls or args.dump_replies
     if not dumping and not args.motorwire:
         parser.error("--motorwire is required (or --dump-calls / --dump-replies)")
