@@ -61,6 +61,23 @@ pub(crate) fn report_unused(cmd: &MotorCommand, used: &[&str], dialect: &str, re
     }
 }
 
+/// Whether the joint's planner takes `p`'s limits (each finite and above
+/// zero once an f32, the target velocity within the velocity limit): the
+/// checks that do not depend on where the joint is, so that this
+/// translation refuses what a bridge, planning the move from the joint's
+/// state, refuses as [`Refusal::Unplannable`] (a `velocity_limit` of
+/// `1e-300` is 0 as an f32, which no joint can plan with).
+fn plannable(motor: &str, p: &SetTargetPayloadV2) -> Result<(), Refusal> {
+    let request = p.planner_request(f64::from(p.target_angle), 0.0);
+    motorwire_planner::plan(&request)
+        .map(drop)
+        .map_err(|e| Refusal::Unplannable {
+            motor: motor.to_owned(),
+            segment: None,
+            problem: e.to_string(),
+        })
+}
+
 fn f32_of(motor: &str, field: &'static str, v: f64, report: &mut Report) -> Result<f32, Refusal> {
     #[allow(clippy::cast_possible_truncation)]
     let x = v as f32;
@@ -158,7 +175,13 @@ pub fn to_irpc_gated<'m>(
                 report_unused(cmd, &[], "Deactivate", &mut report);
                 Payload::Deactivate
             }
-            ControlMode::Position => set_target(motor, cmd, &effective, wire, &mut report)?,
+            ControlMode::Position => {
+                let payload = set_target(motor, cmd, &effective, wire, &mut report)?;
+                if let Payload::SetTargetV2(p) = &payload {
+                    plannable(name, p)?;
+                }
+                payload
+            }
             mode => {
                 return Err(Refusal::ModeNotExpressible {
                     motor: name.to_owned(),

@@ -535,3 +535,100 @@ pub fn gate<'m>(
     }
     Ok((motor, e))
 }
+
+/// Checks a calibration request for `motor` against its limits in force,
+/// as a motion is checked (a calibration moves the joint): its velocity
+/// limit within `max_velocity`, its position range within the motor's
+/// range (`max_position − min_position`), every value finite, its limits
+/// and timeout not negative. The request is in degrees (iRPC's unit); the
+/// limits are converted from the motor's unit.
+///
+/// ```
+/// use motorwire_irpc::CalibrationRequest;
+/// use motorwire_translate::{BusMap, gate_calibration};
+/// let map = BusMap::from_toml(r#"
+///     [motors.elbow]
+///     dialect = "irpc"
+///     node = 0x12
+///     limits = { min_position = 0, max_position = 150, max_velocity = 120 }
+/// "#)?;
+/// let mut request = CalibrationRequest {
+///     phases: 1, max_current: 2.0, max_velocity: 60.0, max_position_range: 90.0,
+///     phase_timeout: 5.0, return_home: true,
+/// };
+/// assert!(gate_calibration(&map, "elbow", &request).is_ok());
+/// request.max_position_range = 1000.0;
+/// assert_eq!(
+///     gate_calibration(&map, "elbow", &request).unwrap_err().to_string(),
+///     "elbow: max_position_range 1000 is outside position range (bus map) 150",
+/// );
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// A [`Refusal`] naming the motor, the field, the value and the limit.
+pub fn gate_calibration<'m>(
+    map: &'m BusMap,
+    motor: &str,
+    request: &motorwire_irpc::CalibrationRequest,
+) -> Result<&'m MappedMotor, Refusal> {
+    let m = map.motor(motor).ok_or_else(|| Refusal::UnknownMotor {
+        motor: motor.to_owned(),
+    })?;
+    let name = m.name.as_str();
+    let source = m.limits_source;
+    let fields = [
+        ("max_current", request.max_current),
+        ("max_velocity", request.max_velocity),
+        ("max_position_range", request.max_position_range),
+        ("phase_timeout", request.phase_timeout),
+    ];
+    for (field, v) in fields {
+        let v = f64::from(v);
+        if !v.is_finite() {
+            return Err(Refusal::NonFinite {
+                motor: name.to_owned(),
+                field,
+            });
+        }
+        if v < 0.0 {
+            return Err(Refusal::OutsideLimit {
+                motor: name.to_owned(),
+                field,
+                value: v,
+                limit: "minimum",
+                limit_source: "calibration",
+                bound: 0.0,
+            });
+        }
+    }
+    let deg = |x: f64| m.unit.to_degrees(x);
+    let velocity = f64::from(request.max_velocity);
+    if let Some(max) = m.limits.max_velocity.map(deg)
+        && velocity > max
+    {
+        return Err(Refusal::OutsideLimit {
+            motor: name.to_owned(),
+            field: "max_velocity",
+            value: velocity,
+            limit: "max_velocity",
+            limit_source: source,
+            bound: max,
+        });
+    }
+    let range = f64::from(request.max_position_range);
+    if let (Some(lo), Some(hi)) = (m.limits.min_position, m.limits.max_position) {
+        let span = deg(hi) - deg(lo);
+        if range > span {
+            return Err(Refusal::OutsideLimit {
+                motor: name.to_owned(),
+                field: "max_position_range",
+                value: range,
+                limit: "position range",
+                limit_source: source,
+                bound: span,
+            });
+        }
+    }
+    Ok(m)
+}

@@ -17,7 +17,7 @@ pub use command::{
 };
 pub use feedback::{FeedbackError, feedback_from_irpc, feedback_from_orion};
 pub use frames::{IrpcFrame, irpc_frames};
-pub use gate::{Bound, Effective, Refusal, RefusalDetail, gate};
+pub use gate::{Bound, Effective, Refusal, RefusalDetail, gate, gate_calibration};
 pub use map::{AngleUnit, BusMap, Limits, MapError, MappedMotor, Target};
 pub use moteus::{
     MoteusCommand, WATCHDOG_MARGIN_S, f32_within, multi_axis_to_moteus, revolutions, to_moteus,

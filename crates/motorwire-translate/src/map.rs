@@ -276,9 +276,17 @@ pub struct MappedMotor {
 /// (`min_position`, `max_position`, `max_velocity`, `max_acceleration`,
 /// `max_deceleration`, `max_jerk`, `max_torque`, `emergency_deceleration`),
 /// all in the motor's unit.
+///
+/// A map is one bus's devices: the bridge serves at most 64 motors
+/// (`motorwire_bridge::Bridge::MAX_DEVICES`, what one CAN-FD bus carries
+/// at their feedback rates) and refuses a larger map at once, naming the
+/// count and the limit.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BusMap {
     motors: BTreeMap<String, MappedMotor>,
+    /// The iRPC motors' names by node id ([`BusMap::irpc_node`], asked
+    /// for every frame a joint sends).
+    irpc: BTreeMap<u16, String>,
 }
 
 #[derive(Deserialize)]
@@ -522,7 +530,14 @@ impl BusMap {
             let motor = Self::motor_from(&name, m)?;
             motors.insert(name, motor);
         }
-        let map = BusMap { motors };
+        let irpc = motors
+            .values()
+            .filter_map(|m| match m.target {
+                Target::Irpc { node, .. } => Some((node, m.name.clone())),
+                _ => None,
+            })
+            .collect();
+        let map = BusMap { motors, irpc };
         map.check_addresses()?;
         Ok(map)
     }
@@ -817,9 +832,7 @@ impl BusMap {
 
     /// The iRPC motor at `node`.
     pub fn irpc_node(&self, node: u16) -> Option<&MappedMotor> {
-        self.motors
-            .values()
-            .find(|m| matches!(m.target, Target::Irpc { node: n, .. } if n == node))
+        self.irpc.get(&node).and_then(|name| self.motors.get(name))
     }
 
     /// This map with every iRPC joint speaking `wire`, whatever its own
