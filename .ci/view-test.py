@@ -161,7 +161,10 @@ def main():
         url = read_until(bridge.stderr, r"the live view at (http://\S+/)", 20, "the bridge never said where its view is").group(1)
         browser = subprocess.Popen(
             [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-             "--remote-debugging-port=0", f"--user-data-dir={work}/chromium", "about:blank"],
+             "--remote-debugging-port=0", f"--user-data-dir={work}/chromium",
+             # Another site's name made to resolve to this machine, as a
+             # DNS-rebinding page does: the view must not answer it.
+             "--host-resolver-rules=MAP rebind.attacker.test 127.0.0.1", "about:blank"],
             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         devtools = read_until(browser.stderr, r"DevTools listening on (ws://\S+)", 30, "Chromium never opened its DevTools port").group(1)
         port = re.match(r"ws://[^:]+:(\d+)/", devtools).group(1)
@@ -248,8 +251,21 @@ def main():
         shot = page.call("Page.captureScreenshot", format="png")
         with open("target/view.png", "wb") as f:
             f.write(base64.b64decode(shot["data"]))
+        # The same view under another site's name (DNS rebinding): refused,
+        # its stream too.
+        rebound = url.replace("127.0.0.1", "rebind.attacker.test")
+        page.call("Page.navigate", url=rebound)
+        shown = page.wait("document.readyState === 'complete' && location.hostname === 'rebind.attacker.test' && document.body && document.body.innerText",
+                          "the rebound page loaded")
+        if "Host is not this view's address" not in shown or "elbow" in shown:
+            fail(f"the view answered another site's name: {shown[:200]}")
+        status = page.call("Runtime.evaluate", expression="fetch('/events').then(r => r.status)",
+                           awaitPromise=True, returnByValue=True)["result"].get("value")
+        if status != 403:
+            fail(f"the rebound page's /events answered {status}")
         print(f"view-test: the elbow plotted at {last} (the feedback's last), {plotted} points, "
-              f"redrawn {per_s:.0f} times a second, the stop marked and latched; screenshot target/view.png")
+              f"redrawn {per_s:.0f} times a second, the stop marked and latched; "
+              f"under a rebound name the page and its stream refused (403); screenshot target/view.png")
         client.close()
     finally:
         if browser:

@@ -124,8 +124,11 @@ pub enum Input {
     Invalid {
         /// Said for a person.
         message: String,
-        /// The WIA violations, when it was JSON.
+        /// The WIA violations, when it was JSON (at most
+        /// [`motorwire_wia::MAX_VIOLATIONS`]).
         violations: Option<Value>,
+        /// Violations found beyond those listed.
+        more: usize,
         /// Its `motor_id` or `command_id`, when the line names one.
         label: Option<Label>,
     },
@@ -171,6 +174,7 @@ fn calibration_line(members: &[(String, Value)], label: Option<Label>) -> Input 
     let invalid = |message: String| Input::Invalid {
         message,
         violations: None,
+        more: 0,
         label: label.clone(),
     };
     let Some(Label::Motor(motor_id)) = label.clone() else {
@@ -612,6 +616,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
                         format!("not JSON: {e}")
                     },
                     violations: serde_json::to_value(err.violations()).ok(),
+                    more: err.more(),
                     label: None,
                 },
             };
@@ -644,6 +649,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
         return Input::Invalid {
             message: format!("not JSON this bridge can read: {e}"),
             violations: None,
+            more: 0,
             label,
         };
     }
@@ -662,13 +668,16 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
                 .filter(|k| *k != "emergency_stop")
                 .collect();
             if !others.is_empty() {
-                problems.push(format!("the line also carries {}", others.join(", ")));
+                problems.push(format!("the line also carries {}", names(&others)));
             }
         } else if let Err(e) = validator.parse_any(line) {
             // A command carrying a stop: its stop is obeyed even if the
             // rest of it is not valid.
             for v in e.violations() {
                 problems.push(v.to_string());
+            }
+            if e.more() > 0 {
+                problems.push(format!("and {} more violations, not listed", e.more()));
             }
         }
         return Input::Stop { label, problems };
@@ -685,7 +694,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
                 .map(|(k, _)| k.as_str())
                 .filter(|k| *k != "emergency_stop")
                 .collect();
-            format!("the line also carries {}", others.join(", "))
+            format!("the line also carries {}", names(&others))
         };
         return Input::BadRelease {
             reason: format!(
@@ -701,6 +710,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
         let problem = |message: String| Input::Invalid {
             message,
             violations: None,
+            more: 0,
             label: label.clone(),
         };
         let Some(id) = id else {
@@ -723,6 +733,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
                     return Input::Invalid {
                         message: format!("trajectories[{i}] is not a valid WIA trajectory"),
                         violations: serde_json::to_value(e.violations()).ok(),
+                        more: e.more(),
                         label,
                     };
                 }
@@ -741,6 +752,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             _ => Input::Invalid {
                 message: r#"a reset is exactly {"reset":"<motor_id>"}"#.to_owned(),
                 violations: None,
+                more: 0,
                 label,
             },
         };
@@ -763,6 +775,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             _ => Input::Invalid {
                 message: r#"a request is exactly {"request":"telemetry"|"power_metrics"|"fault_history","motor_id":"..."}"#.to_owned(),
                 violations: None,
+                more: 0,
                 label,
             },
         };
@@ -778,6 +791,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             _ => Input::Invalid {
                 message: r#"an Orion command is exactly {"orion":"fold"} or {"orion":"unfold"} (a stop is {"emergency_stop":true})"#.to_owned(),
                 violations: None,
+                more: 0,
                 label,
             },
         };
@@ -794,6 +808,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             _ => Input::Invalid {
                 message: r#"a query is exactly {"query":"state"} (optionally with "motor_id":"..."), or {"query":"limits","motor_id":"..."}"#.to_owned(),
                 violations: None,
+                more: 0,
                 label,
             },
         };
@@ -804,6 +819,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             _ => Input::Invalid {
                 message: r#"a feedback rate is exactly {"feedback_hz":N}, N a number of Hz (0: no feedback)"#.to_owned(),
                 violations: None,
+                more: 0,
                 label,
             },
         };
@@ -816,6 +832,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
         Err(err) => Input::Invalid {
             message: invalid_message(&err),
             violations: serde_json::to_value(err.violations()).ok(),
+            more: err.more(),
             label,
         },
     }
@@ -833,6 +850,7 @@ fn stream_line(
     let invalid = |message: String| Input::Invalid {
         message,
         violations: None,
+        more: 0,
         label: label.clone(),
     };
     let times = members.iter().filter(|(k, _)| k == "stream").count();
@@ -874,6 +892,7 @@ fn stream_line(
         Err(err) => Input::Invalid {
             message: invalid_message(&err),
             violations: serde_json::to_value(err.violations()).ok(),
+            more: err.more(),
             label,
         },
     }
@@ -884,13 +903,27 @@ fn stream_line(
 fn invalid_message(err: &motorwire_wia::Error) -> String {
     match err.violations() {
         [] => "not a valid WIA message".to_owned(),
-        [one] => format!("not a valid WIA message: {one}"),
+        [one] if err.more() == 0 => format!("not a valid WIA message: {one}"),
         [first, rest @ ..] => format!(
             "not a valid WIA message: {first}; and {} more (violations)",
-            rest.len()
+            rest.len().saturating_add(err.more())
         ),
     }
 }
+
+/// Member names as a refusal lists them: the first [`MAX_NAMES`], and how
+/// many more (a line of a hundred thousand members is answered in a line).
+fn names(names: &[&str]) -> String {
+    let shown = names.get(..MAX_NAMES).unwrap_or(names);
+    let mut s = shown.join(", ");
+    if names.len() > shown.len() {
+        s.push_str(&format!(" and {} more", names.len() - shown.len()));
+    }
+    s
+}
+
+/// Member names a refusal or a stop lists, at most.
+const MAX_NAMES: usize = 16;
 
 #[cfg(test)]
 mod tests {

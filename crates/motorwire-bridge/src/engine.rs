@@ -41,6 +41,7 @@ use serde_json::Value;
 use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Input, RequestKind, classify};
+use crate::clocks::ClockOffsets;
 use crate::device::{
     Answer, Capability, Context, Device, Drivers, Ended, Happened, InForce, Moving, Outcome,
 };
@@ -232,6 +233,8 @@ enum Timer {
     Sequence,
     /// A held setpoint not renewed within its command timeout.
     Deadman,
+    /// A held setpoint must be braked to stay within a position limit.
+    LimitBrake,
     /// A trajectory's next segment is due.
     Segment,
     /// A request line's answer is overdue.
@@ -242,7 +245,7 @@ enum Timer {
 }
 
 impl Timer {
-    const ALL: [Self; 11] = [
+    const ALL: [Self; 12] = [
         Self::Drivers,
         Self::Feedback,
         Self::Liveness,
@@ -251,6 +254,7 @@ impl Timer {
         Self::Arrival,
         Self::Sequence,
         Self::Deadman,
+        Self::LimitBrake,
         Self::Segment,
         Self::Answer,
         Self::Settle,
@@ -330,6 +334,16 @@ pub struct Bridge {
     /// force, a command stamped before it was written before the stop, and
     /// is refused `stale_before_stop`.
     last_stop_unix_ms: Option<f64>,
+    /// When the last emergency stop was taken, on the bridge's own clock
+    /// (any stop, the bridge's own too): a line that had reached the
+    /// bridge before it was written before it, whatever its timestamp
+    /// says, and is refused `stale_before_stop`.
+    last_stop_at: Option<Duration>,
+    /// Each client's clock against the bridge's, learned from its lines:
+    /// the least (arrival on the bridge's clock − timestamp), in ms. A
+    /// client whose clock runs ahead has its timestamps judged in its own
+    /// clock ([`ClockOffsets`]).
+    clocks: ClockOffsets,
     /// For each joint, what the release sends it (those active, or being
     /// started, when the stop came).
     resume: BTreeMap<usize, Vec<Payload>>,
@@ -372,16 +386,65 @@ const ANSWER_MARGIN: Duration = Duration::from_millis(500);
 /// How long a calibration may run, past its phases' own timeouts.
 const CALIBRATION_MARGIN: Duration = Duration::from_secs(5);
 
+/// How far ahead of a motor's last feedback a velocity setpoint is judged
+/// against a position limit (the motor goes on until the next feedback is
+/// heard and its stop is sent): a poll of a 50 Hz query rate and a little.
+const BRAKE_LOOKAHEAD: Duration = Duration::from_millis(25);
+
 fn us(d: Duration) -> u64 {
     u64::try_from(d.as_micros()).unwrap_or(u64::MAX)
 }
 
 impl Bridge {
+    /// The most motors one bridge serves, every dialect counted: what one
+    /// CAN-FD bus carries with room to spare. A simulated iRPC joint
+    /// reports its position every 10 ms and its state every 100 ms, about
+    /// 110 frames a second; 64 of them take some 7,000 of the roughly
+    /// 10,000 frames a second a CAN-FD bus carries at 5 Mbit/s, leaving
+    /// the rest for commands, heartbeats and retries. Startup is linear in
+    /// the motors: at this many, `motorwire bridge --bus sim` is ready well
+    /// within a second. A larger map is refused at once
+    /// ([`BridgeError::TooManyDevices`]); its motors belong on more buses,
+    /// a bridge each.
+    pub const MAX_DEVICES: usize = 64;
+
+    /// Whether a bridge serves `map`: at most [`Bridge::MAX_DEVICES`]
+    /// motors. [`Bridge::new`] asks it first; a tool that reads a map for
+    /// the bridge asks it to refuse the map as the bridge would.
+    ///
+    /// ```
+    /// use motorwire_bridge::{Bridge, BridgeError};
+    /// use motorwire_translate::BusMap;
+    /// let one = BusMap::from_toml("[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12")?;
+    /// assert!(Bridge::check_map(&one).is_ok());
+    /// let many: String = (0..=Bridge::MAX_DEVICES)
+    ///     .map(|i| format!("[motors.j{i}]\ndialect = \"irpc\"\nnode = {}\n", 0x10 + i))
+    ///     .collect();
+    /// let err = Bridge::check_map(&BusMap::from_toml(&many)?).unwrap_err();
+    /// assert!(matches!(err, BridgeError::TooManyDevices { count: 65, limit: 64 }));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`BridgeError::TooManyDevices`], naming the count and the limit.
+    pub fn check_map(map: &BusMap) -> Result<(), BridgeError> {
+        let count = map.motors().count();
+        if count > Self::MAX_DEVICES {
+            return Err(BridgeError::TooManyDevices {
+                count,
+                limit: Self::MAX_DEVICES,
+            });
+        }
+        Ok(())
+    }
+
     /// A bridge for the iRPC joints of `map`, each spoken to in its own
     /// wire version.
     ///
     /// # Errors
-    /// [`BridgeError::NoJoints`] when the map has no iRPC joint;
+    /// [`BridgeError::TooManyDevices`] when the map names more motors than
+    /// [`Bridge::MAX_DEVICES`]; [`BridgeError::NoJoints`] when the map has
+    /// no iRPC joint;
     /// [`BridgeError::Config`] for a zero period, timeout or bound, a
     /// non-finite epoch, or a client node id beyond 11 bits.
     pub fn new(map: BusMap, config: BridgeConfig) -> Result<Self, BridgeError> {
@@ -404,6 +467,7 @@ impl Bridge {
         // The client's configuration is judged first (a node id beyond 11
         // bits), whatever the map holds.
         motorwire_can::client::Client::new(config.client)?;
+        Self::check_map(&map)?;
         let joints: Vec<Joint> = map
             .motors()
             .filter_map(|m| {
@@ -445,6 +509,8 @@ impl Bridge {
             line_numbers: BTreeMap::new(),
             latched: false,
             last_stop_unix_ms: None,
+            last_stop_at: None,
+            clocks: ClockOffsets::default(),
             resume: BTreeMap::new(),
             phase: Phase::Starting,
             drain_after_start: None,
@@ -809,6 +875,35 @@ impl Bridge {
         self.take_line(now, LineMeta::new(origin, number), line);
     }
 
+    /// [`Bridge::handle_numbered_line`] for a line its runner already read
+    /// ([`classify`] with this bridge's validator, on the reader's thread),
+    /// or not (`None`).
+    pub(crate) fn handle_read_line(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        line: &str,
+        input: Option<Box<Input>>,
+    ) {
+        self.changed();
+        self.now = self.now.max(now);
+        let line = line.trim();
+        if line.is_empty() {
+            return;
+        }
+        let meta = LineMeta::new(origin, number);
+        match input {
+            Some(input) => self.take_input(now, meta, line, *input),
+            None => self.take_line(now, meta, line),
+        }
+    }
+
+    /// The validator lines are read with.
+    pub(crate) const fn validator(&self) -> &Validator {
+        &self.validator
+    }
+
     /// [`Bridge::handle_unreadable`] for a line its runner already numbered.
     pub fn handle_numbered_unreadable(
         &mut self,
@@ -879,6 +974,7 @@ impl Bridge {
     pub fn forget_origin(&mut self, origin: Origin) {
         self.changed();
         self.line_numbers.remove(&origin);
+        self.clocks.forget(origin);
         self.to_greet.retain(|o| *o != origin);
     }
 
@@ -890,6 +986,11 @@ impl Bridge {
 
     fn take_line(&mut self, now: Duration, meta: LineMeta, line: &str) {
         let input = classify(&self.validator, line);
+        self.take_input(now, meta, line, input);
+    }
+
+    /// A line, read as `input`.
+    fn take_input(&mut self, now: Duration, meta: LineMeta, line: &str, input: Input) {
         // The stop is acted on in every phase but the last, ahead of all.
         if let Input::Stop { label, problems } = input {
             self.take_stop(now, meta.with(label), problems);
@@ -935,9 +1036,11 @@ impl Bridge {
             Input::BadRelease { reason } => {
                 self.refuse(&meta, ErrorBody::new(ErrorKind::InvalidRelease, reason));
             }
-            Input::Invalid { message, violations, label } => {
+            Input::Invalid { message, violations, more, label } => {
                 let mut e = ErrorBody::new(ErrorKind::Invalid, message);
                 e.violations = violations;
+                e.more_violations =
+                    (more > 0).then(|| u32::try_from(more).unwrap_or(u32::MAX));
                 self.refuse(&meta.with(label), e);
             }
             Input::QueryLimits { motor_id } => self.query_limits(meta, &motor_id),
@@ -1015,6 +1118,8 @@ impl Bridge {
             .find_map(|t| t.timing.start_time)
             .unwrap_or(now_ms);
         if let Err(e) = self.admit(
+            now,
+            Some(meta.origin),
             start_ms.min(now_ms),
             all.iter().map(|t| t.motor_id.as_str()),
         ) {
@@ -1693,6 +1798,7 @@ impl Bridge {
     /// is not copied there.)
     fn answer(&mut self, meta: &LineMeta, r: impl Into<Box<LineResult>>) {
         let mut r: Box<LineResult> = r.into();
+        r.bound();
         if r.ok {
             self.stats.ok += 1;
         } else {
@@ -1739,6 +1845,21 @@ impl Bridge {
         ))
     }
 
+    /// Learns `origin`'s clock from a line stamped `timestamp` that
+    /// reached the bridge at `now`: only where timestamps are held to the
+    /// bridge's clock (an epoch and a max age), and only from a timestamp
+    /// within the allowed skew (one outside it teaches nothing and is
+    /// refused `stale`).
+    fn learn_clock(&mut self, now: Duration, origin: Origin, timestamp: f64) {
+        if let (Some(epoch), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age) {
+            let arrived = epoch + now.as_secs_f64() * 1000.0;
+            let offset = arrived - timestamp;
+            if offset.is_finite() && offset.abs() <= max_age.as_secs_f64() * 1000.0 {
+                self.clocks.learn(origin, offset);
+            }
+        }
+    }
+
     /// [`Bridge::admit`] for a line that carries no timestamp (taken as
     /// sent now).
     fn admit_now<'a>(
@@ -1749,12 +1870,16 @@ impl Bridge {
             .config
             .epoch_unix_ms
             .map_or(0.0, |e| e + self.now.as_secs_f64() * 1000.0);
-        self.admit(now_ms, motors)
+        self.admit(self.now, None, now_ms, motors)
     }
 
     /// Admission: what refuses a motion line before anything is planned.
+    /// `arrived` is when the line reached the bridge, `origin` whose
+    /// clock its `timestamp` is on (`None`: the bridge's own).
     fn admit<'a>(
         &self,
+        arrived: Duration,
+        origin: Option<Origin>,
         timestamp: f64,
         mut motors: impl Iterator<Item = &'a str> + Clone,
     ) -> Result<(), ErrorBody> {
@@ -1768,9 +1893,26 @@ impl Bridge {
         // in force): without one they may be any number.
         // To the millisecond, the timestamps' resolution: one stamped in
         // the millisecond the stop came in may have been written after it.
+        // Reached the bridge before the stop: written before it, whatever
+        // its timestamp says (a client's clock may run ahead).
+        if let Some(stop) = self.last_stop_at
+            && arrived < stop
+        {
+            return Err(ErrorBody::new(
+                ErrorKind::StaleBeforeStop,
+                format!(
+                    "the line reached the bridge {:.3} s before the last emergency stop: written before the stop, it does not run after the release",
+                    (stop - arrived).as_secs_f64()
+                ),
+            ));
+        }
+        // The timestamp on the bridge's clock, as far as the client's
+        // lines tell: a clock that runs ahead is taken back by as much
+        // (never forward: a clock behind only refuses more).
+        let written = timestamp + origin.map_or(0.0, |o| self.clocks.behind(o));
         if let Some(stop_ms) = self.last_stop_unix_ms.map(f64::floor)
             && self.config.max_age.is_some()
-            && timestamp < stop_ms
+            && written < stop_ms
         {
             // Written before the stop (another client's, still on its
             // way): the stop came after it, so it must not run after the
@@ -1865,7 +2007,13 @@ impl Bridge {
 
     fn motor_command(&mut self, now: Duration, meta: LineMeta, cmd: &mut MotorCommand) {
         let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
-        if let Err(e) = self.admit(cmd.timestamp, std::iter::once(cmd.motor_id.as_str())) {
+        self.learn_clock(now, meta.origin, cmd.timestamp);
+        if let Err(e) = self.admit(
+            now,
+            Some(meta.origin),
+            cmd.timestamp,
+            std::iter::once(cmd.motor_id.as_str()),
+        ) {
             if e.kind == ErrorKind::Busy {
                 self.stats.busy += 1;
             }
@@ -1879,6 +2027,15 @@ impl Bridge {
         // controller); anything else may be an Orion motor without one.
         if ji.is_none()
             && let Some(e) = self.unattached(std::iter::once(cmd.motor_id.as_str()))
+        {
+            self.refuse(&meta, e);
+            return;
+        }
+        if cmd
+            .safety_limits
+            .as_ref()
+            .is_none_or(|l| l.emergency_stop != Some(true))
+            && let Some(e) = self.outward_at_limit(&cmd.motor_id, cmd.control_mode, cmd.setpoint)
         {
             self.refuse(&meta, e);
             return;
@@ -2092,13 +2249,24 @@ impl Bridge {
 
     fn multi_axis(&mut self, now: Duration, meta: LineMeta, cmd: &MultiAxisCommand) {
         let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
+        self.learn_clock(now, meta.origin, cmd.timestamp);
         if let Err(e) = self.admit(
+            now,
+            Some(meta.origin),
             cmd.timestamp,
             cmd.motors.iter().map(|a| a.motor_id.as_str()),
         ) {
             if e.kind == ErrorKind::Busy {
                 self.stats.busy += 1;
             }
+            self.refuse(&meta, e);
+            return;
+        }
+        if let Some(e) = cmd
+            .motors
+            .iter()
+            .find_map(|a| self.outward_at_limit(&a.motor_id, a.control_mode, a.setpoint))
+        {
             self.refuse(&meta, e);
             return;
         }
@@ -2146,6 +2314,7 @@ impl Bridge {
             let at = e + now.as_secs_f64() * 1000.0;
             self.last_stop_unix_ms = Some(self.last_stop_unix_ms.map_or(at, |t| t.max(at)));
         }
+        self.last_stop_at = Some(self.last_stop_at.map_or(now, |t| t.max(now)));
         // A stop already under way (latched, not released since) answers
         // this line too: its Deactivates are in flight or queued first, and
         // sending them again would only add frames ahead of nothing.
@@ -2230,6 +2399,7 @@ impl Bridge {
         self.changed();
         self.now = self.now.max(now);
         self.line_numbers.remove(&origin);
+        self.clocks.forget(origin);
         self.to_greet.retain(|o| *o != origin);
         let before = self.waiting.len();
         let mut cancelled: Vec<LineRef> = Vec::new();
@@ -2848,6 +3018,10 @@ impl Bridge {
     fn sequence_progress(&mut self, ji: usize, position: f64, velocity: f64) {
         let mut freed = Vec::new();
         for (&id, job) in self.jobs.iter_mut() {
+            if !job.sequential {
+                // No axis of it waits on another (a startup's, a stop's).
+                continue;
+            }
             // (the axis waited for, and the one waiting: its device, its
             // step, whether it is a position move)
             let waited: Vec<(usize, usize, StepRef, bool)> = job
@@ -3169,6 +3343,7 @@ impl Bridge {
         j.set_model(model);
         j.planned = None;
         j.deadman = effect.deadman;
+        j.held_velocity = effect.deadman.and_then(|_| order.held_velocity(j.unit));
         if let Some(target) = effect.target {
             j.target = target;
         }
@@ -3718,9 +3893,13 @@ impl Bridge {
             self.command_job(now, meta, vec![axis], Report::default());
             return;
         };
-        // A calibration moves the joint: refused as a motion is.
+        // A calibration moves the joint: refused as a motion is, and its
+        // own limits held to the limits in force.
         if let Err(e) = self.admit_now(std::iter::once(motor)) {
             return self.refuse(&meta, e);
+        }
+        if let Err(r) = motorwire_translate::gate_calibration(&self.map, motor, &request) {
+            return self.refuse(&meta, ErrorBody::gate(&r));
         }
         let phases = request.phases.count_ones().max(1);
         let per_phase =
@@ -3966,6 +4145,15 @@ impl Bridge {
     /// within their command timeout are brought to a stop (velocity 0),
     /// and an event says so.
     fn deadman(&mut self, now: Duration) {
+        // Latched, every device was sent its stop: a setpoint's deadman
+        // (one armed by an answer that came after the stop) has nothing
+        // to stop, and nothing but stops goes out.
+        if self.latched {
+            for j in &mut self.joints {
+                j.deadman = None;
+            }
+            return;
+        }
         let due = self.joints_where(|j| j.deadman.is_some_and(|d| now >= d));
         self.hold_still(now, due, true);
     }
@@ -3975,48 +4163,220 @@ impl Bridge {
     /// deadman, and an event says so (at the end of input the `stopping`
     /// event does).
     fn hold_still(&mut self, now: Duration, which: Vec<usize>, timed_out: bool) {
+        let now_ms = self.unix_ms(now) as u64;
         for ji in which {
             let Some(j) = self.joints.get_mut(ji) else {
                 continue;
             };
-            j.deadman = None;
             let name = j.name.clone();
-            let Some(order) = j.device.hold_still(self.unix_ms(now) as u64) else {
+            let Some(order) = j.device.hold_still(now_ms) else {
+                j.deadman = None;
                 continue;
             };
-            let axis = Axis::of(name.clone(), ji, [order]);
-            let timeout_ms = self
-                .map
-                .motor(&name)
-                .and_then(|m| m.command_timeout)
-                .map_or(0, |t| u64::try_from(t.as_millis()).unwrap_or(u64::MAX));
-            if timed_out {
-                self.out.push_back(Output::Event(Event::Deadman {
-                    motor_id: name.clone(),
-                    timeout_ms,
-                }));
+            let event = timed_out.then(|| Event::Deadman {
+                motor_id: name.clone(),
+                timeout_ms: self
+                    .map
+                    .motor(&name)
+                    .and_then(|m| m.command_timeout)
+                    .map_or(0, |t| u64::try_from(t.as_millis()).unwrap_or(u64::MAX)),
+            });
+            self.stop_setpoint(now, ji, order, event);
+        }
+    }
+
+    /// Device `ji`'s velocity or torque setpoint ended by `order` (its
+    /// stop), ahead of anything waiting for the device, `event` said.
+    fn stop_setpoint(&mut self, now: Duration, ji: usize, order: Order, event: Option<Event>) {
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
+        j.deadman = None;
+        let name = j.name.clone();
+        let axis = Axis::of(name, ji, [order]);
+        if let Some(e) = event {
+            self.out.push_back(Output::Event(e));
+        }
+        // Ahead of anything waiting for the device.
+        if let Some(j) = self.joints.get_mut(ji) {
+            for s in j.queue.drain(..).collect::<Vec<_>>() {
+                if let Some(a) = axis_mut(&mut self.jobs, s) {
+                    a.finish(
+                        StepOutcome::Cancelled,
+                        None,
+                        "cancelled: the deadman stopped the device first",
+                    );
+                }
             }
-            // Ahead of anything waiting for the device.
-            if let Some(j) = self.joints.get_mut(ji) {
-                for s in j.queue.drain(..).collect::<Vec<_>>() {
-                    if let Some(a) = axis_mut(&mut self.jobs, s) {
-                        a.finish(
-                            StepOutcome::Cancelled,
-                            None,
-                            "cancelled: the deadman stopped the device first",
-                        );
+        }
+        self.open_job(
+            None,
+            JobKind::Deadman,
+            now,
+            vec![axis],
+            Report::default(),
+            Vec::new(),
+        );
+    }
+
+    /// The deceleration a motor is braked with before a position limit
+    /// (its unit a second squared): the lesser of the limits' deceleration
+    /// and acceleration in force, `None` when they give neither.
+    fn braking(limits: &Limits) -> Option<f64> {
+        match (limits.max_deceleration, limits.max_acceleration) {
+            (Some(d), Some(a)) => Some(d.min(a)),
+            (d, a) => d.or(a),
+        }
+        .filter(|d| d.is_finite() && *d > 0.0)
+    }
+
+    /// How far a motor going at `v` goes before it stops, braked at
+    /// [`Self::braking`] (0 when the limits give no deceleration).
+    fn stopping(limits: &Limits, v: f64) -> f64 {
+        Self::braking(limits).map_or(0.0, |d| v * v / (2.0 * d))
+    }
+
+    /// Devices holding a velocity or torque setpoint that would carry them
+    /// past a position limit in force before they could stop (braked at
+    /// [`Self::braking`], from where their feedback says they are now and
+    /// how fast they go, [`BRAKE_LOOKAHEAD`] ahead): brought to a stop now,
+    /// with that deceleration where the device takes one (a moteus
+    /// controller's velocity 0 within it; the others their own stop), a
+    /// `limit_brake` event each.
+    fn keep_within_limits(&mut self, now: Duration) {
+        if self.latched {
+            return;
+        }
+        let mut brake = Vec::new();
+        for (ji, j) in self.joints.iter().enumerate() {
+            let Some((at, limit_name, limit)) = self.brake_due(j) else {
+                continue;
+            };
+            if at > now {
+                continue;
+            }
+            let (Some(f), Some(m)) = (j.feedback.as_ref(), self.map.motor(&j.name)) else {
+                continue;
+            };
+            let decel = Self::braking(&m.limits).map(|d| m.unit.to_degrees(d));
+            brake.push((
+                ji,
+                decel,
+                Event::LimitBrake {
+                    motor_id: j.name.clone(),
+                    position: f.position,
+                    velocity: f.velocity,
+                    limit_name,
+                    limit,
+                },
+            ));
+        }
+        let now_ms = self.unix_ms(now) as u64;
+        for (ji, decel, event) in brake {
+            let Some(j) = self.joints.get(ji) else {
+                continue;
+            };
+            let order = j
+                .device
+                .limit_brake(decel)
+                .or_else(|| j.device.hold_still(now_ms));
+            match order {
+                Some(order) => self.stop_setpoint(now, ji, order, Some(event)),
+                None => {
+                    if let Some(j) = self.joints.get_mut(ji) {
+                        j.deadman = None;
                     }
                 }
             }
-            self.open_job(
-                None,
-                JobKind::Deadman,
-                now,
-                vec![axis],
-                Report::default(),
-                Vec::new(),
-            );
         }
+    }
+
+    /// When device `j`, holding a velocity or torque setpoint, must be
+    /// braked to stop short of a position limit in force, and which limit:
+    /// from its last feedback (where it was, how fast it went, when it was
+    /// heard), the time it reaches the limit less its stopping distance
+    /// ([`Self::braking`]) and [`BRAKE_LOOKAHEAD`]. `None` for a device
+    /// holding no setpoint, at rest, or moving away from its limits.
+    fn brake_due(&self, j: &Joint) -> Option<(Duration, &'static str, f64)> {
+        j.deadman?;
+        let f = j.feedback.as_ref()?;
+        let m = self.map.motor(&j.name)?;
+        // As fast as it goes, or as it is told to go where that is faster
+        // (its feedback may not show the speed it is getting up to).
+        let v = j
+            .held_velocity
+            .filter(|h| h.is_finite() && h.abs() > f.velocity.abs())
+            .unwrap_or(f.velocity);
+        let p = f.position;
+        if !p.is_finite() || !v.is_finite() || v == 0.0 {
+            return None;
+        }
+        let stopping = Self::stopping(&m.limits, v);
+        let (limit_name, limit, room) = if v > 0.0 {
+            let hi = m.limits.max_position?;
+            ("max_position", hi, hi - p - stopping)
+        } else {
+            let lo = m.limits.min_position?;
+            ("min_position", lo, p - lo - stopping)
+        };
+        let heard = j.last_heard.unwrap_or(self.now);
+        let in_s = (room / v.abs() - BRAKE_LOOKAHEAD.as_secs_f64()).clamp(0.0, 3600.0);
+        let at = heard.saturating_add(Duration::from_secs_f64(in_s));
+        Some((at, limit_name, limit))
+    }
+
+    /// Why a velocity or torque `setpoint` for `motor` is refused: it
+    /// points past a position limit in force from where the motor stands,
+    /// nearer than it could stop from that speed ([`Self::braking`],
+    /// [`BRAKE_LOOKAHEAD`] ahead), or at the limit for a torque.
+    fn outward_at_limit(
+        &self,
+        motor: &str,
+        mode: motorwire_core::ControlMode,
+        setpoint: f64,
+    ) -> Option<ErrorBody> {
+        if !matches!(
+            mode,
+            motorwire_core::ControlMode::Velocity | motorwire_core::ControlMode::Torque
+        ) || setpoint == 0.0
+        {
+            return None;
+        }
+        let j = self.joints.get(self.joint_index(motor)?)?;
+        let f = j.feedback.as_ref()?;
+        let m = self.map.motor(motor)?;
+        let p = f.position;
+        let reach = if mode == motorwire_core::ControlMode::Velocity {
+            setpoint.abs() * BRAKE_LOOKAHEAD.as_secs_f64() + Self::stopping(&m.limits, setpoint)
+        } else {
+            0.0
+        };
+        let (limit_name, limit) = if setpoint > 0.0 {
+            (
+                "max_position",
+                m.limits.max_position.filter(|hi| p + reach >= *hi)?,
+            )
+        } else {
+            (
+                "min_position",
+                m.limits.min_position.filter(|lo| p - reach <= *lo)?,
+            )
+        };
+        let what = if mode == motorwire_core::ControlMode::Velocity {
+            "a velocity"
+        } else {
+            "a torque"
+        };
+        Some(
+            ErrorBody::refused(
+                BridgeRule::OutwardAtLimit,
+                format!(
+                    "{motor}: at {p}, {what} of {setpoint} toward its {limit_name} ({}) {limit} could not stop before it; command it away from the limit",
+                    m.limits_source
+                ),
+            )
+            .about(motor.to_owned()),
+        )
     }
 
     /// Everything the drivers have to tell, acted on in order.
@@ -4109,6 +4469,8 @@ impl Bridge {
             self.pump(ji);
         }
         self.finish_jobs();
+        // Starting, a device lost is no longer waited for.
+        self.try_ready();
     }
 
     /// Device `ji` (any dialect) reported at `at`: its position and
@@ -4139,10 +4501,16 @@ impl Bridge {
             }
             _ => 0.0,
         };
+        // Its first reading may make the bridge ready; a later one cannot
+        // (nor can any other device's reading but its first): what ready
+        // waits for is looked at then, not on every report of every device.
+        let first = j.motion.is_none();
         j.set_motion((pos, vel), at, acceleration);
         j.check_model(at, pos, vel);
         self.moved(ji, pos, vel, at);
-        self.try_ready();
+        if first {
+            self.try_ready();
+        }
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
@@ -4226,8 +4594,9 @@ impl Bridge {
         self.try_ready();
         self.drivers.command_timeouts(now);
         self.drain_drivers();
-        // The deadman's stops are queued before the Orion link picks what
-        // to send next.
+        // The deadman's stops (and the limits' brakes) are queued before
+        // the Orion link picks what to send next.
+        self.keep_within_limits(now);
         self.deadman(now);
         self.link_timeouts(now);
         self.awaiting_timeouts(now);
@@ -4316,7 +4685,11 @@ impl Bridge {
             self.timers.feedback = Some(now.saturating_add(period));
         }
         if self.any_moving(now) {
-            if self.timers.heartbeat.is_none_or(|t| now >= t) && self.drivers.heartbeat() {
+            // Due again a period on, whether a beat could be queued or not
+            // (none on a bus without iRPC joints): never due at the time
+            // it was handled, so nothing waiting for it spins.
+            if self.timers.heartbeat.is_none_or(|t| now >= t) {
+                let _ = self.drivers.heartbeat();
                 self.timers.heartbeat = Some(now.saturating_add(self.config.heartbeat_period));
             }
         } else {
@@ -4449,8 +4822,8 @@ impl Bridge {
                         .saturating_add(self.config.offline_after)
                 })
                 .min(),
-            Timer::Heartbeat => self
-                .any_moving(self.now)
+            // Only where a joint hears the beat (iRPC).
+            Timer::Heartbeat => (self.drivers.beats() && self.any_moving(self.now))
                 .then(|| self.timers.heartbeat.unwrap_or(self.now).max(self.now)),
             // Due when the drain may end: once motion has ended, at once
             // when nothing is left (or a line just finished: looked at
@@ -4491,6 +4864,16 @@ impl Bridge {
                 })
                 .min(),
             Timer::Deadman => self.joints.iter().filter_map(|j| j.deadman).min(),
+            Timer::LimitBrake => {
+                if self.latched {
+                    None
+                } else {
+                    self.joints
+                        .iter()
+                        .filter_map(|j| self.brake_due(j).map(|(at, ..)| at.max(self.now)))
+                        .min()
+                }
+            }
             Timer::Segment => self.joints.iter().filter_map(|j| j.wake).min(),
             Timer::Answer => self
                 .jobs

@@ -7,6 +7,18 @@ pub enum BridgeError {
     /// The bus map names no iRPC joint: there is nothing to bridge to.
     #[error("the bus map has no iRPC joint to bridge to")]
     NoJoints,
+    /// The bus map names more motors than one bridge serves
+    /// ([`crate::Bridge::MAX_DEVICES`]): refused before anything is sent.
+    #[error(
+        "the bus map has {count} motors; a bridge serves at most {limit} \
+         (one CAN bus carries no more at their feedback rates): split them across buses, a bridge each"
+    )]
+    TooManyDevices {
+        /// The motors the map names.
+        count: usize,
+        /// The most a bridge serves.
+        limit: usize,
+    },
     /// A configuration value that cannot work.
     #[error("invalid bridge configuration: {0}")]
     Config(&'static str),
@@ -16,4 +28,16 @@ pub enum BridgeError {
     /// A simulated joint could not be made.
     #[error("simulated joint: {0}")]
     Sim(#[from] motorwire_sim::SimError),
+    /// The simulated arm found work due at one instant again and again
+    /// without the bridge's clock moving on (a timer that stays due after
+    /// it was handled): given up rather than spun on forever.
+    #[error(
+        "the simulated arm made no progress at {at_ms} ms: work was still due after {rounds} rounds at that instant"
+    )]
+    Stalled {
+        /// The simulated time, in ms.
+        at_ms: u64,
+        /// The rounds run at that instant.
+        rounds: u32,
+    },
 }

@@ -257,6 +257,9 @@ pub(crate) struct Job {
     /// is acknowledged (its later segments' fate comes in its completion
     /// line); when it was.
     pub(crate) answered: Option<Duration>,
+    /// Whether an axis of it waits on another's arrival (`sync_mode`
+    /// sequential): the jobs every reading of a device is looked at for.
+    pub(crate) sequential: bool,
 }
 
 impl Job {
@@ -275,6 +278,7 @@ impl Job {
             line,
             kind,
             received,
+            sequential: axes.iter().any(|a| a.after.is_some()),
             axes,
             report,
             problems,

@@ -97,6 +97,10 @@ pub(crate) struct Joint {
     /// The deadman: when a velocity or torque setpoint it holds must be
     /// renewed by, or it is brought to a stop.
     pub(crate) deadman: Option<Duration>,
+    /// The velocity setpoint it holds (its unit a second), where the
+    /// order says one: what it goes at once it is up to speed, judged
+    /// against its position limits before its feedback shows it.
+    pub(crate) held_velocity: Option<f64>,
     /// It faulted or rebooted (why): nothing but a reset line is sent to it.
     pub(crate) needs_reset: Option<String>,
     /// A Reset the bridge sent is under way (its `Unconfigured` is no
@@ -314,6 +318,7 @@ impl Joint {
             busy: None,
             unresolved: None,
             deadman: None,
+            held_velocity: None,
             needs_reset: None,
             resetting: false,
             wake: None,

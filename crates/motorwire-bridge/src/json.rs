@@ -323,11 +323,17 @@ impl LineResult {
         if !self.problems.is_empty() {
             j.strs(k!("problems"), &self.problems);
         }
+        if let Some(n) = self.more_problems {
+            j.serde(k!("more_problems"), &n)?;
+        }
         j.opt_u64(k!("latency_us"), self.latency_us);
         j.opt_u64(k!("ack_us"), self.ack_us);
         j.opt_u64(k!("stop_latency_us"), self.stop_latency_us);
         if !self.losses.is_empty() {
             j.losses(k!("losses"), &self.losses);
+        }
+        if let Some(n) = self.more_losses {
+            j.serde(k!("more_losses"), &n)?;
         }
         if let Some(d) = &self.data {
             j.serde(k!("data"), d)?;
@@ -367,6 +373,9 @@ impl ErrorBody {
         }
         if let Some(v) = &self.violations {
             j.serde(k!("violations"), v)?;
+        }
+        if let Some(n) = self.more_violations {
+            j.serde(k!("more_violations"), &n)?;
         }
         j.close();
         Ok(())
@@ -474,6 +483,7 @@ mod tests {
                     limit_source: Some("bus map"),
                 })),
                 violations: Some(serde_json::json!([{"path": "/setpoint", "x": [1, 2.5]}])),
+                more_violations: Some(3),
             }),
             acked: Some(vec!["elbow".into(), String::new()]),
             arrival_follows: Some(false),
@@ -493,6 +503,8 @@ mod tests {
                 },
             ],
             problems: vec!["a".into(), "b\u{1f}".into()],
+            more_problems: Some(7),
+            more_losses: Some(2),
             latency_us: Some(0),
             ack_us: Some(17),
             stop_latency_us: Some(99),

@@ -2,6 +2,7 @@
 
 mod arrival;
 mod classify;
+mod clocks;
 mod device;
 mod engine;
 mod error;
@@ -54,10 +55,12 @@ pub fn moteus_frame(
 pub use motorwire_wia;
 pub use output::{
     ArrivalLine, BridgeRule, BridgeState, Broke, ErrorBody, ErrorKind, Event, FeedbackLine, Label,
-    LineRef, LineResult, MotorArrival, MotorState, Origin, Output, StepOutcome, StepReport, rules,
+    LineRef, LineResult, MAX_LISTED, MotorArrival, MotorState, Origin, Output, StepOutcome,
+    StepReport, rules,
 };
 pub use runtime::{
-    DEFAULT_MAX_LINE, InputSender, MAX_ORION_LINES_PER_S, MAX_ORION_QUEUED,
-    MAX_QUEUED_BYTES_PER_ORIGIN, MAX_QUEUED_PER_ORIGIN, MAX_SKIP, OrionPort, ReadLine, Runner,
-    Secret, UNREADABLE_HEAD, feed, feed_withholding, read_line,
+    DEFAULT_MAX_LINE, Gate, InputSender, MAX_ORION_LINES_PER_S, MAX_ORION_QUEUED,
+    MAX_QUEUED_BYTES_PER_ORIGIN, MAX_QUEUED_PER_ORIGIN, MAX_READ_AHEAD, MAX_SKIP, OrionPort,
+    ReadLine, Runner, Secret, Stamped, UNREADABLE_HEAD, feed, feed_gated, feed_withholding,
+    read_line,
 };

@@ -152,6 +152,10 @@ fn loss_texts<S: serde::Serializer>(
     s.collect_seq(losses.iter().map(motorwire_translate::Loss::text))
 }
 
+/// The most losses or problems a result lists (the first; the rest are
+/// counted): a result is one bounded line whatever its line held.
+pub const MAX_LISTED: usize = 100;
+
 /// The result of one input line: `{"ok":true,...}` or
 /// `{"ok":false,"error":{...},...}`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize)]
@@ -196,8 +200,12 @@ pub struct LineResult {
     pub outcomes: Vec<StepReport>,
     /// Problems of a line that stopped anyway (an emergency stop carried by
     /// an otherwise invalid line).
+    /// At most [`MAX_LISTED`]; the rest are counted in `more_problems`.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub problems: Vec<String>,
+    /// Problems beyond those listed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub more_problems: Option<usize>,
     /// From the line's arrival to its last frame on the bus (µs).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub latency_us: Option<u64>,
@@ -212,8 +220,12 @@ pub struct LineResult {
     /// text (`field: kind: detail`, [`motorwire_translate::Loss::text`]).
     /// Kept as the losses themselves: a result is written once, and the
     /// text is made only there.
+    /// At most [`MAX_LISTED`]; the rest are counted in `more_losses`.
     #[serde(skip_serializing_if = "Vec::is_empty", serialize_with = "loss_texts")]
     pub losses: Vec<motorwire_translate::Loss>,
+    /// Losses beyond those listed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub more_losses: Option<usize>,
     /// For a request or calibration line: what the joint answered,
     /// `{"telemetry"|"power_metrics"|"fault_history"|"calibration_result": {...}}`
     /// (iRPC's field names, WIRE-FACTS §1.3).
@@ -235,6 +247,22 @@ pub struct LineResult {
     /// the client's (0: none). For whoever delivers the lines; not written.
     #[serde(skip)]
     pub feedback_every: Option<u32>,
+}
+
+impl LineResult {
+    /// Keeps the first [`MAX_LISTED`] losses and problems, counting the
+    /// rest (`more_losses`, `more_problems`).
+    pub(crate) fn bound(&mut self) {
+        fn cut<T>(list: &mut Vec<T>, more: &mut Option<usize>) {
+            let over = list.len().saturating_sub(MAX_LISTED);
+            if over > 0 {
+                list.truncate(MAX_LISTED);
+                *more = Some(more.unwrap_or(0).saturating_add(over));
+            }
+        }
+        cut(&mut self.losses, &mut self.more_losses);
+        cut(&mut self.problems, &mut self.more_problems);
+    }
 }
 
 /// `v` as a person reads a rate: a whole number without a fraction, else
@@ -319,9 +347,13 @@ pub struct ErrorBody {
     /// (their members are the error's own in the JSON).
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
     pub broke: Option<Box<Broke>>,
-    /// Every WIA violation, for `invalid`.
+    /// The WIA violations, for `invalid`: at most
+    /// [`motorwire_wia::MAX_VIOLATIONS`].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub violations: Option<Value>,
+    /// Violations found beyond those listed (saturating at `u32::MAX`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub more_violations: Option<u32>,
 }
 
 /// The value a refusal names and the limit it broke: `error.field`,
@@ -376,6 +408,7 @@ impl ErrorBody {
             motor: None,
             broke: None,
             violations: None,
+            more_violations: None,
         }
     }
 
@@ -573,11 +606,14 @@ pub enum BridgeRule {
     /// An Orion motor, and no Orion controller attached
     /// (`orion_not_attached`).
     OrionNotAttached,
+    /// A velocity or torque setpoint pointing past a position limit in
+    /// force from a motor at that limit (`outward_at_limit`).
+    OutwardAtLimit,
 }
 
 impl BridgeRule {
     /// Every rule, in the order of the variants.
-    pub const ALL: [Self; 9] = [
+    pub const ALL: [Self; 10] = [
         Self::UnknownMotor,
         Self::NotAnIrpcJoint,
         Self::MotorTwice,
@@ -587,6 +623,7 @@ impl BridgeRule {
         Self::MotionOutsideNewLimits,
         Self::SequentialWithoutArrival,
         Self::OrionNotAttached,
+        Self::OutwardAtLimit,
     ];
 
     /// Its name in `error.rule`.
@@ -601,6 +638,7 @@ impl BridgeRule {
             Self::MotionOutsideNewLimits => "motion_outside_new_limits",
             Self::SequentialWithoutArrival => "sequential_without_arrival",
             Self::OrionNotAttached => "orion_not_attached",
+            Self::OutwardAtLimit => "outward_at_limit",
         }
     }
 }
@@ -776,6 +814,22 @@ pub enum Event {
         motor_id: String,
         /// Its command timeout (ms).
         timeout_ms: u64,
+    },
+    /// A velocity or torque setpoint would have carried the motor past a
+    /// position limit in force before it could stop (at the limits'
+    /// deceleration, from where its feedback says it is and how fast it
+    /// goes): it was brought to a stop (velocity 0) short of the limit.
+    LimitBrake {
+        /// The motor.
+        motor_id: String,
+        /// Where it was (the motor's unit).
+        position: f64,
+        /// How fast it went (the motor's unit a second).
+        velocity: f64,
+        /// The limit it was kept from: `min_position` or `max_position`.
+        limit_name: &'static str,
+        /// The limit's value.
+        limit: f64,
     },
     /// The emergency stop was latched.
     EmergencyStop {
@@ -968,15 +1022,14 @@ mod tests {
                 | BridgeRule::WiderThanBusMap
                 | BridgeRule::MotionOutsideNewLimits
                 | BridgeRule::SequentialWithoutArrival
-                | BridgeRule::OrionNotAttached => {
-                    BridgeRule::ALL.iter().filter(|o| **o == r).count()
-                }
+                | BridgeRule::OrionNotAttached
+                | BridgeRule::OutwardAtLimit => BridgeRule::ALL.iter().filter(|o| **o == r).count(),
             };
             assert_eq!(listed, 1, "{r:?}");
         }
-        // Kinds (but refused), the gate's 11 and the bridge's 9, with
+        // Kinds (but refused), the gate's 11 and the bridge's 10, with
         // unknown_motor in both of the last two.
-        assert_eq!(rules().len(), 20 + 11 + 9 - 1);
+        assert_eq!(rules().len(), 20 + 11 + 10 - 1);
     }
 
     #[test]

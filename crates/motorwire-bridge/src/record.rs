@@ -19,8 +19,21 @@
 //!   the data in hex; a frame received also says when the bridge took it,
 //!   `taken_us`), and every line to or from the Orion arm controller
 //!   (`"orion"`);
-//! - `session.json`: when the recording started (both clocks), and, when
-//!   it ended cleanly, how much was written and how much was dropped.
+//! - `session.json`: when the recording started (both clocks), how the
+//!   bridge was set up, and how much was written and how much was dropped
+//!   (`written`, `dropped`, `bytes`; where records were dropped, the
+//!   `t_us` of the first and the last, `dropped_first_us` and
+//!   `dropped_last_us`). Written at the start, the counts zero and
+//!   `"complete": false`, and kept in place: rewritten when the first
+//!   record is dropped, at most once a second while the counts change, and
+//!   at the end, which adds `ended_wall_ms` (and `"complete": true` when
+//!   nothing was dropped). The file is made at its largest at the start
+//!   (padded with white space after the JSON), and each rewrite overwrites
+//!   only its counts in place, within the bytes it already holds: a disk
+//!   that has filled since still takes them. A recording whose counts say
+//!   records were dropped, or without `ended_wall_ms` (its writer was
+//!   killed or never finished), is incomplete, whatever became of the
+//!   disk.
 //!
 //! Bounded: each of the two files is rotated (to `frames.1.log`,
 //! `lines.1.jsonl`) when it reaches a quarter of the recorder's limit, so
@@ -160,6 +173,21 @@ enum Record {
         dir: Direction,
         line: String,
     },
+}
+
+impl Record {
+    /// When it came.
+    const fn at(&self) -> Instant {
+        match self {
+            Self::Frame { at, .. }
+            | Self::Input { at, .. }
+            | Self::Unreadable { at, .. }
+            | Self::Mark { at, .. }
+            | Self::Output { at, .. }
+            | Self::OutputLine { at, .. }
+            | Self::Orion { at, .. } => *at,
+        }
+    }
 }
 
 /// An input line the bridge could not read (too long, not UTF-8), as a
@@ -473,14 +501,10 @@ pub fn is_interface_name(name: &str) -> bool {
             .all(|b| b.is_ascii_graphic() && !matches!(b, b'/' | b':' | b'='))
 }
 
-/// The text of `session.json`: its start, with the end's counts when
-/// given.
-fn session_text(
-    interface: &str,
-    setup: Option<&serde_json::Value>,
-    wall0: Duration,
-    end: Option<RecordSummary>,
-) -> String {
+/// The part of `session.json` that never changes (when the recording
+/// started, how the bridge was set up), without its closing brace: the
+/// counts ([`session_counts`]) follow it.
+fn session_head(interface: &str, setup: Option<&serde_json::Value>, wall0: Duration) -> String {
     let mut v = serde_json::json!({
         "recorder": "motorwire",
         "version": env!("CARGO_PKG_VERSION"),
@@ -491,17 +515,112 @@ fn session_text(
     if let (Some(setup), Some(m)) = (setup, v.as_object_mut()) {
         m.insert("setup".to_owned(), setup.clone());
     }
-    if let (Some(s), Some(m)) = (end, v.as_object_mut()) {
-        m.insert("written".to_owned(), s.written.into());
-        m.insert("dropped".to_owned(), s.dropped.into());
-        m.insert("bytes".to_owned(), s.bytes.into());
-    }
-    format!("{v}\n")
+    let mut text = v.to_string();
+    // An object with members: it ends in its closing brace.
+    text.pop();
+    text
 }
 
-/// What the end's counts add to `session.json`, at most: three members
-/// of up to 20 digits.
-const SESSION_END_ROOM: u64 = 3 * (12 + 20);
+/// What `session.json` says of the recording so far.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+struct Progress {
+    written: u64,
+    dropped: u64,
+    bytes: u64,
+    /// The `t_us` of the first and the last record dropped.
+    dropped_span: Option<(u64, u64)>,
+    /// When it ended cleanly (Unix milliseconds); `None` while it runs.
+    ended_wall_ms: Option<u64>,
+}
+
+impl Progress {
+    /// The largest counts there can be: what `session.json` makes room for.
+    const LARGEST: Self = Self {
+        written: u64::MAX,
+        dropped: u64::MAX,
+        bytes: u64::MAX,
+        dropped_span: Some((u64::MAX, u64::MAX)),
+        ended_wall_ms: Some(u64::MAX),
+    };
+}
+
+/// The members of `session.json` that change, after its head
+/// ([`session_head`]), with the object's closing brace.
+fn session_counts(p: &Progress) -> String {
+    let complete = p.ended_wall_ms.is_some() && p.dropped == 0;
+    let mut text = format!(
+        r#","complete":{complete},"written":{},"dropped":{},"bytes":{}"#,
+        p.written, p.dropped, p.bytes
+    );
+    if let Some((first, last)) = p.dropped_span {
+        let _ = write!(
+            text,
+            r#","dropped_first_us":{first},"dropped_last_us":{last}"#
+        );
+    }
+    if let Some(ended) = p.ended_wall_ms {
+        let _ = write!(text, r#","ended_wall_ms":{ended}"#);
+    }
+    text.push('}');
+    text
+}
+
+/// How often `session.json`'s counts are rewritten, at most, while they
+/// change (and at once when the first record is dropped).
+const SESSION_EVERY: Duration = Duration::from_secs(1);
+
+/// `session.json`, open for the whole recording: written whole at the
+/// start at its largest (its counts padded with white space to the room
+/// their largest values take), then only its counts, in place.
+#[derive(Debug)]
+struct SessionFile {
+    file: File,
+    /// Where the counts begin (the head's length).
+    at: u64,
+    /// The counts' room: their largest text's length.
+    room: usize,
+}
+
+impl SessionFile {
+    /// What the file takes on disk for a head of `head` bytes.
+    fn size(head: usize) -> u64 {
+        u64::try_from(head + session_counts(&Progress::LARGEST).len() + 1).unwrap_or(u64::MAX)
+    }
+
+    /// Makes `path` anew (as [`fresh`]) holding `head` and `progress`.
+    fn create(path: &Path, head: &str, progress: &Progress) -> io::Result<Self> {
+        let mut file = fresh(path)?;
+        let room = session_counts(&Progress::LARGEST).len();
+        let mut text = String::with_capacity(head.len() + room + 1);
+        text.push_str(head);
+        text.push_str(&Self::padded(progress, room));
+        file.write_all(text.as_bytes())?;
+        Ok(Self {
+            file,
+            at: u64::try_from(head.len()).unwrap_or(u64::MAX),
+            room,
+        })
+    }
+
+    /// The counts, padded with spaces to `room`, and the file's last
+    /// newline.
+    fn padded(progress: &Progress, room: usize) -> String {
+        let mut text = session_counts(progress);
+        let pad = room.saturating_sub(text.len());
+        text.extend(std::iter::repeat_n(' ', pad));
+        text.push('\n');
+        text
+    }
+
+    /// Overwrites the counts in place: the same bytes of the file, never
+    /// more (no block the file does not already hold is needed).
+    fn rewrite(&mut self, progress: &Progress) -> io::Result<()> {
+        use std::io::Seek;
+        let text = Self::padded(progress, self.room);
+        self.file.seek(io::SeekFrom::Start(self.at))?;
+        self.file.write_all(text.as_bytes())
+    }
+}
 
 /// The least a rotated file may hold.
 const MIN_FILE: u64 = 4096;
@@ -534,6 +653,60 @@ pub struct RecordSummary {
     pub dropped: u64,
     /// Bytes written, rotated files included.
     pub bytes: u64,
+    /// `session.json` holds these counts and the end (its last rewrite
+    /// succeeded); `false`: it still says what it said before, without
+    /// the end (the recording reads as one that did not end cleanly).
+    pub session: bool,
+}
+
+/// The records a recording lost: how many, and when the first and the
+/// last of them came (on the recording's clock), shared by the bridge's
+/// side (a full queue) and the writer (a failed disk).
+#[derive(Debug)]
+struct Losses {
+    /// The recording's time zero (`t_us` 0).
+    t0: Instant,
+    count: AtomicU64,
+    /// The least `t_us` of a record lost (`u64::MAX`: none yet).
+    first_us: AtomicU64,
+    /// The greatest.
+    last_us: AtomicU64,
+}
+
+impl Losses {
+    fn new(t0: Instant) -> Self {
+        Self {
+            t0,
+            count: AtomicU64::new(0),
+            first_us: AtomicU64::new(u64::MAX),
+            last_us: AtomicU64::new(0),
+        }
+    }
+
+    fn us(&self, at: Instant) -> u64 {
+        u64::try_from(at.saturating_duration_since(self.t0).as_micros()).unwrap_or(u64::MAX)
+    }
+
+    /// `n` records lost, that came from `from` to `to`.
+    fn lose(&self, n: u64, from: Instant, to: Instant) {
+        if n == 0 {
+            return;
+        }
+        self.first_us.fetch_min(self.us(from), Ordering::Relaxed);
+        self.last_us.fetch_max(self.us(to), Ordering::Relaxed);
+        // After the times: whoever sees the count sees them.
+        self.count.fetch_add(n, Ordering::Release);
+    }
+
+    fn count(&self) -> u64 {
+        self.count.load(Ordering::Acquire)
+    }
+
+    /// The `t_us` of the first and the last record lost, once one was.
+    fn span(&self) -> Option<(u64, u64)> {
+        let first = self.first_us.load(Ordering::Relaxed);
+        (first != u64::MAX).then(|| (first, self.last_us.load(Ordering::Relaxed).max(first)))
+    }
 }
 
 /// How a recording is made.
@@ -563,7 +736,8 @@ pub struct Recorder {
     queue: Option<Sender<Record>>,
     /// Records in the queue.
     queued: Arc<AtomicUsize>,
-    dropped: Arc<AtomicU64>,
+    /// Records dropped, and when.
+    losses: Arc<Losses>,
     /// A stop is being handled: the writer waits.
     hushed: Arc<AtomicBool>,
     /// The session is over and its end may not wait longer: the writer
@@ -603,6 +777,12 @@ impl Recorder {
             ));
         }
         fs::create_dir_all(&config.dir)?;
+        // Stale from a recorder of an earlier version, which wrote
+        // `session.json` beside and renamed it.
+        match fs::remove_file(config.dir.join("session.json.part")) {
+            Err(e) if e.kind() != io::ErrorKind::NotFound => return Err(e),
+            _ => {}
+        }
         // The two clocks read together, as the bridge's are.
         let (t0, wall0) = crate::runtime::clocks_together();
         let wall0 = wall0.unwrap_or_default();
@@ -610,8 +790,8 @@ impl Recorder {
         let (queue, records) = mpsc::channel();
         let queued = Arc::new(AtomicUsize::new(0));
         let q = Arc::clone(&queued);
-        let dropped = Arc::new(AtomicU64::new(0));
-        let d = Arc::clone(&dropped);
+        let losses = Arc::new(Losses::new(t0));
+        let d = Arc::clone(&losses);
         let hushed = Arc::new(AtomicBool::new(false));
         let abandon = Arc::new(AtomicBool::new(false));
         let asleep = Arc::new(AtomicBool::new(false));
@@ -643,7 +823,7 @@ impl Recorder {
         Ok(Self {
             queue: Some(queue),
             queued,
-            dropped,
+            losses,
             hushed,
             abandon,
             asleep,
@@ -662,16 +842,18 @@ impl Recorder {
     fn put(&self, r: Record) {
         let Some(q) = &self.queue else { return };
         if self.queued.load(Ordering::Relaxed) >= RECORD_QUEUE {
-            self.dropped.fetch_add(1, Ordering::Relaxed);
+            let at = r.at();
+            self.losses.lose(1, at, at);
             return;
         }
         // Counted before the writer is looked at, in one order with the
         // writer's own (it says it sleeps, then looks at the count): either
         // it sees this record, or this sees it asleep and wakes it.
         self.queued.fetch_add(1, Ordering::SeqCst);
-        if q.send(r).is_err() {
+        if let Err(mpsc::SendError(r)) = q.send(r) {
             self.queued.fetch_sub(1, Ordering::Relaxed);
-            self.dropped.fetch_add(1, Ordering::Relaxed);
+            let at = r.at();
+            self.losses.lose(1, at, at);
         }
         // Only the first record after a quiet spell makes the system call.
         if self.asleep.load(Ordering::SeqCst) && self.asleep.swap(false, Ordering::SeqCst) {
@@ -775,7 +957,7 @@ impl Recorder {
 
     /// Records dropped so far.
     pub fn dropped(&self) -> u64 {
-        self.dropped.load(Ordering::Relaxed)
+        self.losses.count()
     }
 
     /// Ends the recording: what is queued is written, the files closed
@@ -825,7 +1007,7 @@ impl Recorder {
         self.hushed.store(false, Ordering::Relaxed);
         self.asleep.store(false, Ordering::SeqCst);
         self.wake();
-        let dropped = || self.dropped.load(Ordering::Relaxed);
+        let dropped = || self.losses.count();
         let Some(writer) = self.writer.take() else {
             return Some(RecordSummary {
                 dropped: dropped(),
@@ -848,7 +1030,9 @@ impl Recorder {
             }
         }
         let mut s = writer.join().ok().unwrap_or_default();
-        s.dropped += dropped();
+        // Every record dropped, by either side (the queue is closed: no
+        // more come).
+        s.dropped = dropped();
         Some(s)
     }
 }
@@ -957,9 +1141,8 @@ impl Rotated {
 
 #[derive(Debug)]
 struct Files {
-    dir: PathBuf,
     interface: String,
-    setup: Option<serde_json::Value>,
+    session: SessionFile,
     frames: Rotated,
     lines: Rotated,
     t0: Instant,
@@ -969,13 +1152,13 @@ struct Files {
 impl Files {
     fn open(config: &RecordConfig, t0: Instant, wall0: Duration) -> io::Result<Self> {
         // `session.json` counts against the limit (it holds the map's
-        // text): what it takes at its largest (with the end's counts), then
+        // text): what it takes (made at its largest at the start), then
         // two files, each with its rotated copy, a quarter of the rest each.
-        let start = session_text(&config.interface, config.setup.as_ref(), wall0, None);
-        let session = start.len();
+        let head = session_head(&config.interface, config.setup.as_ref(), wall0);
+        let session = SessionFile::size(head.len());
         let room = config
             .max_bytes
-            .checked_sub(u64::try_from(session).unwrap_or(u64::MAX) + SESSION_END_ROOM)
+            .checked_sub(session)
             .filter(|room| *room >= 4 * MIN_FILE)
             .ok_or_else(|| {
                 io::Error::new(
@@ -983,42 +1166,41 @@ impl Files {
                     format!(
                         "the recording's limit of {} bytes leaves too little room: its session.json (how the bridge was set up, the map's text with it) takes {session} bytes, and the frames and lines need at least {} more",
                         config.max_bytes,
-                        4 * MIN_FILE + SESSION_END_ROOM
+                        4 * MIN_FILE
                     ),
                 )
             })?;
         let quarter = room / 4;
-        let files = Self {
-            dir: config.dir.clone(),
+        Ok(Self {
             interface: config.interface.clone(),
-            setup: config.setup.clone(),
+            // First: a recording that has files has the session that says
+            // whether it is whole.
+            session: SessionFile::create(
+                &config.dir.join("session.json"),
+                &head,
+                &Progress::default(),
+            )?,
             frames: Rotated::create(&config.dir, "frames.log", "frames.1.log", quarter)?,
             lines: Rotated::create(&config.dir, "lines.jsonl", "lines.1.jsonl", quarter)?,
             t0,
             wall0,
-        };
-        files.write_session(&start)?;
-        Ok(files)
+        })
     }
 
-    /// Completes `session.json` with the end's counts.
-    fn session(&self, end: RecordSummary) -> io::Result<()> {
-        self.write_session(&session_text(
-            &self.interface,
-            self.setup.as_ref(),
-            self.wall0,
-            Some(end),
-        ))
-    }
-
-    fn write_session(&self, text: &str) -> io::Result<()> {
-        // Written beside it, then put in its place: never through a link,
-        // never into a FIFO.
-        let tmp = self.dir.join("session.json.part");
-        let mut f = fresh(&tmp)?;
-        f.write_all(text.as_bytes())?;
-        drop(f);
-        fs::rename(&tmp, self.dir.join("session.json"))
+    /// Rewrites `session.json`'s counts in place: `s` and the records
+    /// `losses` counts, and the end when `ended`.
+    fn progress(&mut self, s: &RecordSummary, losses: &Losses, ended: bool) -> io::Result<()> {
+        let ended_wall_ms = ended.then(|| {
+            let wall = self.wall0.saturating_add(self.t0.elapsed());
+            u64::try_from(wall.as_millis()).unwrap_or(u64::MAX)
+        });
+        self.session.rewrite(&Progress {
+            written: s.written,
+            dropped: losses.count(),
+            bytes: s.bytes,
+            dropped_span: losses.span(),
+            ended_wall_ms,
+        })
     }
 
     /// (`t_us`, wall microseconds) of `at`.
@@ -1032,16 +1214,7 @@ impl Files {
     /// Writes `r`: its bytes, or `None` when it is too long for the
     /// recording's limit (not written).
     fn write(&mut self, r: Record) -> io::Result<Option<u64>> {
-        let at = match &r {
-            Record::Frame { at, .. }
-            | Record::Input { at, .. }
-            | Record::Unreadable { at, .. }
-            | Record::Mark { at, .. }
-            | Record::Output { at, .. }
-            | Record::OutputLine { at, .. }
-            | Record::Orion { at, .. } => *at,
-        };
-        let (t_us, wall_us) = self.clocks(at);
+        let (t_us, wall_us) = self.clocks(r.at());
         let head =
             |kind: &str| format!(r#"{{"t_us":{t_us},"wall_ms":{},"{kind}":"#, wall_us / 1000);
         let line = match r {
@@ -1129,37 +1302,50 @@ impl Files {
         self.lines.line(&line)
     }
 
+    /// Puts the files' buffers on disk: the records `pending` handed to
+    /// them are counted written, or, when that fails or the files are no
+    /// longer where they are read (or the disk failed before), lost.
+    fn settle(
+        &mut self,
+        s: &mut RecordSummary,
+        pending: &mut Pending,
+        losses: &Losses,
+        failed: &mut bool,
+    ) {
+        let flushed = self
+            .frames
+            .out
+            .flush()
+            .and_then(|()| self.lines.out.flush());
+        // Written where it can be read: the files are still there.
+        let there = pending.count == 0 || (self.frames.still_there() && self.lines.still_there());
+        let p = std::mem::take(pending);
+        if flushed.is_ok() && there && !*failed {
+            s.written += p.count;
+            s.bytes += p.bytes;
+        } else {
+            *failed = true;
+            if let Some((from, to)) = p.span {
+                losses.lose(p.count, from, to);
+            }
+        }
+    }
+
     fn write_all(
         mut self,
         records: &Receiver<Record>,
         queued: &AtomicUsize,
-        dropped: &AtomicU64,
+        losses: &Losses,
         flags: &WriterFlags,
     ) -> RecordSummary {
         let mut s = RecordSummary::default();
         let mut failed = false;
         // Records handed to the files' buffers, counted written once the
         // buffers are on disk (dropped when that fails: a full disk).
-        let (mut pending, mut pending_bytes) = (0u64, 0u64);
-        let mut settle =
-            |files: &mut Self, pending: &mut u64, bytes: &mut u64, failed: &mut bool| {
-                let flushed = files
-                    .frames
-                    .out
-                    .flush()
-                    .and_then(|()| files.lines.out.flush());
-                // Written where it can be read: the files are still there.
-                let there =
-                    *pending == 0 || (files.frames.still_there() && files.lines.still_there());
-                if flushed.is_ok() && there && !*failed {
-                    s.written += *pending;
-                    s.bytes += *bytes;
-                } else {
-                    *failed = true;
-                    dropped.fetch_add(*pending, Ordering::Relaxed);
-                }
-                (*pending, *bytes) = (0, 0);
-            };
+        let mut pending = Pending::default();
+        // What `session.json` says, and since when.
+        let mut shown = (0u64, 0u64);
+        let mut shown_at = Instant::now();
         // The writer polls rather than sleeping in `recv`: a record handed
         // over then never has to wake it (a system call on the bridge's
         // thread, for every frame and line). Only after a quiet spell
@@ -1195,30 +1381,38 @@ impl Files {
                     Err(mpsc::TryRecvError::Empty) => break,
                     Err(mpsc::TryRecvError::Disconnected) => break 'session,
                 };
+                let at = r.at();
                 if failed || flags.abandon.load(Ordering::Relaxed) {
                     // The disk failed, or the session's end may not wait
                     // for it: counted, never waited on.
-                    dropped.fetch_add(1, Ordering::Relaxed);
+                    losses.lose(1, at, at);
                     continue;
                 }
                 match self.write(r) {
-                    Ok(Some(n)) => {
-                        pending += 1;
-                        pending_bytes += n;
-                    }
+                    Ok(Some(n)) => pending.add(at, n),
                     // Longer than the recording may hold: left out, counted.
-                    Ok(None) => {
-                        dropped.fetch_add(1, Ordering::Relaxed);
-                    }
+                    Ok(None) => losses.lose(1, at, at),
                     Err(_) => {
                         failed = true;
-                        dropped.fetch_add(pending + 1, Ordering::Relaxed);
-                        (pending, pending_bytes) = (0, 0);
+                        pending.add(at, 0);
+                        let p = std::mem::take(&mut pending);
+                        if let Some((from, to)) = p.span {
+                            losses.lose(p.count, from, to);
+                        }
                     }
                 }
             }
             // Nothing more waiting: out on disk (a crash loses little).
-            settle(&mut self, &mut pending, &mut pending_bytes, &mut failed);
+            self.settle(&mut s, &mut pending, losses, &mut failed);
+            // `session.json` told at once of the first record dropped, and
+            // of what changes after at most once a second.
+            let now = (s.written, losses.count());
+            if now != shown && ((shown.1 == 0 && now.1 > 0) || shown_at.elapsed() >= SESSION_EVERY)
+            {
+                // Failing, it says what it said before; the end tries again.
+                let _ = self.progress(&s, losses, false);
+                (shown, shown_at) = (now, Instant::now());
+            }
             if flags.abandon.load(Ordering::Relaxed) {
                 continue;
             }
@@ -1246,11 +1440,27 @@ impl Files {
                 thread::sleep(POLL);
             }
         }
-        settle(&mut self, &mut pending, &mut pending_bytes, &mut failed);
-        let mut end = s;
-        end.dropped = dropped.load(Ordering::Relaxed);
-        let _ = self.session(end);
+        self.settle(&mut s, &mut pending, losses, &mut failed);
+        s.session = self.progress(&s, losses, true).is_ok();
+        s.dropped = losses.count();
         s
+    }
+}
+
+/// Records handed to the files' buffers and not yet on disk.
+#[derive(Debug, Default)]
+struct Pending {
+    count: u64,
+    bytes: u64,
+    /// When the earliest and the latest of them came.
+    span: Option<(Instant, Instant)>,
+}
+
+impl Pending {
+    fn add(&mut self, at: Instant, bytes: u64) {
+        self.count += 1;
+        self.bytes += bytes;
+        self.span = Some(self.span.map_or((at, at), |(a, b)| (a.min(at), b.max(at))));
     }
 }
 
@@ -1720,6 +1930,203 @@ mod tests {
         }
         assert!(!dir.join("session.json.part").exists());
         let _ = fs::remove_dir_all(dir);
+    }
+
+    /// `session.json` read as JSON.
+    fn session_of(dir: &Path) -> serde_json::Value {
+        serde_json::from_str(&fs::read_to_string(dir.join("session.json")).unwrap()).unwrap()
+    }
+
+    /// `session.json` is there from the start, its counts zero, not
+    /// complete and without an end (what a recording whose writer was
+    /// killed keeps); at the end its counts are rewritten in place: the
+    /// same file, the same length, never a second file beside it.
+    #[test]
+    fn session_json_is_written_at_the_start_and_rewritten_in_place() {
+        use std::os::unix::fs::MetadataExt;
+        let dir = scratch("in-place");
+        fs::create_dir_all(&dir).unwrap();
+        // A recorder of an earlier version left one.
+        fs::write(dir.join("session.json.part"), "").unwrap();
+        let rec = recording(&dir, DEFAULT_RECORD_MAX);
+        let at_start = fs::metadata(dir.join("session.json")).unwrap();
+        let text = fs::read_to_string(dir.join("session.json")).unwrap();
+        let v = session_of(&dir);
+        assert_eq!(
+            (&v["complete"], &v["written"], &v["dropped"], &v["bytes"]),
+            (
+                &serde_json::json!(false),
+                &serde_json::json!(0),
+                &serde_json::json!(0),
+                &serde_json::json!(0)
+            ),
+            "{v}"
+        );
+        assert!(v.get("ended_wall_ms").is_none(), "{v}");
+        assert!(v.get("dropped_first_us").is_none(), "{v}");
+        assert_eq!(v["recorder"], "motorwire");
+        // At its largest from the start: white space after the JSON, a
+        // newline at its end.
+        assert!(text.ends_with(" \n"), "{text:?}");
+        assert!(!dir.join("session.json.part").exists());
+        for n in 1..=3 {
+            rec.input(Instant::now(), Origin(1), n, "{}");
+        }
+        let s = rec.finish();
+        assert_eq!((s.written, s.dropped, s.session), (3, 0, true));
+        let at_end = fs::metadata(dir.join("session.json")).unwrap();
+        assert_eq!(at_end.ino(), at_start.ino(), "rewritten in place");
+        assert_eq!(at_end.len(), at_start.len());
+        let v = session_of(&dir);
+        assert_eq!(v["complete"], true, "{v}");
+        assert_eq!(
+            (v["written"].as_u64(), v["dropped"].as_u64()),
+            (Some(3), Some(0))
+        );
+        assert!(v["ended_wall_ms"].as_u64().unwrap() >= v["started_wall_ms"].as_u64().unwrap());
+        assert!(!dir.join("session.json.part").exists());
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    /// The largest counts there can be fit the room made at the start:
+    /// no rewrite ever grows the file.
+    #[test]
+    fn the_largest_counts_fit_the_room_made_at_the_start() {
+        let dir = scratch("largest");
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("session.json");
+        let head = session_head("can0", None, Duration::from_secs(1));
+        let mut f = SessionFile::create(&path, &head, &Progress::default()).unwrap();
+        let len = fs::metadata(&path).unwrap().len();
+        assert_eq!(len, SessionFile::size(head.len()));
+        for p in [
+            Progress::LARGEST,
+            Progress {
+                written: 7,
+                ..Progress::default()
+            },
+            Progress {
+                dropped: 1,
+                dropped_span: Some((5, 5)),
+                ended_wall_ms: Some(9),
+                ..Progress::default()
+            },
+        ] {
+            f.rewrite(&p).unwrap();
+            assert_eq!(fs::metadata(&path).unwrap().len(), len);
+            let v = session_of(&dir);
+            assert_eq!(v["written"], p.written, "{v}");
+            assert_eq!(v["dropped"], p.dropped, "{v}");
+            assert_eq!(
+                v["complete"],
+                p.ended_wall_ms.is_some() && p.dropped == 0,
+                "{v}"
+            );
+        }
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    /// The first record dropped is in `session.json` at once, with when it
+    /// came, while the recording goes on (a writer killed after it leaves
+    /// a recording that says it lost records); at the end, the count and
+    /// the span of every record dropped, and not complete.
+    #[test]
+    fn the_first_record_dropped_is_in_session_json_at_once() {
+        let dir = scratch("first-drop");
+        let rec = recording(&dir, DEFAULT_RECORD_MAX);
+        rec.stall.store(true, Ordering::Relaxed);
+        let t = Instant::now();
+        // The queue full, and 10 more: dropped on the bridge's side.
+        for n in 0..(RECORD_QUEUE as u64 + 10) {
+            rec.input(t + Duration::from_micros(n), Origin(1), n, "{}");
+        }
+        assert_eq!(rec.dropped(), 10);
+        rec.stall.store(false, Ordering::Relaxed);
+        within_10s("the drop never reached session.json", || {
+            session_of(&dir)["dropped"].as_u64() == Some(10)
+        });
+        let v = session_of(&dir);
+        assert_eq!(v["complete"], false, "{v}");
+        assert!(v.get("ended_wall_ms").is_none(), "{v}");
+        let first = v["dropped_first_us"].as_u64().unwrap();
+        let last = v["dropped_last_us"].as_u64().unwrap();
+        assert_eq!(last - first, 9, "{v}");
+        let s = rec.finish();
+        assert_eq!((s.written, s.dropped), (RECORD_QUEUE as u64, 10));
+        let v = session_of(&dir);
+        assert_eq!(v["complete"], false, "{v}");
+        assert_eq!(v["dropped"], 10, "{v}");
+        assert_eq!(v["written"], RECORD_QUEUE, "{v}");
+        assert!(v["ended_wall_ms"].is_u64(), "{v}");
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    /// A tmpfs of `kib` KiB mounted at `dir` (root only), unmounted and
+    /// removed when dropped; `None` where mounting is not allowed.
+    struct Tmpfs(PathBuf);
+
+    impl Tmpfs {
+        fn mount(dir: &Path, kib: u32) -> Option<Self> {
+            fs::create_dir_all(dir).unwrap();
+            let ok = std::process::Command::new("mount")
+                .args(["-t", "tmpfs", "-o", &format!("size={kib}k"), "tmpfs"])
+                .arg(dir)
+                .output()
+                .is_ok_and(|o| o.status.success());
+            if ok {
+                Some(Self(dir.to_owned()))
+            } else {
+                let _ = fs::remove_dir_all(dir);
+                None
+            }
+        }
+    }
+
+    impl Drop for Tmpfs {
+        fn drop(&mut self) {
+            let _ = std::process::Command::new("umount").arg(&self.0).output();
+            let _ = fs::remove_dir_all(&self.0);
+        }
+    }
+
+    /// A disk that fills mid-session: what no longer fits is dropped and
+    /// counted, and `session.json`, rewritten in place in the bytes it
+    /// already holds, still says so, with the end; nothing is left beside
+    /// it. (Needs a tmpfs of its own: root; elsewhere the process test of
+    /// the CLI fills a disk by a file size limit.)
+    #[test]
+    fn a_full_disk_still_marks_the_recording_incomplete() {
+        let dir = scratch("full");
+        let Some(_disk) = Tmpfs::mount(&dir, 256) else {
+            eprintln!("no tmpfs could be mounted (not root?): not run");
+            return;
+        };
+        let rec = recording(&dir.join("rec"), DEFAULT_RECORD_MAX);
+        let f = Frame::fd(CanId::standard(0x12).unwrap(), &[0x5A; 64]).unwrap();
+        // About 430 bytes a frame in the two files: 256 KiB fill after
+        // about 600; the queue never fills (a slow pace).
+        for n in 0..2_000u32 {
+            rec.frame(Instant::now(), Direction::Rx, &f);
+            if n % 64 == 0 {
+                thread::sleep(Duration::from_millis(2));
+            }
+        }
+        let s = rec.finish();
+        assert!(s.dropped > 0 && s.written > 0, "{s:?}");
+        assert_eq!(s.written + s.dropped, 2_000, "{s:?}");
+        assert!(s.session, "{s:?}");
+        let v = session_of(&dir.join("rec"));
+        assert_eq!(v["complete"], false, "{v}");
+        assert_eq!(
+            (v["written"].as_u64(), v["dropped"].as_u64()),
+            (Some(s.written), Some(s.dropped))
+        );
+        assert!(v["ended_wall_ms"].is_u64(), "{v}");
+        assert!(
+            v["dropped_first_us"].as_u64().unwrap() <= v["dropped_last_us"].as_u64().unwrap(),
+            "{v}"
+        );
+        assert!(!dir.join("rec/session.json.part").exists());
     }
 
     /// A record longer than a file of the recording may hold is left out

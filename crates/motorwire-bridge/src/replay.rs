@@ -27,7 +27,11 @@
 //!   ([`frame_key`]): what the frame says, without what the clock decides
 //!   (a request's msg_id, a compact command's timestamp), without the
 //!   heartbeat (its count follows the clock) and without a request sent
-//!   again (the same msg_id: a retry, which timing decides);
+//!   again (the same msg_id: a retry, which timing decides); a moteus
+//!   controller's commands alone (its polls, which only query, follow the
+//!   clock), and a command the same as the one before it once (a held
+//!   move sent again at each poll, a stop repeated: how often, the clock
+//!   decides);
 //! - the lines written to the Orion controller, in order, without its
 //!   polls (one every [`crate::ORION_POLL`] while idle).
 //!
@@ -57,7 +61,7 @@
 //! devices answer at once; a recording made before frames received said
 //! `taken_us` holds their answers to when they came off the bus.
 
-use std::collections::{BTreeMap, HashSet};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::thread;
@@ -392,6 +396,43 @@ pub struct Scanned {
     pub ended: bool,
     /// Its last line was cut (see [`Recording::cut`]).
     pub cut: bool,
+    /// Records it lost (see [`Recording::dropped`]).
+    pub dropped: u64,
+    /// When they came (see [`Recording::dropped_span`]).
+    pub dropped_span: Option<(Duration, Duration)>,
+}
+
+impl Scanned {
+    /// Why the recording is not the whole session, if it is not (see
+    /// [`Recording::incomplete`]).
+    #[must_use]
+    pub fn incomplete(&self) -> Option<String> {
+        incompleteness(self.ended, self.dropped, self.dropped_span)
+    }
+}
+
+/// Why a recording that `ended` (or not) and lost `dropped` records, from
+/// `span`, is not the whole session; `None` when it is.
+fn incompleteness(ended: bool, dropped: u64, span: Option<(Duration, Duration)>) -> Option<String> {
+    let lost = (dropped > 0).then(|| {
+        let when = span.map_or_else(String::new, |(a, b)| {
+            format!(
+                ", from {:.3} s to {:.3} s",
+                a.as_secs_f64(),
+                b.as_secs_f64()
+            )
+        });
+        format!(
+            "the recording dropped {dropped} records (its queue or its disk could not take them{when}): its inputs and outputs may not all be there"
+        )
+    });
+    let unended = (!ended).then(|| {
+        "the recording did not end cleanly (session.json has no end: the bridge was killed, or its disk stopped answering)".to_owned()
+    });
+    match (lost, unended) {
+        (Some(a), Some(b)) => Some(format!("{a}; {b}")),
+        (a, b) => a.or(b),
+    }
 }
 
 /// A recording read back: its setup and its records, each at its time
@@ -402,15 +443,22 @@ pub struct Recording {
     pub setup: Option<Setup>,
     /// The records, in the order they were written.
     pub records: Vec<(Duration, Recorded)>,
-    /// The recording ended cleanly (`session.json` has its counts): one
-    /// that did not (the bridge was killed) is compared up to its last
-    /// record.
+    /// The recording ended cleanly (`session.json` has its end,
+    /// `ended_wall_ms`; from a recorder before it, its counts): one that
+    /// did not (the bridge was killed, its disk stopped answering) is
+    /// compared up to its last record.
     pub ended: bool,
     /// The last line of `lines.jsonl` was cut in the middle of its write
-    /// (a recording that did not end cleanly: the process was killed, the
-    /// machine lost power) and was left out; every record before it is
-    /// read.
+    /// (a recording that did not end cleanly, or whose disk failed: the
+    /// process was killed, the machine lost power, the disk filled) and
+    /// was left out; every record before it is read.
     pub cut: bool,
+    /// Records the recording lost (`session.json`'s `dropped`: its queue
+    /// was full, its disk failed or filled); 0 in a whole recording.
+    pub dropped: u64,
+    /// When the first and the last of them came, from the bridge's start,
+    /// where the recording says.
+    pub dropped_span: Option<(Duration, Duration)>,
 }
 
 /// The largest `session.json` read (its map is at most 1 MiB).
@@ -481,7 +529,60 @@ fn setup_in(session: &Value) -> Result<Option<Setup>, ReplayError> {
     })
 }
 
+/// How a recording is read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reading {
+    /// To replay: whole and checked against its own counts; refused when
+    /// rotated or when it dropped records.
+    Whole,
+    /// To replay, records dropped or not: checked against its counts only
+    /// when it lost none and ended cleanly.
+    WholeLossy,
+    /// To look at: as far as it goes.
+    Partial,
+}
+
 impl Recording {
+    fn of(scanned: Scanned, records: Vec<(Duration, Recorded)>) -> Self {
+        Self {
+            setup: scanned.setup,
+            records,
+            ended: scanned.ended,
+            cut: scanned.cut,
+            dropped: scanned.dropped,
+            dropped_span: scanned.dropped_span,
+        }
+    }
+
+    /// Whether the recording is the whole session: it ended cleanly and
+    /// lost no record.
+    #[must_use]
+    pub const fn is_complete(&self) -> bool {
+        self.ended && self.dropped == 0
+    }
+
+    /// Why the recording is not the whole session (records dropped, no
+    /// clean end), to say to a person; `None` when it is.
+    ///
+    /// ```
+    /// # let dir = std::env::temp_dir().join(format!("motorwire-doc-incomplete-{}", std::process::id()));
+    /// # std::fs::create_dir_all(&dir)?;
+    /// std::fs::write(
+    ///     dir.join("session.json"),
+    ///     r#"{"recorder":"motorwire","complete":false,"written":2,"dropped":3,"bytes":90,"ended_wall_ms":1}"#,
+    /// )?;
+    /// std::fs::write(dir.join("lines.jsonl"), "")?;
+    /// let r = motorwire_bridge::replay::Recording::read_partial(&dir).expect("readable");
+    /// assert!(!r.is_complete());
+    /// assert!(r.incomplete().expect("incomplete").starts_with("the recording dropped 3 records"));
+    /// # std::fs::remove_dir_all(&dir)?;
+    /// # Ok::<(), std::io::Error>(())
+    /// ```
+    #[must_use]
+    pub fn incomplete(&self) -> Option<String> {
+        incompleteness(self.ended, self.dropped, self.dropped_span)
+    }
+
     /// How the bridge of the recording in `dir` was set up, from its
     /// `session.json` alone (`None`: it does not say): what a reader needs
     /// before the records (`motorwire plot` keeps only the map's motors).
@@ -494,14 +595,15 @@ impl Recording {
         setup_in(&session_of(dir)?.1)
     }
 
-    /// Reads the recording in `dir`.
+    /// Reads the recording in `dir`. One that did not end cleanly is read
+    /// up to its last record ([`Recording::ended`] says so).
     ///
     /// # Errors
     /// [`ReplayError::Io`] and [`ReplayError::Record`] for a file that
     /// cannot be read; [`ReplayError::Incomplete`] when the recording was
     /// rotated (`lines.1.jsonl`: its beginning is gone) or dropped records.
     pub fn read(dir: &Path) -> Result<Self, ReplayError> {
-        Self::read_as(dir, true)
+        Self::read_as(dir, Reading::Whole)
     }
 
     /// [`Recording::read`] for a replay: every record but the feedback
@@ -513,13 +615,30 @@ impl Recording {
     /// # Errors
     /// As [`Recording::read`].
     pub fn read_to_replay(dir: &Path) -> Result<Self, ReplayError> {
+        Self::read_to_replay_as(dir, Reading::Whole)
+    }
+
+    /// [`Recording::read_to_replay`] for a recording that may have lost
+    /// records (`motorwire replay --allow-incomplete`): one that dropped
+    /// records is read as far as it goes, its last line left out where a
+    /// failed write cut it, and [`Recording::incomplete`] says what it
+    /// lacks. A recording that lost nothing and ended cleanly is checked as
+    /// [`Recording::read`] checks it.
+    ///
+    /// # Errors
+    /// As [`Recording::read`], but for records dropped.
+    pub fn read_to_replay_lossy(dir: &Path) -> Result<Self, ReplayError> {
+        Self::read_to_replay_as(dir, Reading::WholeLossy)
+    }
+
+    fn read_to_replay_as(dir: &Path, reading: Reading) -> Result<Self, ReplayError> {
         let mut records: Vec<(Duration, Recorded)> = Vec::new();
         // The latest time of the records kept for good, and that of the
         // last record kept when it is a feedback line kept only while
         // nothing later comes.
         let mut latest = Duration::ZERO;
         let mut tail: Option<Duration> = None;
-        let scanned = Self::scan_as(dir, true, &mut |t, r| {
+        let scanned = Self::scan_as(dir, reading, &mut |t, r| {
             let at = match &r {
                 Recorded::Line { taken: Some(k), .. } => t.max(*k),
                 _ => t,
@@ -544,12 +663,7 @@ impl Recording {
             latest = latest.max(at);
             records.push((t, r));
         })?;
-        Ok(Self {
-            setup: scanned.setup,
-            records,
-            ended: scanned.ended,
-            cut: scanned.cut,
-        })
+        Ok(Self::of(scanned, records))
     }
 
     /// Reads the recording in `dir` as far as it goes: one rotated, or
@@ -560,7 +674,7 @@ impl Recording {
     /// [`ReplayError::Io`] and [`ReplayError::Record`] for a file that
     /// cannot be read.
     pub fn read_partial(dir: &Path) -> Result<Self, ReplayError> {
-        Self::read_as(dir, false)
+        Self::read_as(dir, Reading::Partial)
     }
 
     /// [`Recording::read_partial`] a record at a time: each record is
@@ -576,26 +690,22 @@ impl Recording {
         dir: &Path,
         mut each: impl FnMut(Duration, Recorded),
     ) -> Result<Scanned, ReplayError> {
-        Self::scan_as(dir, false, &mut each)
+        Self::scan_as(dir, Reading::Partial, &mut each)
     }
 
-    fn read_as(dir: &Path, whole: bool) -> Result<Self, ReplayError> {
+    fn read_as(dir: &Path, reading: Reading) -> Result<Self, ReplayError> {
         let mut records = Vec::new();
-        let scanned = Self::scan_as(dir, whole, &mut |t, r| records.push((t, r)))?;
-        Ok(Self {
-            setup: scanned.setup,
-            records,
-            ended: scanned.ended,
-            cut: scanned.cut,
-        })
+        let scanned = Self::scan_as(dir, reading, &mut |t, r| records.push((t, r)))?;
+        Ok(Self::of(scanned, records))
     }
 
     #[allow(clippy::too_many_lines)]
     fn scan_as(
         dir: &Path,
-        whole: bool,
+        reading: Reading,
         each: &mut dyn FnMut(Duration, Recorded),
     ) -> Result<Scanned, ReplayError> {
+        let whole = reading != Reading::Partial;
         let io = |path: PathBuf| move |source| ReplayError::Io { path, source };
         let (session_path, session) = session_of(dir)?;
         if whole && dir.join("lines.1.jsonl").exists() {
@@ -616,17 +726,27 @@ impl Recording {
         };
         let (written, dropped) = (count("written")?, count("dropped")?);
         count("bytes")?;
-        if let Some(n) = dropped
-            && n > 0
-            && whole
-        {
-            return Err(ReplayError::Incomplete(format!(
-                "the recording dropped {n} records (a full queue or disk): its inputs may not all be there"
-            )));
+        let ended_wall_ms = count("ended_wall_ms")?;
+        let dropped_first = count("dropped_first_us")?;
+        let dropped_last = count("dropped_last_us")?;
+        let dropped = dropped.unwrap_or(0);
+        // Since `complete` (counts written from the start, kept in place),
+        // a recording ended cleanly has its end; before, its counts.
+        let ended = if session.get("complete").is_some() {
+            ended_wall_ms.is_some()
+        } else {
+            written.is_some()
+        };
+        if dropped > 0 && reading == Reading::Whole {
+            return Err(ReplayError::Incomplete(
+                incompleteness(true, dropped, None).unwrap_or_default(),
+            ));
         }
+        // Checked against its files: a recording that lost nothing and
+        // ended cleanly.
+        let whole_and_complete = whole && ended && dropped == 0;
         let setup = setup_in(&session)?;
         let lines_path = dir.join("lines.jsonl");
-        let ended = written.is_some();
         // Times from the start; a record's `taken` too.
         let hand =
             |start: u64, t: u64, mut r: Recorded, each: &mut dyn FnMut(Duration, Recorded)| {
@@ -641,7 +761,7 @@ impl Recording {
         // before it (or there is none), from reading the file once first,
         // so those need not all be held.
         let mut known_start = None;
-        let (count, frames, cut) = 'read: loop {
+        let (count, frames, cut, start) = 'read: loop {
             let mut lines = std::io::BufReader::new(open_capped(&lines_path, MAX_LINES_FILE)?);
             // The records before the start mark, held until it comes.
             let mut before_start = Vec::new();
@@ -665,11 +785,12 @@ impl Recording {
                 let complete = piece.ends_with(b"\n");
                 let v: Value = match parse_line(&piece) {
                     Ok(v) => v,
-                    // The last line of a recording that never ended, with
-                    // no newline: a write the kill cut short. What came
-                    // before it is the recording; anywhere else a line
-                    // that is not JSON is damage, and refused.
-                    Err(_) if !ended && !complete => {
+                    // The last line of a recording that never ended or
+                    // whose disk failed, with no newline: a write the kill
+                    // or the disk cut short. What came before it is the
+                    // recording; anywhere else a line that is not JSON is
+                    // damage, and refused.
+                    Err(_) if (!ended || dropped > 0) && !complete => {
                         cut = true;
                         break;
                     }
@@ -681,10 +802,7 @@ impl Recording {
                     .ok_or_else(|| bad("no t_us".to_owned()))?;
                 let r = parse_record(&v).map_err(bad)?;
                 count += 1;
-                if whole
-                    && ended
-                    && let Recorded::Frame { frame, .. } = &r
-                {
+                if whole_and_complete && let Recorded::Frame { frame, .. } = &r {
                     frames.push(*frame);
                 }
                 match start {
@@ -717,11 +835,11 @@ impl Recording {
             for (t, r) in before_start {
                 hand(0, t, r, each);
             }
-            break (count, frames, cut);
+            break (count, frames, cut, start.unwrap_or(0));
         };
         // A recording that ended cleanly says how many records it wrote:
         // fewer in the file is a recording cut short.
-        if whole
+        if whole_and_complete
             && let Some(n) = written
             && n != count
         {
@@ -729,7 +847,7 @@ impl Recording {
                 "session.json says {n} records were written, lines.jsonl holds {count}: the recording was cut short or edited"
             )));
         }
-        if whole && ended {
+        if whole_and_complete {
             let frames_path = dir.join("frames.log");
             let log = read_capped(&frames_path, MAX_LINES_FILE)?;
             same_frames(
@@ -739,7 +857,18 @@ impl Recording {
                 dir.join("frames.1.log").exists(),
             )?;
         }
-        Ok(Scanned { setup, ended, cut })
+        let since = |t: u64| Duration::from_micros(t.saturating_sub(start));
+        let dropped_span = match (dropped_first, dropped_last) {
+            (Some(a), Some(b)) if dropped > 0 => Some((since(a), since(b.max(a)))),
+            _ => None,
+        };
+        Ok(Scanned {
+            setup,
+            ended,
+            cut,
+            dropped,
+            dropped_span,
+        })
     }
 
     /// The input records (lines and marks), in the order the bridge took
@@ -1253,21 +1382,47 @@ pub fn replay(
     Ok(out)
 }
 
+/// What [`frame_key`] has met so far of a session's frames: the requests
+/// (a request met again is a retry) and each moteus controller's last
+/// command (the same again is a held move's refresh or a repeated stop).
+#[derive(Debug, Default, Clone)]
+pub struct FramesSeen {
+    requests: HashSet<(u16, u32)>,
+    moteus: HashMap<String, String>,
+}
+
 /// What a frame the bridge sent says, read in its device's dialect,
 /// without what the clock decides: `None` for a frame a comparison leaves
-/// out (the heartbeat). `seen` holds the requests met so far (a request
-/// met again is a retry: `None`).
+/// out (the heartbeat, a retry, a moteus poll, a moteus command the same
+/// as the one before it). `seen` holds what was met so far.
 ///
 /// Returns the stream (whose it is) and what it says.
 pub fn frame_key(
     map: &BusMap,
     wire: WireVersion,
     frame: &Frame,
-    seen: &mut HashSet<(u16, u32)>,
+    seen: &mut FramesSeen,
 ) -> Option<(String, String)> {
     let id = frame.id();
     let data = frame.data();
     if id.is_extended() {
+        for m in map.motors() {
+            if let Target::Moteus { id: node, bus, .. } = m.target
+                && crate::device::moteus::addressed(id.raw(), node, bus) == Some(false)
+            {
+                // A subframe that writes registers comes first in a
+                // command (type 0x0_); a poll only reads (0x1_).
+                if data.first().is_none_or(|b| b >> 4 != 0) {
+                    return None;
+                }
+                let key = hex(data);
+                if seen.moteus.get(&m.name) == Some(&key) {
+                    return None;
+                }
+                seen.moteus.insert(m.name.clone(), key.clone());
+                return Some((format!("frames to {}", m.name), key));
+            }
+        }
         return Some((format!("frames on {:#x}", id.raw()), hex(data)));
     }
     for m in map.motors() {
@@ -1311,7 +1466,7 @@ pub fn frame_key(
             ..
         }) => None,
         Ok(msg) => {
-            if !seen.insert((target, msg.header.msg_id)) {
+            if !seen.requests.insert((target, msg.header.msg_id)) {
                 return None;
             }
             Some((stream, format!("{:?}", msg.payload)))
@@ -1565,7 +1720,7 @@ fn streams(
     wire: WireVersion,
 ) -> BTreeMap<String, Vec<Item>> {
     let mut s: BTreeMap<String, Vec<Item>> = BTreeMap::new();
-    let mut seen = HashSet::new();
+    let mut seen = FramesSeen::default();
     for (at, r) in records {
         let at = *at;
         match r {
@@ -1657,10 +1812,11 @@ pub fn compare(
         }
         for i in 0..n {
             let (p, q) = (x.get(i), y.get(i));
-            if p.is_none() && !recording.ended {
-                // A recording that did not end (the bridge was killed) is
-                // compared up to its last record: what the replay gave
-                // after it has nothing recorded to be compared with.
+            if p.is_none() && !recording.is_complete() {
+                // A recording that did not end (the bridge was killed) or
+                // that lost records (its disk filled) is compared up to
+                // its last record: what the replay gave after it has
+                // nothing recorded to be compared with.
                 break;
             }
             if let (Some(p), Some(q)) = (p, q)
@@ -1743,8 +1899,8 @@ node = 0x20
     fn a_frame_key_leaves_out_what_the_clock_decides() {
         let map = BusMap::from_toml(MAP).unwrap();
         let w = WireVersion::V2_0;
-        let mut seen = HashSet::new();
-        let key = |f: &Frame, seen: &mut HashSet<(u16, u32)>| frame_key(&map, w, f, seen);
+        let mut seen = FramesSeen::default();
+        let key = |f: &Frame, seen: &mut FramesSeen| frame_key(&map, w, f, seen);
         let a = key(&irpc(0x12, 7, Payload::Activate), &mut seen).unwrap();
         assert_eq!(a, ("frames to elbow".to_owned(), "Activate".to_owned()));
         // The same request again (a retry): left out.
@@ -1771,6 +1927,45 @@ node = 0x20
         assert_eq!(
             key(&odd, &mut seen).unwrap(),
             ("frames on 0x7".to_owned(), "ffffff".to_owned())
+        );
+    }
+
+    /// A moteus controller's frames: its polls (reads alone) and a
+    /// command the same as the one before it (a held move's refresh, a
+    /// repeated stop) are the clock's and left out; a command that
+    /// differs is kept, keyed to its motor.
+    #[test]
+    fn a_moteus_controllers_polls_and_refreshes_are_left_out() {
+        let map = BusMap::from_toml(
+            "[motors.hip]\ndialect = \"moteus\"\nid = 1\nlimits = { min_position = -90, max_position = 90, max_velocity = 180, max_acceleration = 720 }\n",
+        )
+        .unwrap();
+        let mut seen = FramesSeen::default();
+        let frame = |hex: &str| {
+            let data: Vec<u8> = (0..hex.len())
+                .step_by(2)
+                .map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap())
+                .collect();
+            // From the bridge (source 0) to controller 1, asking a reply.
+            Frame::fd(CanId::extended(0x8001).unwrap(), &data).unwrap()
+        };
+        let mut key = |hex: &str| frame_key(&map, WireVersion::V2_0, &frame(hex), &mut seen);
+        let poll = "11001f01130d";
+        let position = "01000a0e200000003e0000000011001f01130d50";
+        let stop = "01000011001f01130d505050";
+        assert_eq!(key(poll), None);
+        let kept = key(position).unwrap();
+        assert_eq!(kept, ("frames to hip".to_owned(), position.to_owned()));
+        assert_eq!(key(poll), None);
+        assert_eq!(key(position), None);
+        assert_eq!(key(stop).unwrap().1, stop);
+        assert_eq!(key(stop), None);
+        assert_eq!(key(position).unwrap(), kept);
+        // Another controller's id on the bus: read as its bytes.
+        let other = Frame::fd(CanId::extended(0x8005).unwrap(), &[0x01, 0x00, 0x00]).unwrap();
+        assert_eq!(
+            frame_key(&map, WireVersion::V2_0, &other, &mut seen).unwrap(),
+            ("frames on 0x8005".to_owned(), "010000".to_owned())
         );
     }
 
@@ -1897,6 +2092,105 @@ node = 0x20
         fs::write(dir.join("lines.jsonl"), &cut).unwrap();
         let e = Recording::read(&dir).unwrap_err().to_string();
         assert!(e.contains("lines.jsonl:3: EOF while parsing"), "{e}");
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    /// A recording's `session.json` says whether it is whole: since the
+    /// counts are written from the start, by its end (`ended_wall_ms`) and
+    /// its `dropped`; before, by its counts alone. One that dropped
+    /// records is refused for a replay, or read as far as it goes when
+    /// allowed (its last line, cut by the failed disk, left out; its counts
+    /// not checked against its files), saying what it lost and when, from
+    /// the start mark.
+    #[test]
+    fn a_recording_that_lost_records_is_read_only_when_allowed() {
+        let dir =
+            std::env::temp_dir().join(format!("motorwire-replay-lossy-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let whole = "{\"t_us\":100,\"wall_ms\":1,\"mark\":{\"kind\":\"start\"}}\n\
+                     {\"t_us\":150,\"wall_ms\":1,\"in\":{\"origin\":0,\"line\":1,\"text\":\"{}\"}}\n";
+        let cut = format!("{whole}{{\"t_us\":200,\"wall_ms\":1,\"out\":{{\"fe");
+        let session = |counts: &str| {
+            format!(r#"{{"recorder":"motorwire","files":["frames.log","lines.jsonl"]{counts}}}   "#)
+        };
+        fs::write(dir.join("lines.jsonl"), &cut).unwrap();
+        // Ended, three records dropped from 1.1 ms to 2.1 ms on the
+        // recording's clock (1 ms to 2 ms from its start), one of the two
+        // written records counted dropped (the flush that failed).
+        fs::write(
+            dir.join("session.json"),
+            session(
+                r#","complete":false,"written":1,"dropped":3,"bytes":9,"dropped_first_us":1100,"dropped_last_us":2100,"ended_wall_ms":5"#,
+            ),
+        )
+        .unwrap();
+        let e = Recording::read_to_replay(&dir).unwrap_err().to_string();
+        assert!(e.starts_with("the recording dropped 3 records"), "{e}");
+        let r = Recording::read_to_replay_lossy(&dir).unwrap();
+        assert!(r.ended && r.cut && !r.is_complete());
+        assert_eq!(r.records.len(), 2);
+        assert_eq!(r.dropped, 3);
+        assert_eq!(
+            r.dropped_span,
+            Some((Duration::from_millis(1), Duration::from_millis(2)))
+        );
+        assert_eq!(
+            r.incomplete().unwrap(),
+            "the recording dropped 3 records (its queue or its disk could not take them, from 0.001 s to 0.002 s): its inputs and outputs may not all be there"
+        );
+        let s = Recording::scan_partial(&dir, |_, _| {}).unwrap();
+        assert_eq!((s.dropped, s.dropped_span), (r.dropped, r.dropped_span));
+        assert_eq!(s.incomplete(), r.incomplete());
+        // Written from the start, never ended (the writer killed): counts
+        // there, the end not.
+        fs::write(dir.join("lines.jsonl"), whole).unwrap();
+        fs::write(
+            dir.join("session.json"),
+            session(r#","complete":false,"written":2,"dropped":0,"bytes":9"#),
+        )
+        .unwrap();
+        let r = Recording::read_to_replay(&dir).unwrap();
+        assert!(!r.ended && !r.is_complete() && r.dropped == 0);
+        assert!(
+            r.incomplete()
+                .unwrap()
+                .starts_with("the recording did not end cleanly"),
+            "{:?}",
+            r.incomplete()
+        );
+        // Ended and whole: complete, and checked against its counts.
+        fs::write(dir.join("frames.log"), "").unwrap();
+        fs::write(
+            dir.join("session.json"),
+            session(r#","complete":true,"written":2,"dropped":0,"bytes":9,"ended_wall_ms":5"#),
+        )
+        .unwrap();
+        for r in [
+            Recording::read_to_replay(&dir).unwrap(),
+            Recording::read_to_replay_lossy(&dir).unwrap(),
+        ] {
+            assert!(r.is_complete() && r.incomplete().is_none());
+        }
+        fs::write(
+            dir.join("session.json"),
+            session(r#","complete":true,"written":3,"dropped":0,"bytes":9,"ended_wall_ms":5"#),
+        )
+        .unwrap();
+        let e = Recording::read_to_replay_lossy(&dir)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("session.json says 3 records were written"),
+            "{e}"
+        );
+        // Before the counts were written from the start: its counts are its
+        // end.
+        fs::write(
+            dir.join("session.json"),
+            session(r#","written":2,"dropped":0,"bytes":9"#),
+        )
+        .unwrap();
+        assert!(Recording::read(&dir).unwrap().is_complete());
         let _ = fs::remove_dir_all(&dir);
     }
 
@@ -2065,6 +2359,8 @@ node = 0x20
             setup: None,
             ended: true,
             cut: false,
+            dropped: 0,
+            dropped_span: None,
             records: vec![
                 (ms(1), out(Some(1), json!({"ok": true, "line": 1}))),
                 (ms(2), out(Some(2), json!({"ok": true, "line": 1}))),
@@ -2132,6 +2428,11 @@ node = 0x20
         let c = cmp(&killed, &replayed);
         assert_eq!(c.divergence, None);
         assert_eq!((c.answers, c.events, c.frames, c.orion_lines), (2, 1, 1, 0));
+        // So is one that ended but lost records (its disk filled).
+        let mut lossy = recording.clone();
+        lossy.dropped = 4;
+        assert!(!lossy.is_complete());
+        assert_eq!(cmp(&lossy, &replayed).divergence, None);
         replayed.records[3].1 = out(None, json!({"event": "released"}));
         let c = cmp(&killed, &replayed);
         let d = c.divergence.unwrap();

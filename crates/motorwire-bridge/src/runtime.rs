@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use motorwire_can::{CanBus, Error as CanError, Frame};
 
 use std::collections::BTreeMap;
-use std::sync::{Condvar, Mutex, PoisonError};
+use std::sync::{Condvar, Mutex, OnceLock, PoisonError};
 
 use crate::record::{Direction, Mark, Recorder, Tap, Taps};
 use crate::{Bridge, BridgeError, Event, Origin, Output, asks_for_stop};
@@ -106,6 +106,11 @@ enum Msg {
         number: u64,
         text: String,
         at: Instant,
+        /// What the line is, read on its reader's thread (the bridge's
+        /// own validator): the engine's thread does not parse it again, so
+        /// a heavy line costs its own client's thread, never another
+        /// client's stop. `None` before the runner knows its bridge.
+        input: Option<Box<crate::classify::Input>>,
     },
     Refused {
         origin: Origin,
@@ -189,6 +194,9 @@ impl Urgent {
 #[derive(Debug, Clone)]
 pub struct InputSender {
     tx: Sender<Msg>,
+    /// The bridge's validator, once the runner has its bridge: lines are
+    /// read with it where they are read.
+    validator: Arc<OnceLock<motorwire_wia::Validator>>,
     urgent: Urgent,
     numbers: Arc<Mutex<BTreeMap<Origin, u64>>>,
     budget: Arc<Budget>,
@@ -223,19 +231,92 @@ impl InputSender {
     /// [`MAX_QUEUED_PER_ORIGIN`] of `origin`'s lines are still waiting for
     /// the runner (a stop waits only behind other stops).
     pub fn line(&self, origin: Origin, text: impl Into<String>) {
+        if let Some(read) = self.stamp(origin, text) {
+            self.hand(read);
+        }
+    }
+
+    /// A line of `origin`'s, read now: numbered and timed (when it reached
+    /// the bridge) at once, to be handed over with [`InputSender::hand`],
+    /// maybe later, behind lines read before it; `None` for a blank line
+    /// (not counted, never answered). Lines stamped and handed so are
+    /// answered as [`InputSender::line`] answers them.
+    pub fn stamp(&self, origin: Origin, text: impl Into<String>) -> Option<Stamped> {
         let text = text.into();
         if text.trim().is_empty() {
-            return;
+            return None;
         }
+        // When the line reached the bridge (read whole), taken before any
+        // wait for the runner: a line read before a stop, kept waiting
+        // behind its client's earlier lines, was written before it.
+        let at = Instant::now();
         let urgent = asks_for_stop(text.trim());
-        self.budget.take(origin, urgent, text.len());
-        let number = self.number(origin);
-        let msg = Msg::Line {
+        Some(Stamped {
+            origin,
+            number: self.number(origin),
+            at,
+            urgent,
+            what: Stamp::Line(text),
+        })
+    }
+
+    /// A line of `origin`'s that could not be taken, stamped as
+    /// [`InputSender::stamp`] does: answered with an error (`reason`), or,
+    /// when `stop`, taken as a stop; `bytes`: its first bytes and length,
+    /// for the recording.
+    fn stamp_refused(
+        &self,
+        origin: Origin,
+        reason: String,
+        stop: bool,
+        bytes: Option<(Vec<u8>, u64)>,
+    ) -> Stamped {
+        Stamped {
+            origin,
+            number: self.number(origin),
+            at: Instant::now(),
+            urgent: stop,
+            what: Stamp::Refused { reason, bytes },
+        }
+    }
+
+    /// Hands a line stamped by this sender to the runner. Waits while
+    /// [`MAX_QUEUED_PER_ORIGIN`] of its origin's lines are still waiting
+    /// for the runner (a stop waits only behind other stops); a stop
+    /// overtakes every line handed before it.
+    pub fn hand(&self, read: Stamped) {
+        let Stamped {
             origin,
             number,
-            text,
-            at: Instant::now(),
+            at,
+            urgent,
+            what,
+        } = read;
+        let msg = match what {
+            Stamp::Line(text) => {
+                // Read here, with the bridge's validator (once the runner
+                // has its bridge): never on the engine's thread.
+                let input = self
+                    .validator
+                    .get()
+                    .map(|v| Box::new(crate::classify::classify(v, text.trim())));
+                Msg::Line {
+                    origin,
+                    number,
+                    text,
+                    at,
+                    input,
+                }
+            }
+            Stamp::Refused { reason, bytes } => Msg::Refused {
+                origin,
+                number,
+                reason,
+                stop: urgent,
+                bytes,
+            },
         };
+        self.budget.take(origin, urgent, queued_bytes(&msg));
         if urgent {
             let _ = self.urgent.send(msg);
             let _ = self.tx.send(Msg::Wake);
@@ -247,31 +328,14 @@ impl InputSender {
     /// A line that could not be taken (too long, not UTF-8): answered with
     /// an error, never sent.
     pub fn refused(&self, origin: Origin, reason: impl Into<String>) {
-        self.budget.take(origin, false, 0);
-        let number = self.number(origin);
-        let _ = self.tx.send(Msg::Refused {
-            origin,
-            number,
-            reason: reason.into(),
-            stop: false,
-            bytes: None,
-        });
+        self.hand(self.stamp_refused(origin, reason.into(), false, None));
     }
 
     /// A line that could not be taken but names `emergency_stop`: when in
     /// doubt, stop. It overtakes the lines queued before it, as a stop does
     /// ([`Bridge::handle_numbered_unreadable_stop`]).
     pub fn refused_stop(&self, origin: Origin, reason: impl Into<String>) {
-        self.budget.take(origin, true, 0);
-        let number = self.number(origin);
-        let _ = self.urgent.send(Msg::Refused {
-            origin,
-            number,
-            reason: reason.into(),
-            stop: true,
-            bytes: None,
-        });
-        let _ = self.tx.send(Msg::Wake);
+        self.hand(self.stamp_refused(origin, reason.into(), true, None));
     }
 
     /// A line that could not be read (`reason`: too long, not UTF-8),
@@ -284,25 +348,23 @@ impl InputSender {
         origin: Origin,
         reason: impl Into<String>,
         stop: bool,
-        mut head: Vec<u8>,
+        head: Vec<u8>,
         length: u64,
     ) {
+        self.hand(self.stamp_unreadable(origin, reason.into(), stop, head, length));
+    }
+
+    /// [`InputSender::unreadable`], stamped to be handed over later.
+    fn stamp_unreadable(
+        &self,
+        origin: Origin,
+        reason: String,
+        stop: bool,
+        mut head: Vec<u8>,
+        length: u64,
+    ) -> Stamped {
         head.truncate(UNREADABLE_HEAD);
-        self.budget.take(origin, stop, 0);
-        let number = self.number(origin);
-        let msg = Msg::Refused {
-            origin,
-            number,
-            reason: reason.into(),
-            stop,
-            bytes: Some((head, length)),
-        };
-        if stop {
-            let _ = self.urgent.send(msg);
-            let _ = self.tx.send(Msg::Wake);
-        } else {
-            let _ = self.tx.send(msg);
-        }
+        self.stamp_refused(origin, reason, stop, Some((head, length)))
     }
 
     /// How many lines of `origin` were handed over (each gets one result),
@@ -354,6 +416,55 @@ impl InputSender {
     pub fn interrupt(&self) {
         let _ = self.urgent.send(Msg::Interrupt);
         let _ = self.tx.send(Msg::Wake);
+    }
+}
+
+/// A line read from an input, numbered and timed (its arrival) when it
+/// was read, not yet handed to the runner ([`InputSender::stamp`],
+/// [`InputSender::hand`]): a reader may read ahead of what it hands over,
+/// and each line keeps its place and its arrival.
+#[derive(Debug)]
+pub struct Stamped {
+    origin: Origin,
+    number: u64,
+    at: Instant,
+    /// A stop: it overtakes the lines handed before it.
+    urgent: bool,
+    what: Stamp,
+}
+
+/// What a [`Stamped`] line is.
+#[derive(Debug)]
+enum Stamp {
+    Line(String),
+    /// Not taken (`reason`); its first bytes and length, if read.
+    Refused {
+        reason: String,
+        bytes: Option<(Vec<u8>, u64)>,
+    },
+}
+
+impl Stamped {
+    /// Its number among its origin's lines (from 1), as its result says.
+    #[must_use]
+    pub const fn number(&self) -> u64 {
+        self.number
+    }
+
+    /// Whether it is taken as a stop (it asks for one, or it could not be
+    /// read and names `emergency_stop`): it never waits behind the lines
+    /// read before it.
+    #[must_use]
+    pub const fn is_stop(&self) -> bool {
+        self.urgent
+    }
+
+    /// The bytes it holds against its origin's budgets.
+    fn bytes(&self) -> usize {
+        match &self.what {
+            Stamp::Line(text) => text.len(),
+            Stamp::Refused { .. } => 0,
+        }
     }
 }
 
@@ -599,9 +710,26 @@ pub fn feed_withholding(
     partial_is_line: bool,
     secret: Option<Secret<'_>>,
 ) -> io::Result<()> {
+    read_stamped(input, origin, reader, partial_is_line, secret, |read| {
+        input.hand(read);
+        true
+    })
+}
+
+/// Reads `reader`'s lines as [`feed_withholding`] does, each stamped as it
+/// is read and given to `put`, until the input ends or `put` says `false`
+/// (nothing more is read).
+fn read_stamped(
+    input: &InputSender,
+    origin: Origin,
+    reader: &mut impl BufRead,
+    partial_is_line: bool,
+    secret: Option<Secret<'_>>,
+    mut put: impl FnMut(Stamped) -> bool,
+) -> io::Result<()> {
     let take = |s: String| match secret.filter(|k| k.in_line(&s)) {
-        Some(k) => input.refused(origin, k.reason),
-        None => input.line(origin, s),
+        Some(k) => Some(input.stamp_refused(origin, k.reason.to_owned(), false, None)),
+        None => input.stamp(origin, s),
     };
     let head = |h: Vec<u8>| {
         if secret.is_some_and(|k| k.in_head(&h)) {
@@ -611,35 +739,215 @@ pub fn feed_withholding(
         }
     };
     loop {
-        match read_line(reader, input.max_line)? {
-            ReadLine::Line(s) => take(s),
+        let (read, last) = match read_line(reader, input.max_line)? {
+            ReadLine::Line(s) => (take(s), false),
             ReadLine::TooLong {
                 names_stop,
                 head: h,
                 length,
-            } => input.unreadable(origin, input.too_long(), names_stop, head(h), length),
+            } => (
+                Some(input.stamp_unreadable(origin, input.too_long(), names_stop, head(h), length)),
+                false,
+            ),
             ReadLine::NotUtf8 {
                 names_stop,
                 head: h,
                 length,
-            } => input.unreadable(origin, "the line is not UTF-8", names_stop, head(h), length),
-            ReadLine::Partial(s) if partial_is_line => {
-                take(s);
-                return Ok(());
-            }
-            ReadLine::Partial(s) => {
-                input.refused(
+            } => (
+                Some(input.stamp_unreadable(
+                    origin,
+                    "the line is not UTF-8".to_owned(),
+                    names_stop,
+                    head(h),
+                    length,
+                )),
+                false,
+            ),
+            ReadLine::Partial(s) if partial_is_line => (take(s), true),
+            ReadLine::Partial(s) => (
+                Some(input.stamp_refused(
                     origin,
                     format!(
                         "the input ended in the middle of a line ({} bytes without a newline); it was not taken",
                         s.len()
                     ),
-                );
-                return Ok(());
-            }
+                    false,
+                    None,
+                )),
+                true,
+            ),
             ReadLine::End => return Ok(()),
+        };
+        if let Some(read) = read
+            && !put(read)
+        {
+            return Ok(());
+        }
+        if last {
+            return Ok(());
         }
     }
+}
+
+/// Lines of one origin read ahead of what [`feed_gated`] hands over, at
+/// most (and their bytes within [`MAX_QUEUED_BYTES_PER_ORIGIN`], a line
+/// alone always taken): a stop read behind them is handed over at once.
+pub const MAX_READ_AHEAD: usize = 1024;
+
+/// Whether an origin's lines may go on to the runner: [`feed_gated`] asks
+/// before each. The bridge's owner holds back a reader that is behind on
+/// its results (its input is not read meanwhile, so it is slowed to the
+/// pace it reads at), and cuts off one that stopped reading.
+pub trait Gate: Sync {
+    /// Before the origin's next line that is not a stop: waits while it
+    /// must, and counts the line as handed over (it is owed a result).
+    /// `false`: the origin is cut off; this line and those after it are
+    /// not handed over.
+    fn admit(&self) -> bool;
+
+    /// A stop of the origin's is handed over now: it never waits.
+    fn admit_stop(&self) {}
+}
+
+/// What the reader of [`feed_gated`] read and the feeder has not handed
+/// over yet.
+#[derive(Debug, Default)]
+struct Held {
+    lines: std::collections::VecDeque<Stamped>,
+    bytes: usize,
+    /// Nothing more comes: the input ended.
+    ended: bool,
+    /// The feeder stopped (the origin was cut off): nothing more is taken.
+    closed: bool,
+    /// The reader or the feeder waits for the other.
+    reader_waits: bool,
+    feeder_waits: bool,
+}
+
+/// [`Held`], shared by the reader and the feeder.
+#[derive(Debug, Default)]
+struct ReadAhead {
+    state: Mutex<Held>,
+    moved: Condvar,
+}
+
+impl ReadAhead {
+    /// Waits for room, then queues `read`; `false` once the feeder stopped.
+    fn push(&self, read: Stamped) -> bool {
+        let mut a = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        while !a.closed
+            && !a.lines.is_empty()
+            && (a.lines.len() >= MAX_READ_AHEAD
+                || a.bytes.saturating_add(read.bytes()) > MAX_QUEUED_BYTES_PER_ORIGIN)
+        {
+            a.reader_waits = true;
+            a = self.moved.wait(a).unwrap_or_else(PoisonError::into_inner);
+        }
+        a.reader_waits = false;
+        if a.closed {
+            return false;
+        }
+        a.bytes = a.bytes.saturating_add(read.bytes());
+        a.lines.push_back(read);
+        if a.feeder_waits {
+            self.moved.notify_all();
+        }
+        true
+    }
+
+    /// The next line, waiting for one; `None` once the input ended and
+    /// every line was taken.
+    fn pop(&self) -> Option<Stamped> {
+        let mut a = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        loop {
+            if let Some(read) = a.lines.pop_front() {
+                a.bytes = a.bytes.saturating_sub(read.bytes());
+                a.feeder_waits = false;
+                if a.reader_waits {
+                    self.moved.notify_all();
+                }
+                return Some(read);
+            }
+            if a.ended {
+                return None;
+            }
+            a.feeder_waits = true;
+            a = self.moved.wait(a).unwrap_or_else(PoisonError::into_inner);
+        }
+    }
+
+    /// The input ended (the reader is done).
+    fn end(&self) {
+        let mut a = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        a.ended = true;
+        self.moved.notify_all();
+    }
+
+    /// The feeder stopped: what is queued is dropped, and the reader stops.
+    fn close(&self) {
+        let mut a = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        a.closed = true;
+        a.lines.clear();
+        a.bytes = 0;
+        self.moved.notify_all();
+    }
+}
+
+/// [`feed_withholding`] through a [`Gate`]: each line is numbered and
+/// timed (its arrival) as it is read; a stop is handed over at once, and
+/// every other line in order once `gate` admits it. The input is read up
+/// to [`MAX_READ_AHEAD`] lines ahead of what the gate lets through (then
+/// it waits), so a stop a held-back client sends behind its lines still
+/// overtakes them. A line the gate refuses, and those after it, are
+/// dropped, and reading ends. Returns once every line read was handed
+/// over or dropped.
+///
+/// # Errors
+/// The reader's, once the lines read before were handed over.
+pub fn feed_gated(
+    input: &InputSender,
+    origin: Origin,
+    reader: &mut impl BufRead,
+    partial_is_line: bool,
+    secret: Option<Secret<'_>>,
+    gate: &dyn Gate,
+) -> io::Result<()> {
+    let ahead = ReadAhead::default();
+    thread::scope(|scope| {
+        let feeder = thread::Builder::new().spawn_scoped(scope, || {
+            while let Some(read) = ahead.pop() {
+                if !gate.admit() {
+                    ahead.close();
+                    return;
+                }
+                input.hand(read);
+            }
+        });
+        if feeder.is_err() {
+            // No thread for the feeder: each line waits for the gate as it
+            // is read (a stop then waits behind the line before it).
+            return read_stamped(input, origin, reader, partial_is_line, secret, |read| {
+                if read.is_stop() {
+                    gate.admit_stop();
+                } else if !gate.admit() {
+                    return false;
+                }
+                input.hand(read);
+                true
+            });
+        }
+        let read = read_stamped(input, origin, reader, partial_is_line, secret, |read| {
+            if read.is_stop() {
+                gate.admit_stop();
+                input.hand(read);
+                true
+            } else {
+                ahead.push(read)
+            }
+        });
+        ahead.end();
+        read
+    })
 }
 
 /// Runs a [`Bridge`] in real time: `tx` sends its frames, a thread
@@ -656,6 +964,7 @@ pub struct Runner {
     orion: Option<OrionPort>,
     max_line: usize,
     taps: Vec<Arc<dyn Tap>>,
+    validator: Arc<OnceLock<motorwire_wia::Validator>>,
 }
 
 impl Default for Runner {
@@ -682,6 +991,7 @@ impl Runner {
             orion: None,
             max_line: DEFAULT_MAX_LINE,
             taps: Vec::new(),
+            validator: Arc::default(),
         }
     }
 
@@ -726,6 +1036,7 @@ impl Runner {
     pub fn input(&self) -> InputSender {
         InputSender {
             tx: self.tx.clone(),
+            validator: Arc::clone(&self.validator),
             urgent: self.urgent_tx.clone(),
             numbers: Arc::clone(&self.numbers),
             budget: Arc::clone(&self.budget),
@@ -830,6 +1141,8 @@ impl Runner {
             bridge.anchor_epoch(wall.as_secs_f64() * 1000.0);
         }
         let since = |at: Instant| at.saturating_duration_since(start);
+        // From now on, lines are read where they are read.
+        let _ = self.validator.set(bridge.validator().clone());
         let stop_waiting = Arc::clone(&self.urgent_tx.waiting);
         let stop = Arc::new(AtomicBool::new(false));
         // Frames from the bus have a channel of their own, read ahead of
@@ -980,9 +1293,10 @@ impl Runner {
                         number,
                         text,
                         at,
+                        input,
                     } => {
                         let taken = Instant::now();
-                        bridge.handle_numbered_line(since(at), origin, number, &text);
+                        bridge.handle_read_line(since(at), origin, number, &text, input);
                         if rec.is_some() {
                             handled.push((at, taken, origin, number, text));
                         }
@@ -1065,11 +1379,12 @@ impl Runner {
                     number,
                     text,
                     at,
+                    input,
                 }) => {
                     // Told to the taps once its frames are out, the line
                     // moved to them.
                     let taken = Instant::now();
-                    bridge.handle_numbered_line(since(at), origin, number, &text);
+                    bridge.handle_read_line(since(at), origin, number, &text, input);
                     if rec.is_some() {
                         handled.push((at, taken, origin, number, text));
                     }
@@ -1159,6 +1474,7 @@ fn record_input(r: &dyn Tap, msg: &Msg) {
             number,
             text,
             at,
+            ..
         } => r.input(*at, *origin, *number, text),
         Msg::Refused {
             origin,
@@ -1466,5 +1782,109 @@ mod tests {
             q.get(&(o, false)),
             Some(&(1, MAX_QUEUED_BYTES_PER_ORIGIN * 2))
         );
+    }
+
+    /// A gate shut until opened, or for good.
+    #[derive(Default)]
+    struct Shut {
+        open: Mutex<Option<bool>>,
+        changed: Condvar,
+        admitted: AtomicUsize,
+        stops: AtomicUsize,
+    }
+
+    impl Shut {
+        fn set(&self, open: bool) {
+            *self.open.lock().unwrap_or_else(PoisonError::into_inner) = Some(open);
+            self.changed.notify_all();
+        }
+    }
+
+    impl Gate for Shut {
+        fn admit(&self) -> bool {
+            let mut open = self.open.lock().unwrap_or_else(PoisonError::into_inner);
+            while open.is_none() {
+                open = self
+                    .changed
+                    .wait(open)
+                    .unwrap_or_else(PoisonError::into_inner);
+            }
+            let go = *open == Some(true);
+            if go {
+                self.admitted.fetch_add(1, Ordering::SeqCst);
+            }
+            go
+        }
+
+        fn admit_stop(&self) {
+            self.stops.fetch_add(1, Ordering::SeqCst);
+        }
+    }
+
+    /// What a message handed to the runner is: (number, text or reason).
+    fn handed(msg: Msg) -> Option<(u64, String)> {
+        match msg {
+            Msg::Line { number, text, .. } => Some((number, text)),
+            Msg::Refused { number, reason, .. } => Some((number, reason)),
+            _ => None,
+        }
+    }
+
+    /// Lines fed through a shut gate wait for it, read ahead and numbered
+    /// in the order they were read; a stop read behind them is handed over
+    /// at once, with its own number; once the gate opens the others follow
+    /// in order.
+    #[test]
+    #[allow(clippy::unwrap_used)]
+    fn a_stop_read_behind_held_lines_is_handed_over_at_once() {
+        let runner = Runner::new();
+        let input = runner.input();
+        let gate = Arc::new(Shut::default());
+        let text: &[u8] = b"{\"a\":1}\n\n{\"a\":2}\n{\"emergency_stop\":true}\n\xff\n{\"a\":3}";
+        let feeder = {
+            let gate = Arc::clone(&gate);
+            thread::spawn(move || {
+                let mut r = io::Cursor::new(text.to_vec());
+                feed_gated(&input, Origin(4), &mut r, true, None, &*gate)
+            })
+        };
+        let (number, stop) =
+            handed(runner.urgent.recv_timeout(Duration::from_secs(10)).unwrap()).unwrap();
+        assert_eq!((number, stop.as_str()), (3, "{\"emergency_stop\":true}"));
+        assert_eq!(gate.stops.load(Ordering::SeqCst), 1);
+        // Nothing else went while the gate was shut (a wake for the stop).
+        thread::sleep(Duration::from_millis(100));
+        assert!(runner.rx.try_iter().all(|m| matches!(m, Msg::Wake)));
+        gate.set(true);
+        feeder.join().unwrap().unwrap();
+        let rest: Vec<(u64, String)> = runner.rx.try_iter().filter_map(handed).collect();
+        assert_eq!(
+            rest,
+            vec![
+                (1, "{\"a\":1}".to_owned()),
+                (2, "{\"a\":2}".to_owned()),
+                (4, "the line is not UTF-8".to_owned()),
+                (5, "{\"a\":3}".to_owned()),
+            ]
+        );
+        assert_eq!(gate.admitted.load(Ordering::SeqCst), 4);
+    }
+
+    /// A gate that cuts the origin off: nothing more of it is handed over,
+    /// and the feed ends without reading the rest.
+    #[test]
+    #[allow(clippy::unwrap_used)]
+    fn an_origin_cut_off_hands_over_nothing_more() {
+        let runner = Runner::new();
+        let input = runner.input();
+        let gate = Shut::default();
+        gate.set(false);
+        let lines: String = (0..3000).map(|i| format!("{{\"a\":{i}}}\n")).collect();
+        let mut r = io::Cursor::new(lines.into_bytes());
+        feed_gated(&input, Origin(4), &mut r, false, None, &gate).unwrap();
+        assert_eq!(runner.rx.try_iter().filter_map(handed).count(), 0);
+        // It stopped reading once the feeder stopped: not every line was
+        // read ahead.
+        assert!(r.position() < r.get_ref().len() as u64);
     }
 }

@@ -3,12 +3,13 @@
 //! ([`SimulatedArm`], exact and as fast as the machine, for tests and
 //! benchmarks).
 
+use std::collections::{BTreeSet, HashMap};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::{self, JoinHandle};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use motorwire_can::{CanBus, Clock, SimBus, SimConfig, SimPort};
+use motorwire_can::{CanBus, Clock, Frame, SimBus, SimConfig, SimPort};
 use motorwire_sim::moteus::{MoteusConfig, SimMoteus};
 use motorwire_sim::{
     CompactDeviceConfig, CompactDeviceLimits, JointConfig, SimCompactDevice, SimError, SimJoint,
@@ -16,6 +17,15 @@ use motorwire_sim::{
 use motorwire_translate::{BusMap, MappedMotor, Target};
 
 use crate::{Bridge, BridgeError, Origin, Output};
+
+/// Rounds of work at one simulated instant, at most: each answers what
+/// the round before it sent (a frame and its answer, a line and its
+/// frames), so a chain this long is a timer that stays due once handled.
+const MAX_ROUNDS_AT_ONCE: u32 = 10_000;
+
+/// Frames a [`RealTimeArm`]'s devices take from the bus before they look
+/// at their timers again, at most.
+const MAX_FRAMES_AT_ONCE: usize = 256;
 
 /// A joint for `motor` if it is an iRPC joint: the map's wire version, its
 /// `emergency_deceleration` (the joint's own default otherwise), and a
@@ -112,29 +122,35 @@ pub fn moteus_config(motor: &MappedMotor) -> Option<MoteusConfig> {
 /// Told of every request a simulated joint executes: its name, its node id and the execution.
 pub type ExecutionLog = Arc<dyn Fn(&str, u16, &motorwire_sim::Execution) + Send + Sync>;
 
-/// The map's iRPC joints on an in-memory bus in real time, each on its own
-/// thread, until dropped.
+/// The map's simulated devices (iRPC joints, compact devices, moteus
+/// controllers) on an in-memory bus in real time, until dropped: all on
+/// one thread and one connection to the bus, so that a map of many
+/// devices costs one thread and one queue, not one of each per device
+/// with every frame copied to all of them.
 #[derive(Debug)]
 pub struct RealTimeArm {
     bus: SimBus,
     stop: Arc<AtomicBool>,
-    threads: Vec<JoinHandle<()>>,
+    thread: Option<JoinHandle<()>>,
 }
 
 impl RealTimeArm {
-    /// Starts a simulated joint for every iRPC joint of `map`.
+    /// Starts a simulated device for every iRPC joint, compact device and
+    /// moteus controller of `map`.
     ///
     /// # Errors
-    /// [`SimError::InvalidConfig`] for a joint the simulator cannot be
+    /// [`SimError::InvalidConfig`] for a device the simulator cannot be
     /// (a start outside its own ±180° range).
     pub fn start(map: &BusMap) -> Result<Self, SimError> {
         Self::start_with(map, SimConfig::default(), None)
     }
 
-    /// Starts the joints on a bus made hostile by `config`'s seeded faults
-    /// (its clock is made real). `on_execution`, when given, is told of
-    /// every request a joint acts on for the first time (the joint's name
-    /// and the execution), from the joint's thread.
+    /// Starts the devices on a bus made hostile by `config`'s seeded faults
+    /// (its clock is made real; the faults fall on the devices' one
+    /// connection, so each frame to a device meets them once).
+    /// `on_execution`, when given, is told of every request a joint acts on
+    /// for the first time (the joint's name and the execution), from the
+    /// devices' thread.
     ///
     /// # Errors
     /// As [`RealTimeArm::start`]; the bus's refusal of a fault rate outside 0..=1.
@@ -148,46 +164,20 @@ impl RealTimeArm {
             ..config
         })
         .map_err(SimError::from)?;
+        let hub = Hub::of(map, on_execution)?;
         let stop = Arc::new(AtomicBool::new(false));
-        let mut threads = Vec::new();
-        for motor in map.motors() {
-            let Some(config) = joint_config(motor) else {
-                continue;
-            };
-            let mut joint = SimJoint::new(config)?;
-            let mut port = bus.port();
+        let mut port = bus.port();
+        let thread = {
             let stop = Arc::clone(&stop);
-            let log = on_execution.clone();
-            let name = motor.name.clone();
-            let node = config.node_id;
-            threads.push(thread::spawn(move || {
-                let _ = joint.run(&mut port, &stop, |e| {
-                    if let Some(log) = &log {
-                        log(&name, node, e);
-                    }
-                });
-            }));
-        }
-        for motor in map.motors() {
-            let Some(config) = compact_config(motor) else {
-                continue;
-            };
-            let mut device = SimCompactDevice::new(config)?;
-            let mut port = bus.port();
-            let stop = Arc::clone(&stop);
-            threads.push(thread::spawn(move || {
-                let _ = device.run(&mut port, &stop, |_| {});
-            }));
-        }
-        for config in map.motors().filter_map(moteus_config) {
-            let mut device = SimMoteus::new(config)?;
-            let mut port = bus.port();
-            let stop = Arc::clone(&stop);
-            threads.push(thread::spawn(move || {
-                let _ = device.run(&mut port, &stop, |_| {});
-            }));
-        }
-        Ok(Self { bus, stop, threads })
+            thread::spawn(move || {
+                let _ = hub.run(&mut port, &stop);
+            })
+        };
+        Ok(Self {
+            bus,
+            stop,
+            thread: Some(thread),
+        })
     }
 
     /// A new port on the arm's bus that sends and never receives
@@ -260,9 +250,261 @@ impl RealTimeArm {
 impl Drop for RealTimeArm {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
-        for t in self.threads.drain(..) {
+        if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
+    }
+}
+
+/// One simulated device of a [`Hub`].
+#[derive(Debug)]
+enum Hosted {
+    /// An iRPC joint, with its name in the map (for the execution log).
+    Joint(Box<SimJoint>, String),
+    Compact(Box<SimCompactDevice>),
+    Moteus(Box<SimMoteus>),
+}
+
+impl Hosted {
+    /// Takes a frame at `now`; an iRPC joint's execution of a request
+    /// goes to `log`.
+    fn handle_frame(&mut self, now: Duration, frame: &Frame, log: Option<&ExecutionLog>) {
+        match self {
+            Hosted::Joint(joint, name) => {
+                if let Some(e) = joint.handle_frame(now, frame)
+                    && let Some(log) = log
+                {
+                    log(name, joint.config().node_id, &e);
+                }
+            }
+            Hosted::Compact(d) => {
+                let _ = d.handle_frame(now, frame);
+            }
+            Hosted::Moteus(d) => {
+                let _ = d.handle_frame(now, frame);
+            }
+        }
+    }
+
+    fn handle_timeout(&mut self, now: Duration) {
+        match self {
+            Hosted::Joint(j, _) => j.handle_timeout(now),
+            Hosted::Compact(d) => d.handle_timeout(now),
+            Hosted::Moteus(d) => d.handle_timeout(now),
+        }
+    }
+
+    fn poll_transmit(&mut self) -> Option<Frame> {
+        match self {
+            Hosted::Joint(j, _) => j.poll_transmit(),
+            Hosted::Compact(d) => d.poll_transmit(),
+            Hosted::Moteus(d) => d.poll_transmit(),
+        }
+    }
+
+    fn poll_timeout(&self) -> Option<Duration> {
+        match self {
+            Hosted::Joint(j, _) => j.poll_timeout(),
+            Hosted::Compact(d) => d.poll_timeout(),
+            Hosted::Moteus(d) => d.poll_timeout(),
+        }
+    }
+}
+
+/// A [`RealTimeArm`]'s devices on one connection to the bus, driven by
+/// one thread. Each frame heard is handed only to the devices it is
+/// addressed to, found by address (an iRPC header's target, or every
+/// joint for a broadcast; a segmented transfer's target; a compact
+/// device's CAN id; a moteus controller's id and prefix), and the devices'
+/// timers are kept in one ordered set: a frame or a timer costs the same
+/// however many devices there are. The devices do not hear each other,
+/// which none of them listens to (answers and reports are for the bridge).
+struct Hub {
+    devices: Vec<Hosted>,
+    /// iRPC joints by node id.
+    joints: HashMap<u16, Vec<usize>>,
+    /// Every iRPC joint (a broadcast's receivers).
+    all_joints: Vec<usize>,
+    /// Compact devices by the CAN id of their commands.
+    compact: HashMap<u32, Vec<usize>>,
+    /// Moteus controllers by their CAN prefix and id.
+    moteus: HashMap<(u32, u32), Vec<usize>>,
+    /// When each device next has work (`next`), ordered.
+    due: BTreeSet<(Duration, usize)>,
+    next: Vec<Option<Duration>>,
+    log: Option<ExecutionLog>,
+    /// The receivers of the frame being handed over (kept between frames).
+    scratch: Vec<usize>,
+}
+
+impl Hub {
+    /// A device for every iRPC joint, compact device and moteus controller
+    /// of `map`.
+    fn of(map: &BusMap, log: Option<ExecutionLog>) -> Result<Self, SimError> {
+        let mut hub = Self {
+            devices: Vec::new(),
+            joints: HashMap::new(),
+            all_joints: Vec::new(),
+            compact: HashMap::new(),
+            moteus: HashMap::new(),
+            due: BTreeSet::new(),
+            next: Vec::new(),
+            log,
+            scratch: Vec::new(),
+        };
+        for motor in map.motors() {
+            let i = hub.devices.len();
+            if let Some(config) = joint_config(motor) {
+                hub.joints.entry(config.node_id).or_default().push(i);
+                hub.all_joints.push(i);
+                let joint = SimJoint::new(config)?;
+                hub.devices
+                    .push(Hosted::Joint(Box::new(joint), motor.name.clone()));
+            } else if let Some(config) = compact_config(motor) {
+                hub.compact
+                    .entry(u32::from(config.node))
+                    .or_default()
+                    .push(i);
+                hub.devices
+                    .push(Hosted::Compact(Box::new(SimCompactDevice::new(config)?)));
+            } else if let Some(config) = moteus_config(motor) {
+                let key = (u32::from(config.prefix), u32::from(config.id));
+                hub.moteus.entry(key).or_default().push(i);
+                hub.devices
+                    .push(Hosted::Moteus(Box::new(SimMoteus::new(config)?)));
+            }
+        }
+        hub.next = vec![None; hub.devices.len()];
+        for i in 0..hub.devices.len() {
+            hub.schedule(i);
+        }
+        Ok(hub)
+    }
+
+    /// The devices `frame` is addressed to, into `to`.
+    fn receivers(&self, frame: &Frame, to: &mut Vec<usize>) {
+        let id = frame.id();
+        let raw = id.raw();
+        let mut add = |found: Option<&Vec<usize>>| to.extend(found.into_iter().flatten());
+        if id.is_extended() {
+            add(self.moteus.get(&((raw >> 16) & 0x1FFF, raw & 0x7F)));
+            if let Some((_, target)) = motorwire_can::segmented::segmented_ends(id) {
+                add(self.joints.get(&target));
+            }
+            return;
+        }
+        add(self.compact.get(&raw));
+        if let Ok((header, _)) =
+            motorwire_irpc::Header::decode_prefix(motorwire_irpc::WireVersion::V2_0, frame.data())
+        {
+            match header.target_id {
+                motorwire_can::client::BROADCAST | motorwire_can::client::ARM_NODE => {
+                    to.extend_from_slice(&self.all_joints);
+                }
+                node => add(self.joints.get(&node)),
+            }
+        }
+    }
+
+    /// Device `i`'s next timer, put in its place.
+    fn schedule(&mut self, i: usize) {
+        let Some(device) = self.devices.get(i) else {
+            return;
+        };
+        let at = device.poll_timeout();
+        let Some(slot) = self.next.get_mut(i) else {
+            return;
+        };
+        if *slot != at {
+            if let Some(old) = slot.take() {
+                self.due.remove(&(old, i));
+            }
+            if let Some(t) = at {
+                self.due.insert((t, i));
+            }
+            *slot = at;
+        }
+    }
+
+    /// Puts on the bus what device `i` has to send, then schedules it.
+    fn flush(&mut self, i: usize, port: &mut SimPort) -> Result<(), SimError> {
+        if let Some(device) = self.devices.get_mut(i) {
+            while let Some(f) = device.poll_transmit() {
+                port.send(&f)?;
+            }
+        }
+        self.schedule(i);
+        Ok(())
+    }
+
+    /// Runs the devices on `port` in real time until `stop` is set: each
+    /// frame as it comes, each timer when due. The frames that came while
+    /// the thread was not running are handed over before the timers due
+    /// by then (a joint's watchdog hears the heartbeat that came in time,
+    /// however late the thread woke), as [`SimulatedArm`] steps them.
+    fn run(mut self, port: &mut SimPort, stop: &AtomicBool) -> Result<(), SimError> {
+        let start = Instant::now();
+        let tick = Duration::from_millis(10);
+        let mut due = Vec::new();
+        while !stop.load(Ordering::Relaxed) {
+            // At most this many at once: a flood of frames never holds
+            // the timers.
+            for _ in 0..MAX_FRAMES_AT_ONCE {
+                let Some(r) = port.try_recv() else { break };
+                self.hand_over(start.elapsed(), &r.frame, port)?;
+            }
+            let now = start.elapsed();
+            // Each device due now acts once: one whose timer stays due
+            // waits for the next pass, never holds the others.
+            due.extend(
+                self.due
+                    .iter()
+                    .take_while(|(t, _)| *t <= now)
+                    .map(|(_, i)| *i),
+            );
+            for i in due.drain(..) {
+                if let Some(device) = self.devices.get_mut(i) {
+                    device.handle_timeout(now);
+                }
+                self.flush(i, port)?;
+            }
+            let wait = self
+                .due
+                .first()
+                .map_or(tick, |(t, _)| t.saturating_sub(start.elapsed()))
+                .min(tick);
+            match port.recv(wait) {
+                Ok(r) => self.hand_over(start.elapsed(), &r.frame, port)?,
+                Err(motorwire_can::Error::Timeout(_)) => {}
+                Err(e) => return Err(e.into()),
+            }
+        }
+        Ok(())
+    }
+
+    /// `frame` to the devices it is addressed to, at `now`, and what they
+    /// answer on the bus.
+    fn hand_over(
+        &mut self,
+        now: Duration,
+        frame: &Frame,
+        port: &mut SimPort,
+    ) -> Result<(), SimError> {
+        let mut to = std::mem::take(&mut self.scratch);
+        self.receivers(frame, &mut to);
+        let mut result = Ok(());
+        for &i in &to {
+            if let Some(device) = self.devices.get_mut(i) {
+                device.handle_frame(now, frame, self.log.as_ref());
+            }
+            result = self.flush(i, port);
+            if result.is_err() {
+                break;
+            }
+        }
+        to.clear();
+        self.scratch = to;
+        result
     }
 }
 
@@ -790,7 +1032,18 @@ impl SimulatedArm {
     /// outputs does not change it).
     fn settled(&mut self) -> Result<Option<Duration>, BridgeError> {
         let now = self.bus.now();
+        let mut rounds: u32 = 0;
         loop {
+            // Each round at one instant answers something that came in it;
+            // work still due after this many is a timer that never stops
+            // being due: an error, never a spin.
+            rounds += 1;
+            if rounds > MAX_ROUNDS_AT_ONCE {
+                return Err(BridgeError::Stalled {
+                    at_ms: u64::try_from(now.as_millis()).unwrap_or(u64::MAX),
+                    rounds: MAX_ROUNDS_AT_ONCE,
+                });
+            }
             let mut busy = false;
             let mut sent = false;
             while let Some(f) = self.bridge.poll_transmit() {

@@ -602,6 +602,12 @@ const EVERY_DIALECT: [(&str, f64, f64); 6] = [
     ("wrist", -90.0, 90.0),
 ];
 
+/// How far past a limit in force a motor driven at a velocity may be seen
+/// moving on, on a bus that drops and delays frames: its brake (or the
+/// feedback it is judged by) lost once and sent again after the answer's
+/// time-out (100 ms) at 60 units a second.
+const LIMIT_SLACK: f64 = 6.0;
+
 /// The every-dialect scenarios' map: the demo arm and a moteus controller.
 fn every_dialect_map() -> String {
     format!(
@@ -653,6 +659,12 @@ enum Mixed {
         client: u64,
         speed: f64,
     },
+    /// The compact gripper (3) or the moteus wrist (5) at a velocity.
+    Drive {
+        client: u64,
+        motor: usize,
+        speed: f64,
+    },
     /// One multi-axis line for the elbow, the gripper and the servo.
     Multi {
         client: u64,
@@ -673,6 +685,13 @@ fn mixed_op() -> impl Strategy<Value = Mixed> {
     prop_oneof![
         6 => (0u64..3, 0usize..6, -100.0f64..160.0).prop_map(|(client, motor, s)| Mixed::Move { client, motor, setpoint: s.round() }),
         1 => (0u64..3, -450.0f64..450.0).prop_map(|(client, s)| Mixed::Spin { client, speed: s.round() }),
+        3 => (0u64..3, any::<bool>(), -20.0f64..60.0).prop_map(|(client, wrist, s)| Mixed::Drive { client, motor: if wrist { 5 } else { 3 }, speed: s.round() }),
+        // The gripper's or the wrist's range narrowed near where a drive
+        // takes it.
+        1 => (0u64..3, any::<bool>(), 1.0f64..15.0).prop_map(|(client, wrist, max)| {
+            let motor = if wrist { 5 } else { 3 };
+            Mixed::Limits { client, motor, max: (EVERY_DIALECT[motor].1.max(0.0) + max).round() }
+        }),
         1 => (0u64..3, 0.0f64..140.0, any::<bool>()).prop_map(|(client, s, sequential)| Mixed::Multi { client, setpoints: [s.round(), (s / 2.0).round(), (s - 60.0).round()], sequential }),
         2 => (0u64..3, 2usize..6, 0.0f64..1.0).prop_map(|(client, motor, f)| {
             let (_, lo, hi) = EVERY_DIALECT[motor];
@@ -693,6 +712,16 @@ struct MixedTally {
     /// (when, client, line) of each stop line and of each release line.
     stops: Vec<(Duration, u64, u64)>,
     releases: Vec<(Duration, u64, u64)>,
+    /// The gripper's and the wrist's positions at the last sample.
+    last: [Option<f64>; 6],
+    /// (when, motor, where it stood) as each SafetyLimits line was sent.
+    stood: Vec<(Duration, usize, f64)>,
+    /// Whether the last line for each motor was a velocity (a position
+    /// move, a multi-axis line or a stop ends it).
+    driving: [bool; 6],
+    /// (when, motor, position, max in force) of each sample where a motor
+    /// driven at a velocity moved on past the limit in force.
+    past: Vec<(Duration, usize, f64, f64)>,
 }
 
 fn play_mixed(arm: &mut SimulatedArm, ops: &[Mixed], t: &mut MixedTally) {
@@ -707,6 +736,17 @@ fn play_mixed(arm: &mut SimulatedArm, ops: &[Mixed], t: &mut MixedTally) {
                 *client,
                 format!(
                     r#"{{"motor_id":"turntable","timestamp":1,"control_mode":"velocity","setpoint":{speed}}}"#
+                ),
+            ),
+            Mixed::Drive {
+                client,
+                motor,
+                speed,
+            } => (
+                *client,
+                format!(
+                    r#"{{"motor_id":"{}","timestamp":1,"control_mode":"velocity","setpoint":{speed}}}"#,
+                    EVERY_DIALECT[*motor].0
                 ),
             ),
             Mixed::Multi {
@@ -743,8 +783,45 @@ fn play_mixed(arm: &mut SimulatedArm, ops: &[Mixed], t: &mut MixedTally) {
                 )
             }
             Mixed::Other(Op::Wait { ms }) => {
+                // Sampled every 2 ms: the gripper and the wrist never move
+                // on past the limit in force (braked short of it; beyond
+                // it only where a limit was made tighter than where one
+                // stood, and then never farther).
                 let until = arm.now() + Duration::from_millis(*ms);
-                arm.run_until(until).unwrap();
+                while arm.now() < until {
+                    arm.step(Duration::from_millis(2)).unwrap();
+                    collect(arm, &mut t.tally);
+                    let now = arm.now();
+                    for m in [3, 5] {
+                        let p = position_of(arm, m);
+                        let max = max_in_force(t, m, now);
+                        // Where it stood when the limit in force came: a
+                        // limit set below a motor moving outward lets it
+                        // brake to a stop past it.
+                        let inside = t
+                            .limits
+                            .iter()
+                            .zip(&t.stood)
+                            .rfind(|((when, client, line, motor, _), _)| {
+                                *motor == m
+                                    && *when <= now
+                                    && t.tally
+                                        .results
+                                        .get(&(*client, *line))
+                                        .is_some_and(|r| r["ok"] == true)
+                            })
+                            .is_none_or(|((.., lim), (_, _, stood))| *stood <= *lim);
+                        if let Some(was) = t.last[m]
+                            && t.driving[m]
+                            && inside
+                            && p > max + LIMIT_SLACK
+                            && p > was + 1e-6
+                        {
+                            t.past.push((now, m, p, max));
+                        }
+                        t.last[m] = Some(p);
+                    }
+                }
                 collect(arm, &mut t.tally);
                 continue;
             }
@@ -766,7 +843,21 @@ fn play_mixed(arm: &mut SimulatedArm, ops: &[Mixed], t: &mut MixedTally) {
         };
         let now = arm.now();
         match op {
-            Mixed::Limits { motor, max, .. } => t.limits.push((now, client, line, *motor, *max)),
+            Mixed::Drive { motor, .. } => t.driving[*motor] = true,
+            Mixed::Move { motor, .. } => t.driving[*motor] = false,
+            Mixed::Multi { .. } | Mixed::Other(Op::Stop { .. }) => t.driving = [false; 6],
+            _ => {}
+        }
+        match op {
+            Mixed::Limits { motor, max, .. } => {
+                t.limits.push((now, client, line, *motor, *max));
+                let stood = if matches!(*motor, 3 | 5) {
+                    position_of(arm, *motor)
+                } else {
+                    0.0
+                };
+                t.stood.push((now, *motor, stood));
+            }
             Mixed::Other(Op::Stop { .. }) => t.stops.push((now, client, line)),
             Mixed::Other(Op::Release { .. }) => t.releases.push((now, client, line)),
             _ => {}
@@ -781,7 +872,12 @@ fn max_in_force(t: &MixedTally, motor: usize, at: Duration) -> f64 {
     t.limits
         .iter()
         .rfind(|(when, client, line, m, _)| {
-            *m == motor && *when <= at && t.tally.results[&(*client, *line)]["ok"] == true
+            *m == motor
+                && *when <= at
+                && t.tally
+                    .results
+                    .get(&(*client, *line))
+                    .is_some_and(|r| r["ok"] == true)
         })
         .map_or(EVERY_DIALECT[motor].2, |l| l.4)
 }
@@ -805,6 +901,11 @@ fn latched_at(t: &MixedTally, at: Duration) -> bool {
 /// Orion motor moving.
 fn check_mixed(arm: &SimulatedArm, t: &MixedTally) {
     check(arm, &t.tally);
+    assert!(
+        t.past.is_empty(),
+        "driven at a velocity past the limit in force (when, motor, position, max): {:?}",
+        t.past
+    );
     // iRPC (the elbow), compact (the gripper) and moteus (the wrist): each
     // frame as sent.
     for (at, frame) in arm.sent() {
@@ -956,6 +1057,22 @@ proptest! {
             .unwrap();
         collect(&mut arm, &mut t.tally);
         check_mixed(&arm, &t);
+        // Latched at the end, after seconds of a bus that delays,
+        // duplicates and reorders frames: the moteus wrist is stopped (a
+        // late frame from before the stop never took it on for good).
+        if latched_at(&t, arm.now()) {
+            let mode = arm.moteus(1).unwrap().mode();
+            prop_assert!(
+                [
+                    motorwire_sim::moteus::mode::STOPPED,
+                    motorwire_sim::moteus::mode::FAULT,
+                    motorwire_sim::moteus::mode::BRAKE,
+                    motorwire_sim::moteus::mode::TIMEOUT,
+                ]
+                .contains(&mode),
+                "latched, the wrist in mode {}", mode
+            );
+        }
     }
 }
 

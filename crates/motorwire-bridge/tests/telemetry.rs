@@ -354,3 +354,72 @@ fn a_request_acked_without_its_answer_says_no_answer() {
     );
     assert_eq!(r["acked"], json!(["elbow"]));
 }
+
+/// A calibration's own limits pass the gate a motion passes (issue 58
+/// part 8a): a range of 1000° and 1000°/s on the elbow (0..150°,
+/// 120°/s) were taken; now each is refused `outside_limit` naming the
+/// limit, nothing is sent, and one within the limits in force (a
+/// SafetyLimits line's too) is sent.
+#[test]
+fn a_calibration_beyond_the_limits_in_force_is_refused() {
+    let mut arm = arm(None, Faults::default());
+    arm.keep_sent();
+    for (n, (line, field, value, limit, bound)) in [
+        (
+            r#"{"calibration":"start","motor_id":"elbow","max_position_range":1000}"#,
+            "max_position_range",
+            1000.0,
+            "position range",
+            150.0,
+        ),
+        (
+            r#"{"calibration":"start","motor_id":"elbow","max_velocity":1000}"#,
+            "max_velocity",
+            1000.0,
+            "max_velocity",
+            120.0,
+        ),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        arm.line(Origin(1), line);
+        let out = until_results(&mut arm, 1, Duration::from_secs(1));
+        let r = result(&out, n as u64 + 1);
+        assert_eq!(r["ok"], false, "{r}");
+        assert_eq!(r["error"]["rule"], "outside_limit", "{r}");
+        assert_eq!(r["error"]["field"], field, "{r}");
+        assert_eq!(r["error"]["value"], value, "{r}");
+        assert_eq!(r["error"]["limit_name"], limit, "{r}");
+        assert_eq!(r["error"]["limit"], bound, "{r}");
+    }
+    // Tightened to 40°/s by a SafetyLimits line: 60°/s is refused too.
+    arm.line(
+        Origin(1),
+        r#"{"motor_id":"elbow","position_limits":{"min":0,"max":150},"velocity_limits":{"max_velocity":40},"torque_limits":{"continuous_torque":1,"peak_torque":2}}"#,
+    );
+    arm.line(
+        Origin(1),
+        r#"{"calibration":"start","motor_id":"elbow","max_velocity":60}"#,
+    );
+    let out = until_results(&mut arm, 2, Duration::from_secs(1));
+    assert_eq!(result(&out, 3)["ok"], true, "{out:?}");
+    let r = result(&out, 4);
+    assert_eq!(
+        (r["error"]["field"].clone(), r["error"]["limit"].clone()),
+        (json!("max_velocity"), json!(40.0)),
+        "{r}"
+    );
+    // No StartCalibration went to the elbow.
+    let calibrations = arm
+        .sent()
+        .iter()
+        .filter_map(|(_, f)| {
+            motorwire_irpc::Message::decode_frame(motorwire_irpc::WireVersion::V2_2, f.data()).ok()
+        })
+        .filter(|m| {
+            m.header.target_id == ELBOW && matches!(m.payload, Payload::StartCalibration(_))
+        })
+        .count();
+    assert_eq!(calibrations, 0, "a calibration was sent");
+}

@@ -175,6 +175,10 @@ struct State {
     rng: Rng,
     seq: u64,
     ports: Vec<PortState>,
+    /// How many ports hold a frame back ([`PortState::held`]): with none,
+    /// receiving does not look at every port (a bus of many ports would
+    /// otherwise pay for all of them on every frame received).
+    held: usize,
     stats: FaultStats,
 }
 
@@ -197,6 +201,9 @@ impl State {
 
     /// Moves held-back frames whose time has come into their queues.
     fn release_held(&mut self, now: Duration) {
+        if self.held == 0 {
+            return;
+        }
         let due: Vec<(usize, Duration, Frame)> = self
             .ports
             .iter_mut()
@@ -206,6 +213,7 @@ impl State {
                 _ => None,
             })
             .collect();
+        self.held = self.held.saturating_sub(due.len());
         for (i, at, f) in due {
             self.push(i, at, f);
         }
@@ -253,12 +261,14 @@ impl State {
                     self.stats.reordered += 1;
                     if let Some(p) = self.ports.get_mut(to) {
                         p.held = Some((at.saturating_add(faults.max_delay), f));
+                        self.held += 1;
                     }
                     continue;
                 }
                 self.push(to, at, f);
                 // A held frame goes right after the frame that overtook it.
                 if let Some((_, held)) = self.ports.get_mut(to).and_then(|p| p.held.take()) {
+                    self.held = self.held.saturating_sub(1);
                     self.push(to, at, held);
                 }
             }
@@ -355,6 +365,7 @@ impl SimBus {
                     rng: Rng(config.seed),
                     seq: 0,
                     ports: Vec::new(),
+                    held: 0,
                     stats: FaultStats::default(),
                 }),
                 changed: Condvar::new(),
@@ -489,7 +500,9 @@ impl Drop for SimPort {
     fn drop(&mut self) {
         let mut s = self.bus.lock();
         if let Some(p) = s.ports.get_mut(self.index) {
+            let held = usize::from(p.held.is_some());
             *p = PortState::default();
+            s.held = s.held.saturating_sub(held);
         }
     }
 }

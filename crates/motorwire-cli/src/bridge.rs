@@ -51,10 +51,15 @@ pub(crate) struct Args {
     /// or without one its first command) before it is closed.
     #[arg(long, value_name = "MS", default_value_t = 1000)]
     auth_timeout_ms: u64,
-    /// Output lines a client may have waiting; a client that lets this
-    /// many pile up (it stopped reading) is disconnected and its pending
-    /// commands cancelled. At least 2048: a stop can answer every line in
-    /// progress (up to 1024, and 256 more on their way) at once.
+    /// Output lines a client may have waiting. A client that reads more
+    /// slowly than the bridge answers is slowed: once its lines waiting and
+    /// twice the results it is owed reach half of this, its lines wait (a
+    /// stop it sends within 1,024 lines of them goes ahead at once) until
+    /// it is down to a quarter, and it misses feedback meanwhile. One that reads nothing for 5 s while
+    /// behind, or lets this many pile up, has stopped reading: it is
+    /// disconnected and its pending commands cancelled. At least 2048: a
+    /// stop can answer every line in progress (up to 1024, and 256 more on
+    /// their way) at once.
     #[arg(long, value_name = "LINES", default_value_t = 4096)]
     client_queue: usize,
     /// Feedback lines per joint per second (0: none).
@@ -118,7 +123,9 @@ pub(crate) struct Args {
     /// Record the session into DIR: every CAN frame to `frames.log` (as
     /// `candump -L` writes it), every input and output line, frame and
     /// Orion line to `lines.jsonl`, both clocks; never making the bridge
-    /// wait (what cannot be written in time is dropped and counted).
+    /// wait (what cannot be written in time is dropped and counted). A
+    /// recording that lost records is marked incomplete in its
+    /// `session.json`, and the bridge then exits with status 73.
     #[arg(long, value_name = "DIR")]
     record: Option<String>,
     /// With `--record`: the most the recording holds on disk (MiB); each
@@ -141,6 +148,15 @@ pub(crate) struct Args {
     /// held that token could move the motors.
     #[arg(long, value_name = "FILE", requires = "view")]
     view_token_file: Option<String>,
+    /// A name the live view also answers to (repeatable; e.g. the
+    /// machine's name when `--view` listens beyond loopback). The view
+    /// answers only requests whose `Host` is its own address (or
+    /// `localhost` on loopback) or such a name, and refuses requests sent
+    /// from another site's page (`Origin`, `Sec-Fetch-Site`): a web page
+    /// cannot read the session by a name of its own that resolves to this
+    /// machine (DNS rebinding).
+    #[arg(long, value_name = "NAME", requires = "view")]
+    view_host: Vec<String>,
     #[command(flatten)]
     zenoh: crate::fleet::ZenohArgs,
 }
@@ -178,11 +194,14 @@ pub(crate) fn load_map(path: &str) -> Result<BusMap, String> {
     load_map_text(path).map(|(map, _)| map)
 }
 
-/// The bus map at `path` and its text.
+/// The bus map at `path` and its text; a map with more motors than a
+/// bridge serves ([`Bridge::MAX_DEVICES`]) is refused here, as the bridge
+/// would refuse it, by every command that reads one.
 pub(crate) fn load_map_text(path: &str) -> Result<(BusMap, String), String> {
     let text = crate::input::read_text_file(path, MAX_MAP_SIZE)
         .map_err(|e| format!("--map {path}: {e}"))?;
     let map = BusMap::from_toml(&text).map_err(|e| format!("--map {path}: {e}"))?;
+    Bridge::check_map(&map).map_err(|e| format!("--map {path}: {e}"))?;
     Ok((map, text))
 }
 
@@ -272,6 +291,13 @@ fn frames_log_interface(spec: &str) -> String {
 /// what is queued on disk, once the joints are stopped; past it, the rest
 /// is dropped and counted (a slow or stuck disk never holds the exit).
 const RECORD_FINISH_LIMIT: Duration = Duration::from_secs(5);
+
+/// The exit status of a session whose recording lost records (its queue
+/// full, its disk full, failed or too slow): sysexits' `EX_CANTCREAT`, the
+/// output asked for could not be made whole. It takes the place of every
+/// other status (the lines before the last on stderr say what else
+/// happened).
+pub(crate) const EXIT_RECORDING_LOST: u8 = 73;
 
 /// The bridge has ended and its joints are stopped: a signal then ends the
 /// process at once (what is left is the recording's writer).
@@ -454,7 +480,14 @@ fn bridge(args: &Args) -> Result<u8, String> {
             None => None,
         };
         let tokened = token.is_some();
-        let view = crate::view::start(crate::view::ViewConfig { addr, token }, bridge.map())?;
+        let view = crate::view::start(
+            crate::view::ViewConfig {
+                addr,
+                token,
+                hosts: args.view_host.clone(),
+            },
+            bridge.map(),
+        )?;
         note!(
             "motorwire bridge: the live view at http://{}/{}",
             view.addr,
@@ -546,23 +579,75 @@ fn bridge(args: &Args) -> Result<u8, String> {
         fleet.close();
     }
     // The joints are stopped: from now on a signal ends the process at
-    // once, without waiting for the recording's writer.
+    // once, without waiting for standard output or the recording's writer.
     BRIDGE_ENDED.store(true, Ordering::SeqCst);
-    if let Some(r) = recorder.and_then(|r| std::sync::Arc::try_unwrap(r).ok()) {
-        let dropped = r.dropped();
-        match r.finish_within(RECORD_FINISH_LIMIT) {
-            Some(s) => note!(
+    // At the end of standard input, what standard output still holds is
+    // written out while its reader takes it (a reader held back has up to
+    // half its queue waiting); a signal ends the bridge without it.
+    if signalled.load(Ordering::SeqCst) == 0 {
+        router.drain_stdout();
+    }
+    let lost = recorder
+        .and_then(|r| std::sync::Arc::try_unwrap(r).ok())
+        .and_then(|r| finish_recording(r, args.record.as_deref().unwrap_or_default()));
+    let status = session_status(result, &router, &signalled);
+    // Said last, whatever else happened: what was recorded is what is
+    // kept of the session.
+    match lost {
+        Some(why) => {
+            if let Err(e) = status {
+                note!("motorwire bridge: {e}");
+            }
+            note!("motorwire bridge: {why}");
+            Ok(EXIT_RECORDING_LOST)
+        }
+        None => status,
+    }
+}
+
+/// Ends the recording `r` (into `dir`): its summary on stderr, and, when
+/// it lost records, what to say last.
+fn finish_recording(r: motorwire_bridge::record::Recorder, dir: &str) -> Option<String> {
+    let dropped = r.dropped();
+    match r.finish_within(RECORD_FINISH_LIMIT) {
+        Some(s) => {
+            note!(
                 "motorwire bridge: recorded {} lines and frames ({} bytes), {} dropped",
                 s.written,
                 s.bytes,
                 s.dropped
-            ),
-            None => note!(
-                "motorwire bridge: the recording's disk did not take its last records within {} s: they are lost and session.json is not completed ({dropped} dropped before)",
+            );
+            (s.dropped > 0).then(|| {
+                format!(
+                    "the recording lost {} records (its queue or its disk could not take them): {dir} is incomplete, {}",
+                    s.dropped,
+                    if s.session {
+                        "as its session.json says"
+                    } else {
+                        "and its session.json, which could not be completed, says it did not end cleanly"
+                    }
+                )
+            })
+        }
+        None => {
+            note!(
+                "motorwire bridge: the recording's disk did not take its last records within {} s",
                 RECORD_FINISH_LIMIT.as_secs()
-            ),
+            );
+            Some(format!(
+                "the recording lost its last records, and {dropped} before them: {dir} is incomplete, its session.json says it did not end cleanly"
+            ))
         }
     }
+}
+
+/// The session's exit status, once its recording is ended: its counts on
+/// stderr, and what ended it.
+fn session_status(
+    result: Result<Bridge, motorwire_bridge::BridgeError>,
+    router: &crate::serve::Router,
+    signalled: &SignalStatus,
+) -> Result<u8, String> {
     let bridge = result.map_err(|e| e.to_string())?;
     let s = bridge.stats();
     note!(
@@ -573,6 +658,12 @@ fn bridge(args: &Args) -> Result<u8, String> {
         s.frames_sent,
         s.bad_frames
     );
+    let left_out = router.stdout_feedback_dropped();
+    if left_out > 0 {
+        note!(
+            "motorwire bridge: standard output fell behind its lines: {left_out} feedback lines were left out"
+        );
+    }
     if let Some(why) = router.failure() {
         note!("motorwire bridge: {why}; the joints were stopped");
         return Ok(crate::serve::EXIT_OUTPUT_FAILED);

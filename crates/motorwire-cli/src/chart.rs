@@ -232,6 +232,10 @@ pub(crate) struct Digest {
     not_kept: [u64; MarkKind::ALL.len()],
     /// The latest time seen.
     end: f64,
+    /// The session is not all there (a recording that lost records or did
+    /// not end cleanly): what to say above the panels, and when the
+    /// records lost came, where known (seconds from the start).
+    incomplete: Option<(String, Option<(f64, f64)>)>,
 }
 
 impl Digest {
@@ -252,6 +256,17 @@ impl Digest {
     /// Something happened at `t` (an input line): the time axis reaches it.
     pub(crate) fn at(&mut self, t: f64) {
         self.end = self.end.max(t);
+    }
+
+    /// The session is not all there: `notice` says what it lacks, above
+    /// the panels, and `lost` (seconds from the start) is shaded on each
+    /// chart, which reaches it.
+    pub(crate) fn incomplete(&mut self, notice: String, lost: Option<(f64, f64)>) {
+        let lost = lost.and_then(|(a, b)| Some((drawable(a)?.max(0.0), drawable(b)?.max(0.0))));
+        if let Some((_, b)) = lost {
+            self.at(b);
+        }
+        self.incomplete = Some((notice, lost));
     }
 
     /// A step of the caller's, labelled.
@@ -677,7 +692,9 @@ pub(crate) fn draw(
     let columns = (plot_right - plot_left) as usize;
     let placed = label_rows(marks.iter().map(|m| px(m.t)));
     let rows = placed.iter().flatten().max().map_or(0, |r| r + 1);
-    let header = 40 + 16 * u32::try_from(rows).unwrap_or(0);
+    // An incomplete session's notice: a line of its own under the title.
+    let banner: u32 = if d.incomplete.is_some() { 22 } else { 0 };
+    let header = 40 + banner + 16 * u32::try_from(rows).unwrap_or(0);
     let panels = u32::try_from(tracks.len().max(1)).unwrap_or(1);
     // Marks not drawn: a line of the key for each kind that had some.
     let not_drawn: Vec<String> = MarkKind::ALL
@@ -704,6 +721,28 @@ pub(crate) fn draw(
         ("sans-serif", 18).into_font().color(&BLACK),
     ))
     .map_err(err)?;
+    let gap = RGBColor(110, 110, 110).mix(0.3);
+    let lost = d
+        .incomplete
+        .as_ref()
+        .and_then(|(_, lost)| *lost)
+        .map(|(a, b)| {
+            // At least a pixel and a half wide: a single record lost is seen.
+            let least = 1.5 * end / (plot_right - plot_left);
+            let mid = f64::midpoint(a, b);
+            (
+                a.min(mid - least / 2.0).max(0.0),
+                b.max(mid + least / 2.0).min(end),
+            )
+        });
+    if let Some((notice, _)) = &d.incomplete {
+        root.draw(&Text::new(
+            printable(notice),
+            (12, 32),
+            ("sans-serif", 14).into_font().color(&RGBColor(190, 30, 30)),
+        ))
+        .map_err(err)?;
+    }
     let (top, rest) = root.split_vertically(header);
     let (body, key) = rest.split_vertically(panels * PANEL);
     let rgb = |(r, g, b): (u8, u8, u8)| RGBColor(r, g, b);
@@ -713,7 +752,7 @@ pub(crate) fn draw(
         for half in [0.0, f64::from(WIDTH) / 2.0] {
             #[allow(clippy::cast_possible_truncation)]
             let x = (px(m.t) + half) as i32 - 6;
-            let y = 34 + 16 * i32::try_from(*row).unwrap_or(0);
+            let y = 34 + i32::try_from(banner).unwrap_or(0) + 16 * i32::try_from(*row).unwrap_or(0);
             top.draw(&Text::new(
                 format!("{}", i + 1),
                 (x, y),
@@ -807,6 +846,15 @@ pub(crate) fn draw(
                     )))
                     .map_err(err)?;
             }
+            // The records lost: a grey band over their span.
+            if let Some((a, b)) = lost {
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(a, ylo), (b, yhi)],
+                        gap.filled(),
+                    )))
+                    .map_err(err)?;
+            }
             for m in &marks {
                 chart
                     .draw_series(DashedLineSeries::new(
@@ -883,6 +931,16 @@ pub(crate) fn draw(
         ("sans-serif", 13),
     ))
     .map_err(err)?;
+    if lost.is_some() {
+        key.draw(&Rectangle::new([(720, 8), (748, 20)], gap.filled()))
+            .map_err(err)?;
+        key.draw(&Text::new(
+            "records lost: the recording is incomplete there".to_owned(),
+            (754, 7),
+            ("sans-serif", 13),
+        ))
+        .map_err(err)?;
+    }
     for (i, m) in marks.iter().enumerate() {
         let col = i32::try_from(i % 2).unwrap_or(0);
         let row = i32::try_from(i / 2).unwrap_or(0);
@@ -1307,5 +1365,58 @@ key = "TRM"
             assert!(svg.contains(needle), "{needle} not in the SVG");
         }
         let _ = std::fs::remove_file(&path);
+    }
+
+    /// A session that is not all there says so above its panels, and the
+    /// span of the records it lost is shaded on every chart (the time axis
+    /// reaching it, past the last record kept) and named in the key; a
+    /// whole session has neither.
+    #[test]
+    fn an_incomplete_session_names_its_gap_on_the_chart() {
+        let map = BusMap::from_toml(
+            "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\nlimits = { min_position = 0, max_position = 150, max_velocity = 120 }\n",
+        )
+        .unwrap();
+        let path = |name: &str| {
+            std::env::temp_dir().join(format!("motorwire-chart-{name}-{}.svg", std::process::id()))
+        };
+        let digest = || {
+            let mut d = Digest::of_motors(["elbow"]);
+            for i in 0..20 {
+                let t = f64::from(i) * 0.1;
+                d.output(t, None, &feedback("elbow", t * 10.0, 10.0));
+            }
+            d
+        };
+        let notice = "incomplete recording: 812 records lost from 1.90 s to 3.00 s (shaded)";
+        let mut d = digest();
+        d.incomplete(notice.to_owned(), Some((1.9, 3.0)));
+        assert!((d.end() - 3.0).abs() < 1e-9, "the axis reaches the gap");
+        draw(d, &map, &[], "a session", &path("gap")).unwrap();
+        let svg = std::fs::read_to_string(path("gap")).unwrap();
+        assert!(svg.contains(notice), "the notice");
+        assert!(
+            svg.contains("records lost: the recording is incomplete there"),
+            "the key"
+        );
+        // The band on both charts (position, velocity) and in the key.
+        let bands = svg.matches(r##"fill="#6E6E6E""##).count();
+        assert_eq!(bands, 3, "{svg}");
+        // Lost, with no time known: said, nothing shaded.
+        let mut d = digest();
+        d.incomplete(
+            "incomplete recording: it did not end cleanly".to_owned(),
+            None,
+        );
+        draw(d, &map, &[], "a session", &path("unended")).unwrap();
+        let svg = std::fs::read_to_string(path("unended")).unwrap();
+        assert!(svg.contains("incomplete recording: it did not end cleanly"));
+        assert!(!svg.contains(r##"fill="#6E6E6E""##));
+        draw(digest(), &map, &[], "a session", &path("whole")).unwrap();
+        let svg = std::fs::read_to_string(path("whole")).unwrap();
+        assert!(!svg.contains("incomplete") && !svg.contains(r##"fill="#6E6E6E""##));
+        for name in ["gap", "unended", "whole"] {
+            let _ = std::fs::remove_file(path(name));
+        }
     }
 }

@@ -368,11 +368,15 @@ fn demo(args: &Args) -> Result<bool, String> {
                 targets.insert(motor, 0.0);
                 (
                     acked && turning && stopped && deadman,
-                    format!(
-                        "acked in {} µs; turning at {speed}: {turning}; the deadman stopped it 200 ms after the last command: {}",
-                        r["ack_us"],
-                        stopped && deadman
-                    ),
+                    if acked {
+                        format!(
+                            "acked in {} µs; turning at {speed}: {turning}; the deadman stopped it 200 ms after the last command: {}",
+                            r["ack_us"],
+                            stopped && deadman
+                        )
+                    } else {
+                        format!("not taken: {}", r["error"])
+                    },
                 )
             }
             (Some(r), Expect::Release) => (

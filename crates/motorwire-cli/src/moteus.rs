@@ -20,7 +20,9 @@ enum Command {
     /// Read JSON lines naming a `Controller.make_*` call of mjbots' Python
     /// library (`{"command":"position","id":1,"position":0.5,
     /// "velocity":null,"maximum_torque":1.0,"query":true}`: the call without
-    /// `make_`, its keyword arguments by the library's names, `null` for
+    /// `make_`, every keyword argument it takes by the library's names, with
+    /// Python's types (`query` and `ignore_position_bounds` may be true or
+    /// false, `query_override` an object or null for None), `null` for
     /// NaN, optional `source`, `can_prefix` and the controller's
     /// `query_resolution`, `position_resolution`, `current_resolution`,
     /// `zero_velocity_resolution` as objects of resolutions `"int8"`,

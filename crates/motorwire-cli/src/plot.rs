@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use motorwire_bridge::replay::{Recorded, Recording};
+use motorwire_bridge::replay::{Recorded, Recording, Scanned};
 use motorwire_translate::BusMap;
 
 use crate::chart::{self, Digest};
@@ -46,6 +46,33 @@ fn take(d: &mut Digest, t: std::time::Duration, r: &Recorded) {
     }
 }
 
+/// What the chart says of a recording that is not the whole session (it
+/// lost records, or did not end cleanly); `None` for one that is.
+fn incomplete_notice(s: &Scanned) -> Option<String> {
+    let mut lacks = Vec::new();
+    if s.dropped > 0 {
+        lacks.push(format!(
+            "{} records lost{}",
+            s.dropped,
+            s.dropped_span.map_or_else(
+                || " (when, the recording does not say)".to_owned(),
+                |(a, b)| format!(
+                    " from {:.2} s to {:.2} s (shaded)",
+                    a.as_secs_f64(),
+                    b.as_secs_f64()
+                )
+            )
+        ));
+    }
+    if !s.ended {
+        lacks.push(
+            "it did not end cleanly (the bridge was killed, or its disk stopped answering): drawn up to its last record"
+                .to_owned(),
+        );
+    }
+    (!lacks.is_empty()).then(|| format!("incomplete recording: {}", lacks.join("; ")))
+}
+
 fn plot(args: &Args) -> Result<(), String> {
     let dir = &args.dir;
     // The map first: only its motors' samples and targets are kept.
@@ -73,9 +100,25 @@ fn plot(args: &Args) -> Result<(), String> {
         .map_err(|e| format!("{}: {e}", dir.display()))?;
     if recording.cut {
         note!(
-            "motorwire plot: {}: the recording did not end cleanly: its last line, cut in the middle of its write, is left out",
-            dir.display()
+            "motorwire plot: {}: the recording {}: its last line, cut in the middle of its write, is left out",
+            dir.display(),
+            if recording.ended {
+                "lost records"
+            } else {
+                "did not end cleanly"
+            }
         );
+    }
+    if let Some(notice) = incomplete_notice(&recording) {
+        note!(
+            "motorwire plot: {}: an incomplete recording: {}",
+            dir.display(),
+            recording.incomplete().unwrap_or_default()
+        );
+        let lost = recording
+            .dropped_span
+            .map(|(a, b)| (a.as_secs_f64(), b.as_secs_f64()));
+        digest.incomplete(notice, lost);
     }
     let title = format!("motorwire recording {}", dir.display());
     let drawn = chart::draw(digest, &map, &args.motors, &title, &args.svg)?;

@@ -41,6 +41,12 @@ pub(crate) struct Args {
     /// Print the comparison as one JSON object instead of text.
     #[arg(long)]
     json: bool,
+    /// Replay a recording that is incomplete (it dropped records, or did
+    /// not end cleanly) as far as it goes, saying so, instead of refusing
+    /// it: what it lost cannot be compared, and may make the replay
+    /// diverge.
+    #[arg(long)]
+    allow_incomplete: bool,
 }
 
 /// The exit status of a replay that diverged.
@@ -72,14 +78,45 @@ fn replay_dir(args: &Args) -> Result<u8, String> {
         }
     }
     let dir = &args.dir;
+    // Read as far as it goes (its counts checked against its files when
+    // it is whole), then refused if it is not whole, unless allowed: first
+    // for records it lost, then, once it is known to have a setup, for an
+    // end it lacks (a recording from before replay has neither).
     let recording =
-        Recording::read_to_replay(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        Recording::read_to_replay_lossy(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let incomplete = recording.incomplete();
+    let refused = |why: &str| {
+        format!(
+            "{}: an incomplete recording: {why}; not replayed (--allow-incomplete replays it as far as it goes)",
+            dir.display()
+        )
+    };
+    if let Some(why) = &incomplete
+        && recording.dropped > 0
+        && !args.allow_incomplete
+    {
+        return Err(refused(why));
+    }
     let setup = recording.setup.clone().ok_or_else(|| {
         format!(
             "{}: session.json has no setup (recorded by a motorwire without replay)",
             dir.display()
         )
     })?;
+    if let Some(why) = &incomplete {
+        if !args.allow_incomplete {
+            return Err(refused(why));
+        }
+        note!(
+            "motorwire replay: {}: an incomplete recording, replayed as far as it goes (--allow-incomplete): {why}{}",
+            dir.display(),
+            if recording.cut {
+                "; lines.jsonl's last line, cut in the middle of its write, left out"
+            } else {
+                ""
+            }
+        );
+    }
     let map = match &args.map {
         Some(path) => crate::bridge::load_map(path)?,
         None => BusMap::from_toml(&setup.map).map_err(|e| format!("the recorded map: {e}"))?,
@@ -98,17 +135,6 @@ fn replay_dir(args: &Args) -> Result<u8, String> {
         },
     )
     .map_err(|e| e.to_string())?;
-    if !recording.ended {
-        note!(
-            "motorwire replay: {}: the recording did not end cleanly (session.json has no counts: the bridge was killed?); compared up to its last record{}",
-            dir.display(),
-            if recording.cut {
-                " (lines.jsonl's last line, cut in the middle of its write, left out)"
-            } else {
-                ""
-            }
-        );
-    }
     let c = replay::compare(
         &recording,
         &replayed,
@@ -121,12 +147,9 @@ fn replay_dir(args: &Args) -> Result<u8, String> {
         },
     );
     let shown = if args.json {
-        say!(
-            "{}",
-            summary_json(&c, &replayed, &setup.bus, recording.ended)
-        )
+        say!("{}", summary_json(&c, &replayed, &setup.bus, &recording))
     } else {
-        summary_text(&c, &replayed, &setup.bus)
+        summary_text(&c, &replayed, &setup.bus, incomplete.as_deref())
     };
     shown.map_err(|e| format!("standard output: {e}"))?;
     Ok(if c.divergence.is_some() {
@@ -136,7 +159,12 @@ fn replay_dir(args: &Args) -> Result<u8, String> {
     })
 }
 
-fn summary_json(c: &Comparison, r: &replay::Replayed, bus: &str, ended: bool) -> serde_json::Value {
+fn summary_json(
+    c: &Comparison,
+    r: &replay::Replayed,
+    bus: &str,
+    recording: &Recording,
+) -> serde_json::Value {
     let d = c.divergence.as_ref().map(|d| {
         serde_json::json!({
             "at_us": u64::try_from(d.at.as_micros()).unwrap_or(u64::MAX),
@@ -149,7 +177,10 @@ fn summary_json(c: &Comparison, r: &replay::Replayed, bus: &str, ended: bool) ->
     });
     serde_json::json!({
         "same": c.divergence.is_none(),
-        "ended_cleanly": ended,
+        "complete": recording.is_complete(),
+        "incomplete": recording.incomplete(),
+        "ended_cleanly": recording.ended,
+        "dropped": recording.dropped,
         "recorded_bus": bus,
         "inputs": r.inputs,
         "simulated_us": u64::try_from(r.simulated.as_micros()).unwrap_or(u64::MAX),
@@ -164,7 +195,15 @@ fn summary_json(c: &Comparison, r: &replay::Replayed, bus: &str, ended: bool) ->
     })
 }
 
-fn summary_text(c: &Comparison, r: &replay::Replayed, bus: &str) -> std::io::Result<()> {
+fn summary_text(
+    c: &Comparison,
+    r: &replay::Replayed,
+    bus: &str,
+    incomplete: Option<&str>,
+) -> std::io::Result<()> {
+    if let Some(why) = incomplete {
+        say!("an incomplete recording, replayed as far as it goes: {why}")?;
+    }
     let speed = r.simulated.as_secs_f64() / r.took.as_secs_f64().max(1e-9);
     say!(
         "replayed {} inputs over {} of simulated time in {} ({speed:.1}x real time), against the simulator (recorded on {bus})",
@@ -180,6 +219,9 @@ fn summary_text(c: &Comparison, r: &replay::Replayed, bus: &str) -> std::io::Res
         c.orion_lines
     )?;
     match &c.divergence {
+        None if incomplete.is_some() => {
+            say!("the same: no divergence, as far as the incomplete recording goes")
+        }
         None => say!("the same: no divergence"),
         Some(d) => {
             say!("first divergence at {}, in {}:", secs(d.at), d.stream)?;

@@ -4,11 +4,20 @@
 //! thread of its own writes out, and a reader that floods waits for the
 //! engine ([`motorwire_bridge::MAX_QUEUED_PER_ORIGIN`]), never the other way.
 //!
-//! - A client whose queue fills (it stopped reading) is disconnected and
+//! - A reader that reads more slowly than the bridge answers (standard
+//!   output, a client) is slowed, not cut off: once its lines waiting and
+//!   twice the results it is owed reach half its queue, its input is no
+//!   longer handed over (nor, beyond [`motorwire_bridge::MAX_READ_AHEAD`]
+//!   lines, read) until it is down to a quarter, and its feedback is left
+//!   out meanwhile (counted, said on standard error). A stop it sends is
+//!   still read ahead of its other lines and acted on at once.
+//! - A reader that takes nothing for [`STALLED_AFTER`] while behind, or
+//!   whose queue fills, has stopped reading: a client is disconnected and
 //!   its pending commands are cancelled, said on the event stream
-//!   (`client_dropped`).
-//! - Standard output that fills (nobody reads it) or fails (closed pipe)
-//!   stops the joints and ends the bridge with status 74.
+//!   (`client_dropped`); standard output stops the joints and ends the
+//!   bridge with status 74, as one that fails (closed pipe) does. At the
+//!   end of input, what standard output holds is written out first, as
+//!   long as it is read.
 //! - `unix:PATH` is a socket only its owner can connect to (mode 0600, made
 //!   in a private directory first, so there is no moment it is open to
 //!   others). `tcp:ADDR` is loopback only and needs `--token-file` (the
@@ -25,12 +34,12 @@ use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use motorwire_bridge::{
-    InputSender, Origin, Output, ReadLine, Secret, feed_withholding, read_line,
+    Gate, InputSender, Origin, Output, ReadLine, Secret, feed_gated, read_line,
 };
 
 /// The origin of standard input's lines.
@@ -39,8 +48,24 @@ pub(crate) const STDIN: Origin = Origin(0);
 /// Exit status when standard output stopped being read or failed.
 pub(crate) const EXIT_OUTPUT_FAILED: u8 = 74;
 
-/// Lines standard output may hold before it counts as not read.
+/// Lines standard output may hold waiting to be written.
 const STDOUT_QUEUE: usize = 4096;
+
+/// How long a reader held back (its input no longer read) or with half its
+/// queue waiting may go without a byte written to it before it counts as
+/// no longer reading: standard output then stops the joints and ends the
+/// bridge (74), a client is disconnected. (A pipe takes a write of
+/// [`WRITE_CHUNK`] once that much room is free: a reader of standard output
+/// that reads less than that in this time is taken as not reading.)
+pub(crate) const STALLED_AFTER: Duration = Duration::from_secs(5);
+
+/// The most written to a reader in one call: a reader that reads slowly
+/// shows it is reading at least this often.
+const WRITE_CHUNK: usize = 4096;
+
+/// The most a socket write waits with nothing taken before it is tried
+/// again (so a write taken in part shows as progress).
+const SOCKET_WRITE_WAIT: Duration = Duration::from_millis(500);
 
 /// The longest token file read (bytes).
 const MAX_TOKEN_FILE: u64 = 4096;
@@ -360,21 +385,286 @@ impl Drop for Authenticating<'_> {
     }
 }
 
-/// What a line to a client is.
+/// What a line to a reader (a client, standard output) is.
 #[derive(Debug, Clone, Copy)]
 enum Sent {
     /// The result of one of its lines; whether a completion line follows.
     Result(bool),
-    /// A completion line.
+    /// A completion line of one of its lines.
     Arrival,
-    /// An event for it alone (its greeting): owed nothing.
+    /// An event (for a client, sent to it alone: its greeting), or another
+    /// input's line: owed nothing, never dropped.
     Event,
+    /// Feedback: left out while the reader is behind.
+    Feedback,
+}
+
+/// How a reader keeps up with its lines: what it has waiting and is owed,
+/// and when it last took some. Its input is held back while it is behind
+/// ([`Outlet::admit`]) and cut off once it takes nothing for
+/// [`STALLED_AFTER`].
+#[derive(Debug)]
+struct Outlet {
+    flow: Mutex<Flow>,
+    /// Lines were written out (or the reader was cut off).
+    drained: Condvar,
+    /// Its queue's length: the high mark is half of it, the low a quarter.
+    capacity: usize,
+}
+
+#[derive(Debug)]
+struct Flow {
+    /// Lines in its queue, not yet written out.
+    queued: usize,
+    /// When bytes were last written to it; with nothing waiting, when a
+    /// line was last queued.
+    progress: Instant,
+    /// Its lines handed to the bridge and not yet answered.
+    owed_results: u64,
+    /// Completion lines announced and not yet queued.
+    owed_arrivals: u64,
+    /// Its input is held back until what it is behind by is down to the
+    /// low mark.
+    held: bool,
+    /// It was cut off: no more of its input is handed over.
+    cut: bool,
+    /// Feedback lines left out while it was behind.
+    feedback_dropped: u64,
+}
+
+/// What [`Outlet::put`] did with a line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Put {
+    Queued,
+    /// Feedback left out: the reader is behind.
+    LeftOut,
+    /// Nothing written to it for [`STALLED_AFTER`] while it was behind, with
+    /// this many lines waiting.
+    Stalled(usize),
+    /// Its queue is full.
+    Full,
+    /// Its writer is gone (its connection failed).
+    Gone,
+}
+
+impl Outlet {
+    fn new(capacity: usize) -> Self {
+        Self {
+            flow: Mutex::new(Flow {
+                queued: 0,
+                progress: Instant::now(),
+                owed_results: 0,
+                owed_arrivals: 0,
+                held: false,
+                cut: false,
+                feedback_dropped: 0,
+            }),
+            drained: Condvar::new(),
+            capacity,
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Flow> {
+        self.flow.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Half its queue: beyond, its input is held back and its feedback
+    /// left out.
+    const fn high(&self) -> usize {
+        self.capacity / 2
+    }
+
+    /// A quarter of its queue: its input is read again once it is no
+    /// further behind.
+    const fn low(&self) -> usize {
+        self.capacity / 4
+    }
+
+    /// The lines it has waiting and may yet be sent by what it asked: each
+    /// result owed may announce a completion line.
+    fn behind(f: &Flow) -> u64 {
+        (f.queued as u64)
+            .saturating_add(f.owed_results.saturating_mul(2))
+            .saturating_add(f.owed_arrivals)
+    }
+
+    /// Whether it is behind (held back, or half its queue waiting) and
+    /// nothing was written to it for [`STALLED_AFTER`].
+    fn stalled(&self, f: &Flow, now: Instant) -> bool {
+        f.queued > 0
+            && (f.held || f.queued >= self.high())
+            && now.saturating_duration_since(f.progress) >= STALLED_AFTER
+    }
+
+    /// Queues `line` for the reader without waiting: feedback is left out
+    /// while half its queue waits; what it is owed is counted.
+    fn put(&self, queue: &SyncSender<Arc<str>>, line: Arc<str>, sent: Sent) -> Put {
+        let mut f = self.lock();
+        let now = Instant::now();
+        if f.queued >= self.high() || f.held {
+            if self.stalled(&f, now) {
+                return Put::Stalled(f.queued);
+            }
+            if matches!(sent, Sent::Feedback) && f.queued >= self.high() {
+                f.feedback_dropped += 1;
+                return Put::LeftOut;
+            }
+        }
+        match queue.try_send(line) {
+            Ok(()) => {
+                if f.queued == 0 {
+                    f.progress = now;
+                }
+                f.queued += 1;
+                match sent {
+                    Sent::Result(arrival_follows) => {
+                        f.owed_results = f.owed_results.saturating_sub(1);
+                        f.owed_arrivals += u64::from(arrival_follows);
+                    }
+                    Sent::Arrival => f.owed_arrivals = f.owed_arrivals.saturating_sub(1),
+                    Sent::Event | Sent::Feedback => {}
+                }
+                Put::Queued
+            }
+            Err(TrySendError::Full(_)) => Put::Full,
+            Err(TrySendError::Disconnected(_)) => Put::Gone,
+        }
+    }
+
+    /// Bytes were written to the reader.
+    fn progressed(&self) {
+        self.lock().progress = Instant::now();
+    }
+
+    /// `lines` of its queue were written out: its input is read again once
+    /// it is down to the low mark.
+    fn written(&self, lines: usize) {
+        let mut f = self.lock();
+        f.queued = f.queued.saturating_sub(lines);
+        f.progress = Instant::now();
+        if f.held && Self::behind(&f) <= self.low() as u64 {
+            self.drained.notify_all();
+        }
+    }
+
+    /// It is cut off: its input is no longer handed over.
+    fn cut(&self) {
+        self.lock().cut = true;
+        self.drained.notify_all();
+    }
+
+    /// Waits until every line queued was written out (or it was cut off);
+    /// `Err` with the lines waiting once nothing was written for
+    /// [`STALLED_AFTER`].
+    fn wait_empty(&self) -> Result<(), usize> {
+        let mut f = self.lock();
+        loop {
+            if f.queued == 0 || f.cut {
+                return Ok(());
+            }
+            if Instant::now().saturating_duration_since(f.progress) >= STALLED_AFTER {
+                return Err(f.queued);
+            }
+            f = self
+                .drained
+                .wait_timeout(f, Duration::from_millis(20))
+                .unwrap_or_else(PoisonError::into_inner)
+                .0;
+        }
+    }
+
+    /// Feedback lines left out so far.
+    fn feedback_dropped(&self) -> u64 {
+        self.lock().feedback_dropped
+    }
+
+    /// Waits while the reader is behind by the high mark (until it is down
+    /// to the low one), then counts one more line of its as owed a result.
+    /// `Err` with the lines waiting when it took nothing for
+    /// [`STALLED_AFTER`] meanwhile (it is then cut), `Ok(false)` when it
+    /// was cut off already.
+    fn admit(&self) -> Result<bool, usize> {
+        let mut f = self.lock();
+        loop {
+            if f.cut {
+                return Ok(false);
+            }
+            let behind = Self::behind(&f);
+            if f.held && behind <= self.low() as u64 {
+                f.held = false;
+            } else if !f.held && behind >= self.high() as u64 {
+                f.held = true;
+            }
+            if !f.held {
+                f.owed_results += 1;
+                return Ok(true);
+            }
+            f = self
+                .drained
+                .wait_timeout(f, Duration::from_millis(100))
+                .unwrap_or_else(PoisonError::into_inner)
+                .0;
+            if self.stalled(&f, Instant::now()) {
+                f.cut = true;
+                return Err(f.queued);
+            }
+        }
+    }
+
+    /// A stop of the reader's is handed over (it never waits): it is owed
+    /// its result.
+    fn admit_stop(&self) {
+        self.lock().owed_results += 1;
+    }
+}
+
+/// Writes `lines` (whole lines, as many as wait, up to 64 KiB at a time, in
+/// writes of at most [`WRITE_CHUNK`]) to `out` until the queue closes or a
+/// write fails, telling `outlet` what was written.
+fn write_lines(
+    out: &mut impl Write,
+    lines: &Receiver<Arc<str>>,
+    outlet: &Outlet,
+) -> io::Result<()> {
+    let mut buf = Vec::new();
+    while let Ok(line) = lines.recv() {
+        buf.clear();
+        buf.extend_from_slice(line.as_bytes());
+        buf.push(b'\n');
+        let mut taken = 1;
+        while buf.len() < 64 * 1024 {
+            let Ok(more) = lines.try_recv() else { break };
+            buf.extend_from_slice(more.as_bytes());
+            buf.push(b'\n');
+            taken += 1;
+        }
+        let mut rest = buf.as_slice();
+        while !rest.is_empty() {
+            let chunk = rest.get(..WRITE_CHUNK.min(rest.len())).unwrap_or(rest);
+            match out.write(chunk) {
+                Ok(0) => return Err(io::Error::from(io::ErrorKind::WriteZero)),
+                Ok(n) => {
+                    rest = rest.get(n..).unwrap_or_default();
+                    outlet.progressed();
+                }
+                // A socket's write that waited its time with nothing taken,
+                // or a signal: tried again.
+                Err(e) if timed_out(&e) || e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+        out.flush()?;
+        outlet.written(taken);
+    }
+    Ok(())
 }
 
 /// A connected, authenticated client: its queue and its socket.
 #[derive(Debug)]
 struct Client {
     queue: SyncSender<Arc<str>>,
+    /// How it keeps up with its queue.
+    outlet: Arc<Outlet>,
     conn: Conn,
     /// Results sent to it.
     delivered: u64,
@@ -465,6 +755,8 @@ pub(crate) struct ServeConfig {
 pub(crate) struct Router {
     input: InputSender,
     stdout: SyncSender<Arc<str>>,
+    /// How standard output keeps up with its queue.
+    stdout_outlet: Outlet,
     clients: Mutex<BTreeMap<u64, Client>>,
     /// Results go to the clients (a socket input), not to standard output.
     sockets: bool,
@@ -485,6 +777,7 @@ impl Router {
         let router = Arc::new(Self {
             input,
             stdout,
+            stdout_outlet: Outlet::new(STDOUT_QUEUE),
             clients: Mutex::default(),
             sockets,
             failure: Mutex::default(),
@@ -517,17 +810,40 @@ impl Router {
     }
 
     fn write_stdout(&self, lines: &Receiver<Arc<str>>) {
-        let stdout = io::stdout();
-        while let Ok(line) = lines.recv() {
-            let mut buf = Vec::with_capacity(line.len() + 1);
-            buf.extend_from_slice(line.as_bytes());
-            buf.push(b'\n');
-            let mut out = stdout.lock();
-            if let Err(e) = out.write_all(&buf).and_then(|()| out.flush()) {
-                self.fail(format!("standard output failed: {e}"));
-                return;
-            }
+        // Locked for each write, not for good: nothing else in the process
+        // is kept from standard output.
+        let mut out = io::stdout();
+        if let Err(e) = write_lines(&mut out, lines, &self.stdout_outlet) {
+            self.stdout_outlet.cut();
+            self.fail(format!("standard output failed: {e}"));
         }
+    }
+
+    /// With standard input as the input: waits until standard output has
+    /// written out every line queued for it, or took nothing for
+    /// [`STALLED_AFTER`] (then it failed, as not read), or failed.
+    pub(crate) fn drain_stdout(&self) {
+        if self.sockets || self.failure().is_some() {
+            return;
+        }
+        if let Err(waiting) = self.stdout_outlet.wait_empty() {
+            self.stdout_stalled(waiting);
+        }
+    }
+
+    /// Feedback lines left out of standard output while it was behind.
+    pub(crate) fn stdout_feedback_dropped(&self) -> u64 {
+        self.stdout_outlet.feedback_dropped()
+    }
+
+    /// Standard output took nothing for [`STALLED_AFTER`] while it was
+    /// behind, with `waiting` lines queued: the joints are stopped.
+    fn stdout_stalled(&self, waiting: usize) {
+        self.stdout_outlet.cut();
+        self.fail(format!(
+            "standard output is not being read ({waiting} lines waiting, nothing written for {} s)",
+            STALLED_AFTER.as_secs()
+        ));
     }
 
     /// Takes one output of the engine, with its line (`o.to_json()`, rendered
@@ -564,10 +880,14 @@ impl Router {
         }
         let line = Arc::clone(line);
         match o {
-            Output::Result { origin, .. } | Output::Arrival { origin, .. }
-                if *origin == STDIN || !self.sockets =>
-            {
-                self.to_stdout(line);
+            Output::Result { origin, result } if *origin == STDIN => {
+                self.to_stdout(line, Sent::Result(result.arrival_follows == Some(true)));
+            }
+            Output::Arrival { origin, .. } if *origin == STDIN => {
+                self.to_stdout(line, Sent::Arrival);
+            }
+            Output::Result { .. } | Output::Arrival { .. } if !self.sockets => {
+                self.to_stdout(line, Sent::Event);
             }
             Output::Result { origin, result } => {
                 self.to_client(
@@ -583,20 +903,28 @@ impl Router {
             Output::Feedback(f) if self.sockets => self.to_every_client(&line, Some(&f.motor_id)),
             Output::Event(_) if self.sockets => {
                 self.to_every_client(&line, None);
-                self.to_stdout(line);
+                self.to_stdout(line, Sent::Event);
             }
-            Output::Feedback(_) | Output::Event(_) => self.to_stdout(line),
+            Output::Feedback(_) => self.to_stdout(line, Sent::Feedback),
+            Output::Event(_) => self.to_stdout(line, Sent::Event),
         }
     }
 
-    fn to_stdout(&self, line: Arc<str>) {
+    fn to_stdout(&self, line: Arc<str>, sent: Sent) {
         if self.failure().is_some() {
             return; // already failed: nothing can be delivered there
         }
-        if let Err(TrySendError::Full(_)) = self.stdout.try_send(line) {
-            self.fail(format!(
-                "standard output is not being read ({STDOUT_QUEUE} lines waiting)"
-            ));
+        match self.stdout_outlet.put(&self.stdout, line, sent) {
+            Put::Queued | Put::LeftOut => {}
+            Put::Stalled(waiting) => self.stdout_stalled(waiting),
+            Put::Full => {
+                self.stdout_outlet.cut();
+                self.fail(format!(
+                    "standard output is not being read ({STDOUT_QUEUE} lines waiting)"
+                ));
+            }
+            // Its writer failed, and said why.
+            Put::Gone => self.stdout_outlet.cut(),
         }
     }
 
@@ -604,32 +932,33 @@ impl Router {
     /// once its input ends.
     fn to_client(&self, id: u64, line: Arc<str>, sent: Sent) {
         let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
-        let Some(c) = clients.get(&id) else {
+        let Some(c) = clients.get_mut(&id) else {
             return; // gone: its lines were cancelled when it went
         };
-        match c.queue.try_send(line) {
-            Ok(()) => {
-                if let Some(c) = clients.get_mut(&id) {
-                    match sent {
-                        Sent::Result(arrival_follows) => {
-                            c.delivered += 1;
-                            c.arrivals_owed += u64::from(arrival_follows);
-                        }
-                        Sent::Arrival => c.arrivals_sent += 1,
-                        Sent::Event => c.greeted = true,
+        match c.outlet.put(&c.queue, line, sent) {
+            Put::Queued => {
+                match sent {
+                    Sent::Result(arrival_follows) => {
+                        c.delivered += 1;
+                        c.arrivals_owed += u64::from(arrival_follows);
                     }
-                    if c.settled() {
-                        clients.remove(&id); // the writer drains, then closes
-                    }
+                    Sent::Arrival => c.arrivals_sent += 1,
+                    Sent::Event => c.greeted = true,
+                    Sent::Feedback => {}
+                }
+                if c.settled() {
+                    clients.remove(&id); // the writer drains, then closes
                 }
             }
-            Err(TrySendError::Full(_)) => {
+            Put::LeftOut => {}
+            Put::Stalled(waiting) => {
+                self.drop_client(&mut clients, id, &stalled_client(waiting));
+            }
+            Put::Full => {
                 let why = "it stopped reading its results (its queue is full)";
                 self.drop_client(&mut clients, id, why);
             }
-            Err(TrySendError::Disconnected(_)) => {
-                self.drop_client(&mut clients, id, "its connection failed");
-            }
+            Put::Gone => self.drop_client(&mut clients, id, "its connection failed"),
         }
     }
 
@@ -644,33 +973,57 @@ impl Router {
             {
                 continue;
             }
-            match c.queue.try_send(Arc::clone(line)) {
-                Ok(()) => {}
-                Err(TrySendError::Full(_)) => {
-                    gone.push((*id, "it stopped reading (its queue is full)"));
+            let sent = if feedback_of.is_some() {
+                Sent::Feedback
+            } else {
+                Sent::Event
+            };
+            match c.outlet.put(&c.queue, Arc::clone(line), sent) {
+                Put::Queued | Put::LeftOut => {}
+                Put::Stalled(waiting) => gone.push((*id, stalled_client(waiting))),
+                Put::Full => {
+                    gone.push((*id, "it stopped reading (its queue is full)".to_owned()));
                 }
-                Err(TrySendError::Disconnected(_)) => gone.push((*id, "its connection failed")),
+                Put::Gone => gone.push((*id, "its connection failed".to_owned())),
             }
         }
         for (id, why) in gone {
-            self.drop_client(&mut clients, id, why);
+            self.drop_client(&mut clients, id, &why);
         }
     }
 
     fn drop_client(&self, clients: &mut BTreeMap<u64, Client>, id: u64, why: &str) {
         if let Some(c) = clients.remove(&id) {
+            c.outlet.cut();
             c.conn.shutdown();
             self.input.drop_origin(Origin(id), why);
         }
     }
 
+    /// A client took nothing for [`STALLED_AFTER`] while it was behind: it
+    /// is disconnected (from its input's thread).
+    fn client_stalled(&self, id: u64, waiting: usize) {
+        let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
+        self.drop_client(&mut clients, id, &stalled_client(waiting));
+    }
+
     /// Registers an authenticated connection; its writer thread sends its
-    /// queue out: whole lines, all that are waiting in one write.
+    /// queue out: whole lines, all that are waiting in one write (in
+    /// pieces of [`WRITE_CHUNK`], each one progress).
     /// `greet`: it is greeted by the engine ([`InputSender::greet`], asked
-    /// here) before anyone's feedback and events reach it.
-    fn add_client(&self, id: u64, conn: Conn, queue_len: usize, greet: bool) -> io::Result<()> {
+    /// here) before anyone's feedback and events reach it. Returns how it
+    /// keeps up, which holds back its input.
+    fn add_client(
+        &self,
+        id: u64,
+        conn: Conn,
+        queue_len: usize,
+        greet: bool,
+    ) -> io::Result<Arc<Outlet>> {
         let (queue, lines) = mpsc::sync_channel::<Arc<str>>(queue_len);
         let mut writer = conn.try_clone()?;
+        writer.set_write_timeout(SOCKET_WRITE_WAIT);
+        let outlet = Arc::new(Outlet::new(queue_len));
         self.clients
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
@@ -678,6 +1031,7 @@ impl Router {
                 id,
                 Client {
                     queue,
+                    outlet: Arc::clone(&outlet),
                     conn,
                     delivered: 0,
                     arrivals_owed: 0,
@@ -691,26 +1045,21 @@ impl Router {
             // After it is registered: its greeting finds it.
             self.input.greet(Origin(id));
         }
+        let writing = Arc::clone(&outlet);
         thread::spawn(move || {
-            // Whole lines only, and as many as are waiting in one write (up
-            // to 64 KiB): a client reading as fast as it can keeps up with
-            // a flood of its own results.
-            let mut buf = Vec::new();
-            while let Ok(line) = lines.recv() {
-                buf.clear();
-                buf.extend_from_slice(line.as_bytes());
-                buf.push(b'\n');
-                while buf.len() < 64 * 1024 {
-                    let Ok(more) = lines.try_recv() else { break };
-                    buf.extend_from_slice(more.as_bytes());
-                    buf.push(b'\n');
-                }
-                if writer.write_all(&buf).is_err() {
-                    return; // its queue is dropped: the router sees it gone
-                }
+            // Whole lines only, and as many as are waiting at once (up to
+            // 64 KiB): a client reading as fast as it can keeps up with a
+            // flood of its own results. A failed write drops its queue: the
+            // router sees it gone.
+            let _ = write_lines(&mut writer, &lines, &writing);
+            let left_out = writing.feedback_dropped();
+            if left_out > 0 {
+                say(&format!(
+                    "motorwire bridge: client {id} fell behind its lines: {left_out} feedback lines were left out"
+                ));
             }
         });
-        Ok(())
+        Ok(outlet)
     }
 
     /// Standard input fed to the bridge, which stops at its end. A line
@@ -721,7 +1070,8 @@ impl Router {
         thread::spawn(move || {
             let mut reader = BufReader::new(io::stdin());
             let secret = secret(token.as_deref());
-            if let Err(e) = feed_withholding(&r.input, STDIN, &mut reader, true, secret) {
+            let gate = StdoutGate(&r);
+            if let Err(e) = feed_gated(&r.input, STDIN, &mut reader, true, secret, &gate) {
                 *r.input_failure
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner) =
@@ -922,13 +1272,10 @@ impl Router {
             reader.get_mut().lift();
             authenticating.done();
             let _slot = slot;
-            if self
-                .add_client(id, conn, config.client_queue, true)
-                .is_err()
-            {
+            let Ok(outlet) = self.add_client(id, conn, config.client_queue, true) else {
                 return;
-            }
-            self.feed_rest(id, &mut reader, None);
+            };
+            self.feed_rest(id, &outlet, &mut reader, None);
             return;
         }
         // The first line that is not blank (HTTP allows empty lines before
@@ -962,15 +1309,30 @@ impl Router {
                 let Some(_slot) = self.slot(config) else {
                     return refuse_full(conn, config);
                 };
-                if self
-                    .add_client(id, conn, config.client_queue, true)
-                    .is_err()
-                {
+                let Ok(outlet) = self.add_client(id, conn, config.client_queue, true) else {
                     return;
-                }
+                };
                 // Answered as any unreadable line is (and a stop if it
                 // names one).
                 let origin = Origin(id);
+                let gate = ClientGate {
+                    router: self,
+                    id,
+                    outlet: &outlet,
+                };
+                match &unreadable {
+                    ReadLine::TooLong {
+                        names_stop: true, ..
+                    }
+                    | ReadLine::NotUtf8 {
+                        names_stop: true, ..
+                    } => gate.admit_stop(),
+                    _ => {
+                        if !gate.admit() {
+                            return;
+                        }
+                    }
+                }
                 match unreadable {
                     ReadLine::TooLong {
                         names_stop,
@@ -993,7 +1355,7 @@ impl Router {
                     ),
                     _ => self.input.refused(origin, "the line is not UTF-8"),
                 }
-                self.feed_rest(id, &mut reader, None);
+                self.feed_rest(id, &outlet, &mut reader, None);
                 return;
             }
         };
@@ -1041,12 +1403,10 @@ impl Router {
             self.connected.fetch_add(1, Ordering::SeqCst);
             let _over = Slot(&self.connected);
             // Only its stop is taken: not greeted.
-            if self
-                .add_client(id, conn, config.client_queue, false)
-                .is_err()
-            {
+            let Ok(outlet) = self.add_client(id, conn, config.client_queue, false) else {
                 return;
-            }
+            };
+            outlet.admit_stop();
             self.input.line(Origin(id), stop);
             self.let_go(id);
             return;
@@ -1054,16 +1414,23 @@ impl Router {
         reader.get_mut().lift();
         authenticating.done();
         let _slot = slot;
-        if self
-            .add_client(id, conn, config.client_queue, true)
-            .is_err()
-        {
+        let Ok(outlet) = self.add_client(id, conn, config.client_queue, true) else {
             return;
-        }
+        };
         if first_is_command {
+            let gate = ClientGate {
+                router: self,
+                id,
+                outlet: &outlet,
+            };
+            if motorwire_bridge::asks_for_stop(first.trim()) {
+                gate.admit_stop();
+            } else if !gate.admit() {
+                return;
+            }
             self.input.line(Origin(id), first);
         }
-        self.feed_rest(id, &mut reader, config.token.as_deref());
+        self.feed_rest(id, &outlet, &mut reader, config.token.as_deref());
     }
 
     /// A place among the authenticated clients, if one is free: held until
@@ -1076,13 +1443,25 @@ impl Router {
         Some(Slot(&self.connected))
     }
 
-    /// Feeds the rest of a client's lines; lets it go once it has all its
-    /// results. A line that holds the `token` again (alone or inside it) is
-    /// refused and withheld: neither the recording nor the live view ever
-    /// holds the token.
-    fn feed_rest(&self, id: u64, reader: &mut BufReader<Timed>, token: Option<&str>) {
+    /// Feeds the rest of a client's lines, held back while it is behind on
+    /// its results (`outlet`); lets it go once it has all its results. A
+    /// line that holds the `token` again (alone or inside it) is refused
+    /// and withheld: neither the recording nor the live view ever holds
+    /// the token.
+    fn feed_rest(
+        &self,
+        id: u64,
+        outlet: &Outlet,
+        reader: &mut BufReader<Timed>,
+        token: Option<&str>,
+    ) {
+        let gate = ClientGate {
+            router: self,
+            id,
+            outlet,
+        };
         // A client that goes away mid-line: its partial line is not taken.
-        let _ = feed_withholding(&self.input, Origin(id), reader, false, secret(token));
+        let _ = feed_gated(&self.input, Origin(id), reader, false, secret(token), &gate);
         self.let_go(id);
     }
 
@@ -1099,6 +1478,61 @@ impl Router {
                 clients.remove(&id);
             }
         }
+    }
+}
+
+/// Why a client that took nothing for [`STALLED_AFTER`] while behind was
+/// disconnected, with the lines it had waiting.
+fn stalled_client(waiting: usize) -> String {
+    format!(
+        "it stopped reading its results ({waiting} lines waiting, none read for {} s)",
+        STALLED_AFTER.as_secs()
+    )
+}
+
+/// Standard input's lines go on while standard output keeps up: held back
+/// while it is behind, cut off (the joints stopped, 74) once it took
+/// nothing for [`STALLED_AFTER`].
+struct StdoutGate<'a>(&'a Router);
+
+impl Gate for StdoutGate<'_> {
+    fn admit(&self) -> bool {
+        match self.0.stdout_outlet.admit() {
+            Ok(go) => go,
+            Err(waiting) => {
+                self.0.stdout_stalled(waiting);
+                false
+            }
+        }
+    }
+
+    fn admit_stop(&self) {
+        self.0.stdout_outlet.admit_stop();
+    }
+}
+
+/// A client's lines go on while it keeps up with its results: held back
+/// while it is behind, disconnected once it took nothing for
+/// [`STALLED_AFTER`].
+struct ClientGate<'a> {
+    router: &'a Router,
+    id: u64,
+    outlet: &'a Outlet,
+}
+
+impl Gate for ClientGate<'_> {
+    fn admit(&self) -> bool {
+        match self.outlet.admit() {
+            Ok(go) => go,
+            Err(waiting) => {
+                self.router.client_stalled(self.id, waiting);
+                false
+            }
+        }
+    }
+
+    fn admit_stop(&self) {
+        self.outlet.admit_stop();
     }
 }
 
@@ -1277,6 +1711,97 @@ fn bind_private(path: &Path) -> Result<UnixListener, String> {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    /// A reader behind by half its queue (lines waiting, and twice the
+    /// results it is owed) has its input held back until it is down to a
+    /// quarter; feedback is left out (counted) while half its queue waits,
+    /// never a result or an event.
+    #[test]
+    fn a_reader_behind_is_held_back_until_it_catches_up() {
+        let outlet = Arc::new(Outlet::new(16));
+        let (queue, lines) = mpsc::sync_channel::<Arc<str>>(16);
+        // Four lines owed: eight behind, the high mark.
+        for _ in 0..4 {
+            assert_eq!(outlet.admit(), Ok(true));
+        }
+        let (tx, admitted) = mpsc::channel();
+        let waiter = {
+            let outlet = Arc::clone(&outlet);
+            thread::spawn(move || {
+                let _ = tx.send(outlet.admit());
+            })
+        };
+        assert!(
+            admitted.recv_timeout(Duration::from_millis(300)).is_err(),
+            "the fifth line waits"
+        );
+        let line: Arc<str> = Arc::from("{}");
+        for _ in 0..4 {
+            assert_eq!(
+                outlet.put(&queue, Arc::clone(&line), Sent::Result(false)),
+                Put::Queued
+            );
+        }
+        // Four waiting, nothing owed: down to the low mark once it is
+        // written out.
+        for _ in 0..2 {
+            let _ = lines.recv();
+        }
+        outlet.written(2);
+        assert_eq!(admitted.recv_timeout(Duration::from_secs(10)), Ok(Ok(true)));
+        waiter.join().unwrap();
+        // Half the queue waiting: feedback is left out, events are not.
+        for _ in 0..6 {
+            assert_eq!(
+                outlet.put(&queue, Arc::clone(&line), Sent::Event),
+                Put::Queued
+            );
+        }
+        assert_eq!(
+            outlet.put(&queue, Arc::clone(&line), Sent::Feedback),
+            Put::LeftOut
+        );
+        assert_eq!(
+            outlet.put(&queue, Arc::clone(&line), Sent::Arrival),
+            Put::Queued
+        );
+        assert_eq!(outlet.feedback_dropped(), 1);
+    }
+
+    /// A reader behind that took nothing for [`STALLED_AFTER`] is stalled,
+    /// both to the router (a line for it) and to its input (held back); a
+    /// reader that takes a little now and then is not.
+    #[test]
+    fn a_reader_behind_that_takes_nothing_is_stalled() {
+        let outlet = Outlet::new(16);
+        let (queue, _lines) = mpsc::sync_channel::<Arc<str>>(16);
+        let line: Arc<str> = Arc::from("{}");
+        for _ in 0..8 {
+            assert_eq!(
+                outlet.put(&queue, Arc::clone(&line), Sent::Event),
+                Put::Queued
+            );
+        }
+        outlet.lock().progress = Instant::now()
+            .checked_sub(STALLED_AFTER - Duration::from_millis(500))
+            .unwrap();
+        assert_eq!(
+            outlet.put(&queue, Arc::clone(&line), Sent::Feedback),
+            Put::LeftOut
+        );
+        outlet.progressed();
+        outlet.lock().progress -= STALLED_AFTER;
+        assert_eq!(
+            outlet.put(&queue, Arc::clone(&line), Sent::Event),
+            Put::Stalled(8)
+        );
+        assert_eq!(outlet.admit(), Err(8));
+        assert_eq!(outlet.admit(), Ok(false), "cut off");
+        // Nothing waiting: nothing to take, however long ago the last line.
+        let idle = Outlet::new(16);
+        idle.lock().progress -= STALLED_AFTER * 2;
+        assert_eq!(idle.put(&queue, line, Sent::Event), Put::Queued);
+    }
 
     #[test]
     fn http_is_recognised_and_json_is_not() {

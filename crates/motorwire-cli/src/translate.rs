@@ -167,9 +167,13 @@ struct ErrorLine {
     /// member, its value, the limit, its name and where it came from.
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
     broke: Option<Box<motorwire_bridge::Broke>>,
-    /// The WIA validator's violations, for `invalid`.
+    /// The WIA validator's violations, for `invalid` (at most
+    /// `motorwire_wia::MAX_VIOLATIONS`).
     #[serde(skip_serializing_if = "Option::is_none")]
     violations: Option<Value>,
+    /// Violations found beyond those listed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    more_violations: Option<usize>,
 }
 
 impl ErrorLine {
@@ -179,6 +183,7 @@ impl ErrorLine {
             message: message.into(),
             broke: None,
             violations: None,
+            more_violations: None,
         }
     }
 }
@@ -217,11 +222,15 @@ impl Translator {
             let v = e.violations();
             let message = match v {
                 [] => head.to_owned(),
-                [one] => format!("{head}: {one}"),
-                [first, rest @ ..] => format!("{head}: {first}; and {} more", rest.len()),
+                [one] if e.more() == 0 => format!("{head}: {one}"),
+                [first, rest @ ..] => format!(
+                    "{head}: {first}; and {} more",
+                    rest.len().saturating_add(e.more())
+                ),
             };
             ErrorLine {
                 violations: serde_json::to_value(v).ok(),
+                more_violations: (e.more() > 0).then_some(e.more()),
                 ..ErrorLine::new("invalid", message)
             }
         })?;

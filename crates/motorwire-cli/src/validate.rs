@@ -126,6 +126,15 @@ struct JsonResult<'a> {
     auto: bool,
     valid: bool,
     errors: &'a [Violation],
+    /// Violations found beyond those listed (at most
+    /// `motorwire_wia::MAX_VIOLATIONS` are).
+    #[serde(skip_serializing_if = "is_zero")]
+    more_errors: usize,
+}
+
+#[allow(clippy::trivially_copy_pass_by_ref)] // serde passes a reference
+const fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// `v` with `--now` (Unix ms) as its clock, when given.
@@ -210,22 +219,24 @@ fn judge(
 ) -> io::Result<bool> {
     let auto = args.kind == KindArg::Auto;
     let report = match doc.text {
-        Err(Refused::TooLarge { limit }) => Report {
-            kind: args.kind.kind(),
-            violations: vec![Violation::new(
+        Err(Refused::TooLarge { limit }) => Report::bounded(
+            args.kind.kind(),
+            vec![Violation::new(
                 "",
                 Rule::DocumentTooLarge,
                 format!("the document is over {limit} bytes, the maximum"),
             )],
-        },
-        Err(Refused::NotUtf8) => Report {
-            kind: args.kind.kind(),
-            violations: vec![Violation::new(
+            0,
+        ),
+        Err(Refused::NotUtf8) => Report::bounded(
+            args.kind.kind(),
+            vec![Violation::new(
                 "",
                 Rule::JsonSyntax,
                 "not valid JSON: the document is not UTF-8",
             )],
-        },
+            0,
+        ),
         Ok(text) => match (args.kind.kind(), args.schema_only) {
             (Some(kind), false) => validator.validate(kind, &text),
             (None, false) => validator.validate_auto(&text),
@@ -247,6 +258,7 @@ fn judge(
                 auto,
                 valid,
                 errors: &report.violations,
+                more_errors: report.more,
             };
             serde_json::to_writer(&mut *out, &line).map_err(io::Error::other)?;
             writeln!(out)?;
@@ -267,7 +279,7 @@ fn judge(
                 writeln!(
                     out,
                     "{place}: {kind}: invalid, {} violation(s)",
-                    report.violations.len()
+                    report.count()
                 )?;
                 for v in &report.violations {
                     let pointer = if v.pointer.is_empty() {
@@ -276,6 +288,9 @@ fn judge(
                         &v.pointer
                     };
                     writeln!(out, "  {pointer}  [{}]  {}", v.rule, v.message)?;
+                }
+                if report.more > 0 {
+                    writeln!(out, "  and {} more, not listed", report.more)?;
                 }
             }
         }

@@ -141,6 +141,90 @@ pub(crate) struct ViewConfig {
     pub(crate) addr: SocketAddr,
     /// Required in the page's address (`?token=...`) when set.
     pub(crate) token: Option<String>,
+    /// Names the view also answers to in a request's `Host` (and its
+    /// `Origin`), besides the address it listens on (`--view-host`).
+    pub(crate) hosts: Vec<String>,
+}
+
+/// Who the view answers: requests for its own address (or a name it was
+/// given), never one a browser sent on another site's behalf.
+///
+/// A page of another site can reach a loopback view two ways: by a name
+/// of its own that it makes resolve to 127.0.0.1 (DNS rebinding: the
+/// browser then sends `Host: that.name:PORT` and lets the page read the
+/// answer as its own), or by a request sent across sites (the browser
+/// sends `Origin` and `Sec-Fetch-Site`). Both are refused.
+#[derive(Debug, Clone)]
+struct Answers {
+    /// The address listened on (its port is every `Host`'s port).
+    addr: SocketAddr,
+    /// `--view-host` names, lowercase.
+    names: Vec<String>,
+}
+
+impl Answers {
+    /// Whether a `Host` header's value (or an `Origin`'s authority) names
+    /// this view: its port is the view's (80 when none is given), and its
+    /// name is the address listened on (any IP address when that is
+    /// unspecified: an address written as a number cannot be rebound),
+    /// `localhost` on a loopback or unspecified address, or a name given
+    /// with `--view-host`.
+    fn host(&self, host: &str) -> bool {
+        // `[v6]:port`, `[v6]`, `name:port` or `name`.
+        let (name, port, bracketed) = match host.strip_prefix('[') {
+            Some(rest) => {
+                let Some((inner, after)) = rest.split_once(']') else {
+                    return false;
+                };
+                let port = match after {
+                    "" => Some(80),
+                    p => p.strip_prefix(':').and_then(|p| p.parse::<u16>().ok()),
+                };
+                (inner, port, true)
+            }
+            None => match host.split_once(':') {
+                Some((name, port)) => (name, port.parse::<u16>().ok(), false),
+                None => (host, Some(80), false),
+            },
+        };
+        if port != Some(self.addr.port()) || name.is_empty() {
+            return false;
+        }
+        let listened = self.addr.ip();
+        match name.parse::<std::net::IpAddr>() {
+            Ok(ip) if ip.is_ipv6() == bracketed => ip == listened || listened.is_unspecified(),
+            Ok(_) => false,
+            Err(_) if bracketed => false,
+            Err(_) => {
+                let name = name.to_ascii_lowercase();
+                (name == "localhost" && (listened.is_loopback() || listened.is_unspecified()))
+                    || self.names.contains(&name)
+            }
+        }
+    }
+
+    /// Why a request with this head is refused, or `None`.
+    fn refuses(&self, head: &Head) -> Option<&'static str> {
+        let Some(host) = head.host.as_deref() else {
+            return Some("a request without Host (the view answers only its own address)");
+        };
+        if !self.host(host) {
+            return Some("Host is not this view's address (give the name with --view-host)");
+        }
+        if let Some(origin) = head.origin.as_deref() {
+            let own = origin.strip_prefix("http://").is_some_and(|a| self.host(a));
+            if !own {
+                return Some("a request from another site (Origin)");
+            }
+        }
+        if let Some(site) = head.fetch_site.as_deref()
+            && site != "same-origin"
+            && site != "none"
+        {
+            return Some("a request from another site (Sec-Fetch-Site)");
+        }
+        None
+    }
 }
 
 /// The view, serving.
@@ -198,6 +282,14 @@ pub(crate) fn start(config: ViewConfig, map: &BusMap) -> Result<View, String> {
             .map_err(|e| e.to_string())?;
     }
     let token = config.token.map(Arc::new);
+    let answers = Arc::new(Answers {
+        addr,
+        names: config
+            .hosts
+            .iter()
+            .map(|h| h.to_ascii_lowercase())
+            .collect(),
+    });
     thread::Builder::new()
         .name("motorwire-view-accept".to_owned())
         .spawn(move || {
@@ -217,12 +309,19 @@ pub(crate) fn start(config: ViewConfig, map: &BusMap) -> Result<View, String> {
                 busy.fetch_add(1, Ordering::SeqCst);
                 let pages = pages_tx.clone();
                 let token = token.clone();
+                let answers = Arc::clone(&answers);
                 let open = Arc::clone(&open);
                 let done = Arc::clone(&busy);
                 let spawned = thread::Builder::new()
                     .name("motorwire-view-request".to_owned())
                     .spawn(move || {
-                        serve(stream, token.as_deref().map(String::as_str), &pages, &open);
+                        serve(
+                            stream,
+                            &answers,
+                            token.as_deref().map(String::as_str),
+                            &pages,
+                            &open,
+                        );
                         done.fetch_sub(1, Ordering::SeqCst);
                     });
                 if spawned.is_err() {
@@ -261,8 +360,42 @@ impl Read for Deadline<'_> {
 /// How long a request's head may take, whole.
 const HEAD_WITHIN: Duration = Duration::from_secs(2);
 
-/// The request's head: its method and target, or why not.
-fn read_head(stream: &TcpStream) -> Result<(String, String), &'static str> {
+/// What the view reads of a request's head.
+#[derive(Debug, Default)]
+struct Head {
+    method: String,
+    target: String,
+    host: Option<String>,
+    origin: Option<String>,
+    fetch_site: Option<String>,
+}
+
+impl Head {
+    /// Takes one header line (`Name: value`); a second `Host`, `Origin`
+    /// or `Sec-Fetch-Site` is a bad request (which one counts would be
+    /// a guess).
+    fn header(&mut self, line: &str) -> Result<(), &'static str> {
+        let line = line.trim_end_matches(['\r', '\n']);
+        let Some((name, value)) = line.split_once(':') else {
+            return Err("400 Bad Request");
+        };
+        let slot = match name.to_ascii_lowercase().as_str() {
+            "host" => &mut self.host,
+            "origin" => &mut self.origin,
+            "sec-fetch-site" => &mut self.fetch_site,
+            _ => return Ok(()),
+        };
+        if slot.is_some() {
+            return Err("400 Bad Request");
+        }
+        *slot = Some(value.trim_matches([' ', '\t']).to_owned());
+        Ok(())
+    }
+}
+
+/// The request's head: its method, target and the headers that say who
+/// sent it, or why not.
+fn read_head(stream: &TcpStream) -> Result<Head, &'static str> {
     let deadline = Deadline {
         stream,
         until: Instant::now() + HEAD_WITHIN,
@@ -273,12 +406,13 @@ fn read_head(stream: &TcpStream) -> Result<(String, String), &'static str> {
         .read_line(&mut first)
         .map_err(|_| "400 Bad Request")?;
     // The rest of the head, up to its blank line.
+    let mut head = Head::default();
     loop {
         let mut line = String::new();
         match reader.read_line(&mut line) {
             Ok(0) => return Err("400 Bad Request"),
             Ok(_) if line == "\r\n" || line == "\n" => break,
-            Ok(_) => {}
+            Ok(_) => head.header(&line)?,
             Err(_) => return Err("400 Bad Request"),
         }
     }
@@ -290,7 +424,9 @@ fn read_head(stream: &TcpStream) -> Result<(String, String), &'static str> {
         [m, t, v]
             if !m.is_empty() && t.starts_with('/') && (*v == "HTTP/1.1" || *v == "HTTP/1.0") =>
         {
-            Ok(((*m).to_owned(), (*t).to_owned()))
+            head.method = (*m).to_owned();
+            head.target = (*t).to_owned();
+            Ok(head)
         }
         _ => Err("400 Bad Request"),
     }
@@ -353,16 +489,21 @@ fn respond(mut stream: TcpStream, status: &str, kind: &str, body: &str) {
 /// One request: the page, its stream, or an error.
 fn serve(
     stream: TcpStream,
+    answers: &Answers,
     token: Option<&str>,
     pages: &mpsc::Sender<TcpStream>,
     open: &AtomicUsize,
 ) {
     let _ = stream.set_write_timeout(Some(Duration::from_secs(2)));
-    let (method, target) = match read_head(&stream) {
+    let head = match read_head(&stream) {
         Ok(h) => h,
         Err(status) => return respond(stream, status, "text/plain", "a bad request\n"),
     };
-    let (path, query) = target.split_once('?').unwrap_or((&target, ""));
+    if let Some(why) = answers.refuses(&head) {
+        return respond(stream, "403 Forbidden", "text/plain", &format!("{why}\n"));
+    }
+    let (method, target) = (head.method.as_str(), head.target.as_str());
+    let (path, query) = target.split_once('?').unwrap_or((target, ""));
     if token.is_some_and(|t| !has_token(query, t)) {
         return respond(
             stream,
@@ -585,6 +726,57 @@ pub(crate) fn is_loopback(addr: &SocketAddr) -> bool {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    #[test]
+    fn a_host_is_the_views_own_address_or_a_given_name() {
+        let answers = |addr: &str, names: &[&str]| Answers {
+            addr: addr.parse().unwrap(),
+            names: names.iter().map(|n| (*n).to_owned()).collect(),
+        };
+        let v4 = answers("127.0.0.1:8080", &["arm.lab"]);
+        for (host, ok) in [
+            ("127.0.0.1:8080", true),
+            ("localhost:8080", true),
+            ("LocalHost:8080", true),
+            ("arm.lab:8080", true),
+            ("127.0.0.1", false),
+            ("127.0.0.1:8081", false),
+            ("127.0.0.2:8080", false),
+            ("rebind.attacker.test:8080", false),
+            ("localhost.attacker.test:8080", false),
+            ("arm.lab.attacker.test:8080", false),
+            (":8080", false),
+            ("", false),
+            ("127.0.0.1:80800", false),
+        ] {
+            assert_eq!(v4.host(host), ok, "{host}");
+        }
+        let v6 = answers("[::1]:80", &[]);
+        for (host, ok) in [
+            ("[::1]:80", true),
+            ("[::1]", true),
+            ("localhost", true),
+            ("[::2]:80", false),
+            ("::1", false),
+        ] {
+            assert_eq!(v6.host(host), ok, "{host}");
+        }
+        // Beyond loopback (with the view's token): any address written
+        // as a number (it cannot be rebound), never `localhost` or a
+        // name not given.
+        let any = answers("0.0.0.0:9000", &["robot-1"]);
+        for (host, ok) in [
+            ("192.168.1.5:9000", true),
+            ("robot-1:9000", true),
+            ("localhost:9000", true),
+            ("evil.test:9000", false),
+        ] {
+            assert_eq!(any.host(host), ok, "{host}");
+        }
+        let lan = answers("192.168.1.5:9000", &[]);
+        assert!(!lan.host("localhost:9000"));
+        assert!(!lan.host("10.0.0.1:9000"));
+    }
 
     #[test]
     fn a_token_is_compared_whole() {

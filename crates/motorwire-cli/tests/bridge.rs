@@ -620,3 +620,94 @@ fn standard_input_sets_its_own_feedback_rate() {
         );
     }
 }
+
+/// A bus map of `joints` iRPC joints (nodes from 0x10 on) in a file of
+/// its own, named after `name`.
+fn joints_map(joints: usize, name: &str) -> std::path::PathBuf {
+    use std::fmt::Write as _;
+    let mut text = String::new();
+    for i in 0..joints {
+        let _ = writeln!(
+            text,
+            "[motors.j{i}]\ndialect = \"irpc\"\nnode = {}\n\
+             limits = {{ min_position = -90, max_position = 90, max_velocity = 120 }}",
+            0x10 + i
+        );
+    }
+    let path = std::env::temp_dir().join(format!(
+        "motorwire-{name}-{joints}-{}.toml",
+        std::process::id()
+    ));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// A map of as many devices as the bridge serves starts on the simulated
+/// bus within a bound generous for a loaded debug build, every joint
+/// online and active from the first line; one device more is refused at
+/// once (exit status 2, naming the count and the limit), by the bridge
+/// and by `translate` alike. A map of 500 joints once neither reached
+/// `ready` in 15 s nor was refused, 366 MB resident by then.
+#[test]
+fn a_map_at_the_limit_is_ready_at_once_and_one_beyond_it_is_refused() {
+    let limit = motorwire_bridge::Bridge::MAX_DEVICES;
+    let at = joints_map(limit, "at-limit");
+    let start = Instant::now();
+    let mut child = common::spawn(&[
+        "bridge",
+        "--map",
+        at.to_str().unwrap(),
+        "--bus",
+        "sim",
+        "--feedback-hz",
+        "0",
+    ]);
+    let mut out = common::Lines::of(child.stdout.take().unwrap());
+    out.until("ready", Duration::from_secs(10), |l| {
+        l.contains(r#""event":"ready""#)
+    });
+    let took = start.elapsed();
+    let rss = common::rss_kib(child.id());
+    drop(child.stdin.take());
+    let status = child.wait().unwrap();
+    let _ = std::fs::remove_file(&at);
+    let lines: Vec<Value> = out
+        .finish()
+        .iter()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(status.code(), Some(0));
+    let ready = lines.iter().position(|v| v["event"] == "ready").unwrap();
+    assert!(
+        lines[..ready].iter().all(|v| v["event"] != "offline"),
+        "a joint went offline before ready ({took:?}): {:?}",
+        &lines[..ready]
+    );
+    let motors = lines[ready]["motors"].as_array().unwrap();
+    assert_eq!(motors.len(), limit);
+    for m in motors {
+        assert!(m["online"] == true && m["active"] == true, "{m}");
+    }
+    assert!(rss < 100 * 1024, "{rss} KiB resident at ready");
+    eprintln!("{limit} joints ready in {took:?}, {rss} KiB resident");
+
+    let over = joints_map(limit + 1, "over-limit");
+    let over_path = over.to_str().unwrap();
+    for args in [
+        &["bridge", "--map", over_path, "--bus", "sim"][..],
+        &["translate", "--map", over_path, "--to", "irpc-v2.0"][..],
+    ] {
+        let start = Instant::now();
+        let out = common::run(args, b"");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(&format!("{} motors", limit + 1))
+                && stderr.contains(&format!("at most {limit}")),
+            "{args:?}: {stderr}"
+        );
+        assert!(out.stdout.is_empty(), "{args:?}");
+        assert!(start.elapsed() < Duration::from_secs(5), "{args:?}");
+    }
+    let _ = std::fs::remove_file(&over);
+}

@@ -408,3 +408,27 @@ fn with_now_a_timestamp_further_ahead_than_the_bridges_skew_is_stale() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `motorwire validate` lists the first 100 violations and counts the rest
+/// (issue 58 part 3): before, a 1 MiB line of `{}` waypoints printed
+/// 700,000 of them.
+#[test]
+fn validate_lists_a_hundred_violations_and_counts_the_rest() {
+    let doc = format!(
+        r#"{{"trajectory_id":"t","motor_id":"elbow","waypoints":[{}],"timing":{{}}}}"#,
+        vec!["{}"; 5_000].join(",")
+    );
+    let out = motorwire(&["validate", "--format", "json", "-"], Some(doc.as_bytes()));
+    assert_eq!(out.status.code(), Some(1));
+    let lines = json_lines(&out);
+    assert_eq!(lines[0]["errors"].as_array().unwrap().len(), 100);
+    assert_eq!(lines[0]["more_errors"], 9_900);
+    let out = motorwire(&["validate", "-"], Some(doc.as_bytes()));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.starts_with("-: trajectory (auto): invalid, 10000 violation(s)\n"),
+        "{text}"
+    );
+    assert!(text.ends_with("\n  and 9900 more, not listed\n"), "{text}");
+    assert_eq!(text.lines().count(), 102);
+}

@@ -157,3 +157,165 @@ fn a_recording_that_cannot_be_made_is_refused_at_start() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// A disk of 512 KiB for a recording: a tmpfs mounted for the test, or,
+/// where mounting is not allowed, a limit on the size of each file the
+/// bridge writes (its writes past it fail, as on a full disk). Unmounted
+/// and removed when dropped.
+struct SmallDisk {
+    base: std::path::PathBuf,
+    mounted: bool,
+}
+
+impl SmallDisk {
+    fn new(name: &str) -> Self {
+        let base = std::env::temp_dir().join(format!("motorwire-{name}-{}", std::process::id()));
+        let _ = std::process::Command::new("umount").arg(&base).output();
+        let _ = std::fs::remove_dir_all(&base);
+        std::fs::create_dir_all(&base).unwrap();
+        let mounted = std::process::Command::new("mount")
+            .args(["-t", "tmpfs", "-o", "size=512k", "tmpfs"])
+            .arg(&base)
+            .output()
+            .is_ok_and(|o| o.status.success());
+        Self { base, mounted }
+    }
+
+    /// `motorwire ARGS`, its writes bounded as the disk says.
+    fn spawn(&self, args: &[&str]) -> std::process::Child {
+        if self.mounted {
+            return common::spawn(args);
+        }
+        // Past the limit a write fails (EFBIG) and the kernel sends
+        // SIGXFSZ, ignored here as the bridge inherits it; `ulimit -f`
+        // counts 512-byte blocks (POSIX sh; bash counts KiB: 1 MiB then).
+        std::process::Command::new("sh")
+            .arg("-c")
+            .arg(r#"trap '' XFSZ; ulimit -f 1024 && exec "$0" "$@""#)
+            .arg(env!("CARGO_BIN_EXE_motorwire"))
+            .args(args)
+            .current_dir(common::root())
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap()
+    }
+}
+
+impl Drop for SmallDisk {
+    fn drop(&mut self) {
+        if self.mounted {
+            let _ = std::process::Command::new("umount")
+                .arg(&self.base)
+                .output();
+        }
+        let _ = std::fs::remove_dir_all(&self.base);
+    }
+}
+
+/// A recording onto a disk that fills (512 KiB, 3 s of feedback at
+/// 250 Hz a joint, then an emergency stop and the end of input) loses
+/// records, and says so everywhere: `session.json` counts them and marks
+/// the recording incomplete (no stray `session.json.part`), the bridge's
+/// last line on stderr and its exit status say records were lost,
+/// `motorwire replay` refuses it (exit 2) unless `--allow-incomplete`,
+/// and then replays it saying it is incomplete, and `motorwire plot`
+/// names the gap on the chart. It used to end with exit 0, a
+/// `session.json` without its counts beside an empty
+/// `session.json.part`, a replay that was "the same: no divergence" and
+/// a chart with no marks.
+#[test]
+fn a_recording_that_lost_records_says_so_everywhere() {
+    let disk = SmallDisk::new("record-full");
+    let dir = disk.base.join("rec");
+    let mut child = disk.spawn(&common::sim_bridge(&[
+        "--feedback-hz",
+        "250",
+        "--record",
+        dir.to_str().unwrap(),
+    ]));
+    let mut pipe = child.stdin.take().unwrap();
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    pipe.write_all(b"{\"emergency_stop\":true}\n").unwrap();
+    drop(pipe);
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let last = stderr.lines().last().unwrap_or("");
+    // The bridge: the last line says what was lost, and so does its status.
+    let session: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("session.json")).unwrap()).unwrap();
+    let dropped = session["dropped"].as_u64().unwrap_or(0);
+    assert!(dropped > 0, "{session}\n{stderr}");
+    assert_eq!(out.status.code(), Some(73), "{stderr}");
+    assert!(
+        last.starts_with(&format!(
+            "motorwire bridge: the recording lost {dropped} records"
+        )),
+        "{stderr}"
+    );
+    // session.json: its counts and the mark, written in place.
+    assert_eq!(session["complete"], false, "{session}");
+    assert!(session["ended_wall_ms"].is_u64(), "{session}");
+    assert!(session["written"].as_u64().unwrap() > 0, "{session}");
+    assert!(
+        session["dropped_first_us"].as_u64().unwrap()
+            <= session["dropped_last_us"].as_u64().unwrap(),
+        "{session}"
+    );
+    assert!(!dir.join("session.json.part").exists());
+    // replay: refused, unless allowed; then replayed and said incomplete.
+    let out = common::run(&["replay", dir.to_str().unwrap()], b"");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(&format!("the recording dropped {dropped} records"))
+            && err.contains("--allow-incomplete"),
+        "{err}"
+    );
+    let out = common::run(
+        &["replay", dir.to_str().unwrap(), "--allow-incomplete"],
+        b"",
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(matches!(out.status.code(), Some(0 | 1)), "{err}");
+    assert!(err.contains("incomplete"), "{err}");
+    assert!(text.contains("incomplete"), "{text}");
+    let out = common::run(
+        &[
+            "replay",
+            dir.to_str().unwrap(),
+            "--allow-incomplete",
+            "--json",
+        ],
+        b"",
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["complete"], false, "{v}");
+    assert_eq!(v["dropped"], dropped, "{v}");
+    // plot: the gap named on the chart.
+    let svg =
+        std::env::temp_dir().join(format!("motorwire-record-full-{}.svg", std::process::id()));
+    let out = common::run(
+        &[
+            "plot",
+            dir.to_str().unwrap(),
+            "--svg",
+            svg.to_str().unwrap(),
+        ],
+        b"",
+    );
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let drawn = std::fs::read_to_string(&svg).unwrap();
+    assert!(
+        drawn.contains(&format!("incomplete recording: {dropped} records lost")),
+        "{drawn}"
+    );
+    let _ = std::fs::remove_file(&svg);
+}

@@ -152,6 +152,12 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
     assert_eq!(code, Some(0), "{v}\n{stderr}");
     assert_eq!(v["same"], true, "{v}");
     assert_eq!(v["ended_cleanly"], true, "{v}");
+    assert_eq!(
+        (&v["complete"], &v["dropped"], &v["incomplete"]),
+        (&Value::Bool(true), &Value::from(0), &Value::Null),
+        "{v}"
+    );
+    assert_eq!(session["complete"], true, "{session}");
     assert_eq!(v["divergence"], Value::Null);
     assert_eq!(v["inputs"], 11, "9 lines, the start and the end: {v}");
     // Every line's answers: 9 results and 4 completions (the first move,
@@ -289,27 +295,52 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
         std::fs::write(dir.join("session.json"), &session_text).unwrap();
     }
     // The bridge killed in the middle of a write: session.json without its
-    // end's counts, lines.jsonl's last line cut short. What came before
-    // it replays and plots, and both say what was left out.
+    // end (its counts as last rewritten, `complete` false, no
+    // `ended_wall_ms`), lines.jsonl's last line cut short. Refused as
+    // incomplete; with --allow-incomplete, what came before it replays,
+    // and plots, and both say what was left out.
     let lines = std::fs::read_to_string(dir.join("lines.jsonl")).unwrap();
     let mut killed: Value = serde_json::from_str(&session_text).unwrap();
-    for count in ["written", "dropped", "bytes"] {
-        killed.as_object_mut().unwrap().remove(count);
-    }
+    killed.as_object_mut().unwrap().remove("ended_wall_ms");
+    killed["complete"] = Value::Bool(false);
     std::fs::write(dir.join("session.json"), killed.to_string()).unwrap();
     std::fs::write(dir.join("lines.jsonl"), &lines[..lines.len() - 20]).unwrap();
     let out = common::run(&["replay", dir.to_str().unwrap()], b"");
     let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains(": an incomplete recording: the recording did not end cleanly (session.json has no end: the bridge was killed, or its disk stopped answering); not replayed (--allow-incomplete replays it as far as it goes)"),
+        "{stderr}"
+    );
+    let out = common::run(
+        &["replay", dir.to_str().unwrap(), "--allow-incomplete"],
+        b"",
+    );
+    let stderr = String::from_utf8(out.stderr).unwrap();
     assert_eq!(out.status.code(), Some(0), "{stderr}");
     assert!(
-        stderr.contains("the recording did not end cleanly (session.json has no counts: the bridge was killed?); compared up to its last record (lines.jsonl's last line, cut in the middle of its write, left out)"),
+        stderr.contains(": an incomplete recording, replayed as far as it goes (--allow-incomplete): the recording did not end cleanly (session.json has no end: the bridge was killed, or its disk stopped answering); lines.jsonl's last line, cut in the middle of its write, left out"),
         "{stderr}"
     );
     assert!(
         String::from_utf8(out.stdout)
             .unwrap()
-            .contains("the same: no divergence"),
+            .contains("the same: no divergence, as far as the incomplete recording goes"),
         "killed and cut: not the same"
+    );
+    let (code, v, stderr) = replay_json(&dir, &["--allow-incomplete"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(
+        (&v["complete"], &v["ended_cleanly"], &v["dropped"]),
+        (&Value::Bool(false), &Value::Bool(false), &Value::from(0)),
+        "{v}"
+    );
+    assert!(
+        v["incomplete"]
+            .as_str()
+            .unwrap()
+            .starts_with("the recording did not end cleanly"),
+        "{v}"
     );
     let svg = dir.join("killed.svg");
     let out = plot(&dir, &svg);
@@ -319,7 +350,12 @@ fn a_sim_session_replays_the_same_and_a_changed_map_diverges_where_it_changes() 
         stderr.contains("the recording did not end cleanly: its last line, cut in the middle of its write, is left out"),
         "{stderr}"
     );
-    assert!(std::fs::read_to_string(&svg).unwrap().contains("elbow"));
+    let drawn = std::fs::read_to_string(&svg).unwrap();
+    assert!(drawn.contains("elbow"));
+    assert!(
+        drawn.contains("incomplete recording: it did not end cleanly"),
+        "the chart says it"
+    );
     std::fs::write(dir.join("lines.jsonl"), &lines).unwrap();
     std::fs::write(dir.join("session.json"), &session_text).unwrap();
     std::fs::remove_file(dir.join("frames.log")).unwrap();
@@ -467,7 +503,11 @@ fn a_recording_that_cannot_be_replayed_says_why() {
          {\"t_us\":1000000000000,\"wall_ms\":1,\"in\":{\"origin\":0,\"line\":1,\"text\":\"{}\"}}\n",
     )
     .unwrap();
-    let out = common::run(&["replay", real.to_str().unwrap()], b"");
+    // (It has no end either: replayed only when allowed.)
+    let out = common::run(
+        &["replay", real.to_str().unwrap(), "--allow-incomplete"],
+        b"",
+    );
     let stderr = String::from_utf8(out.stderr).unwrap();
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(
@@ -484,4 +524,105 @@ fn a_recording_that_cannot_be_replayed_says_why() {
     let out = common::run(&["replay", "/nonexistent/recording"], b"");
     assert_eq!(out.status.code(), Some(2));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `motorwire replay DIR` run to its end, or killed after `limit`: its
+/// exit status (`None`: it was still running) and what it printed
+/// (standard output, then standard error).
+fn replay_within(dir: &Path, limit: Duration) -> (Option<i32>, String) {
+    let mut child = common::spawn(&["replay", dir.to_str().unwrap()]);
+    drop(child.stdin.take());
+    let began = std::time::Instant::now();
+    while began.elapsed() < limit {
+        if child.try_wait().unwrap().is_some() {
+            let out = child.wait_with_output().unwrap();
+            return (
+                out.status.code(),
+                format!(
+                    "{}{}",
+                    String::from_utf8_lossy(&out.stdout),
+                    String::from_utf8_lossy(&out.stderr)
+                ),
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let _ = child.kill();
+    let out = child.wait_with_output().unwrap();
+    (None, String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+/// Records one session on `map` (`--bus sim`): each of `lines` after
+/// `ready`, `pause_ms` before it, stamped now; then the end of input.
+fn record_on(map: &str, dir: &Path, lines: &[(u64, String)]) {
+    let mut child = common::spawn(&[
+        "bridge",
+        "--map",
+        map,
+        "--bus",
+        "sim",
+        "--feedback-hz",
+        "0",
+        "--record",
+        dir.to_str().unwrap(),
+    ]);
+    let mut pipe = child.stdin.take().unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    for (pause, line) in lines {
+        std::thread::sleep(Duration::from_millis(*pause));
+        let line = line.replace("NOW", &now_ms().to_string());
+        pipe.write_all(format!("{line}\n").as_bytes()).unwrap();
+    }
+    drop(pipe);
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Replay ends, and reproduces what the bridge did, on every dialect
+/// (issue 58 part 6): a moteus-only map with one position move (its
+/// replay spun at one instant forever: the heartbeat's timer stayed due
+/// on a bus without iRPC joints), and the mixed iRPC, compact and moteus
+/// map with commands a few milliseconds either side of the controllers'
+/// polls (a poll and a command that swapped places were a divergence:
+/// the polls are the clock's, not compared).
+#[test]
+fn every_dialects_recording_replays_the_same_and_ends() {
+    let pos = |motor: &str, v: f64| {
+        format!(
+            r#"{{"motor_id":"{motor}","timestamp":NOW,"control_mode":"position","setpoint":{v}}}"#
+        )
+    };
+    let dir = scratch("moteus-only");
+    record_on(
+        "fixtures/maps/moteus-leg.toml",
+        &dir,
+        &[(0, pos("hip", 20.0)), (600, pos("knee", 30.0))],
+    );
+    let (code, stderr) = replay_within(&dir, Duration::from_secs(60));
+    assert_eq!(code, Some(0), "moteus-only: {stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+    for j in 0..8u64 {
+        let dir = scratch(&format!("mixed-{j}"));
+        record_on(
+            "fixtures/maps/demo-arm-and-leg.toml",
+            &dir,
+            &[
+                (0, pos("elbow", 20.0)),
+                (3 + 2 * j, pos("hip", 10.0 + j as f64)),
+                (7 + 3 * j, pos("knee", 20.0)),
+                (11 + j, pos("gripper_axis", 10.0)),
+                (400, pos("hip", -5.0)),
+                (5 + j, "{\"emergency_stop\":true}".to_owned()),
+                (100, "{\"emergency_stop\":false}".to_owned()),
+            ],
+        );
+        let (code, stderr) = replay_within(&dir, Duration::from_secs(60));
+        assert_eq!(code, Some(0), "mixed session {j}: {stderr}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

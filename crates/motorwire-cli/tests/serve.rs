@@ -1134,3 +1134,513 @@ fn each_client_gets_feedback_at_its_own_rate() {
         "at 10 Hz: {ten} elbow lines where the full rate had {all}"
     );
 }
+
+/// What a stop cancels does not depend on a client's clock (issue 58
+/// part 2): a policy client whose clock runs 120 s ahead (inside the
+/// allowed 5 min) streams setpoints faster than the bridge takes them, so
+/// thousands of its lines wait in its socket; another client stops and
+/// releases. No line the policy had written before the stop runs after
+/// the release (each is refused: `emergency_stop_latched` while latched,
+/// `stale_before_stop` after), and its lines written after the release
+/// are taken.
+#[test]
+fn a_clients_clock_ahead_does_not_decide_what_a_stop_cancels() {
+    use std::sync::atomic::AtomicU64;
+    let dir = scratch("skew");
+    let sock = dir.join("bridge.sock");
+    let mut child = unix_bridge(&sock, &["--feedback-hz", "0"]);
+    let _ = listening(&mut child);
+    let _events = stdout_lines(&mut child);
+    let bridge = Bridge(child);
+    let policy = UnixStream::connect(&sock).unwrap();
+    let written = Arc::new(AtomicU64::new(0));
+    let done = Arc::new(AtomicBool::new(false));
+    // When each line's write returned.
+    let times = Arc::new(std::sync::Mutex::new(Vec::with_capacity(40_000)));
+    let writer = {
+        let mut w = policy.try_clone().unwrap();
+        let (written, done) = (Arc::clone(&written), Arc::clone(&done));
+        let times = Arc::clone(&times);
+        thread::spawn(move || {
+            let mut n = 0u64;
+            while !done.load(Ordering::SeqCst) && n < 40_000 {
+                let setpoint = if n.is_multiple_of(2) { 10.0 } else { 20.0 };
+                let line = format!(
+                    r#"{{"motor_id":"elbow","timestamp":{},"control_mode":"position","setpoint":{setpoint}}}"#,
+                    now_ms() + 120_000
+                );
+                if writeln!(w, "{line}").is_err() {
+                    break;
+                }
+                times.lock().unwrap().push(Instant::now());
+                n += 1;
+                written.store(n, Ordering::SeqCst);
+            }
+            let _ = w.shutdown(std::net::Shutdown::Write);
+        })
+    };
+    let reader = thread::spawn(move || {
+        let mut r = BufReader::new(policy);
+        let mut results = Vec::new();
+        let mut line = String::new();
+        while r.read_line(&mut line).unwrap_or(0) > 0 {
+            let v: Value = serde_json::from_str(&line).unwrap();
+            if v.get("ok").is_some() {
+                results.push(v);
+            }
+            line.clear();
+        }
+        results
+    });
+    // The policy's socket fills: its lines wait for the bridge.
+    while written.load(Ordering::SeqCst) < 3_000 {
+        thread::sleep(Duration::from_millis(10));
+    }
+    let (mut w, mut r) = operator(&sock);
+    let before_stop = written.load(Ordering::SeqCst);
+    let stop_sent = Instant::now();
+    writeln!(w, r#"{{"emergency_stop": true}}"#).unwrap();
+    assert_eq!(next_result(&mut r)["emergency_stop"], true);
+    writeln!(w, r#"{{"emergency_stop": false}}"#).unwrap();
+    assert_eq!(next_result(&mut r)["released"], true);
+    // Lines written after the release, then the policy ends.
+    let after_release = written.load(Ordering::SeqCst);
+    while written.load(Ordering::SeqCst) < after_release + 200 {
+        thread::sleep(Duration::from_millis(5));
+    }
+    done.store(true, Ordering::SeqCst);
+    writer.join().unwrap();
+    let total = written.load(Ordering::SeqCst);
+    let results = reader.join().unwrap();
+    assert_eq!(results.len() as u64, total, "one result a line");
+    // From the first line the stop refused on, no line written before the
+    // stop is taken: none written 5 ms or more before it (timestamps are
+    // whole milliseconds, and the stop is timed when the bridge reads it,
+    // so a line written in its last millisecond may pass as written after
+    // it, whatever the clocks).
+    let times = times.lock().unwrap().clone();
+    let first = results
+        .iter()
+        .position(|v| v["ok"] == false && v["error"]["kind"] == "emergency_stop_latched")
+        .expect("a line refused while latched");
+    let mut stale = 0;
+    for v in &results[first..] {
+        let n = v["line"].as_u64().unwrap();
+        let at = times[usize::try_from(n).unwrap() - 1];
+        if n <= before_stop && at + Duration::from_millis(5) <= stop_sent {
+            assert_eq!(
+                v["ok"], false,
+                "written before the stop, taken after it: {v}"
+            );
+            let kind = v["error"]["kind"].as_str().unwrap();
+            assert!(
+                [
+                    "emergency_stop_latched",
+                    "stale_before_stop",
+                    "cancelled",
+                    "superseded"
+                ]
+                .contains(&kind),
+                "{v}"
+            );
+            stale += usize::from(kind == "stale_before_stop");
+        }
+    }
+    // The window was there: lines written before the stop came after the
+    // release (with the client's clock ahead, each stamped after the stop).
+    assert!(
+        stale > 0,
+        "no line written before the stop came after the release"
+    );
+    // Lines written after the release were taken.
+    assert!(
+        results
+            .iter()
+            .any(|v| v["ok"] == true && v["line"].as_u64().unwrap() > after_release),
+        "nothing written after the release was taken"
+    );
+    eprintln!(
+        "{total} lines; {before_stop} written before the stop; {stale} of them refused stale_before_stop after the release"
+    );
+    drop(bridge);
+}
+
+/// One bad line never holds a stop (issue 58 part 3): a client sends
+/// 1 MiB trajectory lines whose waypoints are all `{}` (about 700,000
+/// violations each; before, each refusal listed them all, 68 MB a line,
+/// and another client's stop waited 4.2 to 5.6 s behind it while healthy
+/// joints were reported offline). Now each refusal lists the first 100
+/// violations and counts the rest, the line is read on its own client's
+/// thread, and the other client's stops are taken at once meanwhile.
+#[test]
+fn huge_invalid_lines_never_hold_another_clients_stop() {
+    let dir = scratch("huge");
+    let sock = dir.join("bridge.sock");
+    let mut child = unix_bridge(&sock, &["--feedback-hz", "0"]);
+    let _ = listening(&mut child);
+    let events = stdout_lines(&mut child);
+    let pid = child.id();
+    let bridge = Bridge(child);
+    // Ready: the joints answered, so an offline event is a real one.
+    let (mut w, mut r) = operator(&sock);
+    let greeting = next_result_or_event(&mut r);
+    assert_eq!(greeting["event"], "ready", "{greeting}");
+    // In a debug build a 1 MiB line takes seconds of a core to read (and
+    // the other tests run beside this one): one line of 256 KiB; in
+    // release (CI's release step, alone) eight of 1 MiB.
+    let (lines, bytes): (usize, usize) = if cfg!(debug_assertions) {
+        (1, 1 << 18)
+    } else {
+        (8, 1 << 20)
+    };
+    let waypoints = bytes / 3 - 40;
+    let huge = format!(
+        r#"{{"trajectory_id":"t","motor_id":"elbow","waypoints":[{}],"timing":{{}}}}"#,
+        vec!["{}"; waypoints].join(",")
+    );
+    assert!(huge.len() <= bytes);
+    let hostile = UnixStream::connect(&sock).unwrap();
+    // It writes from one thread and reads what it is sent on another (a
+    // client that stops reading is cut off, rightly).
+    let writer = {
+        let mut hw = hostile.try_clone().unwrap();
+        thread::spawn(move || {
+            for _ in 0..lines {
+                writeln!(hw, "{huge}").unwrap();
+            }
+        })
+    };
+    let answers = thread::spawn(move || {
+        let mut results = Vec::new();
+        let mut hr = BufReader::new(hostile);
+        let mut line = String::new();
+        while results.len() < lines && hr.read_line(&mut line).unwrap() > 0 {
+            if line.starts_with("{\"ok\"") {
+                results.push(line.clone());
+            }
+            line.clear();
+        }
+        results
+    });
+    let mut stop_latencies = Vec::new();
+    while !answers.is_finished() || stop_latencies.len() < 50 {
+        writeln!(w, r#"{{"emergency_stop": true}}"#).unwrap();
+        let res = next_result(&mut r);
+        assert_eq!(res["emergency_stop"], true, "{res}");
+        stop_latencies.push(res["stop_latency_us"].as_u64().unwrap());
+        writeln!(w, r#"{{"emergency_stop": false}}"#).unwrap();
+        assert_eq!(next_result(&mut r)["released"], true);
+        // An operator's pace, not a flood of its own.
+        thread::sleep(Duration::from_millis(2));
+    }
+    writer.join().unwrap();
+    let answers = answers.join().unwrap();
+    assert_eq!(answers.len(), lines);
+    for a in &answers {
+        assert!(a.len() < 64 * 1024, "a refusal of {} bytes", a.len());
+        let v: Value = serde_json::from_str(a).unwrap();
+        assert_eq!(v["error"]["kind"], "invalid", "{v}");
+        assert_eq!(v["error"]["violations"].as_array().unwrap().len(), 100);
+        let more = v["error"]["more_violations"].as_u64().unwrap();
+        assert_eq!(more as usize + 100, 2 * waypoints, "{}", &a[..300]);
+    }
+    // No healthy joint was reported offline meanwhile.
+    let offline: Vec<Value> = events
+        .try_iter()
+        .filter(|v| v["event"] == "offline")
+        .collect();
+    assert!(offline.is_empty(), "{offline:?}");
+    stop_latencies.sort_unstable();
+    let p99 = stop_latencies[(stop_latencies.len() - 1) * 99 / 100];
+    let rss = common::rss_kib(pid);
+    eprintln!(
+        "{} stops while {lines} lines of {} KiB came: median {} µs, p99 {p99} µs, worst {} µs; bridge {rss} KiB",
+        stop_latencies.len(),
+        bytes / 1024,
+        stop_latencies[stop_latencies.len() / 2],
+        stop_latencies.last().unwrap()
+    );
+    // Under 1 ms at the p99 in release (CI's release step); a debug build
+    // on a loaded 2-core machine is held to 20 ms (it was seconds).
+    let bound = if cfg!(debug_assertions) {
+        20_000
+    } else {
+        1_000
+    };
+    assert!(p99 < bound, "p99 {p99} µs");
+    // Each line is parsed whole to be judged (a JSON tree of 350,000
+    // members, its schema errors counted): the reader's peak, kept by the
+    // allocator. Measured 783 MB in release with eight lines (it was 1.3
+    // to 2.1 GiB with every violation listed).
+    let most = if cfg!(debug_assertions) { 300 } else { 1024 };
+    assert!(rss < most * 1024, "the bridge holds {rss} KiB");
+    drop(bridge);
+}
+
+/// The next line a client reads (a result or an event).
+fn next_result_or_event(r: &mut impl BufRead) -> Value {
+    let mut line = String::new();
+    assert!(r.read_line(&mut line).unwrap() > 0, "the bridge closed");
+    serde_json::from_str(&line).unwrap()
+}
+
+/// Lines in all of a slow controller's session, in bursts of
+/// [`BURST`], then its stop.
+const SESSION: u64 = 35_000;
+const BURST: u64 = 5_000;
+/// The slow controller reads this many lines, then sleeps 1 ms: slower
+/// than the bridge answers a burst (a debug build answers about 4,000
+/// lines a second; each setpoint has its result and its completion).
+const READ_BETWEEN_NAPS: u64 = 2;
+
+/// What a slow controller saw: how many lines it could write, how many
+/// results each got (1-based), its stop's result, and how long the
+/// session took.
+struct SlowSession {
+    written: u64,
+    results: Vec<u32>,
+    stop: Option<Value>,
+    took: Duration,
+}
+
+/// A controller that writes [`SESSION`] elbow setpoints (timestamp now)
+/// in bursts of [`BURST`] from one thread, then a stop, then ends its
+/// input (`end`), while another thread reads every line it is sent, but
+/// slowly (a nap of 1 ms every [`READ_BETWEEN_NAPS`] lines), to the end.
+fn slow_controller<W: Write + Send + 'static>(
+    input: W,
+    end: impl FnOnce(W) + Send + 'static,
+    output: impl Read + Send + 'static,
+) -> SlowSession {
+    let start = Instant::now();
+    let writer = thread::spawn(move || {
+        let mut w = std::io::BufWriter::with_capacity(1 << 16, input);
+        let mut n = 0u64;
+        while n < SESSION {
+            for _ in 0..BURST.min(SESSION - n) {
+                let setpoint = 10.0 + (n % 20) as f64;
+                if writeln!(w, "{}", command("elbow", setpoint)).is_err() {
+                    return n; // the bridge went away
+                }
+                n += 1;
+            }
+            if w.flush().is_err() {
+                return n;
+            }
+            thread::sleep(Duration::from_millis(100));
+        }
+        let _ = writeln!(w, r#"{{"emergency_stop": true}}"#);
+        let _ = w.flush();
+        if let Ok(inner) = w.into_inner() {
+            end(inner);
+        }
+        n
+    });
+    let reader = thread::spawn(move || {
+        let mut results = vec![0u32; SESSION as usize + 1];
+        let mut stop = None;
+        let mut read = 0u64;
+        for line in BufReader::new(output).lines() {
+            let Ok(line) = line else { break };
+            read += 1;
+            if read.is_multiple_of(READ_BETWEEN_NAPS) {
+                thread::sleep(Duration::from_millis(1));
+            }
+            // A line cut short: the bridge closed the connection.
+            let Ok(v) = serde_json::from_str::<Value>(&line) else {
+                break;
+            };
+            if v.get("ok").is_none() || v.get("event").is_some() {
+                continue;
+            }
+            let n = v["line"].as_u64().unwrap();
+            if n == SESSION + 1 {
+                stop = Some(v.clone());
+            }
+            if let Some(c) = results.get_mut(n as usize - 1) {
+                *c += 1;
+            }
+        }
+        (results, stop)
+    });
+    let written = writer.join().unwrap();
+    let (results, stop) = reader.join().unwrap();
+    SlowSession {
+        written,
+        results,
+        stop,
+        took: start.elapsed(),
+    }
+}
+
+/// Lines that did not get exactly one result: (line, results), the first
+/// ten.
+fn not_one_result(results: &[u32]) -> Vec<(usize, u32)> {
+    results
+        .iter()
+        .enumerate()
+        .filter(|&(_, &c)| c != 1)
+        .map(|(i, &c)| (i + 1, c))
+        .take(10)
+        .collect()
+}
+
+/// A controller on standard input that reads every result, but more
+/// slowly than the bridge answers its bursts of 5,000 lines, is slowed
+/// down, not cut off (issue 58 part 9: it was taken for one that stopped
+/// reading, `standard output is not being read (4096 lines waiting)`, the
+/// joints stopped and exit 74): each of its 35,000 lines and its stop
+/// gets exactly one result, and the bridge ends with 0.
+#[test]
+fn a_slow_reader_on_standard_input_is_slowed_not_cut_off() {
+    let mut child = common::spawn(&[
+        "bridge",
+        "--map",
+        MAP,
+        "--bus",
+        "sim",
+        "--feedback-hz",
+        "10",
+    ]);
+    let stdin = child.stdin.take().unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let mut stderr = child.stderr.take().unwrap();
+    let bridge = Bridge(child);
+    let session = slow_controller(stdin, drop, stdout);
+    let mut bridge = bridge;
+    let code = exit_within(&mut bridge.0, Duration::from_secs(30));
+    let mut err = String::new();
+    stderr.read_to_string(&mut err).unwrap();
+    assert!(!err.contains("not being read"), "{err}");
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(session.written, SESSION, "the bridge stopped taking lines");
+    let wrong = not_one_result(&session.results);
+    assert!(
+        wrong.is_empty(),
+        "lines without exactly one result: {wrong:?}\n{err}"
+    );
+    let stop = session.stop.expect("the stop was answered");
+    assert_eq!(stop["ok"], true, "{stop}");
+    assert_eq!(stop["emergency_stop"], true, "{stop}");
+    eprintln!(
+        "{} lines and a stop, read slowly, in {:?}",
+        SESSION, session.took
+    );
+}
+
+/// An operator's stops on `sock`, each released, every 20 ms, until
+/// `done`: each stop's `stop_latency_us` (its line to its last frame on the
+/// bus) and its round trip, sorted.
+fn operator_stops(sock: &Path, done: impl Fn(usize) -> bool) -> (Vec<u64>, Vec<Duration>) {
+    let (mut w, mut r) = operator(sock);
+    let mut stop_latencies = Vec::new();
+    let mut round_trips = Vec::new();
+    while !done(stop_latencies.len()) {
+        let sent = Instant::now();
+        writeln!(w, r#"{{"emergency_stop": true}}"#).unwrap();
+        let res = next_result(&mut r);
+        round_trips.push(sent.elapsed());
+        assert_eq!(res["emergency_stop"], true, "{res}");
+        stop_latencies.push(res["stop_latency_us"].as_u64().unwrap());
+        writeln!(w, r#"{{"emergency_stop": false}}"#).unwrap();
+        let rel = next_result(&mut r);
+        // Another client's stop, read after this release and acted on
+        // first, keeps the stop latched.
+        assert!(
+            rel["released"] == true || rel["error"]["kind"] == "cancelled",
+            "{rel}"
+        );
+        thread::sleep(Duration::from_millis(20));
+    }
+    stop_latencies.sort_unstable();
+    round_trips.sort_unstable();
+    (stop_latencies, round_trips)
+}
+
+/// The p99 of sorted `v` (the value below which 99 % of them lie).
+fn p99<T: Copy>(v: &[T]) -> T {
+    v[(v.len() - 1) * 99 / 100]
+}
+
+/// The same slow controller on a local socket, while an operator on a
+/// second connection stops and releases in a loop: the controller is
+/// slowed, never dropped, and each of its lines gets exactly one result;
+/// the operator's stops are not held up by it. Its stops are measured
+/// alone first, on the same machine at the same time, then during the
+/// session (`stop_latency_us`: each stop's line to its last frame on the
+/// bus; and its round trip; `--nocapture` prints them). In a release build
+/// the p99 during the session is held under 1 ms, or, on a machine loaded
+/// so that the stops alone miss it, to twice the p99 of those alone.
+#[test]
+fn a_slow_reader_on_a_socket_is_slowed_not_dropped_and_anothers_stops_stay_fast() {
+    let dir = scratch("slow-reader");
+    let sock = dir.join("bridge.sock");
+    let mut child = unix_bridge(&sock, &["--feedback-hz", "10"]);
+    let _ = listening(&mut child);
+    let events = stdout_lines(&mut child);
+    let bridge = Bridge(child);
+    wait_for(&events, Duration::from_secs(10), |v| v["event"] == "ready");
+    let (alone, _) = operator_stops(&sock, |n| n >= 200);
+    let controller = UnixStream::connect(&sock).unwrap();
+    let input = controller.try_clone().unwrap();
+    let done = Arc::new(AtomicBool::new(false));
+    let operator_thread = {
+        let sock = sock.clone();
+        let done = Arc::clone(&done);
+        thread::spawn(move || operator_stops(&sock, |_| done.load(Ordering::SeqCst)))
+    };
+    let session = slow_controller(
+        input,
+        // Ends its input; its results still come, then the bridge closes
+        // the connection.
+        |w: UnixStream| {
+            let _ = w.shutdown(std::net::Shutdown::Write);
+        },
+        controller,
+    );
+    done.store(true, Ordering::SeqCst);
+    let (stop_latencies, round_trips) = operator_thread.join().unwrap();
+    let dropped: Vec<Value> = events
+        .try_iter()
+        .filter(|v| v["event"] == "client_dropped")
+        .collect();
+    assert!(dropped.is_empty(), "{dropped:?}");
+    assert_eq!(session.written, SESSION, "the bridge stopped taking lines");
+    let wrong = not_one_result(&session.results);
+    assert!(
+        wrong.is_empty(),
+        "lines without exactly one result: {wrong:?}"
+    );
+    let stop = session.stop.expect("the controller's stop was answered");
+    assert_eq!(stop["emergency_stop"], true, "{stop}");
+    let n = stop_latencies.len();
+    assert!(n >= 50, "only {n} stops");
+    let p99_stop = p99(&stop_latencies);
+    eprintln!(
+        "stops alone: line to last frame median {} µs, p99 {} µs, worst {} µs",
+        alone[alone.len() / 2],
+        p99(&alone),
+        alone[alone.len() - 1],
+    );
+    eprintln!(
+        "{SESSION} lines read slowly in {:?}; {n} stops meanwhile: line to last frame median {} µs, p99 {p99_stop} µs, worst {} µs; round trip median {:?}, p99 {:?}, worst {:?}",
+        session.took,
+        stop_latencies[n / 2],
+        stop_latencies[n - 1],
+        round_trips[n / 2],
+        p99(&round_trips),
+        round_trips[n - 1],
+    );
+    // A loaded debug build gets the bound the flood test has.
+    let bound = if cfg!(debug_assertions) {
+        50_000
+    } else {
+        1_000.max(2 * p99(&alone))
+    };
+    assert!(
+        p99_stop < bound,
+        "the stop's p99 took {p99_stop} µs (alone: {} µs)",
+        p99(&alone)
+    );
+    drop(bridge);
+}

@@ -56,17 +56,24 @@ fn get(addr: &str, request: &str) -> String {
 #[test]
 fn the_view_serves_its_page_and_stream_and_only_reads() {
     let (mut child, addr, _err) = bridge_with_view(&[]);
-    let page = get(&addr, "GET / HTTP/1.1\r\nHost: x\r\n\r\n");
+    let page = get(&addr, &format!("GET / HTTP/1.1\r\nHost: {addr}\r\n\r\n"));
     assert!(page.starts_with("HTTP/1.1 200 OK\r\n"), "{page}");
     assert!(page.contains("Content-Type: text/html; charset=utf-8"));
     assert!(page.contains("new EventSource(\"events\""));
     assert!(!page.contains("src=\"http"), "an external asset");
     for (request, status) in [
-        ("POST / HTTP/1.1\r\n\r\n", "405 Method Not Allowed"),
-        ("GET /etc/passwd HTTP/1.1\r\n\r\n", "404 Not Found"),
+        (
+            "POST / HTTP/1.1\r\nHost: {addr}\r\n\r\n",
+            "405 Method Not Allowed",
+        ),
+        (
+            "GET /etc/passwd HTTP/1.1\r\nHost: {addr}\r\n\r\n",
+            "404 Not Found",
+        ),
         ("nonsense\r\n\r\n", "400 Bad Request"),
     ] {
-        let r = get(&addr, request);
+        let request = request.replace("{addr}", &addr);
+        let r = get(&addr, &request);
         assert!(
             r.starts_with(&format!("HTTP/1.1 {status}\r\n")),
             "{request:?}: {r}"
@@ -77,7 +84,7 @@ fn the_view_serves_its_page_and_stream_and_only_reads() {
         .set_read_timeout(Some(Duration::from_secs(10)))
         .unwrap();
     stream
-        .write_all(b"GET /events HTTP/1.1\r\nHost: x\r\n\r\n")
+        .write_all(format!("GET /events HTTP/1.1\r\nHost: {addr}\r\n\r\n").as_bytes())
         .unwrap();
     let mut events = BufReader::new(stream);
     let mut head = String::new();
@@ -198,10 +205,16 @@ fn a_view_beyond_loopback_needs_a_token_of_its_own() {
         "/?token=wrong",
         "/?token=control-token-0123456789",
     ] {
-        let r = get(&addr, &format!("GET {path} HTTP/1.1\r\n\r\n"));
+        let r = get(
+            &addr,
+            &format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n"),
+        );
         assert!(r.starts_with("HTTP/1.1 403 Forbidden\r\n"), "{path}: {r}");
     }
-    let r = get(&addr, "GET /?token=0123456789abcdef0123 HTTP/1.1\r\n\r\n");
+    let r = get(
+        &addr,
+        &format!("GET /?token=0123456789abcdef0123 HTTP/1.1\r\nHost: {addr}\r\n\r\n"),
+    );
     assert!(r.starts_with("HTTP/1.1 200 OK\r\n"), "{r}");
     drop(child.stdin.take());
     let out = child.wait_with_output().unwrap();
@@ -241,7 +254,8 @@ fn slow_heads_are_cut_and_pages_are_bounded() {
             std::thread::spawn(move || {
                 let mut s = TcpStream::connect(&addr).unwrap();
                 s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
-                s.write_all(b"GET /events HTTP/1.1\r\n\r\n").unwrap();
+                s.write_all(format!("GET /events HTTP/1.1\r\nHost: {addr}\r\n\r\n").as_bytes())
+                    .unwrap();
                 // The status line, whole.
                 let mut head = Vec::new();
                 let mut byte = [0u8; 1];
@@ -298,7 +312,8 @@ fn pages_that_never_read_never_hold_up_an_honest_one() {
     let stuck: Vec<TcpStream> = (0..15)
         .map(|_| {
             let mut s = TcpStream::connect(&addr).unwrap();
-            s.write_all(b"GET /events HTTP/1.1\r\n\r\n").unwrap();
+            s.write_all(format!("GET /events HTTP/1.1\r\nHost: {addr}\r\n\r\n").as_bytes())
+                .unwrap();
             s
         })
         .collect();
@@ -307,7 +322,9 @@ fn pages_that_never_read_never_hold_up_an_honest_one() {
     honest
         .set_read_timeout(Some(Duration::from_secs(10)))
         .unwrap();
-    honest.write_all(b"GET /events HTTP/1.1\r\n\r\n").unwrap();
+    honest
+        .write_all(format!("GET /events HTTP/1.1\r\nHost: {addr}\r\n\r\n").as_bytes())
+        .unwrap();
     let mut events = BufReader::new(honest);
     // Its history, to the last of the thousand lines.
     let mut seen = 0;
@@ -336,4 +353,98 @@ fn pages_that_never_read_never_hold_up_an_honest_one() {
     drop(stuck);
     drop(stdin);
     assert_eq!(child.wait().unwrap().code(), Some(0));
+}
+
+/// The view answers only its own address (issue 58 part 7): a web page
+/// that makes a name of its own resolve to 127.0.0.1 (DNS rebinding)
+/// sends `Host: that.name:PORT` and would read the session as its own;
+/// a page of another site sends `Origin` and `Sec-Fetch-Site`. Each is
+/// refused, before it can take one of the 16 page slots, and the view's
+/// own address, `localhost` and a `--view-host` name are served.
+#[test]
+fn the_view_answers_only_its_own_address() {
+    let (mut child, addr, _err) = bridge_with_view(&["--view-host", "Arm.Lab"]);
+    let port = addr.rsplit(':').next().unwrap().to_owned();
+    let status = |path: &str, headers: &str| {
+        let r = get(&addr, &format!("GET {path} HTTP/1.1\r\n{headers}\r\n"));
+        r.split("\r\n").next().unwrap().to_owned()
+    };
+    // Twenty streams asked for by a rebound name: none takes a slot.
+    for _ in 0..20 {
+        assert_eq!(
+            status("/events", &format!("Host: rebind.attacker.test:{port}\r\n")),
+            "HTTP/1.1 403 Forbidden"
+        );
+    }
+    for (path, headers, expected) in [
+        (
+            "/",
+            format!("Host: rebind.attacker.test:{port}\r\n"),
+            "403 Forbidden",
+        ),
+        ("/", "Host: 127.0.0.1\r\n".to_owned(), "403 Forbidden"),
+        ("/", format!("Host: 127.0.0.2:{port}\r\n"), "403 Forbidden"),
+        (
+            "/",
+            format!("Host: localhost.attacker.test:{port}\r\n"),
+            "403 Forbidden",
+        ),
+        ("/", String::new(), "403 Forbidden"),
+        (
+            "/",
+            format!("Host: {addr}\r\nHost: rebind.attacker.test:{port}\r\n"),
+            "400 Bad Request",
+        ),
+        (
+            "/events",
+            format!("Host: {addr}\r\nOrigin: http://rebind.attacker.test:{port}\r\n"),
+            "403 Forbidden",
+        ),
+        (
+            "/events",
+            format!("Host: {addr}\r\nOrigin: null\r\n"),
+            "403 Forbidden",
+        ),
+        (
+            "/events",
+            format!("Host: {addr}\r\nSec-Fetch-Site: cross-site\r\n"),
+            "403 Forbidden",
+        ),
+        (
+            "/",
+            format!("Host: {addr}\r\nSec-Fetch-Site: same-site\r\n"),
+            "403 Forbidden",
+        ),
+        ("/", format!("Host: {addr}\r\n"), "200 OK"),
+        ("/", format!("host:   LOCALHOST:{port}\r\n"), "200 OK"),
+        ("/", format!("Host: arm.lab:{port}\r\n"), "200 OK"),
+        (
+            "/",
+            format!("Host: {addr}\r\nSec-Fetch-Site: none\r\n"),
+            "200 OK",
+        ),
+    ] {
+        assert_eq!(
+            status(path, &headers),
+            format!("HTTP/1.1 {expected}"),
+            "{path} {headers:?}"
+        );
+    }
+    // The page's own stream, as a browser asks for it: served.
+    let mut s = TcpStream::connect(&addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    s.write_all(
+        format!(
+            "GET /events HTTP/1.1\r\nHost: {addr}\r\nOrigin: http://{addr}\r\nSec-Fetch-Site: same-origin\r\n\r\n"
+        )
+        .as_bytes(),
+    )
+    .unwrap();
+    let mut head = String::new();
+    BufReader::new(&s).read_line(&mut head).unwrap();
+    assert_eq!(head, "HTTP/1.1 200 OK\r\n");
+    drop(s);
+    drop(child.stdin.take());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
 }

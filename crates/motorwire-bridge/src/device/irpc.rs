@@ -12,6 +12,7 @@
 //! acknowledged payload did to its joint ([`effect`]). The engine decides
 //! what is sent and when; this says how, and what came back.
 
+use std::collections::HashMap;
 use std::time::Duration;
 
 use motorwire_can::Frame;
@@ -131,6 +132,11 @@ impl IrpcDriver {
 
     /// ArmReady to every joint, each in its own wire version (a broadcast
     /// when they all speak the bridge's). Whether it was queued.
+    /// Whether the bus has iRPC joints to hear a heartbeat.
+    pub(crate) fn beats(&self) -> bool {
+        self.joints
+    }
+
     pub(crate) fn heartbeat(&mut self) -> bool {
         // A bus without iRPC joints (moteus controllers alone) hears no
         // iRPC broadcast.
@@ -268,17 +274,19 @@ pub(crate) fn heard(payload: &Payload) -> Heard {
 }
 
 /// What the driver's `event` tells the engine, each given to `tell` in
-/// order: its device (by its node among `devices`, the engine's), what
-/// its message says in the layer's terms, its WIA feedback built on the
-/// device's last (`map` for the motor's unit, `epoch` for the timestamp).
+/// order: its device (found by its node in `by_node`, its place among
+/// `devices`, the engine's), what its message says in the layer's terms,
+/// its WIA feedback built on the device's last (`map` for the motor's
+/// unit, `epoch` for the timestamp).
 pub(crate) fn tell(
     event: IrpcEvent,
     map: &BusMap,
     devices: &[Joint],
+    by_node: &HashMap<u16, usize>,
     epoch: f64,
     mut tell: impl FnMut(Happened),
 ) {
-    let index = |node: u16| devices.iter().position(|j| j.node == node);
+    let index = |node: u16| by_node.get(&node).copied();
     match event {
         IrpcEvent::Heard { node, at } => {
             if let Some(device) = index(node) {

@@ -75,7 +75,7 @@
 //! `tests/invariants.rs` then holds the new dialect to every invariant the
 //! others keep.
 
-use std::collections::{BTreeSet, VecDeque};
+use std::collections::{BTreeSet, HashMap, HashSet, VecDeque};
 use std::time::Duration;
 
 use motorwire_can::Frame;
@@ -254,6 +254,24 @@ impl Device {
             Self::Orion(m) => Some(Order::Orion(OrionOrder::Set(m, 0.0))),
             // Its stop (or brake), as the map says.
             Self::Moteus { brake, .. } => Some(Order::Moteus(moteus_stop(brake))),
+        }
+    }
+
+    /// Its stop before a position limit, braked at `decel` (degrees a
+    /// second squared) where the device takes a deceleration: a moteus
+    /// controller's velocity 0 within it (position NaN), held until its
+    /// next command; `None` for the others (their own stop serves).
+    pub(crate) fn limit_brake(self, decel: Option<f64>) -> Option<Order> {
+        match (self, decel) {
+            (Self::Moteus { .. }, Some(d)) => Some(Order::Moteus(MoteusCommand::Position(
+                motorwire_moteus::PositionArgs {
+                    position: Some(f64::NAN),
+                    velocity: Some(0.0),
+                    accel_limit: Some(d / 360.0),
+                    ..motorwire_moteus::PositionArgs::default()
+                },
+            ))),
+            _ => None,
         }
     }
 
@@ -532,6 +550,24 @@ impl Order {
         }
     }
 
+    /// The velocity setpoint it leaves its device holding, in the
+    /// motor's `unit` a second: a compact velocity command's (in that unit
+    /// already), a moteus velocity's (position NaN; revolutions on the
+    /// wire); `None` for anything else.
+    pub(crate) fn held_velocity(&self, unit: AngleUnit) -> Option<f64> {
+        match self {
+            Self::Compact(c) if c.control_mode == CompactMode::Velocity => {
+                Some(f64::from(c.setpoint))
+            }
+            Self::Moteus(MoteusCommand::Position(a)) if !a.position.is_some_and(f64::is_finite) => {
+                a.velocity
+                    .filter(|v| v.is_finite())
+                    .map(|v| unit.from_degrees(v * 360.0))
+            }
+            _ => None,
+        }
+    }
+
     /// The target of a move (degrees) where the order alone says it (an
     /// iRPC target is in degrees; the others are in the motor's unit and
     /// are given their target by the engine, which knows it).
@@ -791,35 +827,75 @@ pub(crate) enum Route {
     Irpc,
 }
 
-/// Whose `frame` is, among `devices` (each device's CAN id and dialect,
-/// in the engine's order).
-pub(crate) fn route(frame: &Frame, devices: impl Iterator<Item = (u16, Device)>) -> Route {
-    let id = frame.id();
-    if id.is_extended() {
-        let mut route = Route::Irpc;
-        for (k, (_, device)) in devices.enumerate() {
-            if let Device::Moteus { id: mid, bus, .. } = device {
-                match moteus::addressed(id.raw(), mid, bus) {
-                    Some(true) => return Route::MoteusReply(k),
-                    Some(false) => route = Route::MoteusCommand,
-                    None => {}
+/// Whose a frame from the bus is, looked up by its CAN id among the
+/// devices the router was made for: what a frame costs does not grow with
+/// the devices (every frame of every device passes here).
+#[derive(Debug, Default)]
+pub(crate) struct Router {
+    /// Compact devices by the CAN id of their feedback (the first device,
+    /// in the engine's order, of each).
+    compact_feedback: HashMap<u32, usize>,
+    /// The CAN ids of compact commands.
+    compact_command: HashSet<u32>,
+    /// Moteus controllers by (CAN prefix, id): the first of each.
+    moteus: HashMap<(u16, u8), usize>,
+}
+
+impl Router {
+    /// A router for `devices` (each device's CAN id and dialect, in the
+    /// engine's order).
+    pub(crate) fn new(devices: impl Iterator<Item = (u16, Device)>) -> Self {
+        let mut router = Self::default();
+        for (k, (node, device)) in devices.enumerate() {
+            match device {
+                Device::Compact { feedback_node, .. } => {
+                    router
+                        .compact_feedback
+                        .entry(u32::from(feedback_node))
+                        .or_insert(k);
+                    router.compact_command.insert(u32::from(node));
                 }
+                Device::Moteus { id, bus, .. } => {
+                    router.moteus.entry((bus, id)).or_insert(k);
+                }
+                Device::Irpc { .. } | Device::Orion(_) => {}
             }
         }
-        return route;
+        router
     }
-    let mut route = Route::Irpc;
-    for (k, (node, device)) in devices.enumerate() {
-        if let Device::Compact { feedback_node, .. } = device {
-            if u32::from(feedback_node) == id.raw() {
-                return Route::CompactFeedback(k);
+
+    /// Whose `frame` is: a compact device's feedback before anything else
+    /// on its CAN id; a moteus controller's reply before a command to one.
+    pub(crate) fn route(&self, frame: &Frame) -> Route {
+        let id = frame.id();
+        let raw = id.raw();
+        if id.is_extended() {
+            if self.moteus.is_empty() {
+                return Route::Irpc;
             }
-            if u32::from(node) == id.raw() {
-                route = Route::CompactCommand;
+            let Ok(bus) = u16::try_from((raw >> 16) & 0x1FFF) else {
+                return Route::Irpc;
+            };
+            let end = |shift: u32| u8::try_from((raw >> shift) & 0x7F).unwrap_or(0);
+            let (source, destination) = (end(8), end(0));
+            if destination == moteus::SOURCE
+                && let Some(&k) = self.moteus.get(&(bus, source))
+            {
+                return Route::MoteusReply(k);
             }
+            if source == moteus::SOURCE && self.moteus.contains_key(&(bus, destination)) {
+                return Route::MoteusCommand;
+            }
+            return Route::Irpc;
         }
+        if let Some(&k) = self.compact_feedback.get(&raw) {
+            return Route::CompactFeedback(k);
+        }
+        if self.compact_command.contains(&raw) {
+            return Route::CompactCommand;
+        }
+        Route::Irpc
     }
-    route
 }
 
 /// How a request of any driver ended.
@@ -1085,6 +1161,11 @@ pub(crate) struct Drivers {
     queued: VecDeque<Queued>,
     /// The Unix ms of the bridge's zero (feedback timestamps).
     epoch: f64,
+    /// Whose each frame is.
+    router: Router,
+    /// The devices by CAN id or node id (the first of each, in the
+    /// engine's order): whose an iRPC message is.
+    by_node: HashMap<u16, usize>,
 }
 
 impl Drivers {
@@ -1118,6 +1199,10 @@ impl Drivers {
                 Device::Compact { .. } | Device::Orion(_) => {}
             }
         }
+        let mut by_node = HashMap::new();
+        for (k, j) in devices.iter().enumerate() {
+            by_node.entry(j.node).or_insert(k);
+        }
         Ok(Self {
             irpc,
             compact: compact::CompactDriver::new(client.timeout, client.retries),
@@ -1125,6 +1210,8 @@ impl Drivers {
             moteus,
             queued: VecDeque::new(),
             epoch,
+            router: Router::new(devices.iter().map(|j| (j.node, j.device))),
+            by_node,
         })
     }
 
@@ -1252,6 +1339,11 @@ impl Drivers {
         self.irpc.heartbeat()
     }
 
+    /// Whether any device hears the arm's heartbeat (iRPC joints).
+    pub(crate) fn beats(&self) -> bool {
+        self.irpc.beats()
+    }
+
     /// Why `device` is offline, where its driver's link says so (the
     /// Orion controller before its beacon, lost, or being stopped after
     /// it came back).
@@ -1277,7 +1369,7 @@ impl Drivers {
 
     /// A frame from the bus at `now`, for whichever of `devices` it is.
     pub(crate) fn handle_frame(&mut self, now: Duration, frame: &Frame, devices: &[Joint]) {
-        match route(frame, devices.iter().map(|j| (j.node, j.device))) {
+        match self.router.route(frame) {
             Route::CompactFeedback(ji) => {
                 let Some(j) = devices.get(ji) else { return };
                 let Device::Compact { hash, .. } = j.device else {
@@ -1511,7 +1603,8 @@ impl Drivers {
                     // queued before it); the rest wait their turn.
                     let mut first = None;
                     let queued = &mut self.queued;
-                    irpc::tell(event, map, devices, self.epoch, |h| {
+                    let by_node = &self.by_node;
+                    irpc::tell(event, map, devices, by_node, self.epoch, |h| {
                         if first.is_none() {
                             first = Some(h);
                         } else {

@@ -37,7 +37,13 @@ use super::frames::FrameRequests;
 pub(crate) const SOURCE: u8 = 0;
 
 /// The modes a reply reports that the driver acts on.
+/// How often a stop is sent again while a frame sent before it may still
+/// arrive (then at each poll).
+const STOP_REPEAT: Duration = Duration::from_millis(5);
+
+const MODE_STOPPED: i64 = 0;
 const MODE_FAULT: i64 = 1;
+const MODE_BRAKE: i64 = 15;
 const MODE_POSITION: i64 = 10;
 const MODE_TIMEOUT: i64 = 11;
 
@@ -272,9 +278,31 @@ struct Poll {
     /// The torque limit in force (a SafetyLimits line's), which every
     /// frame carries at most.
     torque_cap: Option<f64>,
+    /// The stop (or brake) last sent, repeated in place of the query
+    /// until another command: a late copy of a frame sent before it (a
+    /// bus that delays, duplicates or reorders) cannot move the
+    /// controller on for more than a poll, and a reply that shows it in
+    /// another mode is answered with the stop at once.
+    stopping: Option<MoteusCommand>,
+    /// Until when the stop is repeated every [`STOP_REPEAT`] rather than
+    /// every poll: the time a frame sent before it may still be on its
+    /// way (the watchdog a held move's frames carry).
+    repeat_until: Duration,
+    /// Replies that showed the controller moving again after its stop.
+    pub(crate) resumed: u64,
 }
 
 impl Poll {
+    /// How long to the next poll from `now`: [`STOP_REPEAT`] while a stop
+    /// just sent is repeated, else the poll period.
+    fn every(&self, now: Duration) -> Duration {
+        if self.stopping.is_some() && now < self.repeat_until {
+            self.period.min(STOP_REPEAT)
+        } else {
+            self.period
+        }
+    }
+
     /// `args` with at most the torque limit in force.
     fn capped(&self, mut args: PositionArgs) -> PositionArgs {
         if let Some(cap) = self.torque_cap {
@@ -336,6 +364,9 @@ impl MoteusDriver {
                 still: None,
                 mode: None,
                 torque_cap: None,
+                stopping: None,
+                repeat_until: Duration::ZERO,
+                resumed: 0,
             },
         );
     }
@@ -367,7 +398,13 @@ impl MoteusDriver {
                 ),
                 _ => (None, None),
             };
-            p.next = now.saturating_add(p.period);
+            p.stopping = matches!(cmd, MoteusCommand::Stop | MoteusCommand::Brake).then_some(*cmd);
+            p.repeat_until = if p.stopping.is_some() {
+                now.saturating_add(Duration::from_secs_f64(hold_watchdog(p.period)))
+            } else {
+                Duration::ZERO
+            };
+            p.next = now.saturating_add(p.every(now));
         }
         Ok(self.requests.send(now, device, frame))
     }
@@ -391,6 +428,16 @@ impl MoteusDriver {
         };
         let changed = p.mode != mode;
         p.mode = mode;
+        // Stopped, and now in another mode (a late frame from before the
+        // stop took it back): stopped again at once (when in doubt, stop).
+        if let (Some(stop), Some(m)) = (p.stopping, mode)
+            && !matches!(m, MODE_STOPPED | MODE_BRAKE | MODE_FAULT | MODE_TIMEOUT)
+        {
+            p.resumed += 1;
+            if let Ok(f) = command_frame(p.id, p.bus, &stop, None) {
+                self.requests.push(f);
+            }
+        }
         if matches!(mode, Some(MODE_FAULT | MODE_TIMEOUT)) {
             p.hold = None;
             p.still = None;
@@ -480,23 +527,25 @@ impl MoteusDriver {
             if p.next > now {
                 continue;
             }
-            let next = p.next.saturating_add(p.period);
+            let every = p.every(now);
+            let next = p.next.saturating_add(every);
             p.next = if next > now {
                 next
             } else {
-                now.saturating_add(p.period)
+                now.saturating_add(every)
             };
             if self.requests.awaits(device) {
                 continue;
             }
-            let frame = match &p.hold {
-                Some(h) => command_frame(
+            let frame = match (&p.hold, p.stopping) {
+                (Some(h), _) => command_frame(
                     p.id,
                     p.bus,
                     &MoteusCommand::Position(p.capped(*h)),
                     Some(hold_watchdog(p.period)),
                 ),
-                None => query_frame(p.id, p.bus),
+                (None, Some(stop)) => command_frame(p.id, p.bus, &stop, None),
+                (None, None) => query_frame(p.id, p.bus),
             };
             if let Ok(f) = frame {
                 self.requests.push(f);
@@ -591,12 +640,31 @@ mod tests {
         let r = decode(still.id().raw(), still.data()).unwrap();
         assert!(r.values.is_empty(), "a command, not a reply");
         assert!(motorwire_moteus::hex(still.data()).starts_with("01000a0e200000c07f00000000"));
-        // A stop is not held.
+        // A stop is sent again in place of the query: every 5 ms while
+        // a frame from before it may still come, then at each poll.
         d.send(ms(50), 0, &MoteusCommand::Stop).unwrap();
-        d.poll_transmit();
+        let stop = d.poll_transmit().unwrap();
+        assert_eq!(
+            stop,
+            command_frame(1, 0, &MoteusCommand::Stop, None).unwrap()
+        );
         d.acknowledged(0, ms(51));
-        d.polls_due(ms(70));
-        assert_eq!(d.poll_transmit(), Some(q));
+        d.polls_due(ms(55));
+        assert_eq!(d.poll_transmit(), Some(stop));
+        assert_eq!(d.deadline(), Some(ms(60)));
+        // A reply in position mode after it (a late frame took the
+        // controller on): the stop again at once.
+        let moving = Frame::fd(CanId::extended(0x100).unwrap(), &[0x21, 0x00, 0x0a]).unwrap();
+        d.observe(0, &reply(&moving).unwrap());
+        assert_eq!(d.poll_transmit(), Some(stop));
+        assert_eq!(d.polls[&0].resumed, 1);
+        // Stopped: no second stop at once; past the watchdog, each poll.
+        let stopped = Frame::fd(CanId::extended(0x100).unwrap(), &[0x21, 0x00, 0x00]).unwrap();
+        d.observe(0, &reply(&stopped).unwrap());
+        assert_eq!(d.poll_transmit(), None);
+        d.polls_due(ms(400));
+        assert_eq!(d.poll_transmit(), Some(stop));
+        assert_eq!(d.deadline(), Some(ms(420)));
         // Unanswered: sent again once, then given up.
         d.send(ms(80), 0, &position(0.2)).unwrap();
         d.poll_transmit();

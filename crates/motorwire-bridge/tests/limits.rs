@@ -1,0 +1,129 @@
+//! Velocity and torque setpoints are bounded by the position limits in
+//! force, on every dialect that takes them (issue 58 part 1): a
+//! SafetyLimits line narrows a motor's range, and setpoints within its
+//! velocity limit are then streamed toward the new limit. Before, every
+//! one was taken and the motor went on to the device's own bounds (the
+//! moteus knee to 140 past a limit of 60, the compact gripper to 90 past
+//! 30). Now the bridge brakes it to a stop short of the limit (a
+//! `limit_brake` event), and refuses a setpoint pointing outward from a
+//! motor at its limit (`outward_at_limit`), while one pointing back in
+//! is taken.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use std::time::Duration;
+
+use motorwire_bridge::sim::SimulatedArm;
+use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output};
+use motorwire_can::SimConfig;
+use motorwire_translate::BusMap;
+use serde_json::Value;
+
+const MAP: &str = r#"
+[motors.knee]
+dialect = "moteus"
+id = 2
+query_rate_hz = 50
+limits = { min_position = 0, max_position = 140, max_velocity = 240, max_acceleration = 960, max_torque = 3 }
+
+[motors.gripper_axis]
+dialect = "compact"
+node = 0x20
+limits = { min_position = 0, max_position = 90, max_velocity = 60, max_acceleration = 240, max_torque = 5 }
+"#;
+
+fn ms(n: u64) -> Duration {
+    Duration::from_millis(n)
+}
+
+fn arm() -> SimulatedArm {
+    let bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), BridgeConfig::default()).unwrap();
+    let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
+    assert!(
+        arm.run_while(Duration::from_secs(3), |a| a.bridge().is_ready())
+            .unwrap()
+    );
+    arm
+}
+
+fn outputs(arm: &mut SimulatedArm) -> Vec<Value> {
+    arm.take_outputs()
+        .iter()
+        .filter(|o| !matches!(o, Output::Feedback(_)))
+        .map(Output::to_value)
+        .collect()
+}
+
+fn velocity(motor: &str, v: f64) -> String {
+    format!(r#"{{"motor_id":"{motor}","timestamp":0,"control_mode":"velocity","setpoint":{v}}}"#)
+}
+
+/// Where `motor` stands on its device (degrees).
+fn position(arm: &SimulatedArm, motor: &str) -> f64 {
+    match motor {
+        "knee" => arm.moteus(2).unwrap().position() * 360.0,
+        _ => arm.compact_device(0x20).unwrap().position(),
+    }
+}
+
+#[test]
+fn a_velocity_stream_is_braked_short_of_the_limit_in_force_on_every_dialect() {
+    for (motor, limit, speed) in [("knee", 60.0, 200.0), ("gripper_axis", 30.0, 50.0)] {
+        let mut arm = arm();
+        arm.line(
+            Origin(1),
+            &format!(
+                r#"{{"motor_id":"{motor}","position_limits":{{"min":0,"max":{limit}}},"velocity_limits":{{"max_velocity":{speed}}},"torque_limits":{{"continuous_torque":1,"peak_torque":2}}}}"#
+            ),
+        );
+        arm.run_until(arm.now() + ms(100)).unwrap();
+        let out = outputs(&mut arm);
+        assert_eq!(out[0]["ok"], true, "{motor}: {out:?}");
+        // Streamed toward the limit, renewed every 50 ms for 3 s (the
+        // deadman never fires), at the speed the limits allow.
+        let mut furthest: f64 = 0.0;
+        let mut all = Vec::new();
+        for _ in 0..60 {
+            arm.line(Origin(1), &velocity(motor, speed));
+            for _ in 0..25 {
+                arm.step(ms(2)).unwrap();
+                furthest = furthest.max(position(&arm, motor));
+            }
+            all.extend(outputs(&mut arm));
+        }
+        let braked: Vec<&Value> = all
+            .iter()
+            .filter(|v| v["event"] == "limit_brake" && v["motor_id"] == motor)
+            .collect();
+        assert!(!braked.is_empty(), "{motor}: no limit_brake in {all:?}");
+        assert_eq!(braked[0]["limit_name"], "max_position");
+        assert_eq!(braked[0]["limit"], limit);
+        assert!(
+            furthest <= limit + 1e-6,
+            "{motor} went to {furthest}, past its limit {limit}"
+        );
+        assert!(
+            furthest > limit - 15.0,
+            "{motor} stopped at {furthest}, far short of {limit}"
+        );
+        // At its limit: outward refused, inward taken.
+        let refused: Vec<&Value> = all.iter().filter(|v| v["ok"] == false).collect();
+        assert!(!refused.is_empty(), "{motor}: every setpoint was taken");
+        for r in &refused {
+            assert_eq!(r["error"]["rule"], "outward_at_limit", "{r}");
+        }
+        arm.line(Origin(1), &velocity(motor, -speed / 2.0));
+        arm.run_until(arm.now() + ms(100)).unwrap();
+        let out = outputs(&mut arm);
+        let r = out.iter().find(|v| v.get("ok").is_some()).unwrap();
+        assert_eq!(r["ok"], true, "{motor}: {r}");
+        eprintln!(
+            "{motor}: limit {limit}, stopped at {furthest:.3}, {} setpoints refused outward",
+            refused.len()
+        );
+    }
+}
