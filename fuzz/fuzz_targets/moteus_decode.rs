@@ -3,7 +3,8 @@
 use libfuzzer_sys::fuzz_target;
 
 // Any bytes as a reply from controller 1: a typed error or a reply, never a
-// panic (moteus-protocol's parser is run only on what `decode` checked).
+// panic (moteus-protocol's parser is run only on what `decode` checked); and
+// as an answer on its diagnostic stream.
 fuzz_target!(|data: &[u8]| {
     if let Ok(reply) = motorwire_moteus::decode(0x100, data) {
         assert!(data.len() <= 64);
@@ -13,5 +14,11 @@ fuzz_target!(|data: &[u8]| {
         registers.sort_unstable();
         registers.dedup();
         assert_eq!(registers.len(), reply.values.len());
+    }
+    // The same bytes as an answer on the diagnostic stream: its text lies
+    // within the frame, after the channel and the length.
+    if let Ok(answer) = motorwire_moteus::diagnostic::decode(0x100, data) {
+        assert_eq!(answer.source, 1);
+        assert!(answer.data.len() + 3 <= data.len());
     }
 });

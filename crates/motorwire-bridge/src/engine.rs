@@ -478,12 +478,20 @@ impl Bridge {
         if joints.is_empty() {
             return Err(BridgeError::NoJoints);
         }
-        let drivers = Drivers::new(
+        let mut drivers = Drivers::new(
             config.client,
             config.orion_command_timeout,
             config.epoch_unix_ms.unwrap_or(0.0),
             &joints,
         )?;
+        // The map's limits are in force from the start: a driver that
+        // sends by itself, and a device that holds bounds of its own,
+        // follow them.
+        for (ji, j) in joints.iter().enumerate() {
+            if let Some(m) = map.motor(&j.name) {
+                drivers.limits_changed(ji, &InForce::of(m.unit, &m.limits));
+            }
+        }
         let base_limits = map.motors().map(|m| (m.name.clone(), m.limits)).collect();
         let validator = Validator::new().deny_unknown_members(!config.allow_unknown_members);
         // Warm the paths a stop takes: the first invalid command the
@@ -1735,14 +1743,7 @@ impl Bridge {
                 j.pace = crate::joints::Pace::of(m);
             }
             let unit = motor.map_or(AngleUnit::Degrees, |m| m.unit);
-            let deg = |v: Option<f64>| v.map(|v| unit.to_degrees(v));
-            let in_force = InForce {
-                min_position: deg(limits.min_position),
-                max_position: deg(limits.max_position),
-                max_velocity: deg(limits.max_velocity),
-                max_torque: limits.max_torque,
-            };
-            self.drivers.limits_changed(ji, &in_force);
+            self.drivers.limits_changed(ji, &InForce::of(unit, &limits));
         }
         match v.emergency_decel {
             Some(d) => self.emergency_decel.insert(name.clone(), d),
@@ -3344,6 +3345,11 @@ impl Bridge {
         j.planned = None;
         j.deadman = effect.deadman;
         j.held_velocity = effect.deadman.and_then(|_| order.held_velocity(j.unit));
+        if effect.deadman.is_some() {
+            // A new setpoint taken (only one that may go: toward the
+            // limit it was braked short of, only once it had stopped).
+            j.limit_braked = None;
+        }
         if let Some(target) = effect.target {
             j.target = target;
         }
@@ -4232,6 +4238,20 @@ impl Bridge {
 
     /// How far a motor going at `v` goes before it stops, braked at
     /// [`Self::braking`] (0 when the limits give no deceleration).
+    /// How fast (its unit a second, a magnitude) a joint going at `v` goes
+    /// [`BRAKE_LOOKAHEAD`] on, and how far it gets meanwhile: faster where
+    /// its reports show it speeding up the way it goes (a torque drives
+    /// it, or a velocity it is still getting up to), at that acceleration.
+    fn lookahead(j: &Joint, m: &motorwire_translate::MappedMotor, v: f64) -> (f64, f64) {
+        let t = BRAKE_LOOKAHEAD.as_secs_f64();
+        let a = j
+            .motion_at
+            .map(|(_, a)| m.unit.from_degrees(a))
+            .filter(|a| a.is_finite() && a * v > 0.0)
+            .map_or(0.0, f64::abs);
+        (v.abs() + a * t, v.abs() * t + a * t * t / 2.0)
+    }
+
     fn stopping(limits: &Limits, v: f64) -> f64 {
         Self::braking(limits).map_or(0.0, |d| v * v / (2.0 * d))
     }
@@ -4262,6 +4282,7 @@ impl Bridge {
             brake.push((
                 ji,
                 decel,
+                limit_name,
                 Event::LimitBrake {
                     motor_id: j.name.clone(),
                     position: f.position,
@@ -4272,7 +4293,7 @@ impl Bridge {
             ));
         }
         let now_ms = self.unix_ms(now) as u64;
-        for (ji, decel, event) in brake {
+        for (ji, decel, limit_name, event) in brake {
             let Some(j) = self.joints.get(ji) else {
                 continue;
             };
@@ -4287,6 +4308,9 @@ impl Bridge {
                         j.deadman = None;
                     }
                 }
+            }
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.limit_braked = Some(limit_name);
             }
         }
     }
@@ -4311,16 +4335,20 @@ impl Bridge {
         if !p.is_finite() || !v.is_finite() || v == 0.0 {
             return None;
         }
-        let stopping = Self::stopping(&m.limits, v);
+        // Speeding up outward (a torque, or a velocity it is still getting
+        // up to): as fast as it will go [`BRAKE_LOOKAHEAD`] on at the
+        // acceleration its reports show, and as far as it gets by then.
+        let (reach_v, travel) = Self::lookahead(j, m, v);
+        let stopping = Self::stopping(&m.limits, reach_v);
         let (limit_name, limit, room) = if v > 0.0 {
             let hi = m.limits.max_position?;
-            ("max_position", hi, hi - p - stopping)
+            ("max_position", hi, hi - p - stopping - travel)
         } else {
             let lo = m.limits.min_position?;
-            ("min_position", lo, p - lo - stopping)
+            ("min_position", lo, p - lo - stopping - travel)
         };
         let heard = j.last_heard.unwrap_or(self.now);
-        let in_s = (room / v.abs() - BRAKE_LOOKAHEAD.as_secs_f64()).clamp(0.0, 3600.0);
+        let in_s = (room / reach_v).clamp(0.0, 3600.0);
         let at = heard.saturating_add(Duration::from_secs_f64(in_s));
         Some((at, limit_name, limit))
     }
@@ -4346,8 +4374,26 @@ impl Bridge {
         let f = j.feedback.as_ref()?;
         let m = self.map.motor(motor)?;
         let p = f.position;
-        let reach = if mode == motorwire_core::ControlMode::Velocity {
+        let toward = if setpoint > 0.0 {
+            "max_position"
+        } else {
+            "min_position"
+        };
+        let reach = if j.limit_braked == Some(toward) && f.velocity * setpoint > 0.0 {
+            // Braked short of that limit and still on its way to it: no
+            // setpoint toward it until it has stopped.
+            f64::INFINITY
+        } else if mode == motorwire_core::ControlMode::Velocity {
             setpoint.abs() * BRAKE_LOOKAHEAD.as_secs_f64() + Self::stopping(&m.limits, setpoint)
+        } else if f.velocity * setpoint >= 0.0 {
+            // A torque the way it already goes, or from rest: as far as it
+            // would get before a brake could stop it, speeding up as fast
+            // as a setpoint has driven it before, over two lookaheads (one
+            // to its next report, one for the brake to go).
+            let t = 2.0 * BRAKE_LOOKAHEAD.as_secs_f64();
+            let a = m.unit.from_degrees(j.peak_accel).abs();
+            let v = f.velocity.abs();
+            v * t + a * t * t / 2.0 + Self::stopping(&m.limits, v + a * t)
         } else {
             0.0
         };
@@ -4505,6 +4551,9 @@ impl Bridge {
         // (nor can any other device's reading but its first): what ready
         // waits for is looked at then, not on every report of every device.
         let first = j.motion.is_none();
+        if j.deadman.is_some() && acceleration.is_finite() {
+            j.peak_accel = j.peak_accel.max(acceleration.abs());
+        }
         j.set_motion((pos, vel), at, acceleration);
         j.check_model(at, pos, vel);
         self.moved(ji, pos, vel, at);

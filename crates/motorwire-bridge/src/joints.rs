@@ -101,6 +101,14 @@ pub(crate) struct Joint {
     /// order says one: what it goes at once it is up to speed, judged
     /// against its position limits before its feedback shows it.
     pub(crate) held_velocity: Option<f64>,
+    /// The limit (`min_position` or `max_position`) the bridge last braked
+    /// it short of, until a setpoint is taken: while it still moves toward
+    /// that limit, a velocity or torque toward it is refused.
+    pub(crate) limit_braked: Option<&'static str>,
+    /// The largest acceleration its reports showed while it held a
+    /// velocity or torque setpoint (degrees/s², a magnitude): how fast a
+    /// torque may speed it up, for judging one toward a limit.
+    pub(crate) peak_accel: f64,
     /// It faulted or rebooted (why): nothing but a reset line is sent to it.
     pub(crate) needs_reset: Option<String>,
     /// A Reset the bridge sent is under way (its `Unconfigured` is no
@@ -319,6 +327,8 @@ impl Joint {
             unresolved: None,
             deadman: None,
             held_velocity: None,
+            limit_braked: None,
+            peak_accel: 0.0,
             needs_reset: None,
             resetting: false,
             wake: None,

@@ -831,6 +831,24 @@ pub enum Event {
         /// The limit's value.
         limit: f64,
     },
+    /// A moteus controller's own position bounds (`servopos.position_min`
+    /// and `servopos.position_max`, its running configuration) were set to
+    /// the limits in force (within the bounds it was configured with), at
+    /// start or after a SafetyLimits line changed them; or could not be
+    /// (`error`): the bridge still holds the motor to the limits itself.
+    DeviceBounds {
+        /// The motor.
+        motor_id: String,
+        /// Its lower bound now (the motor's unit; absent: none).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        min_position: Option<f64>,
+        /// Its upper bound now (absent: none).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        max_position: Option<f64>,
+        /// Why they were not set.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        error: Option<String>,
+    },
     /// The emergency stop was latched.
     EmergencyStop {
         /// What asked for it (`input`, a motor_id or command_id).

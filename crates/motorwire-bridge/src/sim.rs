@@ -919,6 +919,17 @@ impl SimulatedArm {
         }
     }
 
+    /// Sets moteus controller `id`'s own position bounds (revolutions;
+    /// NaN: none), as a `conf set` from another tool would
+    /// ([`SimMoteus::set_bounds`]).
+    pub fn moteus_bounds(&mut self, id: u8, min: f64, max: f64) {
+        for (d, _) in &mut self.moteus {
+            if d.config().id == id {
+                d.set_bounds(min, max);
+            }
+        }
+    }
+
     /// Cuts the joint with node id `node` off the bus (a cable pulled): it
     /// neither hears nor is heard any more.
     pub fn disconnect(&mut self, node: u16) {

@@ -127,3 +127,54 @@ fn a_velocity_stream_is_braked_short_of_the_limit_in_force_on_every_dialect() {
         );
     }
 }
+
+fn torque(motor: &str, t: f64) -> String {
+    format!(r#"{{"motor_id":"{motor}","timestamp":0,"control_mode":"torque","setpoint":{t}}}"#)
+}
+
+/// A torque setpoint (the moteus knee: kp and kd scale 0, the simulated
+/// rotor accelerating at torque over inertia, 0.2 Nm being 1,440 deg/s²,
+/// past the limits' 960) streamed toward a narrowed limit is braked short
+/// of it too. (The simulated compact device applies a torque without
+/// moving: it has no load model, so a torque stream cannot carry it
+/// anywhere, and the property test drives it by velocity.)
+#[test]
+fn a_torque_stream_never_carries_a_motor_past_the_limit_in_force() {
+    let (motor, limit) = ("knee", 60.0);
+    let mut arm = arm();
+    arm.line(
+        Origin(1),
+        &format!(
+            r#"{{"motor_id":"{motor}","position_limits":{{"min":0,"max":{limit}}},"velocity_limits":{{"max_velocity":240}},"torque_limits":{{"continuous_torque":1,"peak_torque":2}}}}"#
+        ),
+    );
+    arm.run_until(arm.now() + ms(100)).unwrap();
+    let out = outputs(&mut arm);
+    assert_eq!(out[0]["ok"], true, "{out:?}");
+    let mut furthest: f64 = 0.0;
+    let mut all = Vec::new();
+    for _ in 0..60 {
+        arm.line(Origin(1), &torque(motor, 0.2));
+        for _ in 0..25 {
+            arm.step(ms(2)).unwrap();
+            furthest = furthest.max(position(&arm, motor));
+        }
+        all.extend(outputs(&mut arm));
+    }
+    let braked = all.iter().filter(|v| v["event"] == "limit_brake").count();
+    assert!(braked > 0, "no limit_brake in {all:?}");
+    assert!(
+        furthest <= limit + 1e-6,
+        "the knee went to {furthest}, past its limit {limit}"
+    );
+    assert!(
+        furthest > limit - 15.0,
+        "the knee stopped at {furthest}, far short of {limit}"
+    );
+    // No fault: the controller's own bound (set to the limit) was never hit.
+    assert!(!all.iter().any(|v| v["event"] == "joint_fault"), "{all:?}");
+    eprintln!(
+        "knee: limit {limit}, stopped at {furthest:.3}, {braked} limit brakes, {} torques refused",
+        all.iter().filter(|v| v["ok"] == false).count()
+    );
+}

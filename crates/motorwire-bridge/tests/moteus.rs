@@ -574,3 +574,107 @@ limits = { min_position = 0, max_position = 90, max_velocity = 60, max_accelerat
         assert!(out.iter().any(|v| v["arrived"] == true), "{motor}: {out:?}");
     }
 }
+
+/// The `device_bounds` events among `arm`'s outputs, as JSON.
+fn device_bounds(arm: &mut SimulatedArm) -> Vec<Value> {
+    arm.take_outputs()
+        .into_iter()
+        .map(|o| o.to_value())
+        .filter(|v| v["event"] == "device_bounds")
+        .collect()
+}
+
+#[test]
+fn each_controllers_own_bounds_follow_the_limits_in_force_within_its_own() {
+    // The simulated hip starts with the map's range as its own bounds
+    // (±0.25 rev); the knee is configured tighter than the map on its own
+    // (-1.0 to 1.2 rad, where the map says ±1.5).
+    let map = BusMap::from_toml(MAP).unwrap();
+    let bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
+    let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
+    let rev = |rad: f64| rad / std::f64::consts::TAU;
+    arm.moteus_bounds(2, rev(-1.0), rev(1.2));
+    arm.run_until(ms(100)).unwrap();
+    let start = device_bounds(&mut arm);
+    let by_motor = |events: &[Value], motor: &str| -> Vec<Value> {
+        events
+            .iter()
+            .filter(|v| v["motor_id"] == motor)
+            .cloned()
+            .collect()
+    };
+    assert_eq!(
+        by_motor(&start, "hip"),
+        [
+            serde_json::json!({"event":"device_bounds","motor_id":"hip","min_position":-90.0,"max_position":90.0})
+        ]
+    );
+    let near = |v: &Value, key: &str, x: f64| {
+        assert!(
+            (v[key].as_f64().unwrap() - x).abs() < 1e-9,
+            "{key} {x}: {v}"
+        );
+    };
+    let knee = &by_motor(&start, "knee");
+    assert_eq!(knee.len(), 1, "{start:?}");
+    near(&knee[0], "min_position", -1.0);
+    near(&knee[0], "max_position", 1.2);
+    let knee_bounds = |arm: &SimulatedArm, lo: f64, hi: f64| {
+        let c = arm.moteus(2).unwrap().config();
+        assert!(
+            (c.position_min - rev(lo)).abs() < 1e-12 && (c.position_max - rev(hi)).abs() < 1e-12,
+            "{} {}",
+            c.position_min,
+            c.position_max
+        );
+    };
+    knee_bounds(&arm, -1.0, 1.2);
+    // Narrowed by a SafetyLimits line: the controller holds the new range.
+    let limits = |lo: f64, hi: f64| {
+        format!(
+            r#"{{"motor_id":"knee","position_limits":{{"min":{lo},"max":{hi}}},"velocity_limits":{{"max_velocity":3}},"torque_limits":{{"continuous_torque":1,"peak_torque":2}}}}"#
+        )
+    };
+    arm.line(Origin(1), &limits(-0.5, 0.75));
+    arm.run_until(arm.now() + ms(200)).unwrap();
+    knee_bounds(&arm, -0.5, 0.75);
+    let told = device_bounds(&mut arm);
+    assert_eq!(told.len(), 1, "{told:?}");
+    near(&told[0], "min_position", -0.5);
+    near(&told[0], "max_position", 0.75);
+    // Back to the map's range: the controller goes back to its own, never
+    // wider.
+    arm.line(Origin(1), &limits(-1.5, 1.5));
+    arm.run_until(arm.now() + ms(200)).unwrap();
+    knee_bounds(&arm, -1.0, 1.2);
+    let told = device_bounds(&mut arm);
+    assert_eq!(told.len(), 1, "{told:?}");
+    near(&told[0], "max_position", 1.2);
+    // What the controller's console ran, in order: its own read once, then
+    // only `conf set` (nothing written to its flash).
+    let lines = arm.moteus(2).unwrap().console_lines().to_vec();
+    assert_eq!(lines.len(), 8, "{lines:?}");
+    assert_eq!(
+        lines[..2],
+        [
+            "conf get servopos.position_min",
+            "conf get servopos.position_max"
+        ]
+    );
+    assert!(
+        lines[2..]
+            .iter()
+            .all(|l| l.starts_with("conf set servopos.position_m")),
+        "{lines:?}"
+    );
+    assert!(
+        lines[4].starts_with("conf set servopos.position_min -0.0795774715459"),
+        "{lines:?}"
+    );
+    assert!(
+        lines[5].starts_with("conf set servopos.position_max 0.119366207318"),
+        "{lines:?}"
+    );
+    // The hip was never written to after the start.
+    assert_eq!(arm.moteus(1).unwrap().console_lines().len(), 4);
+}

@@ -111,13 +111,32 @@ fn the_bridge_drives_a_moteus_through_an_fdcanusb() {
     assert!(stdout.contains("\"emergency_stop\":true"), "{stdout}");
     assert_eq!(moteus.lock().unwrap().mode(), mode::STOPPED);
     // Each line as mjbots' line encoder writes it: id, data padded to its
-    // CAN-FD length with 0x50, bit-rate switching and FD.
+    // CAN-FD length with 0x50, bit-rate switching and FD. The register
+    // frames ask for a reply (0x8001); the diagnostic stream's text does
+    // not (0x0001: subframe 0x40), its polls do (0x42).
     assert!(
-        taken
-            .iter()
-            .all(|l| l.starts_with("can send 8001 ") && l.ends_with(" BF")),
+        taken.iter().all(|l| (l.starts_with("can send 8001 ")
+            || l.starts_with("can send 0001 40"))
+            && l.ends_with(" BF")),
         "{taken:?}"
     );
+    // Over the same adapter, the controller's own bounds were read and set
+    // to the map's range (±90°, ±0.25 rev; its own were ±0.5).
+    let m = moteus.lock().unwrap();
+    assert_eq!(
+        m.console_lines(),
+        [
+            "conf get servopos.position_min",
+            "conf get servopos.position_max",
+            "conf set servopos.position_min -0.25",
+            "conf set servopos.position_max 0.25"
+        ]
+    );
+    assert_eq!(
+        (m.config().position_min, m.config().position_max),
+        (-0.25, 0.25)
+    );
+    drop(m);
     // The first move: position mode (01000A), then its registers from 0x020.
     assert!(
         taken

@@ -1445,12 +1445,33 @@ fn the_bridge_drives_a_moteus_process_with_the_librarys_frames() {
         .position(|d| *d == STOP)
         .unwrap_or_else(|| panic!("{log}"));
     assert!(first_move < still && still < stop, "{log}");
-    // Nothing but stops and queries after the stop.
+    // Nothing but stops and queries after the stop (and polls of the
+    // controller's diagnostic stream, were its bounds still being set).
     assert!(
         sent[stop..]
             .iter()
-            .all(|d| *d == STOP || d.starts_with("11001C0401110B130D")),
+            .all(|d| *d == STOP || d.starts_with("11001C0401110B130D") || *d == "420130"),
         "{log}"
+    );
+    // Its own bounds set to the map's range (±60°, ±1/6 rev) over the
+    // diagnostic stream, at start: the text on 0x0001, no reply asked.
+    let text: String = log
+        .lines()
+        .filter_map(|l| l.split_whitespace().nth(2))
+        .filter_map(|f| f.strip_prefix("00000001##"))
+        .filter_map(|f| {
+            let hex = f.get(1..)?;
+            let bytes: Vec<u8> = (0..hex.len() / 2)
+                .filter_map(|i| u8::from_str_radix(hex.get(2 * i..2 * i + 2)?, 16).ok())
+                .collect();
+            let n = usize::from(*bytes.get(2)?);
+            Some(String::from_utf8_lossy(bytes.get(3..3 + n)?).into_owned())
+        })
+        .collect();
+    assert!(
+        text.contains("conf set servopos.position_min -0.16666666666666666\n")
+            && text.contains("conf set servopos.position_max 0.16666666666666666\n"),
+        "{text}\n{log}"
     );
     // The controller's replies (0x100), decoded by the library's names.
     let replies = log.lines().filter(|l| l.contains(" 00000100##")).count();

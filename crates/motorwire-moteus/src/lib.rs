@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 mod call;
+pub mod diagnostic;
 mod registers;
 mod reply;
 

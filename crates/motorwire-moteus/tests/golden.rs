@@ -242,3 +242,58 @@ fn replies_decode_as_the_library_values_them() {
         Err(ReplyError::Truncated { at: 9, len: 14 })
     );
 }
+
+/// The diagnostic stream's frames as `Controller(id=5).make_diagnostic_write`
+/// and `make_diagnostic_read` build them (moteus 1.1.1; the transport sets
+/// the CAN id: `0x8005` where a reply is asked for, `0x0005` where not), and
+/// answers as `parse_diagnostic_message` reads them.
+#[test]
+fn the_diagnostic_stream_is_the_librarys() {
+    use motorwire_moteus::diagnostic;
+    let writes: &[(&[u8], u8, &str)] = &[
+        (
+            b"conf get servopos.position_min\n",
+            1,
+            "40011f636f6e662067657420736572766f706f732e706f736974696f6e5f6d696e0a",
+        ),
+        (
+            b"conf set servopos.position_max 0.16666666666666666\n",
+            1,
+            "400133636f6e662073657420736572766f706f732e706f736974696f6e5f6d617820302e31363636363636363636363636363636360a",
+        ),
+        (b"x", 3, "40030178"),
+        (
+            &[b'a'; 61],
+            1,
+            "40013d61616161616161616161616161616161616161616161616161616161616161616161616161616161616161616161616161616161616161616161616161",
+        ),
+    ];
+    for (data, channel, expected) in writes {
+        let f = diagnostic::write(5, 0, *channel, data).unwrap();
+        assert_eq!((f.can_id, hex(&f.data)), (0x0005, (*expected).to_owned()));
+    }
+    for (max, channel, expected) in [(48, 1, "420130"), (61, 2, "42023d"), (1, 1, "420101")] {
+        let f = diagnostic::read(5, 0, channel, max).unwrap();
+        assert_eq!((f.can_id, hex(&f.data)), (0x8005, expected.to_owned()));
+    }
+    // On CAN prefix 0x12 the id carries it in bits 16..28.
+    assert_eq!(diagnostic::read(5, 0x12, 1, 48).unwrap().can_id, 0x12_8005);
+    let a =
+        diagnostic::decode(0x0500, &[0x41, 0x01, 0x04, b'O', b'K', b'\r', b'\n', 0x50]).unwrap();
+    assert_eq!(
+        (a.source, a.destination, a.can_prefix, a.channel),
+        (5, 0, 0, 1)
+    );
+    assert_eq!(a.data, b"OK\r\n");
+    // Channel 2 is read as 2 (the library returns None when it is not the
+    // channel it asked for: the caller compares).
+    let a = diagnostic::decode(0x0500, &[0x41, 0x02, 0x03, b'A', b'B', b'C']).unwrap();
+    assert_eq!((a.channel, a.data.as_slice()), (2, &b"ABC"[..]));
+    // Nothing waiting: an empty answer.
+    assert_eq!(
+        diagnostic::decode(0x0500, &[0x41, 0x01, 0x00])
+            .unwrap()
+            .data,
+        b""
+    );
+}

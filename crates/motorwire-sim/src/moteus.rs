@@ -73,9 +73,10 @@ pub struct MoteusConfig {
     pub id: u8,
     /// The CAN prefix it answers on.
     pub prefix: u16,
-    /// Its lower position bound (revolutions; `servopos.position_min`).
+    /// Its lower position bound (revolutions; `servopos.position_min`;
+    /// NaN, set over the diagnostic stream: no bound, as on a controller).
     pub position_min: f64,
-    /// Its upper position bound (`servopos.position_max`).
+    /// Its upper position bound (`servopos.position_max`; NaN: none).
     pub position_max: f64,
     /// The velocity limit of a move that sends none (rev/s;
     /// `servo.default_velocity_limit`).
@@ -179,7 +180,17 @@ pub struct SimMoteus {
     now: Duration,
     out: VecDeque<Frame>,
     commands: u64,
+    /// The diagnostic console's text written to it, not yet a whole line.
+    console_in: Vec<u8>,
+    /// What the console wrote back, waiting for a poll.
+    console_out: VecDeque<u8>,
+    /// The console lines it ran.
+    console_lines: Vec<String>,
 }
+
+/// The most the console keeps of a line not yet ended, and of answers not
+/// yet polled: beyond it, text is dropped (as a controller's buffers do).
+const CONSOLE_BUFFER: usize = 4096;
 
 impl SimMoteus {
     /// A controller, stopped, at rest at its initial position.
@@ -234,6 +245,9 @@ impl SimMoteus {
             now: Duration::ZERO,
             out: VecDeque::new(),
             commands: 0,
+            console_in: Vec::new(),
+            console_out: VecDeque::new(),
+            console_lines: Vec::new(),
         })
     }
 
@@ -260,6 +274,122 @@ impl SimMoteus {
     /// How many commands (frames writing the mode) it took.
     pub fn commands(&self) -> u64 {
         self.commands
+    }
+    /// Sets its position bounds (revolutions; NaN: none), as its console's
+    /// `conf set servopos.position_min` and `position_max` set them.
+    pub fn set_bounds(&mut self, min: f64, max: f64) {
+        self.config.position_min = min;
+        self.config.position_max = max;
+    }
+    /// The diagnostic console lines it ran, in order.
+    pub fn console_lines(&self) -> &[String] {
+        &self.console_lines
+    }
+
+    /// Its position bounds with NaN (no bound) as the infinities.
+    fn bounds(&self) -> (f64, f64) {
+        let lo = self.config.position_min;
+        let hi = self.config.position_max;
+        (
+            if lo.is_nan() { f64::NEG_INFINITY } else { lo },
+            if hi.is_nan() { f64::INFINITY } else { hi },
+        )
+    }
+
+    /// A diagnostic frame (`0x40` text written, `0x42` a poll), taken as a
+    /// controller's console takes it: the text's lines run (`conf get` and
+    /// `conf set` of `servopos.position_min` and `servopos.position_max`;
+    /// anything else is answered `ERR`), a poll answered with `0x41` and
+    /// what is waiting. Whether it replied.
+    fn diagnostic(&mut self, to: u32, data: &[u8], wants_reply: bool) -> bool {
+        match data {
+            [0x40, channel, len, rest @ ..] if *channel == 1 => {
+                let Some(text) = rest.get(..usize::from(*len)) else {
+                    return false;
+                };
+                for &b in text {
+                    if b == b'\n' || b == b'\r' {
+                        let line = String::from_utf8_lossy(&std::mem::take(&mut self.console_in))
+                            .trim()
+                            .to_owned();
+                        if !line.is_empty() {
+                            self.console(&line);
+                        }
+                    } else if self.console_in.len() < CONSOLE_BUFFER {
+                        self.console_in.push(b);
+                    }
+                }
+                false
+            }
+            [0x42, channel, max, ..] if *channel == 1 && wants_reply => {
+                let n = usize::from(*max).min(61).min(self.console_out.len());
+                let mut reply = vec![0x41, 1];
+                #[allow(clippy::cast_possible_truncation)]
+                reply.push(n as u8);
+                reply.extend(self.console_out.drain(..n));
+                let id =
+                    (u32::from(self.config.prefix) << 16) | (u32::from(self.config.id) << 8) | to;
+                if let Ok(id) = CanId::extended(id)
+                    && let Ok(f) = Frame::fd(id, &motorwire_moteus::padded(&reply))
+                {
+                    self.out.push_back(f);
+                }
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Runs one console line and queues its answer.
+    fn console(&mut self, line: &str) {
+        self.console_lines.push(line.to_owned());
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let bound = |name: &str| match name {
+            "servopos.position_min" => Some(false),
+            "servopos.position_max" => Some(true),
+            _ => None,
+        };
+        let answer = match words.as_slice() {
+            ["conf", "get", name] => match bound(name) {
+                Some(upper) => {
+                    let v = if upper {
+                        self.config.position_max
+                    } else {
+                        self.config.position_min
+                    };
+                    if v.is_nan() {
+                        "nan".to_owned()
+                    } else {
+                        format!("{v}")
+                    }
+                }
+                None => format!("ERR unknown configuration {name}"),
+            },
+            ["conf", "set", name, value] => match (bound(name), value.parse::<f64>()) {
+                (Some(upper), Ok(v)) if !v.is_infinite() => {
+                    let (lo, hi) = if upper {
+                        (self.config.position_min, v)
+                    } else {
+                        (v, self.config.position_max)
+                    };
+                    if lo > hi {
+                        format!("ERR {name} {v} would put the minimum above the maximum")
+                    } else {
+                        self.config.position_min = lo;
+                        self.config.position_max = hi;
+                        "OK".to_owned()
+                    }
+                }
+                (Some(_), _) => format!("ERR {value} is no value for {name}"),
+                (None, _) => format!("ERR unknown configuration {name}"),
+            },
+            _ => format!("ERR unknown command {line}"),
+        };
+        for b in answer.bytes().chain(*b"\r\n") {
+            if self.console_out.len() < CONSOLE_BUFFER {
+                self.console_out.push_back(b);
+            }
+        }
     }
     /// Whether it is moving.
     pub fn is_moving(&self) -> bool {
@@ -289,14 +419,23 @@ impl SimMoteus {
         {
             return None;
         }
+        let source = (raw >> 8) & 0x7F;
+        let wants_reply = raw & 0x8000 != 0;
+        if matches!(frame.data().first(), Some(0x40 | 0x42)) {
+            let replied = self.diagnostic(source, frame.data(), wants_reply);
+            return Some(MoteusActed {
+                at: self.now,
+                commanded: None,
+                mode: self.mode,
+                replied,
+            });
+        }
         // A frame the register protocol cannot read is ignored, as a
         // controller ignores it (and never parsed: `parse_frame` overflows
         // on a long varuint).
         if motorwire_moteus::check_structure(frame.data()).is_err() {
             return None;
         }
-        let source = (raw >> 8) & 0x7F;
-        let wants_reply = raw & 0x8000 != 0;
         let mut writes: Vec<(u16, Value)> = Vec::new();
         let mut reads: Vec<(u16, Resolution)> = Vec::new();
         for sub in motorwire_moteus::protocol::parse_frame(frame.data()) {
@@ -375,7 +514,8 @@ impl SimMoteus {
     fn position_command(&mut self, writes: &[(u16, Value)]) {
         let w = |r| Self::written(writes, r);
         let c = self.config;
-        if !(c.position_min..=c.position_max).contains(&self.position) {
+        let (lo, hi) = self.bounds();
+        if !(lo..=hi).contains(&self.position) {
             self.mode = mode::FAULT;
             self.fault = FAULT_OUTSIDE_LIMIT;
             self.drive = Drive::Rest {
@@ -404,7 +544,7 @@ impl SimMoteus {
             Drive::Torque(ff.clamp(-self.max_torque, self.max_torque))
         } else if position.is_finite() {
             Drive::To {
-                target: position.clamp(c.position_min, c.position_max),
+                target: position.clamp(lo, hi),
                 end_velocity: velocity,
                 vlim,
                 alim,
@@ -603,13 +743,10 @@ impl SimMoteus {
             }
             self.position += 0.5 * (v0 + self.velocity) * dt;
         }
-        if matches!(self.mode, mode::POSITION)
-            && !(self.config.position_min - 1e-9..=self.config.position_max + 1e-9)
-                .contains(&self.position)
+        let (lo, hi) = self.bounds();
+        if matches!(self.mode, mode::POSITION) && !(lo - 1e-9..=hi + 1e-9).contains(&self.position)
         {
-            self.position = self
-                .position
-                .clamp(self.config.position_min, self.config.position_max);
+            self.position = self.position.clamp(lo, hi);
             self.mode = mode::FAULT;
             self.fault = FAULT_OUTSIDE_LIMIT;
             self.drive = Drive::Idle;

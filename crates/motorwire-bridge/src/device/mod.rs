@@ -98,6 +98,7 @@ pub(crate) mod compact;
 mod frames;
 pub(crate) mod irpc;
 pub(crate) mod moteus;
+mod moteus_bounds;
 pub(crate) mod orion;
 
 /// What a motor of the bus map is to the engine: the dialect that reaches
@@ -452,6 +453,19 @@ pub(crate) struct InForce {
     pub(crate) max_position: Option<f64>,
     pub(crate) max_velocity: Option<f64>,
     pub(crate) max_torque: Option<f64>,
+}
+
+impl InForce {
+    /// `limits` of a motor in `unit`, in degrees.
+    pub(crate) fn of(unit: AngleUnit, limits: &motorwire_translate::Limits) -> Self {
+        let deg = |v: Option<f64>| v.map(|v| unit.to_degrees(v));
+        Self {
+            min_position: deg(limits.min_position),
+            max_position: deg(limits.max_position),
+            max_velocity: deg(limits.max_velocity),
+            max_torque: limits.max_torque,
+        }
+    }
 }
 
 /// Until when a device moves, after an order's effect.
@@ -1468,6 +1482,32 @@ impl Drivers {
         self.orion.housekeeping(now, idle);
         // Each moteus controller's poll: its held command, or the query.
         self.moteus.polls_due(now);
+        self.tell_bounds_news(devices);
+    }
+
+    /// What became of each moteus controller's own bounds, told as events.
+    fn tell_bounds_news(&mut self, devices: &[Joint]) {
+        for (device, news) in self.moteus.bounds_news() {
+            let Some(j) = devices.get(device) else {
+                continue;
+            };
+            let unit = |rev: f64| (!rev.is_nan()).then(|| j.unit.from_degrees(rev * 360.0));
+            let event = match news {
+                moteus_bounds::BoundsNews::Set { min, max } => Event::DeviceBounds {
+                    motor_id: j.name.clone(),
+                    min_position: unit(min),
+                    max_position: unit(max),
+                    error: None,
+                },
+                moteus_bounds::BoundsNews::Failed(error) => Event::DeviceBounds {
+                    motor_id: j.name.clone(),
+                    min_position: None,
+                    max_position: None,
+                    error: Some(error),
+                },
+            };
+            self.tell(Happened::Event(event));
+        }
     }
 
     /// One line from the Orion controller, received at `now`.
@@ -1628,6 +1668,28 @@ impl Drivers {
     /// watchdog); its reading; its command in flight acknowledged.
     fn moteus_reply(&mut self, now: Duration, frame: &Frame, ji: usize, devices: &[Joint]) {
         let Some(j) = devices.get(ji) else { return };
+        if frame.data().first() == Some(&motorwire_moteus::diagnostic::SERVER_DATA) {
+            // Its diagnostic stream's answer: heard, and read for its
+            // bounds; it reports no register and acknowledges nothing.
+            match motorwire_moteus::diagnostic::decode(frame.id().raw(), frame.data()) {
+                Ok(answer) => {
+                    self.tell(Happened::Heard {
+                        device: ji,
+                        at: now,
+                        up: true,
+                    });
+                    self.moteus.diagnostic_answer(ji, now, &answer);
+                    self.tell_bounds_news(devices);
+                }
+                Err(e) => self.tell(Happened::Bad {
+                    report: Some(Event::BadFrame {
+                        can_id: frame.id().to_string(),
+                        error: e.to_string(),
+                    }),
+                }),
+            }
+            return;
+        }
         let reply = match moteus::reply(frame).and_then(moteus::plausible) {
             Ok(r) => r,
             Err(error) => {

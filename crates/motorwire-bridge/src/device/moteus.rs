@@ -32,6 +32,7 @@ use motorwire_wia::MotorFeedback;
 
 use super::Ended;
 use super::frames::FrameRequests;
+use super::moteus_bounds::{BoundsNews, OwnBounds};
 
 /// The bridge's own id on the bus (the replies' destination).
 pub(crate) const SOURCE: u8 = 0;
@@ -290,6 +291,8 @@ struct Poll {
     repeat_until: Duration,
     /// Replies that showed the controller moving again after its stop.
     pub(crate) resumed: u64,
+    /// Its own position bounds, kept at the limits in force.
+    bounds: OwnBounds,
 }
 
 impl Poll {
@@ -367,6 +370,7 @@ impl MoteusDriver {
                 stopping: None,
                 repeat_until: Duration::ZERO,
                 resumed: 0,
+                bounds: OwnBounds::new(),
             },
         );
     }
@@ -470,6 +474,9 @@ impl MoteusDriver {
         let Some(p) = self.polls.get_mut(&device) else {
             return;
         };
+        let rev = |deg: Option<f64>| deg.map_or(f64::NAN, |d| d / 360.0);
+        p.bounds
+            .want(rev(limits.min_position), rev(limits.max_position));
         p.torque_cap = limits.max_torque;
         let broken = p.hold.is_some_and(|h| {
             let outside = h.position.filter(|x| x.is_finite()).is_some_and(|x| {
@@ -534,6 +541,14 @@ impl MoteusDriver {
             } else {
                 now.saturating_add(every)
             };
+            // The controller's own bounds: text to write and answers to
+            // read go beside the poll, whatever is in flight (they ask for
+            // no register and acknowledge nothing).
+            for f in p.bounds.frames(now, p.id, p.bus) {
+                if let Ok(f) = can_frame(f.can_id, &f.data) {
+                    self.requests.push(f);
+                }
+            }
             if self.requests.awaits(device) {
                 continue;
             }
@@ -550,6 +565,36 @@ impl MoteusDriver {
             if let Ok(f) = frame {
                 self.requests.push(f);
             }
+        }
+    }
+
+    /// An answer on `device`'s diagnostic stream, at `now`.
+    pub(crate) fn diagnostic_answer(
+        &mut self,
+        device: usize,
+        now: Duration,
+        answer: &motorwire_moteus::diagnostic::Answer,
+    ) {
+        if let Some(p) = self.polls.get_mut(&device) {
+            p.bounds.answer(now, answer);
+        }
+    }
+
+    /// What became of each controller's own bounds since last asked.
+    pub(crate) fn bounds_news(&mut self) -> Vec<(usize, BoundsNews)> {
+        let mut out = Vec::new();
+        for (&device, p) in &mut self.polls {
+            out.extend(p.bounds.take_news().into_iter().map(|n| (device, n)));
+        }
+        out
+    }
+
+    /// `device`'s own bounds taken as read and set, nothing more asked
+    /// (for tests of the rest of the driver's frames).
+    #[cfg(test)]
+    pub(crate) fn bounds_settled(&mut self, device: usize) {
+        if let Some(p) = self.polls.get_mut(&device) {
+            p.bounds = OwnBounds::settled();
         }
     }
 
@@ -611,6 +656,7 @@ mod tests {
         let ms = Duration::from_millis;
         let mut d = MoteusDriver::new(ms(100), 1);
         d.poll_every(0, 1, 0, ms(20));
+        d.bounds_settled(0);
         d.polls_due(ms(0));
         let q = d.poll_transmit().unwrap();
         assert_eq!(q, query_frame(1, 0).unwrap());
@@ -755,6 +801,7 @@ mod hold_tests {
     fn driver() -> MoteusDriver {
         let mut d = MoteusDriver::new(Duration::from_millis(100), 1);
         d.poll_every(0, 1, 0, Duration::from_millis(20));
+        d.bounds_settled(0);
         d
     }
 
@@ -768,9 +815,16 @@ mod hold_tests {
         })
     }
 
+    /// The register frame a poll at `ms` sends (the frames of the
+    /// controller's own bounds, which go beside it, passed over).
     fn poll(d: &mut MoteusDriver, ms: u64) -> Frame {
         d.polls_due(Duration::from_millis(ms));
-        d.poll_transmit().unwrap()
+        loop {
+            let f = d.poll_transmit().unwrap();
+            if !matches!(f.data().first(), Some(0x40 | 0x42)) {
+                return f;
+            }
+        }
     }
 
     /// Found by a hostile test: a SafetyLimits line taken (max 20) while a
