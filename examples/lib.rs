@@ -22,8 +22,11 @@ pub fn fixture(rel: &str) -> std::path::PathBuf {
         .join(rel)
 }
 
-/// The root README's Rust code, run as a doctest (`cargo test -p
-/// motorwire-examples --doc`) so that it stays true.
+/// The root README's Rust program, compiled and run as a doctest (`cargo
+/// test -p motorwire-examples --doc`) exactly as it reads there (a whole
+/// `fn main`, nothing hidden), so that it stays true and what a newcomer
+/// pastes into a new project compiles.
 #[doc = include_str!("../README.md")]
 #[cfg(doctest)]
 pub struct RootReadme;
+

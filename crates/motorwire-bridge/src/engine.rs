@@ -2205,7 +2205,8 @@ impl Bridge {
         }
         let mut irpc = irpc.into_iter();
         let mut axes = Vec::new();
-        let mut others = false;
+        // The dialects of the axes not planned together, in the map's words.
+        let mut others: Vec<&'static str> = Vec::new();
         for a in &cmd.motors {
             let Some(ji) = self.joint_index(&a.motor_id) else {
                 return Err(ErrorBody::refused(
@@ -2221,17 +2222,35 @@ impl Bridge {
                 let (axis, r) = built.map_err(|r| refused(&a.motor_id, &r))?;
                 report.losses.extend(prefixed(r));
                 axes.push(axis);
-                others = true;
+                let dialect = match device {
+                    Some(Device::Compact { .. }) => "compact",
+                    Some(Device::Orion(_)) => "Orion",
+                    Some(Device::Moteus { .. }) => "moteus",
+                    Some(Device::Irpc { .. }) | None => "iRPC",
+                };
+                if !others.contains(&dialect) {
+                    others.push(dialect);
+                }
             } else {
                 let payloads = irpc.next().unwrap_or_default();
                 axes.push(Axis::new(a.motor_id.clone(), ji, payloads));
             }
         }
-        if others && !sub.motors.is_empty() && cmd.sync_mode != Some(SyncMode::Sequential) {
+        if !others.is_empty() && !sub.motors.is_empty() && cmd.sync_mode != Some(SyncMode::Sequential)
+        {
+            others.sort_by_key(|d| d.to_ascii_lowercase());
+            let names = match others.as_slice() {
+                [one] => (*one).to_owned(),
+                [init @ .., last] => format!("{} and {last}", init.join(", ")),
+                [] => String::new(),
+            };
             report.losses.push(motorwire_translate::Loss {
                 field: "sync_mode".into(),
                 kind: motorwire_translate::LossKind::Converted,
-                detail: "compact and Orion axes are sent at the same time as the others, but only iRPC joints are planned to a common duration".into(),
+                detail: format!(
+                    "{names} axes are sent at the same time as the others, but only iRPC joints are planned to a common duration"
+                )
+                .into(),
             });
         }
         Ok((axes, report))

@@ -678,3 +678,23 @@ fn each_controllers_own_bounds_follow_the_limits_in_force_within_its_own() {
     // The hip was never written to after the start.
     assert_eq!(arm.moteus(1).unwrap().console_lines().len(), 4);
 }
+
+/// Found by a new user: a multi-axis line with moteus axes said only
+/// compact and Orion axes go unsynchronized.
+#[test]
+fn a_multi_axis_line_names_the_moteus_axes_it_does_not_synchronize() {
+    let mut arm = arm();
+    arm.line(
+        Origin(1),
+        r#"{"command_id":"m","timestamp":0,"sync_mode":"simultaneous","motors":[{"motor_id":"elbow","control_mode":"position","setpoint":20},{"motor_id":"hip","control_mode":"position","setpoint":10},{"motor_id":"knee","control_mode":"position","setpoint":0.2}]}"#,
+    );
+    arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+    let out = results(&mut arm);
+    let r = out.iter().find(|v| v.get("ok").is_some()).unwrap();
+    assert_eq!(r["ok"], true, "{r}");
+    assert_eq!(
+        r["losses"].as_array().unwrap().last().unwrap(),
+        "sync_mode: converted: moteus axes are sent at the same time as the others, but only iRPC joints are planned to a common duration",
+        "{r}"
+    );
+}

@@ -217,6 +217,21 @@ pub fn trajectory_to_irpc(
             "a loop without reverse_on_loop must end where it starts".to_owned(),
         ));
     }
+    // A loop that asks for more than one pass without `"enabled": true`
+    // runs once: said, never silent.
+    if let Some(l) = traj.loop_config.as_ref().filter(|l| l.enabled != Some(true))
+        && (l.count.is_some_and(|n| n != 1) || l.reverse_on_loop == Some(true))
+    {
+        report.push(
+            "loop",
+            LossKind::Dropped,
+            if l.enabled == Some(false) {
+                "the loop is disabled (\"enabled\": false): the trajectory runs once"
+            } else {
+                "the loop is not enabled (it takes \"enabled\": true): the trajectory runs once"
+            },
+        );
+    }
     if traj.timing.interpolation.is_some() || traj.kind.is_some() {
         report.push(
             "timing.interpolation",

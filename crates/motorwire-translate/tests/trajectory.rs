@@ -182,3 +182,36 @@ fn a_waypoint_the_joint_would_pass_early_at_speed_is_split_and_passed_on_time() 
         translated.report
     );
 }
+
+/// Found by a new user: a `loop` with a count but without `"enabled":
+/// true` ran once without a word.
+#[test]
+fn a_loop_that_is_not_enabled_runs_once_and_says_so() {
+    let loss = |json: &str| {
+        let mut t = feasible();
+        t.loop_config = Some(serde_json::from_str(json).unwrap());
+        let translated = trajectory_to_irpc(&map(), &t).unwrap();
+        assert_eq!(translated.value.segments.len(), 4, "{json}");
+        translated
+            .report
+            .losses
+            .iter()
+            .find(|l| l.field == "loop")
+            .map(ToString::to_string)
+    };
+    assert_eq!(
+        loss(r#"{"count": 3}"#).as_deref(),
+        Some(r#"loop: dropped: the loop is not enabled (it takes "enabled": true): the trajectory runs once"#)
+    );
+    assert_eq!(
+        loss(r#"{"enabled": false, "count": -1}"#).as_deref(),
+        Some(r#"loop: dropped: the loop is disabled ("enabled": false): the trajectory runs once"#)
+    );
+    assert_eq!(
+        loss(r#"{"reverse_on_loop": true}"#).as_deref(),
+        Some(r#"loop: dropped: the loop is not enabled (it takes "enabled": true): the trajectory runs once"#)
+    );
+    // Once is what it asks for: nothing to say.
+    assert_eq!(loss(r#"{"count": 1}"#), None);
+    assert_eq!(loss(r#"{"enabled": false}"#), None);
+}
