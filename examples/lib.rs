@@ -29,4 +29,3 @@ pub fn fixture(rel: &str) -> std::path::PathBuf {
 #[doc = include_str!("../README.md")]
 #[cfg(doctest)]
 pub struct RootReadme;
-

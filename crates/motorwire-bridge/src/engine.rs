@@ -2222,12 +2222,7 @@ impl Bridge {
                 let (axis, r) = built.map_err(|r| refused(&a.motor_id, &r))?;
                 report.losses.extend(prefixed(r));
                 axes.push(axis);
-                let dialect = match device {
-                    Some(Device::Compact { .. }) => "compact",
-                    Some(Device::Orion(_)) => "Orion",
-                    Some(Device::Moteus { .. }) => "moteus",
-                    Some(Device::Irpc { .. }) | None => "iRPC",
-                };
+                let dialect = device.map_or("iRPC", Device::dialect_name);
                 if !others.contains(&dialect) {
                     others.push(dialect);
                 }
@@ -2236,7 +2231,9 @@ impl Bridge {
                 axes.push(Axis::new(a.motor_id.clone(), ji, payloads));
             }
         }
-        if !others.is_empty() && !sub.motors.is_empty() && cmd.sync_mode != Some(SyncMode::Sequential)
+        if !others.is_empty()
+            && !sub.motors.is_empty()
+            && cmd.sync_mode != Some(SyncMode::Sequential)
         {
             others.sort_by_key(|d| d.to_ascii_lowercase());
             let names = match others.as_slice() {
@@ -3364,9 +3361,9 @@ impl Bridge {
         j.planned = None;
         j.deadman = effect.deadman;
         j.held_velocity = effect.deadman.and_then(|_| order.held_velocity(j.unit));
-        if effect.deadman.is_some() {
-            // A new setpoint taken (only one that may go: toward the
-            // limit it was braked short of, only once it had stopped).
+        if effect.deadman.is_some() || effect.target.is_some() {
+            // A new setpoint or move taken (one toward the limit it was
+            // braked short of only once it had stopped).
             j.limit_braked = None;
         }
         if let Some(target) = effect.target {
@@ -4398,23 +4395,33 @@ impl Bridge {
         } else {
             "min_position"
         };
-        let reach = if j.limit_braked == Some(toward) && f.velocity * setpoint > 0.0 {
+        // Still on its way toward that limit: faster than a 1,000th of its
+        // velocity limit (a motor at rest reports noise).
+        let still = m
+            .limits
+            .max_velocity
+            .map_or(1e-3, |v| (v.abs() * 1e-3).max(1e-9));
+        let reach = if j.limit_braked == Some(toward) && f.velocity * setpoint.signum() > still {
             // Braked short of that limit and still on its way to it: no
             // setpoint toward it until it has stopped.
             f64::INFINITY
         } else if mode == motorwire_core::ControlMode::Velocity {
             setpoint.abs() * BRAKE_LOOKAHEAD.as_secs_f64() + Self::stopping(&m.limits, setpoint)
-        } else if f.velocity * setpoint >= 0.0 {
-            // A torque the way it already goes, or from rest: as far as it
-            // would get before a brake could stop it, speeding up as fast
-            // as a setpoint has driven it before, over two lookaheads (one
-            // to its next report, one for the brake to go).
-            let t = 2.0 * BRAKE_LOOKAHEAD.as_secs_f64();
-            let a = m.unit.from_degrees(j.peak_accel).abs();
-            let v = f.velocity.abs();
-            v * t + a * t * t / 2.0 + Self::stopping(&m.limits, v + a * t)
         } else {
-            0.0
+            // A torque toward the limit: as far as it would get before a
+            // brake could stop it, from its speed toward the limit (none
+            // if it goes the other way: the torque turns it), speeding up
+            // as fast as a torque has driven it before, and no slower than
+            // the limits' acceleration, over two lookaheads (one to its
+            // next report, one for the brake to go).
+            let t = 2.0 * BRAKE_LOOKAHEAD.as_secs_f64();
+            let a = m
+                .unit
+                .from_degrees(j.peak_accel)
+                .abs()
+                .max(m.limits.max_acceleration.unwrap_or(0.0));
+            let v = (f.velocity * setpoint.signum()).max(0.0);
+            v * t + a * t * t / 2.0 + Self::stopping(&m.limits, v + a * t)
         };
         let (limit_name, limit) = if setpoint > 0.0 {
             (
@@ -4570,7 +4577,15 @@ impl Bridge {
         // (nor can any other device's reading but its first): what ready
         // waits for is looked at then, not on every report of every device.
         let first = j.motion.is_none();
-        if j.deadman.is_some() && acceleration.is_finite() {
+        // How fast a torque speeds it up: only while it holds a torque
+        // setpoint, and only speeding up the way it goes (a stop, a fault
+        // or a brake slows it down; a velocity setpoint ramps within the
+        // limits).
+        if j.deadman.is_some()
+            && j.held_velocity.is_none()
+            && acceleration.is_finite()
+            && acceleration * vel > 0.0
+        {
             j.peak_accel = j.peak_accel.max(acceleration.abs());
         }
         j.set_motion((pos, vel), at, acceleration);

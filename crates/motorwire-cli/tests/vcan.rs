@@ -1469,8 +1469,8 @@ fn the_bridge_drives_a_moteus_process_with_the_librarys_frames() {
         })
         .collect();
     assert!(
-        text.contains("conf set servopos.position_min -0.16666666666666666\n")
-            && text.contains("conf set servopos.position_max 0.16666666666666666\n"),
+        text.contains("conf set servopos.position_min -0.166666666\n")
+            && text.contains("conf set servopos.position_max 0.166666666\n"),
         "{text}\n{log}"
     );
     // The controller's replies (0x100), decoded by the library's names.

@@ -219,7 +219,10 @@ pub fn trajectory_to_irpc(
     }
     // A loop that asks for more than one pass without `"enabled": true`
     // runs once: said, never silent.
-    if let Some(l) = traj.loop_config.as_ref().filter(|l| l.enabled != Some(true))
+    if let Some(l) = traj
+        .loop_config
+        .as_ref()
+        .filter(|l| l.enabled != Some(true))
         && (l.count.is_some_and(|n| n != 1) || l.reverse_on_loop == Some(true))
     {
         report.push(

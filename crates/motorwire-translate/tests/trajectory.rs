@@ -201,7 +201,9 @@ fn a_loop_that_is_not_enabled_runs_once_and_says_so() {
     };
     assert_eq!(
         loss(r#"{"count": 3}"#).as_deref(),
-        Some(r#"loop: dropped: the loop is not enabled (it takes "enabled": true): the trajectory runs once"#)
+        Some(
+            r#"loop: dropped: the loop is not enabled (it takes "enabled": true): the trajectory runs once"#
+        )
     );
     assert_eq!(
         loss(r#"{"enabled": false, "count": -1}"#).as_deref(),
@@ -209,7 +211,9 @@ fn a_loop_that_is_not_enabled_runs_once_and_says_so() {
     );
     assert_eq!(
         loss(r#"{"reverse_on_loop": true}"#).as_deref(),
-        Some(r#"loop: dropped: the loop is not enabled (it takes "enabled": true): the trajectory runs once"#)
+        Some(
+            r#"loop: dropped: the loop is not enabled (it takes "enabled": true): the trajectory runs once"#
+        )
     );
     // Once is what it asks for: nothing to say.
     assert_eq!(loss(r#"{"count": 1}"#), None);

@@ -377,6 +377,19 @@ impl Device {
 }
 
 /// A moteus controller's stop: stop mode, or brake mode.
+impl Device {
+    /// The dialect's name as a person reads it (`iRPC`, `compact`,
+    /// `Orion`, `moteus`).
+    pub(crate) const fn dialect_name(self) -> &'static str {
+        match self {
+            Self::Irpc { .. } => "iRPC",
+            Self::Compact { .. } => "compact",
+            Self::Orion(_) => "Orion",
+            Self::Moteus { .. } => "moteus",
+        }
+    }
+}
+
 const fn moteus_stop(brake: bool) -> MoteusCommand {
     if brake {
         MoteusCommand::Brake

@@ -432,6 +432,9 @@ impl MoteusDriver {
         };
         let changed = p.mode != mode;
         p.mode = mode;
+        if let Some(at) = r.float(0x001) {
+            p.bounds.at(at);
+        }
         // Stopped, and now in another mode (a late frame from before the
         // stop took it back): stopped again at once (when in doubt, stop).
         if let (Some(stop), Some(m)) = (p.stopping, mode)
