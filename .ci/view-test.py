@@ -236,6 +236,15 @@ def main():
         if not target:
             fail("no target drawn for the elbow")
 
+        # A SafetyLimits line narrows the elbow to 0..100: the page shades
+        # the limits now in force, not the bus map's (0..150).
+        bands = "document.querySelectorAll('section[data-motor=elbow] svg[data-quantity=position] rect.band')"
+        if page.eval(f"{bands}[0].dataset.limit") != "150":
+            fail(f"the elbow's upper band did not start at the bus map's 150: {page.eval(f'{bands}[0].dataset.limit')}")
+        client.sendall(b'{"motor_id":"elbow","position_limits":{"min":0,"max":100},"velocity_limits":{"max_velocity":120},"torque_limits":{"continuous_torque":5,"peak_torque":5}}\n')
+        read_until(lines, r'"ok":true,"line":2', 10, "the SafetyLimits line was not taken")
+        page.wait(f"{bands}[0].dataset.limit === '100' && {bands}[1].dataset.limit === '0'",
+                  "the limits in force (0..100) shaded")
         client.sendall(b'{"emergency_stop":true}\n')
         page.wait("document.querySelector('section[data-motor=elbow] svg[data-quantity=position] g.mark[data-kind=stop]') !== null",
                   "the stop marked on the elbow's chart")

@@ -153,41 +153,8 @@ impl Target {
 }
 
 /// The unit a motor's WIA positions are in (velocities per second,
-/// accelerations per second squared).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum AngleUnit {
-    /// Degrees (iRPC's unit).
-    #[default]
-    Degrees,
-    /// Radians.
-    Radians,
-}
-
-impl AngleUnit {
-    /// `value` in this unit, in degrees.
-    pub fn to_degrees(self, value: f64) -> f64 {
-        match self {
-            AngleUnit::Degrees => value,
-            AngleUnit::Radians => value.to_degrees(),
-        }
-    }
-
-    /// `degrees` in this unit.
-    pub fn from_degrees(self, degrees: f64) -> f64 {
-        match self {
-            AngleUnit::Degrees => degrees,
-            AngleUnit::Radians => degrees.to_radians(),
-        }
-    }
-
-    /// `"deg"` or `"rad"`.
-    pub const fn name(self) -> &'static str {
-        match self {
-            AngleUnit::Degrees => "deg",
-            AngleUnit::Radians => "rad",
-        }
-    }
-}
+/// accelerations per second squared): motorwire-core's, declared once.
+pub use motorwire_core::AngleUnit;
 
 /// A motor's safety limits, in its [`AngleUnit`] (and newton-metres).
 /// `None` is "no limit from the map".
