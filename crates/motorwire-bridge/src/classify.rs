@@ -613,7 +613,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
                     message: if serde_json::from_str::<Value>(line).is_ok() {
                         invalid_message(&err)
                     } else {
-                        format!("not JSON: {e}")
+                        format!("not JSON: {}", motorwire_wia::json_error_text(line, &e))
                     },
                     violations: serde_json::to_value(err.violations()).ok(),
                     more: err.more(),

@@ -1932,12 +1932,11 @@ impl Bridge {
             let age = now_ms - timestamp;
             if age > skew || -age > skew {
                 let when = if age > 0.0 { "old" } else { "in the future" };
-                // A timestamp in seconds (or microseconds) is the mistake
-                // most often made: say so when the value read in that unit
-                // would have been within the skew.
-                let hint = if (now_ms / 1000.0 - timestamp).abs() * 1000.0 <= skew {
-                    "; it looks like seconds: WIA timestamps are Unix milliseconds (`date +%s%3N`)"
-                } else if (now_ms * 1000.0 - timestamp).abs() / 1000.0 <= skew {
+                // A timestamp in microseconds is a mistake often made: say
+                // so when the value read in that unit would have been
+                // within the skew. (One in seconds is the validator's
+                // `timestamp-unit`, refused before it gets here.)
+                let hint = if (now_ms * 1000.0 - timestamp).abs() / 1000.0 <= skew {
                     "; it looks like microseconds: WIA timestamps are Unix milliseconds (`date +%s%3N`)"
                 } else {
                     ""

@@ -52,6 +52,12 @@ pub(crate) struct Args {
     /// not listed is refused `unknown_position`.
     #[arg(long, value_name = "MOTOR=POS,...")]
     positions: Option<String>,
+    /// Take members a kind's schema does not name (WIA's schemas leave
+    /// objects open). Without it each is refused `unknown-member`, naming
+    /// the nearest known member, as the bridge and `motorwire validate`
+    /// refuse it.
+    #[arg(long)]
+    allow_unknown_members: bool,
 }
 
 /// What `--to` names.
@@ -488,7 +494,7 @@ pub(crate) fn run(args: &Args) -> u8 {
         source: args.node,
         msg_id: args.first_msg_id,
         positions,
-        validator: Validator::new(),
+        validator: Validator::new().deny_unknown_members(!args.allow_unknown_members),
     };
     let out = io::BufWriter::new(io::stdout().lock());
     let mut reader = Live::new(Box::new(io::stdin().lock()), out);

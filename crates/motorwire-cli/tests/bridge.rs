@@ -156,7 +156,7 @@ fn a_misspelled_member_is_refused_unless_the_bridge_is_told_to_take_it() {
             assert_eq!(r["error"]["violations"][0]["rule"], "unknown-member", "{r}");
             assert_eq!(
                 r["error"]["message"],
-                "not a valid WIA message: /velocity_limt: \"velocity_limt\" is not a member motor-command has here; did you mean velocity_limit? (the bridge and `motorwire validate` take unknown members only when told to: --allow-unknown-members, --allow-unknown) (unknown-member)",
+                "not a valid WIA message: /velocity_limt: \"velocity_limt\" is not a member motor-command has here; did you mean velocity_limit? (motorwire takes unknown members only when told to: `Validator::lenient`, `--allow-unknown-members`, `validate --allow-unknown`) (unknown-member)",
                 "{r}"
             );
             assert!(!all.iter().any(|v| v.get("arrived").is_some()), "{all:?}");

@@ -344,7 +344,7 @@ fn a_misspelled_member_is_invalid_unless_allowed_and_schema_only_takes_it() {
     let file = "fixtures/wia/invalid/unknown-member-typo.json";
     let out = motorwire(&["validate", file], None);
     assert_eq!(out.status.code(), Some(1));
-    let why = "(the bridge and `motorwire validate` take unknown members only when told to: --allow-unknown-members, --allow-unknown)";
+    let why = "(motorwire takes unknown members only when told to: `Validator::lenient`, `--allow-unknown-members`, `validate --allow-unknown`)";
     assert_eq!(
         String::from_utf8(out.stdout).unwrap(),
         format!(
@@ -431,4 +431,130 @@ fn validate_lists_a_hundred_violations_and_counts_the_rest() {
     );
     assert!(text.ends_with("\n  and 9900 more, not listed\n"), "{text}");
     assert_eq!(text.lines().count(), 102);
+}
+
+/// Found by a new user (issue 59 part 1): the library, `validate`,
+/// `translate` and the bridge read the same line three ways (a misspelled
+/// member taken by two of them, `stream` refused by one, a timestamp in
+/// seconds passed by the library, NaN refused without naming it). Each line
+/// here is judged the same by all four, naming the same rule.
+#[test]
+fn the_library_validate_translate_and_the_bridge_read_a_line_alike() {
+    let now = common::now_ms();
+    let line = |rest: &str| {
+        format!(
+            r#"{{"motor_id":"elbow","timestamp":{now},"control_mode":"velocity","setpoint":10{rest}}}"#
+        )
+    };
+    // (line, taken, the rule or words of its refusal)
+    let cases: Vec<(String, bool, &str)> = vec![
+        (line(""), true, ""),
+        (line(r#","stream":true"#), true, ""),
+        (line(r#","velocity_limt":5"#), false, "unknown-member"),
+        (line(r#","stream":"yes""#), false, "stream is \"yes\""),
+        (
+            format!(
+                r#"{{"motor_id":"elbow","timestamp":{},"control_mode":"velocity","setpoint":10}}"#,
+                now / 1000
+            ),
+            false,
+            "timestamp-unit",
+        ),
+        (
+            line("").replace("10}", "NaN}"),
+            false,
+            "NaN is not a JSON number",
+        ),
+    ];
+    let input: String = cases.iter().map(|(l, ..)| format!("{l}\n")).collect();
+    // The library.
+    let validator = motorwire_wia::Validator::new();
+    for (l, taken, why) in &cases {
+        match validator.parse_any(l) {
+            Ok(_) => assert!(*taken, "the library took {l}"),
+            Err(e) => {
+                assert!(!taken, "the library refused {l}: {e}");
+                let said = serde_json::to_string(e.violations()).unwrap();
+                assert!(
+                    said.contains(&why.replace('"', "\\\"")) || said.contains(why),
+                    "the library on {l}: {said}"
+                );
+            }
+        }
+    }
+    // motorwire validate --lines --now.
+    let file = std::env::temp_dir().join(format!(
+        "motorwire-one-reading-{}.jsonl",
+        std::process::id()
+    ));
+    std::fs::write(&file, &input).unwrap();
+    let now_arg = now.to_string();
+    let out = common::run(
+        &[
+            "validate",
+            "--lines",
+            "--format",
+            "json",
+            "--now",
+            &now_arg,
+            file.to_str().unwrap(),
+        ],
+        b"",
+    );
+    let _ = std::fs::remove_file(&file);
+    let reports: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(reports.len(), cases.len(), "{reports:?}");
+    for ((l, taken, why), r) in cases.iter().zip(&reports) {
+        assert_eq!(r["valid"], *taken, "validate on {l}: {r}");
+        assert!(
+            r.to_string().contains(&why.replace('"', "\\\"")),
+            "validate on {l}: {r}"
+        );
+    }
+    // motorwire translate.
+    let out = common::run(
+        &[
+            "translate",
+            "--map",
+            "fixtures/maps/demo-arm.toml",
+            "--to",
+            "irpc-v2.0",
+        ],
+        input.as_bytes(),
+    );
+    let results: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|v| v.get("ok").is_some())
+        .collect();
+    assert_eq!(results.len(), cases.len(), "{results:?}");
+    // The bridge, on the simulated bus.
+    let out = common::run(
+        &common::sim_bridge(&["--feedback-hz", "0"]),
+        input.as_bytes(),
+    );
+    let mut answers: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|v| v.get("ok").is_some() && v.get("line").is_some())
+        .collect();
+    answers.sort_by_key(|v| v["line"].as_u64());
+    assert_eq!(answers.len(), cases.len(), "{answers:?}");
+    for (who, said) in [("translate", &results), ("the bridge", &answers)] {
+        for ((l, taken, why), r) in cases.iter().zip(said.iter()) {
+            // A velocity line is not an iRPC move: translate refuses it for
+            // the joint's dialect, not for how it reads.
+            let read_ok = r["ok"] == true
+                || !["invalid", "json-syntax"].contains(&r["error"]["rule"].as_str().unwrap_or(""))
+                    && r["error"]["kind"] != "invalid";
+            assert_eq!(read_ok, *taken, "{who} on {l}: {r}");
+            assert!(
+                r.to_string().contains(&why.replace('"', "\\\"")),
+                "{who} on {l}: {r}"
+            );
+        }
+    }
 }

@@ -177,6 +177,16 @@ impl Sink {
                 format!("timestamp {t} is not a whole number of Unix milliseconds"),
             );
         }
+        if (1e9..1e11).contains(&t) {
+            self.push(
+                path,
+                Rule::TimestampUnit,
+                format!(
+                    "timestamp {t} looks like seconds: WIA timestamps are Unix milliseconds ({} for that time)",
+                    t * 1000.0
+                ),
+            );
+        }
         if let (Some(now), Some(behind)) = (self.now_ms, self.window.behind_ms)
             && t < now - behind
         {

@@ -535,6 +535,17 @@ impl MotorCommand {
         let ts = root.key("timestamp");
         s.minimum(&ts, self.timestamp, 0.0);
         s.timestamp(&ts, self.timestamp);
+        if let Some(v) = self.extra.get(crate::members::STREAM)
+            && !v.is_boolean()
+        {
+            s.push(
+                &root.key(crate::members::STREAM),
+                Rule::Type,
+                format!(
+                    "stream is {v}: it is true (the command is a setpoint of a stream) or false"
+                ),
+            );
+        }
         self.body().check(&root, s);
     }
 }

@@ -48,7 +48,7 @@ pub use trajectory::{
     DURATION_TOLERANCE_MS, Interpolation, LoopConfig, Timing, Trajectory, TrajectoryConstraints,
     TrajectoryType, Waypoint,
 };
-pub use validate::{TimestampWindow, Validator};
+pub use validate::{TimestampWindow, Validator, json_error_text};
 
 /// Re-exported so users name the shared vocabulary through one crate.
 pub use motorwire_core as core;

@@ -55,7 +55,15 @@ fn known(kind: MessageKind) -> &'static Known {
             .iter()
             .map(|k| {
                 let schema: Value = serde_json::from_str(k.schema()).unwrap_or(Value::Null);
-                (*k, Known::of(&schema, &schema, 16))
+                let mut known = Known::of(&schema, &schema, 16);
+                // motorwire's one member of a MotorCommand beyond WIA's:
+                // `stream` (a boolean; MotorCommand::check holds it to one).
+                if *k == MessageKind::MotorCommand
+                    && let Some(m) = known.members.as_mut()
+                {
+                    m.insert(STREAM.to_owned(), Known::default());
+                }
+                (*k, known)
             })
             .collect()
     });
@@ -76,10 +84,13 @@ pub(crate) fn top_level_members(kind: MessageKind) -> &'static [&'static str] {
         MessageKind::ALL
             .iter()
             .map(|k| {
+                // WIA's names alone: a line with motorwire's `stream` is
+                // not a plain command (the bridge reads it as a stream's).
                 let names = known(*k)
                     .members
                     .iter()
                     .flat_map(|m| m.keys().map(String::as_str))
+                    .filter(|n| *n != STREAM)
                     .collect();
                 (*k, names)
             })
@@ -133,9 +144,13 @@ fn any_in_parts(
         || safety.is_some_and(|p| !p.extra.is_empty())
 }
 
+/// The member a MotorCommand may carry beyond WIA's: `"stream": true`
+/// makes it a setpoint of a policy's stream (the bridge's).
+pub(crate) const STREAM: &str = "stream";
+
 impl Unknowns for crate::MotorCommand {
     fn any_unknown(&self) -> bool {
-        !self.extra.is_empty()
+        self.extra.keys().any(|k| k != STREAM)
             || any_in_parts(
                 self.pid_gains.as_ref(),
                 self.impedance_params.as_ref(),
@@ -364,7 +379,7 @@ fn unknown_message(kind: MessageKind, name: &str, members: &BTreeMap<String, Kno
     .map(|n| format!("; did you mean {n}?"))
     .unwrap_or_default();
     format!(
-        "{:?}{cut} is not a member {kind} has here{hint} (the bridge and `motorwire validate` take unknown members only when told to: --allow-unknown-members, --allow-unknown)",
+        "{:?}{cut} is not a member {kind} has here{hint} (motorwire takes unknown members only when told to: `Validator::lenient`, `--allow-unknown-members`, `validate --allow-unknown`)",
         shown(name)
     )
 }
@@ -390,7 +405,7 @@ mod tests {
             v,
             [(
                 "/velocity_limt".to_owned(),
-                r#""velocity_limt" is not a member motor-command has here; did you mean velocity_limit? (the bridge and `motorwire validate` take unknown members only when told to: --allow-unknown-members, --allow-unknown)"#.to_owned()
+                r#""velocity_limt" is not a member motor-command has here; did you mean velocity_limit? (motorwire takes unknown members only when told to: `Validator::lenient`, `--allow-unknown-members`, `validate --allow-unknown`)"#.to_owned()
             )]
         );
     }
@@ -543,7 +558,7 @@ mod tests {
         assert_eq!(v[0].pointer, format!("/{}", &key[..64]));
         assert!(
             v[0].message.starts_with(&format!(
-                "{:?} (its first 64 bytes of 60014) is not a member motor-command has here (the bridge",
+                "{:?} (its first 64 bytes of 60014) is not a member motor-command has here (motorwire takes",
                 &key[..64]
             )),
             "{}",

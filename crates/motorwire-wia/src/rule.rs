@@ -84,6 +84,10 @@ rules! {
     NonFinite = "non-finite", Semantic;
     /// A timestamp is not a whole number of Unix milliseconds.
     TimestampInteger = "timestamp-integer", Semantic;
+    /// A timestamp is a count of seconds, not milliseconds (from 10^9 to
+    /// 10^11: as milliseconds, a time in 1970 to 1973 no clock sends; as
+    /// seconds, 2001 to 5138).
+    TimestampUnit = "timestamp-unit", Semantic;
     /// A timestamp is outside the window around the caller's `now`: by default more
     /// than 5 minutes older ([`TimestampWindow`](crate::TimestampWindow)).
     TimestampStale = "timestamp-stale", Semantic;

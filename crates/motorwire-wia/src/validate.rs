@@ -90,31 +90,53 @@ impl Validator {
     /// limit, which keeps parsing off the end of the stack.
     pub const MAX_DEPTH_CEILING: usize = 128;
 
-    /// Default limits (1 MiB, depth 32) and no clock (no staleness check).
+    /// Default limits (1 MiB, depth 32), no clock (no staleness check), and
+    /// unknown members refused ([`Validator::deny_unknown_members`]): the
+    /// reading of a line the bridge, `motorwire validate` and `motorwire
+    /// translate` apply. [`Validator::lenient`] takes them.
     pub const fn new() -> Self {
         Self {
             max_document_size: Self::DEFAULT_MAX_DOCUMENT_SIZE,
             max_depth: Self::DEFAULT_MAX_DEPTH,
             now_ms: None,
             window: TimestampWindow::WIA,
-            deny_unknown: false,
+            deny_unknown: true,
         }
+    }
+
+    /// [`Validator::new`] taking members a kind's schema does not name, as
+    /// WIA's open schemas do (kept in each type's `extra`): for documents
+    /// that carry members of their own. A misspelled member then passes
+    /// unseen.
+    ///
+    /// ```
+    /// use motorwire_wia::{MessageKind, Validator};
+    /// let doc = r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"site":"lab 2"}"#;
+    /// assert!(Validator::lenient().validate(MessageKind::MotorCommand, doc).is_valid());
+    /// assert!(!Validator::new().validate(MessageKind::MotorCommand, doc).is_valid());
+    /// ```
+    pub const fn lenient() -> Self {
+        Self::new().deny_unknown_members(false)
     }
 
     /// Refuses every member a kind's schema does not name where it stands
     /// ([`Rule::UnknownMember`], naming the nearest known member): WIA's
-    /// schemas leave objects open, so a misspelled `velocity_limt` is
-    /// otherwise valid and ignored. Free-form objects (`metadata`) take any
-    /// member. The bridge and `motorwire validate` turn this on by default.
+    /// schemas leave objects open, so a misspelled `velocity_limt` would be
+    /// valid and ignored. Free-form objects (`metadata`) take any member,
+    /// and a MotorCommand takes motorwire's `stream` (a boolean). On by
+    /// default; `false` is [`Validator::lenient`].
     ///
     /// ```
     /// use motorwire_wia::{MessageKind, Rule, Validator};
     /// let doc = r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"velocity_limt":5}"#;
-    /// assert!(Validator::new().validate(MessageKind::MotorCommand, doc).is_valid());
-    /// let r = Validator::new().deny_unknown_members(true).validate(MessageKind::MotorCommand, doc);
+    /// let r = Validator::new().validate(MessageKind::MotorCommand, doc);
     /// assert_eq!(r.violations[0].rule, Rule::UnknownMember);
     /// assert_eq!(r.violations[0].pointer, "/velocity_limt");
     /// assert!(r.violations[0].message.contains("did you mean velocity_limit?"));
+    /// assert!(Validator::new().deny_unknown_members(false).validate(MessageKind::MotorCommand, doc).is_valid());
+    /// // motorwire's `stream` member is known.
+    /// let stream = r#"{"motor_id":"elbow","timestamp":1,"control_mode":"velocity","setpoint":20,"stream":true}"#;
+    /// assert!(Validator::new().validate(MessageKind::MotorCommand, stream).is_valid());
     /// ```
     #[must_use]
     pub const fn deny_unknown_members(mut self, deny: bool) -> Self {
@@ -442,7 +464,7 @@ impl Validator {
             Err(v) => (vec![v], 0),
             Ok(()) => match serde_json::from_str::<serde_json::Value>(json) {
                 Ok(value) => schema::violations(kind, &value),
-                Err(e) => (vec![json_error(&e)], 0),
+                Err(e) => (vec![json_error(json, &e)], 0),
             },
         };
         Report::bounded(Some(kind), violations, more)
@@ -521,7 +543,7 @@ impl Validator {
                 let (list, more) = explain_data_error(T::KIND, json, &e);
                 (None, list, more)
             }
-            Err(e) => (None, vec![json_error(&e)], 0),
+            Err(e) => (None, vec![json_error(json, &e)], 0),
         }
     }
 }
@@ -540,7 +562,7 @@ fn infer(json: &str) -> Result<MessageKind, Violation> {
             Rule::UnknownKind,
             "cannot tell the message kind: the document is not a JSON object",
         )),
-        Err(e) => Err(json_error(&e)),
+        Err(e) => Err(json_error(json, &e)),
     }
 }
 
@@ -554,7 +576,7 @@ fn explain_data_error(
 ) -> (Vec<Violation>, usize) {
     let value: serde_json::Value = match serde_json::from_str(json) {
         Ok(v) => v,
-        Err(e) => return (vec![json_error(&e)], 0),
+        Err(e) => return (vec![json_error(json, &e)], 0),
     };
     let (violations, more) = schema::violations(kind, &value);
     if violations.is_empty() {
@@ -573,8 +595,58 @@ fn explain_data_error(
     }
 }
 
-fn json_error(e: &serde_json::Error) -> Violation {
-    Violation::new("", Rule::JsonSyntax, format!("not valid JSON: {e}"))
+fn json_error(json: &str, e: &serde_json::Error) -> Violation {
+    Violation::new(
+        "",
+        Rule::JsonSyntax,
+        format!("not valid JSON: {}", json_error_text(json, e)),
+    )
+}
+
+/// What is wrong with `json`, which `serde_json` refused with `e`: its
+/// message, and where the refused text is a number JSON has no word for
+/// (`NaN`, `Infinity`, `-Infinity`: what Python's `json.dumps` writes for
+/// such a float), that word named first.
+///
+/// ```
+/// let line = r#"{"motor_id":"elbow","timestamp":1,"control_mode":"velocity","setpoint":NaN}"#;
+/// let e = serde_json::from_str::<serde_json::Value>(line).unwrap_err();
+/// assert_eq!(
+///     motorwire_wia::json_error_text(line, &e),
+///     "NaN is not a JSON number (Python's json.dumps writes it for a float NaN: \
+///      send a finite number, or dump with allow_nan=False to find it): \
+///      expected value at line 1 column 72"
+/// );
+/// ```
+pub fn json_error_text(json: &str, e: &serde_json::Error) -> String {
+    // The error's place: its line (1-based) and column (1-based, bytes).
+    // The word may start a byte before it (a `-` read as a number's sign).
+    let word = json
+        .split('\n')
+        .nth(e.line().saturating_sub(1))
+        .and_then(|l| {
+            let col = e.column().saturating_sub(1);
+            [col.saturating_sub(1), col]
+                .into_iter()
+                .filter_map(|from| l.get(from..))
+                .find_map(|rest| {
+                    ["-Infinity", "Infinity", "-NaN", "NaN"]
+                        .into_iter()
+                        .find(|w| rest.starts_with(w))
+                })
+        });
+    match word {
+        Some(w) => format!(
+            "{w} is not a JSON number (Python's json.dumps writes it for a float {}: \
+             send a finite number, or dump with allow_nan=False to find it): {e}",
+            if w.contains("Infinity") {
+                "infinity"
+            } else {
+                "NaN"
+            }
+        ),
+        None => e.to_string(),
+    }
 }
 
 /// Scans the text for `[`/`{` nesting outside strings; returns the depth

@@ -71,3 +71,46 @@ fn semantic_violations_beyond_the_first_hundred_are_counted() {
             .is_none()
     );
 }
+
+/// Found by a new user: a line with `NaN` (what Python's `json.dumps`
+/// writes for a float NaN) was answered `not valid JSON: expected value at
+/// line 1 column 91`, naming nothing.
+#[test]
+fn a_number_json_has_no_word_for_is_named() {
+    for (word, line) in [
+        (
+            "NaN",
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"velocity","setpoint":NaN}"#,
+        ),
+        (
+            "Infinity",
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"velocity","setpoint":Infinity}"#,
+        ),
+        (
+            "-Infinity",
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"velocity","setpoint":-Infinity}"#,
+        ),
+        (
+            "NaN",
+            "{\"motor_id\":\"elbow\",\n\"timestamp\":1,\n\"setpoint\": NaN}",
+        ),
+    ] {
+        let e = motorwire_wia::Validator::new().parse_any(line).unwrap_err();
+        let v = &e.violations()[0];
+        assert_eq!(v.rule, motorwire_wia::Rule::JsonSyntax, "{line}");
+        assert!(
+            v.message
+                .starts_with(&format!("not valid JSON: {word} is not a JSON number")),
+            "{line}: {}",
+            v.message
+        );
+    }
+    // Anything else keeps serde_json's words alone.
+    let e = motorwire_wia::Validator::new()
+        .parse_any(r#"{"a":nope}"#)
+        .unwrap_err();
+    assert_eq!(
+        e.violations()[0].message,
+        "not valid JSON: expected ident at line 1 column 7"
+    );
+}
