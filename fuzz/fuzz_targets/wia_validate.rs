@@ -26,12 +26,18 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    let v = Validator::new().max_depth(16);
+    // Lenient (WIA's open schemas) and strict (the default): what the
+    // strict one takes, the lenient one takes, and the schema too.
+    let v = Validator::lenient().max_depth(16);
+    let strict = Validator::new().max_depth(16);
     let auto = v.validate_auto(text);
     for kind in MessageKind::ALL {
         let full = v.validate(kind, text);
         if full.is_valid() {
             assert!(v.validate_schema_only(kind, text).is_valid());
+        }
+        if strict.validate(kind, text).is_valid() {
+            assert!(full.is_valid(), "{text:?}: strict took it, lenient did not");
         }
     }
     let _ = auto;

@@ -1023,7 +1023,7 @@ mod tests {
         ])
         .collect();
         for v in [
-            Validator::new(),
+            Validator::lenient(),
             Validator::new().deny_unknown_members(true),
             Validator::new().max_depth(1),
         ] {
@@ -1148,7 +1148,7 @@ mod tests {
             ),
         ];
         for v in [
-            Validator::new(),
+            Validator::lenient(),
             Validator::new().deny_unknown_members(true),
             Validator::new().max_depth(3),
         ] {

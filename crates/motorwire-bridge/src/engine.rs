@@ -390,6 +390,9 @@ const CALIBRATION_MARGIN: Duration = Duration::from_secs(5);
 /// against a position limit (the motor goes on until the next feedback is
 /// heard and its stop is sent): a poll of a 50 Hz query rate and a little.
 const BRAKE_LOOKAHEAD: Duration = Duration::from_millis(25);
+/// How long after a limit brake a motor's reports may still show it going
+/// on toward the limit as fast before it is braked again.
+const REBRAKE_AFTER: Duration = Duration::from_millis(50);
 
 fn us(d: Duration) -> u64 {
     u64::try_from(d.as_micros()).unwrap_or(u64::MAX)
@@ -3360,10 +3363,15 @@ impl Bridge {
         j.planned = None;
         j.deadman = effect.deadman;
         j.held_velocity = effect.deadman.and_then(|_| order.held_velocity(j.unit));
-        if effect.deadman.is_some() || effect.target.is_some() {
+        if j.limit_brake_sending {
+            // The limit brake itself going out: what it was braked short
+            // of is kept.
+            j.limit_brake_sending = false;
+        } else if effect.deadman.is_some() || effect.target.is_some() {
             // A new setpoint or move taken (one toward the limit it was
             // braked short of only once it had stopped).
             j.limit_braked = None;
+            j.limit_braked_at = None;
         }
         if let Some(target) = effect.target {
             j.target = target;
@@ -4309,9 +4317,10 @@ impl Bridge {
         }
         let now_ms = self.unix_ms(now) as u64;
         for (ji, decel, limit_name, event) in brake {
-            let Some(j) = self.joints.get(ji) else {
+            let Some(j) = self.joints.get_mut(ji) else {
                 continue;
             };
+            j.limit_brake_sending = true;
             let order = j
                 .device
                 .limit_brake(decel)
@@ -4326,6 +4335,8 @@ impl Bridge {
             }
             if let Some(j) = self.joints.get_mut(ji) {
                 j.limit_braked = Some(limit_name);
+                let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
+                j.limit_braked_at = Some((now, speed));
             }
         }
     }
@@ -4337,7 +4348,9 @@ impl Bridge {
     /// ([`Self::braking`]) and [`BRAKE_LOOKAHEAD`]. `None` for a device
     /// holding no setpoint, at rest, or moving away from its limits.
     fn brake_due(&self, j: &Joint) -> Option<(Duration, &'static str, f64)> {
-        j.deadman?;
+        if j.deadman.is_none() {
+            return self.brake_again(j);
+        }
         let f = j.feedback.as_ref()?;
         let m = self.map.motor(&j.name)?;
         // As fast as it goes, or as it is told to go where that is faster
@@ -4366,6 +4379,24 @@ impl Bridge {
         let in_s = (room / reach_v).clamp(0.0, 3600.0);
         let at = heard.saturating_add(Duration::from_secs_f64(in_s));
         Some((at, limit_name, limit))
+    }
+
+    /// A motor braked short of a limit whose reports, [`REBRAKE_AFTER`] on,
+    /// show it going on toward that limit as fast as when it was braked:
+    /// braked again now (the brake was lost on the bus: a compact device
+    /// acknowledges a command with whatever feedback comes next).
+    fn brake_again(&self, j: &Joint) -> Option<(Duration, &'static str, f64)> {
+        let (side, (at, speed)) = j.limit_braked.zip(j.limit_braked_at)?;
+        let f = j.feedback.as_ref()?;
+        let m = self.map.motor(&j.name)?;
+        let heard = j.last_heard?;
+        let (toward, limit) = if side == "max_position" {
+            (f.velocity, m.limits.max_position?)
+        } else {
+            (-f.velocity, m.limits.min_position?)
+        };
+        (heard >= at.saturating_add(REBRAKE_AFTER) && toward > 0.0 && toward >= 0.9 * speed)
+            .then_some((heard, side, limit))
     }
 
     /// Why a velocity or torque `setpoint` for `motor` is refused: it

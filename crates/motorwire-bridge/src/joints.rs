@@ -105,6 +105,12 @@ pub(crate) struct Joint {
     /// it short of, until a setpoint is taken: while it still moves toward
     /// that limit, a velocity or torque toward it is refused.
     pub(crate) limit_braked: Option<&'static str>,
+    /// When it was braked so, and how fast it went then (its unit a
+    /// second): braked again if it goes on as fast.
+    pub(crate) limit_braked_at: Option<(Duration, f64)>,
+    /// Its limit brake is on its way to the driver (sending it does not
+    /// forget what it was braked short of).
+    pub(crate) limit_brake_sending: bool,
     /// The largest acceleration its reports showed while it held a
     /// velocity or torque setpoint (degrees/s², a magnitude): how fast a
     /// torque may speed it up, for judging one toward a limit.
@@ -328,6 +334,8 @@ impl Joint {
             deadman: None,
             held_velocity: None,
             limit_braked: None,
+            limit_braked_at: None,
+            limit_brake_sending: false,
             peak_accel: 0.0,
             needs_reset: None,
             resetting: false,

@@ -2679,3 +2679,66 @@ fn a_waypoint_the_joint_would_reach_early_at_speed_is_passed_at_its_time() {
         "waypoints[1]: converted: the joint would pass it early",
     );
 }
+
+/// Found by CI's random interleavings (seed 15423812674320523494): the
+/// compact gripper narrowed to 7 and driven at 26, then 43 deg/s, on a bus
+/// that drops, duplicates, delays and reorders frames, went to 13 and on
+/// at 43 deg/s: its limit brake was lost, and nothing braked it again.
+#[test]
+fn a_gripper_driven_toward_a_narrowed_limit_on_a_faulty_bus_stays_within_it() {
+    let ops = vec![
+        Mixed::Move {
+            client: 0,
+            motor: 0,
+            setpoint: 0.0,
+        },
+        Mixed::Limits {
+            client: 0,
+            motor: 3,
+            max: 7.0,
+        },
+        Mixed::Move {
+            client: 0,
+            motor: 5,
+            setpoint: 0.0,
+        },
+        Mixed::Drive {
+            client: 0,
+            motor: 3,
+            speed: 26.0,
+        },
+        Mixed::Other(Op::Wait { ms: 74 }),
+        Mixed::Other(Op::Wait { ms: 5 }),
+        Mixed::Drive {
+            client: 0,
+            motor: 3,
+            speed: 43.0,
+        },
+        Mixed::Other(Op::Wait { ms: 10 }),
+        Mixed::Other(Op::Wait { ms: 41 }),
+        Mixed::Other(Op::Wait { ms: 31 }),
+        Mixed::Other(Op::Wait { ms: 63 }),
+        Mixed::Other(Op::Wait { ms: 25 }),
+        Mixed::Other(Op::Wait { ms: 55 }),
+        Mixed::Other(Op::Wait { ms: 27 }),
+    ];
+    let mut arm = every_dialect_arm(15_423_812_674_320_523_494);
+    let mut t = MixedTally::default();
+    play_mixed(&mut arm, &ops, &mut t);
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    arm.run_while(Duration::from_secs(30), |a| a.bridge().pending_lines() == 0)
+        .unwrap();
+    collect(&mut arm, &mut t.tally);
+    // Its limit brake was lost on the bus (the gripper went on at 43,
+    // and a compact device acknowledges a command with whatever feedback
+    // comes next): braked again once its reports showed it going on.
+    let brakes = arm
+        .sent()
+        .iter()
+        .filter(|(_, f)| f.id().raw() == 0x20)
+        .filter_map(|(_, f)| motorwire_compact::CompactCommand::decode(f.data()).ok())
+        .filter(|c| c.setpoint == 0.0)
+        .count();
+    assert!(brakes >= 2, "the gripper was braked {brakes} time(s)");
+    check_mixed(&arm, &t);
+}

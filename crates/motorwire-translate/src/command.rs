@@ -52,7 +52,8 @@ pub(crate) fn report_unused(cmd: &MotorCommand, used: &[&str], dialect: &str, re
             );
         }
     }
-    for key in cmd.extra.keys() {
+    // motorwire's `stream` is the bridge's to read, not a member lost.
+    for key in cmd.extra.keys().filter(|k| k.as_str() != "stream") {
         report.push(
             key.clone(),
             LossKind::Dropped,

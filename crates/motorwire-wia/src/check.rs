@@ -177,16 +177,6 @@ impl Sink {
                 format!("timestamp {t} is not a whole number of Unix milliseconds"),
             );
         }
-        if (1e9..1e11).contains(&t) {
-            self.push(
-                path,
-                Rule::TimestampUnit,
-                format!(
-                    "timestamp {t} looks like seconds: WIA timestamps are Unix milliseconds ({} for that time)",
-                    t * 1000.0
-                ),
-            );
-        }
         if let (Some(now), Some(behind)) = (self.now_ms, self.window.behind_ms)
             && t < now - behind
         {
@@ -208,6 +198,23 @@ impl Sink {
                 format!(
                     "timestamp {t} is {} ms ahead of now ({now}); at most {ahead} ms is tolerated (the bridge's clock skew)",
                     t - now
+                ),
+            );
+        }
+    }
+
+    /// A command's timestamp is Unix milliseconds, not seconds: from 10^9
+    /// to 10^11 it is refused (as milliseconds, a time in 1970 to 1973 no
+    /// clock sends). Feedback is not held to it: a device may count
+    /// milliseconds since it booted.
+    pub(crate) fn timestamp_in_ms(&mut self, path: &Path<'_>, t: f64) {
+        if (1e9..1e11).contains(&t) {
+            self.push(
+                path,
+                Rule::TimestampUnit,
+                format!(
+                    "timestamp {t} looks like seconds: WIA timestamps are Unix milliseconds ({} for that time)",
+                    t * 1000.0
                 ),
             );
         }

@@ -535,12 +535,13 @@ impl MotorCommand {
         let ts = root.key("timestamp");
         s.minimum(&ts, self.timestamp, 0.0);
         s.timestamp(&ts, self.timestamp);
+        s.timestamp_in_ms(&ts, self.timestamp);
         if let Some(v) = self.extra.get(crate::members::STREAM)
             && !v.is_boolean()
         {
             s.push(
                 &root.key(crate::members::STREAM),
-                Rule::Type,
+                Rule::Stream,
                 format!(
                     "stream is {v}: it is true (the command is a setpoint of a stream) or false"
                 ),
@@ -789,6 +790,7 @@ impl MultiAxisCommand {
         let ts = root.key("timestamp");
         s.minimum(&ts, self.timestamp, 0.0);
         s.timestamp(&ts, self.timestamp);
+        s.timestamp_in_ms(&ts, self.timestamp);
         let motors = root.key("motors");
         s.min_items(&motors, self.motors.len(), 1);
         // Where each motor first appears: one pass, not a search per axis

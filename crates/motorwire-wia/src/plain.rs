@@ -309,7 +309,7 @@ mod tests {
         ];
         let deep_metadata = line(axis, r#","metadata":{"a":{"b":{"c":1}}}"#);
         for v in [
-            Validator::new(),
+            Validator::lenient(),
             Validator::new().deny_unknown_members(true),
             Validator::new().max_depth(3),
         ] {

@@ -88,6 +88,8 @@ rules! {
     /// 10^11: as milliseconds, a time in 1970 to 1973 no clock sends; as
     /// seconds, 2001 to 5138).
     TimestampUnit = "timestamp-unit", Semantic;
+    /// A MotorCommand's `stream` member is not a boolean.
+    Stream = "stream", Semantic;
     /// A timestamp is outside the window around the caller's `now`: by default more
     /// than 5 minutes older ([`TimestampWindow`](crate::TimestampWindow)).
     TimestampStale = "timestamp-stale", Semantic;
@@ -136,8 +138,9 @@ rules! {
     /// A motor appears twice in one multi-axis command.
     DuplicateMotor = "duplicate-motor", Semantic;
     /// A member the kind's schema does not name where it stands (a typo,
-    /// most often), refused when the validator is told to
-    /// ([`Validator::deny_unknown_members`](crate::Validator::deny_unknown_members)).
+    /// most often), refused by default
+    /// ([`Validator::deny_unknown_members`](crate::Validator::deny_unknown_members);
+    /// [`Validator::lenient`](crate::Validator::lenient) takes it).
     UnknownMember = "unknown-member", Schema;
 }
 
