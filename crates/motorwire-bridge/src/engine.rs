@@ -3363,15 +3363,14 @@ impl Bridge {
         j.planned = None;
         j.deadman = effect.deadman;
         j.held_velocity = effect.deadman.and_then(|_| order.held_velocity(j.unit));
-        if j.limit_brake_sending {
+        if let Some(b) = j.limit_braked.as_mut().filter(|b| b.sending) {
             // The limit brake itself going out: what it was braked short
             // of is kept.
-            j.limit_brake_sending = false;
+            b.sending = false;
         } else if effect.deadman.is_some() || effect.target.is_some() {
             // A new setpoint or move taken (one toward the limit it was
             // braked short of only once it had stopped).
             j.limit_braked = None;
-            j.limit_braked_at = None;
         }
         if let Some(target) = effect.target {
             j.target = target;
@@ -4320,7 +4319,13 @@ impl Bridge {
             let Some(j) = self.joints.get_mut(ji) else {
                 continue;
             };
-            j.limit_brake_sending = true;
+            let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
+            j.limit_braked = Some(crate::joints::LimitBraked {
+                side: limit_name,
+                at: now,
+                speed,
+                sending: true,
+            });
             let order = j
                 .device
                 .limit_brake(decel)
@@ -4330,13 +4335,11 @@ impl Bridge {
                 None => {
                     if let Some(j) = self.joints.get_mut(ji) {
                         j.deadman = None;
+                        if let Some(b) = j.limit_braked.as_mut() {
+                            b.sending = false;
+                        }
                     }
                 }
-            }
-            if let Some(j) = self.joints.get_mut(ji) {
-                j.limit_braked = Some(limit_name);
-                let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
-                j.limit_braked_at = Some((now, speed));
             }
         }
     }
@@ -4386,7 +4389,9 @@ impl Bridge {
     /// braked again now (the brake was lost on the bus: a compact device
     /// acknowledges a command with whatever feedback comes next).
     fn brake_again(&self, j: &Joint) -> Option<(Duration, &'static str, f64)> {
-        let (side, (at, speed)) = j.limit_braked.zip(j.limit_braked_at)?;
+        let crate::joints::LimitBraked {
+            side, at, speed, ..
+        } = j.limit_braked?;
         let f = j.feedback.as_ref()?;
         let m = self.map.motor(&j.name)?;
         let heard = j.last_heard?;
@@ -4431,7 +4436,9 @@ impl Bridge {
             .limits
             .max_velocity
             .map_or(1e-3, |v| (v.abs() * 1e-3).max(1e-9));
-        let reach = if j.limit_braked == Some(toward) && f.velocity * setpoint.signum() > still {
+        let reach = if j.limit_braked.is_some_and(|b| b.side == toward)
+            && f.velocity * setpoint.signum() > still
+        {
             // Braked short of that limit and still on its way to it: no
             // setpoint toward it until it has stopped.
             f64::INFINITY

@@ -43,6 +43,19 @@ pub(crate) struct Unresolved {
     pub(crate) target: f64,
 }
 
+/// A limit brake a joint was given.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct LimitBraked {
+    /// The limit it was braked short of: `min_position` or `max_position`.
+    pub(crate) side: &'static str,
+    /// When, and how fast it went then (its unit a second).
+    pub(crate) at: Duration,
+    pub(crate) speed: f64,
+    /// The brake is on its way to the driver (sending it does not forget
+    /// what it was braked short of).
+    pub(crate) sending: bool,
+}
+
 #[derive(Debug)]
 pub(crate) struct Joint {
     pub(crate) name: String,
@@ -101,16 +114,11 @@ pub(crate) struct Joint {
     /// order says one: what it goes at once it is up to speed, judged
     /// against its position limits before its feedback shows it.
     pub(crate) held_velocity: Option<f64>,
-    /// The limit (`min_position` or `max_position`) the bridge last braked
-    /// it short of, until a setpoint is taken: while it still moves toward
-    /// that limit, a velocity or torque toward it is refused.
-    pub(crate) limit_braked: Option<&'static str>,
-    /// When it was braked so, and how fast it went then (its unit a
-    /// second): braked again if it goes on as fast.
-    pub(crate) limit_braked_at: Option<(Duration, f64)>,
-    /// Its limit brake is on its way to the driver (sending it does not
-    /// forget what it was braked short of).
-    pub(crate) limit_brake_sending: bool,
+    /// The limit the bridge last braked it short of, until a setpoint or
+    /// move is taken: while it still moves toward that limit, a velocity
+    /// or torque toward it is refused, and it is braked again if it goes
+    /// on as fast.
+    pub(crate) limit_braked: Option<LimitBraked>,
     /// The largest acceleration its reports showed while it held a
     /// velocity or torque setpoint (degrees/s², a magnitude): how fast a
     /// torque may speed it up, for judging one toward a limit.
@@ -334,8 +342,6 @@ impl Joint {
             deadman: None,
             held_velocity: None,
             limit_braked: None,
-            limit_braked_at: None,
-            limit_brake_sending: false,
             peak_accel: 0.0,
             needs_reset: None,
             resetting: false,

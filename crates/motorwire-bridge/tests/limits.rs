@@ -70,31 +70,45 @@ fn position(arm: &SimulatedArm, motor: &str) -> f64 {
     }
 }
 
+/// An arm whose `motor` a SafetyLimits line has narrowed to 0..`limit`
+/// (at most `speed` a second), the line taken.
+fn narrowed(motor: &str, limit: f64, speed: f64) -> SimulatedArm {
+    let mut arm = arm();
+    arm.line(
+        Origin(1),
+        &format!(
+            r#"{{"motor_id":"{motor}","position_limits":{{"min":0,"max":{limit}}},"velocity_limits":{{"max_velocity":{speed}}},"torque_limits":{{"continuous_torque":1,"peak_torque":2}}}}"#
+        ),
+    );
+    arm.run_until(arm.now() + ms(100)).unwrap();
+    let out = outputs(&mut arm);
+    assert_eq!(out[0]["ok"], true, "{motor}: {out:?}");
+    arm
+}
+
+/// `line` for `motor` sent every 50 ms for 3 s (its deadman never fires),
+/// the motor's position sampled every 2 ms: the furthest it went, and
+/// every output but feedback.
+fn streamed(arm: &mut SimulatedArm, motor: &str, line: &str) -> (f64, Vec<Value>) {
+    let mut furthest: f64 = 0.0;
+    let mut all = Vec::new();
+    for _ in 0..60 {
+        arm.line(Origin(1), line);
+        for _ in 0..25 {
+            arm.step(ms(2)).unwrap();
+            furthest = furthest.max(position(arm, motor));
+        }
+        all.extend(outputs(arm));
+    }
+    (furthest, all)
+}
+
 #[test]
 fn a_velocity_stream_is_braked_short_of_the_limit_in_force_on_every_dialect() {
     for (motor, limit, speed) in [("knee", 60.0, 200.0), ("gripper_axis", 30.0, 50.0)] {
-        let mut arm = arm();
-        arm.line(
-            Origin(1),
-            &format!(
-                r#"{{"motor_id":"{motor}","position_limits":{{"min":0,"max":{limit}}},"velocity_limits":{{"max_velocity":{speed}}},"torque_limits":{{"continuous_torque":1,"peak_torque":2}}}}"#
-            ),
-        );
-        arm.run_until(arm.now() + ms(100)).unwrap();
-        let out = outputs(&mut arm);
-        assert_eq!(out[0]["ok"], true, "{motor}: {out:?}");
-        // Streamed toward the limit, renewed every 50 ms for 3 s (the
-        // deadman never fires), at the speed the limits allow.
-        let mut furthest: f64 = 0.0;
-        let mut all = Vec::new();
-        for _ in 0..60 {
-            arm.line(Origin(1), &velocity(motor, speed));
-            for _ in 0..25 {
-                arm.step(ms(2)).unwrap();
-                furthest = furthest.max(position(&arm, motor));
-            }
-            all.extend(outputs(&mut arm));
-        }
+        let mut arm = narrowed(motor, limit, speed);
+        // Streamed toward the limit at the speed the limits allow.
+        let (furthest, all) = streamed(&mut arm, motor, &velocity(motor, speed));
         let braked: Vec<&Value> = all
             .iter()
             .filter(|v| v["event"] == "limit_brake" && v["motor_id"] == motor)
@@ -141,26 +155,8 @@ fn torque(motor: &str, t: f64) -> String {
 #[test]
 fn a_torque_stream_never_carries_a_motor_past_the_limit_in_force() {
     let (motor, limit) = ("knee", 60.0);
-    let mut arm = arm();
-    arm.line(
-        Origin(1),
-        &format!(
-            r#"{{"motor_id":"{motor}","position_limits":{{"min":0,"max":{limit}}},"velocity_limits":{{"max_velocity":240}},"torque_limits":{{"continuous_torque":1,"peak_torque":2}}}}"#
-        ),
-    );
-    arm.run_until(arm.now() + ms(100)).unwrap();
-    let out = outputs(&mut arm);
-    assert_eq!(out[0]["ok"], true, "{out:?}");
-    let mut furthest: f64 = 0.0;
-    let mut all = Vec::new();
-    for _ in 0..60 {
-        arm.line(Origin(1), &torque(motor, 0.2));
-        for _ in 0..25 {
-            arm.step(ms(2)).unwrap();
-            furthest = furthest.max(position(&arm, motor));
-        }
-        all.extend(outputs(&mut arm));
-    }
+    let mut arm = narrowed(motor, limit, 240.0);
+    let (furthest, all) = streamed(&mut arm, motor, &torque(motor, 0.2));
     let braked = all.iter().filter(|v| v["event"] == "limit_brake").count();
     assert!(braked > 0, "no limit_brake in {all:?}");
     assert!(
