@@ -390,6 +390,12 @@ const CALIBRATION_MARGIN: Duration = Duration::from_secs(5);
 /// against a position limit (the motor goes on until the next feedback is
 /// heard and its stop is sent): a poll of a 50 Hz query rate and a little.
 const BRAKE_LOOKAHEAD: Duration = Duration::from_millis(25);
+/// How fast a motor going at speed `v` and speeding up at `a` goes `t`
+/// seconds on, and how far it gets meanwhile.
+fn ahead(v: f64, a: f64, t: f64) -> (f64, f64) {
+    (v + a * t, v * t + a * t * t / 2.0)
+}
+
 /// How long after a limit brake a motor's reports may still show it going
 /// on toward the limit as fast before it is braked again.
 const REBRAKE_AFTER: Duration = Duration::from_millis(50);
@@ -4271,7 +4277,7 @@ impl Bridge {
             .map(|(_, a)| m.unit.from_degrees(a))
             .filter(|a| a.is_finite() && a * v > 0.0)
             .map_or(0.0, f64::abs);
-        (v.abs() + a * t, v.abs() * t + a * t * t / 2.0)
+        ahead(v.abs(), a, t)
     }
 
     fn stopping(limits: &Limits, v: f64) -> f64 {
@@ -4457,8 +4463,8 @@ impl Bridge {
                 .from_degrees(j.peak_accel)
                 .abs()
                 .max(m.limits.max_acceleration.unwrap_or(0.0));
-            let v = (f.velocity * setpoint.signum()).max(0.0);
-            v * t + a * t * t / 2.0 + Self::stopping(&m.limits, v + a * t)
+            let (reach_v, travel) = ahead((f.velocity * setpoint.signum()).max(0.0), a, t);
+            travel + Self::stopping(&m.limits, reach_v)
         };
         let (limit_name, limit) = if setpoint > 0.0 {
             (

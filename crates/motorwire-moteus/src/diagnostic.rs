@@ -22,19 +22,21 @@
 //! # Ok::<(), diagnostic::DiagnosticError>(())
 //! ```
 
+use moteus_protocol::diagnostic::{write_client_poll, write_client_to_server};
 use moteus_protocol::{calculate_arbitration_id, parse_arbitration_id};
 
 use crate::Frame;
 
-/// The subframe that writes to a diagnostic channel.
-pub const CLIENT_DATA: u8 = 0x40;
-/// The subframe a controller answers a poll with.
-pub const SERVER_DATA: u8 = 0x41;
-/// The subframe that polls a diagnostic channel.
-pub const CLIENT_POLL: u8 = 0x42;
+/// The subframe that writes to a diagnostic channel (`moteus-protocol`'s
+/// `CLIENT_TO_SERVER`).
+pub const CLIENT_DATA: u8 = moteus_protocol::CLIENT_TO_SERVER;
+/// The subframe a controller answers a poll with (`SERVER_TO_CLIENT`).
+pub const SERVER_DATA: u8 = moteus_protocol::SERVER_TO_CLIENT;
+/// The subframe that polls a diagnostic channel (`CLIENT_POLL_SERVER`).
+pub const CLIENT_POLL: u8 = moteus_protocol::CLIENT_POLL_SERVER;
 /// The most text one write carries (the library's `max_diagnostic_write`
 /// without a UUID prefix: 64 bytes less the subframe's three).
-pub const MAX_WRITE: usize = 61;
+pub const MAX_WRITE: usize = moteus_protocol::diagnostic::MAX_WRITE;
 
 /// Why a diagnostic frame cannot be made or read.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -104,16 +106,15 @@ fn check_byte(what: &'static str, value: u8, max: u8) -> Result<(), DiagnosticEr
 pub fn write(id: u8, bus: u16, channel: u8, data: &[u8]) -> Result<Frame, DiagnosticError> {
     check_id(id)?;
     check_byte("channel", channel, 127)?;
-    let len = u8::try_from(data.len())
-        .ok()
-        .filter(|&n| usize::from(n) <= MAX_WRITE)
-        .ok_or(DiagnosticError::TooLong(data.len()))?;
-    let mut out = Vec::with_capacity(3 + data.len());
-    out.extend_from_slice(&[CLIENT_DATA, channel, len]);
-    out.extend_from_slice(data);
+    if data.len() > MAX_WRITE {
+        return Err(DiagnosticError::TooLong(data.len()));
+    }
+    // mjbots' own writer (it panics past MAX_WRITE: checked above).
+    let mut out = [0u8; 64];
+    let n = write_client_to_server(channel, data, &mut out);
     Ok(Frame {
         can_id: calculate_arbitration_id(0, id as i8, bus, false),
-        data: out,
+        data: out.get(..usize::from(n)).unwrap_or(&out).to_vec(),
     })
 }
 
@@ -130,9 +131,11 @@ pub fn read(id: u8, bus: u16, channel: u8, max_length: u8) -> Result<Frame, Diag
     check_byte("channel", channel, 127)?;
     #[allow(clippy::cast_possible_truncation)]
     check_byte("max_length", max_length, MAX_WRITE as u8)?;
+    let mut out = [0u8; 64];
+    let n = write_client_poll(channel, max_length, &mut out);
     Ok(Frame {
         can_id: calculate_arbitration_id(0, id as i8, bus, true),
-        data: vec![CLIENT_POLL, channel, max_length],
+        data: out.get(..usize::from(n)).unwrap_or(&out).to_vec(),
     })
 }
 
@@ -153,7 +156,9 @@ fn varuint(data: &[u8], at: &mut usize) -> Option<u32> {
 
 /// A controller's answer to a poll, read as the library's
 /// `parse_diagnostic_message` reads it (padding after the text is
-/// ignored); the library's `None` is an error here, saying why.
+/// ignored); the library's `None` is an error here, saying why. (Not
+/// `moteus-protocol`'s `parse_server_to_client`: it reads the channel as
+/// one byte and keeps one channel, where the library reads a varuint.)
 ///
 /// # Errors
 /// [`DiagnosticError::NotAnAnswer`]: under three bytes, another subframe

@@ -159,6 +159,31 @@ impl<F: Float> Request<F> {
         self
     }
 
+    /// Whether [`plan`](crate::plan) takes this request's fields, without
+    /// planning it: every field finite, the limits above zero (`max_jerk`
+    /// too where an S-curve is planned), the target velocity within the
+    /// velocity limit. What a plan can still refuse after this depends on
+    /// the move itself (an overshoot forbidden, a profile beyond the float).
+    ///
+    /// ```
+    /// use motorwire_planner::{PlanError, Request};
+    /// assert!(Request::new(0.0, 90.0, 60.0, 200.0).check().is_ok());
+    /// assert!(matches!(
+    ///     Request::new(0.0, 90.0, 0.0f32, 200.0).check(),
+    ///     Err(PlanError::NotPositive { field: "max_velocity", .. })
+    /// ));
+    /// ```
+    ///
+    /// # Errors
+    /// The [`PlanError`] [`plan`](crate::plan) would give for the field.
+    pub fn check(&self) -> Result<(), PlanError> {
+        self.limits()?;
+        if self.wants_scurve() {
+            self.jerk()?;
+        }
+        Ok(())
+    }
+
     /// Checks every field, returning `(max_velocity, max_acceleration,
     /// max_deceleration)`.
     pub(crate) fn limits(&self) -> Result<(F, F, F), PlanError> {

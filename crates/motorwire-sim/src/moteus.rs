@@ -30,6 +30,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use motorwire_can::{CanBus, CanId, Frame, SimPort};
+use motorwire_moteus::diagnostic::{CLIENT_DATA, CLIENT_POLL, MAX_WRITE, SERVER_DATA};
 use motorwire_moteus::protocol::{
     CanFdFrame, REPLY_INT8, Register, Resolution, Subframe, SubframeType, Value, WriteCanData,
     WriteCombiner,
@@ -303,7 +304,7 @@ impl SimMoteus {
     /// what is waiting. Whether it replied.
     fn diagnostic(&mut self, to: u32, data: &[u8], wants_reply: bool) -> bool {
         match data {
-            [0x40, channel, len, rest @ ..] if *channel == 1 => {
+            [CLIENT_DATA, channel, len, rest @ ..] if *channel == 1 => {
                 let Some(text) = rest.get(..usize::from(*len)) else {
                     return false;
                 };
@@ -321,15 +322,13 @@ impl SimMoteus {
                 }
                 false
             }
-            [0x42, channel, max, ..] if *channel == 1 && wants_reply => {
-                let n = usize::from(*max).min(61).min(self.console_out.len());
-                let mut reply = vec![0x41, 1];
+            [CLIENT_POLL, channel, max, ..] if *channel == 1 && wants_reply => {
+                let n = usize::from(*max).min(MAX_WRITE).min(self.console_out.len());
+                let mut reply = vec![SERVER_DATA, 1];
                 #[allow(clippy::cast_possible_truncation)]
                 reply.push(n as u8);
                 reply.extend(self.console_out.drain(..n));
-                let id =
-                    (u32::from(self.config.prefix) << 16) | (u32::from(self.config.id) << 8) | to;
-                if let Ok(id) = CanId::extended(id)
+                if let Ok(id) = CanId::extended(self.reply_id(to))
                     && let Ok(f) = Frame::fd(id, &motorwire_moteus::padded(&reply))
                 {
                     self.out.push_back(f);
@@ -338,6 +337,11 @@ impl SimMoteus {
             }
             _ => false,
         }
+    }
+
+    /// The CAN id of its reply to `to`: its prefix, itself as the source.
+    fn reply_id(&self, to: u32) -> u32 {
+        (u32::from(self.config.prefix) << 16) | (u32::from(self.config.id) << 8) | to
     }
 
     /// Runs one console line and queues its answer.
@@ -421,7 +425,7 @@ impl SimMoteus {
         }
         let source = (raw >> 8) & 0x7F;
         let wants_reply = raw & 0x8000 != 0;
-        if matches!(frame.data().first(), Some(0x40 | 0x42)) {
+        if matches!(frame.data().first(), Some(&(CLIENT_DATA | CLIENT_POLL))) {
             let replied = self.diagnostic(source, frame.data(), wants_reply);
             return Some(MoteusActed {
                 at: self.now,
@@ -617,8 +621,7 @@ impl SimMoteus {
             w.write_varuint(1);
         }
         let data = motorwire_moteus::padded(frame.payload());
-        let id = (u32::from(self.config.prefix) << 16) | (u32::from(self.config.id) << 8) | to;
-        if let (Ok(id), true) = (CanId::extended(id), !data.is_empty())
+        if let (Ok(id), true) = (CanId::extended(self.reply_id(to)), !data.is_empty())
             && let Ok(f) = Frame::fd(id, &data)
         {
             self.out.push_back(f);

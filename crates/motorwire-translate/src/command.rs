@@ -53,7 +53,11 @@ pub(crate) fn report_unused(cmd: &MotorCommand, used: &[&str], dialect: &str, re
         }
     }
     // motorwire's `stream` is the bridge's to read, not a member lost.
-    for key in cmd.extra.keys().filter(|k| k.as_str() != "stream") {
+    for key in cmd
+        .extra
+        .keys()
+        .filter(|k| k.as_str() != motorwire_wia::STREAM)
+    {
         report.push(
             key.clone(),
             LossKind::Dropped,
@@ -69,9 +73,8 @@ pub(crate) fn report_unused(cmd: &MotorCommand, used: &[&str], dialect: &str, re
 /// state, refuses as [`Refusal::Unplannable`] (a `velocity_limit` of
 /// `1e-300` is 0 as an f32, which no joint can plan with).
 fn plannable(motor: &str, p: &SetTargetPayloadV2) -> Result<(), Refusal> {
-    let request = p.planner_request(f64::from(p.target_angle), 0.0);
-    motorwire_planner::plan(&request)
-        .map(drop)
+    p.planner_request(f64::from(p.target_angle), 0.0)
+        .check()
         .map_err(|e| Refusal::Unplannable {
             motor: motor.to_owned(),
             segment: None,

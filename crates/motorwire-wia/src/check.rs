@@ -203,11 +203,14 @@ impl Sink {
         }
     }
 
-    /// A command's timestamp is Unix milliseconds, not seconds: from 10^9
-    /// to 10^11 it is refused (as milliseconds, a time in 1970 to 1973 no
-    /// clock sends). Feedback is not held to it: a device may count
-    /// milliseconds since it booted.
-    pub(crate) fn timestamp_in_ms(&mut self, path: &Path<'_>, t: f64) {
+    /// A command's timestamp: not negative, [`Sink::timestamp`]'s rules,
+    /// and Unix milliseconds, not seconds: from 10^9 to 10^11 it is refused
+    /// (as milliseconds, a time in 1970 to 1973 no clock sends). Feedback is
+    /// not held to the last: a device may count milliseconds since it
+    /// booted.
+    pub(crate) fn command_timestamp(&mut self, path: &Path<'_>, t: f64) {
+        self.minimum(path, t, 0.0);
+        self.timestamp(path, t);
         if (1e9..1e11).contains(&t) {
             self.push(
                 path,

@@ -533,9 +533,7 @@ impl MotorCommand {
         s.id_pattern(&id, &self.motor_id);
         s.motor_id(&id, &self.motor_id);
         let ts = root.key("timestamp");
-        s.minimum(&ts, self.timestamp, 0.0);
-        s.timestamp(&ts, self.timestamp);
-        s.timestamp_in_ms(&ts, self.timestamp);
+        s.command_timestamp(&ts, self.timestamp);
         if let Some(v) = self.extra.get(crate::members::STREAM)
             && !v.is_boolean()
         {
@@ -788,9 +786,7 @@ impl MultiAxisCommand {
             );
         }
         let ts = root.key("timestamp");
-        s.minimum(&ts, self.timestamp, 0.0);
-        s.timestamp(&ts, self.timestamp);
-        s.timestamp_in_ms(&ts, self.timestamp);
+        s.command_timestamp(&ts, self.timestamp);
         let motors = root.key("motors");
         s.min_items(&motors, self.motors.len(), 1);
         // Where each motor first appears: one pass, not a search per axis

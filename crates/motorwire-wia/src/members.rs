@@ -146,7 +146,7 @@ fn any_in_parts(
 
 /// The member a MotorCommand may carry beyond WIA's: `"stream": true`
 /// makes it a setpoint of a policy's stream (the bridge's).
-pub(crate) const STREAM: &str = "stream";
+pub const STREAM: &str = "stream";
 
 impl Unknowns for crate::MotorCommand {
     fn any_unknown(&self) -> bool {

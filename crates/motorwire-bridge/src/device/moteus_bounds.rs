@@ -63,8 +63,8 @@ const MAX: &str = "servopos.position_max";
 /// A line written, awaiting its answer.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Asked {
-    /// `conf get` of the lower (false) or upper (true) bound.
-    Get(bool),
+    /// `conf get` of a bound (the lower first, then the upper).
+    Get,
     /// `conf set` of a bound.
     Set,
 }
@@ -264,7 +264,7 @@ impl OwnBounds {
         let (to_write, asked): (VecDeque<String>, VecDeque<Asked>) = match purpose {
             Purpose::Own | Purpose::Verify => (
                 [diagnostic::conf_get(MIN), diagnostic::conf_get(MAX)].into(),
-                [Asked::Get(false), Asked::Get(true)].into(),
+                [Asked::Get, Asked::Get].into(),
             ),
             Purpose::Write((min, max)) => {
                 // The upper bound first when the new lower one lies above
@@ -428,7 +428,7 @@ impl OwnBounds {
             return self.fail(now, format!("the controller refused its bounds: {line}"));
         }
         match asked {
-            Asked::Get(_) => {
+            Asked::Get => {
                 let value = match line.to_ascii_lowercase().as_str() {
                     "nan" => f64::NAN,
                     other => match other.parse::<f64>() {
