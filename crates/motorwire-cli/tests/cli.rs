@@ -446,6 +446,11 @@ fn the_library_validate_translate_and_the_bridge_read_a_line_alike() {
             r#"{{"motor_id":"elbow","timestamp":{now},"control_mode":"velocity","setpoint":10{rest}}}"#
         )
     };
+    let multi = |rest: &str| {
+        format!(
+            r#"{{"command_id":"tick","timestamp":{now},"motors":[{{"motor_id":"elbow","control_mode":"position","setpoint":10}}]{rest}}}"#
+        )
+    };
     // (line, taken, the rule or words of its refusal)
     let cases: Vec<(String, bool, &str)> = vec![
         (line(""), true, ""),
@@ -465,6 +470,9 @@ fn the_library_validate_translate_and_the_bridge_read_a_line_alike() {
             false,
             "NaN is not a JSON number",
         ),
+        // A multi-axis command's stream: a policy's tick in one line.
+        (multi(r#","stream":true"#), true, ""),
+        (multi(r#","stream":2"#), false, "stream is 2"),
     ];
     let input: String = cases.iter().map(|(l, ..)| format!("{l}\n")).collect();
     // The library.

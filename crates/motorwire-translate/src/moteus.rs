@@ -80,6 +80,8 @@ pub fn revolutions(unit: AngleUnit, v: f64) -> f64 {
 ///   [`WATCHDOG_MARGIN_S`] as the controller's own watchdog;
 /// - torque: feedforward torque with kp and kd scale 0, the torque limit
 ///   and the watchdog;
+/// - disabled: stop mode, the controller's torque off (the setpoint and
+///   any limits are unused, and said so);
 /// - an emergency stop: stop mode (brake mode where the map says `stop =
 ///   "brake"`).
 ///
@@ -103,6 +105,14 @@ pub fn revolutions(unit: AngleUnit, v: f64) -> f64 {
 /// The gate's refusals, a motor of another dialect, a mode moteus's
 /// position mode cannot express (impedance, admittance, trajectory as one
 /// command, ...).
+///
+/// ```
+/// use motorwire_translate::{BusMap, MoteusCommand, to_moteus};
+/// let map = BusMap::from_toml("[motors.knee]\ndialect = \"moteus\"\nid = 2")?;
+/// let cmd = serde_json::from_str(r#"{"motor_id":"knee","timestamp":0,"control_mode":"disabled","setpoint":0}"#)?;
+/// assert_eq!(to_moteus(&map, &cmd)?.value, MoteusCommand::Stop);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn to_moteus(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<MoteusCommand>, Refusal> {
     let (motor, effective) = gate_unless_emergency(map, cmd)?;
     let Target::Moteus { brake, .. } = motor.target else {
@@ -119,9 +129,25 @@ pub fn to_moteus(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<MoteusCo
             report,
         });
     }
+    let mode = cmd.control_mode;
+    // Disabled: the controller's stop mode, its torque off (brake mode is
+    // a stop's, where the map asks for it: a disabled motor turns freely).
+    if mode == ControlMode::Disabled {
+        report_unused(cmd, &[], "moteus stop mode (torque off)", &mut report);
+        if cmd.safety_limits.is_some() {
+            report.push(
+                "safety_limits",
+                LossKind::Dropped,
+                "stop mode takes no limits",
+            );
+        }
+        return Ok(Translated {
+            value: MoteusCommand::Stop,
+            report,
+        });
+    }
     let unit = motor.unit;
     let rev = |v: f64| revolutions(unit, v);
-    let mode = cmd.control_mode;
     if !matches!(
         mode,
         ControlMode::Position | ControlMode::Velocity | ControlMode::Torque

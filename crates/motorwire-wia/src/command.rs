@@ -534,18 +534,21 @@ impl MotorCommand {
         s.motor_id(&id, &self.motor_id);
         let ts = root.key("timestamp");
         s.command_timestamp(&ts, self.timestamp);
-        if let Some(v) = self.extra.get(crate::members::STREAM)
-            && !v.is_boolean()
-        {
-            s.push(
-                &root.key(crate::members::STREAM),
-                Rule::Stream,
-                format!(
-                    "stream is {v}: it is true (the command is a setpoint of a stream) or false"
-                ),
-            );
-        }
+        check_stream(&self.extra, s);
         self.body().check(&root, s);
+    }
+}
+
+/// motorwire's `stream` member, where a command carries it: a boolean.
+fn check_stream(extra: &Map<String, Value>, s: &mut Sink) {
+    if let Some(v) = extra.get(crate::members::STREAM)
+        && !v.is_boolean()
+    {
+        s.push(
+            &Path::ROOT.key(crate::members::STREAM),
+            Rule::Stream,
+            format!("stream is {v}: it is true (the command is a setpoint of a stream) or false"),
+        );
     }
 }
 
@@ -787,6 +790,7 @@ impl MultiAxisCommand {
         }
         let ts = root.key("timestamp");
         s.command_timestamp(&ts, self.timestamp);
+        check_stream(&self.extra, s);
         let motors = root.key("motors");
         s.min_items(&motors, self.motors.len(), 1);
         // Where each motor first appears: one pass, not a search per axis

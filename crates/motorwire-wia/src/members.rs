@@ -56,9 +56,9 @@ fn known(kind: MessageKind) -> &'static Known {
             .map(|k| {
                 let schema: Value = serde_json::from_str(k.schema()).unwrap_or(Value::Null);
                 let mut known = Known::of(&schema, &schema, 16);
-                // motorwire's one member of a MotorCommand beyond WIA's:
-                // `stream` (a boolean; MotorCommand::check holds it to one).
-                if *k == MessageKind::MotorCommand
+                // motorwire's one member of a command beyond WIA's:
+                // `stream` (a boolean; each command's check holds it to one).
+                if matches!(k, MessageKind::MotorCommand | MessageKind::MultiAxisCommand)
                     && let Some(m) = known.members.as_mut()
                 {
                     m.insert(STREAM.to_owned(), Known::default());
@@ -144,8 +144,9 @@ fn any_in_parts(
         || safety.is_some_and(|p| !p.extra.is_empty())
 }
 
-/// The member a MotorCommand may carry beyond WIA's: `"stream": true`
-/// makes it a setpoint of a policy's stream (the bridge's).
+/// The member a MotorCommand or a multi-axis command may carry beyond
+/// WIA's: `"stream": true` makes it a setpoint of a policy's stream (the
+/// bridge's; a multi-axis one sets each of its motors in one line).
 pub const STREAM: &str = "stream";
 
 impl Unknowns for crate::MotorCommand {
@@ -162,7 +163,7 @@ impl Unknowns for crate::MotorCommand {
 
 impl Unknowns for crate::MultiAxisCommand {
     fn any_unknown(&self) -> bool {
-        !self.extra.is_empty()
+        self.extra.keys().any(|k| k != STREAM)
             || self
                 .coordination
                 .as_ref()
