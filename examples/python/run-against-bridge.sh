@@ -45,6 +45,9 @@ wait_until "[ -S '$dir/bridge.sock' ]"
 python3 "$client" --unix "$dir/bridge.sock"
 echo "--- a policy streaming setpoints at 100 Hz"
 python3 examples/python/stream_policy.py --unix "$dir/bridge.sock" --hz 100 --seconds 2
+echo "--- a policy streaming three joints in one line a tick at 100 Hz"
+python3 examples/python/stream_policy.py --unix "$dir/bridge.sock" --hz 100 --seconds 2 \
+    --with shoulder_pitch --with shoulder_roll
 stop_bridge
 
 echo "--- over TCP, with a token"

@@ -14,6 +14,10 @@ feedback followed the stream.
     motorwire bridge --map fixtures/maps/demo-arm.toml --bus sim --feedback-hz 50 --input unix: &
     python3 examples/python/stream_policy.py --unix --hz 100 --seconds 3
 
+With `--with MOTOR` (repeatable) each tick is one multi-axis line, also
+`"stream": true`, that sets the elbow and a 10-degree sine about where each
+other motor stands: one line and one result a tick, however many motors.
+
 It exits 1 if a line gets no result, a result is not `ok`, or a completion
 line comes for a stream's setpoint (so CI runs it), 0 otherwise.
 """
@@ -40,6 +44,8 @@ def main():
     parser.add_argument("--unix", metavar="PATH", nargs="?", const=default_socket(), default=default_socket(),
                         help="the bridge's --input unix:PATH socket (default: the bridge's own default)")
     parser.add_argument("--motor", default="elbow")
+    parser.add_argument("--with", dest="others", action="append", default=[], metavar="MOTOR",
+                        help="another motor set in the same line each tick (a multi-axis stream line)")
     parser.add_argument("--hz", type=float, default=100.0, help="setpoints a second (default 100)")
     parser.add_argument("--seconds", type=float, default=3.0, help="how long to stream (default 3)")
     args = parser.parse_args()
@@ -57,6 +63,9 @@ def main():
         if bridge.wait_for(line, "ok").get("ok") is not True:
             raise RuntimeError("the move to %s was refused" % start)
         bridge.wait_for(line, "arrived")
+    others = {m["motor_id"]: m.get("position", 0.0) for m in ready["motors"] if m["motor_id"] in args.others}
+    if len(others) != len(args.others):
+        raise RuntimeError("not motors of the bridge: %s" % sorted(set(args.others) - set(others)))
     first = bridge.sent
 
     results, arrivals, feedback = {}, [], []
@@ -88,13 +97,18 @@ def main():
         t = tick * period
         if t >= args.seconds:
             break
-        line = bridge.send({
-            "motor_id": args.motor,
-            "timestamp": int(time.time() * 1000),
-            "control_mode": "position",
-            "setpoint": round(policy(t, start), 4),
-            "stream": True,
-        })
+        now_ms = int(time.time() * 1000)
+        setpoint = round(policy(t, start), 4)
+        if others:
+            # One line for every motor of the tick: one result.
+            axes = [{"motor_id": args.motor, "control_mode": "position", "setpoint": setpoint}]
+            axes += [{"motor_id": m, "control_mode": "position",
+                      "setpoint": round(p + 0.5 * (policy(t, 0.0)), 4)} for m, p in others.items()]
+            line = bridge.send({"command_id": "tick%d" % tick, "timestamp": now_ms,
+                                "motors": axes, "stream": True})
+        else:
+            line = bridge.send({"motor_id": args.motor, "timestamp": now_ms,
+                                "control_mode": "position", "setpoint": setpoint, "stream": True})
         sent_at[line] = t0 + t
         tick += 1
         # The next tick, on the loop's own clock (no drift).

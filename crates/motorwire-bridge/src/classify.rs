@@ -120,6 +120,18 @@ pub enum Input {
     /// stream (it replaces the motor's target; no completion line follows
     /// it).
     Stream(Box<motorwire_wia::MotorCommand>),
+    /// A multi-axis command with `"stream": true`: one setpoint of a
+    /// policy's stream for each of its motors, in one line and one result
+    /// (each replaces its motor's setpoint waiting to be sent).
+    StreamAxes(Box<motorwire_wia::MultiAxisCommand>),
+    /// `{"motor":"hold"|"free"|"stop","motor_id":M}`: one motor held,
+    /// freed or stopped alone, by its dialect's own means.
+    Motor {
+        /// What is asked.
+        action: MotorAction,
+        /// The motor.
+        motor_id: String,
+    },
     /// Not JSON, or not valid WIA.
     Invalid {
         /// Said for a person.
@@ -132,6 +144,40 @@ pub enum Input {
         /// Its `motor_id` or `command_id`, when the line names one.
         label: Option<Label>,
     },
+}
+
+/// What a `{"motor":...,"motor_id":M}` line asks of one motor. Each is
+/// undone by the motor's next command (an iRPC joint left inactive is
+/// activated before it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MotorAction {
+    /// Stop within the limits in force and hold where it stops, torque on
+    /// (a freed motor: torque back on where it stands).
+    Hold,
+    /// Torque off: the motor turns freely.
+    Free,
+    /// The motor's own stop, as the emergency stop stops it, for this
+    /// motor alone (nothing latches).
+    Stop,
+}
+
+impl MotorAction {
+    /// Every action, as lines name them.
+    pub const ALL: [Self; 3] = [Self::Hold, Self::Free, Self::Stop];
+
+    /// Its name in lines and results.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Hold => "hold",
+            Self::Free => "free",
+            Self::Stop => "stop",
+        }
+    }
+
+    /// The action named `name`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|a| a.name() == name)
+    }
 }
 
 /// What a request line asks a joint for.
@@ -566,8 +612,9 @@ fn classify_scanned(validator: &Validator, line: &str) -> Input {
 }
 
 /// The top-level names of the bridge's own forms.
-const OWN_FORMS: [&[u8]; 8] = [
+const OWN_FORMS: [&[u8]; 9] = [
     b"trajectories",
+    b"motor",
     b"reset",
     b"calibration",
     b"request",
@@ -813,6 +860,29 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             },
         };
     }
+    if let Some((_, a)) = members.iter().find(|(k, _)| k == "motor") {
+        let action = a.as_str().and_then(MotorAction::from_name);
+        return match (action, members.len(), &label) {
+            (Some(action), 2, Some(Label::Motor(m))) => Input::Motor {
+                action,
+                motor_id: m.clone(),
+            },
+            _ => Input::Invalid {
+                message: format!(
+                    r#"a motor line is exactly {{"motor":"hold"|"free"|"stop","motor_id":"..."}}{}"#,
+                    match a.as_str() {
+                        Some(name) if action.is_none() => format!(
+                            ": {name:?} is not one (hold: stop and hold, torque on; free: torque off; stop: the motor's own stop)"
+                        ),
+                        _ => String::new(),
+                    }
+                ),
+                violations: None,
+                more: 0,
+                label,
+            },
+        };
+    }
     if let Some((_, hz)) = members.iter().find(|(k, _)| k == "feedback_hz") {
         return match (hz.as_f64(), members.len()) {
             (Some(hz), 1) => Input::FeedbackRate { hz },
@@ -839,7 +909,8 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
 }
 
 /// A line with the bridge's `stream` member (at `at` among `members`):
-/// the rest of it must be a valid MotorCommand, and `stream` a boolean
+/// the rest of it must be a valid MotorCommand or multi-axis command, and
+/// `stream` a boolean
 /// (`true`: a setpoint of a stream; `false`: an ordinary command).
 fn stream_line(
     validator: &Validator,
@@ -884,9 +955,12 @@ fn stream_line(
     text.push('}');
     match validator.parse_any(&text) {
         Ok(Message::MotorCommand(c)) if stream => Input::Stream(Box::new(c)),
-        Ok(m @ Message::MotorCommand(_)) => Input::Message(Box::new(m)),
+        Ok(Message::MultiAxisCommand(c)) if stream => Input::StreamAxes(Box::new(c)),
+        Ok(m @ (Message::MotorCommand(_) | Message::MultiAxisCommand(_))) => {
+            Input::Message(Box::new(m))
+        }
         Ok(other) => invalid(format!(
-            "stream is a MotorCommand's (position, velocity or torque); a {} has no stream",
+            "stream is a command's (a motor command or a multi-axis command); a {} has no stream",
             other.kind()
         )),
         Err(err) => Input::Invalid {
@@ -1205,11 +1279,32 @@ mod tests {
             message(&format!("{{{cmd},\"stream\":true,\"stream\":true}}")),
             "stream appears 2 times"
         );
+        // A multi-axis command's stream: one line for all its motors.
+        let multi = r#""command_id":"c","timestamp":1,"motors":[{"motor_id":"elbow","control_mode":"position","setpoint":1},{"motor_id":"gripper_axis","control_mode":"velocity","setpoint":-2}]"#;
+        let Input::StreamAxes(m) = classify(&v, &format!("{{{multi},\"stream\":true}}")) else {
+            panic!("not a multi-axis stream");
+        };
+        assert_eq!(
+            m.motors
+                .iter()
+                .map(|a| (a.motor_id.as_str(), a.setpoint))
+                .collect::<Vec<_>>(),
+            [("elbow", 1.0), ("gripper_axis", -2.0)]
+        );
+        assert!(m.extra.is_empty());
+        assert!(matches!(
+            classify(&v, &format!("{{\"stream\":false,{multi}}}")),
+            Input::Message(m) if matches!(*m, Message::MultiAxisCommand(_))
+        ));
+        assert_eq!(
+            message(&format!("{{{multi},\"stream\":\"yes\"}}")),
+            "stream is \"yes\": it is true (the command is a setpoint of a stream) or false"
+        );
         assert_eq!(
             message(
-                r#"{"command_id":"c","timestamp":1,"motors":[{"motor_id":"elbow","control_mode":"position","setpoint":1}],"stream":true}"#
+                r#"{"motor_id":"elbow","position_limits":{"min":0,"max":9},"velocity_limits":{"max_velocity":9},"torque_limits":{"continuous_torque":1,"peak_torque":2},"stream":true}"#
             ),
-            "stream is a MotorCommand's (position, velocity or torque); a multi-axis-command has no stream"
+            "stream is a command's (a motor command or a multi-axis command); a safety-limits has no stream"
         );
         // As the bridge reads lines: a typo in a stream's setpoint is
         // refused as in any command.
@@ -1219,6 +1314,62 @@ mod tests {
             panic!("{typo}");
         };
         assert!(message.contains("velocity_limt"), "{message}");
+    }
+
+    /// `{"motor":A,"motor_id":M}`: hold, free or stop, exactly; anything
+    /// else is invalid and names the form; a stop in it still stops.
+    #[test]
+    fn a_motor_line_is_exactly_an_action_and_a_motor() {
+        let v = Validator::new();
+        for action in MotorAction::ALL {
+            for line in [
+                format!(r#"{{"motor":"{}","motor_id":"knee"}}"#, action.name()),
+                format!(r#"{{"motor_id":"knee","motor":"{}"}}"#, action.name()),
+            ] {
+                assert_eq!(
+                    classify(&v, &line),
+                    Input::Motor {
+                        action,
+                        motor_id: "knee".to_owned()
+                    },
+                    "{line}"
+                );
+            }
+        }
+        let form = r#"a motor line is exactly {"motor":"hold"|"free"|"stop","motor_id":"..."}"#;
+        for (line, message) in [
+            (
+                r#"{"motor":"halt","motor_id":"knee"}"#.to_owned(),
+                format!(
+                    r#"{form}: "halt" is not one (hold: stop and hold, torque on; free: torque off; stop: the motor's own stop)"#
+                ),
+            ),
+            (r#"{"motor":"hold"}"#.to_owned(), form.to_owned()),
+            (
+                r#"{"motor":"hold","motor_id":"knee","timestamp":1}"#.to_owned(),
+                form.to_owned(),
+            ),
+            (
+                r#"{"motor":true,"motor_id":"knee"}"#.to_owned(),
+                form.to_owned(),
+            ),
+            (
+                r#"{"motor":"hold","motor_id":7}"#.to_owned(),
+                form.to_owned(),
+            ),
+        ] {
+            let Input::Invalid { message: m, .. } = classify(&v, &line) else {
+                panic!("{line}");
+            };
+            assert_eq!(m, message, "{line}");
+        }
+        assert!(matches!(
+            classify(
+                &v,
+                r#"{"motor":"free","motor_id":"knee","emergency_stop":true}"#
+            ),
+            Input::Stop { .. }
+        ));
     }
 
     /// `{"feedback_hz":N}` alone is a client's feedback rate; with other

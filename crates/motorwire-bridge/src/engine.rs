@@ -30,7 +30,7 @@ use motorwire_can::client::ClientConfig;
 use motorwire_irpc::{CalibrationRequest, LifecycleState, Payload, PayloadKind};
 use motorwire_orion::ArmCommand;
 use motorwire_translate::{
-    AngleUnit, BusMap, Limits, Report, multi_axis_to_irpc_from, trajectory_to_irpc,
+    AngleUnit, BusMap, Limits, LossKind, Report, multi_axis_to_irpc_from, trajectory_to_irpc,
 };
 use motorwire_wia::{
     Message, MotorCommand, MotorFeedback, MultiAxisCommand, SafetyLimits, SyncMode, Trajectory,
@@ -40,10 +40,11 @@ use serde_json::Value;
 
 use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
-use crate::classify::{Input, RequestKind, classify};
+use crate::classify::{Input, MotorAction, RequestKind, classify};
 use crate::clocks::ClockOffsets;
 use crate::device::{
-    Answer, Capability, Context, Device, Drivers, Ended, Happened, InForce, Moving, Outcome,
+    Answer, Capability, Context, Device, Drivers, Ended, Happened, InForce, MotorOrder, Moving,
+    Outcome,
 };
 use crate::job::{
     AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, Jobs, LineMeta, Order,
@@ -193,6 +194,10 @@ pub struct BridgeStats {
     /// Moves not sent because, from where the device was when their turn
     /// came, their path would have left the limits in force.
     pub refused_at_send: u64,
+    /// Stops sent again because the device's feedback showed the first
+    /// lost on the bus (a compact device acknowledges a command with
+    /// whatever feedback comes next).
+    pub stops_sent_again: u64,
 }
 
 /// The bridge's phases. Every change goes through [`Bridge::enter`].
@@ -1081,6 +1086,23 @@ impl Bridge {
                 };
                 self.motor_command(now, meta, &mut cmd);
             }
+            Input::StreamAxes(cmd) => {
+                let meta = LineMeta {
+                    stream: true,
+                    ..meta
+                };
+                if cmd.sync_mode == Some(SyncMode::Sequential) {
+                    let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
+                    let e = ErrorBody::new(
+                        ErrorKind::Invalid,
+                        "a stream's setpoints go at once; sync_mode sequential waits for each axis to arrive: a stream line is simultaneous or independent",
+                    );
+                    self.refuse(&meta, e);
+                } else {
+                    self.multi_axis(now, meta, &cmd);
+                }
+            }
+            Input::Motor { action, motor_id } => self.motor_line(now, meta, action, &motor_id),
             // Read where it lies: a command is the largest message, and
             // every line is one.
             Input::Message(mut m) => match m.as_mut() {
@@ -1285,6 +1307,202 @@ impl Bridge {
             axes.push(axis);
         }
         self.command_job(now, meta, axes, report);
+    }
+
+    // ---- one motor held, freed or stopped ---------------------------------------
+
+    /// `{"motor":action,"motor_id":M}`: motor M held, freed or stopped
+    /// alone, by its dialect's own means ([`Device::motor_orders`]; an
+    /// iRPC joint's hold, a move to where it can stop within the limits in
+    /// force, planned here). What waited to be sent to it from earlier
+    /// lines is given up first (their results say so), and a trajectory
+    /// running on it sends nothing more: nothing older moves it after
+    /// this. Refused while the emergency stop is latched (every motor is
+    /// stopped already), for a motor that needs a reset or is offline.
+    /// Never refused as busy: it clears the motor's queue before it joins
+    /// it, so a flood of them holds one step a motor.
+    fn motor_line(&mut self, now: Duration, meta: LineMeta, action: MotorAction, motor: &str) {
+        let meta = meta.labelled(Label::Motor(motor.to_owned()));
+        let now_ms = self.unix_ms(now);
+        match self.admit(now, None, now_ms, std::iter::once(motor)) {
+            Err(e) if e.kind != ErrorKind::Busy => return self.refuse(&meta, e),
+            _ => {}
+        }
+        let Some((ji, device)) = self
+            .joint_index(motor)
+            .and_then(|ji| Some((ji, self.joints.get(ji)?.device)))
+        else {
+            let e = self.unattached(std::iter::once(motor)).unwrap_or_else(|| {
+                ErrorBody::gate(&motorwire_translate::Refusal::UnknownMotor {
+                    motor: motor.to_owned(),
+                })
+            });
+            return self.refuse(&meta, e);
+        };
+        let Some(m) = self.map.motor(motor) else {
+            return;
+        };
+        let (unit, limits) = (m.unit, m.limits);
+        let decel = Self::braking(&limits).map(|d| unit.to_degrees(d));
+        let mut report = Report::default();
+        let mut said = |loss: String| {
+            report.losses.push(motorwire_translate::Loss {
+                field: action.name().into(),
+                kind: LossKind::Converted,
+                detail: loss.into(),
+            });
+        };
+        let axis = match device.motor_order(action, decel, now_ms as u64) {
+            Ok(MotorOrder::Send(order, loss)) => {
+                if let Some(loss) = loss {
+                    said(loss);
+                }
+                Some(Axis::of(motor.to_owned(), ji, [order]))
+            }
+            Ok(MotorOrder::Nothing(why)) => {
+                said(why);
+                None
+            }
+            Ok(MotorOrder::Planned) => Some(
+                match self.hold_move(ji, motor, unit, &limits, decel, now_ms) {
+                    Ok(payload) => Axis::new(motor.to_owned(), ji, [payload]),
+                    Err(why) => {
+                        // When in doubt, stop: a hold that cannot be planned
+                        // is the joint's own stop.
+                        said(format!(
+                            "{why}: the joint was deactivated (its own stop) instead"
+                        ));
+                        let stop = self.orders_for(ji, &[Payload::Deactivate]);
+                        Axis::of(motor.to_owned(), ji, stop)
+                    }
+                },
+            ),
+            Err(why) => {
+                let e = ErrorBody::refused(BridgeRule::ActionNotExpressible, why).about(motor);
+                return self.refuse(&meta, e);
+            }
+        };
+        self.give_up_for_motor_line(ji, action);
+        if let Some(j) = self.joints.get_mut(ji) {
+            j.deadman = None;
+        }
+        self.command_job(now, meta, axis.into_iter().collect(), report);
+    }
+
+    /// An iRPC joint's hold: a move to where it can stop from how it moves
+    /// now, braked at `decel` (degrees a second squared; where it stands
+    /// without one), within the position limits in force, gated and
+    /// planned as any move is; why not, said for a person.
+    fn hold_move(
+        &mut self,
+        ji: usize,
+        motor: &str,
+        unit: AngleUnit,
+        limits: &Limits,
+        decel: Option<f64>,
+        now_ms: f64,
+    ) -> Result<Payload, String> {
+        let Some((p, v, _)) = self.joints.get(ji).and_then(|j| j.state_at(self.now)) else {
+            return Err(
+                "its position is not known yet (no feedback), so no hold could be planned"
+                    .to_owned(),
+            );
+        };
+        let mut stop_at = p + decel.map_or(0.0, |d| v * v.abs() / (2.0 * d));
+        if let Some(max) = limits.max_position {
+            stop_at = stop_at.min(unit.to_degrees(max));
+        }
+        if let Some(min) = limits.min_position {
+            stop_at = stop_at.max(unit.to_degrees(min));
+        }
+        let cmd = MotorCommand {
+            motor_id: motor.to_owned(),
+            timestamp: now_ms,
+            control_mode: motorwire_core::ControlMode::Position,
+            setpoint: unit.from_degrees(stop_at),
+            velocity_limit: None,
+            acceleration_limit: None,
+            torque_limit: None,
+            pid_gains: None,
+            impedance_params: None,
+            filter_config: None,
+            safety_limits: None,
+            priority: None,
+            metadata: None,
+            extra: serde_json::Map::new(),
+        };
+        let (t, m, effective) =
+            motorwire_translate::to_irpc_gated(&self.map, &cmd).map_err(|r| r.to_string())?;
+        let planned = planned_within_limits(
+            self.joints.get(ji),
+            self.now,
+            m,
+            &effective,
+            &t.value.payloads,
+        )
+        .map_err(|r| r.to_string())?;
+        let payload = t
+            .value
+            .payloads
+            .first()
+            .copied()
+            .ok_or_else(|| "no move was made".to_owned())?;
+        self.keep_plan(ji, planned);
+        Ok(payload)
+    }
+
+    /// What waits for joint `ji` from command lines, given up for a motor
+    /// line (its results say so), and a trajectory running on it stopped
+    /// from sending more: nothing older moves it after the motor line.
+    fn give_up_for_motor_line(&mut self, ji: usize, action: MotorAction) {
+        let why: &'static str = match action {
+            MotorAction::Hold => "a hold of the motor came before it was sent: it was never sent",
+            MotorAction::Free => "a free of the motor came before it was sent: it was never sent",
+            MotorAction::Stop => "a stop of the motor came before it was sent: it was never sent",
+        };
+        let Some(joint) = self.joints.get_mut(ji) else {
+            return;
+        };
+        let mut given_up = 0;
+        joint.queue.retain(|s| {
+            let Some(job) = self
+                .jobs
+                .get_mut(&s.job)
+                .filter(|j| j.kind == JobKind::Command)
+            else {
+                return true;
+            };
+            if let Some(a) = job
+                .axes
+                .get_mut(s.axis)
+                .filter(|a| a.state == AxisState::Queued)
+            {
+                a.finish(StepOutcome::Superseded, None, why);
+                given_up += 1;
+            }
+            false
+        });
+        // A trajectory running on it: between segments, it ends now; with a
+        // segment in flight, once that is answered.
+        if let Some(running) = joint.busy
+            && let Some(a) = self
+                .jobs
+                .get_mut(&running.job)
+                .filter(|job| job.kind == JobKind::Command)
+                .and_then(|job| job.axes.get_mut(running.axis))
+            && !a.due.is_empty()
+        {
+            given_up += 1;
+            if a.state == AxisState::Queued {
+                a.finish(StepOutcome::Superseded, None, why);
+                joint.busy = None;
+                joint.wake = None;
+            } else {
+                a.replaced = true;
+            }
+        }
+        self.stats.superseded += given_up;
+        self.finish_jobs();
     }
 
     // ---- faults and resets ----------------------------------------------------
@@ -1762,7 +1980,7 @@ impl Bridge {
         if v.emergency_decel.is_some() {
             losses.push(motorwire_translate::Loss {
                 field: "velocity_limits.emergency_decel".into(),
-                kind: motorwire_translate::LossKind::Dropped,
+                kind: LossKind::Dropped,
                 detail: "recorded; an iRPC joint brakes from a Deactivate at its own rate".into(),
             });
         }
@@ -1778,7 +1996,7 @@ impl Bridge {
             if given {
                 losses.push(motorwire_translate::Loss {
                     field: field.into(),
-                    kind: motorwire_translate::LossKind::Dropped,
+                    kind: LossKind::Dropped,
                     detail: "iRPC has no such setting; the joint keeps its own".into(),
                 });
             }
@@ -2648,6 +2866,10 @@ impl Bridge {
         if kind.is_stop() {
             self.cancel_everything("cancelled by the stop");
         }
+        let mut axes = axes;
+        if kind == JobKind::Command {
+            self.activate_freed(&mut axes);
+        }
         // A stream's setpoint replaces any setpoint waiting for its motor
         // (position, velocity, torque); an ordinary position move, a
         // waiting position move.
@@ -2701,6 +2923,36 @@ impl Bridge {
             self.steps_scratch = steps;
         }
         self.finish_jobs();
+    }
+
+    /// A command line's axes for joints a line left inactive (`disabled`,
+    /// `free`, `stop`): a motion is preceded by an Activate, so the next
+    /// command undoes them (a joint inactive for another reason, a fault,
+    /// waits for a reset line). An axis that deactivates its joint marks
+    /// it so.
+    fn activate_freed(&mut self, axes: &mut [Axis]) {
+        for a in axes {
+            let Some(j) = self.joints.get_mut(a.joint) else {
+                continue;
+            };
+            if !j.device.supports(Capability::Lifecycle) {
+                continue;
+            }
+            let deactivates = a
+                .payloads
+                .iter()
+                .any(|o| o.lifecycle_payload() == Some(Payload::Deactivate));
+            if deactivates {
+                j.freed = true;
+            } else if j.freed && a.payloads.front().is_some_and(Order::is_setpoint) {
+                for activate in j.device.lifecycle_orders(&[Payload::Activate], 0) {
+                    a.payloads.push_front(activate);
+                    if let Some(&first) = a.due.front() {
+                        a.due.push_front(first);
+                    }
+                }
+            }
+        }
     }
 
     /// A newer motion step for device `ji` (a position move or a stream's
@@ -3378,6 +3630,12 @@ impl Bridge {
             // braked short of only once it had stopped).
             j.limit_braked = None;
         }
+        if order.unconfirmed_stop().is_some() {
+            let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
+            j.unconfirmed_stop = Some((order, at, speed));
+        } else if effect.deadman.is_some() || effect.target.is_some() {
+            j.unconfirmed_stop = None;
+        }
         if let Some(target) = effect.target {
             j.target = target;
         }
@@ -3388,6 +3646,8 @@ impl Bridge {
         }
         if let Some(active) = effect.active {
             j.active = active;
+            // Active again: its next command needs no Activate first.
+            j.freed &= !active;
         }
         if effect.settles {
             j.unresolved = None;
@@ -4605,7 +4865,11 @@ impl Bridge {
         };
         if feedback.is_some() {
             j.feedback = feedback;
+            self.confirm_stop(ji, at);
         }
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
         let Some((pos, vel)) = motion else {
             return;
         };
@@ -4658,6 +4922,59 @@ impl Bridge {
                 position: shortest(position),
             }));
         }
+    }
+
+    /// A stop taken on an acknowledgement that may have been another
+    /// frame's (a compact device's: [`Order::unconfirmed_stop`]), judged by
+    /// the feedback heard `at`: still enabled after a disable or an
+    /// emergency stop, or going on as fast [`REBRAKE_AFTER`] after a
+    /// velocity 0, it was lost on the bus and is sent again (with this
+    /// time's timestamp), unless a newer step waits for the device. Seen
+    /// taken, it is forgotten.
+    fn confirm_stop(&mut self, ji: usize, at: Duration) {
+        let now_ms = self.unix_ms(at) as u64;
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
+        let (Some((order, acked, speed)), Some(f)) = (j.unconfirmed_stop, j.feedback.as_ref())
+        else {
+            return;
+        };
+        let Some(disables) = order.unconfirmed_stop() else {
+            return;
+        };
+        let (lost, taken) = if disables {
+            (
+                f.status.enabled == Some(true),
+                f.status.enabled == Some(false),
+            )
+        } else {
+            let v = f.velocity.abs();
+            (speed > 0.0 && v >= 0.9 * speed, v <= 0.5 * speed)
+        };
+        if taken && at >= acked {
+            j.unconfirmed_stop = None;
+            return;
+        }
+        if !lost
+            || at < acked.saturating_add(REBRAKE_AFTER)
+            || j.busy.is_some()
+            || !j.queue.is_empty()
+        {
+            return;
+        }
+        let order = order.restamped(now_ms);
+        j.unconfirmed_stop = Some((order, at, speed));
+        self.stats.stops_sent_again += 1;
+        let axis = Axis::of(j.name.clone(), ji, [order]);
+        self.open_job(
+            None,
+            JobKind::Deadman,
+            at.max(self.now),
+            vec![axis],
+            Report::default(),
+            Vec::new(),
+        );
     }
 
     /// Joint `ji` reported its lifecycle `state` (with `code`, its error

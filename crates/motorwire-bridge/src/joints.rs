@@ -9,7 +9,7 @@ use motorwire_planner::Profile;
 use motorwire_translate::AngleUnit;
 use motorwire_wia::MotorFeedback;
 
-use crate::device::Device;
+use crate::device::{Device, Order};
 use crate::output::Origin;
 
 /// A step of a job waiting for (or running on) a joint.
@@ -123,6 +123,16 @@ pub(crate) struct Joint {
     /// velocity or torque setpoint (degrees/s², a magnitude): how fast a
     /// torque may speed it up, for judging one toward a limit.
     pub(crate) peak_accel: f64,
+    /// A stop taken on an acknowledgement its device cannot tie to it (a
+    /// compact device acknowledges a command with whatever feedback comes
+    /// next): the order, when it was acked, and how fast the motor went
+    /// then (its unit a second). Its feedback judges it until a newer
+    /// setpoint or move is taken; one lost on the bus is sent again.
+    pub(crate) unconfirmed_stop: Option<(Order, Duration, f64)>,
+    /// A line left it inactive (`disabled`, `free`, `stop`): its next
+    /// command is preceded by an Activate (a joint inactive for any other
+    /// reason, a fault or a failed start, waits for a reset line).
+    pub(crate) freed: bool,
     /// It faulted or rebooted (why): nothing but a reset line is sent to it.
     pub(crate) needs_reset: Option<String>,
     /// A Reset the bridge sent is under way (its `Unconfigured` is no
@@ -343,6 +353,8 @@ impl Joint {
             held_velocity: None,
             limit_braked: None,
             peak_accel: 0.0,
+            unconfirmed_stop: None,
+            freed: false,
             needs_reset: None,
             resetting: false,
             wake: None,

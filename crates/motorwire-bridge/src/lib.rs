@@ -15,7 +15,9 @@ pub mod replay;
 mod runtime;
 pub mod sim;
 
-pub use classify::{DEFAULT_CALIBRATION, Input, RequestKind, asks_for_stop, classify, members};
+pub use classify::{
+    DEFAULT_CALIBRATION, Input, MotorAction, RequestKind, asks_for_stop, classify, members,
+};
 pub use engine::{
     Bridge, BridgeConfig, BridgeStats, DEFAULT_MAX_AGE_MS, JointView, MAX_BAD_LINE_EVENTS,
     MAX_ORION_LINE, ORION_POLL,

@@ -609,11 +609,14 @@ pub enum BridgeRule {
     /// A velocity or torque setpoint pointing past a position limit in
     /// force from a motor at that limit (`outward_at_limit`).
     OutwardAtLimit,
+    /// A motor line its device has no means for (an Orion servo freed:
+    /// the controller has no torque off) (`action_not_expressible`).
+    ActionNotExpressible,
 }
 
 impl BridgeRule {
     /// Every rule, in the order of the variants.
-    pub const ALL: [Self; 10] = [
+    pub const ALL: [Self; 11] = [
         Self::UnknownMotor,
         Self::NotAnIrpcJoint,
         Self::MotorTwice,
@@ -624,6 +627,7 @@ impl BridgeRule {
         Self::SequentialWithoutArrival,
         Self::OrionNotAttached,
         Self::OutwardAtLimit,
+        Self::ActionNotExpressible,
     ];
 
     /// Its name in `error.rule`.
@@ -639,6 +643,7 @@ impl BridgeRule {
             Self::SequentialWithoutArrival => "sequential_without_arrival",
             Self::OrionNotAttached => "orion_not_attached",
             Self::OutwardAtLimit => "outward_at_limit",
+            Self::ActionNotExpressible => "action_not_expressible",
         }
     }
 }
@@ -1041,13 +1046,16 @@ mod tests {
                 | BridgeRule::MotionOutsideNewLimits
                 | BridgeRule::SequentialWithoutArrival
                 | BridgeRule::OrionNotAttached
-                | BridgeRule::OutwardAtLimit => BridgeRule::ALL.iter().filter(|o| **o == r).count(),
+                | BridgeRule::OutwardAtLimit
+                | BridgeRule::ActionNotExpressible => {
+                    BridgeRule::ALL.iter().filter(|o| **o == r).count()
+                }
             };
             assert_eq!(listed, 1, "{r:?}");
         }
-        // Kinds (but refused), the gate's 11 and the bridge's 10, with
+        // Kinds (but refused), the gate's 11 and the bridge's 11, with
         // unknown_motor in both of the last two.
-        assert_eq!(rules().len(), 20 + 11 + 10 - 1);
+        assert_eq!(rules().len(), 20 + 11 + 11 - 1);
     }
 
     #[test]

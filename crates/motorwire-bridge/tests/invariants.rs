@@ -122,6 +122,8 @@ struct Tally {
     /// (origin, line) -> result
     results: BTreeMap<(u64, u64), Value>,
     sent: BTreeMap<u64, u64>,
+    /// The motors the deadman stopped.
+    deadman: BTreeSet<String>,
 }
 
 fn play(arm: &mut SimulatedArm, ops: &[Op], tally: &mut Tally) {
@@ -165,6 +167,9 @@ fn play(arm: &mut SimulatedArm, ops: &[Op], tally: &mut Tally) {
 
 fn collect(arm: &mut SimulatedArm, tally: &mut Tally) {
     for o in arm.take_outputs() {
+        if let Output::Event(motorwire_bridge::Event::Deadman { motor_id, .. }) = &o {
+            tally.deadman.insert(motor_id.clone());
+        }
         if let Output::Result { origin, result } = &o {
             let v = o.to_value();
             assert!(
@@ -671,6 +676,18 @@ enum Mixed {
         setpoints: [f64; 3],
         sequential: bool,
     },
+    /// One motor held, freed or stopped alone (`{"motor":...}`).
+    Motor {
+        client: u64,
+        motor: usize,
+        action: &'static str,
+    },
+    /// A multi-axis stream line: the elbow's position, the gripper's and
+    /// the wrist's velocities, the turntable's speed.
+    Tick {
+        client: u64,
+        setpoints: [f64; 4],
+    },
     /// A SafetyLimits line for the elbow, the gripper or the servo: its
     /// map's min and `max`.
     Limits {
@@ -693,6 +710,8 @@ fn mixed_op() -> impl Strategy<Value = Mixed> {
             Mixed::Limits { client, motor, max: (EVERY_DIALECT[motor].1.max(0.0) + max).round() }
         }),
         1 => (0u64..3, 0.0f64..140.0, any::<bool>()).prop_map(|(client, s, sequential)| Mixed::Multi { client, setpoints: [s.round(), (s / 2.0).round(), (s - 60.0).round()], sequential }),
+        2 => (0u64..3, 0usize..6, prop::sample::select(vec!["hold", "free", "stop"])).prop_map(|(client, motor, action)| Mixed::Motor { client, motor, action }),
+        2 => (0u64..3, 0.0f64..140.0, -20.0f64..40.0).prop_map(|(client, p, v)| Mixed::Tick { client, setpoints: [p.round(), v.round(), (v / 2.0).round(), (v * 5.0).round()] }),
         2 => (0u64..3, 2usize..6, 0.0f64..1.0).prop_map(|(client, motor, f)| {
             let (_, lo, hi) = EVERY_DIALECT[motor];
             Mixed::Limits { client, motor, max: (lo + 1.0 + f * (hi - lo - 1.0)).round() }
@@ -773,6 +792,12 @@ fn play_mixed(arm: &mut SimulatedArm, ops: &[Mixed], t: &mut MixedTally) {
                         .join(",")
                 ),
             ),
+            Mixed::Motor {
+                client,
+                motor,
+                action,
+            } => (*client, motor_line(action, EVERY_DIALECT[*motor].0)),
+            Mixed::Tick { client, setpoints } => (*client, stream_axes(0, *setpoints)),
             Mixed::Limits { client, motor, max } => {
                 let (name, lo, _) = EVERY_DIALECT[*motor];
                 (
@@ -844,7 +869,11 @@ fn play_mixed(arm: &mut SimulatedArm, ops: &[Mixed], t: &mut MixedTally) {
         let now = arm.now();
         match op {
             Mixed::Drive { motor, .. } => t.driving[*motor] = true,
-            Mixed::Move { motor, .. } => t.driving[*motor] = false,
+            Mixed::Move { motor, .. } | Mixed::Motor { motor, .. } => t.driving[*motor] = false,
+            Mixed::Tick { .. } => {
+                t.driving[3] = true;
+                t.driving[5] = true;
+            }
             Mixed::Multi { .. } | Mixed::Other(Op::Stop { .. }) => t.driving = [false; 6],
             _ => {}
         }
@@ -2740,5 +2769,526 @@ fn a_gripper_driven_toward_a_narrowed_limit_on_a_faulty_bus_stays_within_it() {
         .filter(|c| c.setpoint == 0.0)
         .count();
     assert!(brakes >= 2, "the gripper was braked {brakes} time(s)");
+    check_mixed(&arm, &t);
+}
+
+/// Sends `text` as the next line of client 9 and runs until it is answered
+/// (at most 3 s): its result.
+fn answer(arm: &mut SimulatedArm, text: &str) -> Value {
+    arm.line(Origin(9), text);
+    let mut got = None;
+    let end = arm.now() + Duration::from_secs(3);
+    while got.is_none() && arm.now() < end {
+        arm.step(Duration::from_millis(5)).unwrap();
+        got = arm.take_results().into_iter().find(|r| r["line"].is_u64());
+    }
+    got.unwrap_or_else(|| panic!("{text}: no result"))
+}
+
+/// `{"motor":action,"motor_id":motor}`.
+fn motor_line(action: &str, motor: &str) -> String {
+    format!(r#"{{"motor":"{action}","motor_id":"{motor}"}}"#)
+}
+
+fn velocity(motor: &str, speed: f64) -> String {
+    format!(
+        r#"{{"motor_id":"{motor}","timestamp":1,"control_mode":"velocity","setpoint":{speed}}}"#
+    )
+}
+
+/// The Orion controller's value for `key` after its last line.
+fn orion_value(arm: &SimulatedArm, key: &str) -> f64 {
+    let i = motorwire_orion::Motor::ALL
+        .iter()
+        .position(|m| m.key() == key)
+        .unwrap();
+    arm.orion_log().last().map_or(0.0, |w| w.values[i])
+}
+
+/// Each motor held, freed and stopped alone, on every dialect, by its
+/// dialect's own means, and moved again by its next command: an iRPC
+/// joint's hold is a move to where it can stop and its free and stop a
+/// Deactivate, undone by an Activate before the next move (it was Nacked
+/// until a reset before); the compact gripper's velocity 0, disabled and
+/// emergency-stop flag; the moteus wrist's velocity 0 within its
+/// deceleration, stop mode and stop mode; the Orion turntable's 0 (free
+/// said to be a 0, the controller having no torque off) and its servo held
+/// where it stands (never freed: refused). Nothing latches.
+#[test]
+fn each_motor_is_held_freed_and_stopped_alone_on_every_dialect() {
+    let mut arm = every_dialect_arm_with(Faults::default(), 3);
+    let ok = |r: &Value| {
+        assert_eq!(r["ok"], true, "{r}");
+    };
+    let still = |arm: &mut SimulatedArm, m: usize| {
+        let a = position_of(arm, m);
+        arm.run_until(arm.now() + Duration::from_millis(500))
+            .unwrap();
+        let b = position_of(arm, m);
+        assert!((a - b).abs() < 1e-3, "{}: {a} then {b}", EVERY_DIALECT[m].0);
+        b
+    };
+
+    // iRPC: the elbow, held mid-move short of its target.
+    ok(&answer(&mut arm, &command("elbow", 140.0)));
+    arm.run_until(arm.now() + Duration::from_millis(300))
+        .unwrap();
+    let elbow = arm.joint(0x12).unwrap();
+    assert!(elbow.is_moving());
+    let r = answer(&mut arm, &motor_line("hold", "elbow"));
+    ok(&r);
+    assert_eq!(r["motor_id"], "elbow");
+    arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+    let held = still(&mut arm, 2);
+    assert!(held > 5.0 && held < 135.0, "held at {held}");
+    assert_eq!(arm.joint(0x12).unwrap().state(), LifecycleState::Active);
+    for action in ["free", "stop"] {
+        ok(&answer(&mut arm, &motor_line(action, "elbow")));
+        arm.run_until(arm.now() + Duration::from_secs(1)).unwrap();
+        assert_eq!(
+            arm.joint(0x12).unwrap().state(),
+            LifecycleState::Inactive,
+            "{action}"
+        );
+        // The next command activates it first and moves it.
+        let r = answer(&mut arm, &command("elbow", 30.0));
+        ok(&r);
+        assert_eq!(r["acked"], serde_json::json!(["elbow"]), "{r}");
+        arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+        assert_eq!(arm.joint(0x12).unwrap().state(), LifecycleState::Active);
+        assert!((position_of(&arm, 2) - 30.0).abs() < 0.5, "{action}");
+    }
+    // Torque back on: a freed joint held is activated where it stands.
+    ok(&answer(&mut arm, &motor_line("free", "elbow")));
+    arm.run_until(arm.now() + Duration::from_millis(200))
+        .unwrap();
+    assert_eq!(arm.joint(0x12).unwrap().state(), LifecycleState::Inactive);
+    ok(&answer(&mut arm, &motor_line("hold", "elbow")));
+    arm.run_until(arm.now() + Duration::from_millis(200))
+        .unwrap();
+    assert_eq!(arm.joint(0x12).unwrap().state(), LifecycleState::Active);
+    assert!((still(&mut arm, 2) - 30.0).abs() < 0.5);
+    // WIA's own `disabled` is undone the same way (an iRPC joint disabled
+    // this way Nacked every move until a reset).
+    ok(&answer(
+        &mut arm,
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"disabled","setpoint":0}"#,
+    ));
+    arm.run_until(arm.now() + Duration::from_millis(200))
+        .unwrap();
+    assert_eq!(arm.joint(0x12).unwrap().state(), LifecycleState::Inactive);
+    ok(&answer(&mut arm, &command("elbow", 40.0)));
+    arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+    assert!((position_of(&arm, 2) - 40.0).abs() < 0.5);
+    // Every Activate the elbow executed after startup came right before a
+    // move.
+    let log = arm.joint(0x12).unwrap().log();
+    let activates: Vec<usize> = (0..log.len())
+        .filter(|&i| log[i].payload == Payload::Activate)
+        .collect();
+    assert_eq!(
+        activates.len(),
+        5,
+        "startup, after free, stop, free and disabled"
+    );
+    for &i in &activates[1..] {
+        assert!(
+            matches!(log[i + 1].payload, Payload::SetTargetV2(_)),
+            "{:?}",
+            log[i + 1]
+        );
+        assert!(matches!(log[i + 1].answer, Payload::Ack(_)));
+    }
+
+    // Compact: the gripper driven, held, freed, moved, stopped, driven.
+    // (Within the deadman's 200 ms.)
+    ok(&answer(&mut arm, &velocity("gripper_axis", 20.0)));
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    assert!(arm.compact_device(0x20).unwrap().is_moving());
+    ok(&answer(&mut arm, &motor_line("hold", "gripper_axis")));
+    arm.run_until(arm.now() + Duration::from_millis(500))
+        .unwrap();
+    still(&mut arm, 3);
+    let g = arm.compact_device(0x20).unwrap();
+    assert_eq!(g.mode(), motorwire_compact::ControlMode::Velocity);
+    assert!(g.enabled());
+    ok(&answer(&mut arm, &motor_line("free", "gripper_axis")));
+    let g = arm.compact_device(0x20).unwrap();
+    assert_eq!(g.mode(), motorwire_compact::ControlMode::Disabled);
+    assert!(!g.enabled() && !g.stopped());
+    ok(&answer(&mut arm, &motor_line("hold", "gripper_axis")));
+    assert!(
+        arm.compact_device(0x20).unwrap().enabled(),
+        "torque back on"
+    );
+    ok(&answer(&mut arm, &command("gripper_axis", 20.0)));
+    assert!(arm.compact_device(0x20).unwrap().enabled());
+    ok(&answer(&mut arm, &motor_line("stop", "gripper_axis")));
+    assert!(arm.compact_device(0x20).unwrap().stopped());
+    ok(&answer(&mut arm, &velocity("gripper_axis", 5.0)));
+    let g = arm.compact_device(0x20).unwrap();
+    assert!(g.enabled() && !g.stopped());
+
+    // moteus: the wrist driven, held within its deceleration, freed
+    // (stop mode), moved, stopped, and disabled as WIA says it.
+    ok(&answer(&mut arm, &velocity("wrist", 30.0)));
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    assert!(arm.moteus(1).unwrap().velocity().abs() > 0.05);
+    ok(&answer(&mut arm, &motor_line("hold", "wrist")));
+    arm.run_until(arm.now() + Duration::from_millis(500))
+        .unwrap();
+    still(&mut arm, 5);
+    assert_eq!(
+        arm.moteus(1).unwrap().mode(),
+        motorwire_sim::moteus::mode::POSITION
+    );
+    for free in [
+        motor_line("free", "wrist"),
+        motor_line("stop", "wrist"),
+        r#"{"motor_id":"wrist","timestamp":1,"control_mode":"disabled","setpoint":0}"#.to_owned(),
+    ] {
+        ok(&answer(&mut arm, &free));
+        arm.run_until(arm.now() + Duration::from_millis(50))
+            .unwrap();
+        assert_eq!(
+            arm.moteus(1).unwrap().mode(),
+            motorwire_sim::moteus::mode::STOPPED,
+            "{free}"
+        );
+        ok(&answer(&mut arm, &motor_line("hold", "wrist")));
+        arm.run_until(arm.now() + Duration::from_millis(50))
+            .unwrap();
+        assert_eq!(
+            arm.moteus(1).unwrap().mode(),
+            motorwire_sim::moteus::mode::POSITION,
+            "torque back on"
+        );
+        ok(&answer(&mut arm, &command("wrist", 10.0)));
+        arm.run_until(arm.now() + Duration::from_millis(50))
+            .unwrap();
+        assert_eq!(
+            arm.moteus(1).unwrap().mode(),
+            motorwire_sim::moteus::mode::POSITION
+        );
+    }
+
+    // Orion: the turntable at a speed, held at 0, freed to 0 (said).
+    ok(&answer(&mut arm, &velocity("turntable", 100.0)));
+    assert_eq!(orion_value(&arm, "TRM"), 100.0);
+    ok(&answer(&mut arm, &motor_line("hold", "turntable")));
+    assert_eq!(orion_value(&arm, "TRM"), 0.0);
+    ok(&answer(&mut arm, &velocity("turntable", -50.0)));
+    let r = answer(&mut arm, &motor_line("free", "turntable"));
+    ok(&r);
+    assert_eq!(orion_value(&arm, "TRM"), 0.0);
+    assert_eq!(
+        r["losses"],
+        serde_json::json!([
+            "free: converted: the Orion arm controller has no torque off: the motor was brought to 0"
+        ]),
+        "{r}"
+    );
+    // Its servo: held where it stands, never freed.
+    ok(&answer(
+        &mut arm,
+        &command("grasper_horizontal_servo", 30.0),
+    ));
+    arm.run_until(arm.now() + Duration::from_millis(300))
+        .unwrap();
+    for action in ["hold", "stop"] {
+        let r = answer(&mut arm, &motor_line(action, "grasper_horizontal_servo"));
+        ok(&r);
+        assert_eq!(
+            r["losses"],
+            serde_json::json!([format!(
+                "{action}: converted: the Orion servo GHS holds the angle it was last sent by itself: nothing was sent"
+            )]),
+            "{r}"
+        );
+        assert_eq!(orion_value(&arm, "GHS"), 30.0);
+    }
+    let r = answer(&mut arm, &motor_line("free", "grasper_horizontal_servo"));
+    assert_eq!(r["error"]["rule"], "action_not_expressible", "{r}");
+    assert_eq!(
+        r["error"]["message"],
+        "the Orion arm controller has no torque off for its servo GHS: it holds it where it was sent (hold or stop it where it stands)"
+    );
+
+    // None of it latched; an unknown motor and a latched stop are refused.
+    assert!(!arm.bridge().state().latched, "nothing latched");
+    let r = answer(&mut arm, &motor_line("hold", "knee"));
+    assert_eq!(r["error"]["rule"], "unknown_motor", "{r}");
+    ok(&answer(&mut arm, r#"{"emergency_stop":true}"#));
+    let r = answer(&mut arm, &motor_line("hold", "elbow"));
+    assert_eq!(r["error"]["kind"], "emergency_stop_latched", "{r}");
+}
+
+/// One line of a flood for motor `m` of [`EVERY_DIALECT`] (or the
+/// turntable, 6): stream setpoints and position moves, velocities where
+/// the device takes them, and multi-axis stream lines over several
+/// dialects.
+fn flood_line(m: usize, i: usize) -> String {
+    let name = EVERY_DIALECT.get(m).map_or("turntable", |d| d.0);
+    let s = 10.0 + (i * 37 % 120) as f64;
+    match (m, i % 4) {
+        (_, 3) => format!(
+            r#"{{"command_id":"s{i}","timestamp":1,"motors":[{{"motor_id":"{name}","control_mode":"{}","setpoint":{}}},{{"motor_id":"shoulder_roll","control_mode":"position","setpoint":{}}}],"stream":true}}"#,
+            if m == 2 { "position" } else { "velocity" },
+            if m == 2 { s } else { s / 4.0 },
+            (s / 4.0).round()
+        ),
+        (2, _) => format!(
+            r#"{{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":{s},"stream":{}}}"#,
+            i.is_multiple_of(2)
+        ),
+        (_, 0) => velocity(name, s / 3.0),
+        (3 | 5, _) => format!(
+            r#"{{"motor_id":"{name}","timestamp":1,"control_mode":"position","setpoint":{},"stream":true}}"#,
+            (s / 2.0).min(80.0)
+        ),
+        _ => format!(
+            r#"{{"motor_id":"{name}","timestamp":1,"control_mode":"velocity","setpoint":{},"stream":true}}"#,
+            s / 2.0
+        ),
+    }
+}
+
+/// Thirty lines in flight from three clients for one motor (stream
+/// setpoints, position moves, velocities, multi-axis stream lines), then
+/// one motor line: on every dialect, for each action, under drops,
+/// duplicates and reordering, every line is answered once, and nothing
+/// sent before the motor line moves the motor after it: the device ends as
+/// the motor line left it.
+#[test]
+fn a_motor_line_wins_over_every_line_in_flight_before_it_on_every_dialect() {
+    // More seeds where more cases are asked for (MOTORWIRE_BRIDGE_CASES).
+    let seeds = u64::from(cases()).div_ceil(32);
+    for seed in 0..seeds {
+        for m in [2, 3, 5, 6] {
+            for action in ["hold", "free", "stop"] {
+                let name = EVERY_DIALECT.get(m).map_or("turntable", |d| d.0);
+                let mut arm = every_dialect_arm(seed);
+                let mut t = Tally::default();
+                for i in 0..30 {
+                    let client = i as u64 % 3;
+                    *t.sent.entry(client).or_default() += 1;
+                    arm.line(Origin(client), &flood_line(m, i));
+                }
+                *t.sent.entry(7).or_default() += 1;
+                arm.line(Origin(7), &motor_line(action, name));
+                arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+                collect(&mut arm, &mut t);
+                check(&arm, &t);
+                let r = &t.results[&(7, 1)];
+                let case = format!("seed {seed}, {name}, {action}: {r}");
+                assert_eq!(r["ok"], true, "{case}");
+                // After the motor line's order, nothing else reached it.
+                match m {
+                    2 => {
+                        let j = arm.joint(0x12).unwrap();
+                        let want = if action == "hold" {
+                            LifecycleState::Active
+                        } else {
+                            LifecycleState::Inactive
+                        };
+                        assert_eq!(j.state(), want, "{case}");
+                        assert!(!j.is_moving(), "{case}");
+                        let last = j
+                            .log()
+                            .iter()
+                            .rfind(|e| matches!(e.answer, Payload::Ack(_)))
+                            .unwrap();
+                        if action != "hold" {
+                            assert_eq!(last.payload, Payload::Deactivate, "{case}");
+                        } else {
+                            let Payload::SetTargetV2(p) = last.payload else {
+                                panic!("{case}: {last:?}");
+                            };
+                            let at = j.position();
+                            assert!((f64::from(p.target_angle) - at).abs() < 0.5, "{case}: {at}");
+                        }
+                    }
+                    3 => {
+                        let g = arm.compact_device(0x20).unwrap();
+                        assert!(!g.is_moving(), "{case}: at {}", g.velocity());
+                        // (Every frame of the flood lost: it never moved.)
+                        if let Some(last) = g.log().last() {
+                            let c = last.command;
+                            let (mode, stop) = match action {
+                                "hold" => (motorwire_compact::ControlMode::Velocity, false),
+                                "free" => (motorwire_compact::ControlMode::Disabled, false),
+                                _ => (motorwire_compact::ControlMode::Disabled, true),
+                            };
+                            assert_eq!((c.control_mode, c.setpoint), (mode, 0.0), "{case}");
+                            assert_eq!(g.stopped(), stop, "{case}");
+                        } else {
+                            assert_eq!(g.position(), 0.0, "{case}");
+                        }
+                    }
+                    5 => {
+                        let w = arm.moteus(1).unwrap();
+                        let mode = if action == "hold" {
+                            motorwire_sim::moteus::mode::POSITION
+                        } else {
+                            motorwire_sim::moteus::mode::STOPPED
+                        };
+                        // A velocity acked just before the hold, whose
+                        // renewal the hold (lost once on the bus) did not
+                        // bring within its 200 ms: the deadman's stop
+                        // follows it.
+                        let deadman = t.deadman.contains("wrist")
+                            && w.mode() == motorwire_sim::moteus::mode::STOPPED;
+                        assert!(w.mode() == mode || deadman, "{case}: mode {}", w.mode());
+                        assert!(w.velocity().abs() < 1e-6, "{case}: {}", w.velocity());
+                    }
+                    _ => assert_eq!(orion_value(&arm, "TRM"), 0.0, "{case}"),
+                }
+            }
+        }
+    }
+}
+
+/// A multi-axis stream line: `speeds` for the elbow (a position), the
+/// gripper, the wrist (velocities) and the turntable (a speed).
+fn stream_axes(i: usize, [elbow, gripper, wrist, turntable]: [f64; 4]) -> String {
+    format!(
+        r#"{{"command_id":"tick{i}","timestamp":1,"stream":true,"motors":[{{"motor_id":"elbow","control_mode":"position","setpoint":{elbow}}},{{"motor_id":"gripper_axis","control_mode":"velocity","setpoint":{gripper}}},{{"motor_id":"wrist","control_mode":"velocity","setpoint":{wrist}}},{{"motor_id":"turntable","control_mode":"velocity","setpoint":{turntable}}}]}}"#
+    )
+}
+
+/// A policy's tick as one line: a multi-axis command with `"stream":true`
+/// sets an iRPC joint, the compact gripper, the moteus wrist and an Orion
+/// motor in one line with one result (before, it was refused and a policy
+/// sent one line a joint a tick). Sixty ticks in flight from two clients on
+/// a bus that drops, duplicates and reorders: each is answered once, `ok`
+/// (a tick replaced before it was sent says `superseded`, as a stream
+/// does), and every device ends at the last tick's setpoint. A sequential
+/// stream is refused.
+#[test]
+fn a_multi_axis_stream_line_moves_every_dialect_with_one_result() {
+    let mut arm = every_dialect_arm_with(Faults::default(), 5);
+    let r = answer(&mut arm, &stream_axes(0, [60.0, 10.0, 20.0, 30.0]));
+    assert_eq!(r["ok"], true, "{r}");
+    assert_eq!(
+        r["acked"],
+        serde_json::json!(["elbow", "gripper_axis", "wrist", "turntable"]),
+        "{r}"
+    );
+    assert_eq!(r["arrival_follows"], false, "{r}");
+    assert_eq!(r["command_id"], "tick0");
+    arm.run_until(arm.now() + Duration::from_millis(100))
+        .unwrap();
+    assert!(arm.joint(0x12).unwrap().is_moving());
+    assert!(arm.compact_device(0x20).unwrap().velocity() > 1.0);
+    assert!(arm.moteus(1).unwrap().velocity() > 0.01);
+    assert_eq!(orion_value(&arm, "TRM"), 30.0);
+
+    for seed in 0..4 {
+        let mut arm = every_dialect_arm(seed);
+        let mut t = Tally::default();
+        for i in 0..60 {
+            let client = i as u64 % 2;
+            *t.sent.entry(client).or_default() += 1;
+            let s = (i % 7) as f64;
+            arm.line(
+                Origin(client),
+                &stream_axes(i, [20.0 + s * 10.0, s, 2.0 * s, 10.0 * s]),
+            );
+        }
+        // The last tick (i = 59: s = 3), renewed within the deadman's time.
+        for k in 0..30 {
+            arm.run_until(arm.now() + Duration::from_millis(50))
+                .unwrap();
+            *t.sent.entry(1).or_default() += 1;
+            arm.line(Origin(1), &stream_axes(100 + k, [50.0, 3.0, 6.0, 30.0]));
+        }
+        arm.run_until(arm.now() + Duration::from_millis(150))
+            .unwrap();
+        collect(&mut arm, &mut t);
+        check(&arm, &t);
+        // Each `ok`, or failed by the bus alone: a frame never answered
+        // (`outcome_unknown`), a device taken as offline, or a renewal lost
+        // past the deadman's 200 ms and cut short by its stop. Never
+        // refused.
+        for (k, r) in &t.results {
+            let bus = r["outcomes"].as_array().is_some_and(|o| {
+                o.iter().all(|o| {
+                    o["outcome"] == "outcome_unknown"
+                        || o["message"] == "cancelled: the deadman stopped the device first"
+                })
+            });
+            let offline = r["error"]["kind"] == "offline";
+            assert!(r["ok"] == true || bus || offline, "seed {seed}, {k:?}: {r}");
+        }
+        let elbow = arm.joint(0x12).unwrap().position();
+        assert!((elbow - 50.0).abs() < 0.5, "seed {seed}: {elbow}");
+        let gripper = arm.compact_device(0x20).unwrap().velocity();
+        assert!(
+            [0.0, 3.0].iter().any(|v| (gripper - v).abs() < 1e-6),
+            "seed {seed}: {gripper}"
+        );
+        let wrist = arm.moteus(1).unwrap().velocity() * 360.0;
+        assert!(
+            [0.0, 6.0].iter().any(|v| (wrist - v).abs() < 0.1),
+            "seed {seed}: {wrist}"
+        );
+        assert!(
+            [0.0, 30.0].contains(&orion_value(&arm, "TRM")),
+            "seed {seed}"
+        );
+    }
+
+    let r = answer(
+        &mut arm,
+        &stream_axes(9, [60.0, 1.0, 1.0, 1.0]).replace(
+            r#""stream":true"#,
+            r#""stream":true,"sync_mode":"sequential""#,
+        ),
+    );
+    assert_eq!(r["error"]["kind"], "invalid", "{r}");
+    assert_eq!(
+        r["error"]["message"],
+        "a stream's setpoints go at once; sync_mode sequential waits for each axis to arrive: a stream line is simultaneous or independent"
+    );
+}
+
+/// What the every-dialect property test found, kept: the Orion servo held
+/// right after a move that was still in flight and limits narrowed behind
+/// it. The hold once sent the angle the bridge last knew (the move before),
+/// which the new limits no longer allowed; the servo holds its last angle
+/// by itself, so a hold sends it nothing.
+#[test]
+fn the_orion_servo_held_behind_a_move_in_flight_stays_within_narrowed_limits() {
+    let ops = vec![
+        Mixed::Move {
+            client: 0,
+            motor: 4,
+            setpoint: 0.0,
+        },
+        Mixed::Other(Op::Wait { ms: 1 }),
+        Mixed::Move {
+            client: 0,
+            motor: 4,
+            setpoint: -65.0,
+        },
+        Mixed::Limits {
+            client: 0,
+            motor: 4,
+            max: -45.0,
+        },
+        Mixed::Motor {
+            client: 0,
+            motor: 4,
+            action: "hold",
+        },
+        Mixed::Other(Op::Release { client: 0 }),
+    ];
+    let mut arm = every_dialect_arm(0);
+    let mut t = MixedTally::default();
+    play_mixed(&mut arm, &ops, &mut t);
+    arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+    collect(&mut arm, &mut t.tally);
     check_mixed(&arm, &t);
 }

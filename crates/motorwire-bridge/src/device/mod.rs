@@ -276,6 +276,89 @@ impl Device {
         }
     }
 
+    /// What a motor line (`{"motor":action,...}`) sends the device, by its
+    /// dialect's own means ([`MotorOrder`]). `decel`: the limits'
+    /// deceleration in force (degrees a second squared); `now_ms`: the
+    /// compact command's timestamp.
+    ///
+    /// - hold: a compact device's velocity 0, a moteus controller's
+    ///   velocity 0 within the deceleration (position NaN: it holds where
+    ///   it stops), an Orion speed motor's 0; the Orion servo holds its
+    ///   last angle by itself (the controller moves it there at once), so
+    ///   nothing is sent; an iRPC joint's is planned by the engine (a move
+    ///   to where it can stop);
+    /// - free: iRPC Deactivate, moteus stop mode, compact disabled; the
+    ///   Orion controller has no torque off: a speed motor is brought to 0
+    ///   (said), the servo is refused;
+    /// - stop: what the emergency stop sends it, for it alone (iRPC
+    ///   Deactivate, moteus stop or brake as the map says, the compact
+    ///   emergency-stop flag), an Orion motor as held (the controller's
+    ///   own stop is the whole arm's).
+    ///
+    /// # Errors
+    /// What the device cannot do at all, said for a person.
+    pub(crate) fn motor_order(
+        self,
+        action: crate::MotorAction,
+        decel: Option<f64>,
+        now_ms: u64,
+    ) -> Result<MotorOrder, String> {
+        use crate::MotorAction::{Free, Hold, Stop};
+        let compact = |hash, mode, flags: Flags| {
+            Order::Compact(CompactCommand {
+                motor: hash,
+                timestamp_ms: now_ms,
+                control_mode: mode,
+                flags: flags.union(Flags::REQUIRE_ACK).union(Flags::PRIORITY_HIGH),
+                setpoint: 0.0,
+                velocity_limit: None,
+                torque_limit: None,
+            })
+        };
+        let order = match (self, action) {
+            (Self::Irpc { .. }, Hold) => return Ok(MotorOrder::Planned),
+            (Self::Irpc { .. }, Free | Stop) => Order::Irpc(Payload::Deactivate),
+            (Self::Compact { hash, .. }, Hold) => compact(hash, CompactMode::Velocity, Flags::NONE),
+            (Self::Compact { hash, .. }, Free) => compact(hash, CompactMode::Disabled, Flags::NONE),
+            (Self::Compact { hash, .. }, Stop) => {
+                compact(hash, CompactMode::Disabled, Flags::EMERGENCY_STOP)
+            }
+            (Self::Moteus { .. }, Hold) => {
+                Order::Moteus(MoteusCommand::Position(motorwire_moteus::PositionArgs {
+                    position: Some(f64::NAN),
+                    velocity: Some(0.0),
+                    accel_limit: decel.map(|d| d / 360.0),
+                    ..motorwire_moteus::PositionArgs::default()
+                }))
+            }
+            (Self::Moteus { .. }, Free) => Order::Moteus(MoteusCommand::Stop),
+            (Self::Moteus { brake, .. }, Stop) => Order::Moteus(moteus_stop(brake)),
+            (Self::Orion(m), _) if m.quantity() != Quantity::PositionDegrees => {
+                let loss = (action == Free).then(|| {
+                    "the Orion arm controller has no torque off: the motor was brought to 0"
+                        .to_owned()
+                });
+                return Ok(MotorOrder::Send(
+                    Order::Orion(OrionOrder::Set(m, 0.0)),
+                    loss,
+                ));
+            }
+            (Self::Orion(m), Free) => {
+                return Err(format!(
+                    "the Orion arm controller has no torque off for its servo {}: it holds it where it was sent (hold or stop it where it stands)",
+                    m.key()
+                ));
+            }
+            (Self::Orion(m), Hold | Stop) => {
+                return Ok(MotorOrder::Nothing(format!(
+                    "the Orion servo {} holds the angle it was last sent by itself: nothing was sent",
+                    m.key()
+                )));
+            }
+        };
+        Ok(MotorOrder::Send(order, None))
+    }
+
     /// Whether its moves are planned by the bridge from its state, with
     /// the other such devices of a multi-axis line (an iRPC joint's
     /// SetTargetV2); the others take a command on its own
@@ -396,6 +479,20 @@ const fn moteus_stop(brake: bool) -> MoteusCommand {
     } else {
         MoteusCommand::Stop
     }
+}
+
+/// What a motor line sends its device ([`Device::motor_order`]). (Made
+/// once a motor line and matched at once: its size does not matter.)
+#[derive(Debug, Clone, PartialEq)]
+#[allow(clippy::large_enum_variant)]
+pub(crate) enum MotorOrder {
+    /// This order, with what it does otherwise than asked (said in the
+    /// result's losses).
+    Send(Order, Option<String>),
+    /// A move the engine plans from the device's state (an iRPC hold).
+    Planned,
+    /// Nothing: the device does it by itself (why, said in the losses).
+    Nothing(String),
 }
 
 /// A command translated for a device that takes it on its own.
@@ -574,6 +671,40 @@ impl Order {
                         || a.feedforward_torque.is_some_and(|t| t != 0.0))
             }
             Self::Moteus(_) => false,
+        }
+    }
+
+    /// Whether it stops a device whose acknowledgement cannot be tied to
+    /// it (a compact command: the device's next feedback record, whatever
+    /// caused it, acknowledges it), and how its feedback shows it taken:
+    /// `Some(true)`, the `enabled` status cleared (disabled, or the
+    /// emergency-stop flag); `Some(false)`, slowing to rest (velocity 0).
+    pub(crate) fn unconfirmed_stop(&self) -> Option<bool> {
+        match self {
+            Self::Compact(c)
+                if c.flags.contains(Flags::EMERGENCY_STOP)
+                    || c.control_mode == CompactMode::Disabled =>
+            {
+                Some(true)
+            }
+            Self::Compact(c) if c.control_mode == CompactMode::Velocity && c.setpoint == 0.0 => {
+                Some(false)
+            }
+            _ => None,
+        }
+    }
+
+    /// The same order with `now_ms` as its timestamp where it carries one
+    /// (a compact command sent again is new bytes: a device executes it
+    /// even if it took the first).
+    #[must_use]
+    pub(crate) fn restamped(self, now_ms: u64) -> Self {
+        match self {
+            Self::Compact(c) => Self::Compact(CompactCommand {
+                timestamp_ms: now_ms,
+                ..c
+            }),
+            other => other,
         }
     }
 
