@@ -4448,7 +4448,24 @@ impl Bridge {
             }
             return;
         }
-        let due = self.joints_where(|j| j.deadman.is_some_and(|d| now >= d));
+        let mut due = self.joints_where(|j| j.deadman.is_some_and(|d| now >= d));
+        // A device whose stop is in flight (a motor line's hold, free or
+        // stop) is being stopped: the deadman's own stop behind it would
+        // only undo a hold (a moteus controller's stop mode is torque off).
+        due.retain(|&ji| {
+            let stopping = self
+                .joints
+                .get(ji)
+                .and_then(|j| j.busy)
+                .and_then(|s| self.jobs.get(&s.job)?.axes.get(s.axis))
+                .is_some_and(|a| {
+                    matches!(a.state, AxisState::InFlight { payload, .. } if payload.ends_setpoint())
+                });
+            if stopping && let Some(j) = self.joints.get_mut(ji) {
+                j.deadman = None;
+            }
+            !stopping
+        });
         self.hold_still(now, due, true);
     }
 

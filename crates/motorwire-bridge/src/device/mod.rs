@@ -694,6 +694,25 @@ impl Order {
         }
     }
 
+    /// Whether it ends a velocity or torque setpoint its device holds (a
+    /// stop of the device's own, or a velocity 0): the deadman has nothing
+    /// to add to one in flight.
+    pub(crate) fn ends_setpoint(&self) -> bool {
+        match self {
+            Self::Irpc(_) | Self::Orion(OrionOrder::Command(_)) => false,
+            Self::Compact(_) => self.unconfirmed_stop().is_some(),
+            Self::Orion(OrionOrder::Set(m, v)) => {
+                m.quantity() != Quantity::PositionDegrees && *v == 0.0
+            }
+            Self::Moteus(MoteusCommand::Stop | MoteusCommand::Brake) => true,
+            Self::Moteus(MoteusCommand::Position(a)) => {
+                !a.position.is_some_and(f64::is_finite)
+                    && a.velocity == Some(0.0)
+                    && a.feedforward_torque.is_none_or(|t| t == 0.0)
+            }
+        }
+    }
+
     /// The same order with `now_ms` as its timestamp where it carries one
     /// (a compact command sent again is new bytes: a device executes it
     /// even if it took the first).
