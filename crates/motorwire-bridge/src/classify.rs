@@ -861,27 +861,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
         };
     }
     if let Some((_, a)) = members.iter().find(|(k, _)| k == "motor") {
-        let action = a.as_str().and_then(MotorAction::from_name);
-        return match (action, members.len(), &label) {
-            (Some(action), 2, Some(Label::Motor(m))) => Input::Motor {
-                action,
-                motor_id: m.clone(),
-            },
-            _ => Input::Invalid {
-                message: format!(
-                    r#"a motor line is exactly {{"motor":"hold"|"free"|"stop","motor_id":"..."}}{}"#,
-                    match a.as_str() {
-                        Some(name) if action.is_none() => format!(
-                            ": {name:?} is not one (hold: stop and hold, torque on; free: torque off; stop: the motor's own stop)"
-                        ),
-                        _ => String::new(),
-                    }
-                ),
-                violations: None,
-                more: 0,
-                label,
-            },
-        };
+        return motor_line(&members, a, label);
     }
     if let Some((_, hz)) = members.iter().find(|(k, _)| k == "feedback_hz") {
         return match (hz.as_f64(), members.len()) {
@@ -905,6 +885,57 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             more: err.more(),
             label,
         },
+    }
+}
+
+/// `{"motor":action,"motor_id":M}` (`action` the value of `motor`), or
+/// why not, naming what is wrong.
+fn motor_line(members: &[(String, Value)], action: &Value, label: Option<Label>) -> Input {
+    const FORM: &str = r#"a motor line is exactly {"motor":"hold"|"free"|"stop","motor_id":"..."}"#;
+    // What a refusal quotes of a value, at most (a megabyte of it is not
+    // said back).
+    let clip = |t: String| match t.char_indices().nth(64) {
+        Some((at, _)) => format!("{}...", t.get(..at).unwrap_or_default()),
+        None => t,
+    };
+    let named = |k: &str| members.iter().filter(|(n, _)| n == k).count();
+    let others: Vec<&str> = members
+        .iter()
+        .map(|(k, _)| k.as_str())
+        .filter(|k| *k != "motor" && *k != "motor_id")
+        .collect();
+    let id = members
+        .iter()
+        .find(|(k, _)| k == "motor_id")
+        .map(|(_, v)| v);
+    let chosen = action.as_str().and_then(MotorAction::from_name);
+    let why = match (action.as_str(), chosen, id) {
+        (None, ..) => format!(
+            "motor is {}: it is \"hold\", \"free\" or \"stop\"",
+            clip(action.to_string())
+        ),
+        (Some(name), None, _) => format!(
+            "{} is not one (hold: stop and hold, torque on; free: torque off; stop: the motor's own stop)",
+            clip(format!("{name:?}"))
+        ),
+        _ if named("motor") > 1 || named("motor_id") > 1 => {
+            "motor or motor_id appears more than once".to_owned()
+        }
+        _ if !others.is_empty() => format!("it also carries {}", names(&others)),
+        (.., None) => "it names no motor_id".to_owned(),
+        (_, Some(action), Some(Value::String(m))) => {
+            return Input::Motor {
+                action,
+                motor_id: m.clone(),
+            };
+        }
+        (.., Some(v)) => format!("motor_id is {}: it is a motor's name", clip(v.to_string())),
+    };
+    Input::Invalid {
+        message: format!("{FORM}: {why}"),
+        violations: None,
+        more: 0,
+        label,
     }
 }
 
@@ -955,6 +986,23 @@ fn stream_line(
     text.push('}');
     match validator.parse_any(&text) {
         Ok(Message::MotorCommand(c)) if stream => Input::Stream(Box::new(c)),
+        // (Read without `stream`: the one rule of the validator that
+        // needs it is checked here.)
+        Ok(Message::MultiAxisCommand(c))
+            if stream && c.sync_mode == Some(motorwire_wia::SyncMode::Sequential) =>
+        {
+            let v = motorwire_wia::Violation::new(
+                "/sync_mode",
+                motorwire_wia::Rule::Stream,
+                motorwire_wia::STREAM_SEQUENTIAL,
+            );
+            Input::Invalid {
+                message: format!("not a valid WIA message: {v}"),
+                violations: serde_json::to_value([v]).ok(),
+                more: 0,
+                label,
+            }
+        }
         Ok(Message::MultiAxisCommand(c)) if stream => Input::StreamAxes(Box::new(c)),
         Ok(m @ (Message::MotorCommand(_) | Message::MultiAxisCommand(_))) => {
             Input::Message(Box::new(m))
@@ -1337,32 +1385,47 @@ mod tests {
             }
         }
         let form = r#"a motor line is exactly {"motor":"hold"|"free"|"stop","motor_id":"..."}"#;
-        for (line, message) in [
+        for (line, why) in [
             (
-                r#"{"motor":"halt","motor_id":"knee"}"#.to_owned(),
-                format!(
-                    r#"{form}: "halt" is not one (hold: stop and hold, torque on; free: torque off; stop: the motor's own stop)"#
-                ),
+                r#"{"motor":"halt","motor_id":"knee"}"#,
+                r#""halt" is not one (hold: stop and hold, torque on; free: torque off; stop: the motor's own stop)"#,
             ),
-            (r#"{"motor":"hold"}"#.to_owned(), form.to_owned()),
+            (r#"{"motor":"hold"}"#, "it names no motor_id"),
             (
-                r#"{"motor":"hold","motor_id":"knee","timestamp":1}"#.to_owned(),
-                form.to_owned(),
+                r#"{"motor":"hold","motor_id":"knee","timestamp":1,"x":2}"#,
+                "it also carries timestamp, x",
             ),
             (
-                r#"{"motor":true,"motor_id":"knee"}"#.to_owned(),
-                form.to_owned(),
+                r#"{"motor":true,"motor_id":"knee"}"#,
+                r#"motor is true: it is "hold", "free" or "stop""#,
             ),
             (
-                r#"{"motor":"hold","motor_id":7}"#.to_owned(),
-                form.to_owned(),
+                r#"{"motor":"hold","motor_id":7}"#,
+                "motor_id is 7: it is a motor's name",
+            ),
+            (
+                r#"{"motor":"hold","motor_id":"knee","motor_id":"hip"}"#,
+                "motor or motor_id appears more than once",
             ),
         ] {
-            let Input::Invalid { message: m, .. } = classify(&v, &line) else {
+            let message = format!("{form}: {why}");
+            let Input::Invalid { message: m, .. } = classify(&v, line) else {
                 panic!("{line}");
             };
             assert_eq!(m, message, "{line}");
         }
+        // A huge value is not said back whole.
+        let huge = format!(r#"{{"motor":"{}","motor_id":"knee"}}"#, "h".repeat(100_000));
+        let Input::Invalid { message: m, .. } = classify(&v, &huge) else {
+            panic!("huge");
+        };
+        assert_eq!(
+            m,
+            format!(
+                r#"{form}: "{}... is not one (hold: stop and hold, torque on; free: torque off; stop: the motor's own stop)"#,
+                "h".repeat(63)
+            )
+        );
         assert!(matches!(
             classify(
                 &v,

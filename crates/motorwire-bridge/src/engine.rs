@@ -1091,16 +1091,7 @@ impl Bridge {
                     stream: true,
                     ..meta
                 };
-                if cmd.sync_mode == Some(SyncMode::Sequential) {
-                    let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
-                    let e = ErrorBody::new(
-                        ErrorKind::Invalid,
-                        "a stream's setpoints go at once; sync_mode sequential waits for each axis to arrive: a stream line is simultaneous or independent",
-                    );
-                    self.refuse(&meta, e);
-                } else {
-                    self.multi_axis(now, meta, &cmd);
-                }
+                self.multi_axis(now, meta, &cmd);
             }
             Input::Motor { action, motor_id } => self.motor_line(now, meta, action, &motor_id),
             // Read where it lies: a command is the largest message, and
@@ -1339,6 +1330,21 @@ impl Bridge {
             });
             return self.refuse(&meta, e);
         };
+        // A joint never started (its lifecycle left to the user, or its
+        // start failed) has no torque to keep on.
+        if action == MotorAction::Hold
+            && device.supports(Capability::Lifecycle)
+            && self.joints.get(ji).is_some_and(|j| !j.active && !j.freed)
+        {
+            let e = ErrorBody::refused(
+                BridgeRule::ActionNotExpressible,
+                format!(
+                    "{motor} is not active (never started: --no-activate, or its start failed), so there is nothing to hold; {{\"reset\":\"{motor}\"}} starts it"
+                ),
+            )
+            .about(motor);
+            return self.refuse(&meta, e);
+        }
         let Some(m) = self.map.motor(motor) else {
             return;
         };
@@ -1363,8 +1369,8 @@ impl Bridge {
                 said(why);
                 None
             }
-            Ok(MotorOrder::Planned) => Some(
-                match self.hold_move(ji, motor, unit, &limits, decel, now_ms) {
+            Ok(MotorOrder::Planned) => {
+                Some(match self.hold_move(ji, motor, unit, &limits, now_ms) {
                     Ok(payload) => Axis::new(motor.to_owned(), ji, [payload]),
                     Err(why) => {
                         // When in doubt, stop: a hold that cannot be planned
@@ -1375,8 +1381,8 @@ impl Bridge {
                         let stop = self.orders_for(ji, &[Payload::Deactivate]);
                         Axis::of(motor.to_owned(), ji, stop)
                     }
-                },
-            ),
+                })
+            }
             Err(why) => {
                 let e = ErrorBody::refused(BridgeRule::ActionNotExpressible, why).about(motor);
                 return self.refuse(&meta, e);
@@ -1389,50 +1395,57 @@ impl Bridge {
         self.command_job(now, meta, axis.into_iter().collect(), report);
     }
 
-    /// An iRPC joint's hold: a move to where it can stop from how it moves
-    /// now, braked at `decel` (degrees a second squared; where it stands
-    /// without one), within the position limits in force, gated and
-    /// planned as any move is; why not, said for a person.
+    /// An iRPC joint's hold: a move to where it comes to rest from how it
+    /// moves now (position, velocity and acceleration), as the joint
+    /// itself plans with the limits in force (its deceleration and jerk):
+    /// the farthest point of the joint's own plan back to where it is now,
+    /// which passes it and comes back, is where it can stop. Within the
+    /// position limits in force, gated and planned as any move is; why
+    /// not, said for a person.
     fn hold_move(
         &mut self,
         ji: usize,
         motor: &str,
         unit: AngleUnit,
         limits: &Limits,
-        decel: Option<f64>,
         now_ms: f64,
     ) -> Result<Payload, String> {
-        let Some((p, v, _)) = self.joints.get(ji).and_then(|j| j.state_at(self.now)) else {
+        let Some((p, v, a)) = self.joints.get(ji).and_then(|j| j.state_at(self.now)) else {
             return Err(
                 "its position is not known yet (no feedback), so no hold could be planned"
                     .to_owned(),
             );
         };
-        let mut stop_at = p + decel.map_or(0.0, |d| v * v.abs() / (2.0 * d));
-        if let Some(max) = limits.max_position {
-            stop_at = stop_at.min(unit.to_degrees(max));
-        }
-        if let Some(min) = limits.min_position {
-            stop_at = stop_at.max(unit.to_degrees(min));
-        }
-        let cmd = MotorCommand {
-            motor_id: motor.to_owned(),
-            timestamp: now_ms,
-            control_mode: motorwire_core::ControlMode::Position,
-            setpoint: unit.from_degrees(stop_at),
-            velocity_limit: None,
-            acceleration_limit: None,
-            torque_limit: None,
-            pid_gains: None,
-            impedance_params: None,
-            filter_config: None,
-            safety_limits: None,
-            priority: None,
-            metadata: None,
-            extra: serde_json::Map::new(),
+        let within = |deg: f64| {
+            let mut x = deg;
+            if let Some(max) = limits.max_position {
+                x = x.min(unit.to_degrees(max));
+            }
+            if let Some(min) = limits.min_position {
+                x = x.max(unit.to_degrees(min));
+            }
+            x
         };
-        let (t, m, effective) =
-            motorwire_translate::to_irpc_gated(&self.map, &cmd).map_err(|r| r.to_string())?;
+        let here = self.hold_payload(motor, unit, within(p), now_ms)?;
+        // Moving: where the joint's own plan back to here turns.
+        let stop_at = if v == 0.0 && a == 0.0 {
+            p
+        } else {
+            let req = here.planner_request(p, v).with_start_acceleration(a);
+            let e = motorwire_planner::plan(&req)
+                .map_err(|e| format!("the joint cannot plan a stop: {e}"))?
+                .position_extrema();
+            if v > 0.0 || (v == 0.0 && a > 0.0) {
+                e.max
+            } else {
+                e.min
+            }
+        };
+        let (t, m, effective) = motorwire_translate::to_irpc_gated(
+            &self.map,
+            &Self::position_command(motor, unit.from_degrees(within(stop_at)), now_ms),
+        )
+        .map_err(|r| r.to_string())?;
         let planned = planned_within_limits(
             self.joints.get(ji),
             self.now,
@@ -1449,6 +1462,47 @@ impl Bridge {
             .ok_or_else(|| "no move was made".to_owned())?;
         self.keep_plan(ji, planned);
         Ok(payload)
+    }
+
+    /// The `SetTargetV2` a position command to `deg` makes for `motor`,
+    /// with the limits in force.
+    fn hold_payload(
+        &self,
+        motor: &str,
+        unit: AngleUnit,
+        deg: f64,
+        now_ms: f64,
+    ) -> Result<motorwire_irpc::SetTargetPayloadV2, String> {
+        let (t, ..) = motorwire_translate::to_irpc_gated(
+            &self.map,
+            &Self::position_command(motor, unit.from_degrees(deg), now_ms),
+        )
+        .map_err(|r| r.to_string())?;
+        match t.value.payloads.first() {
+            Some(Payload::SetTargetV2(p)) => Ok(*p),
+            _ => Err("no move was made".to_owned()),
+        }
+    }
+
+    /// A position command for `motor` to `setpoint` (its unit), nothing
+    /// else given: the limits in force apply.
+    fn position_command(motor: &str, setpoint: f64, now_ms: f64) -> MotorCommand {
+        MotorCommand {
+            motor_id: motor.to_owned(),
+            timestamp: now_ms,
+            control_mode: motorwire_core::ControlMode::Position,
+            setpoint,
+            velocity_limit: None,
+            acceleration_limit: None,
+            torque_limit: None,
+            pid_gains: None,
+            impedance_params: None,
+            filter_config: None,
+            safety_limits: None,
+            priority: None,
+            metadata: None,
+            extra: serde_json::Map::new(),
+        }
     }
 
     /// What waits for joint `ji` from command lines, given up for a motor
@@ -3527,7 +3581,12 @@ impl Bridge {
             || (c.outcome == Outcome::TimedOut && payload.holds_setpoint())
         {
             self.track(ji, payload, c.at);
-            if payload.is_setpoint() {
+            // A line's stop of the device (a motor line's free or stop, a
+            // `disabled`) takes it as a move does.
+            let stops = kind == JobKind::Command
+                && (payload.ends_setpoint()
+                    || payload.lifecycle_payload() == Some(Payload::Deactivate));
+            if payload.is_setpoint() || stops {
                 self.taken(
                     ji,
                     step.job,
@@ -3589,6 +3648,17 @@ impl Bridge {
     /// setpoint it holds.
     fn track(&mut self, ji: usize, order: Order, at: Duration) {
         let Some(j) = self.joints.get(ji) else { return };
+        // A line that leaves it inactive again waits behind this order.
+        let deactivation_waits = j.queue.iter().any(|s| {
+            self.jobs
+                .get(&s.job)
+                .and_then(|job| job.axes.get(s.axis))
+                .is_some_and(|a| {
+                    a.payloads
+                        .iter()
+                        .any(|o| o.lifecycle_payload() == Some(Payload::Deactivate))
+                })
+        });
         // Planned from where it was when the order was sent, as the
         // device plans it.
         let sent_from = j.sending.map(|(_, from)| from);
@@ -3646,8 +3716,11 @@ impl Bridge {
         }
         if let Some(active) = effect.active {
             j.active = active;
-            // Active again: its next command needs no Activate first.
-            j.freed &= !active;
+            // Active again, and no line waits to leave it inactive: its
+            // next command needs no Activate first.
+            if active && !deactivation_waits {
+                j.freed = false;
+            }
         }
         if effect.settles {
             j.unresolved = None;
@@ -5442,13 +5515,18 @@ fn failure_error(failures: &[StepReport], cut: Option<&str>) -> ErrorBody {
             ErrorKind::Cancelled,
             "cancelled by an emergency stop or the end; nothing of it runs after the stop",
         ),
+        // What replaced it, as its step says (a newer move, a stream's
+        // setpoint, a motor line).
         Some(StepOutcome::Superseded) => (
             ErrorKind::Superseded,
-            "a newer position command replaced it before it was sent",
+            worst.map_or(
+                "a newer command for the motor replaced it before it was sent",
+                |f| f.message.as_ref(),
+            ),
         ),
         _ => (ErrorKind::NotSent, "not every part could be sent"),
     };
-    let mut e = ErrorBody::new(kind, message);
+    let mut e = ErrorBody::new(kind, message.to_owned());
     if let [only] = failures {
         e.motor = Some(only.motor.clone());
     }

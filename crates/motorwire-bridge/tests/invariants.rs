@@ -2838,9 +2838,19 @@ fn each_motor_is_held_freed_and_stopped_alone_on_every_dialect() {
     let r = answer(&mut arm, &motor_line("hold", "elbow"));
     ok(&r);
     assert_eq!(r["motor_id"], "elbow");
-    arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+    // Still speeding up when held: it comes to rest where its own plan
+    // can stop it, and does not pass that point to come back to it (the
+    // hold's target once ignored its acceleration and jerk: 17.5 sent, 58.7
+    // reached, then back).
+    let mut farthest = position_of(&arm, 2);
+    let end = arm.now() + Duration::from_secs(2);
+    while arm.now() < end {
+        arm.step(Duration::from_millis(2)).unwrap();
+        farthest = farthest.max(position_of(&arm, 2));
+    }
     let held = still(&mut arm, 2);
     assert!(held > 5.0 && held < 135.0, "held at {held}");
+    assert!(farthest - held < 0.5, "went to {farthest}, held at {held}");
     assert_eq!(arm.joint(0x12).unwrap().state(), LifecycleState::Active);
     for action in ["free", "stop"] {
         ok(&answer(&mut arm, &motor_line(action, "elbow")));
@@ -3249,8 +3259,45 @@ fn a_multi_axis_stream_line_moves_every_dialect_with_one_result() {
     assert_eq!(r["error"]["kind"], "invalid", "{r}");
     assert_eq!(
         r["error"]["message"],
-        "a stream's setpoints go at once; sync_mode sequential waits for each axis to arrive: a stream line is simultaneous or independent"
+        "not a valid WIA message: /sync_mode: a stream's setpoints go at once; sync_mode sequential waits for each axis to arrive: a stream line is simultaneous or independent (stream)"
     );
+}
+
+/// What a hostile run found, kept: a joint freed (or stopped), moved and
+/// disabled by three lines at once. The move's Activate, acked after the
+/// `disabled` was taken, said the joint no longer needed one, and every
+/// later move was Nacked (not active) until a reset.
+#[test]
+fn a_joint_freed_moved_and_disabled_at_once_moves_on_its_next_command() {
+    for first in ["free", "stop"] {
+        let mut arm = every_dialect_arm_with(Faults::default(), 3);
+        arm.line(Origin(9), &motor_line(first, "elbow"));
+        arm.line(Origin(9), &command("elbow", 30.0));
+        arm.line(
+            Origin(9),
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"disabled","setpoint":0}"#,
+        );
+        arm.run_until(arm.now() + Duration::from_millis(100))
+            .unwrap();
+        let results = arm.take_results();
+        assert_eq!(results.len(), 3, "{results:?}");
+        assert!(results.iter().all(|r| r["ok"] == true), "{results:?}");
+        assert_eq!(arm.joint(0x12).unwrap().state(), LifecycleState::Inactive);
+        for target in [44.0, 20.0] {
+            let r = answer(&mut arm, &command("elbow", target));
+            assert_eq!(r["ok"], true, "{first}: {r}");
+            arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+            assert!((position_of(&arm, 2) - target).abs() < 0.5, "{first}");
+        }
+        let log = arm.joint(0x12).unwrap().log();
+        assert!(
+            log.iter().all(|e| matches!(e.answer, Payload::Ack(_))),
+            "{first}: {:?}",
+            log.iter()
+                .filter(|e| !matches!(e.answer, Payload::Ack(_)))
+                .collect::<Vec<_>>()
+        );
+    }
 }
 
 /// What the every-dialect property test found, kept: the Orion servo held
@@ -3290,4 +3337,35 @@ fn the_orion_servo_held_behind_a_move_in_flight_stays_within_narrowed_limits() {
     arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
     collect(&mut arm, &mut t.tally);
     check_mixed(&arm, &t);
+}
+
+/// A motor line ends the watch on the motor's earlier move: its
+/// completion says it did not arrive, superseded by the motor line (a free
+/// or a stop once left it to time out, or to the next ordinary move).
+#[test]
+fn a_motor_line_ends_the_watch_on_the_motors_earlier_move() {
+    for action in ["hold", "free", "stop"] {
+        let mut arm = every_dialect_arm_with(Faults::default(), 3);
+        arm.line(Origin(9), &command("elbow", 140.0));
+        arm.run_until(arm.now() + Duration::from_millis(300))
+            .unwrap();
+        arm.line(Origin(9), &motor_line(action, "elbow"));
+        arm.run_until(arm.now() + Duration::from_secs(1)).unwrap();
+        // (An iRPC joint's hold is a move: its own completion follows.)
+        let done: Vec<Value> = arrivals(&arm.take_outputs())
+            .into_iter()
+            .filter(|a| a["line"] == 1)
+            .collect();
+        assert_eq!(done.len(), 1, "{action}: {done:?}");
+        assert_eq!(
+            (&done[0]["line"], &done[0]["arrived"], &done[0]["reason"]),
+            (
+                &Value::from(1),
+                &Value::Bool(false),
+                &Value::from("superseded by line 2 of client 9")
+            ),
+            "{action}: {}",
+            done[0]
+        );
+    }
 }

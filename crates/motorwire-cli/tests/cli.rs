@@ -473,6 +473,16 @@ fn the_library_validate_translate_and_the_bridge_read_a_line_alike() {
         // A multi-axis command's stream: a policy's tick in one line.
         (multi(r#","stream":true"#), true, ""),
         (multi(r#","stream":2"#), false, "stream is 2"),
+        (
+            multi(r#","stream":true,"sync_mode":"sequential""#),
+            false,
+            "sync_mode sequential waits for each axis to arrive",
+        ),
+        (
+            line(r#","stream":true,"stream":false"#),
+            false,
+            "stream appears 2 times",
+        ),
     ];
     let input: String = cases.iter().map(|(l, ..)| format!("{l}\n")).collect();
     // The library.

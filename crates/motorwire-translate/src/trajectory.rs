@@ -126,6 +126,12 @@ pub fn trajectory_to_irpc(
             field: "max_velocity and max_acceleration",
         });
     };
+    // Braking within the deceleration in force too (the acceleration's
+    // where the limits give none).
+    let max_d = motor
+        .limits
+        .max_deceleration
+        .map_or(max_a, |d| d.min(max_a));
     let w = &traj.waypoints;
     if w.len() < 2 {
         return Err(infeasible(
@@ -319,7 +325,8 @@ pub fn trajectory_to_irpc(
             )
         } else {
             SetTargetPayloadV2::trapezoidal(f(p1), f(deg(max_v)), f(deg(max_a)))
-        };
+        }
+        .with_deceleration(f(deg(max_d)));
         let mut payload = SetTargetPayloadV2 {
             target_velocity: f(v1),
             ..base

@@ -219,3 +219,38 @@ fn a_loop_that_is_not_enabled_runs_once_and_says_so() {
     assert_eq!(loss(r#"{"count": 1}"#), None);
     assert_eq!(loss(r#"{"enabled": false}"#), None);
 }
+
+/// Every segment brakes within the map's deceleration where it is tighter
+/// than the acceleration (the segments carried the acceleration as their
+/// deceleration: 500 on a joint limited to 400), and within the
+/// trajectory's own acceleration where that is tighter still.
+#[test]
+fn each_segment_brakes_within_the_deceleration_in_force() {
+    let braking = BusMap::from_toml(
+        r#"
+        [motors.gripper_axis]
+        dialect = "irpc"
+        node = 0x20
+        limits = { min_position = -10, max_position = 100, max_velocity = 200, max_acceleration = 500, max_deceleration = 400, max_jerk = 5000 }
+        "#,
+    )
+    .unwrap();
+    let mut t = feasible();
+    for (own, decel) in [(450.0, 400.0), (200.0, 200.0)] {
+        t.constraints.as_mut().unwrap().max_acceleration = Some(own);
+        let plan = trajectory_to_irpc(&braking, &t).unwrap().value;
+        for s in &plan.segments {
+            assert_eq!(
+                (s.payload.max_acceleration, s.payload.max_deceleration),
+                (own as f32, decel as f32)
+            );
+        }
+    }
+    // Without a deceleration in the map, the acceleration brakes.
+    let plan = trajectory_to_irpc(&map(), &feasible()).unwrap().value;
+    assert!(
+        plan.segments
+            .iter()
+            .all(|s| s.payload.max_deceleration == 200.0)
+    );
+}

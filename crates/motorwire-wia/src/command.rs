@@ -791,6 +791,15 @@ impl MultiAxisCommand {
         let ts = root.key("timestamp");
         s.command_timestamp(&ts, self.timestamp);
         check_stream(&self.extra, s);
+        if self.extra.get(crate::members::STREAM) == Some(&Value::Bool(true))
+            && self.sync_mode == Some(SyncMode::Sequential)
+        {
+            s.push(
+                &root.key("sync_mode"),
+                Rule::Stream,
+                crate::members::STREAM_SEQUENTIAL.to_owned(),
+            );
+        }
         let motors = root.key("motors");
         s.min_items(&motors, self.motors.len(), 1);
         // Where each motor first appears: one pass, not a search per axis

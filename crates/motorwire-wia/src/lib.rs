@@ -36,7 +36,7 @@ pub use kind::Message as AnyWiaMessage;
 pub use kind::{
     Message, MessageKind, UnknownKindName, WiaMessage, scan_kind_noting, top_level_names,
 };
-pub use members::STREAM;
+pub use members::{STREAM, STREAM_SEQUENTIAL};
 pub use mode_config::{ControlModeConfig, ModeLimits, ModeParameters};
 pub use pid::{OutputLimits, PidConfig, PidConfigGains, SetpointFilter};
 pub use rule::{Level, Rule, Violation};

@@ -149,6 +149,10 @@ fn any_in_parts(
 /// bridge's; a multi-axis one sets each of its motors in one line).
 pub const STREAM: &str = "stream";
 
+/// Why a multi-axis command with `"stream": true` cannot be `sync_mode`
+/// `sequential` (rule `stream`, at `/sync_mode`).
+pub const STREAM_SEQUENTIAL: &str = "a stream's setpoints go at once; sync_mode sequential waits for each axis to arrive: a stream line is simultaneous or independent";
+
 impl Unknowns for crate::MotorCommand {
     fn any_unknown(&self) -> bool {
         self.extra.keys().any(|k| k != STREAM)

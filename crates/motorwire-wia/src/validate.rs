@@ -537,6 +537,25 @@ impl Validator {
                 if self.deny_unknown && msg.may_hold_unknown_members() {
                     violations.extend(crate::members::unknown_members(T::KIND, json));
                 }
+                // motorwire's `stream`, named twice: which one a reader took
+                // would depend on the reader.
+                if matches!(
+                    T::KIND,
+                    MessageKind::MotorCommand | MessageKind::MultiAxisCommand
+                ) && json.contains("\"stream\"")
+                {
+                    let mut times = 0usize;
+                    crate::kind::top_level_names(json, |name| {
+                        times += usize::from(name == crate::members::STREAM.as_bytes());
+                    });
+                    if times > 1 {
+                        violations.push(Violation::new(
+                            "/stream",
+                            Rule::Stream,
+                            format!("stream appears {times} times"),
+                        ));
+                    }
+                }
                 (Some(msg), violations, more)
             }
             Err(e) if e.is_data() => {

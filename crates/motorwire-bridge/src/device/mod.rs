@@ -440,7 +440,14 @@ impl Device {
                     position: Some(rev(p.target_angle)),
                     velocity: Some(rev(p.target_velocity)),
                     velocity_limit: Some(rev(p.max_velocity)),
-                    accel_limit: Some(rev(p.max_acceleration)),
+                    // moteus has one limit for speeding up and braking:
+                    // the tighter (a deceleration of 0 or less is "as the
+                    // acceleration", as iRPC reads it).
+                    accel_limit: Some(rev(if p.max_deceleration > 0.0 {
+                        p.max_acceleration.min(p.max_deceleration)
+                    } else {
+                        p.max_acceleration
+                    })),
                     maximum_torque: max_torque,
                     ..motorwire_moteus::PositionArgs::default()
                 },
@@ -2161,5 +2168,25 @@ mod tests {
         let e = Order::Compact(mv).effect(&cx);
         assert_eq!(e.target, Some(Some(100.0)));
         assert_eq!(e.moving, Moving::Until(Duration::from_millis(2000)));
+    }
+
+    /// A moteus segment brakes within the segment's deceleration where it
+    /// is tighter than its acceleration (moteus has one limit for both).
+    #[test]
+    fn a_moteus_segment_brakes_within_the_tighter_limit() {
+        let moteus = Device::Moteus {
+            id: 1,
+            bus: 0,
+            period_ms: 10,
+            brake: false,
+        };
+        let p = SetTargetPayloadV2::trapezoidal(36.0, 180.0, 720.0);
+        let limit = |p: SetTargetPayloadV2| match moteus.segment_order(p, None) {
+            Some(Order::Moteus(MoteusCommand::Position(a))) => a.accel_limit,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(limit(p), Some(2.0));
+        assert_eq!(limit(p.with_deceleration(360.0)), Some(1.0));
+        assert_eq!(limit(p.with_deceleration(0.0)), Some(2.0));
     }
 }
