@@ -405,6 +405,13 @@ fn ahead(v: f64, a: f64, t: f64) -> (f64, f64) {
 /// on toward the limit as fast before it is braked again.
 const REBRAKE_AFTER: Duration = Duration::from_millis(50);
 
+/// How long a stop taken on an acknowledgement that may have been another
+/// frame's is judged by the device's feedback ([`Bridge::confirm_stop`]).
+const CONFIRM_STOP_FOR: Duration = Duration::from_secs(1);
+
+/// How often such a stop is sent again before the emergency stop.
+const MAX_STOP_RESENDS: u8 = 5;
+
 fn us(d: Duration) -> u64 {
     u64::try_from(d.as_micros()).unwrap_or(u64::MAX)
 }
@@ -1330,21 +1337,6 @@ impl Bridge {
             });
             return self.refuse(&meta, e);
         };
-        // A joint never started (its lifecycle left to the user, or its
-        // start failed) has no torque to keep on.
-        if action == MotorAction::Hold
-            && device.supports(Capability::Lifecycle)
-            && self.joints.get(ji).is_some_and(|j| !j.active && !j.freed)
-        {
-            let e = ErrorBody::refused(
-                BridgeRule::ActionNotExpressible,
-                format!(
-                    "{motor} is not active (never started: --no-activate, or its start failed), so there is nothing to hold; {{\"reset\":\"{motor}\"}} starts it"
-                ),
-            )
-            .about(motor);
-            return self.refuse(&meta, e);
-        }
         let Some(m) = self.map.motor(motor) else {
             return;
         };
@@ -1358,7 +1350,7 @@ impl Bridge {
                 detail: loss.into(),
             });
         };
-        let axis = match device.motor_order(action, decel, now_ms as u64) {
+        let axis = match device.motor_order(action, decel, limits.max_torque, now_ms as u64) {
             Ok(MotorOrder::Send(order, loss)) => {
                 if let Some(loss) = loss {
                     said(loss);
@@ -1372,6 +1364,19 @@ impl Bridge {
             Ok(MotorOrder::Planned) => {
                 Some(match self.hold_move(ji, motor, unit, &limits, now_ms) {
                     Ok(payload) => Axis::new(motor.to_owned(), ji, [payload]),
+                    // A joint not up (never started: its lifecycle left to
+                    // the user, or its start failed) has no torque to keep
+                    // on, and nothing to stop.
+                    Err(why) if !self.joints.get(ji).is_some_and(|j| j.active || j.freed) => {
+                        let e = ErrorBody::refused(
+                            BridgeRule::ActionNotExpressible,
+                            format!(
+                                "{motor} is not active (never started: --no-activate, or its start failed) and {why}; {{\"reset\":\"{motor}\"}} starts it"
+                            ),
+                        )
+                        .about(motor);
+                        return self.refuse(&meta, e);
+                    }
                     Err(why) => {
                         // When in doubt, stop: a hold that cannot be planned
                         // is the joint's own stop.
@@ -1388,10 +1393,9 @@ impl Bridge {
                 return self.refuse(&meta, e);
             }
         };
+        // (The deadman stays armed until the motor line's order is taken:
+        // if it is lost, the deadman's own stop follows.)
         self.give_up_for_motor_line(ji, action);
-        if let Some(j) = self.joints.get_mut(ji) {
-            j.deadman = None;
-        }
         self.command_job(now, meta, axis.into_iter().collect(), report);
     }
 
@@ -1536,15 +1540,17 @@ impl Bridge {
             }
             false
         });
-        // A trajectory running on it: between segments, it ends now; with a
-        // segment in flight, once that is answered.
+        // What runs on it with more to send (a trajectory, looping or not;
+        // a move behind its joint's Activate): between two sends it ends
+        // now; with one in flight, once that is answered.
         if let Some(running) = joint.busy
             && let Some(a) = self
                 .jobs
                 .get_mut(&running.job)
                 .filter(|job| job.kind == JobKind::Command)
                 .and_then(|job| job.axes.get_mut(running.axis))
-            && !a.due.is_empty()
+            && !a.is_done()
+            && (!a.payloads.is_empty() || a.cycle.is_some())
         {
             given_up += 1;
             if a.state == AxisState::Queued {
@@ -1552,7 +1558,7 @@ impl Bridge {
                 joint.busy = None;
                 joint.wake = None;
             } else {
-                a.replaced = true;
+                a.replaced = Some(why);
             }
         }
         self.stats.superseded += given_up;
@@ -2939,7 +2945,7 @@ impl Bridge {
         steps.clear();
         steps.extend(axes.iter().enumerate().map(|(axis, a)| {
             let replaces = a.is_position_move() || (stream && a.is_setpoint());
-            let motion = a.payloads.front().is_some_and(Order::is_setpoint);
+            let motion = a.first_asked().is_some_and(Order::is_setpoint);
             // A trajectory's steps are timed: it replaces a waiting
             // sequential axis, and otherwise queues behind what is
             // there (one running, one scheduled), as it always did.
@@ -2996,8 +3002,10 @@ impl Bridge {
                 .payloads
                 .iter()
                 .any(|o| o.lifecycle_payload() == Some(Payload::Deactivate));
+            // Only a joint the bridge had up (or a line had freed): one
+            // never started, or whose start failed, waits for a reset.
             if deactivates {
-                j.freed = true;
+                j.freed |= j.active;
             } else if j.freed && a.payloads.front().is_some_and(Order::is_setpoint) {
                 for activate in j.device.lifecycle_orders(&[Payload::Activate], 0) {
                     a.payloads.push_front(activate);
@@ -3090,7 +3098,7 @@ impl Bridge {
             joint.busy = None;
             joint.wake = None;
         } else {
-            a.replaced = true;
+            a.replaced = Some(REPLACED_TRAJECTORY);
         }
         None
     }
@@ -3470,6 +3478,9 @@ impl Bridge {
             j.busy = Some(step);
             // Where the move starts from, for the model of it once acked.
             j.sending = j.state_at(now).map(|s| (now, s));
+            // A stop waiting to be confirmed is not sent again over a newer
+            // step (sent again itself, it is judged again once taken).
+            j.unconfirmed_stop = None;
         }
         let sent = if payload.sent_together() {
             self.send_together(now, ji, step, payload)
@@ -3522,8 +3533,8 @@ impl Bridge {
         match &c.outcome {
             Outcome::Acked => {
                 a.acked += 1;
-                if a.replaced {
-                    a.finish(StepOutcome::Superseded, None, REPLACED_TRAJECTORY);
+                if let Some(why) = a.replaced {
+                    a.finish(StepOutcome::Superseded, None, why);
                 } else if a.payloads.is_empty() && a.cycle.is_none() {
                     // A trajectory looping forever has its next cycle to come.
                     a.finish(StepOutcome::Acked, None, "acked");
@@ -3703,8 +3714,9 @@ impl Bridge {
         if order.unconfirmed_stop().is_some() {
             let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
             j.unconfirmed_stop = Some((order, at, speed));
-        } else if effect.deadman.is_some() || effect.target.is_some() {
+        } else {
             j.unconfirmed_stop = None;
+            j.stop_resends = 0;
         }
         if let Some(target) = effect.target {
             j.target = target;
@@ -4525,6 +4537,8 @@ impl Bridge {
         // A device whose stop is in flight (a motor line's hold, free or
         // stop) is being stopped: the deadman's own stop behind it would
         // only undo a hold (a moteus controller's stop mode is torque off).
+        // It looks again [`REBRAKE_AFTER`] on: the stop taken disarms it;
+        // one lost, answered no or not sent leaves it to stop the device.
         due.retain(|&ji| {
             let stopping = self
                 .joints
@@ -4535,7 +4549,7 @@ impl Bridge {
                     matches!(a.state, AxisState::InFlight { payload, .. } if payload.ends_setpoint())
                 });
             if stopping && let Some(j) = self.joints.get_mut(ji) {
-                j.deadman = None;
+                j.deadman = Some(now.saturating_add(REBRAKE_AFTER));
             }
             !stopping
         });
@@ -5016,13 +5030,26 @@ impl Bridge {
 
     /// A stop taken on an acknowledgement that may have been another
     /// frame's (a compact device's: [`Order::unconfirmed_stop`]), judged by
-    /// the feedback heard `at`: still enabled after a disable or an
-    /// emergency stop, or going on as fast [`REBRAKE_AFTER`] after a
-    /// velocity 0, it was lost on the bus and is sent again (with this
-    /// time's timestamp), unless a newer step waits for the device. Seen
-    /// taken, it is forgotten.
+    /// the feedback heard `at`, [`REBRAKE_AFTER`] after it was taken and
+    /// for [`CONFIRM_STOP_FOR`]: still enabled after a disable or an
+    /// emergency stop (seen disabled, it is confirmed), or going at least as
+    /// fast as when it was taken (or, taken at rest, moving) after a
+    /// velocity 0, it
+    /// was lost on the bus and is sent again with this time's timestamp,
+    /// unless a newer step waits for the device; while the emergency stop
+    /// is latched only an emergency stop is. Sent [`MAX_STOP_RESENDS`]
+    /// times and still contradicted: when in doubt, stop (the emergency
+    /// stop). (A velocity 0 lost on a device held still by a torque against
+    /// something shows nothing to judge by: the deadman is what stops it.)
     fn confirm_stop(&mut self, ji: usize, at: Duration) {
         let now_ms = self.unix_ms(at) as u64;
+        let latched = self.latched;
+        let still = self
+            .joints
+            .get(ji)
+            .and_then(|j| self.map.motor(&j.name))
+            .and_then(|m| m.limits.max_velocity)
+            .map_or(1e-3, |v| (v.abs() * 1e-3).max(1e-9));
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
@@ -5033,17 +5060,22 @@ impl Bridge {
         let Some(disables) = order.unconfirmed_stop() else {
             return;
         };
-        let (lost, taken) = if disables {
-            (
-                f.status.enabled == Some(true),
-                f.status.enabled == Some(false),
-            )
+        let emergency = order.is_emergency_stop();
+        let lost = if disables {
+            if f.status.enabled == Some(false) && at >= acked {
+                j.unconfirmed_stop = None;
+                j.stop_resends = 0;
+                return;
+            }
+            f.status.enabled == Some(true)
         } else {
-            let v = f.velocity.abs();
-            (speed > 0.0 && v >= 0.9 * speed, v <= 0.5 * speed)
+            // Not slowing at all (a device braking, however gently, is
+            // slower 50 ms on), or moving where it was taken at rest.
+            f.velocity.abs() > (0.99 * speed).max(still)
         };
-        if taken && at >= acked {
+        if (latched && !emergency) || at > acked.saturating_add(CONFIRM_STOP_FOR) {
             j.unconfirmed_stop = None;
+            j.stop_resends = 0;
             return;
         }
         if !lost
@@ -5053,8 +5085,22 @@ impl Bridge {
         {
             return;
         }
+        if j.stop_resends >= MAX_STOP_RESENDS {
+            j.unconfirmed_stop = None;
+            j.stop_resends = 0;
+            if !latched {
+                let cause = format!(
+                    "{}: its stop was sent {} times and its feedback still shows it {}",
+                    j.name,
+                    MAX_STOP_RESENDS + 1,
+                    if disables { "enabled" } else { "moving" }
+                );
+                self.emergency_stop(at.max(self.now), None, Vec::new(), cause);
+            }
+            return;
+        }
+        j.stop_resends += 1;
         let order = order.restamped(now_ms);
-        j.unconfirmed_stop = Some((order, at, speed));
         self.stats.stops_sent_again += 1;
         let axis = Axis::of(j.name.clone(), ji, [order]);
         self.open_job(

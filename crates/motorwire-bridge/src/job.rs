@@ -133,10 +133,11 @@ pub(crate) struct Axis {
     pub(crate) arrive_by: Option<Duration>,
     /// Its requests acknowledged so far (a trajectory's segments).
     pub(crate) acked: u32,
-    /// A running trajectory a newer position command for its joint
-    /// replaced while a segment was in flight: once that segment is
-    /// answered, the rest is not sent ([`REPLACED_TRAJECTORY`]).
-    pub(crate) replaced: bool,
+    /// A step whose later payloads were replaced while one of them was in
+    /// flight (a running trajectory by a newer position command, anything
+    /// by a motor line): why. Once that payload is answered, the rest is
+    /// not sent.
+    pub(crate) replaced: Option<&'static str>,
 }
 
 /// Why a running trajectory's later segments were not sent.
@@ -171,20 +172,40 @@ impl Axis {
             arrived: false,
             arrive_by: None,
             acked: 0,
-            replaced: false,
+            replaced: None,
         }
     }
 
-    /// Whether it is one position move, which a newer one may replace
-    /// while it waits.
+    /// Its orders after the Activate the bridge puts before a freed
+    /// joint's next motion (`Engine::activate_freed`): what the line asked.
+    fn asked(&self) -> impl Iterator<Item = &Order> {
+        self.payloads
+            .iter()
+            .skip_while(|o| o.lifecycle_payload() == Some(Payload::Activate))
+    }
+
+    /// The first order the line asked of it.
+    pub(crate) fn first_asked(&self) -> Option<&Order> {
+        self.asked().next()
+    }
+
+    /// The one order the line asked of it, if it asked one.
+    fn one_asked(&self) -> Option<&Order> {
+        let mut asked = self.asked();
+        let one = asked.next()?;
+        asked.next().is_none().then_some(one)
+    }
+
+    /// Whether it is one position move (behind a freed joint's Activate
+    /// or not), which a newer one may replace while it waits.
     pub(crate) fn is_position_move(&self) -> bool {
-        self.payloads.len() == 1 && self.payloads.front().is_some_and(Order::is_position_move)
+        self.one_asked().is_some_and(Order::is_position_move)
     }
 
     /// Whether it is one setpoint (position, velocity or torque), which a
     /// stream's newer setpoint may replace while it waits.
     pub(crate) fn is_setpoint(&self) -> bool {
-        self.payloads.len() == 1 && self.payloads.front().is_some_and(Order::is_setpoint)
+        self.one_asked().is_some_and(Order::is_setpoint)
     }
 
     pub(crate) fn finish(

@@ -129,6 +129,9 @@ pub(crate) struct Joint {
     /// then (its unit a second). Its feedback judges it until a newer
     /// setpoint or move is taken; one lost on the bus is sent again.
     pub(crate) unconfirmed_stop: Option<(Order, Duration, f64)>,
+    /// How often that stop was sent again (back to 0 once another order
+    /// is taken).
+    pub(crate) stop_resends: u8,
     /// A line left it inactive (`disabled`, `free`, `stop`): its next
     /// command is preceded by an Activate (a joint inactive for any other
     /// reason, a fault or a failed start, waits for a reset line).
@@ -354,6 +357,7 @@ impl Joint {
             limit_braked: None,
             peak_accel: 0.0,
             unconfirmed_stop: None,
+            stop_resends: 0,
             freed: false,
             needs_reset: None,
             resetting: false,

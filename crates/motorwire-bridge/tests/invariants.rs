@@ -3369,3 +3369,137 @@ fn a_motor_line_ends_the_watch_on_the_motors_earlier_move() {
         );
     }
 }
+
+/// What a hostile review found, kept: a motor line behind a trajectory
+/// that loops forever. With a cycle's last segment in flight the line
+/// waited behind the next cycle for ever; now the loop sends nothing more
+/// once that segment is answered, and the stop runs.
+#[test]
+fn a_motor_line_ends_a_trajectory_that_loops_forever() {
+    for action in ["hold", "free", "stop"] {
+        let mut arm = arm_with(PENDULUM_MAP, Faults::default(), 1);
+        arm.line(Origin(1), PENDULUM);
+        arm.run_until(arm.now() + Duration::from_millis(2_990))
+            .unwrap();
+        arm.take_outputs();
+        let sent = arm.now();
+        arm.line(Origin(1), &motor_line(action, "j"));
+        arm.run_until(arm.now() + Duration::from_millis(500))
+            .unwrap();
+        let results = arm.take_results();
+        let r = results
+            .iter()
+            .find(|r| r["line"] == 2)
+            .unwrap_or_else(|| panic!("{action}: {results:?}"));
+        assert_eq!(r["ok"], true, "{action}: {r}");
+        // Nothing of the loop after the motor line's order.
+        let log = arm.joint(0x20).unwrap().log();
+        let last = log
+            .iter()
+            .rposition(|e| e.at >= sent && !matches!(e.payload, Payload::SetTargetV2(_)));
+        if action != "hold" {
+            let stop = last.unwrap_or_else(|| panic!("{action}: no stop"));
+            assert_eq!(log[stop].payload, Payload::Deactivate);
+            assert!(
+                log[stop..]
+                    .iter()
+                    .all(|e| !matches!(e.payload, Payload::SetTargetV2(_))),
+                "{action}"
+            );
+        }
+        arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
+        assert!(!arm.joint(0x20).unwrap().is_moving(), "{action}");
+    }
+}
+
+/// A joint never started (`activate_on_start` off) and freed is not
+/// activated by the next command: only a line the bridge had up is
+/// brought back so (a joint not started, or faulted, waits for a reset).
+#[test]
+fn a_joint_never_started_is_not_activated_by_a_command_after_a_free() {
+    let config = BridgeConfig {
+        activate_on_start: false,
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
+    let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
+    arm.run_until(Duration::from_millis(200)).unwrap();
+    arm.take_outputs();
+    for line in [motor_line("free", "elbow"), command("elbow", 30.0)] {
+        arm.line(Origin(1), &line);
+        arm.run_until(arm.now() + Duration::from_millis(300))
+            .unwrap();
+    }
+    arm.take_outputs();
+    let hold = answer(&mut arm, &motor_line("hold", "elbow"));
+    assert_eq!(hold["error"]["rule"], "action_not_expressible", "{hold}");
+    assert!(
+        arm.joint(0x12)
+            .unwrap()
+            .log()
+            .iter()
+            .all(|e| e.payload != Payload::Activate),
+        "{:?}",
+        arm.joint(0x12).unwrap().log()
+    );
+}
+
+/// A freed joint's next move goes behind an Activate; a motor line that
+/// comes while that Activate is in flight (its answer held back) keeps the
+/// move from going after it.
+#[test]
+fn a_motor_line_keeps_a_freed_joints_move_behind_its_activate_from_going() {
+    for action in ["hold", "free", "stop"] {
+        let config = BridgeConfig {
+            orion: true,
+            ..BridgeConfig::default()
+        };
+        let bridge = Bridge::new(BusMap::from_toml(&every_dialect_map()).unwrap(), config).unwrap();
+        let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
+        arm.count_requests();
+        arm.keep_sent();
+        assert!(
+            arm.run_while(Duration::from_secs(5), |a| a.bridge().is_ready())
+                .unwrap()
+        );
+        let r = answer(&mut arm, &motor_line("free", "elbow"));
+        assert_eq!(r["ok"], true, "{r}");
+        // The elbow's requests so far; the next, the move's Activate, is
+        // answered 200 ms late.
+        let to_elbow = |arm: &SimulatedArm| {
+            arm.sent()
+                .iter()
+                .filter_map(|(_, f)| {
+                    motorwire_irpc::Header::decode_prefix(
+                        motorwire_irpc::WireVersion::V2_0,
+                        f.data(),
+                    )
+                    .ok()
+                    .filter(|(h, _)| h.target_id == 0x12 && h.source_id == 0)
+                    .map(|(h, _)| h.msg_id)
+                })
+                .collect::<BTreeSet<u32>>()
+                .len()
+        };
+        let n = to_elbow(&arm);
+        arm.hold_answers([((0x12, n), arm.now() + Duration::from_millis(200))]);
+        arm.line(Origin(9), &command("elbow", 100.0));
+        arm.run_until(arm.now() + Duration::from_millis(20))
+            .unwrap();
+        assert_eq!(to_elbow(&arm), n + 1, "{action}: the Activate went out");
+        arm.line(Origin(9), &motor_line(action, "elbow"));
+        arm.run_until(arm.now() + Duration::from_secs(1)).unwrap();
+        let moved = arm
+            .joint(0x12)
+            .unwrap()
+            .log()
+            .iter()
+            .any(|e| matches!(e.payload, Payload::SetTargetV2(p) if p.target_angle == 100.0));
+        assert!(!moved, "{action}: the move went after the motor line");
+        let results = arm.take_results();
+        let mv = results.iter().find(|r| r["line"] == 2).unwrap();
+        assert_eq!(mv["error"]["kind"], "superseded", "{action}: {mv}");
+        let motor = results.iter().find(|r| r["line"] == 3).unwrap();
+        assert_eq!(motor["ok"], true, "{action}: {motor}");
+    }
+}

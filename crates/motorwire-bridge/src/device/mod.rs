@@ -278,8 +278,9 @@ impl Device {
 
     /// What a motor line (`{"motor":action,...}`) sends the device, by its
     /// dialect's own means ([`MotorOrder`]). `decel`: the limits'
-    /// deceleration in force (degrees a second squared); `now_ms`: the
-    /// compact command's timestamp.
+    /// deceleration in force (degrees a second squared); `max_torque`: the
+    /// torque limit in force (Nm), a moteus hold's; `now_ms`: the compact
+    /// command's timestamp.
     ///
     /// - hold: a compact device's velocity 0, a moteus controller's
     ///   velocity 0 within the deceleration (position NaN: it holds where
@@ -301,6 +302,7 @@ impl Device {
         self,
         action: crate::MotorAction,
         decel: Option<f64>,
+        max_torque: Option<f64>,
         now_ms: u64,
     ) -> Result<MotorOrder, String> {
         use crate::MotorAction::{Free, Hold, Stop};
@@ -328,6 +330,7 @@ impl Device {
                     position: Some(f64::NAN),
                     velocity: Some(0.0),
                     accel_limit: decel.map(|d| d / 360.0),
+                    maximum_torque: max_torque,
                     ..motorwire_moteus::PositionArgs::default()
                 }))
             }
@@ -718,6 +721,12 @@ impl Order {
                     && a.feedforward_torque.is_none_or(|t| t == 0.0)
             }
         }
+    }
+
+    /// Whether it is a device's emergency stop (a compact command's flag):
+    /// what may still go while the emergency stop is latched.
+    pub(crate) fn is_emergency_stop(&self) -> bool {
+        matches!(self, Self::Compact(c) if c.flags.contains(Flags::EMERGENCY_STOP))
     }
 
     /// The same order with `now_ms` as its timestamp where it carries one
