@@ -3606,6 +3606,12 @@ impl Bridge {
             }
         }
         self.answer_early(step.job);
+        // A stop never answered by a device whose feedback may never come
+        // to judge it by (a compact device answers a command and not much
+        // else): when in doubt, stop again, unless a newer step waits.
+        let stop_again = c.outcome == Outcome::TimedOut
+            && payload.unconfirmed_stop().is_some()
+            && self.joints.get(ji).is_some_and(|j| j.queue.is_empty());
         if more {
             let node = self.joints.get(ji).map_or(0, |j| j.node);
             if !self.send_step(self.now, ji, node, step) {
@@ -3613,6 +3619,9 @@ impl Bridge {
             }
         } else {
             self.pump(ji);
+        }
+        if stop_again {
+            self.stop_again(ji, payload, c.at.max(self.now), "answered");
         }
         self.finish_jobs();
     }
@@ -5042,7 +5051,6 @@ impl Bridge {
     /// stop). (A velocity 0 lost on a device held still by a torque against
     /// something shows nothing to judge by: the deadman is what stops it.)
     fn confirm_stop(&mut self, ji: usize, at: Duration) {
-        let now_ms = self.unix_ms(at) as u64;
         let latched = self.latched;
         let still = self
             .joints
@@ -5085,28 +5093,47 @@ impl Bridge {
         {
             return;
         }
+        j.unconfirmed_stop = None;
+        let seen = if disables {
+            "shown enabled by its feedback"
+        } else {
+            "shown moving by its feedback"
+        };
+        self.stop_again(ji, order, at.max(self.now), seen);
+    }
+
+    /// A stop of device `ji` that its device was not seen to take (`why`:
+    /// not answered, or contradicted by its feedback) sent again, with
+    /// `now`'s timestamp; the [`MAX_STOP_RESENDS`]-th time, when in doubt,
+    /// the emergency stop instead (latched already: nothing more).
+    fn stop_again(&mut self, ji: usize, order: Order, now: Duration, why: &str) {
+        let now_ms = self.unix_ms(now) as u64;
+        let latched = self.latched;
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
+        if latched && !order.is_emergency_stop() {
+            return;
+        }
         if j.stop_resends >= MAX_STOP_RESENDS {
-            j.unconfirmed_stop = None;
             j.stop_resends = 0;
             if !latched {
                 let cause = format!(
-                    "{}: its stop was sent {} times and its feedback still shows it {}",
+                    "{}: its stop was sent {} times and not taken ({why})",
                     j.name,
-                    MAX_STOP_RESENDS + 1,
-                    if disables { "enabled" } else { "moving" }
+                    MAX_STOP_RESENDS + 1
                 );
-                self.emergency_stop(at.max(self.now), None, Vec::new(), cause);
+                self.emergency_stop(now, None, Vec::new(), cause);
             }
             return;
         }
         j.stop_resends += 1;
-        let order = order.restamped(now_ms);
         self.stats.stops_sent_again += 1;
-        let axis = Axis::of(j.name.clone(), ji, [order]);
+        let axis = Axis::of(j.name.clone(), ji, [order.restamped(now_ms)]);
         self.open_job(
             None,
             JobKind::Deadman,
-            at.max(self.now),
+            now,
             vec![axis],
             Report::default(),
             Vec::new(),
