@@ -3668,17 +3668,19 @@ impl Bridge {
     /// setpoint it holds.
     fn track(&mut self, ji: usize, order: Order, at: Duration) {
         let Some(j) = self.joints.get(ji) else { return };
-        // A line that leaves it inactive again waits behind this order.
-        let deactivation_waits = j.queue.iter().any(|s| {
-            self.jobs
-                .get(&s.job)
-                .and_then(|job| job.axes.get(s.axis))
-                .is_some_and(|a| {
-                    a.payloads
-                        .iter()
-                        .any(|o| o.lifecycle_payload() == Some(Payload::Deactivate))
-                })
-        });
+        // A line that leaves it inactive again waits behind this order
+        // (looked for only behind an Activate: every ack comes here).
+        let deactivation_waits = order.lifecycle_payload() == Some(Payload::Activate)
+            && j.queue.iter().any(|s| {
+                self.jobs
+                    .get(&s.job)
+                    .and_then(|job| job.axes.get(s.axis))
+                    .is_some_and(|a| {
+                        a.payloads
+                            .iter()
+                            .any(|o| o.lifecycle_payload() == Some(Payload::Deactivate))
+                    })
+            });
         // Planned from where it was when the order was sent, as the
         // device plans it.
         let sent_from = j.sending.map(|(_, from)| from);
@@ -4616,14 +4618,7 @@ impl Bridge {
                 }
             }
         }
-        self.open_job(
-            None,
-            JobKind::Deadman,
-            now,
-            vec![axis],
-            Report::default(),
-            Vec::new(),
-        );
+        self.own_stop(now, axis);
     }
 
     /// The deceleration a motor is braked with before a position limit
@@ -5051,6 +5046,15 @@ impl Bridge {
     /// stop). (A velocity 0 lost on a device held still by a torque against
     /// something shows nothing to judge by: the deadman is what stops it.)
     fn confirm_stop(&mut self, ji: usize, at: Duration) {
+        // (Every feedback comes here: nothing is looked up for a device
+        // with no stop to judge.)
+        if self
+            .joints
+            .get(ji)
+            .is_none_or(|j| j.unconfirmed_stop.is_none())
+        {
+            return;
+        }
         let latched = self.latched;
         let still = self
             .joints
@@ -5102,6 +5106,19 @@ impl Bridge {
         self.stop_again(ji, order, at.max(self.now), seen);
     }
 
+    /// The bridge's own stop of one device (the deadman's, a limit brake,
+    /// a stop sent again), as a job of no line.
+    fn own_stop(&mut self, now: Duration, axis: Axis) {
+        self.open_job(
+            None,
+            JobKind::Deadman,
+            now,
+            vec![axis],
+            Report::default(),
+            Vec::new(),
+        );
+    }
+
     /// A stop of device `ji` that its device was not seen to take (`why`:
     /// not answered, or contradicted by its feedback) sent again, with
     /// `now`'s timestamp; the [`MAX_STOP_RESENDS`]-th time, when in doubt,
@@ -5130,14 +5147,7 @@ impl Bridge {
         j.stop_resends += 1;
         self.stats.stops_sent_again += 1;
         let axis = Axis::of(j.name.clone(), ji, [order.restamped(now_ms)]);
-        self.open_job(
-            None,
-            JobKind::Deadman,
-            now,
-            vec![axis],
-            Report::default(),
-            Vec::new(),
-        );
+        self.own_stop(now, axis);
     }
 
     /// Joint `ji` reported its lifecycle `state` (with `code`, its error
