@@ -11,8 +11,9 @@
 //! lines that waited) is not added, which would make old lines look new.
 
 use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
 
-use crate::Origin;
+use crate::output::Origin;
 
 /// Clients remembered at most; beyond, the oldest (lowest origin: origins
 /// only grow) is forgotten first.
@@ -51,6 +52,39 @@ impl ClockOffsets {
     /// A client that left.
     pub(crate) fn forget(&mut self, origin: Origin) {
         self.least.remove(&origin);
+    }
+}
+
+/// The monotonic clock and the host's wall clock (since the Unix epoch)
+/// at the same moment, to within a few microseconds: the wall clock is
+/// read on both sides of the monotonic one, and the pair whose two wall
+/// readings are closest gives the middle of its two. Read one after the
+/// other, a thread preempted between the two readings puts a wall clock
+/// reckoned from them ahead of the host's by that time (the bridge's: a
+/// command stamped just after a stop's release came out before the stop;
+/// a recording's: its wall times late). `None` for a wall clock before
+/// 1970.
+pub(crate) fn clocks_together() -> (Instant, Option<Duration>) {
+    use std::time::{SystemTime, UNIX_EPOCH};
+    let mut best: Option<(Duration, Instant, Duration)> = None;
+    for _ in 0..8 {
+        let before = SystemTime::now().duration_since(UNIX_EPOCH);
+        let at = Instant::now();
+        let after = SystemTime::now().duration_since(UNIX_EPOCH);
+        let (Ok(before), Ok(after)) = (before, after) else {
+            return (at, None);
+        };
+        let gap = after.saturating_sub(before);
+        if best.is_none_or(|(g, ..)| gap < g) {
+            best = Some((gap, at, before + gap / 2));
+        }
+        if gap <= Duration::from_micros(20) {
+            break;
+        }
+    }
+    match best {
+        Some((_, at, wall)) => (at, Some(wall)),
+        None => (Instant::now(), None),
     }
 }
 

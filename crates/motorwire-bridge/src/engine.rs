@@ -38,7 +38,6 @@ use motorwire_wia::{
 };
 use serde_json::Value;
 
-use crate::BridgeError;
 use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Input, MotorAction, RequestKind, classify};
 use crate::clocks::ClockOffsets;
@@ -46,6 +45,7 @@ use crate::device::{
     Answer, Capability, Context, Device, Drivers, Ended, Happened, InForce, MotorOrder, Moving,
     Outcome,
 };
+use crate::error::BridgeError;
 use crate::job::{
     AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, Jobs, LineMeta, Order,
     REPLACED_TRAJECTORY, Rider, axis_mut,
@@ -53,7 +53,7 @@ use crate::job::{
 use crate::joints::{Joint, StepRef, Unresolved};
 use crate::output::{
     BridgeRule, BridgeState, Broke, ErrorBody, ErrorKind, Event, FeedbackLine, Label, LineRef,
-    LineResult, MotorState, Origin, Output, StepOutcome, StepReport,
+    LineResult, MotorState, Origin, Output, StepOutcome, StepReport, shortest,
 };
 
 /// How a [`Bridge`] behaves.
@@ -3113,7 +3113,7 @@ impl Bridge {
             j.moved_by = line;
         }
         let Some(line) = line else { return };
-        let why = || crate::json::superseded_by(line);
+        let why = || crate::output::json::superseded_by(line);
         self.fail_watches_with(|w| w.line.at() != line && w.waits_on(ji), why);
         self.end_sequences_on(ji, by, line);
     }
@@ -4087,7 +4087,9 @@ impl Bridge {
         self.drivers.link_timeouts(now, &self.joints);
         self.drain_drivers();
         let jobs = &self.jobs;
-        let busy = |j: &Joint| {
+        let joints = &self.joints;
+        let busy = |k: usize| {
+            let j = &joints[k];
             j.busy.is_some()
                 || j.queue
                     .front()
@@ -4401,7 +4403,7 @@ impl Bridge {
         let verdict = if self.latched {
             Some("stopped by the emergency stop".to_owned())
         } else {
-            replaced_by.map(crate::json::superseded_by)
+            replaced_by.map(crate::output::json::superseded_by)
         };
         if let Some(why) = verdict {
             let arrival = w.verdict(now, Some(why));
@@ -5616,24 +5618,11 @@ fn failure_error(failures: &[StepReport], cut: Option<&str>) -> ErrorBody {
     e
 }
 
-/// A move's target (degrees).
-/// The shortest decimal of the f32 `v` came from, when it is one (iRPC
-/// carries f32: `45.29999923706055` prints as `45.3`); `v` otherwise.
 /// `v` as the shortest decimal of the nearest f32 (for what is said, not
 /// measured).
 fn short_unit(v: f64) -> f64 {
     #[allow(clippy::cast_possible_truncation)]
     shortest(f64::from(v as f32))
-}
-
-pub(crate) fn shortest(v: f64) -> f64 {
-    #[allow(clippy::cast_possible_truncation)]
-    let f = v as f32;
-    if f64::from(f) == v {
-        crate::arrival::f32_shortest(f).unwrap_or(v)
-    } else {
-        v
-    }
 }
 
 fn shortest_feedback(mut f: MotorFeedback) -> MotorFeedback {

@@ -7,7 +7,7 @@ use std::time::Duration;
 use motorwire_irpc::Payload;
 use motorwire_translate::Report;
 
-pub(crate) use crate::device::Order;
+pub(crate) use crate::device::{AwaitKind, Order};
 use crate::output::{Label, LineRef, Origin, StepOutcome, StepReport};
 
 /// One input line's identity as it travels from its reading to its
@@ -318,19 +318,6 @@ impl Job {
     pub(crate) fn answers_early(&self) -> bool {
         self.kind == JobKind::Command && self.axes.iter().any(|a| !a.due.is_empty())
     }
-}
-
-/// What a request line waits for from its joint.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum AwaitKind {
-    /// A TelemetryStream.
-    Telemetry,
-    /// A PowerMetrics.
-    PowerMetrics,
-    /// A FaultHistory.
-    FaultHistory,
-    /// A CalibrationResult.
-    CalibrationResult,
 }
 
 /// A request line's wait.

@@ -9,7 +9,8 @@ use motorwire_planner::Profile;
 use motorwire_translate::AngleUnit;
 use motorwire_wia::MotorFeedback;
 
-use crate::device::{Device, Order};
+use crate::device::{Device, DeviceView, Order, Registry};
+pub(crate) use crate::device::{Kinematics, in_unit};
 use crate::output::Origin;
 
 /// A step of a job waiting for (or running on) a joint.
@@ -17,21 +18,6 @@ use crate::output::Origin;
 pub(crate) struct StepRef {
     pub(crate) job: u64,
     pub(crate) axis: usize,
-}
-
-/// Where a device is and how it moves: position, velocity and
-/// acceleration (degrees, a second, a second squared). A jerk-limited iRPC
-/// joint plans a new move from all three.
-pub(crate) type Kinematics = (f64, f64, f64);
-
-/// [`Kinematics`] in a motor's unit (its bus map's, in which the gate and
-/// the path check read positions).
-pub(crate) fn in_unit(unit: AngleUnit, (p, v, a): Kinematics) -> motorwire_translate::JointState {
-    (
-        unit.from_degrees(p),
-        unit.from_degrees(v),
-        unit.from_degrees(a),
-    )
 }
 
 /// A part sent and never answered: the joint may have executed it.
@@ -373,6 +359,25 @@ impl Joint {
 fn same_state(a: Option<Kinematics>, b: Option<Kinematics>) -> bool {
     let bits = |k: Option<Kinematics>| k.map(|(p, v, a)| (p.to_bits(), v.to_bits(), a.to_bits()));
     bits(a) == bits(b)
+}
+
+impl Registry for Vec<Joint> {
+    fn count(&self) -> usize {
+        self.len()
+    }
+
+    fn view(&self, k: usize) -> Option<DeviceView<'_>> {
+        let j = self.get(k)?;
+        Some(DeviceView {
+            index: k,
+            name: &j.name,
+            node: j.node,
+            device: j.device,
+            unit: j.unit,
+            online: j.online,
+            feedback: j.feedback.as_ref(),
+        })
+    }
 }
 
 #[cfg(test)]

@@ -8,7 +8,6 @@ mod engine;
 mod error;
 mod job;
 mod joints;
-mod json;
 mod output;
 pub mod record;
 pub mod replay;

@@ -784,7 +784,7 @@ impl Recorder {
             _ => {}
         }
         // The two clocks read together, as the bridge's are.
-        let (t0, wall0) = crate::runtime::clocks_together();
+        let (t0, wall0) = crate::clocks::clocks_together();
         let wall0 = wall0.unwrap_or_default();
         let files = Files::open(&config, t0, wall0)?;
         let (queue, records) = mpsc::channel();

@@ -74,9 +74,11 @@ use motorwire_translate::{BusMap, Target};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
+use crate::engine::{Bridge, BridgeConfig};
+use crate::error::BridgeError;
+use crate::output::{Origin, Output};
 use crate::record::{Direction, Mark};
 use crate::sim::SimulatedArm;
-use crate::{Bridge, BridgeConfig, BridgeError, Origin, Output};
 
 /// How the recorded bridge was set up: what a replay needs to make the
 /// same bridge. `motorwire bridge --record` writes it into `session.json`

@@ -12,8 +12,12 @@ use motorwire_can::{CanBus, Error as CanError, Frame};
 use std::collections::BTreeMap;
 use std::sync::{Condvar, Mutex, OnceLock, PoisonError};
 
+use crate::classify::asks_for_stop;
+use crate::clocks::clocks_together;
+use crate::engine::Bridge;
+use crate::error::BridgeError;
+use crate::output::{Event, Origin, Output};
 use crate::record::{Direction, Mark, Recorder, Tap, Taps};
-use crate::{Bridge, BridgeError, Event, Origin, Output, asks_for_stop};
 
 /// The longest input line accepted by default (bytes, without the
 /// newline): 1 MiB, the size `motorwire validate` takes by default too
@@ -1548,14 +1552,15 @@ fn spawn_orion(
             let mut taken: u32 = 0;
             let mut dropped: u64 = 0;
             loop {
-                let msg = match read_line(&mut reader, crate::MAX_ORION_LINE) {
+                let msg = match read_line(&mut reader, crate::engine::MAX_ORION_LINE) {
                     Ok(ReadLine::Line(text)) => Msg::OrionLine {
                         text,
                         at: Instant::now(),
                     },
-                    Ok(ReadLine::TooLong { .. }) => {
-                        Msg::OrionUnreadable(format!("a line over {} bytes", crate::MAX_ORION_LINE))
-                    }
+                    Ok(ReadLine::TooLong { .. }) => Msg::OrionUnreadable(format!(
+                        "a line over {} bytes",
+                        crate::engine::MAX_ORION_LINE
+                    )),
                     Ok(ReadLine::NotUtf8 { .. }) => {
                         Msg::OrionUnreadable("a line that is not UTF-8".to_owned())
                     }
@@ -1653,39 +1658,6 @@ fn fatal(e: &CanError) -> bool {
             | CanError::InterfaceDown { .. }
             | CanError::Io { .. }
     )
-}
-
-/// The monotonic clock and the host's wall clock (since the Unix epoch)
-/// at the same moment, to within a few microseconds: the wall clock is
-/// read on both sides of the monotonic one, and the pair whose two wall
-/// readings are closest gives the middle of its two. Read one after the
-/// other, a thread preempted between the two readings puts a wall clock
-/// reckoned from them ahead of the host's by that time (the bridge's: a
-/// command stamped just after a stop's release came out before the stop;
-/// a recording's: its wall times late). `None` for a wall clock before
-/// 1970.
-pub(crate) fn clocks_together() -> (Instant, Option<Duration>) {
-    use std::time::{SystemTime, UNIX_EPOCH};
-    let mut best: Option<(Duration, Instant, Duration)> = None;
-    for _ in 0..8 {
-        let before = SystemTime::now().duration_since(UNIX_EPOCH);
-        let at = Instant::now();
-        let after = SystemTime::now().duration_since(UNIX_EPOCH);
-        let (Ok(before), Ok(after)) = (before, after) else {
-            return (at, None);
-        };
-        let gap = after.saturating_sub(before);
-        if best.is_none_or(|(g, ..)| gap < g) {
-            best = Some((gap, at, before + gap / 2));
-        }
-        if gap <= Duration::from_micros(20) {
-            break;
-        }
-    }
-    match best {
-        Some((_, at, wall)) => (at, Some(wall)),
-        None => (Instant::now(), None),
-    }
 }
 
 #[cfg(test)]

@@ -16,7 +16,9 @@ use motorwire_sim::{
 };
 use motorwire_translate::{BusMap, MappedMotor, Target};
 
-use crate::{Bridge, BridgeError, Origin, Output};
+use crate::engine::Bridge;
+use crate::error::BridgeError;
+use crate::output::{Origin, Output};
 
 /// Rounds of work at one simulated instant, at most: each answers what
 /// the round before it sent (a frame and its answer, a line and its
@@ -226,7 +228,7 @@ impl RealTimeArm {
     /// ```
     pub fn spawn(
         &self,
-        runner: crate::Runner,
+        runner: crate::runtime::Runner,
         bridge: Bridge,
         mut sink: impl FnMut(&Output) + Send + 'static,
     ) -> JoinHandle<Result<Bridge, BridgeError>> {
@@ -238,7 +240,7 @@ impl RealTimeArm {
     /// is given each output with its JSON line, rendered once.
     pub fn spawn_rendered(
         &self,
-        runner: crate::Runner,
+        runner: crate::runtime::Runner,
         bridge: Bridge,
         mut sink: impl FnMut(&Output, &std::sync::Arc<str>) + Send + 'static,
     ) -> JoinHandle<Result<Bridge, BridgeError>> {

@@ -25,10 +25,9 @@ use motorwire_irpc::{
 use motorwire_irpc::{CalibrationPhase, CalibrationRequest};
 use motorwire_translate::{BusMap, feedback_from_irpc};
 
+use super::AwaitKind;
 use super::{Answer, Context, Effect, Ended, Happened, Moving, Outcome};
 use crate::classify::RequestKind;
-use crate::job::AwaitKind;
-use crate::joints::Joint;
 use crate::output::Event;
 
 /// What the driver has to tell the engine.
@@ -281,7 +280,7 @@ pub(crate) fn heard(payload: &Payload) -> Heard {
 pub(crate) fn tell(
     event: IrpcEvent,
     map: &BusMap,
-    devices: &[Joint],
+    devices: &dyn super::Registry,
     by_node: &HashMap<u16, usize>,
     epoch: f64,
     mut tell: impl FnMut(Happened),
@@ -329,7 +328,7 @@ pub(crate) fn tell(
                 tell(Happened::Answer { device, answer });
             }
             let ts = super::unix_ms(epoch, at);
-            let feedback = feedback_from_irpc(map, node, &message.payload, ts, j.feedback.as_ref())
+            let feedback = feedback_from_irpc(map, node, &message.payload, ts, j.feedback)
                 .ok()
                 .map(|t| Box::new(t.value));
             if said.motion.is_some() || feedback.is_some() {
@@ -413,7 +412,7 @@ fn shortest_floats(v: &mut serde_json::Value) {
     match v {
         serde_json::Value::Number(n) if n.is_f64() => {
             if let Some(x) = n.as_f64()
-                && let Some(m) = serde_json::Number::from_f64(crate::engine::shortest(x))
+                && let Some(m) = serde_json::Number::from_f64(crate::output::shortest(x))
             {
                 *n = m;
             }

@@ -90,9 +90,74 @@ use motorwire_translate::{
 use motorwire_wia::{MotorCommand, MotorFeedback};
 use serde_json::Value;
 
-use crate::job::AwaitKind;
-use crate::joints::Joint;
 use crate::output::{BridgeRule, ErrorBody, Event};
+
+/// What a driver reads of the devices the engine keeps, in the engine's
+/// order: read only (the engine's registry implements it; a driver never
+/// sees, nor writes, the engine's own state of a device).
+pub(crate) trait Registry {
+    /// How many devices there are.
+    fn count(&self) -> usize;
+    /// Device `k` as a driver sees it.
+    fn view(&self, k: usize) -> Option<DeviceView<'_>>;
+}
+
+impl dyn Registry + '_ {
+    /// Device `k`, if there is one.
+    pub(crate) fn get(&self, k: usize) -> Option<DeviceView<'_>> {
+        self.view(k)
+    }
+
+    /// Every device, in order.
+    pub(crate) fn iter(&self) -> impl Iterator<Item = DeviceView<'_>> + '_ {
+        (0..self.count()).filter_map(|k| self.view(k))
+    }
+}
+
+/// One device as its driver sees it: who it is, where, in what dialect and
+/// unit, whether it is heard, and what it last reported.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct DeviceView<'a> {
+    /// Its place in the engine's order.
+    pub(crate) index: usize,
+    pub(crate) name: &'a str,
+    /// Its CAN id (iRPC node, compact command id; [`orion::ORION_NODE`]
+    /// for the Orion motors).
+    pub(crate) node: u16,
+    pub(crate) device: Device,
+    /// The unit of its positions in the bus map.
+    pub(crate) unit: AngleUnit,
+    pub(crate) online: bool,
+    pub(crate) feedback: Option<&'a MotorFeedback>,
+}
+
+/// Where a device is and how it moves: position, velocity and
+/// acceleration (degrees, a second, a second squared). A jerk-limited iRPC
+/// joint plans a new move from all three.
+pub(crate) type Kinematics = (f64, f64, f64);
+
+/// [`Kinematics`] in a motor's unit (its bus map's, in which the gate and
+/// the path check read positions).
+pub(crate) fn in_unit(unit: AngleUnit, (p, v, a): Kinematics) -> motorwire_translate::JointState {
+    (
+        unit.from_degrees(p),
+        unit.from_degrees(v),
+        unit.from_degrees(a),
+    )
+}
+
+/// What a request line waits for from its joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum AwaitKind {
+    /// A TelemetryStream.
+    Telemetry,
+    /// A PowerMetrics.
+    PowerMetrics,
+    /// A FaultHistory.
+    FaultHistory,
+    /// A CalibrationResult.
+    CalibrationResult,
+}
 
 pub(crate) mod compact;
 mod frames;
@@ -300,12 +365,12 @@ impl Device {
     /// What the device cannot do at all, said for a person.
     pub(crate) fn motor_order(
         self,
-        action: crate::MotorAction,
+        action: crate::classify::MotorAction,
         decel: Option<f64>,
         max_torque: Option<f64>,
         now_ms: u64,
     ) -> Result<MotorOrder, String> {
-        use crate::MotorAction::{Free, Hold, Stop};
+        use crate::classify::MotorAction::{Free, Hold, Stop};
         let compact = |hash, mode, flags: Flags| {
             Order::Compact(CompactCommand {
                 motor: hash,
@@ -552,7 +617,7 @@ pub(crate) struct Context {
     /// When it was acknowledged.
     pub(crate) at: Duration,
     /// Its kinematics when the order was sent (or as last reported).
-    pub(crate) motion: Option<crate::joints::Kinematics>,
+    pub(crate) motion: Option<Kinematics>,
     /// The motor's unit.
     pub(crate) unit: AngleUnit,
     /// The limits in force (degrees).
@@ -562,7 +627,7 @@ pub(crate) struct Context {
     pub(crate) command_timeout: Option<Duration>,
     /// The gate's plan for a move: from its kinematics, the target and how
     /// long it takes (reused when the acknowledged order is it).
-    pub(crate) planned: Option<(crate::joints::Kinematics, SetTargetPayloadV2, Duration)>,
+    pub(crate) planned: Option<(Kinematics, SetTargetPayloadV2, Duration)>,
 }
 
 /// The limits in force on a device, in degrees (and Nm), as a driver that
@@ -784,7 +849,7 @@ impl Order {
     /// when it is this order's.
     pub(crate) fn device_plan(
         &self,
-        from: crate::joints::Kinematics,
+        from: Kinematics,
         planned: Option<(SetTargetPayloadV2, Box<motorwire_planner::Profile<f64>>)>,
     ) -> Option<Box<motorwire_planner::Profile<f64>>> {
         match self {
@@ -811,8 +876,8 @@ impl Order {
     /// others are held to the limits by their targets alone.
     pub(crate) fn path_refusal<'m>(
         &self,
-        from: crate::joints::Kinematics,
-        checked: Option<(crate::joints::Kinematics, SetTargetPayloadV2)>,
+        from: Kinematics,
+        checked: Option<(Kinematics, SetTargetPayloadV2)>,
         in_force: impl FnOnce() -> Option<(
             &'m motorwire_translate::MappedMotor,
             motorwire_translate::Effective,
@@ -825,13 +890,7 @@ impl Order {
             return None;
         }
         let (motor, limits) = in_force()?;
-        motorwire_translate::check_path_from(
-            motor,
-            &limits,
-            p,
-            crate::joints::in_unit(motor.unit, from),
-        )
-        .err()
+        motorwire_translate::check_path_from(motor, &limits, p, in_unit(motor.unit, from)).err()
     }
 
     /// Where it takes the device and how fast, in degrees (`unit`: the
@@ -1379,7 +1438,7 @@ impl Drivers {
         client: ClientConfig,
         orion_command_timeout: Duration,
         epoch: f64,
-        devices: &[Joint],
+        devices: &dyn Registry,
     ) -> Result<Self, motorwire_can::Error> {
         let mut irpc = irpc::IrpcDriver::new(client)?;
         let mut moteus = moteus::MoteusDriver::new(client.timeout, client.retries);
@@ -1561,7 +1620,7 @@ impl Drivers {
     }
 
     /// A frame from the bus at `now`, for whichever of `devices` it is.
-    pub(crate) fn handle_frame(&mut self, now: Duration, frame: &Frame, devices: &[Joint]) {
+    pub(crate) fn handle_frame(&mut self, now: Duration, frame: &Frame, devices: &dyn Registry) {
         match self.router.route(frame) {
             Route::CompactFeedback(ji) => {
                 let Some(j) = devices.get(ji) else { return };
@@ -1639,7 +1698,7 @@ impl Drivers {
 
     /// The links' requests due at `now`: the Orion line in flight sent
     /// again or given up.
-    pub(crate) fn link_timeouts(&mut self, now: Duration, devices: &[Joint]) {
+    pub(crate) fn link_timeouts(&mut self, now: Duration, devices: &dyn Registry) {
         if let Some(done) = self.orion.expire(now) {
             self.orion_done(&done, now, devices);
         }
@@ -1652,12 +1711,12 @@ impl Drivers {
     pub(crate) fn link_housekeeping(
         &mut self,
         now: Duration,
-        devices: &[Joint],
-        busy: impl Fn(&Joint) -> bool,
+        devices: &dyn Registry,
+        busy: impl Fn(usize) -> bool,
     ) {
-        let on_link = |j: &&Joint| j.device.link() == Link::Controller;
-        let idle =
-            devices.iter().any(|j| on_link(&j)) && !devices.iter().filter(on_link).any(&busy);
+        let on_link = |j: &DeviceView<'_>| j.device.link() == Link::Controller;
+        let idle = devices.iter().any(|j| on_link(&j))
+            && !devices.iter().filter(on_link).any(|j| busy(j.index));
         self.orion.housekeeping(now, idle);
         // Each moteus controller's poll: its held command, or the query.
         self.moteus.polls_due(now);
@@ -1665,7 +1724,7 @@ impl Drivers {
     }
 
     /// What became of each moteus controller's own bounds, told as events.
-    fn tell_bounds_news(&mut self, devices: &[Joint]) {
+    fn tell_bounds_news(&mut self, devices: &dyn Registry) {
         for (device, news) in self.moteus.bounds_news() {
             let Some(j) = devices.get(device) else {
                 continue;
@@ -1673,13 +1732,13 @@ impl Drivers {
             let unit = |rev: f64| (!rev.is_nan()).then(|| j.unit.from_degrees(rev * 360.0));
             let event = match news {
                 moteus_bounds::BoundsNews::Set { min, max } => Event::DeviceBounds {
-                    motor_id: j.name.clone(),
+                    motor_id: j.name.to_owned(),
                     min_position: unit(min),
                     max_position: unit(max),
                     error: None,
                 },
                 moteus_bounds::BoundsNews::Failed(error) => Event::DeviceBounds {
-                    motor_id: j.name.clone(),
+                    motor_id: j.name.to_owned(),
                     min_position: None,
                     max_position: None,
                     error: Some(error),
@@ -1694,7 +1753,7 @@ impl Drivers {
         &mut self,
         now: Duration,
         line: &str,
-        devices: &[Joint],
+        devices: &dyn Registry,
         map: &BusMap,
     ) {
         // Its motors held offline (it fell silent): heard again, it is
@@ -1768,7 +1827,7 @@ impl Drivers {
     /// its motors are offline, and what was in flight has an unknown
     /// outcome. Whether it was up: nothing happens when it was lost
     /// already.
-    pub(crate) fn link_lost(&mut self, now: Duration, error: &str, devices: &[Joint]) -> bool {
+    pub(crate) fn link_lost(&mut self, now: Duration, error: &str, devices: &dyn Registry) -> bool {
         let Some(in_flight) = self.orion.link_lost(now) else {
             return false;
         };
@@ -1789,7 +1848,7 @@ impl Drivers {
     /// The next thing to tell the engine. `map` and `devices`: the
     /// engine's, as they are now (an iRPC joint's feedback builds on its
     /// last).
-    pub(crate) fn poll(&mut self, map: &BusMap, devices: &[Joint]) -> Option<Happened> {
+    pub(crate) fn poll(&mut self, map: &BusMap, devices: &dyn Registry) -> Option<Happened> {
         loop {
             match self.queued.pop_front() {
                 Some(Queued::Tell(h)) => return Some(h),
@@ -1845,7 +1904,7 @@ impl Drivers {
     /// A moteus controller's reply, device `ji`'s, at `now`: heard; its
     /// own stop if it just stopped itself (a fault by name, its
     /// watchdog); its reading; its command in flight acknowledged.
-    fn moteus_reply(&mut self, now: Duration, frame: &Frame, ji: usize, devices: &[Joint]) {
+    fn moteus_reply(&mut self, now: Duration, frame: &Frame, ji: usize, devices: &dyn Registry) {
         let Some(j) = devices.get(ji) else { return };
         if frame.data().first() == Some(&motorwire_moteus::diagnostic::SERVER_DATA) {
             // Its diagnostic stream's answer: heard, and read for its
@@ -1910,7 +1969,7 @@ impl Drivers {
     }
 
     /// Every Orion motor heard at `at`, online if the link is up.
-    fn orion_heard(&mut self, at: Duration, devices: &[Joint]) {
+    fn orion_heard(&mut self, at: Duration, devices: &dyn Registry) {
         let up = self.orion.up();
         for device in orion_devices(devices) {
             self.tell(Happened::Heard { device, at, up });
@@ -1919,7 +1978,7 @@ impl Drivers {
 
     /// A line of the controller's ended: each device whose step it carried
     /// is done, and what waits for the controller may go.
-    fn orion_done(&mut self, done: &orion::Done, now: Duration, devices: &[Joint]) {
+    fn orion_done(&mut self, done: &orion::Done, now: Duration, devices: &dyn Registry) {
         let ended = done.ended(now);
         for &device in &done.joints {
             self.tell(Happened::Ended {
@@ -1942,7 +2001,7 @@ impl Drivers {
 }
 
 /// The indices of the Orion controller's motors among `devices`.
-fn orion_devices(devices: &[Joint]) -> Vec<usize> {
+fn orion_devices(devices: &dyn Registry) -> Vec<usize> {
     devices
         .iter()
         .enumerate()

@@ -10,6 +10,11 @@ use motorwire_wia::MotorFeedback;
 use serde::Serialize;
 use serde_json::Value;
 
+pub(crate) mod json;
+mod numbers;
+
+pub(crate) use numbers::shortest;
+
 /// Who sent a line: the runner's name for an input (stdin, a TCP client).
 /// Results go back to the origin of their line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
@@ -52,13 +57,13 @@ impl Output {
     /// The line as JSON text (no newline).
     pub fn to_json(&self) -> String {
         let text = match self {
-            // Written for every command: directly ([`crate::json`]).
+            // Written for every command: directly ([`json`]).
             Self::Result { result, .. } => {
-                let mut j = crate::json::Json::with_capacity(result.json_capacity());
+                let mut j = json::Json::with_capacity(result.json_capacity());
                 result.write_json(&mut j).map(|()| j.into_string())
             }
             Self::Arrival { arrival, .. } => {
-                let mut j = crate::json::Json::with_capacity(arrival.json_capacity());
+                let mut j = json::Json::with_capacity(arrival.json_capacity());
                 arrival.write_json(&mut j).map(|()| j.into_string())
             }
             Self::Feedback(f) => serde_json::to_string(f),
@@ -1060,7 +1065,7 @@ mod tests {
 
     #[test]
     fn every_rule_is_in_the_readmes_table_and_the_table_has_no_other() {
-        let readme = include_str!("../README.md");
+        let readme = include_str!("../../README.md");
         let table = readme
             .split("## Refusal rules")
             .nth(1)

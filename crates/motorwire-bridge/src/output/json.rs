@@ -12,7 +12,7 @@
 
 use serde::Serialize;
 
-use crate::output::{ArrivalLine, ErrorBody, LineResult, MotorArrival, StepReport};
+use super::{ArrivalLine, ErrorBody, LineResult, MotorArrival, StepReport};
 
 /// A member's name as it is written: `k!("ok")` is `"ok":`.
 macro_rules! k {
@@ -197,7 +197,7 @@ fn push_number<T: Serialize>(s: &mut String, v: &T) -> Result<(), serde_json::Er
 /// `superseded by line N of client C`, the reason of a watched line whose
 /// motor took a newer line's move: made for every move that replaces one
 /// under way, so built without the formatting machinery.
-pub(crate) fn superseded_by(by: crate::LineRef) -> String {
+pub(crate) fn superseded_by(by: super::LineRef) -> String {
     let mut s = String::with_capacity(64);
     s.push_str("superseded by line ");
     push_u64(&mut s, by.line);
@@ -601,7 +601,7 @@ mod tests {
     proptest! {
         #[test]
         fn the_superseded_reason_is_what_format_writes(line in any::<u64>(), origin in any::<u64>()) {
-            let by = crate::LineRef { origin: crate::Origin(origin), line };
+            let by = crate::output::LineRef { origin: crate::output::Origin(origin), line };
             prop_assert_eq!(
                 superseded_by(by),
                 format!("superseded by line {line} of client {origin}")
