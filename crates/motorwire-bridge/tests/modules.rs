@@ -11,6 +11,8 @@
 //! names an item through the crate root's re-exports (`crate::Bridge`),
 //! which would hide where it lives.
 
+#![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 

@@ -323,7 +323,7 @@ pub(crate) fn tell(
             });
             let said = heard(&message.payload);
             if said.answers
-                && let Some(answer) = answer(&j.name, &message.payload)
+                && let Some(answer) = answer(j.name, &message.payload)
             {
                 tell(Happened::Answer { device, answer });
             }

@@ -1,0 +1,481 @@
+//! Admission: a line read into admitted work or a typed refusal (numbering, the clock learnt from a line, the stop that jumps the queue, the lines that wait for the start).
+
+use super::*;
+
+impl Bridge {
+    /// Takes one input line received at `now` from `origin`. Blank lines
+    /// are ignored; every other line gets exactly one result.
+    ///
+    /// Results carry `"line"`: the line's number among its origin's
+    /// non-blank lines (from 1), so a reader can pair every result, an
+    /// unlabelled refusal included, with what it sent.
+    pub fn handle_line(&mut self, now: Duration, origin: Origin, line: &str) {
+        self.changed();
+        self.now = self.now.max(now);
+        let line = line.trim();
+        if line.is_empty() {
+            return;
+        }
+        let number = self.number(origin);
+        self.take_line(now, LineMeta::new(origin, number), line);
+    }
+
+    /// [`Bridge::handle_line`] for a line its runner already numbered (a
+    /// runner that lets emergency stops overtake the lines queued before
+    /// them numbers lines as they arrive). The bridge's own count for
+    /// `origin` is not used.
+    pub fn handle_numbered_line(&mut self, now: Duration, origin: Origin, number: u64, line: &str) {
+        self.changed();
+        self.now = self.now.max(now);
+        let line = line.trim();
+        if line.is_empty() {
+            return;
+        }
+        self.take_line(now, LineMeta::new(origin, number), line);
+    }
+
+    /// [`Bridge::handle_numbered_line`] for a line its runner already read
+    /// ([`classify`] with this bridge's validator, on the reader's thread),
+    /// or not (`None`).
+    pub(crate) fn handle_read_line(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        line: &str,
+        input: Option<Box<Input>>,
+    ) {
+        self.changed();
+        self.now = self.now.max(now);
+        let line = line.trim();
+        if line.is_empty() {
+            return;
+        }
+        let meta = LineMeta::new(origin, number);
+        match input {
+            Some(input) => self.take_input(now, meta, line, *input),
+            None => self.take_line(now, meta, line),
+        }
+    }
+
+    /// [`Bridge::handle_unreadable`] for a line its runner already numbered.
+    pub fn handle_numbered_unreadable(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        reason: &str,
+    ) {
+        self.changed();
+        self.now = self.now.max(now);
+        self.stats.lines += 1;
+        self.refuse(
+            &LineMeta::new(origin, number),
+            ErrorBody::new(ErrorKind::Unreadable, reason),
+        );
+    }
+
+    /// A line that could not be read (not UTF-8, too long) but names
+    /// `emergency_stop` (a runner finds it while skipping the line): the
+    /// bridge cannot tell what it asks, and when in doubt it stops. It is
+    /// answered as a stop, `reason` among its problems.
+    pub fn handle_numbered_unreadable_stop(
+        &mut self,
+        now: Duration,
+        origin: Origin,
+        number: u64,
+        reason: &str,
+    ) {
+        self.changed();
+        self.now = self.now.max(now);
+        self.take_stop(
+            now,
+            LineMeta::new(origin, number),
+            vec![format!(
+                "{reason}; it names emergency_stop, so it is taken as a stop"
+            )],
+        );
+    }
+
+    /// A stop line (`meta`, labelled when it names a motor or a
+    /// command).
+    pub(super) fn take_stop(&mut self, now: Duration, meta: LineMeta, problems: Vec<String>) {
+        self.last_stop_arrival = Some(self.last_stop_arrival.map_or(now, |t| t.max(now)));
+        self.stats.lines += 1;
+        let cause = match &meta.label {
+            Some(Label::Motor(v) | Label::Command(v) | Label::Orion(v)) => v.clone(),
+            None => "input".to_owned(),
+        };
+        self.emergency_stop(now, Some(meta), problems, cause);
+    }
+
+    /// A line that could not be read as text (not UTF-8, too long): it
+    /// counts as a line of `origin` and is answered
+    /// `{"ok":false,"error":{"kind":"unreadable",...}}`.
+    pub fn handle_unreadable(&mut self, now: Duration, origin: Origin, reason: &str) {
+        self.changed();
+        self.now = self.now.max(now);
+        self.stats.lines += 1;
+        let number = self.number(origin);
+        self.refuse(
+            &LineMeta::new(origin, number),
+            ErrorBody::new(ErrorKind::Unreadable, reason),
+        );
+    }
+
+    /// Forgets `origin`'s line count (a client that left); its lines in
+    /// progress are still answered.
+    pub fn forget_origin(&mut self, origin: Origin) {
+        self.changed();
+        self.line_numbers.remove(&origin);
+        self.clocks.forget(origin);
+        self.to_greet.retain(|o| *o != origin);
+    }
+
+    pub(super) fn number(&mut self, origin: Origin) -> u64 {
+        let n = self.line_numbers.entry(origin).or_insert(0);
+        *n += 1;
+        *n
+    }
+
+    pub(super) fn take_line(&mut self, now: Duration, meta: LineMeta, line: &str) {
+        let input = classify(&self.validator, line);
+        self.take_input(now, meta, line, input);
+    }
+
+    /// A line, read as `input`.
+    pub(super) fn take_input(&mut self, now: Duration, meta: LineMeta, line: &str, input: Input) {
+        // The stop is acted on in every phase but the last, ahead of all.
+        if let Input::Stop { label, problems } = input {
+            self.take_stop(now, meta.with(label), problems);
+            return;
+        }
+        match self.phase {
+            Phase::Starting => {
+                if self.waiting.len() >= self.config.max_pending_lines {
+                    self.stats.lines += 1;
+                    self.busy(&meta, "too many lines are waiting for the joints to start");
+                } else {
+                    self.waiting.push_back(Waiting {
+                        at: now,
+                        meta,
+                        text: line.to_owned(),
+                    });
+                }
+                return;
+            }
+            Phase::Running => {}
+            Phase::Draining { .. } | Phase::Stopping | Phase::Finished => {
+                self.stats.lines += 1;
+                self.refuse(
+                    &meta,
+                    ErrorBody::new(ErrorKind::ShuttingDown, "the bridge is shutting down"),
+                );
+                return;
+            }
+        }
+        self.stats.lines += 1;
+        match input {
+            Input::Stop { .. } => {}
+            // A stop that arrived after this release was acted on first (it
+            // overtook the queue, or the release waited for startup):
+            // releasing now would let what followed the release run after
+            // the stop.
+            Input::Release if self.last_stop_arrival.is_some_and(|t| now < t) => self.refuse(&meta, ErrorBody::new(
+                    ErrorKind::Cancelled,
+                    "an emergency stop sent after this release was acted on before it; the emergency stop stays latched",
+                ),
+            ),
+            Input::Release => self.release(now, meta),
+            Input::BadRelease { reason } => {
+                self.refuse(&meta, ErrorBody::new(ErrorKind::InvalidRelease, reason));
+            }
+            Input::Invalid { message, violations, more, label } => {
+                let mut e = ErrorBody::new(ErrorKind::Invalid, message);
+                e.violations = violations;
+                e.more_violations =
+                    (more > 0).then(|| u32::try_from(more).unwrap_or(u32::MAX));
+                self.refuse(&meta.with(label), e);
+            }
+            Input::QueryLimits { motor_id } => self.query_limits(meta, &motor_id),
+            Input::QueryState { motor_id } => self.query_state(meta, motor_id),
+            Input::FeedbackRate { hz } => self.feedback_rate(meta, hz),
+            Input::OrionCommand { command } => self.arm_command(now, meta, command),
+            Input::Request { kind, motor_id } => {
+                self.request_line(now, meta, kind, &motor_id);
+            }
+            Input::Calibration { motor_id, start } => {
+                self.calibration_line(now, meta, &motor_id, start);
+            }
+            Input::Reset { motor_id } => self.reset_joint(now, meta, &motor_id),
+            Input::Trajectories { id, trajectories } => {
+                self.trajectories(now, meta, &id, &trajectories);
+            }
+            Input::Stream(mut cmd) => {
+                let meta = LineMeta {
+                    stream: true,
+                    ..meta
+                };
+                self.motor_command(now, meta, &mut cmd);
+            }
+            Input::StreamAxes(cmd) => {
+                let meta = LineMeta {
+                    stream: true,
+                    ..meta
+                };
+                self.multi_axis(now, meta, &cmd);
+            }
+            Input::Motor { action, motor_id } => self.motor_line(now, meta, action, &motor_id),
+            // Read where it lies: a command is the largest message, and
+            // every line is one.
+            Input::Message(mut m) => match m.as_mut() {
+                Message::MotorCommand(cmd) => self.motor_command(now, meta, cmd),
+                Message::MultiAxisCommand(cmd) => self.multi_axis(now, meta, cmd),
+                Message::SafetyLimits(l) => self.safety_limits(meta, l),
+                Message::Trajectory(t) => {
+                    let id = t.trajectory_id.clone();
+                    self.trajectories(now, meta, &id, std::slice::from_ref(t));
+                }
+                Message::PidConfig(p) => self.refuse(
+                    &meta.labelled(Label::Motor(p.motor_id.clone())),
+                    ErrorBody::new(
+                        ErrorKind::Unsupported,
+                        "iRPC carries no PID gains (its joints run their own control loops): nothing was sent",
+                    ),
+                ),
+                Message::ControlModeConfig(_) => self.refuse(&meta, ErrorBody::new(
+                        ErrorKind::Unsupported,
+                        "iRPC carries no control-mode configuration (a joint takes position moves and lifecycle requests): nothing was sent",
+                    ),
+                ),
+                other => self.refuse(&meta, ErrorBody::new(
+                        ErrorKind::UnsupportedKind,
+                        format!(
+                            "a {} is valid WIA, but the bridge takes motor-command and multi-axis-command lines",
+                            other.kind()
+                        ),
+                    ),
+                ),
+            },
+        }
+    }
+
+    // ---- trajectories -----------------------------------------------------------
+
+    pub(super) fn refuse(&mut self, meta: &LineMeta, error: ErrorBody) {
+        let r = LineResult {
+            ok: false,
+            line: meta.number,
+            error: Some(error),
+            ..LineResult::default()
+        };
+        self.answer(meta, r);
+    }
+
+    /// Gives `r` to `meta`'s origin, labelled as `meta` is, counting it.
+    /// (A result is some 460 bytes: one made in its box where it is built
+    /// is not copied there.)
+    pub(super) fn answer(&mut self, meta: &LineMeta, r: impl Into<Box<LineResult>>) {
+        let mut r: Box<LineResult> = r.into();
+        r.bound();
+        if r.ok {
+            self.stats.ok += 1;
+        } else {
+            self.stats.failed += 1;
+        }
+        if let Some(label) = meta.label.clone() {
+            label.apply(&mut r);
+        }
+        self.out.push_back(Output::Result {
+            origin: meta.origin,
+            result: r,
+        });
+    }
+
+    pub(super) fn busy(&mut self, meta: &LineMeta, why: &str) {
+        self.stats.busy += 1;
+        self.refuse(
+            meta,
+            ErrorBody::new(
+                ErrorKind::Busy,
+                format!("{why}; nothing was sent, send it again later"),
+            ),
+        );
+    }
+
+    /// The `ConfigureTelemetry` joint `ji` gets when configured, if
+    /// [`BridgeConfig::telemetry_hz`] asks and its wire version has it.
+    pub(super) fn telemetry_subscription(&self, ji: usize) -> Option<Payload> {
+        let rate_hz = self.config.telemetry_hz.filter(|r| *r > 0)?;
+        let j = self.joints.get(ji)?;
+        if !j.device.speaks(PayloadKind::ConfigureTelemetry) {
+            return None;
+        }
+        Some(Payload::ConfigureTelemetry(
+            motorwire_irpc::ConfigureTelemetryPayload {
+                mode: motorwire_irpc::TelemetryMode::Periodic,
+                rate_hz,
+                change_threshold: 0.0,
+            },
+        ))
+    }
+
+    /// Learns `origin`'s clock from a line stamped `timestamp` that
+    /// reached the bridge at `now`: only where timestamps are held to the
+    /// bridge's clock (an epoch and a max age), and only from a timestamp
+    /// within the allowed skew (one outside it teaches nothing and is
+    /// refused `stale`).
+    pub(super) fn learn_clock(&mut self, now: Duration, origin: Origin, timestamp: f64) {
+        if let (Some(epoch), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age) {
+            let arrived = epoch + now.as_secs_f64() * 1000.0;
+            let offset = arrived - timestamp;
+            if offset.is_finite() && offset.abs() <= max_age.as_secs_f64() * 1000.0 {
+                self.clocks.learn(origin, offset);
+            }
+        }
+    }
+
+    /// [`Bridge::admit`] for a line that carries no timestamp (taken as
+    /// sent now).
+    pub(super) fn admit_now<'a>(
+        &self,
+        motors: impl Iterator<Item = &'a str> + Clone,
+    ) -> Result<(), ErrorBody> {
+        let now_ms = self
+            .config
+            .epoch_unix_ms
+            .map_or(0.0, |e| e + self.now.as_secs_f64() * 1000.0);
+        self.admit(self.now, None, now_ms, motors)
+    }
+
+    /// Admission: what refuses a motion line before anything is planned.
+    /// `arrived` is when the line reached the bridge, `origin` whose
+    /// clock its `timestamp` is on (`None`: the bridge's own).
+    pub(super) fn admit<'a>(
+        &self,
+        arrived: Duration,
+        origin: Option<Origin>,
+        timestamp: f64,
+        mut motors: impl Iterator<Item = &'a str> + Clone,
+    ) -> Result<(), ErrorBody> {
+        if self.latched {
+            return Err(ErrorBody::new(
+                ErrorKind::EmergencyStopLatched,
+                "the emergency stop is latched; send {\"emergency_stop\": false} to release it",
+            ));
+        }
+        // Only where timestamps are held to the bridge's clock (a max age
+        // in force): without one they may be any number.
+        // To the millisecond, the timestamps' resolution: one stamped in
+        // the millisecond the stop came in may have been written after it.
+        // Reached the bridge before the stop: written before it, whatever
+        // its timestamp says (a client's clock may run ahead).
+        if let Some(stop) = self.last_stop_at
+            && arrived < stop
+        {
+            return Err(ErrorBody::new(
+                ErrorKind::StaleBeforeStop,
+                format!(
+                    "the line reached the bridge {:.3} s before the last emergency stop: written before the stop, it does not run after the release",
+                    (stop - arrived).as_secs_f64()
+                ),
+            ));
+        }
+        // The timestamp on the bridge's clock, as far as the client's
+        // lines tell: a clock that runs ahead is taken back by as much
+        // (never forward: a clock behind only refuses more).
+        let written = timestamp + origin.map_or(0.0, |o| self.clocks.behind(o));
+        if let Some(stop_ms) = self.last_stop_unix_ms.map(f64::floor)
+            && self.config.max_age.is_some()
+            && written < stop_ms
+        {
+            // Written before the stop (another client's, still on its
+            // way): the stop came after it, so it must not run after the
+            // release.
+            return Err(ErrorBody::new(
+                ErrorKind::StaleBeforeStop,
+                format!(
+                    "timestamp {timestamp} is {:.3} s before the last emergency stop (at {stop_ms}): written before the stop, it does not run after the release",
+                    (stop_ms - timestamp) / 1000.0
+                ),
+            ));
+        }
+        if let (Some(epoch), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age) {
+            let now_ms = epoch + self.now.as_secs_f64() * 1000.0;
+            let skew = max_age.as_secs_f64() * 1000.0;
+            let age = now_ms - timestamp;
+            if age > skew || -age > skew {
+                let when = if age > 0.0 { "old" } else { "in the future" };
+                // A timestamp in microseconds is a mistake often made: say
+                // so when the value read in that unit would have been
+                // within the skew. (One in seconds is the validator's
+                // `timestamp-unit`, refused before it gets here.)
+                let hint = if (now_ms * 1000.0 - timestamp).abs() / 1000.0 <= skew {
+                    "; it looks like microseconds: WIA timestamps are Unix milliseconds (`date +%s%3N`)"
+                } else {
+                    ""
+                };
+                return Err(ErrorBody::new(
+                    ErrorKind::Stale,
+                    format!(
+                        "timestamp {timestamp} is {:.1} s {when}; the allowed clock skew is {} s (WIA §10.1){hint}",
+                        age.abs() / 1000.0,
+                        max_age.as_secs_f64()
+                    ),
+                ));
+            }
+        }
+        if let Some(err) = motors.clone().find_map(|m| {
+            let j = self.joints.get(self.joint_index(m)?)?;
+            let why = j.needs_reset.as_ref()?;
+            Some(
+                ErrorBody::new(
+                    ErrorKind::NeedsReset,
+                    format!("{m} {why}: send {{\"reset\":\"{m}\"}} to bring it back"),
+                )
+                .about(m),
+            )
+        }) {
+            return Err(err);
+        }
+        if let Some(err) = motors.clone().find_map(|m| {
+            let j = self.joints.get(self.joint_index(m)?)?;
+            (!j.online).then(|| {
+                ErrorBody::new(
+                    ErrorKind::Offline,
+                    match self.drivers.offline_reason(j.device) {
+                        Some(why) => format!("{m} is offline: {why}"),
+                        None => format!(
+                            "{m} is offline: nothing heard from {}",
+                            j.device.who(j.node)
+                        ),
+                    },
+                )
+                .about(m)
+            })
+        }) {
+            return Err(err);
+        }
+        if self.pending_lines() >= self.config.max_pending_lines {
+            return Err(ErrorBody::new(
+                ErrorKind::Busy,
+                format!(
+                    "{} lines are in progress, the most the bridge takes; nothing was sent, send it again later",
+                    self.config.max_pending_lines
+                ),
+            ));
+        }
+        if let Some(m) = motors.find(|m| {
+            self.joint_index(m)
+                .and_then(|i| self.joints.get(i))
+                .is_some_and(|j| j.queue.len() >= self.config.max_queue_per_joint)
+        }) {
+            return Err(ErrorBody::new(
+                ErrorKind::Busy,
+                format!("{m} has {} steps waiting, the most it takes; nothing was sent, send it again later", self.config.max_queue_per_joint),
+            )
+            .about(m));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,214 @@
+//! A job's completion: its result and its arrival watch.
+
+use super::*;
+
+impl Bridge {
+    pub(super) fn complete(&mut self, job: Box<Job>) {
+        let job = *job;
+        let now = self.now;
+        if let Some(since) = job.answered {
+            return self.complete_answered(job, since);
+        }
+        // A stream's setpoint replaced by a newer one before it was sent
+        // is what a stream does: no failure.
+        let stream = job.line.as_ref().is_some_and(|l| l.stream);
+        // Only a reset needs every joint it moved.
+        let moved_joints: Vec<usize> = if job.kind == JobKind::Reset {
+            job.axes.iter().map(|a| a.joint).collect()
+        } else {
+            Vec::new()
+        };
+        // The motors acked, the moves acked (to watch for arrival), and
+        // what became of the rest: one pass, each name moved, not copied.
+        let mut acked: Vec<String> = Vec::with_capacity(job.axes.len());
+        let mut moved: Vec<WatchAxis> = Vec::with_capacity(job.axes.len());
+        let mut failures: Vec<StepReport> = Vec::new();
+        let mut superseded = false;
+        for a in job.axes {
+            let AxisState::Done(r) = a.state else {
+                continue;
+            };
+            match r.outcome {
+                StepOutcome::Acked => {
+                    if let Some(target) = a.target {
+                        moved.push(self.watch_axis(a.joint, a.motor, target));
+                    }
+                    acked.push(r.motor);
+                }
+                StepOutcome::Superseded if stream => superseded = true,
+                _ => failures.push(r),
+            }
+        }
+        match job.kind {
+            JobKind::Startup => {
+                for name in acked {
+                    self.out.push_back(Output::Event(Event::Startup {
+                        motor_id: name,
+                        ok: true,
+                        error: None,
+                    }));
+                }
+                for f in failures {
+                    self.out.push_back(Output::Event(Event::Startup {
+                        motor_id: f.motor.clone(),
+                        ok: false,
+                        error: Some(f),
+                    }));
+                }
+                if self.phase == Phase::Starting {
+                    // Ready once every device that answers has been read
+                    // (its position known from the first line on), or
+                    // after the offline time for those that do not.
+                    self.settle_until = Some(now.saturating_add(self.config.offline_after));
+                    self.try_ready();
+                }
+                return;
+            }
+            JobKind::Shutdown => {
+                self.out.push_back(Output::Event(Event::Stopped {
+                    deactivated: acked,
+                    failures,
+                }));
+                self.enter(Phase::Finished);
+                return;
+            }
+            JobKind::Reset => {
+                for a in &moved_joints {
+                    if let Some(j) = self.joints.get_mut(*a) {
+                        j.resetting = false;
+                        if failures.is_empty() {
+                            j.needs_reset = None;
+                        }
+                    }
+                }
+            }
+            JobKind::Deadman if !failures.is_empty() && !self.latched => {
+                // The deadman could not stop a device (its stop was never
+                // answered): when in doubt, stop everything.
+                let why = failures
+                    .iter()
+                    .map(|f| format!("{} ({})", f.motor, f.outcome.name()))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                self.emergency_stop(
+                    now,
+                    None,
+                    Vec::new(),
+                    format!("deadman: could not stop {why}"),
+                );
+                return;
+            }
+            JobKind::Command | JobKind::EmergencyStop | JobKind::Release | JobKind::Deadman => {}
+        }
+        // A stop the bridge made itself (the deadman's, a joint's own)
+        // answers no line, but the stop lines that rode on it are answered.
+        if job.line.is_none() && job.riders.is_empty() {
+            return;
+        }
+        let number = job.line.as_ref().map_or(0, |l| l.number);
+        let latency = job.last_frame.map(|t| us(t.saturating_sub(job.received)));
+        let ok = failures.is_empty() && job.data_error.is_none();
+        let error = if !failures.is_empty() {
+            Some(failure_error(&failures, job.cut.as_deref()))
+        } else {
+            job.data_error
+                .clone()
+                .map(|why| ErrorBody::new(ErrorKind::NoAnswer, why))
+        };
+        let mut r = Box::new(LineResult {
+            ok,
+            line: number,
+            emergency_stop: job.kind == JobKind::EmergencyStop,
+            released: job.kind == JobKind::Release,
+            error,
+            acked: Some(acked),
+            outcomes: failures,
+            problems: job.problems,
+            latency_us: latency,
+            ack_us: Some(us(now.saturating_sub(job.received))),
+            stop_latency_us: if job.kind == JobKind::EmergencyStop {
+                latency
+            } else {
+                None
+            },
+            losses: job.report.losses,
+            data: job.data.clone(),
+            ..LineResult::default()
+        });
+        let watched = job.kind == JobKind::Command && !moved.is_empty();
+        r.arrival_follows = if stream {
+            Some(false)
+        } else {
+            watched.then_some(true)
+        };
+        r.superseded = superseded;
+        // The riders' results come before the line's own, as they did
+        // when each was pushed as it was built.
+        for rider in job.riders {
+            let rr = LineResult {
+                line: rider.line.number,
+                problems: rider.problems,
+                // The stop frames went out before this line came.
+                latency_us: latency.map(|_| 0),
+                stop_latency_us: latency.map(|_| 0),
+                ack_us: Some(us(now.saturating_sub(rider.received))),
+                arrival_follows: None,
+                ..LineResult::clone(&r)
+            };
+            self.answer(&rider.line, rr);
+        }
+        let Some(meta) = job.line else { return };
+        self.answer(&meta, r);
+        // (Lines watched on the motors it moved were superseded when each
+        // took its setpoint: [`Self::taken`].)
+        if watched && !stream {
+            self.watch(meta, moved, now);
+        }
+    }
+
+    /// A trajectory line answered when it got under way ends: every
+    /// segment acknowledged, it is watched until it arrives; otherwise its
+    /// completion line says at once which motor's later segments did not
+    /// go, and why.
+    pub(super) fn complete_answered(&mut self, job: Job, since: Duration) {
+        let Some(meta) = job.line else { return };
+        let targets: Vec<WatchAxis> = job
+            .axes
+            .iter()
+            .filter_map(|a| Some(self.watch_axis(a.joint, a.motor.clone(), a.target?)))
+            .collect();
+        let failures: Vec<&StepReport> = job
+            .axes
+            .iter()
+            .filter_map(|a| match &a.state {
+                AxisState::Done(r) if r.outcome != StepOutcome::Acked => Some(r),
+                _ => None,
+            })
+            .collect();
+        if failures.is_empty() {
+            return self.watch(meta, targets, since);
+        }
+        let said = failures
+            .iter()
+            .map(|f| format!("{}: {} ({})", f.motor, f.outcome.name(), f.message))
+            .collect::<Vec<_>>()
+            .join("; ");
+        let reason = match &job.cut {
+            Some(why) => format!("{why}: the rest of the trajectory was not sent"),
+            None => format!("a later segment did not go: {said}"),
+        };
+        let mut w = self.watch_of(meta, targets, since);
+        for (ji, j) in self.joints.iter().enumerate() {
+            if let Some((pos, vel)) = j.motion
+                && w.axes.iter().any(|a| a.joint == ji)
+            {
+                w.observe(ji, pos, vel, self.now);
+            }
+        }
+        let origin = w.line.origin;
+        let arrival = w.verdict(self.now, Some(reason));
+        self.out.push_back(Output::Arrival { origin, arrival });
+    }
+
+    // ---- links ------------------------------------------------------------
+}

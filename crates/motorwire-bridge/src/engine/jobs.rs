@@ -1,0 +1,965 @@
+//! Jobs: opened, superseded, their steps sent one by one per device, taken and tracked.
+
+use super::*;
+
+impl Bridge {
+    pub(super) fn open_job(
+        &mut self,
+        line: Option<LineMeta>,
+        kind: JobKind,
+        now: Duration,
+        axes: Vec<Axis>,
+        report: Report,
+        problems: Vec<String>,
+    ) {
+        let id = self.next_job;
+        self.next_job += 1;
+        if kind.is_stop() {
+            self.cancel_everything("cancelled by the stop");
+        }
+        let mut axes = axes;
+        if kind == JobKind::Command {
+            self.activate_freed(&mut axes);
+        }
+        // A stream's setpoint replaces any setpoint waiting for its motor
+        // (position, velocity, torque); an ordinary position move, a
+        // waiting position move.
+        let stream = line.as_ref().is_some_and(|l| l.stream);
+        // What each step takes over on its device: `Some(replaces)` for a
+        // motion step that goes as soon as it can (one that waits for a
+        // sequence takes its device when its turn comes:
+        // `Self::sequence_progress`); `replaces`, a position move or a
+        // stream's setpoint.
+        // (Collected into a list kept from the last job: a line's job is
+        // opened for every line.)
+        let mut steps = std::mem::take(&mut self.steps_scratch);
+        steps.clear();
+        steps.extend(axes.iter().enumerate().map(|(axis, a)| {
+            let replaces = a.is_position_move() || (stream && a.is_setpoint());
+            let motion = a.first_asked().is_some_and(Order::is_setpoint);
+            // A trajectory's steps are timed: it replaces a waiting
+            // sequential axis, and otherwise queues behind what is
+            // there (one running, one scheduled), as it always did.
+            let timed = !a.due.is_empty();
+            let takes =
+                (a.after.is_none() && (replaces || motion)).then_some(Takes { replaces, timed });
+            (a.joint, StepRef { job: id, axis }, takes)
+        }));
+        self.jobs.insert(
+            id,
+            Box::new(Job::new(line, kind, now, axes, report, problems)),
+        );
+        for &(ji, step, takes) in &steps {
+            let scheduled = match takes {
+                Some(Takes { replaces, timed }) if kind == JobKind::Command => {
+                    self.supersede(ji, stream, replaces, timed, None)
+                }
+                _ => None,
+            };
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.queue.push_back(step);
+                // A trajectory scheduled to start later goes at its time,
+                // after this step.
+                j.queue.extend(scheduled);
+            }
+        }
+        // Every step queued before any is sent: the Orion motors of one
+        // line go out as one line.
+        for &(ji, _, _) in &steps {
+            self.pump(ji);
+        }
+        // Kept for the next job (one opened meanwhile found it empty and
+        // made its own: the larger is kept).
+        if steps.capacity() >= self.steps_scratch.capacity() {
+            self.steps_scratch = steps;
+        }
+        self.finish_jobs();
+    }
+
+    /// A command line's axes for joints a line left inactive (`disabled`,
+    /// `free`, `stop`): a motion is preceded by an Activate, so the next
+    /// command undoes them (a joint inactive for another reason, a fault,
+    /// waits for a reset line). An axis that deactivates its joint marks
+    /// it so.
+    pub(super) fn activate_freed(&mut self, axes: &mut [Axis]) {
+        for a in axes {
+            let Some(j) = self.joints.get_mut(a.joint) else {
+                continue;
+            };
+            if !j.device.supports(Capability::Lifecycle) {
+                continue;
+            }
+            let deactivates = a
+                .payloads
+                .iter()
+                .any(|o| o.lifecycle_payload() == Some(Payload::Deactivate));
+            // Only a joint the bridge had up (or a line had freed): one
+            // never started, or whose start failed, waits for a reset.
+            if deactivates {
+                j.freed |= j.active;
+            } else if j.freed && a.payloads.front().is_some_and(Order::is_setpoint) {
+                for activate in j.device.lifecycle_orders(&[Payload::Activate], 0) {
+                    a.payloads.push_front(activate);
+                    if let Some(&first) = a.due.front() {
+                        a.due.push_front(first);
+                    }
+                }
+            }
+        }
+    }
+
+    /// A newer motion step for device `ji` (a position move or a stream's
+    /// setpoint: `replaces`; a trajectory's timed step: `timed`), other
+    /// than `except`, is about to go: what
+    /// waits for the device and would run before it is replaced. A
+    /// position move waiting is replaced by a newer position move; any
+    /// setpoint by a stream's (`stream`); an axis of a sequential line
+    /// waiting for its turn by any newer motion (it would hold the device
+    /// for another motor's arrival). A trajectory running on the device is
+    /// replaced by a position move or a stream's setpoint: its later
+    /// segments are not sent (between segments it ends now and frees the
+    /// device; with a segment in flight, once that is answered). A
+    /// trajectory scheduled to start later and not begun is not replaced:
+    /// it is taken off the device and returned, to be queued again after
+    /// the newer step (it starts at its time).
+    pub(super) fn supersede(
+        &mut self,
+        ji: usize,
+        stream: bool,
+        replaces: bool,
+        timed: bool,
+        except: Option<StepRef>,
+    ) -> Option<StepRef> {
+        let joint = self.joints.get_mut(ji)?;
+        // Only what is older than the newer step: queued before it. Kept
+        // in place, in order (the queue keeps its room: no allocation a
+        // line).
+        let mut newer = false;
+        joint.queue.retain_mut(|s| {
+            let s = *s;
+            newer |= Some(s) == except;
+            let replaced = !newer
+                && self.jobs.get_mut(&s.job).is_some_and(|job| {
+                    job.kind == JobKind::Command
+                        && job.axes.get_mut(s.axis).is_some_and(|a| {
+                            let why = if a.state != AxisState::Queued {
+                                None
+                            } else if stream && a.is_setpoint() {
+                                Some("a newer setpoint of a stream for the motor replaced it before it was sent")
+                            } else if replaces && a.is_position_move() {
+                                Some("a newer position command for the joint replaced it before it was sent")
+                            } else if a.after.is_some() && !a.begun {
+                                Some("a newer line for the motor replaced it while it waited for its turn")
+                            } else {
+                                None
+                            };
+                            if let Some(why) = why {
+                                a.finish(StepOutcome::Superseded, None, why);
+                            }
+                            why.is_some()
+                        })
+                });
+            if replaced {
+                self.stats.superseded += 1;
+            }
+            !replaced
+        });
+        // A trajectory (`timed`) waits its turn behind what holds the device.
+        if timed {
+            return None;
+        }
+        let running = joint.busy?;
+        let a = self
+            .jobs
+            .get_mut(&running.job)
+            .filter(|job| job.kind == JobKind::Command)
+            .and_then(|job| job.axes.get_mut(running.axis))?;
+        // Scheduled, not begun: it waits for its time, holding the device.
+        if a.state == AxisState::Queued && !a.begun && !a.due.is_empty() {
+            joint.busy = None;
+            joint.wake = None;
+            return Some(running);
+        }
+        if !replaces || !a.is_running_trajectory() {
+            return None;
+        }
+        self.stats.superseded += 1;
+        if a.state == AxisState::Queued {
+            a.finish(StepOutcome::Superseded, None, REPLACED_TRAJECTORY);
+            joint.busy = None;
+            joint.wake = None;
+        } else {
+            a.replaced = Some(REPLACED_TRAJECTORY);
+        }
+        None
+    }
+
+    /// Device `ji` took a move or setpoint of job `by`, of `line` (`None`:
+    /// the bridge's own): the lines watched on it for an earlier move will
+    /// not arrive (superseded by `line`), and a sequential line whose axis
+    /// on it was sent and has not arrived ends at once
+    /// ([`Self::end_sequences_on`]).
+    pub(super) fn taken(&mut self, ji: usize, by: u64, line: Option<LineRef>) {
+        if let Some(j) = self.joints.get_mut(ji) {
+            j.moved_by = line;
+        }
+        let Some(line) = line else { return };
+        let why = || crate::output::json::superseded_by(line);
+        self.fail_watches_with(|w| w.line.at() != line && w.waits_on(ji), why);
+        self.end_sequences_on(ji, by, line);
+    }
+
+    /// A newer line (job `by`, `line`) moved device `ji`: a sequential
+    /// line whose axis on `ji` was sent and has not arrived will not see
+    /// it arrive (its target is replaced), so the axes waiting for that
+    /// arrival (and those waiting for them) are not sent, at once (not
+    /// when the arrival's time runs out), and leave their devices' queues;
+    /// the line then ends, and its completion says it was superseded.
+    pub(super) fn end_sequences_on(&mut self, ji: usize, by: u64, line: LineRef) {
+        let (number, origin) = (line.line, line.origin.0);
+        let mut ended: Vec<StepRef> = Vec::new();
+        for (&id, job) in self.jobs.iter_mut() {
+            if id == by || job.kind != JobKind::Command {
+                continue;
+            }
+            // Its axes on `ji` that went out and have not arrived.
+            let replaced = |a: &Axis| a.joint == ji && !a.arrived && a.state != AxisState::Queued;
+            let mut cut: Vec<usize> = job
+                .axes
+                .iter()
+                .enumerate()
+                .filter(|(_, a)| replaced(a))
+                .map(|(k, _)| k)
+                .collect();
+            // Every axis waiting on one of them, and on those in turn.
+            let mut k = 0;
+            while let Some(&b) = cut.get(k) {
+                k += 1;
+                let waiting: Vec<usize> = job
+                    .axes
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, a)| a.state == AxisState::Queued && a.after == Some(b))
+                    .map(|(w, _)| w)
+                    .collect();
+                for w in waiting {
+                    if let Some(a) = job.axes.get_mut(w) {
+                        a.finish(
+                            StepOutcome::NotSent,
+                            None,
+                            format!(
+                                "not sent: the axis before it was replaced by line {number} of client {origin} before it arrived"
+                            ),
+                        );
+                        ended.push(StepRef { job: id, axis: w });
+                        cut.push(w);
+                    }
+                }
+            }
+            // Nothing waits for them now.
+            for a in job.axes.iter_mut().filter(|a| replaced(a)) {
+                a.arrive_by = None;
+            }
+        }
+        for step in ended {
+            for j in &mut self.joints {
+                j.queue.retain(|s| *s != step);
+            }
+        }
+    }
+
+    /// A move in flight whose answer is late is sent again by its
+    /// driver's retries; sent again, it goes now: its path is held to the
+    /// limits in force from where the device is now, as a move's is when
+    /// it is first sent. One that would leave them is withdrawn instead:
+    /// never sent again, its outcome unknown (its first sending may have
+    /// been taken).
+    pub(super) fn withdraw_stale_resends(&mut self, now: Duration) {
+        for ji in 0..self.joints.len() {
+            let Some(step) = self.joints.get(ji).and_then(|j| j.busy) else {
+                continue;
+            };
+            let Some(&AxisState::InFlight { msg_id, payload }) = self
+                .jobs
+                .get(&step.job)
+                .and_then(|job| job.axes.get(step.axis))
+                .map(|a| &a.state)
+            else {
+                continue;
+            };
+            if !self.drivers.resend_due(msg_id, &payload, now) {
+                continue;
+            }
+            let Some(why) = self.path_at_send(ji, &payload) else {
+                continue;
+            };
+            self.drivers.forget(ji, msg_id, payload);
+            self.stats.refused_at_send += 1;
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.busy = None;
+                j.sending = None;
+            }
+            if let Some(a) = axis_mut(&mut self.jobs, step) {
+                let why = why.replacen(
+                    "not sent:",
+                    "sent once and not answered; not sent again:",
+                    1,
+                );
+                a.finish(
+                    StepOutcome::OutcomeUnknown,
+                    None,
+                    format!("{why}; the joint may or may not have taken its first sending"),
+                );
+            }
+            self.pump(ji);
+        }
+        self.finish_jobs();
+    }
+
+    /// Why `order` may not go to device `ji` now: its path, planned from
+    /// where the device is now, leaves the limits in force (`None` when
+    /// it stays within them, or nothing is known to plan from: the
+    /// device's own check stands).
+    pub(super) fn path_at_send(&self, ji: usize, order: &Order) -> Option<String> {
+        let j = self.joints.get(ji)?;
+        let from = j.state_at(self.now)?;
+        // Checked already when its line came, this instant, from there.
+        let checked = j
+            .planned
+            .filter(|_| j.planned_at == self.now)
+            .map(|(from, p, _)| (from, p));
+        let refusal = order.path_refusal(from, checked, || {
+            let motor = self.map.motor(&j.name)?;
+            Some((motor, motorwire_translate::Effective::from_bus_map(motor)))
+        })?;
+        Some(format!(
+            "not sent: from where it was when its turn came ({} at {} a second), {refusal}",
+            short_unit(j.unit.from_degrees(from.0)),
+            short_unit(j.unit.from_degrees(from.1))
+        ))
+    }
+
+    /// The step at the front of device `ji`'s queue, if none of its
+    /// steps is in flight.
+    pub(super) fn waiting_front(&self, ji: usize) -> Option<StepRef> {
+        let j = self.joints.get(ji)?;
+        if j.busy.is_some() {
+            return None;
+        }
+        j.queue.front().copied()
+    }
+
+    /// Sends the next waiting step of joint `ji` if none is in flight.
+    pub(super) fn pump(&mut self, ji: usize) {
+        let now = self.now;
+        loop {
+            let Some(front) = self.waiting_front(ji) else {
+                return;
+            };
+            if self.waits_for_arrival(front, now) {
+                return; // sequential: the axis before it has not arrived
+            }
+            if !self.link_free(front) {
+                return; // one line in flight to the Orion controller
+            }
+            let Some(joint) = self.joints.get_mut(ji) else {
+                return;
+            };
+            let Some(step) = joint.queue.pop_front() else {
+                return;
+            };
+            let node = joint.node;
+            if self.send_step(now, ji, node, step) {
+                return;
+            }
+        }
+    }
+
+    /// Whether `step` (a sequential axis) must wait for the axis before it
+    /// to arrive. When that axis failed, or did not arrive in time, `step`
+    /// is finished `not_sent` here and need not wait.
+    pub(super) fn waits_for_arrival(&mut self, step: StepRef, now: Duration) -> bool {
+        let Some(job) = self.jobs.get(&step.job) else {
+            return false;
+        };
+        // An axis already finished waits for nothing: it leaves its queue.
+        let Some(before) = job
+            .axes
+            .get(step.axis)
+            .filter(|a| !a.is_done())
+            .and_then(|a| a.after)
+        else {
+            return false;
+        };
+        let Some(b) = job.axes.get(before) else {
+            return false;
+        };
+        if b.arrived {
+            return false;
+        }
+        let failed = match &b.state {
+            AxisState::Done(r) if r.outcome != StepOutcome::Acked => Some(format!(
+                "not sent: {} before it did not complete ({})",
+                b.motor,
+                r.outcome.name()
+            )),
+            AxisState::Done(_) => {
+                let by = b.arrive_by.unwrap_or_else(|| {
+                    let end = self
+                        .joints
+                        .get(b.joint)
+                        .map_or(now, |j| j.moving_until)
+                        .max(now);
+                    end.saturating_add(
+                        (end.saturating_sub(now) / 4).max(Duration::from_millis(500)),
+                    )
+                });
+                if now >= by {
+                    Some(format!(
+                        "not sent: {} before it did not arrive in time",
+                        b.motor
+                    ))
+                } else {
+                    if let Some(a) = axis_mut(
+                        &mut self.jobs,
+                        StepRef {
+                            job: step.job,
+                            axis: before,
+                        },
+                    ) {
+                        a.arrive_by = Some(by);
+                    }
+                    None
+                }
+            }
+            _ => None,
+        };
+        let Some(why) = failed else {
+            return true;
+        };
+        if let Some(a) = axis_mut(&mut self.jobs, step) {
+            a.finish(StepOutcome::NotSent, None, why);
+        }
+        false
+    }
+
+    /// Joint `ji` is at `position` moving at `velocity` (degrees): the
+    /// sequential axes on it that have arrived let the next ones go.
+    pub(super) fn sequence_progress(&mut self, ji: usize, position: f64, velocity: f64) {
+        let mut freed = Vec::new();
+        for (&id, job) in self.jobs.iter_mut() {
+            if !job.sequential {
+                // No axis of it waits on another (a startup's, a stop's).
+                continue;
+            }
+            // (the axis waited for, and the one waiting: its device, its
+            // step, whether it is a position move)
+            let waited: Vec<(usize, usize, StepRef, bool)> = job
+                .axes
+                .iter()
+                .enumerate()
+                .filter_map(|(w, x)| {
+                    Some((
+                        x.after?,
+                        x.joint,
+                        StepRef { job: id, axis: w },
+                        x.is_position_move(),
+                    ))
+                })
+                .collect();
+            for (k, a) in job.axes.iter_mut().enumerate() {
+                let Some(&(_, joint, step, replaces)) = waited.iter().find(|(b, ..)| *b == k)
+                else {
+                    continue;
+                };
+                let next = (joint, step, replaces);
+                let Some(target) = a.target else { continue };
+                if a.joint != ji
+                    || a.arrived
+                    || !matches!(&a.state, AxisState::Done(r) if r.outcome == StepOutcome::Acked)
+                {
+                    continue;
+                }
+                let tolerance = self
+                    .map
+                    .motor(&a.motor)
+                    .map_or(0.1, |m| m.unit.to_degrees(m.arrival_tolerance));
+                if (position - target).abs() <= tolerance && velocity.abs() <= tolerance * 10.0 {
+                    a.arrived = true;
+                    freed.push(next);
+                }
+            }
+        }
+        for (ji, step, replaces) in freed {
+            // Its turn: it takes its device now, as a line's step that
+            // goes at once does when it is queued.
+            if let Some(scheduled) = self.supersede(ji, false, replaces, false, Some(step))
+                && let Some(j) = self.joints.get_mut(ji)
+            {
+                j.queue.push_back(scheduled);
+            }
+            self.pump(ji);
+        }
+        self.finish_jobs();
+    }
+
+    /// Sends the next payload of `step`; returns whether a request is now in
+    /// flight for it.
+    pub(super) fn send_step(&mut self, now: Duration, ji: usize, node: u16, step: StepRef) -> bool {
+        let Some(job) = self.jobs.get_mut(&step.job) else {
+            return false;
+        };
+        let Some(a) = job.axes.get_mut(step.axis) else {
+            return false;
+        };
+        // A trajectory looping forever: its next cycle.
+        if a.payloads.is_empty()
+            && let Some(c) = a.cycle.as_mut()
+        {
+            c.started = c.started.saturating_add(c.period);
+            for (offset, p) in &c.payloads {
+                a.payloads.push_back(*p);
+                a.due.push_back(c.started.saturating_add(*offset));
+            }
+        }
+        // A trajectory's next segment, not due yet: the joint stays this
+        // step's until then.
+        if let Some(&due) = a.due.front()
+            && due > now
+            && !a.payloads.is_empty()
+        {
+            a.state = AxisState::Queued;
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.busy = Some(step);
+                j.wake = Some(due);
+            }
+            return true;
+        }
+        a.due.pop_front();
+        let Some(payload) = a.payloads.pop_front() else {
+            if !a.is_done() {
+                a.finish(StepOutcome::Acked, None, "acked");
+            }
+            return false;
+        };
+        // Its path from where the device is now, within the limits in
+        // force: the line's own check was when it came, and by its turn
+        // the device may move otherwise (a move in flight, a slow Ack).
+        if let Some(why) = self.path_at_send(ji, &payload) {
+            self.stats.refused_at_send += 1;
+            if let Some(a) = axis_mut(&mut self.jobs, step) {
+                a.finish(StepOutcome::NotSent, None, why);
+            }
+            return false;
+        }
+        let Some(job) = self.jobs.get_mut(&step.job) else {
+            return false;
+        };
+        let Some(a) = job.axes.get_mut(step.axis) else {
+            return false;
+        };
+        a.begun = true;
+        // In flight before it is handed to its driver: an Orion line may
+        // carry other motors' steps, and reads their state first.
+        a.state = AxisState::InFlight { msg_id: 0, payload };
+        a.attempts = 1;
+        let flushed_before = !job.unflushed;
+        job.unflushed = true;
+        if let Some(j) = self.joints.get_mut(ji) {
+            j.busy = Some(step);
+            // Where the move starts from, for the model of it once acked.
+            j.sending = j.state_at(now).map(|s| (now, s));
+            // A stop waiting to be confirmed is not sent again over a newer
+            // step (sent again itself, it is judged again once taken).
+            j.unconfirmed_stop = None;
+        }
+        let sent = if payload.sent_together() {
+            self.send_together(now, ji, step, payload)
+        } else {
+            self.drivers.send(now, ji, node, payload)
+        };
+        let Some(job) = self.jobs.get_mut(&step.job) else {
+            return false;
+        };
+        let Some(a) = job.axes.get_mut(step.axis) else {
+            return false;
+        };
+        match sent {
+            Ok(msg_id) => {
+                a.state = AxisState::InFlight { msg_id, payload };
+                true
+            }
+            Err(e) => {
+                a.finish(StepOutcome::NotSent, None, format!("not sent: {e}"));
+                // Nothing of it was written: it waits for no flush.
+                if flushed_before {
+                    job.unflushed = false;
+                }
+                if let Some(j) = self.joints.get_mut(ji) {
+                    j.busy = None;
+                }
+                false
+            }
+        }
+    }
+
+    /// The request in flight for device `ji` ended as `c` says (any
+    /// driver's).
+    pub(super) fn step_done(&mut self, ji: usize, c: Ended) {
+        let Some(step) = self.joints.get_mut(ji).and_then(|j| j.busy.take()) else {
+            return;
+        };
+        let Some(job) = self.jobs.get_mut(&step.job) else {
+            return;
+        };
+        let (kind, line) = (job.kind, job.line_ref());
+        let Some(a) = job.axes.get_mut(step.axis) else {
+            return;
+        };
+        let AxisState::InFlight { payload, .. } = a.state else {
+            return;
+        };
+        let a_target = a.target.filter(|_| payload.is_position_move());
+        a.state = AxisState::Queued;
+        match &c.outcome {
+            Outcome::Acked => {
+                a.acked += 1;
+                if let Some(why) = a.replaced {
+                    a.finish(StepOutcome::Superseded, None, why);
+                } else if a.payloads.is_empty() && a.cycle.is_none() {
+                    // A trajectory looping forever has its next cycle to come.
+                    a.finish(StepOutcome::Acked, None, "acked");
+                }
+            }
+            // Stopping a device that is already stopped is a stop.
+            Outcome::Nacked {
+                already_stopped: true,
+                ..
+            } if kind.is_stop() => {
+                a.finish(StepOutcome::Acked, None, "already stopped");
+            }
+            Outcome::Nacked { code, why, .. } => {
+                a.finish(StepOutcome::Nacked, *code, why.clone());
+            }
+            Outcome::TimedOut => {
+                let who = self
+                    .joints
+                    .get(ji)
+                    .map_or_else(String::new, |j| j.device.who(j.node));
+                a.finish(
+                    StepOutcome::OutcomeUnknown,
+                    None,
+                    format!(
+                        "sent {} times, never answered: {who} may or may not have executed it",
+                        c.attempts
+                    ),
+                );
+            }
+        }
+        let more = !a.is_done();
+        if c.outcome == Outcome::TimedOut
+            && let Some(j) = self.joints.get_mut(ji)
+        {
+            if let (JobKind::Command, Some(target)) = (kind, a_target) {
+                j.unresolved = Some(Unresolved {
+                    origin: line.map(|l| l.origin),
+                    line: line.map_or(0, |l| l.line),
+                    target,
+                });
+            }
+            if j.online {
+                j.online = false;
+                self.out.push_back(Output::Event(Event::Offline {
+                    motor_id: j.name.clone(),
+                    node: j.node,
+                    reason: "a request timed out".to_owned(),
+                }));
+                self.fail_watches(|w| w.waits_on(ji), "the joint went offline");
+            }
+        }
+        // A setpoint whose answer never came may be running: the deadman
+        // watches it as if it were acked.
+        if c.outcome == Outcome::Acked
+            || (c.outcome == Outcome::TimedOut && payload.holds_setpoint())
+        {
+            self.track(ji, payload, c.at);
+            // A line's stop of the device (a motor line's free or stop, a
+            // `disabled`) takes it as a move does.
+            let stops = kind == JobKind::Command
+                && (payload.ends_setpoint()
+                    || payload.lifecycle_payload() == Some(Payload::Deactivate));
+            if payload.is_setpoint() || stops {
+                self.taken(
+                    ji,
+                    step.job,
+                    (kind == JobKind::Command).then_some(line).flatten(),
+                );
+            }
+        }
+        self.answer_early(step.job);
+        // A stop never answered by a device whose feedback may never come
+        // to judge it by (a compact device answers a command and not much
+        // else): when in doubt, stop again, unless a newer step waits.
+        let stop_again = c.outcome == Outcome::TimedOut
+            && payload.unconfirmed_stop().is_some()
+            && self.joints.get(ji).is_some_and(|j| j.queue.is_empty());
+        if more {
+            let node = self.joints.get(ji).map_or(0, |j| j.node);
+            if !self.send_step(self.now, ji, node, step) {
+                self.pump(ji);
+            }
+        } else {
+            self.pump(ji);
+        }
+        if stop_again {
+            self.stop_again(ji, payload, c.at.max(self.now), "answered");
+        }
+        self.finish_jobs();
+    }
+
+    /// A trajectory line under way: once each of its motors' first
+    /// segment is acknowledged (and nothing of it failed), its result is
+    /// given (`ok:true`, `arrival_follows:true`); the fate of its later
+    /// segments comes in its completion line.
+    pub(super) fn answer_early(&mut self, id: u64) {
+        let now = self.now;
+        let Some(job) = self.jobs.get_mut(&id) else {
+            return;
+        };
+        if job.answered.is_some() || !job.answers_early() {
+            return;
+        }
+        let failed = job
+            .axes
+            .iter()
+            .any(|a| matches!(&a.state, AxisState::Done(r) if r.outcome != StepOutcome::Acked));
+        if failed || !job.axes.iter().all(|a| a.acked > 0) {
+            return;
+        }
+        let Some(meta) = job.line.clone() else {
+            return;
+        };
+        job.answered = Some(now);
+        let r = LineResult {
+            ok: true,
+            line: meta.number,
+            acked: Some(job.axes.iter().map(|a| a.motor.clone()).collect()),
+            arrival_follows: Some(true),
+            latency_us: job.last_frame.map(|t| us(t.saturating_sub(job.received))),
+            ack_us: Some(us(now.saturating_sub(job.received))),
+            losses: std::mem::take(&mut job.report.losses),
+            ..LineResult::default()
+        };
+        self.answer(&meta, r);
+    }
+
+    /// Remembers an acked request's effect on its device
+    /// ([`Order::effect`]): its lifecycle, a move's target and (as
+    /// planned from the last feedback) when it ends, the deadman of a
+    /// setpoint it holds.
+    pub(super) fn track(&mut self, ji: usize, order: Order, at: Duration) {
+        let Some(j) = self.joints.get(ji) else { return };
+        // A line that leaves it inactive again waits behind this order
+        // (looked for only behind an Activate: every ack comes here).
+        let deactivation_waits = order.lifecycle_payload() == Some(Payload::Activate)
+            && j.queue.iter().any(|s| {
+                self.jobs
+                    .get(&s.job)
+                    .and_then(|job| job.axes.get(s.axis))
+                    .is_some_and(|a| {
+                        a.payloads
+                            .iter()
+                            .any(|o| o.lifecycle_payload() == Some(Payload::Deactivate))
+                    })
+            });
+        // Planned from where it was when the order was sent, as the
+        // device plans it.
+        let sent_from = j.sending.map(|(_, from)| from);
+        let cx = Context {
+            at,
+            motion: sent_from.or(j.motion.map(|(p, v)| (p, v, 0.0))),
+            unit: j.unit,
+            max_velocity: j.pace.max_velocity,
+            max_acceleration: j.pace.max_acceleration,
+            command_timeout: j.pace.command_timeout,
+            planned: j.planned,
+        };
+        let effect = order.effect(&cx);
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
+        // The move as the device plans it, from where it was sent (the
+        // gate's own plan when it is the same move from the same state);
+        // any other order leaves the device to its reports.
+        let gate_plan = j
+            .planned
+            .zip(j.planned_profile.take())
+            .filter(|((from, ..), _)| Some(*from) == sent_from)
+            .map(|((_, p, _), profile)| (p, profile));
+        let model = j
+            .sending
+            .take()
+            .and_then(|(t, from)| Some((t, order.device_plan(from, gate_plan)?)));
+        j.set_model(model);
+        j.planned = None;
+        j.deadman = effect.deadman;
+        j.held_velocity = effect.deadman.and_then(|_| order.held_velocity(j.unit));
+        if let Some(b) = j.limit_braked.as_mut().filter(|b| b.sending) {
+            // The limit brake itself going out: what it was braked short
+            // of is kept.
+            b.sending = false;
+        } else if effect.deadman.is_some() || effect.target.is_some() {
+            // A new setpoint or move taken (one toward the limit it was
+            // braked short of only once it had stopped).
+            j.limit_braked = None;
+        }
+        if order.unconfirmed_stop().is_some() {
+            let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
+            j.unconfirmed_stop = Some((order, at, speed));
+        } else {
+            j.unconfirmed_stop = None;
+            j.stop_resends = 0;
+        }
+        if let Some(target) = effect.target {
+            j.target = target;
+        }
+        match effect.moving {
+            Moving::Unchanged => {}
+            Moving::Until(t) => j.moving_until = t,
+            Moving::AtMost(t) => j.moving_until = j.moving_until.min(t),
+        }
+        if let Some(active) = effect.active {
+            j.active = active;
+            // Active again, and no line waits to leave it inactive: its
+            // next command needs no Activate first.
+            if active && !deactivation_waits {
+                j.freed = false;
+            }
+        }
+        if effect.settles {
+            j.unresolved = None;
+        }
+    }
+
+    /// Emits the result of every job that is done.
+    pub(super) fn finish_jobs(&mut self) {
+        // Looked at after every event, and most find nothing done.
+        if !self.jobs.values().any(|j| j.is_done()) {
+            return;
+        }
+        let mut done = std::mem::take(&mut self.done_scratch);
+        done.clear();
+        done.extend(
+            self.jobs
+                .iter()
+                .filter(|(_, j)| j.is_done())
+                .map(|(id, _)| *id),
+        );
+        for &id in &done {
+            if let Some(job) = self.jobs.remove(&id) {
+                self.complete(job);
+                // The drain may end now: looked at once, by its timer.
+                self.drain_recheck = matches!(self.phase, Phase::Draining { .. });
+            }
+        }
+        // Kept for the next call (a nested call, from a completion, found
+        // it empty and allocated its own: the larger is kept).
+        if done.capacity() >= self.done_scratch.capacity() {
+            self.done_scratch = done;
+        }
+    }
+
+    /// Whether `step` (queued for a device) may go now as far as its
+    /// device's link goes: a stop always; a step with nothing to send;
+    /// else as the driver says (the Orion controller takes one line at a
+    /// time).
+    pub(super) fn link_free(&self, step: StepRef) -> bool {
+        let Some(job) = self.jobs.get(&step.job) else {
+            return true;
+        };
+        let order = job.axes.get(step.axis).and_then(|a| a.payloads.front());
+        job.kind.is_stop() || self.drivers.link_free(order)
+    }
+
+    /// Whether `step` is a sequential line's axis whose earlier axis has
+    /// not arrived: it cannot go yet, so it does not keep its link from
+    /// its own work (an Orion controller unpolled would fall silent).
+    pub(super) fn after_earlier_axis(jobs: &Jobs, step: StepRef) -> bool {
+        jobs.get(&step.job)
+            .and_then(|job| {
+                let before = job.axes.get(job.axes.get(step.axis)?.after?)?;
+                Some(!before.arrived)
+            })
+            .unwrap_or(false)
+    }
+
+    /// Sends `order` of `step` for device `ji` in one message with the
+    /// orders that join it ([`Order::joins`]) waiting at the front of the
+    /// other devices for the same line (the Orion motors of one input
+    /// line: one line to the controller). Returns the message's number.
+    pub(super) fn send_together(
+        &mut self,
+        now: Duration,
+        ji: usize,
+        step: StepRef,
+        order: Order,
+    ) -> Result<u32, String> {
+        if let Some(e) = self.drivers.refuses(&order) {
+            return Err(e);
+        }
+        let mut orders = vec![(ji, order)];
+        let mut others = Vec::new();
+        for k in 0..self.joints.len() {
+            if k == ji {
+                continue;
+            }
+            let Some(front) = self.waiting_front(k) else {
+                continue;
+            };
+            if front.job != step.job {
+                continue;
+            }
+            let Some(a) = axis_mut(&mut self.jobs, front) else {
+                continue;
+            };
+            let fits = a.after.is_none() && a.payloads.front().is_some_and(|o| order.joins(o));
+            if !fits || !a.due.is_empty() {
+                continue;
+            }
+            let Some(payload) = a.payloads.pop_front() else {
+                continue;
+            };
+            a.begun = true;
+            orders.push((k, payload));
+            if let Some(j) = self.joints.get_mut(k) {
+                j.queue.pop_front();
+                j.busy = Some(front);
+            }
+            others.push((front, payload));
+        }
+        let sent = self.drivers.send_together(now, &orders);
+        for (front, payload) in others {
+            let Some(a) = axis_mut(&mut self.jobs, front) else {
+                continue;
+            };
+            match &sent {
+                Ok(id) => {
+                    a.state = AxisState::InFlight {
+                        msg_id: *id,
+                        payload,
+                    };
+                    a.attempts = 1;
+                }
+                Err(e) => a.finish(StepOutcome::NotSent, None, format!("not sent: {e}")),
+            }
+        }
+        if sent.is_err() {
+            for (k, _) in orders.iter().skip(1) {
+                if let Some(j) = self.joints.get_mut(*k) {
+                    j.busy = None;
+                }
+            }
+        }
+        sent
+    }
+}

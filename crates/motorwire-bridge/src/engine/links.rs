@@ -1,0 +1,414 @@
+//! Links and requests: the Orion controller's link, request lines and their answers, the drivers' news taken in.
+
+use super::*;
+
+impl Bridge {
+    /// The links' own work due at `now` (the Orion controller's line in
+    /// flight, its recovery stop, its poll when no step waits for it).
+    pub(super) fn link_timeouts(&mut self, now: Duration) {
+        self.drivers.link_timeouts(now, &self.joints);
+        self.drain_drivers();
+        let jobs = &self.jobs;
+        let joints = &self.joints;
+        let busy = |k: usize| {
+            joints.get(k).is_some_and(|j| {
+                j.busy.is_some()
+                    || j.queue
+                        .front()
+                        .is_some_and(|s| !Self::after_earlier_axis(jobs, *s))
+            })
+        };
+        self.drivers.link_housekeeping(now, &self.joints, busy);
+    }
+
+    /// The next line for the Orion controller (without its newline).
+    pub fn poll_orion_line(&mut self) -> Option<String> {
+        let line = self.drivers.poll_line()?;
+        self.changed();
+        Some(line)
+    }
+
+    /// One line from the Orion controller, received at `now`.
+    pub fn handle_orion_line(&mut self, now: Duration, line: &str) {
+        self.changed();
+        self.now = self.now.max(now);
+        self.drivers
+            .handle_line(self.now, line, &self.joints, &self.map);
+        self.drain_drivers();
+    }
+
+    /// A line from the Orion controller that could not be read (too long,
+    /// not UTF-8), at `now`: counted, and reported at most
+    /// [`MAX_BAD_LINE_EVENTS`] times a second.
+    pub fn handle_orion_unreadable(&mut self, now: Duration, reason: &str) {
+        self.changed();
+        self.now = self.now.max(now);
+        self.drivers.handle_unreadable(self.now, reason);
+        self.drain_drivers();
+    }
+
+    /// The link to the Orion controller ended (`error` says how): its
+    /// motors are offline, and what was in flight has an unknown outcome.
+    pub fn orion_link_lost(&mut self, now: Duration, error: &str) {
+        self.changed();
+        self.now = self.now.max(now);
+        if !self.drivers.link_lost(now, error, &self.joints) {
+            return;
+        }
+        self.drain_drivers();
+        self.handle_timeout(now);
+    }
+
+    /// `{"orion":"fold"}` or `{"orion":"unfold"}`: an arm-wide command, for
+    /// every device that takes one (the Orion controller's motors: one
+    /// line).
+    pub(super) fn arm_command(&mut self, now: Duration, meta: LineMeta, command: ArmCommand) {
+        let name = match command {
+            ArmCommand::Fold => "fold",
+            ArmCommand::Unfold => "unfold",
+            ArmCommand::Stop => "stop",
+        };
+        let meta = meta.labelled(Label::Orion(name.to_owned()));
+        let axes: Vec<Axis> = self
+            .joints
+            .iter()
+            .enumerate()
+            .filter_map(|(ji, j)| {
+                let order = j.device.arm_order(command)?;
+                Some(Axis::of(j.name.clone(), ji, [order]))
+            })
+            .collect();
+        if axes.is_empty() {
+            let e = ErrorBody::refused(
+                BridgeRule::OrionNotAttached,
+                "no Orion arm controller is attached (motorwire bridge --orion ...)",
+            );
+            self.refuse(&meta, e);
+            return;
+        }
+        if let Err(e) = self.admit_now(axes.iter().map(|a| a.motor.as_str())) {
+            self.refuse(&meta, e);
+            return;
+        }
+        self.command_job(now, meta, axes, Report::default());
+    }
+
+    /// The refusal for a motor among `motors` whose driver is not
+    /// attached (an Orion motor without `--orion`).
+    pub(super) fn unattached<'a>(
+        &self,
+        motors: impl Iterator<Item = &'a str>,
+    ) -> Option<ErrorBody> {
+        crate::device::unattached(&self.map, self.config.orion, motors)
+    }
+
+    // ---- request lines --------------------------------------------------
+    //
+    // Lines that ask a joint for something and wait for its answer:
+    // telemetry, power metrics, the fault history (`{"request":...}`) and
+    // calibration (`{"calibration":"start"|"stop",...}`). A request line is
+    // one job: its request is sent like any command (one in flight per
+    // joint, retried, acked), and the line's result waits for the message
+    // it asked for, which comes back in `data`. The joint may send it
+    // before or after its Ack. Nothing within the wait
+    // ([`Bridge::answer_wait`]) is the error `no_answer`. A calibration's
+    // status messages are `calibration` events while it runs; its result
+    // ends the start line (`ok` only when it succeeded).
+
+    /// How long a request line waits for its answer after it is sent:
+    /// every attempt's Ack timeout and a margin.
+    pub(super) fn answer_wait(&self) -> Duration {
+        self.config
+            .client
+            .timeout
+            .saturating_mul(u32::from(self.config.client.retries) + 1)
+            .saturating_add(ANSWER_MARGIN)
+    }
+
+    /// The device `motor` names if it can do `needs_to` and has the
+    /// message `needs` (an iRPC joint, in its wire version), or the
+    /// refusal to answer with.
+    pub(super) fn joint_for(
+        &self,
+        motor: &str,
+        needs_to: Capability,
+        needs: PayloadKind,
+        what: &str,
+    ) -> Result<usize, ErrorBody> {
+        let Some(ji) = self.joint_index(motor).filter(|&ji| {
+            self.joints
+                .get(ji)
+                .is_some_and(|j| j.device.supports(needs_to))
+        }) else {
+            if self.joint_index(motor).is_none() {
+                return Err(ErrorBody::refused(
+                    BridgeRule::UnknownMotor,
+                    format!("motor {motor:?} is not in the bus map"),
+                )
+                .about(motor));
+            }
+            let why = match needs_to {
+                Capability::Reset => {
+                    format!("{motor} takes no reset: only iRPC joints and moteus controllers do")
+                }
+                _ => format!("{motor} is not an iRPC joint of the bus map"),
+            };
+            return Err(ErrorBody::refused(BridgeRule::NotAnIrpcJoint, why).about(motor));
+        };
+        let device = self.joints.get(ji).map(|j| j.device);
+        if device.is_none_or(|d| !d.speaks(needs)) {
+            let wire = device.map(Device::wire);
+            return Err(ErrorBody::new(
+                ErrorKind::Unsupported,
+                format!(
+                    "{motor} speaks iRPC {}, which has no {what}",
+                    wire.map_or("?", |w| w.name())
+                ),
+            )
+            .about(motor));
+        }
+        if self.joints.get(ji).is_some_and(|j| !j.online) {
+            return Err(
+                ErrorBody::new(ErrorKind::Offline, format!("{motor} is offline")).about(motor),
+            );
+        }
+        Ok(ji)
+    }
+
+    /// `{"request":K,"motor_id":M}`.
+    pub(super) fn request_line(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        kind: RequestKind,
+        motor: &str,
+    ) {
+        let meta = meta.labelled(Label::Motor(motor.to_owned()));
+        let (needs, payload, awaits, what) = crate::device::irpc::request(kind);
+        let ji = match self.joint_for(motor, Capability::Requests, needs, what) {
+            Ok(ji) => ji,
+            Err(e) => return self.refuse(&meta, e),
+        };
+        let deadline = now.saturating_add(self.answer_wait());
+        self.open_waiting(now, meta, (motor, ji), payload, awaits, deadline);
+    }
+
+    /// `{"calibration":"start"|"stop","motor_id":M,...}`.
+    pub(super) fn calibration_line(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        motor: &str,
+        start: Option<CalibrationRequest>,
+    ) {
+        let meta = meta.labelled(Label::Motor(motor.to_owned()));
+        let ji = match self.joint_for(
+            motor,
+            Capability::Requests,
+            PayloadKind::StartCalibration,
+            "calibration (v2.1 on)",
+        ) {
+            Ok(ji) => ji,
+            Err(e) => return self.refuse(&meta, e),
+        };
+        let payload = crate::device::irpc::calibration(start);
+        let Some(request) = start else {
+            let axis = Axis::new(motor.to_owned(), ji, [payload]);
+            self.command_job(now, meta, vec![axis], Report::default());
+            return;
+        };
+        // A calibration moves the joint: refused as a motion is, and its
+        // own limits held to the limits in force.
+        if let Err(e) = self.admit_now(std::iter::once(motor)) {
+            return self.refuse(&meta, e);
+        }
+        if let Err(r) = motorwire_translate::gate_calibration(&self.map, motor, &request) {
+            return self.refuse(&meta, ErrorBody::gate(&r));
+        }
+        let phases = request.phases.count_ones().max(1);
+        let per_phase =
+            Duration::try_from_secs_f32(request.phase_timeout).unwrap_or(Duration::ZERO);
+        let deadline = now
+            .saturating_add(self.answer_wait())
+            .saturating_add(per_phase.saturating_mul(phases))
+            .saturating_add(CALIBRATION_MARGIN);
+        let kind = AwaitKind::CalibrationResult;
+        self.open_waiting(now, meta, (motor, ji), payload, kind, deadline);
+    }
+
+    /// Line `meta`'s request `payload` to `device` (its name and index),
+    /// whose result waits for its answer of `kind` until `deadline`.
+    pub(super) fn open_waiting(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        device: (&str, usize),
+        payload: Payload,
+        kind: AwaitKind,
+        deadline: Duration,
+    ) {
+        let (motor, ji) = device;
+        let awaiting = Awaiting {
+            joint: ji,
+            kind,
+            deadline,
+        };
+        let id = self.next_job;
+        let axis = Axis::new(motor.to_owned(), ji, [payload]);
+        self.command_job(now, meta, vec![axis], Report::default());
+        // Not done yet (a job is taken out once done): it waits.
+        if let Some(job) = self.jobs.get_mut(&id) {
+            job.awaiting = Some(awaiting);
+        }
+    }
+
+    /// Device `ji` answered what a request line may wait for: progress
+    /// is reported, and the oldest line waiting for this from this device
+    /// gets its data.
+    pub(super) fn answered(&mut self, ji: usize, answer: Answer) {
+        let (kind, data, error) = match answer {
+            Answer::Progress(e) => {
+                self.out.push_back(Output::Event(e));
+                return;
+            }
+            Answer::Data { kind, data, error } => (kind, data, error),
+        };
+        let Some(job) = self
+            .jobs
+            .values_mut()
+            .find(|j| j.awaiting.is_some_and(|a| a.joint == ji && a.kind == kind))
+        else {
+            return;
+        };
+        job.awaiting = None;
+        job.data_error = error;
+        job.data = Some(data);
+        self.finish_jobs();
+    }
+
+    /// Request lines whose answer did not come in time.
+    pub(super) fn awaiting_timeouts(&mut self, now: Duration) {
+        let mut any = false;
+        for job in self.jobs.values_mut() {
+            let Some(a) = job.awaiting.filter(|a| now >= a.deadline) else {
+                continue;
+            };
+            job.awaiting = None;
+            let what = match a.kind {
+                AwaitKind::Telemetry => "TelemetryStream",
+                AwaitKind::PowerMetrics => "PowerMetrics",
+                AwaitKind::FaultHistory => "FaultHistory",
+                AwaitKind::CalibrationResult => "CalibrationResult",
+            };
+            let motor = job
+                .axes
+                .first()
+                .map(|x| x.motor.clone())
+                .unwrap_or_default();
+            job.data_error = Some(format!(
+                "{motor} acked the request, but no {what} came within {} ms",
+                now.saturating_sub(job.received).as_millis()
+            ));
+            any = true;
+        }
+        if any {
+            self.finish_jobs();
+        }
+    }
+
+    // ---- arrival ----------------------------------------------------------
+
+    /// Everything the drivers have to tell, acted on in order.
+    pub(super) fn drain_drivers(&mut self) {
+        while let Some(h) = self.drivers.poll(&self.map, &self.joints) {
+            self.happened(h);
+        }
+        self.finish_jobs();
+    }
+
+    /// What a driver told, acted on the same way for every dialect.
+    pub(super) fn happened(&mut self, h: Happened) {
+        match h {
+            Happened::Heard { device, at, up } => self.heard(device, at, up),
+            Happened::Reading {
+                device,
+                at,
+                motion,
+                feedback,
+            } => self.reading(device, at, motion, feedback.map(|f| *f)),
+            Happened::Ended { device, ended } => self.step_done(device, ended),
+            Happened::Lifecycle {
+                device,
+                state,
+                code,
+            } => self.lifecycle(device, state, code),
+            Happened::StoppedItself {
+                device,
+                at,
+                reason,
+                code,
+            } => {
+                let Some(name) = self.joints.get(device).map(|j| j.name.clone()) else {
+                    return;
+                };
+                self.joint_lost(
+                    device,
+                    format!("stopped itself ({reason})"),
+                    Event::JointFault {
+                        motor_id: name.clone(),
+                        code,
+                        reason: Some(reason.clone()),
+                    },
+                );
+                // A joint's own emergency stop stops every joint: the arm is
+                // not safe to move with one of them down.
+                self.emergency_stop(at, None, Vec::new(), format!("{name}: {reason}"));
+            }
+            Happened::Answer { device, answer } => self.answered(device, answer),
+            Happened::Bad { report } => {
+                self.stats.bad_frames += 1;
+                if let Some(e) = report {
+                    self.out.push_back(Output::Event(e));
+                }
+            }
+            Happened::Event(e) => self.out.push_back(Output::Event(e)),
+            Happened::LinkLost {
+                devices,
+                offline,
+                arrival,
+            } => self.link_lost(&devices, &offline, &arrival),
+            Happened::MayGo { devices } => {
+                for ji in devices {
+                    self.pump(ji);
+                }
+                self.finish_jobs();
+            }
+        }
+    }
+
+    /// The link to `devices` is lost: they are offline (`why`), no
+    /// deadman watches them, and lines waiting on them will not arrive
+    /// (`arrival`); what waits for them is not sent.
+    pub(super) fn link_lost(&mut self, devices: &[usize], why: &str, arrival: &str) {
+        for &ji in devices {
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.deadman = None;
+                if j.online {
+                    j.online = false;
+                    self.out.push_back(Output::Event(Event::Offline {
+                        motor_id: j.name.clone(),
+                        node: j.node,
+                        reason: why.to_owned(),
+                    }));
+                }
+            }
+        }
+        self.fail_watches(|w| devices.iter().any(|&ji| w.waits_on(ji)), arrival);
+        for &ji in devices {
+            self.pump(ji);
+        }
+        self.finish_jobs();
+        // Starting, a device lost is no longer waited for.
+        self.try_ready();
+    }
+}

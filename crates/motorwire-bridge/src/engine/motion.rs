@@ -1,0 +1,766 @@
+//! Motion built from lines: a motor command, a multi-axis command, a trajectory, SafetyLimits; each checked against the limits in force before a job is opened.
+
+use super::*;
+
+impl Bridge {
+    /// WIA Trajectories for iRPC joints (one, or several on one time base):
+    /// each planned and checked whole ([`trajectory_to_irpc`]) before
+    /// anything is sent, then each segment sent at its time
+    /// (`timing.start_time` in the future schedules the start). Each joint
+    /// must stand at its first waypoint.
+    pub(super) fn trajectories(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        id: &str,
+        all: &[Trajectory],
+    ) {
+        // One trajectory: labelled by its motor; several: by their id.
+        let meta = meta.labelled(match all {
+            [one] => Label::Motor(one.motor_id.clone()),
+            _ => Label::Command(id.to_owned()),
+        });
+        let now_ms = self.unix_ms(now);
+        // One time base: the first `start_time` given, or now.
+        let start_ms = all
+            .iter()
+            .find_map(|t| t.timing.start_time)
+            .unwrap_or(now_ms);
+        if let Err(e) = self.admit(
+            now,
+            Some(meta.origin),
+            start_ms.min(now_ms),
+            all.iter().map(|t| t.motor_id.as_str()),
+        ) {
+            self.refuse(&meta, e);
+            return;
+        }
+        if let (Some(_), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age)
+            && start_ms - now_ms > max_age.as_secs_f64() * 1000.0
+        {
+            let e = ErrorBody::new(
+                ErrorKind::Stale,
+                format!(
+                    "timing.start_time {start_ms} is {:.1} s ahead; a trajectory starts within the allowed clock skew, {} s (WIA §10.1)",
+                    (start_ms - now_ms) / 1000.0,
+                    max_age.as_secs_f64()
+                ),
+            );
+            self.refuse(&meta, e);
+            return;
+        }
+        // A start_time so far ahead that no clock reaches it (1e300) is
+        // refused, never a panic.
+        let Ok(delay) = Duration::try_from_secs_f64(((start_ms - now_ms) / 1000.0).max(0.0)) else {
+            let e = ErrorBody::refused(
+                BridgeRule::TimeUnreachable,
+                format!("timing.start_time {start_ms} is beyond any time the bridge can wait for"),
+            );
+            self.refuse(&meta, e);
+            return;
+        };
+        let start = now.saturating_add(delay);
+        let mut axes = Vec::new();
+        let mut report = Report::default();
+        let mut seen = std::collections::BTreeSet::new();
+        for t in all {
+            if !seen.insert(t.motor_id.as_str()) {
+                let e = ErrorBody::refused(
+                    BridgeRule::MotorTwice,
+                    format!("{} has two trajectories in one line", t.motor_id),
+                );
+                self.refuse(&meta, e);
+                return;
+            }
+            let plan = match trajectory_to_irpc(&self.map, t) {
+                Ok(p) => p,
+                Err(r) => {
+                    let e = ErrorBody::gate(&r);
+                    self.refuse(&meta, e);
+                    return;
+                }
+            };
+            let Some(ji) = self.joint_index(&t.motor_id).filter(|&ji| {
+                self.joints
+                    .get(ji)
+                    .is_some_and(|j| j.device.supports(Capability::Trajectory))
+            }) else {
+                let e = ErrorBody::refused(
+                    BridgeRule::NotAnIrpcJoint,
+                    format!("{} is not an iRPC joint", t.motor_id),
+                );
+                self.refuse(&meta, e);
+                return;
+            };
+            let (unit, tolerance) = self
+                .map
+                .motor(&t.motor_id)
+                .map_or((AngleUnit::Degrees, 0.1), |m| {
+                    (m.unit, m.unit.to_degrees(m.arrival_tolerance))
+                });
+            let first = t
+                .waypoints
+                .first()
+                .map_or(0.0, |w| unit.to_degrees(w.position));
+            let here = self.joints.get(ji).and_then(|j| j.motion).map(|(p, _)| p);
+            if here.is_none_or(|p| !p.is_finite() || (p - first).abs() > tolerance) {
+                let at = here.map_or_else(
+                    || "at an unknown position".to_owned(),
+                    |p| format!("at {}", short_unit(unit.from_degrees(p))),
+                );
+                let e = ErrorBody::refused(
+                    BridgeRule::NotAtStart,
+                    format!(
+                        "{}: the trajectory starts at {} and the joint is {at}: move it there first",
+                        t.motor_id,
+                        short_unit(unit.from_degrees(first))
+                    ),
+                );
+                self.refuse(&meta, e);
+                return;
+            }
+            for loss in plan.report.losses {
+                report.losses.push(if all.len() > 1 {
+                    loss.under(&t.motor_id)
+                } else {
+                    loss
+                });
+            }
+            // Times no clock reaches are refused, never a panic.
+            let timeable = |secs: f64| Duration::try_from_secs_f64(secs.max(0.0)).is_ok();
+            if !plan.value.segments.iter().all(|s| timeable(s.at)) || !timeable(plan.value.duration)
+            {
+                let e = ErrorBody::refused(
+                    BridgeRule::TimeUnreachable,
+                    format!(
+                        "{}: a waypoint's time is beyond any time the bridge can wait for",
+                        t.motor_id
+                    ),
+                );
+                self.refuse(&meta, e);
+                return;
+            }
+            // Each segment as the device takes it (an iRPC joint its
+            // SetTargetV2; a moteus controller a position-mode move within
+            // the segment's limits, its torque limit the map's in force).
+            let device = self.joints.get(ji).map(|j| j.device);
+            let max_torque = self
+                .map
+                .motor(&t.motor_id)
+                .and_then(|m| m.limits.max_torque);
+            let orders: Vec<Order> = plan
+                .value
+                .segments
+                .iter()
+                .filter_map(|s| device.and_then(|d| d.segment_order(s.payload, max_torque)))
+                .collect();
+            let mut axis = Axis::of(t.motor_id.clone(), ji, orders.iter().copied());
+            axis.due = plan
+                .value
+                .segments
+                .iter()
+                .map(|s| start.saturating_add(Duration::from_secs_f64(s.at.max(0.0))))
+                .collect();
+            if plan.value.forever {
+                axis.cycle = Some(Cycle {
+                    payloads: plan
+                        .value
+                        .segments
+                        .iter()
+                        .zip(orders)
+                        .map(|(s, o)| (Duration::from_secs_f64(s.at.max(0.0)), o))
+                        .collect(),
+                    period: Duration::from_secs_f64(plan.value.duration),
+                    started: start,
+                });
+            }
+            axes.push(axis);
+        }
+        self.command_job(now, meta, axes, report);
+    }
+
+    // ---- one motor held, freed or stopped ---------------------------------------
+
+    /// The first motion of device `ji` already accepted (its move under
+    /// way, what is in flight, what waits to be sent, a trajectory's later
+    /// segments and cycles) that positions `lo..=hi` or a `max_v` (the
+    /// motor's unit) would not allow: what it is, said for a person.
+    pub(super) fn motion_outside(
+        &self,
+        ji: usize,
+        lo: f64,
+        hi: f64,
+        max_v: Option<f64>,
+    ) -> Option<String> {
+        let j = self.joints.get(ji)?;
+        let unit = self
+            .map
+            .motor(&j.name)
+            .map_or(AngleUnit::Degrees, |m| m.unit);
+        let (lo_d, hi_d) = (unit.to_degrees(lo), unit.to_degrees(hi));
+        let max_d = max_v.map(|v| unit.to_degrees(v));
+        const SLACK: f64 = 1e-6;
+        let outside = |t: f64| t < lo_d - SLACK || t > hi_d + SLACK;
+        let faster = |v: f64| max_d.is_some_and(|m| v.abs() > m + SLACK);
+        let say = |d: f64| short_unit(unit.from_degrees(d));
+        if j.moving_until > self.now {
+            if let Some(t) = j.target.filter(|t| outside(*t)) {
+                return Some(format!("its move under way goes to {}", say(t)));
+            }
+            if let Some((_, v)) = j.motion.filter(|(_, v)| faster(*v)) {
+                return Some(format!("it moves at {} a second now", say(v.abs())));
+            }
+        }
+        // The rest of the move under way (a move braking from speed
+        // toward a target inside passes it): as the bridge planned it, or
+        // without that plan, at least the stop from where the joint is at
+        // its limits. A joint already past a new limit is held to going no
+        // farther (as one standing there is: the limits bind what comes
+        // next); going farther out is refused.
+        if let Some((p_now, v_now, _)) = j.state_at(self.now) {
+            let farther = |x: f64| {
+                (x > hi_d + SLACK && x > p_now + SLACK) || (x < lo_d - SLACK && x < p_now - SLACK)
+            };
+            let rest = match &j.model {
+                Some((start, profile)) => {
+                    let t = self.now.saturating_sub(*start).as_secs_f64();
+                    (t < profile.duration()).then(|| {
+                        let e = profile.position_extrema_from(t);
+                        [(e.max, e.t_max - t), (e.min, e.t_min - t)]
+                    })
+                }
+                None if v_now != 0.0 => self.map.motor(&j.name).and_then(|m| {
+                    let l = m.limits;
+                    let deg = |x: Option<f64>| x.map(|v| unit.to_degrees(v));
+                    let acc = deg(l.max_acceleration).unwrap_or(1000.0);
+                    let mut req = motorwire_planner::Request::new(
+                        p_now,
+                        p_now,
+                        deg(l.max_velocity).unwrap_or(v_now.abs()).max(v_now.abs()),
+                        acc,
+                    )
+                    .with_velocities(v_now, 0.0)
+                    .with_max_deceleration(deg(l.max_deceleration).unwrap_or(acc));
+                    if let Some(jerk) = deg(l.max_jerk).filter(|j| *j > 0.0) {
+                        req = req.with_jerk(jerk);
+                    }
+                    let e = motorwire_planner::plan(&req).ok()?.position_extrema();
+                    Some([(e.max, e.t_max), (e.min, e.t_min)])
+                }),
+                None => None,
+            };
+            for (extreme, after) in rest.into_iter().flatten() {
+                if farther(extreme) {
+                    return Some(format!(
+                        "its move under way reaches {} in {:.3} s",
+                        say(extreme),
+                        after.max(0.0)
+                    ));
+                }
+            }
+        }
+        for step in j.busy.iter().chain(j.queue.iter()) {
+            let Some(job) = self.jobs.get(&step.job) else {
+                continue;
+            };
+            let Some(a) = job.axes.get(step.axis) else {
+                continue;
+            };
+            let in_flight = match &a.state {
+                AxisState::InFlight { payload, .. } => Some(*payload),
+                _ => None,
+            };
+            let cycle = a
+                .cycle
+                .iter()
+                .flat_map(|c| c.payloads.iter().map(|(_, p)| *p));
+            for order in in_flight
+                .into_iter()
+                .chain(a.payloads.iter().copied())
+                .chain(cycle)
+            {
+                let reach = order.reach(unit);
+                let line = job.number();
+                if let Some(t) = reach.target.filter(|t| outside(*t)) {
+                    return Some(format!("line {line} moves it to {}", say(t)));
+                }
+                if let Some(v) = reach.speed.filter(|v| faster(*v)) {
+                    return Some(format!("line {line} moves it at {} a second", say(v.abs())));
+                }
+            }
+        }
+        None
+    }
+
+    /// A WIA SafetyLimits line: the motor's gate is held to these limits
+    /// from now on (until another such line). Each limit must lie within
+    /// the bus map's; a wider one refuses the whole line.
+    pub(super) fn safety_limits(&mut self, meta: LineMeta, l: &SafetyLimits) {
+        let name = l.motor_id.clone();
+        let meta = meta.labelled(Label::Motor(name.clone()));
+        let Some(base) = self.base_limits.get(&name).copied() else {
+            let e = ErrorBody::refused(
+                BridgeRule::UnknownMotor,
+                format!("motor {name:?} is not in the bus map"),
+            )
+            .about(&name);
+            self.refuse(&meta, e);
+            return;
+        };
+        let p = &l.position_limits;
+        let v = &l.velocity_limits;
+        let t = &l.torque_limits;
+        let mut wider = Vec::new();
+        let mut low = |field: &str, value: Option<f64>, map: Option<f64>, map_field: &str| {
+            if let (Some(x), Some(b)) = (value, map)
+                && x < b
+            {
+                wider.push(format!(
+                    "{name}: {field} {x} is wider than the bus map's {map_field} {b}"
+                ));
+            }
+        };
+        low(
+            "position_limits.min",
+            Some(p.min),
+            base.min_position,
+            "min_position",
+        );
+        low(
+            "position_limits.soft_min",
+            p.soft_min,
+            base.min_position,
+            "min_position",
+        );
+        let mut high = |field: &str, value: Option<f64>, map: Option<f64>, map_field: &str| {
+            if let (Some(x), Some(b)) = (value, map)
+                && x > b
+            {
+                wider.push(format!(
+                    "{name}: {field} {x} is wider than the bus map's {map_field} {b}"
+                ));
+            }
+        };
+        high(
+            "position_limits.max",
+            Some(p.max),
+            base.max_position,
+            "max_position",
+        );
+        high(
+            "position_limits.soft_max",
+            p.soft_max,
+            base.max_position,
+            "max_position",
+        );
+        high(
+            "velocity_limits.max_velocity",
+            v.max_velocity,
+            base.max_velocity,
+            "max_velocity",
+        );
+        high(
+            "torque_limits.continuous_torque",
+            t.continuous_torque,
+            base.max_torque,
+            "max_torque",
+        );
+        high(
+            "torque_limits.peak_torque",
+            t.peak_torque,
+            base.max_torque,
+            "max_torque",
+        );
+        if !wider.is_empty() {
+            let e = ErrorBody::refused(BridgeRule::WiderThanBusMap, wider.join("; ")).about(&name);
+            self.refuse(&meta, e);
+            return;
+        }
+        // The soft limits, where given, are the gate's; the torque a
+        // command may hold is the continuous one.
+        let lo = p.soft_min.map_or(p.min, |s| s.max(p.min));
+        let hi = p.soft_max.map_or(p.max, |s| s.min(p.max));
+        // Motion already accepted is held to the new limits too: a line
+        // it would break is refused, naming it, and nothing changes.
+        if let Some(why) = self
+            .joint_index(&name)
+            .and_then(|ji| self.motion_outside(ji, lo, hi, v.max_velocity))
+        {
+            let e = ErrorBody::refused(
+                BridgeRule::MotionOutsideNewLimits,
+                format!(
+                    "{name}: {why}, which these limits would not allow; send them once it has ended, or stop it first"
+                ),
+            )
+            .about(&name);
+            self.refuse(&meta, e);
+            return;
+        }
+        let torque = match (t.continuous_torque, t.peak_torque) {
+            (Some(c), Some(k)) => Some(c.min(k)),
+            (c, k) => c.or(k).or(base.max_torque),
+        };
+        let limits = Limits {
+            min_position: Some(lo),
+            max_position: Some(hi),
+            max_velocity: v.max_velocity.or(base.max_velocity),
+            max_torque: torque,
+            ..base
+        };
+        self.map
+            .set_limits(&name, limits, "the SafetyLimits line in force");
+        if let Some(ji) = self.joint_index(&name) {
+            let motor = self.map.motor(&name);
+            if let (Some(j), Some(m)) = (self.joints.get_mut(ji), motor) {
+                j.pace = crate::joints::Pace::of(m);
+            }
+            let unit = motor.map_or(AngleUnit::Degrees, |m| m.unit);
+            self.drivers.limits_changed(ji, &InForce::of(unit, &limits));
+        }
+        match v.emergency_decel {
+            Some(d) => self.emergency_decel.insert(name.clone(), d),
+            None => self.emergency_decel.remove(&name),
+        };
+        let mut losses = Vec::new();
+        if v.emergency_decel.is_some() {
+            losses.push(motorwire_translate::Loss {
+                field: "velocity_limits.emergency_decel".into(),
+                kind: LossKind::Dropped,
+                detail: "recorded; an iRPC joint brakes from a Deactivate at its own rate".into(),
+            });
+        }
+        for (field, given) in [
+            ("thermal_limits", l.thermal_limits.is_some()),
+            ("current_limits", l.current_limits.is_some()),
+            ("collision_detection", l.collision_detection.is_some()),
+            (
+                "torque_limits.peak_duration_ms",
+                t.peak_duration_ms.is_some(),
+            ),
+        ] {
+            if given {
+                losses.push(motorwire_translate::Loss {
+                    field: field.into(),
+                    kind: LossKind::Dropped,
+                    detail: "iRPC has no such setting; the joint keeps its own".into(),
+                });
+            }
+        }
+        let r = LineResult {
+            ok: true,
+            line: meta.number,
+            limits: self.limits_value(&name),
+            losses,
+            ..LineResult::default()
+        };
+        self.answer(&meta, r);
+    }
+
+    pub(super) fn joint_index(&self, motor: &str) -> Option<usize> {
+        self.joints.iter().position(|j| j.name == motor)
+    }
+
+    pub(super) fn motor_command(&mut self, now: Duration, meta: LineMeta, cmd: &mut MotorCommand) {
+        let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
+        self.learn_clock(now, meta.origin, cmd.timestamp);
+        if let Err(e) = self.admit(
+            now,
+            Some(meta.origin),
+            cmd.timestamp,
+            std::iter::once(cmd.motor_id.as_str()),
+        ) {
+            if e.kind == ErrorKind::Busy {
+                self.stats.busy += 1;
+            }
+            self.refuse(&meta, e);
+            return;
+        }
+        // Its joint, looked for once.
+        let ji = self.joint_index(&cmd.motor_id);
+        let device = ji.and_then(|ji| Some((ji, self.joints.get(ji)?.device)));
+        // A joint is attached (an Orion motor is one only with its
+        // controller); anything else may be an Orion motor without one.
+        if ji.is_none()
+            && let Some(e) = self.unattached(std::iter::once(cmd.motor_id.as_str()))
+        {
+            self.refuse(&meta, e);
+            return;
+        }
+        if cmd
+            .safety_limits
+            .as_ref()
+            .is_none_or(|l| l.emergency_stop != Some(true))
+            && let Some(e) = self.outward_at_limit(&cmd.motor_id, cmd.control_mode, cmd.setpoint)
+        {
+            self.refuse(&meta, e);
+            return;
+        }
+        if let Some((ji, device)) = device
+            && let Some(built) = self.single_axis(ji, device, cmd)
+        {
+            self.device_command(now, meta, cmd, built);
+            return;
+        }
+        match motorwire_translate::to_irpc_gated(&self.map, cmd) {
+            Ok((t, motor, limits)) => {
+                let Some(joint) = ji else {
+                    let e = ErrorBody::refused(
+                        BridgeRule::NotAnIrpcJoint,
+                        format!("{} is not an iRPC joint of the bus map", cmd.motor_id),
+                    )
+                    .about(cmd.motor_id.clone());
+                    self.refuse(&meta, e);
+                    return;
+                };
+                let planned = planned_within_limits(
+                    self.joints.get(joint),
+                    self.now,
+                    motor,
+                    &limits,
+                    &t.value.payloads,
+                );
+                match planned {
+                    Ok(planned) => self.keep_plan(joint, planned),
+                    Err(r) => {
+                        self.refuse(&meta, ErrorBody::gate(&r));
+                        return;
+                    }
+                }
+                // The line's motor name, moved: the command is not read again.
+                let motor = std::mem::take(&mut cmd.motor_id);
+                let axes = vec![Axis::new(motor, joint, t.value.payloads)];
+                self.command_job(now, meta, axes, t.report);
+            }
+            Err(r) => self.refuse(&meta, ErrorBody::gate(&r)),
+        }
+    }
+
+    /// `cmd` for device `ji`, gated and translated on its own, as its
+    /// axis; `None` for an iRPC joint, whose moves are planned from its
+    /// state (and with the other joints of a multi-axis line).
+    pub(super) fn single_axis(
+        &self,
+        ji: usize,
+        device: Device,
+        cmd: &MotorCommand,
+    ) -> Option<Result<(Axis, Report), motorwire_translate::Refusal>> {
+        let built = device.single_order(&self.map, cmd)?;
+        Some(built.map(|one| {
+            let mut axis = Axis::of(cmd.motor_id.clone(), ji, [one.order]);
+            axis.target = one.target;
+            (axis, one.report)
+        }))
+    }
+
+    /// A multi-axis command: the iRPC joints' axes planned together
+    /// (synchronized as the command asks), every compact device's and
+    /// Orion motor's axis gated and translated on its own, all sent as one
+    /// job. `sync_mode: sequential` runs them one after another, each once
+    /// the one before arrived.
+    pub(super) fn multi_axis_jobs(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        cmd: &MultiAxisCommand,
+    ) {
+        let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
+        // One after another, or together in one duration: not both (each
+        // axis took the duration, one after the other, and the result
+        // promised them all after it).
+        if cmd.sync_mode == Some(SyncMode::Sequential)
+            && cmd
+                .coordination
+                .as_ref()
+                .is_some_and(|c| c.total_duration_ms.is_some())
+        {
+            let e = ErrorBody::new(
+                ErrorKind::Invalid,
+                "sync_mode sequential runs the axes one after another; coordination.total_duration_ms has them all arrive together after it: a line has one or the other",
+            );
+            return self.refuse(&meta, e);
+        }
+        let (mut axes, report) = match self.mixed_axes(cmd) {
+            Ok(x) => x,
+            Err(e) => return self.refuse(&meta, e),
+        };
+        if cmd.sync_mode == Some(SyncMode::Sequential) {
+            // One after another: each starts once the one before it
+            // arrived, so each must be a move to a target.
+            if let Some((a, i)) = axes
+                .iter()
+                .zip(&cmd.motors)
+                .find(|(ax, _)| ax.target.is_none())
+            {
+                let e = ErrorBody::refused(
+                    BridgeRule::SequentialWithoutArrival,
+                    format!(
+                        "{}: sync_mode sequential runs position moves one after another, each once the one before arrived; a {} command has no arrival to wait for",
+                        a.motor,
+                        i.control_mode.name()
+                    ),
+                )
+                .about(a.motor.clone());
+                return self.refuse(&meta, e);
+            }
+            for (k, a) in axes.iter_mut().enumerate().skip(1) {
+                a.after = Some(k - 1);
+            }
+        }
+        self.command_job(now, meta, axes, report);
+    }
+
+    /// Opens the job of a command line: `axes`, `report`'s losses.
+    pub(super) fn command_job(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        axes: Vec<Axis>,
+        report: Report,
+    ) {
+        self.open_job(Some(meta), JobKind::Command, now, axes, report, Vec::new());
+    }
+
+    /// A MotorCommand for one compact device or Orion motor: its axis as
+    /// `built`, or the refusal.
+    pub(super) fn device_command(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        cmd: &MotorCommand,
+        built: Result<(Axis, Report), motorwire_translate::Refusal>,
+    ) {
+        let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
+        match built {
+            Ok((axis, report)) => self.command_job(now, meta, vec![axis], report),
+            Err(r) => {
+                let e = ErrorBody::gate(&r);
+                self.refuse(&meta, e);
+            }
+        }
+    }
+
+    pub(super) fn mixed_axes(
+        &self,
+        cmd: &MultiAxisCommand,
+    ) -> Result<(Vec<Axis>, Report), ErrorBody> {
+        let refused = |motor: &str, r: &motorwire_translate::Refusal| {
+            ErrorBody::gate(r).about(motor.to_owned())
+        };
+        let mut report = Report::default();
+        // The iRPC joints' axes, planned together.
+        let mut sub = cmd.clone();
+        sub.motors.retain(|a| {
+            self.joint_index(&a.motor_id).is_some_and(|ji| {
+                self.joints
+                    .get(ji)
+                    .is_some_and(|j| j.device.planned_together())
+            })
+        });
+        let mut irpc: Vec<Vec<Payload>> = Vec::new();
+        if !sub.motors.is_empty() {
+            // Each joint from where it is now, moving or not.
+            let state = |m: &str| {
+                let j = self.joints.get(self.joint_index(m)?)?;
+                match j.state_at(self.now) {
+                    Some(k) => Some(crate::joints::in_unit(j.unit, k)),
+                    None => j.feedback.as_ref().map(|f| (f.position, 0.0, 0.0)),
+                }
+            };
+            let t = multi_axis_to_irpc_from(&self.map, &sub, &state)
+                .map_err(|r| ErrorBody::gate(&r))?;
+            irpc = t.value.commands.into_iter().map(|c| c.payloads).collect();
+            report.losses.extend(t.report.losses);
+        }
+        let mut irpc = irpc.into_iter();
+        let mut axes = Vec::new();
+        // The dialects of the axes not planned together, in the map's words.
+        let mut others: Vec<&'static str> = Vec::new();
+        for a in &cmd.motors {
+            let Some(ji) = self.joint_index(&a.motor_id) else {
+                return Err(ErrorBody::refused(
+                    BridgeRule::UnknownMotor,
+                    format!("{} is not a device of the bus map", a.motor_id),
+                )
+                .about(a.motor_id.clone()));
+            };
+            let single = a.to_motor_command(cmd.timestamp);
+            let prefixed = |r: Report| r.losses.into_iter().map(|l| l.under(&a.motor_id));
+            let device = self.joints.get(ji).map(|j| j.device);
+            if let Some(built) = device.and_then(|d| self.single_axis(ji, d, &single)) {
+                let (axis, r) = built.map_err(|r| refused(&a.motor_id, &r))?;
+                report.losses.extend(prefixed(r));
+                axes.push(axis);
+                let dialect = device.map_or("iRPC", Device::dialect_name);
+                if !others.contains(&dialect) {
+                    others.push(dialect);
+                }
+            } else {
+                let payloads = irpc.next().unwrap_or_default();
+                axes.push(Axis::new(a.motor_id.clone(), ji, payloads));
+            }
+        }
+        if !others.is_empty()
+            && !sub.motors.is_empty()
+            && cmd.sync_mode != Some(SyncMode::Sequential)
+        {
+            others.sort_by_key(|d| d.to_ascii_lowercase());
+            let names = match others.as_slice() {
+                [one] => (*one).to_owned(),
+                [init @ .., last] => format!("{} and {last}", init.join(", ")),
+                [] => String::new(),
+            };
+            report.losses.push(motorwire_translate::Loss {
+                field: "sync_mode".into(),
+                kind: motorwire_translate::LossKind::Converted,
+                detail: format!(
+                    "{names} axes are sent at the same time as the others, but only iRPC joints are planned to a common duration"
+                )
+                .into(),
+            });
+        }
+        Ok((axes, report))
+    }
+
+    /// Keeps the plan [`planned_within_limits`] made for `joint`'s move.
+    pub(super) fn keep_plan(&mut self, joint: usize, planned: Option<Plan>) {
+        let now = self.now;
+        if let Some(j) = self.joints.get_mut(joint) {
+            let (planned, profile) = planned.unzip();
+            j.planned = planned;
+            j.planned_profile = profile;
+            j.planned_at = now;
+        }
+    }
+
+    pub(super) fn multi_axis(&mut self, now: Duration, meta: LineMeta, cmd: &MultiAxisCommand) {
+        let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
+        self.learn_clock(now, meta.origin, cmd.timestamp);
+        if let Err(e) = self.admit(
+            now,
+            Some(meta.origin),
+            cmd.timestamp,
+            cmd.motors.iter().map(|a| a.motor_id.as_str()),
+        ) {
+            if e.kind == ErrorKind::Busy {
+                self.stats.busy += 1;
+            }
+            self.refuse(&meta, e);
+            return;
+        }
+        if let Some(e) = cmd
+            .motors
+            .iter()
+            .find_map(|a| self.outward_at_limit(&a.motor_id, a.control_mode, a.setpoint))
+        {
+            self.refuse(&meta, e);
+            return;
+        }
+        if let Some(e) = self.unattached(cmd.motors.iter().map(|a| a.motor_id.as_str())) {
+            self.refuse(&meta, e);
+            return;
+        }
+        self.multi_axis_jobs(now, meta, cmd);
+    }
+
+    // ---- the emergency stop ------------------------------------------------
+}

@@ -1,0 +1,233 @@
+//! The bridge's phase: starting (greeting the devices, waiting for them to settle), running, finishing, finished; the ready event and the greeting of clients.
+
+use super::*;
+
+impl Bridge {
+    /// Anchors a bridge that keeps a wall clock
+    /// ([`BridgeConfig::epoch_unix_ms`] given) at `unix_ms` for its time
+    /// zero: the runner calls it where its clock starts, so the Unix time
+    /// the bridge reckons (a stop's, which commands stamped before it are
+    /// held to; feedback timestamps) is the host's, not behind it by the
+    /// time it took to start.
+    pub(crate) fn anchor_epoch(&mut self, unix_ms: f64) {
+        self.changed();
+        if self.config.epoch_unix_ms.is_some() && unix_ms.is_finite() {
+            self.config.epoch_unix_ms = Some(unix_ms);
+            self.drivers.set_epoch(unix_ms);
+        }
+    }
+
+    pub(super) fn ready_event(&self) -> Event {
+        Event::Ready {
+            joints: self.joints.iter().map(|j| j.name.clone()).collect(),
+            state: self.state(),
+        }
+    }
+
+    /// A client that connected (and authenticated) at `now` is greeted,
+    /// for it alone ([`Output::ToOne`]), exactly once: with `ready` and
+    /// the state now once the bridge is ready (at once, or when it becomes
+    /// ready), or with `stopping` when the bridge is past serving. A
+    /// runner holds everyone's feedback and events from such a client
+    /// until its greeting, so the greeting is its first line.
+    pub fn greet(&mut self, now: Duration, origin: Origin) {
+        self.changed();
+        self.now = self.now.max(now);
+        match self.phase {
+            Phase::Starting => self.to_greet.push(origin),
+            Phase::Running | Phase::Draining { .. } => {
+                let event = self.ready_event();
+                self.out.push_back(Output::ToOne { origin, event });
+            }
+            Phase::Stopping | Phase::Finished => {
+                let event = Event::Stopping {
+                    reason: "the bridge is stopping the joints".to_owned(),
+                };
+                self.out.push_back(Output::ToOne { origin, event });
+            }
+        }
+    }
+
+    /// The clients waiting for `ready` greeted with `event`.
+    pub(super) fn greet_waiting(&mut self, event: &Event) {
+        for origin in std::mem::take(&mut self.to_greet) {
+            self.out.push_back(Output::ToOne {
+                origin,
+                event: event.clone(),
+            });
+        }
+    }
+
+    /// Started and every device that answers read (or silent past the
+    /// offline time): ready.
+    pub(super) fn try_ready(&mut self) {
+        let Some(until) = self.settle_until else {
+            return;
+        };
+        let read = self.joints.iter().all(|j| !j.online || j.motion.is_some());
+        if self.phase == Phase::Starting && (read || self.now >= until) {
+            self.enter(Phase::Running);
+        }
+    }
+
+    // ---- phases ---------------------------------------------------------
+
+    /// The one place the phase changes.
+    pub(super) fn enter(&mut self, to: Phase) {
+        let from = self.phase;
+        match (from, to) {
+            (Phase::Finished, _) => {}
+            (_, Phase::Running) => {
+                self.phase = Phase::Running;
+                self.settle_until = None;
+                let ready = self.ready_event();
+                // Everyone's first, then the greetings: a runner holds
+                // everyone's lines from a client until its greeting, so
+                // each waiting client has one ready, as its first line.
+                self.out.push_back(Output::Event(ready.clone()));
+                self.greet_waiting(&ready);
+                while let Some(w) = self.waiting.pop_front() {
+                    self.take_line(w.at, w.meta, &w.text);
+                }
+                if let Some(deadline) = self.drain_after_start.take() {
+                    self.enter(Phase::Draining { deadline });
+                }
+            }
+            (Phase::Starting | Phase::Running, Phase::Draining { .. }) => {
+                self.phase = to;
+                self.out.push_back(Output::Event(Event::Stopping {
+                    reason: "end of input".to_owned(),
+                }));
+                self.end_open_motion();
+            }
+            (Phase::Stopping, Phase::Draining { .. }) => {}
+            (_, Phase::Stopping) if from != Phase::Stopping => {
+                self.phase = Phase::Stopping;
+                self.fail_watches(|_| true, "the bridge is stopping the joints");
+                let axes = self.every_joint(&[Payload::Deactivate]);
+                self.open_job(
+                    None,
+                    JobKind::Shutdown,
+                    self.now,
+                    axes,
+                    Report::default(),
+                    Vec::new(),
+                );
+            }
+            (_, Phase::Finished) => self.phase = Phase::Finished,
+            _ => {}
+        }
+    }
+
+    /// Starts: configures and activates every joint (unless
+    /// [`BridgeConfig::activate_on_start`] is false). Lines that arrive
+    /// before the joints are ready wait for them (an emergency stop does
+    /// not: it is acted on at once).
+    pub fn start(&mut self, now: Duration) {
+        self.changed();
+        self.now = now;
+        self.timers.feedback = self.config.feedback_period.map(|_| now);
+        if !self.config.activate_on_start {
+            self.enter(Phase::Running);
+            return;
+        }
+        let mut axes = self.every_joint(&[Payload::Configure, Payload::Activate]);
+        for a in &mut axes {
+            if let Some(t) = self.telemetry_subscription(a.joint) {
+                a.payloads.push_back(Order::from(t));
+            }
+        }
+        self.open_job(
+            None,
+            JobKind::Startup,
+            now,
+            axes,
+            Report::default(),
+            Vec::new(),
+        );
+    }
+
+    /// End of input: lines in flight and moves in progress finish (up to
+    /// [`BridgeConfig::drain_timeout`]), then every joint is deactivated.
+    pub fn finish(&mut self, now: Duration) {
+        self.changed();
+        self.now = self.now.max(now);
+        if matches!(self.phase, Phase::Starting | Phase::Running) {
+            // Lines still waiting for startup are served first.
+            let deadline = self.now.saturating_add(self.config.drain_timeout);
+            if self.phase == Phase::Starting {
+                // Served once the joints are ready, then drained.
+                self.drain_after_start = Some(deadline);
+            } else {
+                self.enter(Phase::Draining { deadline });
+            }
+        }
+        self.handle_timeout(self.now);
+    }
+
+    /// At the end of input, motion that would not end by itself stops at
+    /// once: a trajectory looping forever (it ends with the segment under
+    /// way), one whose start is still to come (never started), and a
+    /// velocity or torque setpoint (brought to velocity 0, as the deadman
+    /// does). Finite moves may finish within the drain.
+    pub(super) fn end_open_motion(&mut self) {
+        let now = self.now;
+        let open = |job: &Job| {
+            job.kind == JobKind::Command
+                && (job.axes.iter().any(|a| a.cycle.is_some() && !a.is_done())
+                    || job
+                        .axes
+                        .iter()
+                        .all(|a| !a.begun && a.due.front().is_some_and(|due| *due > now))
+                    // A velocity or torque setpoint still to be sent, or
+                    // sent and not answered (the deadman then watches it).
+                    || job.axes.iter().any(|a| {
+                        !a.is_done()
+                            && (a.payloads.iter().any(Order::holds_setpoint)
+                                || matches!(a.state, AxisState::InFlight { payload, .. } if payload.holds_setpoint()))
+                    }))
+        };
+        self.cancel_where(
+            "cancelled by the end of input: it would not end by itself",
+            open,
+        );
+        let held = self.joints_where(|j| j.deadman.is_some());
+        for &ji in &held {
+            if let Some(j) = self.joints.get_mut(ji) {
+                j.deadman = None;
+            }
+        }
+        self.hold_still(now, held, false);
+        self.finish_jobs();
+    }
+
+    /// Interrupted (a signal): everything queued or in flight is cancelled
+    /// and every joint deactivated now.
+    pub fn interrupt(&mut self, now: Duration) {
+        self.changed();
+        self.now = self.now.max(now);
+        if matches!(self.phase, Phase::Stopping | Phase::Finished) {
+            return;
+        }
+        let stopping = Event::Stopping {
+            reason: "interrupted".to_owned(),
+        };
+        self.out.push_back(Output::Event(stopping.clone()));
+        self.greet_waiting(&stopping);
+        let waiting: Vec<Waiting> = self.waiting.drain(..).collect();
+        for w in waiting {
+            self.stats.lines += 1;
+            self.refuse(
+                &w.meta,
+                ErrorBody::new(
+                    ErrorKind::Cancelled,
+                    "the bridge was interrupted before the line was served",
+                ),
+            );
+        }
+        self.cancel_everything("cancelled: the bridge was interrupted");
+        self.enter(Phase::Stopping);
+    }
+
+    // ---- input ----------------------------------------------------------
+}

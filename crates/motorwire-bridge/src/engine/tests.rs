@@ -1,0 +1,107 @@
+//! The engine's own unit tests.
+
+#![allow(clippy::unwrap_used)]
+use super::*;
+
+/// After handle_timeout at the time poll_timeout gave, no timer is
+/// due at that time again: a runner waiting for poll_timeout never
+/// spins. Here at the end of input, with a request waiting for its
+/// Ack and nothing moving.
+#[test]
+fn no_timer_is_due_again_once_handled() {
+    let map = BusMap::from_toml(
+        "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n\
+         limits = { max_velocity = 120, max_acceleration = 500 }",
+    )
+    .unwrap();
+    let config = BridgeConfig {
+        activate_on_start: false,
+        ..BridgeConfig::default()
+    };
+    let mut b = Bridge::new(map, config).unwrap();
+    let ms = Duration::from_millis;
+    b.start(Duration::ZERO);
+    b.handle_line(
+        ms(1),
+        Origin(0),
+        r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":10}"#,
+    );
+    while b.poll_transmit().is_some() {}
+    b.flushed(ms(1));
+    b.finish(ms(2));
+    let mut now = ms(2);
+    for _ in 0..500 {
+        let Some(t) = b.poll_timeout() else { break };
+        now = now.max(t);
+        b.handle_timeout(now);
+        while b.poll_transmit().is_some() {}
+        b.flushed(now);
+        let due: Vec<Timer> = Timer::ALL
+            .into_iter()
+            .filter(|t| b.deadline(*t).is_some_and(|d| d <= now))
+            .collect();
+        assert_eq!(due, [], "at {now:?}");
+    }
+    // The request timed out (4 sendings, 100 ms each), its line was
+    // answered, and the drain ended then, not at its 30 s deadline.
+    assert!(b.is_finished(), "{now:?}");
+    assert!(now < ms(1000), "{now:?}");
+    let r = std::iter::from_fn(|| b.poll_output())
+        .find_map(|o| o.result().cloned())
+        .unwrap();
+    assert_eq!(r.error.unwrap().kind, ErrorKind::OutcomeUnknown);
+}
+
+/// A joint's frame to the bridge, in v2.2.
+fn from_joint(node: u16, msg_id: u32, payload: Payload) -> Frame {
+    crate::device::irpc::joint_frame(node, msg_id, payload, motorwire_irpc::WireVersion::V2_2)
+}
+
+/// A stop line that comes while a stop the bridge made itself (a
+/// joint's own emergency stop) is under way rides on it and is
+/// answered when that stop ends: every line gets exactly one result,
+/// whoever started the stop. (Before, such a rider was never answered.)
+#[test]
+fn a_stop_line_riding_on_a_stop_the_bridge_made_is_answered() {
+    use motorwire_irpc::{EmergencyReason, EmergencyStop, Message, WireVersion};
+    let map = BusMap::from_toml(
+        "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\nwire = \"v2.2\"\n\
+         limits = { max_velocity = 120, max_acceleration = 500 }",
+    )
+    .unwrap();
+    let config = BridgeConfig {
+        activate_on_start: false,
+        ..BridgeConfig::default()
+    };
+    let mut b = Bridge::new(map, config).unwrap();
+    let ms = Duration::from_millis;
+    b.start(Duration::ZERO);
+    let stop = EmergencyStop {
+        reason: EmergencyReason::Overtemperature,
+        vbus_mv: 24_000,
+        current_ma: 0,
+        temp_c: 90.0,
+        timestamp_ms: 1,
+    };
+    b.handle_frame(ms(1), &from_joint(0x12, 9, Payload::EmergencyStop(stop)));
+    assert!(b.is_latched());
+    let deactivate =
+        Message::decode_frame(WireVersion::V2_2, b.poll_transmit().unwrap().data()).unwrap();
+    assert_eq!(deactivate.payload, Payload::Deactivate);
+    b.flushed(ms(1));
+    // A client's stop while the joint's is under way: it rides on it.
+    b.handle_line(ms(2), Origin(7), r#"{"emergency_stop":true}"#);
+    assert_eq!(b.stats().stops_coalesced, 1);
+    assert!(b.poll_transmit().is_none(), "no second Deactivate");
+    let id = deactivate.header.msg_id;
+    b.handle_frame(ms(3), &from_joint(0x12, id, Payload::Ack(id)));
+    let results: Vec<LineResult> = std::iter::from_fn(|| b.poll_output())
+        .filter_map(|o| o.result().cloned())
+        .collect();
+    assert_eq!(results.len(), 1, "{results:?}");
+    assert_eq!(
+        (results[0].line, results[0].ok, results[0].emergency_stop),
+        (1, true, true)
+    );
+    assert_eq!(results[0].acked.as_deref(), Some(&["elbow".to_owned()][..]));
+}

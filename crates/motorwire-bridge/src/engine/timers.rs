@@ -1,0 +1,237 @@
+//! Timers: what is due, when the engine must be woken next.
+
+use super::*;
+
+impl Bridge {
+    /// Advances to `now`: retransmissions and timeouts, feedback, liveness,
+    /// heartbeats, the end of a drain.
+    pub fn handle_timeout(&mut self, now: Duration) {
+        self.changed();
+        self.now = self.now.max(now);
+        let now = self.now;
+        self.withdraw_stale_resends(now);
+        self.drivers.handle_timeout(now);
+        self.drain_drivers();
+        self.try_ready();
+        self.drivers.command_timeouts(now);
+        self.drain_drivers();
+        // The deadman's stops (and the limits' brakes) are queued before
+        // the Orion link picks what to send next.
+        self.keep_within_limits(now);
+        self.deadman(now);
+        self.link_timeouts(now);
+        self.awaiting_timeouts(now);
+        // Trajectory segments now due.
+        let due = self.joints_where(|j| j.wake.is_some_and(|w| now >= w));
+        for ji in due {
+            let Some(j) = self.joints.get_mut(ji) else {
+                continue;
+            };
+            j.wake = None;
+            let node = j.node;
+            if let Some(step) = j.busy.take()
+                && !self.send_step(now, ji, node, step)
+            {
+                self.pump(ji);
+            }
+        }
+        self.finish_jobs();
+        // Sequential axes whose predecessor is overdue give up.
+        for ji in 0..self.joints.len() {
+            self.pump(ji);
+        }
+        self.finish_jobs();
+        // Watched lines past their time: not arrived.
+        let late: Vec<usize> = self
+            .arrivals
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| now >= w.deadline)
+            .map(|(i, _)| i)
+            .collect();
+        for i in late.into_iter().rev() {
+            let w = self.arrivals.remove(i);
+            let far = w
+                .axes
+                .iter()
+                .filter(|a| a.arrived.is_none())
+                .map(|a| match a.last_error {
+                    Some(e) => format!("{} {} away", a.motor, short_unit(a.unit.from_degrees(e))),
+                    None => format!("{} never reported its position", a.motor),
+                })
+                .collect::<Vec<_>>()
+                .join(", ");
+            let origin = w.line.origin;
+            let arrival = w.verdict(now, Some(format!("timed out: {far}")));
+            self.out.push_back(Output::Arrival { origin, arrival });
+        }
+        let offline_after = self.config.offline_after;
+        let mut went_offline = Vec::new();
+        for (ji, j) in self.joints.iter_mut().enumerate() {
+            let since = j.last_heard.unwrap_or(Duration::ZERO);
+            let silent = now.saturating_sub(since);
+            if j.online && silent >= offline_after {
+                went_offline.push(ji);
+                j.online = false;
+                self.out.push_back(Output::Event(Event::Offline {
+                    motor_id: j.name.clone(),
+                    node: j.node,
+                    reason: format!("nothing heard for {} ms", silent.as_millis()),
+                }));
+            }
+        }
+        for ji in went_offline {
+            self.fail_watches(|w| w.waits_on(ji), "the joint went offline");
+            // What waits for it is not held to run once it is heard again.
+            let name = self
+                .joints
+                .get(ji)
+                .map(|j| j.name.clone())
+                .unwrap_or_default();
+            self.cancel_where(
+                &format!("cancelled: {name} went offline before it was sent"),
+                |job| {
+                    job.kind == JobKind::Command
+                        && job
+                            .axes
+                            .iter()
+                            .any(|a| a.joint == ji && a.state == AxisState::Queued)
+                },
+            );
+        }
+        if let (Some(period), Some(at)) = (self.config.feedback_period, self.timers.feedback)
+            && now >= at
+        {
+            self.emit_feedback(now);
+            self.timers.feedback = Some(now.saturating_add(period));
+        }
+        if self.any_moving(now) {
+            // Due again a period on, whether a beat could be queued or not
+            // (none on a bus without iRPC joints): never due at the time
+            // it was handled, so nothing waiting for it spins.
+            if self.timers.heartbeat.is_none_or(|t| now >= t) {
+                let _ = self.drivers.heartbeat();
+                self.timers.heartbeat = Some(now.saturating_add(self.config.heartbeat_period));
+            }
+        } else {
+            self.timers.heartbeat = None;
+        }
+        if let Phase::Draining { deadline } = self.phase {
+            self.drain_recheck = false;
+            let idle = self.jobs.is_empty() && self.waiting.is_empty() && !self.any_moving(now);
+            if idle || now >= deadline {
+                self.enter(Phase::Stopping);
+            }
+        }
+    }
+
+    /// When [`Bridge::handle_timeout`] next has work.
+    pub fn poll_timeout(&self) -> Option<Duration> {
+        if let Some(next) = self.next_deadline.get() {
+            debug_assert_eq!(
+                next,
+                self.next_deadline_now(),
+                "the next deadline changed without an entry point clearing it"
+            );
+            return next;
+        }
+        let next = self.next_deadline_now();
+        self.next_deadline.set(Some(next));
+        next
+    }
+
+    /// [`Bridge::poll_timeout`], computed: the earliest deadline of the
+    /// timer table.
+    pub(super) fn next_deadline_now(&self) -> Option<Duration> {
+        if self.phase == Phase::Finished {
+            return None;
+        }
+        Timer::ALL
+            .into_iter()
+            .filter_map(|t| self.deadline(t))
+            .min()
+    }
+
+    /// The bridge is about to change: its next deadline is computed again.
+    pub(super) fn changed(&mut self) {
+        self.next_deadline.set(None);
+    }
+
+    /// When timer `t` is next due, if it is set: the timer table, one
+    /// entry per kind of deadline, each read where its state lives.
+    pub(super) fn deadline(&self, t: Timer) -> Option<Duration> {
+        match t {
+            Timer::Drivers => self.drivers.deadline(),
+            Timer::Feedback => self.timers.feedback,
+            Timer::Liveness => self
+                .joints
+                .iter()
+                .filter(|j| j.online)
+                .map(|j| {
+                    j.last_heard
+                        .unwrap_or(Duration::ZERO)
+                        .saturating_add(self.config.offline_after)
+                })
+                .min(),
+            // Only where a joint hears the beat (iRPC).
+            Timer::Heartbeat => (self.drivers.beats() && self.any_moving(self.now))
+                .then(|| self.timers.heartbeat.unwrap_or(self.now).max(self.now)),
+            // Due when the drain may end: once motion has ended, at once
+            // when nothing is left (or a line just finished: looked at
+            // once); while a line waits for its device, the device's own
+            // answer or time-out finishes it, and the deadline bounds it.
+            // Never due again at the time it was handled: a runner
+            // waiting for it does not spin.
+            Timer::Drain => match self.phase {
+                Phase::Draining { deadline } => {
+                    let motion_ends = self.joints.iter().map(|j| j.moving_until).max();
+                    Some(if self.drain_recheck {
+                        self.now
+                    } else if let Some(end) = motion_ends.filter(|e| *e > self.now) {
+                        end.min(deadline)
+                    } else if !self.jobs.is_empty() || !self.waiting.is_empty() {
+                        deadline
+                    } else {
+                        self.now
+                    })
+                }
+                _ => None,
+            },
+            Timer::Arrival => self.arrivals.iter().map(|w| w.deadline).min(),
+            // Due only where pumping would act on it: a sequential axis at
+            // the front of an idle device's queue, waiting for an axis that
+            // has not arrived (behind a busy device, the device's answer
+            // pumps it; a deadline there would be due and do nothing).
+            Timer::Sequence => self
+                .joints
+                .iter()
+                .filter(|j| j.busy.is_none())
+                .filter_map(|j| j.queue.front())
+                .filter_map(|s| {
+                    let job = self.jobs.get(&s.job)?;
+                    let a = job.axes.get(s.axis).filter(|a| !a.is_done())?;
+                    let b = job.axes.get(a.after?)?;
+                    if b.arrived { None } else { b.arrive_by }
+                })
+                .min(),
+            Timer::Deadman => self.joints.iter().filter_map(|j| j.deadman).min(),
+            Timer::LimitBrake => {
+                if self.latched {
+                    None
+                } else {
+                    self.joints
+                        .iter()
+                        .filter_map(|j| self.brake_due(j).map(|(at, ..)| at.max(self.now)))
+                        .min()
+                }
+            }
+            Timer::Segment => self.joints.iter().filter_map(|j| j.wake).min(),
+            Timer::Answer => self
+                .jobs
+                .values()
+                .filter_map(|j| j.awaiting.map(|a| a.deadline))
+                .min(),
+            Timer::Settle => self.settle_until.filter(|_| self.phase == Phase::Starting),
+        }
+    }
+}
