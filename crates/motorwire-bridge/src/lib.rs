@@ -30,11 +30,12 @@ pub use error::BridgeError;
 /// watchdog of five polls at the map's `query_rate_hz` (at least 0.25 s).
 ///
 /// # Errors
-/// A target that is not a moteus controller, or the codec's refusal.
+/// [`MoteusFrameError`]: a target that is not a moteus controller, or the
+/// codec's refusal.
 pub fn moteus_frame(
     target: &motorwire_translate::Target,
     cmd: &motorwire_translate::MoteusCommand,
-) -> Result<(u32, Vec<u8>), String> {
+) -> Result<(u32, Vec<u8>), MoteusFrameError> {
     let motorwire_translate::Target::Moteus {
         id,
         bus,
@@ -42,22 +43,32 @@ pub fn moteus_frame(
         ..
     } = *target
     else {
-        return Err(format!(
-            "a {} motor is not a moteus controller",
-            target.dialect()
-        ));
+        return Err(MoteusFrameError::NotMoteus(target.dialect()));
     };
     let period = std::time::Duration::from_millis(u64::from(1000 / query_rate_hz.max(1)).max(1));
     let f =
-        device::moteus::command_frame(id, bus, cmd, Some(device::moteus::hold_watchdog(period)))?;
+        device::moteus::command_frame(id, bus, cmd, Some(device::moteus::hold_watchdog(period)))
+            .map_err(|e| MoteusFrameError::Codec(e.to_string()))?;
     Ok((f.id().raw(), f.data().to_vec()))
+}
+
+/// Why [`moteus_frame`] made no frame.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum MoteusFrameError {
+    /// The target is not a moteus controller (its dialect).
+    #[error("a {0} motor is not a moteus controller")]
+    NotMoteus(&'static str),
+    /// moteus's codec (or the CAN frame) refused the command: why.
+    #[error("{0}")]
+    Codec(String),
 }
 /// The WIA crate whose [`motorwire_wia::Validator`] [`classify`] takes.
 pub use motorwire_wia;
 pub use output::{
     ArrivalLine, BridgeRule, BridgeState, Broke, ErrorBody, ErrorKind, Event, FeedbackLine, Label,
-    LineRef, LineResult, MAX_LISTED, MotorArrival, MotorState, Origin, Output, StepOutcome,
-    StepReport, rules,
+    LineRef, LineResult, MAX_LISTED, MotorArrival, MotorState, Origin, Output, Refusal,
+    StepOutcome, StepReport, Wider, rules,
 };
 pub use runtime::{
     DEFAULT_MAX_LINE, Gate, InputSender, MAX_ORION_LINES_PER_S, MAX_ORION_QUEUED,

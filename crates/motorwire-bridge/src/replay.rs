@@ -802,7 +802,7 @@ impl Recording {
                     .get("t_us")
                     .and_then(Value::as_u64)
                     .ok_or_else(|| bad("no t_us".to_owned()))?;
-                let r = parse_record(&v).map_err(bad)?;
+                let r = parse_record(&v).map_err(|e| bad(e.to_string()))?;
                 count += 1;
                 if whole_and_complete && let Recorded::Frame { frame, .. } = &r {
                     frames.push(*frame);
@@ -932,22 +932,22 @@ fn same_frames(
     Ok(())
 }
 
-fn parse_record(v: &Value) -> Result<Recorded, String> {
+fn parse_record(v: &Value) -> Result<Recorded, RecordError> {
     let origin = |b: &Value| {
         b.get("origin")
             .and_then(Value::as_u64)
             .map(Origin)
-            .ok_or_else(|| "no origin".to_owned())
+            .ok_or(RecordError::Missing("no origin"))
     };
     let number = |b: &Value| {
         b.get("line")
             .and_then(Value::as_u64)
-            .ok_or_else(|| "no line number".to_owned())
+            .ok_or(RecordError::Missing("no line number"))
     };
     let dir = |b: &Value| match b.get("dir").and_then(Value::as_str) {
         Some("tx") => Ok(Direction::Tx),
         Some("rx") => Ok(Direction::Rx),
-        _ => Err("no dir".to_owned()),
+        _ => Err(RecordError::Missing("no dir")),
     };
     if let Some(b) = v.get("in") {
         if let Some(text) = b.get("text").and_then(Value::as_str) {
@@ -964,7 +964,7 @@ fn parse_record(v: &Value) -> Result<Recorded, String> {
         let reason = b
             .get("unreadable")
             .and_then(Value::as_str)
-            .ok_or_else(|| "an input without text or unreadable".to_owned())?;
+            .ok_or(RecordError::Missing("an input without text or unreadable"))?;
         return Ok(Recorded::Unreadable {
             origin: origin(b)?,
             number: number(b)?,
@@ -975,7 +975,7 @@ fn parse_record(v: &Value) -> Result<Recorded, String> {
     if let Some(b) = v.get("mark") {
         return Mark::from_value(b)
             .map(Recorded::Mark)
-            .ok_or_else(|| format!("an unknown mark {b}"));
+            .ok_or_else(|| RecordError::UnknownMark(b.to_string()));
     }
     if let Some(b) = v.get("out") {
         return Ok(Recorded::Output {
@@ -988,28 +988,28 @@ fn parse_record(v: &Value) -> Result<Recorded, String> {
             .get("id")
             .and_then(Value::as_u64)
             .and_then(|n| u32::try_from(n).ok())
-            .ok_or_else(|| "a frame without id".to_owned())?;
+            .ok_or(RecordError::Missing("a frame without id"))?;
         let extended = b.get("extended").and_then(Value::as_bool).unwrap_or(false);
         let id = if extended {
-            CanId::extended(raw).map_err(|e| e.to_string())
+            CanId::extended(raw)
         } else {
-            u16::try_from(raw)
-                .map_err(|e| e.to_string())
-                .and_then(|r| CanId::standard(r).map_err(|e| e.to_string()))
+            // A standard id past 16 bits is past 11 too: the bus's refusal.
+            CanId::standard(u16::try_from(raw).unwrap_or(u16::MAX))
         }
-        .map_err(|e| format!("frame id {raw}: {e}"))?;
+        .map_err(|e| RecordError::FrameId(raw, e))?;
         let hex = b
             .get("data")
             .and_then(Value::as_str)
-            .ok_or_else(|| "a frame without data".to_owned())?;
-        let data = motorwire_can::candump::hex_bytes(hex).map_err(|e| format!("frame {e}"))?;
+            .ok_or(RecordError::Missing("a frame without data"))?;
+        let data = motorwire_can::candump::hex_bytes(hex)
+            .map_err(|e| RecordError::FrameData(e.to_string()))?;
         let fd = b.get("fd").and_then(Value::as_bool).unwrap_or(true);
         let frame = if fd {
             Frame::fd(id, &data)
         } else {
             Frame::classic(id, &data)
         }
-        .map_err(|e| format!("frame: {e}"))?;
+        .map_err(RecordError::Frame)?;
         return Ok(Recorded::Frame {
             dir: dir(b)?,
             frame,
@@ -1025,11 +1025,33 @@ fn parse_record(v: &Value) -> Result<Recorded, String> {
             line: b
                 .get("line")
                 .and_then(Value::as_str)
-                .ok_or_else(|| "an Orion record without line".to_owned())?
+                .ok_or(RecordError::Missing("an Orion record without line"))?
                 .to_owned(),
         });
     }
-    Err("not an in, out, mark, frame or orion record".to_owned())
+    Err(RecordError::Missing(
+        "not an in, out, mark, frame or orion record",
+    ))
+}
+
+/// What is wrong with a record of `session.jsonl`.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+enum RecordError {
+    /// A member it must have (said as what is missing).
+    #[error("{0}")]
+    Missing(&'static str),
+    /// A mark the recorder never writes.
+    #[error("an unknown mark {0}")]
+    UnknownMark(String),
+    /// A frame id the bus cannot carry.
+    #[error("frame id {0}: {1}")]
+    FrameId(u32, motorwire_can::Error),
+    /// A frame's data that is not hex bytes.
+    #[error("frame {0}")]
+    FrameData(String),
+    /// A frame the bus cannot carry.
+    #[error("frame: {0}")]
+    Frame(motorwire_can::Error),
 }
 
 /// How a replay runs.

@@ -351,3 +351,30 @@ fn the_checker_finds_a_circle_and_a_root_import() {
         "a\nb\n"
     );
 }
+
+/// Refusals are typed: a line's error is made from a `Refusal` in one
+/// place (`output::refusal`), and no function says its error as a bare
+/// `String`.
+#[test]
+fn every_error_is_typed_and_made_in_one_place() {
+    let mut found = Vec::new();
+    for (module, code) in modules() {
+        let name = module.join("::");
+        for (n, line) in code.lines().enumerate() {
+            let made = ["ErrorBody::new(", "ErrorBody::refused(", "ErrorBody::gate("]
+                .iter()
+                .any(|c| line.contains(c));
+            if made && name != "output::refusal" {
+                found.push(format!("{name}: {line}"));
+            }
+            if let Some(at) = line.find("Result<") {
+                let rest = &line[at..];
+                let head = rest.split(['{', ';', '=']).next().unwrap_or(rest);
+                if head.replace(' ', "").contains(",String>") {
+                    found.push(format!("{name} (line {} of its code): {line}", n + 1));
+                }
+            }
+        }
+    }
+    assert!(found.is_empty(), "untyped errors:\n{}", found.join("\n"));
+}

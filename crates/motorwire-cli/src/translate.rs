@@ -321,7 +321,7 @@ impl Translator {
             ErrorLine::from(Refusal::NotRepresentable {
                 motor: motor.to_owned(),
                 field: "moteus frame",
-                problem: e,
+                problem: e.to_string(),
             })
         })?;
         Ok(FrameLine::extended(motor, can_id, &data))

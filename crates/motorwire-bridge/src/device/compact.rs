@@ -9,6 +9,7 @@
 //! and its feedback decoding into WIA `MotorFeedback`. The engine decides
 //! what is sent and when; this says how, and what came back.
 
+use super::DeviceError;
 use motorwire_can::{CanId, Frame};
 use motorwire_compact::{CompactCommand, FeedbackRecord, MotorHash, StatusFlag};
 use motorwire_wia::MotorFeedback;
@@ -17,11 +18,11 @@ use motorwire_wia::MotorFeedback;
 /// padding).
 ///
 /// # Errors
-/// The codec's refusal of the command, or a node beyond 11 bits, as text.
-pub(crate) fn command_frame(node: u16, c: CompactCommand) -> Result<Frame, String> {
-    let bytes = c.encode().map_err(|e| e.to_string())?;
-    let id = CanId::standard(node).map_err(|e| e.to_string())?;
-    Frame::fd(id, &bytes).map_err(|e| e.to_string())
+/// The codec's refusal of the command, or a node beyond 11 bits.
+pub(crate) fn command_frame(node: u16, c: CompactCommand) -> Result<Frame, DeviceError> {
+    let bytes = c.encode().map_err(DeviceError::Compact)?;
+    let id = CanId::standard(node).map_err(DeviceError::Frame)?;
+    Frame::fd(id, &bytes).map_err(DeviceError::Frame)
 }
 
 /// A frame from a device's feedback id, read for the device whose motor
@@ -34,14 +35,15 @@ pub(crate) fn feedback_record(
     frame: &Frame,
     motor: &str,
     hash: MotorHash,
-) -> Result<FeedbackRecord, String> {
+) -> Result<FeedbackRecord, DeviceError> {
     match FeedbackRecord::decode(frame.data()) {
         Ok(r) if r.motor == hash => Ok(r),
-        Ok(r) => Err(format!(
-            "feedback for motor hash {:08x}, not {motor}'s {:08x}",
-            r.motor.0, hash.0
-        )),
-        Err(e) => Err(e.to_string()),
+        Ok(r) => Err(DeviceError::OtherMotor {
+            got: r.motor,
+            motor: motor.to_owned(),
+            want: hash,
+        }),
+        Err(e) => Err(DeviceError::Compact(e)),
     }
 }
 
@@ -114,7 +116,7 @@ mod tests {
         assert_eq!(f.data(), c.encode().unwrap().as_slice());
         assert_eq!(f.data().len(), 24);
         assert_eq!(
-            command_frame(0x800, c).unwrap_err(),
+            command_frame(0x800, c).unwrap_err().to_string(),
             CanId::standard(0x800).unwrap_err().to_string()
         );
     }
@@ -197,7 +199,9 @@ mod tests {
         };
         let frame = Frame::fd(CanId::standard(0x420).unwrap(), &r.encode().unwrap()).unwrap();
         assert_eq!(
-            feedback_record(&frame, "gripper_axis", MotorHash(0x1122_3344)).unwrap_err(),
+            feedback_record(&frame, "gripper_axis", MotorHash(0x1122_3344))
+                .unwrap_err()
+                .to_string(),
             "feedback for motor hash aabbccdd, not gripper_axis's 11223344"
         );
         assert_eq!(

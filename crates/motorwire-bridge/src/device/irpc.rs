@@ -12,6 +12,7 @@
 //! acknowledged payload did to its joint ([`effect`]). The engine decides
 //! what is sent and when; this says how, and what came back.
 
+use super::DeviceError;
 use std::collections::HashMap;
 use std::time::Duration;
 
@@ -99,11 +100,11 @@ impl IrpcDriver {
         device: usize,
         node: u16,
         payload: Payload,
-    ) -> Result<u32, String> {
+    ) -> Result<u32, DeviceError> {
         let msg_id = self
             .client
             .request(now, node, payload)
-            .map_err(|e| e.to_string())?;
+            .map_err(DeviceError::Client)?;
         // A msg_id comes round again only long after its request ended;
         // a leftover entry for it is replaced, as a map's would be.
         self.take_device(msg_id);

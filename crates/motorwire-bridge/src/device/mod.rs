@@ -90,7 +90,7 @@ use motorwire_translate::{
 use motorwire_wia::{MotorCommand, MotorFeedback};
 use serde_json::Value;
 
-use crate::output::{BridgeRule, ErrorBody, Event};
+use crate::output::Event;
 
 /// What a driver reads of the devices the engine keeps, in the engine's
 /// order: read only (the engine's registry implements it; a driver never
@@ -160,11 +160,14 @@ pub(crate) enum AwaitKind {
 }
 
 pub(crate) mod compact;
+mod error;
 mod frames;
 pub(crate) mod irpc;
 pub(crate) mod moteus;
 mod moteus_bounds;
 pub(crate) mod orion;
+
+pub(crate) use error::DeviceError;
 
 /// What a motor of the bus map is to the engine: the dialect that reaches
 /// it, and what that dialect needs to address it.
@@ -369,7 +372,7 @@ impl Device {
         decel: Option<f64>,
         max_torque: Option<f64>,
         now_ms: u64,
-    ) -> Result<MotorOrder, String> {
+    ) -> Result<MotorOrder, DeviceError> {
         use crate::classify::MotorAction::{Free, Hold, Stop};
         let compact = |hash, mode, flags: Flags| {
             Order::Compact(CompactCommand {
@@ -411,12 +414,7 @@ impl Device {
                     loss,
                 ));
             }
-            (Self::Orion(m), Free) => {
-                return Err(format!(
-                    "the Orion arm controller has no torque off for its servo {}: it holds it where it was sent (hold or stop it where it stands)",
-                    m.key()
-                ));
-            }
+            (Self::Orion(m), Free) => return Err(DeviceError::NoTorqueOff(m.key())),
             (Self::Orion(m), Hold | Stop) => {
                 return Ok(MotorOrder::Nothing(format!(
                     "the Orion servo {} holds the angle it was last sent by itself: nothing was sent",
@@ -1348,7 +1346,7 @@ pub(crate) fn unattached<'a>(
     map: &BusMap,
     orion: bool,
     mut motors: impl Iterator<Item = &'a str>,
-) -> Option<ErrorBody> {
+) -> Option<crate::output::Refusal> {
     if orion {
         return None;
     }
@@ -1356,15 +1354,9 @@ pub(crate) fn unattached<'a>(
         map.motor(m)
             .is_some_and(|m| matches!(m.target, Target::Orion { .. }))
     })?;
-    Some(
-        ErrorBody::refused(
-            BridgeRule::OrionNotAttached,
-            format!(
-                "{m} is an Orion motor, and no Orion controller is attached (motorwire bridge --orion ...)"
-            ),
-        )
-        .about(m),
-    )
+    Some(crate::output::Refusal::OrionMotorNotAttached {
+        motor: m.to_owned(),
+    })
 }
 
 impl Order {
@@ -1480,7 +1472,7 @@ impl Drivers {
         device: usize,
         node: u16,
         order: Order,
-    ) -> Result<u32, String> {
+    ) -> Result<u32, DeviceError> {
         match order {
             Order::Irpc(p) => self.irpc.send(now, device, node, p),
             Order::Compact(c) => {
@@ -1493,7 +1485,7 @@ impl Drivers {
 
     /// Whether `order` cannot be sent now, and why (an Orion value or
     /// command before the controller's beacon).
-    pub(crate) fn refuses(&self, order: &Order) -> Option<String> {
+    pub(crate) fn refuses(&self, order: &Order) -> Option<DeviceError> {
         match order {
             Order::Orion(o) => self.orion.refuses(*o),
             Order::Irpc(_) | Order::Compact(_) | Order::Moteus(_) => None,
@@ -1509,7 +1501,7 @@ impl Drivers {
         &mut self,
         now: Duration,
         orders: &[(usize, Order)],
-    ) -> Result<u32, String> {
+    ) -> Result<u32, DeviceError> {
         if let Some(e) = orders.first().and_then(|(_, o)| self.refuses(o)) {
             return Err(e);
         }
@@ -1521,7 +1513,7 @@ impl Drivers {
             })
             .collect();
         if orion.len() != orders.len() || orion.is_empty() {
-            return Err("only the Orion controller takes orders together".to_owned());
+            return Err(DeviceError::NotTogether);
         }
         Ok(self.orion.send(now, &orion))
     }
@@ -1631,7 +1623,7 @@ impl Drivers {
                     Err(error) => self.tell(Happened::Bad {
                         report: Some(Event::BadFrame {
                             can_id: frame.id().to_string(),
-                            error,
+                            error: error.to_string(),
                         }),
                     }),
                     Ok(record) => {
@@ -1934,7 +1926,7 @@ impl Drivers {
                 return self.tell(Happened::Bad {
                     report: Some(Event::BadFrame {
                         can_id: frame.id().to_string(),
-                        error,
+                        error: error.to_string(),
                     }),
                 });
             }

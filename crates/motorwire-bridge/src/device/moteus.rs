@@ -21,6 +21,7 @@
 //! once the limits in force change, and once the bridge gives the command
 //! up: its target is never sent again after any of these.
 
+use super::DeviceError;
 use std::collections::BTreeMap;
 use std::time::Duration;
 
@@ -88,9 +89,9 @@ pub(crate) fn fault_name(code: i64) -> &'static str {
     }
 }
 
-fn can_frame(can_id: u32, data: &[u8]) -> Result<Frame, String> {
-    let id = CanId::extended(can_id).map_err(|e| e.to_string())?;
-    Frame::fd(id, &motorwire_moteus::padded(data)).map_err(|e| e.to_string())
+fn can_frame(can_id: u32, data: &[u8]) -> Result<Frame, DeviceError> {
+    let id = CanId::extended(can_id).map_err(DeviceError::Frame)?;
+    Frame::fd(id, &motorwire_moteus::padded(data)).map_err(DeviceError::Frame)
 }
 
 /// `cmd` as its frame for controller `id` on prefix `bus`, with the
@@ -98,13 +99,13 @@ fn can_frame(can_id: u32, data: &[u8]) -> Result<Frame, String> {
 /// watchdog where the command has none.
 ///
 /// # Errors
-/// The codec's refusal (a frame over 64 bytes), as text.
+/// The codec's refusal (a frame over 64 bytes).
 pub(crate) fn command_frame(
     id: u8,
     bus: u16,
     cmd: &MoteusCommand,
     hold: Option<f64>,
-) -> Result<Frame, String> {
+) -> Result<Frame, DeviceError> {
     let command = match *cmd {
         MoteusCommand::Position(mut args) => {
             if args.watchdog_timeout.is_none() {
@@ -124,12 +125,12 @@ pub(crate) fn command_frame(
         query_override: None,
         resolutions: resolutions(),
     };
-    let f = call.encode().map_err(|e| e.to_string())?;
+    let f = call.encode().map_err(DeviceError::MoteusCall)?;
     can_frame(f.can_id, &f.data)
 }
 
 /// The bridge's query for controller `id` on prefix `bus`.
-pub(crate) fn query_frame(id: u8, bus: u16) -> Result<Frame, String> {
+pub(crate) fn query_frame(id: u8, bus: u16) -> Result<Frame, DeviceError> {
     let call = Call {
         id,
         source: SOURCE,
@@ -139,7 +140,7 @@ pub(crate) fn query_frame(id: u8, bus: u16) -> Result<Frame, String> {
         query_override: None,
         resolutions: resolutions(),
     };
-    let f = call.encode().map_err(|e| e.to_string())?;
+    let f = call.encode().map_err(DeviceError::MoteusCall)?;
     can_frame(f.can_id, &f.data)
 }
 
@@ -176,8 +177,8 @@ pub(crate) fn addressed(raw: u32, id: u8, bus: u16) -> Option<bool> {
 ///
 /// # Errors
 /// The codec's refusal of the frame, as a bad-frame event says it.
-pub(crate) fn reply(frame: &Frame) -> Result<Reply, String> {
-    decode(frame.id().raw(), frame.data()).map_err(|e| e.to_string())
+pub(crate) fn reply(frame: &Frame) -> Result<Reply, DeviceError> {
+    decode(frame.id().raw(), frame.data()).map_err(DeviceError::MoteusReply)
 }
 
 /// `r` if a controller could have sent it: its mode one of moteus's (0 to
@@ -186,10 +187,10 @@ pub(crate) fn reply(frame: &Frame) -> Result<Reply, String> {
 ///
 /// # Errors
 /// What is wrong with it, as a bad-frame event says it.
-pub(crate) fn plausible(r: Reply) -> Result<Reply, String> {
+pub(crate) fn plausible(r: Reply) -> Result<Reply, DeviceError> {
     match r.get(0x000) {
         Some(motorwire_moteus::Scaled::Int(m)) if !(0..=15).contains(&m) => {
-            Err(format!("mode {m} is no moteus mode (0 to 15)"))
+            Err(DeviceError::NoMoteusMode(m))
         }
         _ => Ok(r),
     }
@@ -384,9 +385,9 @@ impl MoteusDriver {
         now: Duration,
         device: usize,
         cmd: &MoteusCommand,
-    ) -> Result<u32, String> {
+    ) -> Result<u32, DeviceError> {
         let Some(poll) = self.polls.get(&device) else {
-            return Err(format!("device {device} is not a moteus controller"));
+            return Err(DeviceError::NotMoteus(device));
         };
         let (id, bus, period) = (poll.id, poll.bus, poll.period);
         let cmd = &match *cmd {
@@ -761,7 +762,7 @@ mod tests {
         let odd = reply(&Frame::fd(CanId::extended(0x200).unwrap(), &[0x21, 0x00, 0xff]).unwrap())
             .unwrap();
         assert_eq!(
-            plausible(odd).unwrap_err(),
+            plausible(odd).unwrap_err().to_string(),
             "mode -1 is no moteus mode (0 to 15)"
         );
         let f = feedback_to_wia("knee", 1.0, AngleUnit::Radians, &r);

@@ -27,6 +27,7 @@
 //!   controller runs is unknown, so a stop goes first, and the motors are
 //!   up again only once it is answered; nothing under way is resumed.
 
+use super::DeviceError;
 use std::collections::VecDeque;
 use std::time::Duration;
 
@@ -300,9 +301,9 @@ impl OrionDriver {
     /// Why `order` cannot be written now, if it cannot: nothing is heard
     /// from a lost link, so only a stop is still written (in case the
     /// controller still reads; it cannot be answered).
-    pub(crate) fn refuses(&self, order: OrionOrder) -> Option<String> {
+    pub(crate) fn refuses(&self, order: OrionOrder) -> Option<DeviceError> {
         (self.lost && order != OrionOrder::Command(ArmCommand::Stop))
-            .then(|| "the link to the Orion controller is lost".to_owned())
+            .then_some(DeviceError::OrionLinkLost)
     }
 
     /// Writes one line for `orders` (devices and their orders, all of one
@@ -678,7 +679,9 @@ key = "TRM"
         assert_eq!(d.link_lost(MS), Some(None));
         assert_eq!(d.link_lost(2 * MS), None, "lost once");
         assert_eq!(
-            d.refuses(OrionOrder::Set(Motor::Turntable, 1.0)).as_deref(),
+            d.refuses(OrionOrder::Set(Motor::Turntable, 1.0))
+                .map(|e| e.to_string())
+                .as_deref(),
             Some("the link to the Orion controller is lost")
         );
         assert_eq!(d.refuses(OrionOrder::Command(ArmCommand::Stop)), None);

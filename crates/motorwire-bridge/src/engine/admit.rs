@@ -71,7 +71,9 @@ impl Bridge {
         self.stats.lines += 1;
         self.refuse(
             &LineMeta::new(origin, number),
-            ErrorBody::new(ErrorKind::Unreadable, reason),
+            Refusal::Unreadable {
+                reason: reason.to_owned(),
+            },
         );
     }
 
@@ -119,7 +121,9 @@ impl Bridge {
         let number = self.number(origin);
         self.refuse(
             &LineMeta::new(origin, number),
-            ErrorBody::new(ErrorKind::Unreadable, reason),
+            Refusal::Unreadable {
+                reason: reason.to_owned(),
+            },
         );
     }
 
@@ -154,7 +158,7 @@ impl Bridge {
             Phase::Starting => {
                 if self.waiting.len() >= self.config.max_pending_lines {
                     self.stats.lines += 1;
-                    self.busy(&meta, "too many lines are waiting for the joints to start");
+                    self.busy(&meta, Refusal::WaitingForStart);
                 } else {
                     self.waiting.push_back(Waiting {
                         at: now,
@@ -167,10 +171,7 @@ impl Bridge {
             Phase::Running => {}
             Phase::Draining { .. } | Phase::Stopping | Phase::Finished => {
                 self.stats.lines += 1;
-                self.refuse(
-                    &meta,
-                    ErrorBody::new(ErrorKind::ShuttingDown, "the bridge is shutting down"),
-                );
+                self.refuse(&meta, Refusal::ShuttingDown);
                 return;
             }
         }
@@ -181,21 +182,27 @@ impl Bridge {
             // overtook the queue, or the release waited for startup):
             // releasing now would let what followed the release run after
             // the stop.
-            Input::Release if self.last_stop_arrival.is_some_and(|t| now < t) => self.refuse(&meta, ErrorBody::new(
-                    ErrorKind::Cancelled,
-                    "an emergency stop sent after this release was acted on before it; the emergency stop stays latched",
-                ),
-            ),
+            Input::Release if self.last_stop_arrival.is_some_and(|t| now < t) => {
+                self.refuse(&meta, Refusal::StopOvertookRelease)
+            }
             Input::Release => self.release(now, meta),
             Input::BadRelease { reason } => {
-                self.refuse(&meta, ErrorBody::new(ErrorKind::InvalidRelease, reason));
+                self.refuse(&meta, Refusal::BadRelease { reason });
             }
-            Input::Invalid { message, violations, more, label } => {
-                let mut e = ErrorBody::new(ErrorKind::Invalid, message);
-                e.violations = violations;
-                e.more_violations =
-                    (more > 0).then(|| u32::try_from(more).unwrap_or(u32::MAX));
-                self.refuse(&meta.with(label), e);
+            Input::Invalid {
+                message,
+                violations,
+                more,
+                label,
+            } => {
+                self.refuse(
+                    &meta.with(label),
+                    Refusal::Invalid {
+                        message,
+                        violations,
+                        more,
+                    },
+                );
             }
             Input::QueryLimits { motor_id } => self.query_limits(meta, &motor_id),
             Input::QueryState { motor_id } => self.query_state(meta, motor_id),
@@ -238,35 +245,21 @@ impl Bridge {
                 }
                 Message::PidConfig(p) => self.refuse(
                     &meta.labelled(Label::Motor(p.motor_id.clone())),
-                    ErrorBody::new(
-                        ErrorKind::Unsupported,
-                        "iRPC carries no PID gains (its joints run their own control loops): nothing was sent",
-                    ),
+                    Refusal::PidGains,
                 ),
-                Message::ControlModeConfig(_) => self.refuse(&meta, ErrorBody::new(
-                        ErrorKind::Unsupported,
-                        "iRPC carries no control-mode configuration (a joint takes position moves and lifecycle requests): nothing was sent",
-                    ),
-                ),
-                other => self.refuse(&meta, ErrorBody::new(
-                        ErrorKind::UnsupportedKind,
-                        format!(
-                            "a {} is valid WIA, but the bridge takes motor-command and multi-axis-command lines",
-                            other.kind()
-                        ),
-                    ),
-                ),
+                Message::ControlModeConfig(_) => self.refuse(&meta, Refusal::ControlModeConfig),
+                other => self.refuse(&meta, Refusal::UnsupportedKind { kind: other.kind() }),
             },
         }
     }
 
     // ---- trajectories -----------------------------------------------------------
 
-    pub(super) fn refuse(&mut self, meta: &LineMeta, error: ErrorBody) {
+    pub(super) fn refuse(&mut self, meta: &LineMeta, refusal: Refusal) {
         let r = LineResult {
             ok: false,
             line: meta.number,
-            error: Some(error),
+            error: Some(refusal.into()),
             ..LineResult::default()
         };
         self.answer(meta, r);
@@ -292,15 +285,9 @@ impl Bridge {
         });
     }
 
-    pub(super) fn busy(&mut self, meta: &LineMeta, why: &str) {
+    pub(super) fn busy(&mut self, meta: &LineMeta, refusal: Refusal) {
         self.stats.busy += 1;
-        self.refuse(
-            meta,
-            ErrorBody::new(
-                ErrorKind::Busy,
-                format!("{why}; nothing was sent, send it again later"),
-            ),
-        );
+        self.refuse(meta, refusal);
     }
 
     /// The `ConfigureTelemetry` joint `ji` gets when configured, if
@@ -340,7 +327,7 @@ impl Bridge {
     pub(super) fn admit_now<'a>(
         &self,
         motors: impl Iterator<Item = &'a str> + Clone,
-    ) -> Result<(), ErrorBody> {
+    ) -> Result<(), Refusal> {
         let now_ms = self
             .config
             .epoch_unix_ms
@@ -357,12 +344,9 @@ impl Bridge {
         origin: Option<Origin>,
         timestamp: f64,
         mut motors: impl Iterator<Item = &'a str> + Clone,
-    ) -> Result<(), ErrorBody> {
+    ) -> Result<(), Refusal> {
         if self.latched {
-            return Err(ErrorBody::new(
-                ErrorKind::EmergencyStopLatched,
-                "the emergency stop is latched; send {\"emergency_stop\": false} to release it",
-            ));
+            return Err(Refusal::Latched);
         }
         // Only where timestamps are held to the bridge's clock (a max age
         // in force): without one they may be any number.
@@ -373,13 +357,9 @@ impl Bridge {
         if let Some(stop) = self.last_stop_at
             && arrived < stop
         {
-            return Err(ErrorBody::new(
-                ErrorKind::StaleBeforeStop,
-                format!(
-                    "the line reached the bridge {:.3} s before the last emergency stop: written before the stop, it does not run after the release",
-                    (stop - arrived).as_secs_f64()
-                ),
-            ));
+            return Err(Refusal::ArrivedBeforeStop {
+                early: stop - arrived,
+            });
         }
         // The timestamp on the bridge's clock, as far as the client's
         // lines tell: a clock that runs ahead is taken back by as much
@@ -392,89 +372,61 @@ impl Bridge {
             // Written before the stop (another client's, still on its
             // way): the stop came after it, so it must not run after the
             // release.
-            return Err(ErrorBody::new(
-                ErrorKind::StaleBeforeStop,
-                format!(
-                    "timestamp {timestamp} is {:.3} s before the last emergency stop (at {stop_ms}): written before the stop, it does not run after the release",
-                    (stop_ms - timestamp) / 1000.0
-                ),
-            ));
+            return Err(Refusal::StampedBeforeStop { timestamp, stop_ms });
         }
         if let (Some(epoch), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age) {
             let now_ms = epoch + self.now.as_secs_f64() * 1000.0;
             let skew = max_age.as_secs_f64() * 1000.0;
             let age = now_ms - timestamp;
             if age > skew || -age > skew {
-                let when = if age > 0.0 { "old" } else { "in the future" };
-                // A timestamp in microseconds is a mistake often made: say
-                // so when the value read in that unit would have been
-                // within the skew. (One in seconds is the validator's
+                // A timestamp in microseconds is a mistake often made: said
+                // when the value read in that unit would have been within
+                // the skew. (One in seconds is the validator's
                 // `timestamp-unit`, refused before it gets here.)
-                let hint = if (now_ms * 1000.0 - timestamp).abs() / 1000.0 <= skew {
-                    "; it looks like microseconds: WIA timestamps are Unix milliseconds (`date +%s%3N`)"
-                } else {
-                    ""
-                };
-                return Err(ErrorBody::new(
-                    ErrorKind::Stale,
-                    format!(
-                        "timestamp {timestamp} is {:.1} s {when}; the allowed clock skew is {} s (WIA §10.1){hint}",
-                        age.abs() / 1000.0,
-                        max_age.as_secs_f64()
-                    ),
-                ));
+                return Err(Refusal::Stale {
+                    timestamp,
+                    age_ms: age,
+                    max_age,
+                    microseconds: (now_ms * 1000.0 - timestamp).abs() / 1000.0 <= skew,
+                });
             }
         }
         if let Some(err) = motors.clone().find_map(|m| {
             let j = self.joints.get(self.joint_index(m)?)?;
             let why = j.needs_reset.as_ref()?;
-            Some(
-                ErrorBody::new(
-                    ErrorKind::NeedsReset,
-                    format!("{m} {why}: send {{\"reset\":\"{m}\"}} to bring it back"),
-                )
-                .about(m),
-            )
+            Some(Refusal::NeedsReset {
+                motor: m.to_owned(),
+                why: why.clone(),
+            })
         }) {
             return Err(err);
         }
         if let Some(err) = motors.clone().find_map(|m| {
             let j = self.joints.get(self.joint_index(m)?)?;
-            (!j.online).then(|| {
-                ErrorBody::new(
-                    ErrorKind::Offline,
-                    match self.drivers.offline_reason(j.device) {
-                        Some(why) => format!("{m} is offline: {why}"),
-                        None => format!(
-                            "{m} is offline: nothing heard from {}",
-                            j.device.who(j.node)
-                        ),
-                    },
-                )
-                .about(m)
+            (!j.online).then(|| Refusal::Offline {
+                motor: m.to_owned(),
+                why: Some(self.drivers.offline_reason(j.device).map_or_else(
+                    || format!("nothing heard from {}", j.device.who(j.node)),
+                    str::to_owned,
+                )),
             })
         }) {
             return Err(err);
         }
         if self.pending_lines() >= self.config.max_pending_lines {
-            return Err(ErrorBody::new(
-                ErrorKind::Busy,
-                format!(
-                    "{} lines are in progress, the most the bridge takes; nothing was sent, send it again later",
-                    self.config.max_pending_lines
-                ),
-            ));
+            return Err(Refusal::LinesInProgress {
+                max: self.config.max_pending_lines,
+            });
         }
         if let Some(m) = motors.find(|m| {
             self.joint_index(m)
                 .and_then(|i| self.joints.get(i))
                 .is_some_and(|j| j.queue.len() >= self.config.max_queue_per_joint)
         }) {
-            return Err(ErrorBody::new(
-                ErrorKind::Busy,
-                format!("{m} has {} steps waiting, the most it takes; nothing was sent, send it again later", self.config.max_queue_per_joint),
-            )
-            .about(m));
+            return Err(Refusal::QueueFull {
+                motor: m.to_owned(),
+                max: self.config.max_queue_per_joint,
+            });
         }
         Ok(())
     }

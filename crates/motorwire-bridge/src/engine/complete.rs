@@ -109,11 +109,11 @@ impl Bridge {
         let latency = job.last_frame.map(|t| us(t.saturating_sub(job.received)));
         let ok = failures.is_empty() && job.data_error.is_none();
         let error = if !failures.is_empty() {
-            Some(failure_error(&failures, job.cut.as_deref()))
+            Some(Refusal::failed(&failures, job.cut.as_deref()).into())
         } else {
             job.data_error
                 .clone()
-                .map(|why| ErrorBody::new(ErrorKind::NoAnswer, why))
+                .map(|why| Refusal::NoAnswer { why }.into())
         };
         let mut r = Box::new(LineResult {
             ok,

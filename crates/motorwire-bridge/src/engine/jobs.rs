@@ -903,7 +903,7 @@ impl Bridge {
         ji: usize,
         step: StepRef,
         order: Order,
-    ) -> Result<u32, String> {
+    ) -> Result<u32, DeviceError> {
         if let Some(e) = self.drivers.refuses(&order) {
             return Err(e);
         }

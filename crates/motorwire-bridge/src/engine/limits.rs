@@ -138,7 +138,7 @@ impl Bridge {
         motor: &str,
         mode: motorwire_core::ControlMode,
         setpoint: f64,
-    ) -> Option<ErrorBody> {
+    ) -> Option<Refusal> {
         if !matches!(
             mode,
             motorwire_core::ControlMode::Velocity | motorwire_core::ControlMode::Torque
@@ -196,20 +196,18 @@ impl Bridge {
                 m.limits.min_position.filter(|lo| p - reach <= *lo)?,
             )
         };
-        let what = if mode == motorwire_core::ControlMode::Velocity {
-            "a velocity"
-        } else {
-            "a torque"
-        };
-        Some(
-            ErrorBody::refused(
-                BridgeRule::OutwardAtLimit,
-                format!(
-                    "{motor}: at {p}, {what} of {setpoint} toward its {limit_name} ({}) {limit} could not stop before it; command it away from the limit",
-                    m.limits_source
-                ),
-            )
-            .about(motor.to_owned()),
-        )
+        Some(Refusal::OutwardAtLimit {
+            motor: motor.to_owned(),
+            at: p,
+            mode: if mode == motorwire_core::ControlMode::Velocity {
+                "velocity"
+            } else {
+                "torque"
+            },
+            setpoint,
+            limit_name,
+            source: m.limits_source,
+            limit,
+        })
     }
 }

@@ -79,11 +79,7 @@ impl Bridge {
             })
             .collect();
         if axes.is_empty() {
-            let e = ErrorBody::refused(
-                BridgeRule::OrionNotAttached,
-                "no Orion arm controller is attached (motorwire bridge --orion ...)",
-            );
-            self.refuse(&meta, e);
+            self.refuse(&meta, Refusal::OrionNotAttached);
             return;
         }
         if let Err(e) = self.admit_now(axes.iter().map(|a| a.motor.as_str())) {
@@ -95,10 +91,7 @@ impl Bridge {
 
     /// The refusal for a motor among `motors` whose driver is not
     /// attached (an Orion motor without `--orion`).
-    pub(super) fn unattached<'a>(
-        &self,
-        motors: impl Iterator<Item = &'a str>,
-    ) -> Option<ErrorBody> {
+    pub(super) fn unattached<'a>(&self, motors: impl Iterator<Item = &'a str>) -> Option<Refusal> {
         crate::device::unattached(&self.map, self.config.orion, motors)
     }
 
@@ -134,43 +127,37 @@ impl Bridge {
         needs_to: Capability,
         needs: PayloadKind,
         what: &str,
-    ) -> Result<usize, ErrorBody> {
+    ) -> Result<usize, Refusal> {
         let Some(ji) = self.joint_index(motor).filter(|&ji| {
             self.joints
                 .get(ji)
                 .is_some_and(|j| j.device.supports(needs_to))
         }) else {
             if self.joint_index(motor).is_none() {
-                return Err(ErrorBody::refused(
-                    BridgeRule::UnknownMotor,
-                    format!("motor {motor:?} is not in the bus map"),
-                )
-                .about(motor));
+                return Err(Refusal::UnknownMotor {
+                    motor: motor.to_owned(),
+                });
             }
-            let why = match needs_to {
-                Capability::Reset => {
-                    format!("{motor} takes no reset: only iRPC joints and moteus controllers do")
-                }
-                _ => format!("{motor} is not an iRPC joint of the bus map"),
-            };
-            return Err(ErrorBody::refused(BridgeRule::NotAnIrpcJoint, why).about(motor));
+            let motor = motor.to_owned();
+            return Err(match needs_to {
+                Capability::Reset => Refusal::NoReset { motor },
+                _ => Refusal::NotAnIrpcJoint { motor },
+            });
         };
         let device = self.joints.get(ji).map(|j| j.device);
         if device.is_none_or(|d| !d.speaks(needs)) {
             let wire = device.map(Device::wire);
-            return Err(ErrorBody::new(
-                ErrorKind::Unsupported,
-                format!(
-                    "{motor} speaks iRPC {}, which has no {what}",
-                    wire.map_or("?", |w| w.name())
-                ),
-            )
-            .about(motor));
+            return Err(Refusal::NoSuchMessage {
+                motor: motor.to_owned(),
+                wire: wire.map_or("?", |w| w.name()),
+                what: what.to_owned(),
+            });
         }
         if self.joints.get(ji).is_some_and(|j| !j.online) {
-            return Err(
-                ErrorBody::new(ErrorKind::Offline, format!("{motor} is offline")).about(motor),
-            );
+            return Err(Refusal::Offline {
+                motor: motor.to_owned(),
+                why: None,
+            });
         }
         Ok(ji)
     }
@@ -223,7 +210,7 @@ impl Bridge {
             return self.refuse(&meta, e);
         }
         if let Err(r) = motorwire_translate::gate_calibration(&self.map, motor, &request) {
-            return self.refuse(&meta, ErrorBody::gate(&r));
+            return self.refuse(&meta, Refusal::gate(r));
         }
         let phases = request.phases.count_ones().max(1);
         let per_phase =

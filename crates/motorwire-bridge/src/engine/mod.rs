@@ -42,8 +42,8 @@ use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Input, MotorAction, RequestKind, classify};
 use crate::clocks::ClockOffsets;
 use crate::device::{
-    Answer, Capability, Context, Device, Drivers, Ended, Happened, InForce, MotorOrder, Moving,
-    Outcome,
+    Answer, Capability, Context, Device, DeviceError, Drivers, Ended, Happened, InForce,
+    MotorOrder, Moving, Outcome,
 };
 use crate::error::BridgeError;
 use crate::job::{
@@ -52,8 +52,8 @@ use crate::job::{
 };
 use crate::joints::{Joint, StepRef, Unresolved};
 use crate::output::{
-    BridgeRule, BridgeState, Broke, ErrorBody, ErrorKind, Event, FeedbackLine, Label, LineRef,
-    LineResult, MotorState, Origin, Output, StepOutcome, StepReport, shortest,
+    BridgeState, ErrorKind, Event, FeedbackLine, Label, LineRef, LineResult, MotorState, Origin,
+    Output, Refusal, StepOutcome, StepReport, Wider, shortest,
 };
 
 mod admit;
@@ -688,68 +688,6 @@ fn planned_within_limits(
 struct Takes {
     replaces: bool,
     timed: bool,
-}
-
-/// The error of a job whose parts did not all succeed: the gravest first
-/// (an unknown outcome, then a refusal, then what was never sent).
-/// `cut`: why a stop (or the end, a reset, a lost joint) cancelled the
-/// line: its kind is then `cancelled`, and a part in flight when that came
-/// is `outcome_unknown` in `outcomes`.
-fn failure_error(failures: &[StepReport], cut: Option<&str>) -> ErrorBody {
-    if let Some(why) = cut {
-        let mut e = ErrorBody::new(
-            ErrorKind::Cancelled,
-            if failures
-                .iter()
-                .any(|f| f.outcome == StepOutcome::OutcomeUnknown)
-            {
-                format!(
-                    "{why}: a part was sent before and not answered, so it may have started; nothing of it is sent again"
-                )
-            } else {
-                format!("{why}; nothing of it is sent")
-            },
-        );
-        if let [only] = failures {
-            e.motor = Some(only.motor.clone());
-        }
-        return e;
-    }
-    let rank = |o: StepOutcome| match o {
-        StepOutcome::OutcomeUnknown => 0,
-        StepOutcome::Nacked => 1,
-        StepOutcome::Cancelled => 2,
-        StepOutcome::Superseded => 3,
-        StepOutcome::NotSent => 4,
-        StepOutcome::Acked => 5,
-    };
-    let worst = failures.iter().min_by_key(|f| rank(f.outcome));
-    let (kind, message) = match worst.map(|f| f.outcome) {
-        Some(StepOutcome::OutcomeUnknown) => (
-            ErrorKind::OutcomeUnknown,
-            "a joint never answered: it may or may not have executed the command",
-        ),
-        Some(StepOutcome::Nacked) => (ErrorKind::Nacked, "a joint refused the command"),
-        Some(StepOutcome::Cancelled) => (
-            ErrorKind::Cancelled,
-            "cancelled by an emergency stop or the end; nothing of it runs after the stop",
-        ),
-        // What replaced it, as its step says (a newer move, a stream's
-        // setpoint, a motor line).
-        Some(StepOutcome::Superseded) => (
-            ErrorKind::Superseded,
-            worst.map_or(
-                "a newer command for the motor replaced it before it was sent",
-                |f| f.message.as_ref(),
-            ),
-        ),
-        _ => (ErrorKind::NotSent, "not every part could be sent"),
-    };
-    let mut e = ErrorBody::new(kind, message.to_owned());
-    if let [only] = failures {
-        e.motor = Some(only.motor.clone());
-    }
-    e
 }
 
 /// `v` as the shortest decimal of the nearest f32 (for what is said, not

@@ -38,25 +38,18 @@ impl Bridge {
         if let (Some(_), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age)
             && start_ms - now_ms > max_age.as_secs_f64() * 1000.0
         {
-            let e = ErrorBody::new(
-                ErrorKind::Stale,
-                format!(
-                    "timing.start_time {start_ms} is {:.1} s ahead; a trajectory starts within the allowed clock skew, {} s (WIA §10.1)",
-                    (start_ms - now_ms) / 1000.0,
-                    max_age.as_secs_f64()
-                ),
-            );
+            let e = Refusal::StartTooFarAhead {
+                start_ms,
+                ahead_ms: start_ms - now_ms,
+                max_age,
+            };
             self.refuse(&meta, e);
             return;
         }
         // A start_time so far ahead that no clock reaches it (1e300) is
         // refused, never a panic.
         let Ok(delay) = Duration::try_from_secs_f64(((start_ms - now_ms) / 1000.0).max(0.0)) else {
-            let e = ErrorBody::refused(
-                BridgeRule::TimeUnreachable,
-                format!("timing.start_time {start_ms} is beyond any time the bridge can wait for"),
-            );
-            self.refuse(&meta, e);
+            self.refuse(&meta, Refusal::StartUnreachable { start_ms });
             return;
         };
         let start = now.saturating_add(delay);
@@ -65,18 +58,16 @@ impl Bridge {
         let mut seen = std::collections::BTreeSet::new();
         for t in all {
             if !seen.insert(t.motor_id.as_str()) {
-                let e = ErrorBody::refused(
-                    BridgeRule::MotorTwice,
-                    format!("{} has two trajectories in one line", t.motor_id),
-                );
+                let e = Refusal::MotorTwice {
+                    motor: t.motor_id.clone(),
+                };
                 self.refuse(&meta, e);
                 return;
             }
             let plan = match trajectory_to_irpc(&self.map, t) {
                 Ok(p) => p,
                 Err(r) => {
-                    let e = ErrorBody::gate(&r);
-                    self.refuse(&meta, e);
+                    self.refuse(&meta, Refusal::gate(r));
                     return;
                 }
             };
@@ -85,10 +76,9 @@ impl Bridge {
                     .get(ji)
                     .is_some_and(|j| j.device.supports(Capability::Trajectory))
             }) else {
-                let e = ErrorBody::refused(
-                    BridgeRule::NotAnIrpcJoint,
-                    format!("{} is not an iRPC joint", t.motor_id),
-                );
+                let e = Refusal::NotAnIrpcJoint {
+                    motor: t.motor_id.clone(),
+                };
                 self.refuse(&meta, e);
                 return;
             };
@@ -104,18 +94,11 @@ impl Bridge {
                 .map_or(0.0, |w| unit.to_degrees(w.position));
             let here = self.joints.get(ji).and_then(|j| j.motion).map(|(p, _)| p);
             if here.is_none_or(|p| !p.is_finite() || (p - first).abs() > tolerance) {
-                let at = here.map_or_else(
-                    || "at an unknown position".to_owned(),
-                    |p| format!("at {}", short_unit(unit.from_degrees(p))),
-                );
-                let e = ErrorBody::refused(
-                    BridgeRule::NotAtStart,
-                    format!(
-                        "{}: the trajectory starts at {} and the joint is {at}: move it there first",
-                        t.motor_id,
-                        short_unit(unit.from_degrees(first))
-                    ),
-                );
+                let e = Refusal::NotAtStart {
+                    motor: t.motor_id.clone(),
+                    first: short_unit(unit.from_degrees(first)),
+                    at: here.map(|p| short_unit(unit.from_degrees(p))),
+                };
                 self.refuse(&meta, e);
                 return;
             }
@@ -130,13 +113,9 @@ impl Bridge {
             let timeable = |secs: f64| Duration::try_from_secs_f64(secs.max(0.0)).is_ok();
             if !plan.value.segments.iter().all(|s| timeable(s.at)) || !timeable(plan.value.duration)
             {
-                let e = ErrorBody::refused(
-                    BridgeRule::TimeUnreachable,
-                    format!(
-                        "{}: a waypoint's time is beyond any time the bridge can wait for",
-                        t.motor_id
-                    ),
-                );
+                let e = Refusal::WaypointUnreachable {
+                    motor: t.motor_id.clone(),
+                };
                 self.refuse(&meta, e);
                 return;
             }
@@ -299,27 +278,26 @@ impl Bridge {
         let name = l.motor_id.clone();
         let meta = meta.labelled(Label::Motor(name.clone()));
         let Some(base) = self.base_limits.get(&name).copied() else {
-            let e = ErrorBody::refused(
-                BridgeRule::UnknownMotor,
-                format!("motor {name:?} is not in the bus map"),
-            )
-            .about(&name);
-            self.refuse(&meta, e);
+            self.refuse(&meta, Refusal::UnknownMotor { motor: name });
             return;
         };
         let p = &l.position_limits;
         let v = &l.velocity_limits;
         let t = &l.torque_limits;
         let mut wider = Vec::new();
-        let mut low = |field: &str, value: Option<f64>, map: Option<f64>, map_field: &str| {
-            if let (Some(x), Some(b)) = (value, map)
-                && x < b
-            {
-                wider.push(format!(
-                    "{name}: {field} {x} is wider than the bus map's {map_field} {b}"
-                ));
-            }
-        };
+        let mut low =
+            |field: &'static str, value: Option<f64>, map: Option<f64>, map_field: &'static str| {
+                if let (Some(x), Some(b)) = (value, map)
+                    && x < b
+                {
+                    wider.push(Wider {
+                        field,
+                        value: x,
+                        map_field,
+                        bound: b,
+                    });
+                }
+            };
         low(
             "position_limits.min",
             Some(p.min),
@@ -332,15 +310,19 @@ impl Bridge {
             base.min_position,
             "min_position",
         );
-        let mut high = |field: &str, value: Option<f64>, map: Option<f64>, map_field: &str| {
-            if let (Some(x), Some(b)) = (value, map)
-                && x > b
-            {
-                wider.push(format!(
-                    "{name}: {field} {x} is wider than the bus map's {map_field} {b}"
-                ));
-            }
-        };
+        let mut high =
+            |field: &'static str, value: Option<f64>, map: Option<f64>, map_field: &'static str| {
+                if let (Some(x), Some(b)) = (value, map)
+                    && x > b
+                {
+                    wider.push(Wider {
+                        field,
+                        value: x,
+                        map_field,
+                        bound: b,
+                    });
+                }
+            };
         high(
             "position_limits.max",
             Some(p.max),
@@ -372,7 +354,7 @@ impl Bridge {
             "max_torque",
         );
         if !wider.is_empty() {
-            let e = ErrorBody::refused(BridgeRule::WiderThanBusMap, wider.join("; ")).about(&name);
+            let e = Refusal::WiderThanBusMap { motor: name, wider };
             self.refuse(&meta, e);
             return;
         }
@@ -386,13 +368,10 @@ impl Bridge {
             .joint_index(&name)
             .and_then(|ji| self.motion_outside(ji, lo, hi, v.max_velocity))
         {
-            let e = ErrorBody::refused(
-                BridgeRule::MotionOutsideNewLimits,
-                format!(
-                    "{name}: {why}, which these limits would not allow; send them once it has ended, or stop it first"
-                ),
-            )
-            .about(&name);
+            let e = Refusal::MotionOutsideNewLimits {
+                motor: name,
+                motion: why,
+            };
             self.refuse(&meta, e);
             return;
         }
@@ -469,7 +448,7 @@ impl Bridge {
             cmd.timestamp,
             std::iter::once(cmd.motor_id.as_str()),
         ) {
-            if e.kind == ErrorKind::Busy {
+            if e.kind() == ErrorKind::Busy {
                 self.stats.busy += 1;
             }
             self.refuse(&meta, e);
@@ -504,11 +483,9 @@ impl Bridge {
         match motorwire_translate::to_irpc_gated(&self.map, cmd) {
             Ok((t, motor, limits)) => {
                 let Some(joint) = ji else {
-                    let e = ErrorBody::refused(
-                        BridgeRule::NotAnIrpcJoint,
-                        format!("{} is not an iRPC joint of the bus map", cmd.motor_id),
-                    )
-                    .about(cmd.motor_id.clone());
+                    let e = Refusal::NotAnIrpcJoint {
+                        motor: std::mem::take(&mut cmd.motor_id),
+                    };
                     self.refuse(&meta, e);
                     return;
                 };
@@ -522,7 +499,7 @@ impl Bridge {
                 match planned {
                     Ok(planned) => self.keep_plan(joint, planned),
                     Err(r) => {
-                        self.refuse(&meta, ErrorBody::gate(&r));
+                        self.refuse(&meta, Refusal::gate(r));
                         return;
                     }
                 }
@@ -531,7 +508,7 @@ impl Bridge {
                 let axes = vec![Axis::new(motor, joint, t.value.payloads)];
                 self.command_job(now, meta, axes, t.report);
             }
-            Err(r) => self.refuse(&meta, ErrorBody::gate(&r)),
+            Err(r) => self.refuse(&meta, Refusal::gate(r)),
         }
     }
 
@@ -573,11 +550,7 @@ impl Bridge {
                 .as_ref()
                 .is_some_and(|c| c.total_duration_ms.is_some())
         {
-            let e = ErrorBody::new(
-                ErrorKind::Invalid,
-                "sync_mode sequential runs the axes one after another; coordination.total_duration_ms has them all arrive together after it: a line has one or the other",
-            );
-            return self.refuse(&meta, e);
+            return self.refuse(&meta, Refusal::SequentialWithTotalDuration);
         }
         let (mut axes, report) = match self.mixed_axes(cmd) {
             Ok(x) => x,
@@ -591,15 +564,10 @@ impl Bridge {
                 .zip(&cmd.motors)
                 .find(|(ax, _)| ax.target.is_none())
             {
-                let e = ErrorBody::refused(
-                    BridgeRule::SequentialWithoutArrival,
-                    format!(
-                        "{}: sync_mode sequential runs position moves one after another, each once the one before arrived; a {} command has no arrival to wait for",
-                        a.motor,
-                        i.control_mode.name()
-                    ),
-                )
-                .about(a.motor.clone());
+                let e = Refusal::SequentialWithoutArrival {
+                    motor: a.motor.clone(),
+                    mode: i.control_mode.name(),
+                };
                 return self.refuse(&meta, e);
             }
             for (k, a) in axes.iter_mut().enumerate().skip(1) {
@@ -632,19 +600,17 @@ impl Bridge {
         let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
         match built {
             Ok((axis, report)) => self.command_job(now, meta, vec![axis], report),
-            Err(r) => {
-                let e = ErrorBody::gate(&r);
-                self.refuse(&meta, e);
-            }
+            Err(r) => self.refuse(&meta, Refusal::gate(r)),
         }
     }
 
     pub(super) fn mixed_axes(
         &self,
         cmd: &MultiAxisCommand,
-    ) -> Result<(Vec<Axis>, Report), ErrorBody> {
-        let refused = |motor: &str, r: &motorwire_translate::Refusal| {
-            ErrorBody::gate(r).about(motor.to_owned())
+    ) -> Result<(Vec<Axis>, Report), Refusal> {
+        let refused = |motor: &str, r: motorwire_translate::Refusal| Refusal::Gate {
+            refusal: Box::new(r),
+            motor: Some(motor.to_owned()),
         };
         let mut report = Report::default();
         // The iRPC joints' axes, planned together.
@@ -666,8 +632,7 @@ impl Bridge {
                     None => j.feedback.as_ref().map(|f| (f.position, 0.0, 0.0)),
                 }
             };
-            let t = multi_axis_to_irpc_from(&self.map, &sub, &state)
-                .map_err(|r| ErrorBody::gate(&r))?;
+            let t = multi_axis_to_irpc_from(&self.map, &sub, &state).map_err(Refusal::gate)?;
             irpc = t.value.commands.into_iter().map(|c| c.payloads).collect();
             report.losses.extend(t.report.losses);
         }
@@ -677,17 +642,15 @@ impl Bridge {
         let mut others: Vec<&'static str> = Vec::new();
         for a in &cmd.motors {
             let Some(ji) = self.joint_index(&a.motor_id) else {
-                return Err(ErrorBody::refused(
-                    BridgeRule::UnknownMotor,
-                    format!("{} is not a device of the bus map", a.motor_id),
-                )
-                .about(a.motor_id.clone()));
+                return Err(Refusal::UnknownMotor {
+                    motor: a.motor_id.clone(),
+                });
             };
             let single = a.to_motor_command(cmd.timestamp);
             let prefixed = |r: Report| r.losses.into_iter().map(|l| l.under(&a.motor_id));
             let device = self.joints.get(ji).map(|j| j.device);
             if let Some(built) = device.and_then(|d| self.single_axis(ji, d, &single)) {
-                let (axis, r) = built.map_err(|r| refused(&a.motor_id, &r))?;
+                let (axis, r) = built.map_err(|r| refused(&a.motor_id, r))?;
                 report.losses.extend(prefixed(r));
                 axes.push(axis);
                 let dialect = device.map_or("iRPC", Device::dialect_name);
@@ -741,7 +704,7 @@ impl Bridge {
             cmd.timestamp,
             cmd.motors.iter().map(|a| a.motor_id.as_str()),
         ) {
-            if e.kind == ErrorKind::Busy {
+            if e.kind() == ErrorKind::Busy {
                 self.stats.busy += 1;
             }
             self.refuse(&meta, e);

@@ -23,18 +23,18 @@ impl Bridge {
         let meta = meta.labelled(Label::Motor(motor.to_owned()));
         let now_ms = self.unix_ms(now);
         match self.admit(now, None, now_ms, std::iter::once(motor)) {
-            Err(e) if e.kind != ErrorKind::Busy => return self.refuse(&meta, e),
+            Err(e) if e.kind() != ErrorKind::Busy => return self.refuse(&meta, e),
             _ => {}
         }
         let Some((ji, device)) = self
             .joint_index(motor)
             .and_then(|ji| Some((ji, self.joints.get(ji)?.device)))
         else {
-            let e = self.unattached(std::iter::once(motor)).unwrap_or_else(|| {
-                ErrorBody::gate(&motorwire_translate::Refusal::UnknownMotor {
-                    motor: motor.to_owned(),
-                })
-            });
+            let e =
+                self.unattached(std::iter::once(motor))
+                    .unwrap_or_else(|| Refusal::UnknownMotor {
+                        motor: motor.to_owned(),
+                    });
             return self.refuse(&meta, e);
         };
         let Some(m) = self.map.motor(motor) else {
@@ -68,13 +68,11 @@ impl Bridge {
                     // the user, or its start failed) has no torque to keep
                     // on, and nothing to stop.
                     Err(why) if !self.joints.get(ji).is_some_and(|j| j.active || j.freed) => {
-                        let e = ErrorBody::refused(
-                            BridgeRule::ActionNotExpressible,
-                            format!(
-                                "{motor} is not active (never started: --no-activate, or its start failed) and {why}; {{\"reset\":\"{motor}\"}} starts it"
-                            ),
-                        )
-                        .about(motor);
+                        let e = Refusal::ActionNotExpressible {
+                            motor: motor.to_owned(),
+                            why: why.to_string(),
+                            not_active: true,
+                        };
                         return self.refuse(&meta, e);
                     }
                     Err(why) => {
@@ -89,7 +87,11 @@ impl Bridge {
                 })
             }
             Err(why) => {
-                let e = ErrorBody::refused(BridgeRule::ActionNotExpressible, why).about(motor);
+                let e = Refusal::ActionNotExpressible {
+                    motor: motor.to_owned(),
+                    why: why.to_string(),
+                    not_active: false,
+                };
                 return self.refuse(&meta, e);
             }
         };
@@ -113,12 +115,9 @@ impl Bridge {
         unit: AngleUnit,
         limits: &Limits,
         now_ms: f64,
-    ) -> Result<Payload, String> {
+    ) -> Result<Payload, HoldError> {
         let Some((p, v, a)) = self.joints.get(ji).and_then(|j| j.state_at(self.now)) else {
-            return Err(
-                "its position is not known yet (no feedback), so no hold could be planned"
-                    .to_owned(),
-            );
+            return Err(HoldError::PositionUnknown);
         };
         let within = |deg: f64| {
             let mut x = deg;
@@ -137,7 +136,7 @@ impl Bridge {
         } else {
             let req = here.planner_request(p, v).with_start_acceleration(a);
             let e = motorwire_planner::plan(&req)
-                .map_err(|e| format!("the joint cannot plan a stop: {e}"))?
+                .map_err(HoldError::Unplannable)?
                 .position_extrema();
             if v > 0.0 || (v == 0.0 && a > 0.0) {
                 e.max
@@ -149,7 +148,7 @@ impl Bridge {
             &self.map,
             &Self::position_command(motor, unit.from_degrees(within(stop_at)), now_ms),
         )
-        .map_err(|r| r.to_string())?;
+        .map_err(HoldError::Refused)?;
         let planned = planned_within_limits(
             self.joints.get(ji),
             self.now,
@@ -157,13 +156,8 @@ impl Bridge {
             &effective,
             &t.value.payloads,
         )
-        .map_err(|r| r.to_string())?;
-        let payload = t
-            .value
-            .payloads
-            .first()
-            .copied()
-            .ok_or_else(|| "no move was made".to_owned())?;
+        .map_err(HoldError::Refused)?;
+        let payload = t.value.payloads.first().copied().ok_or(HoldError::NoMove)?;
         self.keep_plan(ji, planned);
         Ok(payload)
     }
@@ -176,15 +170,15 @@ impl Bridge {
         unit: AngleUnit,
         deg: f64,
         now_ms: f64,
-    ) -> Result<motorwire_irpc::SetTargetPayloadV2, String> {
+    ) -> Result<motorwire_irpc::SetTargetPayloadV2, HoldError> {
         let (t, ..) = motorwire_translate::to_irpc_gated(
             &self.map,
             &Self::position_command(motor, unit.from_degrees(deg), now_ms),
         )
-        .map_err(|r| r.to_string())?;
+        .map_err(HoldError::Refused)?;
         match t.value.payloads.first() {
             Some(Payload::SetTargetV2(p)) => Ok(*p),
-            _ => Err("no move was made".to_owned()),
+            _ => Err(HoldError::NoMove),
         }
     }
 
@@ -273,11 +267,7 @@ impl Bridge {
     pub(super) fn reset_joint(&mut self, now: Duration, meta: LineMeta, motor: &str) {
         let meta = meta.labelled(Label::Motor(motor.to_owned()));
         if self.latched {
-            let e = ErrorBody::new(
-                ErrorKind::EmergencyStopLatched,
-                "the emergency stop is latched; release it first, then reset",
-            );
-            self.refuse(&meta, e);
+            self.refuse(&meta, Refusal::LatchedReset);
             return;
         }
         // A device that takes a reset (an iRPC joint, a moteus controller):
@@ -316,4 +306,21 @@ impl Bridge {
             Vec::new(),
         );
     }
+}
+
+/// Why no hold could be planned for a joint the bridge plans for.
+#[derive(Debug, thiserror::Error)]
+pub(super) enum HoldError {
+    /// Nothing heard of where it is.
+    #[error("its position is not known yet (no feedback), so no hold could be planned")]
+    PositionUnknown,
+    /// The planner found no stop from how it moves.
+    #[error("the joint cannot plan a stop: {0}")]
+    Unplannable(motorwire_planner::PlanError),
+    /// The gate refused the move to where it stops.
+    #[error("{0}")]
+    Refused(motorwire_translate::Refusal),
+    /// Translation made no move.
+    #[error("no move was made")]
+    NoMove,
 }

@@ -217,13 +217,7 @@ impl Bridge {
         let waiting: Vec<Waiting> = self.waiting.drain(..).collect();
         for w in waiting {
             self.stats.lines += 1;
-            self.refuse(
-                &w.meta,
-                ErrorBody::new(
-                    ErrorKind::Cancelled,
-                    "the bridge was interrupted before the line was served",
-                ),
-            );
+            self.refuse(&w.meta, Refusal::Interrupted);
         }
         self.cancel_everything("cancelled: the bridge was interrupted");
         self.enter(Phase::Stopping);

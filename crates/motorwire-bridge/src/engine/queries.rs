@@ -102,12 +102,7 @@ impl Bridge {
                     return;
                 }
                 if state.motors.is_empty() {
-                    let e = ErrorBody::refused(
-                        BridgeRule::UnknownMotor,
-                        format!("motor {m:?} is not a device of the bridge"),
-                    )
-                    .about(&m);
-                    self.refuse(&meta, e);
+                    self.refuse(&meta, Refusal::UnknownMotor { motor: m });
                     return;
                 }
                 meta
@@ -134,57 +129,26 @@ impl Bridge {
             .feedback_period
             .filter(|p| !p.is_zero())
             .map(|p| 1.0 / p.as_secs_f64());
-        let refusal = |message: String| {
-            let mut e = ErrorBody::new(ErrorKind::Invalid, message);
-            e.broke = Some(Box::new(Broke {
-                field: Some("feedback_hz"),
-                value: Some(hz),
-                limit: Some(bridge_hz.unwrap_or(0.0)),
-                limit_name: Some("feedback_hz"),
-                limit_source: Some("the bridge's --feedback-hz"),
-            }));
-            e
-        };
-        // The number as a person reads it (1e308, not 309 digits).
-        let asked = if hz != 0.0 && !(1e-4..1e6).contains(&hz.abs()) {
-            format!("{hz:e}")
-        } else {
-            format!("{hz}")
+        let refusal = Refusal::FeedbackRate {
+            asked: hz,
+            bridge_hz,
         };
         let every = match bridge_hz {
             _ if hz.is_nan() || hz < 0.0 => {
-                return self.refuse(
-                    &meta,
-                    refusal(format!(
-                        "feedback_hz {asked} is not a rate: 0 (no feedback) or more"
-                    )),
-                );
+                return self.refuse(&meta, refusal);
             }
             _ if hz == 0.0 => 0,
             None => {
-                return self.refuse(&meta, refusal(format!("feedback_hz {asked}: the bridge sends no feedback (--feedback-hz 0); 0 is the only rate")));
+                return self.refuse(&meta, refusal);
             }
             // Beyond the rounding of the bridge's rate from its period.
             Some(b) if hz > b * (1.0 + 1e-9) => {
-                return self.refuse(
-                    &meta,
-                    refusal(format!(
-                        "feedback_hz {asked} is above the bridge's own rate, {}",
-                        crate::output::short_number(b)
-                    )),
-                );
+                return self.refuse(&meta, refusal);
             }
             // Every k-th line for a k that fits the count (2^32 - 1): a
             // slower rate than that would be answered with a faster one.
             Some(b) if b / hz - 1e-9 > f64::from(u32::MAX) => {
-                return self.refuse(
-                    &meta,
-                    refusal(format!(
-                        "feedback_hz {asked} is below the slowest rate, the bridge's divided by {} ({:e}); 0 turns feedback off",
-                        u32::MAX,
-                        b / f64::from(u32::MAX)
-                    )),
-                );
+                return self.refuse(&meta, refusal);
             }
             #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
             Some(b) => ((b / hz - 1e-9).ceil() as u32).max(1),
@@ -205,12 +169,12 @@ impl Bridge {
     pub(super) fn query_limits(&mut self, meta: LineMeta, motor: &str) {
         let meta = meta.labelled(Label::Motor(motor.to_owned()));
         let Some(limits) = self.limits_value(motor) else {
-            let e = ErrorBody::refused(
-                BridgeRule::UnknownMotor,
-                format!("motor {motor:?} is not in the bus map"),
-            )
-            .about(motor);
-            self.refuse(&meta, e);
+            self.refuse(
+                &meta,
+                Refusal::UnknownMotor {
+                    motor: motor.to_owned(),
+                },
+            );
             return;
         };
         let r = LineResult {

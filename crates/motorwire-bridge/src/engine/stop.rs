@@ -20,10 +20,7 @@ impl Bridge {
                     line: meta.number,
                     emergency_stop: true,
                     problems,
-                    error: Some(ErrorBody::new(
-                        ErrorKind::ShuttingDown,
-                        "the bridge has already deactivated every joint",
-                    )),
+                    error: Some(Refusal::AlreadyStopped.into()),
                     ..LineResult::default()
                 };
                 self.answer(&meta, r);
@@ -268,13 +265,7 @@ impl Bridge {
 
     pub(super) fn release(&mut self, now: Duration, meta: LineMeta) {
         if !self.latched {
-            self.refuse(
-                &meta,
-                ErrorBody::new(
-                    ErrorKind::NotLatched,
-                    "there is no emergency stop to release",
-                ),
-            );
+            self.refuse(&meta, Refusal::NotLatched);
             return;
         }
         self.latched = false;

@@ -12,8 +12,10 @@ use serde_json::Value;
 
 pub(crate) mod json;
 mod numbers;
+mod refusal;
 
 pub(crate) use numbers::shortest;
+pub use refusal::{Refusal, Wider};
 
 /// Who sent a line: the runner's name for an input (stdin, a TCP client).
 /// Results go back to the origin of their line.
