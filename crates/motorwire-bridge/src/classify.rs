@@ -21,7 +21,7 @@
 //! doubt, stop. The release is exact: the line
 //! `{"emergency_stop": false}` with no other member and no repeat; any
 //! other line whose every `emergency_stop` is `false` is an
-//! [`Input::BadRelease`] and the latch holds.
+//! [`Line::BadRelease`] and the latch holds.
 //!
 //! A line that is not a JSON object this bridge can read (truncated,
 //! garbage before or after it, nested deeper than the parser goes, `NaN`,
@@ -45,7 +45,7 @@ use serde_json::Value;
 
 /// What a line asks for.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Input {
+pub enum Line {
     /// An emergency stop.
     Stop {
         /// Its `motor_id` or `command_id`, when the line names one.
@@ -215,9 +215,9 @@ pub const DEFAULT_CALIBRATION: motorwire_irpc::CalibrationRequest =
         return_home: true,
     };
 
-fn calibration_line(members: &[(String, Value)], label: Option<Label>) -> Input {
+fn calibration_line(members: &[(String, Value)], label: Option<Label>) -> Line {
     let usage = r#"a calibration line is {"calibration":"start","motor_id":"..."} (optionally with phases, max_current, max_velocity, max_position_range, phase_timeout, return_home) or {"calibration":"stop","motor_id":"..."}"#;
-    let invalid = |message: String| Input::Invalid {
+    let invalid = |message: String| Line::Invalid {
         message,
         violations: None,
         more: 0,
@@ -231,7 +231,7 @@ fn calibration_line(members: &[(String, Value)], label: Option<Label>) -> Input 
         .find(|(k, _)| k == "calibration")
         .and_then(|(_, v)| v.as_str());
     match action {
-        Some("stop") if members.len() == 2 => Input::Calibration {
+        Some("stop") if members.len() == 2 => Line::Calibration {
             motor_id,
             start: None,
         },
@@ -269,7 +269,7 @@ fn calibration_line(members: &[(String, Value)], label: Option<Label>) -> Input 
                     return invalid(e);
                 }
             }
-            Input::Calibration {
+            Line::Calibration {
                 motor_id,
                 start: Some(r),
             }
@@ -529,28 +529,28 @@ fn stop_members(members: &[(String, Value)]) -> (Vec<&Value>, Vec<String>, usize
 /// Decides what `line` asks for. `validator` parses the WIA messages.
 ///
 /// ```
-/// use motorwire_bridge::{Input, classify};
+/// use motorwire_bridge::{Line, classify};
 /// use motorwire_wia::Validator;
 /// let v = Validator::new();
-/// assert_eq!(classify(&v, r#"{"emergency_stop": false}"#), Input::Release);
+/// assert_eq!(classify(&v, r#"{"emergency_stop": false}"#), Line::Release);
 /// // Stops, whatever else the line carries; the rest is reported.
-/// let Input::Stop { problems, .. } = classify(&v, r#"{"emergency_stop": "true", "x": 1}"#) else { panic!() };
+/// let Line::Stop { problems, .. } = classify(&v, r#"{"emergency_stop": "true", "x": 1}"#) else { panic!() };
 /// assert_eq!(problems, [
 ///     "emergency_stop is \"true\", not true: taken as a stop",
 ///     "the line also carries x",
 /// ]);
 /// // An invalid command that carries a stop stops.
 /// let line = r#"{"motor_id":"elbow","control_mode":"warp","safety_limits":{"emergency_stop":true}}"#;
-/// assert!(matches!(classify(&v, line), Input::Stop { .. }));
+/// assert!(matches!(classify(&v, line), Line::Stop { .. }));
 /// // A release with anything else is not one.
-/// assert!(matches!(classify(&v, r#"{"emergency_stop": false, "emergency_stop": false}"#), Input::BadRelease { .. }));
+/// assert!(matches!(classify(&v, r#"{"emergency_stop": false, "emergency_stop": false}"#), Line::BadRelease { .. }));
 /// ```
-pub fn classify(validator: &Validator, line: &str) -> Input {
+pub fn classify(validator: &Validator, line: &str) -> Line {
     if let Some(c) = plain_command(validator, line) {
-        return Input::Message(Box::new(Message::MotorCommand(c)));
+        return Line::Message(Box::new(Message::MotorCommand(c)));
     }
     if let Some(c) = plain_multi_axis(validator, line) {
-        return Input::Message(Box::new(Message::MultiAxisCommand(c)));
+        return Line::Message(Box::new(Message::MultiAxisCommand(c)));
     }
     classify_scanned(validator, line)
 }
@@ -594,16 +594,16 @@ fn plain_multi_axis(validator: &Validator, line: &str) -> Option<motorwire_wia::
 /// it cannot name a stop, then the typed parse. Anything else (a stop, a
 /// release, the bridge's own forms, an invalid line) is decided from all
 /// its members ([`classify_members`]).
-fn classify_scanned(validator: &Validator, line: &str) -> Input {
+fn classify_scanned(validator: &Validator, line: &str) -> Line {
     match plain_message(line) {
         Some(Some(kind)) => {
             if let Ok(m) = validator.parse_as(kind, line) {
-                return Input::Message(Box::new(m));
+                return Line::Message(Box::new(m));
             }
         }
         Some(None) => {
             if let Ok(m) = validator.parse_any(line) {
-                return Input::Message(Box::new(m));
+                return Line::Message(Box::new(m));
             }
         }
         None => {}
@@ -641,11 +641,11 @@ fn plain_message(line: &str) -> Option<Option<motorwire_wia::MessageKind>> {
 }
 
 /// [`classify`] from every member of the line.
-fn classify_members(validator: &Validator, line: &str) -> Input {
+fn classify_members(validator: &Validator, line: &str) -> Line {
     let (members, unholdable) = match members_of(line) {
         Ok(m) => m,
         Err(e) if names_a_stop(line) => {
-            return Input::Stop {
+            return Line::Stop {
                 label: None,
                 problems: vec![format!(
                     "the line is not a JSON object this bridge can read ({e}); it names emergency_stop with a value other than false, so it stops"
@@ -655,8 +655,8 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
         Err(e) => {
             // Not an object (or not JSON): it can be neither a stop nor a release.
             return match validator.parse_any(line) {
-                Ok(m) => Input::Message(Box::new(m)),
-                Err(err) => Input::Invalid {
+                Ok(m) => Line::Message(Box::new(m)),
+                Err(err) => Line::Invalid {
                     message: if serde_json::from_str::<Value>(line).is_ok() {
                         invalid_message(&err)
                     } else {
@@ -686,14 +686,14 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
     let top_stop = top.iter().any(|v| stops(v));
     if let Some(e) = unholdable {
         if top_stop || !reasons.is_empty() {
-            return Input::Stop {
+            return Line::Stop {
                 label,
                 problems: vec![format!(
                     "the line cannot be read exactly ({e}); it asks for a stop, so it stops"
                 )],
             };
         }
-        return Input::Invalid {
+        return Line::Invalid {
             message: format!("not JSON this bridge can read: {e}"),
             violations: None,
             more: 0,
@@ -727,11 +727,11 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
                 problems.push(format!("and {} more violations, not listed", e.more()));
             }
         }
-        return Input::Stop { label, problems };
+        return Line::Stop { label, problems };
     }
     if !top.is_empty() {
         if members.len() == 1 {
-            return Input::Release;
+            return Line::Release;
         }
         let reason = if top.len() > 1 {
             format!("emergency_stop appears {} times", top.len())
@@ -743,7 +743,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
                 .collect();
             format!("the line also carries {}", names(&others))
         };
-        return Input::BadRelease {
+        return Line::BadRelease {
             reason: format!(
                 "{reason}: a release is exactly {{\"emergency_stop\": false}}; the emergency stop stays latched"
             ),
@@ -754,7 +754,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             .iter()
             .find_map(|(k, v)| (k == "trajectory_id").then(|| v.as_str()))
             .flatten();
-        let problem = |message: String| Input::Invalid {
+        let problem = |message: String| Line::Invalid {
             message,
             violations: None,
             more: 0,
@@ -777,7 +777,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
                     ));
                 }
                 Err(e) => {
-                    return Input::Invalid {
+                    return Line::Invalid {
                         message: format!("trajectories[{i}] is not a valid WIA trajectory"),
                         violations: serde_json::to_value(e.violations()).ok(),
                         more: e.more(),
@@ -786,17 +786,17 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
                 }
             }
         }
-        return Input::Trajectories {
+        return Line::Trajectories {
             id: id.to_owned(),
             trajectories,
         };
     }
     if let Some((_, m)) = members.iter().find(|(k, _)| k == "reset") {
         return match (m.as_str(), members.len()) {
-            (Some(m), 1) => Input::Reset {
+            (Some(m), 1) => Line::Reset {
                 motor_id: m.to_owned(),
             },
-            _ => Input::Invalid {
+            _ => Line::Invalid {
                 message: r#"a reset is exactly {"reset":"<motor_id>"}"#.to_owned(),
                 violations: None,
                 more: 0,
@@ -815,11 +815,11 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
             _ => None,
         };
         return match (kind, members.len(), &label) {
-            (Some(kind), 2, Some(Label::Motor(m))) => Input::Request {
+            (Some(kind), 2, Some(Label::Motor(m))) => Line::Request {
                 kind,
                 motor_id: m.clone(),
             },
-            _ => Input::Invalid {
+            _ => Line::Invalid {
                 message: r#"a request is exactly {"request":"telemetry"|"power_metrics"|"fault_history","motor_id":"..."}"#.to_owned(),
                 violations: None,
                 more: 0,
@@ -829,13 +829,13 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
     }
     if let Some((_, c)) = members.iter().find(|(k, _)| k == "orion") {
         return match (c.as_str(), members.len()) {
-            (Some("fold"), 1) => Input::OrionCommand {
+            (Some("fold"), 1) => Line::OrionCommand {
                 command: motorwire_orion::ArmCommand::Fold,
             },
-            (Some("unfold"), 1) => Input::OrionCommand {
+            (Some("unfold"), 1) => Line::OrionCommand {
                 command: motorwire_orion::ArmCommand::Unfold,
             },
-            _ => Input::Invalid {
+            _ => Line::Invalid {
                 message: r#"an Orion command is exactly {"orion":"fold"} or {"orion":"unfold"} (a stop is {"emergency_stop":true})"#.to_owned(),
                 violations: None,
                 more: 0,
@@ -845,14 +845,14 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
     }
     if let Some((_, q)) = members.iter().find(|(k, _)| k == "query") {
         return match (q.as_str(), members.len(), &label) {
-            (Some("limits"), 2, Some(Label::Motor(m))) => Input::QueryLimits {
+            (Some("limits"), 2, Some(Label::Motor(m))) => Line::QueryLimits {
                 motor_id: m.clone(),
             },
-            (Some("state"), 1, None) => Input::QueryState { motor_id: None },
-            (Some("state"), 2, Some(Label::Motor(m))) => Input::QueryState {
+            (Some("state"), 1, None) => Line::QueryState { motor_id: None },
+            (Some("state"), 2, Some(Label::Motor(m))) => Line::QueryState {
                 motor_id: Some(m.clone()),
             },
-            _ => Input::Invalid {
+            _ => Line::Invalid {
                 message: r#"a query is exactly {"query":"state"} (optionally with "motor_id":"..."), or {"query":"limits","motor_id":"..."}"#.to_owned(),
                 violations: None,
                 more: 0,
@@ -865,8 +865,8 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
     }
     if let Some((_, hz)) = members.iter().find(|(k, _)| k == "feedback_hz") {
         return match (hz.as_f64(), members.len()) {
-            (Some(hz), 1) => Input::FeedbackRate { hz },
-            _ => Input::Invalid {
+            (Some(hz), 1) => Line::FeedbackRate { hz },
+            _ => Line::Invalid {
                 message: r#"a feedback rate is exactly {"feedback_hz":N}, N a number of Hz (0: no feedback)"#.to_owned(),
                 violations: None,
                 more: 0,
@@ -878,8 +878,8 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
         return stream_line(validator, &members, at, label);
     }
     match validator.parse_any(line) {
-        Ok(m) => Input::Message(Box::new(m)),
-        Err(err) => Input::Invalid {
+        Ok(m) => Line::Message(Box::new(m)),
+        Err(err) => Line::Invalid {
             message: invalid_message(&err),
             violations: serde_json::to_value(err.violations()).ok(),
             more: err.more(),
@@ -890,7 +890,7 @@ fn classify_members(validator: &Validator, line: &str) -> Input {
 
 /// `{"motor":action,"motor_id":M}` (`action` the value of `motor`), or
 /// why not, naming what is wrong.
-fn motor_line(members: &[(String, Value)], action: &Value, label: Option<Label>) -> Input {
+fn motor_line(members: &[(String, Value)], action: &Value, label: Option<Label>) -> Line {
     const FORM: &str = r#"a motor line is exactly {"motor":"hold"|"free"|"stop","motor_id":"..."}"#;
     // What a refusal quotes of a value, at most (a megabyte of it is not
     // said back).
@@ -924,14 +924,14 @@ fn motor_line(members: &[(String, Value)], action: &Value, label: Option<Label>)
         _ if !others.is_empty() => format!("it also carries {}", names(&others)),
         (.., None) => "it names no motor_id".to_owned(),
         (_, Some(action), Some(Value::String(m))) => {
-            return Input::Motor {
+            return Line::Motor {
                 action,
                 motor_id: m.clone(),
             };
         }
         (.., Some(v)) => format!("motor_id is {}: it is a motor's name", clip(v.to_string())),
     };
-    Input::Invalid {
+    Line::Invalid {
         message: format!("{FORM}: {why}"),
         violations: None,
         more: 0,
@@ -948,8 +948,8 @@ fn stream_line(
     members: &[(String, Value)],
     at: usize,
     label: Option<Label>,
-) -> Input {
-    let invalid = |message: String| Input::Invalid {
+) -> Line {
+    let invalid = |message: String| Line::Invalid {
         message,
         violations: None,
         more: 0,
@@ -985,7 +985,7 @@ fn stream_line(
     }
     text.push('}');
     match validator.parse_any(&text) {
-        Ok(Message::MotorCommand(c)) if stream => Input::Stream(Box::new(c)),
+        Ok(Message::MotorCommand(c)) if stream => Line::Stream(Box::new(c)),
         // (Read without `stream`: the one rule of the validator that
         // needs it is checked here.)
         Ok(Message::MultiAxisCommand(c))
@@ -996,22 +996,22 @@ fn stream_line(
                 motorwire_wia::Rule::Stream,
                 motorwire_wia::STREAM_SEQUENTIAL,
             );
-            Input::Invalid {
+            Line::Invalid {
                 message: format!("not a valid WIA message: {v}"),
                 violations: serde_json::to_value([v]).ok(),
                 more: 0,
                 label,
             }
         }
-        Ok(Message::MultiAxisCommand(c)) if stream => Input::StreamAxes(Box::new(c)),
+        Ok(Message::MultiAxisCommand(c)) if stream => Line::StreamAxes(Box::new(c)),
         Ok(m @ (Message::MotorCommand(_) | Message::MultiAxisCommand(_))) => {
-            Input::Message(Box::new(m))
+            Line::Message(Box::new(m))
         }
         Ok(other) => invalid(format!(
             "stream is a command's (a motor command or a multi-axis command); a {} has no stream",
             other.kind()
         )),
-        Err(err) => Input::Invalid {
+        Err(err) => Line::Invalid {
             message: invalid_message(&err),
             violations: serde_json::to_value(err.violations()).ok(),
             more: err.more(),
@@ -1165,7 +1165,7 @@ mod tests {
             if line.contains(r#"emergency_stop":true"#)
                 || line.contains(r#"emergency\u005fstop":true"#)
             {
-                assert!(matches!(classify(&v, line), Input::Stop { .. }), "{line}");
+                assert!(matches!(classify(&v, line), Line::Stop { .. }), "{line}");
             }
         }
     }
@@ -1293,7 +1293,7 @@ mod tests {
         for (line, _) in &cases {
             if line.contains(r#"emergency_stop":true"#) || line.contains(r#"emergency_stop":true"#)
             {
-                assert!(matches!(classify(&v, line), Input::Stop { .. }), "{line}");
+                assert!(matches!(classify(&v, line), Line::Stop { .. }), "{line}");
             }
         }
     }
@@ -1306,17 +1306,17 @@ mod tests {
     fn stream_is_a_motor_commands_boolean() {
         let v = Validator::new();
         let cmd = r#""motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20"#;
-        let Input::Stream(c) = classify(&v, &format!("{{{cmd},\"stream\":true}}")) else {
+        let Line::Stream(c) = classify(&v, &format!("{{{cmd},\"stream\":true}}")) else {
             panic!("not a stream");
         };
         assert_eq!((c.motor_id.as_str(), c.setpoint), ("elbow", 20.0));
         assert!(c.extra.is_empty());
         assert!(matches!(
             classify(&v, &format!("{{\"stream\":false,{cmd}}}")),
-            Input::Message(m) if matches!(*m, Message::MotorCommand(_))
+            Line::Message(m) if matches!(*m, Message::MotorCommand(_))
         ));
         let message = |line: &str| match classify(&v, line) {
-            Input::Invalid { message, .. } => message,
+            Line::Invalid { message, .. } => message,
             other => panic!("{line}: {other:?}"),
         };
         assert_eq!(
@@ -1329,7 +1329,7 @@ mod tests {
         );
         // A multi-axis command's stream: one line for all its motors.
         let multi = r#""command_id":"c","timestamp":1,"motors":[{"motor_id":"elbow","control_mode":"position","setpoint":1},{"motor_id":"gripper_axis","control_mode":"velocity","setpoint":-2}]"#;
-        let Input::StreamAxes(m) = classify(&v, &format!("{{{multi},\"stream\":true}}")) else {
+        let Line::StreamAxes(m) = classify(&v, &format!("{{{multi},\"stream\":true}}")) else {
             panic!("not a multi-axis stream");
         };
         assert_eq!(
@@ -1342,7 +1342,7 @@ mod tests {
         assert!(m.extra.is_empty());
         assert!(matches!(
             classify(&v, &format!("{{\"stream\":false,{multi}}}")),
-            Input::Message(m) if matches!(*m, Message::MultiAxisCommand(_))
+            Line::Message(m) if matches!(*m, Message::MultiAxisCommand(_))
         ));
         assert_eq!(
             message(&format!("{{{multi},\"stream\":\"yes\"}}")),
@@ -1358,7 +1358,7 @@ mod tests {
         // refused as in any command.
         let strict = Validator::new().deny_unknown_members(true);
         let typo = format!("{{{cmd},\"velocity_limt\":5,\"stream\":true}}");
-        let Input::Invalid { message, .. } = classify(&strict, &typo) else {
+        let Line::Invalid { message, .. } = classify(&strict, &typo) else {
             panic!("{typo}");
         };
         assert!(message.contains("velocity_limt"), "{message}");
@@ -1376,7 +1376,7 @@ mod tests {
             ] {
                 assert_eq!(
                     classify(&v, &line),
-                    Input::Motor {
+                    Line::Motor {
                         action,
                         motor_id: "knee".to_owned()
                     },
@@ -1409,14 +1409,14 @@ mod tests {
             ),
         ] {
             let message = format!("{form}: {why}");
-            let Input::Invalid { message: m, .. } = classify(&v, line) else {
+            let Line::Invalid { message: m, .. } = classify(&v, line) else {
                 panic!("{line}");
             };
             assert_eq!(m, message, "{line}");
         }
         // A huge value is not said back whole.
         let huge = format!(r#"{{"motor":"{}","motor_id":"knee"}}"#, "h".repeat(100_000));
-        let Input::Invalid { message: m, .. } = classify(&v, &huge) else {
+        let Line::Invalid { message: m, .. } = classify(&v, &huge) else {
             panic!("huge");
         };
         assert_eq!(
@@ -1431,7 +1431,7 @@ mod tests {
                 &v,
                 r#"{"motor":"free","motor_id":"knee","emergency_stop":true}"#
             ),
-            Input::Stop { .. }
+            Line::Stop { .. }
         ));
     }
 
@@ -1443,18 +1443,18 @@ mod tests {
         let v = Validator::new();
         assert_eq!(
             classify(&v, r#"{"feedback_hz":12.5}"#),
-            Input::FeedbackRate { hz: 12.5 }
+            Line::FeedbackRate { hz: 12.5 }
         );
         assert_eq!(
             classify(&v, r#" {"feedback_hz": 0} "#),
-            Input::FeedbackRate { hz: 0.0 }
+            Line::FeedbackRate { hz: 0.0 }
         );
         for line in [
             r#"{"feedback_hz":"10"}"#,
             r#"{"feedback_hz":10,"motor_id":"elbow"}"#,
             r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":20,"feedback_hz":10}"#,
         ] {
-            let Input::Invalid { message, .. } = classify(&v, line) else {
+            let Line::Invalid { message, .. } = classify(&v, line) else {
                 panic!("{line}");
             };
             assert_eq!(
@@ -1540,14 +1540,14 @@ mod tests {
             proptest::prop_assert_eq!(&once, &classify_scanned(&v, &line), "{}", line);
             proptest::prop_assert_eq!(&once, &classify_members(&v, &line), "{}", line);
             if line.contains(r#"emergency_stop":true"#) {
-                proptest::prop_assert!(matches!(once, Input::Stop { .. }), "{}", line);
+                proptest::prop_assert!(matches!(once, Line::Stop { .. }), "{}", line);
             }
         }
     }
 
     fn stop(line: &str) -> Vec<String> {
         match classify(&Validator::new(), line) {
-            Input::Stop { problems, .. } => problems,
+            Line::Stop { problems, .. } => problems,
             other => panic!("{line}: {other:?}"),
         }
     }
@@ -1567,7 +1567,7 @@ mod tests {
             r#"{"emergency_stop":false,"metadata":{"emergency_stop":true}}"#,
         ] {
             assert!(
-                matches!(classify(&v, line), Input::Stop { .. }),
+                matches!(classify(&v, line), Line::Stop { .. }),
                 "{line}: {:?}",
                 classify(&v, line)
             );
@@ -1580,9 +1580,9 @@ mod tests {
             r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":40,"metadata":{"emergency_stop":false,"note":"\"emergency_stop\":true"}}"#,
         ] {
             assert!(!asks_for_stop(line), "{line}");
-            assert!(!matches!(classify(&v, line), Input::Stop { .. }), "{line}");
+            assert!(!matches!(classify(&v, line), Line::Stop { .. }), "{line}");
         }
-        assert_eq!(classify(&v, r#"{"emergency_stop": false}"#), Input::Release);
+        assert_eq!(classify(&v, r#"{"emergency_stop": false}"#), Line::Release);
     }
 
     #[test]
@@ -1621,16 +1621,13 @@ mod tests {
     #[test]
     fn only_the_exact_release_releases() {
         let v = Validator::new();
-        assert_eq!(
-            classify(&v, r#" {"emergency_stop":false} "#),
-            Input::Release
-        );
+        assert_eq!(classify(&v, r#" {"emergency_stop":false} "#), Line::Release);
         for bad in [
             r#"{"emergency_stop": false, "motor_id": "elbow"}"#,
             r#"{"emergency_stop": false, "emergency_stop": false}"#,
         ] {
             assert!(
-                matches!(classify(&v, bad), Input::BadRelease { .. }),
+                matches!(classify(&v, bad), Line::BadRelease { .. }),
                 "{bad}"
             );
         }
@@ -1638,11 +1635,11 @@ mod tests {
         // it names one with a value other than false).
         assert!(matches!(
             classify(&v, r#"{"emergency_stop": false"#),
-            Input::Invalid { .. }
+            Line::Invalid { .. }
         ));
         assert!(matches!(
             classify(&v, r#"[{"emergency_stop": false}]"#),
-            Input::Invalid { .. }
+            Line::Invalid { .. }
         ));
     }
 
@@ -1672,10 +1669,7 @@ mod tests {
             r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":1e400,"emergency_stop_note":1}"#,
         ] {
             assert!(!asks_for_stop(line), "{line}");
-            assert!(
-                matches!(classify(&v, line), Input::Invalid { .. }),
-                "{line}"
-            );
+            assert!(matches!(classify(&v, line), Line::Invalid { .. }), "{line}");
         }
         // The repair leaves what it does not need to touch alone.
         assert_eq!(
@@ -1729,7 +1723,7 @@ mod tests {
         ] {
             assert!(!asks_for_stop(line), "{line}");
             assert!(
-                matches!(classify(&Validator::new(), line), Input::Invalid { .. }),
+                matches!(classify(&Validator::new(), line), Line::Invalid { .. }),
                 "{line}"
             );
         }
@@ -1739,8 +1733,8 @@ mod tests {
     fn deep_and_huge_lines_are_invalid_not_a_crash() {
         let v = Validator::new();
         let deep = format!("{}{}", "[".repeat(100_000), "]".repeat(100_000));
-        assert!(matches!(classify(&v, &deep), Input::Invalid { .. }));
+        assert!(matches!(classify(&v, &deep), Line::Invalid { .. }));
         let deep_obj = format!("{{\"a\":{}1{}}}", "[".repeat(10_000), "]".repeat(10_000));
-        assert!(matches!(classify(&v, &deep_obj), Input::Invalid { .. }));
+        assert!(matches!(classify(&v, &deep_obj), Line::Invalid { .. }));
     }
 }

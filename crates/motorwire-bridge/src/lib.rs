@@ -15,10 +15,10 @@ mod runtime;
 pub mod sim;
 
 pub use classify::{
-    DEFAULT_CALIBRATION, Input, MotorAction, RequestKind, asks_for_stop, classify, members,
+    DEFAULT_CALIBRATION, Line, MotorAction, RequestKind, asks_for_stop, classify, members,
 };
 pub use engine::{
-    Bridge, BridgeConfig, BridgeStats, DEFAULT_MAX_AGE_MS, JointView, MAX_BAD_LINE_EVENTS,
+    Bridge, BridgeConfig, BridgeStats, DEFAULT_MAX_AGE_MS, Input, JointView, MAX_BAD_LINE_EVENTS,
     MAX_ORION_LINE, ORION_POLL,
 };
 pub use error::BridgeError;

@@ -1338,8 +1338,8 @@ pub fn replay(
                 ends = true;
                 b.interrupt(now);
             }
-            Recorded::Mark(Mark::OrionLost(why)) => b.orion_link_lost(now, why),
-            Recorded::Mark(Mark::OrionUnreadable(why)) => b.handle_orion_unreadable(now, why),
+            Recorded::Mark(Mark::OrionLost(why)) => b.handle_link_lost(now, why),
+            Recorded::Mark(Mark::OrionUnreadable(why)) => b.handle_link_unreadable(now, why),
             Recorded::Output { .. } | Recorded::Frame { .. } | Recorded::Orion { .. } => {}
         }
         // What the line set going goes out before the next is taken, as

@@ -14,7 +14,7 @@ use std::sync::{Condvar, Mutex, OnceLock, PoisonError};
 
 use crate::classify::asks_for_stop;
 use crate::clocks::clocks_together;
-use crate::engine::Bridge;
+use crate::engine::{Bridge, Input};
 use crate::error::BridgeError;
 use crate::output::{Event, Origin, Output};
 use crate::record::{Direction, Mark, Recorder, Tap, Taps};
@@ -114,7 +114,7 @@ enum Msg {
         /// own validator): the engine's thread does not parse it again, so
         /// a heavy line costs its own client's thread, never another
         /// client's stop. `None` before the runner knows its bridge.
-        input: Option<Box<crate::classify::Input>>,
+        input: Option<Box<crate::classify::Line>>,
     },
     Refused {
         origin: Origin,
@@ -1234,7 +1234,7 @@ impl Runner {
                     sent.push((Instant::now(), f));
                 }
             }
-            while let Some(line) = bridge.poll_orion_line() {
+            while let Some(line) = bridge.poll_link_line() {
                 if let Some(r) = rec {
                     r.orion(Instant::now(), Direction::Tx, &line);
                 }
@@ -1300,7 +1300,15 @@ impl Runner {
                         input,
                     } => {
                         let taken = Instant::now();
-                        bridge.handle_read_line(since(at), origin, number, &text, input);
+                        bridge.handle(
+                            since(at),
+                            Input::NumberedLine {
+                                origin,
+                                number,
+                                text: &text,
+                                read: input,
+                            },
+                        );
                         if rec.is_some() {
                             handled.push((at, taken, origin, number, text));
                         }
@@ -1340,13 +1348,13 @@ impl Runner {
                     Msg::Frame { frame, at } => bridge.handle_frame(since(at), &frame),
                     Msg::OrionLine { text, at } => {
                         orion_queued.fetch_sub(1, Ordering::SeqCst);
-                        bridge.handle_orion_line(since(at), &text);
+                        bridge.handle_link_line(since(at), &text);
                     }
                     Msg::OrionUnreadable(error) => {
                         orion_queued.fetch_sub(1, Ordering::SeqCst);
-                        bridge.handle_orion_unreadable(since(Instant::now()), &error);
+                        bridge.handle_link_unreadable(since(Instant::now()), &error);
                     }
-                    Msg::OrionLost(e) => bridge.orion_link_lost(since(Instant::now()), &e),
+                    Msg::OrionLost(e) => bridge.handle_link_lost(since(Instant::now()), &e),
                     _ => {}
                 }
                 heard += 1;
@@ -1388,7 +1396,15 @@ impl Runner {
                     // Told to the taps once its frames are out, the line
                     // moved to them.
                     let taken = Instant::now();
-                    bridge.handle_read_line(since(at), origin, number, &text, input);
+                    bridge.handle(
+                        since(at),
+                        Input::NumberedLine {
+                            origin,
+                            number,
+                            text: &text,
+                            read: input,
+                        },
+                    );
                     if rec.is_some() {
                         handled.push((at, taken, origin, number, text));
                     }
@@ -1428,13 +1444,13 @@ impl Runner {
                 Ok(Msg::BusError(e)) => sink(Output::Event(Event::BusError { error: e })),
                 Ok(Msg::OrionLine { text, at }) => {
                     orion_queued.fetch_sub(1, Ordering::SeqCst);
-                    bridge.handle_orion_line(since(at), &text);
+                    bridge.handle_link_line(since(at), &text);
                 }
                 Ok(Msg::OrionUnreadable(error)) => {
                     orion_queued.fetch_sub(1, Ordering::SeqCst);
-                    bridge.handle_orion_unreadable(since(Instant::now()), &error);
+                    bridge.handle_link_unreadable(since(Instant::now()), &error);
                 }
-                Ok(Msg::OrionLost(e)) => bridge.orion_link_lost(since(Instant::now()), &e),
+                Ok(Msg::OrionLost(e)) => bridge.handle_link_lost(since(Instant::now()), &e),
                 Err(RecvTimeoutError::Timeout) => bridge.handle_timeout(since(Instant::now())),
                 Err(RecvTimeoutError::Disconnected) => {
                     if let Some(r) = rec {

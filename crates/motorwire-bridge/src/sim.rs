@@ -835,7 +835,7 @@ impl SimulatedArm {
     pub fn orion_boot(&mut self) {
         if self.orion.is_some() {
             let now = self.bus.now();
-            self.bridge.handle_orion_line(now, r#"{"ID":32}"#);
+            self.bridge.handle_link_line(now, r#"{"ID":32}"#);
         }
     }
 
@@ -1072,7 +1072,7 @@ impl SimulatedArm {
             if let Some(orion) = &mut self.orion {
                 let mut answers = Vec::new();
                 let mut wrote = false;
-                while let Some(line) = self.bridge.poll_orion_line() {
+                while let Some(line) = self.bridge.poll_link_line() {
                     wrote = true;
                     let handled = orion.controller.handle_line(&line);
                     let mut values = [0.0; 7];
@@ -1094,7 +1094,7 @@ impl SimulatedArm {
                     self.bridge.flushed(now);
                 }
                 for a in answers {
-                    self.bridge.handle_orion_line(now, &a);
+                    self.bridge.handle_link_line(now, &a);
                     busy = true;
                 }
             }

@@ -1996,3 +1996,84 @@ fn with_wall_clock() -> (SimulatedArm, f64) {
     let t0 = EPOCH + arm.now().as_secs_f64() * 1000.0;
     (arm, t0)
 }
+
+/// A Rust program's typed WIA values are read exactly as their lines are
+/// (`Input::Command` and the rest): the same validation, the same gate,
+/// the same result, on the same simulated arm.
+#[test]
+fn typed_inputs_are_answered_as_their_lines_are() {
+    use motorwire_bridge::Input;
+    use motorwire_bridge::motorwire_wia::{
+        MotorCommand, MultiAxisCommand, SafetyLimits, Trajectory,
+    };
+    let trajectory = include_str!("../../../fixtures/wia/valid/doc-5.2-trajectory.json");
+    let limits = include_str!("../../../fixtures/wia/valid/safety-limits.json");
+    let cases: Vec<(String, Box<dyn Fn(Origin) -> Input<'static>>)> = vec![
+        (command("elbow", 30.0), {
+            let c: MotorCommand = serde_json::from_str(&command("elbow", 30.0)).unwrap();
+            Box::new(move |origin| Input::Command {
+                origin,
+                command: Box::new(c.clone()),
+            })
+        }),
+        (command("elbow", 1e9), {
+            let c: MotorCommand = serde_json::from_str(&command("elbow", 1e9)).unwrap();
+            Box::new(move |origin| Input::Command {
+                origin,
+                command: Box::new(c.clone()),
+            })
+        }),
+        (MULTI.to_owned(), {
+            let c: MultiAxisCommand = serde_json::from_str(MULTI).unwrap();
+            Box::new(move |origin| Input::MultiAxis {
+                origin,
+                command: Box::new(c.clone()),
+            })
+        }),
+        (trajectory.to_owned(), {
+            let t: Trajectory = serde_json::from_str(trajectory).unwrap();
+            Box::new(move |origin| Input::Trajectory {
+                origin,
+                trajectory: Box::new(t.clone()),
+            })
+        }),
+        (limits.to_owned(), {
+            let l: SafetyLimits = serde_json::from_str(limits).unwrap();
+            Box::new(move |origin| Input::SafetyLimits {
+                origin,
+                limits: Box::new(l.clone()),
+            })
+        }),
+        (
+            r#"{"emergency_stop": true}"#.to_owned(),
+            Box::new(|origin| Input::EmergencyStop { origin }),
+        ),
+    ];
+    for (line, typed) in &cases {
+        let mut by_line = arm(Faults::default(), 7);
+        let mut by_value = arm(Faults::default(), 7);
+        by_line.line(Origin(1), &line.replace('\n', " "));
+        let now = by_value.now();
+        by_value.bridge_mut().handle(now, typed(Origin(1)));
+        let a = results(&mut by_line, 1, Duration::from_secs(5));
+        let b = results(&mut by_value, 1, Duration::from_secs(5));
+        assert_eq!(a.len(), 1, "{line}: {a:?}");
+        assert_eq!(a, b, "{line}");
+    }
+    // The release, after a stop, both ways.
+    let mut by_line = arm(Faults::default(), 7);
+    let mut by_value = arm(Faults::default(), 7);
+    by_line.line(Origin(1), r#"{"emergency_stop": true}"#);
+    by_line.line(Origin(1), r#"{"emergency_stop": false}"#);
+    let now = by_value.now();
+    by_value
+        .bridge_mut()
+        .handle(now, Input::EmergencyStop { origin: Origin(1) });
+    by_value
+        .bridge_mut()
+        .handle(now, Input::Release { origin: Origin(1) });
+    let a = results(&mut by_line, 2, Duration::from_secs(5));
+    assert_eq!(a.len(), 2);
+    assert_eq!(a[1]["released"], true, "{a:?}");
+    assert_eq!(a, results(&mut by_value, 2, Duration::from_secs(5)));
+}

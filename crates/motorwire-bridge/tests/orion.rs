@@ -76,14 +76,14 @@ impl Rig {
 
     /// The controller boots: its beacon.
     fn boot(&mut self) {
-        self.bridge.handle_orion_line(self.now, r#"{"ID":32}"#);
+        self.bridge.handle_link_line(self.now, r#"{"ID":32}"#);
         self.pump();
     }
 
     fn pump(&mut self) {
         loop {
             let mut any = false;
-            while let Some(line) = self.bridge.poll_orion_line() {
+            while let Some(line) = self.bridge.poll_link_line() {
                 any = true;
                 self.sent.push(line.clone());
                 if !self.answering {
@@ -98,7 +98,7 @@ impl Rig {
                 if self.holding {
                     self.held.push(answer);
                 } else {
-                    self.bridge.handle_orion_line(self.now, &answer);
+                    self.bridge.handle_link_line(self.now, &answer);
                 }
             }
             while self.bridge.poll_transmit().is_some() {}
@@ -115,7 +115,7 @@ impl Rig {
 
     fn release(&mut self) {
         for answer in std::mem::take(&mut self.held) {
-            self.bridge.handle_orion_line(self.now, &answer);
+            self.bridge.handle_link_line(self.now, &answer);
         }
         self.pump();
     }
@@ -221,7 +221,7 @@ fn a_controller_heard_again_is_stopped_before_its_motors_are_online() {
         rig.answering = false;
         if lose {
             rig.bridge
-                .orion_link_lost(rig.now, "writing to the controller: Broken pipe");
+                .handle_link_lost(rig.now, "writing to the controller: Broken pipe");
             rig.pump();
         }
         rig.advance(Duration::from_millis(800));
@@ -349,7 +349,7 @@ fn the_stop_goes_out_at_once_ahead_of_a_line_in_flight_and_its_answer_is_not_tak
     // The answer to the direct-control line comes first: the stop waits
     // for its own (CMDF).
     let first = rig.held.remove(0);
-    rig.bridge.handle_orion_line(rig.now, &first);
+    rig.bridge.handle_link_line(rig.now, &first);
     rig.pump();
     assert!(rig.result(3).is_none(), "{:?}", rig.out);
     rig.release();
@@ -487,7 +487,7 @@ fn lines_that_are_not_the_controllers_are_reported_and_never_acted_on() {
         r#"{"ID":32,"MODE":1,"DATA":{"XYZ":[1,2,0]}}"#,
         r#"[32]"#,
     ] {
-        rig.bridge.handle_orion_line(rig.now, bad);
+        rig.bridge.handle_link_line(rig.now, bad);
     }
     rig.pump();
     let bad: Vec<&Value> = rig
@@ -517,7 +517,7 @@ fn fold_and_unfold_are_the_controllers_command_mode_and_cmdf_0_fails_the_line() 
     rig.answering = false;
     rig.line(r#"{"orion":"unfold"}"#);
     rig.bridge
-        .handle_orion_line(rig.now, r#"{"ID":32,"MODE":2,"DATA":{"CMDF":0}}"#);
+        .handle_link_line(rig.now, r#"{"ID":32,"MODE":2,"DATA":{"CMDF":0}}"#);
     rig.pump();
     let r = rig.result(2).unwrap();
     assert_eq!(r["ok"], false, "{r}");
@@ -543,7 +543,7 @@ fn a_lost_link_reports_it_and_takes_the_orion_motors_offline() {
     let mut rig = Rig::new();
     rig.boot();
     rig.bridge
-        .orion_link_lost(rig.now, "the controller's stream ended");
+        .handle_link_lost(rig.now, "the controller's stream ended");
     rig.pump();
     assert!(
         rig.out
@@ -561,7 +561,7 @@ fn a_lost_link_reports_it_and_takes_the_orion_motors_offline() {
     );
     // Lost already: a second loss says nothing more.
     let before = rig.out.len();
-    rig.bridge.orion_link_lost(rig.now, "again");
+    rig.bridge.handle_link_lost(rig.now, "again");
     rig.pump();
     assert_eq!(rig.out.len(), before, "{:?}", &rig.out[before..]);
     rig.line(&velocity("turntable", 10.0));
@@ -593,7 +593,7 @@ fn a_move_watched_when_the_link_is_lost_is_said_so() {
         "{:?}",
         rig.out
     );
-    rig.bridge.orion_link_lost(rig.now, "EOF");
+    rig.bridge.handle_link_lost(rig.now, "EOF");
     rig.pump();
     let arrival = rig
         .out
@@ -627,13 +627,13 @@ fn without_an_orion_controller_its_motors_are_refused() {
         r.error.unwrap().message,
         "turntable is an Orion motor, and no Orion controller is attached (motorwire bridge --orion ...)"
     );
-    assert!(bridge.poll_orion_line().is_none());
+    assert!(bridge.poll_link_line().is_none());
 }
 
 /// Answers the line in flight by hand: `data` is the answer's DATA.
 fn answer(rig: &mut Rig, data: &str) {
     let line = format!(r#"{{"ID":32,"MODE":1,"DATA":{data}}}"#);
-    rig.bridge.handle_orion_line(rig.now, &line);
+    rig.bridge.handle_link_line(rig.now, &line);
     rig.pump();
 }
 
@@ -671,7 +671,7 @@ fn what_the_controller_reports_never_stands_for_what_was_commanded() {
     // An unsolicited report of 150 does not make a later 150 "unchanged".
     answer(&mut rig, r#"{"TRMF":[0,0,0]}"#);
     rig.bridge
-        .handle_orion_line(rig.now, r#"{"ID":32,"MODE":1,"DATA":{"TRMF":[150,0,0]}}"#);
+        .handle_link_line(rig.now, r#"{"ID":32,"MODE":1,"DATA":{"TRMF":[150,0,0]}}"#);
     rig.pump();
     let from = rig.sent.len();
     rig.line(&velocity("turntable", 150.0));
@@ -699,7 +699,7 @@ fn a_flooding_controller_cannot_flood_the_output() {
     let mut rig = Rig::new();
     rig.boot();
     for _ in 0..1000 {
-        rig.bridge.handle_orion_line(rig.now, "x");
+        rig.bridge.handle_link_line(rig.now, "x");
     }
     rig.pump();
     let bad = |rig: &Rig| {
@@ -713,7 +713,7 @@ fn a_flooding_controller_cannot_flood_the_output() {
     assert_eq!(rig.bridge.stats().bad_frames, 1000);
     // A second later, the next one says how many were not reported.
     rig.advance(Duration::from_millis(1000));
-    rig.bridge.handle_orion_line(rig.now, "x");
+    rig.bridge.handle_link_line(rig.now, "x");
     rig.pump();
     let last = bad(&rig).pop().unwrap();
     assert_eq!(last["suppressed"], 990, "{last}");
@@ -724,7 +724,7 @@ fn a_stop_is_still_written_when_nothing_comes_from_the_controller_any_more() {
     let mut rig = Rig::new();
     rig.boot();
     rig.bridge
-        .orion_link_lost(rig.now, "the controller's stream ended");
+        .handle_link_lost(rig.now, "the controller's stream ended");
     rig.pump();
     let from = rig.sent.len();
     rig.line(r#"{"emergency_stop":true}"#);
@@ -792,7 +792,7 @@ fn a_reset_of_an_orion_motor_is_refused_and_reaches_no_joint() {
 
 /// A stop takes back what was made and not yet handed out: a compact
 /// frame still waiting for `poll_transmit` and an Orion line still waiting
-/// for `poll_orion_line` are never written; the stop goes out alone, and
+/// for `poll_link_line` are never written; the stop goes out alone, and
 /// the lines they carried are answered cancelled "before it was sent" (not
 /// `outcome_unknown`: nothing of them reached a device).
 #[test]
@@ -818,14 +818,14 @@ key = "TRM"
     let mut bridge = Bridge::new(map, config).unwrap();
     let t = Duration::ZERO;
     bridge.start(t);
-    bridge.handle_orion_line(t, r#"{"ID":32}"#);
+    bridge.handle_link_line(t, r#"{"ID":32}"#);
     bridge.handle_timeout(t);
     // The first poll, answered.
     assert_eq!(
-        bridge.poll_orion_line().as_deref(),
+        bridge.poll_link_line().as_deref(),
         Some(r#"{"ID":32,"MODE":1,"DATA":{}}"#)
     );
-    bridge.handle_orion_line(t, r#"{"ID":32,"MODE":1,"DATA":{"TRM":[0,0,0]}}"#);
+    bridge.handle_link_line(t, r#"{"ID":32,"MODE":1,"DATA":{"TRM":[0,0,0]}}"#);
     bridge.handle_line(t, Origin(1), &velocity("turntable", 200.0));
     bridge.handle_line(
         t,
@@ -833,7 +833,7 @@ key = "TRM"
         r#"{"motor_id":"gripper_axis","timestamp":1,"control_mode":"velocity","setpoint":20}"#,
     );
     bridge.handle_line(t, Origin(2), r#"{"emergency_stop":true}"#);
-    let lines: Vec<String> = std::iter::from_fn(|| bridge.poll_orion_line()).collect();
+    let lines: Vec<String> = std::iter::from_fn(|| bridge.poll_link_line()).collect();
     assert_eq!(lines, [r#"{"ID":32,"MODE":2,"DATA":1}"#]);
     let frames: Vec<_> = std::iter::from_fn(|| bridge.poll_transmit()).collect();
     assert_eq!(frames.len(), 1, "{frames:?}");

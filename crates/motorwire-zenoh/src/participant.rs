@@ -1166,7 +1166,7 @@ mod tests {
         super::command(payload, motorwire_bridge::DEFAULT_MAX_LINE)
     }
     use motorwire_bridge::motorwire_wia::Validator;
-    use motorwire_bridge::{Input, classify};
+    use motorwire_bridge::{Line, classify};
 
     fn line(text: &str, id: Option<(CommandId, &str)>) -> Command {
         Command::Line {
@@ -1242,7 +1242,7 @@ mod tests {
         ) else {
             panic!("not a line");
         };
-        let Input::Invalid { message, .. } = classify(&v, &text) else {
+        let Line::Invalid { message, .. } = classify(&v, &text) else {
             panic!("{text} was not refused");
         };
         assert_eq!(
@@ -1424,10 +1424,7 @@ mod tests {
             // Not JSON: it goes on as it came (its request_id too), and
             // the bridge reads it as the same bytes on standard input.
             assert_eq!(text.trim_end(), payload.replace('\n', "\r"));
-            assert!(
-                matches!(classify(&v, &text), Input::Stop { .. }),
-                "{text:?}"
-            );
+            assert!(matches!(classify(&v, &text), Line::Stop { .. }), "{text:?}");
             assert!(asks_for_stop(&text));
         }
     }

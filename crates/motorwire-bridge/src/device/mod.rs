@@ -2008,8 +2008,9 @@ mod tests {
     use motorwire_compact::VelocityLimit;
 
     /// The engine's sources, every file of `engine/` but its tests.
-    const ENGINE: [&str; 14] = [
+    const ENGINE: [&str; 15] = [
         include_str!("../engine/mod.rs"),
+        include_str!("../engine/input.rs"),
         include_str!("../engine/admit.rs"),
         include_str!("../engine/complete.rs"),
         include_str!("../engine/feedback.rs"),
@@ -2025,11 +2026,12 @@ mod tests {
         include_str!("../engine/watch.rs"),
     ];
 
-    /// `Bridge::poll_timeout` keeps its deadline until an entry point
-    /// runs, held against the engine's own source: every `&mut self`
-    /// method the engine's users can call clears it first, but those
-    /// that only hand out what is queued (and clear it when they hand
-    /// something out).
+    /// `Bridge::poll_timeout` keeps its deadline until an input comes,
+    /// held against the engine's own source: every input goes through
+    /// `Bridge::handle`, which clears it first (once, for all of them);
+    /// every other `&mut self` method the engine's users can call is a
+    /// way into `handle`, but those that only hand out what is queued
+    /// (and clear it when they hand something out).
     #[test]
     fn every_entry_point_that_changes_the_bridge_forgets_its_next_deadline() {
         let engine = ENGINE.concat();
@@ -2056,16 +2058,24 @@ mod tests {
             entry_points += 1;
             match name {
                 "poll_output" => assert!(!own.contains("changed()"), "{name}"),
-                "poll_transmit" | "poll_orion_line" => assert!(
+                "poll_transmit" | "poll_link_line" => assert!(
                     own.contains("self.changed();"),
                     "{name} clears the deadline when it hands something out"
                 ),
-                _ => assert!(
+                "handle" => assert!(
                     own.trim_start().starts_with("self.changed();"),
-                    "Bridge::{name} changes the bridge without clearing its next deadline"
+                    "Bridge::handle takes an input without clearing its next deadline"
+                ),
+                // A crate-private setting, before the start.
+                "anchor_epoch" => assert!(own.trim_start().starts_with("self.changed();")),
+                _ => assert!(
+                    own.trim_start().starts_with("self.handle("),
+                    "Bridge::{name} changes the bridge other than through Bridge::handle"
                 ),
             }
         }
+        // Nothing else forgets the deadline: it is done where inputs come.
+        assert_eq!(engine.matches("self.changed();").count(), 4);
         assert!(entry_points >= 20, "{entry_points} entry points found");
     }
 

@@ -9,9 +9,7 @@ impl Bridge {
     /// Results carry `"line"`: the line's number among its origin's
     /// non-blank lines (from 1), so a reader can pair every result, an
     /// unlabelled refusal included, with what it sent.
-    pub fn handle_line(&mut self, now: Duration, origin: Origin, line: &str) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_line(&mut self, now: Duration, origin: Origin, line: &str) {
         let line = line.trim();
         if line.is_empty() {
             return;
@@ -20,33 +18,17 @@ impl Bridge {
         self.take_line(now, LineMeta::new(origin, number), line);
     }
 
-    /// [`Bridge::handle_line`] for a line its runner already numbered (a
-    /// runner that lets emergency stops overtake the lines queued before
-    /// them numbers lines as they arrive). The bridge's own count for
-    /// `origin` is not used.
-    pub fn handle_numbered_line(&mut self, now: Duration, origin: Origin, number: u64, line: &str) {
-        self.changed();
-        self.now = self.now.max(now);
-        let line = line.trim();
-        if line.is_empty() {
-            return;
-        }
-        self.take_line(now, LineMeta::new(origin, number), line);
-    }
-
     /// [`Bridge::handle_numbered_line`] for a line its runner already read
     /// ([`classify`] with this bridge's validator, on the reader's thread),
     /// or not (`None`).
-    pub(crate) fn handle_read_line(
+    pub(super) fn on_read_line(
         &mut self,
         now: Duration,
         origin: Origin,
         number: u64,
         line: &str,
-        input: Option<Box<Input>>,
+        input: Option<Box<Line>>,
     ) {
-        self.changed();
-        self.now = self.now.max(now);
         let line = line.trim();
         if line.is_empty() {
             return;
@@ -59,15 +41,7 @@ impl Bridge {
     }
 
     /// [`Bridge::handle_unreadable`] for a line its runner already numbered.
-    pub fn handle_numbered_unreadable(
-        &mut self,
-        now: Duration,
-        origin: Origin,
-        number: u64,
-        reason: &str,
-    ) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_numbered_unreadable(&mut self, origin: Origin, number: u64, reason: &str) {
         self.stats.lines += 1;
         self.refuse(
             &LineMeta::new(origin, number),
@@ -81,15 +55,13 @@ impl Bridge {
     /// `emergency_stop` (a runner finds it while skipping the line): the
     /// bridge cannot tell what it asks, and when in doubt it stops. It is
     /// answered as a stop, `reason` among its problems.
-    pub fn handle_numbered_unreadable_stop(
+    pub(super) fn on_unreadable_stop(
         &mut self,
         now: Duration,
         origin: Origin,
         number: u64,
         reason: &str,
     ) {
-        self.changed();
-        self.now = self.now.max(now);
         self.take_stop(
             now,
             LineMeta::new(origin, number),
@@ -114,9 +86,7 @@ impl Bridge {
     /// A line that could not be read as text (not UTF-8, too long): it
     /// counts as a line of `origin` and is answered
     /// `{"ok":false,"error":{"kind":"unreadable",...}}`.
-    pub fn handle_unreadable(&mut self, now: Duration, origin: Origin, reason: &str) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_unreadable(&mut self, origin: Origin, reason: &str) {
         self.stats.lines += 1;
         let number = self.number(origin);
         self.refuse(
@@ -129,8 +99,7 @@ impl Bridge {
 
     /// Forgets `origin`'s line count (a client that left); its lines in
     /// progress are still answered.
-    pub fn forget_origin(&mut self, origin: Origin) {
-        self.changed();
+    pub(super) fn on_forget(&mut self, origin: Origin) {
         self.line_numbers.remove(&origin);
         self.clocks.forget(origin);
         self.to_greet.retain(|o| *o != origin);
@@ -148,9 +117,9 @@ impl Bridge {
     }
 
     /// A line, read as `input`.
-    pub(super) fn take_input(&mut self, now: Duration, meta: LineMeta, line: &str, input: Input) {
+    pub(super) fn take_input(&mut self, now: Duration, meta: LineMeta, line: &str, input: Line) {
         // The stop is acted on in every phase but the last, ahead of all.
-        if let Input::Stop { label, problems } = input {
+        if let Line::Stop { label, problems } = input {
             self.take_stop(now, meta.with(label), problems);
             return;
         }
@@ -177,19 +146,19 @@ impl Bridge {
         }
         self.stats.lines += 1;
         match input {
-            Input::Stop { .. } => {}
+            Line::Stop { .. } => {}
             // A stop that arrived after this release was acted on first (it
             // overtook the queue, or the release waited for startup):
             // releasing now would let what followed the release run after
             // the stop.
-            Input::Release if self.last_stop_arrival.is_some_and(|t| now < t) => {
+            Line::Release if self.last_stop_arrival.is_some_and(|t| now < t) => {
                 self.refuse(&meta, Refusal::StopOvertookRelease)
             }
-            Input::Release => self.release(now, meta),
-            Input::BadRelease { reason } => {
+            Line::Release => self.release(now, meta),
+            Line::BadRelease { reason } => {
                 self.refuse(&meta, Refusal::BadRelease { reason });
             }
-            Input::Invalid {
+            Line::Invalid {
                 message,
                 violations,
                 more,
@@ -204,38 +173,38 @@ impl Bridge {
                     },
                 );
             }
-            Input::QueryLimits { motor_id } => self.query_limits(meta, &motor_id),
-            Input::QueryState { motor_id } => self.query_state(meta, motor_id),
-            Input::FeedbackRate { hz } => self.feedback_rate(meta, hz),
-            Input::OrionCommand { command } => self.arm_command(now, meta, command),
-            Input::Request { kind, motor_id } => {
+            Line::QueryLimits { motor_id } => self.query_limits(meta, &motor_id),
+            Line::QueryState { motor_id } => self.query_state(meta, motor_id),
+            Line::FeedbackRate { hz } => self.feedback_rate(meta, hz),
+            Line::OrionCommand { command } => self.arm_command(now, meta, command),
+            Line::Request { kind, motor_id } => {
                 self.request_line(now, meta, kind, &motor_id);
             }
-            Input::Calibration { motor_id, start } => {
+            Line::Calibration { motor_id, start } => {
                 self.calibration_line(now, meta, &motor_id, start);
             }
-            Input::Reset { motor_id } => self.reset_joint(now, meta, &motor_id),
-            Input::Trajectories { id, trajectories } => {
+            Line::Reset { motor_id } => self.reset_joint(now, meta, &motor_id),
+            Line::Trajectories { id, trajectories } => {
                 self.trajectories(now, meta, &id, &trajectories);
             }
-            Input::Stream(mut cmd) => {
+            Line::Stream(mut cmd) => {
                 let meta = LineMeta {
                     stream: true,
                     ..meta
                 };
                 self.motor_command(now, meta, &mut cmd);
             }
-            Input::StreamAxes(cmd) => {
+            Line::StreamAxes(cmd) => {
                 let meta = LineMeta {
                     stream: true,
                     ..meta
                 };
                 self.multi_axis(now, meta, &cmd);
             }
-            Input::Motor { action, motor_id } => self.motor_line(now, meta, action, &motor_id),
+            Line::Motor { action, motor_id } => self.motor_line(now, meta, action, &motor_id),
             // Read where it lies: a command is the largest message, and
             // every line is one.
-            Input::Message(mut m) => match m.as_mut() {
+            Line::Message(mut m) => match m.as_mut() {
                 Message::MotorCommand(cmd) => self.motor_command(now, meta, cmd),
                 Message::MultiAxisCommand(cmd) => self.multi_axis(now, meta, cmd),
                 Message::SafetyLimits(l) => self.safety_limits(meta, l),

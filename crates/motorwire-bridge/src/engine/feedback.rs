@@ -26,9 +26,7 @@ impl Bridge {
     // ---- live limits --------------------------------------------------------
 
     /// Takes a frame from the bus.
-    pub fn handle_frame(&mut self, now: Duration, frame: &Frame) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_frame(&mut self, frame: &Frame) {
         self.drivers.handle_frame(self.now, frame, &self.joints);
         self.drain_drivers();
     }

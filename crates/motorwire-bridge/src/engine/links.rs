@@ -21,17 +21,8 @@ impl Bridge {
         self.drivers.link_housekeeping(now, &self.joints, busy);
     }
 
-    /// The next line for the Orion controller (without its newline).
-    pub fn poll_orion_line(&mut self) -> Option<String> {
-        let line = self.drivers.poll_line()?;
-        self.changed();
-        Some(line)
-    }
-
     /// One line from the Orion controller, received at `now`.
-    pub fn handle_orion_line(&mut self, now: Duration, line: &str) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_link_line(&mut self, line: &str) {
         self.drivers
             .handle_line(self.now, line, &self.joints, &self.map);
         self.drain_drivers();
@@ -40,23 +31,19 @@ impl Bridge {
     /// A line from the Orion controller that could not be read (too long,
     /// not UTF-8), at `now`: counted, and reported at most
     /// [`MAX_BAD_LINE_EVENTS`] times a second.
-    pub fn handle_orion_unreadable(&mut self, now: Duration, reason: &str) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_link_unreadable(&mut self, reason: &str) {
         self.drivers.handle_unreadable(self.now, reason);
         self.drain_drivers();
     }
 
     /// The link to the Orion controller ended (`error` says how): its
     /// motors are offline, and what was in flight has an unknown outcome.
-    pub fn orion_link_lost(&mut self, now: Duration, error: &str) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_link_lost(&mut self, now: Duration, error: &str) {
         if !self.drivers.link_lost(now, error, &self.joints) {
             return;
         }
         self.drain_drivers();
-        self.handle_timeout(now);
+        self.on_timeout();
     }
 
     /// `{"orion":"fold"}` or `{"orion":"unfold"}`: an arm-wide command, for

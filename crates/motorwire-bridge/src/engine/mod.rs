@@ -39,7 +39,7 @@ use motorwire_wia::{
 use serde_json::Value;
 
 use crate::arrival::{Watch, WatchAxis};
-use crate::classify::{Input, MotorAction, RequestKind, classify};
+use crate::classify::{Line, MotorAction, RequestKind, classify};
 use crate::clocks::ClockOffsets;
 use crate::device::{
     Answer, Capability, Context, Device, DeviceError, Drivers, Ended, Happened, InForce,
@@ -59,6 +59,9 @@ use crate::output::{
 mod admit;
 mod complete;
 mod feedback;
+mod input;
+
+pub use input::Input;
 mod jobs;
 mod limits;
 mod links;
@@ -109,7 +112,7 @@ pub struct BridgeConfig {
     /// (`superseded`), so a stream of moves never fills it.
     pub max_queue_per_joint: usize,
     /// An Orion arm controller is attached (its lines through
-    /// [`Bridge::poll_orion_line`] and [`Bridge::handle_orion_line`]): the
+    /// [`Bridge::poll_link_line`] and [`Bridge::handle_link_line`]): the
     /// map's Orion motors are devices of the bridge. Default: false (they
     /// are refused).
     pub orion: bool,
@@ -619,9 +622,7 @@ impl Bridge {
     /// Tells the bridge that every frame [`Bridge::poll_transmit`] gave
     /// out is on the bus as of `now`: the lines that sent them take `now`
     /// as their input-to-bus latency.
-    pub fn flushed(&mut self, now: Duration) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_flushed(&mut self, now: Duration) {
         for job in self.jobs.values_mut() {
             if job.unflushed {
                 job.unflushed = false;

@@ -30,9 +30,7 @@ impl Bridge {
     /// ready), or with `stopping` when the bridge is past serving. A
     /// runner holds everyone's feedback and events from such a client
     /// until its greeting, so the greeting is its first line.
-    pub fn greet(&mut self, now: Duration, origin: Origin) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_greet(&mut self, origin: Origin) {
         match self.phase {
             Phase::Starting => self.to_greet.push(origin),
             Phase::Running | Phase::Draining { .. } => {
@@ -123,8 +121,7 @@ impl Bridge {
     /// [`BridgeConfig::activate_on_start`] is false). Lines that arrive
     /// before the joints are ready wait for them (an emergency stop does
     /// not: it is acted on at once).
-    pub fn start(&mut self, now: Duration) {
-        self.changed();
+    pub(super) fn on_start(&mut self, now: Duration) {
         self.now = now;
         self.timers.feedback = self.config.feedback_period.map(|_| now);
         if !self.config.activate_on_start {
@@ -149,9 +146,7 @@ impl Bridge {
 
     /// End of input: lines in flight and moves in progress finish (up to
     /// [`BridgeConfig::drain_timeout`]), then every joint is deactivated.
-    pub fn finish(&mut self, now: Duration) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_finish(&mut self) {
         if matches!(self.phase, Phase::Starting | Phase::Running) {
             // Lines still waiting for startup are served first.
             let deadline = self.now.saturating_add(self.config.drain_timeout);
@@ -162,7 +157,7 @@ impl Bridge {
                 self.enter(Phase::Draining { deadline });
             }
         }
-        self.handle_timeout(self.now);
+        self.on_timeout();
     }
 
     /// At the end of input, motion that would not end by itself stops at
@@ -203,9 +198,7 @@ impl Bridge {
 
     /// Interrupted (a signal): everything queued or in flight is cancelled
     /// and every joint deactivated now.
-    pub fn interrupt(&mut self, now: Duration) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_interrupt(&mut self) {
         if matches!(self.phase, Phase::Stopping | Phase::Finished) {
             return;
         }

@@ -116,9 +116,7 @@ impl Bridge {
     /// (the joint may have taken one; a stop still stops it). Said on the
     /// event stream as `client_dropped`, since the client cannot be told.
     /// Its line count is forgotten.
-    pub fn drop_origin(&mut self, now: Duration, origin: Origin, reason: &str) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_client_left(&mut self, origin: Origin, reason: &str) {
         self.line_numbers.remove(&origin);
         self.clocks.forget(origin);
         self.to_greet.retain(|o| *o != origin);
@@ -161,7 +159,7 @@ impl Bridge {
         // Setpoints sent and never answered: they may be running.
         let mut maybe_held = Vec::new();
         // Steps whose frame or line was made and never handed out (still
-        // waiting in poll_transmit's or poll_orion_line's queue): taken
+        // waiting in poll_transmit's or poll_link_line's queue): taken
         // back, so what is cancelled never reaches a device after the
         // cancel (a stop goes ahead of them, not behind).
         let picked = |b: &Bridge, ji: usize| {

@@ -5,9 +5,7 @@ use super::*;
 impl Bridge {
     /// Advances to `now`: retransmissions and timeouts, feedback, liveness,
     /// heartbeats, the end of a drain.
-    pub fn handle_timeout(&mut self, now: Duration) {
-        self.changed();
-        self.now = self.now.max(now);
+    pub(super) fn on_timeout(&mut self) {
         let now = self.now;
         self.withdraw_stale_resends(now);
         self.drivers.handle_timeout(now);
