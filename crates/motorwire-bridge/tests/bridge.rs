@@ -2008,7 +2008,8 @@ fn typed_inputs_are_answered_as_their_lines_are() {
     };
     let trajectory = include_str!("../../../fixtures/wia/valid/doc-5.2-trajectory.json");
     let limits = include_str!("../../../fixtures/wia/valid/safety-limits.json");
-    let cases: Vec<(String, Box<dyn Fn(Origin) -> Input<'static>>)> = vec![
+    type Typed = Box<dyn Fn(Origin) -> Input<'static>>;
+    let cases: Vec<(String, Typed)> = vec![
         (command("elbow", 30.0), {
             let c: MotorCommand = serde_json::from_str(&command("elbow", 30.0)).unwrap();
             Box::new(move |origin| Input::Command {
