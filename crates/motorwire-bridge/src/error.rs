@@ -4,8 +4,9 @@
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum BridgeError {
-    /// The bus map names no iRPC joint: there is nothing to bridge to.
-    #[error("the bus map has no iRPC joint to bridge to")]
+    /// The bus map names no motor the bridge drives: there is nothing
+    /// to bridge to.
+    #[error("the bus map has no motor to bridge to")]
     NoJoints,
     /// The bus map names more motors than one bridge serves
     /// ([`crate::Bridge::MAX_DEVICES`]): refused before anything is sent.

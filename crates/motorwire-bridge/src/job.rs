@@ -7,7 +7,7 @@ use std::time::Duration;
 use motorwire_irpc::Payload;
 use motorwire_translate::Report;
 
-pub(crate) use crate::device::{AwaitKind, Order};
+pub(crate) use crate::device::{AwaitKind, Lifecycle, Order};
 use crate::output::{Label, LineRef, Origin, StepOutcome, StepReport};
 
 /// One input line's identity as it travels from its reading to its
@@ -181,7 +181,7 @@ impl Axis {
     fn asked(&self) -> impl Iterator<Item = &Order> {
         self.payloads
             .iter()
-            .skip_while(|o| o.lifecycle_payload() == Some(Payload::Activate))
+            .skip_while(|o| o.lifecycle() == Some(Lifecycle::Activate))
     }
 
     /// The first order the line asked of it.

@@ -17,10 +17,8 @@ pub mod sim;
 pub use classify::{
     DEFAULT_CALIBRATION, Line, MotorAction, RequestKind, asks_for_stop, classify, members,
 };
-pub use engine::{
-    Bridge, BridgeConfig, BridgeStats, DEFAULT_MAX_AGE_MS, Input, JointView, MAX_BAD_LINE_EVENTS,
-    MAX_ORION_LINE, ORION_POLL,
-};
+pub use device::orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL as ORION_POLL};
+pub use engine::{Bridge, BridgeConfig, BridgeStats, DEFAULT_MAX_AGE_MS, Input, JointView};
 pub use error::BridgeError;
 
 /// The frame the bridge sends moteus controller `target` for `cmd`: its

@@ -1568,14 +1568,14 @@ fn spawn_orion(
             let mut taken: u32 = 0;
             let mut dropped: u64 = 0;
             loop {
-                let msg = match read_line(&mut reader, crate::engine::MAX_ORION_LINE) {
+                let msg = match read_line(&mut reader, crate::device::orion::MAX_ORION_LINE) {
                     Ok(ReadLine::Line(text)) => Msg::OrionLine {
                         text,
                         at: Instant::now(),
                     },
                     Ok(ReadLine::TooLong { .. }) => Msg::OrionUnreadable(format!(
                         "a line over {} bytes",
-                        crate::engine::MAX_ORION_LINE
+                        crate::device::orion::MAX_ORION_LINE
                     )),
                     Ok(ReadLine::NotUtf8 { .. }) => {
                         Msg::OrionUnreadable("a line that is not UTF-8".to_owned())

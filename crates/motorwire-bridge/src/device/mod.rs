@@ -266,21 +266,27 @@ impl Device {
         !matches!(self, Self::Orion(_))
     }
 
-    /// Lifecycle `payloads` as the device takes them: as they are for an
-    /// iRPC joint. The other dialects have no lifecycle: a Deactivate (or
-    /// a Reset) is their stop (a compact device's emergency-stop flag,
-    /// held until a command without it; the Orion controller's stop
-    /// command, one line for all its motors) and the rest is nothing to
-    /// send. `now_ms`: the compact command's timestamp.
-    pub(crate) fn lifecycle_orders(self, payloads: &[Payload], now_ms: u64) -> Vec<Order> {
+    /// The lifecycle `steps` as the device takes them: an iRPC joint its
+    /// lifecycle payloads (telemetry where its wire version has it). The
+    /// other dialects have no lifecycle: a Deactivate (or a Reset) is their
+    /// stop (a compact device's emergency-stop flag, held until a command
+    /// without it; the Orion controller's stop command, one line for all
+    /// its motors) and the rest is nothing to send. `now_ms`: the compact
+    /// command's timestamp.
+    pub(crate) fn lifecycle_orders(self, steps: &[Lifecycle], now_ms: u64) -> Vec<Order> {
         let stops = || {
-            payloads
+            steps
                 .iter()
-                .filter(|p| matches!(p, Payload::Deactivate | Payload::Reset))
+                .filter(|p| matches!(p, Lifecycle::Deactivate | Lifecycle::Reset))
                 .take(1)
         };
         match self {
-            Self::Irpc { .. } => payloads.iter().copied().map(Order::Irpc).collect(),
+            Self::Irpc { .. } => steps
+                .iter()
+                .map(|s| s.payload())
+                .filter(|p| self.speaks(p.kind()))
+                .map(Order::Irpc)
+                .collect(),
             Self::Compact { hash, .. } => stops()
                 .map(|_| {
                     Order::Compact(CompactCommand {
@@ -536,6 +542,15 @@ impl Device {
 impl Device {
     /// The dialect's name as a person reads it (`iRPC`, `compact`,
     /// `Orion`, `moteus`).
+    /// The version of its dialect it is spoken to in, where the dialect
+    /// has versions (an iRPC joint's wire version).
+    pub(crate) const fn version(self) -> Option<&'static str> {
+        match self {
+            Self::Irpc { wire } => Some(wire.name()),
+            Self::Compact { .. } | Self::Orion(_) | Self::Moteus { .. } => None,
+        }
+    }
+
     pub(crate) const fn dialect_name(self) -> &'static str {
         match self {
             Self::Irpc { .. } => "iRPC",
@@ -1051,12 +1066,66 @@ impl Order {
 }
 
 impl Order {
-    /// The iRPC lifecycle payload it is, if it is one (what the release
-    /// sends a joint again).
-    pub(crate) fn lifecycle_payload(&self) -> Option<Payload> {
+    /// The lifecycle step it is, if it is one (what the release sends a
+    /// joint again).
+    pub(crate) fn lifecycle(&self) -> Option<Lifecycle> {
         match self {
-            Self::Irpc(p) => Some(*p),
+            Self::Irpc(p) => Lifecycle::of(p),
             Self::Compact(_) | Self::Orion(_) | Self::Moteus(_) => None,
+        }
+    }
+}
+
+/// A step of a device's lifecycle as the engine drives it, in no
+/// dialect's terms: each device takes it as [`Device::lifecycle_orders`]
+/// says (an iRPC joint its lifecycle payloads; the others their stop, or
+/// nothing).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Lifecycle {
+    /// Back from a fault or a reboot.
+    Reset,
+    /// Configured (its parameters loaded).
+    Configure,
+    /// Up: it takes motion.
+    Activate,
+    /// Down: its torque off (the stop).
+    Deactivate,
+    /// Its telemetry reported periodically at `rate_hz`, where it can.
+    Telemetry {
+        /// How often.
+        rate_hz: u16,
+    },
+}
+
+impl Lifecycle {
+    /// An iRPC joint's payload for it.
+    const fn payload(self) -> Payload {
+        match self {
+            Self::Reset => Payload::Reset,
+            Self::Configure => Payload::Configure,
+            Self::Activate => Payload::Activate,
+            Self::Deactivate => Payload::Deactivate,
+            Self::Telemetry { rate_hz } => {
+                Payload::ConfigureTelemetry(motorwire_irpc::ConfigureTelemetryPayload {
+                    mode: motorwire_irpc::TelemetryMode::Periodic,
+                    rate_hz,
+                    change_threshold: 0.0,
+                })
+            }
+        }
+    }
+
+    /// The step an iRPC payload is, if it is one the engine sends.
+    fn of(p: &Payload) -> Option<Self> {
+        match p {
+            Payload::Reset => Some(Self::Reset),
+            Payload::Configure => Some(Self::Configure),
+            Payload::Activate => Some(Self::Activate),
+            Payload::Deactivate => Some(Self::Deactivate),
+            Payload::ConfigureTelemetry(t) if t.mode == motorwire_irpc::TelemetryMode::Periodic => {
+                Some(Self::Telemetry { rate_hz: t.rate_hz })
+            }
+            _ => None,
         }
     }
 }
@@ -2100,6 +2169,12 @@ mod tests {
                 assert!(!code.contains(&name), "the engine names {name}");
             }
         }
+        // The lifecycle it drives is its own ([`Lifecycle`]), said in each
+        // dialect's terms by the device layer.
+        for payload in ["Reset", "Configure", "Activate", "Deactivate", "ConfigureTelemetry"] {
+            let named = format!("Payload::{payload}");
+            assert!(!code.contains(&named), "the engine names {named}");
+        }
         for driver in [".irpc", ".compact", ".orion"] {
             let named = format!("drivers{driver}");
             assert!(!code.contains(&named), "the engine reaches {named}");
@@ -2138,10 +2213,29 @@ mod tests {
         let irpc = Device::Irpc {
             wire: WireVersion::V2_1,
         };
-        let stop = [Payload::Deactivate];
+        let stop = [Lifecycle::Deactivate];
         assert_eq!(
             irpc.lifecycle_orders(&stop, 7),
             [Order::Irpc(Payload::Deactivate)]
+        );
+        // Telemetry where the wire version has it (v2.1 on), nothing on v2.0.
+        let telemetry = [Lifecycle::Telemetry { rate_hz: 50 }];
+        let [Order::Irpc(Payload::ConfigureTelemetry(t))] =
+            irpc.lifecycle_orders(&telemetry, 7)[..]
+        else {
+            panic!("one ConfigureTelemetry");
+        };
+        assert_eq!(
+            (t.mode, t.rate_hz),
+            (motorwire_irpc::TelemetryMode::Periodic, 50)
+        );
+        let v20 = Device::Irpc {
+            wire: WireVersion::V2_0,
+        };
+        assert_eq!(v20.lifecycle_orders(&telemetry, 7), []);
+        assert_eq!(
+            Order::Irpc(Payload::ConfigureTelemetry(t)).lifecycle(),
+            Some(telemetry[0])
         );
         let [Order::Compact(c)] = compact().lifecycle_orders(&stop, 7)[..] else {
             panic!("one compact order");
@@ -2152,13 +2246,13 @@ mod tests {
         assert!(c.flags.contains(Flags::EMERGENCY_STOP));
         assert_eq!(
             Device::Orion(Motor::Turntable)
-                .lifecycle_orders(&[Payload::Reset, Payload::Deactivate], 7),
+                .lifecycle_orders(&[Lifecycle::Reset, Lifecycle::Deactivate], 7),
             [Order::Orion(OrionOrder::Command(ArmCommand::Stop))]
         );
         // The release's Activate has nothing to send to either.
-        assert_eq!(compact().lifecycle_orders(&[Payload::Activate], 7), []);
+        assert_eq!(compact().lifecycle_orders(&[Lifecycle::Activate], 7), []);
         assert_eq!(
-            Device::Orion(Motor::GrasperRotation).lifecycle_orders(&[Payload::Activate], 7),
+            Device::Orion(Motor::GrasperRotation).lifecycle_orders(&[Lifecycle::Activate], 7),
             []
         );
         // The deadman: a held setpoint to 0; a joint holds none.
@@ -2240,7 +2334,7 @@ mod tests {
         assert_eq!(still.deadman, None);
         assert_eq!(still.moving, Moving::Until(Duration::from_millis(1000)));
         let Some(Order::Compact(stop)) = compact()
-            .lifecycle_orders(&[Payload::Deactivate], 0)
+            .lifecycle_orders(&[Lifecycle::Deactivate], 0)
             .first()
             .copied()
         else {

@@ -259,21 +259,12 @@ impl Bridge {
         self.refuse(meta, refusal);
     }
 
-    /// The `ConfigureTelemetry` joint `ji` gets when configured, if
-    /// [`BridgeConfig::telemetry_hz`] asks and its wire version has it.
-    pub(super) fn telemetry_subscription(&self, ji: usize) -> Option<Payload> {
+    /// The telemetry a device gets when configured, if
+    /// [`BridgeConfig::telemetry_hz`] asks (a device takes it where its
+    /// dialect has it: [`Device::lifecycle_orders`]).
+    pub(super) fn telemetry_subscription(&self) -> Option<Lifecycle> {
         let rate_hz = self.config.telemetry_hz.filter(|r| *r > 0)?;
-        let j = self.joints.get(ji)?;
-        if !j.device.speaks(PayloadKind::ConfigureTelemetry) {
-            return None;
-        }
-        Some(Payload::ConfigureTelemetry(
-            motorwire_irpc::ConfigureTelemetryPayload {
-                mode: motorwire_irpc::TelemetryMode::Periodic,
-                rate_hz,
-                change_threshold: 0.0,
-            },
-        ))
+        Some(Lifecycle::Telemetry { rate_hz })
     }
 
     /// Learns `origin`'s clock from a line stamped `timestamp` that

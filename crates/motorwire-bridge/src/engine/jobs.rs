@@ -92,13 +92,13 @@ impl Bridge {
             let deactivates = a
                 .payloads
                 .iter()
-                .any(|o| o.lifecycle_payload() == Some(Payload::Deactivate));
+                .any(|o| o.lifecycle() == Some(Lifecycle::Deactivate));
             // Only a joint the bridge had up (or a line had freed): one
             // never started, or whose start failed, waits for a reset.
             if deactivates {
                 j.freed |= j.active;
             } else if j.freed && a.payloads.front().is_some_and(Order::is_setpoint) {
-                for activate in j.device.lifecycle_orders(&[Payload::Activate], 0) {
+                for activate in j.device.lifecycle_orders(&[Lifecycle::Activate], 0) {
                     a.payloads.push_front(activate);
                     if let Some(&first) = a.due.front() {
                         a.due.push_front(first);
@@ -686,8 +686,7 @@ impl Bridge {
             // A line's stop of the device (a motor line's free or stop, a
             // `disabled`) takes it as a move does.
             let stops = kind == JobKind::Command
-                && (payload.ends_setpoint()
-                    || payload.lifecycle_payload() == Some(Payload::Deactivate));
+                && (payload.ends_setpoint() || payload.lifecycle() == Some(Lifecycle::Deactivate));
             if payload.is_setpoint() || stops {
                 self.taken(
                     ji,
@@ -761,7 +760,7 @@ impl Bridge {
         let Some(j) = self.joints.get(ji) else { return };
         // A line that leaves it inactive again waits behind this order
         // (looked for only behind an Activate: every ack comes here).
-        let deactivation_waits = order.lifecycle_payload() == Some(Payload::Activate)
+        let deactivation_waits = order.lifecycle() == Some(Lifecycle::Activate)
             && j.queue.iter().any(|s| {
                 self.jobs
                     .get(&s.job)
@@ -769,7 +768,7 @@ impl Bridge {
                     .is_some_and(|a| {
                         a.payloads
                             .iter()
-                            .any(|o| o.lifecycle_payload() == Some(Payload::Deactivate))
+                            .any(|o| o.lifecycle() == Some(Lifecycle::Deactivate))
                     })
             });
         // Planned from where it was when the order was sent, as the

@@ -30,7 +30,7 @@ impl Bridge {
 
     /// A line from the Orion controller that could not be read (too long,
     /// not UTF-8), at `now`: counted, and reported at most
-    /// [`MAX_BAD_LINE_EVENTS`] times a second.
+    /// [`crate::MAX_BAD_LINE_EVENTS`] times a second.
     pub(super) fn on_link_unreadable(&mut self, reason: &str) {
         self.drivers.handle_unreadable(self.now, reason);
         self.drain_drivers();

@@ -23,8 +23,6 @@
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::Duration;
 
-pub use crate::device::orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL as ORION_POLL};
-
 use motorwire_can::Frame;
 use motorwire_can::client::ClientConfig;
 use motorwire_irpc::{CalibrationRequest, LifecycleState, Payload, PayloadKind};
@@ -42,7 +40,7 @@ use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Line, MotorAction, RequestKind, classify};
 use crate::clocks::ClockOffsets;
 use crate::device::{
-    Answer, Capability, Context, Device, DeviceError, Drivers, Ended, Happened, InForce,
+    Answer, Capability, Context, Device, DeviceError, Drivers, Ended, Happened, InForce, Lifecycle,
     MotorOrder, Moving, Outcome,
 };
 use crate::error::BridgeError;
@@ -159,15 +157,19 @@ impl Default for BridgeConfig {
     }
 }
 
-/// What the bridge knows about one iRPC joint.
+/// What the bridge knows about one device (a motor of the bus map).
 #[derive(Debug, Clone, PartialEq)]
 pub struct JointView {
     /// Its name in the bus map.
     pub name: String,
-    /// Its node id.
+    /// Its CAN id (an iRPC node, a compact command id; 0 for an Orion
+    /// motor, which no frame carries).
     pub node: u16,
-    /// The wire version it is spoken to in.
-    pub wire: motorwire_irpc::WireVersion,
+    /// Its dialect: `iRPC`, `compact`, `moteus` or `Orion`.
+    pub dialect: &'static str,
+    /// The version of its dialect it is spoken to in, where the dialect
+    /// has versions (an iRPC joint's wire version, `v2.1`).
+    pub version: Option<&'static str>,
     /// Whether it was heard from within [`BridgeConfig::offline_after`].
     pub online: bool,
     /// Its lifecycle state as its last JointStatus said.
@@ -368,7 +370,7 @@ pub struct Bridge {
     clocks: ClockOffsets,
     /// For each joint, what the release sends it (those active, or being
     /// started, when the stop came).
-    resume: BTreeMap<usize, Vec<Payload>>,
+    resume: BTreeMap<usize, Vec<Lifecycle>>,
     phase: Phase,
     /// When the latest stop line arrived: a release that arrived before it
     /// is not obeyed.

@@ -81,7 +81,7 @@ impl Bridge {
                         said(format!(
                             "{why}: the joint was deactivated (its own stop) instead"
                         ));
-                        let stop = self.orders_for(ji, &[Payload::Deactivate]);
+                        let stop = self.orders_for(ji, &[Lifecycle::Deactivate]);
                         Axis::of(motor.to_owned(), ji, stop)
                     }
                 })
@@ -288,10 +288,11 @@ impl Bridge {
         }
         // As the device takes a reset (an iRPC joint: these payloads; a
         // moteus controller: its stop, which clears a fault or a timeout).
-        let payloads: Vec<Payload> = [Payload::Reset, Payload::Configure, Payload::Activate]
-            .into_iter()
-            .chain(self.telemetry_subscription(ji))
-            .collect();
+        let payloads: Vec<Lifecycle> =
+            [Lifecycle::Reset, Lifecycle::Configure, Lifecycle::Activate]
+                .into_iter()
+                .chain(self.telemetry_subscription())
+                .collect();
         let axes = vec![Axis::of(
             motor.to_owned(),
             ji,

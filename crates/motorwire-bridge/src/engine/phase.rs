@@ -102,7 +102,7 @@ impl Bridge {
             (_, Phase::Stopping) if from != Phase::Stopping => {
                 self.phase = Phase::Stopping;
                 self.fail_watches(|_| true, "the bridge is stopping the joints");
-                let axes = self.every_joint(&[Payload::Deactivate]);
+                let axes = self.every_joint(&[Lifecycle::Deactivate]);
                 self.open_job(
                     None,
                     JobKind::Shutdown,
@@ -128,10 +128,10 @@ impl Bridge {
             self.enter(Phase::Running);
             return;
         }
-        let mut axes = self.every_joint(&[Payload::Configure, Payload::Activate]);
+        let mut axes = self.every_joint(&[Lifecycle::Configure, Lifecycle::Activate]);
         for a in &mut axes {
-            if let Some(t) = self.telemetry_subscription(a.joint) {
-                a.payloads.push_back(Order::from(t));
+            if let Some(t) = self.telemetry_subscription() {
+                a.payloads.extend(self.orders_for(a.joint, &[t]));
             }
         }
         self.open_job(

@@ -18,7 +18,8 @@ impl Bridge {
         self.joints.iter().map(|j| JointView {
             name: j.name.clone(),
             node: j.node,
-            wire: j.device.wire(),
+            dialect: j.device.dialect_name(),
+            version: j.device.version(),
             online: j.online,
             state: j.state,
             active: j.active,

@@ -67,10 +67,10 @@ impl Bridge {
                 let job = self.jobs.get(&s.job)?;
                 matches!(job.kind, JobKind::Startup | JobKind::Release).then(|| {
                     let a = job.axes.get(s.axis)?;
-                    let irpc = Order::lifecycle_payload;
-                    let mut p: Vec<Payload> = a.payloads.iter().filter_map(irpc).collect();
+                    let step = Order::lifecycle;
+                    let mut p: Vec<Lifecycle> = a.payloads.iter().filter_map(step).collect();
                     if let AxisState::InFlight { payload, .. } = a.state
-                        && let Some(first) = irpc(&payload)
+                        && let Some(first) = step(&payload)
                     {
                         p.insert(0, first);
                     }
@@ -80,7 +80,7 @@ impl Bridge {
             if let Some(p) = starting {
                 self.resume.insert(i, p);
             } else if j.active {
-                self.resume.insert(i, vec![Payload::Activate]);
+                self.resume.insert(i, vec![Lifecycle::Activate]);
             }
         }
         self.latched = true;
@@ -88,7 +88,7 @@ impl Bridge {
         let cancelled = self.cancel_everything("cancelled by the emergency stop");
         self.out
             .push_back(Output::Event(Event::EmergencyStop { cause, cancelled }));
-        let axes = self.every_joint(&[Payload::Deactivate]);
+        let axes = self.every_joint(&[Lifecycle::Deactivate]);
         self.open_job(
             meta,
             JobKind::EmergencyStop,
@@ -302,21 +302,21 @@ impl Bridge {
     }
 
     /// `payloads`, in order, for every joint.
-    pub(super) fn every_joint(&self, payloads: &[Payload]) -> Vec<Axis> {
+    pub(super) fn every_joint(&self, steps: &[Lifecycle]) -> Vec<Axis> {
         self.joints
             .iter()
             .enumerate()
-            .map(|(i, j)| Axis::of(j.name.clone(), i, self.orders_for(i, payloads)))
+            .map(|(i, j)| Axis::of(j.name.clone(), i, self.orders_for(i, steps)))
             .collect()
     }
 
     /// Lifecycle `payloads` as device `ji` takes them
     /// ([`Device::lifecycle_orders`]).
-    pub(super) fn orders_for(&self, ji: usize, payloads: &[Payload]) -> Vec<Order> {
+    pub(super) fn orders_for(&self, ji: usize, steps: &[Lifecycle]) -> Vec<Order> {
         let now_ms = self.unix_ms(self.now) as u64;
         self.joints
             .get(ji)
-            .map(|j| j.device.lifecycle_orders(payloads, now_ms))
+            .map(|j| j.device.lifecycle_orders(steps, now_ms))
             .unwrap_or_default()
     }
 
