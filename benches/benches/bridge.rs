@@ -29,8 +29,8 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use criterion::{Criterion, Throughput};
-use motorwire_bridge::record::{Direction, Tap};
 use motorwire_bridge::sim::{RealTimeArm, SimulatedArm};
+use motorwire_bridge::tap::{Direction, Tap};
 use motorwire_bridge::{Bridge, BridgeConfig, InputSender, Origin, Output, Runner};
 use motorwire_can::SimConfig;
 use motorwire_can::client::{ClientConfig, Outcome};
@@ -172,7 +172,7 @@ type Handle = std::thread::JoinHandle<Result<Bridge, motorwire_bridge::BridgeErr
 fn prepared(
     map: &str,
     orion: bool,
-    recorder: Option<std::sync::Arc<dyn motorwire_bridge::record::Tap>>,
+    recorder: Option<std::sync::Arc<dyn motorwire_bridge::tap::Tap>>,
 ) -> (Bridge, RealTimeArm, Runner) {
     let map = BusMap::from_toml(map).unwrap();
     let config = BridgeConfig {
@@ -245,7 +245,7 @@ impl Lean {
 /// bridge's, and it fell on either side of a comparison.
 fn started_lean(
     map: &str,
-    recorder: Option<std::sync::Arc<dyn motorwire_bridge::record::Tap>>,
+    recorder: Option<std::sync::Arc<dyn motorwire_bridge::tap::Tap>>,
 ) -> (RealTimeArm, InputSender, Lean, Handle) {
     let (bridge, arm, runner) = prepared(map, false, recorder);
     let input = runner.input();
@@ -406,12 +406,12 @@ fn stops_behind_bursts_in_order(
 }
 
 /// A recorder as `--record DIR` starts it, into `dir` made anew.
-fn recording_into(dir: &std::path::Path) -> std::sync::Arc<motorwire_bridge::record::Recorder> {
+fn recording_into(dir: &std::path::Path) -> std::sync::Arc<motorwire_record::record::Recorder> {
     let _ = std::fs::remove_dir_all(dir);
     std::sync::Arc::new(
-        motorwire_bridge::record::Recorder::start(motorwire_bridge::record::RecordConfig {
+        motorwire_record::record::Recorder::start(motorwire_record::record::RecordConfig {
             dir: dir.to_owned(),
-            max_bytes: motorwire_bridge::record::DEFAULT_RECORD_MAX,
+            max_bytes: motorwire_record::record::DEFAULT_RECORD_MAX,
             interface: "sim".to_owned(),
             setup: None,
         })
@@ -502,7 +502,7 @@ fn recording_cost(passes: usize, rounds: usize) {
 #[derive(Debug)]
 struct Switched {
     open: std::sync::atomic::AtomicBool,
-    recorder: std::sync::Arc<motorwire_bridge::record::Recorder>,
+    recorder: std::sync::Arc<motorwire_record::record::Recorder>,
 }
 
 impl Switched {
@@ -522,7 +522,7 @@ impl Tap for Switched {
             self.recorder.input_owned(at, taken, origin, number, text);
         }
     }
-    fn unreadable(&self, line: &motorwire_bridge::record::Unreadable<'_>) {
+    fn unreadable(&self, line: &motorwire_bridge::tap::Unreadable<'_>) {
         if self.open() {
             Tap::unreadable(&*self.recorder, line);
         }
@@ -557,7 +557,7 @@ impl Tap for Switched {
             Tap::orion(&*self.recorder, at, dir, line);
         }
     }
-    fn mark(&self, at: Instant, mark: motorwire_bridge::record::Mark) {
+    fn mark(&self, at: Instant, mark: motorwire_bridge::tap::Mark) {
         if self.open() {
             Tap::mark(&*self.recorder, at, mark);
         }

@@ -64,7 +64,8 @@ impl ClockOffsets {
 /// command stamped just after a stop's release came out before the stop;
 /// a recording's: its wall times late). `None` for a wall clock before
 /// 1970.
-pub(crate) fn clocks_together() -> (Instant, Option<Duration>) {
+#[must_use]
+pub fn clocks_together() -> (Instant, Option<Duration>) {
     use std::time::{SystemTime, UNIX_EPOCH};
     let mut best: Option<(Duration, Instant, Duration)> = None;
     for _ in 0..8 {

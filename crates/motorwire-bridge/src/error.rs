@@ -27,6 +27,7 @@ pub enum BridgeError {
     #[error("bus: {0}")]
     Bus(#[from] motorwire_can::Error),
     /// A simulated joint could not be made.
+    #[cfg(feature = "sim")]
     #[error("simulated joint: {0}")]
     Sim(#[from] motorwire_sim::SimError),
     /// The simulated arm found work due at one instant again and again

@@ -9,14 +9,15 @@ mod error;
 mod job;
 mod joints;
 mod output;
-pub mod record;
-pub mod replay;
 mod runtime;
+#[cfg(feature = "sim")]
 pub mod sim;
+pub mod tap;
 
 pub use classify::{
     DEFAULT_CALIBRATION, Line, MotorAction, RequestKind, asks_for_stop, classify, members,
 };
+pub use clocks::clocks_together;
 pub use device::orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL as ORION_POLL};
 pub use engine::{Bridge, BridgeConfig, BridgeStats, DEFAULT_MAX_AGE_MS, Input, JointView};
 pub use error::BridgeError;
@@ -48,6 +49,22 @@ pub fn moteus_frame(
         device::moteus::command_frame(id, bus, cmd, Some(device::moteus::hold_watchdog(period)))
             .map_err(|e| MoteusFrameError::Codec(e.to_string()))?;
     Ok((f.id().raw(), f.data().to_vec()))
+}
+
+/// Whose a moteus frame on the bus is: `Some(true)` a reply from
+/// controller `id` on prefix `bus` to the bridge, `Some(false)` the
+/// bridge's own frame to it (heard back), `None` neither (`raw`: its
+/// 29-bit CAN id).
+///
+/// ```
+/// // The bridge (source 0) to controller 1 on prefix 0, and its answer.
+/// assert_eq!(motorwire_bridge::moteus_addressed(0x8001, 1, 0), Some(false));
+/// assert_eq!(motorwire_bridge::moteus_addressed(0x0100, 1, 0), Some(true));
+/// assert_eq!(motorwire_bridge::moteus_addressed(0x0100, 2, 0), None);
+/// ```
+#[must_use]
+pub fn moteus_addressed(raw: u32, id: u8, bus: u16) -> Option<bool> {
+    device::moteus::addressed(raw, id, bus)
 }
 
 /// Why [`moteus_frame`] made no frame.

@@ -17,7 +17,7 @@ use crate::clocks::clocks_together;
 use crate::engine::{Bridge, Input};
 use crate::error::BridgeError;
 use crate::output::{Event, Origin, Output};
-use crate::record::{Direction, Mark, Recorder, Tap, Taps};
+use crate::tap::{Direction, Mark, Tap, Taps};
 
 /// The longest input line accepted by default (bytes, without the
 /// newline): 1 MiB, the size `motorwire validate` takes by default too
@@ -1016,12 +1016,13 @@ impl Runner {
         self
     }
 
-    /// Records the session ([`crate::record`]): every input line, output
-    /// line, frame and Orion line, as it happens. The recorder never makes
+    /// Records the session (`motorwire_record`'s recorder, or any [`Tap`]
+    /// that keeps what it is told: it is told last): every input line,
+    /// output line, frame and Orion line, as it happens. The recorder never makes
     /// the bridge wait; keep another `Arc` of it to finish it once
     /// [`Runner::run`] has returned.
     #[must_use]
-    pub fn with_recorder(mut self, recorder: Arc<Recorder>) -> Self {
+    pub fn with_recorder(mut self, recorder: Arc<dyn Tap>) -> Self {
         self.taps.push(recorder);
         self
     }
@@ -1502,7 +1503,7 @@ fn record_input(r: &dyn Tap, msg: &Msg) {
             reason,
             stop,
             bytes,
-        } => r.unreadable(&crate::record::Unreadable {
+        } => r.unreadable(&crate::tap::Unreadable {
             at: Instant::now(),
             origin: *origin,
             number: *number,

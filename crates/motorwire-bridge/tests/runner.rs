@@ -223,7 +223,7 @@ enum Seen {
 #[derive(Debug)]
 struct OrderTap(std::sync::Arc<std::sync::Mutex<Vec<Seen>>>);
 
-impl motorwire_bridge::record::Tap for OrderTap {
+impl motorwire_bridge::tap::Tap for OrderTap {
     fn input_owned(
         &self,
         _at: std::time::Instant,
@@ -237,10 +237,10 @@ impl motorwire_bridge::record::Tap for OrderTap {
     fn frame(
         &self,
         _at: std::time::Instant,
-        dir: motorwire_bridge::record::Direction,
+        dir: motorwire_bridge::tap::Direction,
         _frame: &motorwire_can::Frame,
     ) {
-        if dir == motorwire_bridge::record::Direction::Tx {
+        if dir == motorwire_bridge::tap::Direction::Tx {
             self.0.lock().unwrap().push(Seen::TappedTx);
         }
     }

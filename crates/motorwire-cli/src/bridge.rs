@@ -426,7 +426,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
         faults: parse_faults(&args.sim_faults)?,
         ..SimConfig::default()
     };
-    let setup = motorwire_bridge::replay::Setup::of(&map_text, &args.bus, &config, &sim_config);
+    let setup = motorwire_record::replay::Setup::of(&map_text, &args.bus, &config, &sim_config);
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
     let mut runner = Runner::new().max_line(args.max_size);
     if let Some(spec) = &orion {
@@ -442,7 +442,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
             }
             let interface = frames_log_interface(&args.bus);
             let r =
-                motorwire_bridge::record::Recorder::start(motorwire_bridge::record::RecordConfig {
+                motorwire_record::record::Recorder::start(motorwire_record::record::RecordConfig {
                     dir: dir.into(),
                     max_bytes: args.record_max_mb.saturating_mul(1024 * 1024),
                     interface,
@@ -450,7 +450,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
                 })
                 .map_err(|e| format!("--record {dir}: {e}"))?;
             let r = std::sync::Arc::new(r);
-            runner = runner.with_recorder(std::sync::Arc::clone(&r));
+            runner = runner.with_recorder(r.clone());
             Some(r)
         }
         None => None,
@@ -607,7 +607,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
 
 /// Ends the recording `r` (into `dir`): its summary on stderr, and, when
 /// it lost records, what to say last.
-fn finish_recording(r: motorwire_bridge::record::Recorder, dir: &str) -> Option<String> {
+fn finish_recording(r: motorwire_record::record::Recorder, dir: &str) -> Option<String> {
     let dropped = r.dropped();
     match r.finish_within(RECORD_FINISH_LIMIT) {
         Some(s) => {
@@ -693,7 +693,7 @@ mod tests {
         ] {
             let got = frames_log_interface(spec);
             assert_eq!(got, name, "{spec}");
-            assert!(motorwire_bridge::record::is_interface_name(&got), "{spec}");
+            assert!(motorwire_record::record::is_interface_name(&got), "{spec}");
         }
     }
 }

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use motorwire_bridge::replay::{Recorded, Recording, Scanned};
+use motorwire_record::replay::{Recorded, Recording, Scanned};
 use motorwire_translate::BusMap;
 
 use crate::chart::{self, Digest};

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use motorwire_bridge::Bridge;
-use motorwire_bridge::replay::{self, Comparison, Pace, Recording};
+use motorwire_record::replay::{self, Comparison, Pace, Recording};
 use motorwire_translate::BusMap;
 
 use crate::console::{note, say};

@@ -22,7 +22,7 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TrySendError
 use std::thread;
 use std::time::{Duration, Instant};
 
-use motorwire_bridge::record::Tap;
+use motorwire_bridge::tap::Tap;
 use motorwire_bridge::{Origin, Output};
 use motorwire_translate::BusMap;
 use serde_json::{Value, json};

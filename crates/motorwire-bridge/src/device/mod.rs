@@ -69,7 +69,7 @@
 //! 3. its bus map entry (`motorwire_translate::Target`) and its translation
 //!    (`Device::single_order`);
 //! 4. its simulated device (`motorwire_sim`, attached by
-//!    [`crate::sim::SimulatedArm`]) and its fixtures.
+//!    `crate::sim::SimulatedArm`, the `sim` feature) and its fixtures.
 //!
 //! The engine is not touched. The every-dialect property test in
 //! `tests/invariants.rs` then holds the new dialect to every invariant the
@@ -2171,7 +2171,13 @@ mod tests {
         }
         // The lifecycle it drives is its own ([`Lifecycle`]), said in each
         // dialect's terms by the device layer.
-        for payload in ["Reset", "Configure", "Activate", "Deactivate", "ConfigureTelemetry"] {
+        for payload in [
+            "Reset",
+            "Configure",
+            "Activate",
+            "Deactivate",
+            "ConfigureTelemetry",
+        ] {
             let named = format!("Payload::{payload}");
             assert!(!code.contains(&named), "the engine names {named}");
         }

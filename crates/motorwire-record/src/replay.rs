@@ -12,7 +12,7 @@
 //! things at the same times (relative to its start), and sends what each
 //! line set going before the next is taken. The simulated devices answer
 //! where the recorded ones did, at once; an iRPC joint's answer to a
-//! request (counted: [`crate::sim::AnswerKey`]) is handed to the bridge
+//! request (counted: [`motorwire_bridge::sim::AnswerKey`]) is handed to the bridge
 //! when the recorded bridge took the recorded one (`taken_us` of a frame
 //! received), with what the joint said with it, so a line taken between a
 //! request and its answer finds the bridge as the recorded line did.
@@ -33,7 +33,7 @@
 //!   move sent again at each poll, a stop repeated: how often, the clock
 //!   decides);
 //! - the lines written to the Orion controller, in order, without its
-//!   polls (one every [`crate::ORION_POLL`] while idle).
+//!   polls (one every [`motorwire_bridge::ORION_POLL`] while idle).
 //!
 //! Values are compared as JSON (and the numbers within a text as numbers),
 //! within a [`Tolerance`]: by default 0.05 (a number printed with
@@ -74,11 +74,9 @@ use motorwire_translate::{BusMap, Target};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::engine::{Bridge, BridgeConfig};
-use crate::error::BridgeError;
-use crate::output::{Origin, Output};
-use crate::record::{Direction, Mark};
-use crate::sim::SimulatedArm;
+use motorwire_bridge::sim::SimulatedArm;
+use motorwire_bridge::tap::{Direction, Mark};
+use motorwire_bridge::{Bridge, BridgeConfig, BridgeError, Origin, Output};
 
 /// How the recorded bridge was set up: what a replay needs to make the
 /// same bridge. `motorwire bridge --record` writes it into `session.json`
@@ -574,7 +572,7 @@ impl Recording {
     ///     r#"{"recorder":"motorwire","complete":false,"written":2,"dropped":3,"bytes":90,"ended_wall_ms":1}"#,
     /// )?;
     /// std::fs::write(dir.join("lines.jsonl"), "")?;
-    /// let r = motorwire_bridge::replay::Recording::read_partial(&dir).expect("readable");
+    /// let r = motorwire_record::replay::Recording::read_partial(&dir).expect("readable");
     /// assert!(!r.is_complete());
     /// assert!(r.incomplete().expect("incomplete").starts_with("the recording dropped 3 records"));
     /// # std::fs::remove_dir_all(&dir)?;
@@ -1152,8 +1150,8 @@ pub fn replay(
     // simulated devices' are handed to the bridge no earlier (they answer
     // at once; a line taken between a request and its recorded answer
     // finds the bridge as it was then).
-    let mut answers: Option<Vec<(crate::sim::AnswerKey, Duration)>> = {
-        let mut counter = crate::sim::AnswerCounter::new(bridge.map());
+    let mut answers: Option<Vec<(motorwire_bridge::sim::AnswerKey, Duration)>> = {
+        let mut counter = motorwire_bridge::sim::AnswerCounter::new(bridge.map());
         for (_, r) in &recording.records {
             if let Recorded::Frame {
                 dir: Direction::Tx,
@@ -1432,7 +1430,7 @@ pub fn frame_key(
     if id.is_extended() {
         for m in map.motors() {
             if let Target::Moteus { id: node, bus, .. } = m.target
-                && crate::device::moteus::addressed(id.raw(), node, bus) == Some(false)
+                && motorwire_bridge::moteus_addressed(id.raw(), node, bus) == Some(false)
             {
                 // A subframe that writes registers comes first in a
                 // command (type 0x0_); a poll only reads (0x1_).
