@@ -9,6 +9,7 @@ mod error;
 mod job;
 mod joints;
 mod output;
+pub mod route;
 mod runtime;
 #[cfg(feature = "sim")]
 pub mod sim;

@@ -38,6 +38,7 @@ use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use motorwire_bridge::route::{Delivery, Owed, Routing};
 use motorwire_bridge::{
     Gate, InputSender, Origin, Output, ReadLine, Secret, feed_gated, read_line,
 };
@@ -679,50 +680,6 @@ struct Client {
     /// feedback and events reach it from then on, so its greeting is its
     /// first line; it is not let go before it.
     greeted: bool,
-    /// Its own feedback rate (`{"feedback_hz":N}`).
-    feedback: FeedbackRate,
-}
-
-/// A reader's own feedback rate: each motor's every `every`-th feedback
-/// line (1: all, the default; 0: none), counted per motor.
-#[derive(Debug)]
-struct FeedbackRate {
-    every: u32,
-    seen: BTreeMap<String, u32>,
-}
-
-impl Default for FeedbackRate {
-    fn default() -> Self {
-        Self {
-            every: 1,
-            seen: BTreeMap::new(),
-        }
-    }
-}
-
-impl FeedbackRate {
-    /// Whether this feedback line of `motor` is the reader's.
-    fn takes(&mut self, motor: &str) -> bool {
-        match self.every {
-            0 => false,
-            1 => true,
-            k => {
-                let n = match self.seen.get_mut(motor) {
-                    Some(n) => n,
-                    None => self.seen.entry(motor.to_owned()).or_insert(0),
-                };
-                let take = *n % k == 0;
-                *n = n.wrapping_add(1);
-                take
-            }
-        }
-    }
-
-    /// From now on, every `every`-th line (counted afresh).
-    fn set(&mut self, every: u32) {
-        self.every = every;
-        self.seen.clear();
-    }
 }
 
 impl Client {
@@ -766,8 +723,9 @@ pub(crate) struct Router {
     authenticating: AtomicUsize,
     /// The connections authenticating, oldest first.
     waiting: Mutex<std::collections::VecDeque<(u64, Conn)>>,
-    /// Standard output's own feedback rate (set by a line of standard input).
-    stdout_feedback: Mutex<FeedbackRate>,
+    /// Who gets which output: the bridge's routing, with each reader's
+    /// own feedback rate (standard output's is standard input's).
+    routing: Mutex<Routing>,
 }
 
 impl Router {
@@ -785,7 +743,7 @@ impl Router {
             connected: AtomicUsize::new(0),
             authenticating: AtomicUsize::new(0),
             waiting: Mutex::default(),
-            stdout_feedback: Mutex::default(),
+            routing: Mutex::default(),
         });
         let r = Arc::clone(&router);
         thread::spawn(move || r.write_stdout(&lines));
@@ -849,64 +807,51 @@ impl Router {
     /// Takes one output of the engine, with its line (`o.to_json()`, rendered
     /// once by the runner); never waits.
     pub(crate) fn route(&self, o: &Output, line: &Arc<str>) {
-        // A reader's own feedback rate, answered ok: from this line on.
-        if let Output::Result { origin, result } = o
-            && result.ok
-            && let Some(every) = result.feedback_every
-        {
-            if *origin == STDIN || !self.sockets {
-                self.stdout_feedback
+        // The bridge's routing decides; this says where that is here:
+        // standard output, or the socket clients.
+        let delivery = self
+            .routing
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .route(o);
+        let line = Arc::clone(line);
+        match delivery {
+            Delivery::ToReader { origin, owed } => {
+                let sent = match owed {
+                    Owed::Result { arrival_follows } => Sent::Result(arrival_follows),
+                    Owed::Arrival => Sent::Arrival,
+                    Owed::Greeting => Sent::Event,
+                };
+                if origin == STDIN || !self.sockets {
+                    match owed {
+                        // Standard input had it with everyone's.
+                        Owed::Greeting => {}
+                        _ if origin == STDIN => self.to_stdout(line, sent),
+                        _ => self.to_stdout(line, Sent::Event),
+                    }
+                } else {
+                    self.to_client(origin.0, line, sent);
+                }
+            }
+            Delivery::ToEvery => {
+                if self.sockets {
+                    self.to_every_client(&line, None);
+                }
+                self.to_stdout(line, Sent::Event);
+            }
+            Delivery::Feedback { motor } if self.sockets => {
+                self.to_every_client(&line, Some(motor));
+            }
+            Delivery::Feedback { motor } => {
+                let takes = self
+                    .routing
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner)
-                    .set(every);
-            } else if let Some(c) = self
-                .clients
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .get_mut(&origin.0)
-            {
-                c.feedback.set(every);
+                    .takes_feedback(STDIN, motor);
+                if takes {
+                    self.to_stdout(line, Sent::Feedback);
+                }
             }
-        }
-        if let Output::Feedback(f) = o
-            && !self.sockets
-            && !self
-                .stdout_feedback
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .takes(&f.motor_id)
-        {
-            return;
-        }
-        let line = Arc::clone(line);
-        match o {
-            Output::Result { origin, result } if *origin == STDIN => {
-                self.to_stdout(line, Sent::Result(result.arrival_follows == Some(true)));
-            }
-            Output::Arrival { origin, .. } if *origin == STDIN => {
-                self.to_stdout(line, Sent::Arrival);
-            }
-            Output::Result { .. } | Output::Arrival { .. } if !self.sockets => {
-                self.to_stdout(line, Sent::Event);
-            }
-            Output::Result { origin, result } => {
-                self.to_client(
-                    origin.0,
-                    line,
-                    Sent::Result(result.arrival_follows == Some(true)),
-                );
-            }
-            Output::Arrival { origin, .. } => self.to_client(origin.0, line, Sent::Arrival),
-            // Standard input had it with everyone's.
-            Output::ToOne { origin, .. } if *origin == STDIN || !self.sockets => {}
-            Output::ToOne { origin, .. } => self.to_client(origin.0, line, Sent::Event),
-            Output::Feedback(f) if self.sockets => self.to_every_client(&line, Some(&f.motor_id)),
-            Output::Event(_) if self.sockets => {
-                self.to_every_client(&line, None);
-                self.to_stdout(line, Sent::Event);
-            }
-            Output::Feedback(_) => self.to_stdout(line, Sent::Feedback),
-            Output::Event(_) => self.to_stdout(line, Sent::Event),
         }
     }
 
@@ -947,7 +892,7 @@ impl Router {
                     Sent::Feedback => {}
                 }
                 if c.settled() {
-                    clients.remove(&id); // the writer drains, then closes
+                    self.remove_client(&mut clients, id); // the writer drains, then closes
                 }
             }
             Put::LeftOut => {}
@@ -967,9 +912,10 @@ impl Router {
     fn to_every_client(&self, line: &Arc<str>, feedback_of: Option<&str>) {
         let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
         let mut gone = Vec::new();
+        let mut routing = self.routing.lock().unwrap_or_else(PoisonError::into_inner);
         for (id, c) in clients.iter_mut().filter(|(_, c)| c.greeted) {
             if let Some(motor) = feedback_of
-                && !c.feedback.takes(motor)
+                && !routing.takes_feedback(Origin(*id), motor)
             {
                 continue;
             }
@@ -987,13 +933,14 @@ impl Router {
                 Put::Gone => gone.push((*id, "its connection failed".to_owned())),
             }
         }
+        drop(routing);
         for (id, why) in gone {
             self.drop_client(&mut clients, id, &why);
         }
     }
 
     fn drop_client(&self, clients: &mut BTreeMap<u64, Client>, id: u64, why: &str) {
-        if let Some(c) = clients.remove(&id) {
+        if let Some(c) = self.remove_client(clients, id) {
             c.outlet.cut();
             c.conn.shutdown();
             self.input.drop_origin(Origin(id), why);
@@ -1038,7 +985,6 @@ impl Router {
                     arrivals_sent: 0,
                     owed: None,
                     greeted: !greet,
-                    feedback: FeedbackRate::default(),
                 },
             );
         if greet {
@@ -1475,9 +1421,19 @@ impl Router {
         if let Some(c) = clients.get_mut(&id) {
             c.owed = Some(owed);
             if c.settled() {
-                clients.remove(&id);
+                self.remove_client(&mut clients, id);
             }
         }
+    }
+
+    /// Client `id` taken out of `clients`, its feedback rate forgotten
+    /// (nothing of a client is kept once it is gone).
+    fn remove_client(&self, clients: &mut BTreeMap<u64, Client>, id: u64) -> Option<Client> {
+        self.routing
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .forget(Origin(id));
+        clients.remove(&id)
     }
 }
 

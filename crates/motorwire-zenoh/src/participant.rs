@@ -6,6 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
+use motorwire_bridge::route::{Delivery, Owed, Routing};
 use motorwire_bridge::{
     ErrorBody, ErrorKind, InputSender, LineResult, Origin, Output, ReadLine, asks_for_stop,
     read_line,
@@ -264,17 +265,25 @@ impl Participant {
     /// origins), which nobody else should be given. Feedback and events are
     /// published (and returned `false`: others want them too).
     pub fn route(&self, o: &Output) -> bool {
-        match o {
-            Output::Result { origin, .. } | Output::Arrival { origin, .. } => {
-                if !Self::owns(*origin) {
+        // The bridge's routing says where each output goes; a fleet
+        // controller reads feedback from its key expression as published.
+        match Routing::delivery(o) {
+            Delivery::ToReader {
+                origin,
+                owed: Owed::Result { .. } | Owed::Arrival,
+            } => {
+                if !Self::owns(origin) {
                     return false;
                 }
                 let _ = self.replies.send(Msg::Output(Box::new(o.clone())));
                 true
             }
             // A greeting for a local client: not the fleet's.
-            Output::ToOne { .. } => false,
-            Output::Feedback(_) | Output::Event(_) => {
+            Delivery::ToReader {
+                owed: Owed::Greeting,
+                ..
+            } => false,
+            Delivery::Feedback { .. } | Delivery::ToEvery => {
                 if self
                     .publish
                     .try_send(Msg::Output(Box::new(o.clone())))
