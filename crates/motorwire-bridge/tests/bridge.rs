@@ -7,6 +7,8 @@
     clippy::indexing_slicing
 )]
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::time::Duration;
 
@@ -23,22 +25,6 @@ const PITCH: u16 = 0x10;
 const ROLL: u16 = 0x11;
 const ELBOW: u16 = 0x12;
 
-fn arm(faults: Faults, seed: u64) -> SimulatedArm {
-    let map = BusMap::from_toml(MAP).unwrap();
-    let bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
-    let config = SimConfig {
-        seed,
-        faults,
-        ..SimConfig::default()
-    };
-    let mut arm = SimulatedArm::new(bridge, config).unwrap();
-    assert!(
-        arm.run_while(Duration::from_secs(2), |a| a.bridge().is_ready())
-            .unwrap()
-    );
-    arm
-}
-
 /// A bridge on `map` with `config`, on simulated joints, ready.
 fn started(map: BusMap, config: BridgeConfig) -> SimulatedArm {
     let mut arm =
@@ -50,26 +36,9 @@ fn started(map: BusMap, config: BridgeConfig) -> SimulatedArm {
     arm
 }
 
-fn command(motor: &str, setpoint: f64) -> String {
-    format!(
-        r#"{{"motor_id":"{motor}","timestamp":1704067200000,"control_mode":"position","setpoint":{setpoint}}}"#
-    )
-}
-
-/// Runs until `n` results are in (at most `limit`), returning them.
-fn results(arm: &mut SimulatedArm, n: usize, limit: Duration) -> Vec<Value> {
-    let mut got = Vec::new();
-    let end = arm.now() + limit;
-    while got.len() < n && arm.now() < end {
-        arm.step(Duration::from_millis(10)).unwrap();
-        got.extend(arm.take_results());
-    }
-    got
-}
-
 #[test]
 fn startup_configures_and_activates_every_joint() {
-    let arm = arm(Faults::default(), 0);
+    let arm = common::arm(MAP, Faults::default(), 0);
     for node in [PITCH, ROLL, ELBOW] {
         assert_eq!(arm.joint(node).unwrap().state(), LifecycleState::Active);
     }
@@ -77,9 +46,9 @@ fn startup_configures_and_activates_every_joint() {
 
 #[test]
 fn a_move_is_acked_and_the_joint_gets_there() {
-    let mut arm = arm(Faults::default(), 0);
-    arm.line(Origin(3), &command("elbow", 60.0));
-    let r = results(&mut arm, 1, Duration::from_secs(1));
+    let mut arm = common::arm(MAP, Faults::default(), 0);
+    arm.line(Origin(3), &common::command("elbow", 60.0));
+    let r = common::results(&mut arm, 1, Duration::from_secs(1));
     assert_eq!(r.len(), 1);
     assert_eq!(r[0]["ok"], true, "{}", r[0]);
     assert_eq!(r[0]["motor_id"], "elbow");
@@ -94,13 +63,13 @@ fn a_move_is_acked_and_the_joint_gets_there() {
 
 #[test]
 fn the_documents_multi_axis_command_arrives_together() {
-    let mut arm = arm(Faults::default(), 0);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     // Feedback first: a synchronized move is planned from the positions.
     arm.run_until(arm.now() + Duration::from_millis(50))
         .unwrap();
     let line: String = MULTI.lines().map(str::trim).collect();
     arm.line(Origin(1), &line);
-    let r = results(&mut arm, 1, Duration::from_secs(1));
+    let r = common::results(&mut arm, 1, Duration::from_secs(1));
     assert_eq!(r[0]["ok"], true, "{}", r[0]);
     assert_eq!(r[0]["command_id"], "cmd_1234567890");
     let start = arm.now();
@@ -123,7 +92,7 @@ fn the_documents_multi_axis_command_arrives_together() {
 
 #[test]
 fn bad_lines_are_answered_and_never_reach_the_bus() {
-    let mut arm = arm(Faults::default(), 0);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     arm.run_until(arm.now() + Duration::from_millis(20))
         .unwrap();
     let sent = arm.bridge().stats().frames_sent;
@@ -136,10 +105,10 @@ fn bad_lines_are_answered_and_never_reach_the_bus() {
             r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":NaN}"#,
             "invalid",
         ),
-        (&command("elbow", 1e300), "refused"),
-        (&command("elbow", 170.0), "refused"),
-        (&command("nobody", 1.0), "refused"),
-        (&command("turntable", 1.0), "refused"),
+        (&common::command("elbow", 1e300), "refused"),
+        (&common::command("elbow", 170.0), "refused"),
+        (&common::command("nobody", 1.0), "refused"),
+        (&common::command("turntable", 1.0), "refused"),
         (
             r#"{"motor_id":"elbow","timestamp":0,"control_mode":"torque","setpoint":1}"#,
             "refused",
@@ -189,7 +158,7 @@ fn under_faults_every_command_is_acked_or_failed_and_never_executed_twice() {
         max_delay: Duration::from_millis(30),
         ..Faults::default()
     };
-    let mut arm = arm(faults, 7);
+    let mut arm = common::arm(MAP, faults, 7);
     let motors = [
         ("shoulder_pitch", PITCH),
         ("shoulder_roll", ROLL),
@@ -202,8 +171,8 @@ fn under_faults_every_command_is_acked_or_failed_and_never_executed_twice() {
     for i in 0..n {
         let (motor, _) = motors[i % 3];
         let setpoint = if (i / 3) % 2 == 0 { 20.0 } else { 30.0 } + (i % 7) as f64;
-        arm.line(Origin(i as u64), &command(motor, setpoint));
-        for r in results(&mut arm, 1, Duration::from_secs(2)) {
+        arm.line(Origin(i as u64), &common::command(motor, setpoint));
+        for r in common::results(&mut arm, 1, Duration::from_secs(2)) {
             answered += 1;
             if r["ok"] == true {
                 *acked.entry(motor).or_default() += 1;
@@ -257,14 +226,17 @@ fn under_faults_every_command_is_acked_or_failed_and_never_executed_twice() {
 
 #[test]
 fn the_emergency_stop_stops_latches_and_releases() {
-    let mut arm = arm(Faults::default(), 0);
-    arm.line(Origin(1), &command("elbow", 140.0));
-    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
+    arm.line(Origin(1), &common::command("elbow", 140.0));
+    assert_eq!(
+        common::results(&mut arm, 1, Duration::from_secs(1))[0]["ok"],
+        true
+    );
     arm.run_until(arm.now() + Duration::from_millis(500))
         .unwrap();
     assert!(arm.joint(ELBOW).unwrap().is_moving());
     arm.line(Origin(2), r#"{"emergency_stop": true}"#);
-    let r = results(&mut arm, 1, Duration::from_secs(1));
+    let r = common::results(&mut arm, 1, Duration::from_secs(1));
     assert_eq!(r[0]["ok"], true, "{}", r[0]);
     assert_eq!(r[0]["emergency_stop"], true);
     assert!(r[0]["stop_latency_us"].is_u64());
@@ -283,9 +255,9 @@ fn the_emergency_stop_stops_latches_and_releases() {
     let stopped_at = arm.joint(ELBOW).unwrap().position();
     assert!(stopped_at < 140.0);
     // Latched: motion refused, on every path.
-    arm.line(Origin(3), &command("elbow", 10.0));
+    arm.line(Origin(3), &common::command("elbow", 10.0));
     arm.line(Origin(4), &MULTI.replace('\n', " "));
-    let r = results(&mut arm, 2, Duration::from_millis(100));
+    let r = common::results(&mut arm, 2, Duration::from_millis(100));
     for x in &r {
         assert_eq!(x["error"]["kind"], "emergency_stop_latched", "{x}");
     }
@@ -294,7 +266,7 @@ fn the_emergency_stop_stops_latches_and_releases() {
         Origin(5),
         r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":10,"safety_limits":{"emergency_stop":true}}"#,
     );
-    let r = results(&mut arm, 1, Duration::from_secs(1));
+    let r = common::results(&mut arm, 1, Duration::from_secs(1));
     assert_eq!(r[0]["emergency_stop"], true, "{}", r[0]);
     assert_eq!(
         r[0]["ok"], true,
@@ -303,17 +275,20 @@ fn the_emergency_stop_stops_latches_and_releases() {
     );
     // Release: the joints are active again, where they stopped.
     arm.line(Origin(6), r#"{"emergency_stop": false}"#);
-    let r = results(&mut arm, 1, Duration::from_secs(1));
+    let r = common::results(&mut arm, 1, Duration::from_secs(1));
     assert_eq!(r[0]["released"], true, "{}", r[0]);
     assert_eq!(arm.joint(ELBOW).unwrap().state(), LifecycleState::Active);
     assert_eq!(arm.joint(ELBOW).unwrap().position(), stopped_at);
-    arm.line(Origin(7), &command("elbow", 10.0));
-    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    arm.line(Origin(7), &common::command("elbow", 10.0));
+    assert_eq!(
+        common::results(&mut arm, 1, Duration::from_secs(1))[0]["ok"],
+        true
+    );
 }
 
 #[test]
 fn a_silent_joint_is_reported_offline_and_the_others_are_served() {
-    let mut arm = arm(Faults::default(), 0);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     arm.disconnect(ROLL);
     arm.run_until(arm.now() + Duration::from_millis(600))
         .unwrap();
@@ -332,9 +307,9 @@ fn a_silent_joint_is_reported_offline_and_the_others_are_served() {
         .unwrap();
     assert_eq!(fb["online"], false);
     assert_eq!(fb["feedback"]["status"]["fault"], true);
-    arm.line(Origin(1), &command("shoulder_roll", 10.0));
-    arm.line(Origin(2), &command("elbow", 10.0));
-    let r = results(&mut arm, 2, Duration::from_secs(1));
+    arm.line(Origin(1), &common::command("shoulder_roll", 10.0));
+    arm.line(Origin(2), &common::command("elbow", 10.0));
+    let r = common::results(&mut arm, 2, Duration::from_secs(1));
     let roll = r.iter().find(|x| x["motor_id"] == "shoulder_roll").unwrap();
     let elbow = r.iter().find(|x| x["motor_id"] == "elbow").unwrap();
     assert_eq!(roll["error"]["kind"], "offline");
@@ -343,12 +318,15 @@ fn a_silent_joint_is_reported_offline_and_the_others_are_served() {
 
 #[test]
 fn end_of_input_lets_moves_finish_then_deactivates_every_joint() {
-    let mut arm = arm(Faults::default(), 0);
-    arm.line(Origin(1), &command("elbow", 50.0));
-    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
+    arm.line(Origin(1), &common::command("elbow", 50.0));
+    assert_eq!(
+        common::results(&mut arm, 1, Duration::from_secs(1))[0]["ok"],
+        true
+    );
     let now = arm.now();
     arm.bridge_mut().finish(now);
-    arm.line(Origin(2), &command("elbow", 10.0));
+    arm.line(Origin(2), &common::command("elbow", 10.0));
     assert!(
         arm.run_while(Duration::from_secs(5), |a| a.bridge().is_finished())
             .unwrap()
@@ -378,9 +356,12 @@ fn end_of_input_lets_moves_finish_then_deactivates_every_joint() {
 
 #[test]
 fn an_interrupt_stops_the_joints_at_once() {
-    let mut arm = arm(Faults::default(), 0);
-    arm.line(Origin(1), &command("elbow", 140.0));
-    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
+    arm.line(Origin(1), &common::command("elbow", 140.0));
+    assert_eq!(
+        common::results(&mut arm, 1, Duration::from_secs(1))[0]["ok"],
+        true
+    );
     arm.run_until(arm.now() + Duration::from_millis(300))
         .unwrap();
     let now = arm.now();
@@ -408,7 +389,7 @@ fn input_ending_during_startup_is_served_then_stopped() {
     let map = BusMap::from_toml(MAP).unwrap();
     let bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
     let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
-    arm.line(Origin(1), &command("elbow", 5.0));
+    arm.line(Origin(1), &common::command("elbow", 5.0));
     arm.bridge_mut().finish(Duration::ZERO);
     assert!(
         arm.run_while(Duration::from_secs(5), |a| a.bridge().is_finished())
@@ -449,8 +430,8 @@ limits = { min_position = -45, max_position = 45, max_velocity = 20, max_acceler
     .unwrap();
     let mut arm = started(map, BridgeConfig::default());
     // Two seconds of motion each, ten times their watchdogs' 200 ms.
-    arm.line(Origin(1), &command("shoulder_pitch", 80.0));
-    arm.line(Origin(1), &command("shoulder_roll", 40.0));
+    arm.line(Origin(1), &common::command("shoulder_pitch", 80.0));
+    arm.line(Origin(1), &common::command("shoulder_roll", 40.0));
     arm.run_until(arm.now() + Duration::from_secs(4)).unwrap();
     for (node, at) in [(PITCH, 80.0), (ROLL, 40.0)] {
         let joint = arm.joint(node).unwrap();
@@ -500,13 +481,22 @@ fn commands_written_before_a_stop_are_refused_after_the_release() {
         arm.run_until(arm.now() + after).unwrap();
         let stop_ms = arm.now().as_secs_f64() * 1000.0;
         arm.line(Origin(origin), r#"{"emergency_stop": true}"#);
-        assert_eq!(results(arm, 1, Duration::from_secs(1))[0]["ok"], true);
+        assert_eq!(
+            common::results(arm, 1, Duration::from_secs(1))[0]["ok"],
+            true
+        );
         arm.line(Origin(1), r#"{"emergency_stop": false}"#);
-        assert_eq!(results(arm, 1, Duration::from_secs(1))[0]["released"], true);
+        assert_eq!(
+            common::results(arm, 1, Duration::from_secs(1))[0]["released"],
+            true
+        );
         stop_ms
     };
     arm.line(Origin(1), r#"{"emergency_stop": true}"#);
-    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    assert_eq!(
+        common::results(&mut arm, 1, Duration::from_secs(1))[0]["ok"],
+        true
+    );
     // A second stop while the first is latched counts too: the last stop
     // is the later one.
     let stop_ms = stop_then_release(&mut arm, 3, Duration::from_millis(100));
@@ -525,7 +515,7 @@ fn commands_written_before_a_stop_are_refused_after_the_release() {
         };
         arm.line(Origin(2), &line);
     }
-    let r = results(&mut arm, 37, Duration::from_secs(1));
+    let r = common::results(&mut arm, 37, Duration::from_secs(1));
     assert_eq!(r.len(), 37);
     for x in &r {
         assert_eq!(x["ok"], false, "{x}");
@@ -545,7 +535,10 @@ fn commands_written_before_a_stop_are_refused_after_the_release() {
     // A line written after the stop runs.
     let now_ms = arm.now().as_secs_f64() * 1000.0;
     arm.line(Origin(2), &at(now_ms, "elbow", 20.0));
-    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    assert_eq!(
+        common::results(&mut arm, 1, Duration::from_secs(1))[0]["ok"],
+        true
+    );
     // Timestamps are whole milliseconds: one stamped in the millisecond a
     // stop came in (0.6 ms after its start here) may have been written
     // after it, and runs; one a millisecond earlier does not.
@@ -553,10 +546,13 @@ fn commands_written_before_a_stop_are_refused_after_the_release() {
     let same_ms = at(stop_ms.floor(), "elbow", 30.0);
     let before = at(stop_ms.floor() - 1.0, "elbow", 40.0);
     arm.line(Origin(2), &before);
-    let r = results(&mut arm, 1, Duration::from_secs(1));
+    let r = common::results(&mut arm, 1, Duration::from_secs(1));
     assert_eq!(r[0]["error"]["kind"], "stale_before_stop", "{}", r[0]);
     arm.line(Origin(2), &same_ms);
-    assert_eq!(results(&mut arm, 1, Duration::from_secs(1))[0]["ok"], true);
+    assert_eq!(
+        common::results(&mut arm, 1, Duration::from_secs(1))[0]["ok"],
+        true
+    );
 }
 
 /// At the end of input, motion that would not end by itself stops at once
@@ -783,7 +779,7 @@ fn a_timestamp_in_seconds_is_refused_with_the_hint() {
     for ts in [seconds, micros, old] {
         arm.line(Origin(1), &line(ts));
     }
-    let mut r = results(&mut arm, 3, Duration::from_secs(1));
+    let mut r = common::results(&mut arm, 3, Duration::from_secs(1));
     r.sort_by_key(|v| v["line"].as_u64());
     // Seconds are refused by the library's own rule (the line is read as
     // `motorwire validate` and the library read it); the others are stale.
@@ -849,7 +845,7 @@ fn a_compact_move_of_unknown_outcome_is_said_executed_when_the_device_shows_it()
     let mut bridge = Bridge::new(map, config).unwrap();
     let ms = Duration::from_millis;
     bridge.start(Duration::ZERO);
-    bridge.handle_line(ms(1), Origin(3), &command("gripper_axis", 40.0));
+    bridge.handle_line(ms(1), Origin(3), &common::command("gripper_axis", 40.0));
     let mut sent = 0;
     // The device never answers: the command is sent, then sent again
     // after each of the client's 100 ms timeouts, then given up.
@@ -947,7 +943,7 @@ fn ready_carries_every_motors_state_and_the_first_line_knows_where_the_joints_ar
         Origin(1),
         r#"{"trajectory_id":"t","motor_id":"elbow","waypoints":[{"position":0,"velocity":0,"time":0},{"position":20,"velocity":0,"time":1}],"timing":{}}"#,
     );
-    let r = results(&mut arm, 1, Duration::from_secs(3));
+    let r = common::results(&mut arm, 1, Duration::from_secs(3));
     assert_eq!(r[0]["ok"], true, "{}", r[0]);
 }
 
@@ -956,15 +952,15 @@ fn ready_carries_every_motors_state_and_the_first_line_knows_where_the_joints_ar
 /// the bridge is ready gets `ready` with the state, for it alone.
 #[test]
 fn the_state_is_asked_for_and_a_client_connecting_later_is_greeted_with_it() {
-    let mut arm = arm(Faults::default(), 0);
-    arm.line(Origin(1), &command("elbow", 30.0));
+    let mut arm = common::arm(MAP, Faults::default(), 0);
+    arm.line(Origin(1), &common::command("elbow", 30.0));
     arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
     arm.take_outputs();
     arm.line(Origin(1), r#"{"query":"state","motor_id":"elbow"}"#);
     arm.line(Origin(1), r#"{"query":"state"}"#);
     arm.line(Origin(1), r#"{"query":"state","motor_id":"knee"}"#);
     arm.line(Origin(1), r#"{"query":"state","motor":"elbow"}"#);
-    let r = results(&mut arm, 4, Duration::from_millis(50));
+    let r = common::results(&mut arm, 4, Duration::from_millis(50));
     assert_eq!(r[0]["ok"], true, "{}", r[0]);
     assert_eq!(r[0]["motor_id"], "elbow");
     let elbow = &r[0]["state"]["motors"][0];
@@ -1019,9 +1015,9 @@ fn stream(motor: &str, setpoint: f64) -> String {
 /// --bench bridge`, BENCHMARKS.md.)
 #[test]
 fn a_stream_of_setpoints_is_answered_line_by_line() {
-    let mut arm = arm(Faults::default(), 0);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     // The stream starts where the joints stand.
-    arm.line(Origin(1), &command("elbow", 60.0));
+    arm.line(Origin(1), &common::command("elbow", 60.0));
     arm.line(
         Origin(1),
         r#"{"motor_id":"gripper_axis","timestamp":1704067200000,"control_mode":"position","setpoint":45}"#,
@@ -1073,8 +1069,8 @@ fn a_stream_of_setpoints_is_answered_line_by_line() {
 /// joint crept, more than 10 degrees from the sine.)
 #[test]
 fn a_streamed_joint_is_replanned_without_a_step_in_acceleration() {
-    let mut arm = arm(Faults::default(), 0);
-    arm.line(Origin(1), &command("elbow", 60.0));
+    let mut arm = common::arm(MAP, Faults::default(), 0);
+    arm.line(Origin(1), &common::command("elbow", 60.0));
     arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
     arm.take_outputs();
     let reference = |t: f64| 60.0 + 20.0 * (std::f64::consts::TAU * 0.5 * t).sin();
@@ -1162,9 +1158,9 @@ fn a_stream_repeating_its_target_near_a_limit_is_not_refused() {
 /// boolean is invalid.
 #[test]
 fn a_stream_supersedes_refuses_and_replaces_ordinary_moves() {
-    let mut arm = arm(Faults::default(), 0);
-    arm.line(Origin(1), &command("elbow", 100.0));
-    let r = results(&mut arm, 1, Duration::from_secs(1));
+    let mut arm = common::arm(MAP, Faults::default(), 0);
+    arm.line(Origin(1), &common::command("elbow", 100.0));
+    let r = common::results(&mut arm, 1, Duration::from_secs(1));
     assert_eq!(r[0]["arrival_follows"], true, "{}", r[0]);
     // Three at once: the first goes, the second waits for it and is
     // replaced by the third.
@@ -1210,7 +1206,7 @@ fn a_stream_supersedes_refuses_and_replaces_ordinary_moves() {
 /// setpoint of a stream ends the watch of an ordinary move on the motor.
 #[test]
 fn a_streams_velocity_setpoints_replace_each_other_and_ordinary_moves() {
-    let mut arm = arm(Faults::default(), 0);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     let velocity = |v: f64| {
         format!(
             r#"{{"motor_id":"gripper_axis","timestamp":1704067200000,"control_mode":"velocity","setpoint":{v},"stream":true}}"#
@@ -1268,7 +1264,7 @@ fn assert_line_1_superseded_by_line_2(out: &[Value]) {
 #[test]
 fn a_sequential_line_ends_when_its_first_motor_is_moved_elsewhere() {
     for extra in ["", r#","stream":true"#] {
-        let mut arm = arm(Faults::default(), 0);
+        let mut arm = common::arm(MAP, Faults::default(), 0);
         arm.line(
             Origin(1),
             r#"{"command_id":"seq","timestamp":1704067200000,"sync_mode":"sequential","motors":[{"motor_id":"elbow","control_mode":"position","setpoint":140},{"motor_id":"gripper_axis","control_mode":"position","setpoint":80}]}"#,
@@ -1314,7 +1310,7 @@ fn a_sequential_line_ends_when_its_first_motor_is_moved_elsewhere() {
 /// but 0 on a bridge without feedback, refused naming the limit.
 #[test]
 fn a_feedback_rate_is_answered_with_the_rate_the_client_gets() {
-    let mut arm = arm(Faults::default(), 0);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     let answer = |arm: &mut SimulatedArm, line: &str| {
         arm.take_outputs();
         arm.line(Origin(1), line);
@@ -1403,7 +1399,7 @@ fn a_simultaneous_line_is_simultaneous_from_a_moving_start() {
         (Some(90.0), 40.0, 5.0),
         (Some(-50.0), 20.0, 10.0),
     ] {
-        let mut arm = arm(Faults::default(), 0);
+        let mut arm = common::arm(MAP, Faults::default(), 0);
         match first {
             Some(to) if to > 0.0 => {
                 arm.line(Origin(1), &trajectory(to));
@@ -1516,13 +1512,6 @@ fn sequential(id: &str, motors: &[(&str, f64)]) -> String {
     )
 }
 
-/// Runs `arm` for `ms` and returns its output lines.
-fn run_for(arm: &mut SimulatedArm, ms: u64) -> Vec<Value> {
-    arm.run_until(arm.now() + Duration::from_millis(ms))
-        .unwrap();
-    arm.take_outputs().iter().map(Output::to_value).collect()
-}
-
 fn completion<'a>(out: &'a [Value], origin_line: (&str, u64)) -> &'a Value {
     out.iter()
         .find(|v| {
@@ -1541,7 +1530,7 @@ fn completion<'a>(out: &'a [Value], origin_line: (&str, u64)) -> &'a Value {
 #[test]
 fn a_long_sequential_line_ends_whole_and_never_supersedes_the_newer_line() {
     for axes in [3, 4] {
-        let mut arm = arm(Faults::default(), 0);
+        let mut arm = common::arm(MAP, Faults::default(), 0);
         let all = [
             ("elbow", 60.0),
             ("shoulder_roll", 20.0),
@@ -1549,9 +1538,9 @@ fn a_long_sequential_line_ends_whole_and_never_supersedes_the_newer_line() {
             ("shoulder_pitch", 30.0),
         ];
         arm.line(Origin(1), &sequential("seq", &all[..axes]));
-        run_for(&mut arm, 300);
-        arm.line(Origin(2), &command("elbow", 10.0));
-        let out = run_for(&mut arm, 30);
+        common::run_for(&mut arm, common::ms(300));
+        arm.line(Origin(2), &common::command("elbow", 10.0));
+        let out = common::run_for(&mut arm, common::ms(30));
         let first = out
             .iter()
             .find(|v| v.get("ok").is_some() && v["command_id"] == "seq")
@@ -1566,7 +1555,7 @@ fn a_long_sequential_line_ends_whole_and_never_supersedes_the_newer_line() {
         let seq = completion(&out, ("seq", 1));
         assert_eq!(seq["arrived"], false, "{seq}");
         assert_eq!(seq["reason"], "superseded by line 1 of client 2", "{seq}");
-        let out = run_for(&mut arm, 3000);
+        let out = common::run_for(&mut arm, common::ms(3000));
         let newer = completion(&out, ("elbow", 1));
         assert_eq!(newer["arrived"], true, "{axes}: {newer}");
         assert!(arm.compact_device(0x20).unwrap().position().abs() < 1e-6);
@@ -1582,16 +1571,16 @@ fn a_long_sequential_line_ends_whole_and_never_supersedes_the_newer_line() {
 fn a_move_replaced_by_a_sequential_lines_axis_is_superseded_when_it_is_taken() {
     for older in [
         sequential("a", &[("elbow", 20.0), ("gripper_axis", 80.0)]),
-        command("elbow", 30.0),
+        common::command("elbow", 30.0),
     ] {
-        let mut arm = arm(Faults::default(), 0);
+        let mut arm = common::arm(MAP, Faults::default(), 0);
         arm.line(Origin(1), &older);
-        run_for(&mut arm, 200);
+        common::run_for(&mut arm, common::ms(200));
         arm.line(
             Origin(2),
             &sequential("b", &[("elbow", 140.0), ("shoulder_pitch", 30.0)]),
         );
-        let out = run_for(&mut arm, 30);
+        let out = common::run_for(&mut arm, common::ms(30));
         let replaced = out
             .iter()
             .find(|v| v.get("arrived").is_some() && v["line"] == 1 && v["command_id"] != "b")
@@ -1601,7 +1590,7 @@ fn a_move_replaced_by_a_sequential_lines_axis_is_superseded_when_it_is_taken() {
             replaced["reason"], "superseded by line 1 of client 2",
             "{replaced}"
         );
-        let out = run_for(&mut arm, 5000);
+        let out = common::run_for(&mut arm, common::ms(5000));
         assert_eq!(completion(&out, ("b", 1))["arrived"], true, "{out:?}");
     }
 }
@@ -1611,14 +1600,14 @@ fn a_move_replaced_by_a_sequential_lines_axis_is_superseded_when_it_is_taken() {
 /// where a single command says `stopped by the emergency stop`).
 #[test]
 fn a_sequential_line_cut_by_a_stop_says_so_at_once() {
-    let mut arm = arm(Faults::default(), 0);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     arm.line(
         Origin(1),
         &sequential("seq", &[("elbow", 60.0), ("gripper_axis", 40.0)]),
     );
-    run_for(&mut arm, 300);
+    common::run_for(&mut arm, common::ms(300));
     arm.line(Origin(2), r#"{"emergency_stop":true}"#);
-    let out = run_for(&mut arm, 30);
+    let out = common::run_for(&mut arm, common::ms(30));
     let seq = completion(&out, ("seq", 1));
     assert_eq!(seq["arrived"], false, "{seq}");
     assert_eq!(seq["reason"], "stopped by the emergency stop", "{seq}");
@@ -1629,7 +1618,7 @@ fn a_sequential_line_cut_by_a_stop_says_so_at_once() {
 /// older line's sequence goes on until that axis is sent.
 #[test]
 fn a_waiting_axis_replaces_nothing_until_it_is_sent() {
-    let mut arm = arm(Faults::default(), 0);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     arm.line(
         Origin(1),
         &sequential("a", &[("elbow", 100.0), ("gripper_axis", 80.0)]),
@@ -1638,7 +1627,7 @@ fn a_waiting_axis_replaces_nothing_until_it_is_sent() {
         Origin(2),
         &sequential("c", &[("shoulder_roll", -30.0), ("elbow", 30.0)]),
     );
-    let out = run_for(&mut arm, 50);
+    let out = common::run_for(&mut arm, common::ms(50));
     assert!(
         !out.iter()
             .any(|v| v["command_id"] == "a" && v.get("ok").is_some()),
@@ -1655,14 +1644,14 @@ fn a_waiting_axis_replaces_nothing_until_it_is_sent() {
 /// result says why.
 #[test]
 fn a_move_is_held_to_the_limits_from_where_the_joint_is_when_it_is_sent() {
-    let mut arm = arm(Faults::default(), 0);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     arm.take_outputs();
-    arm.line(Origin(1), &command("elbow", 140.0));
+    arm.line(Origin(1), &common::command("elbow", 140.0));
     arm.line(
         Origin(1),
         r#"{"command_id":"seq","timestamp":1704067200000,"sync_mode":"sequential","motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":10},{"motor_id":"elbow","control_mode":"position","setpoint":149,"acceleration_limit":20}]}"#,
     );
-    let out = run_for(&mut arm, 3000);
+    let out = common::run_for(&mut arm, common::ms(3000));
     let second = out
         .iter()
         .find(|v| v.get("ok").is_some() && v["line"] == 2)
@@ -1694,7 +1683,7 @@ fn a_scheduled_trajectory_does_not_hold_its_joint_until_it_starts() {
             t0 + 1500.0
         ),
     );
-    run_for(&mut arm, 300);
+    common::run_for(&mut arm, common::ms(300));
     arm.line(
         Origin(2),
         &format!(
@@ -1702,13 +1691,13 @@ fn a_scheduled_trajectory_does_not_hold_its_joint_until_it_starts() {
             t0 + 300.0
         ),
     );
-    let out = run_for(&mut arm, 30);
+    let out = common::run_for(&mut arm, common::ms(30));
     let moved = out
         .iter()
         .find(|v| v.get("ok").is_some() && v["motor_id"] == "elbow")
         .unwrap_or_else(|| panic!("the command was not answered at once: {out:?}"));
     assert_eq!(moved["ok"], true, "{moved}");
-    let out = run_for(&mut arm, 2500);
+    let out = common::run_for(&mut arm, common::ms(2500));
     let to_30 = completion(&out, ("elbow", 1));
     assert_eq!(
         to_30["arrived"], true,
@@ -1726,15 +1715,15 @@ fn a_scheduled_trajectory_does_not_hold_its_joint_until_it_starts() {
 /// a velocity setpoint for the gripper) replaces it at once.
 #[test]
 fn a_waiting_sequential_axis_neither_cuts_nor_holds_its_motor() {
-    let mut arm = arm(Faults::default(), 0);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     let pitch_loop = r#"{"trajectory_id":"t2","motor_id":"shoulder_pitch","waypoints":[{"position":0,"velocity":0,"time":0},{"position":-40,"velocity":0,"time":1.2},{"position":0,"velocity":0,"time":2.4}],"timing":{},"loop":{"enabled":true,"count":-1}}"#;
     arm.line(Origin(1), pitch_loop);
-    run_for(&mut arm, 500);
+    common::run_for(&mut arm, common::ms(500));
     arm.line(
         Origin(2),
         &sequential("seq", &[("elbow", 100.0), ("shoulder_pitch", 30.0)]),
     );
-    let out = run_for(&mut arm, 500);
+    let out = common::run_for(&mut arm, common::ms(500));
     assert!(
         !out.iter().any(|v| v.get("arrived").is_some()
             && v["line"] == 1
@@ -1742,21 +1731,21 @@ fn a_waiting_sequential_axis_neither_cuts_nor_holds_its_motor() {
         "the waiting axis cut the trajectory: {out:?}"
     );
     // Its turn comes once the elbow is at 100: then it replaces the loop.
-    let out = run_for(&mut arm, 3000);
+    let out = common::run_for(&mut arm, common::ms(3000));
     let looped = completion(&out, ("shoulder_pitch", 1));
     assert_eq!(looped["arrived"], false, "{looped}");
     // A newer line for a motor a waiting axis holds takes it at once.
-    let mut arm = self::arm(Faults::default(), 0);
+    let mut arm = self::common::arm(MAP, Faults::default(), 0);
     arm.line(
         Origin(1),
         &sequential("seq", &[("elbow", 140.0), ("gripper_axis", 60.0)]),
     );
-    run_for(&mut arm, 100);
+    common::run_for(&mut arm, common::ms(100));
     arm.line(
         Origin(2),
         r#"{"motor_id":"gripper_axis","timestamp":1704067200000,"control_mode":"velocity","setpoint":5}"#,
     );
-    let out = run_for(&mut arm, 30);
+    let out = common::run_for(&mut arm, common::ms(30));
     let velocity = out
         .iter()
         .find(|v| v.get("ok").is_some() && v["motor_id"] == "gripper_axis")
@@ -1775,12 +1764,12 @@ fn a_waiting_sequential_axis_neither_cuts_nor_holds_its_motor() {
 /// one after another, and promised them all after it: refused.
 #[test]
 fn sequential_with_a_total_duration_is_refused() {
-    let mut arm = arm(Faults::default(), 0);
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     arm.line(
         Origin(1),
         r#"{"command_id":"c","timestamp":1704067200000,"sync_mode":"sequential","coordination":{"total_duration_ms":2500},"motors":[{"motor_id":"elbow","control_mode":"position","setpoint":10},{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":30}]}"#,
     );
-    let out = run_for(&mut arm, 20);
+    let out = common::run_for(&mut arm, common::ms(20));
     let r = out
         .iter()
         .find(|v| v.get("ok").is_some() && v["line"] == 1)
@@ -1913,7 +1902,7 @@ fn a_move_sent_again_is_held_to_the_limits_from_where_the_joint_is_then() {
     };
     encoder(&mut bridge, 0, 99.0, 100.0);
     encoder(&mut bridge, 10, 100.0, 100.0);
-    bridge.handle_line(ms(10), Origin(1), &command("elbow", 105.0));
+    bridge.handle_line(ms(10), Origin(1), &common::command("elbow", 105.0));
     let mut moves = 0;
     let mut run = |b: &mut Bridge, t: u64| {
         b.handle_timeout(ms(t));
@@ -1980,7 +1969,7 @@ fn scheduled_trajectories_run_in_their_order() {
     };
     arm.line(Origin(1), &trajectory(40.0, t0 + 300.0));
     arm.line(Origin(1), &trajectory(60.0, t0 + 3000.0));
-    run_for(&mut arm, 5000);
+    common::run_for(&mut arm, common::ms(5000));
     assert_eq!(targets_taken(&arm, ELBOW), [40.0, 60.0]);
 }
 
@@ -2010,15 +1999,15 @@ fn typed_inputs_are_answered_as_their_lines_are() {
     let limits = include_str!("../../../fixtures/wia/valid/safety-limits.json");
     type Typed = Box<dyn Fn(Origin) -> Input<'static>>;
     let cases: Vec<(String, Typed)> = vec![
-        (command("elbow", 30.0), {
-            let c: MotorCommand = serde_json::from_str(&command("elbow", 30.0)).unwrap();
+        (common::command("elbow", 30.0), {
+            let c: MotorCommand = serde_json::from_str(&common::command("elbow", 30.0)).unwrap();
             Box::new(move |origin| Input::Command {
                 origin,
                 command: Box::new(c.clone()),
             })
         }),
-        (command("elbow", 1e9), {
-            let c: MotorCommand = serde_json::from_str(&command("elbow", 1e9)).unwrap();
+        (common::command("elbow", 1e9), {
+            let c: MotorCommand = serde_json::from_str(&common::command("elbow", 1e9)).unwrap();
             Box::new(move |origin| Input::Command {
                 origin,
                 command: Box::new(c.clone()),
@@ -2051,19 +2040,19 @@ fn typed_inputs_are_answered_as_their_lines_are() {
         ),
     ];
     for (line, typed) in &cases {
-        let mut by_line = arm(Faults::default(), 7);
-        let mut by_value = arm(Faults::default(), 7);
+        let mut by_line = common::arm(MAP, Faults::default(), 7);
+        let mut by_value = common::arm(MAP, Faults::default(), 7);
         by_line.line(Origin(1), &line.replace('\n', " "));
         let now = by_value.now();
         by_value.bridge_mut().handle(now, typed(Origin(1)));
-        let a = results(&mut by_line, 1, Duration::from_secs(5));
-        let b = results(&mut by_value, 1, Duration::from_secs(5));
+        let a = common::results(&mut by_line, 1, Duration::from_secs(5));
+        let b = common::results(&mut by_value, 1, Duration::from_secs(5));
         assert_eq!(a.len(), 1, "{line}: {a:?}");
         assert_eq!(a, b, "{line}");
     }
     // The release, after a stop, both ways.
-    let mut by_line = arm(Faults::default(), 7);
-    let mut by_value = arm(Faults::default(), 7);
+    let mut by_line = common::arm(MAP, Faults::default(), 7);
+    let mut by_value = common::arm(MAP, Faults::default(), 7);
     by_line.line(Origin(1), r#"{"emergency_stop": true}"#);
     by_line.line(Origin(1), r#"{"emergency_stop": false}"#);
     let now = by_value.now();
@@ -2073,8 +2062,8 @@ fn typed_inputs_are_answered_as_their_lines_are() {
     by_value
         .bridge_mut()
         .handle(now, Input::Release { origin: Origin(1) });
-    let a = results(&mut by_line, 2, Duration::from_secs(5));
+    let a = common::results(&mut by_line, 2, Duration::from_secs(5));
     assert_eq!(a.len(), 2);
     assert_eq!(a[1]["released"], true, "{a:?}");
-    assert_eq!(a, results(&mut by_value, 2, Duration::from_secs(5)));
+    assert_eq!(a, common::results(&mut by_value, 2, Duration::from_secs(5)));
 }

@@ -17,6 +17,8 @@
     clippy::cast_possible_truncation
 )]
 
+mod common;
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
 
@@ -76,12 +78,6 @@ limits = { min_position = -170, max_position = 170, max_velocity = 200, max_acce
 /// A trajectory looping forever on `j`: 0 to 30 and back, 2 s a cycle.
 const PENDULUM: &str = r#"{"trajectory_id":"pendulum","motor_id":"j","waypoints":[{"position":0,"velocity":0,"time":0},{"position":30,"velocity":30,"time":1},{"position":0,"velocity":0,"time":2}],"timing":{},"loop":{"enabled":true,"count":-1}}"#;
 
-fn command(motor: &str, setpoint: f64) -> String {
-    format!(
-        r#"{{"motor_id":"{motor}","timestamp":1,"control_mode":"position","setpoint":{setpoint}}}"#
-    )
-}
-
 /// What a scenario sends.
 #[derive(Debug, Clone)]
 enum Op {
@@ -133,7 +129,7 @@ fn play(arm: &mut SimulatedArm, ops: &[Op], tally: &mut Tally) {
                 client,
                 joint,
                 setpoint,
-            } => (*client, command(JOINTS[*joint].0, *setpoint)),
+            } => (*client, common::command(JOINTS[*joint].0, *setpoint)),
             Op::Multi { client, setpoints } => (
                 *client,
                 format!(
@@ -354,7 +350,7 @@ fn four_clients_bursts_stops_and_faults_keep_every_invariant() {
     // Invariant 5: one last move per motor, then at rest on its target.
     let last = [12.5, -7.5, 33.0, 20.0, 15.0, -25.0];
     for (m, (motor, ..)) in EVERY_DIALECT.iter().enumerate() {
-        arm.line(Origin(9), &command(motor, last[m]));
+        arm.line(Origin(9), &common::command(motor, last[m]));
     }
     arm.run_until(arm.now() + Duration::from_secs(4)).unwrap();
     for (_, node, ..) in JOINTS {
@@ -445,7 +441,7 @@ limits = { min_position = -90, max_position = 90, max_velocity = 100, max_accele
         );
     }
     for (i, m) in ["a", "b", "c", "d"].iter().enumerate() {
-        arm.line(Origin(1), &command(m, 10.0 * (i + 1) as f64));
+        arm.line(Origin(1), &common::command(m, 10.0 * (i + 1) as f64));
     }
     arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
     let results: Vec<Value> = arm.take_results();
@@ -750,7 +746,7 @@ fn play_mixed(arm: &mut SimulatedArm, ops: &[Mixed], t: &mut MixedTally) {
                 client,
                 motor,
                 setpoint,
-            } => (*client, command(EVERY_DIALECT[*motor].0, *setpoint)),
+            } => (*client, common::command(EVERY_DIALECT[*motor].0, *setpoint)),
             Mixed::Spin { client, speed } => (
                 *client,
                 format!(
@@ -1365,7 +1361,7 @@ fn arrivals(outputs: &[Output]) -> Vec<Value> {
 fn each_move_says_whether_it_arrived() {
     let mut arm = arm_with(MAP, Faults::default(), 0);
     // Arrives.
-    arm.line(Origin(1), &command("elbow", 50.0));
+    arm.line(Origin(1), &common::command("elbow", 50.0));
     arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
     let out = arm.take_outputs();
     let r = out.iter().find_map(Output::result).unwrap();
@@ -1392,10 +1388,10 @@ fn each_move_says_whether_it_arrived() {
     assert_eq!(fb["feedback"]["status"]["at_target"], true, "{fb}");
     assert_eq!(fb["feedback"]["status"]["in_motion"], false, "{fb}");
     // Superseded by a newer move for the same joint, then arrives.
-    arm.line(Origin(1), &command("elbow", 100.0));
+    arm.line(Origin(1), &common::command("elbow", 100.0));
     arm.run_until(arm.now() + Duration::from_millis(200))
         .unwrap();
-    arm.line(Origin(2), &command("elbow", 20.0));
+    arm.line(Origin(2), &common::command("elbow", 20.0));
     arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
     let a = arrivals(&arm.take_outputs());
     assert_eq!(a.len(), 2, "{a:?}");
@@ -1423,7 +1419,7 @@ fn each_move_says_whether_it_arrived() {
     arm.run_until(arm.now() + Duration::from_millis(100))
         .unwrap();
     // A joint that goes silent on its way.
-    arm.line(Origin(1), &command("shoulder_roll", 40.0));
+    arm.line(Origin(1), &common::command("shoulder_roll", 40.0));
     arm.run_until(arm.now() + Duration::from_millis(100))
         .unwrap();
     arm.disconnect(0x11);
@@ -1539,13 +1535,13 @@ fn safety_limits_lines_tighten_the_gate_at_runtime() {
         )
     };
     // A move that passes now, and ends before the limits change.
-    arm.line(Origin(1), &command("elbow", 120.0));
+    arm.line(Origin(1), &common::command("elbow", 120.0));
     arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
     // Wider than the map: refused, naming both; nothing changes.
     arm.line(Origin(1), &limits(-5.0, 100.0, 60.0));
     // Tighter: in force from now on.
     arm.line(Origin(1), &limits(10.0, 100.0, 60.0));
-    arm.line(Origin(1), &command("elbow", 120.0));
+    arm.line(Origin(1), &common::command("elbow", 120.0));
     arm.line(Origin(1), r#"{"query":"limits","motor_id":"elbow"}"#);
     arm.line(
         Origin(1),
@@ -1611,7 +1607,7 @@ fn a_safety_limits_line_that_accepted_motion_would_break_is_refused() {
     };
     let mut arm = arm_with(MAP, Faults::default(), 0);
     // A move under way to 140.
-    arm.line(Origin(1), &command("elbow", 140.0));
+    arm.line(Origin(1), &common::command("elbow", 140.0));
     arm.run_until(arm.now() + Duration::from_millis(300))
         .unwrap();
     arm.line(Origin(1), &limits("elbow", 50.0));
@@ -1644,7 +1640,7 @@ fn a_safety_limits_line_that_accepted_motion_would_break_is_refused() {
     assert_eq!(q["limits"]["effective"]["max_position"], 150.0, "{q}");
     // Ended: the same line is taken, and binds what comes next.
     arm.line(Origin(1), &limits("elbow", 50.0));
-    arm.line(Origin(1), &command("elbow", 60.0));
+    arm.line(Origin(1), &common::command("elbow", 60.0));
     arm.run_until(arm.now() + Duration::from_millis(100))
         .unwrap();
     let r = arm.take_results();
@@ -1662,11 +1658,11 @@ fn a_safety_limits_line_that_accepted_motion_would_break_is_refused() {
     // path is not: cruising toward 150 at 120 deg/s, sent back to 95 near
     // 85, the elbow brakes past 100 before it turns.
     let mut arm = arm_with(MAP, Faults::default(), 0);
-    arm.line(Origin(1), &command("elbow", 150.0));
+    arm.line(Origin(1), &common::command("elbow", 150.0));
     while arm.joint(0x12).unwrap().position() < 85.0 {
         arm.run_until(arm.now() + Duration::from_millis(1)).unwrap();
     }
-    arm.line(Origin(1), &command("elbow", 95.0));
+    arm.line(Origin(1), &common::command("elbow", 95.0));
     arm.run_until(arm.now() + Duration::from_millis(5)).unwrap();
     arm.line(Origin(1), &limits("elbow", 100.0));
     arm.run_until(arm.now() + Duration::from_millis(20))
@@ -1991,14 +1987,14 @@ fn faults_and_reboots_hold_a_joint_until_a_reset_brings_it_back() {
             .collect()
     };
     let mut arm = arm_with(MAP, Faults::default(), 0);
-    arm.line(Origin(1), &command("elbow", 100.0));
+    arm.line(Origin(1), &common::command("elbow", 100.0));
     arm.run_until(arm.now() + Duration::from_millis(200))
         .unwrap();
     let executed = arm.joint(0x12).unwrap().log().len();
     arm.fault(0x12, JointFault::Reboot);
     arm.run_until(arm.now() + Duration::from_millis(50))
         .unwrap();
-    arm.line(Origin(1), &command("elbow", 50.0));
+    arm.line(Origin(1), &common::command("elbow", 50.0));
     arm.run_until(arm.now() + Duration::from_millis(300))
         .unwrap();
     let out = arm.take_outputs();
@@ -2029,7 +2025,7 @@ fn faults_and_reboots_hold_a_joint_until_a_reset_brings_it_back() {
     arm.line(Origin(1), r#"{"reset":"elbow"}"#);
     arm.run_until(arm.now() + Duration::from_millis(100))
         .unwrap();
-    arm.line(Origin(1), &command("elbow", 50.0));
+    arm.line(Origin(1), &common::command("elbow", 50.0));
     arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
     let r = arm.take_results();
     assert_eq!(r[0]["ok"], true, "{}", r[0]);
@@ -2040,7 +2036,7 @@ fn faults_and_reboots_hold_a_joint_until_a_reset_brings_it_back() {
     arm.fault(0x10, JointFault::DriverFault);
     arm.run_until(arm.now() + Duration::from_millis(50))
         .unwrap();
-    arm.line(Origin(1), &command("shoulder_pitch", 10.0));
+    arm.line(Origin(1), &common::command("shoulder_pitch", 10.0));
     arm.run_until(arm.now() + Duration::from_millis(100))
         .unwrap();
     let out = arm.take_outputs();
@@ -2066,7 +2062,7 @@ fn faults_and_reboots_hold_a_joint_until_a_reset_brings_it_back() {
     );
     assert_ne!(map, MAP);
     let mut arm = arm_with(&map, Faults::default(), 0);
-    arm.line(Origin(1), &command("shoulder_pitch", 60.0));
+    arm.line(Origin(1), &common::command("shoulder_pitch", 60.0));
     arm.run_until(arm.now() + Duration::from_millis(100))
         .unwrap();
     arm.fault(0x12, JointFault::Overtemperature);
@@ -2453,7 +2449,7 @@ fn a_newer_position_command_replaces_a_running_trajectory() {
         let before = segments(&arm);
         arm.take_outputs();
         let sent = arm.now();
-        arm.line(Origin(2), &command("j", -50.0));
+        arm.line(Origin(2), &common::command("j", -50.0));
         arm.run_until(sent + Duration::from_millis(4 * latency_ms + 5))
             .unwrap();
         let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
@@ -2800,12 +2796,6 @@ fn motor_line(action: &str, motor: &str) -> String {
     format!(r#"{{"motor":"{action}","motor_id":"{motor}"}}"#)
 }
 
-fn velocity(motor: &str, speed: f64) -> String {
-    format!(
-        r#"{{"motor_id":"{motor}","timestamp":1,"control_mode":"velocity","setpoint":{speed}}}"#
-    )
-}
-
 /// The Orion controller's value for `key` after its last line.
 fn orion_value(arm: &SimulatedArm, key: &str) -> f64 {
     let i = motorwire_orion::Motor::ALL
@@ -2840,7 +2830,7 @@ fn each_motor_is_held_freed_and_stopped_alone_on_every_dialect() {
     };
 
     // iRPC: the elbow, held mid-move short of its target.
-    ok(&answer(&mut arm, &command("elbow", 140.0)));
+    ok(&answer(&mut arm, &common::command("elbow", 140.0)));
     arm.run_until(arm.now() + Duration::from_millis(300))
         .unwrap();
     let elbow = arm.joint(0x12).unwrap();
@@ -2871,7 +2861,7 @@ fn each_motor_is_held_freed_and_stopped_alone_on_every_dialect() {
             "{action}"
         );
         // The next command activates it first and moves it.
-        let r = answer(&mut arm, &command("elbow", 30.0));
+        let r = answer(&mut arm, &common::command("elbow", 30.0));
         ok(&r);
         assert_eq!(r["acked"], serde_json::json!(["elbow"]), "{r}");
         arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
@@ -2897,7 +2887,7 @@ fn each_motor_is_held_freed_and_stopped_alone_on_every_dialect() {
     arm.run_until(arm.now() + Duration::from_millis(200))
         .unwrap();
     assert_eq!(arm.joint(0x12).unwrap().state(), LifecycleState::Inactive);
-    ok(&answer(&mut arm, &command("elbow", 40.0)));
+    ok(&answer(&mut arm, &common::command("elbow", 40.0)));
     arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
     assert!((position_of(&arm, 2) - 40.0).abs() < 0.5);
     // Every Activate the elbow executed after startup came right before a
@@ -2922,7 +2912,7 @@ fn each_motor_is_held_freed_and_stopped_alone_on_every_dialect() {
 
     // Compact: the gripper driven, held, freed, moved, stopped, driven.
     // (Within the deadman's 200 ms.)
-    ok(&answer(&mut arm, &velocity("gripper_axis", 20.0)));
+    ok(&answer(&mut arm, &common::velocity("gripper_axis", 20.0)));
     arm.run_until(arm.now() + Duration::from_millis(100))
         .unwrap();
     assert!(arm.compact_device(0x20).unwrap().is_moving());
@@ -2942,17 +2932,17 @@ fn each_motor_is_held_freed_and_stopped_alone_on_every_dialect() {
         arm.compact_device(0x20).unwrap().enabled(),
         "torque back on"
     );
-    ok(&answer(&mut arm, &command("gripper_axis", 20.0)));
+    ok(&answer(&mut arm, &common::command("gripper_axis", 20.0)));
     assert!(arm.compact_device(0x20).unwrap().enabled());
     ok(&answer(&mut arm, &motor_line("stop", "gripper_axis")));
     assert!(arm.compact_device(0x20).unwrap().stopped());
-    ok(&answer(&mut arm, &velocity("gripper_axis", 5.0)));
+    ok(&answer(&mut arm, &common::velocity("gripper_axis", 5.0)));
     let g = arm.compact_device(0x20).unwrap();
     assert!(g.enabled() && !g.stopped());
 
     // moteus: the wrist driven, held within its deceleration, freed
     // (stop mode), moved, stopped, and disabled as WIA says it.
-    ok(&answer(&mut arm, &velocity("wrist", 30.0)));
+    ok(&answer(&mut arm, &common::velocity("wrist", 30.0)));
     arm.run_until(arm.now() + Duration::from_millis(100))
         .unwrap();
     assert!(arm.moteus(1).unwrap().velocity().abs() > 0.05);
@@ -2985,7 +2975,7 @@ fn each_motor_is_held_freed_and_stopped_alone_on_every_dialect() {
             motorwire_sim::moteus::mode::POSITION,
             "torque back on"
         );
-        ok(&answer(&mut arm, &command("wrist", 10.0)));
+        ok(&answer(&mut arm, &common::command("wrist", 10.0)));
         arm.run_until(arm.now() + Duration::from_millis(50))
             .unwrap();
         assert_eq!(
@@ -2995,11 +2985,11 @@ fn each_motor_is_held_freed_and_stopped_alone_on_every_dialect() {
     }
 
     // Orion: the turntable at a speed, held at 0, freed to 0 (said).
-    ok(&answer(&mut arm, &velocity("turntable", 100.0)));
+    ok(&answer(&mut arm, &common::velocity("turntable", 100.0)));
     assert_eq!(orion_value(&arm, "TRM"), 100.0);
     ok(&answer(&mut arm, &motor_line("hold", "turntable")));
     assert_eq!(orion_value(&arm, "TRM"), 0.0);
-    ok(&answer(&mut arm, &velocity("turntable", -50.0)));
+    ok(&answer(&mut arm, &common::velocity("turntable", -50.0)));
     let r = answer(&mut arm, &motor_line("free", "turntable"));
     ok(&r);
     assert_eq!(orion_value(&arm, "TRM"), 0.0);
@@ -3013,7 +3003,7 @@ fn each_motor_is_held_freed_and_stopped_alone_on_every_dialect() {
     // Its servo: held where it stands, never freed.
     ok(&answer(
         &mut arm,
-        &command("grasper_horizontal_servo", 30.0),
+        &common::command("grasper_horizontal_servo", 30.0),
     ));
     arm.run_until(arm.now() + Duration::from_millis(300))
         .unwrap();
@@ -3063,7 +3053,7 @@ fn flood_line(m: usize, i: usize) -> String {
             r#"{{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":{s},"stream":{}}}"#,
             i.is_multiple_of(2)
         ),
-        (_, 0) => velocity(name, s / 3.0),
+        (_, 0) => common::velocity(name, s / 3.0),
         (3 | 5, _) => format!(
             r#"{{"motor_id":"{name}","timestamp":1,"control_mode":"position","setpoint":{},"stream":true}}"#,
             (s / 2.0).min(80.0)
@@ -3289,7 +3279,7 @@ fn a_joint_freed_moved_and_disabled_at_once_moves_on_its_next_command() {
     for first in ["free", "stop"] {
         let mut arm = every_dialect_arm_with(Faults::default(), 3);
         arm.line(Origin(9), &motor_line(first, "elbow"));
-        arm.line(Origin(9), &command("elbow", 30.0));
+        arm.line(Origin(9), &common::command("elbow", 30.0));
         arm.line(
             Origin(9),
             r#"{"motor_id":"elbow","timestamp":1,"control_mode":"disabled","setpoint":0}"#,
@@ -3301,7 +3291,7 @@ fn a_joint_freed_moved_and_disabled_at_once_moves_on_its_next_command() {
         assert!(results.iter().all(|r| r["ok"] == true), "{results:?}");
         assert_eq!(arm.joint(0x12).unwrap().state(), LifecycleState::Inactive);
         for target in [44.0, 20.0] {
-            let r = answer(&mut arm, &command("elbow", target));
+            let r = answer(&mut arm, &common::command("elbow", target));
             assert_eq!(r["ok"], true, "{first}: {r}");
             arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
             assert!((position_of(&arm, 2) - target).abs() < 0.5, "{first}");
@@ -3363,7 +3353,7 @@ fn the_orion_servo_held_behind_a_move_in_flight_stays_within_narrowed_limits() {
 fn a_motor_line_ends_the_watch_on_the_motors_earlier_move() {
     for action in ["hold", "free", "stop"] {
         let mut arm = every_dialect_arm_with(Faults::default(), 3);
-        arm.line(Origin(9), &command("elbow", 140.0));
+        arm.line(Origin(9), &common::command("elbow", 140.0));
         arm.run_until(arm.now() + Duration::from_millis(300))
             .unwrap();
         arm.line(Origin(9), &motor_line(action, "elbow"));
@@ -3442,7 +3432,7 @@ fn a_joint_never_started_is_not_activated_by_a_command_after_a_free() {
     let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
     arm.run_until(Duration::from_millis(200)).unwrap();
     arm.take_outputs();
-    for line in [motor_line("free", "elbow"), command("elbow", 30.0)] {
+    for line in [motor_line("free", "elbow"), common::command("elbow", 30.0)] {
         arm.line(Origin(1), &line);
         arm.run_until(arm.now() + Duration::from_millis(300))
             .unwrap();
@@ -3500,7 +3490,7 @@ fn a_motor_line_keeps_a_freed_joints_move_behind_its_activate_from_going() {
         };
         let n = to_elbow(&arm);
         arm.hold_answers([((0x12, n), arm.now() + Duration::from_millis(200))]);
-        arm.line(Origin(9), &command("elbow", 100.0));
+        arm.line(Origin(9), &common::command("elbow", 100.0));
         arm.run_until(arm.now() + Duration::from_millis(20))
             .unwrap();
         assert_eq!(to_elbow(&arm), n + 1, "{action}: the Activate went out");
@@ -3571,7 +3561,7 @@ fn a_compact_emergency_stop_lost_on_the_bus_is_sent_until_taken() {
     };
     for seed in 0..12 {
         let mut arm = every_dialect_arm_with(lossy, seed);
-        arm.line(Origin(1), &velocity("gripper_axis", 30.0));
+        arm.line(Origin(1), &common::velocity("gripper_axis", 30.0));
         arm.run_until(arm.now() + Duration::from_millis(60))
             .unwrap();
         arm.line(Origin(1), r#"{"emergency_stop":true}"#);

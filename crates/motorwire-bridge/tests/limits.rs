@@ -15,12 +15,11 @@
     clippy::indexing_slicing
 )]
 
-use std::time::Duration;
+mod common;
 
+use motorwire_bridge::Origin;
 use motorwire_bridge::sim::SimulatedArm;
-use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output};
-use motorwire_can::SimConfig;
-use motorwire_translate::BusMap;
+use motorwire_can::Faults;
 use serde_json::Value;
 
 const MAP: &str = r#"
@@ -36,32 +35,6 @@ node = 0x20
 limits = { min_position = 0, max_position = 90, max_velocity = 60, max_acceleration = 240, max_torque = 5 }
 "#;
 
-fn ms(n: u64) -> Duration {
-    Duration::from_millis(n)
-}
-
-fn arm() -> SimulatedArm {
-    let bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), BridgeConfig::default()).unwrap();
-    let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
-    assert!(
-        arm.run_while(Duration::from_secs(3), |a| a.bridge().is_ready())
-            .unwrap()
-    );
-    arm
-}
-
-fn outputs(arm: &mut SimulatedArm) -> Vec<Value> {
-    arm.take_outputs()
-        .iter()
-        .filter(|o| !matches!(o, Output::Feedback(_)))
-        .map(Output::to_value)
-        .collect()
-}
-
-fn velocity(motor: &str, v: f64) -> String {
-    format!(r#"{{"motor_id":"{motor}","timestamp":0,"control_mode":"velocity","setpoint":{v}}}"#)
-}
-
 /// Where `motor` stands on its device (degrees).
 fn position(arm: &SimulatedArm, motor: &str) -> f64 {
     match motor {
@@ -73,15 +46,15 @@ fn position(arm: &SimulatedArm, motor: &str) -> f64 {
 /// An arm whose `motor` a SafetyLimits line has narrowed to 0..`limit`
 /// (at most `speed` a second), the line taken.
 fn narrowed(motor: &str, limit: f64, speed: f64) -> SimulatedArm {
-    let mut arm = arm();
+    let mut arm = common::arm(MAP, Faults::default(), 0);
     arm.line(
         Origin(1),
         &format!(
             r#"{{"motor_id":"{motor}","position_limits":{{"min":0,"max":{limit}}},"velocity_limits":{{"max_velocity":{speed}}},"torque_limits":{{"continuous_torque":1,"peak_torque":2}}}}"#
         ),
     );
-    arm.run_until(arm.now() + ms(100)).unwrap();
-    let out = outputs(&mut arm);
+    arm.run_until(arm.now() + common::ms(100)).unwrap();
+    let out = common::outputs(&mut arm);
     assert_eq!(out[0]["ok"], true, "{motor}: {out:?}");
     arm
 }
@@ -95,10 +68,10 @@ fn streamed(arm: &mut SimulatedArm, motor: &str, line: &str) -> (f64, Vec<Value>
     for _ in 0..60 {
         arm.line(Origin(1), line);
         for _ in 0..25 {
-            arm.step(ms(2)).unwrap();
+            arm.step(common::ms(2)).unwrap();
             furthest = furthest.max(position(arm, motor));
         }
-        all.extend(outputs(arm));
+        all.extend(common::outputs(arm));
     }
     (furthest, all)
 }
@@ -108,7 +81,7 @@ fn a_velocity_stream_is_braked_short_of_the_limit_in_force_on_every_dialect() {
     for (motor, limit, speed) in [("knee", 60.0, 200.0), ("gripper_axis", 30.0, 50.0)] {
         let mut arm = narrowed(motor, limit, speed);
         // Streamed toward the limit at the speed the limits allow.
-        let (furthest, all) = streamed(&mut arm, motor, &velocity(motor, speed));
+        let (furthest, all) = streamed(&mut arm, motor, &common::velocity(motor, speed));
         let braked: Vec<&Value> = all
             .iter()
             .filter(|v| v["event"] == "limit_brake" && v["motor_id"] == motor)
@@ -130,9 +103,9 @@ fn a_velocity_stream_is_braked_short_of_the_limit_in_force_on_every_dialect() {
         for r in &refused {
             assert_eq!(r["error"]["rule"], "outward_at_limit", "{r}");
         }
-        arm.line(Origin(1), &velocity(motor, -speed / 2.0));
-        arm.run_until(arm.now() + ms(100)).unwrap();
-        let out = outputs(&mut arm);
+        arm.line(Origin(1), &common::velocity(motor, -speed / 2.0));
+        arm.run_until(arm.now() + common::ms(100)).unwrap();
+        let out = common::outputs(&mut arm);
         let r = out.iter().find(|v| v.get("ok").is_some()).unwrap();
         assert_eq!(r["ok"], true, "{motor}: {r}");
         eprintln!(

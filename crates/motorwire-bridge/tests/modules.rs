@@ -378,3 +378,49 @@ fn every_error_is_typed_and_made_in_one_place() {
     }
     assert!(found.is_empty(), "untyped errors:\n{}", found.join("\n"));
 }
+
+/// The integration tests share one harness (`tests/common/`): no helper
+/// is written in two test files.
+#[test]
+fn no_test_helper_is_written_twice() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");
+    let mut helpers: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("rs") {
+            continue;
+        }
+        let file = path.file_name().unwrap().to_string_lossy().into_owned();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mut attrs: Vec<&str> = Vec::new();
+        for line in text.lines() {
+            if line.starts_with("#[") {
+                attrs.push(line);
+                continue;
+            }
+            if line.starts_with("///") {
+                continue;
+            }
+            if let Some(rest) = line.strip_prefix("fn ") {
+                let name: String = rest
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                if !attrs.iter().any(|a| a.starts_with("#[test]")) {
+                    helpers.entry(name).or_default().push(file.clone());
+                }
+            }
+            attrs.clear();
+        }
+    }
+    let twice: Vec<String> = helpers
+        .iter()
+        .filter(|(_, files)| files.len() > 1)
+        .map(|(name, files)| format!("{name}: {}", files.join(", ")))
+        .collect();
+    assert!(
+        twice.is_empty(),
+        "helpers written twice (put them in tests/common/):\n{}",
+        twice.join("\n")
+    );
+}

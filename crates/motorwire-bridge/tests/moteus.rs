@@ -9,6 +9,8 @@
     clippy::indexing_slicing
 )]
 
+mod common;
+
 use std::time::Duration;
 
 use motorwire_bridge::sim::SimulatedArm;
@@ -37,17 +39,13 @@ stop = "brake"
 limits = { min_position = -1.5, max_position = 1.5, max_velocity = 3, max_acceleration = 12 }
 "#;
 
-fn arm() -> SimulatedArm {
+fn moteus_arm() -> SimulatedArm {
     let map = BusMap::from_toml(MAP).unwrap();
     let bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
     let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
     arm.keep_sent();
     arm.run_until(Duration::from_millis(100)).unwrap();
     arm
-}
-
-fn ms(n: u64) -> Duration {
-    Duration::from_millis(n)
 }
 
 /// The mode each frame the bridge sent to moteus `id` writes (a query
@@ -74,17 +72,9 @@ fn modes_sent(arm: &SimulatedArm, id: u8, since: Duration) -> Vec<i64> {
         .collect()
 }
 
-fn results(arm: &mut SimulatedArm) -> Vec<Value> {
-    arm.take_outputs()
-        .into_iter()
-        .filter(|o| matches!(o, Output::Result { .. } | Output::Arrival { .. }))
-        .map(|o| o.to_value())
-        .collect()
-}
-
 #[test]
 fn a_position_move_reaches_its_target_in_the_controllers_units_and_arrives() {
-    let mut arm = arm();
+    let mut arm = moteus_arm();
     let t0 = arm.now();
     arm.line(
         Origin(1),
@@ -95,7 +85,7 @@ fn a_position_move_reaches_its_target_in_the_controllers_units_and_arrives() {
         r#"{"motor_id":"knee","timestamp":0,"control_mode":"position","setpoint":-0.5}"#,
     );
     arm.run_until(t0 + Duration::from_secs(2)).unwrap();
-    let out = results(&mut arm);
+    let out = common::answers(&mut arm);
     assert_eq!(out[0]["ok"], true, "{out:?}");
     assert_eq!(
         out[0]["losses"],
@@ -141,7 +131,7 @@ fn a_position_move_reaches_its_target_in_the_controllers_units_and_arrives() {
 
 #[test]
 fn beyond_a_limit_nothing_is_sent_and_the_refusal_is_typed() {
-    let mut arm = arm();
+    let mut arm = moteus_arm();
     let t0 = arm.now();
     arm.line(
         Origin(1),
@@ -151,8 +141,8 @@ fn beyond_a_limit_nothing_is_sent_and_the_refusal_is_typed() {
         Origin(1),
         r#"{"motor_id":"hip","timestamp":0,"control_mode":"velocity","setpoint":200}"#,
     );
-    arm.run_until(t0 + ms(200)).unwrap();
-    let out = results(&mut arm);
+    arm.run_until(t0 + common::ms(200)).unwrap();
+    let out = common::answers(&mut arm);
     assert_eq!(out[0]["ok"], false);
     assert_eq!(out[0]["error"]["rule"], "outside_limit", "{out:?}");
     assert_eq!(out[1]["error"]["rule"], "outside_limit", "{out:?}");
@@ -162,14 +152,14 @@ fn beyond_a_limit_nothing_is_sent_and_the_refusal_is_typed() {
 
 #[test]
 fn a_silent_velocity_stream_is_stopped_by_the_deadman_before_the_controllers_watchdog() {
-    let mut arm = arm();
+    let mut arm = moteus_arm();
     let t0 = arm.now();
     for k in 0..10u64 {
         arm.line(Origin(1), r#"{"motor_id":"hip","timestamp":0,"control_mode":"velocity","setpoint":90,"stream":true}"#);
-        arm.run_until(t0 + ms(20 * (k + 1))).unwrap();
+        arm.run_until(t0 + common::ms(20 * (k + 1))).unwrap();
     }
     assert!(arm.moteus(1).unwrap().velocity() > 0.2);
-    arm.run_until(t0 + ms(800)).unwrap();
+    arm.run_until(t0 + common::ms(800)).unwrap();
     let m = arm.moteus(1).unwrap();
     // Stopped by the bridge's deadman (stop mode), not timed out.
     assert_eq!(m.mode(), motorwire_sim::moteus::mode::STOPPED);
@@ -186,7 +176,7 @@ fn a_silent_velocity_stream_is_stopped_by_the_deadman_before_the_controllers_wat
 
 #[test]
 fn one_emergency_stop_stops_every_moteus_controller_its_own_way() {
-    let mut arm = arm();
+    let mut arm = moteus_arm();
     let t0 = arm.now();
     arm.line(
         Origin(1),
@@ -196,9 +186,9 @@ fn one_emergency_stop_stops_every_moteus_controller_its_own_way() {
         Origin(1),
         r#"{"motor_id":"knee","timestamp":0,"control_mode":"position","setpoint":1.4}"#,
     );
-    arm.run_until(t0 + ms(150)).unwrap();
+    arm.run_until(t0 + common::ms(150)).unwrap();
     arm.line(Origin(1), r#"{"emergency_stop":true}"#);
-    arm.run_until(t0 + ms(600)).unwrap();
+    arm.run_until(t0 + common::ms(600)).unwrap();
     // The hip stopped, the knee braked (its map's stop), neither at its target.
     assert_eq!(
         arm.moteus(1).unwrap().mode(),
@@ -217,7 +207,7 @@ fn one_emergency_stop_stops_every_moteus_controller_its_own_way() {
         Origin(1),
         r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":10}"#,
     );
-    arm.run_until(t1 + ms(300)).unwrap();
+    arm.run_until(t1 + common::ms(300)).unwrap();
     let hip = modes_sent(&arm, 1, t1);
     assert!(hip.len() >= 10, "{hip:?}");
     assert!(hip.iter().all(|m| *m == 0), "{hip:?}");
@@ -268,7 +258,7 @@ limits = { min_position = 0, max_position = 140, max_velocity = 240, max_acceler
     for seed in 0..40 {
         let faults = motorwire_can::Faults {
             delay: 0.5,
-            max_delay: ms(80),
+            max_delay: common::ms(80),
             duplicate: 0.3,
             reorder: 0.3,
             ..motorwire_can::Faults::default()
@@ -280,19 +270,19 @@ limits = { min_position = 0, max_position = 140, max_velocity = 240, max_acceler
         };
         let bridge = Bridge::new(map.clone(), BridgeConfig::default()).unwrap();
         let mut arm = SimulatedArm::new(bridge, config).unwrap();
-        arm.run_until(ms(200)).unwrap();
+        arm.run_until(common::ms(200)).unwrap();
         let t0 = arm.now();
         arm.line(
             Origin(1),
             r#"{"motor_id":"knee","timestamp":0,"control_mode":"position","setpoint":140}"#,
         );
-        arm.run_until(t0 + ms(150 + seed % 7 * 20)).unwrap();
+        arm.run_until(t0 + common::ms(150 + seed % 7 * 20)).unwrap();
         arm.line(Origin(1), r#"{"emergency_stop":true}"#);
         // The stop's result: acked by the controller.
         let mut stopped_at = None;
         for _ in 0..200 {
-            arm.step(ms(5)).unwrap();
-            let out = results(&mut arm);
+            arm.step(common::ms(5)).unwrap();
+            let out = common::answers(&mut arm);
             if out
                 .iter()
                 .any(|v| v["emergency_stop"] == true && v["ok"] == true)
@@ -303,9 +293,9 @@ limits = { min_position = 0, max_position = 140, max_velocity = 240, max_acceler
         }
         let at_stop = stopped_at.expect("the stop was acked");
         let mut furthest = at_stop;
-        let until = arm.now() + ms(1_000);
+        let until = arm.now() + common::ms(1_000);
         while arm.now() < until {
-            arm.step(ms(2)).unwrap();
+            arm.step(common::ms(2)).unwrap();
             let p = arm.moteus(2).unwrap().position() * 360.0;
             furthest = furthest.max(p);
         }
@@ -324,7 +314,7 @@ limits = { min_position = 0, max_position = 140, max_velocity = 240, max_acceler
 
 #[test]
 fn replies_become_wia_feedback_in_the_motors_unit() {
-    let mut arm = arm();
+    let mut arm = moteus_arm();
     let t0 = arm.now();
     arm.line(
         Origin(1),
@@ -351,11 +341,11 @@ fn replies_become_wia_feedback_in_the_motors_unit() {
 
 #[test]
 fn a_reset_goes_to_that_controller_alone() {
-    let mut arm = arm();
+    let mut arm = moteus_arm();
     let t0 = arm.now();
     arm.line(Origin(1), r#"{"reset":"knee"}"#);
-    arm.run_until(t0 + ms(200)).unwrap();
-    let out = results(&mut arm);
+    arm.run_until(t0 + common::ms(200)).unwrap();
+    let out = common::answers(&mut arm);
     assert_eq!(out[0]["ok"], true, "{out:?}");
     // The knee's own stop (its map brakes it), repeated until another
     // command; nothing to the hip.
@@ -377,16 +367,16 @@ fn a_reset_goes_to_that_controller_alone() {
 
 #[test]
 fn a_fault_is_named_stops_everything_and_a_reset_brings_the_controller_back() {
-    let mut arm = arm();
+    let mut arm = moteus_arm();
     let t0 = arm.now();
     arm.line(
         Origin(1),
         r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":60}"#,
     );
-    arm.run_until(t0 + ms(100)).unwrap();
+    arm.run_until(t0 + common::ms(100)).unwrap();
     // A motor driver fault (33) mid-move.
     arm.moteus_fault(1, 33);
-    arm.run_until(t0 + ms(300)).unwrap();
+    arm.run_until(t0 + common::ms(300)).unwrap();
     let out: Vec<Value> = arm.take_outputs().iter().map(Output::to_value).collect();
     let fault = out
         .iter()
@@ -419,8 +409,8 @@ fn a_fault_is_named_stops_everything_and_a_reset_brings_the_controller_back() {
         Origin(1),
         r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":10}"#,
     );
-    arm.run_until(t0 + ms(400)).unwrap();
-    let r = results(&mut arm);
+    arm.run_until(t0 + common::ms(400)).unwrap();
+    let r = common::answers(&mut arm);
     let refused = r
         .iter()
         .find(|v| v["ok"] == false)
@@ -434,7 +424,7 @@ fn a_fault_is_named_stops_everything_and_a_reset_brings_the_controller_back() {
         "{refused}"
     );
     arm.line(Origin(1), r#"{"reset":"hip"}"#);
-    arm.run_until(t0 + ms(600)).unwrap();
+    arm.run_until(t0 + common::ms(600)).unwrap();
     assert_eq!(
         arm.moteus(1).unwrap().mode(),
         motorwire_sim::moteus::mode::STOPPED
@@ -445,7 +435,7 @@ fn a_fault_is_named_stops_everything_and_a_reset_brings_the_controller_back() {
         r#"{"motor_id":"hip","timestamp":0,"control_mode":"position","setpoint":10}"#,
     );
     arm.run_until(t0 + Duration::from_secs(2)).unwrap();
-    let r = results(&mut arm);
+    let r = common::answers(&mut arm);
     assert!(r.iter().all(|v| v["ok"] != false), "{r:?}");
     assert!((arm.moteus(1).unwrap().position() - 10.0 / 360.0).abs() < 1e-6);
 }
@@ -457,18 +447,18 @@ fn a_fault_is_named_stops_everything_and_a_reset_brings_the_controller_back() {
 /// on the last.
 #[test]
 fn a_trajectory_runs_on_a_moteus_joint_through_its_waypoints() {
-    let mut arm = arm();
+    let mut arm = moteus_arm();
     let t0 = arm.now();
     let doc = r#"{"trajectory_id":"wave","motor_id":"hip","waypoints":[{"position":0,"velocity":0,"time":0},{"position":40,"velocity":0,"time":1.0},{"position":80,"velocity":0,"time":2.0},{"position":20,"velocity":0,"time":3.5}],"timing":{"interpolation":"quintic"}}"#;
     arm.line(Origin(1), doc);
     // Where the hip is at each waypoint's time (degrees).
     let mut at = Vec::new();
     for t in [1000u64, 2000, 3500] {
-        arm.run_until(t0 + ms(t)).unwrap();
+        arm.run_until(t0 + common::ms(t)).unwrap();
         at.push(arm.moteus(1).unwrap().position() * 360.0);
     }
     arm.run_until(t0 + Duration::from_secs(5)).unwrap();
-    let out = results(&mut arm);
+    let out = common::answers(&mut arm);
     assert_eq!(out[0]["ok"], true, "{out:?}");
     let done = out
         .iter()
@@ -484,10 +474,10 @@ fn a_trajectory_runs_on_a_moteus_joint_through_its_waypoints() {
     // Beyond the map's range: refused whole, nothing sent.
     let t1 = arm.now();
     arm.line(Origin(1), r#"{"trajectory_id":"far","motor_id":"hip","waypoints":[{"position":20,"velocity":0,"time":0},{"position":95,"velocity":0,"time":2}],"timing":{"interpolation":"quintic"}}"#);
-    arm.run_until(t1 + ms(100)).unwrap();
-    let out = results(&mut arm);
+    arm.run_until(t1 + common::ms(100)).unwrap();
+    let out = common::answers(&mut arm);
     assert_eq!(out[0]["error"]["rule"], "infeasible", "{out:?}");
-    arm.run_until(t1 + ms(500)).unwrap();
+    arm.run_until(t1 + common::ms(500)).unwrap();
     assert!((arm.moteus(1).unwrap().position() * 360.0 - 20.0).abs() < 1e-3);
 }
 
@@ -496,14 +486,14 @@ fn a_trajectory_runs_on_a_moteus_joint_through_its_waypoints() {
 /// went out with the map's 2 Nm).
 #[test]
 fn a_torque_limit_taken_mid_trajectory_binds_its_later_segments() {
-    let mut arm = arm();
+    let mut arm = moteus_arm();
     let t0 = arm.now();
     arm.line(Origin(1), r#"{"trajectory_id":"t","motor_id":"hip","waypoints":[{"position":0,"velocity":0,"time":0},{"position":40,"velocity":0,"time":1.0},{"position":-20,"velocity":0,"time":2.5},{"position":0,"velocity":0,"time":3.5}],"timing":{"interpolation":"quintic"}}"#);
-    arm.run_until(t0 + ms(500)).unwrap();
+    arm.run_until(t0 + common::ms(500)).unwrap();
     let t1 = arm.now();
     arm.line(Origin(1), r#"{"motor_id":"hip","position_limits":{"min":-90,"max":90},"velocity_limits":{"max_velocity":180},"torque_limits":{"continuous_torque":1,"peak_torque":2}}"#);
     arm.run_until(t0 + Duration::from_secs(5)).unwrap();
-    let out = results(&mut arm);
+    let out = common::answers(&mut arm);
     assert!(
         out.iter().any(|v| v["line"] == 2 && v["ok"] == true),
         "{out:?}"
@@ -558,7 +548,7 @@ limits = { min_position = 0, max_position = 90, max_velocity = 60, max_accelerat
         let motor = map.motors().next().unwrap().name.clone();
         let bridge = Bridge::new(map, BridgeConfig::default()).unwrap();
         let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
-        arm.run_until(ms(100)).unwrap();
+        arm.run_until(common::ms(100)).unwrap();
         let t0 = arm.now();
         arm.line(
             Origin(1),
@@ -569,7 +559,7 @@ limits = { min_position = 0, max_position = 90, max_velocity = 60, max_accelerat
         // Stalled (a timer due again at the instant it was handled) is
         // an error of the simulated arm's, no longer a spin.
         arm.run_until(t0 + Duration::from_secs(3)).unwrap();
-        let out = results(&mut arm);
+        let out = common::answers(&mut arm);
         assert_eq!(out[0]["ok"], true, "{motor}: {out:?}");
         assert!(out.iter().any(|v| v["arrived"] == true), "{motor}: {out:?}");
     }
@@ -594,7 +584,7 @@ fn each_controllers_own_bounds_follow_the_limits_in_force_within_its_own() {
     let mut arm = SimulatedArm::new(bridge, SimConfig::default()).unwrap();
     let rev = |rad: f64| rad / std::f64::consts::TAU;
     arm.moteus_bounds(2, rev(-1.0), rev(1.2));
-    arm.run_until(ms(100)).unwrap();
+    arm.run_until(common::ms(100)).unwrap();
     let start = device_bounds(&mut arm);
     let by_motor = |events: &[Value], motor: &str| -> Vec<Value> {
         events
@@ -636,7 +626,7 @@ fn each_controllers_own_bounds_follow_the_limits_in_force_within_its_own() {
         )
     };
     arm.line(Origin(1), &limits(-0.5, 0.75));
-    arm.run_until(arm.now() + ms(200)).unwrap();
+    arm.run_until(arm.now() + common::ms(200)).unwrap();
     knee_bounds(&arm, -0.5, 0.75);
     let told = device_bounds(&mut arm);
     assert_eq!(told.len(), 1, "{told:?}");
@@ -645,7 +635,7 @@ fn each_controllers_own_bounds_follow_the_limits_in_force_within_its_own() {
     // Back to the map's range: the controller goes back to its own, never
     // wider.
     arm.line(Origin(1), &limits(-1.5, 1.5));
-    arm.run_until(arm.now() + ms(200)).unwrap();
+    arm.run_until(arm.now() + common::ms(200)).unwrap();
     knee_bounds(&arm, -1.0, 1.2);
     let told = device_bounds(&mut arm);
     assert_eq!(told.len(), 1, "{told:?}");
@@ -683,13 +673,13 @@ fn each_controllers_own_bounds_follow_the_limits_in_force_within_its_own() {
 /// compact and Orion axes go unsynchronized.
 #[test]
 fn a_multi_axis_line_names_the_moteus_axes_it_does_not_synchronize() {
-    let mut arm = arm();
+    let mut arm = moteus_arm();
     arm.line(
         Origin(1),
         r#"{"command_id":"m","timestamp":0,"sync_mode":"simultaneous","motors":[{"motor_id":"elbow","control_mode":"position","setpoint":20},{"motor_id":"hip","control_mode":"position","setpoint":10},{"motor_id":"knee","control_mode":"position","setpoint":0.2}]}"#,
     );
     arm.run_until(arm.now() + Duration::from_secs(2)).unwrap();
-    let out = results(&mut arm);
+    let out = common::answers(&mut arm);
     let r = out.iter().find(|v| v.get("ok").is_some()).unwrap();
     assert_eq!(r["ok"], true, "{r}");
     assert_eq!(

@@ -8,10 +8,12 @@
     clippy::indexing_slicing
 )]
 
+mod common;
+
 use std::time::Duration;
 
 use motorwire_bridge::{Bridge, BridgeConfig, Origin, Output};
-use motorwire_orion::{ArmController, FeedbackKeys, Motor};
+use motorwire_orion::Motor;
 use motorwire_translate::BusMap;
 use serde_json::{Value, json};
 
@@ -35,131 +37,14 @@ key = "GHS"
 limits = { min_position = -90, max_position = 90 }
 "#;
 
-/// The bridge and the controller, on one simulated clock.
-struct Rig {
-    bridge: Bridge,
-    arm: ArmController,
-    now: Duration,
-    /// Every line the bridge wrote to the controller.
-    sent: Vec<String>,
-    /// Answers held back (the controller is slow): delivered by `release`.
-    held: Vec<String>,
-    /// Whether the controller answers (false: it hears nothing).
-    answering: bool,
-    /// Whether answers are held back.
-    holding: bool,
-    out: Vec<Value>,
-}
-
-impl Rig {
-    fn new() -> Self {
-        let config = BridgeConfig {
-            orion: true,
-            activate_on_start: false,
-            ..BridgeConfig::default()
-        };
-        let mut bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
-        bridge.start(Duration::ZERO);
-        let mut rig = Self {
-            bridge,
-            arm: ArmController::new(),
-            now: Duration::ZERO,
-            sent: Vec::new(),
-            held: Vec::new(),
-            answering: true,
-            holding: false,
-            out: Vec::new(),
-        };
-        rig.pump();
-        rig
-    }
-
-    /// The controller boots: its beacon.
-    fn boot(&mut self) {
-        self.bridge.handle_link_line(self.now, r#"{"ID":32}"#);
-        self.pump();
-    }
-
-    fn pump(&mut self) {
-        loop {
-            let mut any = false;
-            while let Some(line) = self.bridge.poll_link_line() {
-                any = true;
-                self.sent.push(line.clone());
-                if !self.answering {
-                    continue;
-                }
-                let answer = self
-                    .arm
-                    .handle_line(&line)
-                    .unwrap()
-                    .output
-                    .to_json(FeedbackKeys::Table);
-                if self.holding {
-                    self.held.push(answer);
-                } else {
-                    self.bridge.handle_link_line(self.now, &answer);
-                }
-            }
-            while self.bridge.poll_transmit().is_some() {}
-            self.bridge.flushed(self.now);
-            while let Some(o) = self.bridge.poll_output() {
-                any = true;
-                self.out.push(o.to_value());
-            }
-            if !any {
-                break;
-            }
-        }
-    }
-
-    fn release(&mut self) {
-        for answer in std::mem::take(&mut self.held) {
-            self.bridge.handle_link_line(self.now, &answer);
-        }
-        self.pump();
-    }
-
-    fn line(&mut self, text: &str) {
-        self.bridge.handle_line(self.now, Origin(0), text);
-        self.pump();
-    }
-
-    fn advance(&mut self, by: Duration) {
-        let end = self.now + by;
-        while self.now < end {
-            self.now = (self.now + Duration::from_millis(5)).min(end);
-            self.bridge.handle_timeout(self.now);
-            self.pump();
-        }
-    }
-
-    /// The lines written since `from`, polls (empty DATA) left out.
-    fn commands_since(&self, from: usize) -> Vec<&str> {
-        self.sent[from..]
-            .iter()
-            .map(String::as_str)
-            .filter(|l| *l != r#"{"ID":32,"MODE":1,"DATA":{}}"#)
-            .collect()
-    }
-
-    fn result(&self, line: u64) -> Option<&Value> {
-        self.out
-            .iter()
-            .find(|v| v["line"] == line && v.get("ok").is_some())
-    }
-}
-
-fn velocity(motor: &str, v: f64) -> String {
-    format!(r#"{{"motor_id":"{motor}","timestamp":0,"control_mode":"velocity","setpoint":{v}}}"#)
-}
+use common::OrionRig as Rig;
 
 #[test]
 fn nothing_goes_before_the_boot_beacon_then_only_changed_keys() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     // Before the beacon the motors are offline: refused at once, never
     // held to run once it comes.
-    rig.line(&velocity("turntable", 200.0));
+    rig.line(&common::velocity("turntable", 200.0));
     assert!(rig.sent.is_empty(), "{:?}", rig.sent);
     let r = rig.result(1).unwrap();
     assert_eq!(r["error"]["kind"], "offline", "{r}");
@@ -176,7 +61,7 @@ fn nothing_goes_before_the_boot_beacon_then_only_changed_keys() {
         "{:?}",
         rig.out
     );
-    rig.line(&velocity("turntable", 200.0));
+    rig.line(&common::velocity("turntable", 200.0));
     assert_eq!(
         rig.commands_since(0),
         [r#"{"ID":32,"MODE":1,"DATA":{"TRM":200}}"#]
@@ -188,8 +73,8 @@ fn nothing_goes_before_the_boot_beacon_then_only_changed_keys() {
     // The same value again is not sent again (the controller remembers
     // it); another motor's key goes alone.
     let from = rig.sent.len();
-    rig.line(&velocity("turntable", 200.0));
-    rig.line(&velocity("arm_extension", -50.0));
+    rig.line(&common::velocity("turntable", 200.0));
+    rig.line(&common::velocity("arm_extension", -50.0));
     assert_eq!(
         rig.commands_since(from),
         [r#"{"ID":32,"MODE":1,"DATA":{"AEM":-50}}"#]
@@ -212,10 +97,10 @@ fn a_controller_heard_again_is_stopped_before_its_motors_are_online() {
             .filter(|v| v["event"] == "online" && v["motor_id"] == "turntable")
             .count()
     };
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     for (case, lose) in [("lost", true), ("silent", false)] {
-        rig.line(&velocity("turntable", 200.0));
+        rig.line(&common::velocity("turntable", 200.0));
         assert_eq!(rig.arm.value(Motor::Turntable), 200.0, "{case}");
         // Nothing reaches the controller any more, nor comes from it.
         rig.answering = false;
@@ -227,7 +112,7 @@ fn a_controller_heard_again_is_stopped_before_its_motors_are_online() {
         rig.advance(Duration::from_millis(800));
         let out = rig.out.len();
         let n = rig.out.iter().filter(|v| v.get("ok").is_some()).count() as u64;
-        rig.line(&velocity("turntable", 100.0));
+        rig.line(&common::velocity("turntable", 100.0));
         let r = rig.result(n + 1).unwrap();
         // Silent, the deadman's stop went unanswered, which latches the
         // emergency stop (when in doubt, stop); lost, the link says so.
@@ -265,14 +150,14 @@ fn a_controller_heard_again_is_stopped_before_its_motors_are_online() {
             assert_eq!(rig.result(next).unwrap()["released"], true, "{case}");
             next += 1;
         }
-        rig.line(&velocity("turntable", 0.0));
+        rig.line(&common::velocity("turntable", 0.0));
         assert_eq!(rig.result(next).unwrap()["ok"], true, "{case}");
     }
 }
 
 #[test]
 fn a_multi_axis_command_for_orion_motors_is_one_line_and_the_gate_refuses_a_clamp() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     let from = rig.sent.len();
     rig.line(
@@ -299,7 +184,7 @@ fn a_multi_axis_command_for_orion_motors_is_one_line_and_the_gate_refuses_a_clam
     // 500 is outside the controller's [-400, 400]: it would clamp it, so
     // the gate refuses it and nothing is written.
     let from = rig.sent.len();
-    rig.line(&velocity("turntable", 500.0));
+    rig.line(&common::velocity("turntable", 500.0));
     let r = rig.result(2).unwrap();
     assert_eq!(r["ok"], false);
     assert_eq!(
@@ -327,12 +212,12 @@ fn a_multi_axis_command_for_orion_motors_is_one_line_and_the_gate_refuses_a_clam
 
 #[test]
 fn the_stop_goes_out_at_once_ahead_of_a_line_in_flight_and_its_answer_is_not_taken_for_the_stop() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     rig.holding = true;
     let from = rig.sent.len();
-    rig.line(&velocity("turntable", 300.0));
-    rig.line(&velocity("arm_extension", 100.0));
+    rig.line(&common::velocity("turntable", 300.0));
+    rig.line(&common::velocity("arm_extension", 100.0));
     // One line in flight: the second waits for its answer.
     assert_eq!(
         rig.commands_since(from),
@@ -390,13 +275,13 @@ fn the_stop_goes_out_at_once_ahead_of_a_line_in_flight_and_its_answer_is_not_tak
 
 #[test]
 fn a_silent_controller_stops_a_spinning_turntable_by_the_deadman() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
-    rig.line(&velocity("turntable", 250.0));
+    rig.line(&common::velocity("turntable", 250.0));
     assert_eq!(rig.arm.value(Motor::Turntable), 250.0);
     // Renewed within 200 ms: it keeps turning.
     rig.advance(Duration::from_millis(150));
-    rig.line(&velocity("turntable", 250.0));
+    rig.line(&common::velocity("turntable", 250.0));
     rig.advance(Duration::from_millis(150));
     assert_eq!(rig.arm.value(Motor::Turntable), 250.0);
     assert!(!rig.out.iter().any(|v| v["event"] == "deadman"));
@@ -416,7 +301,7 @@ fn a_silent_controller_stops_a_spinning_turntable_by_the_deadman() {
     // Once per silent command: the stop (speed 0) is not timed out, nor is
     // a speed 0 from the controller.
     rig.advance(Duration::from_secs(2));
-    rig.line(&velocity("turntable", 0.0));
+    rig.line(&common::velocity("turntable", 0.0));
     rig.advance(Duration::from_secs(2));
     let deadmen = rig.out.iter().filter(|v| v["event"] == "deadman").count();
     assert_eq!(deadmen, 1, "{:?}", rig.out);
@@ -424,11 +309,11 @@ fn a_silent_controller_stops_a_spinning_turntable_by_the_deadman() {
 
 #[test]
 fn an_unanswered_line_is_sent_again_then_its_outcome_is_unknown_and_the_motors_go_offline() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     rig.answering = false;
     let from = rig.sent.len();
-    rig.line(&velocity("turntable", 100.0));
+    rig.line(&common::velocity("turntable", 100.0));
     rig.advance(Duration::from_millis(1000));
     // Sent once and again three times (100 ms Ack timeout, 3 retries).
     assert_eq!(
@@ -461,12 +346,12 @@ fn an_unanswered_line_is_sent_again_then_its_outcome_is_unknown_and_the_motors_g
         rig.out
     );
     assert!(rig.bridge.is_latched());
-    rig.line(&velocity("arm_extension", 10.0));
+    rig.line(&common::velocity("arm_extension", 10.0));
     let r = rig.result(2).unwrap();
     assert_eq!(r["error"]["kind"], "emergency_stop_latched", "{r}");
     // Released, its motors are still offline: nothing heard.
     rig.line(r#"{"emergency_stop": false}"#);
-    rig.line(&velocity("arm_extension", 10.0));
+    rig.line(&common::velocity("arm_extension", 10.0));
     let r = rig.result(4).unwrap();
     assert_eq!(r["error"]["kind"], "offline", "{r}");
     assert_eq!(
@@ -477,10 +362,10 @@ fn an_unanswered_line_is_sent_again_then_its_outcome_is_unknown_and_the_motors_g
 
 #[test]
 fn lines_that_are_not_the_controllers_are_reported_and_never_acted_on() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     rig.holding = true;
-    rig.line(&velocity("turntable", 100.0));
+    rig.line(&common::velocity("turntable", 100.0));
     for bad in [
         "not json",
         r#"{"ID":33,"MODE":1,"DATA":{"TRMF":[100,20,0]}}"#,
@@ -504,7 +389,7 @@ fn lines_that_are_not_the_controllers_are_reported_and_never_acted_on() {
 
 #[test]
 fn fold_and_unfold_are_the_controllers_command_mode_and_cmdf_0_fails_the_line() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     let from = rig.sent.len();
     rig.line(r#"{"orion":"fold"}"#);
@@ -540,7 +425,7 @@ fn fold_and_unfold_are_the_controllers_command_mode_and_cmdf_0_fails_the_line() 
 
 #[test]
 fn a_lost_link_reports_it_and_takes_the_orion_motors_offline() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     rig.bridge
         .handle_link_lost(rig.now, "the controller's stream ended");
@@ -564,7 +449,7 @@ fn a_lost_link_reports_it_and_takes_the_orion_motors_offline() {
     rig.bridge.handle_link_lost(rig.now, "again");
     rig.pump();
     assert_eq!(rig.out.len(), before, "{:?}", &rig.out[before..]);
-    rig.line(&velocity("turntable", 10.0));
+    rig.line(&common::velocity("turntable", 10.0));
     assert_eq!(rig.result(1).unwrap()["error"]["kind"], "offline");
     // A stop still answers, and the iRPC joint is still served.
     rig.line(r#"{"emergency_stop":true}"#);
@@ -578,7 +463,7 @@ fn a_lost_link_reports_it_and_takes_the_orion_motors_offline() {
 /// offline event carries).
 #[test]
 fn a_move_watched_when_the_link_is_lost_is_said_so() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     // The servo acknowledges the line still standing at 0 (it moves on
     // its own time).
@@ -586,7 +471,7 @@ fn a_move_watched_when_the_link_is_lost_is_said_so() {
     rig.line(
         r#"{"motor_id":"grasper_horizontal_servo","timestamp":0,"control_mode":"position","setpoint":30}"#,
     );
-    answer(&mut rig, r#"{"GHSF":[0,0,0]}"#);
+    controller_answers(&mut rig, r#"{"GHSF":[0,0,0]}"#);
     assert_eq!(rig.result(1).unwrap()["ok"], true, "{:?}", rig.out);
     assert!(
         !rig.out.iter().any(|v| v.get("arrived").is_some()),
@@ -615,7 +500,11 @@ fn without_an_orion_controller_its_motors_are_refused() {
     };
     let mut bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
     bridge.start(Duration::ZERO);
-    bridge.handle_line(Duration::ZERO, Origin(0), &velocity("turntable", 10.0));
+    bridge.handle_line(
+        Duration::ZERO,
+        Origin(0),
+        &common::velocity("turntable", 10.0),
+    );
     let r = std::iter::from_fn(|| bridge.poll_output())
         .find_map(|o| match o {
             Output::Result { result, .. } => Some(result),
@@ -631,7 +520,7 @@ fn without_an_orion_controller_its_motors_are_refused() {
 }
 
 /// Answers the line in flight by hand: `data` is the answer's DATA.
-fn answer(rig: &mut Rig, data: &str) {
+fn controller_answers(rig: &mut Rig, data: &str) {
     let line = format!(r#"{{"ID":32,"MODE":1,"DATA":{data}}}"#);
     rig.bridge.handle_link_line(rig.now, &line);
     rig.pump();
@@ -641,14 +530,14 @@ fn answer(rig: &mut Rig, data: &str) {
 fn what_the_controller_reports_never_stands_for_what_was_commanded() {
     // A controller whose feedback is the motor's actual speed, still 0
     // while it spins up: a stop value is sent all the same.
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     rig.answering = false;
     let from = rig.sent.len();
-    rig.line(&velocity("turntable", 150.0));
-    answer(&mut rig, r#"{"TRMF":[0,0.1,0]}"#);
+    rig.line(&common::velocity("turntable", 150.0));
+    controller_answers(&mut rig, r#"{"TRMF":[0,0.1,0]}"#);
     assert_eq!(rig.result(1).unwrap()["ok"], true);
-    rig.line(&velocity("turntable", 0.0));
+    rig.line(&common::velocity("turntable", 0.0));
     assert_eq!(
         rig.commands_since(from),
         [
@@ -656,10 +545,10 @@ fn what_the_controller_reports_never_stands_for_what_was_commanded() {
             r#"{"ID":32,"MODE":1,"DATA":{"TRM":0}}"#
         ]
     );
-    answer(&mut rig, r#"{"TRMF":[0,0,0]}"#);
+    controller_answers(&mut rig, r#"{"TRMF":[0,0,0]}"#);
     // And the deadman's 0 for a speed set again goes out too.
-    rig.line(&velocity("turntable", 150.0));
-    answer(&mut rig, r#"{"TRMF":[0,0.1,0]}"#);
+    rig.line(&common::velocity("turntable", 150.0));
+    controller_answers(&mut rig, r#"{"TRMF":[0,0.1,0]}"#);
     let from = rig.sent.len();
     rig.advance(Duration::from_millis(250));
     assert!(
@@ -669,12 +558,12 @@ fn what_the_controller_reports_never_stands_for_what_was_commanded() {
         rig.sent
     );
     // An unsolicited report of 150 does not make a later 150 "unchanged".
-    answer(&mut rig, r#"{"TRMF":[0,0,0]}"#);
+    controller_answers(&mut rig, r#"{"TRMF":[0,0,0]}"#);
     rig.bridge
         .handle_link_line(rig.now, r#"{"ID":32,"MODE":1,"DATA":{"TRMF":[150,0,0]}}"#);
     rig.pump();
     let from = rig.sent.len();
-    rig.line(&velocity("turntable", 150.0));
+    rig.line(&common::velocity("turntable", 150.0));
     assert_eq!(
         rig.commands_since(from),
         [r#"{"ID":32,"MODE":1,"DATA":{"TRM":150}}"#]
@@ -683,20 +572,20 @@ fn what_the_controller_reports_never_stands_for_what_was_commanded() {
 
 #[test]
 fn an_answer_that_does_not_report_the_motors_set_acknowledges_nothing() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     rig.answering = false;
-    rig.line(&velocity("turntable", 150.0));
-    answer(&mut rig, "{}");
-    answer(&mut rig, r#"{"LAAF":[0,0,0]}"#);
+    rig.line(&common::velocity("turntable", 150.0));
+    controller_answers(&mut rig, "{}");
+    controller_answers(&mut rig, r#"{"LAAF":[0,0,0]}"#);
     assert!(rig.result(1).is_none(), "{:?}", rig.out);
-    answer(&mut rig, r#"{"TRM":[150,20,0]}"#);
+    controller_answers(&mut rig, r#"{"TRM":[150,20,0]}"#);
     assert_eq!(rig.result(1).unwrap()["ok"], true);
 }
 
 #[test]
 fn a_flooding_controller_cannot_flood_the_output() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     for _ in 0..1000 {
         rig.bridge.handle_link_line(rig.now, "x");
@@ -721,7 +610,7 @@ fn a_flooding_controller_cannot_flood_the_output() {
 
 #[test]
 fn a_stop_is_still_written_when_nothing_comes_from_the_controller_any_more() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     rig.bridge
         .handle_link_lost(rig.now, "the controller's stream ended");
@@ -733,9 +622,9 @@ fn a_stop_is_still_written_when_nothing_comes_from_the_controller_any_more() {
 
 #[test]
 fn a_deadman_stop_that_is_never_answered_stops_everything() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
-    rig.line(&velocity("turntable", 150.0));
+    rig.line(&common::velocity("turntable", 150.0));
     assert_eq!(rig.result(1).unwrap()["ok"], true);
     // The controller stops answering: the deadman's TRM 0 is sent, sent
     // again, never answered; then the emergency stop latches.
@@ -762,7 +651,7 @@ fn a_deadman_stop_that_is_never_answered_stops_everything() {
 /// Reset went to the broadcast node, rebooting every joint mid-move.
 #[test]
 fn a_reset_of_an_orion_motor_is_refused_and_reaches_no_joint() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(MAP);
     rig.boot();
     let lines = rig.sent.len();
     rig.bridge.handle_line(
@@ -826,7 +715,7 @@ key = "TRM"
         Some(r#"{"ID":32,"MODE":1,"DATA":{}}"#)
     );
     bridge.handle_link_line(t, r#"{"ID":32,"MODE":1,"DATA":{"TRM":[0,0,0]}}"#);
-    bridge.handle_line(t, Origin(1), &velocity("turntable", 200.0));
+    bridge.handle_line(t, Origin(1), &common::velocity("turntable", 200.0));
     bridge.handle_line(
         t,
         Origin(1),

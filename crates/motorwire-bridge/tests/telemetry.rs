@@ -10,6 +10,8 @@
     clippy::indexing_slicing
 )]
 
+mod common;
+
 use std::time::Duration;
 
 use motorwire_bridge::sim::SimulatedArm;
@@ -41,24 +43,18 @@ wire = "v2.0"
 
 const ELBOW: u16 = 0x12;
 
-fn arm(telemetry_hz: Option<u16>, faults: Faults) -> SimulatedArm {
+fn telemetry_arm(telemetry_hz: Option<u16>, faults: Faults) -> SimulatedArm {
     let config = BridgeConfig {
         telemetry_hz,
         feedback_period: Some(Duration::from_millis(50)),
         ..BridgeConfig::default()
     };
-    let bridge = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
     let sim = SimConfig {
         seed: 7,
         faults,
         ..SimConfig::default()
     };
-    let mut arm = SimulatedArm::new(bridge, sim).unwrap();
-    assert!(
-        arm.run_while(Duration::from_secs(3), |a| a.bridge().is_ready())
-            .unwrap()
-    );
-    arm
+    common::ready(MAP, config, sim)
 }
 
 /// Every output line until `n` results are in (at most `limit`).
@@ -76,12 +72,6 @@ fn is_result(v: &Value) -> bool {
     v.get("ok").is_some() && v.get("event").is_none()
 }
 
-/// Every output line for `d`.
-fn run_for(arm: &mut SimulatedArm, d: Duration) -> Vec<Value> {
-    arm.run_until(arm.now() + d).unwrap();
-    arm.take_outputs().iter().map(|o| o.to_value()).collect()
-}
-
 fn result(out: &[Value], line: u64) -> &Value {
     out.iter()
         .find(|v| v["line"] == line && is_result(v))
@@ -90,7 +80,7 @@ fn result(out: &[Value], line: u64) -> &Value {
 
 #[test]
 fn v2_1_and_v2_2_joints_are_subscribed_and_their_feedback_carries_the_telemetry() {
-    let mut arm = arm(Some(50), Faults::default());
+    let mut arm = telemetry_arm(Some(50), Faults::default());
     // Subscribed at startup: before any request, the joints' feedback
     // carries what only TelemetryStream reports.
     arm.run_until(arm.now() + Duration::from_millis(200))
@@ -160,9 +150,9 @@ fn v2_1_and_v2_2_joints_are_subscribed_and_their_feedback_carries_the_telemetry(
 
 #[test]
 fn request_lines_are_answered_with_what_the_joint_sent_exactly() {
-    let mut arm = arm(None, Faults::default());
+    let mut arm = telemetry_arm(None, Faults::default());
     arm.fault(ELBOW, JointFault::DriverFault);
-    let out = run_for(&mut arm, Duration::from_millis(100));
+    let out = common::run_for(&mut arm, Duration::from_millis(100));
     assert!(out.iter().any(|v| v["event"] == "joint_fault"), "{out:?}");
     // Read-only requests are answered in every state, Error included.
     arm.line(
@@ -214,7 +204,7 @@ fn request_lines_are_answered_with_what_the_joint_sent_exactly() {
 
 #[test]
 fn calibration_streams_progress_and_its_result_ends_the_line() {
-    let mut arm = arm(None, Faults::default());
+    let mut arm = telemetry_arm(None, Faults::default());
     // Calibration needs the joint Inactive; an Active joint refuses it.
     arm.line(Origin(1), r#"{"calibration":"start","motor_id":"wrist"}"#);
     let out = until_results(&mut arm, 1, Duration::from_secs(1));
@@ -244,7 +234,7 @@ fn calibration_streams_progress_and_its_result_ends_the_line() {
     assert_eq!(phases.last(), Some(&"complete"), "{phases:?}");
     // Started again and stopped: the start line fails with the abort.
     arm.line(Origin(1), r#"{"calibration":"start","motor_id":"wrist"}"#);
-    let _ = run_for(&mut arm, Duration::from_millis(300));
+    let _ = common::run_for(&mut arm, Duration::from_millis(300));
     arm.line(Origin(1), r#"{"calibration":"stop","motor_id":"wrist"}"#);
     let out = until_results(&mut arm, 2, Duration::from_secs(3));
     assert_eq!(result(&out, 5)["ok"], true, "{out:?}");
@@ -273,7 +263,7 @@ fn requests_through_a_faulty_bus_are_answered_or_say_no_answer_never_hang() {
         reorder: 0.1,
         ..Faults::default()
     };
-    let mut arm = arm(Some(20), faults);
+    let mut arm = telemetry_arm(Some(20), faults);
     let n = 40;
     for i in 0..n {
         let line = if i % 2 == 0 {
@@ -362,7 +352,7 @@ fn a_request_acked_without_its_answer_says_no_answer() {
 /// SafetyLimits line's too) is sent.
 #[test]
 fn a_calibration_beyond_the_limits_in_force_is_refused() {
-    let mut arm = arm(None, Faults::default());
+    let mut arm = telemetry_arm(None, Faults::default());
     arm.keep_sent();
     for (n, (line, field, value, limit, bound)) in [
         (
