@@ -40,10 +40,15 @@
 //! The engine (`engine/`, one `impl Bridge` a concern) asks no dialect question:
 //! it reads the bus map into devices through [`Device::of`], sends what
 //! its jobs hold through [`Drivers`], and acts on [`Happened`] the same
-//! way for every device. The dialects' own vocabularies stay in their
-//! drivers: iRPC's lifecycle payloads are the lifecycle the engine drives
-//! (Configure, Activate, Deactivate, Reset), which each device translates
-//! ([`Device::lifecycle_orders`]); request lines (telemetry, calibration)
+//! way for every device. A driver sees the engine's devices read-only,
+//! through [`Registry`] ([`DeviceView`]: name, address, dialect, unit,
+//! whether heard, last feedback), never the engine's own state. The
+//! dialects' own vocabularies stay in their drivers: the lifecycle the
+//! engine drives is its own ([`Lifecycle`]: reset, configure, activate,
+//! deactivate, telemetry), which each device says in its terms
+//! ([`Device::lifecycle_orders`]: iRPC payloads, a compact or moteus stop,
+//! the Orion stop, or nothing); what cannot be sent is a typed
+//! [`DeviceError`]; request lines (telemetry, calibration)
 //! exist for the devices that say [`Capability::Requests`], and their
 //! payloads and answers are the iRPC driver's ([`irpc::request`],
 //! [`Answer`]).
@@ -62,10 +67,13 @@
 //!    byte vectors), its requests in flight with their answers, resends and
 //!    giving up, its feedback decoded into WIA `MotorFeedback`, all told
 //!    to the engine as [`Happened`];
-//! 2. a variant of [`Device`] and of [`Order`], each match in this file
-//!    answered for it (the compiler lists them), and a field of
-//!    [`Drivers`] (its frames routed in [`Drivers::handle_frame`], its
-//!    deadline in [`Drivers::deadline`]);
+//! 2. a variant of [`Device`] and of [`Order`], each match of this module
+//!    answered for it (the compiler lists them: `mod.rs` for the device,
+//!    `order.rs` for its orders, [`Device::lifecycle_orders`] for the
+//!    lifecycle), and a field of [`Drivers`] (`drivers.rs`: its frames
+//!    routed in [`Drivers::handle_frame`], its deadline in
+//!    [`Drivers::deadline`]), reading the devices through [`Registry`];
+//!    what it cannot send or read is a variant of [`DeviceError`];
 //! 3. its bus map entry (`motorwire_translate::Target`) and its translation
 //!    (`Device::single_order`);
 //! 4. its simulated device (`motorwire_sim`, attached by
