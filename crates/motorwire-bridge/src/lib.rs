@@ -20,7 +20,9 @@ pub use classify::{
 };
 pub use clocks::clocks_together;
 pub use device::orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL as ORION_POLL};
-pub use engine::{Bridge, BridgeConfig, BridgeStats, DEFAULT_MAX_AGE_MS, Input, JointView};
+pub use engine::{
+    Bridge, BridgeConfig, BridgeStats, Classified, DEFAULT_MAX_AGE_MS, Input, JointView,
+};
 pub use error::BridgeError;
 
 /// The frame the bridge sends moteus controller `target` for `cmd`: its

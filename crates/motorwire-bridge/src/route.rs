@@ -107,14 +107,18 @@ impl FeedbackRate {
 }
 
 /// The routing of a bridge's outputs to its readers; see the module's
-/// documentation.
+/// documentation. A reader is known from [`Routing::add`] until
+/// [`Routing::forget`]: only a known reader's rate is kept (a
+/// `feedback_hz` answered after its reader left keeps nothing), so what
+/// it holds is bounded by the readers there are.
 ///
 /// ```
 /// use motorwire_bridge::route::{Delivery, Owed, Routing};
 /// use motorwire_bridge::{FeedbackLine, LineResult, Origin, Output};
 ///
 /// let mut routing = Routing::default();
-/// // A client asks for every 2nd feedback line of each motor, and is answered.
+/// routing.add(Origin(7));
+/// // The client asks for every 2nd feedback line of each motor, and is answered.
 /// let answer = Output::Result {
 ///     origin: Origin(7),
 ///     result: Box::new(LineResult { ok: true, line: 1, feedback_every: Some(2), ..LineResult::default() }),
@@ -132,8 +136,8 @@ impl FeedbackRate {
 /// ```
 #[derive(Debug, Clone, Default)]
 pub struct Routing {
-    /// The readers that set a rate of their own (the others take every
-    /// line).
+    /// The readers there are, each with its rate (every line unless it
+    /// set one).
     rates: BTreeMap<Origin, FeedbackRate>,
 }
 
@@ -144,10 +148,17 @@ impl Routing {
         if let Output::Result { origin, result } = o
             && result.ok
             && let Some(every) = result.feedback_every
+            && let Some(rate) = self.rates.get_mut(origin)
         {
-            self.rates.entry(*origin).or_default().set(every);
+            rate.set(every);
         }
         Self::delivery(o)
+    }
+
+    /// `reader` is there (it connected): it takes every feedback line
+    /// until it sets a rate.
+    pub fn add(&mut self, reader: Origin) {
+        self.rates.entry(reader).or_default();
     }
 
     /// Where `o` goes, for a front end that keeps no feedback rates (the
@@ -175,7 +186,8 @@ impl Routing {
     }
 
     /// Whether `reader` takes this feedback line of `motor` (and counts
-    /// it): every line unless it set a rate.
+    /// it): every line unless it set a rate (a reader not known takes
+    /// every line).
     pub fn takes_feedback(&mut self, reader: Origin, motor: &str) -> bool {
         self.rates.get_mut(&reader).is_none_or(|r| r.takes(motor))
     }
@@ -187,7 +199,7 @@ impl Routing {
         self.rates.get(&reader).map_or(1, FeedbackRate::every)
     }
 
-    /// `reader` is gone: its rate is forgotten.
+    /// `reader` is gone: it and its rate are forgotten.
     pub fn forget(&mut self, reader: Origin) {
         self.rates.remove(&reader);
     }
@@ -279,6 +291,9 @@ mod tests {
     #[test]
     fn a_readers_feedback_rate_is_its_own() {
         let mut r = Routing::default();
+        for reader in [1, 2, 5] {
+            r.add(Origin(reader));
+        }
         r.route(&result(1, Some(3), true, None));
         r.route(&result(2, Some(0), true, None));
         // A refused feedback_hz changes nothing.
@@ -299,5 +314,11 @@ mod tests {
         assert_eq!(take(&mut r, 1, "knee", 3), [true, false, true]);
         r.forget(Origin(1));
         assert_eq!(take(&mut r, 1, "knee", 2), [true, true]);
+        // A rate answered after its reader left keeps nothing: what the
+        // routing holds is its readers'.
+        r.route(&result(1, Some(4), true, None));
+        r.route(&result(77, Some(4), true, None));
+        assert_eq!(r.rates.len(), 2, "{:?}", r.rates.keys());
+        assert_eq!(take(&mut r, 77, "knee", 2), [true, true]);
     }
 }

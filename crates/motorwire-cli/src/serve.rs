@@ -743,7 +743,12 @@ impl Router {
             connected: AtomicUsize::new(0),
             authenticating: AtomicUsize::new(0),
             waiting: Mutex::default(),
-            routing: Mutex::default(),
+            routing: Mutex::new({
+                // Standard output reads standard input's lines.
+                let mut r = Routing::default();
+                r.add(STDIN);
+                r
+            }),
         });
         let r = Arc::clone(&router);
         thread::spawn(move || r.write_stdout(&lines));
@@ -912,9 +917,11 @@ impl Router {
     fn to_every_client(&self, line: &Arc<str>, feedback_of: Option<&str>) {
         let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
         let mut gone = Vec::new();
-        let mut routing = self.routing.lock().unwrap_or_else(PoisonError::into_inner);
+        // Locked for feedback only (an event goes to every client).
+        let mut routing =
+            feedback_of.map(|_| self.routing.lock().unwrap_or_else(PoisonError::into_inner));
         for (id, c) in clients.iter_mut().filter(|(_, c)| c.greeted) {
-            if let Some(motor) = feedback_of
+            if let (Some(motor), Some(routing)) = (feedback_of, routing.as_mut())
                 && !routing.takes_feedback(Origin(*id), motor)
             {
                 continue;
@@ -971,22 +978,26 @@ impl Router {
         let mut writer = conn.try_clone()?;
         writer.set_write_timeout(SOCKET_WRITE_WAIT);
         let outlet = Arc::new(Outlet::new(queue_len));
-        self.clients
+        let mut clients = self.clients.lock().unwrap_or_else(PoisonError::into_inner);
+        // Known to the routing while it is a client (its feedback rate).
+        self.routing
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
-            .insert(
-                id,
-                Client {
-                    queue,
-                    outlet: Arc::clone(&outlet),
-                    conn,
-                    delivered: 0,
-                    arrivals_owed: 0,
-                    arrivals_sent: 0,
-                    owed: None,
-                    greeted: !greet,
-                },
-            );
+            .add(Origin(id));
+        clients.insert(
+            id,
+            Client {
+                queue,
+                outlet: Arc::clone(&outlet),
+                conn,
+                delivered: 0,
+                arrivals_owed: 0,
+                arrivals_sent: 0,
+                owed: None,
+                greeted: !greet,
+            },
+        );
+        drop(clients);
         if greet {
             // After it is registered: its greeting finds it.
             self.input.greet(Origin(id));

@@ -991,8 +991,14 @@ fn parse_record(v: &Value) -> Result<Recorded, RecordError> {
         let id = if extended {
             CanId::extended(raw)
         } else {
-            // A standard id past 16 bits is past 11 too: the bus's refusal.
-            CanId::standard(u16::try_from(raw).unwrap_or(u16::MAX))
+            // A standard id past 16 bits is past 11 too: refused as the
+            // bus refuses one, naming the id as recorded.
+            u16::try_from(raw)
+                .map_err(|_| motorwire_can::Error::InvalidId {
+                    id: raw,
+                    extended: false,
+                })
+                .and_then(CanId::standard)
         }
         .map_err(|e| RecordError::FrameId(raw, e))?;
         let hex = b

@@ -74,7 +74,7 @@ impl Bridge {
     /// A stop line (`meta`, labelled when it names a motor or a
     /// command).
     pub(super) fn take_stop(&mut self, now: Duration, meta: LineMeta, problems: Vec<String>) {
-        self.last_stop_arrival = Some(self.last_stop_arrival.map_or(now, |t| t.max(now)));
+        self.stop.line_arrived(now);
         self.stats.lines += 1;
         let cause = match &meta.label {
             Some(Label::Motor(v) | Label::Command(v) | Label::Orion(v)) => v.clone(),
@@ -151,7 +151,7 @@ impl Bridge {
             // overtook the queue, or the release waited for startup):
             // releasing now would let what followed the release run after
             // the stop.
-            Line::Release if self.last_stop_arrival.is_some_and(|t| now < t) => {
+            Line::Release if self.stop.overtaken(now) => {
                 self.refuse(&meta, Refusal::StopOvertookRelease)
             }
             Line::Release => self.release(now, meta),
@@ -305,34 +305,20 @@ impl Bridge {
         timestamp: f64,
         mut motors: impl Iterator<Item = &'a str> + Clone,
     ) -> Result<(), Refusal> {
-        if self.latched {
+        if self.stop.is_latched() {
             return Err(Refusal::Latched);
-        }
-        // Only where timestamps are held to the bridge's clock (a max age
-        // in force): without one they may be any number.
-        // To the millisecond, the timestamps' resolution: one stamped in
-        // the millisecond the stop came in may have been written after it.
-        // Reached the bridge before the stop: written before it, whatever
-        // its timestamp says (a client's clock may run ahead).
-        if let Some(stop) = self.last_stop_at
-            && arrived < stop
-        {
-            return Err(Refusal::ArrivedBeforeStop {
-                early: stop - arrived,
-            });
         }
         // The timestamp on the bridge's clock, as far as the client's
         // lines tell: a clock that runs ahead is taken back by as much
-        // (never forward: a clock behind only refuses more).
+        // (never forward: a clock behind only refuses more). Held to the
+        // bridge's clock only where a max age is in force: without one,
+        // timestamps may be any number.
         let written = timestamp + origin.map_or(0.0, |o| self.clocks.behind(o));
-        if let Some(stop_ms) = self.last_stop_unix_ms.map(f64::floor)
-            && self.config.max_age.is_some()
-            && written < stop_ms
+        if let Some(r) =
+            self.stop
+                .written_before(arrived, timestamp, written, self.config.max_age.is_some())
         {
-            // Written before the stop (another client's, still on its
-            // way): the stop came after it, so it must not run after the
-            // release.
-            return Err(Refusal::StampedBeforeStop { timestamp, stop_ms });
+            return Err(r);
         }
         if let (Some(epoch), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age) {
             let now_ms = epoch + self.now.as_secs_f64() * 1000.0;

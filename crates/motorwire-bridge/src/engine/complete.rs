@@ -82,7 +82,7 @@ impl Bridge {
                     }
                 }
             }
-            JobKind::Deadman if !failures.is_empty() && !self.latched => {
+            JobKind::Deadman if !failures.is_empty() && !self.stop.is_latched() => {
                 // The deadman could not stop a device (its stop was never
                 // answered): when in doubt, stop everything.
                 let why = failures

@@ -54,8 +54,8 @@ pub enum Input<'a> {
     },
     /// A line its runner numbered (a runner that lets emergency stops
     /// overtake the lines queued before them numbers lines as they
-    /// arrive); `read`: what [`crate::classify`] made of it on the
-    /// reader's thread, with this bridge's validator (`None`: read here).
+    /// arrive); `read`: what the runtime's reader made of it (`None`:
+    /// read here).
     NumberedLine {
         /// Who sent it.
         origin: Origin,
@@ -63,8 +63,8 @@ pub enum Input<'a> {
         number: u64,
         /// The line.
         text: &'a str,
-        /// The line as read already.
-        read: Option<Box<Line>>,
+        /// The line as the runtime read it already.
+        read: Option<Classified>,
     },
     /// A line that could not be read as text (not UTF-8, too long).
     Unreadable {
@@ -150,6 +150,13 @@ pub enum Input<'a> {
     Timeout,
 }
 
+/// A line as the runtime's reader read it ([`crate::classify`] with this
+/// bridge's validator, on the reader's thread). Only the runtime makes
+/// one: a line handed over read is one the validator read, never a value
+/// built to pass it by.
+#[derive(Debug)]
+pub struct Classified(pub(crate) Box<Line>);
+
 impl Bridge {
     /// Takes `input`, which happened at `now`: the one way in. The clock
     /// only goes forward (an earlier `now` is taken as the latest seen),
@@ -172,7 +179,7 @@ impl Bridge {
                 number,
                 text,
                 read,
-            } => self.on_read_line(now, origin, number, text, read),
+            } => self.on_read_line(now, origin, number, text, read.map(|c| c.0)),
             Input::Unreadable {
                 origin,
                 number,

@@ -11,7 +11,7 @@ impl Bridge {
     /// controller's velocity 0 within it; the others their own stop), a
     /// `limit_brake` event each.
     pub(super) fn keep_within_limits(&mut self, now: Duration) {
-        if self.latched {
+        if self.stop.is_latched() {
             return;
         }
         let mut brake = Vec::new();

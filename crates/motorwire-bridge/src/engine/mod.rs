@@ -58,8 +58,10 @@ mod admit;
 mod complete;
 mod feedback;
 mod input;
+mod latch;
 
-pub use input::Input;
+pub use input::{Classified, Input};
+use latch::StopLatch;
 mod jobs;
 mod limits;
 mod links;
@@ -352,29 +354,14 @@ pub struct Bridge {
     next_job: u64,
     waiting: VecDeque<Waiting>,
     line_numbers: BTreeMap<Origin, u64>,
-    latched: bool,
-    /// Unix ms of the last emergency stop, on the bridge's clock (with
-    /// [`BridgeConfig::epoch_unix_ms`]): with [`BridgeConfig::max_age`] in
-    /// force, a command stamped before it was written before the stop, and
-    /// is refused `stale_before_stop`.
-    last_stop_unix_ms: Option<f64>,
-    /// When the last emergency stop was taken, on the bridge's own clock
-    /// (any stop, the bridge's own too): a line that had reached the
-    /// bridge before it was written before it, whatever its timestamp
-    /// says, and is refused `stale_before_stop`.
-    last_stop_at: Option<Duration>,
+    /// The emergency stop's latch.
+    stop: StopLatch,
     /// Each client's clock against the bridge's, learned from its lines:
     /// the least (arrival on the bridge's clock − timestamp), in ms. A
     /// client whose clock runs ahead has its timestamps judged in its own
     /// clock ([`ClockOffsets`]).
     clocks: ClockOffsets,
-    /// For each joint, what the release sends it (those active, or being
-    /// started, when the stop came).
-    resume: BTreeMap<usize, Vec<Lifecycle>>,
     phase: Phase,
-    /// When the latest stop line arrived: a release that arrived before it
-    /// is not obeyed.
-    last_stop_arrival: Option<Duration>,
     /// Motion lines whose moves are watched for arrival.
     arrivals: Vec<Watch>,
     /// Each motor's limits as the bus map gives them (SafetyLimits lines
@@ -555,11 +542,8 @@ impl Bridge {
             next_job: 0,
             waiting: VecDeque::new(),
             line_numbers: BTreeMap::new(),
-            latched: false,
-            last_stop_unix_ms: None,
-            last_stop_at: None,
+            stop: StopLatch::default(),
             clocks: ClockOffsets::default(),
-            resume: BTreeMap::new(),
             phase: Phase::Starting,
             drain_after_start: None,
             drain_recheck: false,
@@ -567,7 +551,6 @@ impl Bridge {
             steps_scratch: Vec::new(),
             settle_until: None,
             to_greet: Vec::new(),
-            last_stop_arrival: None,
             arrivals: Vec::new(),
             base_limits,
             emergency_decel: BTreeMap::new(),
@@ -595,7 +578,7 @@ impl Bridge {
 
     /// Whether the emergency stop is latched.
     pub fn is_latched(&self) -> bool {
-        self.latched
+        self.stop.is_latched()
     }
 
     /// Whether startup is over and lines are being served.

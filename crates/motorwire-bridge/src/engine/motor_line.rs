@@ -266,7 +266,7 @@ impl Bridge {
     /// emergency stop is latched.
     pub(super) fn reset_joint(&mut self, now: Duration, meta: LineMeta, motor: &str) {
         let meta = meta.labelled(Label::Motor(motor.to_owned()));
-        if self.latched {
+        if self.stop.is_latched() {
             self.refuse(&meta, Refusal::LatchedReset);
             return;
         }

@@ -36,7 +36,7 @@ impl Bridge {
     /// [`Bridge::greet`] say it.
     pub fn state(&self) -> BridgeState {
         BridgeState {
-            latched: self.latched,
+            latched: self.stop.is_latched(),
             motors: self.joints.iter().map(|j| self.motor_state(j)).collect(),
         }
     }

@@ -31,15 +31,15 @@ impl Bridge {
         }
         // Every stop counts for what was written before it, a stop that
         // rides on another one too.
-        if let Some(e) = self.config.epoch_unix_ms {
-            let at = e + now.as_secs_f64() * 1000.0;
-            self.last_stop_unix_ms = Some(self.last_stop_unix_ms.map_or(at, |t| t.max(at)));
-        }
-        self.last_stop_at = Some(self.last_stop_at.map_or(now, |t| t.max(now)));
+        let unix_ms = self
+            .config
+            .epoch_unix_ms
+            .map(|e| e + now.as_secs_f64() * 1000.0);
+        self.stop.stopped(now, unix_ms);
         // A stop already under way (latched, not released since) answers
         // this line too: its Deactivates are in flight or queued first, and
         // sending them again would only add frames ahead of nothing.
-        if self.latched
+        if self.stop.is_latched()
             && let Some(job) = self
                 .jobs
                 .values_mut()
@@ -59,9 +59,7 @@ impl Bridge {
         self.stats.emergency_stops += 1;
         // What the release brings back: the joints active now, and those
         // whose startup or release this stop interrupts.
-        if !self.latched {
-            self.resume.clear();
-        }
+        let mut resume = Vec::new();
         for (i, j) in self.joints.iter().enumerate() {
             let starting = j.busy.iter().chain(j.queue.iter()).find_map(|s| {
                 let job = self.jobs.get(&s.job)?;
@@ -78,12 +76,12 @@ impl Bridge {
                 })?
             });
             if let Some(p) = starting {
-                self.resume.insert(i, p);
+                resume.push((i, p));
             } else if j.active {
-                self.resume.insert(i, vec![Lifecycle::Activate]);
+                resume.push((i, vec![Lifecycle::Activate]));
             }
         }
-        self.latched = true;
+        self.stop.latch(resume);
         self.fail_watches(|_| true, "stopped by the emergency stop");
         let cancelled = self.cancel_everything("cancelled by the emergency stop");
         self.out
@@ -262,12 +260,10 @@ impl Bridge {
     }
 
     pub(super) fn release(&mut self, now: Duration, meta: LineMeta) {
-        if !self.latched {
+        let Some(resume) = self.stop.release() else {
             self.refuse(&meta, Refusal::NotLatched);
             return;
-        }
-        self.latched = false;
-        let resume = std::mem::take(&mut self.resume);
+        };
         let reactivated = resume
             .keys()
             .filter_map(|i| self.joints.get(*i))
@@ -329,7 +325,7 @@ impl Bridge {
         // Latched, every device was sent its stop: a setpoint's deadman
         // (one armed by an answer that came after the stop) has nothing
         // to stop, and nothing but stops goes out.
-        if self.latched {
+        if self.stop.is_latched() {
             for j in &mut self.joints {
                 j.deadman = None;
             }
@@ -472,7 +468,7 @@ impl Bridge {
         {
             return;
         }
-        let latched = self.latched;
+        let latched = self.stop.is_latched();
         let still = self
             .joints
             .get(ji)
@@ -542,7 +538,7 @@ impl Bridge {
     /// the emergency stop instead (latched already: nothing more).
     pub(super) fn stop_again(&mut self, ji: usize, order: Order, now: Duration, why: &str) {
         let now_ms = self.unix_ms(now) as u64;
-        let latched = self.latched;
+        let latched = self.stop.is_latched();
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };

@@ -214,7 +214,7 @@ impl Bridge {
                 .min(),
             Timer::Deadman => self.joints.iter().filter_map(|j| j.deadman).min(),
             Timer::LimitBrake => {
-                if self.latched {
+                if self.stop.is_latched() {
                     None
                 } else {
                     self.joints

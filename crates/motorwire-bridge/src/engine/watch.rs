@@ -17,7 +17,7 @@ impl Bridge {
         });
         let mut w = self.watch_of(meta, moved, since);
         let origin = w.line.origin;
-        let verdict = if self.latched {
+        let verdict = if self.stop.is_latched() {
             Some("stopped by the emergency stop".to_owned())
         } else {
             replaced_by.map(crate::output::json::superseded_by)

@@ -14,7 +14,7 @@ use std::sync::{Condvar, Mutex, OnceLock, PoisonError};
 
 use crate::classify::asks_for_stop;
 use crate::clocks::clocks_together;
-use crate::engine::{Bridge, Input};
+use crate::engine::{Bridge, Classified, Input};
 use crate::error::BridgeError;
 use crate::output::{Event, Origin, Output};
 use crate::tap::{Direction, Mark, Tap, Taps};
@@ -780,7 +780,7 @@ impl Runner {
                                 origin,
                                 number,
                                 text: &text,
-                                read: input,
+                                read: input.map(Classified),
                             },
                         );
                         if rec.is_some() {
@@ -876,7 +876,7 @@ impl Runner {
                             origin,
                             number,
                             text: &text,
-                            read: input,
+                            read: input.map(Classified),
                         },
                     );
                     if rec.is_some() {
