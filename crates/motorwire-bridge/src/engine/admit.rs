@@ -124,7 +124,7 @@ impl Bridge {
             return;
         }
         match self.phase {
-            Phase::Starting => {
+            Phase::Starting { .. } => {
                 if self.waiting.len() >= self.config.max_pending_lines {
                     self.stats.lines += 1;
                     self.busy(&meta, Refusal::WaitingForStart);

@@ -55,11 +55,12 @@ impl Bridge {
                         error: Some(f),
                     }));
                 }
-                if self.phase == Phase::Starting {
+                let settle = now.saturating_add(self.config.offline_after);
+                if let Phase::Starting { settle_until, .. } = &mut self.phase {
                     // Ready once every device that answers has been read
                     // (its position known from the first line on), or
                     // after the offline time for those that do not.
-                    self.settle_until = Some(now.saturating_add(self.config.offline_after));
+                    *settle_until = Some(settle);
                     self.try_ready();
                 }
                 return;

@@ -858,7 +858,9 @@ impl Bridge {
             if let Some(job) = self.jobs.remove(&id) {
                 self.complete(job);
                 // The drain may end now: looked at once, by its timer.
-                self.drain_recheck = matches!(self.phase, Phase::Draining { .. });
+                if let Phase::Draining { recheck, .. } = &mut self.phase {
+                    *recheck = true;
+                }
             }
         }
         // Kept for the next call (a nested call, from a completion, found

@@ -221,15 +221,28 @@ pub struct BridgeStats {
     pub stops_sent_again: u64,
 }
 
-/// The bridge's phases. Every change goes through [`Bridge::enter`].
+/// The bridge's phases, each with what it alone keeps. Every change goes
+/// through [`Bridge::enter`], which takes only the changes
+/// [`Phase::allows`] lists.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Phase {
     /// Configuring and activating the joints; lines wait.
-    Starting,
+    Starting {
+        /// The startup answered: until when the devices may settle (their
+        /// first reading) before the bridge is ready all the same.
+        settle_until: Option<Duration>,
+        /// The end of input came while starting: once running, lines and
+        /// moves finish by this deadline.
+        drain_after: Option<Duration>,
+    },
     Running,
     /// End of input: finishing lines and moves.
     Draining {
+        /// Past this, the joints are stopped whatever runs.
         deadline: Duration,
+        /// A job ended: whether the drain is over is looked at once, by
+        /// its timer, now.
+        recheck: bool,
     },
     /// Stop frames sent; waiting for their answers.
     Stopping,
@@ -370,19 +383,12 @@ pub struct Bridge {
     /// Emergency decelerations given by SafetyLimits lines (recorded and
     /// reported; iRPC cannot carry them).
     emergency_decel: BTreeMap<String, f64>,
-    /// The input ended during startup: drain (until this deadline) once ready.
-    drain_after_start: Option<Duration>,
-    /// Draining, a line just finished: whether the drain may end is
-    /// looked at once.
-    drain_recheck: bool,
     /// The ids of the jobs [`Self::finish_jobs`] found done, kept between
     /// calls so that finding them allocates nothing.
     done_scratch: Vec<u64>,
     /// [`Bridge::open_job`]'s list of the steps it queues, kept between
     /// jobs.
     steps_scratch: Vec<(usize, StepRef, Option<Takes>)>,
-    /// Started: ready once every online device has been read, or then.
-    settle_until: Option<Duration>,
     /// Clients that connected during startup, greeted when it ends.
     to_greet: Vec<Origin>,
     timers: Timers,
@@ -544,12 +550,12 @@ impl Bridge {
             line_numbers: BTreeMap::new(),
             stop: StopLatch::default(),
             clocks: ClockOffsets::default(),
-            phase: Phase::Starting,
-            drain_after_start: None,
-            drain_recheck: false,
+            phase: Phase::Starting {
+                settle_until: None,
+                drain_after: None,
+            },
             done_scratch: Vec::new(),
             steps_scratch: Vec::new(),
-            settle_until: None,
             to_greet: Vec::new(),
             arrivals: Vec::new(),
             base_limits,

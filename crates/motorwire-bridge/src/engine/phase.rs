@@ -32,7 +32,7 @@ impl Bridge {
     /// until its greeting, so the greeting is its first line.
     pub(super) fn on_greet(&mut self, origin: Origin) {
         match self.phase {
-            Phase::Starting => self.to_greet.push(origin),
+            Phase::Starting { .. } => self.to_greet.push(origin),
             Phase::Running | Phase::Draining { .. } => {
                 let event = self.ready_event();
                 self.out.push_back(Output::ToOne { origin, event });
@@ -59,25 +59,35 @@ impl Bridge {
     /// Started and every device that answers read (or silent past the
     /// offline time): ready.
     pub(super) fn try_ready(&mut self) {
-        let Some(until) = self.settle_until else {
+        let Phase::Starting {
+            settle_until: Some(until),
+            ..
+        } = self.phase
+        else {
             return;
         };
         let read = self.joints.iter().all(|j| !j.online || j.motion.is_some());
-        if self.phase == Phase::Starting && (read || self.now >= until) {
+        if read || self.now >= until {
             self.enter(Phase::Running);
         }
     }
 
     // ---- phases ---------------------------------------------------------
 
-    /// The one place the phase changes.
+    /// The one place the phase changes: each change [`Phase::allows`]
+    /// lists, with what it does. Any other is a bug; it is never ignored:
+    /// when in doubt, stop ([`Bridge::illegal_transition`]).
     pub(super) fn enter(&mut self, to: Phase) {
         let from = self.phase;
-        match (from, to) {
-            (Phase::Finished, _) => {}
-            (_, Phase::Running) => {
+        if !from.allows(to) {
+            return self.illegal_transition(IllegalTransition {
+                from: from.name(),
+                to: to.name(),
+            });
+        }
+        match to {
+            Phase::Running => {
                 self.phase = Phase::Running;
-                self.settle_until = None;
                 let ready = self.ready_event();
                 // Everyone's first, then the greetings: a runner holds
                 // everyone's lines from a client until its greeting, so
@@ -87,19 +97,25 @@ impl Bridge {
                 while let Some(w) = self.waiting.pop_front() {
                     self.take_line(w.at, w.meta, &w.text);
                 }
-                if let Some(deadline) = self.drain_after_start.take() {
-                    self.enter(Phase::Draining { deadline });
+                if let Phase::Starting {
+                    drain_after: Some(deadline),
+                    ..
+                } = from
+                {
+                    self.enter(Phase::Draining {
+                        deadline,
+                        recheck: false,
+                    });
                 }
             }
-            (Phase::Starting | Phase::Running, Phase::Draining { .. }) => {
+            Phase::Draining { .. } => {
                 self.phase = to;
                 self.out.push_back(Output::Event(Event::Stopping {
                     reason: "end of input".to_owned(),
                 }));
                 self.end_open_motion();
             }
-            (Phase::Stopping, Phase::Draining { .. }) => {}
-            (_, Phase::Stopping) if from != Phase::Stopping => {
+            Phase::Stopping => {
                 self.phase = Phase::Stopping;
                 self.fail_watches(|_| true, "the bridge is stopping the joints");
                 let axes = self.every_joint(&[Lifecycle::Deactivate]);
@@ -112,8 +128,20 @@ impl Bridge {
                     Vec::new(),
                 );
             }
-            (_, Phase::Finished) => self.phase = Phase::Finished,
-            _ => {}
+            Phase::Finished => self.phase = Phase::Finished,
+            Phase::Starting { .. } => {}
+        }
+    }
+
+    /// A phase change no path of the engine makes was asked for: a bug.
+    /// When in doubt, stop: every joint is stopped (the phase the bridge
+    /// stops in), and the reason is said.
+    pub(super) fn illegal_transition(&mut self, e: IllegalTransition) {
+        self.out.push_back(Output::Event(Event::Stopping {
+            reason: e.to_string(),
+        }));
+        if !matches!(self.phase, Phase::Stopping | Phase::Finished) {
+            self.enter(Phase::Stopping);
         }
     }
 
@@ -147,15 +175,16 @@ impl Bridge {
     /// End of input: lines in flight and moves in progress finish (up to
     /// [`BridgeConfig::drain_timeout`]), then every joint is deactivated.
     pub(super) fn on_finish(&mut self) {
-        if matches!(self.phase, Phase::Starting | Phase::Running) {
-            // Lines still waiting for startup are served first.
-            let deadline = self.now.saturating_add(self.config.drain_timeout);
-            if self.phase == Phase::Starting {
-                // Served once the joints are ready, then drained.
-                self.drain_after_start = Some(deadline);
-            } else {
-                self.enter(Phase::Draining { deadline });
-            }
+        let deadline = self.now.saturating_add(self.config.drain_timeout);
+        match &mut self.phase {
+            // Lines still waiting for startup are served first: once the
+            // joints are ready, then drained.
+            Phase::Starting { drain_after, .. } => *drain_after = Some(deadline),
+            Phase::Running => self.enter(Phase::Draining {
+                deadline,
+                recheck: false,
+            }),
+            Phase::Draining { .. } | Phase::Stopping | Phase::Finished => {}
         }
         self.on_timeout();
     }
@@ -217,4 +246,41 @@ impl Bridge {
     }
 
     // ---- input ----------------------------------------------------------
+}
+
+impl Phase {
+    /// The changes the engine makes, all of them: starting to running (or
+    /// straight to draining or stopping), running to draining or stopping,
+    /// draining to stopping, and to finished once the stop is answered.
+    pub(super) const fn allows(self, to: Self) -> bool {
+        matches!(
+            (self, to),
+            (Self::Starting { .. }, Self::Running | Self::Stopping)
+                | (Self::Running, Self::Draining { .. } | Self::Stopping)
+                | (Self::Draining { .. }, Self::Stopping)
+                | (Self::Stopping, Self::Finished)
+        )
+    }
+
+    /// Its name, as an illegal change says it.
+    pub(super) const fn name(self) -> &'static str {
+        match self {
+            Self::Starting { .. } => "starting",
+            Self::Running => "running",
+            Self::Draining { .. } => "draining",
+            Self::Stopping => "stopping",
+            Self::Finished => "finished",
+        }
+    }
+}
+
+/// A phase change no path of the engine makes: a bug, said as the bridge
+/// stops.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "internal error: the bridge went from {from} to {to}, which it never does; it stops every joint"
+)]
+pub(super) struct IllegalTransition {
+    pub(super) from: &'static str,
+    pub(super) to: &'static str,
 }

@@ -95,7 +95,7 @@ impl Bridge {
             Report::default(),
             problems,
         );
-        if self.phase == Phase::Starting {
+        if matches!(self.phase, Phase::Starting { .. }) {
             // The startup was cancelled: lines are served (and refused
             // while latched).
             self.enter(Phase::Running);

@@ -105,3 +105,70 @@ fn a_stop_line_riding_on_a_stop_the_bridge_made_is_answered() {
     );
     assert_eq!(results[0].acked.as_deref(), Some(&["elbow".to_owned()][..]));
 }
+
+/// The phase changes are a closed table: each one the engine makes, and
+/// no other.
+#[test]
+fn the_phase_changes_are_the_tables_and_no_other() {
+    let starting = Phase::Starting {
+        settle_until: None,
+        drain_after: Some(Duration::from_secs(1)),
+    };
+    let draining = Phase::Draining {
+        deadline: Duration::from_secs(1),
+        recheck: false,
+    };
+    let all = [
+        starting,
+        Phase::Running,
+        draining,
+        Phase::Stopping,
+        Phase::Finished,
+    ];
+    let allowed: Vec<(&str, &str)> = all
+        .iter()
+        .flat_map(|f| all.iter().map(move |t| (*f, *t)))
+        .filter(|(f, t)| f.allows(*t))
+        .map(|(f, t)| (f.name(), t.name()))
+        .collect();
+    assert_eq!(
+        allowed,
+        [
+            ("starting", "running"),
+            ("starting", "stopping"),
+            ("running", "draining"),
+            ("running", "stopping"),
+            ("draining", "stopping"),
+            ("stopping", "finished"),
+        ]
+    );
+}
+
+/// A change the table has not is never ignored: the bridge says so and
+/// stops every joint (when in doubt, stop).
+#[test]
+fn an_illegal_phase_change_stops_the_bridge_and_says_why() {
+    let map = BusMap::from_toml("[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n").unwrap();
+    let config = BridgeConfig {
+        activate_on_start: false,
+        ..BridgeConfig::default()
+    };
+    let mut b = Bridge::new(map, config).unwrap();
+    b.start(Duration::ZERO);
+    assert_eq!(b.phase, Phase::Running);
+    while b.poll_output().is_some() {}
+    b.enter(Phase::Finished);
+    let said: Vec<String> = std::iter::from_fn(|| b.poll_output())
+        .map(|o| o.to_json())
+        .collect();
+    assert_eq!(
+        said.first().map(String::as_str),
+        Some(
+            r#"{"event":"stopping","reason":"internal error: the bridge went from running to finished, which it never does; it stops every joint"}"#
+        ),
+        "{said:?}"
+    );
+    assert_eq!(b.phase, Phase::Stopping);
+    // Its Deactivate is on its way.
+    assert!(b.poll_transmit().is_some());
+}

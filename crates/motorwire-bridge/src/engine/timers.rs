@@ -114,8 +114,9 @@ impl Bridge {
         } else {
             self.timers.heartbeat = None;
         }
-        if let Phase::Draining { deadline } = self.phase {
-            self.drain_recheck = false;
+        if let Phase::Draining { deadline, recheck } = &mut self.phase {
+            *recheck = false;
+            let deadline = *deadline;
             let idle = self.jobs.is_empty() && self.waiting.is_empty() && !self.any_moving(now);
             if idle || now >= deadline {
                 self.enter(Phase::Stopping);
@@ -181,9 +182,9 @@ impl Bridge {
             // Never due again at the time it was handled: a runner
             // waiting for it does not spin.
             Timer::Drain => match self.phase {
-                Phase::Draining { deadline } => {
+                Phase::Draining { deadline, recheck } => {
                     let motion_ends = self.joints.iter().map(|j| j.moving_until).max();
-                    Some(if self.drain_recheck {
+                    Some(if recheck {
                         self.now
                     } else if let Some(end) = motion_ends.filter(|e| *e > self.now) {
                         end.min(deadline)
@@ -229,7 +230,10 @@ impl Bridge {
                 .values()
                 .filter_map(|j| j.awaiting.map(|a| a.deadline))
                 .min(),
-            Timer::Settle => self.settle_until.filter(|_| self.phase == Phase::Starting),
+            Timer::Settle => match self.phase {
+                Phase::Starting { settle_until, .. } => settle_until,
+                _ => None,
+            },
         }
     }
 }
