@@ -813,12 +813,19 @@ impl Router {
     /// once by the runner); never waits.
     pub(crate) fn route(&self, o: &Output, line: &Arc<str>) {
         // The bridge's routing decides; this says where that is here:
-        // standard output, or the socket clients.
-        let delivery = self
-            .routing
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .route(o);
+        // standard output, or the socket clients. Standard output's share
+        // of a feedback line is counted under the same lock (once a line).
+        let (delivery, stdout_takes) = {
+            let mut routing = self.routing.lock().unwrap_or_else(PoisonError::into_inner);
+            let delivery = routing.route(o);
+            let stdout_takes = match delivery {
+                Delivery::Feedback { motor } if !self.sockets => {
+                    routing.takes_feedback(STDIN, motor)
+                }
+                _ => false,
+            };
+            (delivery, stdout_takes)
+        };
         let line = Arc::clone(line);
         match delivery {
             Delivery::ToReader { origin, owed } => {
@@ -847,13 +854,8 @@ impl Router {
             Delivery::Feedback { motor } if self.sockets => {
                 self.to_every_client(&line, Some(motor));
             }
-            Delivery::Feedback { motor } => {
-                let takes = self
-                    .routing
-                    .lock()
-                    .unwrap_or_else(PoisonError::into_inner)
-                    .takes_feedback(STDIN, motor);
-                if takes {
+            Delivery::Feedback { .. } => {
+                if stdout_takes {
                     self.to_stdout(line, Sent::Feedback);
                 }
             }

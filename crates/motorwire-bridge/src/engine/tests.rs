@@ -3,24 +3,29 @@
 #![allow(clippy::unwrap_used)]
 use super::*;
 
+/// A bridge on `map` (a bus map's TOML), started at time zero without
+/// activating its joints: running at once.
+fn running(map: &str) -> Bridge {
+    let config = BridgeConfig {
+        activate_on_start: false,
+        ..BridgeConfig::default()
+    };
+    let mut b = Bridge::new(BusMap::from_toml(map).unwrap(), config).unwrap();
+    b.start(Duration::ZERO);
+    b
+}
+
 /// After handle_timeout at the time poll_timeout gave, no timer is
 /// due at that time again: a runner waiting for poll_timeout never
 /// spins. Here at the end of input, with a request waiting for its
 /// Ack and nothing moving.
 #[test]
 fn no_timer_is_due_again_once_handled() {
-    let map = BusMap::from_toml(
+    let mut b = running(
         "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n\
          limits = { max_velocity = 120, max_acceleration = 500 }",
-    )
-    .unwrap();
-    let config = BridgeConfig {
-        activate_on_start: false,
-        ..BridgeConfig::default()
-    };
-    let mut b = Bridge::new(map, config).unwrap();
+    );
     let ms = Duration::from_millis;
-    b.start(Duration::ZERO);
     b.handle_line(
         ms(1),
         Origin(0),
@@ -64,18 +69,11 @@ fn from_joint(node: u16, msg_id: u32, payload: Payload) -> Frame {
 #[test]
 fn a_stop_line_riding_on_a_stop_the_bridge_made_is_answered() {
     use motorwire_irpc::{EmergencyReason, EmergencyStop, Message, WireVersion};
-    let map = BusMap::from_toml(
+    let mut b = running(
         "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\nwire = \"v2.2\"\n\
          limits = { max_velocity = 120, max_acceleration = 500 }",
-    )
-    .unwrap();
-    let config = BridgeConfig {
-        activate_on_start: false,
-        ..BridgeConfig::default()
-    };
-    let mut b = Bridge::new(map, config).unwrap();
+    );
     let ms = Duration::from_millis;
-    b.start(Duration::ZERO);
     let stop = EmergencyStop {
         reason: EmergencyReason::Overtemperature,
         vbus_mv: 24_000,
@@ -148,13 +146,7 @@ fn the_phase_changes_are_the_tables_and_no_other() {
 /// stops every joint (when in doubt, stop).
 #[test]
 fn an_illegal_phase_change_stops_the_bridge_and_says_why() {
-    let map = BusMap::from_toml("[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n").unwrap();
-    let config = BridgeConfig {
-        activate_on_start: false,
-        ..BridgeConfig::default()
-    };
-    let mut b = Bridge::new(map, config).unwrap();
-    b.start(Duration::ZERO);
+    let mut b = running("[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n");
     assert_eq!(b.phase, Phase::Running);
     while b.poll_output().is_some() {}
     b.enter(Phase::Finished);
