@@ -46,7 +46,54 @@ pub trait CanBus {
     /// # Errors
     /// [`Error::Timeout`] when nothing arrived; the bus's own errors.
     fn recv(&mut self, timeout: Duration) -> Result<Received, Error>;
+
+    /// Asks the bus to call `waker` (on the sending thread, without
+    /// blocking) whenever a frame is queued for this port, so that a
+    /// program can wait for frames and for its other work on one thread,
+    /// polling `recv(Duration::ZERO)` when woken, instead of keeping a
+    /// thread blocked in `recv`. Whether the bus does it: `false` (the
+    /// default, every bus that only blocks) leaves the waker unused.
+    ///
+    /// A frame the bus holds for later (a simulated latency or delay) may
+    /// wake the port before it is due: [`CanBus::next_due_in`] says when to
+    /// look again.
+    ///
+    /// ```
+    /// use std::sync::Arc;
+    /// use std::sync::atomic::{AtomicUsize, Ordering};
+    /// use std::time::Duration;
+    /// use motorwire_can::{CanBus, CanId, Frame, SimBus};
+    ///
+    /// let bus = SimBus::default();
+    /// let (mut a, mut b) = (bus.port(), bus.port());
+    /// let woken = Arc::new(AtomicUsize::new(0));
+    /// let count = Arc::clone(&woken);
+    /// assert!(b.set_waker(Arc::new(move || {
+    ///     count.fetch_add(1, Ordering::SeqCst);
+    /// })));
+    /// a.send(&Frame::classic(CanId::standard(0x20)?, &[9])?)?;
+    /// assert_eq!(woken.load(Ordering::SeqCst), 1);
+    /// assert_eq!(b.recv(Duration::ZERO)?.frame.data(), &[9]);
+    /// // A port is not woken by its own frames.
+    /// b.send(&Frame::classic(CanId::standard(0x21)?, &[1])?)?;
+    /// assert_eq!(woken.load(Ordering::SeqCst), 1);
+    /// # Ok::<(), motorwire_can::Error>(())
+    /// ```
+    fn set_waker(&mut self, waker: FrameWaker) -> bool {
+        let _ = waker;
+        false
+    }
+
+    /// When a port with a waker should poll again though no wake came: a
+    /// frame is queued for it but not due yet. `None` when nothing waits
+    /// (and on every bus without a waker).
+    fn next_due_in(&self) -> Option<Duration> {
+        None
+    }
 }
+
+/// What a bus calls when a frame is queued for a port ([`CanBus::set_waker`]).
+pub type FrameWaker = std::sync::Arc<dyn Fn() + Send + Sync>;
 
 /// A CAN bus, async (tokio). Wrap `recv` in `tokio::time::timeout` for a
 /// deadline.
@@ -70,5 +117,11 @@ impl<B: CanBus + ?Sized> CanBus for &mut B {
     }
     fn recv(&mut self, timeout: Duration) -> Result<Received, Error> {
         (**self).recv(timeout)
+    }
+    fn set_waker(&mut self, waker: FrameWaker) -> bool {
+        (**self).set_waker(waker)
+    }
+    fn next_due_in(&self) -> Option<Duration> {
+        (**self).next_due_in()
     }
 }

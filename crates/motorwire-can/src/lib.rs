@@ -30,7 +30,7 @@ mod sim;
 #[cfg_attr(docsrs, doc(cfg(all(feature = "socketcan", target_os = "linux"))))]
 pub mod socketcan;
 
-pub use bus::{AsyncCanBus, CanBus, Received};
+pub use bus::{AsyncCanBus, CanBus, FrameWaker, Received};
 pub use error::Error;
 pub use frame::{CLASSIC_MAX_LEN, CanId, FD_LENGTHS, FD_MAX_LEN, Frame, fd_len};
 pub use sim::{Clock, FaultStats, Faults, SimBus, SimConfig, SimPort};

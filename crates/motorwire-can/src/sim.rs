@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
+use crate::bus::FrameWaker;
 use crate::{CanBus, Error, Frame, Received};
 
 /// Fault rates, each the probability (0 to 1) that it happens to one frame
@@ -158,13 +159,37 @@ impl Rng {
     }
 }
 
-#[derive(Debug, Default)]
+/// What wakes a port a frame was queued for: its waiting thread's
+/// condition variable, and its waker.
+type Arrival = (Arc<Condvar>, Option<FrameWaker>);
+
+#[derive(Default)]
 struct PortState {
     /// Frames sent on the bus are queued for it (false for a dropped port
     /// and a send-only port).
     open: bool,
     queue: BTreeMap<(Duration, u64), Frame>,
     held: Option<(Duration, Frame)>,
+    /// The receiving port a sending half belongs to: its frames are not
+    /// queued there (a node does not hear itself), [`SimPort::sending_half`].
+    twin: Option<usize>,
+    /// Wakes the thread waiting in this port's `recv`, and only it: a frame
+    /// for one node does not rouse every node's thread.
+    arrived: Arc<Condvar>,
+    /// Told when a frame is queued for this port ([`CanBus::set_waker`]).
+    waker: Option<FrameWaker>,
+}
+
+impl std::fmt::Debug for PortState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PortState")
+            .field("open", &self.open)
+            .field("queue", &self.queue)
+            .field("held", &self.held)
+            .field("twin", &self.twin)
+            .field("waker", &self.waker.is_some())
+            .finish_non_exhaustive()
+    }
 }
 
 #[derive(Debug)]
@@ -180,6 +205,8 @@ struct State {
     /// otherwise pay for all of them on every frame received).
     held: usize,
     stats: FaultStats,
+    /// The ports a frame was queued for since they were last woken.
+    touched: Vec<usize>,
 }
 
 impl State {
@@ -196,6 +223,21 @@ impl State {
         if let Some(p) = self.ports.get_mut(port) {
             p.queue.insert((at, seq), frame);
             self.stats.delivered += 1;
+            if self.touched.last() != Some(&port) {
+                self.touched.push(port);
+            }
+        }
+    }
+
+    /// What wakes the ports a frame was queued for (each port's own
+    /// waiting thread, none other, and its waker), to be told once the
+    /// lock is let go: a thread woken while the lock is still held would
+    /// wake only to wait for it.
+    fn take_touched(&mut self, wake: &mut Vec<Arrival>) {
+        for port in self.touched.drain(..) {
+            if let Some(p) = self.ports.get(port) {
+                wake.push((Arc::clone(&p.arrived), p.waker.clone()));
+            }
         }
     }
 
@@ -225,8 +267,9 @@ impl State {
         self.stats.sent += 1;
         let faults = self.config.faults;
         let base = now.saturating_add(self.config.latency);
+        let twin = self.ports.get(from).and_then(|p| p.twin);
         for to in 0..self.ports.len() {
-            if to == from || !self.ports.get(to).is_some_and(|p| p.open) {
+            if to == from || Some(to) == twin || !self.ports.get(to).is_some_and(|p| p.open) {
                 continue;
             }
             if self.rng.chance(faults.drop) {
@@ -305,7 +348,6 @@ impl State {
 #[derive(Debug)]
 struct Shared {
     state: Mutex<State>,
-    changed: Condvar,
     #[cfg(feature = "tokio")]
     notify: tokio::sync::Notify,
 }
@@ -367,8 +409,8 @@ impl SimBus {
                     ports: Vec::new(),
                     held: 0,
                     stats: FaultStats::default(),
+                    touched: Vec::new(),
                 }),
-                changed: Condvar::new(),
                 #[cfg(feature = "tokio")]
                 notify: tokio::sync::Notify::new(),
             }),
@@ -384,8 +426,14 @@ impl SimBus {
             .unwrap_or_else(PoisonError::into_inner)
     }
 
-    fn wake(&self) {
-        self.shared.changed.notify_all();
+    /// Wakes every port's waiting thread (simulated time moved).
+    fn wake_all(&self) {
+        {
+            let s = self.lock();
+            for p in &s.ports {
+                p.arrived.notify_all();
+            }
+        }
         #[cfg(feature = "tokio")]
         self.shared.notify.notify_waiters();
     }
@@ -448,7 +496,7 @@ impl SimBus {
                 s.now = t;
             }
         }
-        self.wake();
+        self.wake_all();
     }
 
     /// When the next frame in any port's queue is due.
@@ -474,6 +522,38 @@ impl SimPort {
     /// The bus this port is on.
     pub fn bus(&self) -> &SimBus {
         &self.bus
+    }
+
+    /// A send-only port that is this port's sending half: what it sends
+    /// reaches every other port but this one, as one node's connection
+    /// split in two (a thread that sends and one that receives) hears
+    /// only the others, the way a SocketCAN socket and its clone do.
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use motorwire_can::{CanBus, CanId, Frame, SimBus};
+    ///
+    /// let bus = SimBus::default();
+    /// let (mut rx, mut joint) = (bus.port(), bus.port());
+    /// let mut tx = rx.sending_half();
+    /// tx.send(&Frame::fd(CanId::standard(0x10)?, &[1])?)?;
+    /// assert_eq!(joint.recv(Duration::ZERO)?.frame.data(), &[1]);
+    /// // Its own frame is not heard back; the joint's answer is.
+    /// assert!(rx.recv(Duration::ZERO).is_err());
+    /// joint.send(&Frame::fd(CanId::standard(0x20)?, &[2])?)?;
+    /// assert_eq!(rx.recv(Duration::ZERO)?.frame.data(), &[2]);
+    /// # Ok::<(), motorwire_can::Error>(())
+    /// ```
+    pub fn sending_half(&self) -> SimPort {
+        let mut s = self.bus.lock();
+        s.ports.push(PortState {
+            twin: Some(self.index),
+            ..PortState::default()
+        });
+        SimPort {
+            bus: self.bus.clone(),
+            index: s.ports.len() - 1,
+        }
     }
 
     /// The next frame already due, without waiting or moving the clock.
@@ -509,8 +589,20 @@ impl Drop for SimPort {
 
 impl CanBus for SimPort {
     fn send(&mut self, frame: &Frame) -> Result<(), Error> {
-        self.bus.lock().send(self.index, frame);
-        self.bus.wake();
+        let mut wake = Vec::new();
+        {
+            let mut s = self.bus.lock();
+            s.send(self.index, frame);
+            s.take_touched(&mut wake);
+        }
+        for (arrived, waker) in wake {
+            arrived.notify_all();
+            if let Some(w) = waker {
+                w();
+            }
+        }
+        #[cfg(feature = "tokio")]
+        self.bus.shared.notify.notify_waiters();
         Ok(())
     }
 
@@ -543,16 +635,32 @@ impl CanBus for SimPort {
                         .next_for(self.index)
                         .map_or(deadline, |at| at.min(deadline));
                     let wait = until.saturating_sub(now).max(Duration::from_micros(1));
-                    s = self
-                        .bus
-                        .shared
-                        .changed
+                    let Some(arrived) = s.ports.get(self.index).map(|p| Arc::clone(&p.arrived))
+                    else {
+                        return Err(Error::Closed);
+                    };
+                    s = arrived
                         .wait_timeout(s, wait)
                         .unwrap_or_else(PoisonError::into_inner)
                         .0;
                 }
             }
         }
+    }
+
+    fn set_waker(&mut self, waker: FrameWaker) -> bool {
+        let mut s = self.bus.lock();
+        let Some(p) = s.ports.get_mut(self.index) else {
+            return false;
+        };
+        p.waker = Some(waker);
+        true
+    }
+
+    fn next_due_in(&self) -> Option<Duration> {
+        let s = self.bus.lock();
+        let at = s.next_for(self.index)?;
+        Some(at.saturating_sub(s.now()))
     }
 }
 

@@ -308,3 +308,55 @@ fn a_send_only_port_never_queues_a_frame() {
     assert_eq!(joint.recv(Duration::ZERO).unwrap().frame.data(), &[1]);
     assert_eq!(unread.queued(), N + 1);
 }
+
+/// This thread's voluntary context switches so far (Linux).
+#[cfg(target_os = "linux")]
+fn voluntary_switches() -> u64 {
+    std::fs::read_to_string("/proc/thread-self/status")
+        .unwrap()
+        .lines()
+        .find_map(|l| l.strip_prefix("voluntary_ctxt_switches:"))
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap()
+}
+
+/// A thread waiting on a port is woken by the frames queued for it, not
+/// by every frame on the bus: here its own sending half sends 200 frames
+/// (which it does not hear) while it waits, and it sleeps through them
+/// until the one frame another node sends. (One condition variable for
+/// the whole bus woke it for each of the 200.)
+#[cfg(target_os = "linux")]
+#[test]
+fn a_waiting_port_is_woken_only_by_frames_for_it() {
+    let bus = SimBus::new(SimConfig {
+        clock: Clock::Real,
+        ..SimConfig::default()
+    })
+    .unwrap();
+    let mut rx = bus.port();
+    let mut own = rx.sending_half();
+    let mut other = bus.port();
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+    let waiter = std::thread::spawn(move || {
+        let before = voluntary_switches();
+        ready_tx.send(()).unwrap();
+        let got = rx.recv(Duration::from_secs(10)).unwrap();
+        (got.frame, voluntary_switches() - before)
+    });
+    ready_rx.recv().unwrap();
+    // Let the waiter block in recv.
+    std::thread::sleep(Duration::from_millis(50));
+    for i in 0..200u8 {
+        own.send(&Frame::classic(id(0x10), &[i]).unwrap()).unwrap();
+        std::thread::sleep(Duration::from_micros(200));
+    }
+    assert_eq!(other.recv(Duration::ZERO).unwrap().frame.data(), &[0]);
+    let last = Frame::classic(id(0x20), &[0xEE]).unwrap();
+    other.send(&last).unwrap();
+    let (frame, switches) = waiter.join().unwrap();
+    assert_eq!(frame, last);
+    // The ready handshake and the one wake (a few for the scheduler).
+    assert!(switches <= 5, "woken {switches} times");
+}

@@ -33,4 +33,8 @@ pub enum SimError {
     /// The bus failed.
     #[error(transparent)]
     Bus(#[from] motorwire_can::Error),
+    /// The thread the simulated devices run on could not be started (what
+    /// the operating system said).
+    #[error("starting the simulated devices' thread: {0}")]
+    Thread(String),
 }
