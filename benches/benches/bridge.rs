@@ -889,6 +889,170 @@ fn stream_benches(seconds: u32) {
     }
 }
 
+/// Each thread's context switches so far (voluntary, involuntary), by its
+/// id, with its name: read from `/proc/self/task` (Linux).
+fn switches() -> std::collections::BTreeMap<u32, (String, u64, u64)> {
+    let mut out = std::collections::BTreeMap::new();
+    let Ok(tasks) = std::fs::read_dir("/proc/self/task") else {
+        return out;
+    };
+    for task in tasks.flatten() {
+        let Some(tid) = task.file_name().to_str().and_then(|t| t.parse().ok()) else {
+            continue;
+        };
+        let dir = task.path();
+        let name = std::fs::read_to_string(dir.join("comm")).unwrap_or_default();
+        let status = std::fs::read_to_string(dir.join("status")).unwrap_or_default();
+        let count = |key: &str| {
+            status
+                .lines()
+                .find_map(|l| l.strip_prefix(key))
+                .and_then(|v| v.trim().parse().ok())
+                .unwrap_or(0)
+        };
+        out.insert(
+            tid,
+            (
+                name.trim().to_owned(),
+                count("voluntary_ctxt_switches:"),
+                count("nonvoluntary_ctxt_switches:"),
+            ),
+        );
+    }
+    out
+}
+
+/// The context switches each thread made between `before` and now, per
+/// line of `lines`, by thread name (the benchmark's own thread, which
+/// sends the lines and waits for their results, is `bench`), and the sum
+/// over the bridge's threads (every thread but the benchmark's).
+fn switches_per_line(
+    before: &std::collections::BTreeMap<u32, (String, u64, u64)>,
+    lines: u64,
+    bench: u32,
+) -> (String, f64) {
+    let after = switches();
+    let mut by_name: std::collections::BTreeMap<String, (u64, u64)> =
+        std::collections::BTreeMap::new();
+    let mut bridge = 0;
+    for (tid, (name, v, n)) in &after {
+        let (v0, n0) = before.get(tid).map_or((0, 0), |(_, v, n)| (*v, *n));
+        let (dv, dn) = (v - v0, n - n0);
+        if dv + dn == 0 {
+            continue;
+        }
+        let name = if *tid == bench {
+            "bench".to_owned()
+        } else {
+            name.clone()
+        };
+        if *tid != bench {
+            bridge += dv;
+        }
+        let e = by_name.entry(name).or_default();
+        e.0 += dv;
+        e.1 += dn;
+    }
+    #[allow(clippy::cast_precision_loss)]
+    let per = |x: u64| x as f64 / lines as f64;
+    let said = by_name
+        .iter()
+        .map(|(name, (v, n))| format!("{name} {:.2}+{:.2}", per(*v), per(*n)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    (said, per(bridge))
+}
+
+/// This thread's id (Linux).
+fn thread_id() -> u32 {
+    std::fs::read_link("/proc/thread-self")
+        .ok()
+        .and_then(|p| p.file_name()?.to_str()?.parse().ok())
+        .unwrap_or(0)
+}
+
+/// The threads a line wakes and the stop behind a burst
+/// (`MOTORWIRE_BENCH_WAKEUPS_ONLY=1`): on the real-time simulated demo
+/// arm, `n` lines one at a time (each sent when the one before was
+/// answered) and `n` with 16 in flight, each thread's voluntary and
+/// involuntary context switches per line (from `/proc/self/task`); the
+/// lines' line-to-frame time; then `stops` emergency stops, each behind a
+/// burst of [`BURST`] lines, on the lean sink.
+fn wakeups(n: u64, stops: usize) {
+    let bench = thread_id();
+    let (_arm, input, rx, handle) = started(MAP, false);
+    // Warm: the first lines plan and allocate.
+    for i in 0..100 {
+        input.line(Origin(1), line(i));
+        rx.recv_timeout(Duration::from_secs(5)).unwrap();
+    }
+    // The devices' own traffic (encoder and status frames, timers) with
+    // no line: its rate is taken off the lines' counts below.
+    let idle = Duration::from_secs(1);
+    let before = switches();
+    std::thread::sleep(idle);
+    let (said, idle_rate) = switches_per_line(&before, 1, bench);
+    println!("bridge/wakeups: idle, context switches a second: {said}");
+    let before = switches();
+    let began = Instant::now();
+    let mut latencies = Vec::new();
+    for i in 0..n {
+        input.line(Origin(1), line(i));
+        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+        assert_eq!(r["ok"], true, "{r}");
+        latencies.push(r["latency_us"].as_u64().unwrap());
+    }
+    let (said, bridge) = switches_per_line(&before, n, bench);
+    #[allow(clippy::cast_precision_loss)]
+    let idle_share = idle_rate * began.elapsed().as_secs_f64() / n as f64;
+    latencies.sort_unstable();
+    println!(
+        "bridge/wakeups: {n} lines one at a time: context switches a line (voluntary+involuntary): {said}; the bridge's threads, voluntary: {bridge:.2} a line, {:.2} with the idle rate taken off; line to frame: median {} us, p99 {} us",
+        bridge - idle_share,
+        percentile(&latencies, 0.5),
+        percentile(&latencies, 0.99)
+    );
+    const WINDOW: u64 = 16;
+    let before = switches();
+    let (mut sent, mut done) = (0, 0);
+    let mut latencies = Vec::new();
+    while done < n {
+        while sent < n && sent - done < WINDOW {
+            input.line(Origin(1), line(sent));
+            sent += 1;
+        }
+        let r = rx.recv_timeout(Duration::from_secs(5)).unwrap();
+        done += 1;
+        if let Some(l) = r["latency_us"].as_u64() {
+            latencies.push(l);
+        }
+    }
+    let (said, bridge) = switches_per_line(&before, n, bench);
+    latencies.sort_unstable();
+    println!(
+        "bridge/wakeups: {n} lines, {WINDOW} in flight: context switches a line: {said}; the bridge's threads, voluntary: {bridge:.2} a line; line to frame: median {} us, p99 {} us",
+        percentile(&latencies, 0.5),
+        percentile(&latencies, 0.99)
+    );
+    input.interrupt();
+    handle.join().unwrap().unwrap();
+    if stops == 0 {
+        return;
+    }
+    let (_arm, input, lean, handle) = started_lean(MAP, None);
+    let mut loaded = stops_behind_bursts_lean(&input, &lean, stops);
+    input.interrupt();
+    handle.join().unwrap().unwrap();
+    loaded.sort_unstable();
+    println!(
+        "bridge/wakeups: {} stops, each behind a burst of {BURST} lines; line to the last stop frame: median {} us, p99 {} us, max {} us",
+        loaded.len(),
+        percentile(&loaded, 0.5),
+        percentile(&loaded, 0.99),
+        loaded.last().unwrap()
+    );
+}
+
 fn main() {
     // `cargo bench` passes --bench; `cargo test --benches` does not (test mode).
     if std::env::var_os("MOTORWIRE_BENCH_STREAM_ONLY").is_some() {
@@ -896,6 +1060,19 @@ fn main() {
         return;
     }
     let test_mode = !std::env::args().any(|a| a == "--bench");
+    // `MOTORWIRE_BENCH_WAKEUPS_ONLY=1`: the threads a line wakes, and the
+    // stop behind bursts (`MOTORWIRE_BENCH_WAKEUPS_STOPS`, 1,000 by default).
+    if std::env::var_os("MOTORWIRE_BENCH_WAKEUPS_ONLY").is_some() {
+        let stops = std::env::var("MOTORWIRE_BENCH_WAKEUPS_STOPS")
+            .ok()
+            .and_then(|p| p.parse().ok())
+            .unwrap_or(1000);
+        wakeups(
+            if test_mode { 50 } else { 5000 },
+            if test_mode { 3 } else { stops },
+        );
+        return;
+    }
     if let Some(files) = std::env::var_os("MOTORWIRE_BENCH_RECORDING_POOL") {
         recording_pooled(&files);
         return;

@@ -23,6 +23,10 @@ pub enum BridgeError {
     /// A configuration value that cannot work.
     #[error("invalid bridge configuration: {0}")]
     Config(&'static str),
+    /// A thread of the runner (the bus's reader, the Orion link's reader
+    /// or writer) could not be started.
+    #[error("starting the {0} thread: {1}")]
+    Thread(&'static str, std::io::Error),
     /// The bus failed (sending, or the client's configuration).
     #[error("bus: {0}")]
     Bus(#[from] motorwire_can::Error),

@@ -171,9 +171,12 @@ impl RealTimeArm {
         let mut port = bus.port();
         let thread = {
             let stop = Arc::clone(&stop);
-            thread::spawn(move || {
-                let _ = hub.run(&mut port, &stop);
-            })
+            thread::Builder::new()
+                .name("mw-sim-devices".to_owned())
+                .spawn(move || {
+                    let _ = hub.run(&mut port, &stop);
+                })
+                .map_err(|e| SimError::Thread(e.to_string()))?
         };
         Ok(Self {
             bus,
@@ -188,6 +191,15 @@ impl RealTimeArm {
     /// read would keep every joint frame (about 60 KB/s with three joints).
     pub fn sender(&self) -> SimPort {
         self.bus.send_only_port()
+    }
+
+    /// The bridge's two halves on the arm's bus, (sending, receiving): the
+    /// receiving half hears the devices but not the bridge's own frames
+    /// ([`SimPort::sending_half`]), as a SocketCAN socket and its clone do.
+    /// What [`RealTimeArm::spawn`] runs the bridge on.
+    pub fn ports(&self) -> (SimPort, SimPort) {
+        let rx = self.bus.port();
+        (rx.sending_half(), rx)
     }
 
     /// A new port on the arm's bus that receives every frame sent after it
@@ -232,7 +244,7 @@ impl RealTimeArm {
         bridge: Bridge,
         mut sink: impl FnMut(&Output) + Send + 'static,
     ) -> JoinHandle<Result<Bridge, BridgeError>> {
-        let (tx, rx) = (self.sender(), self.port());
+        let (tx, rx) = self.ports();
         thread::spawn(move || runner.run(bridge, tx, rx, |o| sink(o)))
     }
 
@@ -244,7 +256,7 @@ impl RealTimeArm {
         bridge: Bridge,
         mut sink: impl FnMut(&Output, &std::sync::Arc<str>) + Send + 'static,
     ) -> JoinHandle<Result<Bridge, BridgeError>> {
-        let (tx, rx) = (self.sender(), self.port());
+        let (tx, rx) = self.ports();
         thread::spawn(move || runner.run_rendered(bridge, tx, rx, |o, l| sink(o, l)))
     }
 }

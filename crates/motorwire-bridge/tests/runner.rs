@@ -7,6 +7,7 @@ use std::thread;
 use std::time::Duration;
 
 use motorwire_bridge::sim::RealTimeArm;
+use motorwire_can::{CanBus, SimConfig};
 use motorwire_bridge::{Bridge, BridgeConfig, InputSender, Origin, Output, Runner};
 use motorwire_translate::BusMap;
 use serde_json::Value;
@@ -26,18 +27,49 @@ fn start() -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
 
 /// [`start`] with `config`.
 fn start_with(config: BridgeConfig) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
+    start_on(config, SimConfig::default(), false)
+}
+
+/// [`start`] with `config`, the arm's bus made hostile by `bus`'s faults;
+/// with `blocking`, the bridge's receiving half is a bus that cannot wake
+/// the runner ([`Blocking`]), read on a thread of its own as SocketCAN is.
+fn start_on(
+    config: BridgeConfig,
+    bus: SimConfig,
+    blocking: bool,
+) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
     let map = BusMap::from_toml(MAP).unwrap();
     let bridge = Bridge::new(map, config).unwrap();
-    let arm = RealTimeArm::start(bridge.map()).unwrap();
+    let arm = RealTimeArm::start_with(bridge.map(), bus, None).unwrap();
     let runner = Runner::new();
     let input = runner.input();
     let (tx, rx) = mpsc::channel();
-    let handle = arm.spawn(runner, bridge, move |o| {
+    let sink = move |o: &Output| {
         if let Output::Result { .. } = o {
             let _ = tx.send(o.to_value());
         }
-    });
+    };
+    let handle = if blocking {
+        let (send, receive) = arm.ports();
+        thread::spawn(move || runner.run(bridge, send, Blocking(receive), sink))
+    } else {
+        arm.spawn(runner, bridge, sink)
+    };
     (arm, input, rx, handle)
+}
+
+/// A bus that only blocks in `recv` and cannot wake the runner (the
+/// default of [`CanBus::set_waker`]), as SocketCAN and fdcanusb: the
+/// runner reads it on a thread of its own.
+struct Blocking(motorwire_can::SimPort);
+
+impl CanBus for Blocking {
+    fn send(&mut self, frame: &motorwire_can::Frame) -> Result<(), motorwire_can::Error> {
+        self.0.send(frame)
+    }
+    fn recv(&mut self, timeout: Duration) -> Result<motorwire_can::Received, motorwire_can::Error> {
+        self.0.recv(timeout)
+    }
 }
 
 /// Ready first: one move of the elbow, answered.
@@ -54,7 +86,67 @@ fn ready(input: &InputSender, rx: &mpsc::Receiver<Value>) {
 
 #[test]
 fn a_stop_overtakes_the_lines_queued_before_it() {
-    let (_arm, input, rx, handle) = start();
+    stop_overtakes(false);
+}
+
+/// As [`a_stop_overtakes_the_lines_queued_before_it`], the bus read by a
+/// thread of the runner's (the way SocketCAN is read) instead of polled.
+#[test]
+fn a_stop_overtakes_the_lines_queued_before_it_on_a_bus_read_by_a_thread() {
+    stop_overtakes(true);
+}
+
+/// Frames the bus delays (every one, by up to 5 ms, and reordered) reach
+/// a runner that polls the bus when they are due, not only when the bus
+/// wakes it: every move is answered, and answered once.
+#[test]
+fn frames_the_bus_delays_reach_a_runner_that_polls_it() {
+    let faults = motorwire_can::Faults {
+        delay: 1.0,
+        max_delay: Duration::from_millis(5),
+        reorder: 0.2,
+        ..motorwire_can::Faults::default()
+    };
+    let bus = SimConfig {
+        seed: 11,
+        faults,
+        ..SimConfig::default()
+    };
+    let config = BridgeConfig {
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    for blocking in [false, true] {
+        let (_arm, input, rx, handle) = start_on(config, bus, blocking);
+        ready(&input, &rx);
+        let n = 200u64;
+        for i in 0..n {
+            input.line(
+                Origin(1),
+                format!(
+                    r#"{{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":{}}}"#,
+                    10 + i % 40
+                ),
+            );
+            let r = rx.recv_timeout(Duration::from_secs(10)).unwrap();
+            assert_eq!(r["ok"], true, "blocking {blocking}: {r}");
+            assert_eq!(r["line"], i + 1, "blocking {blocking}: {r}");
+        }
+        input.interrupt();
+        handle.join().unwrap().unwrap();
+        assert!(rx.try_recv().is_err(), "one result a line");
+    }
+}
+
+/// A burst of lines on the three joints, a release and then a stop queued
+/// behind them: the stop overtakes them, and nothing queued before it is
+/// acked after it.
+fn stop_overtakes(blocking: bool) {
+    let config = BridgeConfig {
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    let (_arm, input, rx, handle) = start_on(config, SimConfig::default(), blocking);
     ready(&input, &rx);
     let n = 2000;
     for i in 0..n {

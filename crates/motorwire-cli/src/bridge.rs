@@ -563,8 +563,9 @@ fn bridge(args: &Args) -> Result<u8, String> {
         "sim" => {
             let arm = RealTimeArm::start_with(bridge.map(), sim_config, sim_log)
                 .map_err(|e| e.to_string())?;
-            // The sending half never receives: nothing queues for it.
-            let (tx, rx) = (arm.sender(), arm.port());
+            // The sending half never receives, and the receiving half
+            // does not hear the bridge's own frames.
+            let (tx, rx) = arm.ports();
             runner.run_rendered(bridge, tx, rx, sink)
         }
         spec => {

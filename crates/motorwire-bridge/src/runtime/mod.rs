@@ -1,25 +1,27 @@
 //! Running a [`Bridge`] in real time on a blocking bus.
 
-use std::io::{self, BufRead, Write};
+use std::io::{self, BufRead};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, Sender};
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
-use motorwire_can::{CanBus, Error as CanError, Frame};
+use motorwire_can::{CanBus, Frame};
 
 use std::collections::BTreeMap;
 use std::sync::{Condvar, Mutex, OnceLock, PoisonError};
 
 use crate::classify::asks_for_stop;
 use crate::clocks::clocks_together;
-use crate::engine::{Bridge, Classified, Input};
+use crate::engine::Bridge;
 use crate::error::BridgeError;
-use crate::output::{Event, Origin, Output};
-use crate::tap::{Direction, Mark, Tap, Taps};
+use crate::output::{Origin, Output};
+use crate::tap::{Direction, Mark, Tap};
 
+mod orion;
 mod read;
+mod run;
 
 pub use read::*;
 
@@ -569,7 +571,7 @@ impl Runner {
     /// let runner = Runner::new();
     /// let input = runner.input();
     /// input.finish();
-    /// let (tx, rx) = (arm.sender(), arm.port());
+    /// let (tx, rx) = arm.ports();
     /// let mut lines = Vec::new();
     /// let bridge = runner.run_rendered(bridge, tx, rx, |o: &Output, line: &Arc<str>| {
     ///     assert_eq!(**line, o.to_json());
@@ -602,12 +604,12 @@ impl Runner {
 
     /// [`Runner::run`], each output rendered first when `render`.
     fn run_inner<T, R>(
-        mut self,
+        self,
         mut bridge: Bridge,
-        mut tx: T,
-        mut rx: R,
+        tx: T,
+        rx: R,
         render: bool,
-        mut sink: impl FnMut(&Output, Option<&Arc<str>>),
+        sink: impl FnMut(&Output, Option<&Arc<str>>),
     ) -> Result<Bridge, BridgeError>
     where
         T: CanBus,
@@ -618,344 +620,52 @@ impl Runner {
         if let Some(wall) = wall {
             bridge.anchor_epoch(wall.as_secs_f64() * 1000.0);
         }
-        let since = |at: Instant| at.saturating_duration_since(start);
         // From now on, lines are read where they are read.
         let _ = self.validator.set(bridge.validator().clone());
-        let stop_waiting = Arc::clone(&self.urgent_tx.waiting);
-        let stop = Arc::new(AtomicBool::new(false));
-        // Frames from the bus have a channel of their own, read ahead of
-        // the input lines (after the stops): an Ack is never queued behind
-        // a flood of lines (its request would time out, and a stop come
-        // back outcome_unknown). One Wake on the lines' channel rouses the
-        // loop when it waits there.
-        let (frames_tx, frames_rx) = mpsc::channel::<Msg>();
-        let frames_waiting = Arc::new(AtomicBool::new(false));
-        // What the devices say, CAN frames and the Orion controller's lines
-        // alike, goes ahead of the clients' lines.
-        let ahead = Ahead {
-            tx: frames_tx,
-            wake: self.tx.clone(),
-            waiting: Arc::clone(&frames_waiting),
+        let channels = run::Channels {
+            lines: self.rx,
+            wake: self.tx,
+            urgent: self.urgent,
+            stop_waiting: Arc::clone(&self.urgent_tx.waiting),
+            budget: self.budget,
+            orion: self.orion,
+            taps: self.taps,
         };
-        let reader = {
-            let stop = Arc::clone(&stop);
-            let wake = self.tx.clone();
-            let ahead = ahead.clone();
-            thread::spawn(move || {
-                while !stop.load(Ordering::Relaxed) {
-                    match rx.recv(Duration::from_millis(20)) {
-                        Ok(r) => {
-                            let _ = ahead.send(Msg::Frame {
-                                frame: r.frame,
-                                at: Instant::now(),
-                            });
-                        }
-                        Err(CanError::Timeout(_)) => {}
-                        Err(e) => {
-                            let _ = wake.send(Msg::BusError(e.to_string()));
-                            if fatal(&e) {
-                                break;
-                            }
-                        }
-                    }
-                }
-            })
-        };
-        let orion_queued = Arc::new(AtomicUsize::new(0));
-        let orion = self
-            .orion
-            .take()
-            .map(|port| spawn_orion(port, ahead.clone(), Arc::clone(&orion_queued)));
-        let taps = Taps(std::mem::take(&mut self.taps));
-        let rec: Option<&dyn Tap> = (!taps.0.is_empty()).then_some(&taps);
-        // Each output to the caller's sink, then to the taps, which take
-        // it as it is (or its line, when rendered for the sink): the
-        // bridge's thread copies nothing for them.
-        let mut sink = |o: Output| {
-            let at = Instant::now();
-            if render {
-                let line: Arc<str> = Arc::from(o.to_json());
-                sink(&o, Some(&line));
-                if let Some(r) = rec {
-                    r.output_line_owned(at, o, &line);
-                }
-            } else {
-                sink(&o, None);
-                if let Some(r) = rec {
-                    r.output_owned(at, o);
-                }
-            }
-        };
-        if let Some(r) = rec {
-            r.mark(start, Mark::Start);
-        }
-        bridge.start(since(Instant::now()));
-        // The taps are hushed while a stop is handled.
-        let mut hushed = false;
-        // What the taps are told once the frames are out: the frames sent
-        // (each with when it went) and the lines handled since the last
-        // time. A stop's frames never wait for its recording.
-        let mut sent: Vec<(Instant, Frame)> = Vec::new();
-        let mut handled: Vec<(Instant, Instant, Origin, u64, String)> = Vec::new();
-        let result = loop {
-            let mut failed = None;
-            while let Some(f) = bridge.poll_transmit() {
-                if let Err(e) = tx.send(&f) {
-                    failed = Some(e);
-                    break;
-                }
-                if rec.is_some() {
-                    sent.push((Instant::now(), f));
-                }
-            }
-            while let Some(line) = bridge.poll_link_line() {
-                if let Some(r) = rec {
-                    r.orion(Instant::now(), Direction::Tx, &line);
-                }
-                if let Some((to_orion, _)) = &orion {
-                    let _ = to_orion.send(line);
-                }
-            }
-            bridge.flushed(since(Instant::now()));
-            if let Some(r) = rec {
-                for (at, f) in sent.drain(..) {
-                    r.frame(at, Direction::Tx, &f);
-                }
-                for (at, taken, origin, number, text) in handled.drain(..) {
-                    r.input_owned(at, taken, origin, number, text);
-                }
-            }
-            if hushed {
-                // The stop's frames are out: the taps may work again.
-                if let Some(r) = rec {
-                    r.hush(false);
-                }
-                hushed = false;
-            }
-            // Outputs to hand out, until a stop waits (the rest go
-            // after its frames).
-            while !stop_waiting.load(Ordering::Acquire)
-                && let Some(o) = bridge.poll_output()
-            {
-                sink(o);
-            }
-            if let Some(e) = failed {
-                break Err(BridgeError::Bus(e));
-            }
-            if bridge.is_finished() {
-                break Ok(());
-            }
-            let now = since(Instant::now());
-            let wait = bridge
-                .poll_timeout()
-                .map_or(Duration::from_millis(100), |t| t.saturating_sub(now));
-            // Stops first, ahead of every line queued before them.
-            let mut stopped = false;
-            stop_waiting.store(false, Ordering::Release);
-            while let Ok(msg) = self.urgent.try_recv() {
-                if !hushed && let Some(r) = rec {
-                    r.hush(true);
-                    hushed = true;
-                }
-                if let Msg::Line { origin, .. } | Msg::Refused { origin, .. } = &msg {
-                    self.budget.give(*origin, true, queued_bytes(&msg));
-                }
-                if let Some(r) = rec
-                    && !matches!(msg, Msg::Line { .. })
-                {
-                    record_input(r, &msg);
-                }
-                match msg {
-                    Msg::Line {
-                        origin,
-                        number,
-                        text,
-                        at,
-                        input,
-                    } => {
-                        let taken = Instant::now();
-                        bridge.handle(
-                            since(at),
-                            Input::NumberedLine {
-                                origin,
-                                number,
-                                text: &text,
-                                read: input.map(Classified),
-                            },
-                        );
-                        if rec.is_some() {
-                            handled.push((at, taken, origin, number, text));
-                        }
-                    }
-                    Msg::Refused {
-                        origin,
-                        number,
-                        reason,
-                        ..
-                    } => bridge.handle_numbered_unreadable_stop(
-                        since(Instant::now()),
-                        origin,
-                        number,
-                        &reason,
-                    ),
-                    Msg::Interrupt => bridge.interrupt(since(Instant::now())),
-                    _ => {}
-                }
-                stopped = true;
-            }
-            if stopped {
-                continue; // its frames go out before anything else is read
-            }
-            // Then what came from the bus, ahead of the lines (at most
-            // FRAMES_AHEAD at a time: a bus flooded with frames still lets
-            // a line through between them).
-            frames_waiting.store(false, Ordering::SeqCst);
-            let mut heard = 0;
-            while heard < FRAMES_AHEAD
-                && !stop_waiting.load(Ordering::Acquire)
-                && let Ok(msg) = frames_rx.try_recv()
-            {
-                if let Some(r) = rec {
-                    record_input(r, &msg);
-                }
-                match msg {
-                    Msg::Frame { frame, at } => bridge.handle_frame(since(at), &frame),
-                    Msg::OrionLine { text, at } => {
-                        orion_queued.fetch_sub(1, Ordering::SeqCst);
-                        bridge.handle_link_line(since(at), &text);
-                    }
-                    Msg::OrionUnreadable(error) => {
-                        orion_queued.fetch_sub(1, Ordering::SeqCst);
-                        bridge.handle_link_unreadable(since(Instant::now()), &error);
-                    }
-                    Msg::OrionLost(e) => bridge.handle_link_lost(since(Instant::now()), &e),
-                    _ => {}
-                }
-                heard += 1;
-            }
-            if heard == FRAMES_AHEAD {
-                // More may wait: looked at again after one line.
-                frames_waiting.store(true, Ordering::SeqCst);
-            }
-            if stop_waiting.load(Ordering::Acquire) {
-                // A stop came while frames were taken: it goes first, the
-                // frames left after it.
-                frames_waiting.store(true, Ordering::SeqCst);
-                continue;
-            }
-            // Frames taken: one line (if one waits) in the same turn, so
-            // a busy bus never holds the lines back; none taken: wait.
-            let wait = if heard > 0 { Duration::ZERO } else { wait };
-            let msg = self.rx.recv_timeout(wait);
-            if let Ok(m @ (Msg::Line { origin, .. } | Msg::Refused { origin, .. })) = &msg {
-                self.budget.give(*origin, false, queued_bytes(m));
-            }
-            if let (Some(r), Ok(m)) = (rec, &msg)
-                && !matches!(m, Msg::Line { .. })
-            {
-                record_input(r, m);
-            }
-            match msg {
-                Ok(Msg::Wake) => {}
-                Ok(Msg::Dropped { origin, reason }) => {
-                    bridge.drop_origin(since(Instant::now()), origin, &reason);
-                }
-                Ok(Msg::Line {
-                    origin,
-                    number,
-                    text,
-                    at,
-                    input,
-                }) => {
-                    // Told to the taps once its frames are out, the line
-                    // moved to them.
-                    let taken = Instant::now();
-                    bridge.handle(
-                        since(at),
-                        Input::NumberedLine {
-                            origin,
-                            number,
-                            text: &text,
-                            read: input.map(Classified),
-                        },
-                    );
-                    if rec.is_some() {
-                        handled.push((at, taken, origin, number, text));
-                    }
-                }
-                Ok(Msg::Refused {
-                    origin,
-                    number,
-                    reason,
-                    stop: true,
-                    ..
-                }) => {
-                    bridge.handle_numbered_unreadable_stop(
-                        since(Instant::now()),
-                        origin,
-                        number,
-                        &reason,
-                    );
-                }
-                Ok(Msg::Refused {
-                    origin,
-                    number,
-                    reason,
-                    stop: false,
-                    ..
-                }) => {
-                    bridge.handle_numbered_unreadable(
-                        since(Instant::now()),
-                        origin,
-                        number,
-                        &reason,
-                    );
-                }
-                Ok(Msg::Frame { frame, at }) => bridge.handle_frame(since(at), &frame),
-                Ok(Msg::Greet { origin }) => bridge.greet(since(Instant::now()), origin),
-                Ok(Msg::Finish) => bridge.finish(since(Instant::now())),
-                Ok(Msg::Interrupt) => bridge.interrupt(since(Instant::now())),
-                Ok(Msg::BusError(e)) => sink(Output::Event(Event::BusError { error: e })),
-                Ok(Msg::OrionLine { text, at }) => {
-                    orion_queued.fetch_sub(1, Ordering::SeqCst);
-                    bridge.handle_link_line(since(at), &text);
-                }
-                Ok(Msg::OrionUnreadable(error)) => {
-                    orion_queued.fetch_sub(1, Ordering::SeqCst);
-                    bridge.handle_link_unreadable(since(Instant::now()), &error);
-                }
-                Ok(Msg::OrionLost(e)) => bridge.handle_link_lost(since(Instant::now()), &e),
-                Err(RecvTimeoutError::Timeout) => bridge.handle_timeout(since(Instant::now())),
-                Err(RecvTimeoutError::Disconnected) => {
-                    if let Some(r) = rec {
-                        r.mark(Instant::now(), Mark::Finish);
-                    }
-                    bridge.finish(since(Instant::now()));
-                }
-            }
-            // Timers that fell due while a message was handled.
-            let now = since(Instant::now());
-            if bridge.poll_timeout().is_some_and(|t| t <= now) {
-                bridge.handle_timeout(now);
-            }
-        };
-        if hushed && let Some(r) = rec {
-            r.hush(false);
-        }
-        stop.store(true, Ordering::Relaxed);
-        let _ = reader.join();
-        if let Some((to_orion, written)) = orion {
-            // The last lines (the stop) reach the controller before the
-            // end, unless its stream is stuck.
-            drop(to_orion);
-            let _ = written.recv_timeout(Duration::from_secs(1));
-        }
-        result.map(|()| bridge)
+        run::Loop::new(bridge, (tx, rx), channels, (render, sink), start)?.run()
     }
 }
 
-/// Frames from the bus taken ahead of the input lines at a time.
-const FRAMES_AHEAD: usize = 256;
+/// The channel of what the devices say, read ahead of the clients' lines:
+/// a message on it, and a wake on the lines' channel when the loop may be
+/// waiting there.
+#[derive(Debug, Clone)]
+struct Ahead {
+    tx: Sender<Msg>,
+    wake: Sender<Msg>,
+    waiting: Arc<AtomicBool>,
+}
+
+impl Ahead {
+    /// Hands `msg` to the runner. Whether it is still there.
+    fn send(&self, msg: Msg) -> Result<(), ()> {
+        self.tx.send(msg).map_err(|_| ())?;
+        self.wake();
+        Ok(())
+    }
+
+    /// Wakes the loop unless a wake is already on its way.
+    fn wake(&self) {
+        if !self.waiting.swap(true, Ordering::SeqCst) {
+            let _ = self.wake.send(Msg::Wake);
+        }
+    }
+
+    /// Tells the loop the bus failed, on the lines' channel (where it is
+    /// woken).
+    fn bus_error(&self, error: String) {
+        let _ = self.wake.send(Msg::BusError(error));
+    }
+}
 
 /// What `msg` brings that a recording keeps: an input line, a frame
 /// received, a line from the Orion controller, and what else the bridge is
@@ -996,158 +706,6 @@ fn record_input(r: &dyn Tap, msg: &Msg) {
         Msg::OrionLost(e) => r.mark(Instant::now(), Mark::OrionLost(e.clone())),
         Msg::Wake | Msg::BusError(_) => {}
     }
-}
-
-/// Starts the Orion port's reader and writer threads: lines to write go
-/// into the returned sender; the receiver hears when the writer is done.
-/// The channel of what the devices say, read ahead of the clients' lines:
-/// a message on it, and a wake on the lines' channel when the loop may be
-/// waiting there.
-#[derive(Debug, Clone)]
-struct Ahead {
-    tx: Sender<Msg>,
-    wake: Sender<Msg>,
-    waiting: Arc<AtomicBool>,
-}
-
-impl Ahead {
-    /// Hands `msg` to the runner. Whether it is still there.
-    fn send(&self, msg: Msg) -> Result<(), ()> {
-        self.tx.send(msg).map_err(|_| ())?;
-        if !self.waiting.swap(true, Ordering::SeqCst) {
-            let _ = self.wake.send(Msg::Wake);
-        }
-        Ok(())
-    }
-}
-
-fn spawn_orion(
-    port: OrionPort,
-    events: Ahead,
-    queued: Arc<AtomicUsize>,
-) -> (Sender<String>, Receiver<()>) {
-    let OrionPort { reader, mut writer } = port;
-    // Lines written and not yet answered: each lets one line back past the
-    // per-second budget.
-    let owed = Arc::new(AtomicUsize::new(0));
-    {
-        let events = events.clone();
-        let owed = Arc::clone(&owed);
-        // Not joined: a blocking read cannot be interrupted, and the thread
-        // ends with its stream or the process.
-        thread::spawn(move || {
-            let mut reader = io::BufReader::new(reader);
-            // This second's lines, and those dropped since the last report.
-            let mut second = Instant::now();
-            let mut taken: u32 = 0;
-            let mut dropped: u64 = 0;
-            loop {
-                let msg = match read_line(&mut reader, crate::device::orion::MAX_ORION_LINE) {
-                    Ok(ReadLine::Line(text)) => Msg::OrionLine {
-                        text,
-                        at: Instant::now(),
-                    },
-                    Ok(ReadLine::TooLong { .. }) => Msg::OrionUnreadable(format!(
-                        "a line over {} bytes",
-                        crate::device::orion::MAX_ORION_LINE
-                    )),
-                    Ok(ReadLine::NotUtf8 { .. }) => {
-                        Msg::OrionUnreadable("a line that is not UTF-8".to_owned())
-                    }
-                    Ok(ReadLine::Partial(_) | ReadLine::End) => {
-                        let _ =
-                            events.send(Msg::OrionLost("the controller's stream ended".to_owned()));
-                        return;
-                    }
-                    // A line with no end within MAX_SKIP: reported, and
-                    // reading goes on (the next line starts after it).
-                    Err(e) if e.kind() == io::ErrorKind::InvalidData => {
-                        Msg::OrionUnreadable(e.to_string())
-                    }
-                    Err(e) => {
-                        let _ = events
-                            .send(Msg::OrionLost(format!("reading from the controller: {e}")));
-                        return;
-                    }
-                };
-                let now = Instant::now();
-                if now.duration_since(second) >= Duration::from_secs(1) {
-                    second = now;
-                    taken = 0;
-                }
-                if queued.load(Ordering::SeqCst) >= MAX_ORION_QUEUED {
-                    dropped += 1;
-                    continue;
-                }
-                let answer = owed
-                    .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |n| n.checked_sub(1))
-                    .is_ok();
-                if !answer {
-                    if taken >= MAX_ORION_LINES_PER_S {
-                        dropped += 1;
-                        continue;
-                    }
-                    taken += 1;
-                }
-                if dropped > 0 {
-                    queued.fetch_add(1, Ordering::SeqCst);
-                    let report = Msg::OrionUnreadable(format!(
-                        "{dropped} lines from the controller dropped: more than {MAX_ORION_LINES_PER_S} a second beyond its answers, or {MAX_ORION_QUEUED} waiting"
-                    ));
-                    dropped = 0;
-                    if events.send(report).is_err() {
-                        return;
-                    }
-                }
-                queued.fetch_add(1, Ordering::SeqCst);
-                if events.send(msg).is_err() {
-                    return;
-                }
-            }
-        });
-    }
-    let (lines_tx, lines_rx) = mpsc::channel::<String>();
-    let (done_tx, done_rx) = mpsc::channel();
-    thread::spawn(move || {
-        let mut failing = false;
-        for line in lines_rx {
-            let written = writer
-                .write_all(line.as_bytes())
-                .and_then(|()| writer.write_all(b"\n"))
-                .and_then(|()| writer.flush());
-            // A failed write is the link lost (reported once per run of
-            // failures); the writer goes on, as a link that connects again
-            // (TCP) takes the next line.
-            if written.is_ok() {
-                // Bounded: a controller that never answers owes at most
-                // one budget's worth.
-                let _ = owed.fetch_update(Ordering::SeqCst, Ordering::SeqCst, |n| {
-                    Some((n + 1).min(MAX_ORION_QUEUED * 8))
-                });
-            }
-            match written {
-                Err(e) if !failing => {
-                    failing = true;
-                    let _ = events.send(Msg::OrionLost(format!("writing to the controller: {e}")));
-                }
-                Err(_) => {}
-                Ok(()) => failing = false,
-            }
-        }
-        let _ = done_tx.send(());
-    });
-    (lines_tx, done_rx)
-}
-
-/// A receive error after which the handle will never receive again.
-fn fatal(e: &CanError) -> bool {
-    matches!(
-        e,
-        CanError::Closed
-            | CanError::NoSuchInterface { .. }
-            | CanError::InterfaceDown { .. }
-            | CanError::Io { .. }
-    )
 }
 
 #[cfg(test)]

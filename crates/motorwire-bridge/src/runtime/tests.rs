@@ -1,6 +1,9 @@
 //! Unit tests.
 
 use super::*;
+use std::sync::atomic::AtomicUsize;
+use std::sync::mpsc::RecvTimeoutError;
+use std::time::Duration;
 
 /// A secret is found anywhere in a line, and in an unreadable line's
 /// first bytes whole or cut at their end (8 of its bytes or more).
