@@ -1069,80 +1069,14 @@ impl SimulatedArm {
                     rounds: MAX_ROUNDS_AT_ONCE,
                 });
             }
-            let mut busy = false;
-            let mut sent = false;
-            while let Some(f) = self.bridge.poll_transmit() {
-                self.port.send(&f)?;
-                if let Some(h) = &mut self.holding {
-                    h.counter.sent(&f);
-                }
-                if let Some(log) = &mut self.sent {
-                    log.push((now, f));
-                }
-                sent = true;
-            }
-            if let Some(orion) = &mut self.orion {
-                let mut answers = Vec::new();
-                let mut wrote = false;
-                while let Some(line) = self.bridge.poll_link_line() {
-                    wrote = true;
-                    let handled = orion.controller.handle_line(&line);
-                    let mut values = [0.0; 7];
-                    for (v, m) in values.iter_mut().zip(motorwire_orion::Motor::ALL) {
-                        *v = orion.controller.value(m);
-                    }
-                    orion.log.push(OrionWrite {
-                        at: now,
-                        line,
-                        clamps: handled.as_ref().map_or(0, |r| r.clamps.len()),
-                        values,
-                    });
-                    if let Ok(r) = handled {
-                        answers.push(r.output.to_json(motorwire_orion::FeedbackKeys::Table));
-                    }
-                }
-                if wrote {
-                    // Written: what waited for its lines to go out is told.
-                    self.bridge.flushed(now);
-                }
-                for a in answers {
-                    self.bridge.handle_link_line(now, &a);
-                    busy = true;
-                }
-            }
+            let sent = self.send_frames(now)?;
+            let mut busy = self.serve_orion(now);
             if sent {
                 self.bridge.flushed(now);
                 busy = true;
             }
-            for (joint, port) in &mut self.joints {
-                if let Some(port) = port {
-                    busy |= joint.serve(port, now)?;
-                }
-            }
-            for (device, port) in &mut self.compact {
-                busy |= device.serve(port, now)?;
-            }
-            for (device, port) in &mut self.moteus {
-                busy |= device.serve(port, now)?;
-            }
-            if let Some(h) = &mut self.holding {
-                let mut batch = Vec::new();
-                while let Some(r) = self.port.try_recv() {
-                    batch.push(r.frame);
-                }
-                busy |= !batch.is_empty();
-                let mut due = h.release(now);
-                busy |= !due.is_empty();
-                due.extend(h.receive(now, batch));
-                for f in due {
-                    self.bridge.handle_frame(now, &f);
-                }
-            } else {
-                while let Some(r) = self.port.try_recv() {
-                    self.bridge.handle_frame(now, &r.frame);
-                    busy = true;
-                }
-            }
+            busy |= self.serve_devices(now)?;
+            busy |= self.take_frames(now);
             let next = self.bridge.poll_timeout();
             if next.is_some_and(|t| t <= now) {
                 self.bridge.handle_timeout(now);
@@ -1153,6 +1087,101 @@ impl SimulatedArm {
                 return Ok(next);
             }
         }
+    }
+
+    /// The bridge's frames onto the bus. Whether it sent any.
+    fn send_frames(&mut self, now: Duration) -> Result<bool, BridgeError> {
+        let mut sent = false;
+        while let Some(f) = self.bridge.poll_transmit() {
+            self.port.send(&f)?;
+            if let Some(h) = &mut self.holding {
+                h.counter.sent(&f);
+            }
+            if let Some(log) = &mut self.sent {
+                log.push((now, f));
+            }
+            sent = true;
+        }
+        Ok(sent)
+    }
+
+    /// The bridge's lines to the simulated Orion controller, and its
+    /// answers back. Whether any came back.
+    fn serve_orion(&mut self, now: Duration) -> bool {
+        let Some(orion) = &mut self.orion else {
+            return false;
+        };
+        let mut answers = Vec::new();
+        let mut wrote = false;
+        while let Some(line) = self.bridge.poll_link_line() {
+            wrote = true;
+            let handled = orion.controller.handle_line(&line);
+            let mut values = [0.0; 7];
+            for (v, m) in values.iter_mut().zip(motorwire_orion::Motor::ALL) {
+                *v = orion.controller.value(m);
+            }
+            orion.log.push(OrionWrite {
+                at: now,
+                line,
+                clamps: handled.as_ref().map_or(0, |r| r.clamps.len()),
+                values,
+            });
+            if let Ok(r) = handled {
+                answers.push(r.output.to_json(motorwire_orion::FeedbackKeys::Table));
+            }
+        }
+        if wrote {
+            // Written: what waited for its lines to go out is told.
+            self.bridge.flushed(now);
+        }
+        let answered = !answers.is_empty();
+        for a in answers {
+            self.bridge.handle_link_line(now, &a);
+        }
+        answered
+    }
+
+    /// Each simulated device takes what came for it and answers. Whether
+    /// any did something.
+    fn serve_devices(&mut self, now: Duration) -> Result<bool, BridgeError> {
+        let mut busy = false;
+        for (joint, port) in &mut self.joints {
+            if let Some(port) = port {
+                busy |= joint.serve(port, now)?;
+            }
+        }
+        for (device, port) in &mut self.compact {
+            busy |= device.serve(port, now)?;
+        }
+        for (device, port) in &mut self.moteus {
+            busy |= device.serve(port, now)?;
+        }
+        Ok(busy)
+    }
+
+    /// The devices' frames to the bridge (held back first when answers
+    /// are held). Whether any came.
+    fn take_frames(&mut self, now: Duration) -> bool {
+        let mut busy = false;
+        if let Some(h) = &mut self.holding {
+            let mut batch = Vec::new();
+            while let Some(r) = self.port.try_recv() {
+                batch.push(r.frame);
+            }
+            busy |= !batch.is_empty();
+            let mut due = h.release(now);
+            busy |= !due.is_empty();
+            due.extend(h.receive(now, batch));
+            for f in due {
+                self.bridge.handle_frame(now, &f);
+            }
+        } else {
+            while let Some(r) = self.port.try_recv() {
+                self.bridge.handle_frame(now, &r.frame);
+                busy = true;
+            }
+        }
+        busy
     }
 
     /// Runs until the clock reaches `t`.

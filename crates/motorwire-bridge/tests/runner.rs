@@ -7,8 +7,8 @@ use std::thread;
 use std::time::Duration;
 
 use motorwire_bridge::sim::RealTimeArm;
-use motorwire_can::{CanBus, SimConfig};
 use motorwire_bridge::{Bridge, BridgeConfig, InputSender, Origin, Output, Runner};
+use motorwire_can::{CanBus, SimConfig};
 use motorwire_translate::BusMap;
 use serde_json::Value;
 
@@ -97,10 +97,11 @@ fn a_stop_overtakes_the_lines_queued_before_it_on_a_bus_read_by_a_thread() {
 }
 
 /// Frames the bus delays (every one, by up to 5 ms, and reordered) reach
-/// a runner that polls the bus when they are due, not only when the bus
-/// wakes it: every move is answered, and answered once.
+/// the runner: such a bus cannot wake it when they fall due, so it is read
+/// by a thread (given as a bus that could wake it, and as one that
+/// cannot): every move is answered, and answered once.
 #[test]
-fn frames_the_bus_delays_reach_a_runner_that_polls_it() {
+fn frames_the_bus_delays_reach_the_runner() {
     let faults = motorwire_can::Faults {
         delay: 1.0,
         max_delay: Duration::from_millis(5),

@@ -48,15 +48,13 @@ pub trait CanBus {
     fn recv(&mut self, timeout: Duration) -> Result<Received, Error>;
 
     /// Asks the bus to call `waker` (on the sending thread, without
-    /// blocking) whenever a frame is queued for this port, so that a
-    /// program can wait for frames and for its other work on one thread,
-    /// polling `recv(Duration::ZERO)` when woken, instead of keeping a
-    /// thread blocked in `recv`. Whether the bus does it: `false` (the
-    /// default, every bus that only blocks) leaves the waker unused.
-    ///
-    /// A frame the bus holds for later (a simulated latency or delay) may
-    /// wake the port before it is due: [`CanBus::next_due_in`] says when to
-    /// look again.
+    /// blocking) whenever a frame is queued for this port, due at once, so
+    /// that a program can wait for frames and for its other work on one
+    /// thread, polling `recv(Duration::ZERO)` when woken, instead of
+    /// keeping a thread blocked in `recv`. Whether the bus does it:
+    /// `false` (the default, every bus that only blocks, and a bus that
+    /// may hold a frame for later, which no waker would tell when it
+    /// falls due) leaves the waker unused.
     ///
     /// ```
     /// use std::sync::Arc;
@@ -82,13 +80,6 @@ pub trait CanBus {
     fn set_waker(&mut self, waker: FrameWaker) -> bool {
         let _ = waker;
         false
-    }
-
-    /// When a port with a waker should poll again though no wake came: a
-    /// frame is queued for it but not due yet. `None` when nothing waits
-    /// (and on every bus without a waker).
-    fn next_due_in(&self) -> Option<Duration> {
-        None
     }
 }
 
@@ -120,8 +111,5 @@ impl<B: CanBus + ?Sized> CanBus for &mut B {
     }
     fn set_waker(&mut self, waker: FrameWaker) -> bool {
         (**self).set_waker(waker)
-    }
-    fn next_due_in(&self) -> Option<Duration> {
-        (**self).next_due_in()
     }
 }

@@ -648,19 +648,20 @@ impl CanBus for SimPort {
         }
     }
 
+    /// Taken on a bus whose every frame is due as it is sent: no
+    /// latency, delay or reordering (a frame held for later would wake
+    /// its port too early, and nothing would when it falls due).
     fn set_waker(&mut self, waker: FrameWaker) -> bool {
         let mut s = self.bus.lock();
+        let c = s.config;
+        if !c.latency.is_zero() || c.faults.delay > 0.0 || c.faults.reorder > 0.0 {
+            return false;
+        }
         let Some(p) = s.ports.get_mut(self.index) else {
             return false;
         };
         p.waker = Some(waker);
         true
-    }
-
-    fn next_due_in(&self) -> Option<Duration> {
-        let s = self.bus.lock();
-        let at = s.next_for(self.index)?;
-        Some(at.saturating_sub(s.now()))
     }
 }
 

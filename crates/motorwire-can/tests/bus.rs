@@ -360,3 +360,44 @@ fn a_waiting_port_is_woken_only_by_frames_for_it() {
     // The ready handshake and the one wake (a few for the scheduler).
     assert!(switches <= 5, "woken {switches} times");
 }
+
+/// A waker is taken on a bus whose frames are due as they are sent, and
+/// refused on one that may hold a frame for later (a latency, delays,
+/// reordering): nothing would wake the port when that frame falls due.
+#[test]
+fn a_waker_is_refused_where_a_frame_can_fall_due_later() {
+    let noop: motorwire_can::FrameWaker = std::sync::Arc::new(|| {});
+    let takes = |config: SimConfig| {
+        let bus = SimBus::new(config).unwrap();
+        bus.port().set_waker(std::sync::Arc::clone(&noop))
+    };
+    assert!(takes(SimConfig::default()));
+    assert!(takes(SimConfig {
+        faults: Faults {
+            drop: 0.5,
+            duplicate: 0.5,
+            corrupt: 0.5,
+            ..Faults::default()
+        },
+        ..SimConfig::default()
+    }));
+    assert!(!takes(SimConfig {
+        latency: Duration::from_micros(1),
+        ..SimConfig::default()
+    }));
+    for faults in [
+        Faults {
+            delay: 0.1,
+            ..Faults::default()
+        },
+        Faults {
+            reorder: 0.1,
+            ..Faults::default()
+        },
+    ] {
+        assert!(!takes(SimConfig {
+            faults,
+            ..SimConfig::default()
+        }));
+    }
+}

@@ -102,18 +102,9 @@ pub enum ReadLine {
 /// # Errors
 /// The reader's errors.
 pub fn read_line(reader: &mut impl BufRead, max_line: usize) -> io::Result<ReadLine> {
-    let mut bytes = Vec::new();
-    let mut too_long = false;
-    // While a too-long line is skipped: whether it named a stop, and its
-    // last bytes (a name split between two reads).
-    let mut names_stop = false;
-    let mut tail: Vec<u8> = Vec::new();
-    let mut skipped: u64 = 0;
-    // A too-long line's first bytes and its length, for the recording.
-    let mut head: Vec<u8> = Vec::new();
-    let mut length: u64 = 0;
+    let mut line = Reading::default();
     loop {
-        if skipped > MAX_SKIP {
+        if line.skipped > MAX_SKIP {
             return Err(io::Error::new(
                 io::ErrorKind::InvalidData,
                 format!(
@@ -129,77 +120,110 @@ pub fn read_line(reader: &mut impl BufRead, max_line: usize) -> io::Result<ReadL
                 Err(e) => return Err(e),
             };
             if buf.is_empty() {
-                return Ok(if too_long {
-                    ReadLine::TooLong {
-                        names_stop,
-                        head,
-                        length,
-                    }
-                } else if bytes.is_empty() {
-                    ReadLine::End
-                } else {
-                    ReadLine::Partial(String::from_utf8_lossy(&bytes).into_owned())
-                });
+                return Ok(line.ended());
             }
             match buf.iter().position(|&b| b == b'\n') {
                 Some(i) => {
-                    let seg = buf.get(..i).unwrap_or_default();
-                    length += seg.len() as u64;
-                    if too_long {
-                        names_stop |= scan(&mut tail, seg);
-                    } else {
-                        bytes.extend_from_slice(seg);
-                    }
+                    line.take(buf.get(..i).unwrap_or_default());
                     (i + 1, true)
                 }
                 None => {
-                    length += buf.len() as u64;
-                    if too_long {
-                        names_stop |= scan(&mut tail, buf);
-                    } else {
-                        bytes.extend_from_slice(buf);
-                    }
+                    line.take(buf);
                     (buf.len(), false)
                 }
             }
         };
         reader.consume(consumed);
-        if too_long {
-            skipped += consumed as u64;
+        if line.too_long {
+            line.skipped += consumed as u64;
         }
-        if bytes.len() > max_line {
-            too_long = true;
-            names_stop |= scan(&mut tail, &bytes);
-            bytes.truncate(UNREADABLE_HEAD);
-            head = std::mem::take(&mut bytes);
-        }
+        line.check_length(max_line);
         if done {
-            if too_long {
-                return Ok(ReadLine::TooLong {
+            return Ok(line.finished());
+        }
+    }
+}
+
+/// A line being read by [`read_line`].
+#[derive(Default)]
+struct Reading {
+    /// Its bytes so far (while it is not too long).
+    bytes: Vec<u8>,
+    too_long: bool,
+    /// While a too-long line is skipped: whether it named a stop, and its
+    /// last bytes (a name split between two reads), and the bytes skipped.
+    names_stop: bool,
+    tail: Vec<u8>,
+    skipped: u64,
+    /// A too-long line's first bytes and its length, for the recording.
+    head: Vec<u8>,
+    length: u64,
+}
+
+impl Reading {
+    /// A segment of the line (no newline in it).
+    fn take(&mut self, seg: &[u8]) {
+        self.length += seg.len() as u64;
+        if self.too_long {
+            self.names_stop |= scan(&mut self.tail, seg);
+        } else {
+            self.bytes.extend_from_slice(seg);
+        }
+    }
+
+    /// Past `max_line`: the line is too long, its first bytes kept.
+    fn check_length(&mut self, max_line: usize) {
+        if self.bytes.len() > max_line {
+            self.too_long = true;
+            self.names_stop |= scan(&mut self.tail, &self.bytes);
+            self.bytes.truncate(UNREADABLE_HEAD);
+            self.head = std::mem::take(&mut self.bytes);
+        }
+    }
+
+    /// The input ended before a newline.
+    fn ended(self) -> ReadLine {
+        if self.too_long {
+            self.into_too_long()
+        } else if self.bytes.is_empty() {
+            ReadLine::End
+        } else {
+            ReadLine::Partial(String::from_utf8_lossy(&self.bytes).into_owned())
+        }
+    }
+
+    fn into_too_long(self) -> ReadLine {
+        ReadLine::TooLong {
+            names_stop: self.names_stop,
+            head: self.head,
+            length: self.length,
+        }
+    }
+
+    /// The line's newline came.
+    fn finished(self) -> ReadLine {
+        if self.too_long {
+            return self.into_too_long();
+        }
+        let length = self.length;
+        match String::from_utf8(self.bytes) {
+            Ok(mut s) => {
+                if s.ends_with('\r') {
+                    s.pop();
+                }
+                ReadLine::Line(s)
+            }
+            Err(e) => {
+                let mut head = e.into_bytes();
+                let names_stop = head.windows(14).any(|w| w == b"emergency_stop")
+                    || crate::classify::names_a_stop(&String::from_utf8_lossy(&head));
+                head.truncate(UNREADABLE_HEAD);
+                ReadLine::NotUtf8 {
                     names_stop,
                     head,
                     length,
-                });
+                }
             }
-            return Ok(match String::from_utf8(bytes) {
-                Ok(mut s) => {
-                    if s.ends_with('\r') {
-                        s.pop();
-                    }
-                    ReadLine::Line(s)
-                }
-                Err(e) => {
-                    let mut head = e.into_bytes();
-                    let names_stop = head.windows(14).any(|w| w == b"emergency_stop")
-                        || crate::classify::names_a_stop(&String::from_utf8_lossy(&head));
-                    head.truncate(UNREADABLE_HEAD);
-                    ReadLine::NotUtf8 {
-                        names_stop,
-                        head,
-                        length,
-                    }
-                }
-            });
         }
     }
 }

@@ -63,14 +63,6 @@ impl<R: CanBus + Send + 'static> BusIn<R> {
         Ok(Self::Thread { stop, handle })
     }
 
-    /// When the loop must poll a bus whose frame is queued but not due.
-    fn next_due_in(&self) -> Option<Duration> {
-        match self {
-            Self::Polled(Some(rx)) => rx.next_due_in(),
-            _ => None,
-        }
-    }
-
     /// The next frame of a polled bus, if one is due; `Err` with what it
     /// said when it failed (the bus is then given up when `fatal`).
     fn poll(&mut self) -> Result<Option<Frame>, CanError> {
@@ -168,12 +160,10 @@ pub(super) struct Loop<T, R, S> {
     sent: Vec<(Instant, Frame)>,
     handled: Vec<Handled>,
     /// A polled bus is looked at in the next turn though it did not wake
-    /// the loop: frames were left in it, or one is queued but not due
-    /// (then `bus_due_in` says in how long). Otherwise it is polled only
-    /// when it woke the loop: every look takes the bus's lock, which its
-    /// devices' thread takes too.
+    /// the loop: frames were left in it. Otherwise it is polled only when
+    /// it woke the loop (every look takes the bus's lock, which its
+    /// devices' thread takes too).
     look_at_bus: bool,
-    bus_due_in: Option<Duration>,
 }
 
 impl<T, R, S> Loop<T, R, S>
@@ -232,7 +222,6 @@ where
             sent: Vec::new(),
             handled: Vec::new(),
             look_at_bus: false,
-            bus_due_in: None,
         })
     }
 
@@ -268,7 +257,7 @@ where
     /// line, or a wait for one until the next timer.
     fn turn(&mut self) {
         let now = self.now();
-        let mut wait = self
+        let wait = self
             .bridge
             .poll_timeout()
             .map_or(Duration::from_millis(100), |t| t.saturating_sub(now));
@@ -284,11 +273,7 @@ where
             return;
         }
         // Frames taken: one line (if one waits) in the same turn, so a
-        // busy bus never holds the lines back; none taken: wait, until a
-        // frame queued on a polled bus is due at the latest.
-        if let Some(due) = self.bus_due_in {
-            wait = wait.min(due);
-        }
+        // busy bus never holds the lines back; none taken: wait.
         let wait = if heard > 0 { Duration::ZERO } else { wait };
         let msg = self.ch.lines.recv_timeout(wait);
         self.take(msg);
@@ -413,9 +398,6 @@ where
     fn take_frames(&mut self) -> usize {
         let woken = self.frames_waiting.swap(false, Ordering::SeqCst);
         let mut look = std::mem::take(&mut self.look_at_bus) || woken;
-        if look {
-            self.bus_due_in = None;
-        }
         let mut heard = 0;
         while heard < FRAMES_AHEAD && !self.ch.stop_waiting.load(Ordering::Acquire) {
             let (msg, failed) = match self.frames.try_recv() {
@@ -429,10 +411,6 @@ where
                     // is not polled in a loop.
                     Some(Err(e)) => (Msg::BusError(e.to_string()), true),
                     Some(Ok(None)) | None => {
-                        // Nothing due: a frame queued for later is looked
-                        // for when it is due.
-                        self.bus_due_in = self.bus.as_ref().and_then(BusIn::next_due_in);
-                        self.look_at_bus = self.bus_due_in.is_some();
                         look = false;
                         continue;
                     }
