@@ -10,6 +10,7 @@ use crate::Rule;
 use crate::check::Sink;
 use crate::path::Path;
 use crate::serde_util::{control_mode, number, opt_filter_kind, opt_integer, some, string_enum};
+use crate::setters::with_setters;
 
 /// PID gains as a WIA command carries them. In a command every gain is
 /// optional (an absent gain leaves the controller's current one in place);
@@ -512,6 +513,63 @@ pub struct MotorCommand {
 }
 
 impl MotorCommand {
+    /// A command of its required members alone: every optional member is
+    /// absent, and the `with_*` setters give those a command needs.
+    /// `timestamp` is Unix milliseconds, read from the caller's clock (this
+    /// crate reads none).
+    ///
+    /// Nothing is checked or clamped here: a NaN setpoint or a malformed
+    /// id makes a command all the same, which [`Validator::check`] (and
+    /// [`Validator::to_json`], and the bridge) refuses as it refuses the
+    /// same JSON.
+    ///
+    /// ```
+    /// use motorwire_wia::core::ControlMode;
+    /// use motorwire_wia::{CommandSafetyLimits, MotorCommand, Validator};
+    ///
+    /// let cmd = MotorCommand::new("shoulder_pitch", 1_704_067_200_000.0, ControlMode::Position, 45.0)
+    ///     .with_velocity_limit(60.0)
+    ///     .with_acceleration_limit(120.0)
+    ///     .with_safety_limits(CommandSafetyLimits {
+    ///         min_position: Some(-90.0),
+    ///         max_position: Some(90.0),
+    ///         ..CommandSafetyLimits::default()
+    ///     });
+    /// assert!(Validator::new().check(&cmd).is_empty());
+    /// assert_eq!(
+    ///     serde_json::to_string(&cmd)?,
+    ///     r#"{"motor_id":"shoulder_pitch","timestamp":1704067200000,"control_mode":"position","setpoint":45.0,"velocity_limit":60.0,"acceleration_limit":120.0,"safety_limits":{"min_position":-90.0,"max_position":90.0}}"#
+    /// );
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    ///
+    /// [`Validator::check`]: crate::Validator::check
+    /// [`Validator::to_json`]: crate::Validator::to_json
+    #[must_use]
+    pub fn new(
+        motor_id: impl Into<String>,
+        timestamp: f64,
+        control_mode: ControlMode,
+        setpoint: f64,
+    ) -> Self {
+        Self {
+            motor_id: motor_id.into(),
+            timestamp,
+            control_mode,
+            setpoint,
+            velocity_limit: None,
+            acceleration_limit: None,
+            torque_limit: None,
+            pid_gains: None,
+            impedance_params: None,
+            filter_config: None,
+            safety_limits: None,
+            priority: None,
+            metadata: None,
+            extra: Map::new(),
+        }
+    }
+
     pub(crate) fn body(&self) -> CommandBody<'_> {
         CommandBody {
             control_mode: self.control_mode,
@@ -538,6 +596,26 @@ impl MotorCommand {
         self.body().check(&root, s);
     }
 }
+
+/// The optional members of a command, of a MotorCommand and of one axis of
+/// a multi-axis command alike.
+macro_rules! command_setters {
+    ($ty:ident) => {
+        with_setters!($ty {
+            with_velocity_limit: velocity_limit: f64,
+            with_acceleration_limit: acceleration_limit: f64,
+            with_torque_limit: torque_limit: f64,
+            with_pid_gains: pid_gains: PidGains,
+            with_impedance_params: impedance_params: ImpedanceParams,
+            with_filter_config: filter_config: FilterConfig,
+            with_safety_limits: safety_limits: CommandSafetyLimits,
+            with_priority: priority: i64,
+        });
+    };
+}
+
+command_setters!(MotorCommand);
+command_setters!(AxisCommand);
 
 /// motorwire's `stream` member, where a command carries it: a boolean.
 fn check_stream(extra: &Map<String, Value>, s: &mut Sink) {
@@ -632,6 +710,44 @@ pub struct AxisCommand {
 }
 
 impl AxisCommand {
+    /// One motor's part of a multi-axis command, of its required members
+    /// alone (it has no timestamp of its own); the `with_*` setters give
+    /// the optional ones. Nothing is checked or clamped here: the
+    /// [`Validator`](crate::Validator) judges the multi-axis command that
+    /// holds it.
+    ///
+    /// ```
+    /// use motorwire_wia::core::ControlMode;
+    /// use motorwire_wia::{AxisCommand, MultiAxisCommand, Validator};
+    ///
+    /// let axis = AxisCommand::new("elbow", ControlMode::Velocity, 15.0).with_torque_limit(8.0);
+    /// let cmd = MultiAxisCommand::new("cmd_1", 1_704_067_200_000.0, vec![axis]);
+    /// assert!(Validator::new().check(&cmd).is_empty());
+    /// assert_eq!(
+    ///     serde_json::to_string(&cmd.motors[0])?,
+    ///     r#"{"motor_id":"elbow","control_mode":"velocity","setpoint":15.0,"torque_limit":8.0}"#
+    /// );
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    #[must_use]
+    pub fn new(motor_id: impl Into<String>, control_mode: ControlMode, setpoint: f64) -> Self {
+        Self {
+            motor_id: motor_id.into(),
+            control_mode,
+            setpoint,
+            velocity_limit: None,
+            acceleration_limit: None,
+            torque_limit: None,
+            pid_gains: None,
+            impedance_params: None,
+            filter_config: None,
+            safety_limits: None,
+            priority: None,
+            metadata: None,
+            extra: Map::new(),
+        }
+    }
+
     pub(crate) fn body(&self) -> CommandBody<'_> {
         CommandBody {
             control_mode: self.control_mode,
@@ -778,7 +894,54 @@ pub struct MultiAxisCommand {
     pub extra: Map<String, Value>,
 }
 
+with_setters!(MultiAxisCommand {
+    with_sync_mode: sync_mode: SyncMode,
+    with_coordination: coordination: Coordination,
+});
+
 impl MultiAxisCommand {
+    /// A multi-axis command of its required members alone: `command_id`,
+    /// `timestamp` (Unix milliseconds, from the caller's clock) and one
+    /// [`AxisCommand`] a motor; the `with_*` setters give the optional
+    /// members. Nothing is checked here (no motors, or one motor twice,
+    /// makes a command all the same): [`Validator::check`] says what a
+    /// value breaks.
+    ///
+    /// ```
+    /// use motorwire_wia::core::ControlMode;
+    /// use motorwire_wia::{AxisCommand, MultiAxisCommand, SyncMode, Validator};
+    ///
+    /// let cmd = MultiAxisCommand::new(
+    ///     "cmd_1",
+    ///     1_704_067_200_000.0,
+    ///     vec![
+    ///         AxisCommand::new("shoulder_pitch", ControlMode::Position, 45.0),
+    ///         AxisCommand::new("elbow", ControlMode::Position, 90.0).with_velocity_limit(30.0),
+    ///     ],
+    /// )
+    /// .with_sync_mode(SyncMode::Simultaneous);
+    /// assert!(Validator::new().check(&cmd).is_empty());
+    /// assert_eq!(
+    ///     serde_json::to_string(&cmd)?,
+    ///     r#"{"command_id":"cmd_1","timestamp":1704067200000,"sync_mode":"simultaneous","motors":[{"motor_id":"shoulder_pitch","control_mode":"position","setpoint":45.0},{"motor_id":"elbow","control_mode":"position","setpoint":90.0,"velocity_limit":30.0}]}"#
+    /// );
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    ///
+    /// [`Validator::check`]: crate::Validator::check
+    #[must_use]
+    pub fn new(command_id: impl Into<String>, timestamp: f64, motors: Vec<AxisCommand>) -> Self {
+        Self {
+            command_id: command_id.into(),
+            timestamp,
+            sync_mode: None,
+            motors,
+            coordination: None,
+            metadata: None,
+            extra: Map::new(),
+        }
+    }
+
     pub(crate) fn check(&self, s: &mut Sink) {
         let root = Path::ROOT;
         if self.command_id.is_empty() {

@@ -7,6 +7,7 @@ use serde_json::{Map, Value};
 use crate::check::Sink;
 use crate::path::Path;
 use crate::serde_util::{number, opt_integer, some};
+use crate::setters::with_setters;
 
 /// The eleven status flags of a feedback message; a flag that is absent is
 /// unknown (the schema requires none of them).
@@ -296,7 +297,70 @@ pub struct MotorFeedback {
     pub extra: Map<String, Value>,
 }
 
+with_setters!(MotorFeedback {
+    with_acceleration: acceleration: f64,
+    with_current: current: f64,
+    with_voltage: voltage: f64,
+    with_temperature: temperature: f64,
+    with_power: power: f64,
+    with_position_error: position_error: f64,
+    with_velocity_error: velocity_error: f64,
+    with_control_effort: control_effort: f64,
+    with_health: health: MotorHealth,
+});
+
 impl MotorFeedback {
+    /// Feedback of its required members alone: `motor_id`, `timestamp`
+    /// (Unix milliseconds, from the caller's clock), `position`,
+    /// `velocity`, `torque` and the status flags (a required member whose
+    /// flags are all optional: `MotorStatus::default()` is `{}`); the
+    /// `with_*` setters give the other readings. Nothing is checked here:
+    /// [`Validator::check`] says what a value breaks.
+    ///
+    /// ```
+    /// use motorwire_wia::{MotorFeedback, MotorStatus, Validator};
+    ///
+    /// let status = MotorStatus { enabled: Some(true), in_motion: Some(true), ..MotorStatus::default() };
+    /// let fb = MotorFeedback::new("elbow", 1_704_067_200_150.0, 44.95, 12.3, 8.5, status)
+    ///     .with_temperature(42.0);
+    /// assert!(Validator::new().check(&fb).is_empty());
+    /// assert_eq!(
+    ///     serde_json::to_string(&fb)?,
+    ///     r#"{"motor_id":"elbow","timestamp":1704067200150,"position":44.95,"velocity":12.3,"torque":8.5,"temperature":42.0,"status":{"enabled":true,"in_motion":true}}"#
+    /// );
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    ///
+    /// [`Validator::check`]: crate::Validator::check
+    #[must_use]
+    pub fn new(
+        motor_id: impl Into<String>,
+        timestamp: f64,
+        position: f64,
+        velocity: f64,
+        torque: f64,
+        status: MotorStatus,
+    ) -> Self {
+        Self {
+            motor_id: motor_id.into(),
+            timestamp,
+            position,
+            velocity,
+            acceleration: None,
+            torque,
+            current: None,
+            voltage: None,
+            temperature: None,
+            power: None,
+            position_error: None,
+            velocity_error: None,
+            control_effort: None,
+            status,
+            health: None,
+            extra: Map::new(),
+        }
+    }
+
     pub(crate) fn check(&self, s: &mut Sink) {
         let root = Path::ROOT;
         s.motor_id(&root.key("motor_id"), &self.motor_id);

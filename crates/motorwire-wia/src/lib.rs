@@ -16,6 +16,7 @@ mod rule;
 mod safety;
 mod schema;
 mod serde_util;
+mod setters;
 mod trajectory;
 mod validate;
 

@@ -8,6 +8,7 @@ use crate::Rule;
 use crate::check::Sink;
 use crate::path::Path;
 use crate::serde_util::{control_mode, some};
+use crate::setters::with_setters;
 
 /// Controller parameters of a mode.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -129,7 +130,54 @@ pub struct ControlModeConfig {
     pub extra: Map<String, Value>,
 }
 
+with_setters!(ControlModeConfig {
+    with_parameters: parameters: ModeParameters,
+    with_limits: limits: ModeLimits,
+});
+
 impl ControlModeConfig {
+    /// A control-mode configuration of its one required member, the mode;
+    /// the `with_*` setters give the motor, the parameters and the
+    /// limits. Nothing is checked here: [`Validator::check`] says what a
+    /// value breaks.
+    ///
+    /// ```
+    /// use motorwire_wia::core::ControlMode;
+    /// use motorwire_wia::{ControlModeConfig, ModeLimits, Validator};
+    ///
+    /// let c = ControlModeConfig::new(ControlMode::Velocity)
+    ///     .with_motor_id("elbow")
+    ///     .with_limits(ModeLimits { max_velocity: Some(180.0), ..ModeLimits::default() });
+    /// assert!(Validator::new().check(&c).is_empty());
+    /// assert_eq!(
+    ///     serde_json::to_string(&c)?,
+    ///     r#"{"motor_id":"elbow","mode":"velocity","limits":{"max_velocity":180.0}}"#
+    /// );
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    ///
+    /// [`Validator::check`]: crate::Validator::check
+    #[must_use]
+    pub fn new(mode: ControlMode) -> Self {
+        Self {
+            motor_id: None,
+            mode,
+            parameters: None,
+            limits: None,
+            extra: Map::new(),
+        }
+    }
+
+    /// This configuration with [`motor_id`](Self::motor_id) set
+    /// (unchecked: see [`Validator::check`]).
+    ///
+    /// [`Validator::check`]: crate::Validator::check
+    #[must_use]
+    pub fn with_motor_id(mut self, motor_id: impl Into<String>) -> Self {
+        self.motor_id = Some(motor_id.into());
+        self
+    }
+
     pub(crate) fn check(&self, s: &mut Sink) {
         let root = Path::ROOT;
         if let Some(id) = &self.motor_id {

@@ -8,6 +8,7 @@ use crate::Rule;
 use crate::check::Sink;
 use crate::path::Path;
 use crate::serde_util::{control_mode, some};
+use crate::setters::with_setters;
 
 /// The complete gains of a PID configuration.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -44,7 +45,38 @@ pub struct PidConfigGains {
     pub extra: Map<String, Value>,
 }
 
+with_setters!(PidConfigGains {
+    with_ki_limit: ki_limit: f64,
+    with_feedforward: feedforward: f64,
+    with_derivative_filter: derivative_filter: f64,
+});
+
 impl PidConfigGains {
+    /// The gains `kp`, `ki` and `kd` alone; the `with_*` setters give the
+    /// rest. Nothing is checked here (`kp` 0 makes gains all the same):
+    /// the [`Validator`](crate::Validator) judges the [`PidConfig`] that
+    /// holds them.
+    ///
+    /// ```
+    /// use motorwire_wia::PidConfigGains;
+    ///
+    /// let g = PidConfigGains::new(40.0, 0.05, 1.8).with_ki_limit(10.0);
+    /// assert_eq!(serde_json::to_string(&g)?, r#"{"kp":40.0,"ki":0.05,"kd":1.8,"ki_limit":10.0}"#);
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    #[must_use]
+    pub fn new(kp: f64, ki: f64, kd: f64) -> Self {
+        Self {
+            kp,
+            ki,
+            kd,
+            ki_limit: None,
+            feedforward: None,
+            derivative_filter: None,
+            extra: Map::new(),
+        }
+    }
+
     /// As `motorwire-core` gains (`feedforward` defaults to 0).
     pub fn to_core(&self) -> motorwire_core::PidGains {
         motorwire_core::PidGains {
@@ -141,7 +173,50 @@ pub struct PidConfig {
     pub extra: Map<String, Value>,
 }
 
+with_setters!(PidConfig {
+    with_output_limits: output_limits: OutputLimits,
+    with_setpoint_filter: setpoint_filter: SetpointFilter,
+});
+
 impl PidConfig {
+    /// A PID configuration of its required members alone: `motor_id`,
+    /// `control_mode` (one of [`PidConfig::MODES`]) and the gains; the
+    /// `with_*` setters give the output limits and the setpoint filter.
+    /// Nothing is checked here (a mode outside [`PidConfig::MODES`] makes a
+    /// configuration all the same): [`Validator::check`] says what a value
+    /// breaks.
+    ///
+    /// ```
+    /// use motorwire_wia::core::ControlMode;
+    /// use motorwire_wia::{OutputLimits, PidConfig, PidConfigGains, Validator};
+    ///
+    /// let c = PidConfig::new("elbow", ControlMode::Position, PidConfigGains::new(40.0, 0.05, 1.8))
+    ///     .with_output_limits(OutputLimits { min: Some(-10.0), max: Some(10.0), ..OutputLimits::default() });
+    /// assert!(Validator::new().check(&c).is_empty());
+    /// assert_eq!(
+    ///     serde_json::to_string(&c)?,
+    ///     r#"{"motor_id":"elbow","control_mode":"position","gains":{"kp":40.0,"ki":0.05,"kd":1.8},"output_limits":{"min":-10.0,"max":10.0}}"#
+    /// );
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    ///
+    /// [`Validator::check`]: crate::Validator::check
+    #[must_use]
+    pub fn new(
+        motor_id: impl Into<String>,
+        control_mode: ControlMode,
+        gains: PidConfigGains,
+    ) -> Self {
+        Self {
+            motor_id: motor_id.into(),
+            control_mode,
+            gains,
+            output_limits: None,
+            setpoint_filter: None,
+            extra: Map::new(),
+        }
+    }
+
     /// The control modes the PIDConfig schema allows.
     pub const MODES: [ControlMode; 3] = [
         ControlMode::Position,

@@ -8,6 +8,7 @@ use crate::Rule;
 use crate::check::Sink;
 use crate::path::Path;
 use crate::serde_util::some;
+use crate::setters::with_setters;
 
 /// Position limits: hard `min`/`max`, optional soft limits and home.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -42,7 +43,38 @@ pub struct PositionLimits {
     pub extra: Map<String, Value>,
 }
 
+with_setters!(PositionLimits {
+    with_soft_min: soft_min: f64,
+    with_soft_max: soft_max: f64,
+    with_home_position: home_position: f64,
+});
+
 impl PositionLimits {
+    /// Hard limits `min` and `max` alone (no soft limits, no home); the
+    /// `with_*` setters give the rest. Nothing is checked here (`min`
+    /// above `max` makes limits all the same): the
+    /// [`Validator`](crate::Validator) judges the [`SafetyLimits`] that
+    /// hold them.
+    ///
+    /// ```
+    /// use motorwire_wia::PositionLimits;
+    ///
+    /// let l = PositionLimits::new(0.0, 150.0).with_home_position(90.0);
+    /// assert_eq!(serde_json::to_string(&l)?, r#"{"min":0.0,"max":150.0,"home_position":90.0}"#);
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    #[must_use]
+    pub fn new(min: f64, max: f64) -> Self {
+        Self {
+            min,
+            max,
+            soft_min: None,
+            soft_max: None,
+            home_position: None,
+            extra: Map::new(),
+        }
+    }
+
     /// As `motorwire-core` position limits.
     pub fn to_core(&self) -> CorePositionLimits {
         CorePositionLimits {
@@ -234,7 +266,57 @@ pub struct SafetyLimits {
     pub extra: Map<String, Value>,
 }
 
+with_setters!(SafetyLimits {
+    with_thermal_limits: thermal_limits: ThermalLimits,
+    with_current_limits: current_limits: CurrentLimits,
+    with_collision_detection: collision_detection: CollisionDetection,
+});
+
 impl SafetyLimits {
+    /// A motor's safety limits of their required members alone:
+    /// `motor_id`, the position limits, and the velocity and torque limits
+    /// (required members whose own members are all optional:
+    /// `VelocityLimits::default()` is `{}`); the `with_*` setters give the
+    /// thermal, current and collision limits. Nothing is checked here:
+    /// [`Validator::check`] says what a value breaks.
+    ///
+    /// ```
+    /// use motorwire_wia::{PositionLimits, SafetyLimits, TorqueLimits, Validator, VelocityLimits};
+    ///
+    /// let l = SafetyLimits::new(
+    ///     "elbow",
+    ///     PositionLimits::new(0.0, 150.0),
+    ///     VelocityLimits { max_velocity: Some(120.0), ..VelocityLimits::default() },
+    ///     TorqueLimits::default(),
+    /// );
+    /// assert!(Validator::new().check(&l).is_empty());
+    /// assert_eq!(
+    ///     serde_json::to_string(&l)?,
+    ///     r#"{"motor_id":"elbow","position_limits":{"min":0.0,"max":150.0},"velocity_limits":{"max_velocity":120.0},"torque_limits":{}}"#
+    /// );
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    ///
+    /// [`Validator::check`]: crate::Validator::check
+    #[must_use]
+    pub fn new(
+        motor_id: impl Into<String>,
+        position_limits: PositionLimits,
+        velocity_limits: VelocityLimits,
+        torque_limits: TorqueLimits,
+    ) -> Self {
+        Self {
+            motor_id: motor_id.into(),
+            position_limits,
+            velocity_limits,
+            torque_limits,
+            thermal_limits: None,
+            current_limits: None,
+            collision_detection: None,
+            extra: Map::new(),
+        }
+    }
+
     pub(crate) fn check(&self, s: &mut Sink) {
         let root = Path::ROOT;
         s.motor_id(&root.key("motor_id"), &self.motor_id);

@@ -14,6 +14,7 @@ use crate::Rule;
 use crate::check::Sink;
 use crate::path::Path;
 use crate::serde_util::{opt_integer, opt_number, some, string_enum};
+use crate::setters::with_setters;
 
 /// Tolerance of the `trajectory-duration` rule, in milliseconds.
 pub const DURATION_TOLERANCE_MS: f64 = 1.0;
@@ -78,6 +79,39 @@ pub struct Waypoint {
     #[serde(flatten)]
     pub extra: Map<String, Value>,
 }
+
+impl Waypoint {
+    /// A waypoint of its required members alone: `position` and `time`
+    /// (seconds from the trajectory's start); the `with_*` setters give
+    /// the velocity, acceleration and torque at it. Nothing is checked
+    /// here: the [`Validator`](crate::Validator) judges the trajectory
+    /// that holds it.
+    ///
+    /// ```
+    /// use motorwire_wia::Waypoint;
+    ///
+    /// let w = Waypoint::new(45.0, 1.5).with_velocity(0.0);
+    /// assert_eq!(serde_json::to_string(&w)?, r#"{"position":45.0,"velocity":0.0,"time":1.5}"#);
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    #[must_use]
+    pub fn new(position: f64, time: f64) -> Self {
+        Self {
+            position,
+            velocity: None,
+            acceleration: None,
+            time,
+            torque: None,
+            extra: Map::new(),
+        }
+    }
+}
+
+with_setters!(Waypoint {
+    with_velocity: velocity: f64,
+    with_acceleration: acceleration: f64,
+    with_torque: torque: f64,
+});
 
 /// When the trajectory runs.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -226,7 +260,58 @@ pub struct Trajectory {
     pub extra: Map<String, Value>,
 }
 
+with_setters!(Trajectory {
+    with_kind: kind: TrajectoryType,
+    with_constraints: constraints: TrajectoryConstraints,
+    with_loop_config: loop_config: LoopConfig,
+});
+
 impl Trajectory {
+    /// A trajectory of its required members alone: `trajectory_id`,
+    /// `motor_id`, the waypoints and the timing (a required member whose
+    /// own members are all optional: `Timing::default()` is `{}`); the
+    /// `with_*` setters give the optional members. Nothing is checked
+    /// here (one waypoint, or times that go back, make a trajectory all
+    /// the same): [`Validator::check`] says what a value breaks.
+    ///
+    /// ```
+    /// use motorwire_wia::{Timing, Trajectory, TrajectoryConstraints, Validator, Waypoint};
+    ///
+    /// let t = Trajectory::new(
+    ///     "t1",
+    ///     "elbow",
+    ///     vec![Waypoint::new(0.0, 0.0), Waypoint::new(10.0, 1.0)],
+    ///     Timing { total_duration: Some(1000.0), ..Timing::default() },
+    /// )
+    /// .with_constraints(TrajectoryConstraints { max_velocity: Some(20.0), ..TrajectoryConstraints::default() });
+    /// assert!(Validator::new().check(&t).is_empty());
+    /// assert_eq!(
+    ///     serde_json::to_string(&t)?,
+    ///     r#"{"trajectory_id":"t1","motor_id":"elbow","waypoints":[{"position":0.0,"time":0.0},{"position":10.0,"time":1.0}],"timing":{"total_duration":1000},"constraints":{"max_velocity":20.0}}"#
+    /// );
+    /// # Ok::<(), serde_json::Error>(())
+    /// ```
+    ///
+    /// [`Validator::check`]: crate::Validator::check
+    #[must_use]
+    pub fn new(
+        trajectory_id: impl Into<String>,
+        motor_id: impl Into<String>,
+        waypoints: Vec<Waypoint>,
+        timing: Timing,
+    ) -> Self {
+        Self {
+            trajectory_id: trajectory_id.into(),
+            motor_id: motor_id.into(),
+            kind: None,
+            waypoints,
+            timing,
+            constraints: None,
+            loop_config: None,
+            extra: Map::new(),
+        }
+    }
+
     pub(crate) fn check(&self, s: &mut Sink) {
         let root = Path::ROOT;
         s.motor_id(&root.key("motor_id"), &self.motor_id);
