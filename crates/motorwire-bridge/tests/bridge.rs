@@ -2067,3 +2067,62 @@ fn typed_inputs_are_answered_as_their_lines_are() {
     assert_eq!(a[1]["released"], true, "{a:?}");
     assert_eq!(a, common::results(&mut by_value, 2, Duration::from_secs(5)));
 }
+
+/// A command a Rust program builds with `MotorCommand::new` and its
+/// setters is answered as the JSON line of the same members is: taken,
+/// refused by the bus map's limits, refused by the validator.
+#[test]
+fn a_built_command_is_answered_as_its_line_is() {
+    use motorwire_bridge::Input;
+    use motorwire_bridge::motorwire_wia::MotorCommand;
+    use motorwire_bridge::motorwire_wia::core::ControlMode;
+    let elbow = |setpoint| MotorCommand::new("elbow", 1.0, ControlMode::Position, setpoint);
+    let cases = [
+        (
+            elbow(30.0)
+                .with_velocity_limit(60.0)
+                .with_acceleration_limit(200.0),
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":30.0,"velocity_limit":60.0,"acceleration_limit":200.0}"#,
+            None,
+        ),
+        // Beyond the map's max_position (150): the gate refuses it.
+        (
+            elbow(170.0).with_velocity_limit(60.0),
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":170.0,"velocity_limit":60.0}"#,
+            Some("refused"),
+        ),
+        // Nothing clamps a negative limit: the validator refuses it.
+        (
+            elbow(30.0).with_velocity_limit(-1.0),
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":30.0,"velocity_limit":-1.0}"#,
+            Some("invalid"),
+        ),
+    ];
+    for (command, line, kind) in cases {
+        assert_eq!(serde_json::to_string(&command).unwrap(), line);
+        let mut by_line = common::arm(MAP, Faults::default(), 7);
+        let mut by_value = common::arm(MAP, Faults::default(), 7);
+        by_line.line(Origin(1), line);
+        let now = by_value.now();
+        by_value.bridge_mut().handle(
+            now,
+            Input::Command {
+                origin: Origin(1),
+                command: Box::new(command),
+            },
+        );
+        let a = common::results(&mut by_line, 1, Duration::from_secs(5));
+        let b = common::results(&mut by_value, 1, Duration::from_secs(5));
+        assert_eq!(a.len(), 1, "{line}: {a:?}");
+        assert_eq!(a[0]["ok"], kind.is_none(), "{line}: {a:?}");
+        assert_eq!(a[0]["error"]["kind"].as_str(), kind, "{line}: {a:?}");
+        assert_eq!(a, b, "{line}");
+        // And the arrival that follows a command taken, the same.
+        for arm in [&mut by_line, &mut by_value] {
+            arm.run_until(arm.now() + Duration::from_secs(3)).unwrap();
+        }
+        let a = common::answers(&mut by_line);
+        assert_eq!(a.len(), usize::from(kind.is_none()), "{line}: {a:?}");
+        assert_eq!(a, common::answers(&mut by_value), "{line}");
+    }
+}

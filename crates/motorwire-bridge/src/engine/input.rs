@@ -10,25 +10,24 @@ use super::*;
 ///
 /// A Rust program commands the bridge with typed WIA values too
 /// ([`Input::Command`], [`Input::MultiAxis`], [`Input::Trajectory`],
-/// [`Input::SafetyLimits`]): each is read exactly as its JSON line would
-/// be (validated, gated, answered with one result), so a typed command
-/// can do nothing a line could not.
+/// [`Input::SafetyLimits`]), built with their constructors
+/// (`MotorCommand::new` and its `with_*` setters, ...) or parsed: each is
+/// read exactly as its JSON line would be (validated, gated, answered
+/// with one result), so a typed command can do nothing a line could not.
 ///
 /// ```
 /// use std::time::Duration;
 /// use motorwire_bridge::{Bridge, BridgeConfig, ErrorKind, Input, Origin, Output};
 /// use motorwire_bridge::motorwire_wia::MotorCommand;
+/// use motorwire_bridge::motorwire_wia::core::ControlMode;
 /// use motorwire_translate::BusMap;
 ///
 /// let map = BusMap::from_toml("[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n")?;
 /// let config = BridgeConfig { activate_on_start: false, ..BridgeConfig::default() };
 /// let mut bridge = Bridge::new(map, config)?;
 /// bridge.handle(Duration::ZERO, Input::Start);
-/// let mut command: MotorCommand = serde_json::from_str(
-///     r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":10}"#,
-/// )?;
 /// // A value no line could carry is refused as its line would be.
-/// command.setpoint = f64::NAN;
+/// let command = MotorCommand::new("elbow", 1.0, ControlMode::Position, f64::NAN);
 /// bridge.handle(Duration::ZERO, Input::Command { origin: Origin(1), command: Box::new(command) });
 /// let result = std::iter::from_fn(|| bridge.poll_output()).find_map(|o| match o {
 ///     Output::Result { result, .. } => Some(result),
