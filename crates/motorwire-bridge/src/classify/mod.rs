@@ -640,43 +640,14 @@ fn plain_message(line: &str) -> Option<Option<motorwire_wia::MessageKind>> {
     (!own).then_some(kind)
 }
 
-/// [`classify`] from every member of the line.
+/// [`classify`] from every member of the line: a stop or a release first,
+/// then the bridge's own forms, then a WIA message.
 fn classify_members(validator: &Validator, line: &str) -> Line {
     let (members, unholdable) = match members_of(line) {
         Ok(m) => m,
-        Err(e) if names_a_stop(line) => {
-            return Line::Stop {
-                label: None,
-                problems: vec![format!(
-                    "the line is not a JSON object this bridge can read ({e}); it names emergency_stop with a value other than false, so it stops"
-                )],
-            };
-        }
-        Err(e) => {
-            // Not an object (or not JSON): it can be neither a stop nor a release.
-            return match validator.parse_any(line) {
-                Ok(m) => Line::Message(Box::new(m)),
-                Err(err) => Line::Invalid {
-                    message: if serde_json::from_str::<Value>(line).is_ok() {
-                        invalid_message(&err)
-                    } else {
-                        format!("not JSON: {}", motorwire_wia::json_error_text(line, &e))
-                    },
-                    violations: serde_json::to_value(err.violations()).ok(),
-                    more: err.more(),
-                    label: None,
-                },
-            };
-        }
+        Err(e) => return not_an_object(validator, line, &e),
     };
-    let label = members
-        .iter()
-        .rev()
-        .find_map(|(k, v)| match (k.as_str(), v) {
-            ("motor_id", Value::String(s)) => Some(Label::Motor(s.clone())),
-            ("command_id", Value::String(s)) => Some(Label::Command(s.clone())),
-            _ => None,
-        });
+    let label = label_of(&members);
     let (top, mut reasons, seen) = stop_members(&members);
     if reasons.is_empty() && hidden_stop(line, seen) {
         reasons.push(
@@ -685,197 +656,172 @@ fn classify_members(validator: &Validator, line: &str) -> Line {
     }
     let top_stop = top.iter().any(|v| stops(v));
     if let Some(e) = unholdable {
-        if top_stop || !reasons.is_empty() {
-            return Line::Stop {
-                label,
-                problems: vec![format!(
-                    "the line cannot be read exactly ({e}); it asks for a stop, so it stops"
-                )],
-            };
-        }
-        return Line::Invalid {
-            message: format!("not JSON this bridge can read: {e}"),
-            violations: None,
-            more: 0,
-            label,
-        };
+        return unholdable_line(&e, top_stop || !reasons.is_empty(), label);
     }
     if top_stop || !reasons.is_empty() {
-        let mut problems = Vec::new();
-        if top_stop {
-            for v in top.iter().filter(|v| **v != &Value::Bool(true) && stops(v)) {
-                problems.push(format!("emergency_stop is {v}, not true: taken as a stop"));
-            }
-            if top.len() > 1 {
-                problems.push(format!("emergency_stop appears {} times", top.len()));
-            }
-            let others: Vec<&str> = members
-                .iter()
-                .map(|(k, _)| k.as_str())
-                .filter(|k| *k != "emergency_stop")
-                .collect();
-            if !others.is_empty() {
-                problems.push(format!("the line also carries {}", names(&others)));
-            }
-        } else if let Err(e) = validator.parse_any(line) {
-            // A command carrying a stop: its stop is obeyed even if the
-            // rest of it is not valid.
-            for v in e.violations() {
-                problems.push(v.to_string());
-            }
-            if e.more() > 0 {
-                problems.push(format!("and {} more violations, not listed", e.more()));
-            }
-        }
+        let problems = stop_problems(validator, line, &members, &top, top_stop);
         return Line::Stop { label, problems };
     }
     if !top.is_empty() {
-        if members.len() == 1 {
-            return Line::Release;
-        }
-        let reason = if top.len() > 1 {
-            format!("emergency_stop appears {} times", top.len())
-        } else {
-            let others: Vec<&str> = members
-                .iter()
-                .map(|(k, _)| k.as_str())
-                .filter(|k| *k != "emergency_stop")
-                .collect();
-            format!("the line also carries {}", names(&others))
-        };
-        return Line::BadRelease {
-            reason: format!(
-                "{reason}: a release is exactly {{\"emergency_stop\": false}}; the emergency stop stays latched"
-            ),
+        return release_line(&members, &top);
+    }
+    own_form(validator, line, &members, label)
+}
+
+/// A line that is not a JSON object this bridge can read (`e` says why):
+/// a stop when it names one, else neither a stop nor a release.
+fn not_an_object(validator: &Validator, line: &str, e: &serde_json::Error) -> Line {
+    if names_a_stop(line) {
+        return Line::Stop {
+            label: None,
+            problems: vec![format!(
+                "the line is not a JSON object this bridge can read ({e}); it names emergency_stop with a value other than false, so it stops"
+            )],
         };
     }
-    if let Some((_, Value::Array(items))) = members.iter().find(|(k, _)| k == "trajectories") {
-        let id = members
+    // Not an object (or not JSON): it can be neither a stop nor a release.
+    match validator.parse_any(line) {
+        Ok(m) => Line::Message(Box::new(m)),
+        Err(err) => Line::Invalid {
+            message: if serde_json::from_str::<Value>(line).is_ok() {
+                invalid_message(&err)
+            } else {
+                format!("not JSON: {}", motorwire_wia::json_error_text(line, e))
+            },
+            violations: serde_json::to_value(err.violations()).ok(),
+            more: err.more(),
+            label: None,
+        },
+    }
+}
+
+/// The line's label: its last `motor_id` or `command_id` that is a string.
+fn label_of(members: &[(String, Value)]) -> Option<Label> {
+    members
+        .iter()
+        .rev()
+        .find_map(|(k, v)| match (k.as_str(), v) {
+            ("motor_id", Value::String(s)) => Some(Label::Motor(s.clone())),
+            ("command_id", Value::String(s)) => Some(Label::Command(s.clone())),
+            _ => None,
+        })
+}
+
+/// Valid JSON that no parser holds exactly (`e` says why): a stop if it
+/// asks for one (`stop`), else invalid.
+fn unholdable_line(e: &str, stop: bool, label: Option<Label>) -> Line {
+    if stop {
+        return Line::Stop {
+            label,
+            problems: vec![format!(
+                "the line cannot be read exactly ({e}); it asks for a stop, so it stops"
+            )],
+        };
+    }
+    Line::Invalid {
+        message: format!("not JSON this bridge can read: {e}"),
+        violations: None,
+        more: 0,
+        label,
+    }
+}
+
+/// What else is wrong with a line that stops: its top-level stop's
+/// problems (`top_stop`), or a command's violations (its stop is obeyed
+/// even if the rest of it is not valid).
+fn stop_problems(
+    validator: &Validator,
+    line: &str,
+    members: &[(String, Value)],
+    top: &[&Value],
+    top_stop: bool,
+) -> Vec<String> {
+    let mut problems = Vec::new();
+    if top_stop {
+        for v in top.iter().filter(|v| **v != &Value::Bool(true) && stops(v)) {
+            problems.push(format!("emergency_stop is {v}, not true: taken as a stop"));
+        }
+        if top.len() > 1 {
+            problems.push(format!("emergency_stop appears {} times", top.len()));
+        }
+        let others: Vec<&str> = members
             .iter()
-            .find_map(|(k, v)| (k == "trajectory_id").then(|| v.as_str()))
-            .flatten();
-        let problem = |message: String| Line::Invalid {
-            message,
-            violations: None,
-            more: 0,
-            label: label.clone(),
-        };
-        let Some(id) = id else {
-            return problem(r#"a multi-axis trajectory is {"trajectory_id":"...","trajectories":[WIA Trajectory, ...]}"#.to_owned());
-        };
-        if members.len() != 2 || items.is_empty() {
-            return problem(r#"a multi-axis trajectory is {"trajectory_id":"...","trajectories":[WIA Trajectory, ...]} and nothing else"#.to_owned());
+            .map(|(k, _)| k.as_str())
+            .filter(|k| *k != "emergency_stop")
+            .collect();
+        if !others.is_empty() {
+            problems.push(format!("the line also carries {}", names(&others)));
         }
-        let mut trajectories = Vec::new();
-        for (i, item) in items.iter().enumerate() {
-            match validator.parse_any(&item.to_string()) {
-                Ok(Message::Trajectory(t)) => trajectories.push(*Box::new(t)),
-                Ok(other) => {
-                    return problem(format!(
-                        "trajectories[{i}] is a {}, not a trajectory",
-                        other.kind()
-                    ));
-                }
-                Err(e) => {
-                    return Line::Invalid {
-                        message: format!("trajectories[{i}] is not a valid WIA trajectory"),
-                        violations: serde_json::to_value(e.violations()).ok(),
-                        more: e.more(),
-                        label,
-                    };
-                }
-            }
+    } else if let Err(e) = validator.parse_any(line) {
+        // A command carrying a stop: its stop is obeyed even if the
+        // rest of it is not valid.
+        for v in e.violations() {
+            problems.push(v.to_string());
         }
-        return Line::Trajectories {
-            id: id.to_owned(),
-            trajectories,
-        };
+        if e.more() > 0 {
+            problems.push(format!("and {} more violations, not listed", e.more()));
+        }
+    }
+    problems
+}
+
+/// A line whose every `emergency_stop` (`top`, at least one) is `false`:
+/// the release when it is exactly `{"emergency_stop": false}`.
+fn release_line(members: &[(String, Value)], top: &[&Value]) -> Line {
+    if members.len() == 1 {
+        return Line::Release;
+    }
+    let reason = if top.len() > 1 {
+        format!("emergency_stop appears {} times", top.len())
+    } else {
+        let others: Vec<&str> = members
+            .iter()
+            .map(|(k, _)| k.as_str())
+            .filter(|k| *k != "emergency_stop")
+            .collect();
+        format!("the line also carries {}", names(&others))
+    };
+    Line::BadRelease {
+        reason: format!(
+            "{reason}: a release is exactly {{\"emergency_stop\": false}}; the emergency stop stays latched"
+        ),
+    }
+}
+
+/// A line that names no stop: one of the bridge's own forms, by the first
+/// of their names it carries, or else a WIA message.
+fn own_form(
+    validator: &Validator,
+    line: &str,
+    members: &[(String, Value)],
+    label: Option<Label>,
+) -> Line {
+    if let Some((_, Value::Array(items))) = members.iter().find(|(k, _)| k == "trajectories") {
+        return trajectories_line(validator, members, items, label);
     }
     if let Some((_, m)) = members.iter().find(|(k, _)| k == "reset") {
-        return match (m.as_str(), members.len()) {
-            (Some(m), 1) => Line::Reset {
-                motor_id: m.to_owned(),
-            },
-            _ => Line::Invalid {
-                message: r#"a reset is exactly {"reset":"<motor_id>"}"#.to_owned(),
-                violations: None,
-                more: 0,
-                label,
-            },
-        };
+        return reset_line(members, m, label);
     }
     if members.iter().any(|(k, _)| k == "calibration") {
-        return calibration_line(&members, label);
+        return calibration_line(members, label);
     }
     if let Some((_, q)) = members.iter().find(|(k, _)| k == "request") {
-        let kind = match q.as_str() {
-            Some("telemetry") => Some(RequestKind::Telemetry),
-            Some("power_metrics") => Some(RequestKind::PowerMetrics),
-            Some("fault_history") => Some(RequestKind::FaultHistory),
-            _ => None,
-        };
-        return match (kind, members.len(), &label) {
-            (Some(kind), 2, Some(Label::Motor(m))) => Line::Request {
-                kind,
-                motor_id: m.clone(),
-            },
-            _ => Line::Invalid {
-                message: r#"a request is exactly {"request":"telemetry"|"power_metrics"|"fault_history","motor_id":"..."}"#.to_owned(),
-                violations: None,
-                more: 0,
-                label,
-            },
-        };
+        return request_line(members, q, label);
     }
     if let Some((_, c)) = members.iter().find(|(k, _)| k == "orion") {
-        return match (c.as_str(), members.len()) {
-            (Some("fold"), 1) => Line::OrionCommand {
-                command: motorwire_orion::ArmCommand::Fold,
-            },
-            (Some("unfold"), 1) => Line::OrionCommand {
-                command: motorwire_orion::ArmCommand::Unfold,
-            },
-            _ => Line::Invalid {
-                message: r#"an Orion command is exactly {"orion":"fold"} or {"orion":"unfold"} (a stop is {"emergency_stop":true})"#.to_owned(),
-                violations: None,
-                more: 0,
-                label,
-            },
-        };
+        return orion_line(members, c, label);
     }
     if let Some((_, q)) = members.iter().find(|(k, _)| k == "query") {
-        return match (q.as_str(), members.len(), &label) {
-            (Some("limits"), 2, Some(Label::Motor(m))) => Line::QueryLimits {
-                motor_id: m.clone(),
-            },
-            (Some("state"), 1, None) => Line::QueryState { motor_id: None },
-            (Some("state"), 2, Some(Label::Motor(m))) => Line::QueryState {
-                motor_id: Some(m.clone()),
-            },
-            _ => Line::Invalid {
-                message: r#"a query is exactly {"query":"state"} (optionally with "motor_id":"..."), or {"query":"limits","motor_id":"..."}"#.to_owned(),
-                violations: None,
-                more: 0,
-                label,
-            },
-        };
+        return query_line(members, q, label);
     }
     if let Some((_, a)) = members.iter().find(|(k, _)| k == "motor") {
-        return motor_line(&members, a, label);
+        return motor_line(members, a, label);
     }
     if let Some((_, hz)) = members.iter().find(|(k, _)| k == "feedback_hz") {
-        return match (hz.as_f64(), members.len()) {
-            (Some(hz), 1) => Line::FeedbackRate { hz },
-            _ => Line::Invalid {
-                message: r#"a feedback rate is exactly {"feedback_hz":N}, N a number of Hz (0: no feedback)"#.to_owned(),
-                violations: None,
-                more: 0,
-                label,
-            },
-        };
+        return feedback_rate_line(members, hz, label);
     }
     if let Some(at) = members.iter().position(|(k, _)| k == "stream") {
-        return stream_line(validator, &members, at, label);
+        return stream_line(validator, members, at, label);
     }
     match validator.parse_any(line) {
         Ok(m) => Line::Message(Box::new(m)),
@@ -883,6 +829,149 @@ fn classify_members(validator: &Validator, line: &str) -> Line {
             message: invalid_message(&err),
             violations: serde_json::to_value(err.violations()).ok(),
             more: err.more(),
+            label,
+        },
+    }
+}
+
+/// `{"trajectory_id":T,"trajectories":[...]}` (`items` the array), or why
+/// not.
+fn trajectories_line(
+    validator: &Validator,
+    members: &[(String, Value)],
+    items: &[Value],
+    label: Option<Label>,
+) -> Line {
+    let id = members
+        .iter()
+        .find_map(|(k, v)| (k == "trajectory_id").then(|| v.as_str()))
+        .flatten();
+    let problem = |message: String| Line::Invalid {
+        message,
+        violations: None,
+        more: 0,
+        label: label.clone(),
+    };
+    let Some(id) = id else {
+        return problem(r#"a multi-axis trajectory is {"trajectory_id":"...","trajectories":[WIA Trajectory, ...]}"#.to_owned());
+    };
+    if members.len() != 2 || items.is_empty() {
+        return problem(r#"a multi-axis trajectory is {"trajectory_id":"...","trajectories":[WIA Trajectory, ...]} and nothing else"#.to_owned());
+    }
+    let mut trajectories = Vec::new();
+    for (i, item) in items.iter().enumerate() {
+        match validator.parse_any(&item.to_string()) {
+            Ok(Message::Trajectory(t)) => trajectories.push(*Box::new(t)),
+            Ok(other) => {
+                return problem(format!(
+                    "trajectories[{i}] is a {}, not a trajectory",
+                    other.kind()
+                ));
+            }
+            Err(e) => {
+                return Line::Invalid {
+                    message: format!("trajectories[{i}] is not a valid WIA trajectory"),
+                    violations: serde_json::to_value(e.violations()).ok(),
+                    more: e.more(),
+                    label,
+                };
+            }
+        }
+    }
+    Line::Trajectories {
+        id: id.to_owned(),
+        trajectories,
+    }
+}
+
+/// `{"reset":M}` (`m` the value of `reset`), or why not.
+fn reset_line(members: &[(String, Value)], m: &Value, label: Option<Label>) -> Line {
+    match (m.as_str(), members.len()) {
+        (Some(m), 1) => Line::Reset {
+            motor_id: m.to_owned(),
+        },
+        _ => Line::Invalid {
+            message: r#"a reset is exactly {"reset":"<motor_id>"}"#.to_owned(),
+            violations: None,
+            more: 0,
+            label,
+        },
+    }
+}
+
+/// `{"request":kind,"motor_id":M}` (`q` the value of `request`), or why
+/// not.
+fn request_line(members: &[(String, Value)], q: &Value, label: Option<Label>) -> Line {
+    let kind = match q.as_str() {
+        Some("telemetry") => Some(RequestKind::Telemetry),
+        Some("power_metrics") => Some(RequestKind::PowerMetrics),
+        Some("fault_history") => Some(RequestKind::FaultHistory),
+        _ => None,
+    };
+    match (kind, members.len(), &label) {
+        (Some(kind), 2, Some(Label::Motor(m))) => Line::Request {
+            kind,
+            motor_id: m.clone(),
+        },
+        _ => Line::Invalid {
+            message: r#"a request is exactly {"request":"telemetry"|"power_metrics"|"fault_history","motor_id":"..."}"#.to_owned(),
+            violations: None,
+            more: 0,
+            label,
+        },
+    }
+}
+
+/// `{"orion":"fold"}` or `{"orion":"unfold"}` (`c` the value of `orion`),
+/// or why not.
+fn orion_line(members: &[(String, Value)], c: &Value, label: Option<Label>) -> Line {
+    match (c.as_str(), members.len()) {
+        (Some("fold"), 1) => Line::OrionCommand {
+            command: motorwire_orion::ArmCommand::Fold,
+        },
+        (Some("unfold"), 1) => Line::OrionCommand {
+            command: motorwire_orion::ArmCommand::Unfold,
+        },
+        _ => Line::Invalid {
+            message: r#"an Orion command is exactly {"orion":"fold"} or {"orion":"unfold"} (a stop is {"emergency_stop":true})"#.to_owned(),
+            violations: None,
+            more: 0,
+            label,
+        },
+    }
+}
+
+/// `{"query":"state"}` (with or without a `motor_id`) or
+/// `{"query":"limits","motor_id":M}` (`q` the value of `query`), or why
+/// not.
+fn query_line(members: &[(String, Value)], q: &Value, label: Option<Label>) -> Line {
+    match (q.as_str(), members.len(), &label) {
+        (Some("limits"), 2, Some(Label::Motor(m))) => Line::QueryLimits {
+            motor_id: m.clone(),
+        },
+        (Some("state"), 1, None) => Line::QueryState { motor_id: None },
+        (Some("state"), 2, Some(Label::Motor(m))) => Line::QueryState {
+            motor_id: Some(m.clone()),
+        },
+        _ => Line::Invalid {
+            message: r#"a query is exactly {"query":"state"} (optionally with "motor_id":"..."), or {"query":"limits","motor_id":"..."}"#.to_owned(),
+            violations: None,
+            more: 0,
+            label,
+        },
+    }
+}
+
+/// `{"feedback_hz":N}` (`hz` the value of `feedback_hz`), or why not.
+fn feedback_rate_line(members: &[(String, Value)], hz: &Value, label: Option<Label>) -> Line {
+    match (hz.as_f64(), members.len()) {
+        (Some(hz), 1) => Line::FeedbackRate { hz },
+        _ => Line::Invalid {
+            message:
+                r#"a feedback rate is exactly {"feedback_hz":N}, N a number of Hz (0: no feedback)"#
+                    .to_owned(),
+            violations: None,
+            more: 0,
             label,
         },
     }

@@ -137,21 +137,57 @@ fn a_plain_command_read_once_is_read_as_before() {
     }
 }
 
+/// An axis of the elbow's, with `rest` after its setpoint.
+fn elbow_axis(rest: &str) -> String {
+    format!(r#"{{"motor_id":"elbow","control_mode":"position","setpoint":20{rest}}}"#)
+}
+
+/// A multi-axis command of `axes`, with `rest` after its motors.
+fn multi_axis_line(axes: &[String], rest: &str) -> String {
+    format!(
+        r#"{{"command_id":"c","timestamp":1,"motors":[{}]{rest}}}"#,
+        axes.join(",")
+    )
+}
+
+/// Each of `cases` (a line, whether it is plain) read once is classified
+/// as the scanned and the member-by-member readings classify it, and only
+/// the plain ones are read once; the stops stop.
+fn assert_multi_axis_read_as_before(cases: &[(String, bool)]) {
+    for v in [
+        Validator::lenient(),
+        Validator::new().deny_unknown_members(true),
+        Validator::new().max_depth(3),
+    ] {
+        for (line, plain) in cases {
+            let once = classify(&v, line);
+            assert_eq!(once, classify_scanned(&v, line), "{line}");
+            assert_eq!(once, classify_members(&v, line), "{line}");
+            let deep = v == Validator::new().max_depth(3)
+                && (line.contains("pid_gains") || line.contains("safety_limits"));
+            assert_eq!(
+                plain_multi_axis(&v, line).is_some(),
+                *plain && !deep,
+                "{line}"
+            );
+            assert!(plain_command(&v, line).is_none(), "{line}");
+        }
+    }
+    // The stops stop.
+    let v = Validator::new();
+    for (line, _) in cases {
+        if line.contains(r#"emergency_stop":true"#) || line.contains(r#"emergency_stop":true"#) {
+            assert!(matches!(classify(&v, line), Line::Stop { .. }), "{line}");
+        }
+    }
+}
+
 /// A multi-axis command read once is classified as the scanned and the
-/// member-by-member readings classify it, on lines that hide a stop in
-/// every place an axis can carry one; and only the plain ones are read
-/// once.
+/// member-by-member readings classify it; and only the plain ones are
+/// read once: not the bridge's own forms, a misspelling, invalid values.
 #[test]
 fn a_plain_multi_axis_command_read_once_is_read_as_before() {
-    let axis = |rest: &str| {
-        format!(r#"{{"motor_id":"elbow","control_mode":"position","setpoint":20{rest}}}"#)
-    };
-    let line = |axes: &[String], rest: &str| {
-        format!(
-            r#"{{"command_id":"c","timestamp":1,"motors":[{}]{rest}}}"#,
-            axes.join(",")
-        )
-    };
+    let (axis, line) = (elbow_axis, multi_axis_line);
     let wrist = r#"{"motor_id":"wrist","control_mode":"position","setpoint":5}"#.to_owned();
     let cases: Vec<(String, bool)> = vec![
         // (the line, whether it is plain)
@@ -170,13 +206,34 @@ fn a_plain_multi_axis_command_read_once_is_read_as_before() {
             line(&[axis(r#","safety_limits":{"max_position":90}"#)], ""),
             true,
         ),
+        // The bridge's own forms, a misspelling, invalid values.
+        (line(&[axis("")], r#","stream":true"#), false),
+        (line(&[axis("")], r#","trajectories":[]"#), false),
+        (line(&[axis(r#","velocity_limt":5"#)], ""), false),
+        (line(&[axis(r#","velocity_limit":-1"#)], ""), false),
+        (line(&[], ""), false),
+        // A motor named after the stop is only a name.
+        (
+            line(&[axis("").replace("elbow", "emergency_stop")], ""),
+            true,
+        ),
+    ];
+    assert_multi_axis_read_as_before(&cases);
+}
+
+/// A multi-axis command that hides a stop in any place an axis can carry
+/// one is not read once, and is classified as the scanned and the
+/// member-by-member readings classify it.
+#[test]
+fn a_multi_axis_command_that_may_name_a_stop_is_read_as_before() {
+    let (axis, line) = (elbow_axis, multi_axis_line);
+    let wrist = r#"{"motor_id":"wrist","control_mode":"position","setpoint":5}"#.to_owned();
+    let cases: Vec<(String, bool)> = vec![
+        // (the line, whether it is plain)
         // A stop in an axis's own limits (the second axis's), true or false.
         (
             line(
-                &[
-                    wrist.clone(),
-                    axis(r#","safety_limits":{"emergency_stop":true}"#),
-                ],
+                &[wrist, axis(r#","safety_limits":{"emergency_stop":true}"#)],
                 "",
             ),
             false,
@@ -224,44 +281,8 @@ fn a_plain_multi_axis_command_read_once_is_read_as_before() {
         (line(&[axis("")], r#","emergency_stop":true"#), false),
         (line(&[axis("")], r#","emergency_stop":false"#), false),
         (line(&[axis(r#","emergency_stop":true"#)], ""), false),
-        // The bridge's own forms, a misspelling, invalid values.
-        (line(&[axis("")], r#","stream":true"#), false),
-        (line(&[axis("")], r#","trajectories":[]"#), false),
-        (line(&[axis(r#","velocity_limt":5"#)], ""), false),
-        (line(&[axis(r#","velocity_limit":-1"#)], ""), false),
-        (line(&[], ""), false),
-        // A motor named after the stop is only a name.
-        (
-            line(&[axis("").replace("elbow", "emergency_stop")], ""),
-            true,
-        ),
     ];
-    for v in [
-        Validator::lenient(),
-        Validator::new().deny_unknown_members(true),
-        Validator::new().max_depth(3),
-    ] {
-        for (line, plain) in &cases {
-            let once = classify(&v, line);
-            assert_eq!(once, classify_scanned(&v, line), "{line}");
-            assert_eq!(once, classify_members(&v, line), "{line}");
-            let deep = v == Validator::new().max_depth(3)
-                && (line.contains("pid_gains") || line.contains("safety_limits"));
-            assert_eq!(
-                plain_multi_axis(&v, line).is_some(),
-                *plain && !deep,
-                "{line}"
-            );
-            assert!(plain_command(&v, line).is_none(), "{line}");
-        }
-    }
-    // The stops stop.
-    let v = Validator::new();
-    for (line, _) in &cases {
-        if line.contains(r#"emergency_stop":true"#) || line.contains(r#"emergency_stop":true"#) {
-            assert!(matches!(classify(&v, line), Line::Stop { .. }), "{line}");
-        }
-    }
+    assert_multi_axis_read_as_before(&cases);
 }
 
 /// `"stream"`: `true` makes a MotorCommand a stream's setpoint,

@@ -255,43 +255,7 @@ impl Order {
         let at = cx.at;
         match *self {
             Self::Irpc(p) => irpc::effect(p, cx),
-            Self::Compact(c) => {
-                if c.flags.contains(Flags::EMERGENCY_STOP) {
-                    // Its move abandoned.
-                    return Effect {
-                        target: Some(None),
-                        moving: Moving::AtMost(at),
-                        ..Effect::NONE
-                    };
-                }
-                match c.control_mode {
-                    CompactMode::Position => {
-                        let target = cx.unit.to_degrees(f64::from(c.setpoint));
-                        let from = cx.motion.map_or(target, |(p, ..)| p);
-                        let v = c
-                            .velocity_limit
-                            .map(|l| cx.unit.to_degrees(l.units_per_s()))
-                            .or(cx.max_velocity)
-                            .unwrap_or(60.0)
-                            .max(1e-3);
-                        let a = cx.max_acceleration.unwrap_or(500.0).max(1e-3);
-                        // A trapezoid's duration, a bound on the device's move.
-                        let secs = (target - from).abs() / v + v / a;
-                        Effect {
-                            target: Some(Some(target)),
-                            moving: Moving::Until(
-                                at.saturating_add(Duration::from_secs_f64(secs.min(3600.0))),
-                            ),
-                            ..Effect::NONE
-                        }
-                    }
-                    CompactMode::Velocity | CompactMode::Torque => self.holding(cx),
-                    _ => Effect {
-                        moving: Moving::Until(at),
-                        ..Effect::NONE
-                    },
-                }
-            }
+            Self::Compact(c) => self.compact_effect(&c, cx),
             Self::Orion(OrionOrder::Set(m, v)) => match m.quantity() {
                 Quantity::PositionDegrees => Effect {
                     target: Some(Some(v)),
@@ -316,7 +280,6 @@ impl Order {
                 match a.position.filter(|p| p.is_finite()) {
                     Some(p) => {
                         let target = p * 360.0;
-                        let from = cx.motion.map_or(target, |(p, ..)| p);
                         let v = a
                             .velocity_limit
                             .map(|v| v.abs() * 360.0)
@@ -330,18 +293,45 @@ impl Order {
                             .unwrap_or(500.0)
                             .max(1e-3);
                         // A trapezoid's duration, a bound on the controller's move.
-                        let secs = (target - from).abs() / v + v / acc;
-                        Effect {
-                            target: Some(Some(target)),
-                            moving: Moving::Until(
-                                at.saturating_add(Duration::from_secs_f64(secs.min(3600.0))),
-                            ),
-                            ..Effect::NONE
-                        }
+                        trapezoid(cx, target, v, acc)
                     }
                     None => self.holding(cx),
                 }
             }
+        }
+    }
+
+    /// A compact device's command `c` (this order), acknowledged, in `cx`:
+    /// an emergency stop abandons the move; a position move ends within a
+    /// trapezoid's duration; a velocity or torque holds.
+    fn compact_effect(&self, c: &CompactCommand, cx: &Context) -> Effect {
+        let at = cx.at;
+        if c.flags.contains(Flags::EMERGENCY_STOP) {
+            // Its move abandoned.
+            return Effect {
+                target: Some(None),
+                moving: Moving::AtMost(at),
+                ..Effect::NONE
+            };
+        }
+        match c.control_mode {
+            CompactMode::Position => {
+                let target = cx.unit.to_degrees(f64::from(c.setpoint));
+                let v = c
+                    .velocity_limit
+                    .map(|l| cx.unit.to_degrees(l.units_per_s()))
+                    .or(cx.max_velocity)
+                    .unwrap_or(60.0)
+                    .max(1e-3);
+                let a = cx.max_acceleration.unwrap_or(500.0).max(1e-3);
+                // A trapezoid's duration, a bound on the device's move.
+                trapezoid(cx, target, v, a)
+            }
+            CompactMode::Velocity | CompactMode::Torque => self.holding(cx),
+            _ => Effect {
+                moving: Moving::Until(at),
+                ..Effect::NONE
+            },
         }
     }
 
@@ -360,5 +350,22 @@ impl Order {
             deadman,
             ..Effect::NONE
         }
+    }
+}
+
+/// A move to `target` (degrees) from where `cx` has the device (no
+/// distance when that is not known), at most `v` a second and `a` a
+/// second squared: it ends within a trapezoid's duration (an hour at
+/// most).
+fn trapezoid(cx: &Context, target: f64, v: f64, a: f64) -> Effect {
+    let from = cx.motion.map_or(target, |(p, ..)| p);
+    let secs = (target - from).abs() / v + v / a;
+    Effect {
+        target: Some(Some(target)),
+        moving: Moving::Until(
+            cx.at
+                .saturating_add(Duration::from_secs_f64(secs.min(3600.0))),
+        ),
+        ..Effect::NONE
     }
 }

@@ -124,19 +124,7 @@ impl Bridge {
             return;
         }
         match self.phase {
-            Phase::Starting { .. } => {
-                if self.waiting.len() >= self.config.max_pending_lines {
-                    self.stats.lines += 1;
-                    self.busy(&meta, Refusal::WaitingForStart);
-                } else {
-                    self.waiting.push_back(Waiting {
-                        at: now,
-                        meta,
-                        text: line.to_owned(),
-                    });
-                }
-                return;
-            }
+            Phase::Starting { .. } => return self.wait_for_start(now, meta, line),
             Phase::Running => {}
             Phase::Draining { .. } | Phase::Stopping | Phase::Finished => {
                 self.stats.lines += 1;
@@ -145,6 +133,27 @@ impl Bridge {
             }
         }
         self.stats.lines += 1;
+        self.serve(now, meta, input);
+    }
+
+    /// A line that came while the joints start: it waits for them (its
+    /// text kept), unless as many lines wait as the bridge keeps.
+    fn wait_for_start(&mut self, now: Duration, meta: LineMeta, line: &str) {
+        if self.waiting.len() >= self.config.max_pending_lines {
+            self.stats.lines += 1;
+            self.busy(&meta, Refusal::WaitingForStart);
+        } else {
+            self.waiting.push_back(Waiting {
+                at: now,
+                meta,
+                text: line.to_owned(),
+            });
+        }
+    }
+
+    /// A line of the running bridge, read as `input`: each form to what
+    /// serves it.
+    fn serve(&mut self, now: Duration, meta: LineMeta, input: Line) {
         match input {
             Line::Stop { .. } => {}
             // A stop that arrived after this release was acted on first (it
@@ -204,21 +213,27 @@ impl Bridge {
             Line::Motor { action, motor_id } => self.motor_line(now, meta, action, &motor_id),
             // Read where it lies: a command is the largest message, and
             // every line is one.
-            Line::Message(mut m) => match m.as_mut() {
-                Message::MotorCommand(cmd) => self.motor_command(now, meta, cmd),
-                Message::MultiAxisCommand(cmd) => self.multi_axis(now, meta, cmd),
-                Message::SafetyLimits(l) => self.safety_limits(meta, l),
-                Message::Trajectory(t) => {
-                    let id = t.trajectory_id.clone();
-                    self.trajectories(now, meta, &id, std::slice::from_ref(t));
-                }
-                Message::PidConfig(p) => self.refuse(
-                    &meta.labelled(Label::Motor(p.motor_id.clone())),
-                    Refusal::PidGains,
-                ),
-                Message::ControlModeConfig(_) => self.refuse(&meta, Refusal::ControlModeConfig),
-                other => self.refuse(&meta, Refusal::UnsupportedKind { kind: other.kind() }),
-            },
+            Line::Message(mut m) => self.serve_message(now, meta, m.as_mut()),
+        }
+    }
+
+    /// A WIA message: a command, SafetyLimits or a trajectory served; the
+    /// kinds the bridge does not take refused.
+    fn serve_message(&mut self, now: Duration, meta: LineMeta, m: &mut Message) {
+        match m {
+            Message::MotorCommand(cmd) => self.motor_command(now, meta, cmd),
+            Message::MultiAxisCommand(cmd) => self.multi_axis(now, meta, cmd),
+            Message::SafetyLimits(l) => self.safety_limits(meta, l),
+            Message::Trajectory(t) => {
+                let id = t.trajectory_id.clone();
+                self.trajectories(now, meta, &id, std::slice::from_ref(t));
+            }
+            Message::PidConfig(p) => self.refuse(
+                &meta.labelled(Label::Motor(p.motor_id.clone())),
+                Refusal::PidGains,
+            ),
+            Message::ControlModeConfig(_) => self.refuse(&meta, Refusal::ControlModeConfig),
+            other => self.refuse(&meta, Refusal::UnsupportedKind { kind: other.kind() }),
         }
     }
 

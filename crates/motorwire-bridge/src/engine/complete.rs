@@ -2,10 +2,19 @@
 
 use super::*;
 
+/// What became of a finished job's steps: the motors acked, the moves
+/// acked (to watch for arrival), the rest's reports, and whether a
+/// stream's setpoint was replaced.
+struct Tally {
+    acked: Vec<String>,
+    moved: Vec<WatchAxis>,
+    failures: Vec<StepReport>,
+    superseded: bool,
+}
+
 impl Bridge {
     pub(super) fn complete(&mut self, job: Box<Job>) {
-        let job = *job;
-        let now = self.now;
+        let mut job = *job;
         if let Some(since) = job.answered {
             return self.complete_answered(job, since);
         }
@@ -18,131 +27,128 @@ impl Bridge {
         } else {
             Vec::new()
         };
-        // The motors acked, the moves acked (to watch for arrival), and
-        // what became of the rest: one pass, each name moved, not copied.
-        let mut acked: Vec<String> = Vec::with_capacity(job.axes.len());
-        let mut moved: Vec<WatchAxis> = Vec::with_capacity(job.axes.len());
-        let mut failures: Vec<StepReport> = Vec::new();
-        let mut superseded = false;
-        for a in job.axes {
+        let tally = self.tally(std::mem::take(&mut job.axes), stream);
+        match job.kind {
+            JobKind::Startup => return self.started(tally),
+            JobKind::Shutdown => {
+                self.out.push_back(Output::Event(Event::Stopped {
+                    deactivated: tally.acked,
+                    failures: tally.failures,
+                }));
+                self.enter(Phase::Finished);
+                return;
+            }
+            JobKind::Reset => self.reset_done(&moved_joints, tally.failures.is_empty()),
+            JobKind::Deadman if !tally.failures.is_empty() && !self.stop.is_latched() => {
+                return self.deadman_failed(&tally.failures);
+            }
+            JobKind::Command | JobKind::EmergencyStop | JobKind::Release | JobKind::Deadman => {}
+        }
+        self.answer_job(job, tally, stream);
+    }
+
+    /// The finished steps of `axes`, in one pass, each name moved, not
+    /// copied; a superseded step of a `stream` is no failure.
+    fn tally(&self, axes: Vec<Axis>, stream: bool) -> Tally {
+        let mut t = Tally {
+            acked: Vec::with_capacity(axes.len()),
+            moved: Vec::with_capacity(axes.len()),
+            failures: Vec::new(),
+            superseded: false,
+        };
+        for a in axes {
             let AxisState::Done(r) = a.state else {
                 continue;
             };
             match r.outcome {
                 StepOutcome::Acked => {
                     if let Some(target) = a.target {
-                        moved.push(self.watch_axis(a.joint, a.motor, target));
+                        t.moved.push(self.watch_axis(a.joint, a.motor, target));
                     }
-                    acked.push(r.motor);
+                    t.acked.push(r.motor);
                 }
-                StepOutcome::Superseded if stream => superseded = true,
-                _ => failures.push(r),
+                StepOutcome::Superseded if stream => t.superseded = true,
+                _ => t.failures.push(r),
             }
         }
-        match job.kind {
-            JobKind::Startup => {
-                for name in acked {
-                    self.out.push_back(Output::Event(Event::Startup {
-                        motor_id: name,
-                        ok: true,
-                        error: None,
-                    }));
-                }
-                for f in failures {
-                    self.out.push_back(Output::Event(Event::Startup {
-                        motor_id: f.motor.clone(),
-                        ok: false,
-                        error: Some(f),
-                    }));
-                }
-                let settle = now.saturating_add(self.config.offline_after);
-                if let Phase::Starting { settle_until, .. } = &mut self.phase {
-                    // Ready once every device that answers has been read
-                    // (its position known from the first line on), or
-                    // after the offline time for those that do not.
-                    *settle_until = Some(settle);
-                    self.try_ready();
-                }
-                return;
-            }
-            JobKind::Shutdown => {
-                self.out.push_back(Output::Event(Event::Stopped {
-                    deactivated: acked,
-                    failures,
-                }));
-                self.enter(Phase::Finished);
-                return;
-            }
-            JobKind::Reset => {
-                for a in &moved_joints {
-                    if let Some(j) = self.joints.get_mut(*a) {
-                        j.resetting = false;
-                        if failures.is_empty() {
-                            j.needs_reset = None;
-                        }
-                    }
-                }
-            }
-            JobKind::Deadman if !failures.is_empty() && !self.stop.is_latched() => {
-                // The deadman could not stop a device (its stop was never
-                // answered): when in doubt, stop everything.
-                let why = failures
-                    .iter()
-                    .map(|f| format!("{} ({})", f.motor, f.outcome.name()))
-                    .collect::<Vec<_>>()
-                    .join(", ");
-                self.emergency_stop(
-                    now,
-                    None,
-                    Vec::new(),
-                    format!("deadman: could not stop {why}"),
-                );
-                return;
-            }
-            JobKind::Command | JobKind::EmergencyStop | JobKind::Release | JobKind::Deadman => {}
+        t
+    }
+
+    /// The startup's job ended: an event for each motor, and ready once
+    /// the joints settle.
+    fn started(&mut self, tally: Tally) {
+        for name in tally.acked {
+            self.out.push_back(Output::Event(Event::Startup {
+                motor_id: name,
+                ok: true,
+                error: None,
+            }));
         }
+        for f in tally.failures {
+            self.out.push_back(Output::Event(Event::Startup {
+                motor_id: f.motor.clone(),
+                ok: false,
+                error: Some(f),
+            }));
+        }
+        let settle = self.now.saturating_add(self.config.offline_after);
+        if let Phase::Starting { settle_until, .. } = &mut self.phase {
+            // Ready once every device that answers has been read
+            // (its position known from the first line on), or
+            // after the offline time for those that do not.
+            *settle_until = Some(settle);
+            self.try_ready();
+        }
+    }
+
+    /// A reset's job ended: the `joints` it moved are no longer resetting,
+    /// and need no reset once it all went (`ok`).
+    fn reset_done(&mut self, joints: &[usize], ok: bool) {
+        for a in joints {
+            if let Some(j) = self.joints.get_mut(*a) {
+                j.resetting = false;
+                if ok {
+                    j.needs_reset = None;
+                }
+            }
+        }
+    }
+
+    /// The deadman could not stop a device (its stop was never answered,
+    /// `failures`): when in doubt, stop everything.
+    fn deadman_failed(&mut self, failures: &[StepReport]) {
+        let why = failures
+            .iter()
+            .map(|f| format!("{} ({})", f.motor, f.outcome.name()))
+            .collect::<Vec<_>>()
+            .join(", ");
+        self.emergency_stop(
+            self.now,
+            None,
+            Vec::new(),
+            format!("deadman: could not stop {why}"),
+        );
+    }
+
+    /// Answers a finished job's line (and the stop lines that rode on it)
+    /// with what became of it; a command that moved is watched until it
+    /// arrives.
+    fn answer_job(&mut self, mut job: Job, tally: Tally, stream: bool) {
         // A stop the bridge made itself (the deadman's, a joint's own)
         // answers no line, but the stop lines that rode on it are answered.
         if job.line.is_none() && job.riders.is_empty() {
             return;
         }
-        let number = job.line.as_ref().map_or(0, |l| l.number);
+        let now = self.now;
         let latency = job.last_frame.map(|t| us(t.saturating_sub(job.received)));
-        let ok = failures.is_empty() && job.data_error.is_none();
-        let error = if !failures.is_empty() {
-            Some(Refusal::failed(&failures, job.cut.as_deref()).into())
-        } else {
-            job.data_error
-                .clone()
-                .map(|why| Refusal::NoAnswer { why }.into())
-        };
-        let mut r = Box::new(LineResult {
-            ok,
-            line: number,
-            emergency_stop: job.kind == JobKind::EmergencyStop,
-            released: job.kind == JobKind::Release,
-            error,
-            acked: Some(acked),
-            outcomes: failures,
-            problems: job.problems,
-            latency_us: latency,
-            ack_us: Some(us(now.saturating_sub(job.received))),
-            stop_latency_us: if job.kind == JobKind::EmergencyStop {
-                latency
-            } else {
-                None
-            },
-            losses: job.report.losses,
-            data: job.data.clone(),
-            ..LineResult::default()
-        });
-        let watched = job.kind == JobKind::Command && !moved.is_empty();
+        let watched = job.kind == JobKind::Command && !tally.moved.is_empty();
+        let mut r = line_result(&mut job, tally.acked, tally.failures, latency, now);
         r.arrival_follows = if stream {
             Some(false)
         } else {
             watched.then_some(true)
         };
-        r.superseded = superseded;
+        r.superseded = tally.superseded;
         // The riders' results come before the line's own, as they did
         // when each was pushed as it was built.
         for rider in job.riders {
@@ -163,7 +169,7 @@ impl Bridge {
         // (Lines watched on the motors it moved were superseded when each
         // took its setpoint: [`Self::taken`].)
         if watched && !stream {
-            self.watch(meta, moved, now);
+            self.watch(meta, tally.moved, now);
         }
     }
 
@@ -212,4 +218,45 @@ impl Bridge {
     }
 
     // ---- links ------------------------------------------------------------
+}
+
+/// The result of a finished `job`'s line, at `now`: the motors `acked`,
+/// the `failures`, the time from its receipt to its last frame
+/// (`latency`).
+fn line_result(
+    job: &mut Job,
+    acked: Vec<String>,
+    failures: Vec<StepReport>,
+    latency: Option<u64>,
+    now: Duration,
+) -> Box<LineResult> {
+    let number = job.line.as_ref().map_or(0, |l| l.number);
+    let ok = failures.is_empty() && job.data_error.is_none();
+    let error = if !failures.is_empty() {
+        Some(Refusal::failed(&failures, job.cut.as_deref()).into())
+    } else {
+        job.data_error
+            .clone()
+            .map(|why| Refusal::NoAnswer { why }.into())
+    };
+    Box::new(LineResult {
+        ok,
+        line: number,
+        emergency_stop: job.kind == JobKind::EmergencyStop,
+        released: job.kind == JobKind::Release,
+        error,
+        acked: Some(acked),
+        outcomes: failures,
+        problems: std::mem::take(&mut job.problems),
+        latency_us: latency,
+        ack_us: Some(us(now.saturating_sub(job.received))),
+        stop_latency_us: if job.kind == JobKind::EmergencyStop {
+            latency
+        } else {
+            None
+        },
+        losses: std::mem::take(&mut job.report.losses),
+        data: job.data.clone(),
+        ..LineResult::default()
+    })
 }

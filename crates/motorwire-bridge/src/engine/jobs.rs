@@ -1,5 +1,7 @@
 //! Jobs: opened, superseded, their steps sent one by one per device, taken and tracked.
 
+use std::ops::ControlFlow;
+
 use super::*;
 
 impl Bridge {
@@ -506,11 +508,44 @@ impl Bridge {
     /// Sends the next payload of `step`; returns whether a request is now in
     /// flight for it.
     pub(super) fn send_step(&mut self, now: Duration, ji: usize, node: u16, step: StepRef) -> bool {
-        let Some(job) = self.jobs.get_mut(&step.job) else {
+        let payload = match self.next_payload(now, ji, step) {
+            ControlFlow::Continue(payload) => payload,
+            ControlFlow::Break(in_flight) => return in_flight,
+        };
+        // Its path from where the device is now, within the limits in
+        // force: the line's own check was when it came, and by its turn
+        // the device may move otherwise (a move in flight, a slow Ack).
+        if let Some(why) = self.path_at_send(ji, &payload) {
+            self.stats.refused_at_send += 1;
+            if let Some(a) = axis_mut(&mut self.jobs, step) {
+                a.finish(StepOutcome::NotSent, None, why);
+            }
+            return false;
+        }
+        let Some(flushed_before) = self.mark_in_flight(now, ji, step, payload) else {
             return false;
         };
-        let Some(a) = job.axes.get_mut(step.axis) else {
-            return false;
+        let sent = if payload.sent_together() {
+            self.send_together(now, ji, step, payload)
+        } else {
+            self.drivers.send(now, ji, node, payload)
+        };
+        self.after_send(ji, step, payload, sent, flushed_before)
+    }
+
+    /// What `step` (of device `ji`) has to send at `now`: its next
+    /// payload, taken from it; or what [`Self::send_step`] returns without
+    /// sending: `true` for nothing yet (a trajectory's next segment not
+    /// due: the joint stays the step's until then, woken at its time),
+    /// `false` for nothing more (the step done).
+    fn next_payload(
+        &mut self,
+        now: Duration,
+        ji: usize,
+        step: StepRef,
+    ) -> ControlFlow<bool, Order> {
+        let Some(a) = axis_mut(&mut self.jobs, step) else {
+            return ControlFlow::Break(false);
         };
         // A trajectory looping forever: its next cycle.
         if a.payloads.is_empty()
@@ -533,34 +568,33 @@ impl Bridge {
                 j.busy = Some(step);
                 j.wake = Some(due);
             }
-            return true;
+            return ControlFlow::Break(true);
         }
         a.due.pop_front();
         let Some(payload) = a.payloads.pop_front() else {
             if !a.is_done() {
                 a.finish(StepOutcome::Acked, None, "acked");
             }
-            return false;
+            return ControlFlow::Break(false);
         };
-        // Its path from where the device is now, within the limits in
-        // force: the line's own check was when it came, and by its turn
-        // the device may move otherwise (a move in flight, a slow Ack).
-        if let Some(why) = self.path_at_send(ji, &payload) {
-            self.stats.refused_at_send += 1;
-            if let Some(a) = axis_mut(&mut self.jobs, step) {
-                a.finish(StepOutcome::NotSent, None, why);
-            }
-            return false;
-        }
-        let Some(job) = self.jobs.get_mut(&step.job) else {
-            return false;
-        };
-        let Some(a) = job.axes.get_mut(step.axis) else {
-            return false;
-        };
+        ControlFlow::Continue(payload)
+    }
+
+    /// `step`'s `payload` in flight on device `ji` before it is handed to
+    /// its driver (an Orion line may carry other motors' steps, and reads
+    /// their state first): the device the step's, where its move starts
+    /// from kept. Whether its job had nothing unflushed before, or `None`
+    /// when the step is gone.
+    fn mark_in_flight(
+        &mut self,
+        now: Duration,
+        ji: usize,
+        step: StepRef,
+        payload: Order,
+    ) -> Option<bool> {
+        let job = self.jobs.get_mut(&step.job)?;
+        let a = job.axes.get_mut(step.axis)?;
         a.begun = true;
-        // In flight before it is handed to its driver: an Orion line may
-        // carry other motors' steps, and reads their state first.
         a.state = AxisState::InFlight { msg_id: 0, payload };
         a.attempts = 1;
         let flushed_before = !job.unflushed;
@@ -573,11 +607,21 @@ impl Bridge {
             // step (sent again itself, it is judged again once taken).
             j.unconfirmed_stop = None;
         }
-        let sent = if payload.sent_together() {
-            self.send_together(now, ji, step, payload)
-        } else {
-            self.drivers.send(now, ji, node, payload)
-        };
+        Some(flushed_before)
+    }
+
+    /// `step`'s `payload` handed to its driver, as `sent` says: in flight
+    /// under its message id, or not sent (nothing of it written: its job
+    /// waits for no flush it did not before, `flushed_before`; device `ji`
+    /// free). Whether it is in flight.
+    fn after_send(
+        &mut self,
+        ji: usize,
+        step: StepRef,
+        payload: Order,
+        sent: Result<u32, DeviceError>,
+        flushed_before: bool,
+    ) -> bool {
         let Some(job) = self.jobs.get_mut(&step.job) else {
             return false;
         };
@@ -609,89 +653,28 @@ impl Bridge {
         let Some(step) = self.joints.get_mut(ji).and_then(|j| j.busy.take()) else {
             return;
         };
-        let Some(job) = self.jobs.get_mut(&step.job) else {
+        let Some(e) = self.end_request(ji, step, &c) else {
             return;
         };
-        let (kind, line) = (job.kind, job.line_ref());
-        let Some(a) = job.axes.get_mut(step.axis) else {
-            return;
-        };
-        let AxisState::InFlight { payload, .. } = a.state else {
-            return;
-        };
-        let a_target = a.target.filter(|_| payload.is_position_move());
-        a.state = AxisState::Queued;
-        match &c.outcome {
-            Outcome::Acked => {
-                a.acked += 1;
-                if let Some(why) = a.replaced {
-                    a.finish(StepOutcome::Superseded, None, why);
-                } else if a.payloads.is_empty() && a.cycle.is_none() {
-                    // A trajectory looping forever has its next cycle to come.
-                    a.finish(StepOutcome::Acked, None, "acked");
-                }
-            }
-            // Stopping a device that is already stopped is a stop.
-            Outcome::Nacked {
-                already_stopped: true,
-                ..
-            } if kind.is_stop() => {
-                a.finish(StepOutcome::Acked, None, "already stopped");
-            }
-            Outcome::Nacked { code, why, .. } => {
-                a.finish(StepOutcome::Nacked, *code, why.clone());
-            }
-            Outcome::TimedOut => {
-                let who = self
-                    .joints
-                    .get(ji)
-                    .map_or_else(String::new, |j| j.device.who(j.node));
-                a.finish(
-                    StepOutcome::OutcomeUnknown,
-                    None,
-                    format!(
-                        "sent {} times, never answered: {who} may or may not have executed it",
-                        c.attempts
-                    ),
-                );
-            }
-        }
-        let more = !a.is_done();
-        if c.outcome == Outcome::TimedOut
-            && let Some(j) = self.joints.get_mut(ji)
-        {
-            if let (JobKind::Command, Some(target)) = (kind, a_target) {
-                j.unresolved = Some(Unresolved {
-                    origin: line.map(|l| l.origin),
-                    line: line.map_or(0, |l| l.line),
-                    target,
-                });
-            }
-            if j.online {
-                j.online = false;
-                self.out.push_back(Output::Event(Event::Offline {
-                    motor_id: j.name.clone(),
-                    node: j.node,
-                    reason: "a request timed out".to_owned(),
-                }));
-                self.fail_watches(|w| w.waits_on(ji), "the joint went offline");
-            }
+        if c.outcome == Outcome::TimedOut {
+            self.never_answered(ji, &e);
         }
         // A setpoint whose answer never came may be running: the deadman
         // watches it as if it were acked.
         if c.outcome == Outcome::Acked
-            || (c.outcome == Outcome::TimedOut && payload.holds_setpoint())
+            || (c.outcome == Outcome::TimedOut && e.payload.holds_setpoint())
         {
-            self.track(ji, payload, c.at);
+            self.track(ji, e.payload, c.at);
             // A line's stop of the device (a motor line's free or stop, a
             // `disabled`) takes it as a move does.
-            let stops = kind == JobKind::Command
-                && (payload.ends_setpoint() || payload.lifecycle() == Some(Lifecycle::Deactivate));
-            if payload.is_setpoint() || stops {
+            let stops = e.kind == JobKind::Command
+                && (e.payload.ends_setpoint()
+                    || e.payload.lifecycle() == Some(Lifecycle::Deactivate));
+            if e.payload.is_setpoint() || stops {
                 self.taken(
                     ji,
                     step.job,
-                    (kind == JobKind::Command).then_some(line).flatten(),
+                    (e.kind == JobKind::Command).then_some(e.line).flatten(),
                 );
             }
         }
@@ -700,9 +683,9 @@ impl Bridge {
         // to judge it by (a compact device answers a command and not much
         // else): when in doubt, stop again, unless a newer step waits.
         let stop_again = c.outcome == Outcome::TimedOut
-            && payload.unconfirmed_stop().is_some()
+            && e.payload.unconfirmed_stop().is_some()
             && self.joints.get(ji).is_some_and(|j| j.queue.is_empty());
-        if more {
+        if e.more {
             let node = self.joints.get(ji).map_or(0, |j| j.node);
             if !self.send_step(self.now, ji, node, step) {
                 self.pump(ji);
@@ -711,9 +694,60 @@ impl Bridge {
             self.pump(ji);
         }
         if stop_again {
-            self.stop_again(ji, payload, c.at.max(self.now), "answered");
+            self.stop_again(ji, e.payload, c.at.max(self.now), "answered");
         }
         self.finish_jobs();
+    }
+
+    /// `step`'s request in flight on device `ji` ended as `c` says: its
+    /// axis queued again, or finished as the answer says; `None` when the
+    /// step had nothing in flight.
+    fn end_request(&mut self, ji: usize, step: StepRef, c: &Ended) -> Option<RequestEnded> {
+        let job = self.jobs.get_mut(&step.job)?;
+        let (kind, line) = (job.kind, job.line_ref());
+        let a = job.axes.get_mut(step.axis)?;
+        let AxisState::InFlight { payload, .. } = a.state else {
+            return None;
+        };
+        let target = a.target.filter(|_| payload.is_position_move());
+        a.state = AxisState::Queued;
+        let joints = &self.joints;
+        answered(a, kind, c, || {
+            joints
+                .get(ji)
+                .map_or_else(String::new, |j| j.device.who(j.node))
+        });
+        Some(RequestEnded {
+            kind,
+            line,
+            payload,
+            target,
+            more: !a.is_done(),
+        })
+    }
+
+    /// A request to device `ji` never answered (`e`): a command's target
+    /// left unresolved, and the joint offline (its watches failed).
+    fn never_answered(&mut self, ji: usize, e: &RequestEnded) {
+        let Some(j) = self.joints.get_mut(ji) else {
+            return;
+        };
+        if let (JobKind::Command, Some(target)) = (e.kind, e.target) {
+            j.unresolved = Some(Unresolved {
+                origin: e.line.map(|l| l.origin),
+                line: e.line.map_or(0, |l| l.line),
+                target,
+            });
+        }
+        if j.online {
+            j.online = false;
+            self.out.push_back(Output::Event(Event::Offline {
+                motor_id: j.name.clone(),
+                node: j.node,
+                reason: "a request timed out".to_owned(),
+            }));
+            self.fail_watches(|w| w.waits_on(ji), "the joint went offline");
+        }
     }
 
     /// A trajectory line under way: once each of its motors' first
@@ -760,17 +794,8 @@ impl Bridge {
         let Some(j) = self.joints.get(ji) else { return };
         // A line that leaves it inactive again waits behind this order
         // (looked for only behind an Activate: every ack comes here).
-        let deactivation_waits = order.lifecycle() == Some(Lifecycle::Activate)
-            && j.queue.iter().any(|s| {
-                self.jobs
-                    .get(&s.job)
-                    .and_then(|job| job.axes.get(s.axis))
-                    .is_some_and(|a| {
-                        a.payloads
-                            .iter()
-                            .any(|o| o.lifecycle() == Some(Lifecycle::Deactivate))
-                    })
-            });
+        let deactivation_waits =
+            order.lifecycle() == Some(Lifecycle::Activate) && self.deactivation_waits(j);
         // Planned from where it was when the order was sent, as the
         // device plans it.
         let sent_from = j.sending.map(|(_, from)| from);
@@ -838,6 +863,20 @@ impl Bridge {
         if effect.settles {
             j.unresolved = None;
         }
+    }
+
+    /// Whether a step waiting for joint `j` deactivates it.
+    fn deactivation_waits(&self, j: &Joint) -> bool {
+        j.queue.iter().any(|s| {
+            self.jobs
+                .get(&s.job)
+                .and_then(|job| job.axes.get(s.axis))
+                .is_some_and(|a| {
+                    a.payloads
+                        .iter()
+                        .any(|o| o.lifecycle() == Some(Lifecycle::Deactivate))
+                })
+        })
     }
 
     /// Emits the result of every job that is done.
@@ -962,5 +1001,57 @@ impl Bridge {
             }
         }
         sent
+    }
+}
+
+/// A step's request that ended ([`Bridge::step_done`]).
+struct RequestEnded {
+    /// Its job's kind.
+    kind: JobKind,
+    /// The line its job serves.
+    line: Option<LineRef>,
+    /// What was sent.
+    payload: Order,
+    /// Its axis's target, for a position move.
+    target: Option<f64>,
+    /// Whether more of the step is to send.
+    more: bool,
+}
+
+/// Axis `a` (of a job of `kind`) as the answer `c` to its request says:
+/// acked (finished once nothing more is to send), nacked, or never
+/// answered by the device `who` names.
+fn answered(a: &mut Axis, kind: JobKind, c: &Ended, who: impl FnOnce() -> String) {
+    match &c.outcome {
+        Outcome::Acked => {
+            a.acked += 1;
+            if let Some(why) = a.replaced {
+                a.finish(StepOutcome::Superseded, None, why);
+            } else if a.payloads.is_empty() && a.cycle.is_none() {
+                // A trajectory looping forever has its next cycle to come.
+                a.finish(StepOutcome::Acked, None, "acked");
+            }
+        }
+        // Stopping a device that is already stopped is a stop.
+        Outcome::Nacked {
+            already_stopped: true,
+            ..
+        } if kind.is_stop() => {
+            a.finish(StepOutcome::Acked, None, "already stopped");
+        }
+        Outcome::Nacked { code, why, .. } => {
+            a.finish(StepOutcome::Nacked, *code, why.clone());
+        }
+        Outcome::TimedOut => {
+            let who = who();
+            a.finish(
+                StepOutcome::OutcomeUnknown,
+                None,
+                format!(
+                    "sent {} times, never answered: {who} may or may not have executed it",
+                    c.attempts
+                ),
+            );
+        }
     }
 }

@@ -424,6 +424,45 @@ const CONFIRM_STOP_FOR: Duration = Duration::from_secs(1);
 /// How often such a stop is sent again before the emergency stop.
 const MAX_STOP_RESENDS: u8 = 5;
 
+impl BridgeConfig {
+    /// Whether the configuration can run: no zero period, timeout or
+    /// bound, a finite epoch.
+    fn check(&self) -> Result<(), BridgeError> {
+        if self.feedback_period == Some(Duration::ZERO) {
+            return Err(BridgeError::Config("the feedback period must not be zero"));
+        }
+        if self.offline_after.is_zero() || self.heartbeat_period.is_zero() {
+            return Err(BridgeError::Config(
+                "the offline timeout and the heartbeat period must not be zero",
+            ));
+        }
+        if self.epoch_unix_ms.is_some_and(|e| !e.is_finite()) {
+            return Err(BridgeError::Config("the epoch must be a finite number"));
+        }
+        if self.max_pending_lines == 0 || self.max_queue_per_joint == 0 {
+            return Err(BridgeError::Config(
+                "max_pending_lines and max_queue_per_joint must be at least 1",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The validator `config` asks for, with the paths a stop takes warmed:
+/// the first invalid command the schema reports on builds its error
+/// machinery lazily (hash seeds drawn from the OS on first use). Better
+/// when the bridge is made, before any joint moves, than inside the first
+/// emergency stop: on a machine whose random pool is not yet initialised
+/// (early boot) that first draw can wait.
+fn warmed_validator(config: &BridgeConfig) -> Validator {
+    let validator = Validator::new().deny_unknown_members(!config.allow_unknown_members);
+    let _ = classify(
+        &validator,
+        r#"{"motor_id":"-","control_mode":"warp","safety_limits":{"emergency_stop":true}}"#,
+    );
+    validator
+}
+
 fn us(d: Duration) -> u64 {
     u64::try_from(d.as_micros()).unwrap_or(u64::MAX)
 }
@@ -481,22 +520,7 @@ impl Bridge {
     /// [`BridgeError::Config`] for a zero period, timeout or bound, a
     /// non-finite epoch, or a client node id beyond 11 bits.
     pub fn new(map: BusMap, config: BridgeConfig) -> Result<Self, BridgeError> {
-        if config.feedback_period == Some(Duration::ZERO) {
-            return Err(BridgeError::Config("the feedback period must not be zero"));
-        }
-        if config.offline_after.is_zero() || config.heartbeat_period.is_zero() {
-            return Err(BridgeError::Config(
-                "the offline timeout and the heartbeat period must not be zero",
-            ));
-        }
-        if config.epoch_unix_ms.is_some_and(|e| !e.is_finite()) {
-            return Err(BridgeError::Config("the epoch must be a finite number"));
-        }
-        if config.max_pending_lines == 0 || config.max_queue_per_joint == 0 {
-            return Err(BridgeError::Config(
-                "max_pending_lines and max_queue_per_joint must be at least 1",
-            ));
-        }
+        config.check()?;
         // The client's configuration is judged first (a node id beyond 11
         // bits), whatever the map holds.
         motorwire_can::client::Client::new(config.client)?;
@@ -526,17 +550,7 @@ impl Bridge {
             }
         }
         let base_limits = map.motors().map(|m| (m.name.clone(), m.limits)).collect();
-        let validator = Validator::new().deny_unknown_members(!config.allow_unknown_members);
-        // Warm the paths a stop takes: the first invalid command the
-        // schema reports on builds its error machinery lazily (hash seeds
-        // drawn from the OS on first use). Better here, before any joint
-        // moves, than inside the first emergency stop: on a machine whose
-        // random pool is not yet initialised (early boot) that first draw
-        // can wait.
-        let _ = classify(
-            &validator,
-            r#"{"motor_id":"-","control_mode":"warp","safety_limits":{"emergency_stop":true}}"#,
-        );
+        let validator = warmed_validator(&config);
         Ok(Self {
             next_deadline: std::cell::Cell::new(None),
             map,

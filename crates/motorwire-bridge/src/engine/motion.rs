@@ -20,142 +20,180 @@ impl Bridge {
             [one] => Label::Motor(one.motor_id.clone()),
             _ => Label::Command(id.to_owned()),
         });
+        let planned = self
+            .trajectory_start(now, &meta, all)
+            .and_then(|start| self.trajectory_axes(all, start));
+        match planned {
+            Ok((axes, report)) => self.command_job(now, meta, axes, report),
+            Err(e) => self.refuse(&meta, e),
+        }
+    }
+
+    /// When trajectories `all` of the line `meta` start: the first
+    /// `start_time` given, or now; or why they are refused (the line not
+    /// admitted, a start too far ahead or that no clock reaches).
+    fn trajectory_start(
+        &self,
+        now: Duration,
+        meta: &LineMeta,
+        all: &[Trajectory],
+    ) -> Result<Duration, Refusal> {
         let now_ms = self.unix_ms(now);
         // One time base: the first `start_time` given, or now.
         let start_ms = all
             .iter()
             .find_map(|t| t.timing.start_time)
             .unwrap_or(now_ms);
-        if let Err(e) = self.admit(
+        self.admit(
             now,
             Some(meta.origin),
             start_ms.min(now_ms),
             all.iter().map(|t| t.motor_id.as_str()),
-        ) {
-            self.refuse(&meta, e);
-            return;
-        }
+        )?;
         if let (Some(_), Some(max_age)) = (self.config.epoch_unix_ms, self.config.max_age)
             && start_ms - now_ms > max_age.as_secs_f64() * 1000.0
         {
-            let e = Refusal::StartTooFarAhead {
+            return Err(Refusal::StartTooFarAhead {
                 start_ms,
                 ahead_ms: start_ms - now_ms,
                 max_age,
-            };
-            self.refuse(&meta, e);
-            return;
+            });
         }
         // A start_time so far ahead that no clock reaches it (1e300) is
         // refused, never a panic.
         let Ok(delay) = Duration::try_from_secs_f64(((start_ms - now_ms) / 1000.0).max(0.0)) else {
-            self.refuse(&meta, Refusal::StartUnreachable { start_ms });
-            return;
+            return Err(Refusal::StartUnreachable { start_ms });
         };
-        let start = now.saturating_add(delay);
+        Ok(now.saturating_add(delay))
+    }
+
+    /// An axis for each of trajectories `all`, starting at `start`, and
+    /// what their planning lost; or why the line is refused (a motor
+    /// twice, or the first refusal of a trajectory).
+    fn trajectory_axes(
+        &self,
+        all: &[Trajectory],
+        start: Duration,
+    ) -> Result<(Vec<Axis>, Report), Refusal> {
         let mut axes = Vec::new();
         let mut report = Report::default();
         let mut seen = std::collections::BTreeSet::new();
         for t in all {
             if !seen.insert(t.motor_id.as_str()) {
-                let e = Refusal::MotorTwice {
+                return Err(Refusal::MotorTwice {
                     motor: t.motor_id.clone(),
-                };
-                self.refuse(&meta, e);
-                return;
-            }
-            let plan = match trajectory_to_irpc(&self.map, t) {
-                Ok(p) => p,
-                Err(r) => {
-                    self.refuse(&meta, Refusal::gate(r));
-                    return;
-                }
-            };
-            let Some(ji) = self.joint_index(&t.motor_id).filter(|&ji| {
-                self.joints
-                    .get(ji)
-                    .is_some_and(|j| j.device.supports(Capability::Trajectory))
-            }) else {
-                let e = Refusal::NotAnIrpcJoint {
-                    motor: t.motor_id.clone(),
-                };
-                self.refuse(&meta, e);
-                return;
-            };
-            let (unit, tolerance) = self
-                .map
-                .motor(&t.motor_id)
-                .map_or((AngleUnit::Degrees, 0.1), |m| {
-                    (m.unit, m.unit.to_degrees(m.arrival_tolerance))
-                });
-            let first = t
-                .waypoints
-                .first()
-                .map_or(0.0, |w| unit.to_degrees(w.position));
-            let here = self.joints.get(ji).and_then(|j| j.motion).map(|(p, _)| p);
-            if here.is_none_or(|p| !p.is_finite() || (p - first).abs() > tolerance) {
-                let e = Refusal::NotAtStart {
-                    motor: t.motor_id.clone(),
-                    first: short_unit(unit.from_degrees(first)),
-                    at: here.map(|p| short_unit(unit.from_degrees(p))),
-                };
-                self.refuse(&meta, e);
-                return;
-            }
-            for loss in plan.report.losses {
-                report.losses.push(if all.len() > 1 {
-                    loss.under(&t.motor_id)
-                } else {
-                    loss
                 });
             }
-            // Times no clock reaches are refused, never a panic.
-            let timeable = |secs: f64| Duration::try_from_secs_f64(secs.max(0.0)).is_ok();
-            if !plan.value.segments.iter().all(|s| timeable(s.at)) || !timeable(plan.value.duration)
-            {
-                let e = Refusal::WaypointUnreachable {
-                    motor: t.motor_id.clone(),
-                };
-                self.refuse(&meta, e);
-                return;
-            }
-            // Each segment as the device takes it (an iRPC joint its
-            // SetTargetV2; a moteus controller a position-mode move within
-            // the segment's limits, its torque limit the map's in force).
-            let device = self.joints.get(ji).map(|j| j.device);
-            let max_torque = self
-                .map
-                .motor(&t.motor_id)
-                .and_then(|m| m.limits.max_torque);
-            let orders: Vec<Order> = plan
-                .value
-                .segments
-                .iter()
-                .filter_map(|s| device.and_then(|d| d.segment_order(s.payload, max_torque)))
-                .collect();
-            let mut axis = Axis::of(t.motor_id.clone(), ji, orders.iter().copied());
-            axis.due = plan
-                .value
-                .segments
-                .iter()
-                .map(|s| start.saturating_add(Duration::from_secs_f64(s.at.max(0.0))))
-                .collect();
-            if plan.value.forever {
-                axis.cycle = Some(Cycle {
-                    payloads: plan
-                        .value
-                        .segments
-                        .iter()
-                        .zip(orders)
-                        .map(|(s, o)| (Duration::from_secs_f64(s.at.max(0.0)), o))
-                        .collect(),
-                    period: Duration::from_secs_f64(plan.value.duration),
-                    started: start,
-                });
-            }
-            axes.push(axis);
+            axes.push(self.trajectory_axis(t, all.len() > 1, start, &mut report)?);
         }
-        self.command_job(now, meta, axes, report);
+        Ok((axes, report))
+    }
+
+    /// Trajectory `t` planned for its joint, starting at `start`: its axis,
+    /// what its planning lost added to `report` (under its motor when the
+    /// line has `several`); or why it is refused (its plan's refusal, not a
+    /// joint that takes trajectories, the joint not at its first waypoint,
+    /// a time no clock reaches).
+    fn trajectory_axis(
+        &self,
+        t: &Trajectory,
+        several: bool,
+        start: Duration,
+        report: &mut Report,
+    ) -> Result<Axis, Refusal> {
+        let plan = trajectory_to_irpc(&self.map, t).map_err(Refusal::gate)?;
+        let Some(ji) = self.joint_index(&t.motor_id).filter(|&ji| {
+            self.joints
+                .get(ji)
+                .is_some_and(|j| j.device.supports(Capability::Trajectory))
+        }) else {
+            return Err(Refusal::NotAnIrpcJoint {
+                motor: t.motor_id.clone(),
+            });
+        };
+        self.check_at_start(ji, t)?;
+        for loss in plan.report.losses {
+            report.losses.push(if several {
+                loss.under(&t.motor_id)
+            } else {
+                loss
+            });
+        }
+        // Times no clock reaches are refused, never a panic.
+        let timeable = |secs: f64| Duration::try_from_secs_f64(secs.max(0.0)).is_ok();
+        if !plan.value.segments.iter().all(|s| timeable(s.at)) || !timeable(plan.value.duration) {
+            return Err(Refusal::WaypointUnreachable {
+                motor: t.motor_id.clone(),
+            });
+        }
+        Ok(self.segment_axis(t, ji, &plan.value, start))
+    }
+
+    /// Whether joint `ji` stands at trajectory `t`'s first waypoint
+    /// (within its arrival tolerance).
+    fn check_at_start(&self, ji: usize, t: &Trajectory) -> Result<(), Refusal> {
+        let (unit, tolerance) = self
+            .map
+            .motor(&t.motor_id)
+            .map_or((AngleUnit::Degrees, 0.1), |m| {
+                (m.unit, m.unit.to_degrees(m.arrival_tolerance))
+            });
+        let first = t
+            .waypoints
+            .first()
+            .map_or(0.0, |w| unit.to_degrees(w.position));
+        let here = self.joints.get(ji).and_then(|j| j.motion).map(|(p, _)| p);
+        if here.is_none_or(|p| !p.is_finite() || (p - first).abs() > tolerance) {
+            return Err(Refusal::NotAtStart {
+                motor: t.motor_id.clone(),
+                first: short_unit(unit.from_degrees(first)),
+                at: here.map(|p| short_unit(unit.from_degrees(p))),
+            });
+        }
+        Ok(())
+    }
+
+    /// The axis of joint `ji` that runs `plan` (trajectory `t`'s) from
+    /// `start`: each segment as the device takes it (an iRPC joint its
+    /// SetTargetV2; a moteus controller a position-mode move within the
+    /// segment's limits, its torque limit the map's in force), each at its
+    /// time, cycled when it loops forever.
+    fn segment_axis(
+        &self,
+        t: &Trajectory,
+        ji: usize,
+        plan: &motorwire_translate::TrajectoryPlan,
+        start: Duration,
+    ) -> Axis {
+        let device = self.joints.get(ji).map(|j| j.device);
+        let max_torque = self
+            .map
+            .motor(&t.motor_id)
+            .and_then(|m| m.limits.max_torque);
+        let orders: Vec<Order> = plan
+            .segments
+            .iter()
+            .filter_map(|s| device.and_then(|d| d.segment_order(s.payload, max_torque)))
+            .collect();
+        let mut axis = Axis::of(t.motor_id.clone(), ji, orders.iter().copied());
+        axis.due = plan
+            .segments
+            .iter()
+            .map(|s| start.saturating_add(Duration::from_secs_f64(s.at.max(0.0))))
+            .collect();
+        if plan.forever {
+            axis.cycle = Some(Cycle {
+                payloads: plan
+                    .segments
+                    .iter()
+                    .zip(orders)
+                    .map(|(s, o)| (Duration::from_secs_f64(s.at.max(0.0)), o))
+                    .collect(),
+                period: Duration::from_secs_f64(plan.duration),
+                started: start,
+            });
+        }
+        axis
     }
 
     // ---- one motor held, freed or stopped ---------------------------------------
@@ -176,68 +214,88 @@ impl Bridge {
             .map
             .motor(&j.name)
             .map_or(AngleUnit::Degrees, |m| m.unit);
-        let (lo_d, hi_d) = (unit.to_degrees(lo), unit.to_degrees(hi));
-        let max_d = max_v.map(|v| unit.to_degrees(v));
-        const SLACK: f64 = 1e-6;
-        let outside = |t: f64| t < lo_d - SLACK || t > hi_d + SLACK;
-        let faster = |v: f64| max_d.is_some_and(|m| v.abs() > m + SLACK);
-        let say = |d: f64| short_unit(unit.from_degrees(d));
+        let w = Within {
+            lo: unit.to_degrees(lo),
+            hi: unit.to_degrees(hi),
+            max_v: max_v.map(|v| unit.to_degrees(v)),
+            unit,
+        };
         if j.moving_until > self.now {
-            if let Some(t) = j.target.filter(|t| outside(*t)) {
-                return Some(format!("its move under way goes to {}", say(t)));
+            if let Some(t) = j.target.filter(|t| w.outside(*t)) {
+                return Some(format!("its move under way goes to {}", w.say(t)));
             }
-            if let Some((_, v)) = j.motion.filter(|(_, v)| faster(*v)) {
-                return Some(format!("it moves at {} a second now", say(v.abs())));
-            }
-        }
-        // The rest of the move under way (a move braking from speed
-        // toward a target inside passes it): as the bridge planned it, or
-        // without that plan, at least the stop from where the joint is at
-        // its limits. A joint already past a new limit is held to going no
-        // farther (as one standing there is: the limits bind what comes
-        // next); going farther out is refused.
-        if let Some((p_now, v_now, _)) = j.state_at(self.now) {
-            let farther = |x: f64| {
-                (x > hi_d + SLACK && x > p_now + SLACK) || (x < lo_d - SLACK && x < p_now - SLACK)
-            };
-            let rest = match &j.model {
-                Some((start, profile)) => {
-                    let t = self.now.saturating_sub(*start).as_secs_f64();
-                    (t < profile.duration()).then(|| {
-                        let e = profile.position_extrema_from(t);
-                        [(e.max, e.t_max - t), (e.min, e.t_min - t)]
-                    })
-                }
-                None if v_now != 0.0 => self.map.motor(&j.name).and_then(|m| {
-                    let l = m.limits;
-                    let deg = |x: Option<f64>| x.map(|v| unit.to_degrees(v));
-                    let acc = deg(l.max_acceleration).unwrap_or(1000.0);
-                    let mut req = motorwire_planner::Request::new(
-                        p_now,
-                        p_now,
-                        deg(l.max_velocity).unwrap_or(v_now.abs()).max(v_now.abs()),
-                        acc,
-                    )
-                    .with_velocities(v_now, 0.0)
-                    .with_max_deceleration(deg(l.max_deceleration).unwrap_or(acc));
-                    if let Some(jerk) = deg(l.max_jerk).filter(|j| *j > 0.0) {
-                        req = req.with_jerk(jerk);
-                    }
-                    let e = motorwire_planner::plan(&req).ok()?.position_extrema();
-                    Some([(e.max, e.t_max), (e.min, e.t_min)])
-                }),
-                None => None,
-            };
-            for (extreme, after) in rest.into_iter().flatten() {
-                if farther(extreme) {
-                    return Some(format!(
-                        "its move under way reaches {} in {:.3} s",
-                        say(extreme),
-                        after.max(0.0)
-                    ));
-                }
+            if let Some((_, v)) = j.motion.filter(|(_, v)| w.faster(*v)) {
+                return Some(format!("it moves at {} a second now", w.say(v.abs())));
             }
         }
+        self.rest_of_move_outside(j, &w)
+            .or_else(|| self.steps_outside(j, &w))
+    }
+
+    /// Where the rest of joint `j`'s move under way goes farther out than
+    /// `w` (a move braking from speed toward a target inside passes it):
+    /// as the bridge planned it, or without that plan, at least the stop
+    /// from where the joint is at its limits. A joint already past a new
+    /// limit is held to going no farther (as one standing there is: the
+    /// limits bind what comes next); going farther out is refused.
+    fn rest_of_move_outside(&self, j: &Joint, w: &Within) -> Option<String> {
+        let (p_now, v_now, _) = j.state_at(self.now)?;
+        let farther = |x: f64| {
+            (x > w.hi + SLACK && x > p_now + SLACK) || (x < w.lo - SLACK && x < p_now - SLACK)
+        };
+        let rest = match &j.model {
+            Some((start, profile)) => {
+                let t = self.now.saturating_sub(*start).as_secs_f64();
+                (t < profile.duration()).then(|| {
+                    let e = profile.position_extrema_from(t);
+                    [(e.max, e.t_max - t), (e.min, e.t_min - t)]
+                })
+            }
+            None if v_now != 0.0 => self.stop_extrema(j, w.unit, p_now, v_now),
+            None => None,
+        };
+        for (extreme, after) in rest.into_iter().flatten() {
+            if farther(extreme) {
+                return Some(format!(
+                    "its move under way reaches {} in {:.3} s",
+                    w.say(extreme),
+                    after.max(0.0)
+                ));
+            }
+        }
+        None
+    }
+
+    /// The extremes of joint `j`'s stop from `p_now` at `v_now` (degrees)
+    /// at its bus map limits, and how long after now each is reached.
+    fn stop_extrema(
+        &self,
+        j: &Joint,
+        unit: AngleUnit,
+        p_now: f64,
+        v_now: f64,
+    ) -> Option<[(f64, f64); 2]> {
+        let l = self.map.motor(&j.name)?.limits;
+        let deg = |x: Option<f64>| x.map(|v| unit.to_degrees(v));
+        let acc = deg(l.max_acceleration).unwrap_or(1000.0);
+        let mut req = motorwire_planner::Request::new(
+            p_now,
+            p_now,
+            deg(l.max_velocity).unwrap_or(v_now.abs()).max(v_now.abs()),
+            acc,
+        )
+        .with_velocities(v_now, 0.0)
+        .with_max_deceleration(deg(l.max_deceleration).unwrap_or(acc));
+        if let Some(jerk) = deg(l.max_jerk).filter(|j| *j > 0.0) {
+            req = req.with_jerk(jerk);
+        }
+        let e = motorwire_planner::plan(&req).ok()?.position_extrema();
+        Some([(e.max, e.t_max), (e.min, e.t_min)])
+    }
+
+    /// The first step of joint `j` in flight or waiting (a trajectory's
+    /// later segments and cycles with it) that goes outside `w`.
+    fn steps_outside(&self, j: &Joint, w: &Within) -> Option<String> {
         for step in j.busy.iter().chain(j.queue.iter()) {
             let Some(job) = self.jobs.get(&step.job) else {
                 continue;
@@ -258,13 +316,16 @@ impl Bridge {
                 .chain(a.payloads.iter().copied())
                 .chain(cycle)
             {
-                let reach = order.reach(unit);
+                let reach = order.reach(w.unit);
                 let line = job.number();
-                if let Some(t) = reach.target.filter(|t| outside(*t)) {
-                    return Some(format!("line {line} moves it to {}", say(t)));
+                if let Some(t) = reach.target.filter(|t| w.outside(*t)) {
+                    return Some(format!("line {line} moves it to {}", w.say(t)));
                 }
-                if let Some(v) = reach.speed.filter(|v| faster(*v)) {
-                    return Some(format!("line {line} moves it at {} a second", say(v.abs())));
+                if let Some(v) = reach.speed.filter(|v| w.faster(*v)) {
+                    return Some(format!(
+                        "line {line} moves it at {} a second",
+                        w.say(v.abs())
+                    ));
                 }
             }
         }
@@ -281,78 +342,7 @@ impl Bridge {
             self.refuse(&meta, Refusal::UnknownMotor { motor: name });
             return;
         };
-        let p = &l.position_limits;
-        let v = &l.velocity_limits;
-        let t = &l.torque_limits;
-        let mut wider = Vec::new();
-        let mut low =
-            |field: &'static str, value: Option<f64>, map: Option<f64>, map_field: &'static str| {
-                if let (Some(x), Some(b)) = (value, map)
-                    && x < b
-                {
-                    wider.push(Wider {
-                        field,
-                        value: x,
-                        map_field,
-                        bound: b,
-                    });
-                }
-            };
-        low(
-            "position_limits.min",
-            Some(p.min),
-            base.min_position,
-            "min_position",
-        );
-        low(
-            "position_limits.soft_min",
-            p.soft_min,
-            base.min_position,
-            "min_position",
-        );
-        let mut high =
-            |field: &'static str, value: Option<f64>, map: Option<f64>, map_field: &'static str| {
-                if let (Some(x), Some(b)) = (value, map)
-                    && x > b
-                {
-                    wider.push(Wider {
-                        field,
-                        value: x,
-                        map_field,
-                        bound: b,
-                    });
-                }
-            };
-        high(
-            "position_limits.max",
-            Some(p.max),
-            base.max_position,
-            "max_position",
-        );
-        high(
-            "position_limits.soft_max",
-            p.soft_max,
-            base.max_position,
-            "max_position",
-        );
-        high(
-            "velocity_limits.max_velocity",
-            v.max_velocity,
-            base.max_velocity,
-            "max_velocity",
-        );
-        high(
-            "torque_limits.continuous_torque",
-            t.continuous_torque,
-            base.max_torque,
-            "max_torque",
-        );
-        high(
-            "torque_limits.peak_torque",
-            t.peak_torque,
-            base.max_torque,
-            "max_torque",
-        );
+        let wider = wider_limits(l, &base);
         if !wider.is_empty() {
             let e = Refusal::WiderThanBusMap { motor: name, wider };
             self.refuse(&meta, e);
@@ -360,13 +350,14 @@ impl Bridge {
         }
         // The soft limits, where given, are the gate's; the torque a
         // command may hold is the continuous one.
+        let p = &l.position_limits;
         let lo = p.soft_min.map_or(p.min, |s| s.max(p.min));
         let hi = p.soft_max.map_or(p.max, |s| s.min(p.max));
         // Motion already accepted is held to the new limits too: a line
         // it would break is refused, naming it, and nothing changes.
         if let Some(why) = self
             .joint_index(&name)
-            .and_then(|ji| self.motion_outside(ji, lo, hi, v.max_velocity))
+            .and_then(|ji| self.motion_outside(ji, lo, hi, l.velocity_limits.max_velocity))
         {
             let e = Refusal::MotionOutsideNewLimits {
                 motor: name,
@@ -375,6 +366,23 @@ impl Bridge {
             self.refuse(&meta, e);
             return;
         }
+        self.hold_to(&name, l, base, lo, hi);
+        let r = LineResult {
+            ok: true,
+            line: meta.number,
+            limits: self.limits_value(&name),
+            losses: safety_limits_losses(l),
+            ..LineResult::default()
+        };
+        self.answer(&meta, r);
+    }
+
+    /// Motor `name`'s gate held to SafetyLimits `l` from now on (within the
+    /// bus map's `base`; its positions `lo..=hi`): the map's limits, the
+    /// joint's pace, its driver told, its emergency deceleration kept.
+    fn hold_to(&mut self, name: &str, l: &SafetyLimits, base: Limits, lo: f64, hi: f64) {
+        let v = &l.velocity_limits;
+        let t = &l.torque_limits;
         let torque = match (t.continuous_torque, t.peak_torque) {
             (Some(c), Some(k)) => Some(c.min(k)),
             (c, k) => c.or(k).or(base.max_torque),
@@ -387,9 +395,9 @@ impl Bridge {
             ..base
         };
         self.map
-            .set_limits(&name, limits, "the SafetyLimits line in force");
-        if let Some(ji) = self.joint_index(&name) {
-            let motor = self.map.motor(&name);
+            .set_limits(name, limits, "the SafetyLimits line in force");
+        if let Some(ji) = self.joint_index(name) {
+            let motor = self.map.motor(name);
             if let (Some(j), Some(m)) = (self.joints.get_mut(ji), motor) {
                 j.pace = crate::joints::Pace::of(m);
             }
@@ -397,42 +405,9 @@ impl Bridge {
             self.drivers.limits_changed(ji, &InForce::of(unit, &limits));
         }
         match v.emergency_decel {
-            Some(d) => self.emergency_decel.insert(name.clone(), d),
-            None => self.emergency_decel.remove(&name),
+            Some(d) => self.emergency_decel.insert(name.to_owned(), d),
+            None => self.emergency_decel.remove(name),
         };
-        let mut losses = Vec::new();
-        if v.emergency_decel.is_some() {
-            losses.push(motorwire_translate::Loss {
-                field: "velocity_limits.emergency_decel".into(),
-                kind: LossKind::Dropped,
-                detail: "recorded; an iRPC joint brakes from a Deactivate at its own rate".into(),
-            });
-        }
-        for (field, given) in [
-            ("thermal_limits", l.thermal_limits.is_some()),
-            ("current_limits", l.current_limits.is_some()),
-            ("collision_detection", l.collision_detection.is_some()),
-            (
-                "torque_limits.peak_duration_ms",
-                t.peak_duration_ms.is_some(),
-            ),
-        ] {
-            if given {
-                losses.push(motorwire_translate::Loss {
-                    field: field.into(),
-                    kind: LossKind::Dropped,
-                    detail: "iRPC has no such setting; the joint keeps its own".into(),
-                });
-            }
-        }
-        let r = LineResult {
-            ok: true,
-            line: meta.number,
-            limits: self.limits_value(&name),
-            losses,
-            ..LineResult::default()
-        };
-        self.answer(&meta, r);
     }
 
     pub(super) fn joint_index(&self, motor: &str) -> Option<usize> {
@@ -726,4 +701,142 @@ impl Bridge {
     }
 
     // ---- the emergency stop ------------------------------------------------
+}
+
+/// How far a motion checked against new limits may go (degrees, beyond
+/// a slack for rounding), and the motor's unit to say it in.
+struct Within {
+    lo: f64,
+    hi: f64,
+    max_v: Option<f64>,
+    unit: AngleUnit,
+}
+
+/// The rounding a motion is allowed past a limit (degrees).
+const SLACK: f64 = 1e-6;
+
+impl Within {
+    /// Whether position `t` is outside.
+    fn outside(&self, t: f64) -> bool {
+        t < self.lo - SLACK || t > self.hi + SLACK
+    }
+
+    /// Whether velocity `v` is faster than allowed.
+    fn faster(&self, v: f64) -> bool {
+        self.max_v.is_some_and(|m| v.abs() > m + SLACK)
+    }
+
+    /// `d` (degrees) in the motor's unit, as said.
+    fn say(&self, d: f64) -> f64 {
+        short_unit(self.unit.from_degrees(d))
+    }
+}
+
+/// Each limit of SafetyLimits `l` wider than the bus map's, `base`.
+fn wider_limits(l: &SafetyLimits, base: &Limits) -> Vec<Wider> {
+    let p = &l.position_limits;
+    let v = &l.velocity_limits;
+    let t = &l.torque_limits;
+    let mut wider = Vec::new();
+    let mut low =
+        |field: &'static str, value: Option<f64>, map: Option<f64>, map_field: &'static str| {
+            if let (Some(x), Some(b)) = (value, map)
+                && x < b
+            {
+                wider.push(Wider {
+                    field,
+                    value: x,
+                    map_field,
+                    bound: b,
+                });
+            }
+        };
+    low(
+        "position_limits.min",
+        Some(p.min),
+        base.min_position,
+        "min_position",
+    );
+    low(
+        "position_limits.soft_min",
+        p.soft_min,
+        base.min_position,
+        "min_position",
+    );
+    let mut high =
+        |field: &'static str, value: Option<f64>, map: Option<f64>, map_field: &'static str| {
+            if let (Some(x), Some(b)) = (value, map)
+                && x > b
+            {
+                wider.push(Wider {
+                    field,
+                    value: x,
+                    map_field,
+                    bound: b,
+                });
+            }
+        };
+    high(
+        "position_limits.max",
+        Some(p.max),
+        base.max_position,
+        "max_position",
+    );
+    high(
+        "position_limits.soft_max",
+        p.soft_max,
+        base.max_position,
+        "max_position",
+    );
+    high(
+        "velocity_limits.max_velocity",
+        v.max_velocity,
+        base.max_velocity,
+        "max_velocity",
+    );
+    high(
+        "torque_limits.continuous_torque",
+        t.continuous_torque,
+        base.max_torque,
+        "max_torque",
+    );
+    high(
+        "torque_limits.peak_torque",
+        t.peak_torque,
+        base.max_torque,
+        "max_torque",
+    );
+    wider
+}
+
+/// What of SafetyLimits `l` a joint does not take: an emergency
+/// deceleration is only recorded, and the settings iRPC has not are
+/// dropped.
+fn safety_limits_losses(l: &SafetyLimits) -> Vec<motorwire_translate::Loss> {
+    let mut losses = Vec::new();
+    if l.velocity_limits.emergency_decel.is_some() {
+        losses.push(motorwire_translate::Loss {
+            field: "velocity_limits.emergency_decel".into(),
+            kind: LossKind::Dropped,
+            detail: "recorded; an iRPC joint brakes from a Deactivate at its own rate".into(),
+        });
+    }
+    for (field, given) in [
+        ("thermal_limits", l.thermal_limits.is_some()),
+        ("current_limits", l.current_limits.is_some()),
+        ("collision_detection", l.collision_detection.is_some()),
+        (
+            "torque_limits.peak_duration_ms",
+            l.torque_limits.peak_duration_ms.is_some(),
+        ),
+    ] {
+        if given {
+            losses.push(motorwire_translate::Loss {
+                field: field.into(),
+                kind: LossKind::Dropped,
+                detail: "iRPC has no such setting; the joint keeps its own".into(),
+            });
+        }
+    }
+    losses
 }

@@ -61,31 +61,15 @@ impl Bridge {
                 said(why);
                 None
             }
-            Ok(MotorOrder::Planned) => {
-                Some(match self.hold_move(ji, motor, unit, &limits, now_ms) {
-                    Ok(payload) => Axis::new(motor.to_owned(), ji, [payload]),
-                    // A joint not up (never started: its lifecycle left to
-                    // the user, or its start failed) has no torque to keep
-                    // on, and nothing to stop.
-                    Err(why) if !self.joints.get(ji).is_some_and(|j| j.active || j.freed) => {
-                        let e = Refusal::ActionNotExpressible {
-                            motor: motor.to_owned(),
-                            why: why.to_string(),
-                            not_active: true,
-                        };
-                        return self.refuse(&meta, e);
+            Ok(MotorOrder::Planned) => match self.planned_hold(ji, motor, unit, &limits, now_ms) {
+                Ok((axis, loss)) => {
+                    if let Some(loss) = loss {
+                        said(loss);
                     }
-                    Err(why) => {
-                        // When in doubt, stop: a hold that cannot be planned
-                        // is the joint's own stop.
-                        said(format!(
-                            "{why}: the joint was deactivated (its own stop) instead"
-                        ));
-                        let stop = self.orders_for(ji, &[Lifecycle::Deactivate]);
-                        Axis::of(motor.to_owned(), ji, stop)
-                    }
-                })
-            }
+                    Some(axis)
+                }
+                Err(e) => return self.refuse(&meta, e),
+            },
             Err(why) => {
                 let e = Refusal::ActionNotExpressible {
                     motor: motor.to_owned(),
@@ -99,6 +83,36 @@ impl Bridge {
         // if it is lost, the deadman's own stop follows.)
         self.give_up_for_motor_line(ji, action);
         self.command_job(now, meta, axis.into_iter().collect(), report);
+    }
+
+    /// Motor `motor`'s hold planned here ([`Self::hold_move`]) as device
+    /// `ji`'s axis. A hold that cannot be planned is the joint's own stop
+    /// (when in doubt, stop), and why is said; a joint not up (never
+    /// started: its lifecycle left to the user, or its start failed) has
+    /// no torque to keep on, and nothing to stop: refused.
+    fn planned_hold(
+        &mut self,
+        ji: usize,
+        motor: &str,
+        unit: AngleUnit,
+        limits: &Limits,
+        now_ms: f64,
+    ) -> Result<(Axis, Option<String>), Refusal> {
+        match self.hold_move(ji, motor, unit, limits, now_ms) {
+            Ok(payload) => Ok((Axis::new(motor.to_owned(), ji, [payload]), None)),
+            Err(why) if !self.joints.get(ji).is_some_and(|j| j.active || j.freed) => {
+                Err(Refusal::ActionNotExpressible {
+                    motor: motor.to_owned(),
+                    why: why.to_string(),
+                    not_active: true,
+                })
+            }
+            Err(why) => {
+                let said = format!("{why}: the joint was deactivated (its own stop) instead");
+                let stop = self.orders_for(ji, &[Lifecycle::Deactivate]);
+                Ok((Axis::of(motor.to_owned(), ji, stop), Some(said)))
+            }
+        }
     }
 
     /// An iRPC joint's hold: a move to where it comes to rest from how it

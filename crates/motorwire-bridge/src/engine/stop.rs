@@ -13,21 +13,7 @@ impl Bridge {
         cause: String,
     ) {
         if self.phase == Phase::Finished {
-            // Nothing runs any more; the joints were deactivated.
-            if let Some(meta) = meta {
-                let r = LineResult {
-                    ok: false,
-                    line: meta.number,
-                    emergency_stop: true,
-                    problems,
-                    error: Some(Refusal::AlreadyStopped.into()),
-                    ..LineResult::default()
-                };
-                self.answer(&meta, r);
-            } else {
-                self.stats.failed += 1;
-            }
-            return;
+            return self.stop_after_the_end(meta, problems);
         }
         // Every stop counts for what was written before it, a stop that
         // rides on another one too.
@@ -57,8 +43,51 @@ impl Bridge {
             return;
         }
         self.stats.emergency_stops += 1;
-        // What the release brings back: the joints active now, and those
-        // whose startup or release this stop interrupts.
+        let resume = self.to_resume();
+        self.stop.latch(resume);
+        self.fail_watches(|_| true, "stopped by the emergency stop");
+        let cancelled = self.cancel_everything("cancelled by the emergency stop");
+        self.out
+            .push_back(Output::Event(Event::EmergencyStop { cause, cancelled }));
+        let axes = self.every_joint(&[Lifecycle::Deactivate]);
+        self.open_job(
+            meta,
+            JobKind::EmergencyStop,
+            now,
+            axes,
+            Report::default(),
+            problems,
+        );
+        if matches!(self.phase, Phase::Starting { .. }) {
+            // The startup was cancelled: lines are served (and refused
+            // while latched).
+            self.enter(Phase::Running);
+        }
+    }
+
+    /// A stop after the end: nothing runs any more, the joints were
+    /// deactivated. The line `meta` (if any, with its `problems`) is told
+    /// so.
+    fn stop_after_the_end(&mut self, meta: Option<LineMeta>, problems: Vec<String>) {
+        if let Some(meta) = meta {
+            let r = LineResult {
+                ok: false,
+                line: meta.number,
+                emergency_stop: true,
+                problems,
+                error: Some(Refusal::AlreadyStopped.into()),
+                ..LineResult::default()
+            };
+            self.answer(&meta, r);
+        } else {
+            self.stats.failed += 1;
+        }
+    }
+
+    /// What the release brings back: the joints active now, and those
+    /// whose startup or release a stop now interrupts (the lifecycle steps
+    /// it had yet to take).
+    fn to_resume(&self) -> Vec<(usize, Vec<Lifecycle>)> {
         let mut resume = Vec::new();
         for (i, j) in self.joints.iter().enumerate() {
             let starting = j.busy.iter().chain(j.queue.iter()).find_map(|s| {
@@ -81,25 +110,7 @@ impl Bridge {
                 resume.push((i, vec![Lifecycle::Activate]));
             }
         }
-        self.stop.latch(resume);
-        self.fail_watches(|_| true, "stopped by the emergency stop");
-        let cancelled = self.cancel_everything("cancelled by the emergency stop");
-        self.out
-            .push_back(Output::Event(Event::EmergencyStop { cause, cancelled }));
-        let axes = self.every_joint(&[Lifecycle::Deactivate]);
-        self.open_job(
-            meta,
-            JobKind::EmergencyStop,
-            now,
-            axes,
-            Report::default(),
-            problems,
-        );
-        if matches!(self.phase, Phase::Starting { .. }) {
-            // The startup was cancelled: lines are served (and refused
-            // while latched).
-            self.enter(Phase::Running);
-        }
+        resume
     }
 
     /// Cancels every step queued or in flight (never sent again); returns
@@ -182,57 +193,9 @@ impl Bridge {
                 .drain(..)
                 .partition(|s| self.jobs.get(&s.job).is_some_and(&pick));
             joint.queue.extend(kept);
-            if let Some(s) = busy
-                && let Some(job) = self.jobs.get_mut(&s.job)
-                && let Some(a) = job.axes.get_mut(s.axis)
-            {
-                if let AxisState::InFlight { msg_id, payload } = a.state {
-                    self.drivers.forget(ji, msg_id, payload);
-                }
-                joint.wake = None;
-                if unsent.contains(&ji) {
-                    a.finish(
-                        StepOutcome::Cancelled,
-                        None,
-                        format!("{why} before it was sent"),
-                    );
-                    // Its frame or line was taken back: nothing of the job
-                    // waits to be written unless another of its steps is
-                    // in flight (whose answer comes after its writing).
-                    if !job
-                        .axes
-                        .iter()
-                        .any(|x| matches!(x.state, AxisState::InFlight { .. }))
-                    {
-                        job.unflushed = false;
-                    }
-                } else {
-                    if let AxisState::InFlight { payload, .. } = a.state
-                        && payload.holds_setpoint()
-                    {
-                        maybe_held.push((ji, payload));
-                    }
-                    if matches!(a.state, AxisState::InFlight { .. }) {
-                        // Sent and not answered: it may have run. Never sent again.
-                        a.finish(
-                            StepOutcome::OutcomeUnknown,
-                            None,
-                            format!(
-                                "{why}: it was sent before and not answered, so the joint may have started it; it is never sent again"
-                            ),
-                        );
-                    } else {
-                        // A trajectory between segments: the rest never sent.
-                        a.finish(
-                            StepOutcome::Cancelled,
-                            None,
-                            format!("{why}: the trajectory's remaining segments were never sent"),
-                        );
-                    }
-                }
-                job.cut.get_or_insert_with(|| why.to_owned());
-                self.stats.cancelled += 1;
-                touched.extend(job.line_ref());
+            if let Some(s) = busy {
+                let taken_back = unsent.contains(&ji);
+                self.cancel_busy(ji, s, why, taken_back, &mut maybe_held, &mut touched);
             }
             for s in queued {
                 if let Some(job) = self.jobs.get_mut(&s.job)
@@ -257,6 +220,62 @@ impl Bridge {
         touched.dedup();
         self.finish_jobs();
         touched
+    }
+
+    /// Cancels step `s`, the one device `ji` is busy with (cut by `why`):
+    /// its request forgotten by its driver, the device woken for nothing.
+    /// A step `taken_back` (its frame or line never handed out) is
+    /// cancelled before it was sent; one in flight may have run (a
+    /// setpoint it holds is added to `maybe_held`). Its line is added to
+    /// `touched`.
+    fn cancel_busy(
+        &mut self,
+        ji: usize,
+        s: StepRef,
+        why: &str,
+        taken_back: bool,
+        maybe_held: &mut Vec<(usize, Order)>,
+        touched: &mut Vec<LineRef>,
+    ) {
+        let Some(job) = self.jobs.get_mut(&s.job) else {
+            return;
+        };
+        let Some(a) = job.axes.get_mut(s.axis) else {
+            return;
+        };
+        if let AxisState::InFlight { msg_id, payload } = a.state {
+            self.drivers.forget(ji, msg_id, payload);
+        }
+        if let Some(joint) = self.joints.get_mut(ji) {
+            joint.wake = None;
+        }
+        if taken_back {
+            a.finish(
+                StepOutcome::Cancelled,
+                None,
+                format!("{why} before it was sent"),
+            );
+            // Its frame or line was taken back: nothing of the job
+            // waits to be written unless another of its steps is
+            // in flight (whose answer comes after its writing).
+            if !job
+                .axes
+                .iter()
+                .any(|x| matches!(x.state, AxisState::InFlight { .. }))
+            {
+                job.unflushed = false;
+            }
+        } else {
+            if let AxisState::InFlight { payload, .. } = a.state
+                && payload.holds_setpoint()
+            {
+                maybe_held.push((ji, payload));
+            }
+            cut_after_sending(a, why);
+        }
+        job.cut.get_or_insert_with(|| why.to_owned());
+        self.stats.cancelled += 1;
+        touched.extend(job.line_ref());
     }
 
     pub(super) fn release(&mut self, now: Duration, meta: LineMeta) {
@@ -561,5 +580,28 @@ impl Bridge {
         self.stats.stops_sent_again += 1;
         let axis = Axis::of(j.name.clone(), ji, [order.restamped(now_ms)]);
         self.own_stop(now, axis);
+    }
+}
+
+/// Axis `a`, sent and cut by `why` before it ended: a request in flight
+/// not answered may have run, and is never sent again; a trajectory
+/// between segments never sends the rest.
+fn cut_after_sending(a: &mut Axis, why: &str) {
+    if matches!(a.state, AxisState::InFlight { .. }) {
+        // Sent and not answered: it may have run. Never sent again.
+        a.finish(
+            StepOutcome::OutcomeUnknown,
+            None,
+            format!(
+                "{why}: it was sent before and not answered, so the joint may have started it; it is never sent again"
+            ),
+        );
+    } else {
+        // A trajectory between segments: the rest never sent.
+        a.finish(
+            StepOutcome::Cancelled,
+            None,
+            format!("{why}: the trajectory's remaining segments were never sent"),
+        );
     }
 }

@@ -19,7 +19,34 @@ impl Bridge {
         self.deadman(now);
         self.link_timeouts(now);
         self.awaiting_timeouts(now);
-        // Trajectory segments now due.
+        self.send_due_segments(now);
+        self.finish_jobs();
+        // Sequential axes whose predecessor is overdue give up.
+        for ji in 0..self.joints.len() {
+            self.pump(ji);
+        }
+        self.finish_jobs();
+        self.arrivals_timed_out(now);
+        self.offline_timeouts(now);
+        if let (Some(period), Some(at)) = (self.config.feedback_period, self.timers.feedback)
+            && now >= at
+        {
+            self.emit_feedback(now);
+            self.timers.feedback = Some(now.saturating_add(period));
+        }
+        self.heartbeat_due(now);
+        if let Phase::Draining { deadline, recheck } = &mut self.phase {
+            *recheck = false;
+            let deadline = *deadline;
+            let idle = self.jobs.is_empty() && self.waiting.is_empty() && !self.any_moving(now);
+            if idle || now >= deadline {
+                self.enter(Phase::Stopping);
+            }
+        }
+    }
+
+    /// Trajectory segments now due: each sent.
+    fn send_due_segments(&mut self, now: Duration) {
         let due = self.joints_where(|j| j.wake.is_some_and(|w| now >= w));
         for ji in due {
             let Some(j) = self.joints.get_mut(ji) else {
@@ -33,13 +60,11 @@ impl Bridge {
                 self.pump(ji);
             }
         }
-        self.finish_jobs();
-        // Sequential axes whose predecessor is overdue give up.
-        for ji in 0..self.joints.len() {
-            self.pump(ji);
-        }
-        self.finish_jobs();
-        // Watched lines past their time: not arrived.
+    }
+
+    /// Watched lines past their time: not arrived, saying how far off
+    /// each motor that did not arrive was.
+    fn arrivals_timed_out(&mut self, now: Duration) {
         let late: Vec<usize> = self
             .arrivals
             .iter()
@@ -63,6 +88,11 @@ impl Bridge {
             let arrival = w.verdict(now, Some(format!("timed out: {far}")));
             self.out.push_back(Output::Arrival { origin, arrival });
         }
+    }
+
+    /// Joints heard from no longer: offline, their watches failed and the
+    /// commands waiting for them cancelled.
+    fn offline_timeouts(&mut self, now: Duration) {
         let offline_after = self.config.offline_after;
         let mut went_offline = Vec::new();
         for (ji, j) in self.joints.iter_mut().enumerate() {
@@ -97,30 +127,20 @@ impl Bridge {
                 },
             );
         }
-        if let (Some(period), Some(at)) = (self.config.feedback_period, self.timers.feedback)
-            && now >= at
-        {
-            self.emit_feedback(now);
-            self.timers.feedback = Some(now.saturating_add(period));
-        }
+    }
+
+    /// The heartbeat, while anything moves: due again a period on, whether
+    /// a beat could be queued or not (none on a bus without iRPC joints):
+    /// never due at the time it was handled, so nothing waiting for it
+    /// spins.
+    fn heartbeat_due(&mut self, now: Duration) {
         if self.any_moving(now) {
-            // Due again a period on, whether a beat could be queued or not
-            // (none on a bus without iRPC joints): never due at the time
-            // it was handled, so nothing waiting for it spins.
             if self.timers.heartbeat.is_none_or(|t| now >= t) {
                 let _ = self.drivers.heartbeat();
                 self.timers.heartbeat = Some(now.saturating_add(self.config.heartbeat_period));
             }
         } else {
             self.timers.heartbeat = None;
-        }
-        if let Phase::Draining { deadline, recheck } = &mut self.phase {
-            *recheck = false;
-            let deadline = *deadline;
-            let idle = self.jobs.is_empty() && self.waiting.is_empty() && !self.any_moving(now);
-            if idle || now >= deadline {
-                self.enter(Phase::Stopping);
-            }
         }
     }
 

@@ -445,231 +445,87 @@ impl Refusal {
         }
     }
 
-    /// Said for a person (`error.message`).
+    /// Said for a person (`error.message`): one arm a variant, so none is
+    /// left unsaid; words longer than an arm are made by the helpers below
+    /// `impl Refusal`, by group.
     #[must_use]
     pub fn message(&self) -> Cow<'static, str> {
-        let s = |t: &'static str| Cow::Borrowed(t);
-        Cow::Owned(match self {
-            Self::Unreadable { reason } => reason.clone(),
-            Self::Invalid { message, .. } => message.clone(),
-            Self::SequentialWithTotalDuration => {
-                return s(
-                    "sync_mode sequential runs the axes one after another; coordination.total_duration_ms has them all arrive together after it: a line has one or the other",
-                );
+        let s = |t: String| Cow::Owned(t);
+        match self {
+            // The line itself.
+            Self::Unreadable { reason } => s(reason.clone()),
+            Self::Invalid { message, .. } => s(message.clone()),
+            Self::SequentialWithTotalDuration => SEQUENTIAL_WITH_TOTAL_DURATION.into(),
+            Self::FeedbackRate { asked, bridge_hz } => s(feedback_rate(*asked, *bridge_hz)),
+            Self::UnsupportedKind { kind } => s(unsupported_kind(kind)),
+            Self::PidGains => PID_GAINS.into(),
+            Self::ControlModeConfig => CONTROL_MODE_CONFIG.into(),
+            Self::NoSuchMessage { motor, wire, what } => s(no_such_message(motor, wire, what)),
+            // The bridge's end, the stop and the clock.
+            Self::ShuttingDown => "the bridge is shutting down".into(),
+            Self::AlreadyStopped => "the bridge has already deactivated every joint".into(),
+            Self::Interrupted => "the bridge was interrupted before the line was served".into(),
+            Self::Latched => LATCHED.into(),
+            Self::LatchedReset => LATCHED_RESET.into(),
+            Self::NotLatched => "there is no emergency stop to release".into(),
+            Self::StopOvertookRelease => STOP_OVERTOOK_RELEASE.into(),
+            Self::BadRelease { reason } => s(reason.clone()),
+            Self::ArrivedBeforeStop { early } => s(arrived_before_stop(*early)),
+            Self::StampedBeforeStop { timestamp, stop_ms } => {
+                s(stamped_before_stop(*timestamp, *stop_ms))
             }
-            Self::FeedbackRate { asked, bridge_hz } => {
-                // The number as a person reads it (1e308, not 309 digits).
-                let hz = *asked;
-                let asked = if hz != 0.0 && !(1e-4..1e6).contains(&hz.abs()) {
-                    format!("{hz:e}")
-                } else {
-                    format!("{hz}")
-                };
-                match bridge_hz {
-                    _ if hz.is_nan() || hz < 0.0 => {
-                        format!("feedback_hz {asked} is not a rate: 0 (no feedback) or more")
-                    }
-                    None => format!(
-                        "feedback_hz {asked}: the bridge sends no feedback (--feedback-hz 0); 0 is the only rate"
-                    ),
-                    Some(b) if hz > *b => format!(
-                        "feedback_hz {asked} is above the bridge's own rate, {}",
-                        short_number(*b)
-                    ),
-                    Some(b) => format!(
-                        "feedback_hz {asked} is below the slowest rate, the bridge's divided by {} ({:e}); 0 turns feedback off",
-                        u32::MAX,
-                        b / f64::from(u32::MAX)
-                    ),
-                }
-            }
-            Self::UnsupportedKind { kind } => format!(
-                "a {kind} is valid WIA, but the bridge takes motor-command and multi-axis-command lines"
-            ),
-            Self::PidGains => {
-                return s(
-                    "iRPC carries no PID gains (its joints run their own control loops): nothing was sent",
-                );
-            }
-            Self::ControlModeConfig => {
-                return s(
-                    "iRPC carries no control-mode configuration (a joint takes position moves and lifecycle requests): nothing was sent",
-                );
-            }
-            Self::NoSuchMessage { motor, wire, what } => {
-                format!("{motor} speaks iRPC {wire}, which has no {what}")
-            }
-            Self::ShuttingDown => return s("the bridge is shutting down"),
-            Self::AlreadyStopped => return s("the bridge has already deactivated every joint"),
-            Self::Interrupted => return s("the bridge was interrupted before the line was served"),
-            Self::Latched => {
-                return s(
-                    "the emergency stop is latched; send {\"emergency_stop\": false} to release it",
-                );
-            }
-            Self::LatchedReset => {
-                return s("the emergency stop is latched; release it first, then reset");
-            }
-            Self::NotLatched => return s("there is no emergency stop to release"),
-            Self::StopOvertookRelease => {
-                return s(
-                    "an emergency stop sent after this release was acted on before it; the emergency stop stays latched",
-                );
-            }
-            Self::BadRelease { reason } => reason.clone(),
-            Self::ArrivedBeforeStop { early } => format!(
-                "the line reached the bridge {:.3} s before the last emergency stop: written before the stop, it does not run after the release",
-                early.as_secs_f64()
-            ),
-            Self::StampedBeforeStop { timestamp, stop_ms } => format!(
-                "timestamp {timestamp} is {:.3} s before the last emergency stop (at {stop_ms}): written before the stop, it does not run after the release",
-                (stop_ms - timestamp) / 1000.0
-            ),
             Self::Stale {
                 timestamp,
                 age_ms,
                 max_age,
                 microseconds,
-            } => {
-                let when = if *age_ms > 0.0 {
-                    "old"
-                } else {
-                    "in the future"
-                };
-                // A timestamp in microseconds is a mistake often made.
-                let hint = if *microseconds {
-                    "; it looks like microseconds: WIA timestamps are Unix milliseconds (`date +%s%3N`)"
-                } else {
-                    ""
-                };
-                format!(
-                    "timestamp {timestamp} is {:.1} s {when}; the allowed clock skew is {} s (WIA §10.1){hint}",
-                    age_ms.abs() / 1000.0,
-                    max_age.as_secs_f64()
-                )
-            }
+            } => s(stale(*timestamp, *age_ms, *max_age, *microseconds)),
             Self::StartTooFarAhead {
                 start_ms,
                 ahead_ms,
                 max_age,
-            } => format!(
-                "timing.start_time {start_ms} is {:.1} s ahead; a trajectory starts within the allowed clock skew, {} s (WIA §10.1)",
-                ahead_ms / 1000.0,
-                max_age.as_secs_f64()
-            ),
-            Self::NeedsReset { motor, why } => {
-                format!("{motor} {why}: send {{\"reset\":\"{motor}\"}} to bring it back")
-            }
-            Self::Offline {
-                motor,
-                why: Some(why),
-            } => format!("{motor} is offline: {why}"),
-            Self::Offline { motor, why: None } => format!("{motor} is offline"),
-            Self::LinesInProgress { max } => format!(
-                "{max} lines are in progress, the most the bridge takes; nothing was sent, send it again later"
-            ),
-            Self::QueueFull { motor, max } => format!(
-                "{motor} has {max} steps waiting, the most it takes; nothing was sent, send it again later"
-            ),
-            Self::WaitingForStart => {
-                return s(
-                    "too many lines are waiting for the joints to start; nothing was sent, send it again later",
-                );
-            }
-            Self::Gate { refusal, .. } => refusal.to_string(),
-            Self::UnknownMotor { motor } => format!("motor {motor:?} is not in the bus map"),
-            Self::NotAnIrpcJoint { motor } => {
-                format!("{motor} is not an iRPC joint of the bus map")
-            }
-            Self::NoReset { motor } => {
-                format!("{motor} takes no reset: only iRPC joints and moteus controllers do")
-            }
-            Self::MotorTwice { motor } => format!("{motor} has two trajectories in one line"),
-            Self::NotAtStart { motor, first, at } => {
-                let at = at.map_or_else(
-                    || "at an unknown position".to_owned(),
-                    |p| format!("at {p}"),
-                );
-                format!(
-                    "{motor}: the trajectory starts at {first} and the joint is {at}: move it there first"
-                )
-            }
-            Self::StartUnreachable { start_ms } => {
-                format!("timing.start_time {start_ms} is beyond any time the bridge can wait for")
-            }
-            Self::WaypointUnreachable { motor } => {
-                format!("{motor}: a waypoint's time is beyond any time the bridge can wait for")
-            }
-            Self::WiderThanBusMap { motor, wider } => wider
-                .iter()
-                .map(|w| {
-                    format!(
-                        "{motor}: {} {} is wider than the bus map's {} {}",
-                        w.field, w.value, w.map_field, w.bound
-                    )
-                })
-                .collect::<Vec<_>>()
-                .join("; "),
-            Self::MotionOutsideNewLimits { motor, motion } => format!(
-                "{motor}: {motion}, which these limits would not allow; send them once it has ended, or stop it first"
-            ),
-            Self::SequentialWithoutArrival { motor, mode } => format!(
-                "{motor}: sync_mode sequential runs position moves one after another, each once the one before arrived; a {mode} command has no arrival to wait for"
-            ),
-            Self::OrionNotAttached => {
-                return s("no Orion arm controller is attached (motorwire bridge --orion ...)");
-            }
-            Self::OrionMotorNotAttached { motor } => format!(
-                "{motor} is an Orion motor, and no Orion controller is attached (motorwire bridge --orion ...)"
-            ),
+            } => s(start_too_far_ahead(*start_ms, *ahead_ms, *max_age)),
+            // The motor, and the bridge busy.
+            Self::NeedsReset { motor, why } => s(needs_reset(motor, why)),
+            Self::Offline { motor, why } => s(offline(motor, why.as_deref())),
+            Self::LinesInProgress { max } => s(lines_in_progress(*max)),
+            Self::QueueFull { motor, max } => s(queue_full(motor, *max)),
+            Self::WaitingForStart => WAITING_FOR_START.into(),
+            // A rule broken: the gate's or the bridge's own.
+            Self::Gate { refusal, .. } => s(refusal.to_string()),
+            Self::UnknownMotor { motor } => s(format!("motor {motor:?} is not in the bus map")),
+            Self::NotAnIrpcJoint { motor } => s(not_an_irpc_joint(motor)),
+            Self::NoReset { motor } => s(no_reset(motor)),
+            Self::MotorTwice { motor } => s(format!("{motor} has two trajectories in one line")),
+            Self::NotAtStart { motor, first, at } => s(not_at_start(motor, *first, *at)),
+            Self::StartUnreachable { start_ms } => s(start_unreachable(*start_ms)),
+            Self::WaypointUnreachable { motor } => s(waypoint_unreachable(motor)),
+            Self::WiderThanBusMap { motor, wider } => s(wider_than_bus_map(motor, wider)),
+            Self::MotionOutsideNewLimits { motor, motion } => s(motion_outside(motor, motion)),
+            Self::SequentialWithoutArrival { motor, mode } => s(no_arrival(motor, mode)),
+            Self::OrionNotAttached => ORION_NOT_ATTACHED.into(),
+            Self::OrionMotorNotAttached { motor } => s(orion_motor_not_attached(motor)),
             Self::OutwardAtLimit {
                 motor,
                 at,
                 mode,
-                setpoint,
-                limit_name,
+                setpoint: to,
+                limit_name: name,
                 source,
                 limit,
-            } => {
-                format!(
-                    "{motor}: at {at}, a {mode} of {setpoint} toward its {limit_name} ({source}) {limit} could not stop before it; command it away from the limit"
-                )
-            }
+            } => s(outward(motor, *at, mode, *to, name, source, *limit)),
             Self::ActionNotExpressible {
                 motor,
                 why,
-                not_active: true,
-            } => format!(
-                "{motor} is not active (never started: --no-activate, or its start failed) and {why}; {{\"reset\":\"{motor}\"}} starts it"
-            ),
-            Self::ActionNotExpressible { why, .. } => why.clone(),
-            Self::Cut {
-                why, unknown: true, ..
-            } => format!(
-                "{why}: a part was sent before and not answered, so it may have started; nothing of it is sent again"
-            ),
-            Self::Cut { why, .. } => format!("{why}; nothing of it is sent"),
+                not_active,
+            } => s(not_expressible(motor, why, *not_active)),
+            // The line's outcome.
+            Self::Cut { why, unknown, .. } => s(cut(why, *unknown)),
             Self::Failed {
                 outcome, message, ..
-            } => {
-                return match outcome {
-                    StepOutcome::OutcomeUnknown => {
-                        s("a joint never answered: it may or may not have executed the command")
-                    }
-                    StepOutcome::Nacked => s("a joint refused the command"),
-                    StepOutcome::Cancelled => s(
-                        "cancelled by an emergency stop or the end; nothing of it runs after the stop",
-                    ),
-                    // What replaced it, as its step says (a newer move, a
-                    // stream's setpoint, a motor line).
-                    StepOutcome::Superseded => message.clone().unwrap_or(s(
-                        "a newer command for the motor replaced it before it was sent",
-                    )),
-                    StepOutcome::NotSent | StepOutcome::Acked => s("not every part could be sent"),
-                };
-            }
-            Self::NoAnswer { why } => why.clone(),
-        })
+            } => failed(*outcome, message.as_ref()),
+            Self::NoAnswer { why } => s(why.clone()),
+        }
     }
 
     /// The value and the limit it names, where it names them.
@@ -685,6 +541,255 @@ impl Refusal {
             })),
             _ => None,
         }
+    }
+}
+
+// The words of each refusal that says more than an arm of
+// [`Refusal::message`] holds, by group.
+
+// The line itself.
+
+const SEQUENTIAL_WITH_TOTAL_DURATION: &str = "sync_mode sequential runs the axes one after another; coordination.total_duration_ms has them all arrive together after it: a line has one or the other";
+
+const PID_GAINS: &str =
+    "iRPC carries no PID gains (its joints run their own control loops): nothing was sent";
+
+const CONTROL_MODE_CONFIG: &str = "iRPC carries no control-mode configuration (a joint takes position moves and lifecycle requests): nothing was sent";
+
+/// A `feedback_hz` of `asked` the bridge (at `bridge_hz`) cannot give.
+fn feedback_rate(asked: f64, bridge_hz: Option<f64>) -> String {
+    // The number as a person reads it (1e308, not 309 digits).
+    let hz = asked;
+    let asked = if hz != 0.0 && !(1e-4..1e6).contains(&hz.abs()) {
+        format!("{hz:e}")
+    } else {
+        format!("{hz}")
+    };
+    match bridge_hz {
+        _ if hz.is_nan() || hz < 0.0 => {
+            format!("feedback_hz {asked} is not a rate: 0 (no feedback) or more")
+        }
+        None => format!(
+            "feedback_hz {asked}: the bridge sends no feedback (--feedback-hz 0); 0 is the only rate"
+        ),
+        Some(b) if hz > b => format!(
+            "feedback_hz {asked} is above the bridge's own rate, {}",
+            short_number(b)
+        ),
+        Some(b) => format!(
+            "feedback_hz {asked} is below the slowest rate, the bridge's divided by {} ({:e}); 0 turns feedback off",
+            u32::MAX,
+            b / f64::from(u32::MAX)
+        ),
+    }
+}
+
+fn unsupported_kind(kind: &motorwire_wia::MessageKind) -> String {
+    format!(
+        "a {kind} is valid WIA, but the bridge takes motor-command and multi-axis-command lines"
+    )
+}
+
+fn no_such_message(motor: &str, wire: &str, what: &str) -> String {
+    format!("{motor} speaks iRPC {wire}, which has no {what}")
+}
+
+// The stop and the clock.
+
+const LATCHED: &str =
+    "the emergency stop is latched; send {\"emergency_stop\": false} to release it";
+
+const LATCHED_RESET: &str = "the emergency stop is latched; release it first, then reset";
+
+const STOP_OVERTOOK_RELEASE: &str = "an emergency stop sent after this release was acted on before it; the emergency stop stays latched";
+
+fn arrived_before_stop(early: Duration) -> String {
+    format!(
+        "the line reached the bridge {:.3} s before the last emergency stop: written before the stop, it does not run after the release",
+        early.as_secs_f64()
+    )
+}
+
+fn stamped_before_stop(timestamp: f64, stop_ms: f64) -> String {
+    format!(
+        "timestamp {timestamp} is {:.3} s before the last emergency stop (at {stop_ms}): written before the stop, it does not run after the release",
+        (stop_ms - timestamp) / 1000.0
+    )
+}
+
+/// A `timestamp` `age_ms` old (negative: in the future), beyond
+/// `max_age`; `microseconds` when read so it would have been within it.
+fn stale(timestamp: f64, age_ms: f64, max_age: Duration, microseconds: bool) -> String {
+    let when = if age_ms > 0.0 { "old" } else { "in the future" };
+    // A timestamp in microseconds is a mistake often made.
+    let hint = if microseconds {
+        "; it looks like microseconds: WIA timestamps are Unix milliseconds (`date +%s%3N`)"
+    } else {
+        ""
+    };
+    format!(
+        "timestamp {timestamp} is {:.1} s {when}; the allowed clock skew is {} s (WIA §10.1){hint}",
+        age_ms.abs() / 1000.0,
+        max_age.as_secs_f64()
+    )
+}
+
+fn start_too_far_ahead(start_ms: f64, ahead_ms: f64, max_age: Duration) -> String {
+    format!(
+        "timing.start_time {start_ms} is {:.1} s ahead; a trajectory starts within the allowed clock skew, {} s (WIA §10.1)",
+        ahead_ms / 1000.0,
+        max_age.as_secs_f64()
+    )
+}
+
+// The motor, and the bridge busy.
+
+fn needs_reset(motor: &str, why: &str) -> String {
+    format!("{motor} {why}: send {{\"reset\":\"{motor}\"}} to bring it back")
+}
+
+fn offline(motor: &str, why: Option<&str>) -> String {
+    match why {
+        Some(why) => format!("{motor} is offline: {why}"),
+        None => format!("{motor} is offline"),
+    }
+}
+
+fn lines_in_progress(max: usize) -> String {
+    format!(
+        "{max} lines are in progress, the most the bridge takes; nothing was sent, send it again later"
+    )
+}
+
+fn queue_full(motor: &str, max: usize) -> String {
+    format!(
+        "{motor} has {max} steps waiting, the most it takes; nothing was sent, send it again later"
+    )
+}
+
+const WAITING_FOR_START: &str =
+    "too many lines are waiting for the joints to start; nothing was sent, send it again later";
+
+// A rule broken: the bridge's own.
+
+fn not_an_irpc_joint(motor: &str) -> String {
+    format!("{motor} is not an iRPC joint of the bus map")
+}
+
+fn no_reset(motor: &str) -> String {
+    format!("{motor} takes no reset: only iRPC joints and moteus controllers do")
+}
+
+/// A trajectory whose `first` waypoint is not where the joint is (`at`).
+fn not_at_start(motor: &str, first: f64, at: Option<f64>) -> String {
+    let at = at.map_or_else(
+        || "at an unknown position".to_owned(),
+        |p| format!("at {p}"),
+    );
+    format!("{motor}: the trajectory starts at {first} and the joint is {at}: move it there first")
+}
+
+fn start_unreachable(start_ms: f64) -> String {
+    format!("timing.start_time {start_ms} is beyond any time the bridge can wait for")
+}
+
+fn waypoint_unreachable(motor: &str) -> String {
+    format!("{motor}: a waypoint's time is beyond any time the bridge can wait for")
+}
+
+fn wider_than_bus_map(motor: &str, wider: &[Wider]) -> String {
+    wider
+        .iter()
+        .map(|w| {
+            format!(
+                "{motor}: {} {} is wider than the bus map's {} {}",
+                w.field, w.value, w.map_field, w.bound
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+fn motion_outside(motor: &str, motion: &str) -> String {
+    format!(
+        "{motor}: {motion}, which these limits would not allow; send them once it has ended, or stop it first"
+    )
+}
+
+fn no_arrival(motor: &str, mode: &str) -> String {
+    format!(
+        "{motor}: sync_mode sequential runs position moves one after another, each once the one before arrived; a {mode} command has no arrival to wait for"
+    )
+}
+
+const ORION_NOT_ATTACHED: &str =
+    "no Orion arm controller is attached (motorwire bridge --orion ...)";
+
+fn orion_motor_not_attached(motor: &str) -> String {
+    format!(
+        "{motor} is an Orion motor, and no Orion controller is attached (motorwire bridge --orion ...)"
+    )
+}
+
+/// A `mode` of `setpoint` at `at` toward the limit `limit_name` (from
+/// `source`) at `limit` that the motor could not stop before.
+fn outward(
+    motor: &str,
+    at: f64,
+    mode: &str,
+    setpoint: f64,
+    limit_name: &str,
+    source: &str,
+    limit: f64,
+) -> String {
+    format!(
+        "{motor}: at {at}, a {mode} of {setpoint} toward its {limit_name} ({source}) {limit} could not stop before it; command it away from the limit"
+    )
+}
+
+/// A motor line its device has no means for (`why`); `not_active` when
+/// the motor is not up.
+fn not_expressible(motor: &str, why: &str, not_active: bool) -> String {
+    if not_active {
+        format!(
+            "{motor} is not active (never started: --no-activate, or its start failed) and {why}; {{\"reset\":\"{motor}\"}} starts it"
+        )
+    } else {
+        why.to_owned()
+    }
+}
+
+// The line's outcome.
+
+/// A line cut by `why`; `unknown` when a part was in flight unanswered.
+fn cut(why: &str, unknown: bool) -> String {
+    if unknown {
+        format!(
+            "{why}: a part was sent before and not answered, so it may have started; nothing of it is sent again"
+        )
+    } else {
+        format!("{why}; nothing of it is sent")
+    }
+}
+
+/// A line whose gravest `outcome` failed it (`message`: a superseded
+/// step's own).
+fn failed(outcome: StepOutcome, message: Option<&Cow<'static, str>>) -> Cow<'static, str> {
+    let s = |t: &'static str| Cow::Borrowed(t);
+    match outcome {
+        StepOutcome::OutcomeUnknown => {
+            s("a joint never answered: it may or may not have executed the command")
+        }
+        StepOutcome::Nacked => s("a joint refused the command"),
+        StepOutcome::Cancelled => {
+            s("cancelled by an emergency stop or the end; nothing of it runs after the stop")
+        }
+        // What replaced it, as its step says (a newer move, a stream's
+        // setpoint, a motor line).
+        StepOutcome::Superseded => message.cloned().unwrap_or(s(
+            "a newer command for the motor replaced it before it was sent",
+        )),
+        StepOutcome::NotSent | StepOutcome::Acked => s("not every part could be sent"),
     }
 }
 
@@ -718,11 +823,23 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
 
-    /// One of each variant. The match below has no wildcard: a variant
-    /// added without an example here does not compile.
+    /// One of each variant. The match in [`names_every_variant`] has no
+    /// wildcard: a variant added without an example here does not compile.
     fn one_of_each() -> Vec<Refusal> {
+        let mut all = the_line_and_the_stop();
+        all.extend(the_motor_and_the_bridge_busy());
+        all.extend(the_rules_and_the_outcome());
+        for r in &all {
+            names_every_variant(r);
+        }
+        all
+    }
+
+    /// An example of each refusal of the line itself, the bridge's end,
+    /// the stop and the clock.
+    fn the_line_and_the_stop() -> Vec<Refusal> {
         let m = || "elbow".to_owned();
-        let all = vec![
+        vec![
             Refusal::Unreadable {
                 reason: "a line over 65536 bytes".into(),
             },
@@ -774,6 +891,13 @@ mod tests {
                 ahead_ms: 400_000.0,
                 max_age: Duration::from_secs(300),
             },
+        ]
+    }
+
+    /// An example of each refusal of a motor, and of the bridge busy.
+    fn the_motor_and_the_bridge_busy() -> Vec<Refusal> {
+        let m = || "elbow".to_owned();
+        vec![
             Refusal::NeedsReset {
                 motor: m(),
                 why: "faulted".into(),
@@ -788,6 +912,14 @@ mod tests {
                 max: 16,
             },
             Refusal::WaitingForStart,
+        ]
+    }
+
+    /// An example of each refusal by a rule broken, and of the line's
+    /// outcome.
+    fn the_rules_and_the_outcome() -> Vec<Refusal> {
+        let m = || "elbow".to_owned();
+        vec![
             Refusal::gate(motorwire_translate::Refusal::UnknownMotor {
                 motor: "knee".into(),
             }),
@@ -852,55 +984,56 @@ mod tests {
             Refusal::NoAnswer {
                 why: "no FaultHistory came".into(),
             },
-        ];
-        for r in &all {
-            match r {
-                Refusal::Unreadable { .. }
-                | Refusal::Invalid { .. }
-                | Refusal::SequentialWithTotalDuration
-                | Refusal::FeedbackRate { .. }
-                | Refusal::UnsupportedKind { .. }
-                | Refusal::PidGains
-                | Refusal::ControlModeConfig
-                | Refusal::NoSuchMessage { .. }
-                | Refusal::ShuttingDown
-                | Refusal::AlreadyStopped
-                | Refusal::Interrupted
-                | Refusal::Latched
-                | Refusal::LatchedReset
-                | Refusal::NotLatched
-                | Refusal::StopOvertookRelease
-                | Refusal::BadRelease { .. }
-                | Refusal::ArrivedBeforeStop { .. }
-                | Refusal::StampedBeforeStop { .. }
-                | Refusal::Stale { .. }
-                | Refusal::StartTooFarAhead { .. }
-                | Refusal::NeedsReset { .. }
-                | Refusal::Offline { .. }
-                | Refusal::LinesInProgress { .. }
-                | Refusal::QueueFull { .. }
-                | Refusal::WaitingForStart
-                | Refusal::Gate { .. }
-                | Refusal::UnknownMotor { .. }
-                | Refusal::NotAnIrpcJoint { .. }
-                | Refusal::NoReset { .. }
-                | Refusal::MotorTwice { .. }
-                | Refusal::NotAtStart { .. }
-                | Refusal::StartUnreachable { .. }
-                | Refusal::WaypointUnreachable { .. }
-                | Refusal::WiderThanBusMap { .. }
-                | Refusal::MotionOutsideNewLimits { .. }
-                | Refusal::SequentialWithoutArrival { .. }
-                | Refusal::OrionNotAttached
-                | Refusal::OrionMotorNotAttached { .. }
-                | Refusal::OutwardAtLimit { .. }
-                | Refusal::ActionNotExpressible { .. }
-                | Refusal::Cut { .. }
-                | Refusal::Failed { .. }
-                | Refusal::NoAnswer { .. } => {}
-            }
+        ]
+    }
+
+    /// Nothing: a match of every variant, with no wildcard.
+    fn names_every_variant(r: &Refusal) {
+        match r {
+            Refusal::Unreadable { .. }
+            | Refusal::Invalid { .. }
+            | Refusal::SequentialWithTotalDuration
+            | Refusal::FeedbackRate { .. }
+            | Refusal::UnsupportedKind { .. }
+            | Refusal::PidGains
+            | Refusal::ControlModeConfig
+            | Refusal::NoSuchMessage { .. }
+            | Refusal::ShuttingDown
+            | Refusal::AlreadyStopped
+            | Refusal::Interrupted
+            | Refusal::Latched
+            | Refusal::LatchedReset
+            | Refusal::NotLatched
+            | Refusal::StopOvertookRelease
+            | Refusal::BadRelease { .. }
+            | Refusal::ArrivedBeforeStop { .. }
+            | Refusal::StampedBeforeStop { .. }
+            | Refusal::Stale { .. }
+            | Refusal::StartTooFarAhead { .. }
+            | Refusal::NeedsReset { .. }
+            | Refusal::Offline { .. }
+            | Refusal::LinesInProgress { .. }
+            | Refusal::QueueFull { .. }
+            | Refusal::WaitingForStart
+            | Refusal::Gate { .. }
+            | Refusal::UnknownMotor { .. }
+            | Refusal::NotAnIrpcJoint { .. }
+            | Refusal::NoReset { .. }
+            | Refusal::MotorTwice { .. }
+            | Refusal::NotAtStart { .. }
+            | Refusal::StartUnreachable { .. }
+            | Refusal::WaypointUnreachable { .. }
+            | Refusal::WiderThanBusMap { .. }
+            | Refusal::MotionOutsideNewLimits { .. }
+            | Refusal::SequentialWithoutArrival { .. }
+            | Refusal::OrionNotAttached
+            | Refusal::OrionMotorNotAttached { .. }
+            | Refusal::OutwardAtLimit { .. }
+            | Refusal::ActionNotExpressible { .. }
+            | Refusal::Cut { .. }
+            | Refusal::Failed { .. }
+            | Refusal::NoAnswer { .. } => {}
         }
-        all
     }
 
     /// The README's table of rules, checked against the enum: every
