@@ -464,31 +464,15 @@ fn every_source_file_is_a_size_a_reader_takes_in() {
 /// The most lines a function takes, from its `fn` to its closing brace.
 const MOST_LINES: usize = 80;
 
-/// Functions over [`MOST_LINES`] that are being split in another change:
-/// each leaves this list when it is (the test fails while one listed is
-/// no longer over).
-const LONG_FOR_NOW: [(&str, &str); 4] = [
-    ("runtime/mod.rs", "run_inner"),
-    ("runtime/mod.rs", "spawn_orion"),
-    ("runtime/read.rs", "read_line"),
-    ("sim.rs", "settled"),
-];
-
 /// No function of the crate's sources (its unit tests counted) is over
 /// [`MOST_LINES`] lines: each does one thing a reader takes in, a long one
 /// split by what it does.
 #[test]
 fn no_function_is_over_eighty_lines() {
     let mut over = Vec::new();
-    let mut still_long = Vec::new();
     for (file, text) in sources() {
         for (line, name, lines) in functions(&text) {
-            if lines <= MOST_LINES {
-                continue;
-            }
-            if LONG_FOR_NOW.contains(&(file.as_str(), name.as_str())) {
-                still_long.push((file.clone(), name));
-            } else {
+            if lines > MOST_LINES {
                 over.push(format!("{file}:{line} {name} ({lines} lines)"));
             }
         }
@@ -497,16 +481,6 @@ fn no_function_is_over_eighty_lines() {
         over.is_empty(),
         "functions over {MOST_LINES} lines (split each by what it does):\n{}",
         over.join("\n")
-    );
-    let stale: Vec<String> = LONG_FOR_NOW
-        .iter()
-        .filter(|(f, n)| !still_long.iter().any(|(sf, sn)| sf == f && sn == n))
-        .map(|(f, n)| format!("{f} {n}"))
-        .collect();
-    assert!(
-        stale.is_empty(),
-        "no longer over {MOST_LINES} lines: take them off LONG_FOR_NOW:\n{}",
-        stale.join("\n")
     );
 }
 
