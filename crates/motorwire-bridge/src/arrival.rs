@@ -5,6 +5,7 @@ use std::time::Duration;
 
 use motorwire_translate::AngleUnit;
 
+use crate::device::DeviceId;
 use crate::job::LineMeta;
 use crate::output::{ArrivalLine, Label, MotorArrival};
 
@@ -15,7 +16,7 @@ const REST_PER_TOLERANCE: f64 = 10.0;
 /// One motor of a watched line.
 #[derive(Debug, Clone)]
 pub(crate) struct WatchAxis {
-    pub(crate) joint: usize,
+    pub(crate) joint: DeviceId,
     pub(crate) motor: String,
     /// Degrees.
     pub(crate) target: f64,
@@ -45,7 +46,7 @@ impl Watch {
     /// whether the whole line has arrived.
     pub(crate) fn observe(
         &mut self,
-        joint: usize,
+        joint: DeviceId,
         position: f64,
         velocity: f64,
         now: Duration,
@@ -64,7 +65,7 @@ impl Watch {
     }
 
     /// Whether it watches joint `joint` for a move not yet arrived.
-    pub(crate) fn waits_on(&self, joint: usize) -> bool {
+    pub(crate) fn waits_on(&self, joint: DeviceId) -> bool {
         self.axes
             .iter()
             .any(|a| a.joint == joint && a.arrived.is_none())

@@ -7,6 +7,7 @@ use std::time::Duration;
 use motorwire_irpc::Payload;
 use motorwire_translate::Report;
 
+use crate::device::DeviceId;
 pub(crate) use crate::device::{AwaitKind, Lifecycle, Order};
 use crate::output::{Label, LineRef, Origin, StepOutcome, StepReport};
 
@@ -106,8 +107,8 @@ pub(crate) enum AxisState {
 #[derive(Debug)]
 pub(crate) struct Axis {
     pub(crate) motor: String,
-    /// The joint's index in the registry.
-    pub(crate) joint: usize,
+    /// The joint's device.
+    pub(crate) joint: DeviceId,
     pub(crate) payloads: VecDeque<Order>,
     pub(crate) state: AxisState,
     /// Times the request in flight was sent, for the report.
@@ -147,7 +148,7 @@ impl Axis {
     /// An axis of iRPC payloads for a joint.
     pub(crate) fn new(
         motor: String,
-        joint: usize,
+        joint: DeviceId,
         payloads: impl IntoIterator<Item = Payload>,
     ) -> Self {
         Self::of(motor, joint, payloads.into_iter().map(Order::Irpc))
@@ -155,7 +156,11 @@ impl Axis {
 
     /// An axis of orders; the target of a compact position command is set
     /// by the caller (it knows the motor's unit).
-    pub(crate) fn of(motor: String, joint: usize, orders: impl IntoIterator<Item = Order>) -> Self {
+    pub(crate) fn of(
+        motor: String,
+        joint: DeviceId,
+        orders: impl IntoIterator<Item = Order>,
+    ) -> Self {
         let payloads: VecDeque<Order> = orders.into_iter().collect();
         let target = payloads.iter().rev().find_map(Order::own_target);
         Self {
@@ -323,7 +328,7 @@ impl Job {
 /// A request line's wait.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Awaiting {
-    pub(crate) joint: usize,
+    pub(crate) joint: DeviceId,
     pub(crate) kind: AwaitKind,
     /// Past this, nothing came.
     pub(crate) deadline: Duration,

@@ -9,7 +9,7 @@ use motorwire_planner::Profile;
 use motorwire_translate::AngleUnit;
 use motorwire_wia::MotorFeedback;
 
-use crate::device::{Device, DeviceView, Order, Registry};
+use crate::device::{Device, DeviceId, DeviceView, Order, Registry};
 pub(crate) use crate::device::{Kinematics, in_unit};
 use crate::output::Origin;
 
@@ -361,15 +361,75 @@ fn same_state(a: Option<Kinematics>, b: Option<Kinematics>) -> bool {
     bits(a) == bits(b)
 }
 
-impl Registry for Vec<Joint> {
-    fn count(&self) -> usize {
-        self.len()
+/// The engine's devices, in its order: each named by its [`DeviceId`],
+/// made here for the places there are.
+#[derive(Debug, Default)]
+pub(crate) struct Joints(Vec<Joint>);
+
+impl Joints {
+    /// The devices `joints`, in that order.
+    pub(crate) fn new(joints: Vec<Joint>) -> Self {
+        Self(joints)
     }
 
-    fn view(&self, k: usize) -> Option<DeviceView<'_>> {
-        let j = self.get(k)?;
+    /// Device `id`, if there is one.
+    pub(crate) fn get(&self, id: DeviceId) -> Option<&Joint> {
+        self.0.get(id.index())
+    }
+
+    /// Device `id`, to change, if there is one.
+    pub(crate) fn get_mut(&mut self, id: DeviceId) -> Option<&mut Joint> {
+        self.0.get_mut(id.index())
+    }
+
+    /// Whether there are none.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// Every device's id, in order.
+    pub(crate) fn ids(&self) -> impl Iterator<Item = DeviceId> + use<> {
+        (0..self.0.len()).map(DeviceId::at)
+    }
+
+    /// Every device, in order.
+    pub(crate) fn iter(&self) -> std::slice::Iter<'_, Joint> {
+        self.0.iter()
+    }
+
+    /// Every device, to change, in order.
+    pub(crate) fn iter_mut(&mut self) -> std::slice::IterMut<'_, Joint> {
+        self.0.iter_mut()
+    }
+
+    /// Every device with its id, in order.
+    pub(crate) fn with_ids(&self) -> impl Iterator<Item = (DeviceId, &Joint)> {
+        self.0.iter().enumerate().map(|(k, j)| (DeviceId::at(k), j))
+    }
+
+    /// Every device with its id, to change, in order.
+    pub(crate) fn with_ids_mut(&mut self) -> impl Iterator<Item = (DeviceId, &mut Joint)> {
+        self.0
+            .iter_mut()
+            .enumerate()
+            .map(|(k, j)| (DeviceId::at(k), j))
+    }
+
+    /// The first device `pick` chooses.
+    pub(crate) fn find(&self, pick: impl Fn(&Joint) -> bool) -> Option<DeviceId> {
+        self.0.iter().position(pick).map(DeviceId::at)
+    }
+}
+
+impl Registry for Joints {
+    fn count(&self) -> usize {
+        self.0.len()
+    }
+
+    fn view(&self, id: DeviceId) -> Option<DeviceView<'_>> {
+        let j = self.get(id)?;
         Some(DeviceView {
-            index: k,
+            id,
             name: &j.name,
             node: j.node,
             device: j.device,

@@ -92,7 +92,7 @@ pub(crate) type CompactDriver = super::frames::FrameRequests;
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
-    use crate::device::{Ended, Outcome};
+    use crate::device::{DeviceId, Ended, Outcome};
     use motorwire_compact::{ControlMode, Flags};
     use std::time::Duration;
 
@@ -126,7 +126,11 @@ mod tests {
         let ms = Duration::from_millis;
         let mut d = CompactDriver::new(ms(100), 2);
         assert_eq!(
-            d.send(ms(0), 3, command_frame(0x20, command(1.0)).unwrap()),
+            d.send(
+                ms(0),
+                DeviceId(3),
+                command_frame(0x20, command(1.0)).unwrap()
+            ),
             1
         );
         let first = d.poll_transmit().unwrap();
@@ -141,7 +145,7 @@ mod tests {
         assert_eq!(
             d.timeouts(ms(300)),
             [(
-                3,
+                DeviceId(3),
                 Ended {
                     msg_id: 1,
                     outcome: Outcome::TimedOut,
@@ -153,11 +157,15 @@ mod tests {
         assert_eq!((d.deadline(), d.poll_transmit()), (None, None));
         // The next command: acknowledged by the device's record.
         assert_eq!(
-            d.send(ms(300), 3, command_frame(0x20, command(2.0)).unwrap()),
+            d.send(
+                ms(300),
+                DeviceId(3),
+                command_frame(0x20, command(2.0)).unwrap()
+            ),
             2
         );
         assert_eq!(
-            d.acknowledged(3, ms(310)),
+            d.acknowledged(DeviceId(3), ms(310)),
             Some(Ended {
                 msg_id: 2,
                 outcome: Outcome::Acked,
@@ -165,21 +173,29 @@ mod tests {
                 at: ms(310)
             })
         );
-        assert_eq!(d.acknowledged(3, ms(311)), None);
+        assert_eq!(d.acknowledged(DeviceId(3), ms(311)), None);
     }
 
     #[test]
     fn only_a_first_sending_still_queued_is_taken_back() {
         let ms = Duration::from_millis;
         let mut d = CompactDriver::new(ms(100), 3);
-        d.send(ms(0), 1, command_frame(0x20, command(1.0)).unwrap());
-        d.send(ms(0), 2, command_frame(0x21, command(1.0)).unwrap());
-        assert!(d.take_back_unsent(1));
+        d.send(
+            ms(0),
+            DeviceId(1),
+            command_frame(0x20, command(1.0)).unwrap(),
+        );
+        d.send(
+            ms(0),
+            DeviceId(2),
+            command_frame(0x21, command(1.0)).unwrap(),
+        );
+        assert!(d.take_back_unsent(DeviceId(1)));
         // Device 2's frame is the only one left.
         assert_eq!(d.poll_transmit().map(|f| f.id().raw()), Some(0x21));
         // Handed out: it stays (it may have run).
-        assert!(!d.take_back_unsent(2));
-        assert!(d.acknowledged(2, ms(1)).is_some());
+        assert!(!d.take_back_unsent(DeviceId(2)));
+        assert!(d.acknowledged(DeviceId(2), ms(1)).is_some());
     }
 
     #[test]

@@ -18,7 +18,7 @@ pub(crate) struct Drivers {
     pub(super) router: Router,
     /// The devices by CAN id or node id (the first of each, in the
     /// engine's order): whose an iRPC message is.
-    pub(super) by_node: HashMap<u16, usize>,
+    pub(super) by_node: HashMap<u16, DeviceId>,
 }
 
 impl Drivers {
@@ -43,18 +43,18 @@ impl Drivers {
     ) -> Result<Self, motorwire_can::Error> {
         let mut irpc = irpc::IrpcDriver::new(client)?;
         let mut moteus = moteus::MoteusDriver::new(client.timeout, client.retries);
-        for (k, j) in devices.iter().enumerate() {
+        for j in devices.iter() {
             match j.device {
                 Device::Irpc { wire } => irpc.set_wire(j.node, wire),
                 Device::Moteus {
                     id, bus, period_ms, ..
-                } => moteus.poll_every(k, id, bus, Duration::from_millis(u64::from(period_ms))),
+                } => moteus.poll_every(j.id, id, bus, Duration::from_millis(u64::from(period_ms))),
                 Device::Compact { .. } | Device::Orion(_) => {}
             }
         }
         let mut by_node = HashMap::new();
-        for (k, j) in devices.iter().enumerate() {
-            by_node.entry(j.node).or_insert(k);
+        for j in devices.iter() {
+            by_node.entry(j.node).or_insert(j.id);
         }
         Ok(Self {
             irpc,
@@ -63,7 +63,7 @@ impl Drivers {
             moteus,
             queued: VecDeque::new(),
             epoch,
-            router: Router::new(devices.iter().map(|j| (j.node, j.device))),
+            router: Router::new(devices.iter().map(|j| (j.id, j.node, j.device))),
             by_node,
         })
     }
@@ -78,7 +78,7 @@ impl Drivers {
     pub(crate) fn send(
         &mut self,
         now: Duration,
-        device: usize,
+        device: DeviceId,
         node: u16,
         order: Order,
     ) -> Result<u32, DeviceError> {
@@ -109,12 +109,12 @@ impl Drivers {
     pub(crate) fn send_together(
         &mut self,
         now: Duration,
-        orders: &[(usize, Order)],
+        orders: &[(DeviceId, Order)],
     ) -> Result<u32, DeviceError> {
         if let Some(e) = orders.first().and_then(|(_, o)| self.refuses(o)) {
             return Err(e);
         }
-        let orion: Vec<(usize, OrionOrder)> = orders
+        let orion: Vec<(DeviceId, OrionOrder)> = orders
             .iter()
             .filter_map(|(d, o)| match o {
                 Order::Orion(o) => Some((*d, *o)),
@@ -140,14 +140,14 @@ impl Drivers {
     /// The limits in force on device `device` changed (a SafetyLimits
     /// line taken): what a driver sends from now on, and what it sends
     /// again by itself (a moteus controller's held move), follows them.
-    pub(crate) fn limits_changed(&mut self, device: usize, limits: &InForce) {
+    pub(crate) fn limits_changed(&mut self, device: DeviceId, limits: &InForce) {
         self.moteus.limits_changed(device, limits);
     }
 
     /// Device `device`'s request in flight (`msg_id`, `order`) is given
     /// up: its answer, if it comes, is no longer awaited, and it is never
     /// sent again.
-    pub(crate) fn forget(&mut self, device: usize, msg_id: u32, order: Order) {
+    pub(crate) fn forget(&mut self, device: DeviceId, msg_id: u32, order: Order) {
         match order {
             Order::Irpc(_) => self.irpc.forget(msg_id),
             Order::Compact(_) => self.compact.forget(device),
@@ -161,8 +161,8 @@ impl Drivers {
     /// the devices whose request was taken back, and so never sent. An
     /// iRPC request is handed to the client, which puts it on the bus at
     /// once: never taken back.
-    pub(crate) fn take_back_unsent(&mut self, picked: &BTreeSet<usize>) -> BTreeSet<usize> {
-        let mut unsent: BTreeSet<usize> = picked
+    pub(crate) fn take_back_unsent(&mut self, picked: &BTreeSet<DeviceId>) -> BTreeSet<DeviceId> {
+        let mut unsent: BTreeSet<DeviceId> = picked
             .iter()
             .copied()
             .filter(|&d| self.compact.take_back_unsent(d) || self.moteus.take_back_unsent(d))
@@ -313,11 +313,11 @@ impl Drivers {
         &mut self,
         now: Duration,
         devices: &dyn Registry,
-        busy: impl Fn(usize) -> bool,
+        busy: impl Fn(DeviceId) -> bool,
     ) {
         let on_link = |j: &DeviceView<'_>| j.device.link() == Link::Controller;
         let idle = devices.iter().any(|j| on_link(&j))
-            && !devices.iter().filter(on_link).any(|j| busy(j.index));
+            && !devices.iter().filter(on_link).any(|j| busy(j.id));
         self.orion.housekeeping(now, idle);
         // Each moteus controller's poll: its held command, or the query.
         self.moteus.polls_due(now);
@@ -385,11 +385,7 @@ impl Drivers {
             }
         }
         for f in applied.feedback {
-            let Some((ji, j)) = devices
-                .iter()
-                .enumerate()
-                .find(|(_, j)| j.name == f.motor_id)
-            else {
+            let Some(j) = devices.iter().find(|j| j.name == f.motor_id) else {
                 continue;
             };
             let Device::Orion(motor) = j.device else {
@@ -401,7 +397,7 @@ impl Drivers {
                 Quantity::Speed | Quantity::Actuator => (0.0, f.velocity),
             };
             self.tell(Happened::Reading {
-                device: ji,
+                device: j.id,
                 at: now,
                 motion: Some(motion),
                 feedback: Some(Box::new(f)),
@@ -509,7 +505,7 @@ impl Drivers {
         &mut self,
         now: Duration,
         frame: &Frame,
-        ji: usize,
+        ji: DeviceId,
         devices: &dyn Registry,
     ) {
         let Some(j) = devices.get(ji) else { return };
@@ -607,12 +603,11 @@ impl Drivers {
     }
 }
 
-/// The indices of the Orion controller's motors among `devices`.
-pub(super) fn orion_devices(devices: &dyn Registry) -> Vec<usize> {
+/// The Orion controller's motors among `devices`.
+pub(super) fn orion_devices(devices: &dyn Registry) -> Vec<DeviceId> {
     devices
         .iter()
-        .enumerate()
-        .filter(|(_, j)| j.device.link() == Link::Controller)
-        .map(|(i, _)| i)
+        .filter(|j| j.device.link() == Link::Controller)
+        .map(|j| j.id)
         .collect()
 }

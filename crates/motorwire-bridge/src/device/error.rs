@@ -4,6 +4,8 @@
 
 use motorwire_compact::MotorHash;
 
+use super::DeviceId;
+
 /// Why an order could not be sent (nothing was queued), or a frame could
 /// not be read for its device.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -39,7 +41,7 @@ pub(crate) enum DeviceError {
     },
     /// An order for a moteus controller to a device that is none.
     #[error("device {0} is not a moteus controller")]
-    NotMoteus(usize),
+    NotMoteus(DeviceId),
     /// The link to the Orion controller is lost: only its stop goes.
     #[error("the link to the Orion controller is lost")]
     OrionLinkLost,

@@ -11,7 +11,7 @@ use std::time::Duration;
 use motorwire_can::Frame;
 use motorwire_can::retry::{Attempts, Expiry};
 
-use super::{Ended, Outcome};
+use super::{DeviceId, Ended, Outcome};
 
 /// A frame sent and not yet answered.
 #[derive(Debug)]
@@ -21,11 +21,11 @@ struct Pending {
     attempts: Attempts,
 }
 
-/// The requests in flight (one per device, by the engine's device index)
-/// and the frames to send.
+/// The requests in flight (one per device, keyed by it) and the frames
+/// to send.
 #[derive(Debug)]
 pub(crate) struct FrameRequests {
-    pending: BTreeMap<usize, Pending>,
+    pending: BTreeMap<DeviceId, Pending>,
     tx: VecDeque<Frame>,
     next_id: u32,
     timeout: Duration,
@@ -46,7 +46,7 @@ impl FrameRequests {
     }
 
     /// Queues `frame` for `device` and awaits its answer; returns its id.
-    pub(crate) fn send(&mut self, now: Duration, device: usize, frame: Frame) -> u32 {
+    pub(crate) fn send(&mut self, now: Duration, device: DeviceId, frame: Frame) -> u32 {
         let msg_id = self.next_id;
         self.next_id = self.next_id.wrapping_add(1);
         self.tx.push_back(frame);
@@ -67,18 +67,18 @@ impl FrameRequests {
     }
 
     /// Whether `device` has a request in flight.
-    pub(crate) fn awaits(&self, device: usize) -> bool {
+    pub(crate) fn awaits(&self, device: DeviceId) -> bool {
         self.pending.contains_key(&device)
     }
 
     /// An answer came from `device` at `now`: the request it waited for,
     /// if any, is acknowledged.
     /// The frame of `device`'s request in flight, if one is.
-    pub(crate) fn in_flight(&self, device: usize) -> Option<&Frame> {
+    pub(crate) fn in_flight(&self, device: DeviceId) -> Option<&Frame> {
         self.pending.get(&device).map(|p| &p.frame)
     }
 
-    pub(crate) fn acknowledged(&mut self, device: usize, now: Duration) -> Option<Ended> {
+    pub(crate) fn acknowledged(&mut self, device: DeviceId, now: Duration) -> Option<Ended> {
         self.pending.remove(&device).map(|p| Ended {
             msg_id: p.msg_id,
             outcome: Outcome::Acked,
@@ -89,13 +89,13 @@ impl FrameRequests {
 
     /// `device`'s request is given up (sent; its outcome no longer
     /// awaited).
-    pub(crate) fn forget(&mut self, device: usize) {
+    pub(crate) fn forget(&mut self, device: DeviceId) {
         self.pending.remove(&device);
     }
 
     /// `device`'s request, if it was never handed out (its first sending
     /// still queued): taken out of the queue and forgotten. Whether it was.
-    pub(crate) fn take_back_unsent(&mut self, device: usize) -> bool {
+    pub(crate) fn take_back_unsent(&mut self, device: DeviceId) -> bool {
         let Some(p) = self.pending.get(&device) else {
             return false;
         };
@@ -112,7 +112,7 @@ impl FrameRequests {
 
     /// Requests whose answer is overdue at `now`: each sent again until
     /// its retries are spent; those given up, by device.
-    pub(crate) fn timeouts(&mut self, now: Duration) -> Vec<(usize, Ended)> {
+    pub(crate) fn timeouts(&mut self, now: Duration) -> Vec<(DeviceId, Ended)> {
         let mut given_up = Vec::new();
         for (&device, p) in &mut self.pending {
             match p.attempts.expire(now, true) {

@@ -27,7 +27,7 @@ use motorwire_irpc::{CalibrationPhase, CalibrationRequest};
 use motorwire_translate::{BusMap, feedback_from_irpc};
 
 use super::AwaitKind;
-use super::{Answer, Context, Effect, Ended, Happened, Moving, Outcome};
+use super::{Answer, Context, DeviceId, Effect, Ended, Happened, Moving, Outcome};
 use crate::classify::RequestKind;
 use crate::output::Event;
 
@@ -42,10 +42,10 @@ pub(crate) enum IrpcEvent {
     Answered {
         node: u16,
         at: Duration,
-        ended: Option<(usize, Ended)>,
+        ended: Option<(DeviceId, Ended)>,
     },
     /// The request in flight for device `device` ended.
-    Ended { device: usize, ended: Ended },
+    Ended { device: DeviceId, ended: Ended },
     /// A message from a joint that is not an answer (its status, encoder,
     /// telemetry, an answer to a request line, its own emergency stop).
     Feedback { message: Message, at: Duration },
@@ -60,7 +60,7 @@ pub(crate) struct IrpcDriver {
     client: Client,
     /// Each msg_id in flight and the device it went to: at most one a
     /// joint (the client's rule), so a short list looked through.
-    by_msg: Vec<(u32, usize)>,
+    by_msg: Vec<(u32, DeviceId)>,
     /// The time of the last frame or timeout handled.
     now: Duration,
     /// Whether any joint was given ([`IrpcDriver::set_wire`]): the
@@ -97,7 +97,7 @@ impl IrpcDriver {
     pub(crate) fn send(
         &mut self,
         now: Duration,
-        device: usize,
+        device: DeviceId,
         node: u16,
         payload: Payload,
     ) -> Result<u32, DeviceError> {
@@ -113,7 +113,7 @@ impl IrpcDriver {
     }
 
     /// The device request `msg_id` went to, no longer in flight.
-    fn take_device(&mut self, msg_id: u32) -> Option<usize> {
+    fn take_device(&mut self, msg_id: u32) -> Option<DeviceId> {
         let i = self.by_msg.iter().position(|(m, _)| *m == msg_id)?;
         Some(self.by_msg.swap_remove(i).1)
     }
@@ -282,7 +282,7 @@ pub(crate) fn tell(
     event: IrpcEvent,
     map: &BusMap,
     devices: &dyn super::Registry,
-    by_node: &HashMap<u16, usize>,
+    by_node: &HashMap<u16, DeviceId>,
     epoch: f64,
     mut tell: impl FnMut(Happened),
 ) {
@@ -555,7 +555,9 @@ mod tests {
     #[test]
     fn an_ack_is_heard_then_ends_the_devices_request() {
         let mut d = IrpcDriver::new(ClientConfig::default()).unwrap();
-        let id = d.send(Duration::ZERO, 4, 0x12, Payload::Activate).unwrap();
+        let id = d
+            .send(Duration::ZERO, DeviceId(4), 0x12, Payload::Activate)
+            .unwrap();
         assert_eq!(id, 1);
         let f = d.poll_transmit().unwrap();
         // From 0x0000 to 0x12, msg_id 1, Activate (v2.0 tag 2).
@@ -568,7 +570,7 @@ mod tests {
                 node: 0x12,
                 at: 3 * MS,
                 ended: Some((
-                    4,
+                    DeviceId(4),
                     Ended {
                         msg_id: id,
                         outcome: Outcome::Acked,
@@ -587,9 +589,11 @@ mod tests {
     fn a_stop_of_a_stopped_joint_is_done_and_other_nacks_say_their_code() {
         let mut d = IrpcDriver::new(ClientConfig::default()).unwrap();
         let stop = d
-            .send(Duration::ZERO, 0, 0x12, Payload::Deactivate)
+            .send(Duration::ZERO, DeviceId(0), 0x12, Payload::Deactivate)
             .unwrap();
-        let go = d.send(Duration::ZERO, 1, 0x13, Payload::Activate).unwrap();
+        let go = d
+            .send(Duration::ZERO, DeviceId(1), 0x13, Payload::Activate)
+            .unwrap();
         d.handle_frame(
             MS,
             &reply(
@@ -602,7 +606,7 @@ mod tests {
             ),
         );
         d.handle_frame(MS, &reply(0x13, go, Payload::Nack { id: go, error: 2 }));
-        let ended: Vec<(usize, Outcome)> = events(&mut d)
+        let ended: Vec<(DeviceId, Outcome)> = events(&mut d)
             .into_iter()
             .filter_map(|e| match e {
                 IrpcEvent::Answered {
@@ -616,7 +620,7 @@ mod tests {
             ended,
             [
                 (
-                    0,
+                    DeviceId(0),
                     Outcome::Nacked {
                         code: Some(3),
                         why: "nacked: 3 (deactivate in the wrong state)".to_owned(),
@@ -624,7 +628,7 @@ mod tests {
                     }
                 ),
                 (
-                    1,
+                    DeviceId(1),
                     Outcome::Nacked {
                         code: Some(2),
                         why: "nacked: 2 (activate in the wrong state)".to_owned(),
@@ -641,7 +645,9 @@ mod tests {
     #[test]
     fn an_unanswered_request_times_out_and_a_forgotten_one_says_nothing() {
         let mut d = IrpcDriver::new(ClientConfig::default()).unwrap();
-        let id = d.send(Duration::ZERO, 2, 0x12, Payload::Configure).unwrap();
+        let id = d
+            .send(Duration::ZERO, DeviceId(2), 0x12, Payload::Configure)
+            .unwrap();
         for k in 1..=3u32 {
             d.handle_timeout(100 * MS * k);
         }
@@ -651,7 +657,7 @@ mod tests {
         assert_eq!(
             events(&mut d),
             [IrpcEvent::Ended {
-                device: 2,
+                device: DeviceId(2),
                 ended: Ended {
                     msg_id: id,
                     outcome: Outcome::TimedOut,
@@ -660,7 +666,9 @@ mod tests {
                 }
             }]
         );
-        let gone = d.send(400 * MS, 2, 0x12, Payload::Activate).unwrap();
+        let gone = d
+            .send(400 * MS, DeviceId(2), 0x12, Payload::Activate)
+            .unwrap();
         d.forget(gone);
         d.handle_frame(401 * MS, &reply(0x12, gone, Payload::Ack(gone)));
         assert_eq!(

@@ -84,6 +84,7 @@
 //! others keep.
 
 use std::collections::{BTreeSet, HashMap, HashSet, VecDeque};
+use std::fmt;
 use std::time::Duration;
 
 use motorwire_can::Frame;
@@ -100,25 +101,54 @@ use serde_json::Value;
 
 use crate::output::Event;
 
+/// A device: its place in the engine's order, which is also its view's
+/// in the [`Registry`]. It lives here, with the registry a driver reads,
+/// so that the drivers (which key what they have in flight by device) and
+/// the engine (which holds the devices' state) name a device by one type
+/// below both; and a count, a line number or an axis's place in its job
+/// cannot be taken for one. Made only by the holder of the devices, for
+/// a place it has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub(crate) struct DeviceId(usize);
+
+impl DeviceId {
+    /// The device at place `index` of the engine's order (the holder of
+    /// the devices, and tests, make them).
+    pub(crate) const fn at(index: usize) -> Self {
+        Self(index)
+    }
+
+    /// Its place in the engine's order.
+    pub(crate) const fn index(self) -> usize {
+        self.0
+    }
+}
+
+impl fmt::Display for DeviceId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
 /// What a driver reads of the devices the engine keeps, in the engine's
 /// order: read only (the engine's registry implements it; a driver never
 /// sees, nor writes, the engine's own state of a device).
 pub(crate) trait Registry {
     /// How many devices there are.
     fn count(&self) -> usize;
-    /// Device `k` as a driver sees it.
-    fn view(&self, k: usize) -> Option<DeviceView<'_>>;
+    /// Device `id` as a driver sees it.
+    fn view(&self, id: DeviceId) -> Option<DeviceView<'_>>;
 }
 
 impl dyn Registry + '_ {
-    /// Device `k`, if there is one.
-    pub(crate) fn get(&self, k: usize) -> Option<DeviceView<'_>> {
-        self.view(k)
+    /// Device `id`, if there is one.
+    pub(crate) fn get(&self, id: DeviceId) -> Option<DeviceView<'_>> {
+        self.view(id)
     }
 
     /// Every device, in order.
     pub(crate) fn iter(&self) -> impl Iterator<Item = DeviceView<'_>> + '_ {
-        (0..self.count()).filter_map(|k| self.view(k))
+        (0..self.count()).filter_map(|k| self.view(DeviceId(k)))
     }
 }
 
@@ -127,7 +157,7 @@ impl dyn Registry + '_ {
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct DeviceView<'a> {
     /// Its place in the engine's order.
-    pub(crate) index: usize,
+    pub(crate) id: DeviceId,
     pub(crate) name: &'a str,
     /// Its CAN id (iRPC node, compact command id; [`orion::ORION_NODE`]
     /// for the Orion motors).
@@ -785,12 +815,12 @@ impl Lifecycle {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Route {
     /// A compact device's feedback record: device `.0`'s.
-    CompactFeedback(usize),
+    CompactFeedback(DeviceId),
     /// A compact command (the bridge's own, heard back on a second
     /// socket): nothing to act on.
     CompactCommand,
     /// A moteus controller's reply: device `.0`'s.
-    MoteusReply(usize),
+    MoteusReply(DeviceId),
     /// A moteus command (the bridge's own, heard back): nothing to act on.
     MoteusCommand,
     /// Anything else: the iRPC driver's to read (or to call bad).
@@ -804,19 +834,19 @@ pub(crate) enum Route {
 pub(crate) struct Router {
     /// Compact devices by the CAN id of their feedback (the first device,
     /// in the engine's order, of each).
-    compact_feedback: HashMap<u32, usize>,
+    compact_feedback: HashMap<u32, DeviceId>,
     /// The CAN ids of compact commands.
     compact_command: HashSet<u32>,
     /// Moteus controllers by (CAN prefix, id): the first of each.
-    moteus: HashMap<(u16, u8), usize>,
+    moteus: HashMap<(u16, u8), DeviceId>,
 }
 
 impl Router {
-    /// A router for `devices` (each device's CAN id and dialect, in the
-    /// engine's order).
-    pub(crate) fn new(devices: impl Iterator<Item = (u16, Device)>) -> Self {
+    /// A router for `devices` (each device, its CAN id and dialect, in
+    /// the engine's order).
+    pub(crate) fn new(devices: impl Iterator<Item = (DeviceId, u16, Device)>) -> Self {
         let mut router = Self::default();
-        for (k, (node, device)) in devices.enumerate() {
+        for (k, node, device) in devices {
             match device {
                 Device::Compact { feedback_node, .. } => {
                     router
@@ -906,35 +936,35 @@ pub(crate) enum Happened {
     /// online (the Orion controller's motors only from its boot beacon on,
     /// and after a lost link only once its stop was answered).
     Heard {
-        device: usize,
+        device: DeviceId,
         at: Duration,
         up: bool,
     },
     /// Device `device` reported at `at`: its position and velocity
     /// (degrees) where the report has them, and its WIA feedback.
     Reading {
-        device: usize,
+        device: DeviceId,
         at: Duration,
         motion: Option<(f64, f64)>,
         feedback: Option<Box<MotorFeedback>>,
     },
     /// Device `device`'s request in flight ended.
-    Ended { device: usize, ended: Ended },
+    Ended { device: DeviceId, ended: Ended },
     /// Device `device` reported its lifecycle state and error code.
     Lifecycle {
-        device: usize,
+        device: DeviceId,
         state: LifecycleState,
         code: u16,
     },
     /// Device `device` stopped itself at `at`: why, and its code.
     StoppedItself {
-        device: usize,
+        device: DeviceId,
         at: Duration,
         reason: String,
         code: u16,
     },
     /// A message from device `device` that a request line may wait for.
-    Answer { device: usize, answer: Answer },
+    Answer { device: DeviceId, answer: Answer },
     /// Something on a driver's link that is none of its devices' messages:
     /// counted, and reported when `report` is there (drivers bound how
     /// often).
@@ -946,12 +976,12 @@ pub(crate) enum Happened {
     /// why, with the link's error), and lines waiting on them will not
     /// arrive (`arrival` says why).
     LinkLost {
-        devices: Vec<usize>,
+        devices: Vec<DeviceId>,
         offline: String,
         arrival: String,
     },
     /// What waits for `devices` may go now: their link is free, or up.
-    MayGo { devices: Vec<usize> },
+    MayGo { devices: Vec<DeviceId> },
 }
 
 /// A message a request line may wait for, in the engine's terms.
@@ -983,7 +1013,7 @@ enum Queued {
     /// flight, once the engine has taken the record (which may have sent
     /// that command).
     CompactAck {
-        device: usize,
+        device: DeviceId,
         at: Duration,
         /// The record says the device is not driving (`enabled` clear):
         /// only such a record acknowledges an emergency stop (a record the
@@ -993,7 +1023,7 @@ enum Queued {
     /// A moteus controller's reply acknowledges its command in flight,
     /// once the engine has taken the reply.
     MoteusAck {
-        device: usize,
+        device: DeviceId,
         at: Duration,
     },
 }

@@ -31,9 +31,9 @@ use motorwire_moteus::{Call, Command, PositionArgs, Reply, Resolutions, decode};
 use motorwire_translate::{AngleUnit, MoteusCommand};
 use motorwire_wia::MotorFeedback;
 
-use super::Ended;
 use super::frames::FrameRequests;
 use super::moteus_bounds::{BoundsNews, OwnBounds};
+use super::{DeviceId, Ended};
 
 /// The bridge's own id on the bus (the replies' destination).
 pub(crate) const SOURCE: u8 = 0;
@@ -337,11 +337,11 @@ fn still_of(args: &PositionArgs) -> PositionArgs {
 }
 
 /// The moteus controllers' requests in flight, polls and frames to send,
-/// by device index (the engine's).
+/// by device.
 #[derive(Debug)]
 pub(crate) struct MoteusDriver {
     requests: FrameRequests,
-    polls: BTreeMap<usize, Poll>,
+    polls: BTreeMap<DeviceId, Poll>,
 }
 
 impl MoteusDriver {
@@ -356,7 +356,7 @@ impl MoteusDriver {
 
     /// Device `device`, controller `id` on `bus`, is polled every `period`
     /// from the start.
-    pub(crate) fn poll_every(&mut self, device: usize, id: u8, bus: u16, period: Duration) {
+    pub(crate) fn poll_every(&mut self, device: DeviceId, id: u8, bus: u16, period: Duration) {
         self.polls.insert(
             device,
             Poll {
@@ -383,7 +383,7 @@ impl MoteusDriver {
     pub(crate) fn send(
         &mut self,
         now: Duration,
-        device: usize,
+        device: DeviceId,
         cmd: &MoteusCommand,
     ) -> Result<u32, DeviceError> {
         let Some(poll) = self.polls.get(&device) else {
@@ -416,7 +416,7 @@ impl MoteusDriver {
 
     /// A reply came from `device` at `now`: the command it waited for, if
     /// any, is acknowledged.
-    pub(crate) fn acknowledged(&mut self, device: usize, now: Duration) -> Option<Ended> {
+    pub(crate) fn acknowledged(&mut self, device: DeviceId, now: Duration) -> Option<Ended> {
         self.requests.acknowledged(device, now)
     }
 
@@ -425,7 +425,7 @@ impl MoteusDriver {
     /// nothing any more; one whose move is complete is held where it
     /// stands from now on (its target is not sent again: a limit made
     /// tighter since may no longer allow it).
-    pub(crate) fn observe(&mut self, device: usize, r: &Reply) -> bool {
+    pub(crate) fn observe(&mut self, device: DeviceId, r: &Reply) -> bool {
         let mode = r.int(0x000);
         let awaits = self.requests.awaits(device);
         let Some(p) = self.polls.get_mut(&device) else {
@@ -461,7 +461,7 @@ impl MoteusDriver {
 
     /// `device`'s command is given up (its reply no longer awaited): a
     /// held command is held still from now on (when in doubt, stop).
-    pub(crate) fn forget(&mut self, device: usize) {
+    pub(crate) fn forget(&mut self, device: DeviceId) {
         self.requests.forget(device);
         if let Some(p) = self.polls.get_mut(&device) {
             p.hold_still();
@@ -474,7 +474,7 @@ impl MoteusDriver {
     /// move it would break has ended, but the controller may not have said
     /// so yet) is held where it stands, never sent again; and every frame
     /// from now on, held or new, carries at most their torque limit.
-    pub(crate) fn limits_changed(&mut self, device: usize, limits: &super::InForce) {
+    pub(crate) fn limits_changed(&mut self, device: DeviceId, limits: &super::InForce) {
         let Some(p) = self.polls.get_mut(&device) else {
             return;
         };
@@ -507,7 +507,7 @@ impl MoteusDriver {
 
     /// `device`'s command, if its first sending is still queued: taken out
     /// of the queue and forgotten (and no longer held). Whether it was.
-    pub(crate) fn take_back_unsent(&mut self, device: usize) -> bool {
+    pub(crate) fn take_back_unsent(&mut self, device: DeviceId) -> bool {
         if !self.requests.take_back_unsent(device) {
             return false;
         }
@@ -521,7 +521,7 @@ impl MoteusDriver {
     /// Commands whose reply is overdue at `now`: each sent again until its
     /// retries are spent; those given up, by device.
     /// A command given up is held still from now on, as [`Self::forget`].
-    pub(crate) fn timeouts(&mut self, now: Duration) -> Vec<(usize, Ended)> {
+    pub(crate) fn timeouts(&mut self, now: Duration) -> Vec<(DeviceId, Ended)> {
         let ended = self.requests.timeouts(now);
         for (device, _) in &ended {
             if let Some(p) = self.polls.get_mut(device) {
@@ -575,7 +575,7 @@ impl MoteusDriver {
     /// An answer on `device`'s diagnostic stream, at `now`.
     pub(crate) fn diagnostic_answer(
         &mut self,
-        device: usize,
+        device: DeviceId,
         now: Duration,
         answer: &motorwire_moteus::diagnostic::Answer,
     ) {
@@ -585,7 +585,7 @@ impl MoteusDriver {
     }
 
     /// What became of each controller's own bounds since last asked.
-    pub(crate) fn bounds_news(&mut self) -> Vec<(usize, BoundsNews)> {
+    pub(crate) fn bounds_news(&mut self) -> Vec<(DeviceId, BoundsNews)> {
         let mut out = Vec::new();
         for (&device, p) in &mut self.polls {
             out.extend(p.bounds.take_news().into_iter().map(|n| (device, n)));
@@ -596,7 +596,7 @@ impl MoteusDriver {
     /// `device`'s own bounds taken as read and set, nothing more asked
     /// (for tests of the rest of the driver's frames).
     #[cfg(test)]
-    pub(crate) fn bounds_settled(&mut self, device: usize) {
+    pub(crate) fn bounds_settled(&mut self, device: DeviceId) {
         if let Some(p) = self.polls.get_mut(&device) {
             p.bounds = OwnBounds::settled();
         }
@@ -659,18 +659,19 @@ mod tests {
     fn a_held_move_is_sent_again_at_each_poll_and_a_reply_acknowledges() {
         let ms = Duration::from_millis;
         let mut d = MoteusDriver::new(ms(100), 1);
-        d.poll_every(0, 1, 0, ms(20));
-        d.bounds_settled(0);
+        d.poll_every(DeviceId(0), 1, 0, ms(20));
+        d.bounds_settled(DeviceId(0));
         d.polls_due(ms(0));
         let q = d.poll_transmit().unwrap();
         assert_eq!(q, query_frame(1, 0).unwrap());
-        let id = d.send(ms(5), 0, &position(0.1)).unwrap();
+        let id = d.send(ms(5), DeviceId(0), &position(0.1)).unwrap();
         let sent = d.poll_transmit().unwrap();
         // Not polled while the command waits.
         d.polls_due(ms(25));
         assert_eq!(d.poll_transmit(), None);
         assert_eq!(
-            d.acknowledged(0, ms(26)).map(|e| (e.msg_id, e.outcome)),
+            d.acknowledged(DeviceId(0), ms(26))
+                .map(|e| (e.msg_id, e.outcome)),
             Some((id, Outcome::Acked))
         );
         // Held: the move itself at the next poll, not the query.
@@ -682,7 +683,7 @@ mod tests {
             &[0x21, 0x00, 0x0a, 0x21, 0x0b, 0x01],
         )
         .unwrap();
-        assert!(d.observe(0, &reply(&done).unwrap()));
+        assert!(d.observe(DeviceId(0), &reply(&done).unwrap()));
         d.polls_due(ms(47));
         d.polls_due(ms(65));
         let still = d.poll_transmit().unwrap();
@@ -692,31 +693,31 @@ mod tests {
         assert!(motorwire_moteus::hex(still.data()).starts_with("01000a0e200000c07f00000000"));
         // A stop is sent again in place of the query: every 5 ms while
         // a frame from before it may still come, then at each poll.
-        d.send(ms(50), 0, &MoteusCommand::Stop).unwrap();
+        d.send(ms(50), DeviceId(0), &MoteusCommand::Stop).unwrap();
         let stop = d.poll_transmit().unwrap();
         assert_eq!(
             stop,
             command_frame(1, 0, &MoteusCommand::Stop, None).unwrap()
         );
-        d.acknowledged(0, ms(51));
+        d.acknowledged(DeviceId(0), ms(51));
         d.polls_due(ms(55));
         assert_eq!(d.poll_transmit(), Some(stop));
         assert_eq!(d.deadline(), Some(ms(60)));
         // A reply in position mode after it (a late frame took the
         // controller on): the stop again at once.
         let moving = Frame::fd(CanId::extended(0x100).unwrap(), &[0x21, 0x00, 0x0a]).unwrap();
-        d.observe(0, &reply(&moving).unwrap());
+        d.observe(DeviceId(0), &reply(&moving).unwrap());
         assert_eq!(d.poll_transmit(), Some(stop));
-        assert_eq!(d.polls[&0].resumed, 1);
+        assert_eq!(d.polls[&DeviceId(0)].resumed, 1);
         // Stopped: no second stop at once; past the watchdog, each poll.
         let stopped = Frame::fd(CanId::extended(0x100).unwrap(), &[0x21, 0x00, 0x00]).unwrap();
-        d.observe(0, &reply(&stopped).unwrap());
+        d.observe(DeviceId(0), &reply(&stopped).unwrap());
         assert_eq!(d.poll_transmit(), None);
         d.polls_due(ms(400));
         assert_eq!(d.poll_transmit(), Some(stop));
         assert_eq!(d.deadline(), Some(ms(420)));
         // Unanswered: sent again once, then given up.
-        d.send(ms(80), 0, &position(0.2)).unwrap();
+        d.send(ms(80), DeviceId(0), &position(0.2)).unwrap();
         d.poll_transmit();
         assert_eq!(d.timeouts(ms(180)), []);
         assert!(d.poll_transmit().is_some());
@@ -804,8 +805,8 @@ mod hold_tests {
 
     fn driver() -> MoteusDriver {
         let mut d = MoteusDriver::new(Duration::from_millis(100), 1);
-        d.poll_every(0, 1, 0, Duration::from_millis(20));
-        d.bounds_settled(0);
+        d.poll_every(DeviceId(0), 1, 0, Duration::from_millis(20));
+        d.bounds_settled(DeviceId(0));
         d
     }
 
@@ -837,9 +838,9 @@ mod hold_tests {
     #[test]
     fn new_limits_make_a_held_move_still_and_cap_its_torque() {
         let mut d = driver();
-        d.send(Duration::ZERO, 0, &hip_to_50()).unwrap();
+        d.send(Duration::ZERO, DeviceId(0), &hip_to_50()).unwrap();
         d.poll_transmit();
-        d.acknowledged(0, Duration::from_millis(1));
+        d.acknowledged(DeviceId(0), Duration::from_millis(1));
         // The frame's f32 of 50/360 revolution.
         #[allow(clippy::cast_possible_truncation)]
         let fifty = f64::from((50.0f64 / 360.0) as f32);
@@ -851,16 +852,17 @@ mod hold_tests {
             max_velocity: Some(60.0),
             max_torque: Some(2.0),
         };
-        d.limits_changed(0, &allow);
+        d.limits_changed(DeviceId(0), &allow);
         assert_eq!(written(&poll(&mut d, 40)), (Some(fifty), Some(2.0)));
         // Found by a hostile test: the next move (a trajectory's segment)
         // went out with the old torque limit.
-        d.send(Duration::from_millis(45), 0, &hip_to_50()).unwrap();
+        d.send(Duration::from_millis(45), DeviceId(0), &hip_to_50())
+            .unwrap();
         assert_eq!(written(&d.poll_transmit().unwrap()).1, Some(2.0));
-        d.acknowledged(0, Duration::from_millis(46));
+        d.acknowledged(DeviceId(0), Duration::from_millis(46));
         // Limits that do not: held where it stands.
         d.limits_changed(
-            0,
+            DeviceId(0),
             &crate::device::InForce {
                 max_position: Some(20.0),
                 ..allow
@@ -877,15 +879,16 @@ mod hold_tests {
     #[test]
     fn a_move_given_up_or_forgotten_is_held_still() {
         let mut d = driver();
-        d.send(Duration::ZERO, 0, &hip_to_50()).unwrap();
+        d.send(Duration::ZERO, DeviceId(0), &hip_to_50()).unwrap();
         d.poll_transmit();
         assert_eq!(d.timeouts(Duration::from_millis(100)), []);
         d.poll_transmit();
         assert_eq!(d.timeouts(Duration::from_millis(200)).len(), 1);
         assert!(written(&poll(&mut d, 220)).0.unwrap().is_nan());
-        d.send(Duration::from_millis(230), 0, &hip_to_50()).unwrap();
+        d.send(Duration::from_millis(230), DeviceId(0), &hip_to_50())
+            .unwrap();
         d.poll_transmit();
-        d.forget(0);
+        d.forget(DeviceId(0));
         assert!(written(&poll(&mut d, 260)).0.unwrap().is_nan());
     }
 }

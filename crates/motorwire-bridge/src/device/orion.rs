@@ -36,7 +36,7 @@ use motorwire_orion::{ArmCommand, Motor, MotorValues, Output};
 use motorwire_translate::BusMap;
 use motorwire_wia::MotorFeedback;
 
-use super::{Ended, OrionOrder, Outcome};
+use super::{DeviceId, Ended, OrionOrder, Outcome};
 
 /// The node id the bridge gives Orion motors: beyond CAN's 11 bits, so no
 /// frame is ever taken for theirs.
@@ -74,7 +74,7 @@ struct Pending {
     msg_id: u32,
     /// The devices whose steps it carries (none: a poll, or a line whose
     /// steps were given up).
-    joints: Vec<usize>,
+    joints: Vec<DeviceId>,
     line: String,
     /// The mode of the answer that acknowledges it.
     mode: u8,
@@ -88,7 +88,7 @@ struct Pending {
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Done {
     pub(crate) msg_id: u32,
-    pub(crate) joints: Vec<usize>,
+    pub(crate) joints: Vec<DeviceId>,
     pub(crate) outcome: Outcome,
     pub(crate) attempts: u8,
 }
@@ -252,7 +252,7 @@ impl OrionDriver {
 
     /// Device `ji`'s step was given up: the answer to the line in flight
     /// no longer acknowledges it.
-    pub(crate) fn forget(&mut self, ji: usize) {
+    pub(crate) fn forget(&mut self, ji: DeviceId) {
         if let Some(p) = self.pending.as_mut() {
             p.joints.retain(|&k| k != ji);
         }
@@ -265,8 +265,8 @@ impl OrionDriver {
     /// out, or sent again, may have run, and stays.
     pub(crate) fn take_back_unsent(
         &mut self,
-        picked: impl Fn(usize) -> bool,
-    ) -> Option<Vec<usize>> {
+        picked: impl Fn(DeviceId) -> bool,
+    ) -> Option<Vec<DeviceId>> {
         let p = self.pending.as_ref()?;
         if p.attempts.sent() != 1 || p.joints.is_empty() || !p.joints.iter().all(|&ji| picked(ji)) {
             return None;
@@ -309,7 +309,7 @@ impl OrionDriver {
     /// Writes one line for `orders` (devices and their orders, all of one
     /// kind: values to set, or one command) and awaits its answer. Returns
     /// the line's number.
-    pub(crate) fn send(&mut self, now: Duration, orders: &[(usize, OrionOrder)]) -> u32 {
+    pub(crate) fn send(&mut self, now: Duration, orders: &[(DeviceId, OrionOrder)]) -> u32 {
         let first = orders
             .first()
             .map_or(OrionOrder::Command(ArmCommand::Stop), |&(_, o)| o);
@@ -613,7 +613,10 @@ key = "TRM"
         let m = map();
         let out = d.read(Duration::ZERO, r#"{"ID":32}"#, false).unwrap();
         d.apply(Duration::ZERO, &out, &m, 0.0);
-        let id = d.send(MS, &[(3, OrionOrder::Set(Motor::Turntable, 200.0))]);
+        let id = d.send(
+            MS,
+            &[(DeviceId(3), OrionOrder::Set(Motor::Turntable, 200.0))],
+        );
         assert_eq!(lines(&mut d), [r#"{"ID":32,"MODE":1,"DATA":{"TRM":200}}"#]);
         assert!(!d.free());
         let fb = d
@@ -628,7 +631,7 @@ key = "TRM"
             a.done,
             Some(Done {
                 msg_id: id,
-                joints: vec![3],
+                joints: vec![DeviceId(3)],
                 outcome: Outcome::Acked,
                 attempts: 1
             })
@@ -636,7 +639,10 @@ key = "TRM"
         assert_eq!(a.feedback.len(), 1);
         assert_eq!(a.feedback[0].motor_id, "turntable");
         // The same value again is not sent; the line is an empty DATA.
-        d.send(3 * MS, &[(3, OrionOrder::Set(Motor::Turntable, 200.0))]);
+        d.send(
+            3 * MS,
+            &[(DeviceId(3), OrionOrder::Set(Motor::Turntable, 200.0))],
+        );
         assert_eq!(lines(&mut d), [r#"{"ID":32,"MODE":1,"DATA":{}}"#]);
     }
 
@@ -650,7 +656,7 @@ key = "TRM"
         d.apply(Duration::ZERO, &out, &m, 0.0);
         let id = d.send(
             Duration::ZERO,
-            &[(1, OrionOrder::Set(Motor::Turntable, 50.0))],
+            &[(DeviceId(1), OrionOrder::Set(Motor::Turntable, 50.0))],
         );
         lines(&mut d);
         assert_eq!(d.expire(100 * MS), None);
@@ -660,7 +666,7 @@ key = "TRM"
             d.expire(300 * MS),
             Some(Done {
                 msg_id: id,
-                joints: vec![1],
+                joints: vec![DeviceId(1)],
                 outcome: Outcome::TimedOut,
                 attempts: 3
             })

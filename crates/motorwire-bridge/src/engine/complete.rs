@@ -22,7 +22,7 @@ impl Bridge {
         // is what a stream does: no failure.
         let stream = job.line.as_ref().is_some_and(|l| l.stream);
         // Only a reset needs every joint it moved.
-        let moved_joints: Vec<usize> = if job.kind == JobKind::Reset {
+        let moved_joints: Vec<DeviceId> = if job.kind == JobKind::Reset {
             job.axes.iter().map(|a| a.joint).collect()
         } else {
             Vec::new()
@@ -103,7 +103,7 @@ impl Bridge {
 
     /// A reset's job ended: the `joints` it moved are no longer resetting,
     /// and need no reset once it all went (`ok`).
-    fn reset_done(&mut self, joints: &[usize], ok: bool) {
+    fn reset_done(&mut self, joints: &[DeviceId], ok: bool) {
         for a in joints {
             if let Some(j) = self.joints.get_mut(*a) {
                 j.resetting = false;
@@ -205,7 +205,7 @@ impl Bridge {
             None => format!("a later segment did not go: {said}"),
         };
         let mut w = self.watch_of(meta, targets, since);
-        for (ji, j) in self.joints.iter().enumerate() {
+        for (ji, j) in self.joints.with_ids() {
             if let Some((pos, vel)) = j.motion
                 && w.axes.iter().any(|a| a.joint == ji)
             {

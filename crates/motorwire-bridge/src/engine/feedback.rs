@@ -6,7 +6,7 @@ impl Bridge {
     /// Joint `ji` faulted or rebooted (`why`): said with `event`, and
     /// everything waiting for it is cancelled; nothing but a reset line is
     /// sent to it from now on.
-    pub(super) fn joint_lost(&mut self, ji: usize, why: String, event: Event) {
+    pub(super) fn joint_lost(&mut self, ji: DeviceId, why: String, event: Event) {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
@@ -38,7 +38,7 @@ impl Bridge {
     /// executed once the device stands at its target.
     pub(super) fn reading(
         &mut self,
-        ji: usize,
+        ji: DeviceId,
         at: Duration,
         motion: Option<(f64, f64)>,
         feedback: Option<MotorFeedback>,
@@ -110,7 +110,7 @@ impl Bridge {
     /// Joint `ji` reported its lifecycle `state` (with `code`, its error
     /// code): it is active or not; a fault, or a reboot the bridge did not
     /// ask for, loses it until a reset.
-    pub(super) fn lifecycle(&mut self, ji: usize, state: LifecycleState, code: u16) {
+    pub(super) fn lifecycle(&mut self, ji: DeviceId, state: LifecycleState, code: u16) {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
@@ -140,7 +140,7 @@ impl Bridge {
 
     /// Device `ji` was heard from at `at`; online, if it was not, when
     /// its link is `up`.
-    pub(super) fn heard(&mut self, ji: usize, at: Duration, up: bool) {
+    pub(super) fn heard(&mut self, ji: DeviceId, at: Duration, up: bool) {
         if let Some(j) = self.joints.get_mut(ji) {
             j.last_heard = Some(at.max(j.last_heard.unwrap_or(Duration::ZERO)));
             if up && !j.online {
@@ -161,7 +161,7 @@ impl Bridge {
 
     pub(super) fn emit_feedback(&mut self, now: Duration) {
         let ts = self.unix_ms(now);
-        for j in &self.joints {
+        for j in self.joints.iter() {
             // Degrees: how close counts as there, and how slow as at rest.
             let tolerance = self
                 .map

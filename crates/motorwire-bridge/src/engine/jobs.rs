@@ -126,7 +126,7 @@ impl Bridge {
     /// the newer step (it starts at its time).
     pub(super) fn supersede(
         &mut self,
-        ji: usize,
+        ji: DeviceId,
         stream: bool,
         replaces: bool,
         timed: bool,
@@ -201,7 +201,7 @@ impl Bridge {
     /// not arrive (superseded by `line`), and a sequential line whose axis
     /// on it was sent and has not arrived ends at once
     /// ([`Self::end_sequences_on`]).
-    pub(super) fn taken(&mut self, ji: usize, by: u64, line: Option<LineRef>) {
+    pub(super) fn taken(&mut self, ji: DeviceId, by: u64, line: Option<LineRef>) {
         if let Some(j) = self.joints.get_mut(ji) {
             j.moved_by = line;
         }
@@ -217,7 +217,7 @@ impl Bridge {
     /// arrival (and those waiting for them) are not sent, at once (not
     /// when the arrival's time runs out), and leave their devices' queues;
     /// the line then ends, and its completion says it was superseded.
-    pub(super) fn end_sequences_on(&mut self, ji: usize, by: u64, line: LineRef) {
+    pub(super) fn end_sequences_on(&mut self, ji: DeviceId, by: u64, line: LineRef) {
         let (number, origin) = (line.line, line.origin.0);
         let mut ended: Vec<StepRef> = Vec::new();
         for (&id, job) in self.jobs.iter_mut() {
@@ -264,7 +264,7 @@ impl Bridge {
             }
         }
         for step in ended {
-            for j in &mut self.joints {
+            for j in self.joints.iter_mut() {
                 j.queue.retain(|s| *s != step);
             }
         }
@@ -277,7 +277,7 @@ impl Bridge {
     /// never sent again, its outcome unknown (its first sending may have
     /// been taken).
     pub(super) fn withdraw_stale_resends(&mut self, now: Duration) {
-        for ji in 0..self.joints.len() {
+        for ji in self.joints.ids() {
             let Some(step) = self.joints.get(ji).and_then(|j| j.busy) else {
                 continue;
             };
@@ -322,7 +322,7 @@ impl Bridge {
     /// where the device is now, leaves the limits in force (`None` when
     /// it stays within them, or nothing is known to plan from: the
     /// device's own check stands).
-    pub(super) fn path_at_send(&self, ji: usize, order: &Order) -> Option<String> {
+    pub(super) fn path_at_send(&self, ji: DeviceId, order: &Order) -> Option<String> {
         let j = self.joints.get(ji)?;
         let from = j.state_at(self.now)?;
         // Checked already when its line came, this instant, from there.
@@ -343,7 +343,7 @@ impl Bridge {
 
     /// The step at the front of device `ji`'s queue, if none of its
     /// steps is in flight.
-    pub(super) fn waiting_front(&self, ji: usize) -> Option<StepRef> {
+    pub(super) fn waiting_front(&self, ji: DeviceId) -> Option<StepRef> {
         let j = self.joints.get(ji)?;
         if j.busy.is_some() {
             return None;
@@ -352,7 +352,7 @@ impl Bridge {
     }
 
     /// Sends the next waiting step of joint `ji` if none is in flight.
-    pub(super) fn pump(&mut self, ji: usize) {
+    pub(super) fn pump(&mut self, ji: DeviceId) {
         let now = self.now;
         loop {
             let Some(front) = self.waiting_front(ji) else {
@@ -447,7 +447,7 @@ impl Bridge {
 
     /// Joint `ji` is at `position` moving at `velocity` (degrees): the
     /// sequential axes on it that have arrived let the next ones go.
-    pub(super) fn sequence_progress(&mut self, ji: usize, position: f64, velocity: f64) {
+    pub(super) fn sequence_progress(&mut self, ji: DeviceId, position: f64, velocity: f64) {
         let mut freed = Vec::new();
         for (&id, job) in self.jobs.iter_mut() {
             if !job.sequential {
@@ -456,7 +456,7 @@ impl Bridge {
             }
             // (the axis waited for, and the one waiting: its device, its
             // step, whether it is a position move)
-            let waited: Vec<(usize, usize, StepRef, bool)> = job
+            let waited: Vec<(usize, DeviceId, StepRef, bool)> = job
                 .axes
                 .iter()
                 .enumerate()
@@ -507,7 +507,13 @@ impl Bridge {
 
     /// Sends the next payload of `step`; returns whether a request is now in
     /// flight for it.
-    pub(super) fn send_step(&mut self, now: Duration, ji: usize, node: u16, step: StepRef) -> bool {
+    pub(super) fn send_step(
+        &mut self,
+        now: Duration,
+        ji: DeviceId,
+        node: u16,
+        step: StepRef,
+    ) -> bool {
         let payload = match self.next_payload(now, ji, step) {
             ControlFlow::Continue(payload) => payload,
             ControlFlow::Break(in_flight) => return in_flight,
@@ -541,7 +547,7 @@ impl Bridge {
     fn next_payload(
         &mut self,
         now: Duration,
-        ji: usize,
+        ji: DeviceId,
         step: StepRef,
     ) -> ControlFlow<bool, Order> {
         let Some(a) = axis_mut(&mut self.jobs, step) else {
@@ -588,7 +594,7 @@ impl Bridge {
     fn mark_in_flight(
         &mut self,
         now: Duration,
-        ji: usize,
+        ji: DeviceId,
         step: StepRef,
         payload: Order,
     ) -> Option<bool> {
@@ -616,7 +622,7 @@ impl Bridge {
     /// free). Whether it is in flight.
     fn after_send(
         &mut self,
-        ji: usize,
+        ji: DeviceId,
         step: StepRef,
         payload: Order,
         sent: Result<u32, DeviceError>,
@@ -649,7 +655,7 @@ impl Bridge {
 
     /// The request in flight for device `ji` ended as `c` says (any
     /// driver's).
-    pub(super) fn step_done(&mut self, ji: usize, c: Ended) {
+    pub(super) fn step_done(&mut self, ji: DeviceId, c: Ended) {
         let Some(step) = self.joints.get_mut(ji).and_then(|j| j.busy.take()) else {
             return;
         };
@@ -702,7 +708,7 @@ impl Bridge {
     /// `step`'s request in flight on device `ji` ended as `c` says: its
     /// axis queued again, or finished as the answer says; `None` when the
     /// step had nothing in flight.
-    fn end_request(&mut self, ji: usize, step: StepRef, c: &Ended) -> Option<RequestEnded> {
+    fn end_request(&mut self, ji: DeviceId, step: StepRef, c: &Ended) -> Option<RequestEnded> {
         let job = self.jobs.get_mut(&step.job)?;
         let (kind, line) = (job.kind, job.line_ref());
         let a = job.axes.get_mut(step.axis)?;
@@ -728,7 +734,7 @@ impl Bridge {
 
     /// A request to device `ji` never answered (`e`): a command's target
     /// left unresolved, and the joint offline (its watches failed).
-    fn never_answered(&mut self, ji: usize, e: &RequestEnded) {
+    fn never_answered(&mut self, ji: DeviceId, e: &RequestEnded) {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
@@ -790,7 +796,7 @@ impl Bridge {
     /// ([`Order::effect`]): its lifecycle, a move's target and (as
     /// planned from the last feedback) when it ends, the deadman of a
     /// setpoint it holds.
-    pub(super) fn track(&mut self, ji: usize, order: Order, at: Duration) {
+    pub(super) fn track(&mut self, ji: DeviceId, order: Order, at: Duration) {
         let Some(j) = self.joints.get(ji) else { return };
         // A line that leaves it inactive again waits behind this order
         // (looked for only behind an Activate: every ack comes here).
@@ -940,7 +946,7 @@ impl Bridge {
     pub(super) fn send_together(
         &mut self,
         now: Duration,
-        ji: usize,
+        ji: DeviceId,
         step: StepRef,
         order: Order,
     ) -> Result<u32, DeviceError> {
@@ -949,7 +955,7 @@ impl Bridge {
         }
         let mut orders = vec![(ji, order)];
         let mut others = Vec::new();
-        for k in 0..self.joints.len() {
+        for k in self.joints.ids() {
             if k == ji {
                 continue;
             }

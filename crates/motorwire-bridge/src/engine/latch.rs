@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-use crate::device::Lifecycle;
+use crate::device::{DeviceId, Lifecycle};
 use crate::output::Refusal;
 
 /// The stop's state; see the module's documentation.
@@ -28,7 +28,7 @@ pub(super) struct StopLatch {
     line_arrived: Option<Duration>,
     /// For each joint, what the release sends it (those active, or being
     /// started, when the stop came).
-    resume: BTreeMap<usize, Vec<Lifecycle>>,
+    resume: BTreeMap<DeviceId, Vec<Lifecycle>>,
 }
 
 impl StopLatch {
@@ -62,7 +62,7 @@ impl StopLatch {
     /// The stop latches, the release to bring back `resume` (each joint's
     /// steps). A stop over a stop still latched keeps what the first had
     /// to bring back, and adds this one's.
-    pub(super) fn latch(&mut self, resume: impl IntoIterator<Item = (usize, Vec<Lifecycle>)>) {
+    pub(super) fn latch(&mut self, resume: impl IntoIterator<Item = (DeviceId, Vec<Lifecycle>)>) {
         if !self.latched {
             self.resume.clear();
         }
@@ -72,7 +72,7 @@ impl StopLatch {
 
     /// The release: what it brings back, each joint's steps (`None`: there
     /// is no stop to release).
-    pub(super) fn release(&mut self) -> Option<BTreeMap<usize, Vec<Lifecycle>>> {
+    pub(super) fn release(&mut self) -> Option<BTreeMap<DeviceId, Vec<Lifecycle>>> {
         if !self.latched {
             return None;
         }
@@ -129,18 +129,24 @@ mod tests {
         let mut l = StopLatch::default();
         assert!(!l.is_latched());
         assert_eq!(l.release(), None, "nothing to release");
-        l.latch([(0, vec![Lifecycle::Activate])]);
+        l.latch([(DeviceId::at(0), vec![Lifecycle::Activate])]);
         // A second stop over the first adds, never forgets.
-        l.latch([(2, vec![Lifecycle::Configure, Lifecycle::Activate])]);
+        l.latch([(
+            DeviceId::at(2),
+            vec![Lifecycle::Configure, Lifecycle::Activate],
+        )]);
         assert!(l.is_latched());
         let back = l.release().unwrap();
-        assert_eq!(back.keys().copied().collect::<Vec<_>>(), [0, 2]);
+        assert_eq!(
+            back.keys().copied().collect::<Vec<_>>(),
+            [DeviceId::at(0), DeviceId::at(2)]
+        );
         assert!(!l.is_latched());
         // A fresh stop after a release starts afresh.
-        l.latch([(1, vec![Lifecycle::Activate])]);
+        l.latch([(DeviceId::at(1), vec![Lifecycle::Activate])]);
         assert_eq!(
             l.release().unwrap().keys().copied().collect::<Vec<_>>(),
-            [1]
+            [DeviceId::at(1)]
         );
     }
 

@@ -15,7 +15,7 @@ impl Bridge {
             return;
         }
         let mut brake = Vec::new();
-        for (ji, j) in self.joints.iter().enumerate() {
+        for (ji, j) in self.joints.with_ids() {
             let Some((at, limit_name, limit)) = self.brake_due(j) else {
                 continue;
             };

@@ -10,7 +10,7 @@ impl Bridge {
         self.drain_drivers();
         let jobs = &self.jobs;
         let joints = &self.joints;
-        let busy = |k: usize| {
+        let busy = |k: DeviceId| {
             joints.get(k).is_some_and(|j| {
                 j.busy.is_some()
                     || j.queue
@@ -58,8 +58,7 @@ impl Bridge {
         let meta = meta.labelled(Label::Orion(name.to_owned()));
         let axes: Vec<Axis> = self
             .joints
-            .iter()
-            .enumerate()
+            .with_ids()
             .filter_map(|(ji, j)| {
                 let order = j.device.arm_order(command)?;
                 Some(Axis::of(j.name.clone(), ji, [order]))
@@ -114,7 +113,7 @@ impl Bridge {
         needs_to: Capability,
         needs: PayloadKind,
         what: &str,
-    ) -> Result<usize, Refusal> {
+    ) -> Result<DeviceId, Refusal> {
         let Some(ji) = self.joint_index(motor).filter(|&ji| {
             self.joints
                 .get(ji)
@@ -210,13 +209,13 @@ impl Bridge {
         self.open_waiting(now, meta, (motor, ji), payload, kind, deadline);
     }
 
-    /// Line `meta`'s request `payload` to `device` (its name and index),
+    /// Line `meta`'s request `payload` to `device` (its name and id),
     /// whose result waits for its answer of `kind` until `deadline`.
     pub(super) fn open_waiting(
         &mut self,
         now: Duration,
         meta: LineMeta,
-        device: (&str, usize),
+        device: (&str, DeviceId),
         payload: Payload,
         kind: AwaitKind,
         deadline: Duration,
@@ -239,7 +238,7 @@ impl Bridge {
     /// Device `ji` answered what a request line may wait for: progress
     /// is reported, and the oldest line waiting for this from this device
     /// gets its data.
-    pub(super) fn answered(&mut self, ji: usize, answer: Answer) {
+    pub(super) fn answered(&mut self, ji: DeviceId, answer: Answer) {
         let (kind, data, error) = match answer {
             Answer::Progress(e) => {
                 self.out.push_back(Output::Event(e));
@@ -363,7 +362,7 @@ impl Bridge {
     /// The link to `devices` is lost: they are offline (`why`), no
     /// deadman watches them, and lines waiting on them will not arrive
     /// (`arrival`); what waits for them is not sent.
-    pub(super) fn link_lost(&mut self, devices: &[usize], why: &str, arrival: &str) {
+    pub(super) fn link_lost(&mut self, devices: &[DeviceId], why: &str, arrival: &str) {
         for &ji in devices {
             if let Some(j) = self.joints.get_mut(ji) {
                 j.deadman = None;

@@ -40,15 +40,15 @@ use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Line, MotorAction, RequestKind, classify};
 use crate::clocks::ClockOffsets;
 use crate::device::{
-    Answer, Capability, Context, Device, DeviceError, Drivers, Ended, Happened, InForce, Lifecycle,
-    MotorOrder, Moving, Outcome,
+    Answer, Capability, Context, Device, DeviceError, DeviceId, Drivers, Ended, Happened, InForce,
+    Lifecycle, MotorOrder, Moving, Outcome,
 };
 use crate::error::BridgeError;
 use crate::job::{
     AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, Jobs, LineMeta, Order,
     REPLACED_TRAJECTORY, Rider, axis_mut,
 };
-use crate::joints::{Joint, StepRef, Unresolved};
+use crate::joints::{Joint, Joints, StepRef, Unresolved};
 use crate::output::{
     BridgeState, ErrorKind, Event, FeedbackLine, Label, LineRef, LineResult, MotorState, Origin,
     Output, Refusal, StepOutcome, StepReport, Wider, shortest,
@@ -362,7 +362,7 @@ pub struct Bridge {
     /// One driver per dialect: every request in flight, every frame and
     /// line to send.
     drivers: Drivers,
-    joints: Vec<Joint>,
+    joints: Joints,
     jobs: Jobs,
     next_job: u64,
     waiting: VecDeque<Waiting>,
@@ -388,7 +388,7 @@ pub struct Bridge {
     done_scratch: Vec<u64>,
     /// [`Bridge::open_job`]'s list of the steps it queues, kept between
     /// jobs.
-    steps_scratch: Vec<(usize, StepRef, Option<Takes>)>,
+    steps_scratch: Vec<(DeviceId, StepRef, Option<Takes>)>,
     /// Clients that connected during startup, greeted when it ends.
     to_greet: Vec<Origin>,
     timers: Timers,
@@ -525,13 +525,14 @@ impl Bridge {
         // bits), whatever the map holds.
         motorwire_can::client::Client::new(config.client)?;
         Self::check_map(&map)?;
-        let joints: Vec<Joint> = map
-            .motors()
-            .filter_map(|m| {
-                let (node, device) = Device::of(m, config.orion)?;
-                Some(Joint::of(m, node, device))
-            })
-            .collect();
+        let joints = Joints::new(
+            map.motors()
+                .filter_map(|m| {
+                    let (node, device) = Device::of(m, config.orion)?;
+                    Some(Joint::of(m, node, device))
+                })
+                .collect(),
+        );
         if joints.is_empty() {
             return Err(BridgeError::NoJoints);
         }
@@ -544,7 +545,7 @@ impl Bridge {
         // The map's limits are in force from the start: a driver that
         // sends by itself, and a device that holds bounds of its own,
         // follow them.
-        for (ji, j) in joints.iter().enumerate() {
+        for (ji, j) in joints.with_ids() {
             if let Some(m) = map.motor(&j.name) {
                 drivers.limits_changed(ji, &InForce::of(m.unit, &m.limits));
             }

@@ -131,7 +131,7 @@ impl Bridge {
 
     /// Whether joint `ji` stands at trajectory `t`'s first waypoint
     /// (within its arrival tolerance).
-    fn check_at_start(&self, ji: usize, t: &Trajectory) -> Result<(), Refusal> {
+    fn check_at_start(&self, ji: DeviceId, t: &Trajectory) -> Result<(), Refusal> {
         let (unit, tolerance) = self
             .map
             .motor(&t.motor_id)
@@ -161,7 +161,7 @@ impl Bridge {
     fn segment_axis(
         &self,
         t: &Trajectory,
-        ji: usize,
+        ji: DeviceId,
         plan: &motorwire_translate::TrajectoryPlan,
         start: Duration,
     ) -> Axis {
@@ -204,7 +204,7 @@ impl Bridge {
     /// motor's unit) would not allow: what it is, said for a person.
     pub(super) fn motion_outside(
         &self,
-        ji: usize,
+        ji: DeviceId,
         lo: f64,
         hi: f64,
         max_v: Option<f64>,
@@ -410,8 +410,8 @@ impl Bridge {
         };
     }
 
-    pub(super) fn joint_index(&self, motor: &str) -> Option<usize> {
-        self.joints.iter().position(|j| j.name == motor)
+    pub(super) fn joint_index(&self, motor: &str) -> Option<DeviceId> {
+        self.joints.find(|j| j.name == motor)
     }
 
     pub(super) fn motor_command(&mut self, now: Duration, meta: LineMeta, cmd: &mut MotorCommand) {
@@ -492,7 +492,7 @@ impl Bridge {
     /// state (and with the other joints of a multi-axis line).
     pub(super) fn single_axis(
         &self,
-        ji: usize,
+        ji: DeviceId,
         device: Device,
         cmd: &MotorCommand,
     ) -> Option<Result<(Axis, Report), motorwire_translate::Refusal>> {
@@ -660,7 +660,7 @@ impl Bridge {
     }
 
     /// Keeps the plan [`planned_within_limits`] made for `joint`'s move.
-    pub(super) fn keep_plan(&mut self, joint: usize, planned: Option<Plan>) {
+    pub(super) fn keep_plan(&mut self, joint: DeviceId, planned: Option<Plan>) {
         let now = self.now;
         if let Some(j) = self.joints.get_mut(joint) {
             let (planned, profile) = planned.unzip();

@@ -92,7 +92,7 @@ impl Bridge {
     /// no torque to keep on, and nothing to stop: refused.
     fn planned_hold(
         &mut self,
-        ji: usize,
+        ji: DeviceId,
         motor: &str,
         unit: AngleUnit,
         limits: &Limits,
@@ -124,7 +124,7 @@ impl Bridge {
     /// not, said for a person.
     pub(super) fn hold_move(
         &mut self,
-        ji: usize,
+        ji: DeviceId,
         motor: &str,
         unit: AngleUnit,
         limits: &Limits,
@@ -220,7 +220,7 @@ impl Bridge {
     /// What waits for joint `ji` from command lines, given up for a motor
     /// line (its results say so), and a trajectory running on it stopped
     /// from sending more: nothing older moves it after the motor line.
-    pub(super) fn give_up_for_motor_line(&mut self, ji: usize, action: MotorAction) {
+    pub(super) fn give_up_for_motor_line(&mut self, ji: DeviceId, action: MotorAction) {
         let why: &'static str = match action {
             MotorAction::Hold => "a hold of the motor came before it was sent: it was never sent",
             MotorAction::Free => "a free of the motor came before it was sent: it was never sent",

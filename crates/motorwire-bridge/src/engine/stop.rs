@@ -87,9 +87,9 @@ impl Bridge {
     /// What the release brings back: the joints active now, and those
     /// whose startup or release a stop now interrupts (the lifecycle steps
     /// it had yet to take).
-    fn to_resume(&self) -> Vec<(usize, Vec<Lifecycle>)> {
+    fn to_resume(&self) -> Vec<(DeviceId, Vec<Lifecycle>)> {
         let mut resume = Vec::new();
-        for (i, j) in self.joints.iter().enumerate() {
+        for (i, j) in self.joints.with_ids() {
             let starting = j.busy.iter().chain(j.queue.iter()).find_map(|s| {
                 let job = self.jobs.get(&s.job)?;
                 matches!(job.kind, JobKind::Startup | JobKind::Release).then(|| {
@@ -155,7 +155,7 @@ impl Bridge {
             reason: reason.to_owned(),
             cancelled,
         }));
-        for ji in 0..self.joints.len() {
+        for ji in self.joints.ids() {
             self.pump(ji);
         }
         self.finish_jobs();
@@ -171,17 +171,15 @@ impl Bridge {
         // waiting in poll_transmit's or poll_link_line's queue): taken
         // back, so what is cancelled never reaches a device after the
         // cancel (a stop goes ahead of them, not behind).
-        let picked = |b: &Bridge, ji: usize| {
+        let picked = |b: &Bridge, ji: DeviceId| {
             b.joints
                 .get(ji)
                 .and_then(|j| j.busy)
                 .is_some_and(|s| b.jobs.get(&s.job).is_some_and(&pick))
         };
-        let chosen: BTreeSet<usize> = (0..self.joints.len())
-            .filter(|&ji| picked(self, ji))
-            .collect();
+        let chosen: BTreeSet<DeviceId> = self.joints.ids().filter(|&ji| picked(self, ji)).collect();
         let unsent = self.drivers.take_back_unsent(&chosen);
-        for ji in 0..self.joints.len() {
+        for ji in self.joints.ids() {
             let Some(joint) = self.joints.get_mut(ji) else {
                 continue;
             };
@@ -230,11 +228,11 @@ impl Bridge {
     /// `touched`.
     fn cancel_busy(
         &mut self,
-        ji: usize,
+        ji: DeviceId,
         s: StepRef,
         why: &str,
         taken_back: bool,
-        maybe_held: &mut Vec<(usize, Order)>,
+        maybe_held: &mut Vec<(DeviceId, Order)>,
         touched: &mut Vec<LineRef>,
     ) {
         let Some(job) = self.jobs.get_mut(&s.job) else {
@@ -290,8 +288,7 @@ impl Bridge {
             .collect();
         let left_inactive = self
             .joints
-            .iter()
-            .enumerate()
+            .with_ids()
             .filter(|(i, j)| !resume.contains_key(i) && j.device.supports(Capability::Lifecycle))
             .map(|(_, j)| j.name.clone())
             .collect();
@@ -319,15 +316,14 @@ impl Bridge {
     /// `payloads`, in order, for every joint.
     pub(super) fn every_joint(&self, steps: &[Lifecycle]) -> Vec<Axis> {
         self.joints
-            .iter()
-            .enumerate()
+            .with_ids()
             .map(|(i, j)| Axis::of(j.name.clone(), i, self.orders_for(i, steps)))
             .collect()
     }
 
     /// Lifecycle `payloads` as device `ji` takes them
     /// ([`Device::lifecycle_orders`]).
-    pub(super) fn orders_for(&self, ji: usize, steps: &[Lifecycle]) -> Vec<Order> {
+    pub(super) fn orders_for(&self, ji: DeviceId, steps: &[Lifecycle]) -> Vec<Order> {
         let now_ms = self.unix_ms(self.now) as u64;
         self.joints
             .get(ji)
@@ -345,7 +341,7 @@ impl Bridge {
         // (one armed by an answer that came after the stop) has nothing
         // to stop, and nothing but stops goes out.
         if self.stop.is_latched() {
-            for j in &mut self.joints {
+            for j in self.joints.iter_mut() {
                 j.deadman = None;
             }
             return;
@@ -377,7 +373,7 @@ impl Bridge {
     /// to a stop, velocity 0, as the deadman does; `timed_out`: it is the
     /// deadman, and an event says so (at the end of input the `stopping`
     /// event does).
-    pub(super) fn hold_still(&mut self, now: Duration, which: Vec<usize>, timed_out: bool) {
+    pub(super) fn hold_still(&mut self, now: Duration, which: Vec<DeviceId>, timed_out: bool) {
         let now_ms = self.unix_ms(now) as u64;
         for ji in which {
             let Some(j) = self.joints.get_mut(ji) else {
@@ -405,7 +401,7 @@ impl Bridge {
     pub(super) fn stop_setpoint(
         &mut self,
         now: Duration,
-        ji: usize,
+        ji: DeviceId,
         order: Order,
         event: Option<Event>,
     ) {
@@ -477,7 +473,7 @@ impl Bridge {
     /// times and still contradicted: when in doubt, stop (the emergency
     /// stop). (A velocity 0 lost on a device held still by a torque against
     /// something shows nothing to judge by: the deadman is what stops it.)
-    pub(super) fn confirm_stop(&mut self, ji: usize, at: Duration) {
+    pub(super) fn confirm_stop(&mut self, ji: DeviceId, at: Duration) {
         // (Every feedback comes here: nothing is looked up for a device
         // with no stop to judge.)
         if self
@@ -555,7 +551,7 @@ impl Bridge {
     /// not answered, or contradicted by its feedback) sent again, with
     /// `now`'s timestamp; the [`MAX_STOP_RESENDS`]-th time, when in doubt,
     /// the emergency stop instead (latched already: nothing more).
-    pub(super) fn stop_again(&mut self, ji: usize, order: Order, now: Duration, why: &str) {
+    pub(super) fn stop_again(&mut self, ji: DeviceId, order: Order, now: Duration, why: &str) {
         let now_ms = self.unix_ms(now) as u64;
         let latched = self.stop.is_latched();
         let Some(j) = self.joints.get_mut(ji) else {

@@ -22,7 +22,7 @@ impl Bridge {
         self.send_due_segments(now);
         self.finish_jobs();
         // Sequential axes whose predecessor is overdue give up.
-        for ji in 0..self.joints.len() {
+        for ji in self.joints.ids() {
             self.pump(ji);
         }
         self.finish_jobs();
@@ -95,7 +95,7 @@ impl Bridge {
     fn offline_timeouts(&mut self, now: Duration) {
         let offline_after = self.config.offline_after;
         let mut went_offline = Vec::new();
-        for (ji, j) in self.joints.iter_mut().enumerate() {
+        for (ji, j) in self.joints.with_ids_mut() {
             let since = j.last_heard.unwrap_or(Duration::ZERO);
             let silent = now.saturating_sub(since);
             if j.online && silent >= offline_after {

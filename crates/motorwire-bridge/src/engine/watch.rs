@@ -29,7 +29,7 @@ impl Bridge {
         }
         // Already there (a move to where it stands)?
         let mut done = false;
-        for (ji, j) in self.joints.iter().enumerate() {
+        for (ji, j) in self.joints.with_ids() {
             if let Some((pos, vel)) = j.motion
                 && w.axes.iter().any(|a| a.joint == ji)
             {
@@ -46,7 +46,7 @@ impl Bridge {
 
     /// Device `ji`'s part of a watch: `motor`'s move to `target`
     /// (degrees), within the map's arrival tolerance.
-    pub(super) fn watch_axis(&self, ji: usize, motor: String, target: f64) -> WatchAxis {
+    pub(super) fn watch_axis(&self, ji: DeviceId, motor: String, target: f64) -> WatchAxis {
         let (unit, tolerance) = self
             .joints
             .get(ji)
@@ -84,7 +84,7 @@ impl Bridge {
 
     /// Joint `ji` is at `position` moving at `velocity` (degrees): the
     /// lines that have now arrived are said so.
-    pub(super) fn observe(&mut self, ji: usize, position: f64, velocity: f64, at: Duration) {
+    pub(super) fn observe(&mut self, ji: DeviceId, position: f64, velocity: f64, at: Duration) {
         let mut i = 0;
         while let Some(w) = self.arrivals.get_mut(i) {
             if w.axes.iter().any(|a| a.joint == ji) && w.observe(ji, position, velocity, at) {
@@ -129,18 +129,17 @@ impl Bridge {
     /// Device `ji` was reported at `position` moving at `velocity`
     /// (degrees) at `at`, by any driver: the lines that have now arrived
     /// are said so, and sequential axes waiting on it may go.
-    pub(super) fn moved(&mut self, ji: usize, position: f64, velocity: f64, at: Duration) {
+    pub(super) fn moved(&mut self, ji: DeviceId, position: f64, velocity: f64, at: Duration) {
         if !self.arrivals.is_empty() {
             self.observe(ji, position, velocity, at);
         }
         self.sequence_progress(ji, position, velocity);
     }
 
-    /// The indices of the devices `pick` chooses.
-    pub(super) fn joints_where(&self, pick: impl Fn(&Joint) -> bool) -> Vec<usize> {
+    /// The devices `pick` chooses.
+    pub(super) fn joints_where(&self, pick: impl Fn(&Joint) -> bool) -> Vec<DeviceId> {
         self.joints
-            .iter()
-            .enumerate()
+            .with_ids()
             .filter(|(_, j)| pick(j))
             .map(|(i, _)| i)
             .collect()
