@@ -60,10 +60,8 @@ pub(crate) struct Joint {
     pub(crate) pace: Pace,
     pub(crate) last_heard: Option<Duration>,
     pub(crate) online: bool,
-    pub(crate) state: Option<LifecycleState>,
-    /// Whether the bridge last made it Active (its own acked Activate or
-    /// Deactivate, or the joint's JointStatus, whichever came last).
-    pub(crate) active: bool,
+    /// Where it is in its lifecycle, as the bridge knows it.
+    pub(crate) lifecycle: JointLifecycle,
     pub(crate) feedback: Option<MotorFeedback>,
     /// Its position and velocity (degrees) as last reported.
     pub(crate) motion: Option<(f64, f64)>,
@@ -118,15 +116,6 @@ pub(crate) struct Joint {
     /// How often that stop was sent again (back to 0 once another order
     /// is taken).
     pub(crate) stop_resends: u8,
-    /// A line left it inactive (`disabled`, `free`, `stop`): its next
-    /// command is preceded by an Activate (a joint inactive for any other
-    /// reason, a fault or a failed start, waits for a reset line).
-    pub(crate) freed: bool,
-    /// It faulted or rebooted (why): nothing but a reset line is sent to it.
-    pub(crate) needs_reset: Option<String>,
-    /// A Reset the bridge sent is under way (its `Unconfigured` is no
-    /// reboot).
-    pub(crate) resetting: bool,
     /// Its busy step (a trajectory's) sends its next payload then.
     pub(crate) wake: Option<Duration>,
     /// The last move the gate planned for it: from its kinematics, the
@@ -173,6 +162,111 @@ impl Pace {
             max_velocity: m.limits.max_velocity.map(|v| m.unit.to_degrees(v)),
             max_acceleration: m.limits.max_acceleration.map(|a| m.unit.to_degrees(a)),
             command_timeout: m.command_timeout,
+        }
+    }
+}
+
+/// Where a joint is in its lifecycle, as the bridge knows it: what it
+/// last reported, whether the bridge holds it active, whether a line left
+/// it inactive, whether it is lost until a reset, and whether a reset is
+/// under way. Changed only as each of these happens.
+#[derive(Debug)]
+pub(crate) struct JointLifecycle {
+    /// Its lifecycle state as its last JointStatus said.
+    state: Option<LifecycleState>,
+    /// Whether the bridge last made it Active (its own acked Activate or
+    /// Deactivate, or the joint's JointStatus, whichever came last).
+    active: bool,
+    /// A line left it inactive (`disabled`, `free`, `stop`): its next
+    /// command is preceded by an Activate (a joint inactive for any other
+    /// reason, a fault or a failed start, waits for a reset line).
+    freed: bool,
+    /// It faulted or rebooted (why): nothing but a reset line is sent to it.
+    needs_reset: Option<String>,
+    /// A Reset the bridge sent is under way (its `Unconfigured` is no
+    /// reboot).
+    resetting: bool,
+}
+
+impl JointLifecycle {
+    /// A joint's lifecycle before anything is heard of it: `active` as its
+    /// device starts.
+    fn new(active: bool) -> Self {
+        Self {
+            state: None,
+            active,
+            freed: false,
+            needs_reset: None,
+            resetting: false,
+        }
+    }
+
+    /// Its lifecycle state as its last JointStatus said.
+    pub(crate) fn state(&self) -> Option<LifecycleState> {
+        self.state
+    }
+
+    /// Whether the bridge holds it Active.
+    pub(crate) fn is_active(&self) -> bool {
+        self.active
+    }
+
+    /// Whether a line left it inactive (its next command activates it
+    /// first).
+    pub(crate) fn is_freed(&self) -> bool {
+        self.freed
+    }
+
+    /// Why it takes nothing but a reset (it faulted or rebooted), if so.
+    pub(crate) fn needs_reset(&self) -> Option<&str> {
+        self.needs_reset.as_deref()
+    }
+
+    /// Whether a Reset the bridge sent is under way.
+    pub(crate) fn is_resetting(&self) -> bool {
+        self.resetting
+    }
+
+    /// It reported `state`: active only when that is Active. Returns the
+    /// state reported before.
+    pub(crate) fn reported(&mut self, state: LifecycleState) -> Option<LifecycleState> {
+        self.active = state == LifecycleState::Active;
+        self.state.replace(state)
+    }
+
+    /// It faulted or rebooted (`why`): inactive, and lost until a reset.
+    pub(crate) fn lost(&mut self, why: String) {
+        self.needs_reset = Some(why);
+        self.active = false;
+    }
+
+    /// A line deactivates it: freed, if the bridge had it up (one never
+    /// started, or whose start failed, waits for a reset).
+    pub(crate) fn freed_by_a_line(&mut self) {
+        self.freed |= self.active;
+    }
+
+    /// An acked order made it `active` or not. Active again with no line
+    /// waiting to deactivate it (`deactivation_waits`), its next command
+    /// needs no Activate first.
+    pub(crate) fn made_active(&mut self, active: bool, deactivation_waits: bool) {
+        self.active = active;
+        if active && !deactivation_waits {
+            self.freed = false;
+        }
+    }
+
+    /// A Reset the bridge sent is under way.
+    pub(crate) fn reset_sent(&mut self) {
+        self.resetting = true;
+    }
+
+    /// The reset ended; `ok`: every part of it went, so it is no longer
+    /// lost.
+    pub(crate) fn reset_ended(&mut self, ok: bool) {
+        self.resetting = false;
+        if ok {
+            self.needs_reset = None;
         }
     }
 }
@@ -324,8 +418,7 @@ impl Joint {
             pace: Pace::default(),
             last_heard: None,
             online: device.online_at_start(),
-            state: None,
-            active: device.active_at_start(),
+            lifecycle: JointLifecycle::new(device.active_at_start()),
             feedback: None,
             motion: None,
             motion_at: None,
@@ -344,9 +437,6 @@ impl Joint {
             peak_accel: 0.0,
             unconfirmed_stop: None,
             stop_resends: 0,
-            freed: false,
-            needs_reset: None,
-            resetting: false,
             wake: None,
             planned: None,
             planned_profile: None,

@@ -354,10 +354,10 @@ impl Bridge {
         }
         if let Some(err) = motors.clone().find_map(|m| {
             let j = self.joints.get(self.joint_index(m)?)?;
-            let why = j.needs_reset.as_ref()?;
+            let why = j.lifecycle.needs_reset()?;
             Some(Refusal::NeedsReset {
                 motor: m.to_owned(),
-                why: why.clone(),
+                why: why.to_owned(),
             })
         }) {
             return Err(err);

@@ -106,10 +106,7 @@ impl Bridge {
     fn reset_done(&mut self, joints: &[DeviceId], ok: bool) {
         for a in joints {
             if let Some(j) = self.joints.get_mut(*a) {
-                j.resetting = false;
-                if ok {
-                    j.needs_reset = None;
-                }
+                j.lifecycle.reset_ended(ok);
             }
         }
     }

@@ -10,11 +10,10 @@ impl Bridge {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
-        if j.needs_reset.is_some() {
+        if j.lifecycle.needs_reset().is_some() {
             return;
         }
-        j.needs_reset = Some(why.clone());
-        j.active = false;
+        j.lifecycle.lost(why.clone());
         self.out.push_back(Output::Event(event));
         let because = format!("cancelled: the joint {why}");
         self.cancel_where(&because, |job| {
@@ -114,9 +113,7 @@ impl Bridge {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
-        let before = j.state;
-        j.state = Some(state);
-        j.active = state == LifecycleState::Active;
+        let before = j.lifecycle.reported(state);
         if state == LifecycleState::Error {
             let event = Event::JointFault {
                 motor_id: j.name.clone(),
@@ -125,7 +122,7 @@ impl Bridge {
             };
             self.joint_lost(ji, format!("faulted (error code {code})"), event);
         } else if state == LifecycleState::Unconfigured
-            && !j.resetting
+            && !j.lifecycle.is_resetting()
             && matches!(
                 before,
                 Some(LifecycleState::Active | LifecycleState::Inactive)

@@ -98,8 +98,8 @@ impl Bridge {
             // Only a joint the bridge had up (or a line had freed): one
             // never started, or whose start failed, waits for a reset.
             if deactivates {
-                j.freed |= j.active;
-            } else if j.freed && a.payloads.front().is_some_and(Order::is_setpoint) {
+                j.lifecycle.freed_by_a_line();
+            } else if j.lifecycle.is_freed() && a.payloads.front().is_some_and(Order::is_setpoint) {
                 for activate in j.device.lifecycle_orders(&[Lifecycle::Activate], 0) {
                     a.payloads.push_front(activate);
                     if let Some(&first) = a.due.front() {
@@ -859,12 +859,7 @@ impl Bridge {
             Moving::AtMost(t) => j.moving_until = j.moving_until.min(t),
         }
         if let Some(active) = effect.active {
-            j.active = active;
-            // Active again, and no line waits to leave it inactive: its
-            // next command needs no Activate first.
-            if active && !deactivation_waits {
-                j.freed = false;
-            }
+            j.lifecycle.made_active(active, deactivation_waits);
         }
         if effect.settles {
             j.unresolved = None;

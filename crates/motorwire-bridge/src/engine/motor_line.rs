@@ -100,7 +100,12 @@ impl Bridge {
     ) -> Result<(Axis, Option<String>), Refusal> {
         match self.hold_move(ji, motor, unit, limits, now_ms) {
             Ok(payload) => Ok((Axis::new(motor.to_owned(), ji, [payload]), None)),
-            Err(why) if !self.joints.get(ji).is_some_and(|j| j.active || j.freed) => {
+            Err(why)
+                if !self
+                    .joints
+                    .get(ji)
+                    .is_some_and(|j| j.lifecycle.is_active() || j.lifecycle.is_freed()) =>
+            {
                 Err(Refusal::ActionNotExpressible {
                     motor: motor.to_owned(),
                     why: why.to_string(),
@@ -298,7 +303,7 @@ impl Bridge {
             job.kind == JobKind::Command && job.axes.iter().any(|a| a.joint == ji)
         });
         if let Some(j) = self.joints.get_mut(ji) {
-            j.resetting = true;
+            j.lifecycle.reset_sent();
         }
         // As the device takes a reset (an iRPC joint: these payloads; a
         // moteus controller: its stop, which clears a fault or a timeout).

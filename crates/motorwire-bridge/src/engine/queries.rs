@@ -21,8 +21,8 @@ impl Bridge {
             dialect: j.device.dialect_name(),
             version: j.device.version(),
             online: j.online,
-            state: j.state,
-            active: j.active,
+            state: j.lifecycle.state(),
+            active: j.lifecycle.is_active(),
             feedback: j.feedback.clone(),
             target: j.target,
             queued: j.queue.len() + usize::from(j.busy.is_some()),
@@ -51,12 +51,12 @@ impl Bridge {
         MotorState {
             motor_id: j.name.clone(),
             online: j.online,
-            active: j.active,
+            active: j.lifecycle.is_active(),
             position: read.map(|f| shortest(f.position)),
             velocity: read.map(|f| shortest(f.velocity)),
             target: j.target.map(|t| short_unit(unit.from_degrees(t))),
             moving: j.moving_until > self.now,
-            fault: j.needs_reset.clone(),
+            fault: j.lifecycle.needs_reset().map(str::to_owned),
         }
     }
 

@@ -106,7 +106,7 @@ impl Bridge {
             });
             if let Some(p) = starting {
                 resume.push((i, p));
-            } else if j.active {
+            } else if j.lifecycle.is_active() {
                 resume.push((i, vec![Lifecycle::Activate]));
             }
         }
