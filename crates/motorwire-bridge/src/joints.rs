@@ -58,8 +58,8 @@ pub(crate) struct Joint {
     /// The limits in force that say how long its moves take and how long
     /// a setpoint holds (kept as the bus map's change: [`Pace::of`]).
     pub(crate) pace: Pace,
-    pub(crate) last_heard: Option<Duration>,
-    pub(crate) online: bool,
+    /// Whether it is heard, and the deadman of a setpoint it holds.
+    pub(crate) liveness: Liveness,
     /// Where it is in its lifecycle, as the bridge knows it.
     pub(crate) lifecycle: JointLifecycle,
     pub(crate) feedback: Option<MotorFeedback>,
@@ -91,9 +91,6 @@ pub(crate) struct Joint {
     /// The step whose request is in flight.
     pub(crate) busy: Option<StepRef>,
     pub(crate) unresolved: Option<Unresolved>,
-    /// The deadman: when a velocity or torque setpoint it holds must be
-    /// renewed by, or it is brought to a stop.
-    pub(crate) deadman: Option<Duration>,
     /// The velocity setpoint it holds (its unit a second), where the
     /// order says one: what it goes at once it is up to speed, judged
     /// against its position limits before its feedback shows it.
@@ -163,6 +160,71 @@ impl Pace {
             max_acceleration: m.limits.max_acceleration.map(|a| m.unit.to_degrees(a)),
             command_timeout: m.command_timeout,
         }
+    }
+}
+
+/// Whether a joint is heard, and the deadman of a setpoint it holds.
+#[derive(Debug)]
+pub(crate) struct Liveness {
+    /// When it was last heard from.
+    last_heard: Option<Duration>,
+    /// Whether it was heard from within the offline time.
+    online: bool,
+    /// The deadman: when a velocity or torque setpoint it holds must be
+    /// renewed by, or it is brought to a stop.
+    deadman: Option<Duration>,
+}
+
+impl Liveness {
+    /// A joint not heard from yet: `online` as its device starts.
+    fn new(online: bool) -> Self {
+        Self {
+            last_heard: None,
+            online,
+            deadman: None,
+        }
+    }
+
+    /// When it was last heard from.
+    pub(crate) fn last_heard(&self) -> Option<Duration> {
+        self.last_heard
+    }
+
+    /// Whether it was heard from within the offline time.
+    pub(crate) fn is_online(&self) -> bool {
+        self.online
+    }
+
+    /// When the setpoint it holds must be renewed by, if it holds one.
+    pub(crate) fn deadman(&self) -> Option<Duration> {
+        self.deadman
+    }
+
+    /// It was heard from at `at` (a report older than the last one heard
+    /// leaves that one the last).
+    pub(crate) fn heard(&mut self, at: Duration) {
+        self.last_heard = Some(at.max(self.last_heard.unwrap_or(Duration::ZERO)));
+    }
+
+    /// It is online; whether it was not.
+    pub(crate) fn back_online(&mut self) -> bool {
+        !std::mem::replace(&mut self.online, true)
+    }
+
+    /// It is offline; whether it was online.
+    pub(crate) fn went_offline(&mut self) -> bool {
+        std::mem::replace(&mut self.online, false)
+    }
+
+    /// The setpoint it holds must be renewed by `at` (`None`: it holds
+    /// none the deadman watches).
+    pub(crate) fn deadman_at(&mut self, at: Option<Duration>) {
+        self.deadman = at;
+    }
+
+    /// Nothing it holds is watched by the deadman any more.
+    pub(crate) fn disarm_deadman(&mut self) {
+        self.deadman = None;
     }
 }
 
@@ -416,8 +478,7 @@ impl Joint {
             unit,
             tolerance: unit.to_degrees(tolerance),
             pace: Pace::default(),
-            last_heard: None,
-            online: device.online_at_start(),
+            liveness: Liveness::new(device.online_at_start()),
             lifecycle: JointLifecycle::new(device.active_at_start()),
             feedback: None,
             motion: None,
@@ -431,7 +492,6 @@ impl Joint {
             queue: VecDeque::new(),
             busy: None,
             unresolved: None,
-            deadman: None,
             held_velocity: None,
             limit_braked: None,
             peak_accel: 0.0,
@@ -524,7 +584,7 @@ impl Registry for Joints {
             node: j.node,
             device: j.device,
             unit: j.unit,
-            online: j.online,
+            online: j.liveness.is_online(),
             feedback: j.feedback.as_ref(),
         })
     }

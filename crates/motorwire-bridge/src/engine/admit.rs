@@ -364,7 +364,7 @@ impl Bridge {
         }
         if let Some(err) = motors.clone().find_map(|m| {
             let j = self.joints.get(self.joint_index(m)?)?;
-            (!j.online).then(|| Refusal::Offline {
+            (!j.liveness.is_online()).then(|| Refusal::Offline {
                 motor: m.to_owned(),
                 why: Some(self.drivers.offline_reason(j.device).map_or_else(
                     || format!("nothing heard from {}", j.device.who(j.node)),

@@ -70,7 +70,7 @@ impl Bridge {
         // setpoint, and only speeding up the way it goes (a stop, a fault
         // or a brake slows it down; a velocity setpoint ramps within the
         // limits).
-        if j.deadman.is_some()
+        if j.liveness.deadman().is_some()
             && j.held_velocity.is_none()
             && acceleration.is_finite()
             && acceleration * vel > 0.0
@@ -139,9 +139,8 @@ impl Bridge {
     /// its link is `up`.
     pub(super) fn heard(&mut self, ji: DeviceId, at: Duration, up: bool) {
         if let Some(j) = self.joints.get_mut(ji) {
-            j.last_heard = Some(at.max(j.last_heard.unwrap_or(Duration::ZERO)));
-            if up && !j.online {
-                j.online = true;
+            j.liveness.heard(at);
+            if up && j.liveness.back_online() {
                 self.out.push_back(Output::Event(Event::Online {
                     motor_id: j.name.clone(),
                     node: j.node,
@@ -166,7 +165,7 @@ impl Bridge {
                 .map_or(0.1, |m| m.unit.to_degrees(m.arrival_tolerance));
             let fb = j.feedback.clone().map(|mut f| {
                 f.timestamp = ts;
-                if !j.online {
+                if !j.liveness.is_online() {
                     f.status.fault = Some(true);
                 }
                 if let Some((pos, vel)) = j.motion {
@@ -177,14 +176,14 @@ impl Bridge {
                 }
                 shortest_feedback(f)
             });
-            if fb.is_none() && j.online {
+            if fb.is_none() && j.liveness.is_online() {
                 continue; // nothing heard yet, and not yet overdue
             }
             self.stats.feedback_lines += 1;
             self.out.push_back(Output::Feedback(Box::new(FeedbackLine {
                 feedback: fb,
                 motor_id: j.name.clone(),
-                online: j.online,
+                online: j.liveness.is_online(),
             })));
         }
     }

@@ -745,8 +745,7 @@ impl Bridge {
                 target,
             });
         }
-        if j.online {
-            j.online = false;
+        if j.liveness.went_offline() {
             self.out.push_back(Output::Event(Event::Offline {
                 motor_id: j.name.clone(),
                 node: j.node,
@@ -832,7 +831,7 @@ impl Bridge {
             .and_then(|(t, from)| Some((t, order.device_plan(from, gate_plan)?)));
         j.set_model(model);
         j.planned = None;
-        j.deadman = effect.deadman;
+        j.liveness.deadman_at(effect.deadman);
         j.held_velocity = effect.deadman.and_then(|_| order.held_velocity(j.unit));
         if let Some(b) = j.limit_braked.as_mut().filter(|b| b.sending) {
             // The limit brake itself going out: what it was braked short

@@ -59,7 +59,7 @@ impl Bridge {
                 Some(order) => self.stop_setpoint(now, ji, order, Some(event)),
                 None => {
                     if let Some(j) = self.joints.get_mut(ji) {
-                        j.deadman = None;
+                        j.liveness.disarm_deadman();
                         if let Some(b) = j.limit_braked.as_mut() {
                             b.sending = false;
                         }
@@ -76,7 +76,7 @@ impl Bridge {
     /// ([`Self::braking`]) and [`BRAKE_LOOKAHEAD`]. `None` for a device
     /// holding no setpoint, at rest, or moving away from its limits.
     pub(super) fn brake_due(&self, j: &Joint) -> Option<(Duration, &'static str, f64)> {
-        if j.deadman.is_none() {
+        if j.liveness.deadman().is_none() {
             return self.brake_again(j);
         }
         let f = j.feedback.as_ref()?;
@@ -103,7 +103,7 @@ impl Bridge {
             let lo = m.limits.min_position?;
             ("min_position", lo, p - lo - stopping - travel)
         };
-        let heard = j.last_heard.unwrap_or(self.now);
+        let heard = j.liveness.last_heard().unwrap_or(self.now);
         let in_s = (room / reach_v).clamp(0.0, 3600.0);
         let at = heard.saturating_add(Duration::from_secs_f64(in_s));
         Some((at, limit_name, limit))
@@ -119,7 +119,7 @@ impl Bridge {
         } = j.limit_braked?;
         let f = j.feedback.as_ref()?;
         let m = self.map.motor(&j.name)?;
-        let heard = j.last_heard?;
+        let heard = j.liveness.last_heard()?;
         let (toward, limit) = if side == "max_position" {
             (f.velocity, m.limits.max_position?)
         } else {

@@ -139,7 +139,7 @@ impl Bridge {
                 what: what.to_owned(),
             });
         }
-        if self.joints.get(ji).is_some_and(|j| !j.online) {
+        if self.joints.get(ji).is_some_and(|j| !j.liveness.is_online()) {
             return Err(Refusal::Offline {
                 motor: motor.to_owned(),
                 why: None,
@@ -365,9 +365,8 @@ impl Bridge {
     pub(super) fn link_lost(&mut self, devices: &[DeviceId], why: &str, arrival: &str) {
         for &ji in devices {
             if let Some(j) = self.joints.get_mut(ji) {
-                j.deadman = None;
-                if j.online {
-                    j.online = false;
+                j.liveness.disarm_deadman();
+                if j.liveness.went_offline() {
                     self.out.push_back(Output::Event(Event::Offline {
                         motor_id: j.name.clone(),
                         node: j.node,

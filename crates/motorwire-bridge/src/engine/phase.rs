@@ -66,7 +66,10 @@ impl Bridge {
         else {
             return;
         };
-        let read = self.joints.iter().all(|j| !j.online || j.motion.is_some());
+        let read = self
+            .joints
+            .iter()
+            .all(|j| !j.liveness.is_online() || j.motion.is_some());
         if read || self.now >= until {
             self.enter(Phase::Running);
         }
@@ -215,10 +218,10 @@ impl Bridge {
             "cancelled by the end of input: it would not end by itself",
             open,
         );
-        let held = self.joints_where(|j| j.deadman.is_some());
+        let held = self.joints_where(|j| j.liveness.deadman().is_some());
         for &ji in &held {
             if let Some(j) = self.joints.get_mut(ji) {
-                j.deadman = None;
+                j.liveness.disarm_deadman();
             }
         }
         self.hold_still(now, held, false);

@@ -20,7 +20,7 @@ impl Bridge {
             node: j.node,
             dialect: j.device.dialect_name(),
             version: j.device.version(),
-            online: j.online,
+            online: j.liveness.is_online(),
             state: j.lifecycle.state(),
             active: j.lifecycle.is_active(),
             feedback: j.feedback.clone(),
@@ -50,7 +50,7 @@ impl Bridge {
         let read = j.feedback.as_ref().filter(|_| j.motion.is_some());
         MotorState {
             motor_id: j.name.clone(),
-            online: j.online,
+            online: j.liveness.is_online(),
             active: j.lifecycle.is_active(),
             position: read.map(|f| shortest(f.position)),
             velocity: read.map(|f| shortest(f.velocity)),

@@ -342,11 +342,11 @@ impl Bridge {
         // to stop, and nothing but stops goes out.
         if self.stop.is_latched() {
             for j in self.joints.iter_mut() {
-                j.deadman = None;
+                j.liveness.disarm_deadman();
             }
             return;
         }
-        let mut due = self.joints_where(|j| j.deadman.is_some_and(|d| now >= d));
+        let mut due = self.joints_where(|j| j.liveness.deadman().is_some_and(|d| now >= d));
         // A device whose stop is in flight (a motor line's hold, free or
         // stop) is being stopped: the deadman's own stop behind it would
         // only undo a hold (a moteus controller's stop mode is torque off).
@@ -362,7 +362,7 @@ impl Bridge {
                     matches!(a.state, AxisState::InFlight { payload, .. } if payload.ends_setpoint())
                 });
             if stopping && let Some(j) = self.joints.get_mut(ji) {
-                j.deadman = Some(now.saturating_add(REBRAKE_AFTER));
+                j.liveness.deadman_at(Some(now.saturating_add(REBRAKE_AFTER)));
             }
             !stopping
         });
@@ -381,7 +381,7 @@ impl Bridge {
             };
             let name = j.name.clone();
             let Some(order) = j.device.hold_still(now_ms) else {
-                j.deadman = None;
+                j.liveness.disarm_deadman();
                 continue;
             };
             let event = timed_out.then(|| Event::Deadman {
@@ -408,7 +408,7 @@ impl Bridge {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
-        j.deadman = None;
+        j.liveness.disarm_deadman();
         let name = j.name.clone();
         let axis = Axis::of(name, ji, [order]);
         if let Some(e) = event {

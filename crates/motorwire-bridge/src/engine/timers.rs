@@ -96,11 +96,10 @@ impl Bridge {
         let offline_after = self.config.offline_after;
         let mut went_offline = Vec::new();
         for (ji, j) in self.joints.with_ids_mut() {
-            let since = j.last_heard.unwrap_or(Duration::ZERO);
+            let since = j.liveness.last_heard().unwrap_or(Duration::ZERO);
             let silent = now.saturating_sub(since);
-            if j.online && silent >= offline_after {
+            if silent >= offline_after && j.liveness.went_offline() {
                 went_offline.push(ji);
-                j.online = false;
                 self.out.push_back(Output::Event(Event::Offline {
                     motor_id: j.name.clone(),
                     node: j.node,
@@ -185,9 +184,10 @@ impl Bridge {
             Timer::Liveness => self
                 .joints
                 .iter()
-                .filter(|j| j.online)
+                .filter(|j| j.liveness.is_online())
                 .map(|j| {
-                    j.last_heard
+                    j.liveness
+                        .last_heard()
                         .unwrap_or(Duration::ZERO)
                         .saturating_add(self.config.offline_after)
                 })
@@ -195,45 +195,14 @@ impl Bridge {
             // Only where a joint hears the beat (iRPC).
             Timer::Heartbeat => (self.drivers.beats() && self.any_moving(self.now))
                 .then(|| self.timers.heartbeat.unwrap_or(self.now).max(self.now)),
-            // Due when the drain may end: once motion has ended, at once
-            // when nothing is left (or a line just finished: looked at
-            // once); while a line waits for its device, the device's own
-            // answer or time-out finishes it, and the deadline bounds it.
-            // Never due again at the time it was handled: a runner
-            // waiting for it does not spin.
-            Timer::Drain => match self.phase {
-                Phase::Draining { deadline, recheck } => {
-                    let motion_ends = self.joints.iter().map(|j| j.moving_until).max();
-                    Some(if recheck {
-                        self.now
-                    } else if let Some(end) = motion_ends.filter(|e| *e > self.now) {
-                        end.min(deadline)
-                    } else if !self.jobs.is_empty() || !self.waiting.is_empty() {
-                        deadline
-                    } else {
-                        self.now
-                    })
-                }
-                _ => None,
-            },
+            Timer::Drain => self.drain_due(),
             Timer::Arrival => self.arrivals.iter().map(|w| w.deadline).min(),
-            // Due only where pumping would act on it: a sequential axis at
-            // the front of an idle device's queue, waiting for an axis that
-            // has not arrived (behind a busy device, the device's answer
-            // pumps it; a deadline there would be due and do nothing).
-            Timer::Sequence => self
+            Timer::Sequence => self.sequence_due(),
+            Timer::Deadman => self
                 .joints
                 .iter()
-                .filter(|j| j.busy.is_none())
-                .filter_map(|j| j.queue.front())
-                .filter_map(|s| {
-                    let job = self.jobs.get(&s.job)?;
-                    let a = job.axes.get(s.axis).filter(|a| !a.is_done())?;
-                    let b = job.axes.get(a.after?)?;
-                    if b.arrived { None } else { b.arrive_by }
-                })
+                .filter_map(|j| j.liveness.deadman())
                 .min(),
-            Timer::Deadman => self.joints.iter().filter_map(|j| j.deadman).min(),
             Timer::LimitBrake => {
                 if self.stop.is_latched() {
                     None
@@ -255,5 +224,47 @@ impl Bridge {
                 _ => None,
             },
         }
+    }
+
+    /// When the drain may end: once motion has ended, at once when nothing
+    /// is left (or a line just finished: looked at once); while a line
+    /// waits for its device, the device's own answer or time-out finishes
+    /// it, and the deadline bounds it. Never due again at the time it was
+    /// handled: a runner waiting for it does not spin. Not draining: never.
+    fn drain_due(&self) -> Option<Duration> {
+        match self.phase {
+            Phase::Draining { deadline, recheck } => {
+                let motion_ends = self.joints.iter().map(|j| j.moving_until).max();
+                Some(if recheck {
+                    self.now
+                } else if let Some(end) = motion_ends.filter(|e| *e > self.now) {
+                    end.min(deadline)
+                } else if !self.jobs.is_empty() || !self.waiting.is_empty() {
+                    deadline
+                } else {
+                    self.now
+                })
+            }
+            _ => None,
+        }
+    }
+
+    /// When a sequential axis gives up waiting, due only where pumping
+    /// would act on it: an axis at the front of an idle device's queue,
+    /// waiting for an axis that has not arrived (behind a busy device, the
+    /// device's answer pumps it; a deadline there would be due and do
+    /// nothing).
+    fn sequence_due(&self) -> Option<Duration> {
+        self.joints
+            .iter()
+            .filter(|j| j.busy.is_none())
+            .filter_map(|j| j.queue.front())
+            .filter_map(|s| {
+                let job = self.jobs.get(&s.job)?;
+                let a = job.axes.get(s.axis).filter(|a| !a.is_done())?;
+                let b = job.axes.get(a.after?)?;
+                if b.arrived { None } else { b.arrive_by }
+            })
+            .min()
     }
 }
