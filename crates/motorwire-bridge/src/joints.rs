@@ -9,7 +9,7 @@ use motorwire_planner::Profile;
 use motorwire_translate::AngleUnit;
 use motorwire_wia::MotorFeedback;
 
-use crate::device::{Device, DeviceId, DeviceView, Order, Registry};
+use crate::device::{Device, DeviceId, DeviceView, Moving, Order, Registry};
 pub(crate) use crate::device::{Kinematics, in_unit};
 use crate::output::Origin;
 
@@ -78,19 +78,12 @@ pub(crate) struct Joint {
     state_kept: std::cell::Cell<Option<(Duration, Option<Kinematics>)>>,
     /// The move being sent: when, and the state it starts from.
     pub(crate) sending: Option<(Duration, Kinematics)>,
-    /// The line whose move or setpoint the device last took (`None`: the
-    /// bridge's own, a stop): a line watched on it whose move came before
-    /// will not arrive.
-    pub(crate) moved_by: Option<crate::output::LineRef>,
-    /// The target of its last acked move (degrees).
-    pub(crate) target: Option<f64>,
-    /// Until when its last acked move runs (as the bridge plans it).
-    pub(crate) moving_until: Duration,
+    /// What it does and waits to do.
+    pub(crate) schedule: Schedule,
     /// Steps waiting to be sent, oldest first.
     pub(crate) queue: VecDeque<StepRef>,
     /// The step whose request is in flight.
     pub(crate) busy: Option<StepRef>,
-    pub(crate) unresolved: Option<Unresolved>,
     /// The velocity setpoint it holds (its unit a second), where the
     /// order says one: what it goes at once it is up to speed, judged
     /// against its position limits before its feedback shows it.
@@ -160,6 +153,78 @@ impl Pace {
             max_acceleration: m.limits.max_acceleration.map(|a| m.unit.to_degrees(a)),
             command_timeout: m.command_timeout,
         }
+    }
+}
+
+/// What a joint does: its last acked move (where to, until when, taken
+/// from which line) and a part sent and never answered.
+#[derive(Debug, Default)]
+pub(crate) struct Schedule {
+    /// The target of its last acked move (degrees).
+    target: Option<f64>,
+    /// Until when its last acked move runs (as the bridge plans it).
+    moving_until: Duration,
+    /// The line whose move or setpoint the device last took (`None`: the
+    /// bridge's own, a stop): a line watched on it whose move came before
+    /// will not arrive.
+    moved_by: Option<crate::output::LineRef>,
+    /// A part sent and never answered: the joint may have executed it.
+    unresolved: Option<Unresolved>,
+}
+
+impl Schedule {
+    /// The target of its last acked move (degrees).
+    pub(crate) fn target(&self) -> Option<f64> {
+        self.target
+    }
+
+    /// Until when its last acked move runs (as the bridge plans it).
+    pub(crate) fn moving_until(&self) -> Duration {
+        self.moving_until
+    }
+
+    /// Whether its last acked move still runs at `now`.
+    pub(crate) fn is_moving(&self, now: Duration) -> bool {
+        self.moving_until > now
+    }
+
+    /// The line whose move or setpoint it last took (`None`: the bridge's
+    /// own, a stop).
+    pub(crate) fn moved_by(&self) -> Option<crate::output::LineRef> {
+        self.moved_by
+    }
+
+    /// The part sent and never answered, if any.
+    pub(crate) fn unresolved(&self) -> Option<Unresolved> {
+        self.unresolved
+    }
+
+    /// It took a move or setpoint of `line` (`None`: the bridge's own).
+    pub(crate) fn taken_from(&mut self, line: Option<crate::output::LineRef>) {
+        self.moved_by = line;
+    }
+
+    /// An acked order's effect on its move: its new `target`, if it says
+    /// one (`Some(None)`: it has none now), and until when it moves.
+    pub(crate) fn acked(&mut self, target: Option<Option<f64>>, moving: Moving) {
+        if let Some(target) = target {
+            self.target = target;
+        }
+        match moving {
+            Moving::Unchanged => {}
+            Moving::Until(t) => self.moving_until = t,
+            Moving::AtMost(t) => self.moving_until = self.moving_until.min(t),
+        }
+    }
+
+    /// A part `u` was sent and never answered.
+    pub(crate) fn left_unresolved(&mut self, u: Unresolved) {
+        self.unresolved = Some(u);
+    }
+
+    /// What it does now settles the part never answered.
+    pub(crate) fn settle(&mut self) {
+        self.unresolved = None;
     }
 }
 
@@ -486,12 +551,9 @@ impl Joint {
             model: None,
             state_kept: std::cell::Cell::new(None),
             sending: None,
-            moved_by: None,
-            target: None,
-            moving_until: Duration::ZERO,
+            schedule: Schedule::default(),
             queue: VecDeque::new(),
             busy: None,
-            unresolved: None,
             held_velocity: None,
             limit_braked: None,
             peak_accel: 0.0,

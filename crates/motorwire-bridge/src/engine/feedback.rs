@@ -87,11 +87,11 @@ impl Bridge {
             return;
         };
         // A part whose outcome was unknown, shown executed by the device's position.
-        if let Some(u) = j.unresolved
+        if let Some(u) = j.schedule.unresolved()
             && (pos - u.target).abs() < 0.5
             && vel.abs() < 1.0
         {
-            j.unresolved = None;
+            j.schedule.settle();
             let position = self
                 .map
                 .motor(&j.name)
@@ -152,7 +152,7 @@ impl Bridge {
     // ---- time -----------------------------------------------------------
 
     pub(super) fn any_moving(&self, now: Duration) -> bool {
-        self.joints.iter().any(|j| j.moving_until > now)
+        self.joints.iter().any(|j| j.schedule.is_moving(now))
     }
 
     pub(super) fn emit_feedback(&mut self, now: Duration) {
@@ -170,7 +170,7 @@ impl Bridge {
                 }
                 if let Some((pos, vel)) = j.motion {
                     f.status.in_motion = Some(vel.abs() > tolerance * 10.0);
-                    if let Some(target) = j.target {
+                    if let Some(target) = j.schedule.target() {
                         f.status.at_target = Some((pos - target).abs() <= tolerance);
                     }
                 }

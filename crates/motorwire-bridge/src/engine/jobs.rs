@@ -203,7 +203,7 @@ impl Bridge {
     /// ([`Self::end_sequences_on`]).
     pub(super) fn taken(&mut self, ji: DeviceId, by: u64, line: Option<LineRef>) {
         if let Some(j) = self.joints.get_mut(ji) {
-            j.moved_by = line;
+            j.schedule.taken_from(line);
         }
         let Some(line) = line else { return };
         let why = || crate::output::json::superseded_by(line);
@@ -410,7 +410,7 @@ impl Bridge {
                     let end = self
                         .joints
                         .get(b.joint)
-                        .map_or(now, |j| j.moving_until)
+                        .map_or(now, |j| j.schedule.moving_until())
                         .max(now);
                     end.saturating_add(
                         (end.saturating_sub(now) / 4).max(Duration::from_millis(500)),
@@ -739,7 +739,7 @@ impl Bridge {
             return;
         };
         if let (JobKind::Command, Some(target)) = (e.kind, e.target) {
-            j.unresolved = Some(Unresolved {
+            j.schedule.left_unresolved(Unresolved {
                 origin: e.line.map(|l| l.origin),
                 line: e.line.map_or(0, |l| l.line),
                 target,
@@ -849,19 +849,12 @@ impl Bridge {
             j.unconfirmed_stop = None;
             j.stop_resends = 0;
         }
-        if let Some(target) = effect.target {
-            j.target = target;
-        }
-        match effect.moving {
-            Moving::Unchanged => {}
-            Moving::Until(t) => j.moving_until = t,
-            Moving::AtMost(t) => j.moving_until = j.moving_until.min(t),
-        }
+        j.schedule.acked(effect.target, effect.moving);
         if let Some(active) = effect.active {
             j.lifecycle.made_active(active, deactivation_waits);
         }
         if effect.settles {
-            j.unresolved = None;
+            j.schedule.settle();
         }
     }
 

@@ -41,7 +41,7 @@ use crate::classify::{Line, MotorAction, RequestKind, classify};
 use crate::clocks::ClockOffsets;
 use crate::device::{
     Answer, Capability, Context, Device, DeviceError, DeviceId, Drivers, Ended, Happened, InForce,
-    Lifecycle, MotorOrder, Moving, Outcome,
+    Lifecycle, MotorOrder, Outcome,
 };
 use crate::error::BridgeError;
 use crate::job::{

@@ -220,8 +220,8 @@ impl Bridge {
             max_v: max_v.map(|v| unit.to_degrees(v)),
             unit,
         };
-        if j.moving_until > self.now {
-            if let Some(t) = j.target.filter(|t| w.outside(*t)) {
+        if j.schedule.is_moving(self.now) {
+            if let Some(t) = j.schedule.target().filter(|t| w.outside(*t)) {
                 return Some(format!("its move under way goes to {}", w.say(t)));
             }
             if let Some((_, v)) = j.motion.filter(|(_, v)| w.faster(*v)) {

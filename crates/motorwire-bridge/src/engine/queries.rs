@@ -24,7 +24,7 @@ impl Bridge {
             state: j.lifecycle.state(),
             active: j.lifecycle.is_active(),
             feedback: j.feedback.clone(),
-            target: j.target,
+            target: j.schedule.target(),
             queued: j.queue.len() + usize::from(j.busy.is_some()),
         })
     }
@@ -54,8 +54,11 @@ impl Bridge {
             active: j.lifecycle.is_active(),
             position: read.map(|f| shortest(f.position)),
             velocity: read.map(|f| shortest(f.velocity)),
-            target: j.target.map(|t| short_unit(unit.from_degrees(t))),
-            moving: j.moving_until > self.now,
+            target: j
+                .schedule
+                .target()
+                .map(|t| short_unit(unit.from_degrees(t))),
+            moving: j.schedule.is_moving(self.now),
             fault: j.lifecycle.needs_reset().map(str::to_owned),
         }
     }

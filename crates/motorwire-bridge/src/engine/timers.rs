@@ -234,7 +234,7 @@ impl Bridge {
     fn drain_due(&self) -> Option<Duration> {
         match self.phase {
             Phase::Draining { deadline, recheck } => {
-                let motion_ends = self.joints.iter().map(|j| j.moving_until).max();
+                let motion_ends = self.joints.iter().map(|j| j.schedule.moving_until()).max();
                 Some(if recheck {
                     self.now
                 } else if let Some(end) = motion_ends.filter(|e| *e > self.now) {

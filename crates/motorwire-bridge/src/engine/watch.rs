@@ -12,7 +12,7 @@ impl Bridge {
         let replaced_by = moved.iter().find_map(|a| {
             self.joints
                 .get(a.joint)
-                .and_then(|j| j.moved_by)
+                .and_then(|j| j.schedule.moved_by())
                 .filter(|by| *by != line)
         });
         let mut w = self.watch_of(meta, moved, since);
@@ -70,7 +70,7 @@ impl Bridge {
         let end = axes
             .iter()
             .filter_map(|a| self.joints.get(a.joint))
-            .map(|j| j.moving_until)
+            .map(|j| j.schedule.moving_until())
             .fold(now, Duration::max);
         let planned = end.saturating_sub(now);
         let margin = (planned / 4).max(Duration::from_millis(500));
