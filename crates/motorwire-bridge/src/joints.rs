@@ -80,10 +80,6 @@ pub(crate) struct Joint {
     pub(crate) sending: Option<(Duration, Kinematics)>,
     /// What it does and waits to do.
     pub(crate) schedule: Schedule,
-    /// Steps waiting to be sent, oldest first.
-    pub(crate) queue: VecDeque<StepRef>,
-    /// The step whose request is in flight.
-    pub(crate) busy: Option<StepRef>,
     /// The velocity setpoint it holds (its unit a second), where the
     /// order says one: what it goes at once it is up to speed, judged
     /// against its position limits before its feedback shows it.
@@ -106,8 +102,6 @@ pub(crate) struct Joint {
     /// How often that stop was sent again (back to 0 once another order
     /// is taken).
     pub(crate) stop_resends: u8,
-    /// Its busy step (a trajectory's) sends its next payload then.
-    pub(crate) wake: Option<Duration>,
     /// The last move the gate planned for it: from its kinematics, the
     /// payload, and how long the joint's plan takes. When
     /// its Ack comes from the same state, its arrival time is this plan's
@@ -156,10 +150,19 @@ impl Pace {
     }
 }
 
-/// What a joint does: its last acked move (where to, until when, taken
-/// from which line) and a part sent and never answered.
+/// What a joint does and waits to do: the steps waiting for it, the one
+/// that holds it (in flight, or a trajectory's between two segments) and
+/// when that one sends next; its last acked move (where to, until when,
+/// taken from which line) and a part sent and never answered.
 #[derive(Debug, Default)]
 pub(crate) struct Schedule {
+    /// Steps waiting to be sent, oldest first.
+    queue: VecDeque<StepRef>,
+    /// The step whose request is in flight (or that holds the device
+    /// between a trajectory's segments).
+    busy: Option<StepRef>,
+    /// Its busy step (a trajectory's) sends its next payload then.
+    wake: Option<Duration>,
     /// The target of its last acked move (degrees).
     target: Option<f64>,
     /// Until when its last acked move runs (as the bridge plans it).
@@ -173,6 +176,114 @@ pub(crate) struct Schedule {
 }
 
 impl Schedule {
+    /// The step that holds the device, if one does.
+    pub(crate) fn busy(&self) -> Option<StepRef> {
+        self.busy
+    }
+
+    /// When the busy step (a trajectory's) sends its next payload.
+    pub(crate) fn wake(&self) -> Option<Duration> {
+        self.wake
+    }
+
+    /// The steps waiting, oldest first.
+    pub(crate) fn waiting(&self) -> std::collections::vec_deque::Iter<'_, StepRef> {
+        self.queue.iter()
+    }
+
+    /// The step that holds the device, then those waiting.
+    pub(crate) fn steps(&self) -> impl Iterator<Item = &StepRef> {
+        self.busy.iter().chain(self.queue.iter())
+    }
+
+    /// The oldest step waiting.
+    pub(crate) fn next_waiting(&self) -> Option<StepRef> {
+        self.queue.front().copied()
+    }
+
+    /// How many steps wait.
+    pub(crate) fn waiting_len(&self) -> usize {
+        self.queue.len()
+    }
+
+    /// Whether any step waits.
+    pub(crate) fn has_waiting(&self) -> bool {
+        !self.queue.is_empty()
+    }
+
+    /// `step` waits, behind the rest.
+    pub(crate) fn wait(&mut self, step: StepRef) {
+        self.queue.push_back(step);
+    }
+
+    /// `steps` wait, in order, behind the rest.
+    pub(crate) fn wait_all(&mut self, steps: impl IntoIterator<Item = StepRef>) {
+        self.queue.extend(steps);
+    }
+
+    /// The oldest step waiting, no longer waiting.
+    pub(crate) fn take_next(&mut self) -> Option<StepRef> {
+        self.queue.pop_front()
+    }
+
+    /// Only the steps waiting that `keep` keeps wait on, in order (each
+    /// looked at once, oldest first).
+    pub(crate) fn retain_waiting(&mut self, mut keep: impl FnMut(StepRef) -> bool) {
+        self.queue.retain(|s| keep(*s));
+    }
+
+    /// The steps waiting that `pick` chooses, no longer waiting (the rest
+    /// wait on in order).
+    pub(crate) fn take_waiting_where(&mut self, pick: impl Fn(&StepRef) -> bool) -> Vec<StepRef> {
+        let (taken, kept): (Vec<StepRef>, Vec<StepRef>) = self.queue.drain(..).partition(pick);
+        self.queue.extend(kept);
+        taken
+    }
+
+    /// Every step waiting, no longer waiting.
+    pub(crate) fn take_all_waiting(&mut self) -> Vec<StepRef> {
+        self.queue.drain(..).collect()
+    }
+
+    /// `step`'s request is in flight: it holds the device.
+    pub(crate) fn start(&mut self, step: StepRef) {
+        self.busy = Some(step);
+    }
+
+    /// `step` (a trajectory's) holds the device until `due`, when it sends
+    /// its next payload.
+    pub(crate) fn hold_until(&mut self, step: StepRef, due: Duration) {
+        self.busy = Some(step);
+        self.wake = Some(due);
+    }
+
+    /// The step that held the device, no longer holding it.
+    pub(crate) fn take_busy(&mut self) -> Option<StepRef> {
+        self.busy.take()
+    }
+
+    /// The step that holds the device, if `pick` chooses it, no longer
+    /// holding it.
+    pub(crate) fn take_busy_if(&mut self, pick: impl FnOnce(&StepRef) -> bool) -> Option<StepRef> {
+        self.busy.take_if(|s| pick(s))
+    }
+
+    /// No step holds the device.
+    pub(crate) fn clear_busy(&mut self) {
+        self.busy = None;
+    }
+
+    /// Nothing is woken for.
+    pub(crate) fn clear_wake(&mut self) {
+        self.wake = None;
+    }
+
+    /// No step holds the device, and nothing is woken for.
+    pub(crate) fn release(&mut self) {
+        self.busy = None;
+        self.wake = None;
+    }
+
     /// The target of its last acked move (degrees).
     pub(crate) fn target(&self) -> Option<f64> {
         self.target
@@ -552,14 +663,11 @@ impl Joint {
             state_kept: std::cell::Cell::new(None),
             sending: None,
             schedule: Schedule::default(),
-            queue: VecDeque::new(),
-            busy: None,
             held_velocity: None,
             limit_braked: None,
             peak_accel: 0.0,
             unconfirmed_stop: None,
             stop_resends: 0,
-            wake: None,
             planned: None,
             planned_profile: None,
             planned_at: Duration::ZERO,

@@ -382,7 +382,7 @@ impl Bridge {
         if let Some(m) = motors.find(|m| {
             self.joint_index(m)
                 .and_then(|i| self.joints.get(i))
-                .is_some_and(|j| j.queue.len() >= self.config.max_queue_per_joint)
+                .is_some_and(|j| j.schedule.waiting_len() >= self.config.max_queue_per_joint)
         }) {
             return Err(Refusal::QueueFull {
                 motor: m.to_owned(),

@@ -59,10 +59,10 @@ impl Bridge {
                 _ => None,
             };
             if let Some(j) = self.joints.get_mut(ji) {
-                j.queue.push_back(step);
+                j.schedule.wait(step);
                 // A trajectory scheduled to start later goes at its time,
                 // after this step.
-                j.queue.extend(scheduled);
+                j.schedule.wait_all(scheduled);
             }
         }
         // Every step queued before any is sent: the Orion motors of one
@@ -137,8 +137,7 @@ impl Bridge {
         // in place, in order (the queue keeps its room: no allocation a
         // line).
         let mut newer = false;
-        joint.queue.retain_mut(|s| {
-            let s = *s;
+        joint.schedule.retain_waiting(|s| {
             newer |= Some(s) == except;
             let replaced = !newer
                 && self.jobs.get_mut(&s.job).is_some_and(|job| {
@@ -170,7 +169,7 @@ impl Bridge {
         if timed {
             return None;
         }
-        let running = joint.busy?;
+        let running = joint.schedule.busy()?;
         let a = self
             .jobs
             .get_mut(&running.job)
@@ -178,8 +177,7 @@ impl Bridge {
             .and_then(|job| job.axes.get_mut(running.axis))?;
         // Scheduled, not begun: it waits for its time, holding the device.
         if a.state == AxisState::Queued && !a.begun && !a.due.is_empty() {
-            joint.busy = None;
-            joint.wake = None;
+            joint.schedule.release();
             return Some(running);
         }
         if !replaces || !a.is_running_trajectory() {
@@ -188,8 +186,7 @@ impl Bridge {
         self.stats.superseded += 1;
         if a.state == AxisState::Queued {
             a.finish(StepOutcome::Superseded, None, REPLACED_TRAJECTORY);
-            joint.busy = None;
-            joint.wake = None;
+            joint.schedule.release();
         } else {
             a.replaced = Some(REPLACED_TRAJECTORY);
         }
@@ -265,7 +262,7 @@ impl Bridge {
         }
         for step in ended {
             for j in self.joints.iter_mut() {
-                j.queue.retain(|s| *s != step);
+                j.schedule.retain_waiting(|s| s != step);
             }
         }
     }
@@ -278,7 +275,7 @@ impl Bridge {
     /// been taken).
     pub(super) fn withdraw_stale_resends(&mut self, now: Duration) {
         for ji in self.joints.ids() {
-            let Some(step) = self.joints.get(ji).and_then(|j| j.busy) else {
+            let Some(step) = self.joints.get(ji).and_then(|j| j.schedule.busy()) else {
                 continue;
             };
             let Some(&AxisState::InFlight { msg_id, payload }) = self
@@ -298,7 +295,7 @@ impl Bridge {
             self.drivers.forget(ji, msg_id, payload);
             self.stats.refused_at_send += 1;
             if let Some(j) = self.joints.get_mut(ji) {
-                j.busy = None;
+                j.schedule.clear_busy();
                 j.sending = None;
             }
             if let Some(a) = axis_mut(&mut self.jobs, step) {
@@ -345,10 +342,10 @@ impl Bridge {
     /// steps is in flight.
     pub(super) fn waiting_front(&self, ji: DeviceId) -> Option<StepRef> {
         let j = self.joints.get(ji)?;
-        if j.busy.is_some() {
+        if j.schedule.busy().is_some() {
             return None;
         }
-        j.queue.front().copied()
+        j.schedule.next_waiting()
     }
 
     /// Sends the next waiting step of joint `ji` if none is in flight.
@@ -367,7 +364,7 @@ impl Bridge {
             let Some(joint) = self.joints.get_mut(ji) else {
                 return;
             };
-            let Some(step) = joint.queue.pop_front() else {
+            let Some(step) = joint.schedule.take_next() else {
                 return;
             };
             let node = joint.node;
@@ -498,7 +495,7 @@ impl Bridge {
             if let Some(scheduled) = self.supersede(ji, false, replaces, false, Some(step))
                 && let Some(j) = self.joints.get_mut(ji)
             {
-                j.queue.push_back(scheduled);
+                j.schedule.wait(scheduled);
             }
             self.pump(ji);
         }
@@ -571,8 +568,7 @@ impl Bridge {
         {
             a.state = AxisState::Queued;
             if let Some(j) = self.joints.get_mut(ji) {
-                j.busy = Some(step);
-                j.wake = Some(due);
+                j.schedule.hold_until(step, due);
             }
             return ControlFlow::Break(true);
         }
@@ -606,7 +602,7 @@ impl Bridge {
         let flushed_before = !job.unflushed;
         job.unflushed = true;
         if let Some(j) = self.joints.get_mut(ji) {
-            j.busy = Some(step);
+            j.schedule.start(step);
             // Where the move starts from, for the model of it once acked.
             j.sending = j.state_at(now).map(|s| (now, s));
             // A stop waiting to be confirmed is not sent again over a newer
@@ -646,7 +642,7 @@ impl Bridge {
                     job.unflushed = false;
                 }
                 if let Some(j) = self.joints.get_mut(ji) {
-                    j.busy = None;
+                    j.schedule.clear_busy();
                 }
                 false
             }
@@ -656,7 +652,7 @@ impl Bridge {
     /// The request in flight for device `ji` ended as `c` says (any
     /// driver's).
     pub(super) fn step_done(&mut self, ji: DeviceId, c: Ended) {
-        let Some(step) = self.joints.get_mut(ji).and_then(|j| j.busy.take()) else {
+        let Some(step) = self.joints.get_mut(ji).and_then(|j| j.schedule.take_busy()) else {
             return;
         };
         let Some(e) = self.end_request(ji, step, &c) else {
@@ -690,7 +686,10 @@ impl Bridge {
         // else): when in doubt, stop again, unless a newer step waits.
         let stop_again = c.outcome == Outcome::TimedOut
             && e.payload.unconfirmed_stop().is_some()
-            && self.joints.get(ji).is_some_and(|j| j.queue.is_empty());
+            && self
+                .joints
+                .get(ji)
+                .is_some_and(|j| !j.schedule.has_waiting());
         if e.more {
             let node = self.joints.get(ji).map_or(0, |j| j.node);
             if !self.send_step(self.now, ji, node, step) {
@@ -860,7 +859,7 @@ impl Bridge {
 
     /// Whether a step waiting for joint `j` deactivates it.
     fn deactivation_waits(&self, j: &Joint) -> bool {
-        j.queue.iter().any(|s| {
+        j.schedule.waiting().any(|s| {
             self.jobs
                 .get(&s.job)
                 .and_then(|job| job.axes.get(s.axis))
@@ -965,8 +964,8 @@ impl Bridge {
             a.begun = true;
             orders.push((k, payload));
             if let Some(j) = self.joints.get_mut(k) {
-                j.queue.pop_front();
-                j.busy = Some(front);
+                j.schedule.take_next();
+                j.schedule.start(front);
             }
             others.push((front, payload));
         }
@@ -989,7 +988,7 @@ impl Bridge {
         if sent.is_err() {
             for (k, _) in orders.iter().skip(1) {
                 if let Some(j) = self.joints.get_mut(*k) {
-                    j.busy = None;
+                    j.schedule.clear_busy();
                 }
             }
         }

@@ -12,10 +12,10 @@ impl Bridge {
         let joints = &self.joints;
         let busy = |k: DeviceId| {
             joints.get(k).is_some_and(|j| {
-                j.busy.is_some()
-                    || j.queue
-                        .front()
-                        .is_some_and(|s| !Self::after_earlier_axis(jobs, *s))
+                j.schedule.busy().is_some()
+                    || j.schedule
+                        .next_waiting()
+                        .is_some_and(|s| !Self::after_earlier_axis(jobs, s))
             })
         };
         self.drivers.link_housekeeping(now, &self.joints, busy);

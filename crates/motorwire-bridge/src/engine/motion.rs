@@ -296,7 +296,7 @@ impl Bridge {
     /// The first step of joint `j` in flight or waiting (a trajectory's
     /// later segments and cycles with it) that goes outside `w`.
     fn steps_outside(&self, j: &Joint, w: &Within) -> Option<String> {
-        for step in j.busy.iter().chain(j.queue.iter()) {
+        for step in j.schedule.steps() {
             let Some(job) = self.jobs.get(&step.job) else {
                 continue;
             };

@@ -235,7 +235,7 @@ impl Bridge {
             return;
         };
         let mut given_up = 0;
-        joint.queue.retain(|s| {
+        joint.schedule.retain_waiting(|s| {
             let Some(job) = self
                 .jobs
                 .get_mut(&s.job)
@@ -256,7 +256,7 @@ impl Bridge {
         // What runs on it with more to send (a trajectory, looping or not;
         // a move behind its joint's Activate): between two sends it ends
         // now; with one in flight, once that is answered.
-        if let Some(running) = joint.busy
+        if let Some(running) = joint.schedule.busy()
             && let Some(a) = self
                 .jobs
                 .get_mut(&running.job)
@@ -268,8 +268,7 @@ impl Bridge {
             given_up += 1;
             if a.state == AxisState::Queued {
                 a.finish(StepOutcome::Superseded, None, why);
-                joint.busy = None;
-                joint.wake = None;
+                joint.schedule.release();
             } else {
                 a.replaced = Some(why);
             }

@@ -25,7 +25,7 @@ impl Bridge {
             active: j.lifecycle.is_active(),
             feedback: j.feedback.clone(),
             target: j.schedule.target(),
-            queued: j.queue.len() + usize::from(j.busy.is_some()),
+            queued: j.schedule.waiting_len() + usize::from(j.schedule.busy().is_some()),
         })
     }
 

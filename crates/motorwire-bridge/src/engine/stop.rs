@@ -90,7 +90,7 @@ impl Bridge {
     fn to_resume(&self) -> Vec<(DeviceId, Vec<Lifecycle>)> {
         let mut resume = Vec::new();
         for (i, j) in self.joints.with_ids() {
-            let starting = j.busy.iter().chain(j.queue.iter()).find_map(|s| {
+            let starting = j.schedule.steps().find_map(|s| {
                 let job = self.jobs.get(&s.job)?;
                 matches!(job.kind, JobKind::Startup | JobKind::Release).then(|| {
                     let a = job.axes.get(s.axis)?;
@@ -174,7 +174,7 @@ impl Bridge {
         let picked = |b: &Bridge, ji: DeviceId| {
             b.joints
                 .get(ji)
-                .and_then(|j| j.busy)
+                .and_then(|j| j.schedule.busy())
                 .is_some_and(|s| b.jobs.get(&s.job).is_some_and(&pick))
         };
         let chosen: BTreeSet<DeviceId> = self.joints.ids().filter(|&ji| picked(self, ji)).collect();
@@ -184,13 +184,11 @@ impl Bridge {
                 continue;
             };
             let busy = joint
-                .busy
-                .take_if(|s| self.jobs.get(&s.job).is_some_and(&pick));
-            let (queued, kept): (Vec<StepRef>, Vec<StepRef>) = joint
-                .queue
-                .drain(..)
-                .partition(|s| self.jobs.get(&s.job).is_some_and(&pick));
-            joint.queue.extend(kept);
+                .schedule
+                .take_busy_if(|s| self.jobs.get(&s.job).is_some_and(&pick));
+            let queued = joint
+                .schedule
+                .take_waiting_where(|s| self.jobs.get(&s.job).is_some_and(&pick));
             if let Some(s) = busy {
                 let taken_back = unsent.contains(&ji);
                 self.cancel_busy(ji, s, why, taken_back, &mut maybe_held, &mut touched);
@@ -245,7 +243,7 @@ impl Bridge {
             self.drivers.forget(ji, msg_id, payload);
         }
         if let Some(joint) = self.joints.get_mut(ji) {
-            joint.wake = None;
+            joint.schedule.clear_wake();
         }
         if taken_back {
             a.finish(
@@ -356,7 +354,7 @@ impl Bridge {
             let stopping = self
                 .joints
                 .get(ji)
-                .and_then(|j| j.busy)
+                .and_then(|j| j.schedule.busy())
                 .and_then(|s| self.jobs.get(&s.job)?.axes.get(s.axis))
                 .is_some_and(|a| {
                     matches!(a.state, AxisState::InFlight { payload, .. } if payload.ends_setpoint())
@@ -416,7 +414,7 @@ impl Bridge {
         }
         // Ahead of anything waiting for the device.
         if let Some(j) = self.joints.get_mut(ji) {
-            for s in j.queue.drain(..).collect::<Vec<_>>() {
+            for s in j.schedule.take_all_waiting() {
                 if let Some(a) = axis_mut(&mut self.jobs, s) {
                     a.finish(
                         StepOutcome::Cancelled,
@@ -520,8 +518,8 @@ impl Bridge {
         }
         if !lost
             || at < acked.saturating_add(REBRAKE_AFTER)
-            || j.busy.is_some()
-            || !j.queue.is_empty()
+            || j.schedule.busy().is_some()
+            || j.schedule.has_waiting()
         {
             return;
         }

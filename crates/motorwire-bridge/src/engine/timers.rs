@@ -47,14 +47,14 @@ impl Bridge {
 
     /// Trajectory segments now due: each sent.
     fn send_due_segments(&mut self, now: Duration) {
-        let due = self.joints_where(|j| j.wake.is_some_and(|w| now >= w));
+        let due = self.joints_where(|j| j.schedule.wake().is_some_and(|w| now >= w));
         for ji in due {
             let Some(j) = self.joints.get_mut(ji) else {
                 continue;
             };
-            j.wake = None;
+            j.schedule.clear_wake();
             let node = j.node;
-            if let Some(step) = j.busy.take()
+            if let Some(step) = j.schedule.take_busy()
                 && !self.send_step(now, ji, node, step)
             {
                 self.pump(ji);
@@ -213,7 +213,7 @@ impl Bridge {
                         .min()
                 }
             }
-            Timer::Segment => self.joints.iter().filter_map(|j| j.wake).min(),
+            Timer::Segment => self.joints.iter().filter_map(|j| j.schedule.wake()).min(),
             Timer::Answer => self
                 .jobs
                 .values()
@@ -257,8 +257,8 @@ impl Bridge {
     fn sequence_due(&self) -> Option<Duration> {
         self.joints
             .iter()
-            .filter(|j| j.busy.is_none())
-            .filter_map(|j| j.queue.front())
+            .filter(|j| j.schedule.busy().is_none())
+            .filter_map(|j| j.schedule.next_waiting())
             .filter_map(|s| {
                 let job = self.jobs.get(&s.job)?;
                 let a = job.axes.get(s.axis).filter(|a| !a.is_done())?;
