@@ -63,36 +63,10 @@ pub(crate) struct Joint {
     /// Where it is in its lifecycle, as the bridge knows it.
     pub(crate) lifecycle: JointLifecycle,
     pub(crate) feedback: Option<MotorFeedback>,
-    /// Its position and velocity (degrees) as last reported.
-    pub(crate) motion: Option<(f64, f64)>,
-    /// When [`Joint::motion`] was reported, and its acceleration then
-    /// (degrees/s², from the last two reports): where it is now is
-    /// reckoned from them ([`Joint::state_at`]).
-    pub(crate) motion_at: Option<(Duration, f64)>,
-    /// The move it makes now as the bridge planned it, where the bridge
-    /// plans as the device does (an iRPC `SetTargetV2`): when it began,
-    /// and its profile. Where it is now is read from it while its reports
-    /// agree with it ([`Joint::state_at`]).
-    pub(crate) model: Option<(Duration, Box<Profile<f64>>)>,
-    /// [`Joint::state_at`] as last read, and when for.
-    state_kept: std::cell::Cell<Option<(Duration, Option<Kinematics>)>>,
-    /// The move being sent: when, and the state it starts from.
-    pub(crate) sending: Option<(Duration, Kinematics)>,
+    /// How it moves, as reported and as the bridge models it.
+    pub(crate) motion: Motion,
     /// What it does and waits to do.
     pub(crate) schedule: Schedule,
-    /// The velocity setpoint it holds (its unit a second), where the
-    /// order says one: what it goes at once it is up to speed, judged
-    /// against its position limits before its feedback shows it.
-    pub(crate) held_velocity: Option<f64>,
-    /// The limit the bridge last braked it short of, until a setpoint or
-    /// move is taken: while it still moves toward that limit, a velocity
-    /// or torque toward it is refused, and it is braked again if it goes
-    /// on as fast.
-    pub(crate) limit_braked: Option<LimitBraked>,
-    /// The largest acceleration its reports showed while it held a
-    /// velocity or torque setpoint (degrees/s², a magnitude): how fast a
-    /// torque may speed it up, for judging one toward a limit.
-    pub(crate) peak_accel: f64,
     /// A stop taken on an acknowledgement its device cannot tie to it (a
     /// compact device acknowledges a command with whatever feedback comes
     /// next): the order, when it was acked, and how fast the motor went
@@ -102,15 +76,162 @@ pub(crate) struct Joint {
     /// How often that stop was sent again (back to 0 once another order
     /// is taken).
     pub(crate) stop_resends: u8,
+}
+
+/// How a joint moves: as last reported, as the bridge models the move it
+/// makes (and plans the one it sends), and what holds or brakes it.
+/// [`Joint::state_at`] reads it; [`Joint::set_motion`],
+/// [`Joint::set_model`] and the methods here change it.
+#[derive(Debug, Default)]
+pub(crate) struct Motion {
+    /// Its position and velocity (degrees) as last reported.
+    reported: Option<(f64, f64)>,
+    /// When that was reported, and its acceleration then (degrees/s²,
+    /// from the last two reports): where it is now is reckoned from them
+    /// ([`Joint::state_at`]).
+    reported_at: Option<(Duration, f64)>,
+    /// The move it makes now as the bridge planned it, where the bridge
+    /// plans as the device does (an iRPC `SetTargetV2`): when it began,
+    /// and its profile. Where it is now is read from it while its reports
+    /// agree with it ([`Joint::state_at`]).
+    model: Option<(Duration, Box<Profile<f64>>)>,
+    /// [`Joint::state_at`] as last read, and when for.
+    kept: std::cell::Cell<Option<(Duration, Option<Kinematics>)>>,
+    /// The move being sent: when, and the state it starts from.
+    sending: Option<(Duration, Kinematics)>,
     /// The last move the gate planned for it: from its kinematics, the
     /// payload, and how long the joint's plan takes. When
     /// its Ack comes from the same state, its arrival time is this plan's
     /// (the same inputs make the same plan), not a second planning.
-    pub(crate) planned: Option<(Kinematics, motorwire_irpc::SetTargetPayloadV2, Duration)>,
+    planned: Option<(Kinematics, motorwire_irpc::SetTargetPayloadV2, Duration)>,
     /// That move's profile (the bridge's model of it once it is acked).
-    pub(crate) planned_profile: Option<Box<Profile<f64>>>,
+    planned_profile: Option<Box<Profile<f64>>>,
     /// When that move's path was checked.
-    pub(crate) planned_at: Duration,
+    planned_at: Duration,
+    /// The velocity setpoint it holds (its unit a second), where the
+    /// order says one: what it goes at once it is up to speed, judged
+    /// against its position limits before its feedback shows it.
+    held_velocity: Option<f64>,
+    /// The limit the bridge last braked it short of, until a setpoint or
+    /// move is taken: while it still moves toward that limit, a velocity
+    /// or torque toward it is refused, and it is braked again if it goes
+    /// on as fast.
+    limit_braked: Option<LimitBraked>,
+    /// The largest acceleration its reports showed while it held a
+    /// velocity or torque setpoint (degrees/s², a magnitude): how fast a
+    /// torque may speed it up, for judging one toward a limit.
+    peak_accel: f64,
+}
+
+impl Motion {
+    /// Its position and velocity (degrees) as last reported.
+    pub(crate) fn reported(&self) -> Option<(f64, f64)> {
+        self.reported
+    }
+
+    /// When that was reported, and its acceleration then.
+    pub(crate) fn reported_at(&self) -> Option<(Duration, f64)> {
+        self.reported_at
+    }
+
+    /// The bridge's model of the move it makes now: when it began, and
+    /// its profile.
+    pub(crate) fn model(&self) -> Option<&(Duration, Box<Profile<f64>>)> {
+        self.model.as_ref()
+    }
+
+    /// The state the move being sent starts from.
+    pub(crate) fn sent_from(&self) -> Option<Kinematics> {
+        self.sending.map(|(_, from)| from)
+    }
+
+    /// The last move the gate planned for it.
+    pub(crate) fn planned(
+        &self,
+    ) -> Option<(Kinematics, motorwire_irpc::SetTargetPayloadV2, Duration)> {
+        self.planned
+    }
+
+    /// When that move's path was checked.
+    pub(crate) fn planned_at(&self) -> Duration {
+        self.planned_at
+    }
+
+    /// The velocity setpoint it holds (its unit a second), if the order
+    /// says one.
+    pub(crate) fn held_velocity(&self) -> Option<f64> {
+        self.held_velocity
+    }
+
+    /// The limit the bridge last braked it short of, if any still binds.
+    pub(crate) fn limit_braked(&self) -> Option<LimitBraked> {
+        self.limit_braked
+    }
+
+    /// The largest acceleration its reports showed while it held a
+    /// velocity or torque setpoint (degrees/s², a magnitude).
+    pub(crate) fn peak_accel(&self) -> f64 {
+        self.peak_accel
+    }
+
+    /// Its reports showed `acceleration` while it held a torque setpoint.
+    pub(crate) fn saw_acceleration(&mut self, acceleration: f64) {
+        self.peak_accel = self.peak_accel.max(acceleration.abs());
+    }
+
+    /// The move planned for it (`planned`, its `profile`), its path
+    /// checked at `at`.
+    pub(crate) fn keep_plan(
+        &mut self,
+        planned: Option<(Kinematics, motorwire_irpc::SetTargetPayloadV2, Duration)>,
+        profile: Option<Box<Profile<f64>>>,
+        at: Duration,
+    ) {
+        self.planned = planned;
+        self.planned_profile = profile;
+        self.planned_at = at;
+    }
+
+    /// Nothing is being sent to it.
+    pub(crate) fn not_sending(&mut self) {
+        self.sending = None;
+    }
+
+    /// It holds `velocity` (its unit a second; `None`: no velocity
+    /// setpoint).
+    pub(crate) fn holds(&mut self, velocity: Option<f64>) {
+        self.held_velocity = velocity;
+    }
+
+    /// It is braked short of its limit `side` at `at`, going at `speed`
+    /// (its unit a second); the brake is on its way to the driver.
+    pub(crate) fn braked(&mut self, side: &'static str, at: Duration, speed: f64) {
+        self.limit_braked = Some(LimitBraked {
+            side,
+            at,
+            speed,
+            sending: true,
+        });
+    }
+
+    /// The limit brake is no longer on its way (sent, or none was).
+    pub(crate) fn brake_sent(&mut self) {
+        if let Some(b) = self.limit_braked.as_mut() {
+            b.sending = false;
+        }
+    }
+
+    /// An order was taken: the limit brake itself going out keeps what it
+    /// was braked short of; a new setpoint or move (`moves`) forgets it
+    /// (one toward the limit it was braked short of only once it had
+    /// stopped).
+    pub(crate) fn order_taken(&mut self, moves: bool) {
+        if let Some(b) = self.limit_braked.as_mut().filter(|b| b.sending) {
+            b.sending = false;
+        } else if moves {
+            self.limit_braked = None;
+        }
+    }
 }
 
 /// How far a report may be from the bridge's model of the move before the
@@ -522,7 +643,7 @@ impl Joint {
     /// line reads it when it is gated and again when it is sent. Debug
     /// builds check every kept value against a fresh reading.
     pub(crate) fn state_at(&self, now: Duration) -> Option<Kinematics> {
-        if let Some((at, kept)) = self.state_kept.get()
+        if let Some((at, kept)) = self.motion.kept.get()
             && at == now
         {
             debug_assert!(
@@ -533,26 +654,26 @@ impl Joint {
             return kept;
         }
         let s = self.state_now(now);
-        self.state_kept.set(Some((now, s)));
+        self.motion.kept.set(Some((now, s)));
         s
     }
 
     /// Its model of the move it makes now (when it began, its profile).
     pub(crate) fn set_model(&mut self, model: Option<(Duration, Box<Profile<f64>>)>) {
-        self.model = model;
-        self.state_kept.set(None);
+        self.motion.model = model;
+        self.motion.kept.set(None);
     }
 
     /// Its report: position and velocity, when, and its acceleration then.
     pub(crate) fn set_motion(&mut self, motion: (f64, f64), at: Duration, acceleration: f64) {
-        self.motion = Some(motion);
-        self.motion_at = Some((at, acceleration));
-        self.state_kept.set(None);
+        self.motion.reported = Some(motion);
+        self.motion.reported_at = Some((at, acceleration));
+        self.motion.kept.set(None);
     }
 
     /// [`Joint::state_at`], computed.
     fn state_now(&self, now: Duration) -> Option<Kinematics> {
-        if let Some((start, profile)) = &self.model {
+        if let Some((start, profile)) = &self.motion.model {
             let t = now.saturating_sub(*start).as_secs_f64();
             if t <= profile.duration() {
                 let s = profile.sample(t);
@@ -570,8 +691,8 @@ impl Joint {
                 return Some((end.position, 0.0, 0.0));
             }
         }
-        let (p, v) = self.motion?;
-        let Some((at, a)) = self.motion_at else {
+        let (p, v) = self.motion.reported?;
+        let Some((at, a)) = self.motion.reported_at else {
             return Some((p, v, 0.0));
         };
         let dt = now.saturating_sub(at);
@@ -614,7 +735,7 @@ impl Joint {
     /// A report of `position` and `velocity` at `at`: the model stands
     /// while the report agrees with it.
     pub(crate) fn check_model(&mut self, at: Duration, position: f64, velocity: f64) {
-        if let Some((start, profile)) = &self.model {
+        if let Some((start, profile)) = &self.motion.model {
             let t = at.saturating_sub(*start).as_secs_f64();
             let s = if t <= profile.duration() {
                 profile.sample(t)
@@ -629,6 +750,32 @@ impl Joint {
                 self.set_model(None);
             }
         }
+    }
+
+    /// A move is being sent to it, from where it is at `now`.
+    pub(crate) fn start_sending(&mut self, now: Duration) {
+        self.motion.sending = self.state_at(now).map(|s| (now, s));
+    }
+
+    /// `order`, acked: the move as the device plans it, from where it was
+    /// sent (the gate's own plan when it is the same move from the same
+    /// state), is its model; any other order leaves the device to its
+    /// reports. The gate's plan is spent.
+    pub(crate) fn model_acked(&mut self, order: Order) {
+        let sent_from = self.motion.sent_from();
+        let gate_plan = self
+            .motion
+            .planned
+            .zip(self.motion.planned_profile.take())
+            .filter(|((from, ..), _)| Some(*from) == sent_from)
+            .map(|((_, p, _), profile)| (p, profile));
+        let model = self
+            .motion
+            .sending
+            .take()
+            .and_then(|(t, from)| Some((t, order.device_plan(from, gate_plan)?)));
+        self.set_model(model);
+        self.motion.planned = None;
     }
 
     /// `tolerance`: the bus map's `arrival_tolerance`, in `unit`.
@@ -657,20 +804,10 @@ impl Joint {
             liveness: Liveness::new(device.online_at_start()),
             lifecycle: JointLifecycle::new(device.active_at_start()),
             feedback: None,
-            motion: None,
-            motion_at: None,
-            model: None,
-            state_kept: std::cell::Cell::new(None),
-            sending: None,
+            motion: Motion::default(),
             schedule: Schedule::default(),
-            held_velocity: None,
-            limit_braked: None,
-            peak_accel: 0.0,
             unconfirmed_stop: None,
             stop_resends: 0,
-            planned: None,
-            planned_profile: None,
-            planned_at: Duration::ZERO,
         }
     }
 }
@@ -852,10 +989,13 @@ mod tests {
             "at rest at its end"
         );
         j.check_model(ms(1300), at.position + 0.001, at.velocity);
-        assert!(j.model.is_some(), "a report within an f32's reach agrees");
+        assert!(
+            j.motion.model().is_some(),
+            "a report within an f32's reach agrees"
+        );
         j.check_model(ms(1300), at.position + 1.0, at.velocity);
         assert!(
-            j.model.is_none(),
+            j.motion.model().is_none(),
             "a report 1 degree off sets the model aside"
         );
     }

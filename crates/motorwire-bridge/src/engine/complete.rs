@@ -203,7 +203,7 @@ impl Bridge {
         };
         let mut w = self.watch_of(meta, targets, since);
         for (ji, j) in self.joints.with_ids() {
-            if let Some((pos, vel)) = j.motion
+            if let Some((pos, vel)) = j.motion.reported()
                 && w.axes.iter().any(|a| a.joint == ji)
             {
                 w.observe(ji, pos, vel, self.now);

@@ -56,7 +56,7 @@ impl Bridge {
             return;
         };
         // Its acceleration, from this report and the one before.
-        let acceleration = match (j.motion, j.motion_at) {
+        let acceleration = match (j.motion.reported(), j.motion.reported_at()) {
             (Some((_, v0)), Some((t0, _))) if at > t0 && at - t0 <= Duration::from_millis(100) => {
                 (vel - v0) / (at - t0).as_secs_f64()
             }
@@ -65,17 +65,17 @@ impl Bridge {
         // Its first reading may make the bridge ready; a later one cannot
         // (nor can any other device's reading but its first): what ready
         // waits for is looked at then, not on every report of every device.
-        let first = j.motion.is_none();
+        let first = j.motion.reported().is_none();
         // How fast a torque speeds it up: only while it holds a torque
         // setpoint, and only speeding up the way it goes (a stop, a fault
         // or a brake slows it down; a velocity setpoint ramps within the
         // limits).
         if j.liveness.deadman().is_some()
-            && j.held_velocity.is_none()
+            && j.motion.held_velocity().is_none()
             && acceleration.is_finite()
             && acceleration * vel > 0.0
         {
-            j.peak_accel = j.peak_accel.max(acceleration.abs());
+            j.motion.saw_acceleration(acceleration);
         }
         j.set_motion((pos, vel), at, acceleration);
         j.check_model(at, pos, vel);
@@ -168,7 +168,7 @@ impl Bridge {
                 if !j.liveness.is_online() {
                     f.status.fault = Some(true);
                 }
-                if let Some((pos, vel)) = j.motion {
+                if let Some((pos, vel)) = j.motion.reported() {
                     f.status.in_motion = Some(vel.abs() > tolerance * 10.0);
                     if let Some(target) = j.schedule.target() {
                         f.status.at_target = Some((pos - target).abs() <= tolerance);

@@ -296,7 +296,7 @@ impl Bridge {
             self.stats.refused_at_send += 1;
             if let Some(j) = self.joints.get_mut(ji) {
                 j.schedule.clear_busy();
-                j.sending = None;
+                j.motion.not_sending();
             }
             if let Some(a) = axis_mut(&mut self.jobs, step) {
                 let why = why.replacen(
@@ -324,8 +324,9 @@ impl Bridge {
         let from = j.state_at(self.now)?;
         // Checked already when its line came, this instant, from there.
         let checked = j
-            .planned
-            .filter(|_| j.planned_at == self.now)
+            .motion
+            .planned()
+            .filter(|_| j.motion.planned_at() == self.now)
             .map(|(from, p, _)| (from, p));
         let refusal = order.path_refusal(from, checked, || {
             let motor = self.map.motor(&j.name)?;
@@ -604,7 +605,7 @@ impl Bridge {
         if let Some(j) = self.joints.get_mut(ji) {
             j.schedule.start(step);
             // Where the move starts from, for the model of it once acked.
-            j.sending = j.state_at(now).map(|s| (now, s));
+            j.start_sending(now);
             // A stop waiting to be confirmed is not sent again over a newer
             // step (sent again itself, it is judged again once taken).
             j.unconfirmed_stop = None;
@@ -802,45 +803,26 @@ impl Bridge {
             order.lifecycle() == Some(Lifecycle::Activate) && self.deactivation_waits(j);
         // Planned from where it was when the order was sent, as the
         // device plans it.
-        let sent_from = j.sending.map(|(_, from)| from);
+        let sent_from = j.motion.sent_from();
         let cx = Context {
             at,
-            motion: sent_from.or(j.motion.map(|(p, v)| (p, v, 0.0))),
+            motion: sent_from.or(j.motion.reported().map(|(p, v)| (p, v, 0.0))),
             unit: j.unit,
             max_velocity: j.pace.max_velocity,
             max_acceleration: j.pace.max_acceleration,
             command_timeout: j.pace.command_timeout,
-            planned: j.planned,
+            planned: j.motion.planned(),
         };
         let effect = order.effect(&cx);
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
-        // The move as the device plans it, from where it was sent (the
-        // gate's own plan when it is the same move from the same state);
-        // any other order leaves the device to its reports.
-        let gate_plan = j
-            .planned
-            .zip(j.planned_profile.take())
-            .filter(|((from, ..), _)| Some(*from) == sent_from)
-            .map(|((_, p, _), profile)| (p, profile));
-        let model = j
-            .sending
-            .take()
-            .and_then(|(t, from)| Some((t, order.device_plan(from, gate_plan)?)));
-        j.set_model(model);
-        j.planned = None;
+        j.model_acked(order);
         j.liveness.deadman_at(effect.deadman);
-        j.held_velocity = effect.deadman.and_then(|_| order.held_velocity(j.unit));
-        if let Some(b) = j.limit_braked.as_mut().filter(|b| b.sending) {
-            // The limit brake itself going out: what it was braked short
-            // of is kept.
-            b.sending = false;
-        } else if effect.deadman.is_some() || effect.target.is_some() {
-            // A new setpoint or move taken (one toward the limit it was
-            // braked short of only once it had stopped).
-            j.limit_braked = None;
-        }
+        let held = effect.deadman.and_then(|_| order.held_velocity(j.unit));
+        j.motion.holds(held);
+        j.motion
+            .order_taken(effect.deadman.is_some() || effect.target.is_some());
         if order.unconfirmed_stop().is_some() {
             let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
             j.unconfirmed_stop = Some((order, at, speed));

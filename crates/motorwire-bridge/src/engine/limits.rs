@@ -45,12 +45,7 @@ impl Bridge {
                 continue;
             };
             let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
-            j.limit_braked = Some(crate::joints::LimitBraked {
-                side: limit_name,
-                at: now,
-                speed,
-                sending: true,
-            });
+            j.motion.braked(limit_name, now, speed);
             let order = j
                 .device
                 .limit_brake(decel)
@@ -60,9 +55,7 @@ impl Bridge {
                 None => {
                     if let Some(j) = self.joints.get_mut(ji) {
                         j.liveness.disarm_deadman();
-                        if let Some(b) = j.limit_braked.as_mut() {
-                            b.sending = false;
-                        }
+                        j.motion.brake_sent();
                     }
                 }
             }
@@ -84,7 +77,8 @@ impl Bridge {
         // As fast as it goes, or as it is told to go where that is faster
         // (its feedback may not show the speed it is getting up to).
         let v = j
-            .held_velocity
+            .motion
+            .held_velocity()
             .filter(|h| h.is_finite() && h.abs() > f.velocity.abs())
             .unwrap_or(f.velocity);
         let p = f.position;
@@ -116,7 +110,7 @@ impl Bridge {
     pub(super) fn brake_again(&self, j: &Joint) -> Option<(Duration, &'static str, f64)> {
         let crate::joints::LimitBraked {
             side, at, speed, ..
-        } = j.limit_braked?;
+        } = j.motion.limit_braked()?;
         let f = j.feedback.as_ref()?;
         let m = self.map.motor(&j.name)?;
         let heard = j.liveness.last_heard()?;
@@ -161,7 +155,7 @@ impl Bridge {
             .limits
             .max_velocity
             .map_or(1e-3, |v| (v.abs() * 1e-3).max(1e-9));
-        let reach = if j.limit_braked.is_some_and(|b| b.side == toward)
+        let reach = if j.motion.limit_braked().is_some_and(|b| b.side == toward)
             && f.velocity * setpoint.signum() > still
         {
             // Braked short of that limit and still on its way to it: no
@@ -179,7 +173,7 @@ impl Bridge {
             let t = 2.0 * BRAKE_LOOKAHEAD.as_secs_f64();
             let a = m
                 .unit
-                .from_degrees(j.peak_accel)
+                .from_degrees(j.motion.peak_accel())
                 .abs()
                 .max(m.limits.max_acceleration.unwrap_or(0.0));
             let (reach_v, travel) = ahead((f.velocity * setpoint.signum()).max(0.0), a, t);

@@ -142,7 +142,11 @@ impl Bridge {
             .waypoints
             .first()
             .map_or(0.0, |w| unit.to_degrees(w.position));
-        let here = self.joints.get(ji).and_then(|j| j.motion).map(|(p, _)| p);
+        let here = self
+            .joints
+            .get(ji)
+            .and_then(|j| j.motion.reported())
+            .map(|(p, _)| p);
         if here.is_none_or(|p| !p.is_finite() || (p - first).abs() > tolerance) {
             return Err(Refusal::NotAtStart {
                 motor: t.motor_id.clone(),
@@ -224,7 +228,7 @@ impl Bridge {
             if let Some(t) = j.schedule.target().filter(|t| w.outside(*t)) {
                 return Some(format!("its move under way goes to {}", w.say(t)));
             }
-            if let Some((_, v)) = j.motion.filter(|(_, v)| w.faster(*v)) {
+            if let Some((_, v)) = j.motion.reported().filter(|(_, v)| w.faster(*v)) {
                 return Some(format!("it moves at {} a second now", w.say(v.abs())));
             }
         }
@@ -243,7 +247,7 @@ impl Bridge {
         let farther = |x: f64| {
             (x > w.hi + SLACK && x > p_now + SLACK) || (x < w.lo - SLACK && x < p_now - SLACK)
         };
-        let rest = match &j.model {
+        let rest = match j.motion.model() {
             Some((start, profile)) => {
                 let t = self.now.saturating_sub(*start).as_secs_f64();
                 (t < profile.duration()).then(|| {
@@ -664,9 +668,7 @@ impl Bridge {
         let now = self.now;
         if let Some(j) = self.joints.get_mut(joint) {
             let (planned, profile) = planned.unzip();
-            j.planned = planned;
-            j.planned_profile = profile;
-            j.planned_at = now;
+            j.motion.keep_plan(planned, profile, now);
         }
     }
 

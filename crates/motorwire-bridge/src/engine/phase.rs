@@ -69,7 +69,7 @@ impl Bridge {
         let read = self
             .joints
             .iter()
-            .all(|j| !j.liveness.is_online() || j.motion.is_some());
+            .all(|j| !j.liveness.is_online() || j.motion.reported().is_some());
         if read || self.now >= until {
             self.enter(Phase::Running);
         }

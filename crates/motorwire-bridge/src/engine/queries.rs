@@ -47,7 +47,10 @@ impl Bridge {
             .motor(&j.name)
             .map_or(AngleUnit::Degrees, |m| m.unit);
         // Read once it reported where it is (a status alone says not).
-        let read = j.feedback.as_ref().filter(|_| j.motion.is_some());
+        let read = j
+            .feedback
+            .as_ref()
+            .filter(|_| j.motion.reported().is_some());
         MotorState {
             motor_id: j.name.clone(),
             online: j.liveness.is_online(),

@@ -447,7 +447,8 @@ impl Bridge {
     pub(super) fn lookahead(j: &Joint, m: &motorwire_translate::MappedMotor, v: f64) -> (f64, f64) {
         let t = BRAKE_LOOKAHEAD.as_secs_f64();
         let a = j
-            .motion_at
+            .motion
+            .reported_at()
             .map(|(_, a)| m.unit.from_degrees(a))
             .filter(|a| a.is_finite() && a * v > 0.0)
             .map_or(0.0, f64::abs);

@@ -30,7 +30,7 @@ impl Bridge {
         // Already there (a move to where it stands)?
         let mut done = false;
         for (ji, j) in self.joints.with_ids() {
-            if let Some((pos, vel)) = j.motion
+            if let Some((pos, vel)) = j.motion.reported()
                 && w.axes.iter().any(|a| a.joint == ji)
             {
                 done = w.observe(ji, pos, vel, now) || done;
