@@ -67,15 +67,61 @@ pub(crate) struct Joint {
     pub(crate) motion: Motion,
     /// What it does and waits to do.
     pub(crate) schedule: Schedule,
-    /// A stop taken on an acknowledgement its device cannot tie to it (a
-    /// compact device acknowledges a command with whatever feedback comes
-    /// next): the order, when it was acked, and how fast the motor went
-    /// then (its unit a second). Its feedback judges it until a newer
-    /// setpoint or move is taken; one lost on the bus is sent again.
-    pub(crate) unconfirmed_stop: Option<(Order, Duration, f64)>,
+    /// A stop its feedback has yet to confirm, and how often it was sent
+    /// again.
+    pub(crate) stop_check: StopCheck,
+}
+
+/// A stop taken on an acknowledgement its device cannot tie to it (a
+/// compact device acknowledges a command with whatever feedback comes
+/// next): its feedback judges it until a newer setpoint or move is taken;
+/// one lost on the bus is sent again, a few times at most.
+#[derive(Debug, Default)]
+pub(crate) struct StopCheck {
+    /// The stop: the order, when it was acked, and how fast the motor
+    /// went then (its unit a second).
+    unconfirmed: Option<(Order, Duration, f64)>,
     /// How often that stop was sent again (back to 0 once another order
     /// is taken).
-    pub(crate) stop_resends: u8,
+    resends: u8,
+}
+
+impl StopCheck {
+    /// The stop its feedback has yet to confirm: the order, when it was
+    /// acked, how fast the motor went then.
+    pub(crate) fn unconfirmed(&self) -> Option<(Order, Duration, f64)> {
+        self.unconfirmed
+    }
+
+    /// Stop `order` was taken at `at`, the motor going at `speed`: its
+    /// feedback judges it.
+    pub(crate) fn taken(&mut self, order: Order, at: Duration, speed: f64) {
+        self.unconfirmed = Some((order, at, speed));
+    }
+
+    /// The stop is no longer judged (a newer step goes, or it is sent
+    /// again and judged once taken); how often it was sent again is kept.
+    pub(crate) fn stop_judging(&mut self) {
+        self.unconfirmed = None;
+    }
+
+    /// Nothing is left to judge (the stop confirmed, given up on, or
+    /// another order taken): its count of resends starts over.
+    pub(crate) fn settle(&mut self) {
+        self.unconfirmed = None;
+        self.resends = 0;
+    }
+
+    /// Whether the stop may be sent again, counted, or has been `most`
+    /// times already: then the count starts over.
+    pub(crate) fn resend(&mut self, most: u8) -> bool {
+        if self.resends >= most {
+            self.resends = 0;
+            return false;
+        }
+        self.resends += 1;
+        true
+    }
 }
 
 /// How a joint moves: as last reported, as the bridge models the move it
@@ -806,8 +852,7 @@ impl Joint {
             feedback: None,
             motion: Motion::default(),
             schedule: Schedule::default(),
-            unconfirmed_stop: None,
-            stop_resends: 0,
+            stop_check: StopCheck::default(),
         }
     }
 }

@@ -608,7 +608,7 @@ impl Bridge {
             j.start_sending(now);
             // A stop waiting to be confirmed is not sent again over a newer
             // step (sent again itself, it is judged again once taken).
-            j.unconfirmed_stop = None;
+            j.stop_check.stop_judging();
         }
         Some(flushed_before)
     }
@@ -825,10 +825,9 @@ impl Bridge {
             .order_taken(effect.deadman.is_some() || effect.target.is_some());
         if order.unconfirmed_stop().is_some() {
             let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
-            j.unconfirmed_stop = Some((order, at, speed));
+            j.stop_check.taken(order, at, speed);
         } else {
-            j.unconfirmed_stop = None;
-            j.stop_resends = 0;
+            j.stop_check.settle();
         }
         j.schedule.acked(effect.target, effect.moving);
         if let Some(active) = effect.active {

@@ -478,7 +478,7 @@ impl Bridge {
         if self
             .joints
             .get(ji)
-            .is_none_or(|j| j.unconfirmed_stop.is_none())
+            .is_none_or(|j| j.stop_check.unconfirmed().is_none())
         {
             return;
         }
@@ -492,7 +492,8 @@ impl Bridge {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
-        let (Some((order, acked, speed)), Some(f)) = (j.unconfirmed_stop, j.feedback.as_ref())
+        let (Some((order, acked, speed)), Some(f)) =
+            (j.stop_check.unconfirmed(), j.feedback.as_ref())
         else {
             return;
         };
@@ -502,8 +503,7 @@ impl Bridge {
         let emergency = order.is_emergency_stop();
         let lost = if disables {
             if f.status.enabled == Some(false) && at >= acked {
-                j.unconfirmed_stop = None;
-                j.stop_resends = 0;
+                j.stop_check.settle();
                 return;
             }
             f.status.enabled == Some(true)
@@ -513,8 +513,7 @@ impl Bridge {
             f.velocity.abs() > (0.99 * speed).max(still)
         };
         if (latched && !emergency) || at > acked.saturating_add(CONFIRM_STOP_FOR) {
-            j.unconfirmed_stop = None;
-            j.stop_resends = 0;
+            j.stop_check.settle();
             return;
         }
         if !lost
@@ -524,7 +523,7 @@ impl Bridge {
         {
             return;
         }
-        j.unconfirmed_stop = None;
+        j.stop_check.stop_judging();
         let seen = if disables {
             "shown enabled by its feedback"
         } else {
@@ -559,8 +558,7 @@ impl Bridge {
         if latched && !order.is_emergency_stop() {
             return;
         }
-        if j.stop_resends >= MAX_STOP_RESENDS {
-            j.stop_resends = 0;
+        if !j.stop_check.resend(MAX_STOP_RESENDS) {
             if !latched {
                 let cause = format!(
                     "{}: its stop was sent {} times and not taken ({why})",
@@ -571,7 +569,6 @@ impl Bridge {
             }
             return;
         }
-        j.stop_resends += 1;
         self.stats.stops_sent_again += 1;
         let axis = Axis::of(j.name.clone(), ji, [order.restamped(now_ms)]);
         self.own_stop(now, axis);
