@@ -44,20 +44,9 @@ pub(crate) struct LimitBraked {
 
 #[derive(Debug)]
 pub(crate) struct Joint {
-    pub(crate) name: String,
-    /// Its CAN id (iRPC node, compact command id; the Orion motors'
-    /// [`crate::device::orion::ORION_NODE`], which no frame has).
-    pub(crate) node: u16,
-    /// Its dialect, and what addresses it there.
-    pub(crate) device: Device,
-    /// The unit of its positions in the bus map (and in WIA lines).
-    pub(crate) unit: AngleUnit,
-    /// How close to its target a move must come to have arrived
-    /// (degrees): the bus map's `arrival_tolerance`.
-    pub(crate) tolerance: f64,
-    /// The limits in force that say how long its moves take and how long
-    /// a setpoint holds (kept as the bus map's change: [`Pace::of`]).
-    pub(crate) pace: Pace,
+    /// Who it is: its name, where and how it is addressed, its unit, its
+    /// arrival tolerance and pace.
+    pub(crate) identity: Identity,
     /// Whether it is heard, and the deadman of a setpoint it holds.
     pub(crate) liveness: Liveness,
     /// Where it is in its lifecycle, as the bridge knows it.
@@ -70,6 +59,66 @@ pub(crate) struct Joint {
     /// A stop its feedback has yet to confirm, and how often it was sent
     /// again.
     pub(crate) stop_check: StopCheck,
+}
+
+/// Who a joint is: fixed by the bus map when the bridge starts, but for
+/// its pace, which follows the limits in force.
+#[derive(Debug)]
+pub(crate) struct Identity {
+    /// Its name in the bus map.
+    name: String,
+    /// Its CAN id (iRPC node, compact command id; the Orion motors'
+    /// [`crate::device::orion::ORION_NODE`], which no frame has).
+    node: u16,
+    /// Its dialect, and what addresses it there.
+    device: Device,
+    /// The unit of its positions in the bus map (and in WIA lines).
+    unit: AngleUnit,
+    /// How close to its target a move must come to have arrived
+    /// (degrees): the bus map's `arrival_tolerance`.
+    tolerance: f64,
+    /// The limits in force that say how long its moves take and how long
+    /// a setpoint holds (kept as the bus map's change: [`Pace::of`]).
+    pace: Pace,
+}
+
+impl Identity {
+    /// Its name in the bus map.
+    pub(crate) fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Its CAN id.
+    pub(crate) fn node(&self) -> u16 {
+        self.node
+    }
+
+    /// Its dialect, and what addresses it there.
+    pub(crate) fn device(&self) -> Device {
+        self.device
+    }
+
+    /// The unit of its positions in the bus map.
+    pub(crate) fn unit(&self) -> AngleUnit {
+        self.unit
+    }
+
+    /// How close to its target a move must come to have arrived
+    /// (degrees).
+    pub(crate) fn tolerance(&self) -> f64 {
+        self.tolerance
+    }
+
+    /// The limits in force that say how long its moves take and how long
+    /// a setpoint holds.
+    pub(crate) fn pace(&self) -> Pace {
+        self.pace
+    }
+
+    /// The bus map's limits for it changed (`m` as it now has them).
+    pub(crate) fn limits_changed(&mut self, m: &motorwire_translate::MappedMotor) {
+        self.pace = Pace::of(m);
+    }
 }
 
 /// A stop taken on an acknowledgement its device cannot tie to it (a
@@ -695,7 +744,7 @@ impl Joint {
             debug_assert!(
                 same_state(kept, self.state_now(now)),
                 "{}: the state changed without set_model or set_motion",
-                self.name
+                self.identity.name
             );
             return kept;
         }
@@ -829,7 +878,7 @@ impl Joint {
     /// limits.
     pub(crate) fn of(m: &motorwire_translate::MappedMotor, node: u16, device: Device) -> Self {
         let mut j = Self::new(m.name.clone(), node, device, m.unit, m.arrival_tolerance);
-        j.pace = Pace::of(m);
+        j.identity.limits_changed(m);
         j
     }
 
@@ -841,12 +890,14 @@ impl Joint {
         tolerance: f64,
     ) -> Self {
         Self {
-            name,
-            node,
-            device,
-            unit,
-            tolerance: unit.to_degrees(tolerance),
-            pace: Pace::default(),
+            identity: Identity {
+                name,
+                node,
+                device,
+                unit,
+                tolerance: unit.to_degrees(tolerance),
+                pace: Pace::default(),
+            },
             liveness: Liveness::new(device.online_at_start()),
             lifecycle: JointLifecycle::new(device.active_at_start()),
             feedback: None,
@@ -932,10 +983,10 @@ impl Registry for Joints {
         let j = self.get(id)?;
         Some(DeviceView {
             id,
-            name: &j.name,
-            node: j.node,
-            device: j.device,
-            unit: j.unit,
+            name: &j.identity.name,
+            node: j.identity.node,
+            device: j.identity.device,
+            unit: j.identity.unit,
             online: j.liveness.is_online(),
             feedback: j.feedback.as_ref(),
         })

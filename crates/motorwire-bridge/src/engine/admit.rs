@@ -323,6 +323,35 @@ impl Bridge {
         if self.stop.is_latched() {
             return Err(Refusal::Latched);
         }
+        self.check_timestamp(arrived, origin, timestamp)?;
+        self.check_motors(motors.clone())?;
+        if self.pending_lines() >= self.config.max_pending_lines {
+            return Err(Refusal::LinesInProgress {
+                max: self.config.max_pending_lines,
+            });
+        }
+        if let Some(m) = motors.find(|m| {
+            self.joint_index(m)
+                .and_then(|i| self.joints.get(i))
+                .is_some_and(|j| j.schedule.waiting_len() >= self.config.max_queue_per_joint)
+        }) {
+            return Err(Refusal::QueueFull {
+                motor: m.to_owned(),
+                max: self.config.max_queue_per_joint,
+            });
+        }
+        Ok(())
+    }
+
+    /// Whether a line stamped `timestamp` (on `origin`'s clock), that
+    /// reached the bridge at `arrived`, may run: not written before the
+    /// last emergency stop, and within the allowed clock skew.
+    fn check_timestamp(
+        &self,
+        arrived: Duration,
+        origin: Option<Origin>,
+        timestamp: f64,
+    ) -> Result<(), Refusal> {
         // The timestamp on the bridge's clock, as far as the client's
         // lines tell: a clock that runs ahead is taken back by as much
         // (never forward: a clock behind only refuses more). Held to the
@@ -352,6 +381,15 @@ impl Bridge {
                 });
             }
         }
+        Ok(())
+    }
+
+    /// Whether each of `motors` takes a line: none lost until a reset,
+    /// none offline.
+    fn check_motors<'a>(
+        &self,
+        motors: impl Iterator<Item = &'a str> + Clone,
+    ) -> Result<(), Refusal> {
         if let Some(err) = motors.clone().find_map(|m| {
             let j = self.joints.get(self.joint_index(m)?)?;
             let why = j.lifecycle.needs_reset()?;
@@ -366,28 +404,22 @@ impl Bridge {
             let j = self.joints.get(self.joint_index(m)?)?;
             (!j.liveness.is_online()).then(|| Refusal::Offline {
                 motor: m.to_owned(),
-                why: Some(self.drivers.offline_reason(j.device).map_or_else(
-                    || format!("nothing heard from {}", j.device.who(j.node)),
-                    str::to_owned,
-                )),
+                why: Some(
+                    self.drivers
+                        .offline_reason(j.identity.device())
+                        .map_or_else(
+                            || {
+                                format!(
+                                    "nothing heard from {}",
+                                    j.identity.device().who(j.identity.node())
+                                )
+                            },
+                            str::to_owned,
+                        ),
+                ),
             })
         }) {
             return Err(err);
-        }
-        if self.pending_lines() >= self.config.max_pending_lines {
-            return Err(Refusal::LinesInProgress {
-                max: self.config.max_pending_lines,
-            });
-        }
-        if let Some(m) = motors.find(|m| {
-            self.joint_index(m)
-                .and_then(|i| self.joints.get(i))
-                .is_some_and(|j| j.schedule.waiting_len() >= self.config.max_queue_per_joint)
-        }) {
-            return Err(Refusal::QueueFull {
-                motor: m.to_owned(),
-                max: self.config.max_queue_per_joint,
-            });
         }
         Ok(())
     }

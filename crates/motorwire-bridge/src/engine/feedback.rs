@@ -94,12 +94,12 @@ impl Bridge {
             j.schedule.settle();
             let position = self
                 .map
-                .motor(&j.name)
+                .motor(j.identity.name())
                 .map_or(pos, |m| m.unit.from_degrees(pos));
             self.out.push_back(Output::Event(Event::Outcome {
                 origin: u.origin,
                 line: u.line,
-                motor_id: j.name.clone(),
+                motor_id: j.identity.name().to_owned(),
                 outcome: "executed",
                 position: shortest(position),
             }));
@@ -116,7 +116,7 @@ impl Bridge {
         let before = j.lifecycle.reported(state);
         if state == LifecycleState::Error {
             let event = Event::JointFault {
-                motor_id: j.name.clone(),
+                motor_id: j.identity.name().to_owned(),
                 code,
                 reason: None,
             };
@@ -129,7 +129,7 @@ impl Bridge {
             )
         {
             let event = Event::Rebooted {
-                motor_id: j.name.clone(),
+                motor_id: j.identity.name().to_owned(),
             };
             self.joint_lost(ji, "rebooted".to_owned(), event);
         }
@@ -142,8 +142,8 @@ impl Bridge {
             j.liveness.heard(at);
             if up && j.liveness.back_online() {
                 self.out.push_back(Output::Event(Event::Online {
-                    motor_id: j.name.clone(),
-                    node: j.node,
+                    motor_id: j.identity.name().to_owned(),
+                    node: j.identity.node(),
                 }));
             }
         }
@@ -161,7 +161,7 @@ impl Bridge {
             // Degrees: how close counts as there, and how slow as at rest.
             let tolerance = self
                 .map
-                .motor(&j.name)
+                .motor(j.identity.name())
                 .map_or(0.1, |m| m.unit.to_degrees(m.arrival_tolerance));
             let fb = j.feedback.clone().map(|mut f| {
                 f.timestamp = ts;
@@ -182,7 +182,7 @@ impl Bridge {
             self.stats.feedback_lines += 1;
             self.out.push_back(Output::Feedback(Box::new(FeedbackLine {
                 feedback: fb,
-                motor_id: j.name.clone(),
+                motor_id: j.identity.name().to_owned(),
                 online: j.liveness.is_online(),
             })));
         }

@@ -88,7 +88,7 @@ impl Bridge {
             let Some(j) = self.joints.get_mut(a.joint) else {
                 continue;
             };
-            if !j.device.supports(Capability::Lifecycle) {
+            if !j.identity.device().supports(Capability::Lifecycle) {
                 continue;
             }
             let deactivates = a
@@ -100,7 +100,11 @@ impl Bridge {
             if deactivates {
                 j.lifecycle.freed_by_a_line();
             } else if j.lifecycle.is_freed() && a.payloads.front().is_some_and(Order::is_setpoint) {
-                for activate in j.device.lifecycle_orders(&[Lifecycle::Activate], 0) {
+                for activate in j
+                    .identity
+                    .device()
+                    .lifecycle_orders(&[Lifecycle::Activate], 0)
+                {
                     a.payloads.push_front(activate);
                     if let Some(&first) = a.due.front() {
                         a.due.push_front(first);
@@ -329,13 +333,13 @@ impl Bridge {
             .filter(|_| j.motion.planned_at() == self.now)
             .map(|(from, p, _)| (from, p));
         let refusal = order.path_refusal(from, checked, || {
-            let motor = self.map.motor(&j.name)?;
+            let motor = self.map.motor(j.identity.name())?;
             Some((motor, motorwire_translate::Effective::from_bus_map(motor)))
         })?;
         Some(format!(
             "not sent: from where it was when its turn came ({} at {} a second), {refusal}",
-            short_unit(j.unit.from_degrees(from.0)),
-            short_unit(j.unit.from_degrees(from.1))
+            short_unit(j.identity.unit().from_degrees(from.0)),
+            short_unit(j.identity.unit().from_degrees(from.1))
         ))
     }
 
@@ -368,7 +372,7 @@ impl Bridge {
             let Some(step) = joint.schedule.take_next() else {
                 return;
             };
-            let node = joint.node;
+            let node = joint.identity.node();
             if self.send_step(now, ji, node, step) {
                 return;
             }
@@ -692,7 +696,7 @@ impl Bridge {
                 .get(ji)
                 .is_some_and(|j| !j.schedule.has_waiting());
         if e.more {
-            let node = self.joints.get(ji).map_or(0, |j| j.node);
+            let node = self.joints.get(ji).map_or(0, |j| j.identity.node());
             if !self.send_step(self.now, ji, node, step) {
                 self.pump(ji);
             }
@@ -721,7 +725,7 @@ impl Bridge {
         answered(a, kind, c, || {
             joints
                 .get(ji)
-                .map_or_else(String::new, |j| j.device.who(j.node))
+                .map_or_else(String::new, |j| j.identity.device().who(j.identity.node()))
         });
         Some(RequestEnded {
             kind,
@@ -747,8 +751,8 @@ impl Bridge {
         }
         if j.liveness.went_offline() {
             self.out.push_back(Output::Event(Event::Offline {
-                motor_id: j.name.clone(),
-                node: j.node,
+                motor_id: j.identity.name().to_owned(),
+                node: j.identity.node(),
                 reason: "a request timed out".to_owned(),
             }));
             self.fail_watches(|w| w.waits_on(ji), "the joint went offline");
@@ -807,10 +811,10 @@ impl Bridge {
         let cx = Context {
             at,
             motion: sent_from.or(j.motion.reported().map(|(p, v)| (p, v, 0.0))),
-            unit: j.unit,
-            max_velocity: j.pace.max_velocity,
-            max_acceleration: j.pace.max_acceleration,
-            command_timeout: j.pace.command_timeout,
+            unit: j.identity.unit(),
+            max_velocity: j.identity.pace().max_velocity,
+            max_acceleration: j.identity.pace().max_acceleration,
+            command_timeout: j.identity.pace().command_timeout,
             planned: j.motion.planned(),
         };
         let effect = order.effect(&cx);
@@ -819,7 +823,9 @@ impl Bridge {
         };
         j.model_acked(order);
         j.liveness.deadman_at(effect.deadman);
-        let held = effect.deadman.and_then(|_| order.held_velocity(j.unit));
+        let held = effect
+            .deadman
+            .and_then(|_| order.held_velocity(j.identity.unit()));
         j.motion.holds(held);
         j.motion
             .order_taken(effect.deadman.is_some() || effect.target.is_some());

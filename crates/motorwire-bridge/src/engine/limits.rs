@@ -22,7 +22,8 @@ impl Bridge {
             if at > now {
                 continue;
             }
-            let (Some(f), Some(m)) = (j.feedback.as_ref(), self.map.motor(&j.name)) else {
+            let (Some(f), Some(m)) = (j.feedback.as_ref(), self.map.motor(j.identity.name()))
+            else {
                 continue;
             };
             let decel = Self::braking(&m.limits).map(|d| m.unit.to_degrees(d));
@@ -31,7 +32,7 @@ impl Bridge {
                 decel,
                 limit_name,
                 Event::LimitBrake {
-                    motor_id: j.name.clone(),
+                    motor_id: j.identity.name().to_owned(),
                     position: f.position,
                     velocity: f.velocity,
                     limit_name,
@@ -47,9 +48,10 @@ impl Bridge {
             let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
             j.motion.braked(limit_name, now, speed);
             let order = j
-                .device
+                .identity
+                .device()
                 .limit_brake(decel)
-                .or_else(|| j.device.hold_still(now_ms));
+                .or_else(|| j.identity.device().hold_still(now_ms));
             match order {
                 Some(order) => self.stop_setpoint(now, ji, order, Some(event)),
                 None => {
@@ -73,7 +75,7 @@ impl Bridge {
             return self.brake_again(j);
         }
         let f = j.feedback.as_ref()?;
-        let m = self.map.motor(&j.name)?;
+        let m = self.map.motor(j.identity.name())?;
         // As fast as it goes, or as it is told to go where that is faster
         // (its feedback may not show the speed it is getting up to).
         let v = j
@@ -112,7 +114,7 @@ impl Bridge {
             side, at, speed, ..
         } = j.motion.limit_braked()?;
         let f = j.feedback.as_ref()?;
-        let m = self.map.motor(&j.name)?;
+        let m = self.map.motor(j.identity.name())?;
         let heard = j.liveness.last_heard()?;
         let (toward, limit) = if side == "max_position" {
             (f.velocity, m.limits.max_position?)

@@ -60,8 +60,8 @@ impl Bridge {
             .joints
             .with_ids()
             .filter_map(|(ji, j)| {
-                let order = j.device.arm_order(command)?;
-                Some(Axis::of(j.name.clone(), ji, [order]))
+                let order = j.identity.device().arm_order(command)?;
+                Some(Axis::of(j.identity.name().to_owned(), ji, [order]))
             })
             .collect();
         if axes.is_empty() {
@@ -117,7 +117,7 @@ impl Bridge {
         let Some(ji) = self.joint_index(motor).filter(|&ji| {
             self.joints
                 .get(ji)
-                .is_some_and(|j| j.device.supports(needs_to))
+                .is_some_and(|j| j.identity.device().supports(needs_to))
         }) else {
             if self.joint_index(motor).is_none() {
                 return Err(Refusal::UnknownMotor {
@@ -130,7 +130,7 @@ impl Bridge {
                 _ => Refusal::NotAnIrpcJoint { motor },
             });
         };
-        let device = self.joints.get(ji).map(|j| j.device);
+        let device = self.joints.get(ji).map(|j| j.identity.device());
         if device.is_none_or(|d| !d.speaks(needs)) {
             let wire = device.map(Device::wire);
             return Err(Refusal::NoSuchMessage {
@@ -321,7 +321,11 @@ impl Bridge {
                 reason,
                 code,
             } => {
-                let Some(name) = self.joints.get(device).map(|j| j.name.clone()) else {
+                let Some(name) = self
+                    .joints
+                    .get(device)
+                    .map(|j| j.identity.name().to_owned())
+                else {
                     return;
                 };
                 self.joint_lost(
@@ -368,8 +372,8 @@ impl Bridge {
                 j.liveness.disarm_deadman();
                 if j.liveness.went_offline() {
                     self.out.push_back(Output::Event(Event::Offline {
-                        motor_id: j.name.clone(),
-                        node: j.node,
+                        motor_id: j.identity.name().to_owned(),
+                        node: j.identity.node(),
                         reason: why.to_owned(),
                     }));
                 }

@@ -546,7 +546,7 @@ impl Bridge {
         // sends by itself, and a device that holds bounds of its own,
         // follow them.
         for (ji, j) in joints.with_ids() {
-            if let Some(m) = map.motor(&j.name) {
+            if let Some(m) = map.motor(j.identity.name()) {
                 drivers.limits_changed(ji, &InForce::of(m.unit, &m.limits));
             }
         }

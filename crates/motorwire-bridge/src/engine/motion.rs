@@ -105,7 +105,7 @@ impl Bridge {
         let Some(ji) = self.joint_index(&t.motor_id).filter(|&ji| {
             self.joints
                 .get(ji)
-                .is_some_and(|j| j.device.supports(Capability::Trajectory))
+                .is_some_and(|j| j.identity.device().supports(Capability::Trajectory))
         }) else {
             return Err(Refusal::NotAnIrpcJoint {
                 motor: t.motor_id.clone(),
@@ -169,7 +169,7 @@ impl Bridge {
         plan: &motorwire_translate::TrajectoryPlan,
         start: Duration,
     ) -> Axis {
-        let device = self.joints.get(ji).map(|j| j.device);
+        let device = self.joints.get(ji).map(|j| j.identity.device());
         let max_torque = self
             .map
             .motor(&t.motor_id)
@@ -216,7 +216,7 @@ impl Bridge {
         let j = self.joints.get(ji)?;
         let unit = self
             .map
-            .motor(&j.name)
+            .motor(j.identity.name())
             .map_or(AngleUnit::Degrees, |m| m.unit);
         let w = Within {
             lo: unit.to_degrees(lo),
@@ -279,7 +279,7 @@ impl Bridge {
         p_now: f64,
         v_now: f64,
     ) -> Option<[(f64, f64); 2]> {
-        let l = self.map.motor(&j.name)?.limits;
+        let l = self.map.motor(j.identity.name())?.limits;
         let deg = |x: Option<f64>| x.map(|v| unit.to_degrees(v));
         let acc = deg(l.max_acceleration).unwrap_or(1000.0);
         let mut req = motorwire_planner::Request::new(
@@ -403,7 +403,7 @@ impl Bridge {
         if let Some(ji) = self.joint_index(name) {
             let motor = self.map.motor(name);
             if let (Some(j), Some(m)) = (self.joints.get_mut(ji), motor) {
-                j.pace = crate::joints::Pace::of(m);
+                j.identity.limits_changed(m);
             }
             let unit = motor.map_or(AngleUnit::Degrees, |m| m.unit);
             self.drivers.limits_changed(ji, &InForce::of(unit, &limits));
@@ -415,7 +415,7 @@ impl Bridge {
     }
 
     pub(super) fn joint_index(&self, motor: &str) -> Option<DeviceId> {
-        self.joints.find(|j| j.name == motor)
+        self.joints.find(|j| j.identity.name() == motor)
     }
 
     pub(super) fn motor_command(&mut self, now: Duration, meta: LineMeta, cmd: &mut MotorCommand) {
@@ -435,7 +435,7 @@ impl Bridge {
         }
         // Its joint, looked for once.
         let ji = self.joint_index(&cmd.motor_id);
-        let device = ji.and_then(|ji| Some((ji, self.joints.get(ji)?.device)));
+        let device = ji.and_then(|ji| Some((ji, self.joints.get(ji)?.identity.device())));
         // A joint is attached (an Orion motor is one only with its
         // controller); anything else may be an Orion motor without one.
         if ji.is_none()
@@ -598,7 +598,7 @@ impl Bridge {
             self.joint_index(&a.motor_id).is_some_and(|ji| {
                 self.joints
                     .get(ji)
-                    .is_some_and(|j| j.device.planned_together())
+                    .is_some_and(|j| j.identity.device().planned_together())
             })
         });
         let mut irpc: Vec<Vec<Payload>> = Vec::new();
@@ -607,7 +607,7 @@ impl Bridge {
             let state = |m: &str| {
                 let j = self.joints.get(self.joint_index(m)?)?;
                 match j.state_at(self.now) {
-                    Some(k) => Some(crate::joints::in_unit(j.unit, k)),
+                    Some(k) => Some(crate::joints::in_unit(j.identity.unit(), k)),
                     None => j.feedback.as_ref().map(|f| (f.position, 0.0, 0.0)),
                 }
             };
@@ -627,7 +627,7 @@ impl Bridge {
             };
             let single = a.to_motor_command(cmd.timestamp);
             let prefixed = |r: Report| r.losses.into_iter().map(|l| l.under(&a.motor_id));
-            let device = self.joints.get(ji).map(|j| j.device);
+            let device = self.joints.get(ji).map(|j| j.identity.device());
             if let Some(built) = device.and_then(|d| self.single_axis(ji, d, &single)) {
                 let (axis, r) = built.map_err(|r| refused(&a.motor_id, r))?;
                 report.losses.extend(prefixed(r));

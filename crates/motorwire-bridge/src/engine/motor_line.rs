@@ -28,7 +28,7 @@ impl Bridge {
         }
         let Some((ji, device)) = self
             .joint_index(motor)
-            .and_then(|ji| Some((ji, self.joints.get(ji)?.device)))
+            .and_then(|ji| Some((ji, self.joints.get(ji)?.identity.device())))
         else {
             let e =
                 self.unattached(std::iter::once(motor))

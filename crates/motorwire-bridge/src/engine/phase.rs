@@ -19,7 +19,11 @@ impl Bridge {
 
     pub(super) fn ready_event(&self) -> Event {
         Event::Ready {
-            joints: self.joints.iter().map(|j| j.name.clone()).collect(),
+            joints: self
+                .joints
+                .iter()
+                .map(|j| j.identity.name().to_owned())
+                .collect(),
             state: self.state(),
         }
     }

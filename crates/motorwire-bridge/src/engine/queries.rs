@@ -16,10 +16,10 @@ impl Bridge {
     /// The joints, in the bus map's order.
     pub fn joints(&self) -> impl Iterator<Item = JointView> + '_ {
         self.joints.iter().map(|j| JointView {
-            name: j.name.clone(),
-            node: j.node,
-            dialect: j.device.dialect_name(),
-            version: j.device.version(),
+            name: j.identity.name().to_owned(),
+            node: j.identity.node(),
+            dialect: j.identity.device().dialect_name(),
+            version: j.identity.device().version(),
             online: j.liveness.is_online(),
             state: j.lifecycle.state(),
             active: j.lifecycle.is_active(),
@@ -44,7 +44,7 @@ impl Bridge {
     pub(super) fn motor_state(&self, j: &Joint) -> MotorState {
         let unit = self
             .map
-            .motor(&j.name)
+            .motor(j.identity.name())
             .map_or(AngleUnit::Degrees, |m| m.unit);
         // Read once it reported where it is (a status alone says not).
         let read = j
@@ -52,7 +52,7 @@ impl Bridge {
             .as_ref()
             .filter(|_| j.motion.reported().is_some());
         MotorState {
-            motor_id: j.name.clone(),
+            motor_id: j.identity.name().to_owned(),
             online: j.liveness.is_online(),
             active: j.lifecycle.is_active(),
             position: read.map(|f| shortest(f.position)),

@@ -282,13 +282,15 @@ impl Bridge {
         let reactivated = resume
             .keys()
             .filter_map(|i| self.joints.get(*i))
-            .map(|j| j.name.clone())
+            .map(|j| j.identity.name().to_owned())
             .collect();
         let left_inactive = self
             .joints
             .with_ids()
-            .filter(|(i, j)| !resume.contains_key(i) && j.device.supports(Capability::Lifecycle))
-            .map(|(_, j)| j.name.clone())
+            .filter(|(i, j)| {
+                !resume.contains_key(i) && j.identity.device().supports(Capability::Lifecycle)
+            })
+            .map(|(_, j)| j.identity.name().to_owned())
             .collect();
         self.out.push_back(Output::Event(Event::Released {
             reactivated,
@@ -298,7 +300,11 @@ impl Bridge {
             .into_iter()
             .filter_map(|(i, p)| {
                 let orders = self.orders_for(i, &p);
-                Some(Axis::of(self.joints.get(i)?.name.clone(), i, orders))
+                Some(Axis::of(
+                    self.joints.get(i)?.identity.name().to_owned(),
+                    i,
+                    orders,
+                ))
             })
             .collect();
         self.open_job(
@@ -315,7 +321,7 @@ impl Bridge {
     pub(super) fn every_joint(&self, steps: &[Lifecycle]) -> Vec<Axis> {
         self.joints
             .with_ids()
-            .map(|(i, j)| Axis::of(j.name.clone(), i, self.orders_for(i, steps)))
+            .map(|(i, j)| Axis::of(j.identity.name().to_owned(), i, self.orders_for(i, steps)))
             .collect()
     }
 
@@ -325,7 +331,7 @@ impl Bridge {
         let now_ms = self.unix_ms(self.now) as u64;
         self.joints
             .get(ji)
-            .map(|j| j.device.lifecycle_orders(steps, now_ms))
+            .map(|j| j.identity.device().lifecycle_orders(steps, now_ms))
             .unwrap_or_default()
     }
 
@@ -377,8 +383,8 @@ impl Bridge {
             let Some(j) = self.joints.get_mut(ji) else {
                 continue;
             };
-            let name = j.name.clone();
-            let Some(order) = j.device.hold_still(now_ms) else {
+            let name = j.identity.name().to_owned();
+            let Some(order) = j.identity.device().hold_still(now_ms) else {
                 j.liveness.disarm_deadman();
                 continue;
             };
@@ -407,7 +413,7 @@ impl Bridge {
             return;
         };
         j.liveness.disarm_deadman();
-        let name = j.name.clone();
+        let name = j.identity.name().to_owned();
         let axis = Axis::of(name, ji, [order]);
         if let Some(e) = event {
             self.out.push_back(Output::Event(e));
@@ -486,7 +492,7 @@ impl Bridge {
         let still = self
             .joints
             .get(ji)
-            .and_then(|j| self.map.motor(&j.name))
+            .and_then(|j| self.map.motor(j.identity.name()))
             .and_then(|m| m.limits.max_velocity)
             .map_or(1e-3, |v| (v.abs() * 1e-3).max(1e-9));
         let Some(j) = self.joints.get_mut(ji) else {
@@ -562,7 +568,7 @@ impl Bridge {
             if !latched {
                 let cause = format!(
                     "{}: its stop was sent {} times and not taken ({why})",
-                    j.name,
+                    j.identity.name(),
                     MAX_STOP_RESENDS + 1
                 );
                 self.emergency_stop(now, None, Vec::new(), cause);
@@ -570,7 +576,7 @@ impl Bridge {
             return;
         }
         self.stats.stops_sent_again += 1;
-        let axis = Axis::of(j.name.clone(), ji, [order.restamped(now_ms)]);
+        let axis = Axis::of(j.identity.name().to_owned(), ji, [order.restamped(now_ms)]);
         self.own_stop(now, axis);
     }
 }

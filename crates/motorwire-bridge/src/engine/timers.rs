@@ -53,7 +53,7 @@ impl Bridge {
                 continue;
             };
             j.schedule.clear_wake();
-            let node = j.node;
+            let node = j.identity.node();
             if let Some(step) = j.schedule.take_busy()
                 && !self.send_step(now, ji, node, step)
             {
@@ -101,8 +101,8 @@ impl Bridge {
             if silent >= offline_after && j.liveness.went_offline() {
                 went_offline.push(ji);
                 self.out.push_back(Output::Event(Event::Offline {
-                    motor_id: j.name.clone(),
-                    node: j.node,
+                    motor_id: j.identity.name().to_owned(),
+                    node: j.identity.node(),
                     reason: format!("nothing heard for {} ms", silent.as_millis()),
                 }));
             }
@@ -113,7 +113,7 @@ impl Bridge {
             let name = self
                 .joints
                 .get(ji)
-                .map(|j| j.name.clone())
+                .map(|j| j.identity.name().to_owned())
                 .unwrap_or_default();
             self.cancel_where(
                 &format!("cancelled: {name} went offline before it was sent"),

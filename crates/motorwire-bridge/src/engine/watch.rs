@@ -47,10 +47,9 @@ impl Bridge {
     /// Device `ji`'s part of a watch: `motor`'s move to `target`
     /// (degrees), within the map's arrival tolerance.
     pub(super) fn watch_axis(&self, ji: DeviceId, motor: String, target: f64) -> WatchAxis {
-        let (unit, tolerance) = self
-            .joints
-            .get(ji)
-            .map_or((AngleUnit::Degrees, 0.1), |j| (j.unit, j.tolerance));
+        let (unit, tolerance) = self.joints.get(ji).map_or((AngleUnit::Degrees, 0.1), |j| {
+            (j.identity.unit(), j.identity.tolerance())
+        });
         WatchAxis {
             joint: ji,
             motor,
