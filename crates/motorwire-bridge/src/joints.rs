@@ -51,7 +51,6 @@ pub(crate) struct Joint {
     pub(crate) liveness: Liveness,
     /// Where it is in its lifecycle, as the bridge knows it.
     pub(crate) lifecycle: JointLifecycle,
-    pub(crate) feedback: Option<MotorFeedback>,
     /// How it moves, as reported and as the bridge models it.
     pub(crate) motion: Motion,
     /// What it does and waits to do.
@@ -179,6 +178,8 @@ impl StopCheck {
 /// [`Joint::set_model`] and the methods here change it.
 #[derive(Debug, Default)]
 pub(crate) struct Motion {
+    /// Its last feedback (positions in the motor's unit).
+    feedback: Option<MotorFeedback>,
     /// Its position and velocity (degrees) as last reported.
     reported: Option<(f64, f64)>,
     /// When that was reported, and its acceleration then (degrees/s²,
@@ -219,6 +220,22 @@ pub(crate) struct Motion {
 }
 
 impl Motion {
+    /// Its last feedback (positions in the motor's unit).
+    pub(crate) fn feedback(&self) -> Option<&MotorFeedback> {
+        self.feedback.as_ref()
+    }
+
+    /// How fast its last feedback says it goes (its unit a second; 0
+    /// before any).
+    pub(crate) fn reported_speed(&self) -> f64 {
+        self.feedback.as_ref().map_or(0.0, |f| f.velocity.abs())
+    }
+
+    /// Its feedback `f` came.
+    pub(crate) fn feedback_came(&mut self, f: MotorFeedback) {
+        self.feedback = Some(f);
+    }
+
     /// Its position and velocity (degrees) as last reported.
     pub(crate) fn reported(&self) -> Option<(f64, f64)> {
         self.reported
@@ -900,7 +917,6 @@ impl Joint {
             },
             liveness: Liveness::new(device.online_at_start()),
             lifecycle: JointLifecycle::new(device.active_at_start()),
-            feedback: None,
             motion: Motion::default(),
             schedule: Schedule::default(),
             stop_check: StopCheck::default(),
@@ -988,7 +1004,7 @@ impl Registry for Joints {
             device: j.identity.device,
             unit: j.identity.unit,
             online: j.liveness.is_online(),
-            feedback: j.feedback.as_ref(),
+            feedback: j.motion.feedback.as_ref(),
         })
     }
 }

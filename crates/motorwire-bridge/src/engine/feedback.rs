@@ -45,8 +45,8 @@ impl Bridge {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
-        if feedback.is_some() {
-            j.feedback = feedback;
+        if let Some(f) = feedback {
+            j.motion.feedback_came(f);
             self.confirm_stop(ji, at);
         }
         let Some(j) = self.joints.get_mut(ji) else {
@@ -163,7 +163,7 @@ impl Bridge {
                 .map
                 .motor(j.identity.name())
                 .map_or(0.1, |m| m.unit.to_degrees(m.arrival_tolerance));
-            let fb = j.feedback.clone().map(|mut f| {
+            let fb = j.motion.feedback().cloned().map(|mut f| {
                 f.timestamp = ts;
                 if !j.liveness.is_online() {
                     f.status.fault = Some(true);

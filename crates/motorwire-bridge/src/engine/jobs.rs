@@ -830,7 +830,7 @@ impl Bridge {
         j.motion
             .order_taken(effect.deadman.is_some() || effect.target.is_some());
         if order.unconfirmed_stop().is_some() {
-            let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
+            let speed = j.motion.reported_speed();
             j.stop_check.taken(order, at, speed);
         } else {
             j.stop_check.settle();

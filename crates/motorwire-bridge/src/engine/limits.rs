@@ -22,7 +22,7 @@ impl Bridge {
             if at > now {
                 continue;
             }
-            let (Some(f), Some(m)) = (j.feedback.as_ref(), self.map.motor(j.identity.name()))
+            let (Some(f), Some(m)) = (j.motion.feedback(), self.map.motor(j.identity.name()))
             else {
                 continue;
             };
@@ -45,7 +45,7 @@ impl Bridge {
             let Some(j) = self.joints.get_mut(ji) else {
                 continue;
             };
-            let speed = j.feedback.as_ref().map_or(0.0, |f| f.velocity.abs());
+            let speed = j.motion.reported_speed();
             j.motion.braked(limit_name, now, speed);
             let order = j
                 .identity
@@ -74,7 +74,7 @@ impl Bridge {
         if j.liveness.deadman().is_none() {
             return self.brake_again(j);
         }
-        let f = j.feedback.as_ref()?;
+        let f = j.motion.feedback()?;
         let m = self.map.motor(j.identity.name())?;
         // As fast as it goes, or as it is told to go where that is faster
         // (its feedback may not show the speed it is getting up to).
@@ -113,7 +113,7 @@ impl Bridge {
         let crate::joints::LimitBraked {
             side, at, speed, ..
         } = j.motion.limit_braked()?;
-        let f = j.feedback.as_ref()?;
+        let f = j.motion.feedback()?;
         let m = self.map.motor(j.identity.name())?;
         let heard = j.liveness.last_heard()?;
         let (toward, limit) = if side == "max_position" {
@@ -143,7 +143,7 @@ impl Bridge {
             return None;
         }
         let j = self.joints.get(self.joint_index(motor)?)?;
-        let f = j.feedback.as_ref()?;
+        let f = j.motion.feedback()?;
         let m = self.map.motor(motor)?;
         let p = f.position;
         let toward = if setpoint > 0.0 {

@@ -608,7 +608,7 @@ impl Bridge {
                 let j = self.joints.get(self.joint_index(m)?)?;
                 match j.state_at(self.now) {
                     Some(k) => Some(crate::joints::in_unit(j.identity.unit(), k)),
-                    None => j.feedback.as_ref().map(|f| (f.position, 0.0, 0.0)),
+                    None => j.motion.feedback().map(|f| (f.position, 0.0, 0.0)),
                 }
             };
             let t = multi_axis_to_irpc_from(&self.map, &sub, &state).map_err(Refusal::gate)?;

@@ -23,7 +23,7 @@ impl Bridge {
             online: j.liveness.is_online(),
             state: j.lifecycle.state(),
             active: j.lifecycle.is_active(),
-            feedback: j.feedback.clone(),
+            feedback: j.motion.feedback().cloned(),
             target: j.schedule.target(),
             queued: j.schedule.waiting_len() + usize::from(j.schedule.busy().is_some()),
         })
@@ -48,8 +48,8 @@ impl Bridge {
             .map_or(AngleUnit::Degrees, |m| m.unit);
         // Read once it reported where it is (a status alone says not).
         let read = j
-            .feedback
-            .as_ref()
+            .motion
+            .feedback()
             .filter(|_| j.motion.reported().is_some());
         MotorState {
             motor_id: j.identity.name().to_owned(),

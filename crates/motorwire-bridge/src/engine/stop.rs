@@ -499,7 +499,7 @@ impl Bridge {
             return;
         };
         let (Some((order, acked, speed)), Some(f)) =
-            (j.stop_check.unconfirmed(), j.feedback.as_ref())
+            (j.stop_check.unconfirmed(), j.motion.feedback())
         else {
             return;
         };
