@@ -106,8 +106,8 @@ use crate::output::Event;
 /// so that the drivers (which key what they have in flight by device) and
 /// the engine (which holds the devices' state) name a device by one type
 /// below both; and a count, a line number or an axis's place in its job
-/// cannot be taken for one. Made only by the holder of the devices, for
-/// a place it has.
+/// cannot be taken for one. Made by the holder of the devices (and the
+/// registry's walk over them) for the places there are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub(crate) struct DeviceId(usize);
 
