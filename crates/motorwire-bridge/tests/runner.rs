@@ -446,3 +446,227 @@ fn a_stop_is_on_the_bus_before_its_taps_are_told() {
         "the stop's frames were not on the bus before its line was told: {before:?}"
     );
 }
+
+/// What a [`Flaky`] bus's `recv` gives on its `n`-th call (from 1):
+/// an error, or the port's frame.
+type FailOn = fn(u64) -> Option<motorwire_can::Error>;
+
+/// The arm's port, with `recv` failing as `fail` says; it takes the
+/// runner's waker when `polled` (so the runner polls it) and refuses it
+/// otherwise (so a thread reads it).
+struct Flaky {
+    port: motorwire_can::SimPort,
+    calls: u64,
+    fail: FailOn,
+    polled: bool,
+}
+
+impl CanBus for Flaky {
+    fn send(&mut self, frame: &motorwire_can::Frame) -> Result<(), motorwire_can::Error> {
+        self.port.send(frame)
+    }
+    fn recv(&mut self, timeout: Duration) -> Result<motorwire_can::Received, motorwire_can::Error> {
+        self.calls += 1;
+        match (self.fail)(self.calls) {
+            Some(e) => Err(e),
+            None => self.port.recv(timeout),
+        }
+    }
+    fn set_waker(&mut self, waker: motorwire_can::FrameWaker) -> bool {
+        self.polled && self.port.set_waker(waker)
+    }
+}
+
+/// The demo arm's bridge run on a [`Flaky`] receiving half; every output
+/// (results and events) comes on the receiver as its JSON value.
+fn start_flaky(
+    fail: FailOn,
+    polled: bool,
+) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
+    let map = BusMap::from_toml(MAP).unwrap();
+    let config = BridgeConfig {
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(map, config).unwrap();
+    let arm = RealTimeArm::start(bridge.map()).unwrap();
+    let runner = Runner::new();
+    let input = runner.input();
+    let (tx, rx) = mpsc::channel();
+    let (send, port) = arm.ports();
+    let receive = Flaky {
+        port,
+        calls: 0,
+        fail,
+        polled,
+    };
+    let handle = thread::spawn(move || {
+        runner.run(bridge, send, receive, move |o: &Output| {
+            let _ = tx.send(o.to_value());
+        })
+    });
+    (arm, input, rx, handle)
+}
+
+/// The next result on `rx`, the events before it counted by kind.
+fn next_result(rx: &mpsc::Receiver<Value>, bus_errors: &mut Vec<String>) -> Value {
+    loop {
+        let v = rx.recv_timeout(Duration::from_secs(10)).unwrap();
+        if v["event"] == "bus_error" {
+            bus_errors.push(v["error"].as_str().unwrap().to_owned());
+        } else if v.get("ok").is_some() && v.get("line").is_some() {
+            return v;
+        }
+    }
+}
+
+/// A bus that fails every other receive (an error it can go on after)
+/// loses no frame: whether the runner polls it or a thread reads it, the
+/// frame behind each error is read at once, and 200 moves are each
+/// answered ok (polled, the frames behind an error waited for the next
+/// wake, and the joints went offline).
+#[test]
+fn frames_behind_a_receive_error_are_read_at_once() {
+    let fail: FailOn =
+        |n| (n % 2 == 0).then_some(motorwire_can::Error::ErrorPassive { tx: 130, rx: 0 });
+    for polled in [true, false] {
+        let (_arm, input, rx, handle) = start_flaky(fail, polled);
+        let mut errors = Vec::new();
+        for i in 0..200u64 {
+            input.line(
+                Origin(1),
+                format!(
+                    r#"{{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":{}}}"#,
+                    10 + i % 40
+                ),
+            );
+            let r = next_result(&rx, &mut errors);
+            assert_eq!(r["ok"], true, "polled {polled}, line {}: {r}", i + 1);
+        }
+        input.interrupt();
+        handle.join().unwrap().unwrap();
+        assert!(!errors.is_empty(), "polled {polled}: the errors were said");
+        assert!(
+            errors[0].starts_with("receiving: controller error-passive"),
+            "{errors:?}"
+        );
+    }
+}
+
+/// A bus that fails every receive (bus-off, for as long as the test
+/// lasts) is said about ten times a second, its other errors counted,
+/// neither polled nor read in a loop: a line is still answered (its
+/// device silent), and an interrupt ends the run at once.
+#[test]
+fn a_bus_that_fails_every_receive_is_said_ten_times_a_second() {
+    let fail: FailOn = |_| Some(motorwire_can::Error::BusOff);
+    for polled in [true, false] {
+        let (_arm, input, rx, handle) = start_flaky(fail, polled);
+        let began = std::time::Instant::now();
+        let mut errors = Vec::new();
+        input.line(
+            Origin(1),
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":10}"#,
+        );
+        let r = next_result(&rx, &mut errors);
+        assert_eq!(r["ok"], false, "polled {polled}: {r}");
+        std::thread::sleep(Duration::from_millis(500));
+        input.interrupt();
+        handle.join().unwrap().unwrap();
+        let ran = began.elapsed();
+        errors.extend(
+            rx.try_iter()
+                .filter(|v| v["event"] == "bus_error")
+                .map(|v| v["error"].as_str().unwrap().to_owned()),
+        );
+        #[allow(clippy::cast_possible_truncation)]
+        let most = (ran.as_millis() / 100) as usize + 2;
+        assert!(
+            (2..=most).contains(&errors.len()),
+            "polled {polled}: {} bus errors said in {ran:?}: {errors:?}",
+            errors.len()
+        );
+        assert_eq!(errors[0], "receiving: bus off", "{errors:?}");
+        assert!(
+            errors[1].contains("more bus errors since the last said"),
+            "{errors:?}"
+        );
+    }
+}
+
+/// The arm's sending half, failing its `n`-th send (from the first after
+/// `armed`) as `fail` says.
+struct FailingSender {
+    port: motorwire_can::SimPort,
+    armed: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    sent: u64,
+}
+
+impl CanBus for FailingSender {
+    fn send(&mut self, frame: &motorwire_can::Frame) -> Result<(), motorwire_can::Error> {
+        if self.armed.load(std::sync::atomic::Ordering::SeqCst) {
+            self.sent += 1;
+            if self.sent == 1 {
+                return Err(motorwire_can::Error::NoAck);
+            }
+        }
+        self.port.send(frame)
+    }
+    fn recv(&mut self, timeout: Duration) -> Result<motorwire_can::Received, motorwire_can::Error> {
+        self.port.recv(timeout)
+    }
+}
+
+/// A send that fails (no node acknowledged the frame) loses that frame
+/// only, as a bus that drops it: the stop's other frames go, the lost one
+/// is sent again, the stop is answered ok and the run goes on (it ended,
+/// with no result for the stop and the other joints not stopped).
+#[test]
+fn a_failed_send_loses_that_frame_only_and_the_stop_still_stops() {
+    let map = BusMap::from_toml(MAP).unwrap();
+    let config = BridgeConfig {
+        feedback_period: None,
+        ..BridgeConfig::default()
+    };
+    let bridge = Bridge::new(map, config).unwrap();
+    let arm = RealTimeArm::start(bridge.map()).unwrap();
+    let runner = Runner::new();
+    let input = runner.input();
+    let (tx, rx) = mpsc::channel();
+    let (send, receive) = arm.ports();
+    let armed = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let send = FailingSender {
+        port: send,
+        armed: std::sync::Arc::clone(&armed),
+        sent: 0,
+    };
+    let handle = thread::spawn(move || {
+        runner.run(bridge, send, receive, move |o: &Output| {
+            let _ = tx.send(o.to_value());
+        })
+    });
+    let mut errors = Vec::new();
+    input.line(
+        Origin(1),
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":5}"#,
+    );
+    assert_eq!(next_result(&rx, &mut errors)["ok"], true);
+    armed.store(true, std::sync::atomic::Ordering::SeqCst);
+    input.line(Origin(2), r#"{"emergency_stop": true}"#);
+    let stop = next_result(&rx, &mut errors);
+    assert_eq!(stop["emergency_stop"], true, "{stop}");
+    assert_eq!(stop["ok"], true, "{stop}");
+    assert_eq!(
+        errors,
+        ["sending a frame (taken as lost): no node acknowledged the frame"]
+    );
+    input.line(Origin(2), r#"{"emergency_stop": false}"#);
+    assert_eq!(next_result(&rx, &mut errors)["released"], true);
+    input.line(
+        Origin(1),
+        r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":8}"#,
+    );
+    assert_eq!(next_result(&rx, &mut errors)["ok"], true);
+    input.interrupt();
+    handle.join().unwrap().unwrap();
+}

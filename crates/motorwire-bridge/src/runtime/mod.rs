@@ -19,6 +19,7 @@ use crate::error::BridgeError;
 use crate::output::{Origin, Output};
 use crate::tap::{Direction, Mark, Tap};
 
+mod bus_errors;
 mod orion;
 mod read;
 mod run;

@@ -17,6 +17,7 @@ use std::time::{Duration, Instant};
 
 use motorwire_can::{CanBus, Error as CanError, Frame};
 
+use super::bus_errors::{BusErrors, fatal_to_receive, fatal_to_send};
 use super::orion::spawn_orion;
 use super::{Ahead, Budget, Msg, OrionPort, queued_bytes};
 use crate::engine::{Bridge, Classified, Input};
@@ -30,6 +31,19 @@ const FRAMES_AHEAD: usize = 256;
 /// How long the bus's reading thread waits in `recv` before it looks
 /// whether the run is over.
 const READER_POLL: Duration = Duration::from_millis(20);
+
+/// What a look at a polled bus found.
+enum Polled {
+    /// A frame.
+    Frame(Msg),
+    /// An error to say (and the bus looked at again in the next turn when
+    /// it can go on).
+    Said(Msg),
+    /// An error not said: looked at again at once.
+    Again,
+    /// Nothing due, or a pause after errors in a row.
+    Nothing,
+}
 
 /// How frames from the bus reach the loop.
 enum BusIn<R> {
@@ -74,7 +88,7 @@ impl<R: CanBus + Send + 'static> BusIn<R> {
             Ok(r) => Ok(Some(r.frame)),
             Err(CanError::Timeout(_)) => Ok(None),
             Err(e) => {
-                if fatal(&e) {
+                if fatal_to_receive(&e) {
                     *slot = None;
                 }
                 Err(e)
@@ -91,36 +105,34 @@ impl<R: CanBus + Send + 'static> BusIn<R> {
 }
 
 /// The bus's reading thread: each frame to the loop, with when it came,
-/// until `stop` or a failure for good.
+/// until `stop` or a failure for good; errors it can go on after said as
+/// [`BusErrors`] says.
 fn read_bus<R: CanBus>(rx: &mut R, ahead: &Ahead, stop: &AtomicBool) {
+    let mut errors = BusErrors::default();
     while !stop.load(Ordering::Relaxed) {
         match rx.recv(READER_POLL) {
             Ok(r) => {
+                if let Some(said) = errors.worked() {
+                    ahead.bus_error(said);
+                }
                 let _ = ahead.send(Msg::Frame {
                     frame: r.frame,
                     at: Instant::now(),
                 });
             }
             Err(CanError::Timeout(_)) => {}
+            Err(e) if fatal_to_receive(&e) => {
+                ahead.bus_error(format!("receiving: {e}"));
+                break;
+            }
             Err(e) => {
-                ahead.bus_error(e.to_string());
-                if fatal(&e) {
-                    break;
+                if let Some(said) = errors.failed("receiving", &e, Instant::now()) {
+                    ahead.bus_error(said);
                 }
+                thread::sleep(errors.pause());
             }
         }
     }
-}
-
-/// A receive error after which the handle will never receive again.
-fn fatal(e: &CanError) -> bool {
-    matches!(
-        e,
-        CanError::Closed
-            | CanError::NoSuchInterface { .. }
-            | CanError::InterfaceDown { .. }
-            | CanError::Io { .. }
-    )
 }
 
 /// What the runner hands its loop.
@@ -164,6 +176,11 @@ pub(super) struct Loop<T, R, S> {
     /// it woke the loop (every look takes the bus's lock, which its
     /// devices' thread takes too).
     look_at_bus: bool,
+    /// After errors in a row, when a polled bus is looked at again.
+    bus_retry_at: Option<Instant>,
+    /// What the bus said when receiving (polled) and sending failed.
+    receive_errors: BusErrors,
+    send_errors: BusErrors,
 }
 
 impl<T, R, S> Loop<T, R, S>
@@ -222,6 +239,9 @@ where
             sent: Vec::new(),
             handled: Vec::new(),
             look_at_bus: false,
+            bus_retry_at: None,
+            receive_errors: BusErrors::default(),
+            send_errors: BusErrors::default(),
         })
     }
 
@@ -273,7 +293,12 @@ where
             return;
         }
         // Frames taken: one line (if one waits) in the same turn, so a
-        // busy bus never holds the lines back; none taken: wait.
+        // busy bus never holds the lines back; none taken: wait (until a
+        // failing polled bus is looked at again, at the latest).
+        let wait = match self.bus_retry_at {
+            Some(at) => wait.min(at.saturating_duration_since(Instant::now())),
+            None => wait,
+        };
         let wait = if heard > 0 { Duration::ZERO } else { wait };
         let msg = self.ch.lines.recv_timeout(wait);
         self.take(msg);
@@ -290,9 +315,26 @@ where
     fn send_out(&mut self) -> Option<CanError> {
         let mut failed = None;
         while let Some(f) = self.bridge.poll_transmit() {
-            if let Err(e) = self.tx.send(&f) {
-                failed = Some(e);
-                break;
+            match self.tx.send(&f) {
+                Ok(()) => {
+                    if let Some(said) = self.send_errors.worked() {
+                        self.give(Output::Event(Event::BusError { error: said }));
+                    }
+                }
+                Err(e) if fatal_to_send(&e) => {
+                    failed = Some(e);
+                    break;
+                }
+                // That frame lost, as on a bus that drops it: the others
+                // go (a stop's other frames first of all), and what waits
+                // for an answer is sent again.
+                Err(e) => {
+                    let what = "sending a frame (taken as lost)";
+                    if let Some(said) = self.send_errors.failed(what, &e, Instant::now()) {
+                        self.give(Output::Event(Event::BusError { error: said }));
+                    }
+                    continue;
+                }
             }
             if self.taps.is_some() {
                 self.sent.push((Instant::now(), f));
@@ -397,20 +439,20 @@ where
     /// bus polled. How many were taken.
     fn take_frames(&mut self) -> usize {
         let woken = self.frames_waiting.swap(false, Ordering::SeqCst);
-        let mut look = std::mem::take(&mut self.look_at_bus) || woken;
+        let retry = self.bus_retry_at.is_some_and(|t| t <= Instant::now());
+        if retry {
+            self.bus_retry_at = None;
+        }
+        let mut look = std::mem::take(&mut self.look_at_bus) || woken || retry;
         let mut heard = 0;
         while heard < FRAMES_AHEAD && !self.ch.stop_waiting.load(Ordering::Acquire) {
-            let (msg, failed) = match self.frames.try_recv() {
-                Ok(msg) => (msg, false),
-                Err(_) if look => match self.bus.as_mut().map(BusIn::poll) {
-                    Some(Ok(Some(frame))) => {
-                        let at = Instant::now();
-                        (Msg::Frame { frame, at }, false)
-                    }
-                    // Said once a turn: a bus failing again and again
-                    // is not polled in a loop.
-                    Some(Err(e)) => (Msg::BusError(e.to_string()), true),
-                    Some(Ok(None)) | None => {
+            let msg = match self.frames.try_recv() {
+                Ok(msg) => msg,
+                Err(_) if look => match self.poll_bus() {
+                    Polled::Frame(msg) => msg,
+                    Polled::Said(msg) => msg,
+                    Polled::Again => continue,
+                    Polled::Nothing => {
                         look = false;
                         continue;
                     }
@@ -422,9 +464,6 @@ where
             }
             self.take_device(msg);
             heard += 1;
-            if failed {
-                break;
-            }
         }
         if heard == FRAMES_AHEAD {
             // More may wait: looked at again after one line.
@@ -432,6 +471,50 @@ where
             self.look_at_bus = true;
         }
         heard
+    }
+
+    /// The next of a polled bus. After an error it can go on after, the
+    /// frames behind it are read at once; from the second in a row, the
+    /// bus is looked at again only after a pause (a bus failing at every
+    /// look is not polled in a loop), and what is said of its errors is
+    /// [`BusErrors`]'s.
+    fn poll_bus(&mut self) -> Polled {
+        let Some(bus) = self.bus.as_mut() else {
+            return Polled::Nothing;
+        };
+        match bus.poll() {
+            Ok(Some(frame)) => {
+                if let Some(said) = self.receive_errors.worked() {
+                    self.give(Output::Event(Event::BusError { error: said }));
+                }
+                let at = Instant::now();
+                Polled::Frame(Msg::Frame { frame, at })
+            }
+            Ok(None) => Polled::Nothing,
+            Err(e) if fatal_to_receive(&e) => {
+                Polled::Said(Msg::BusError(format!("receiving: {e}")))
+            }
+            Err(e) => {
+                let now = Instant::now();
+                let said = self.receive_errors.failed("receiving", &e, now);
+                let pause = self.receive_errors.pause();
+                if !pause.is_zero() {
+                    self.bus_retry_at = Some(now + pause);
+                }
+                match said {
+                    Some(said) if pause.is_zero() => {
+                        self.look_at_bus = true;
+                        Polled::Said(Msg::BusError(said))
+                    }
+                    Some(said) => {
+                        self.give(Output::Event(Event::BusError { error: said }));
+                        Polled::Nothing
+                    }
+                    None if pause.is_zero() => Polled::Again,
+                    None => Polled::Nothing,
+                }
+            }
+        }
     }
 
     /// A message from the devices' side: a frame, the Orion controller's
