@@ -207,6 +207,9 @@ struct State {
     stats: FaultStats,
     /// The ports a frame was queued for since they were last woken.
     touched: Vec<usize>,
+    /// The places of ports dropped, for the next ports made: a bus whose
+    /// ports come and go does not walk the dead ones on every frame.
+    free: Vec<usize>,
 }
 
 impl State {
@@ -214,6 +217,22 @@ impl State {
         match self.config.clock {
             Clock::Simulated => self.now,
             Clock::Real => self.start.elapsed(),
+        }
+    }
+
+    /// Puts `port` in a place of its own: a dropped port's, or a new one.
+    fn add(&mut self, port: PortState) -> usize {
+        match self.free.pop() {
+            Some(i) if i < self.ports.len() => {
+                if let Some(slot) = self.ports.get_mut(i) {
+                    *slot = port;
+                }
+                i
+            }
+            _ => {
+                self.ports.push(port);
+                self.ports.len() - 1
+            }
         }
     }
 
@@ -410,6 +429,7 @@ impl SimBus {
                     held: 0,
                     stats: FaultStats::default(),
                     touched: Vec::new(),
+                    free: Vec::new(),
                 }),
                 #[cfg(feature = "tokio")]
                 notify: tokio::sync::Notify::new(),
@@ -441,14 +461,13 @@ impl SimBus {
     /// A new port (a node's connection to the bus). It receives every frame
     /// sent after it was made, until it is dropped.
     pub fn port(&self) -> SimPort {
-        let mut s = self.lock();
-        s.ports.push(PortState {
+        let index = self.lock().add(PortState {
             open: true,
             ..PortState::default()
         });
         SimPort {
             bus: self.clone(),
-            index: s.ports.len() - 1,
+            index,
         }
     }
 
@@ -474,11 +493,10 @@ impl SimBus {
     /// # Ok::<(), motorwire_can::Error>(())
     /// ```
     pub fn send_only_port(&self) -> SimPort {
-        let mut s = self.lock();
-        s.ports.push(PortState::default());
+        let index = self.lock().add(PortState::default());
         SimPort {
             bus: self.clone(),
-            index: s.ports.len() - 1,
+            index,
         }
     }
 
@@ -508,6 +526,12 @@ impl SimBus {
     /// What the bus has done to the frames so far.
     pub fn stats(&self) -> FaultStats {
         self.lock().stats
+    }
+
+    /// The places the bus keeps for its ports: as many as it had open at
+    /// once at most (a port made after one was dropped takes its place).
+    pub fn ports(&self) -> usize {
+        self.lock().ports.len()
     }
 }
 
@@ -545,14 +569,13 @@ impl SimPort {
     /// # Ok::<(), motorwire_can::Error>(())
     /// ```
     pub fn sending_half(&self) -> SimPort {
-        let mut s = self.bus.lock();
-        s.ports.push(PortState {
+        let index = self.bus.lock().add(PortState {
             twin: Some(self.index),
             ..PortState::default()
         });
         SimPort {
             bus: self.bus.clone(),
-            index: s.ports.len() - 1,
+            index,
         }
     }
 
@@ -583,6 +606,14 @@ impl Drop for SimPort {
             let held = usize::from(p.held.is_some());
             *p = PortState::default();
             s.held = s.held.saturating_sub(held);
+            // Its place is taken by the next port made; a sending half
+            // whose twin it was now reaches that port as any other.
+            for other in &mut s.ports {
+                if other.twin == Some(self.index) {
+                    other.twin = None;
+                }
+            }
+            s.free.push(self.index);
         }
     }
 }

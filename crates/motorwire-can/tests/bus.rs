@@ -401,3 +401,46 @@ fn a_waker_is_refused_where_a_frame_can_fall_due_later() {
         }));
     }
 }
+
+/// A bus whose ports come and go keeps as many places as it had ports at
+/// once: a port made after one was dropped takes its place, so sending
+/// does not walk every port the bus ever had; a sending half whose twin
+/// was dropped reaches every port, the one in its twin's place too.
+#[test]
+fn a_dropped_ports_place_is_taken_by_the_next_port() {
+    let bus = SimBus::default();
+    let mut joint = bus.port();
+    for _ in 0..10_000 {
+        let rx = bus.port();
+        let tx = rx.sending_half();
+        drop(rx);
+        drop(tx);
+    }
+    // The places of the 20,000 ports made and dropped were reused: a new
+    // receiving port and a sending half made for it each take one.
+    let mut rx = bus.port();
+    let mut tx = rx.sending_half();
+    let mut old_half = {
+        let gone = bus.port();
+        gone.sending_half()
+        // `gone` dropped here: its sending half reaches every port now.
+    };
+    tx.send(&Frame::classic(id(1), &[1]).unwrap()).unwrap();
+    assert_eq!(joint.recv(Duration::ZERO).unwrap().frame.data(), &[1]);
+    assert!(
+        rx.recv(Duration::ZERO).is_err(),
+        "a node does not hear itself"
+    );
+    old_half
+        .send(&Frame::classic(id(2), &[2]).unwrap())
+        .unwrap();
+    assert_eq!(rx.recv(Duration::ZERO).unwrap().frame.data(), &[2]);
+    assert_eq!(joint.recv(Duration::ZERO).unwrap().frame.data(), &[2]);
+    // A new port in the dropped one's place hears the old half.
+    let mut again = bus.port();
+    old_half
+        .send(&Frame::classic(id(3), &[3]).unwrap())
+        .unwrap();
+    assert_eq!(again.recv(Duration::ZERO).unwrap().frame.data(), &[3]);
+    assert_eq!(bus.ports(), 5);
+}
