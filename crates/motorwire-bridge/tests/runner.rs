@@ -670,3 +670,76 @@ fn a_failed_send_loses_that_frame_only_and_the_stop_still_stops() {
     input.interrupt();
     handle.join().unwrap().unwrap();
 }
+
+/// A sending half whose every send fails as a bus in trouble says (no
+/// node acknowledged the frame).
+struct NeverAcked(motorwire_can::SimPort);
+
+impl CanBus for NeverAcked {
+    fn send(&mut self, _frame: &motorwire_can::Frame) -> Result<(), motorwire_can::Error> {
+        Err(motorwire_can::Error::NoAck)
+    }
+    fn recv(&mut self, timeout: Duration) -> Result<motorwire_can::Received, motorwire_can::Error> {
+        self.0.recv(timeout)
+    }
+}
+
+/// Once receiving has failed for good (the bus closed), a send that fails
+/// ends the run with the bus's error, polled or read by a thread: the bus
+/// is gone both ways, and the bridge says so rather than running on
+/// without it.
+#[test]
+fn a_bus_gone_both_ways_ends_the_run() {
+    let fail: FailOn = |_| Some(motorwire_can::Error::Closed);
+    for polled in [true, false] {
+        let map = BusMap::from_toml(MAP).unwrap();
+        let config = BridgeConfig {
+            feedback_period: None,
+            ..BridgeConfig::default()
+        };
+        let bridge = Bridge::new(map, config).unwrap();
+        let arm = RealTimeArm::start(bridge.map()).unwrap();
+        let runner = Runner::new();
+        let input = runner.input();
+        let (tx, rx) = mpsc::channel();
+        let (send, port) = arm.ports();
+        let receive = Flaky {
+            port,
+            calls: 0,
+            fail,
+            polled,
+        };
+        let handle = thread::spawn(move || {
+            runner.run(bridge, NeverAcked(send), receive, move |o: &Output| {
+                let _ = tx.send(o.to_value());
+            })
+        });
+        // Receiving fails for good (said once, unless the run ends first);
+        // the sends before it (the start's) are each taken as lost.
+        while let Ok(v) = rx.recv_timeout(Duration::from_secs(10)) {
+            if v["event"] == "bus_error" && v["error"] == "receiving: the bus is closed" {
+                break;
+            }
+            if v["event"] == "bus_error" {
+                assert_eq!(
+                    v["error"], "sending a frame (taken as lost): no node acknowledged the frame",
+                    "{v}"
+                );
+            }
+        }
+        input.line(
+            Origin(1),
+            r#"{"motor_id":"elbow","timestamp":1,"control_mode":"position","setpoint":10}"#,
+        );
+        let ended = handle.join().unwrap();
+        assert!(
+            matches!(
+                ended,
+                Err(motorwire_bridge::BridgeError::Bus(
+                    motorwire_can::Error::NoAck
+                ))
+            ),
+            "polled {polled}: {ended:?}"
+        );
+    }
+}

@@ -448,11 +448,12 @@ impl SimBus {
 
     /// Wakes every port's waiting thread (simulated time moved).
     fn wake_all(&self) {
-        {
+        let all: Vec<Arc<Condvar>> = {
             let s = self.lock();
-            for p in &s.ports {
-                p.arrived.notify_all();
-            }
+            s.ports.iter().map(|p| Arc::clone(&p.arrived)).collect()
+        };
+        for arrived in all {
+            arrived.notify_all();
         }
         #[cfg(feature = "tokio")]
         self.shared.notify.notify_waiters();

@@ -30,18 +30,30 @@ pub(super) fn fatal_to_receive(e: &CanError) -> bool {
 }
 
 /// A send error after which no frame will ever go: the bus closed or
-/// gone, or a frame it can never carry (an FD frame on a classic
-/// interface). Any other (no node acknowledged, bus-off, a full queue, an
-/// operating-system error) loses that frame only, as a bus that drops it:
-/// the bridge sends again what waits for an answer.
+/// gone (its connection broken: an adapter unplugged), or a frame it can
+/// never carry (an FD frame on a classic interface). Any other (no node
+/// acknowledged, bus-off, a full queue, another operating-system error)
+/// loses that frame only, as a bus that drops it: the bridge sends again
+/// what waits for an answer.
 pub(super) fn fatal_to_send(e: &CanError) -> bool {
-    matches!(
-        e,
+    use std::io::ErrorKind as K;
+    match e {
         CanError::Closed
-            | CanError::NoSuchInterface { .. }
-            | CanError::InterfaceDown { .. }
-            | CanError::FdNotSupported { .. }
-    )
+        | CanError::NoSuchInterface { .. }
+        | CanError::InterfaceDown { .. }
+        | CanError::FdNotSupported { .. } => true,
+        CanError::Io { kind, .. } => matches!(
+            kind,
+            K::BrokenPipe
+                | K::NotConnected
+                | K::UnexpectedEof
+                | K::ConnectionReset
+                | K::ConnectionAborted
+                | K::NotFound
+                | K::PermissionDenied
+        ),
+        _ => false,
+    }
 }
 
 /// The errors of one side of a bus (receiving or sending) since the last
@@ -149,6 +161,15 @@ mod tests {
             iface: "can0".to_owned()
         }));
         assert!(!fatal_to_send(&CanError::NoAck));
+        let io = |kind| CanError::Io {
+            op: "writing to the adapter",
+            kind,
+            message: String::new(),
+        };
+        assert!(fatal_to_send(&io(std::io::ErrorKind::BrokenPipe)));
+        assert!(fatal_to_send(&io(std::io::ErrorKind::NotFound)));
+        assert!(!fatal_to_send(&io(std::io::ErrorKind::WouldBlock)));
+        assert!(!fatal_to_send(&io(std::io::ErrorKind::Other)));
         assert!(!fatal_to_send(&CanError::BusOff));
         assert!(!fatal_to_send(&CanError::TransmitTimeout));
     }

@@ -531,8 +531,14 @@ impl Runner {
     /// time zero.
     ///
     /// # Errors
-    /// [`BridgeError::Bus`] when sending on the bus fails for good (bus off,
-    /// interface down).
+    /// [`BridgeError::Bus`] when sending on the bus fails for good: the bus
+    /// closed or gone (no such interface, interface down, its connection
+    /// broken), a frame it can never carry (an FD frame on a classic
+    /// interface), or any send failing once receiving has failed for good.
+    /// Any other send error (no node acknowledged the frame, bus off, a
+    /// full queue) loses that frame only, as a bus that drops it, and is
+    /// said as a `bus_error` event; the engine sends again what waits for
+    /// an answer.
     pub fn run<T, R>(
         self,
         bridge: Bridge,

@@ -96,6 +96,16 @@ impl<R: CanBus + Send + 'static> BusIn<R> {
         }
     }
 
+    /// Whether receiving failed for good (the reading thread ended on its
+    /// own, or the polled bus was given up): a send failing then ends the
+    /// run, the bus being gone both ways.
+    fn gone(&self) -> bool {
+        match self {
+            Self::Thread { handle, .. } => handle.is_finished(),
+            Self::Polled(rx) => rx.is_none(),
+        }
+    }
+
     fn end(self) {
         if let Self::Thread { stop, handle } = self {
             stop.store(true, Ordering::Relaxed);
@@ -238,7 +248,9 @@ where
             hushed: false,
             sent: Vec::new(),
             handled: Vec::new(),
-            look_at_bus: false,
+            // Frames queued before the waker was taken woke nobody: the
+            // bus is looked at in the first turn.
+            look_at_bus: true,
             bus_retry_at: None,
             receive_errors: BusErrors::default(),
             send_errors: BusErrors::default(),
@@ -321,7 +333,7 @@ where
                         self.give(Output::Event(Event::BusError { error: said }));
                     }
                 }
-                Err(e) if fatal_to_send(&e) => {
+                Err(e) if fatal_to_send(&e) || self.bus.as_ref().is_some_and(BusIn::gone) => {
                     failed = Some(e);
                     break;
                 }
