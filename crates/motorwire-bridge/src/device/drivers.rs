@@ -207,17 +207,29 @@ impl Drivers {
         }
     }
 
-    /// The drivers' next deadline.
-    pub(crate) fn deadline(&self) -> Option<Duration> {
-        [
-            self.irpc.deadline(),
-            self.compact.deadline(),
-            self.orion.deadline(),
-            self.moteus.deadline(),
-        ]
-        .into_iter()
-        .flatten()
-        .min()
+    /// The next resend or time-out of an iRPC request
+    /// ([`Drivers::handle_timeout`]'s work).
+    pub(crate) fn requests_deadline(&self) -> Option<Duration> {
+        self.irpc.deadline()
+    }
+
+    /// The next resend or time-out of a compact or moteus command
+    /// ([`Drivers::command_timeouts`]' work).
+    pub(crate) fn commands_deadline(&self) -> Option<Duration> {
+        [self.compact.deadline(), self.moteus.requests_deadline()]
+            .into_iter()
+            .flatten()
+            .min()
+    }
+
+    /// The links' next work: the Orion line in flight, its recovery or
+    /// poll, a moteus controller's poll ([`Drivers::link_timeouts`] and
+    /// [`Drivers::link_housekeeping`]).
+    pub(crate) fn link_deadline(&self) -> Option<Duration> {
+        [self.orion.deadline(), self.moteus.polls_deadline()]
+            .into_iter()
+            .flatten()
+            .min()
     }
 
     /// A frame from the bus at `now`, for whichever of `devices` it is.

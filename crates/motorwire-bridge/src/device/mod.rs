@@ -71,8 +71,9 @@
 //!    answered for it (the compiler lists them: `mod.rs` for the device,
 //!    `order.rs` for its orders, [`Device::lifecycle_orders`] for the
 //!    lifecycle), and a field of [`Drivers`] (`drivers.rs`: its frames
-//!    routed in [`Drivers::handle_frame`], its deadline in
-//!    [`Drivers::deadline`]), reading the devices through [`Registry`];
+//!    routed in [`Drivers::handle_frame`], its deadlines in
+//!    [`Drivers::requests_deadline`], [`Drivers::commands_deadline`] or
+//!    [`Drivers::link_deadline`]), reading the devices through [`Registry`];
 //!    what it cannot send or read is a variant of [`DeviceError`];
 //! 3. its bus map entry (`motorwire_translate::Target`) and its translation
 //!    (`Device::single_order`);

@@ -602,13 +602,24 @@ impl MoteusDriver {
         }
     }
 
-    /// The next reply deadline or poll.
+    /// The next reply deadline or poll (the engine reads the two apart,
+    /// as timers of their own).
+    #[cfg(test)]
     pub(crate) fn deadline(&self) -> Option<Duration> {
-        let polls = self.polls.values().map(|p| p.next).min();
-        [self.requests.deadline(), polls]
+        [self.requests_deadline(), self.polls_deadline()]
             .into_iter()
             .flatten()
             .min()
+    }
+
+    /// The next resend or time-out of a request in flight.
+    pub(crate) fn requests_deadline(&self) -> Option<Duration> {
+        self.requests.deadline()
+    }
+
+    /// The next controller's poll.
+    pub(crate) fn polls_deadline(&self) -> Option<Duration> {
+        self.polls.values().map(|p| p.next).min()
     }
 
     /// The next frame to send.

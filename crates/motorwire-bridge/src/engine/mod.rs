@@ -255,9 +255,13 @@ enum Phase {
 /// no copy of it can go stale.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Timer {
-    /// The drivers' own: an iRPC or compact request's Ack timeout and
-    /// resend, the Orion line in flight, the Orion link's poll.
-    Drivers,
+    /// An iRPC request's resend or Ack timeout.
+    Requests,
+    /// A compact or moteus command's resend or timeout.
+    Commands,
+    /// The links' own: the Orion line in flight, its recovery and poll, a
+    /// moteus controller's poll.
+    Link,
     /// The next feedback lines.
     Feedback,
     /// A device silent for [`BridgeConfig::offline_after`] goes offline.
@@ -284,8 +288,10 @@ enum Timer {
 }
 
 impl Timer {
-    const ALL: [Self; 12] = [
-        Self::Drivers,
+    const ALL: [Self; 14] = [
+        Self::Requests,
+        Self::Commands,
+        Self::Link,
         Self::Feedback,
         Self::Liveness,
         Self::Heartbeat,

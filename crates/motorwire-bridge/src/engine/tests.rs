@@ -164,3 +164,52 @@ fn an_illegal_phase_change_stops_the_bridge_and_says_why() {
     // Its Deactivate is on its way.
     assert!(b.poll_transmit().is_some());
 }
+
+/// The timeout takes every timer in its turn, each once: [`Timer::FIRING`]
+/// and [`Timer::ALL`] name every kind (the match below, without a
+/// wildcard, names each), and nothing twice.
+#[test]
+fn firing_names_every_timer_once() {
+    let kind = |t: Timer| match t {
+        Timer::Requests => 0,
+        Timer::Commands => 1,
+        Timer::Link => 2,
+        Timer::Feedback => 3,
+        Timer::Liveness => 4,
+        Timer::Heartbeat => 5,
+        Timer::Drain => 6,
+        Timer::Arrival => 7,
+        Timer::Sequence => 8,
+        Timer::Deadman => 9,
+        Timer::LimitBrake => 10,
+        Timer::Segment => 11,
+        Timer::Answer => 12,
+        Timer::Settle => 13,
+    };
+    let every: Vec<usize> = (0..14).collect();
+    for table in [Timer::FIRING, Timer::ALL] {
+        let mut kinds: Vec<usize> = table.into_iter().map(kind).collect();
+        kinds.sort_unstable();
+        assert_eq!(kinds, every);
+    }
+    // The order the steps ran in before the table: kept.
+    assert_eq!(
+        Timer::FIRING,
+        [
+            Timer::Requests,
+            Timer::Settle,
+            Timer::Commands,
+            Timer::LimitBrake,
+            Timer::Deadman,
+            Timer::Link,
+            Timer::Answer,
+            Timer::Segment,
+            Timer::Sequence,
+            Timer::Arrival,
+            Timer::Liveness,
+            Timer::Feedback,
+            Timer::Heartbeat,
+            Timer::Drain,
+        ]
+    );
+}

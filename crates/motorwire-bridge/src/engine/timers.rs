@@ -2,39 +2,147 @@
 
 use super::*;
 
+impl Timer {
+    /// The order [`Bridge::on_timeout`] takes the timers in, each once.
+    /// What one timer's work queues is there for those after it: the
+    /// drivers' time-outs are taken first, the deadman's stops and the
+    /// limits' brakes are queued before the Orion link picks what to send
+    /// next, and the drain is looked at last, once everything else has
+    /// had its turn.
+    pub(super) const FIRING: [Self; 14] = [
+        Self::Requests,
+        Self::Settle,
+        Self::Commands,
+        Self::LimitBrake,
+        Self::Deadman,
+        Self::Link,
+        Self::Answer,
+        Self::Segment,
+        Self::Sequence,
+        Self::Arrival,
+        Self::Liveness,
+        Self::Feedback,
+        Self::Heartbeat,
+        Self::Drain,
+    ];
+
+    /// Whether the timer's work is done only when its deadline is due:
+    /// where, not due, that work does nothing. The others' work is done
+    /// at every timeout, as its own checks differ from the deadline's.
+    fn only_when_due(self) -> bool {
+        match self {
+            // Only the joints whose brake point is past (a latched stop
+            // brakes nothing); the deadline is the earliest of those.
+            Self::LimitBrake
+            // Only the requests whose answer is overdue.
+            | Self::Answer
+            // Only the joints whose segment is due.
+            | Self::Segment
+            // Only the watched lines past their time.
+            | Self::Arrival
+            // Only the joints online and silent for the offline time
+            // (one offline already stays so, unchanged).
+            | Self::Liveness
+            // Only at the feedback's own time.
+            | Self::Feedback => true,
+            // The iRPC client takes the time as its clock, due or not,
+            // and a stale resend is withdrawn on the client's own word.
+            Self::Requests
+            // Ready as soon as every device is read, before the settle
+            // time the deadline names.
+            | Self::Settle
+            // The compact and moteus drivers' own checks stand: not
+            // shown to match the deadline here.
+            | Self::Commands
+            // Latched, every deadman is disarmed, due or not.
+            | Self::Deadman
+            // The Orion controller's housekeeping and the moteus polls
+            // keep their own times; what the drivers queued is drained.
+            | Self::Link
+            // Any waiting step of an idle device is sent, not only one
+            // whose predecessor is overdue.
+            | Self::Sequence
+            // Nothing moving, its time is cleared; where no joint hears
+            // it, its deadline is unset but its time is kept.
+            | Self::Heartbeat
+            // A job's end is looked at once: the recheck is cleared.
+            | Self::Drain => false,
+        }
+    }
+}
+
 impl Bridge {
-    /// Advances to `now`: retransmissions and timeouts, feedback, liveness,
-    /// heartbeats, the end of a drain.
+    /// Advances to `now`: each timer of [`Timer::FIRING`] in its turn,
+    /// its work done where it is due (or always, see
+    /// [`Timer::only_when_due`]), then the bookkeeping that follows it.
     pub(super) fn on_timeout(&mut self) {
         let now = self.now;
-        self.withdraw_stale_resends(now);
-        self.drivers.handle_timeout(now);
-        self.drain_drivers();
-        self.try_ready();
-        self.drivers.command_timeouts(now);
-        self.drain_drivers();
-        // The deadman's stops (and the limits' brakes) are queued before
-        // the Orion link picks what to send next.
-        self.keep_within_limits(now);
-        self.deadman(now);
-        self.link_timeouts(now);
-        self.awaiting_timeouts(now);
-        self.send_due_segments(now);
-        self.finish_jobs();
-        // Sequential axes whose predecessor is overdue give up.
-        for ji in self.joints.ids() {
-            self.pump(ji);
+        for t in Timer::FIRING {
+            if !t.only_when_due() || self.deadline(t).is_some_and(|d| d <= now) {
+                self.fire(t, now);
+            }
+            self.after_firing(t);
         }
-        self.finish_jobs();
-        self.arrivals_timed_out(now);
-        self.offline_timeouts(now);
-        if let (Some(period), Some(at)) = (self.config.feedback_period, self.timers.feedback)
-            && now >= at
-        {
-            self.emit_feedback(now);
-            self.timers.feedback = Some(now.saturating_add(period));
+    }
+
+    /// Timer `t`'s work at `now`.
+    fn fire(&mut self, t: Timer, now: Duration) {
+        match t {
+            Timer::Requests => {
+                self.withdraw_stale_resends(now);
+                self.drivers.handle_timeout(now);
+            }
+            Timer::Settle => self.try_ready(),
+            Timer::Commands => self.drivers.command_timeouts(now),
+            Timer::LimitBrake => self.keep_within_limits(now),
+            Timer::Deadman => self.deadman(now),
+            Timer::Link => self.link_timeouts(now),
+            Timer::Answer => self.awaiting_timeouts(now),
+            Timer::Segment => self.send_due_segments(now),
+            // Sequential axes whose predecessor is overdue give up.
+            Timer::Sequence => {
+                for ji in self.joints.ids() {
+                    self.pump(ji);
+                }
+            }
+            Timer::Arrival => self.arrivals_timed_out(now),
+            Timer::Liveness => self.offline_timeouts(now),
+            Timer::Feedback => {
+                if let (Some(period), Some(at)) =
+                    (self.config.feedback_period, self.timers.feedback)
+                    && now >= at
+                {
+                    self.emit_feedback(now);
+                    self.timers.feedback = Some(now.saturating_add(period));
+                }
+            }
+            Timer::Heartbeat => self.heartbeat_due(now),
+            Timer::Drain => self.drain_ended(now),
         }
-        self.heartbeat_due(now);
+    }
+
+    /// What follows timer `t`'s turn, whether it fired or not: what the
+    /// drivers told is taken in, and finished jobs are answered.
+    fn after_firing(&mut self, t: Timer) {
+        match t {
+            Timer::Requests | Timer::Commands => self.drain_drivers(),
+            Timer::Segment | Timer::Sequence => self.finish_jobs(),
+            Timer::Settle
+            | Timer::LimitBrake
+            | Timer::Deadman
+            | Timer::Link
+            | Timer::Answer
+            | Timer::Arrival
+            | Timer::Liveness
+            | Timer::Feedback
+            | Timer::Heartbeat
+            | Timer::Drain => {}
+        }
+    }
+
+    /// Draining: over once nothing is left to do and nothing moves, or at
+    /// its deadline.
+    fn drain_ended(&mut self, now: Duration) {
         if let Phase::Draining { deadline, recheck } = &mut self.phase {
             *recheck = false;
             let deadline = *deadline;
@@ -179,7 +287,9 @@ impl Bridge {
     /// entry per kind of deadline, each read where its state lives.
     pub(super) fn deadline(&self, t: Timer) -> Option<Duration> {
         match t {
-            Timer::Drivers => self.drivers.deadline(),
+            Timer::Requests => self.drivers.requests_deadline(),
+            Timer::Commands => self.drivers.commands_deadline(),
+            Timer::Link => self.drivers.link_deadline(),
             Timer::Feedback => self.timers.feedback,
             Timer::Liveness => self
                 .joints
