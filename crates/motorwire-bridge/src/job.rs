@@ -9,6 +9,7 @@ use motorwire_translate::Report;
 
 use crate::device::DeviceId;
 pub(crate) use crate::device::{AwaitKind, Lifecycle, Order};
+use crate::joints::StepRef;
 use crate::output::{Label, LineRef, Origin, StepOutcome, StepReport};
 
 /// One input line's identity as it travels from its reading to its
@@ -369,8 +370,12 @@ impl Job {
     }
 }
 
-/// The open jobs by id, oldest first: a list kept in order of id (ids
-/// only grow, so a new job goes at the end), looked up by halving. A job
+/// The open jobs by id, oldest first, and their own bookkeeping: the ids
+/// they take, a newer step superseding what they hold, a waiting step
+/// cancelled, the jobs done found and taken out (what needs the bridge,
+/// the drivers and the outputs, stays with the bridge). A list kept in
+/// order of id (ids only grow, so a new job goes at the end), looked up
+/// by halving. A job
 /// taken out leaves its place empty, and the list is closed up once more
 /// than half of it is empty, so that a stop finishing a thousand jobs
 /// moves the list a few times, not once for each. A bridge has a few
@@ -381,9 +386,149 @@ pub(crate) struct Jobs {
     list: Vec<(u64, Option<Box<Job>>)>,
     /// The places not empty.
     open: usize,
+    /// The id the next job takes: each once, growing.
+    next: u64,
+}
+
+/// What became of the step holding a device when a newer motion step
+/// for it came ([`Jobs::supersede_running`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Running {
+    /// It goes on.
+    Kept,
+    /// A trajectory scheduled to start later, not begun: it is not
+    /// replaced, but leaves the device, to be queued behind the newer
+    /// step.
+    Rescheduled,
+    /// A running trajectory, replaced: its later segments are not sent.
+    /// `freed`: between segments, it ended now and frees the device; else
+    /// it ends once its segment in flight is answered.
+    Replaced { freed: bool },
 }
 
 impl Jobs {
+    /// An id for a job about to be opened ([`Jobs::open`]): each once,
+    /// growing (taken before the job is made, as its steps name it).
+    pub(crate) fn new_id(&mut self) -> u64 {
+        let id = self.next;
+        self.next += 1;
+        id
+    }
+
+    /// The id [`Jobs::new_id`] gives next.
+    pub(crate) fn next_id(&self) -> u64 {
+        self.next
+    }
+
+    /// Opens job `id` (one [`Jobs::new_id`] gave).
+    pub(crate) fn open(&mut self, id: u64, job: Box<Job>) {
+        debug_assert!(id < self.next, "job {id} opened without its id taken");
+        self.insert(id, job);
+    }
+
+    /// The axis `step` names, if its job is still open.
+    pub(crate) fn axis(&self, step: StepRef) -> Option<&Axis> {
+        self.get(&step.job)?.axes.get(step.axis)
+    }
+
+    /// The axis `step` names, if its job is still open.
+    pub(crate) fn axis_mut(&mut self, step: StepRef) -> Option<&mut Axis> {
+        self.get_mut(&step.job)?.axes.get_mut(step.axis)
+    }
+
+    /// A newer motion step (a position move or a stream's setpoint:
+    /// `replaces`; a stream's: `stream`) is about to go on the device
+    /// step `s` waits for: whether `s`, a command's step not sent, is
+    /// replaced by it (then finished as superseded, saying why). A
+    /// position move is replaced by a newer position move; any setpoint
+    /// by a stream's; an axis of a sequential line waiting for its turn
+    /// by any newer motion (it would hold the device for another motor's
+    /// arrival).
+    pub(crate) fn supersede_waiting(&mut self, s: StepRef, stream: bool, replaces: bool) -> bool {
+        let Some(a) = self
+            .get_mut(&s.job)
+            .filter(|job| job.kind == JobKind::Command)
+            .and_then(|job| job.axes.get_mut(s.axis))
+        else {
+            return false;
+        };
+        let why = if a.state != AxisState::Queued {
+            None
+        } else if stream && a.is_setpoint() {
+            Some("a newer setpoint of a stream for the motor replaced it before it was sent")
+        } else if replaces && a.is_position_move() {
+            Some("a newer position command for the joint replaced it before it was sent")
+        } else if a.after.is_some() && !a.begun {
+            Some("a newer line for the motor replaced it while it waited for its turn")
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            a.finish(StepOutcome::Superseded, None, why);
+        }
+        why.is_some()
+    }
+
+    /// A newer motion step (a position move or a stream's setpoint:
+    /// `replaces`) is about to go on the device step `running` holds:
+    /// what becomes of `running`. A command's trajectory scheduled to
+    /// start later and not begun is rescheduled; one under way is replaced
+    /// by a step that `replaces`; anything else goes on.
+    pub(crate) fn supersede_running(&mut self, running: StepRef, replaces: bool) -> Running {
+        let Some(a) = self
+            .get_mut(&running.job)
+            .filter(|job| job.kind == JobKind::Command)
+            .and_then(|job| job.axes.get_mut(running.axis))
+        else {
+            return Running::Kept;
+        };
+        if a.state == AxisState::Queued && !a.begun && !a.due.is_empty() {
+            return Running::Rescheduled;
+        }
+        if !replaces || !a.is_running_trajectory() {
+            return Running::Kept;
+        }
+        if a.state == AxisState::Queued {
+            a.finish(StepOutcome::Superseded, None, REPLACED_TRAJECTORY);
+            Running::Replaced { freed: true }
+        } else {
+            a.replaced = Some(REPLACED_TRAJECTORY);
+            Running::Replaced { freed: false }
+        }
+    }
+
+    /// Cancels step `s`, waiting for its device (cut by `why`): never
+    /// sent, and its job says why. `Some(line)` where its job was open:
+    /// the line it serves, if any.
+    pub(crate) fn cancel_waiting(&mut self, s: StepRef, why: &str) -> Option<Option<LineRef>> {
+        let job = self.get_mut(&s.job)?;
+        let a = job.axes.get_mut(s.axis)?;
+        a.finish(
+            StepOutcome::Cancelled,
+            None,
+            format!("{why} before it was sent"),
+        );
+        job.cut.get_or_insert_with(|| why.to_owned());
+        Some(job.line_ref())
+    }
+
+    /// When the first request line's answer is overdue, if one waits.
+    pub(crate) fn answer_due(&self) -> Option<Duration> {
+        self.values()
+            .filter_map(|j| j.awaiting.map(|a| a.deadline))
+            .min()
+    }
+
+    /// The ids of the jobs done, to be answered, oldest first.
+    pub(crate) fn finished(&self) -> impl Iterator<Item = u64> + '_ {
+        self.iter().filter(|(_, j)| j.is_done()).map(|(id, _)| *id)
+    }
+
+    /// Takes job `id` out, to be answered (`None`: it was taken already).
+    pub(crate) fn close(&mut self, id: u64) -> Option<Box<Job>> {
+        self.remove(&id)
+    }
+
     fn at(&self, id: u64) -> Result<usize, usize> {
         self.list.binary_search_by_key(&id, |(i, _)| *i)
     }
@@ -398,8 +543,8 @@ impl Jobs {
         self.list.get_mut(i)?.1.as_deref_mut()
     }
 
-    /// Opens job `id` (replacing one of that id, as a map would).
-    pub(crate) fn insert(&mut self, id: u64, job: Box<Job>) {
+    /// Puts job `id` in (replacing one of that id, as a map would).
+    fn insert(&mut self, id: u64, job: Box<Job>) {
         if self.list.last().is_none_or(|(last, _)| *last < id) {
             self.list.push((id, Some(job)));
             self.open += 1;
@@ -421,7 +566,7 @@ impl Jobs {
         }
     }
 
-    pub(crate) fn remove(&mut self, id: &u64) -> Option<Box<Job>> {
+    fn remove(&mut self, id: &u64) -> Option<Box<Job>> {
         let i = self.at(*id).ok()?;
         let job = self.list.get_mut(i)?.1.take()?;
         self.open -= 1;
@@ -458,11 +603,6 @@ impl Jobs {
     pub(crate) fn values_mut(&mut self) -> impl DoubleEndedIterator<Item = &mut Job> {
         self.list.iter_mut().filter_map(|(_, j)| j.as_deref_mut())
     }
-}
-
-/// The axis `step` names, if its job is still open.
-pub(crate) fn axis_mut(jobs: &mut Jobs, step: crate::joints::StepRef) -> Option<&mut Axis> {
-    jobs.get_mut(&step.job)?.axes.get_mut(step.axis)
 }
 
 #[cfg(test)]
@@ -560,5 +700,245 @@ mod tests {
             jobs.remove(&id).unwrap();
         }
         assert!(jobs.is_empty());
+    }
+
+    /// A request line's answer is due at the earliest of the waits.
+    #[test]
+    fn the_first_answer_waited_for_is_due() {
+        let mut jobs = Jobs::default();
+        assert_eq!(jobs.answer_due(), None);
+        for ms in [None, Some(300), Some(120)] {
+            let id = jobs.new_id();
+            jobs.open(id, move_job(JobKind::Command, "elbow", None));
+            jobs.get_mut(&id).unwrap().awaiting = ms.map(|ms| Awaiting {
+                joint: DeviceId::at(0),
+                kind: AwaitKind::Telemetry,
+                deadline: Duration::from_millis(ms),
+            });
+        }
+        assert_eq!(jobs.answer_due(), Some(Duration::from_millis(120)));
+        jobs.get_mut(&2).unwrap().awaiting = None;
+        assert_eq!(jobs.answer_due(), Some(Duration::from_millis(300)));
+    }
+
+    /// A command's job of one axis moving `motor` (a position move), for
+    /// line `number` of client 2 where one is given.
+    fn move_job(kind: JobKind, motor: &str, number: Option<u64>) -> Box<Job> {
+        let order = Payload::SetTarget(motorwire_irpc::SetTargetPayload {
+            target_angle: 10.0,
+            velocity_limit: 5.0,
+        });
+        let axis = Axis::new(motor.to_owned(), DeviceId::at(0), [order]);
+        Box::new(Job::new(
+            number.map(|n| LineMeta::new(Origin(2), n)),
+            kind,
+            Duration::ZERO,
+            vec![axis],
+            Report::default(),
+            Vec::new(),
+        ))
+    }
+
+    fn step(job: u64) -> StepRef {
+        StepRef { job, axis: 0 }
+    }
+
+    fn done(motor: &str, outcome: StepOutcome, message: &'static str) -> AxisState {
+        AxisState::Done(StepReport {
+            motor: motor.to_owned(),
+            outcome,
+            code: None,
+            message: message.into(),
+        })
+    }
+
+    /// Ids are taken before a job is opened, each once and growing; a job
+    /// opened late (after one taken later) keeps its place by id.
+    #[test]
+    fn jobs_open_with_the_ids_they_took() {
+        let mut jobs = Jobs::default();
+        assert_eq!(jobs.next_id(), 0);
+        let (a, b) = (jobs.new_id(), jobs.new_id());
+        assert_eq!((a, b, jobs.next_id()), (0, 1, 2));
+        jobs.open(b, move_job(JobKind::Command, "wrist", Some(4)));
+        jobs.open(a, move_job(JobKind::Command, "elbow", Some(3)));
+        let open: Vec<(u64, &str)> = jobs
+            .iter()
+            .map(|(id, j)| (*id, j.axes[0].motor.as_str()))
+            .collect();
+        assert_eq!(open, [(0, "elbow"), (1, "wrist")]);
+        assert_eq!(jobs.axis(step(1)).unwrap().motor, "wrist");
+        assert!(jobs.axis(StepRef { job: 1, axis: 1 }).is_none());
+        assert!(jobs.axis(step(2)).is_none());
+        assert_eq!(jobs.new_id(), 2);
+    }
+
+    /// A waiting position move is replaced by a newer one, a setpoint by a
+    /// stream's, a sequential axis waiting for its turn by any motion; a
+    /// stop's step, one sent, or one replaced already is not.
+    #[test]
+    fn a_waiting_step_is_superseded_by_what_replaces_it() {
+        let mut jobs = Jobs::default();
+        for kind in [JobKind::Command, JobKind::EmergencyStop, JobKind::Command] {
+            let id = jobs.new_id();
+            jobs.open(id, move_job(kind, "elbow", None));
+        }
+        // Neither a position move replacing it nor a stream's setpoint.
+        assert!(!jobs.supersede_waiting(step(0), false, false));
+        assert_eq!(jobs.axis(step(0)).unwrap().state, AxisState::Queued);
+        assert!(jobs.supersede_waiting(step(0), false, true));
+        assert_eq!(
+            jobs.axis(step(0)).unwrap().state,
+            done(
+                "elbow",
+                StepOutcome::Superseded,
+                "a newer position command for the joint replaced it before it was sent"
+            )
+        );
+        // Finished already: not again.
+        assert!(!jobs.supersede_waiting(step(0), true, true));
+        // A stop's step.
+        assert!(!jobs.supersede_waiting(step(1), true, true));
+        assert_eq!(jobs.axis(step(1)).unwrap().state, AxisState::Queued);
+        // A stream's setpoint.
+        assert!(jobs.supersede_waiting(step(2), true, false));
+        assert_eq!(
+            jobs.axis(step(2)).unwrap().state,
+            done(
+                "elbow",
+                StepOutcome::Superseded,
+                "a newer setpoint of a stream for the motor replaced it before it was sent"
+            )
+        );
+        // A sequential axis waiting for its turn, by any motion.
+        let id = jobs.new_id();
+        jobs.open(id, move_job(JobKind::Command, "wrist", None));
+        jobs.axis_mut(step(id)).unwrap().after = Some(1);
+        assert!(jobs.supersede_waiting(step(id), false, false));
+        assert_eq!(
+            jobs.axis(step(id)).unwrap().state,
+            done(
+                "wrist",
+                StepOutcome::Superseded,
+                "a newer line for the motor replaced it while it waited for its turn"
+            )
+        );
+        // A job taken out already.
+        assert!(!jobs.supersede_waiting(step(9), true, true));
+    }
+
+    /// The step holding a device: a trajectory scheduled and not begun is
+    /// rescheduled; one under way is replaced by a position move (ended
+    /// now between segments, after its segment in flight otherwise);
+    /// anything else goes on.
+    #[test]
+    fn a_running_trajectory_is_superseded_by_a_position_move() {
+        let mut jobs = Jobs::default();
+        for _ in 0..3 {
+            let id = jobs.new_id();
+            jobs.open(id, move_job(JobKind::Command, "elbow", None));
+            jobs.axis_mut(step(id))
+                .unwrap()
+                .due
+                .push_back(Duration::from_millis(50));
+        }
+        // A move, not a trajectory: goes on.
+        let id = jobs.new_id();
+        jobs.open(id, move_job(JobKind::Command, "elbow", None));
+        assert_eq!(jobs.supersede_running(step(id), true), Running::Kept);
+        // Scheduled, not begun.
+        assert_eq!(jobs.supersede_running(step(0), true), Running::Rescheduled);
+        assert_eq!(jobs.axis(step(0)).unwrap().state, AxisState::Queued);
+        // Begun, between segments.
+        jobs.axis_mut(step(1)).unwrap().begun = true;
+        assert_eq!(jobs.supersede_running(step(1), false), Running::Kept);
+        assert_eq!(
+            jobs.supersede_running(step(1), true),
+            Running::Replaced { freed: true }
+        );
+        assert_eq!(
+            jobs.axis(step(1)).unwrap().state,
+            done("elbow", StepOutcome::Superseded, REPLACED_TRAJECTORY)
+        );
+        // Begun, a segment in flight: it ends once that is answered.
+        let a = jobs.axis_mut(step(2)).unwrap();
+        a.begun = true;
+        let payload = a.payloads.pop_front().unwrap();
+        a.state = AxisState::InFlight { msg_id: 3, payload };
+        assert_eq!(
+            jobs.supersede_running(step(2), true),
+            Running::Replaced { freed: false }
+        );
+        let a = jobs.axis(step(2)).unwrap();
+        assert_eq!(a.replaced, Some(REPLACED_TRAJECTORY));
+        assert!(matches!(a.state, AxisState::InFlight { msg_id: 3, .. }));
+        assert_eq!(jobs.supersede_running(step(9), true), Running::Kept);
+    }
+
+    /// A waiting step cancelled is never sent: its job says the first
+    /// reason it was cut, and the line it serves is named.
+    #[test]
+    fn a_waiting_step_is_cancelled_with_its_line_named() {
+        let mut jobs = Jobs::default();
+        for number in [Some(9), None] {
+            let id = jobs.new_id();
+            jobs.open(id, move_job(JobKind::Command, "elbow", number));
+        }
+        assert_eq!(
+            jobs.cancel_waiting(step(0), "cancelled by the stop"),
+            Some(Some(LineRef {
+                origin: Origin(2),
+                line: 9
+            }))
+        );
+        assert_eq!(
+            jobs.axis(step(0)).unwrap().state,
+            done(
+                "elbow",
+                StepOutcome::Cancelled,
+                "cancelled by the stop before it was sent"
+            )
+        );
+        assert_eq!(
+            jobs.get(&0).unwrap().cut.as_deref(),
+            Some("cancelled by the stop")
+        );
+        // The bridge's own job: no line; its first reason kept.
+        assert_eq!(jobs.cancel_waiting(step(1), "first"), Some(None));
+        jobs.axis_mut(step(1)).unwrap().state = AxisState::Queued;
+        assert_eq!(jobs.cancel_waiting(step(1), "second"), Some(None));
+        assert_eq!(jobs.get(&1).unwrap().cut.as_deref(), Some("first"));
+        assert_eq!(jobs.cancel_waiting(step(9), "gone"), None);
+        assert_eq!(
+            jobs.cancel_waiting(StepRef { job: 0, axis: 1 }, "gone"),
+            None
+        );
+    }
+
+    /// The jobs done are found oldest first, and each is taken out once.
+    #[test]
+    fn finished_jobs_are_found_and_closed_once() {
+        let mut jobs = Jobs::default();
+        for _ in 0..3 {
+            let id = jobs.new_id();
+            jobs.open(id, move_job(JobKind::Command, "elbow", None));
+        }
+        assert_eq!(jobs.finished().count(), 0);
+        for id in [2, 0] {
+            jobs.axis_mut(step(id))
+                .unwrap()
+                .finish(StepOutcome::Acked, None, "acked");
+        }
+        // Not flushed yet: not done.
+        jobs.get_mut(&2).unwrap().unflushed = true;
+        assert_eq!(jobs.finished().collect::<Vec<_>>(), [0]);
+        jobs.get_mut(&2).unwrap().unflushed = false;
+        assert_eq!(jobs.finished().collect::<Vec<_>>(), [0, 2]);
+        assert_eq!(jobs.close(0).unwrap().axes[0].motor, "elbow");
+        assert!(jobs.close(0).is_none());
+        assert_eq!(jobs.finished().collect::<Vec<_>>(), [2]);
+        jobs.close(2).unwrap();
+        assert_eq!(jobs.iter().map(|(id, _)| *id).collect::<Vec<_>>(), [1]);
+        assert!(!jobs.is_empty());
     }
 }

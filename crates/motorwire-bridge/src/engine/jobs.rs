@@ -14,8 +14,7 @@ impl Bridge {
         report: Report,
         problems: Vec<String>,
     ) {
-        let id = self.next_job;
-        self.next_job += 1;
+        let id = self.jobs.new_id();
         if kind.is_stop() {
             self.cancel_everything("cancelled by the stop");
         }
@@ -47,7 +46,7 @@ impl Bridge {
                 (a.after.is_none() && (replaces || motion)).then_some(Takes { replaces, timed });
             (a.joint, StepRef { job: id, axis }, takes)
         }));
-        self.jobs.insert(
+        self.jobs.open(
             id,
             Box::new(Job::new(line, kind, now, axes, report, problems)),
         );
@@ -143,27 +142,7 @@ impl Bridge {
         let mut newer = false;
         joint.schedule.retain_waiting(|s| {
             newer |= Some(s) == except;
-            let replaced = !newer
-                && self.jobs.get_mut(&s.job).is_some_and(|job| {
-                    job.kind == JobKind::Command
-                        && job.axes.get_mut(s.axis).is_some_and(|a| {
-                            let why = if a.state != AxisState::Queued {
-                                None
-                            } else if stream && a.is_setpoint() {
-                                Some("a newer setpoint of a stream for the motor replaced it before it was sent")
-                            } else if replaces && a.is_position_move() {
-                                Some("a newer position command for the joint replaced it before it was sent")
-                            } else if a.after.is_some() && !a.begun {
-                                Some("a newer line for the motor replaced it while it waited for its turn")
-                            } else {
-                                None
-                            };
-                            if let Some(why) = why {
-                                a.finish(StepOutcome::Superseded, None, why);
-                            }
-                            why.is_some()
-                        })
-                });
+            let replaced = !newer && self.jobs.supersede_waiting(s, stream, replaces);
             if replaced {
                 self.stats.superseded += 1;
             }
@@ -174,27 +153,22 @@ impl Bridge {
             return None;
         }
         let running = joint.schedule.busy()?;
-        let a = self
-            .jobs
-            .get_mut(&running.job)
-            .filter(|job| job.kind == JobKind::Command)
-            .and_then(|job| job.axes.get_mut(running.axis))?;
-        // Scheduled, not begun: it waits for its time, holding the device.
-        if a.state == AxisState::Queued && !a.begun && !a.due.is_empty() {
-            joint.schedule.release();
-            return Some(running);
+        match self.jobs.supersede_running(running, replaces) {
+            Running::Kept => None,
+            // Scheduled, not begun: it waits for its time, holding the
+            // device.
+            Running::Rescheduled => {
+                joint.schedule.release();
+                Some(running)
+            }
+            Running::Replaced { freed } => {
+                self.stats.superseded += 1;
+                if freed {
+                    joint.schedule.release();
+                }
+                None
+            }
         }
-        if !replaces || !a.is_running_trajectory() {
-            return None;
-        }
-        self.stats.superseded += 1;
-        if a.state == AxisState::Queued {
-            a.finish(StepOutcome::Superseded, None, REPLACED_TRAJECTORY);
-            joint.schedule.release();
-        } else {
-            a.replaced = Some(REPLACED_TRAJECTORY);
-        }
-        None
     }
 
     /// Device `ji` took a move or setpoint of job `by`, of `line` (`None`:
@@ -282,11 +256,8 @@ impl Bridge {
             let Some(step) = self.joints.get(ji).and_then(|j| j.schedule.busy()) else {
                 continue;
             };
-            let Some(&AxisState::InFlight { msg_id, payload }) = self
-                .jobs
-                .get(&step.job)
-                .and_then(|job| job.axes.get(step.axis))
-                .map(|a| &a.state)
+            let Some(&AxisState::InFlight { msg_id, payload }) =
+                self.jobs.axis(step).map(|a| &a.state)
             else {
                 continue;
             };
@@ -302,7 +273,7 @@ impl Bridge {
                 j.schedule.clear_busy();
                 j.motion.not_sending();
             }
-            if let Some(a) = axis_mut(&mut self.jobs, step) {
+            if let Some(a) = self.jobs.axis_mut(step) {
                 let why = why.replacen(
                     "not sent:",
                     "sent once and not answered; not sent again:",
@@ -424,13 +395,10 @@ impl Bridge {
                         b.motor
                     ))
                 } else {
-                    if let Some(a) = axis_mut(
-                        &mut self.jobs,
-                        StepRef {
-                            job: step.job,
-                            axis: before,
-                        },
-                    ) {
+                    if let Some(a) = self.jobs.axis_mut(StepRef {
+                        job: step.job,
+                        axis: before,
+                    }) {
                         a.arrive_by = Some(by);
                     }
                     None
@@ -441,7 +409,7 @@ impl Bridge {
         let Some(why) = failed else {
             return true;
         };
-        if let Some(a) = axis_mut(&mut self.jobs, step) {
+        if let Some(a) = self.jobs.axis_mut(step) {
             a.finish(StepOutcome::NotSent, None, why);
         }
         false
@@ -525,7 +493,7 @@ impl Bridge {
         // the device may move otherwise (a move in flight, a slow Ack).
         if let Some(why) = self.path_at_send(ji, &payload) {
             self.stats.refused_at_send += 1;
-            if let Some(a) = axis_mut(&mut self.jobs, step) {
+            if let Some(a) = self.jobs.axis_mut(step) {
                 a.finish(StepOutcome::NotSent, None, why);
             }
             return false;
@@ -552,7 +520,7 @@ impl Bridge {
         ji: DeviceId,
         step: StepRef,
     ) -> ControlFlow<bool, Order> {
-        let Some(a) = axis_mut(&mut self.jobs, step) else {
+        let Some(a) = self.jobs.axis_mut(step) else {
             return ControlFlow::Break(false);
         };
         // A trajectory looping forever: its next cycle.
@@ -847,33 +815,25 @@ impl Bridge {
     /// Whether a step waiting for joint `j` deactivates it.
     fn deactivation_waits(&self, j: &Joint) -> bool {
         j.schedule.waiting().any(|s| {
-            self.jobs
-                .get(&s.job)
-                .and_then(|job| job.axes.get(s.axis))
-                .is_some_and(|a| {
-                    a.payloads
-                        .iter()
-                        .any(|o| o.lifecycle() == Some(Lifecycle::Deactivate))
-                })
+            self.jobs.axis(*s).is_some_and(|a| {
+                a.payloads
+                    .iter()
+                    .any(|o| o.lifecycle() == Some(Lifecycle::Deactivate))
+            })
         })
     }
 
     /// Emits the result of every job that is done.
     pub(super) fn finish_jobs(&mut self) {
         // Looked at after every event, and most find nothing done.
-        if !self.jobs.values().any(|j| j.is_done()) {
+        if self.jobs.finished().next().is_none() {
             return;
         }
         let mut done = std::mem::take(&mut self.done_scratch);
         done.clear();
-        done.extend(
-            self.jobs
-                .iter()
-                .filter(|(_, j)| j.is_done())
-                .map(|(id, _)| *id),
-        );
+        done.extend(self.jobs.finished());
         for &id in &done {
-            if let Some(job) = self.jobs.remove(&id) {
+            if let Some(job) = self.jobs.close(id) {
                 self.complete(job);
                 // The drain may end now: looked at once, by its timer.
                 if let Phase::Draining { recheck, .. } = &mut self.phase {
@@ -938,7 +898,7 @@ impl Bridge {
             if front.job != step.job {
                 continue;
             }
-            let Some(a) = axis_mut(&mut self.jobs, front) else {
+            let Some(a) = self.jobs.axis_mut(front) else {
                 continue;
             };
             let fits = a.after.is_none() && a.payloads.front().is_some_and(|o| order.joins(o));
@@ -958,7 +918,7 @@ impl Bridge {
         }
         let sent = self.drivers.send_together(now, &orders);
         for (front, payload) in others {
-            let Some(a) = axis_mut(&mut self.jobs, front) else {
+            let Some(a) = self.jobs.axis_mut(front) else {
                 continue;
             };
             match &sent {

@@ -226,7 +226,7 @@ impl Bridge {
             kind,
             deadline,
         };
-        let id = self.next_job;
+        let id = self.jobs.next_id();
         let axis = Axis::new(motor.to_owned(), ji, [payload]);
         self.command_job(now, meta, vec![axis], Report::default());
         // Not done yet (a job is taken out once done): it waits.

@@ -45,8 +45,8 @@ use crate::device::{
 };
 use crate::error::BridgeError;
 use crate::job::{
-    AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, Jobs, LineMeta, Order,
-    REPLACED_TRAJECTORY, Rider, axis_mut,
+    AwaitKind, Awaiting, Axis, AxisState, Cycle, Job, JobKind, Jobs, LineMeta, Order, Rider,
+    Running,
 };
 use crate::joints::{Joint, Joints, StepRef, Unresolved};
 use crate::output::{
@@ -370,7 +370,6 @@ pub struct Bridge {
     drivers: Drivers,
     joints: Joints,
     jobs: Jobs,
-    next_job: u64,
     waiting: VecDeque<Waiting>,
     line_numbers: BTreeMap<Origin, u64>,
     /// The emergency stop's latch.
@@ -566,7 +565,6 @@ impl Bridge {
             drivers,
             joints,
             jobs: Jobs::default(),
-            next_job: 0,
             waiting: VecDeque::new(),
             line_numbers: BTreeMap::new(),
             stop: StopLatch::default(),

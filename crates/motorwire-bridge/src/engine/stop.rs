@@ -194,17 +194,9 @@ impl Bridge {
                 self.cancel_busy(ji, s, why, taken_back, &mut maybe_held, &mut touched);
             }
             for s in queued {
-                if let Some(job) = self.jobs.get_mut(&s.job)
-                    && let Some(a) = job.axes.get_mut(s.axis)
-                {
-                    a.finish(
-                        StepOutcome::Cancelled,
-                        None,
-                        format!("{why} before it was sent"),
-                    );
-                    job.cut.get_or_insert_with(|| why.to_owned());
+                if let Some(line) = self.jobs.cancel_waiting(s, why) {
                     self.stats.cancelled += 1;
-                    touched.extend(job.line_ref());
+                    touched.extend(line);
                 }
             }
         }
@@ -361,7 +353,7 @@ impl Bridge {
                 .joints
                 .get(ji)
                 .and_then(|j| j.schedule.busy())
-                .and_then(|s| self.jobs.get(&s.job)?.axes.get(s.axis))
+                .and_then(|s| self.jobs.axis(s))
                 .is_some_and(|a| {
                     matches!(a.state, AxisState::InFlight { payload, .. } if payload.ends_setpoint())
                 });
@@ -421,7 +413,7 @@ impl Bridge {
         // Ahead of anything waiting for the device.
         if let Some(j) = self.joints.get_mut(ji) {
             for s in j.schedule.take_all_waiting() {
-                if let Some(a) = axis_mut(&mut self.jobs, s) {
+                if let Some(a) = self.jobs.axis_mut(s) {
                     a.finish(
                         StepOutcome::Cancelled,
                         None,

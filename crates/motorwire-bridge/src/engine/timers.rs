@@ -324,11 +324,7 @@ impl Bridge {
                 }
             }
             Timer::Segment => self.joints.iter().filter_map(|j| j.schedule.wake()).min(),
-            Timer::Answer => self
-                .jobs
-                .values()
-                .filter_map(|j| j.awaiting.map(|a| a.deadline))
-                .min(),
+            Timer::Answer => self.jobs.answer_due(),
             Timer::Settle => match self.phase {
                 Phase::Starting { settle_until, .. } => settle_until,
                 _ => None,
