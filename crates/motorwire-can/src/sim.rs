@@ -178,6 +178,9 @@ struct PortState {
     arrived: Arc<Condvar>,
     /// Told when a frame is queued for this port ([`CanBus::set_waker`]).
     waker: Option<FrameWaker>,
+    /// Threads waiting in this port's `recv` (none on a bus in simulated
+    /// time, which never waits): only a port with one is notified.
+    waiting: u32,
 }
 
 impl std::fmt::Debug for PortState {
@@ -188,6 +191,7 @@ impl std::fmt::Debug for PortState {
             .field("held", &self.held)
             .field("twin", &self.twin)
             .field("waker", &self.waker.is_some())
+            .field("waiting", &self.waiting)
             .finish_non_exhaustive()
     }
 }
@@ -254,7 +258,9 @@ impl State {
     /// wake only to wait for it.
     fn take_touched(&mut self, wake: &mut Vec<Arrival>) {
         for port in self.touched.drain(..) {
-            if let Some(p) = self.ports.get(port) {
+            if let Some(p) = self.ports.get(port)
+                && (p.waiting > 0 || p.waker.is_some())
+            {
                 wake.push((Arc::clone(&p.arrived), p.waker.clone()));
             }
         }
@@ -450,7 +456,11 @@ impl SimBus {
     fn wake_all(&self) {
         let all: Vec<Arc<Condvar>> = {
             let s = self.lock();
-            s.ports.iter().map(|p| Arc::clone(&p.arrived)).collect()
+            s.ports
+                .iter()
+                .filter(|p| p.waiting > 0)
+                .map(|p| Arc::clone(&p.arrived))
+                .collect()
         };
         for arrived in all {
             arrived.notify_all();
@@ -667,14 +677,18 @@ impl CanBus for SimPort {
                         .next_for(self.index)
                         .map_or(deadline, |at| at.min(deadline));
                     let wait = until.saturating_sub(now).max(Duration::from_micros(1));
-                    let Some(arrived) = s.ports.get(self.index).map(|p| Arc::clone(&p.arrived))
-                    else {
+                    let Some(p) = s.ports.get_mut(self.index) else {
                         return Err(Error::Closed);
                     };
+                    p.waiting += 1;
+                    let arrived = Arc::clone(&p.arrived);
                     s = arrived
                         .wait_timeout(s, wait)
                         .unwrap_or_else(PoisonError::into_inner)
                         .0;
+                    if let Some(p) = s.ports.get_mut(self.index) {
+                        p.waiting = p.waiting.saturating_sub(1);
+                    }
                 }
             }
         }
