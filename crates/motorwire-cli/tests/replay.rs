@@ -626,3 +626,23 @@ fn every_dialects_recording_replays_the_same_and_ends() {
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
+
+/// A recording (`fixtures/recordings/line-before-beacon`, made by the
+/// command-line acceptance's session: three lines on stdin, the Orion
+/// controller simulated) whose lines came before the Orion controller's
+/// boot beacon and were taken after it (what the devices say goes ahead
+/// of the lines waiting) replays the same: the controller is booted
+/// before the first line taken after its beacon. Replay booted it by the
+/// lines' arrival, after them, and the turntable's line was refused
+/// offline where the recorded bridge moved it.
+#[test]
+fn a_line_taken_after_the_controllers_beacon_replays_after_it() {
+    let dir = common::root().join("fixtures/recordings/line-before-beacon");
+    let (code, out) = replay_within(&dir, Duration::from_secs(60));
+    assert_eq!(code, Some(0), "{out}");
+    assert!(out.contains("the same: no divergence"), "{out}");
+    assert!(
+        out.contains("compared 5 answers, 24 events, 15 frames, 4 Orion lines"),
+        "{out}"
+    );
+}

@@ -1293,17 +1293,20 @@ pub fn replay(
         Ok(to)
     };
     for (t, r) in recording.inputs() {
-        if !booted && let Some(b) = beacon.filter(|b| b <= t) {
-            reach(&mut arm, &mut outputs, b)?;
-            arm.orion_boot();
-            booted = true;
-        }
         // A line is told when the bridge took it, as having come when it
         // came (as the bridge was told it).
         let taken = match r {
             Recorded::Line { taken: Some(k), .. } => (*k).max(*t),
             _ => *t,
         };
+        // The controller's beacon before a line the bridge took after it,
+        // though the line came first (what the devices say is taken
+        // ahead of the lines waiting).
+        if !booted && let Some(b) = beacon.filter(|b| *b <= taken) {
+            reach(&mut arm, &mut outputs, b)?;
+            arm.orion_boot();
+            booted = true;
+        }
         let came = reach(&mut arm, &mut outputs, *t)?;
         reach(&mut arm, &mut outputs, taken)?;
         // What is due by then (a device's answer held to its recorded
