@@ -477,12 +477,17 @@ impl CanBus for Flaky {
     }
 }
 
-/// The demo arm's bridge run on a [`Flaky`] receiving half; every output
+/// The demo arm's bridge (no feedback) run on its two halves of the
+/// bus as `send` and `receive` make them of the arm's ports; every output
 /// (results and events) comes on the receiver as its JSON value.
-fn start_flaky(
-    fail: FailOn,
-    polled: bool,
-) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
+fn start_halves<S, R>(
+    send: impl FnOnce(motorwire_can::SimPort) -> S,
+    receive: impl FnOnce(motorwire_can::SimPort) -> R,
+) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle)
+where
+    S: CanBus + Send + 'static,
+    R: CanBus + Send + 'static,
+{
     let map = BusMap::from_toml(MAP).unwrap();
     let config = BridgeConfig {
         feedback_period: None,
@@ -493,19 +498,30 @@ fn start_flaky(
     let runner = Runner::new();
     let input = runner.input();
     let (tx, rx) = mpsc::channel();
-    let (send, port) = arm.ports();
-    let receive = Flaky {
-        port,
-        calls: 0,
-        fail,
-        polled,
-    };
+    let (tx_port, rx_port) = arm.ports();
+    let (send, receive) = (send(tx_port), receive(rx_port));
     let handle = thread::spawn(move || {
         runner.run(bridge, send, receive, move |o: &Output| {
             let _ = tx.send(o.to_value());
         })
     });
     (arm, input, rx, handle)
+}
+
+/// [`start_halves`] with a [`Flaky`] receiving half.
+fn start_flaky(
+    fail: FailOn,
+    polled: bool,
+) -> (RealTimeArm, InputSender, mpsc::Receiver<Value>, Handle) {
+    start_halves(
+        |p| p,
+        move |port| Flaky {
+            port,
+            calls: 0,
+            fail,
+            polled,
+        },
+    )
 }
 
 /// The next result on `rx`, the events before it counted by kind.
@@ -623,28 +639,16 @@ impl CanBus for FailingSender {
 /// with no result for the stop and the other joints not stopped).
 #[test]
 fn a_failed_send_loses_that_frame_only_and_the_stop_still_stops() {
-    let map = BusMap::from_toml(MAP).unwrap();
-    let config = BridgeConfig {
-        feedback_period: None,
-        ..BridgeConfig::default()
-    };
-    let bridge = Bridge::new(map, config).unwrap();
-    let arm = RealTimeArm::start(bridge.map()).unwrap();
-    let runner = Runner::new();
-    let input = runner.input();
-    let (tx, rx) = mpsc::channel();
-    let (send, receive) = arm.ports();
     let armed = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let send = FailingSender {
-        port: send,
-        armed: std::sync::Arc::clone(&armed),
-        sent: 0,
-    };
-    let handle = thread::spawn(move || {
-        runner.run(bridge, send, receive, move |o: &Output| {
-            let _ = tx.send(o.to_value());
-        })
-    });
+    let arming = std::sync::Arc::clone(&armed);
+    let (_arm, input, rx, handle) = start_halves(
+        move |port| FailingSender {
+            port,
+            armed: arming,
+            sent: 0,
+        },
+        |p| p,
+    );
     let mut errors = Vec::new();
     input.line(
         Origin(1),
@@ -692,27 +696,11 @@ impl CanBus for NeverAcked {
 fn a_bus_gone_both_ways_ends_the_run() {
     let fail: FailOn = |_| Some(motorwire_can::Error::Closed);
     for polled in [true, false] {
-        let map = BusMap::from_toml(MAP).unwrap();
-        let config = BridgeConfig {
-            feedback_period: None,
-            ..BridgeConfig::default()
-        };
-        let bridge = Bridge::new(map, config).unwrap();
-        let arm = RealTimeArm::start(bridge.map()).unwrap();
-        let runner = Runner::new();
-        let input = runner.input();
-        let (tx, rx) = mpsc::channel();
-        let (send, port) = arm.ports();
-        let receive = Flaky {
+        let (_arm, input, rx, handle) = start_halves(NeverAcked, move |port| Flaky {
             port,
             calls: 0,
             fail,
             polled,
-        };
-        let handle = thread::spawn(move || {
-            runner.run(bridge, NeverAcked(send), receive, move |o: &Output| {
-                let _ = tx.send(o.to_value());
-            })
         });
         // Receiving fails for good (said once, unless the run ends first);
         // the sends before it (the start's) are each taken as lost.

@@ -36,24 +36,14 @@ pub enum FeedbackError {
 /// A feedback with nothing known yet: zero position, velocity and torque,
 /// every status flag absent (unknown).
 fn blank(motor: &MappedMotor, timestamp_ms: f64) -> MotorFeedback {
-    MotorFeedback {
-        motor_id: motor.name.clone(),
-        timestamp: timestamp_ms,
-        position: 0.0,
-        velocity: 0.0,
-        acceleration: None,
-        torque: 0.0,
-        current: None,
-        voltage: None,
-        temperature: None,
-        power: None,
-        position_error: None,
-        velocity_error: None,
-        control_effort: None,
-        status: MotorStatus::default(),
-        health: None,
-        extra: serde_json::Map::new(),
-    }
+    MotorFeedback::new(
+        motor.name.clone(),
+        timestamp_ms,
+        0.0,
+        0.0,
+        0.0,
+        MotorStatus::default(),
+    )
 }
 
 fn finite(motor: &str, field: &'static str, v: f32) -> Result<f64, FeedbackError> {

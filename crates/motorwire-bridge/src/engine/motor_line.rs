@@ -204,22 +204,12 @@ impl Bridge {
     /// A position command for `motor` to `setpoint` (its unit), nothing
     /// else given: the limits in force apply.
     pub(super) fn position_command(motor: &str, setpoint: f64, now_ms: f64) -> MotorCommand {
-        MotorCommand {
-            motor_id: motor.to_owned(),
-            timestamp: now_ms,
-            control_mode: motorwire_core::ControlMode::Position,
+        MotorCommand::new(
+            motor,
+            now_ms,
+            motorwire_core::ControlMode::Position,
             setpoint,
-            velocity_limit: None,
-            acceleration_limit: None,
-            torque_limit: None,
-            pid_gains: None,
-            impedance_params: None,
-            filter_config: None,
-            safety_limits: None,
-            priority: None,
-            metadata: None,
-            extra: serde_json::Map::new(),
-        }
+        )
     }
 
     /// What waits for joint `ji` from command lines, given up for a motor
