@@ -4,12 +4,11 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use motorwire_irpc::LifecycleState;
 use motorwire_planner::Profile;
 use motorwire_translate::AngleUnit;
 use motorwire_wia::MotorFeedback;
 
-use crate::device::{Device, DeviceId, DeviceView, Moving, Order, Registry};
+use crate::device::{Device, DeviceId, DeviceState, DeviceView, Moving, Order, Registry};
 pub(crate) use crate::device::{Kinematics, in_unit};
 use crate::output::Origin;
 
@@ -643,8 +642,8 @@ impl Liveness {
 /// under way. Changed only as each of these happens.
 #[derive(Debug)]
 pub(crate) struct JointLifecycle {
-    /// Its lifecycle state as its last JointStatus said.
-    state: Option<LifecycleState>,
+    /// Its lifecycle state as it last said.
+    state: Option<DeviceState>,
     /// Whether the bridge last made it Active (its own acked Activate or
     /// Deactivate, or the joint's JointStatus, whichever came last).
     active: bool,
@@ -672,8 +671,8 @@ impl JointLifecycle {
         }
     }
 
-    /// Its lifecycle state as its last JointStatus said.
-    pub(crate) fn state(&self) -> Option<LifecycleState> {
+    /// Its lifecycle state as it last said.
+    pub(crate) fn state(&self) -> Option<DeviceState> {
         self.state
     }
 
@@ -700,8 +699,8 @@ impl JointLifecycle {
 
     /// It reported `state`: active only when that is Active. Returns the
     /// state reported before.
-    pub(crate) fn reported(&mut self, state: LifecycleState) -> Option<LifecycleState> {
-        self.active = state == LifecycleState::Active;
+    pub(crate) fn reported(&mut self, state: DeviceState) -> Option<DeviceState> {
+        self.active = state.takes_motion();
         self.state.replace(state)
     }
 

@@ -24,6 +24,7 @@ pub use engine::{
     Bridge, BridgeConfig, BridgeStats, Classified, DEFAULT_MAX_AGE_MS, Input, JointView,
 };
 pub use error::BridgeError;
+pub use device::DeviceState;
 
 /// The frame the bridge sends moteus controller `target` for `cmd`: its
 /// CAN id and its data (padded with 0x50, the protocol's no-op): the

@@ -15,7 +15,7 @@ mod common;
 use std::time::Duration;
 
 use motorwire_bridge::sim::SimulatedArm;
-use motorwire_bridge::{Bridge, BridgeConfig, Origin};
+use motorwire_bridge::{Bridge, BridgeConfig, DeviceState, Origin};
 use motorwire_can::{Faults, SimConfig};
 use motorwire_irpc::Payload;
 use motorwire_sim::JointFault;
@@ -146,6 +146,35 @@ fn v2_1_and_v2_2_joints_are_subscribed_and_their_feedback_carries_the_telemetry(
         .feedback
         .unwrap();
     assert_eq!((base.current, base.power), (None, None));
+}
+
+/// What each joint's `JointStatus` says reaches `Bridge::joints` in the
+/// engine's own words: every joint `Active` once started; a faulted one
+/// `Error` and no longer held active; the others `Inactive`, as the stop
+/// the v2.2 elbow's own emergency stop brings left them.
+#[test]
+fn each_joints_lifecycle_is_shown_in_the_engines_terms() {
+    let mut arm = telemetry_arm(Some(50), Faults::default());
+    let states = |arm: &SimulatedArm| -> Vec<(String, Option<DeviceState>, bool)> {
+        arm.bridge()
+            .joints()
+            .map(|j| (j.name, j.state, j.active))
+            .collect()
+    };
+    let before = states(&arm);
+    for (name, state, active) in &before {
+        assert_eq!((*state, *active), (Some(DeviceState::Active), true), "{name}");
+    }
+    arm.fault(ELBOW, JointFault::DriverFault);
+    let out = common::run_for(&mut arm, Duration::from_millis(100));
+    assert!(out.iter().any(|v| v["event"] == "joint_fault"), "{out:?}");
+    let after = states(&arm);
+    let elbow = after.iter().find(|(n, ..)| n == "elbow").unwrap();
+    assert_eq!((elbow.1, elbow.2), (Some(DeviceState::Error), false));
+    assert_eq!(elbow.1.map(DeviceState::name), Some("error"));
+    for (name, state, active) in after.iter().filter(|(n, ..)| n != "elbow") {
+        assert_eq!((*state, *active), (Some(DeviceState::Inactive), false), "{name}");
+    }
 }
 
 #[test]

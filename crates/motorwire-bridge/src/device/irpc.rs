@@ -27,7 +27,7 @@ use motorwire_irpc::{CalibrationPhase, CalibrationRequest};
 use motorwire_translate::{BusMap, feedback_from_irpc};
 
 use super::AwaitKind;
-use super::{Answer, Context, DeviceId, Effect, Ended, Happened, Moving, Outcome};
+use super::{Answer, Context, DeviceId, DeviceState, Effect, Ended, Happened, Moving, Outcome};
 use crate::classify::RequestKind;
 use crate::output::Event;
 
@@ -235,7 +235,7 @@ pub(crate) struct Heard {
     /// them (Encoder, TelemetryStream).
     pub(crate) motion: Option<(f64, f64)>,
     /// Its lifecycle state and error code (JointStatus).
-    pub(crate) status: Option<(LifecycleState, u16)>,
+    pub(crate) status: Option<(DeviceState, u16)>,
     /// It stopped itself (its own EmergencyStop): the reason and its code.
     pub(crate) stopped_itself: Option<(EmergencyReason, u16)>,
     /// It answers a request line (telemetry, power metrics, the fault
@@ -257,7 +257,9 @@ pub(crate) fn heard(payload: &Payload) -> Heard {
         ..Heard::default()
     };
     match payload {
-        Payload::JointStatus { state, error_code } => h.status = Some((*state, *error_code)),
+        Payload::JointStatus { state, error_code } => {
+            h.status = Some((device_state(*state), *error_code));
+        }
         Payload::EmergencyStop(e) => {
             h.stopped_itself = Some((
                 e.reason,
@@ -520,6 +522,17 @@ pub(crate) fn effect(payload: Payload, cx: &Context) -> Effect {
 
 /// A joint's message to the bridge (node 0x0000) as its frame, in `wire`:
 /// what the tests of the driver and of the engine feed in.
+/// An iRPC joint's lifecycle state in the engine's terms.
+const fn device_state(state: LifecycleState) -> DeviceState {
+    match state {
+        LifecycleState::Unconfigured => DeviceState::Unconfigured,
+        LifecycleState::Inactive => DeviceState::Inactive,
+        LifecycleState::Active => DeviceState::Active,
+        LifecycleState::Calibrating => DeviceState::Calibrating,
+        LifecycleState::Error => DeviceState::Error,
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 pub(crate) fn joint_frame(source: u16, msg_id: u32, payload: Payload, wire: WireVersion) -> Frame {

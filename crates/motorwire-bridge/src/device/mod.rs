@@ -91,7 +91,7 @@ use std::time::Duration;
 use motorwire_can::Frame;
 use motorwire_can::client::ClientConfig;
 use motorwire_compact::{CompactCommand, ControlMode as CompactMode, Flags, MotorHash};
-use motorwire_irpc::{LifecycleState, Payload, PayloadKind, SetTargetPayloadV2, WireVersion};
+use motorwire_irpc::{Payload, PayloadKind, SetTargetPayloadV2, WireVersion};
 use motorwire_orion::{ArmCommand, Motor, Quantity};
 use motorwire_translate::{
     AngleUnit, BusMap, MoteusCommand, Refusal, Report, Target, to_compact, to_moteus,
@@ -758,6 +758,58 @@ impl Order {
     }
 }
 
+/// Where a device is in its lifecycle, as it last said, in no dialect's
+/// terms: an iRPC joint's `JointStatus` state is mapped to it by its
+/// driver; a dialect that reports no lifecycle leaves it unknown.
+///
+/// ```
+/// use motorwire_bridge::DeviceState;
+/// assert!(DeviceState::Active.takes_motion());
+/// assert!(!DeviceState::Inactive.takes_motion());
+/// assert_eq!(DeviceState::Error.name(), "error");
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum DeviceState {
+    /// Not configured: just booted, or reset.
+    Unconfigured,
+    /// Configured, its torque off: it takes no motion.
+    Inactive,
+    /// Up: it takes motion.
+    Active,
+    /// Calibrating itself.
+    Calibrating,
+    /// Faulted.
+    Error,
+}
+
+impl DeviceState {
+    /// Whether a device in this state executes motion.
+    #[must_use]
+    pub const fn takes_motion(self) -> bool {
+        matches!(self, Self::Active)
+    }
+
+    /// The state in one lower-case word: `unconfigured`, `inactive`,
+    /// `active`, `calibrating` or `error`.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Unconfigured => "unconfigured",
+            Self::Inactive => "inactive",
+            Self::Active => "active",
+            Self::Calibrating => "calibrating",
+            Self::Error => "error",
+        }
+    }
+}
+
+impl std::fmt::Display for DeviceState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// A step of a device's lifecycle as the engine drives it, in no
 /// dialect's terms: each device takes it as [`Device::lifecycle_orders`]
 /// says (an iRPC joint its lifecycle payloads; the others their stop, or
@@ -954,7 +1006,7 @@ pub(crate) enum Happened {
     /// Device `device` reported its lifecycle state and error code.
     Lifecycle {
         device: DeviceId,
-        state: LifecycleState,
+        state: DeviceState,
         code: u16,
     },
     /// Device `device` stopped itself at `at`: why, and its code.

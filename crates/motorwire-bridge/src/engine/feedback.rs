@@ -109,23 +109,23 @@ impl Bridge {
     /// Joint `ji` reported its lifecycle `state` (with `code`, its error
     /// code): it is active or not; a fault, or a reboot the bridge did not
     /// ask for, loses it until a reset.
-    pub(super) fn lifecycle(&mut self, ji: DeviceId, state: LifecycleState, code: u16) {
+    pub(super) fn lifecycle(&mut self, ji: DeviceId, state: DeviceState, code: u16) {
         let Some(j) = self.joints.get_mut(ji) else {
             return;
         };
         let before = j.lifecycle.reported(state);
-        if state == LifecycleState::Error {
+        if state == DeviceState::Error {
             let event = Event::JointFault {
                 motor_id: j.identity.name().to_owned(),
                 code,
                 reason: None,
             };
             self.joint_lost(ji, format!("faulted (error code {code})"), event);
-        } else if state == LifecycleState::Unconfigured
+        } else if state == DeviceState::Unconfigured
             && !j.lifecycle.is_resetting()
             && matches!(
                 before,
-                Some(LifecycleState::Active | LifecycleState::Inactive)
+                Some(DeviceState::Active | DeviceState::Inactive)
             )
         {
             let event = Event::Rebooted {

@@ -25,7 +25,7 @@ use std::time::Duration;
 
 use motorwire_can::Frame;
 use motorwire_can::client::ClientConfig;
-use motorwire_irpc::{CalibrationRequest, LifecycleState, Payload, PayloadKind};
+use motorwire_irpc::{CalibrationRequest, Payload, PayloadKind};
 use motorwire_orion::ArmCommand;
 use motorwire_translate::{
     AngleUnit, BusMap, Limits, LossKind, Report, multi_axis_to_irpc_from, trajectory_to_irpc,
@@ -40,7 +40,7 @@ use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Line, MotorAction, RequestKind, classify};
 use crate::clocks::ClockOffsets;
 use crate::device::{
-    Answer, Capability, Context, Device, DeviceError, DeviceId, Drivers, Ended, Happened, InForce,
+    Answer, Capability, Context, Device, DeviceError, DeviceId, DeviceState, Drivers, Ended, Happened, InForce,
     Lifecycle, MotorOrder, Outcome,
 };
 use crate::error::BridgeError;
@@ -174,8 +174,9 @@ pub struct JointView {
     pub version: Option<&'static str>,
     /// Whether it was heard from within [`BridgeConfig::offline_after`].
     pub online: bool,
-    /// Its lifecycle state as its last JointStatus said.
-    pub state: Option<LifecycleState>,
+    /// Its lifecycle state as it last said, in no dialect's terms (only
+    /// iRPC joints say theirs; `None` for the others and before a report).
+    pub state: Option<DeviceState>,
     /// Whether the bridge holds it Active.
     pub active: bool,
     /// Its last feedback (positions in the motor's unit).
