@@ -19,12 +19,12 @@ pub use classify::{
     DEFAULT_CALIBRATION, Line, MotorAction, RequestKind, asks_for_stop, classify, members,
 };
 pub use clocks::clocks_together;
+pub use device::DeviceState;
 pub use device::orion::{MAX_BAD_LINE_EVENTS, MAX_ORION_LINE, POLL as ORION_POLL};
 pub use engine::{
     Bridge, BridgeConfig, BridgeStats, Classified, DEFAULT_MAX_AGE_MS, Input, JointView,
 };
 pub use error::BridgeError;
-pub use device::DeviceState;
 
 /// The frame the bridge sends moteus controller `target` for `cmd`: its
 /// CAN id and its data (padded with 0x50, the protocol's no-op): the

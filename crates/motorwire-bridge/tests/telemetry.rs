@@ -163,7 +163,11 @@ fn each_joints_lifecycle_is_shown_in_the_engines_terms() {
     };
     let before = states(&arm);
     for (name, state, active) in &before {
-        assert_eq!((*state, *active), (Some(DeviceState::Active), true), "{name}");
+        assert_eq!(
+            (*state, *active),
+            (Some(DeviceState::Active), true),
+            "{name}"
+        );
     }
     arm.fault(ELBOW, JointFault::DriverFault);
     let out = common::run_for(&mut arm, Duration::from_millis(100));
@@ -173,7 +177,11 @@ fn each_joints_lifecycle_is_shown_in_the_engines_terms() {
     assert_eq!((elbow.1, elbow.2), (Some(DeviceState::Error), false));
     assert_eq!(elbow.1.map(DeviceState::name), Some("error"));
     for (name, state, active) in after.iter().filter(|(n, ..)| n != "elbow") {
-        assert_eq!((*state, *active), (Some(DeviceState::Inactive), false), "{name}");
+        assert_eq!(
+            (*state, *active),
+            (Some(DeviceState::Inactive), false),
+            "{name}"
+        );
     }
 }
 

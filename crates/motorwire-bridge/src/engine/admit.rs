@@ -102,7 +102,9 @@ impl Bridge {
     pub(super) fn on_forget(&mut self, origin: Origin) {
         self.line_numbers.remove(&origin);
         self.clocks.forget(origin);
-        self.to_greet.retain(|o| *o != origin);
+        if let Phase::Starting(s) = &mut self.phase {
+            s.to_greet.retain(|o| *o != origin);
+        }
     }
 
     pub(super) fn number(&mut self, origin: Origin) -> u64 {
@@ -124,7 +126,7 @@ impl Bridge {
             return;
         }
         match self.phase {
-            Phase::Starting { .. } => return self.wait_for_start(now, meta, line),
+            Phase::Starting(_) => return self.wait_for_start(now, meta, line),
             Phase::Running => {}
             Phase::Draining { .. } | Phase::Stopping | Phase::Finished => {
                 self.stats.lines += 1;
@@ -139,15 +141,17 @@ impl Bridge {
     /// A line that came while the joints start: it waits for them (its
     /// text kept), unless as many lines wait as the bridge keeps.
     fn wait_for_start(&mut self, now: Duration, meta: LineMeta, line: &str) {
-        if self.waiting.len() >= self.config.max_pending_lines {
+        let Phase::Starting(s) = &mut self.phase else {
+            return;
+        };
+        let line = Waiting {
+            at: now,
+            meta,
+            text: line.to_owned(),
+        };
+        if let Err(line) = s.wait(line, self.config.max_pending_lines) {
             self.stats.lines += 1;
-            self.busy(&meta, Refusal::WaitingForStart);
-        } else {
-            self.waiting.push_back(Waiting {
-                at: now,
-                meta,
-                text: line.to_owned(),
-            });
+            self.busy(&line.meta, Refusal::WaitingForStart);
         }
     }
 

@@ -92,7 +92,7 @@ impl Bridge {
             }));
         }
         let settle = self.now.saturating_add(self.config.offline_after);
-        if let Phase::Starting { settle_until, .. } = &mut self.phase {
+        if let Phase::Starting(Starting { settle_until, .. }) = &mut self.phase {
             // Ready once every device that answers has been read
             // (its position known from the first line on), or
             // after the offline time for those that do not.

@@ -123,10 +123,7 @@ impl Bridge {
             self.joint_lost(ji, format!("faulted (error code {code})"), event);
         } else if state == DeviceState::Unconfigured
             && !j.lifecycle.is_resetting()
-            && matches!(
-                before,
-                Some(DeviceState::Active | DeviceState::Inactive)
-            )
+            && matches!(before, Some(DeviceState::Active | DeviceState::Inactive))
         {
             let event = Event::Rebooted {
                 motor_id: j.identity.name().to_owned(),

@@ -40,8 +40,8 @@ use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Line, MotorAction, RequestKind, classify};
 use crate::clocks::ClockOffsets;
 use crate::device::{
-    Answer, Capability, Context, Device, DeviceError, DeviceId, DeviceState, Drivers, Ended, Happened, InForce,
-    Lifecycle, MotorOrder, Outcome,
+    Answer, Capability, Context, Device, DeviceError, DeviceId, DeviceState, Drivers, Ended,
+    Happened, InForce, Lifecycle, MotorOrder, Outcome,
 };
 use crate::error::BridgeError;
 use crate::job::{
@@ -62,6 +62,7 @@ mod latch;
 
 pub use input::{Classified, Input};
 use latch::StopLatch;
+use phase::Starting;
 mod jobs;
 mod limits;
 mod links;
@@ -225,17 +226,10 @@ pub struct BridgeStats {
 /// The bridge's phases, each with what it alone keeps. Every change goes
 /// through [`Bridge::enter`], which takes only the changes
 /// [`Phase::allows`] lists.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, PartialEq)]
 enum Phase {
     /// Configuring and activating the joints; lines wait.
-    Starting {
-        /// The startup answered: until when the devices may settle (their
-        /// first reading) before the bridge is ready all the same.
-        settle_until: Option<Duration>,
-        /// The end of input came while starting: once running, lines and
-        /// moves finish by this deadline.
-        drain_after: Option<Duration>,
-    },
+    Starting(Starting),
     Running,
     /// End of input: finishing lines and moves.
     Draining {
@@ -316,7 +310,7 @@ struct Timers {
 }
 
 /// A line that waits for startup to end.
-#[derive(Debug)]
+#[derive(Debug, PartialEq)]
 struct Waiting {
     at: Duration,
     meta: LineMeta,
@@ -371,7 +365,6 @@ pub struct Bridge {
     drivers: Drivers,
     joints: Joints,
     jobs: Jobs,
-    waiting: VecDeque<Waiting>,
     line_numbers: BTreeMap<Origin, u64>,
     /// The emergency stop's latch.
     stop: StopLatch,
@@ -396,7 +389,6 @@ pub struct Bridge {
     /// jobs.
     steps_scratch: Vec<(DeviceId, StepRef, Option<Takes>)>,
     /// Clients that connected during startup, greeted when it ends.
-    to_greet: Vec<Origin>,
     timers: Timers,
     out: VecDeque<Output>,
     now: Duration,
@@ -566,17 +558,12 @@ impl Bridge {
             drivers,
             joints,
             jobs: Jobs::default(),
-            waiting: VecDeque::new(),
             line_numbers: BTreeMap::new(),
             stop: StopLatch::default(),
             clocks: ClockOffsets::default(),
-            phase: Phase::Starting {
-                settle_until: None,
-                drain_after: None,
-            },
+            phase: Phase::Starting(Starting::default()),
             done_scratch: Vec::new(),
             steps_scratch: Vec::new(),
-            to_greet: Vec::new(),
             arrivals: Vec::new(),
             base_limits,
             emergency_decel: BTreeMap::new(),
@@ -614,7 +601,7 @@ impl Bridge {
 
     /// Whether the bridge has stopped the joints and has nothing more to do.
     pub fn is_finished(&self) -> bool {
-        self.phase == Phase::Finished
+        matches!(self.phase, Phase::Finished)
     }
 
     /// The validator lines are read with.

@@ -35,8 +35,8 @@ impl Bridge {
     /// runner holds everyone's feedback and events from such a client
     /// until its greeting, so the greeting is its first line.
     pub(super) fn on_greet(&mut self, origin: Origin) {
-        match self.phase {
-            Phase::Starting { .. } => self.to_greet.push(origin),
+        match &mut self.phase {
+            Phase::Starting(s) => s.to_greet.push(origin),
             Phase::Running | Phase::Draining { .. } => {
                 let event = self.ready_event();
                 self.out.push_back(Output::ToOne { origin, event });
@@ -50,9 +50,10 @@ impl Bridge {
         }
     }
 
-    /// The clients waiting for `ready` greeted with `event`.
-    pub(super) fn greet_waiting(&mut self, event: &Event) {
-        for origin in std::mem::take(&mut self.to_greet) {
+    /// The clients `to_greet` (those that waited for `ready`) greeted with
+    /// `event`.
+    fn greet_all(&mut self, to_greet: Vec<Origin>, event: &Event) {
+        for origin in to_greet {
             self.out.push_back(Output::ToOne {
                 origin,
                 event: event.clone(),
@@ -63,10 +64,10 @@ impl Bridge {
     /// Started and every device that answers read (or silent past the
     /// offline time): ready.
     pub(super) fn try_ready(&mut self) {
-        let Phase::Starting {
+        let Phase::Starting(Starting {
             settle_until: Some(until),
             ..
-        } = self.phase
+        }) = self.phase
         else {
             return;
         };
@@ -85,13 +86,20 @@ impl Bridge {
     /// lists, with what it does. Any other is a bug; it is never ignored:
     /// when in doubt, stop ([`Bridge::illegal_transition`]).
     pub(super) fn enter(&mut self, to: Phase) {
-        let from = self.phase;
-        if !from.allows(to) {
+        if !self.phase.allows(&to) {
             return self.illegal_transition(IllegalTransition {
-                from: from.name(),
+                from: self.phase.name(),
                 to: to.name(),
             });
         }
+        // What the starting phase kept, now the bridge's to finish.
+        let started = match std::mem::replace(&mut self.phase, Phase::Finished) {
+            Phase::Starting(s) => s,
+            from => {
+                self.phase = from;
+                Starting::default()
+            }
+        };
         match to {
             Phase::Running => {
                 self.phase = Phase::Running;
@@ -100,15 +108,11 @@ impl Bridge {
                 // everyone's lines from a client until its greeting, so
                 // each waiting client has one ready, as its first line.
                 self.out.push_back(Output::Event(ready.clone()));
-                self.greet_waiting(&ready);
-                while let Some(w) = self.waiting.pop_front() {
+                self.greet_all(started.to_greet, &ready);
+                for w in started.waiting {
                     self.take_line(w.at, w.meta, &w.text);
                 }
-                if let Phase::Starting {
-                    drain_after: Some(deadline),
-                    ..
-                } = from
-                {
+                if let Some(deadline) = started.drain_after {
                     self.enter(Phase::Draining {
                         deadline,
                         recheck: false,
@@ -124,6 +128,17 @@ impl Bridge {
             }
             Phase::Stopping => {
                 self.phase = Phase::Stopping;
+                // Stopping before ever running (interrupted, or a bug): the
+                // clients still waiting are told, and each line still
+                // waiting for the start is refused, not dropped.
+                let stopping = Event::Stopping {
+                    reason: "the bridge is stopping the joints".to_owned(),
+                };
+                self.greet_all(started.to_greet, &stopping);
+                for w in started.waiting {
+                    self.stats.lines += 1;
+                    self.refuse(&w.meta, Refusal::ShuttingDown);
+                }
                 self.fail_watches(|_| true, "the bridge is stopping the joints");
                 let axes = self.every_joint(&[Lifecycle::Deactivate]);
                 self.open_job(
@@ -136,7 +151,8 @@ impl Bridge {
                 );
             }
             Phase::Finished => self.phase = Phase::Finished,
-            Phase::Starting { .. } => {}
+            // `allows` has no change into starting.
+            Phase::Starting(_) => {}
         }
     }
 
@@ -186,7 +202,7 @@ impl Bridge {
         match &mut self.phase {
             // Lines still waiting for startup are served first: once the
             // joints are ready, then drained.
-            Phase::Starting { drain_after, .. } => *drain_after = Some(deadline),
+            Phase::Starting(s) => s.drain_after = Some(deadline),
             Phase::Running => self.enter(Phase::Draining {
                 deadline,
                 recheck: false,
@@ -242,11 +258,13 @@ impl Bridge {
             reason: "interrupted".to_owned(),
         };
         self.out.push_back(Output::Event(stopping.clone()));
-        self.greet_waiting(&stopping);
-        let waiting: Vec<Waiting> = self.waiting.drain(..).collect();
-        for w in waiting {
-            self.stats.lines += 1;
-            self.refuse(&w.meta, Refusal::Interrupted);
+        if let Phase::Starting(s) = &mut self.phase {
+            let (to_greet, waiting) = (std::mem::take(&mut s.to_greet), s.take_waiting());
+            self.greet_all(to_greet, &stopping);
+            for w in waiting {
+                self.stats.lines += 1;
+                self.refuse(&w.meta, Refusal::Interrupted);
+            }
         }
         self.cancel_everything("cancelled: the bridge was interrupted");
         self.enter(Phase::Stopping);
@@ -259,10 +277,10 @@ impl Phase {
     /// The changes the engine makes, all of them: starting to running (or
     /// straight to draining or stopping), running to draining or stopping,
     /// draining to stopping, and to finished once the stop is answered.
-    pub(super) const fn allows(self, to: Self) -> bool {
+    pub(super) const fn allows(&self, to: &Self) -> bool {
         matches!(
             (self, to),
-            (Self::Starting { .. }, Self::Running | Self::Stopping)
+            (Self::Starting(_), Self::Running | Self::Stopping)
                 | (Self::Running, Self::Draining { .. } | Self::Stopping)
                 | (Self::Draining { .. }, Self::Stopping)
                 | (Self::Stopping, Self::Finished)
@@ -270,14 +288,71 @@ impl Phase {
     }
 
     /// Its name, as an illegal change says it.
-    pub(super) const fn name(self) -> &'static str {
+    pub(super) const fn name(&self) -> &'static str {
         match self {
-            Self::Starting { .. } => "starting",
+            Self::Starting(_) => "starting",
             Self::Running => "running",
             Self::Draining { .. } => "draining",
             Self::Stopping => "stopping",
             Self::Finished => "finished",
         }
+    }
+}
+
+/// What the starting phase alone keeps: when the devices have settled,
+/// whether the input already ended, the lines and the clients waiting for
+/// the joints to be ready. Gone with the phase: a bridge past starting has
+/// no line waiting for it, by construction.
+#[derive(Debug, Default, PartialEq)]
+pub(super) struct Starting {
+    /// The startup answered: until when the devices may settle (their
+    /// first reading) before the bridge is ready all the same.
+    pub(super) settle_until: Option<Duration>,
+    /// The end of input came while starting: once running, lines and
+    /// moves finish by this deadline.
+    pub(super) drain_after: Option<Duration>,
+    /// Lines that came while the joints start, in their order, each with
+    /// its text.
+    waiting: VecDeque<Waiting>,
+    /// Clients that connected while starting: greeted once ready (or told
+    /// the bridge stops).
+    pub(super) to_greet: Vec<Origin>,
+}
+
+impl Starting {
+    /// Keeps `line` for the start's end, unless `max` lines wait already:
+    /// then it is given back.
+    pub(super) fn wait(&mut self, line: Waiting, max: usize) -> Result<(), Waiting> {
+        if self.waiting.len() >= max {
+            return Err(line);
+        }
+        self.waiting.push_back(line);
+        Ok(())
+    }
+
+    /// How many lines wait.
+    pub(super) fn waiting(&self) -> usize {
+        self.waiting.len()
+    }
+
+    /// Every line waiting, in order, none kept.
+    pub(super) fn take_waiting(&mut self) -> VecDeque<Waiting> {
+        std::mem::take(&mut self.waiting)
+    }
+
+    /// `origin` is gone: it is not greeted, and its waiting lines are
+    /// dropped from the queue and given back (in order) to be answered.
+    pub(super) fn forget(&mut self, origin: Origin) -> Vec<Waiting> {
+        self.to_greet.retain(|o| *o != origin);
+        let mut gone = Vec::new();
+        for w in std::mem::take(&mut self.waiting) {
+            if w.meta.origin == origin {
+                gone.push(w);
+            } else {
+                self.waiting.push_back(w);
+            }
+        }
+        gone
     }
 }
 
@@ -290,4 +365,55 @@ impl Phase {
 pub(super) struct IllegalTransition {
     pub(super) from: &'static str,
     pub(super) to: &'static str,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(origin: u64, number: u64) -> Waiting {
+        Waiting {
+            at: Duration::from_millis(number),
+            meta: LineMeta::new(Origin(origin), number),
+            text: format!("line {number} of {origin}"),
+        }
+    }
+
+    fn numbers(lines: &VecDeque<Waiting>) -> Vec<(u64, u64)> {
+        lines
+            .iter()
+            .map(|w| (w.meta.origin.0, w.meta.number))
+            .collect()
+    }
+
+    /// Lines wait in their order up to the bound; the one past it is
+    /// given back whole, to be refused, and nothing already kept is lost.
+    #[test]
+    fn lines_wait_in_order_up_to_the_bound() {
+        let mut s = Starting::default();
+        for n in 1..=3 {
+            assert_eq!(s.wait(line(1, n), 3), Ok(()));
+        }
+        assert_eq!(s.wait(line(2, 1), 3), Err(line(2, 1)));
+        assert_eq!(s.waiting(), 3);
+        assert_eq!(numbers(&s.take_waiting()), [(1, 1), (1, 2), (1, 3)]);
+        assert_eq!(s.waiting(), 0);
+        assert_eq!(s.wait(line(2, 1), 3), Ok(()));
+    }
+
+    /// A client gone takes its waiting lines (in their order) and its
+    /// greeting with it; everyone else's stay as they were.
+    #[test]
+    fn a_client_gone_takes_only_its_own_lines_and_greeting() {
+        let mut s = Starting::default();
+        for (o, n) in [(1, 1), (2, 1), (1, 2), (3, 1), (1, 3)] {
+            assert_eq!(s.wait(line(o, n), 10), Ok(()));
+        }
+        s.to_greet = vec![Origin(1), Origin(2), Origin(1)];
+        let gone: Vec<u64> = s.forget(Origin(1)).iter().map(|w| w.meta.number).collect();
+        assert_eq!(gone, [1, 2, 3]);
+        assert_eq!(s.to_greet, [Origin(2)]);
+        assert_eq!(numbers(&s.take_waiting()), [(2, 1), (3, 1)]);
+        assert!(s.forget(Origin(9)).is_empty());
+    }
 }

@@ -5,7 +5,11 @@ use super::*;
 impl Bridge {
     /// Input lines accepted and not yet answered.
     pub fn pending_lines(&self) -> usize {
-        self.waiting.len()
+        let waiting = match &self.phase {
+            Phase::Starting(s) => s.waiting(),
+            _ => 0,
+        };
+        waiting
             + self
                 .jobs
                 .values()

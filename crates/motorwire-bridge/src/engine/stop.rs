@@ -12,7 +12,7 @@ impl Bridge {
         problems: Vec<String>,
         cause: String,
     ) {
-        if self.phase == Phase::Finished {
+        if matches!(self.phase, Phase::Finished) {
             return self.stop_after_the_end(meta, problems);
         }
         // Every stop counts for what was written before it, a stop that
@@ -58,7 +58,7 @@ impl Bridge {
             Report::default(),
             problems,
         );
-        if matches!(self.phase, Phase::Starting { .. }) {
+        if matches!(self.phase, Phase::Starting(_)) {
             // The startup was cancelled: lines are served (and refused
             // while latched).
             self.enter(Phase::Running);
@@ -128,21 +128,18 @@ impl Bridge {
     pub(super) fn on_client_left(&mut self, origin: Origin, reason: &str) {
         self.line_numbers.remove(&origin);
         self.clocks.forget(origin);
-        self.to_greet.retain(|o| *o != origin);
-        let before = self.waiting.len();
-        let mut cancelled: Vec<LineRef> = Vec::new();
-        self.waiting.retain(|w| {
-            if w.meta.origin == origin {
-                cancelled.push(LineRef {
-                    origin,
-                    line: w.meta.number,
-                });
-                false
-            } else {
-                true
-            }
-        });
-        self.stats.cancelled += (before - self.waiting.len()) as u64;
+        let gone = match &mut self.phase {
+            Phase::Starting(s) => s.forget(origin),
+            _ => Vec::new(),
+        };
+        self.stats.cancelled += gone.len() as u64;
+        let mut cancelled: Vec<LineRef> = gone
+            .iter()
+            .map(|w| LineRef {
+                origin,
+                line: w.meta.number,
+            })
+            .collect();
         let why = format!("cancelled: the client was disconnected ({reason})");
         cancelled.extend(self.cancel_where(&why, |job| {
             job.is_of(origin) && job.kind == JobKind::Command

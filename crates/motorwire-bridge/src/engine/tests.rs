@@ -108,16 +108,17 @@ fn a_stop_line_riding_on_a_stop_the_bridge_made_is_answered() {
 /// no other.
 #[test]
 fn the_phase_changes_are_the_tables_and_no_other() {
-    let starting = Phase::Starting {
-        settle_until: None,
-        drain_after: Some(Duration::from_secs(1)),
+    let starting = || {
+        let mut s = Starting::default();
+        s.drain_after = Some(Duration::from_secs(1));
+        Phase::Starting(s)
     };
     let draining = Phase::Draining {
         deadline: Duration::from_secs(1),
         recheck: false,
     };
     let all = [
-        starting,
+        starting(),
         Phase::Running,
         draining,
         Phase::Stopping,
@@ -125,8 +126,8 @@ fn the_phase_changes_are_the_tables_and_no_other() {
     ];
     let allowed: Vec<(&str, &str)> = all
         .iter()
-        .flat_map(|f| all.iter().map(move |t| (*f, *t)))
-        .filter(|(f, t)| f.allows(*t))
+        .flat_map(|f| all.iter().map(move |t| (f, t)))
+        .filter(|(f, t)| f.allows(t))
         .map(|(f, t)| (f.name(), t.name()))
         .collect();
     assert_eq!(
@@ -163,6 +164,46 @@ fn an_illegal_phase_change_stops_the_bridge_and_says_why() {
     assert_eq!(b.phase, Phase::Stopping);
     // Its Deactivate is on its way.
     assert!(b.poll_transmit().is_some());
+}
+
+/// Stopping before ever running leaves no line unanswered: each line
+/// waiting for the start is refused `shutting_down`, and each client
+/// waiting for its greeting is told the bridge stops.
+#[test]
+fn a_stop_while_starting_answers_every_waiting_line() {
+    let map = BusMap::from_toml("[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n").unwrap();
+    let mut b = Bridge::new(map, BridgeConfig::default()).unwrap();
+    b.start(Duration::ZERO);
+    let command = r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":10}"#;
+    b.greet(Duration::ZERO, Origin(2));
+    b.handle_line(Duration::ZERO, Origin(1), command);
+    b.handle_line(Duration::ZERO, Origin(2), command);
+    assert_eq!(b.pending_lines(), 2);
+    while b.poll_output().is_some() {}
+    // A bug's change (starting to finished) stops the bridge from starting.
+    b.enter(Phase::Finished);
+    assert_eq!(b.phase, Phase::Stopping);
+    assert_eq!(b.pending_lines(), 0);
+    let said: Vec<(Option<u64>, String)> = std::iter::from_fn(|| b.poll_output())
+        .map(|o| {
+            let to = match &o {
+                Output::Result { origin, .. } | Output::ToOne { origin, .. } => Some(origin.0),
+                _ => None,
+            };
+            (to, o.to_json())
+        })
+        .collect();
+    let refused = r#"{"ok":false,"line":1,"error":{"kind":"shutting_down","rule":"shutting_down","message":"the bridge is shutting down"}}"#;
+    let stopping = r#"{"event":"stopping","reason":"the bridge is stopping the joints"}"#;
+    assert_eq!(
+        said[1..],
+        [
+            (Some(2), stopping.to_owned()),
+            (Some(1), refused.to_owned()),
+            (Some(2), refused.to_owned()),
+        ],
+        "{said:?}"
+    );
 }
 
 /// The timeout takes every timer in its turn, each once: [`Timer::FIRING`]

@@ -146,7 +146,7 @@ impl Bridge {
         if let Phase::Draining { deadline, recheck } = &mut self.phase {
             *recheck = false;
             let deadline = *deadline;
-            let idle = self.jobs.is_empty() && self.waiting.is_empty() && !self.any_moving(now);
+            let idle = self.jobs.is_empty() && !self.any_moving(now);
             if idle || now >= deadline {
                 self.enter(Phase::Stopping);
             }
@@ -269,7 +269,7 @@ impl Bridge {
     /// [`Bridge::poll_timeout`], computed: the earliest deadline of the
     /// timer table.
     pub(super) fn next_deadline_now(&self) -> Option<Duration> {
-        if self.phase == Phase::Finished {
+        if matches!(self.phase, Phase::Finished) {
             return None;
         }
         Timer::ALL
@@ -325,8 +325,8 @@ impl Bridge {
             }
             Timer::Segment => self.joints.iter().filter_map(|j| j.schedule.wake()).min(),
             Timer::Answer => self.jobs.answer_due(),
-            Timer::Settle => match self.phase {
-                Phase::Starting { settle_until, .. } => settle_until,
+            Timer::Settle => match &self.phase {
+                Phase::Starting(s) => s.settle_until,
                 _ => None,
             },
         }
@@ -345,7 +345,7 @@ impl Bridge {
                     self.now
                 } else if let Some(end) = motion_ends.filter(|e| *e > self.now) {
                     end.min(deadline)
-                } else if !self.jobs.is_empty() || !self.waiting.is_empty() {
+                } else if !self.jobs.is_empty() {
                     deadline
                 } else {
                     self.now
