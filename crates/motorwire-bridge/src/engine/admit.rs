@@ -301,7 +301,64 @@ impl Bridge {
         }
     }
 
-    /// [`Bridge::admit`] for a line that carries no timestamp (taken as
+    /// Admission as the bridge stands now: what reads a motion line's
+    /// right to run before anything is planned.
+    pub(super) fn admission(&self) -> Admission<'_> {
+        Admission {
+            now: self.now,
+            config: &self.config,
+            stop: &self.stop,
+            clocks: &self.clocks,
+            joints: &self.joints,
+            drivers: &self.drivers,
+            pending: self.pending_lines(),
+        }
+    }
+
+    /// [`Admission::admit_now`], as the bridge stands now.
+    pub(super) fn admit_now<'a>(
+        &self,
+        motors: impl Iterator<Item = &'a str> + Clone,
+    ) -> Result<(), Refusal> {
+        self.admission().admit_now(motors)
+    }
+
+    /// [`Admission::admit`], as the bridge stands now.
+    pub(super) fn admit<'a>(
+        &self,
+        arrived: Duration,
+        origin: Option<Origin>,
+        timestamp: f64,
+        motors: impl Iterator<Item = &'a str> + Clone,
+    ) -> Result<(), Refusal> {
+        self.admission().admit(arrived, origin, timestamp, motors)
+    }
+}
+
+/// Admission: what refuses a motion line before anything is planned, read
+/// from the bridge as it stands (the stop's latch, the clocks it learned,
+/// its devices' liveness and queues, the lines in progress). It changes
+/// nothing: a line it refuses leaves no trace but its result.
+pub(super) struct Admission<'a> {
+    /// The bridge's clock.
+    pub(super) now: Duration,
+    pub(super) config: &'a BridgeConfig,
+    pub(super) stop: &'a StopLatch,
+    pub(super) clocks: &'a ClockOffsets,
+    pub(super) joints: &'a Joints,
+    pub(super) drivers: &'a Drivers,
+    /// Lines accepted and not yet answered.
+    pub(super) pending: usize,
+}
+
+impl Admission<'_> {
+    /// The device named `motor` in the bus map.
+    fn joint(&self, motor: &str) -> Option<&Joint> {
+        let ji = self.joints.find(|j| j.identity.name() == motor)?;
+        self.joints.get(ji)
+    }
+
+    /// [`Admission::admit`] for a line that carries no timestamp (taken as
     /// sent now).
     pub(super) fn admit_now<'a>(
         &self,
@@ -329,14 +386,13 @@ impl Bridge {
         }
         self.check_timestamp(arrived, origin, timestamp)?;
         self.check_motors(motors.clone())?;
-        if self.pending_lines() >= self.config.max_pending_lines {
+        if self.pending >= self.config.max_pending_lines {
             return Err(Refusal::LinesInProgress {
                 max: self.config.max_pending_lines,
             });
         }
         if let Some(m) = motors.find(|m| {
-            self.joint_index(m)
-                .and_then(|i| self.joints.get(i))
+            self.joint(m)
                 .is_some_and(|j| j.schedule.waiting_len() >= self.config.max_queue_per_joint)
         }) {
             return Err(Refusal::QueueFull {
@@ -395,7 +451,7 @@ impl Bridge {
         motors: impl Iterator<Item = &'a str> + Clone,
     ) -> Result<(), Refusal> {
         if let Some(err) = motors.clone().find_map(|m| {
-            let j = self.joints.get(self.joint_index(m)?)?;
+            let j = self.joint(m)?;
             let why = j.lifecycle.needs_reset()?;
             Some(Refusal::NeedsReset {
                 motor: m.to_owned(),
@@ -405,7 +461,7 @@ impl Bridge {
             return Err(err);
         }
         if let Some(err) = motors.clone().find_map(|m| {
-            let j = self.joints.get(self.joint_index(m)?)?;
+            let j = self.joint(m)?;
             (!j.liveness.is_online()).then(|| Refusal::Offline {
                 motor: m.to_owned(),
                 why: Some(
@@ -426,5 +482,142 @@ impl Bridge {
             return Err(err);
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    const MAP: &str = "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n\
+                       [motors.wrist]\ndialect = \"irpc\"\nnode = 0x13\n";
+    /// The bridge's wall clock at its time zero (Unix ms).
+    const EPOCH: f64 = 1.7e12;
+
+    /// A bridge on [`MAP`] that holds timestamps to its wall clock (one
+    /// second of skew), started without activating its joints.
+    fn bridge() -> Bridge {
+        let config = BridgeConfig {
+            activate_on_start: false,
+            epoch_unix_ms: Some(EPOCH),
+            max_age: Some(Duration::from_secs(1)),
+            ..BridgeConfig::default()
+        };
+        let mut b = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
+        b.start(Duration::ZERO);
+        b
+    }
+
+    /// A timestamp too old, or in the future, is refused `stale` with its
+    /// age; one that would be within the skew read in microseconds is said
+    /// to be so; one within the skew runs.
+    #[test]
+    fn timestamps_are_held_to_the_clock_and_microseconds_are_named() {
+        let b = bridge();
+        let a = b.admission();
+        let max_age = Duration::from_secs(1);
+        let admit = |t: f64| a.admit(Duration::ZERO, None, t, std::iter::empty());
+        assert_eq!(admit(EPOCH - 999.0), Ok(()));
+        assert_eq!(admit(EPOCH + 999.0), Ok(()));
+        assert_eq!(
+            admit(EPOCH - 5_000.0),
+            Err(Refusal::Stale {
+                timestamp: EPOCH - 5_000.0,
+                age_ms: 5_000.0,
+                max_age,
+                microseconds: false,
+            })
+        );
+        assert_eq!(
+            admit(EPOCH * 1000.0),
+            Err(Refusal::Stale {
+                timestamp: EPOCH * 1000.0,
+                age_ms: EPOCH - EPOCH * 1000.0,
+                max_age,
+                microseconds: true,
+            })
+        );
+    }
+
+    /// The latch refuses first, whatever else is wrong with the line (here
+    /// a timestamp of 1970 and a motor nobody has); its release lets the
+    /// same line through.
+    #[test]
+    fn the_latch_refuses_before_anything_else() {
+        let mut b = bridge();
+        b.stop.latch(std::iter::empty());
+        let a = b.admission();
+        assert_eq!(
+            a.admit(Duration::ZERO, None, 0.0, ["nobody"].into_iter()),
+            Err(Refusal::Latched)
+        );
+        let _ = b.stop.release();
+        assert_eq!(b.admission().admit_now(["elbow"].into_iter()), Ok(()));
+    }
+
+    /// The bounds are the configuration's: at as many lines in progress as
+    /// it takes, a line is refused `busy`; at as many steps waiting for a
+    /// motor, a line for that motor is, and a line for another is not.
+    #[test]
+    fn the_bounds_are_the_configurations() {
+        let b = bridge();
+        let max = b.config.max_pending_lines;
+        let full = Admission {
+            pending: max,
+            ..b.admission()
+        };
+        assert_eq!(
+            full.admit_now(["elbow"].into_iter()),
+            Err(Refusal::LinesInProgress { max })
+        );
+        let config = BridgeConfig {
+            max_queue_per_joint: 0,
+            ..b.config
+        };
+        let no_queue = Admission {
+            config: &config,
+            ..b.admission()
+        };
+        assert_eq!(
+            no_queue.admit_now(["wrist", "elbow"].into_iter()),
+            Err(Refusal::QueueFull {
+                motor: "wrist".to_owned(),
+                max: 0
+            })
+        );
+        assert_eq!(
+            b.admission().admit_now(["wrist", "elbow"].into_iter()),
+            Ok(())
+        );
+    }
+
+    /// A device lost until a reset is refused as such, before an offline
+    /// one, whichever the line names first; an offline one says why.
+    #[test]
+    fn a_lost_device_is_named_before_an_offline_one() {
+        let mut b = bridge();
+        let elbow = b.joint_index("elbow").unwrap();
+        let wrist = b.joint_index("wrist").unwrap();
+        b.joints
+            .get_mut(wrist)
+            .unwrap()
+            .lifecycle
+            .lost("faulted (error code 5)".to_owned());
+        let _ = b.joints.get_mut(elbow).unwrap().liveness.went_offline();
+        assert_eq!(
+            b.admission().admit_now(["elbow", "wrist"].into_iter()),
+            Err(Refusal::NeedsReset {
+                motor: "wrist".to_owned(),
+                why: "faulted (error code 5)".to_owned(),
+            })
+        );
+        assert_eq!(
+            b.admission().admit_now(["elbow"].into_iter()),
+            Err(Refusal::Offline {
+                motor: "elbow".to_owned(),
+                why: Some("nothing heard from node 0x12".to_owned()),
+            })
+        );
     }
 }
