@@ -22,7 +22,7 @@ impl Bridge {
         });
         let planned = self
             .trajectory_start(now, &meta, all)
-            .and_then(|start| self.trajectory_axes(all, start));
+            .and_then(|start| self.builder().trajectory_axes(all, start));
         match planned {
             Ok((axes, report)) => self.command_job(now, meta, axes, report),
             Err(e) => self.refuse(&meta, e),
@@ -67,10 +67,310 @@ impl Bridge {
         Ok(now.saturating_add(delay))
     }
 
+    // ---- one motor held, freed or stopped ---------------------------------------
+
+    /// A WIA SafetyLimits line: the motor's gate is held to these limits
+    /// from now on (until another such line). Each limit must lie within
+    /// the bus map's; a wider one refuses the whole line.
+    pub(super) fn safety_limits(&mut self, meta: LineMeta, l: &SafetyLimits) {
+        let name = l.motor_id.clone();
+        let meta = meta.labelled(Label::Motor(name.clone()));
+        let Some(base) = self.base_limits.get(&name).copied() else {
+            self.refuse(&meta, Refusal::UnknownMotor { motor: name });
+            return;
+        };
+        let wider = wider_limits(l, &base);
+        if !wider.is_empty() {
+            let e = Refusal::WiderThanBusMap { motor: name, wider };
+            self.refuse(&meta, e);
+            return;
+        }
+        // The soft limits, where given, are the gate's; the torque a
+        // command may hold is the continuous one.
+        let p = &l.position_limits;
+        let lo = p.soft_min.map_or(p.min, |s| s.max(p.min));
+        let hi = p.soft_max.map_or(p.max, |s| s.min(p.max));
+        // Motion already accepted is held to the new limits too: a line
+        // it would break is refused, naming it, and nothing changes.
+        if let Some(why) = self.joint_index(&name).and_then(|ji| {
+            self.builder()
+                .motion_outside(ji, lo, hi, l.velocity_limits.max_velocity)
+        }) {
+            let e = Refusal::MotionOutsideNewLimits {
+                motor: name,
+                motion: why,
+            };
+            self.refuse(&meta, e);
+            return;
+        }
+        self.hold_to(&name, l, base, lo, hi);
+        let r = LineResult {
+            ok: true,
+            line: meta.number,
+            limits: self.limits_value(&name),
+            losses: safety_limits_losses(l),
+            ..LineResult::default()
+        };
+        self.answer(&meta, r);
+    }
+
+    /// Motor `name`'s gate held to SafetyLimits `l` from now on (within the
+    /// bus map's `base`; its positions `lo..=hi`): the map's limits, the
+    /// joint's pace, its driver told, its emergency deceleration kept.
+    fn hold_to(&mut self, name: &str, l: &SafetyLimits, base: Limits, lo: f64, hi: f64) {
+        let v = &l.velocity_limits;
+        let t = &l.torque_limits;
+        let torque = match (t.continuous_torque, t.peak_torque) {
+            (Some(c), Some(k)) => Some(c.min(k)),
+            (c, k) => c.or(k).or(base.max_torque),
+        };
+        let limits = Limits {
+            min_position: Some(lo),
+            max_position: Some(hi),
+            max_velocity: v.max_velocity.or(base.max_velocity),
+            max_torque: torque,
+            ..base
+        };
+        self.map
+            .set_limits(name, limits, "the SafetyLimits line in force");
+        if let Some(ji) = self.joint_index(name) {
+            let motor = self.map.motor(name);
+            if let (Some(j), Some(m)) = (self.joints.get_mut(ji), motor) {
+                j.identity.limits_changed(m);
+            }
+            let unit = motor.map_or(AngleUnit::Degrees, |m| m.unit);
+            self.drivers.limits_changed(ji, &InForce::of(unit, &limits));
+        }
+        match v.emergency_decel {
+            Some(d) => self.emergency_decel.insert(name.to_owned(), d),
+            None => self.emergency_decel.remove(name),
+        };
+    }
+
+    pub(super) fn joint_index(&self, motor: &str) -> Option<DeviceId> {
+        self.joints.find(|j| j.identity.name() == motor)
+    }
+
+    pub(super) fn motor_command(&mut self, now: Duration, meta: LineMeta, cmd: &mut MotorCommand) {
+        let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
+        self.learn_clock(now, meta.origin, cmd.timestamp);
+        if let Err(e) = self.admit(
+            now,
+            Some(meta.origin),
+            cmd.timestamp,
+            std::iter::once(cmd.motor_id.as_str()),
+        ) {
+            if e.kind() == ErrorKind::Busy {
+                self.stats.busy += 1;
+            }
+            self.refuse(&meta, e);
+            return;
+        }
+        // Its joint, looked for once.
+        let ji = self.joint_index(&cmd.motor_id);
+        let device = ji.and_then(|ji| Some((ji, self.joints.get(ji)?.identity.device())));
+        // A joint is attached (an Orion motor is one only with its
+        // controller); anything else may be an Orion motor without one.
+        if ji.is_none()
+            && let Some(e) = self.unattached(std::iter::once(cmd.motor_id.as_str()))
+        {
+            self.refuse(&meta, e);
+            return;
+        }
+        if cmd
+            .safety_limits
+            .as_ref()
+            .is_none_or(|l| l.emergency_stop != Some(true))
+            && let Some(e) = self.outward_at_limit(&cmd.motor_id, cmd.control_mode, cmd.setpoint)
+        {
+            self.refuse(&meta, e);
+            return;
+        }
+        if let Some((ji, device)) = device
+            && let Some(built) = self.builder().single_axis(ji, device, cmd)
+        {
+            self.device_command(now, meta, cmd, built);
+            return;
+        }
+        match motorwire_translate::to_irpc_gated(&self.map, cmd) {
+            Ok((t, motor, limits)) => {
+                let Some(joint) = ji else {
+                    let e = Refusal::NotAnIrpcJoint {
+                        motor: std::mem::take(&mut cmd.motor_id),
+                    };
+                    self.refuse(&meta, e);
+                    return;
+                };
+                let planned = planned_within_limits(
+                    self.joints.get(joint),
+                    self.now,
+                    motor,
+                    &limits,
+                    &t.value.payloads,
+                );
+                match planned {
+                    Ok(planned) => self.keep_plan(joint, planned),
+                    Err(r) => {
+                        self.refuse(&meta, Refusal::gate(r));
+                        return;
+                    }
+                }
+                // The line's motor name, moved: the command is not read again.
+                let motor = std::mem::take(&mut cmd.motor_id);
+                let axes = vec![Axis::new(motor, joint, t.value.payloads)];
+                self.command_job(now, meta, axes, t.report);
+            }
+            Err(r) => self.refuse(&meta, Refusal::gate(r)),
+        }
+    }
+
+    /// A multi-axis command: the iRPC joints' axes planned together
+    /// (synchronized as the command asks), every compact device's and
+    /// Orion motor's axis gated and translated on its own, all sent as one
+    /// job. `sync_mode: sequential` runs them one after another, each once
+    /// the one before arrived.
+    pub(super) fn multi_axis_jobs(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        cmd: &MultiAxisCommand,
+    ) {
+        let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
+        // One after another, or together in one duration: not both (each
+        // axis took the duration, one after the other, and the result
+        // promised them all after it).
+        if cmd.sync_mode == Some(SyncMode::Sequential)
+            && cmd
+                .coordination
+                .as_ref()
+                .is_some_and(|c| c.total_duration_ms.is_some())
+        {
+            return self.refuse(&meta, Refusal::SequentialWithTotalDuration);
+        }
+        let (mut axes, report) = match self.builder().mixed_axes(cmd) {
+            Ok(x) => x,
+            Err(e) => return self.refuse(&meta, e),
+        };
+        if cmd.sync_mode == Some(SyncMode::Sequential) {
+            // One after another: each starts once the one before it
+            // arrived, so each must be a move to a target.
+            if let Some((a, i)) = axes
+                .iter()
+                .zip(&cmd.motors)
+                .find(|(ax, _)| ax.target.is_none())
+            {
+                let e = Refusal::SequentialWithoutArrival {
+                    motor: a.motor.clone(),
+                    mode: i.control_mode.name(),
+                };
+                return self.refuse(&meta, e);
+            }
+            for (k, a) in axes.iter_mut().enumerate().skip(1) {
+                a.after = Some(k - 1);
+            }
+        }
+        self.command_job(now, meta, axes, report);
+    }
+
+    /// Opens the job of a command line: `axes`, `report`'s losses.
+    pub(super) fn command_job(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        axes: Vec<Axis>,
+        report: Report,
+    ) {
+        self.open_job(Some(meta), JobKind::Command, now, axes, report, Vec::new());
+    }
+
+    /// A MotorCommand for one compact device or Orion motor: its axis as
+    /// `built`, or the refusal.
+    pub(super) fn device_command(
+        &mut self,
+        now: Duration,
+        meta: LineMeta,
+        cmd: &MotorCommand,
+        built: Result<(Axis, Report), motorwire_translate::Refusal>,
+    ) {
+        let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
+        match built {
+            Ok((axis, report)) => self.command_job(now, meta, vec![axis], report),
+            Err(r) => self.refuse(&meta, Refusal::gate(r)),
+        }
+    }
+
+    /// Keeps the plan [`planned_within_limits`] made for `joint`'s move.
+    pub(super) fn keep_plan(&mut self, joint: DeviceId, planned: Option<Plan>) {
+        let now = self.now;
+        if let Some(j) = self.joints.get_mut(joint) {
+            let (planned, profile) = planned.unzip();
+            j.motion.keep_plan(planned, profile, now);
+        }
+    }
+
+    pub(super) fn multi_axis(&mut self, now: Duration, meta: LineMeta, cmd: &MultiAxisCommand) {
+        let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
+        self.learn_clock(now, meta.origin, cmd.timestamp);
+        if let Err(e) = self.admit(
+            now,
+            Some(meta.origin),
+            cmd.timestamp,
+            cmd.motors.iter().map(|a| a.motor_id.as_str()),
+        ) {
+            if e.kind() == ErrorKind::Busy {
+                self.stats.busy += 1;
+            }
+            self.refuse(&meta, e);
+            return;
+        }
+        if let Some(e) = cmd
+            .motors
+            .iter()
+            .find_map(|a| self.outward_at_limit(&a.motor_id, a.control_mode, a.setpoint))
+        {
+            self.refuse(&meta, e);
+            return;
+        }
+        if let Some(e) = self.unattached(cmd.motors.iter().map(|a| a.motor_id.as_str())) {
+            self.refuse(&meta, e);
+            return;
+        }
+        self.multi_axis_jobs(now, meta, cmd);
+    }
+
+    /// Motion as the bridge stands now: what builds a line's moves.
+    pub(super) fn builder(&self) -> MotionBuilder<'_> {
+        MotionBuilder {
+            map: &self.map,
+            joints: &self.joints,
+            jobs: &self.jobs,
+            now: self.now,
+        }
+    }
+}
+
+/// Building motion: a line's moves from the bus map, where each device is
+/// and what is queued for it, checked against the limits before anything
+/// is sent. It reads the bridge and changes nothing: the jobs it builds
+/// are opened (and the plans kept) by the bridge.
+pub(super) struct MotionBuilder<'a> {
+    pub(super) map: &'a BusMap,
+    pub(super) joints: &'a Joints,
+    pub(super) jobs: &'a Jobs,
+    /// The bridge's clock.
+    pub(super) now: Duration,
+}
+
+impl MotionBuilder<'_> {
+    /// The device named `motor` in the bus map.
+    pub(super) fn joint_index(&self, motor: &str) -> Option<DeviceId> {
+        self.joints.find(|j| j.identity.name() == motor)
+    }
+
     /// An axis for each of trajectories `all`, starting at `start`, and
     /// what their planning lost; or why the line is refused (a motor
     /// twice, or the first refusal of a trajectory).
-    fn trajectory_axes(
+    pub(super) fn trajectory_axes(
         &self,
         all: &[Trajectory],
         start: Duration,
@@ -101,7 +401,7 @@ impl Bridge {
         start: Duration,
         report: &mut Report,
     ) -> Result<Axis, Refusal> {
-        let plan = trajectory_to_irpc(&self.map, t).map_err(Refusal::gate)?;
+        let plan = trajectory_to_irpc(self.map, t).map_err(Refusal::gate)?;
         let Some(ji) = self.joint_index(&t.motor_id).filter(|&ji| {
             self.joints
                 .get(ji)
@@ -199,8 +499,6 @@ impl Bridge {
         }
         axis
     }
-
-    // ---- one motor held, freed or stopped ---------------------------------------
 
     /// The first motion of device `ji` already accepted (its move under
     /// way, what is in flight, what waits to be sent, a trajectory's later
@@ -336,161 +634,6 @@ impl Bridge {
         None
     }
 
-    /// A WIA SafetyLimits line: the motor's gate is held to these limits
-    /// from now on (until another such line). Each limit must lie within
-    /// the bus map's; a wider one refuses the whole line.
-    pub(super) fn safety_limits(&mut self, meta: LineMeta, l: &SafetyLimits) {
-        let name = l.motor_id.clone();
-        let meta = meta.labelled(Label::Motor(name.clone()));
-        let Some(base) = self.base_limits.get(&name).copied() else {
-            self.refuse(&meta, Refusal::UnknownMotor { motor: name });
-            return;
-        };
-        let wider = wider_limits(l, &base);
-        if !wider.is_empty() {
-            let e = Refusal::WiderThanBusMap { motor: name, wider };
-            self.refuse(&meta, e);
-            return;
-        }
-        // The soft limits, where given, are the gate's; the torque a
-        // command may hold is the continuous one.
-        let p = &l.position_limits;
-        let lo = p.soft_min.map_or(p.min, |s| s.max(p.min));
-        let hi = p.soft_max.map_or(p.max, |s| s.min(p.max));
-        // Motion already accepted is held to the new limits too: a line
-        // it would break is refused, naming it, and nothing changes.
-        if let Some(why) = self
-            .joint_index(&name)
-            .and_then(|ji| self.motion_outside(ji, lo, hi, l.velocity_limits.max_velocity))
-        {
-            let e = Refusal::MotionOutsideNewLimits {
-                motor: name,
-                motion: why,
-            };
-            self.refuse(&meta, e);
-            return;
-        }
-        self.hold_to(&name, l, base, lo, hi);
-        let r = LineResult {
-            ok: true,
-            line: meta.number,
-            limits: self.limits_value(&name),
-            losses: safety_limits_losses(l),
-            ..LineResult::default()
-        };
-        self.answer(&meta, r);
-    }
-
-    /// Motor `name`'s gate held to SafetyLimits `l` from now on (within the
-    /// bus map's `base`; its positions `lo..=hi`): the map's limits, the
-    /// joint's pace, its driver told, its emergency deceleration kept.
-    fn hold_to(&mut self, name: &str, l: &SafetyLimits, base: Limits, lo: f64, hi: f64) {
-        let v = &l.velocity_limits;
-        let t = &l.torque_limits;
-        let torque = match (t.continuous_torque, t.peak_torque) {
-            (Some(c), Some(k)) => Some(c.min(k)),
-            (c, k) => c.or(k).or(base.max_torque),
-        };
-        let limits = Limits {
-            min_position: Some(lo),
-            max_position: Some(hi),
-            max_velocity: v.max_velocity.or(base.max_velocity),
-            max_torque: torque,
-            ..base
-        };
-        self.map
-            .set_limits(name, limits, "the SafetyLimits line in force");
-        if let Some(ji) = self.joint_index(name) {
-            let motor = self.map.motor(name);
-            if let (Some(j), Some(m)) = (self.joints.get_mut(ji), motor) {
-                j.identity.limits_changed(m);
-            }
-            let unit = motor.map_or(AngleUnit::Degrees, |m| m.unit);
-            self.drivers.limits_changed(ji, &InForce::of(unit, &limits));
-        }
-        match v.emergency_decel {
-            Some(d) => self.emergency_decel.insert(name.to_owned(), d),
-            None => self.emergency_decel.remove(name),
-        };
-    }
-
-    pub(super) fn joint_index(&self, motor: &str) -> Option<DeviceId> {
-        self.joints.find(|j| j.identity.name() == motor)
-    }
-
-    pub(super) fn motor_command(&mut self, now: Duration, meta: LineMeta, cmd: &mut MotorCommand) {
-        let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
-        self.learn_clock(now, meta.origin, cmd.timestamp);
-        if let Err(e) = self.admit(
-            now,
-            Some(meta.origin),
-            cmd.timestamp,
-            std::iter::once(cmd.motor_id.as_str()),
-        ) {
-            if e.kind() == ErrorKind::Busy {
-                self.stats.busy += 1;
-            }
-            self.refuse(&meta, e);
-            return;
-        }
-        // Its joint, looked for once.
-        let ji = self.joint_index(&cmd.motor_id);
-        let device = ji.and_then(|ji| Some((ji, self.joints.get(ji)?.identity.device())));
-        // A joint is attached (an Orion motor is one only with its
-        // controller); anything else may be an Orion motor without one.
-        if ji.is_none()
-            && let Some(e) = self.unattached(std::iter::once(cmd.motor_id.as_str()))
-        {
-            self.refuse(&meta, e);
-            return;
-        }
-        if cmd
-            .safety_limits
-            .as_ref()
-            .is_none_or(|l| l.emergency_stop != Some(true))
-            && let Some(e) = self.outward_at_limit(&cmd.motor_id, cmd.control_mode, cmd.setpoint)
-        {
-            self.refuse(&meta, e);
-            return;
-        }
-        if let Some((ji, device)) = device
-            && let Some(built) = self.single_axis(ji, device, cmd)
-        {
-            self.device_command(now, meta, cmd, built);
-            return;
-        }
-        match motorwire_translate::to_irpc_gated(&self.map, cmd) {
-            Ok((t, motor, limits)) => {
-                let Some(joint) = ji else {
-                    let e = Refusal::NotAnIrpcJoint {
-                        motor: std::mem::take(&mut cmd.motor_id),
-                    };
-                    self.refuse(&meta, e);
-                    return;
-                };
-                let planned = planned_within_limits(
-                    self.joints.get(joint),
-                    self.now,
-                    motor,
-                    &limits,
-                    &t.value.payloads,
-                );
-                match planned {
-                    Ok(planned) => self.keep_plan(joint, planned),
-                    Err(r) => {
-                        self.refuse(&meta, Refusal::gate(r));
-                        return;
-                    }
-                }
-                // The line's motor name, moved: the command is not read again.
-                let motor = std::mem::take(&mut cmd.motor_id);
-                let axes = vec![Axis::new(motor, joint, t.value.payloads)];
-                self.command_job(now, meta, axes, t.report);
-            }
-            Err(r) => self.refuse(&meta, Refusal::gate(r)),
-        }
-    }
-
     /// `cmd` for device `ji`, gated and translated on its own, as its
     /// axis; `None` for an iRPC joint, whose moves are planned from its
     /// state (and with the other joints of a multi-axis line).
@@ -500,87 +643,12 @@ impl Bridge {
         device: Device,
         cmd: &MotorCommand,
     ) -> Option<Result<(Axis, Report), motorwire_translate::Refusal>> {
-        let built = device.single_order(&self.map, cmd)?;
+        let built = device.single_order(self.map, cmd)?;
         Some(built.map(|one| {
             let mut axis = Axis::of(cmd.motor_id.clone(), ji, [one.order]);
             axis.target = one.target;
             (axis, one.report)
         }))
-    }
-
-    /// A multi-axis command: the iRPC joints' axes planned together
-    /// (synchronized as the command asks), every compact device's and
-    /// Orion motor's axis gated and translated on its own, all sent as one
-    /// job. `sync_mode: sequential` runs them one after another, each once
-    /// the one before arrived.
-    pub(super) fn multi_axis_jobs(
-        &mut self,
-        now: Duration,
-        meta: LineMeta,
-        cmd: &MultiAxisCommand,
-    ) {
-        let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
-        // One after another, or together in one duration: not both (each
-        // axis took the duration, one after the other, and the result
-        // promised them all after it).
-        if cmd.sync_mode == Some(SyncMode::Sequential)
-            && cmd
-                .coordination
-                .as_ref()
-                .is_some_and(|c| c.total_duration_ms.is_some())
-        {
-            return self.refuse(&meta, Refusal::SequentialWithTotalDuration);
-        }
-        let (mut axes, report) = match self.mixed_axes(cmd) {
-            Ok(x) => x,
-            Err(e) => return self.refuse(&meta, e),
-        };
-        if cmd.sync_mode == Some(SyncMode::Sequential) {
-            // One after another: each starts once the one before it
-            // arrived, so each must be a move to a target.
-            if let Some((a, i)) = axes
-                .iter()
-                .zip(&cmd.motors)
-                .find(|(ax, _)| ax.target.is_none())
-            {
-                let e = Refusal::SequentialWithoutArrival {
-                    motor: a.motor.clone(),
-                    mode: i.control_mode.name(),
-                };
-                return self.refuse(&meta, e);
-            }
-            for (k, a) in axes.iter_mut().enumerate().skip(1) {
-                a.after = Some(k - 1);
-            }
-        }
-        self.command_job(now, meta, axes, report);
-    }
-
-    /// Opens the job of a command line: `axes`, `report`'s losses.
-    pub(super) fn command_job(
-        &mut self,
-        now: Duration,
-        meta: LineMeta,
-        axes: Vec<Axis>,
-        report: Report,
-    ) {
-        self.open_job(Some(meta), JobKind::Command, now, axes, report, Vec::new());
-    }
-
-    /// A MotorCommand for one compact device or Orion motor: its axis as
-    /// `built`, or the refusal.
-    pub(super) fn device_command(
-        &mut self,
-        now: Duration,
-        meta: LineMeta,
-        cmd: &MotorCommand,
-        built: Result<(Axis, Report), motorwire_translate::Refusal>,
-    ) {
-        let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
-        match built {
-            Ok((axis, report)) => self.command_job(now, meta, vec![axis], report),
-            Err(r) => self.refuse(&meta, Refusal::gate(r)),
-        }
     }
 
     pub(super) fn mixed_axes(
@@ -611,7 +679,7 @@ impl Bridge {
                     None => j.motion.feedback().map(|f| (f.position, 0.0, 0.0)),
                 }
             };
-            let t = multi_axis_to_irpc_from(&self.map, &sub, &state).map_err(Refusal::gate)?;
+            let t = multi_axis_to_irpc_from(self.map, &sub, &state).map_err(Refusal::gate)?;
             irpc = t.value.commands.into_iter().map(|c| c.payloads).collect();
             report.losses.extend(t.report.losses);
         }
@@ -662,47 +730,6 @@ impl Bridge {
         }
         Ok((axes, report))
     }
-
-    /// Keeps the plan [`planned_within_limits`] made for `joint`'s move.
-    pub(super) fn keep_plan(&mut self, joint: DeviceId, planned: Option<Plan>) {
-        let now = self.now;
-        if let Some(j) = self.joints.get_mut(joint) {
-            let (planned, profile) = planned.unzip();
-            j.motion.keep_plan(planned, profile, now);
-        }
-    }
-
-    pub(super) fn multi_axis(&mut self, now: Duration, meta: LineMeta, cmd: &MultiAxisCommand) {
-        let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
-        self.learn_clock(now, meta.origin, cmd.timestamp);
-        if let Err(e) = self.admit(
-            now,
-            Some(meta.origin),
-            cmd.timestamp,
-            cmd.motors.iter().map(|a| a.motor_id.as_str()),
-        ) {
-            if e.kind() == ErrorKind::Busy {
-                self.stats.busy += 1;
-            }
-            self.refuse(&meta, e);
-            return;
-        }
-        if let Some(e) = cmd
-            .motors
-            .iter()
-            .find_map(|a| self.outward_at_limit(&a.motor_id, a.control_mode, a.setpoint))
-        {
-            self.refuse(&meta, e);
-            return;
-        }
-        if let Some(e) = self.unattached(cmd.motors.iter().map(|a| a.motor_id.as_str())) {
-            self.refuse(&meta, e);
-            return;
-        }
-        self.multi_axis_jobs(now, meta, cmd);
-    }
-
-    // ---- the emergency stop ------------------------------------------------
 }
 
 /// How far a motion checked against new limits may go (degrees, beyond
@@ -841,4 +868,93 @@ fn safety_limits_losses(l: &SafetyLimits) -> Vec<motorwire_translate::Loss> {
         }
     }
     losses
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    const MAP: &str = "[motors.elbow]\ndialect = \"irpc\"\nnode = 0x12\n\
+                       limits = { min_position = -90, max_position = 150, max_velocity = 120, max_acceleration = 500 }\n";
+
+    /// A bridge on [`MAP`], running, its joint not activated.
+    fn bridge() -> Bridge {
+        let config = BridgeConfig {
+            activate_on_start: false,
+            ..BridgeConfig::default()
+        };
+        let mut b = Bridge::new(BusMap::from_toml(MAP).unwrap(), config).unwrap();
+        b.start(Duration::ZERO);
+        b
+    }
+
+    fn trajectory(motor: &str, first: f64) -> Trajectory {
+        serde_json::from_str(&format!(
+            r#"{{"trajectory_id":"t","motor_id":"{motor}","waypoints":[{{"position":{first},"velocity":0,"time":0}},{{"position":20,"velocity":0,"time":1}}],"timing":{{}}}}"#
+        ))
+        .unwrap()
+    }
+
+    /// A trajectory is built only for a joint that stands at its first
+    /// waypoint: unknown before any report, refused away from it, and
+    /// from there one axis whose first segment is due at the start given.
+    /// A motor twice in one line is refused before anything is built.
+    #[test]
+    fn a_trajectory_starts_only_where_its_joint_stands() {
+        let mut b = bridge();
+        let start = Duration::from_millis(40);
+        let one = [trajectory("elbow", 0.0)];
+        assert_eq!(
+            b.builder().trajectory_axes(&one, start).map(|_| ()),
+            Err(Refusal::NotAtStart {
+                motor: "elbow".to_owned(),
+                first: 0.0,
+                at: None
+            })
+        );
+        let elbow = b.builder().joint_index("elbow").unwrap();
+        b.reading(elbow, Duration::from_millis(1), Some((5.0, 0.0)), None);
+        assert_eq!(
+            b.builder().trajectory_axes(&one, start).map(|_| ()),
+            Err(Refusal::NotAtStart {
+                motor: "elbow".to_owned(),
+                first: 0.0,
+                at: Some(5.0)
+            })
+        );
+        b.reading(elbow, Duration::from_millis(2), Some((0.0, 0.0)), None);
+        let (axes, _) = b.builder().trajectory_axes(&one, start).unwrap();
+        assert_eq!(axes.len(), 1);
+        assert_eq!((axes[0].joint, axes[0].due.front()), (elbow, Some(&start)));
+        let twice = [trajectory("elbow", 0.0), trajectory("elbow", 0.0)];
+        assert_eq!(
+            b.builder().trajectory_axes(&twice, start).map(|_| ()),
+            Err(Refusal::MotorTwice {
+                motor: "elbow".to_owned()
+            })
+        );
+    }
+
+    /// New limits are held against what a joint already does: standing at
+    /// 100°, limits that keep it nowhere past 50° find nothing under way
+    /// to refuse; a move line 1 sent to 140° (not yet acknowledged) is
+    /// named by its line, in the motor's unit, by limits it would pass.
+    #[test]
+    fn new_limits_are_held_against_the_move_under_way() {
+        let mut b = bridge();
+        let elbow = b.builder().joint_index("elbow").unwrap();
+        b.reading(elbow, Duration::from_millis(1), Some((100.0, 0.0)), None);
+        assert_eq!(b.builder().motion_outside(elbow, -10.0, 50.0, None), None);
+        b.handle_line(
+            Duration::from_millis(2),
+            Origin(1),
+            r#"{"motor_id":"elbow","timestamp":0,"control_mode":"position","setpoint":140}"#,
+        );
+        assert_eq!(
+            b.builder().motion_outside(elbow, -10.0, 120.0, None),
+            Some("line 1 moves it to 140".to_owned())
+        );
+        assert_eq!(b.builder().motion_outside(elbow, -10.0, 145.0, None), None);
+    }
 }
