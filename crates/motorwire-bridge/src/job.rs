@@ -4,7 +4,6 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use motorwire_irpc::Payload;
 use motorwire_translate::Report;
 
 use crate::device::DeviceId;
@@ -146,15 +145,6 @@ pub(crate) struct Axis {
 pub(crate) const REPLACED_TRAJECTORY: &str = "a newer position command for the joint replaced the rest of the trajectory: its later segments were not sent";
 
 impl Axis {
-    /// An axis of iRPC payloads for a joint.
-    pub(crate) fn new(
-        motor: String,
-        joint: DeviceId,
-        payloads: impl IntoIterator<Item = Payload>,
-    ) -> Self {
-        Self::of(motor, joint, payloads.into_iter().map(Order::Irpc))
-    }
-
     /// An axis of orders; the target of a compact position command is set
     /// by the caller (it knows the motor's unit).
     pub(crate) fn of(
@@ -724,11 +714,13 @@ mod tests {
     /// A command's job of one axis moving `motor` (a position move), for
     /// line `number` of client 2 where one is given.
     fn move_job(kind: JobKind, motor: &str, number: Option<u64>) -> Box<Job> {
-        let order = Payload::SetTarget(motorwire_irpc::SetTargetPayload {
-            target_angle: 10.0,
-            velocity_limit: 5.0,
-        });
-        let axis = Axis::new(motor.to_owned(), DeviceId::at(0), [order]);
+        let order = Order::Irpc(motorwire_irpc::Payload::SetTarget(
+            motorwire_irpc::SetTargetPayload {
+                target_angle: 10.0,
+                velocity_limit: 5.0,
+            },
+        ));
+        let axis = Axis::of(motor.to_owned(), DeviceId::at(0), [order]);
         Box::new(Job::new(
             number.map(|n| LineMeta::new(Origin(2), n)),
             kind,

@@ -8,6 +8,7 @@ use motorwire_planner::Profile;
 use motorwire_translate::AngleUnit;
 use motorwire_wia::MotorFeedback;
 
+use crate::device::plan::Move;
 use crate::device::{Device, DeviceId, DeviceState, DeviceView, Moving, Order, Registry};
 pub(crate) use crate::device::{Kinematics, in_unit};
 use crate::output::Origin;
@@ -198,7 +199,7 @@ pub(crate) struct Motion {
     /// payload, and how long the joint's plan takes. When
     /// its Ack comes from the same state, its arrival time is this plan's
     /// (the same inputs make the same plan), not a second planning.
-    planned: Option<(Kinematics, motorwire_irpc::SetTargetPayloadV2, Duration)>,
+    planned: Option<(Kinematics, Move, Duration)>,
     /// That move's profile (the bridge's model of it once it is acked).
     planned_profile: Option<Box<Profile<f64>>>,
     /// When that move's path was checked.
@@ -257,9 +258,7 @@ impl Motion {
     }
 
     /// The last move the gate planned for it.
-    pub(crate) fn planned(
-        &self,
-    ) -> Option<(Kinematics, motorwire_irpc::SetTargetPayloadV2, Duration)> {
+    pub(crate) fn planned(&self) -> Option<(Kinematics, Move, Duration)> {
         self.planned
     }
 
@@ -294,7 +293,7 @@ impl Motion {
     /// checked at `at`.
     pub(crate) fn keep_plan(
         &mut self,
-        planned: Option<(Kinematics, motorwire_irpc::SetTargetPayloadV2, Duration)>,
+        planned: Option<(Kinematics, Move, Duration)>,
         profile: Option<Box<Profile<f64>>>,
         at: Duration,
     ) {

@@ -40,6 +40,10 @@ use std::fmt;
 use motorwire_wia::{Message, Validator};
 
 use crate::output::Label;
+
+/// What a calibration line starts (an iRPC joint's `StartCalibration`),
+/// carried to the device layer as it was read.
+pub(crate) type Calibration = motorwire_irpc::CalibrationRequest;
 use serde::de::{Deserializer, MapAccess, Visitor};
 use serde_json::Value;
 

@@ -27,7 +27,10 @@ use motorwire_irpc::{CalibrationPhase, CalibrationRequest};
 use motorwire_translate::{BusMap, feedback_from_irpc};
 
 use super::AwaitKind;
-use super::{Answer, Context, DeviceId, DeviceState, Effect, Ended, Happened, Moving, Outcome};
+use super::{
+    Answer, Ask, Context, DeviceId, DeviceState, Effect, Ended, Happened, Moving, Needs, Order,
+    Outcome,
+};
 use crate::classify::RequestKind;
 use crate::output::Event;
 
@@ -361,11 +364,9 @@ pub(crate) fn tell(
     }
 }
 
-/// A request line's ask of an iRPC joint: the message the joint must
-/// have, the payload asking for it, what the line waits for, and the
-/// message's name for a refusal.
-pub(crate) const fn request(kind: RequestKind) -> (PayloadKind, Payload, AwaitKind, &'static str) {
-    match kind {
+/// A request line's ask of an iRPC joint.
+pub(crate) const fn request(kind: RequestKind) -> Ask {
+    let (needs, payload, awaits, what) = match kind {
         RequestKind::Telemetry => (
             PayloadKind::RequestTelemetry,
             Payload::RequestTelemetry,
@@ -384,15 +385,44 @@ pub(crate) const fn request(kind: RequestKind) -> (PayloadKind, Payload, AwaitKi
             AwaitKind::FaultHistory,
             "FaultHistory (v2.2)",
         ),
+    };
+    Ask {
+        needs: Needs(needs),
+        order: Order::Irpc(payload),
+        awaits,
+        what,
     }
 }
 
-/// A calibration line's payload: started as `start` says, or stopped.
-pub(crate) const fn calibration(start: Option<CalibrationRequest>) -> Payload {
-    match start {
-        Some(r) => Payload::StartCalibration(r),
-        None => Payload::StopCalibration,
+/// A calibration line's ask of an iRPC joint: started as `start` says
+/// (the line then waits for its result), or stopped.
+pub(crate) const fn calibration(start: Option<&CalibrationRequest>) -> Ask {
+    Ask {
+        needs: Needs(PayloadKind::StartCalibration),
+        order: Order::Irpc(match start {
+            Some(r) => Payload::StartCalibration(*r),
+            None => Payload::StopCalibration,
+        }),
+        awaits: AwaitKind::CalibrationResult,
+        what: "calibration (v2.1 on)",
     }
+}
+
+/// How long calibration `start` of `motor` may take, its phases each to
+/// their time-out, once its own limits are held to `map`'s limits in
+/// force.
+///
+/// # Errors
+/// The gate's refusal: a limit of the calibration's beyond the map's.
+pub(crate) fn calibration_time(
+    map: &motorwire_translate::BusMap,
+    motor: &str,
+    start: &CalibrationRequest,
+) -> Result<Duration, motorwire_translate::Refusal> {
+    motorwire_translate::gate_calibration(map, motor, start)?;
+    let phases = start.phases.count_ones().max(1);
+    let per_phase = Duration::try_from_secs_f32(start.phase_timeout).unwrap_or(Duration::ZERO);
+    Ok(per_phase.saturating_mul(phases))
 }
 
 /// The name of calibration phase `p`, as a `calibration` event says it.
@@ -481,7 +511,7 @@ pub(crate) fn effect(payload: Payload, cx: &Context) -> Effect {
     let planned = |p: &SetTargetPayloadV2| {
         if let Some((from, q, d)) = cx.planned
             && from == (pos, vel, acc)
-            && q == *p
+            && q.terms() == *p
         {
             return d;
         }

@@ -47,11 +47,16 @@
 //! engine drives is its own ([`Lifecycle`]: reset, configure, activate,
 //! deactivate, telemetry), which each device says in its terms
 //! ([`Device::lifecycle_orders`]: iRPC payloads, a compact or moteus stop,
-//! the Orion stop, or nothing); what cannot be sent is a typed
+//! the Orion stop, or nothing); the state a device says it is in is
+//! the engine's own too ([`DeviceState`], mapped from an iRPC joint's
+//! `JointStatus` by its driver); the moves the bridge plans (an iRPC
+//! joint's, planned together across a multi-axis line, and a trajectory's
+//! segments) are [`plan::Move`]s, gated, planned and checked by [`plan`]
+//! over motorwire-translate's gate; what cannot be sent is a typed
 //! [`DeviceError`]; request lines (telemetry, calibration)
 //! exist for the devices that say [`Capability::Requests`], and their
-//! payloads and answers are the iRPC driver's ([`irpc::request`],
-//! [`Answer`]).
+//! orders ([`Ask`], the message a device must have for them a [`Needs`])
+//! and answers are the iRPC driver's ([`irpc::request`], [`Answer`]).
 //!
 //! The drivers: [`irpc`] (iRPC joints, through `motorwire_can`'s sans-IO
 //! client), [`compact`] (WIA's 24-byte compact command), [`moteus`] (mjbots
@@ -91,7 +96,7 @@ use std::time::Duration;
 use motorwire_can::Frame;
 use motorwire_can::client::ClientConfig;
 use motorwire_compact::{CompactCommand, ControlMode as CompactMode, Flags, MotorHash};
-use motorwire_irpc::{Payload, PayloadKind, SetTargetPayloadV2, WireVersion};
+use motorwire_irpc::{Payload, PayloadKind, WireVersion};
 use motorwire_orion::{ArmCommand, Motor, Quantity};
 use motorwire_translate::{
     AngleUnit, BusMap, MoteusCommand, Refusal, Report, Target, to_compact, to_moteus,
@@ -207,6 +212,7 @@ pub(crate) mod moteus;
 mod moteus_bounds;
 mod order;
 pub(crate) mod orion;
+pub(crate) mod plan;
 
 pub(crate) use drivers::*;
 
@@ -278,22 +284,13 @@ impl Device {
         }
     }
 
-    /// Whether it has the message `kind` (an iRPC joint: in its wire
-    /// version; a moteus controller: a reset; the others: none).
-    pub(crate) fn speaks(self, kind: PayloadKind) -> bool {
+    /// Whether it has the message a line's ask `needs` (an iRPC joint: in
+    /// its wire version; a moteus controller: a reset; the others: none).
+    pub(crate) fn speaks(self, needs: Needs) -> bool {
         match self {
-            Self::Irpc { wire } => wire.tag_of(kind).is_some(),
-            Self::Moteus { .. } => kind == PayloadKind::Reset,
+            Self::Irpc { wire } => wire.tag_of(needs.0).is_some(),
+            Self::Moteus { .. } => needs == Needs::RESET,
             Self::Compact { .. } | Self::Orion(_) => false,
-        }
-    }
-
-    /// The wire version it is spoken to in (v2.0 for the devices that do
-    /// not speak iRPC, as [`crate::JointView`] shows them).
-    pub(crate) const fn wire(self) -> WireVersion {
-        match self {
-            Self::Irpc { wire } => wire,
-            Self::Compact { .. } | Self::Orion(_) | Self::Moteus { .. } => WireVersion::V2_0,
         }
     }
 
@@ -327,7 +324,7 @@ impl Device {
             Self::Irpc { .. } => steps
                 .iter()
                 .map(|s| s.payload())
-                .filter(|p| self.speaks(p.kind()))
+                .filter(|p| self.speaks(Needs(p.kind())))
                 .map(Order::Irpc)
                 .collect(),
             Self::Compact { hash, .. } => stops()
@@ -542,11 +539,8 @@ impl Device {
     /// position-mode move (its own trapezoid within the segment's velocity
     /// and acceleration, ending at its velocity; `max_torque` the limit in
     /// force). `None` for a device that takes no trajectory.
-    pub(crate) fn segment_order(
-        self,
-        p: SetTargetPayloadV2,
-        max_torque: Option<f64>,
-    ) -> Option<Order> {
+    pub(crate) fn segment_order(self, m: plan::Move, max_torque: Option<f64>) -> Option<Order> {
+        let p = m.terms();
         let rev = |deg: f32| f64::from(deg) / 360.0;
         match self {
             Self::Irpc { .. } => Some(Order::Irpc(Payload::SetTargetV2(p))),
@@ -683,7 +677,7 @@ pub(crate) struct Context {
     pub(crate) command_timeout: Option<Duration>,
     /// The gate's plan for a move: from its kinematics, the target and how
     /// long it takes (reused when the acknowledged order is it).
-    pub(crate) planned: Option<(Kinematics, SetTargetPayloadV2, Duration)>,
+    pub(crate) planned: Option<(Kinematics, plan::Move, Duration)>,
 }
 
 /// The limits in force on a device, in degrees (and Nm), as a driver that
@@ -808,6 +802,28 @@ impl std::fmt::Display for DeviceState {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
     }
+}
+
+/// The message a device must have for a line's ask of it (a reset, a
+/// request, a calibration), in its dialect's terms: the engine passes it
+/// to [`Device::speaks`] and reads nothing of it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Needs(PayloadKind);
+
+impl Needs {
+    /// A reset.
+    pub(crate) const RESET: Self = Self(PayloadKind::Reset);
+}
+
+/// A line's ask of a device that it answers: the message the device must
+/// have, the order asking for it, what the line waits for, and the
+/// message's name for a refusal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Ask {
+    pub(crate) needs: Needs,
+    pub(crate) order: Order,
+    pub(crate) awaits: AwaitKind,
+    pub(crate) what: &'static str,
 }
 
 /// A step of a device's lifecycle as the engine drives it, in no

@@ -161,11 +161,11 @@ impl Order {
     pub(crate) fn device_plan(
         &self,
         from: Kinematics,
-        planned: Option<(SetTargetPayloadV2, Box<motorwire_planner::Profile<f64>>)>,
+        planned: Option<(plan::Move, Box<motorwire_planner::Profile<f64>>)>,
     ) -> Option<Box<motorwire_planner::Profile<f64>>> {
         match self {
             Self::Irpc(Payload::SetTargetV2(p)) => match planned {
-                Some((q, profile)) if q == *p => Some(profile),
+                Some((q, profile)) if q.terms() == *p => Some(profile),
                 _ => motorwire_planner::plan(
                     &p.planner_request(from.0, from.1)
                         .with_start_acceleration(from.2),
@@ -188,7 +188,7 @@ impl Order {
     pub(crate) fn path_refusal<'m>(
         &self,
         from: Kinematics,
-        checked: Option<(Kinematics, SetTargetPayloadV2)>,
+        checked: Option<(Kinematics, plan::Move)>,
         in_force: impl FnOnce() -> Option<(
             &'m motorwire_translate::MappedMotor,
             motorwire_translate::Effective,
@@ -197,7 +197,7 @@ impl Order {
         let Self::Irpc(Payload::SetTargetV2(p)) = self else {
             return None;
         };
-        if checked == Some((from, *p)) {
+        if checked == Some((from, plan::Move::from(*p))) {
             return None;
         }
         let (motor, limits) = in_force()?;

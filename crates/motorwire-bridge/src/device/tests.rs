@@ -2,6 +2,7 @@
 
 use super::*;
 use motorwire_compact::VelocityLimit;
+use motorwire_irpc::SetTargetPayloadV2;
 
 /// The engine's sources, every file of `engine/` but its tests.
 const ENGINE: [&str; 15] = [
@@ -198,7 +199,9 @@ fn each_dialect_is_stopped_in_its_own_way() {
     };
     assert_eq!((h.control_mode, h.setpoint), (CompactMode::Velocity, 0.0));
     assert!(!h.flags.contains(Flags::EMERGENCY_STOP));
-    assert!(irpc.supports(Capability::Reset) && irpc.speaks(PayloadKind::ConfigureTelemetry));
+    assert!(
+        irpc.supports(Capability::Reset) && irpc.speaks(Needs(PayloadKind::ConfigureTelemetry))
+    );
     assert!(!compact().supports(Capability::Trajectory));
     assert!(!Device::Orion(Motor::Turntable).supports(Capability::Reset));
     assert_eq!(irpc.who(0x12), "node 0x12");
@@ -303,7 +306,7 @@ fn a_moteus_segment_brakes_within_the_tighter_limit() {
         brake: false,
     };
     let p = SetTargetPayloadV2::trapezoidal(36.0, 180.0, 720.0);
-    let limit = |p: SetTargetPayloadV2| match moteus.segment_order(p, None) {
+    let limit = |p: SetTargetPayloadV2| match moteus.segment_order(p.into(), None) {
         Some(Order::Moteus(MoteusCommand::Position(a))) => a.accel_limit,
         other => panic!("{other:?}"),
     };

@@ -111,7 +111,7 @@ impl Bridge {
         &self,
         motor: &str,
         needs_to: Capability,
-        needs: PayloadKind,
+        needs: Needs,
         what: &str,
     ) -> Result<DeviceId, Refusal> {
         let Some(ji) = self.joint_index(motor).filter(|&ji| {
@@ -132,10 +132,9 @@ impl Bridge {
         };
         let device = self.joints.get(ji).map(|j| j.identity.device());
         if device.is_none_or(|d| !d.speaks(needs)) {
-            let wire = device.map(Device::wire);
             return Err(Refusal::NoSuchMessage {
                 motor: motor.to_owned(),
-                wire: wire.map_or("?", |w| w.name()),
+                wire: device.and_then(Device::version).unwrap_or("?"),
                 what: what.to_owned(),
             });
         }
@@ -157,13 +156,13 @@ impl Bridge {
         motor: &str,
     ) {
         let meta = meta.labelled(Label::Motor(motor.to_owned()));
-        let (needs, payload, awaits, what) = crate::device::irpc::request(kind);
-        let ji = match self.joint_for(motor, Capability::Requests, needs, what) {
+        let ask = crate::device::irpc::request(kind);
+        let ji = match self.joint_for(motor, Capability::Requests, ask.needs, ask.what) {
             Ok(ji) => ji,
             Err(e) => return self.refuse(&meta, e),
         };
         let deadline = now.saturating_add(self.answer_wait());
-        self.open_waiting(now, meta, (motor, ji), payload, awaits, deadline);
+        self.open_waiting(now, meta, (motor, ji), ask.order, ask.awaits, deadline);
     }
 
     /// `{"calibration":"start"|"stop","motor_id":M,...}`.
@@ -172,21 +171,16 @@ impl Bridge {
         now: Duration,
         meta: LineMeta,
         motor: &str,
-        start: Option<CalibrationRequest>,
+        start: Option<crate::classify::Calibration>,
     ) {
         let meta = meta.labelled(Label::Motor(motor.to_owned()));
-        let ji = match self.joint_for(
-            motor,
-            Capability::Requests,
-            PayloadKind::StartCalibration,
-            "calibration (v2.1 on)",
-        ) {
+        let ask = crate::device::irpc::calibration(start.as_ref());
+        let ji = match self.joint_for(motor, Capability::Requests, ask.needs, ask.what) {
             Ok(ji) => ji,
             Err(e) => return self.refuse(&meta, e),
         };
-        let payload = crate::device::irpc::calibration(start);
         let Some(request) = start else {
-            let axis = Axis::new(motor.to_owned(), ji, [payload]);
+            let axis = Axis::of(motor.to_owned(), ji, [ask.order]);
             self.command_job(now, meta, vec![axis], Report::default());
             return;
         };
@@ -195,18 +189,15 @@ impl Bridge {
         if let Err(e) = self.admit_now(std::iter::once(motor)) {
             return self.refuse(&meta, e);
         }
-        if let Err(r) = motorwire_translate::gate_calibration(&self.map, motor, &request) {
-            return self.refuse(&meta, Refusal::gate(r));
-        }
-        let phases = request.phases.count_ones().max(1);
-        let per_phase =
-            Duration::try_from_secs_f32(request.phase_timeout).unwrap_or(Duration::ZERO);
+        let phases = match crate::device::irpc::calibration_time(&self.map, motor, &request) {
+            Ok(t) => t,
+            Err(r) => return self.refuse(&meta, Refusal::gate(r)),
+        };
         let deadline = now
             .saturating_add(self.answer_wait())
-            .saturating_add(per_phase.saturating_mul(phases))
+            .saturating_add(phases)
             .saturating_add(CALIBRATION_MARGIN);
-        let kind = AwaitKind::CalibrationResult;
-        self.open_waiting(now, meta, (motor, ji), payload, kind, deadline);
+        self.open_waiting(now, meta, (motor, ji), ask.order, ask.awaits, deadline);
     }
 
     /// Line `meta`'s request `payload` to `device` (its name and id),
@@ -216,7 +207,7 @@ impl Bridge {
         now: Duration,
         meta: LineMeta,
         device: (&str, DeviceId),
-        payload: Payload,
+        order: Order,
         kind: AwaitKind,
         deadline: Duration,
     ) {
@@ -227,7 +218,7 @@ impl Bridge {
             deadline,
         };
         let id = self.jobs.next_id();
-        let axis = Axis::new(motor.to_owned(), ji, [payload]);
+        let axis = Axis::of(motor.to_owned(), ji, [order]);
         self.command_job(now, meta, vec![axis], Report::default());
         // Not done yet (a job is taken out once done): it waits.
         if let Some(job) = self.jobs.get_mut(&id) {

@@ -25,11 +25,8 @@ use std::time::Duration;
 
 use motorwire_can::Frame;
 use motorwire_can::client::ClientConfig;
-use motorwire_irpc::{CalibrationRequest, Payload, PayloadKind};
 use motorwire_orion::ArmCommand;
-use motorwire_translate::{
-    AngleUnit, BusMap, Limits, LossKind, Report, multi_axis_to_irpc_from, trajectory_to_irpc,
-};
+use motorwire_translate::{AngleUnit, BusMap, Limits, LossKind, Report};
 use motorwire_wia::{
     Message, MotorCommand, MotorFeedback, MultiAxisCommand, SafetyLimits, SyncMode, Trajectory,
     Validator,
@@ -39,9 +36,10 @@ use serde_json::Value;
 use crate::arrival::{Watch, WatchAxis};
 use crate::classify::{Line, MotorAction, RequestKind, classify};
 use crate::clocks::ClockOffsets;
+use crate::device::plan::{self, Move, Plan};
 use crate::device::{
     Answer, Capability, Context, Device, DeviceError, DeviceId, DeviceState, Drivers, Ended,
-    Happened, InForce, Lifecycle, MotorOrder, Outcome,
+    Happened, InForce, Lifecycle, MotorOrder, Needs, Outcome,
 };
 use crate::error::BridgeError;
 use crate::job::{
@@ -634,50 +632,6 @@ impl Bridge {
     pub fn poll_output(&mut self) -> Option<Output> {
         self.out.pop_front()
     }
-}
-
-/// A joint's move as the bridge planned it: where it started, what it was
-/// told, how long it takes, and its profile.
-type Plan = (
-    (
-        crate::joints::Kinematics,
-        motorwire_irpc::SetTargetPayloadV2,
-        Duration,
-    ),
-    // Boxed where it is made: a profile is some 300 bytes, and a plan is
-    // moved several times on its way to the joint.
-    Box<motorwire_planner::Profile<f64>>,
-);
-
-/// A move's whole planned path, from where `joint` is `now`, how fast it
-/// moves and how that changes (as the joint will plan it), stays within
-/// the limits `limits` gated the command against (issue: a joint moving
-/// fast toward a limit overshoots a target inside it); its plan, which
-/// the bridge keeps. Without a report yet there is nothing to plan from:
-/// the joint's own check stands.
-fn planned_within_limits(
-    joint: Option<&Joint>,
-    now: Duration,
-    motor: &motorwire_translate::MappedMotor,
-    limits: &motorwire_translate::Effective,
-    payloads: &[Payload],
-) -> Result<Option<Plan>, motorwire_translate::Refusal> {
-    // Where it is now (reckoned from its reports, or read from the move
-    // it makes as the bridge planned it).
-    let Some(from) = joint.and_then(|j| j.state_at(now)) else {
-        return Ok(None);
-    };
-    let mut planned = None;
-    for p in payloads {
-        if let Payload::SetTargetV2(p) = p {
-            let start = crate::joints::in_unit(motor.unit, from);
-            let path = motorwire_translate::check_path_from(motor, limits, p, start)?;
-            planned = Duration::try_from_secs_f64(path.duration)
-                .ok()
-                .map(|d| ((from, *p, d), Box::new(path.profile)));
-        }
-    }
-    Ok(planned)
 }
 
 /// What a newer motion step takes over on its device when it is queued

@@ -4,7 +4,7 @@ use super::*;
 
 impl Bridge {
     /// WIA Trajectories for iRPC joints (one, or several on one time base):
-    /// each planned and checked whole ([`trajectory_to_irpc`]) before
+    /// each planned and checked whole ([`plan::trajectory`]) before
     /// anything is sent, then each segment sent at its time
     /// (`timing.start_time` in the future schedules the start). Each joint
     /// must stand at its first waypoint.
@@ -192,8 +192,8 @@ impl Bridge {
             self.device_command(now, meta, cmd, built);
             return;
         }
-        match motorwire_translate::to_irpc_gated(&self.map, cmd) {
-            Ok((t, motor, limits)) => {
+        match plan::gate(&self.map, cmd) {
+            Ok(gated) => {
                 let Some(joint) = ji else {
                     let e = Refusal::NotAnIrpcJoint {
                         motor: std::mem::take(&mut cmd.motor_id),
@@ -201,13 +201,9 @@ impl Bridge {
                     self.refuse(&meta, e);
                     return;
                 };
-                let planned = planned_within_limits(
-                    self.joints.get(joint),
-                    self.now,
-                    motor,
-                    &limits,
-                    &t.value.payloads,
-                );
+                let from = self.joints.get(joint).and_then(|j| j.state_at(self.now));
+                let planned = gated.plan_from(from);
+                let (orders, report) = gated.into_parts();
                 match planned {
                     Ok(planned) => self.keep_plan(joint, planned),
                     Err(r) => {
@@ -217,8 +213,8 @@ impl Bridge {
                 }
                 // The line's motor name, moved: the command is not read again.
                 let motor = std::mem::take(&mut cmd.motor_id);
-                let axes = vec![Axis::new(motor, joint, t.value.payloads)];
-                self.command_job(now, meta, axes, t.report);
+                let axes = vec![Axis::of(motor, joint, orders)];
+                self.command_job(now, meta, axes, report);
             }
             Err(r) => self.refuse(&meta, Refusal::gate(r)),
         }
@@ -299,7 +295,7 @@ impl Bridge {
         }
     }
 
-    /// Keeps the plan [`planned_within_limits`] made for `joint`'s move.
+    /// Keeps the plan [`plan::Gated::plan_from`] made for `joint`'s move.
     pub(super) fn keep_plan(&mut self, joint: DeviceId, planned: Option<Plan>) {
         let now = self.now;
         if let Some(j) = self.joints.get_mut(joint) {
@@ -401,7 +397,7 @@ impl MotionBuilder<'_> {
         start: Duration,
         report: &mut Report,
     ) -> Result<Axis, Refusal> {
-        let plan = trajectory_to_irpc(self.map, t).map_err(Refusal::gate)?;
+        let plan = plan::trajectory(self.map, t).map_err(Refusal::gate)?;
         let Some(ji) = self.joint_index(&t.motor_id).filter(|&ji| {
             self.joints
                 .get(ji)
@@ -421,7 +417,7 @@ impl MotionBuilder<'_> {
         }
         // Times no clock reaches are refused, never a panic.
         let timeable = |secs: f64| Duration::try_from_secs_f64(secs.max(0.0)).is_ok();
-        if !plan.value.segments.iter().all(|s| timeable(s.at)) || !timeable(plan.value.duration) {
+        if !plan.value.segments.iter().all(|s| timeable(s.0)) || !timeable(plan.value.duration) {
             return Err(Refusal::WaypointUnreachable {
                 motor: t.motor_id.clone(),
             });
@@ -466,7 +462,7 @@ impl MotionBuilder<'_> {
         &self,
         t: &Trajectory,
         ji: DeviceId,
-        plan: &motorwire_translate::TrajectoryPlan,
+        plan: &plan::TrajectoryPlan,
         start: Duration,
     ) -> Axis {
         let device = self.joints.get(ji).map(|j| j.identity.device());
@@ -477,13 +473,13 @@ impl MotionBuilder<'_> {
         let orders: Vec<Order> = plan
             .segments
             .iter()
-            .filter_map(|s| device.and_then(|d| d.segment_order(s.payload, max_torque)))
+            .filter_map(|s| device.and_then(|d| d.segment_order(s.1, max_torque)))
             .collect();
         let mut axis = Axis::of(t.motor_id.clone(), ji, orders.iter().copied());
         axis.due = plan
             .segments
             .iter()
-            .map(|s| start.saturating_add(Duration::from_secs_f64(s.at.max(0.0))))
+            .map(|s| start.saturating_add(Duration::from_secs_f64(s.0.max(0.0))))
             .collect();
         if plan.forever {
             axis.cycle = Some(Cycle {
@@ -491,7 +487,7 @@ impl MotionBuilder<'_> {
                     .segments
                     .iter()
                     .zip(orders)
-                    .map(|(s, o)| (Duration::from_secs_f64(s.at.max(0.0)), o))
+                    .map(|(s, o)| (Duration::from_secs_f64(s.0.max(0.0)), o))
                     .collect(),
                 period: Duration::from_secs_f64(plan.duration),
                 started: start,
@@ -669,7 +665,7 @@ impl MotionBuilder<'_> {
                     .is_some_and(|j| j.identity.device().planned_together())
             })
         });
-        let mut irpc: Vec<Vec<Payload>> = Vec::new();
+        let mut together: Vec<Vec<Order>> = Vec::new();
         if !sub.motors.is_empty() {
             // Each joint from where it is now, moving or not.
             let state = |m: &str| {
@@ -679,11 +675,11 @@ impl MotionBuilder<'_> {
                     None => j.motion.feedback().map(|f| (f.position, 0.0, 0.0)),
                 }
             };
-            let t = multi_axis_to_irpc_from(self.map, &sub, &state).map_err(Refusal::gate)?;
-            irpc = t.value.commands.into_iter().map(|c| c.payloads).collect();
+            let t = plan::together(self.map, &sub, &state).map_err(Refusal::gate)?;
+            together = t.value;
             report.losses.extend(t.report.losses);
         }
-        let mut irpc = irpc.into_iter();
+        let mut together = together.into_iter();
         let mut axes = Vec::new();
         // The dialects of the axes not planned together, in the map's words.
         let mut others: Vec<&'static str> = Vec::new();
@@ -705,8 +701,8 @@ impl MotionBuilder<'_> {
                     others.push(dialect);
                 }
             } else {
-                let payloads = irpc.next().unwrap_or_default();
-                axes.push(Axis::new(a.motor_id.clone(), ji, payloads));
+                let orders = together.next().unwrap_or_default();
+                axes.push(Axis::of(a.motor_id.clone(), ji, orders));
             }
         }
         if !others.is_empty()

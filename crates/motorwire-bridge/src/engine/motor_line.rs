@@ -4,7 +4,7 @@ use super::*;
 
 impl Bridge {
     /// `{"motor":action,"motor_id":M}`: motor M held, freed or stopped
-    /// alone, by its dialect's own means ([`Device::motor_orders`]; an
+    /// alone, by its dialect's own means ([`Device::motor_order`]; an
     /// iRPC joint's hold, a move to where it can stop within the limits in
     /// force, planned here). What waited to be sent to it from earlier
     /// lines is given up first (their results say so), and a trajectory
@@ -99,7 +99,7 @@ impl Bridge {
         now_ms: f64,
     ) -> Result<(Axis, Option<String>), Refusal> {
         match self.hold_move(ji, motor, unit, limits, now_ms) {
-            Ok(payload) => Ok((Axis::new(motor.to_owned(), ji, [payload]), None)),
+            Ok(order) => Ok((Axis::of(motor.to_owned(), ji, [order]), None)),
             Err(why)
                 if !self
                     .joints
@@ -134,7 +134,7 @@ impl Bridge {
         unit: AngleUnit,
         limits: &Limits,
         now_ms: f64,
-    ) -> Result<Payload, HoldError> {
+    ) -> Result<Order, HoldError> {
         let Some((p, v, a)) = self.joints.get(ji).and_then(|j| j.state_at(self.now)) else {
             return Err(HoldError::PositionUnknown);
         };
@@ -148,7 +148,7 @@ impl Bridge {
             }
             x
         };
-        let here = self.hold_payload(motor, unit, within(p), now_ms)?;
+        let here = self.move_to(motor, unit, within(p), now_ms)?;
         // Moving: where the joint's own plan back to here turns.
         let stop_at = if v == 0.0 && a == 0.0 {
             p
@@ -163,42 +163,35 @@ impl Bridge {
                 e.min
             }
         };
-        let (t, m, effective) = motorwire_translate::to_irpc_gated(
+        let gated = plan::gate(
             &self.map,
             &Self::position_command(motor, unit.from_degrees(within(stop_at)), now_ms),
         )
         .map_err(HoldError::Refused)?;
-        let planned = planned_within_limits(
-            self.joints.get(ji),
-            self.now,
-            m,
-            &effective,
-            &t.value.payloads,
-        )
-        .map_err(HoldError::Refused)?;
-        let payload = t.value.payloads.first().copied().ok_or(HoldError::NoMove)?;
+        let from = self.joints.get(ji).and_then(|j| j.state_at(self.now));
+        let planned = gated.plan_from(from).map_err(HoldError::Refused)?;
+        let (orders, _) = gated.into_parts();
+        let order = orders.into_iter().next().ok_or(HoldError::NoMove)?;
         self.keep_plan(ji, planned);
-        Ok(payload)
+        Ok(order)
     }
 
-    /// The `SetTargetV2` a position command to `deg` makes for `motor`,
-    /// with the limits in force.
-    pub(super) fn hold_payload(
+    /// The move a position command to `deg` makes for `motor`, with the
+    /// limits in force.
+    pub(super) fn move_to(
         &self,
         motor: &str,
         unit: AngleUnit,
         deg: f64,
         now_ms: f64,
-    ) -> Result<motorwire_irpc::SetTargetPayloadV2, HoldError> {
-        let (t, ..) = motorwire_translate::to_irpc_gated(
+    ) -> Result<Move, HoldError> {
+        plan::gate(
             &self.map,
             &Self::position_command(motor, unit.from_degrees(deg), now_ms),
         )
-        .map_err(HoldError::Refused)?;
-        match t.value.payloads.first() {
-            Some(Payload::SetTargetV2(p)) => Ok(*p),
-            _ => Err(HoldError::NoMove),
-        }
+        .map_err(HoldError::Refused)?
+        .first_move()
+        .ok_or(HoldError::NoMove)
     }
 
     /// A position command for `motor` to `setpoint` (its unit), nothing
@@ -281,7 +274,7 @@ impl Bridge {
         // A device that takes a reset (an iRPC joint, a moteus controller):
         // it goes to that device alone (an Orion motor's would be the
         // broadcast node, rebooting every joint).
-        let ji = match self.joint_for(motor, Capability::Reset, PayloadKind::Reset, "Reset") {
+        let ji = match self.joint_for(motor, Capability::Reset, Needs::RESET, "Reset") {
             Ok(ji) => ji,
             Err(e) => {
                 self.refuse(&meta, e);

@@ -2,6 +2,7 @@
 
 #![allow(clippy::unwrap_used)]
 use super::*;
+use motorwire_irpc::Payload;
 
 /// A bridge on `map` (a bus map's TOML), started at time zero without
 /// activating its joints: running at once.
