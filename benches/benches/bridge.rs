@@ -177,7 +177,7 @@ fn prepared(
     let map = BusMap::from_toml(map).unwrap();
     let config = BridgeConfig {
         feedback_period: None,
-        orion,
+        line_link: orion,
         ..BridgeConfig::default()
     };
     let bridge = Bridge::new(map, config).unwrap();

@@ -795,7 +795,7 @@ impl SimulatedArm {
             moteus.push((SimMoteus::new(c)?, bus.port()));
         }
         bridge.start(Duration::ZERO);
-        let orion = bridge.config().orion.then(SimOrion::default);
+        let orion = bridge.config().line_link.then(SimOrion::default);
         Ok(Self {
             bus,
             port,

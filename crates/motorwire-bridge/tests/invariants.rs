@@ -1032,7 +1032,7 @@ fn every_dialect_arm(seed: u64) -> SimulatedArm {
 /// every frame sent kept.
 fn every_dialect_arm_with(faults: Faults, seed: u64) -> SimulatedArm {
     let config = BridgeConfig {
-        orion: true,
+        line_link: true,
         ..BridgeConfig::default()
     };
     let bridge = Bridge::new(BusMap::from_toml(&every_dialect_map()).unwrap(), config).unwrap();
@@ -2516,7 +2516,7 @@ fn a_misspelled_member_is_refused_on_every_dialect_and_taken_only_when_allowed()
     ];
     for allow in [false, true] {
         let config = BridgeConfig {
-            orion: true,
+            line_link: true,
             allow_unknown_members: allow,
             ..BridgeConfig::default()
         };
@@ -3458,7 +3458,7 @@ fn a_joint_never_started_is_not_activated_by_a_command_after_a_free() {
 fn a_motor_line_keeps_a_freed_joints_move_behind_its_activate_from_going() {
     for action in ["hold", "free", "stop"] {
         let config = BridgeConfig {
-            orion: true,
+            line_link: true,
             ..BridgeConfig::default()
         };
         let bridge = Bridge::new(BusMap::from_toml(&every_dialect_map()).unwrap(), config).unwrap();

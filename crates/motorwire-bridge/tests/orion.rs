@@ -700,7 +700,7 @@ key = "TRM"
     )
     .unwrap();
     let config = BridgeConfig {
-        orion: true,
+        line_link: true,
         activate_on_start: false,
         ..BridgeConfig::default()
     };

@@ -416,7 +416,7 @@ fn bridge(args: &Args) -> Result<u8, String> {
         offline_after: Duration::from_millis(args.offline_after.max(1)),
         epoch_unix_ms: Some(unix_ms()),
         max_age: (args.max_age > 0).then(|| Duration::from_millis(args.max_age)),
-        orion: orion.is_some(),
+        line_link: orion.is_some(),
         telemetry_hz: (args.telemetry_hz > 0).then_some(args.telemetry_hz),
         allow_unknown_members: args.allow_unknown_members,
         ..BridgeConfig::default()

@@ -248,7 +248,7 @@ fn demo(args: &Args) -> Result<bool, String> {
     let config = BridgeConfig {
         feedback_period: Some(Duration::from_millis(20)),
         epoch_unix_ms: Some(epoch_ms),
-        orion: true,
+        line_link: true,
         ..BridgeConfig::default()
     };
     let plot_map = map.clone();

@@ -25,7 +25,7 @@ impl Drivers {
     /// The drivers for `devices` (the engine's, in its order): the iRPC
     /// client as `client` says, each joint in its own wire version; every
     /// driver's requests wait `client.timeout` and are sent again up to
-    /// `client.retries` times (an Orion command waits `orion_command_timeout`).
+    /// `client.retries` times (an Orion command waits `arm_command_timeout`).
     ///
     /// # Errors
     /// The iRPC client's refusal of `client` (a node id beyond 11 bits).

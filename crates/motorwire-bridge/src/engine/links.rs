@@ -78,7 +78,7 @@ impl Bridge {
     /// The refusal for a motor among `motors` whose driver is not
     /// attached (an Orion motor without `--orion`).
     pub(super) fn unattached<'a>(&self, motors: impl Iterator<Item = &'a str>) -> Option<Refusal> {
-        crate::device::unattached(&self.map, self.config.orion, motors)
+        crate::device::unattached(&self.map, self.config.line_link, motors)
     }
 
     // ---- request lines --------------------------------------------------

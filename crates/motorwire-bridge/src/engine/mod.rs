@@ -110,14 +110,16 @@ pub struct BridgeConfig {
     /// refused `busy`. A newer position command replaces a waiting one
     /// (`superseded`), so a stream of moves never fills it.
     pub max_queue_per_joint: usize,
-    /// An Orion arm controller is attached (its lines through
-    /// [`Bridge::poll_link_line`] and [`Bridge::handle_link_line`]): the
-    /// map's Orion motors are devices of the bridge. Default: false (they
-    /// are refused).
-    pub orion: bool,
-    /// How long the Orion controller may take to answer a fold or unfold
-    /// command, which it answers once it has run (default: 30 s).
-    pub orion_command_timeout: Duration,
+    /// A device link of lines is attached (the Orion arm controller's: its
+    /// lines through [`Bridge::poll_link_line`] and
+    /// [`Bridge::handle_link_line`]): the map's motors reached over it are
+    /// devices of the bridge. Default: false (they are refused, not
+    /// attached).
+    pub line_link: bool,
+    /// How long the line link's controller may take to answer an arm-wide
+    /// command (fold, unfold), which it answers once it has run (default:
+    /// 30 s).
+    pub arm_command_timeout: Duration,
     /// Subscribe every v2.1 and v2.2 joint to its TelemetryStream at this
     /// rate (Hz) when it is configured (`ConfigureTelemetry`, `Periodic`):
     /// its WIA feedback then carries acceleration, torque, current,
@@ -150,8 +152,8 @@ impl Default for BridgeConfig {
             max_age: Some(Duration::from_millis(DEFAULT_MAX_AGE_MS)),
             max_pending_lines: 1024,
             max_queue_per_joint: 16,
-            orion: false,
-            orion_command_timeout: Duration::from_secs(30),
+            line_link: false,
+            arm_command_timeout: Duration::from_secs(30),
             telemetry_hz: None,
             allow_unknown_members: false,
         }
@@ -524,7 +526,7 @@ impl Bridge {
         let joints = Joints::new(
             map.motors()
                 .filter_map(|m| {
-                    let (node, device) = Device::of(m, config.orion)?;
+                    let (node, device) = Device::of(m, config.line_link)?;
                     Some(Joint::of(m, node, device))
                 })
                 .collect(),
@@ -534,7 +536,7 @@ impl Bridge {
         }
         let mut drivers = Drivers::new(
             config.client,
-            config.orion_command_timeout,
+            config.arm_command_timeout,
             config.epoch_unix_ms.unwrap_or(0.0),
             &joints,
         )?;

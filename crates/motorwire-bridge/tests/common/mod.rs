@@ -112,7 +112,7 @@ pub(crate) struct OrionRig {
 impl OrionRig {
     pub(crate) fn new(map: &str) -> Self {
         let config = BridgeConfig {
-            orion: true,
+            line_link: true,
             activate_on_start: false,
             ..BridgeConfig::default()
         };
