@@ -44,6 +44,19 @@ use crate::output::Label;
 /// What a calibration line starts (an iRPC joint's `StartCalibration`),
 /// carried to the device layer as it was read.
 pub(crate) type Calibration = motorwire_irpc::CalibrationRequest;
+
+/// What an arm-wide line asks (the Orion controller's fold, unfold or
+/// stop), carried to the device layer as it was read.
+pub(crate) type ArmAction = motorwire_orion::ArmCommand;
+
+/// An arm-wide action in one word, as its line and its result say it.
+pub(crate) const fn arm_action_name(action: ArmAction) -> &'static str {
+    match action {
+        ArmAction::Fold => "fold",
+        ArmAction::Unfold => "unfold",
+        ArmAction::Stop => "stop",
+    }
+}
 use serde::de::{Deserializer, MapAccess, Visitor};
 use serde_json::Value;
 

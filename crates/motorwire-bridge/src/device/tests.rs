@@ -113,6 +113,29 @@ fn the_engine_asks_no_dialect_question() {
         let named = format!("drivers{driver}");
         assert!(!code.contains(&named), "the engine reaches {named}");
     }
+    // No dialect's crate or type outside its tests: the states devices
+    // say, the moves it plans, what a line asks of a device and the
+    // arm-wide actions are the device layer's ([`DeviceState`],
+    // [`plan::Move`], [`Ask`], `classify::ArmAction`).
+    let outside_tests: String = ENGINE
+        .iter()
+        .map(|f| f.split("#[cfg(test)]").next().unwrap_or(""))
+        .collect::<Vec<_>>()
+        .concat();
+    for name in [
+        "motorwire_irpc",
+        "motorwire_orion",
+        "motorwire_moteus",
+        "motorwire_compact",
+        "Payload",
+        "LifecycleState",
+        "WireVersion",
+        "CalibrationRequest",
+        "ArmCommand",
+        "to_irpc",
+    ] {
+        assert!(!outside_tests.contains(name), "the engine names {name}");
+    }
     // One `impl Bridge` a file of the engine, each its concern.
     for file in ENGINE {
         assert_eq!(file.matches(concat!("impl ", "Bridge {")).count(), 1);

@@ -49,12 +49,8 @@ impl Bridge {
     /// `{"orion":"fold"}` or `{"orion":"unfold"}`: an arm-wide command, for
     /// every device that takes one (the Orion controller's motors: one
     /// line).
-    pub(super) fn arm_command(&mut self, now: Duration, meta: LineMeta, command: ArmCommand) {
-        let name = match command {
-            ArmCommand::Fold => "fold",
-            ArmCommand::Unfold => "unfold",
-            ArmCommand::Stop => "stop",
-        };
+    pub(super) fn arm_command(&mut self, now: Duration, meta: LineMeta, command: ArmAction) {
+        let name = crate::classify::arm_action_name(command);
         let meta = meta.labelled(Label::Orion(name.to_owned()));
         let axes: Vec<Axis> = self
             .joints

@@ -25,7 +25,6 @@ use std::time::Duration;
 
 use motorwire_can::Frame;
 use motorwire_can::client::ClientConfig;
-use motorwire_orion::ArmCommand;
 use motorwire_translate::{AngleUnit, BusMap, Limits, LossKind, Report};
 use motorwire_wia::{
     Message, MotorCommand, MotorFeedback, MultiAxisCommand, SafetyLimits, SyncMode, Trajectory,
@@ -34,7 +33,7 @@ use motorwire_wia::{
 use serde_json::Value;
 
 use crate::arrival::{Watch, WatchAxis};
-use crate::classify::{Line, MotorAction, RequestKind, classify};
+use crate::classify::{ArmAction, Line, MotorAction, RequestKind, classify};
 use crate::clocks::ClockOffsets;
 use crate::device::plan::{self, Move, Plan};
 use crate::device::{
