@@ -24,14 +24,6 @@ impl Move {
         self.0.planner_request(position, velocity)
     }
 
-    /// The move an order is, where it is one the bridge plans.
-    pub(crate) fn of(order: &Order) -> Option<Self> {
-        match order {
-            Order::Irpc(Payload::SetTargetV2(p)) => Some(Self(*p)),
-            _ => None,
-        }
-    }
-
     /// Its terms on the wire (for the device layer's translations).
     pub(super) const fn terms(self) -> SetTargetPayloadV2 {
         self.0
@@ -55,8 +47,9 @@ pub(crate) type Plan = ((Kinematics, Move, Duration), Box<Profile<f64>>);
 /// translation lost, and the motor and limits its path is held to.
 #[derive(Debug)]
 pub(crate) struct Gated<'m> {
-    /// The device's orders, in order.
-    pub(crate) orders: Vec<Order>,
+    /// The device's orders, in order (kept in the gate's terms until they
+    /// are taken: no list is made twice).
+    payloads: Vec<Payload>,
     /// What the translation could not carry, or defaulted.
     pub(crate) report: Report,
     motor: &'m MappedMotor,
@@ -70,7 +63,7 @@ pub(crate) struct Gated<'m> {
 pub(crate) fn gate<'m>(map: &'m BusMap, cmd: &MotorCommand) -> Result<Gated<'m>, Refusal> {
     let (t, motor, limits) = motorwire_translate::to_irpc_gated(map, cmd)?;
     Ok(Gated {
-        orders: t.value.payloads.into_iter().map(Order::Irpc).collect(),
+        payloads: t.value.payloads,
         report: t.report,
         motor,
         limits,
@@ -79,13 +72,16 @@ pub(crate) fn gate<'m>(map: &'m BusMap, cmd: &MotorCommand) -> Result<Gated<'m>,
 
 impl Gated<'_> {
     /// Its orders and its report, the motor let go.
-    pub(crate) fn into_parts(self) -> (Vec<Order>, Report) {
-        (self.orders, self.report)
+    pub(crate) fn into_parts(self) -> (impl Iterator<Item = Order> + use<>, Report) {
+        (self.payloads.into_iter().map(Order::Irpc), self.report)
     }
 
     /// Its first order's move, if that is one.
     pub(crate) fn first_move(&self) -> Option<Move> {
-        self.orders.first().and_then(Move::of)
+        match self.payloads.first() {
+            Some(Payload::SetTargetV2(p)) => Some(Move(*p)),
+            _ => None,
+        }
     }
 
     /// Its move's whole path from `from` (the joint's kinematics now,
@@ -102,7 +98,11 @@ impl Gated<'_> {
             return Ok(None);
         };
         let mut planned = None;
-        for m in self.orders.iter().filter_map(Move::of) {
+        let moves = self.payloads.iter().filter_map(|p| match p {
+            Payload::SetTargetV2(p) => Some(Move(*p)),
+            _ => None,
+        });
+        for m in moves {
             let start = in_unit(self.motor.unit, from);
             let path = motorwire_translate::check_path_from(self.motor, &self.limits, &m.0, start)?;
             planned = Duration::try_from_secs_f64(path.duration)
@@ -196,16 +196,16 @@ mod tests {
     fn a_gated_command_is_one_move_and_its_plan() {
         let map = BusMap::from_toml(MAP).unwrap();
         let g = gate(&map, &command(60.0)).unwrap();
-        assert_eq!(g.orders.len(), 1);
         let m = g.first_move().unwrap();
         assert_eq!(m.terms().target_angle, 60.0);
-        assert_eq!(Move::of(&g.orders[0]), Some(m));
         assert_eq!(g.plan_from(None).unwrap(), None);
         let ((from, planned, d), profile) = g.plan_from(Some((0.0, 0.0, 0.0))).unwrap().unwrap();
         assert_eq!((from, planned), ((0.0, 0.0, 0.0), m));
         let expected = motorwire_planner::plan(&m.planner_request(0.0, 0.0)).unwrap();
         assert_eq!(profile.duration(), expected.duration());
         assert_eq!(d, Duration::from_secs_f64(expected.duration()));
+        let orders: Vec<Order> = g.into_parts().0.collect();
+        assert_eq!(orders, [Order::Irpc(Payload::SetTargetV2(m.terms()))]);
     }
 
     /// Outside the limits in force, the gate refuses; a path from a state

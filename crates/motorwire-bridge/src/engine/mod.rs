@@ -2,8 +2,10 @@
 //!
 //! The engine is split along its seams, after quinn-proto's `Connection`:
 //! [`classify`](crate::classify) decides what a line asks for; admission
-//! ([`Bridge::admit`]) refuses what must not run (shutting down, latched,
-//! stale, offline, busy); each admitted line becomes one job
+//! (`Admission`, through [`Bridge::admit`]) refuses what must not run
+//! (shutting down, latched, stale, offline, busy); motion is built from
+//! the line (`MotionBuilder`: gated and planned against the limits in
+//! force); each admitted line becomes one job
 //! ([`crate::job`]) with one step per joint, queued on the joint registry
 //! ([`crate::joints`]) which keeps one request in flight per joint; phase
 //! changes happen in [`Bridge::enter`] only; and every kind of deadline is

@@ -170,8 +170,7 @@ impl Bridge {
         .map_err(HoldError::Refused)?;
         let from = self.joints.get(ji).and_then(|j| j.state_at(self.now));
         let planned = gated.plan_from(from).map_err(HoldError::Refused)?;
-        let (orders, _) = gated.into_parts();
-        let order = orders.into_iter().next().ok_or(HoldError::NoMove)?;
+        let order = gated.into_parts().0.next().ok_or(HoldError::NoMove)?;
         self.keep_plan(ji, planned);
         Ok(order)
     }
