@@ -539,7 +539,7 @@ pub struct OrionWrite {
 }
 
 /// The Orion arm controller of a [`SimulatedArm`] whose bridge has
-/// [`crate::BridgeConfig::orion`]: it boots with the bridge (its beacon at
+/// [`crate::BridgeConfig::line_link`]: it boots with the bridge (its beacon at
 /// time zero) and answers each line at once.
 #[derive(Debug, Default)]
 struct SimOrion {
@@ -548,7 +548,7 @@ struct SimOrion {
 }
 
 /// A bridge and the simulated devices of its map (iRPC joints, compact
-/// devices and, when the bridge has [`crate::BridgeConfig::orion`], the
+/// devices and, when the bridge has [`crate::BridgeConfig::line_link`], the
 /// Orion arm controller) on one in-memory bus, stepped together in
 /// simulated time: one harness for every dialect, as quinn's `Pair` is.
 ///
@@ -766,7 +766,7 @@ impl SimulatedArm {
     }
 
     /// As [`SimulatedArm::new`], but the simulated Orion controller (with
-    /// [`crate::BridgeConfig::orion`]) has not sent its boot beacon yet:
+    /// [`crate::BridgeConfig::line_link`]) has not sent its boot beacon yet:
     /// [`SimulatedArm::orion_boot`] sends it (a replay sends it when the
     /// recorded controller did).
     ///
@@ -890,7 +890,7 @@ impl SimulatedArm {
     }
 
     /// Every line the bridge wrote to the simulated Orion arm controller
-    /// (empty without [`crate::BridgeConfig::orion`]).
+    /// (empty without [`crate::BridgeConfig::line_link`]).
     pub fn orion_log(&self) -> &[OrionWrite] {
         self.orion.as_ref().map_or(&[], |o| o.log.as_slice())
     }

@@ -37,7 +37,7 @@ impl Drivers {
 
     pub(crate) fn new(
         client: ClientConfig,
-        orion_command_timeout: Duration,
+        arm_command_timeout: Duration,
         epoch: f64,
         devices: &dyn Registry,
     ) -> Result<Self, motorwire_can::Error> {
@@ -59,7 +59,7 @@ impl Drivers {
         Ok(Self {
             irpc,
             compact: compact::CompactDriver::new(client.timeout, client.retries),
-            orion: orion::OrionDriver::new(client.timeout, client.retries, orion_command_timeout),
+            orion: orion::OrionDriver::new(client.timeout, client.retries, arm_command_timeout),
             moteus,
             queued: VecDeque::new(),
             epoch,

@@ -550,8 +550,6 @@ pub(crate) fn effect(payload: Payload, cx: &Context) -> Effect {
     }
 }
 
-/// A joint's message to the bridge (node 0x0000) as its frame, in `wire`:
-/// what the tests of the driver and of the engine feed in.
 /// An iRPC joint's lifecycle state in the engine's terms.
 const fn device_state(state: LifecycleState) -> DeviceState {
     match state {
@@ -563,6 +561,8 @@ const fn device_state(state: LifecycleState) -> DeviceState {
     }
 }
 
+/// A joint's message to the bridge (node 0x0000) as its frame, in `wire`:
+/// what the tests of the driver and of the engine feed in.
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 pub(crate) fn joint_frame(source: u16, msg_id: u32, payload: Payload, wire: WireVersion) -> Frame {

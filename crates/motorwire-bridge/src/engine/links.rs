@@ -196,7 +196,7 @@ impl Bridge {
         self.open_waiting(now, meta, (motor, ji), ask.order, ask.awaits, deadline);
     }
 
-    /// Line `meta`'s request `payload` to `device` (its name and id),
+    /// Line `meta`'s request `order` to `device` (its name and id),
     /// whose result waits for its answer of `kind` until `deadline`.
     pub(super) fn open_waiting(
         &mut self,

@@ -389,7 +389,6 @@ pub struct Bridge {
     /// [`Bridge::open_job`]'s list of the steps it queues, kept between
     /// jobs.
     steps_scratch: Vec<(DeviceId, StepRef, Option<Takes>)>,
-    /// Clients that connected during startup, greeted when it ends.
     timers: Timers,
     out: VecDeque<Output>,
     now: Duration,

@@ -341,7 +341,8 @@ impl Starting {
     }
 
     /// `origin` is gone: it is not greeted, and its waiting lines are
-    /// dropped from the queue and given back (in order) to be answered.
+    /// taken from the queue and given back, in order, to be counted
+    /// cancelled (said in `client_dropped`: the client cannot be told).
     pub(super) fn forget(&mut self, origin: Origin) -> Vec<Waiting> {
         self.to_greet.retain(|o| *o != origin);
         let mut gone = Vec::new();

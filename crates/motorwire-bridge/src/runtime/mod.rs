@@ -485,7 +485,7 @@ impl Runner {
     }
 
     /// Attaches the Orion arm controller (the bridge must have been made
-    /// with [`crate::BridgeConfig::orion`]).
+    /// with [`crate::BridgeConfig::line_link`]).
     #[must_use]
     pub fn with_orion(mut self, port: OrionPort) -> Self {
         self.orion = Some(port);
