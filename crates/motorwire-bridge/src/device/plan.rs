@@ -60,6 +60,7 @@ pub(crate) struct Gated<'m> {
 ///
 /// # Errors
 /// The gate's refusal.
+#[inline]
 pub(crate) fn gate<'m>(map: &'m BusMap, cmd: &MotorCommand) -> Result<Gated<'m>, Refusal> {
     let (t, motor, limits) = motorwire_translate::to_irpc_gated(map, cmd)?;
     Ok(Gated {
@@ -72,11 +73,13 @@ pub(crate) fn gate<'m>(map: &'m BusMap, cmd: &MotorCommand) -> Result<Gated<'m>,
 
 impl Gated<'_> {
     /// Its orders and its report, the motor let go.
+    #[inline]
     pub(crate) fn into_parts(self) -> (impl Iterator<Item = Order> + use<>, Report) {
         (self.payloads.into_iter().map(Order::Irpc), self.report)
     }
 
     /// Its first order's move, if that is one.
+    #[inline]
     pub(crate) fn first_move(&self) -> Option<Move> {
         match self.payloads.first() {
             Some(Payload::SetTargetV2(p)) => Some(Move(*p)),

@@ -303,6 +303,7 @@ impl Bridge {
 
     /// Admission as the bridge stands now: what reads a motion line's
     /// right to run before anything is planned.
+    #[inline]
     pub(super) fn admission(&self) -> Admission<'_> {
         Admission {
             now: self.now,
@@ -316,6 +317,7 @@ impl Bridge {
     }
 
     /// [`Admission::admit_now`], as the bridge stands now.
+    #[inline]
     pub(super) fn admit_now<'a>(
         &self,
         motors: impl Iterator<Item = &'a str> + Clone,
@@ -324,6 +326,7 @@ impl Bridge {
     }
 
     /// [`Admission::admit`], as the bridge stands now.
+    #[inline]
     pub(super) fn admit<'a>(
         &self,
         arrived: Duration,
@@ -353,6 +356,7 @@ pub(super) struct Admission<'a> {
 
 impl Admission<'_> {
     /// The device named `motor` in the bus map.
+    #[inline]
     fn joint(&self, motor: &str) -> Option<&Joint> {
         let ji = self.joints.find(|j| j.identity.name() == motor)?;
         self.joints.get(ji)
@@ -360,6 +364,7 @@ impl Admission<'_> {
 
     /// [`Admission::admit`] for a line that carries no timestamp (taken as
     /// sent now).
+    #[inline]
     pub(super) fn admit_now<'a>(
         &self,
         motors: impl Iterator<Item = &'a str> + Clone,
@@ -374,6 +379,7 @@ impl Admission<'_> {
     /// Admission: what refuses a motion line before anything is planned.
     /// `arrived` is when the line reached the bridge, `origin` whose
     /// clock its `timestamp` is on (`None`: the bridge's own).
+    #[inline]
     pub(super) fn admit<'a>(
         &self,
         arrived: Duration,
@@ -406,6 +412,7 @@ impl Admission<'_> {
     /// Whether a line stamped `timestamp` (on `origin`'s clock), that
     /// reached the bridge at `arrived`, may run: not written before the
     /// last emergency stop, and within the allowed clock skew.
+    #[inline]
     fn check_timestamp(
         &self,
         arrived: Duration,
@@ -446,6 +453,7 @@ impl Admission<'_> {
 
     /// Whether each of `motors` takes a line: none lost until a reset,
     /// none offline.
+    #[inline]
     fn check_motors<'a>(
         &self,
         motors: impl Iterator<Item = &'a str> + Clone,

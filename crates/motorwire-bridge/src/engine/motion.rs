@@ -335,6 +335,7 @@ impl Bridge {
     }
 
     /// Motion as the bridge stands now: what builds a line's moves.
+    #[inline]
     pub(super) fn builder(&self) -> MotionBuilder<'_> {
         MotionBuilder {
             map: &self.map,
