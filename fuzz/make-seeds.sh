@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out=fuzz/corpus
 rm -rf "$out"
-mkdir -p "$out"/{compact_decode,compact_feedback_decode,irpc_decode_v1,irpc_decode_v2_0,irpc_decode_v2_1,irpc_decode_v2_2,irpc_decode_frame,wia_validate,orion_parse,moteus_decode}
+mkdir -p "$out"/{compact_decode,compact_feedback_decode,irpc_decode_v1,irpc_decode_v2_0,irpc_decode_v2_1,irpc_decode_v2_2,irpc_decode_frame,wia_validate,orion_parse,moteus_decode,servo_feetech_status,servo_dynamixel_status}
 # Hex digits (spaces allowed) to bytes, with bash's printf alone.
 unhex() { local h; h=$(printf '%s' "$1" | tr -d ' \n' | sed 's/../\\x&/g'); printf '%b' "$h"; }
 i=0
@@ -57,4 +57,9 @@ for h in "21 00 0a 2d 01 00 00 00 3f 50 50 50" \
     "26 01 00 80 00 80 31 b0 02 03 50 50" "21 00 0a 2d 01 00 00 00"; do
     i=$((i + 1)); unhex "$h" > "$out/moteus_decode/golden-$i"
 done
+# Servo status packets (motorwire-servo's doc examples): a Feetech read's
+# answer after a stray byte, and a Dynamixel ping's answer.
+unhex "00 ff ff 01 04 00 00 08 f2" > "$out/servo_feetech_status/read-answer"
+unhex "ff ff fe ff ff 03 02 00 fa" > "$out/servo_feetech_status/noise-then-write-answer"
+unhex "ff ff fd 00 01 07 00 55 00 b0 04 2e ed 54" > "$out/servo_dynamixel_status/ping-answer"
 echo "seeds: $(find "$out" -type f | wc -l) files"

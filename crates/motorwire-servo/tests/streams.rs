@@ -1,0 +1,71 @@
+//! The status decoders on hostile streams: any bytes at all never panic,
+//! and a servo's packet after noise, split anywhere or followed by the
+//! next packet, is read as it was sent.
+#![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+
+use motorwire_servo::{DecodeError, Protocol, Status, decode_status, encode_status};
+use proptest::prelude::*;
+
+const PROTOCOLS: [Protocol; 3] = [Protocol::Scs0, Protocol::Scs1, Protocol::Dxl2];
+
+fn status() -> impl Strategy<Value = Status> {
+    (
+        0u8..=252,
+        0u8..=0x7F,
+        prop::collection::vec(any::<u8>(), 0..40),
+    )
+        .prop_map(|(id, error, params)| Status { id, error, params })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+    /// Any bytes: an answer or a typed error, never a panic; what was
+    /// read is never more than was given.
+    #[test]
+    fn any_bytes_are_read_or_refused(bytes in prop::collection::vec(any::<u8>(), 0..300), asked in prop::option::of(0usize..64)) {
+        for p in PROTOCOLS {
+            if let Ok(d) = decode_status(p, &bytes, asked) {
+                prop_assert!(d.consumed <= bytes.len());
+                if let Some(a) = asked {
+                    prop_assert_eq!(d.status.params.len(), a);
+                }
+            }
+        }
+    }
+
+    /// Bytes with no 0xFF before a servo's packet are skipped; the packet
+    /// is read whole (stuffed parameters included), and a second packet
+    /// behind it is left for the next read.
+    #[test]
+    fn a_packet_after_noise_is_read_as_sent(s in status(), noise in prop::collection::vec(0u8..0xFF, 0..30), next in status()) {
+        for p in PROTOCOLS {
+            let packet = encode_status(p, &s).unwrap();
+            let mut stream = noise.clone();
+            stream.extend_from_slice(&packet);
+            let behind = stream.len();
+            stream.extend_from_slice(&encode_status(p, &next).unwrap());
+            let d = decode_status(p, &stream, None).unwrap();
+            prop_assert_eq!(&d.status, &s, "{:?}", p);
+            prop_assert_eq!(d.consumed, behind);
+            let rest = decode_status(p, &stream[d.consumed..], None).unwrap();
+            prop_assert_eq!(rest.status, next.clone());
+        }
+    }
+
+    /// A packet cut short anywhere is incomplete; a flipped bit in its
+    /// check byte is a wrong check.
+    #[test]
+    fn a_cut_or_corrupted_packet_is_typed(s in status(), cut in any::<prop::sample::Index>()) {
+        for p in PROTOCOLS {
+            let packet = encode_status(p, &s).unwrap();
+            let at = cut.index(packet.len());
+            let e = decode_status(p, &packet[..at], None).unwrap_err();
+            prop_assert!(matches!(e, DecodeError::Incomplete { .. } | DecodeError::Timeout), "{:?} {:?}", p, e);
+            let mut bad = packet.clone();
+            let last = bad.len() - 1;
+            bad[last] ^= 0x10;
+            prop_assert!(matches!(decode_status(p, &bad, None), Err(DecodeError::Check { .. })), "{:?}", p);
+        }
+    }
+}
