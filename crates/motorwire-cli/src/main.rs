@@ -23,6 +23,7 @@ mod plan;
 mod plot;
 mod replay;
 mod serve;
+mod servo;
 mod sim;
 mod translate;
 mod validate;
@@ -56,6 +57,10 @@ enum Command {
     /// mjbots' Python library <-> `{"can_id":N,"data":"hex"}` lines), built
     /// and read by mjbots' `moteus-protocol` crate.
     Moteus(moteus::Args),
+    /// Encode and decode serial bus servo packets (Feetech STS/SMS and SCS,
+    /// Dynamixel Protocol 2.0: JSON lines in the vendors' terms <->
+    /// `{"bytes":"hex"}` lines), byte for byte as the vendors' SDKs.
+    Servo(servo::Args),
     /// Translate WIA command lines into one target dialect (iRPC frames,
     /// compact-command frames or Orion JSON) through the bridge's gate:
     /// one result line per input line, with the translation's loss report.
@@ -130,6 +135,7 @@ fn main() -> ExitCode {
         Command::Irpc(args) => irpc::run(&args),
         Command::Compact(args) => compact::run(&args),
         Command::Moteus(args) => moteus::run(&args),
+        Command::Servo(args) => servo::run(&args),
         Command::Translate(args) => translate::run(&args),
         Command::Plan(args) => plan::run(&args),
         Command::Sim(args) => sim::run(&args),

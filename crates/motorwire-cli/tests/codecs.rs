@@ -213,6 +213,94 @@ fn compact_decode_refuses_what_the_codec_refuses() {
     );
 }
 
+/// Servo packets as the vendors' SDKs write them (feetech-servo-sdk 1.0.0
+/// and dynamixel-sdk 4.1.0, captured from their port; the stuffed write is
+/// the SDK's own `addStuffing` of its packet, which its `txPacket` drops),
+/// and status packets read as their `rxPacket` reads them.
+#[test]
+fn servo_encode_and_decode_lines_as_the_vendors_sdks_write_and_read_them() {
+    let cases: [(&str, &str, &str); 8] = [
+        (
+            "scs0",
+            r#"{"instruction":"write","id":1,"address":42,"value":2048,"length":2}"#,
+            "ffff0105032a0008c4",
+        ),
+        (
+            "scs0",
+            r#"{"instruction":"sync_read","address":56,"length":2,"ids":[1,2,3,4,5,6]}"#,
+            "fffffe0a82380201020304050626",
+        ),
+        (
+            "scs1",
+            r#"{"instruction":"write","id":1,"address":42,"value":2048,"length":2}"#,
+            "ffff0105032a0800c4",
+        ),
+        (
+            "scs1",
+            r#"{"instruction":"write","id":1,"address":42,"value":-2,"length":4}"#,
+            "ffff0107032afffeffffcf",
+        ),
+        (
+            "dxl2",
+            r#"{"instruction":"write","id":1,"address":116,"data":"fffffd01"}"#,
+            "fffffd00010a00037400fffffdfd012467",
+        ),
+        (
+            "dxl2",
+            r#"{"instruction":"bulk_read","reads":[[1,132,4],[2,146,1]]}"#,
+            "fffffd00fe0d009201840004000292000100fa7c",
+        ),
+        (
+            "dxl2",
+            r#"{"instruction":"sync_write","address":116,"length":4,"data":{"2":"00080000","1":"ff070000"}}"#,
+            "fffffd00fe11008374000400020008000001ff07000038e0",
+        ),
+        (
+            "dxl2",
+            r#"{"instruction":"factory_reset","id":1,"option":255}"#,
+            "fffffd0001040006ffa664",
+        ),
+    ];
+    for (protocol, line, hex) in cases {
+        let o = run(
+            &["servo", "encode", "--protocol", protocol],
+            &format!("{line}\n"),
+        );
+        assert_eq!(o.status.code(), Some(0), "{line}");
+        assert_eq!(stdout(&o), format!("{{\"bytes\":\"{hex}\"}}\n"), "{line}");
+    }
+    // What a protocol cannot carry: a typed refusal, and the next line goes on.
+    let o = run(
+        &["servo", "encode", "--protocol", "scs0"],
+        "{\"instruction\":\"reboot\",\"id\":1}\n{\"instruction\":\"read\",\"id\":1,\"address\":300,\"length\":2}\n{\"instruction\":\"ping\",\"id\":1}\n",
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stdout(&o),
+        "{\"error\":\"Feetech has no reboot instruction\",\"line\":1}\n\
+         {\"error\":\"address 300 does not fit the protocol's 8-bit field\",\"line\":2}\n\
+         {\"bytes\":\"ffff010201fb\"}\n"
+    );
+    // Status packets: noise skipped, a read's answer cut to what it asked,
+    // a wrong checksum and a short answer refused by kind.
+    let o = run(
+        &["servo", "decode", "--protocol", "scs0"],
+        "{\"bytes\":\"00ffff0104000008f2\",\"length\":2}\n{\"bytes\":\"ffff0104000008f3\"}\n{\"bytes\":\"ffff0104000008f2\",\"length\":4}\n",
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stdout(&o),
+        "{\"error\":0,\"id\":1,\"params\":\"0008\"}\n\
+         {\"error\":\"check: the status packet's check is 0x00f3, its bytes' is 0x00f2\",\"line\":2}\n\
+         {\"error\":\"short: the status packet carries 2 parameter bytes, the read asked for 4\",\"line\":3}\n"
+    );
+    let o = run(
+        &["servo", "decode", "--protocol", "dxl2"],
+        "{\"bytes\":\"fffffd0001070055 00b0042eed54\"}\n",
+    );
+    assert_eq!(stdout(&o), "{\"error\":0,\"id\":1,\"params\":\"b0042e\"}\n");
+}
+
 #[test]
 fn moteus_encode_and_decode_lines_as_mjbots_library_builds_and_reads_them() {
     // The bytes mjbots' Python library (moteus 1.1.1) builds for these
