@@ -23,7 +23,10 @@ use alloc::vec::Vec;
 use crc::{CRC_16_UMTS, Crc};
 
 use crate::feetech::{Reader, any, byte_at, one};
-use crate::{BROADCAST_ID, DecodeError, Decoded, EncodeError, Instruction, MAX_ID, Status};
+use crate::{
+    BROADCAST_ID, DecodeError, Decoded, EncodeError, Instruction, InstructionError, MAX_ID, Status,
+    instruction_of,
+};
 
 /// The longest packet, instruction or status (bytes).
 pub const MAX_PACKET: usize = 1024;
@@ -298,6 +301,51 @@ pub fn read_status(stream: &[u8]) -> Result<Decoded, DecodeError> {
             consumed,
         });
     }
+}
+
+/// The first instruction packet in `stream` (see
+/// [`crate::decode_instruction`]): a header `FF FF FD 00`, its CRC
+/// verified, its stuffing taken out.
+///
+/// # Errors
+/// [`InstructionError`].
+pub fn read_instruction(stream: &[u8]) -> Result<(Instruction, usize), InstructionError> {
+    let at = (0..stream.len().saturating_sub(3))
+        .find(|&i| {
+            byte_at(stream, i) == 0xFF
+                && byte_at(stream, i + 1) == 0xFF
+                && byte_at(stream, i + 2) == 0xFD
+                && byte_at(stream, i + 3) == 0x00
+        })
+        .unwrap_or(stream.len().saturating_sub(3));
+    let p = stream.get(at..).unwrap_or(&[]);
+    if p.len() < 10 {
+        return Err(InstructionError::Incomplete { skip: at });
+    }
+    let len = usize::from(u16::from_le_bytes([byte_at(p, 5), byte_at(p, 6)]));
+    let need = len + 7;
+    if !(3..=MAX_PACKET).contains(&len) {
+        return Err(InstructionError::Malformed {
+            instruction: byte_at(p, 7),
+            params: 0,
+            consumed: at + 7,
+        });
+    }
+    if p.len() < need {
+        return Err(InstructionError::Incomplete { skip: at });
+    }
+    let consumed = at + need;
+    let crc = u16::from_le_bytes([byte_at(p, need - 2), byte_at(p, need - 1)]);
+    if CRC16.checksum(p.get(..need - 2).unwrap_or(&[])) != crc {
+        return Err(InstructionError::Check { consumed });
+    }
+    let mut w = p.get(..need).unwrap_or(&[]).to_vec();
+    let out_len = unstuff(&mut w, len);
+    let params = w
+        .get(8..(8 + out_len.saturating_sub(3)).max(8))
+        .unwrap_or(&[]);
+    let i = instruction_of(byte_at(&w, 4), byte_at(&w, 7), params, true, consumed)?;
+    Ok((i, consumed))
 }
 
 /// Takes the stuffing out of the packet at the start of `w` whose length

@@ -12,7 +12,10 @@
 
 use alloc::vec::Vec;
 
-use crate::{BROADCAST_ID, DecodeError, Decoded, EncodeError, Instruction, MAX_ID, Status};
+use crate::{
+    BROADCAST_ID, DecodeError, Decoded, EncodeError, Instruction, InstructionError, MAX_ID, Status,
+    instruction_of,
+};
 
 /// The longest packet, instruction or status (bytes).
 pub const MAX_PACKET: usize = 250;
@@ -252,6 +255,41 @@ pub fn read_status(stream: &[u8]) -> Result<Decoded, DecodeError> {
             consumed: r.read,
         });
     }
+}
+
+/// The first instruction packet in `stream` (see
+/// [`crate::decode_instruction`]).
+///
+/// # Errors
+/// [`InstructionError`].
+pub fn read_instruction(stream: &[u8]) -> Result<(Instruction, usize), InstructionError> {
+    let at = (0..stream.len().saturating_sub(1))
+        .find(|&i| byte_at(stream, i) == 0xFF && byte_at(stream, i + 1) == 0xFF)
+        .unwrap_or(stream.len().saturating_sub(1));
+    let p = stream.get(at..).unwrap_or(&[]);
+    let incomplete = InstructionError::Incomplete { skip: at };
+    if p.len() < 4 {
+        return Err(incomplete);
+    }
+    let need = usize::from(byte_at(p, 3)) + 4;
+    if need < 6 || p.len() < need {
+        return Err(if need < 6 {
+            InstructionError::Malformed {
+                instruction: 0,
+                params: 0,
+                consumed: at + 4,
+            }
+        } else {
+            incomplete
+        });
+    }
+    let consumed = at + need;
+    if checksum(p.get(2..need - 1).unwrap_or(&[])) != byte_at(p, need - 1) {
+        return Err(InstructionError::Check { consumed });
+    }
+    let params = p.get(5..need - 1).unwrap_or(&[]);
+    let i = instruction_of(byte_at(p, 2), byte_at(p, 4), params, false, consumed)?;
+    Ok((i, consumed))
 }
 
 /// The byte at `i` of `w` (0 past its end: never read where the caller

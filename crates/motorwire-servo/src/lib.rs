@@ -391,6 +391,175 @@ pub fn encode(protocol: Protocol, instruction: &Instruction) -> Result<Vec<u8>, 
     }
 }
 
+/// The first instruction packet in `stream`, as a servo reads one: bytes
+/// before a header skipped, the packet's check verified, its parameters
+/// read as its instruction lays them out. What a simulated servo (and a
+/// bus monitor) reads.
+///
+/// ```
+/// use motorwire_servo::{Instruction, Protocol, decode_instruction, encode};
+/// let sync = Instruction::SyncWrite { address: 42, length: 2, entries: vec![(1, vec![0, 8]), (2, vec![0, 4])] };
+/// for p in [Protocol::Scs0, Protocol::Dxl2] {
+///     let bytes = encode(p, &sync)?;
+///     let (read, consumed) = decode_instruction(p, &bytes).expect("a packet");
+///     assert_eq!((read, consumed), (sync.clone(), bytes.len()));
+/// }
+/// # Ok::<(), motorwire_servo::EncodeError>(())
+/// ```
+///
+/// # Errors
+/// [`InstructionError`]: nothing or an incomplete packet, a wrong check,
+/// an instruction the protocol does not have, or parameters that do not
+/// lay out as the instruction's.
+pub fn decode_instruction(
+    protocol: Protocol,
+    stream: &[u8],
+) -> Result<(Instruction, usize), InstructionError> {
+    match protocol {
+        Protocol::Scs0 | Protocol::Scs1 => feetech::read_instruction(stream),
+        Protocol::Dxl2 => dynamixel::read_instruction(stream),
+    }
+}
+
+/// Why no instruction was read from a byte stream.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum InstructionError {
+    /// The packet is not all there (or nothing is): `skip` bytes before
+    /// its header can be let go.
+    #[error("the instruction packet is incomplete")]
+    Incomplete {
+        /// Bytes before the first header (noise) that no packet starts in.
+        skip: usize,
+    },
+    /// The packet's check is wrong; `consumed` bytes are the packet.
+    #[error("the instruction packet's check is wrong")]
+    Check {
+        /// The packet's bytes.
+        consumed: usize,
+    },
+    /// An instruction the protocol does not have, or parameters that do
+    /// not lay out as it says; `consumed` bytes are the packet.
+    #[error(
+        "instruction {instruction:#04x} with {params} parameter bytes is not one the servo takes"
+    )]
+    Malformed {
+        /// The instruction byte.
+        instruction: u8,
+        /// Its parameter bytes.
+        params: usize,
+        /// The packet's bytes.
+        consumed: usize,
+    },
+}
+
+/// The instruction an instruction byte and its parameters make (`id` the
+/// packet's).
+pub(crate) fn instruction_of(
+    id: u8,
+    inst: u8,
+    p: &[u8],
+    wide: bool,
+    consumed: usize,
+) -> Result<Instruction, InstructionError> {
+    let bad = || InstructionError::Malformed {
+        instruction: inst,
+        params: p.len(),
+        consumed,
+    };
+    // Addresses and lengths: one byte (Feetech) or two little-endian.
+    let w = if wide { 2 } else { 1 };
+    let field = |at: usize| -> Option<u16> {
+        if wide {
+            Some(u16::from_le_bytes([*p.get(at)?, *p.get(at + 1)?]))
+        } else {
+            p.get(at).map(|b| u16::from(*b))
+        }
+    };
+    let rest = |at: usize| p.get(at..).map(<[u8]>::to_vec).unwrap_or_default();
+    Ok(match (inst, wide) {
+        (0x01, _) if p.is_empty() => Instruction::Ping { id },
+        (0x02, _) if p.len() == 2 * w => Instruction::Read {
+            id,
+            address: field(0).ok_or_else(bad)?,
+            length: field(w).ok_or_else(bad)?,
+        },
+        (0x03, _) if p.len() >= w => Instruction::Write {
+            id,
+            address: field(0).ok_or_else(bad)?,
+            data: rest(w),
+        },
+        (0x04, _) if p.len() >= w => Instruction::RegWrite {
+            id,
+            address: field(0).ok_or_else(bad)?,
+            data: rest(w),
+        },
+        (0x05, _) if p.is_empty() => Instruction::Action { id },
+        (0x06, true) if p.len() == 1 => Instruction::FactoryReset {
+            id,
+            option: *p.first().ok_or_else(bad)?,
+        },
+        (0x08, true) if p.is_empty() => Instruction::Reboot { id },
+        (0x82, _) if p.len() >= 2 * w => Instruction::SyncRead {
+            address: field(0).ok_or_else(bad)?,
+            length: field(w).ok_or_else(bad)?,
+            ids: rest(2 * w),
+        },
+        (0x83, _) if p.len() >= 2 * w => {
+            let length = field(w).ok_or_else(bad)?;
+            let each = usize::from(length) + 1;
+            let body = rest(2 * w);
+            if !body.len().is_multiple_of(each) {
+                return Err(bad());
+            }
+            Instruction::SyncWrite {
+                address: field(0).ok_or_else(bad)?,
+                length,
+                entries: body
+                    .chunks(each)
+                    .map(|c| {
+                        (
+                            c.first().copied().unwrap_or(0),
+                            c.get(1..).unwrap_or(&[]).to_vec(),
+                        )
+                    })
+                    .collect(),
+            }
+        }
+        (0x92, true) if p.len().is_multiple_of(5) => Instruction::BulkRead {
+            reads: p
+                .chunks(5)
+                .map(|c| {
+                    let b = |i: usize| c.get(i).copied().unwrap_or(0);
+                    (
+                        b(0),
+                        u16::from_le_bytes([b(1), b(2)]),
+                        u16::from_le_bytes([b(3), b(4)]),
+                    )
+                })
+                .collect(),
+        },
+        (0x93, true) => {
+            let mut writes = Vec::new();
+            let mut at = 0;
+            while at < p.len() {
+                let b = |i: usize| p.get(at + i).copied();
+                let (Some(id), Some(a0), Some(a1), Some(l0), Some(l1)) =
+                    (b(0), b(1), b(2), b(3), b(4))
+                else {
+                    return Err(bad());
+                };
+                let n = usize::from(u16::from_le_bytes([l0, l1]));
+                let data = p.get(at + 5..at + 5 + n).ok_or_else(bad)?.to_vec();
+                writes.push((id, u16::from_le_bytes([a0, a1]), data));
+                at += 5 + n;
+            }
+            Instruction::BulkWrite { writes }
+        }
+        _ => return Err(bad()),
+    })
+}
+
 /// `status` as the servo sends it: what a simulated servo answers, and
 /// what tests feed a decoder.
 ///

@@ -3,7 +3,10 @@
 //! next packet, is read as it was sent.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
-use motorwire_servo::{DecodeError, Protocol, Status, decode_status, encode_status};
+use motorwire_servo::{
+    DecodeError, Instruction, Protocol, Status, decode_instruction, decode_status, encode,
+    encode_status,
+};
 use proptest::prelude::*;
 
 const PROTOCOLS: [Protocol; 3] = [Protocol::Scs0, Protocol::Scs1, Protocol::Dxl2];
@@ -66,6 +69,65 @@ proptest! {
             let last = bad.len() - 1;
             bad[last] ^= 0x10;
             prop_assert!(matches!(decode_status(p, &bad, None), Err(DecodeError::Check { .. })), "{:?}", p);
+        }
+    }
+}
+
+fn instruction() -> impl Strategy<Value = Instruction> {
+    let id = 0u8..=252;
+    let data = prop::collection::vec(any::<u8>(), 0..20);
+    prop_oneof![
+        id.clone().prop_map(|id| Instruction::Ping { id }),
+        (id.clone(), 0u16..256, 0u16..256).prop_map(|(id, address, length)| Instruction::Read {
+            id,
+            address,
+            length
+        }),
+        (id.clone(), 0u16..256, data.clone()).prop_map(|(id, address, data)| Instruction::Write {
+            id,
+            address,
+            data
+        }),
+        (id.clone(), 0u16..256, data).prop_map(|(id, address, data)| Instruction::RegWrite {
+            id,
+            address,
+            data
+        }),
+        id.clone().prop_map(|id| Instruction::Action { id }),
+        (0u16..256, 0u16..16, prop::collection::vec(id.clone(), 1..8)).prop_map(
+            |(address, length, ids)| Instruction::SyncRead {
+                address,
+                length,
+                ids
+            }
+        ),
+        (0u16..256, 1u16..5, prop::collection::vec(id, 1..8)).prop_flat_map(
+            |(address, length, ids)| {
+                let n = ids.len();
+                prop::collection::vec(prop::collection::vec(any::<u8>(), usize::from(length)), n)
+                    .prop_map(move |datas| Instruction::SyncWrite {
+                        address,
+                        length,
+                        entries: ids.iter().copied().zip(datas).collect(),
+                    })
+            }
+        ),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+    /// What the host writes, a servo reads back as the same instruction,
+    /// after noise without a header; any bytes at all never panic.
+    #[test]
+    fn an_instruction_is_read_as_it_was_written(i in instruction(), noise in prop::collection::vec(0u8..0xFF, 0..10), junk in prop::collection::vec(any::<u8>(), 0..80)) {
+        for p in PROTOCOLS {
+            let bytes = encode(p, &i).unwrap();
+            let mut stream = noise.clone();
+            stream.extend_from_slice(&bytes);
+            prop_assert_eq!(decode_instruction(p, &stream), Ok((i.clone(), stream.len())), "{:?}", p);
+            let _ = decode_instruction(p, &junk);
         }
     }
 }
