@@ -69,7 +69,7 @@ const BULK_WRITE: u8 = 0x93;
 pub fn encode(instruction: &Instruction) -> Result<Vec<u8>, EncodeError> {
     let name = instruction.name();
     let (id, inst, params) = match instruction {
-        Instruction::Ping { id } => (one(*id, name)?, PING, Vec::new()),
+        Instruction::Ping { id } => (any(*id, name)?, PING, Vec::new()),
         Instruction::Read {
             id,
             address,
@@ -443,11 +443,21 @@ mod tests {
 
     #[test]
     fn what_the_protocol_cannot_carry_is_refused() {
+        // A broadcast ping is every servo's (each answers in turn); a read
+        // is one servo's.
         assert_eq!(
-            encode(&Instruction::Ping { id: BROADCAST_ID }),
+            encode(&Instruction::Ping { id: BROADCAST_ID }).map(|b| b[4]),
+            Ok(BROADCAST_ID)
+        );
+        assert_eq!(
+            encode(&Instruction::Read {
+                id: BROADCAST_ID,
+                address: 0,
+                length: 2
+            }),
             Err(EncodeError::Id {
                 id: BROADCAST_ID,
-                instruction: "ping"
+                instruction: "read"
             })
         );
         assert_eq!(

@@ -51,7 +51,7 @@ pub mod error_bits {
 pub fn encode(instruction: &Instruction) -> Result<Vec<u8>, EncodeError> {
     let name = instruction.name();
     let (id, inst, params) = match instruction {
-        Instruction::Ping { id } => (one(*id, name)?, PING, Vec::new()),
+        Instruction::Ping { id } => (any(*id, name)?, PING, Vec::new()),
         Instruction::Read {
             id,
             address,

@@ -114,9 +114,10 @@ impl Protocol {
 /// reboot, factory reset, bulk read or bulk write.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Instruction {
-    /// Is servo `id` there (its status answers).
+    /// Is servo `id` there (its status answers); the broadcast id asks
+    /// every servo, each answering in turn (the SDKs' `broadcastPing`).
     Ping {
-        /// The servo.
+        /// The servo, or every servo ([`BROADCAST_ID`]).
         id: u8,
     },
     /// `length` bytes of servo `id`'s control table from `address`.

@@ -6,6 +6,7 @@ pub mod joint;
 pub mod moteus;
 pub mod orion;
 pub mod rig;
+pub mod servo;
 
 pub use compact::{
     CompactDeviceConfig, CompactDeviceLimits, CompactDeviceStats, CompactExecution, CompactOutcome,
