@@ -25,6 +25,7 @@ mod replay;
 mod serve;
 mod servo;
 mod sim;
+mod sim_servos;
 mod translate;
 mod validate;
 mod view;

@@ -48,6 +48,16 @@ enum Device {
     /// replies the same way (what `motorwire moteus decode` reads). Each
     /// command it acts on is logged on stderr.
     Moteus(MoteusArgs),
+    /// Simulated serial bus servos (Feetech STS/SMS and SCS, Dynamixel X)
+    /// on a pseudo-terminal linked at `--pty`, in real time, until
+    /// interrupted: each answers every instruction of its protocol with its
+    /// model's control table (torque enable, goal position reached at the
+    /// goal velocity and acceleration, present position, velocity, load,
+    /// voltage, temperature, return delay, status return level), with
+    /// seeded faults if asked. LeRobot's `FeetechMotorsBus` and
+    /// `DynamixelMotorsBus` and the vendors' SDKs open `--pty` as a
+    /// serial port.
+    Servos(crate::sim_servos::ServosArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -224,6 +234,7 @@ pub(crate) fn run(args: &Args) -> u8 {
         Device::Joint(a) => joint(a),
         Device::Compact(a) => compact(a),
         Device::Moteus(a) => moteus(a),
+        Device::Servos(a) => crate::sim_servos::servos(a),
     }
 }
 

@@ -184,3 +184,73 @@ fn sim_compact_refuses_bad_arguments_clearly() {
         "no CAN interface named \"nosuch0\"",
     );
 }
+
+/// `motorwire sim servos` puts its servos on a pseudo-terminal linked at
+/// `--pty`: a ping written there is answered by that servo, a read of its
+/// model number with 777 (an STS3215), through the terminal as a serial
+/// port carries them; a bad model is refused by name.
+#[test]
+fn sim_servos_answer_on_their_pseudo_terminal() {
+    use std::io::Read;
+    let dir = std::env::temp_dir().join(format!("mw-sim-servos-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let link = dir.join("so101");
+    let link_s = link.to_str().unwrap();
+    let mut child = common::spawn(&[
+        "sim",
+        "servos",
+        "--protocol",
+        "scs0",
+        "--model",
+        "sts3215",
+        "--ids",
+        "1,2",
+        "--pty",
+        link_s,
+    ]);
+    let start = Instant::now();
+    while !link.exists() && start.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let mut port = serialport::new(link_s, 1_000_000)
+        .timeout(Duration::from_millis(500))
+        .open_native()
+        .unwrap();
+    let mut exchange = |packet: &[u8], answer_len: usize| -> Vec<u8> {
+        port.write_all(packet).unwrap();
+        let mut got = vec![0; answer_len];
+        port.read_exact(&mut got).unwrap();
+        got
+    };
+    // Ping servo 2; read 2 bytes of servo 1 at 3 (Model_Number).
+    assert_eq!(
+        exchange(&[0xFF, 0xFF, 0x02, 0x02, 0x01, 0xFA], 6),
+        [0xFF, 0xFF, 0x02, 0x02, 0x00, 0xFB]
+    );
+    assert_eq!(
+        exchange(&[0xFF, 0xFF, 0x01, 0x04, 0x02, 0x03, 0x02, 0xF3], 8),
+        [0xFF, 0xFF, 0x01, 0x04, 0x00, 0x09, 0x03, 0xEE]
+    );
+    child.kill().unwrap();
+    let _ = child.wait();
+    let _ = std::fs::remove_dir_all(&dir);
+    let o = common::run(
+        &[
+            "sim",
+            "servos",
+            "--protocol",
+            "scs0",
+            "--model",
+            "sts9999",
+            "--ids",
+            "1",
+            "--pty",
+            "/nonexistent/x",
+        ],
+        b"",
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains(
+        "unknown model \"sts9999\" (sts3215, scs0009, xl330-m288, xl430-w250, xm430-w350)"
+    ));
+}
