@@ -238,30 +238,40 @@ const SM15: Sign = Sign::SignMagnitude { bit: 15 };
 const STS_STEPS: Unit = Unit::Steps { per_turn: 4096 };
 const STS_SPEED: Unit = Unit::StepsPerSecond { per_turn: 4096 };
 
+/// A Feetech table: the EEPROM registers both series have at the same
+/// addresses (`$steps`: the unit of their position limits), then `$rest`.
+macro_rules! feetech {
+    ($steps:expr; $($rest:expr),* $(,)?) => {
+        &[
+            Register::rw("Firmware_Major_Version", 0, 1).ro(),
+            Register::rw("Firmware_Minor_Version", 1, 1).ro(),
+            Register::rw("Model_Number", 3, 2).ro(),
+            Register::rw("ID", 5, 1),
+            Register::rw("Baud_Rate", 6, 1),
+            Register::rw("Return_Delay_Time", 7, 1),
+            Register::rw("Response_Status_Level", 8, 1),
+            Register::rw("Min_Position_Limit", 9, 2).unit($steps),
+            Register::rw("Max_Position_Limit", 11, 2).unit($steps),
+            Register::rw("Max_Temperature_Limit", 13, 1).unit(Unit::Celsius(1.0)),
+            Register::rw("Max_Voltage_Limit", 14, 1).unit(Unit::Volts(0.1)),
+            Register::rw("Min_Voltage_Limit", 15, 1).unit(Unit::Volts(0.1)),
+            Register::rw("Max_Torque_Limit", 16, 2).unit(Unit::Percent(0.1)),
+            Register::rw("Phase", 18, 1),
+            Register::rw("Unloading_Condition", 19, 1),
+            Register::rw("LED_Alarm_Condition", 20, 1),
+            Register::rw("P_Coefficient", 21, 1),
+            Register::rw("D_Coefficient", 22, 1),
+            Register::rw("I_Coefficient", 23, 1),
+            Register::rw("Minimum_Startup_Force", 24, 2),
+            Register::rw("CW_Dead_Zone", 26, 1),
+            Register::rw("CCW_Dead_Zone", 27, 1),
+            $($rest),*
+        ]
+    };
+}
+
 /// The STS/SMS series table (the STS3215 of the SO-100 and SO-101 arms).
-const STS: &[Register] = &[
-    Register::rw("Firmware_Major_Version", 0, 1).ro(),
-    Register::rw("Firmware_Minor_Version", 1, 1).ro(),
-    Register::rw("Model_Number", 3, 2).ro(),
-    Register::rw("ID", 5, 1),
-    Register::rw("Baud_Rate", 6, 1),
-    Register::rw("Return_Delay_Time", 7, 1),
-    Register::rw("Response_Status_Level", 8, 1),
-    Register::rw("Min_Position_Limit", 9, 2).unit(STS_STEPS),
-    Register::rw("Max_Position_Limit", 11, 2).unit(STS_STEPS),
-    Register::rw("Max_Temperature_Limit", 13, 1).unit(Unit::Celsius(1.0)),
-    Register::rw("Max_Voltage_Limit", 14, 1).unit(Unit::Volts(0.1)),
-    Register::rw("Min_Voltage_Limit", 15, 1).unit(Unit::Volts(0.1)),
-    Register::rw("Max_Torque_Limit", 16, 2).unit(Unit::Percent(0.1)),
-    Register::rw("Phase", 18, 1),
-    Register::rw("Unloading_Condition", 19, 1),
-    Register::rw("LED_Alarm_Condition", 20, 1),
-    Register::rw("P_Coefficient", 21, 1),
-    Register::rw("D_Coefficient", 22, 1),
-    Register::rw("I_Coefficient", 23, 1),
-    Register::rw("Minimum_Startup_Force", 24, 2),
-    Register::rw("CW_Dead_Zone", 26, 1),
-    Register::rw("CCW_Dead_Zone", 27, 1),
+const STS: &[Register] = feetech!(STS_STEPS;
     Register::rw("Protection_Current", 28, 2),
     Register::rw("Angular_Resolution", 30, 1),
     Register::rw("Homing_Offset", 31, 2)
@@ -309,32 +319,10 @@ const STS: &[Register] = &[
         .ro()
         .unit(Unit::Milliamps(6.5)),
     Register::rw("Goal_Position_2", 71, 2).ro(),
-];
+);
 
 /// The SCS series table (the SCS0009).
-const SCS: &[Register] = &[
-    Register::rw("Firmware_Major_Version", 0, 1).ro(),
-    Register::rw("Firmware_Minor_Version", 1, 1).ro(),
-    Register::rw("Model_Number", 3, 2).ro(),
-    Register::rw("ID", 5, 1),
-    Register::rw("Baud_Rate", 6, 1),
-    Register::rw("Return_Delay_Time", 7, 1),
-    Register::rw("Response_Status_Level", 8, 1),
-    Register::rw("Min_Position_Limit", 9, 2).unit(Unit::Steps { per_turn: 1024 }),
-    Register::rw("Max_Position_Limit", 11, 2).unit(Unit::Steps { per_turn: 1024 }),
-    Register::rw("Max_Temperature_Limit", 13, 1).unit(Unit::Celsius(1.0)),
-    Register::rw("Max_Voltage_Limit", 14, 1).unit(Unit::Volts(0.1)),
-    Register::rw("Min_Voltage_Limit", 15, 1).unit(Unit::Volts(0.1)),
-    Register::rw("Max_Torque_Limit", 16, 2).unit(Unit::Percent(0.1)),
-    Register::rw("Phase", 18, 1),
-    Register::rw("Unloading_Condition", 19, 1),
-    Register::rw("LED_Alarm_Condition", 20, 1),
-    Register::rw("P_Coefficient", 21, 1),
-    Register::rw("D_Coefficient", 22, 1),
-    Register::rw("I_Coefficient", 23, 1),
-    Register::rw("Minimum_Startup_Force", 24, 2),
-    Register::rw("CW_Dead_Zone", 26, 1),
-    Register::rw("CCW_Dead_Zone", 27, 1),
+const SCS: &[Register] = feetech!(Unit::Steps { per_turn: 1024 };
     Register::rw("Protective_Torque", 37, 1),
     Register::rw("Protection_Time", 38, 1),
     Register::rw("Torque_Enable", 40, 1),
@@ -357,7 +345,7 @@ const SCS: &[Register] = &[
     Register::rw("Sync_Write_Flag", 64, 1).ro(),
     Register::rw("Status", 65, 1).ro(),
     Register::rw("Moving", 66, 1).ro(),
-];
+);
 
 const TC: Sign = Sign::TwosComplement;
 const X_STEPS: Unit = Unit::Steps { per_turn: 4096 };

@@ -544,14 +544,7 @@ impl ServoBus {
                 address,
                 length,
             } => {
-                if let Some(k) = self.index(*id) {
-                    let data = self
-                        .servos
-                        .get(k)
-                        .map(|s| s.read(*address, *length))
-                        .unwrap_or_default();
-                    self.answer(k, i, 0, data, out);
-                }
+                self.read_for(*id, i, *address, *length, out);
             }
             Instruction::Write { id, address, data } => {
                 self.each(i, *id, out, |s| s.write(*address, data));
@@ -591,26 +584,12 @@ impl ServoBus {
                 ids,
             } => {
                 for id in ids {
-                    if let Some(k) = self.index(*id) {
-                        let data = self
-                            .servos
-                            .get(k)
-                            .map(|s| s.read(*address, *length))
-                            .unwrap_or_default();
-                        self.answer(k, i, 0, data, out);
-                    }
+                    self.read_for(*id, i, *address, *length, out);
                 }
             }
             Instruction::BulkRead { reads } => {
                 for (id, address, length) in reads {
-                    if let Some(k) = self.index(*id) {
-                        let data = self
-                            .servos
-                            .get(k)
-                            .map(|s| s.read(*address, *length))
-                            .unwrap_or_default();
-                        self.answer(k, i, 0, data, out);
-                    }
+                    self.read_for(*id, i, *address, *length, out);
                 }
             }
             Instruction::SyncWrite {
@@ -655,6 +634,26 @@ impl ServoBus {
             if id != BROADCAST_ID {
                 self.answer(k, i, error, Vec::new(), out);
             }
+        }
+    }
+
+    /// Servo `id` (if there is one) answers `i` with `length` bytes of its
+    /// table from `address`.
+    fn read_for(
+        &mut self,
+        id: u8,
+        i: &Instruction,
+        address: u16,
+        length: u16,
+        out: &mut Vec<Answer>,
+    ) {
+        if let Some(k) = self.index(id) {
+            let data = self
+                .servos
+                .get(k)
+                .map(|s| s.read(address, length))
+                .unwrap_or_default();
+            self.answer(k, i, 0, data, out);
         }
     }
 

@@ -315,27 +315,6 @@ impl Bridge {
             pending: self.pending_lines(),
         }
     }
-
-    /// [`Admission::admit_now`], as the bridge stands now.
-    #[inline]
-    pub(super) fn admit_now<'a>(
-        &self,
-        motors: impl Iterator<Item = &'a str> + Clone,
-    ) -> Result<(), Refusal> {
-        self.admission().admit_now(motors)
-    }
-
-    /// [`Admission::admit`], as the bridge stands now.
-    #[inline]
-    pub(super) fn admit<'a>(
-        &self,
-        arrived: Duration,
-        origin: Option<Origin>,
-        timestamp: f64,
-        motors: impl Iterator<Item = &'a str> + Clone,
-    ) -> Result<(), Refusal> {
-        self.admission().admit(arrived, origin, timestamp, motors)
-    }
 }
 
 /// Admission: what refuses a motion line before anything is planned, read

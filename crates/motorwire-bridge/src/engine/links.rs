@@ -64,7 +64,10 @@ impl Bridge {
             self.refuse(&meta, Refusal::OrionNotAttached);
             return;
         }
-        if let Err(e) = self.admit_now(axes.iter().map(|a| a.motor.as_str())) {
+        if let Err(e) = self
+            .admission()
+            .admit_now(axes.iter().map(|a| a.motor.as_str()))
+        {
             self.refuse(&meta, e);
             return;
         }
@@ -182,7 +185,7 @@ impl Bridge {
         };
         // A calibration moves the joint: refused as a motion is, and its
         // own limits held to the limits in force.
-        if let Err(e) = self.admit_now(std::iter::once(motor)) {
+        if let Err(e) = self.admission().admit_now(std::iter::once(motor)) {
             return self.refuse(&meta, e);
         }
         let phases = match crate::device::irpc::calibration_time(&self.map, motor, &request) {

@@ -44,7 +44,7 @@ impl Bridge {
             .iter()
             .find_map(|t| t.timing.start_time)
             .unwrap_or(now_ms);
-        self.admit(
+        self.admission().admit(
             now,
             Some(meta.origin),
             start_ms.min(now_ms),
@@ -154,7 +154,7 @@ impl Bridge {
     pub(super) fn motor_command(&mut self, now: Duration, meta: LineMeta, cmd: &mut MotorCommand) {
         let meta = meta.labelled(Label::Motor(cmd.motor_id.clone()));
         self.learn_clock(now, meta.origin, cmd.timestamp);
-        if let Err(e) = self.admit(
+        if let Err(e) = self.admission().admit(
             now,
             Some(meta.origin),
             cmd.timestamp,
@@ -307,7 +307,7 @@ impl Bridge {
     pub(super) fn multi_axis(&mut self, now: Duration, meta: LineMeta, cmd: &MultiAxisCommand) {
         let meta = meta.labelled(Label::Command(cmd.command_id.clone()));
         self.learn_clock(now, meta.origin, cmd.timestamp);
-        if let Err(e) = self.admit(
+        if let Err(e) = self.admission().admit(
             now,
             Some(meta.origin),
             cmd.timestamp,

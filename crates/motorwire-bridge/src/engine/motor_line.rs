@@ -22,7 +22,10 @@ impl Bridge {
     ) {
         let meta = meta.labelled(Label::Motor(motor.to_owned()));
         let now_ms = self.unix_ms(now);
-        match self.admit(now, None, now_ms, std::iter::once(motor)) {
+        match self
+            .admission()
+            .admit(now, None, now_ms, std::iter::once(motor))
+        {
             Err(e) if e.kind() != ErrorKind::Busy => return self.refuse(&meta, e),
             _ => {}
         }
