@@ -27,7 +27,8 @@ pub(crate) struct ServosArgs {
     #[arg(long, value_delimiter = ',', required = true)]
     ids: Vec<u8>,
     /// Where to link the pseudo-terminal (a serial port's path for the
-    /// code under test); an existing link there is replaced.
+    /// code under test); an existing link there is replaced, anything else
+    /// there is refused. The link is left when the process is killed.
     #[arg(long, value_name = "PATH")]
     pty: PathBuf,
     /// Faults, comma-separated: `drop=P`, `corrupt=P`, `late=P`,
@@ -42,10 +43,15 @@ pub(crate) struct ServosArgs {
 
 fn faults(spec: &str) -> Result<ServoFaults, String> {
     let mut f = ServoFaults::default();
+    let mut seen: Vec<&str> = Vec::new();
     for part in spec.split(',').filter(|p| !p.is_empty()) {
         let (key, value) = part
             .split_once('=')
             .ok_or_else(|| format!("--faults: {part:?} is not KEY=VALUE"))?;
+        if seen.contains(&key) {
+            return Err(format!("--faults: {key} is given twice"));
+        }
+        seen.push(key);
         let p = || -> Result<f64, String> {
             value
                 .parse::<f64>()
@@ -118,7 +124,18 @@ fn serve(args: &ServosArgs) -> Result<(), String> {
     // port library opens one): this one lets it go. Until a client has it
     // open, reading finds nothing (EIO), and is tried again.
     drop(slave);
-    let _ = std::fs::remove_file(&args.pty);
+    match std::fs::symlink_metadata(&args.pty) {
+        Ok(m) if m.file_type().is_symlink() => {
+            let _ = std::fs::remove_file(&args.pty);
+        }
+        Ok(_) => {
+            return Err(format!(
+                "{} exists and is not a link: it is left as it is",
+                args.pty.display()
+            ));
+        }
+        Err(_) => {}
+    }
     std::os::unix::fs::symlink(&pts, &args.pty)
         .map_err(|e| format!("linking {} to {pts}: {e}", args.pty.display()))?;
     master

@@ -233,6 +233,27 @@ fn sim_servos_answer_on_their_pseudo_terminal() {
     );
     child.kill().unwrap();
     let _ = child.wait();
+    // A file that is not a link is left alone.
+    let file = dir.join("precious");
+    std::fs::write(&file, "keep").unwrap();
+    let o = common::run(
+        &[
+            "sim",
+            "servos",
+            "--protocol",
+            "scs0",
+            "--model",
+            "sts3215",
+            "--ids",
+            "1",
+            "--pty",
+            file.to_str().unwrap(),
+        ],
+        b"",
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("exists and is not a link"));
     let _ = std::fs::remove_dir_all(&dir);
     let o = common::run(
         &[

@@ -324,11 +324,14 @@ pub fn read_instruction(stream: &[u8]) -> Result<(Instruction, usize), Instructi
     }
     let len = usize::from(u16::from_le_bytes([byte_at(p, 5), byte_at(p, 6)]));
     let need = len + 7;
-    if !(3..=MAX_PACKET).contains(&len) {
+    // A header whose id no servo has (0xFD, 0xFF) or whose length no
+    // packet has is noise: its first byte is let go.
+    let id = byte_at(p, 4);
+    if id == 0xFD || id == 0xFF || !(3..=MAX_PACKET - 7).contains(&len) {
         return Err(InstructionError::Malformed {
             instruction: byte_at(p, 7),
             params: 0,
-            consumed: at + 7,
+            consumed: at + 1,
         });
     }
     if p.len() < need {

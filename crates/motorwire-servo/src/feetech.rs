@@ -271,17 +271,18 @@ pub fn read_instruction(stream: &[u8]) -> Result<(Instruction, usize), Instructi
     if p.len() < 4 {
         return Err(incomplete);
     }
+    // A header whose id no servo has (0xFF) or whose length no packet
+    // has is noise: its first byte is let go, and the search goes on.
     let need = usize::from(byte_at(p, 3)) + 4;
-    if need < 6 || p.len() < need {
-        return Err(if need < 6 {
-            InstructionError::Malformed {
-                instruction: 0,
-                params: 0,
-                consumed: at + 4,
-            }
-        } else {
-            incomplete
+    if byte_at(p, 2) == 0xFF || !(6..=MAX_PACKET).contains(&need) {
+        return Err(InstructionError::Malformed {
+            instruction: byte_at(p, 4),
+            params: 0,
+            consumed: at + 1,
         });
+    }
+    if p.len() < need {
+        return Err(incomplete);
     }
     let consumed = at + need;
     if checksum(p.get(2..need - 1).unwrap_or(&[])) != byte_at(p, need - 1) {

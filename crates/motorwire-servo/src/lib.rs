@@ -261,6 +261,22 @@ pub enum EncodeError {
         /// The instruction's length.
         length: u16,
     },
+    /// A servo listed twice in one sync or bulk instruction (the SDKs'
+    /// group classes keep the first and drop the second: which was meant
+    /// is not known).
+    #[error("{instruction} lists servo {id} twice")]
+    Duplicate {
+        /// The servo.
+        id: u8,
+        /// The instruction.
+        instruction: &'static str,
+    },
+    /// A sync read or write of no bytes.
+    #[error("{instruction} of length 0 reads or writes nothing")]
+    ZeroLength {
+        /// The instruction.
+        instruction: &'static str,
+    },
     /// A list instruction (sync read, sync write, bulk read, bulk write)
     /// with nothing in it.
     #[error("{instruction} lists no servo")]
@@ -386,6 +402,7 @@ impl DecodeError {
 /// address or length out of range, a sync write entry of another length,
 /// an empty list, or a packet longer than the protocol takes.
 pub fn encode(protocol: Protocol, instruction: &Instruction) -> Result<Vec<u8>, EncodeError> {
+    check_lists(instruction)?;
     match protocol {
         Protocol::Scs0 | Protocol::Scs1 => feetech::encode(instruction),
         Protocol::Dxl2 => dynamixel::encode(instruction),
@@ -580,6 +597,39 @@ pub fn encode_status(protocol: Protocol, status: &Status) -> Result<Vec<u8>, Enc
         Protocol::Scs0 | Protocol::Scs1 => feetech::status_packet(status),
         Protocol::Dxl2 => dynamixel::status_packet(status),
     }
+}
+
+/// A sync or bulk instruction's servos each once, a sync one's length not 0.
+fn check_lists(instruction: &Instruction) -> Result<(), EncodeError> {
+    let name = instruction.name();
+    let ids: Vec<u8> = match instruction {
+        Instruction::SyncRead { ids, length, .. } => {
+            if *length == 0 {
+                return Err(EncodeError::ZeroLength { instruction: name });
+            }
+            ids.clone()
+        }
+        Instruction::SyncWrite {
+            entries, length, ..
+        } => {
+            if *length == 0 {
+                return Err(EncodeError::ZeroLength { instruction: name });
+            }
+            entries.iter().map(|(id, _)| *id).collect()
+        }
+        Instruction::BulkRead { reads } => reads.iter().map(|(id, ..)| *id).collect(),
+        Instruction::BulkWrite { writes } => writes.iter().map(|(id, ..)| *id).collect(),
+        _ => return Ok(()),
+    };
+    for (k, id) in ids.iter().enumerate() {
+        if ids.get(..k).is_some_and(|before| before.contains(id)) {
+            return Err(EncodeError::Duplicate {
+                id: *id,
+                instruction: name,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// The first status packet in `stream`, read as the vendor's SDK reads

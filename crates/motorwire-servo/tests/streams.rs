@@ -94,14 +94,17 @@ fn instruction() -> impl Strategy<Value = Instruction> {
             data
         }),
         id.clone().prop_map(|id| Instruction::Action { id }),
-        (0u16..256, 0u16..16, prop::collection::vec(id.clone(), 1..8)).prop_map(
-            |(address, length, ids)| Instruction::SyncRead {
+        (
+            0u16..256,
+            1u16..16,
+            prop::collection::btree_set(id.clone(), 1..8)
+        )
+            .prop_map(|(address, length, ids)| Instruction::SyncRead {
                 address,
                 length,
-                ids
-            }
-        ),
-        (0u16..256, 1u16..5, prop::collection::vec(id, 1..8)).prop_flat_map(
+                ids: ids.into_iter().collect()
+            }),
+        (0u16..256, 1u16..5, prop::collection::btree_set(id, 1..8)).prop_flat_map(
             |(address, length, ids)| {
                 let n = ids.len();
                 prop::collection::vec(prop::collection::vec(any::<u8>(), usize::from(length)), n)
@@ -129,5 +132,87 @@ proptest! {
             prop_assert_eq!(decode_instruction(p, &stream), Ok((i.clone(), stream.len())), "{:?}", p);
             let _ = decode_instruction(p, &junk);
         }
+    }
+}
+
+/// A servo listed twice in one sync or bulk instruction, or a sync
+/// instruction of no bytes, is refused: the SDKs' group classes drop the
+/// second silently.
+#[test]
+fn duplicates_and_empty_lengths_are_refused() {
+    use motorwire_servo::EncodeError;
+    for p in PROTOCOLS {
+        assert_eq!(
+            encode(
+                p,
+                &Instruction::SyncRead {
+                    address: 42,
+                    length: 2,
+                    ids: vec![1, 2, 1]
+                }
+            ),
+            Err(EncodeError::Duplicate {
+                id: 1,
+                instruction: "sync_read"
+            })
+        );
+        assert_eq!(
+            encode(
+                p,
+                &Instruction::SyncWrite {
+                    address: 42,
+                    length: 0,
+                    entries: vec![(1, vec![])]
+                }
+            ),
+            Err(EncodeError::ZeroLength {
+                instruction: "sync_write"
+            })
+        );
+    }
+    assert_eq!(
+        encode(
+            Protocol::Dxl2,
+            &Instruction::BulkWrite {
+                writes: vec![(1, 2, vec![1]), (1, 4, vec![2, 3])]
+            }
+        ),
+        Err(EncodeError::Duplicate {
+            id: 1,
+            instruction: "bulk_write"
+        })
+    );
+}
+
+/// A servo reading the bus: an impossible header (id 0xFF, a length no
+/// packet has) is one byte of noise, and the packet behind it is read.
+#[test]
+fn an_impossible_header_is_noise_to_a_servo() {
+    let ping = |p| encode(p, &Instruction::Ping { id: 1 }).unwrap();
+    for (p, junk) in [
+        (Protocol::Scs0, vec![0xFF, 0xFF, 0xFF, 0xFF]),
+        (Protocol::Scs0, vec![0xFF, 0xFF, 0x01, 0xFF]),
+        (
+            Protocol::Dxl2,
+            vec![0xFF, 0xFF, 0xFD, 0x00, 0xFF, 0x03, 0x00],
+        ),
+        (
+            Protocol::Dxl2,
+            vec![0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x00, 0x04],
+        ),
+    ] {
+        let mut stream = junk.clone();
+        stream.extend_from_slice(&ping(p));
+        let mut at = 0;
+        let read = loop {
+            match decode_instruction(p, &stream[at..]) {
+                Ok((i, _)) => break i,
+                Err(motorwire_servo::InstructionError::Malformed { consumed, .. }) => {
+                    at += consumed
+                }
+                Err(e) => panic!("{p:?} {junk:02x?}: {e:?}"),
+            }
+        };
+        assert_eq!(read, Instruction::Ping { id: 1 }, "{p:?} {junk:02x?}");
     }
 }

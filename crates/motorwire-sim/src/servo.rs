@@ -43,6 +43,9 @@ use motorwire_servo::{
 /// the models it knows lies below).
 const TABLE: usize = 256;
 
+/// The gap after which the bytes of an unfinished packet are let go.
+pub const PACKET_GAP: Duration = Duration::from_millis(20);
+
 /// The longest a simulated move is integrated in one go: past it, the
 /// servo is where its goal is (a caller that came back after seconds).
 const MAX_STEP: Duration = Duration::from_secs(10);
@@ -347,6 +350,19 @@ impl SimServo {
         if regs.iter().any(|r| r.access == Access::Read) {
             return self.access_error();
         }
+        // An id no servo can take: refused (Dynamixel: data range error).
+        let id_at = usize::from(self.address_of("ID"));
+        if let Some(new) = data
+            .get(id_at.wrapping_sub(usize::from(address)))
+            .filter(|_| (usize::from(address)..end).contains(&id_at))
+            && *new > 252
+        {
+            return if self.protocol == Protocol::Dxl2 {
+                4
+            } else {
+                0
+            };
+        }
         // A Dynamixel servo's EEPROM is written only with its torque off.
         if self.protocol == Protocol::Dxl2
             && address < self.model.ram_start
@@ -424,6 +440,8 @@ pub struct ServoBus {
     rng: u64,
     now: Duration,
     pending: Vec<u8>,
+    /// When the bytes still pending came.
+    pending_at: Duration,
     /// Instruction packets that were corrupt or malformed (ignored, as a
     /// servo ignores them).
     bad: u64,
@@ -453,6 +471,7 @@ impl ServoBus {
             rng: 0x9E37_79B9_7F4A_7C15,
             now: Duration::ZERO,
             pending: Vec::new(),
+            pending_at: Duration::ZERO,
             bad: 0,
         })
     }
@@ -498,6 +517,13 @@ impl ServoBus {
     /// the answers to every whole instruction among them, in order.
     pub fn write(&mut self, now: Duration, bytes: &[u8]) -> Vec<Answer> {
         self.advance_to(now);
+        // A packet's bytes come together: what was left of one that stopped
+        // coming is let go (a servo restarts its reading after a gap), so
+        // noise costs at most the packet it cut.
+        if now.saturating_sub(self.pending_at) > PACKET_GAP {
+            self.pending.clear();
+        }
+        self.pending_at = now;
         self.pending.extend_from_slice(bytes);
         let mut out = Vec::new();
         loop {
@@ -569,14 +595,20 @@ impl ServoBus {
                 });
             }
             Instruction::FactoryReset { id, option } => {
-                self.each(i, *id, out, |s| {
+                // It answers from the id it has, then resets (0xFF: its id
+                // too, to 1).
+                self.each(i, *id, out, |_| 0);
+                for s in self
+                    .servos
+                    .iter_mut()
+                    .filter(|s| *id == BROADCAST_ID || s.id() == *id)
+                {
                     let (own, baud) = (s.id(), s.get("Baud_Rate").unwrap_or(0));
                     s.factory(if *option == 0xFF { 1 } else { own });
                     if *option == 0x02 {
                         s.set("Baud_Rate", baud);
                     }
-                    0
-                });
+                }
             }
             Instruction::SyncRead {
                 address,

@@ -317,3 +317,54 @@ fn encode_status_of(id: u8) -> Vec<u8> {
     )
     .unwrap()
 }
+
+/// Stray bytes cost at most the packet they cut: a servo that heard half
+/// a packet, or an impossible header, answers the next whole one.
+#[test]
+fn stray_bytes_cost_at_most_the_packet_they_cut() {
+    for (model, junk) in [
+        ("sts3215", vec![0xFF, 0xFF]),
+        ("sts3215", vec![0xFF, 0xFF, 0x01]),
+        ("sts3215", vec![0xFF; 1000]),
+        ("sts3215", vec![0xFF, 0xFF, 0x01, 0xFF]),
+        ("sts3215", vec![0xFF, 0xFF, 0x01, 0xF0]),
+        ("xl330-m288", vec![0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x00, 0x04]),
+        ("xl330-m288", vec![0xFF, 0xFF, 0xFD, 0x00, 0x01, 0xF5, 0x03]),
+    ] {
+        let mut bus = ServoBus::new(table::model(model).unwrap(), &[1]).unwrap();
+        assert!(bus.write(ms(0), &junk).is_empty());
+        let s = ask(&mut bus, ms(50), &Instruction::Ping { id: 1 });
+        assert_eq!(s.len(), 1, "{model} after {junk:02x?}");
+    }
+}
+
+/// A factory reset is answered from the id the servo had; an id no servo
+/// can take is refused (Dynamixel: data range error).
+#[test]
+fn a_factory_reset_answers_from_its_old_id_and_ids_stay_in_range() {
+    let mut bus = ServoBus::new(table::model("xm430-w350").unwrap(), &[3]).unwrap();
+    let s = ask(
+        &mut bus,
+        ms(0),
+        &Instruction::FactoryReset {
+            id: 3,
+            option: 0xFF,
+        },
+    );
+    assert_eq!((s.len(), s[0].id), (1, 3));
+    assert!(
+        bus.servo(1).is_some() && bus.servo(3).is_none(),
+        "reset to id 1"
+    );
+    let s = ask(
+        &mut bus,
+        ms(0),
+        &Instruction::Write {
+            id: 1,
+            address: 7,
+            data: vec![253],
+        },
+    );
+    assert_eq!(s[0].error, 4);
+    assert!(bus.servo(1).is_some());
+}
