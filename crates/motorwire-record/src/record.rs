@@ -87,12 +87,32 @@ const IDLE_POLLS: u32 = 10;
 
 /// The longest the writer sleeps when idle before it looks again on its
 /// own (it is woken by the first record; this only bounds the cost of a
-/// wake-up that never came). In tests, long enough that a missed wake-up
-/// fails the test waiting for its record.
-#[cfg(not(test))]
+/// wake-up that never came).
 const IDLE_SLEEP: Duration = Duration::from_secs(1);
-#[cfg(test)]
-const IDLE_SLEEP: Duration = Duration::from_secs(60);
+
+/// Where the writer can be watched and steered, the test seam of its
+/// thread: at each round, before each record it takes, between its last
+/// look at the queue and its sleep, and how long it sleeps. A recorder's
+/// own is [`Unwatched`], which does nothing (a call a round).
+pub(crate) trait WriterProbe: Send + Sync + std::fmt::Debug {
+    /// A round begins (a look at the queue).
+    fn round(&self) {}
+    /// Before it takes a record: it may be held here (a disk that does
+    /// not answer).
+    fn before_take(&self) {}
+    /// It found the queue empty and is about to sleep.
+    fn before_sleep(&self) {}
+    /// How long it sleeps when idle, if nothing wakes it.
+    fn idle_sleep(&self) -> Duration {
+        IDLE_SLEEP
+    }
+}
+
+/// The writer watched by nobody.
+#[derive(Debug)]
+pub(crate) struct Unwatched;
+
+impl WriterProbe for Unwatched {}
 
 /// How long [`Recorder::finish_within`] waits, once told to give up, for
 /// the writer to drop what is left and complete `session.json`.
@@ -382,17 +402,7 @@ struct WriterFlags {
     hushed: Arc<AtomicBool>,
     abandon: Arc<AtomicBool>,
     asleep: Arc<AtomicBool>,
-    #[cfg(test)]
-    stall: Arc<AtomicBool>,
-    /// Tests: the writer's rounds (each a look at the queue).
-    #[cfg(test)]
-    rounds: Arc<AtomicU64>,
-    /// Tests: the writer waits between finding the queue empty and going
-    /// to sleep (and says so in `held`).
-    #[cfg(test)]
-    hold: Arc<AtomicBool>,
-    #[cfg(test)]
-    held: Arc<AtomicBool>,
+    probe: Arc<dyn WriterProbe>,
 }
 
 /// What a recording came to.
@@ -498,17 +508,6 @@ pub struct Recorder {
     /// next record wakes it (a record that finds it set clears it and wakes
     /// the writer; the writer clears it when it wakes on its own).
     asleep: Arc<AtomicBool>,
-    /// Tests: the writer stalls as on a disk that does not answer.
-    #[cfg(test)]
-    stall: Arc<AtomicBool>,
-    /// Tests: the writer's rounds.
-    #[cfg(test)]
-    rounds: Arc<AtomicU64>,
-    /// Tests: see `WriterFlags`.
-    #[cfg(test)]
-    hold: Arc<AtomicBool>,
-    #[cfg(test)]
-    held: Arc<AtomicBool>,
     writer: Option<JoinHandle<RecordSummary>>,
 }
 
@@ -518,6 +517,14 @@ impl Recorder {
     /// # Errors
     /// The directory or its files could not be made.
     pub fn start(config: RecordConfig) -> io::Result<Self> {
+        Self::start_watched(config, Arc::new(Unwatched))
+    }
+
+    /// [`Recorder::start`], its writer watched by `probe`.
+    pub(crate) fn start_watched(
+        config: RecordConfig,
+        probe: Arc<dyn WriterProbe>,
+    ) -> io::Result<Self> {
         if !is_interface_name(&config.interface) {
             return Err(io::Error::new(
                 io::ErrorKind::InvalidInput,
@@ -546,27 +553,11 @@ impl Recorder {
         let hushed = Arc::new(AtomicBool::new(false));
         let abandon = Arc::new(AtomicBool::new(false));
         let asleep = Arc::new(AtomicBool::new(false));
-        #[cfg(test)]
-        let stall = Arc::new(AtomicBool::new(false));
-        #[cfg(test)]
-        let rounds = Arc::new(AtomicU64::new(0));
-        #[cfg(test)]
-        let (hold, held) = (
-            Arc::new(AtomicBool::new(false)),
-            Arc::new(AtomicBool::new(false)),
-        );
         let flags = WriterFlags {
             hushed: Arc::clone(&hushed),
             abandon: Arc::clone(&abandon),
             asleep: Arc::clone(&asleep),
-            #[cfg(test)]
-            stall: Arc::clone(&stall),
-            #[cfg(test)]
-            rounds: Arc::clone(&rounds),
-            #[cfg(test)]
-            hold: Arc::clone(&hold),
-            #[cfg(test)]
-            held: Arc::clone(&held),
+            probe,
         };
         let writer = thread::Builder::new()
             .name("motorwire-recorder".to_owned())
@@ -578,14 +569,6 @@ impl Recorder {
             hushed,
             abandon,
             asleep,
-            #[cfg(test)]
-            stall,
-            #[cfg(test)]
-            rounds,
-            #[cfg(test)]
-            hold,
-            #[cfg(test)]
-            held,
             writer: Some(writer),
         })
     }
@@ -1110,18 +1093,14 @@ impl Files {
             // a stop comes (its work is spread out; the queue holds the
             // rest).
             idle = idle.saturating_add(1);
-            #[cfg(test)]
-            flags.rounds.fetch_add(1, Ordering::Relaxed);
+            flags.probe.round();
             for _ in 0..BATCH {
                 // A stop under way: its frames first (at most a stop's
                 // handling, the runner says when it is done).
                 while flags.hushed.load(Ordering::Relaxed) {
                     thread::sleep(Duration::from_micros(100));
                 }
-                #[cfg(test)]
-                while flags.stall.load(Ordering::Relaxed) {
-                    thread::sleep(Duration::from_millis(1));
-                }
+                flags.probe.before_take();
                 let r = match records.try_recv() {
                     Ok(r) => {
                         // In one order with `is_idle`'s look at the count.
@@ -1176,15 +1155,8 @@ impl Files {
                 // and goes back to sleep: `idle` stays where it is.
                 flags.asleep.store(true, Ordering::SeqCst);
                 if queued.load(Ordering::SeqCst) == 0 {
-                    // Tests: held here, between its look and its sleep.
-                    #[cfg(test)]
-                    if flags.hold.load(Ordering::SeqCst) {
-                        flags.held.store(true, Ordering::SeqCst);
-                        while flags.hold.load(Ordering::SeqCst) {
-                            thread::sleep(Duration::from_millis(1));
-                        }
-                    }
-                    thread::park_timeout(IDLE_SLEEP);
+                    flags.probe.before_sleep();
+                    thread::park_timeout(flags.probe.idle_sleep());
                 }
                 flags.asleep.store(false, Ordering::SeqCst);
             } else {
@@ -1221,15 +1193,58 @@ mod tests {
     use super::*;
     use motorwire_can::CanId;
 
-    /// A recorder into `dir` on `can0`, holding at most `max_bytes`.
-    fn recording(dir: &Path, max_bytes: u64) -> Recorder {
-        Recorder::start(RecordConfig {
+    /// The writer as a test steers it: stalled as on a disk that does not
+    /// answer, its rounds counted, held between its last look and its
+    /// sleep (and saying so), asleep a minute (long enough that a missed
+    /// wake-up fails the test waiting for its record).
+    #[derive(Debug, Default)]
+    struct Steered {
+        stall: Arc<AtomicBool>,
+        rounds: AtomicU64,
+        hold: AtomicBool,
+        held: AtomicBool,
+    }
+
+    impl WriterProbe for Steered {
+        fn round(&self) {
+            self.rounds.fetch_add(1, Ordering::Relaxed);
+        }
+        fn before_take(&self) {
+            while self.stall.load(Ordering::Relaxed) {
+                thread::sleep(Duration::from_millis(1));
+            }
+        }
+        fn before_sleep(&self) {
+            if self.hold.load(Ordering::SeqCst) {
+                self.held.store(true, Ordering::SeqCst);
+                while self.hold.load(Ordering::SeqCst) {
+                    thread::sleep(Duration::from_millis(1));
+                }
+            }
+        }
+        fn idle_sleep(&self) -> Duration {
+            Duration::from_secs(60)
+        }
+    }
+
+    /// A recorder into `dir` on `can0`, holding at most `max_bytes`, its
+    /// writer steered by the test.
+    fn steered(dir: &Path, max_bytes: u64) -> (Recorder, Arc<Steered>) {
+        let probe = Arc::new(Steered::default());
+        let config = RecordConfig {
             dir: dir.to_owned(),
             max_bytes,
             interface: "can0".to_owned(),
             setup: None,
-        })
-        .unwrap()
+        };
+        let watched: Arc<dyn WriterProbe> = probe.clone();
+        (Recorder::start_watched(config, watched).unwrap(), probe)
+    }
+
+    /// A recorder into `dir` on `can0`, holding at most `max_bytes` (its
+    /// writer asleep a minute when idle, as [`Steered`] has it).
+    fn recording(dir: &Path, max_bytes: u64) -> Recorder {
+        steered(dir, max_bytes).0
     }
 
     fn scratch(name: &str) -> PathBuf {
@@ -1302,12 +1317,12 @@ mod tests {
     #[test]
     fn an_idle_writer_sleeps_until_the_next_record_wakes_it() {
         let dir = scratch("idle");
-        let rec = recording(&dir, DEFAULT_RECORD_MAX);
+        let (rec, probe) = steered(&dir, DEFAULT_RECORD_MAX);
         until_idle(&rec);
-        let rounds = rec.rounds.load(Ordering::Relaxed);
+        let rounds = probe.rounds.load(Ordering::Relaxed);
         thread::sleep(Duration::from_millis(200));
         // Polling every 2 ms, it would have looked 100 times.
-        assert_eq!(rec.rounds.load(Ordering::Relaxed), rounds);
+        assert_eq!(probe.rounds.load(Ordering::Relaxed), rounds);
         assert!(rec.is_idle());
         rec.input(Instant::now(), Origin(1), 1, "{}");
         // Woken at once (asleep, it would not look again for a minute in
@@ -1326,14 +1341,14 @@ mod tests {
     #[test]
     fn a_record_put_as_the_writer_goes_to_sleep_wakes_it() {
         let dir = scratch("asleep-window");
-        let rec = recording(&dir, DEFAULT_RECORD_MAX);
-        rec.hold.store(true, Ordering::SeqCst);
-        within_10s("never held", || rec.held.load(Ordering::SeqCst));
+        let (rec, probe) = steered(&dir, DEFAULT_RECORD_MAX);
+        probe.hold.store(true, Ordering::SeqCst);
+        within_10s("never held", || probe.held.load(Ordering::SeqCst));
         assert!(rec.is_idle());
         rec.input(Instant::now(), Origin(1), 1, "{}");
         // Not idle with a record queued, whatever the writer said.
         assert!(!rec.is_idle());
-        rec.hold.store(false, Ordering::SeqCst);
+        probe.hold.store(false, Ordering::SeqCst);
         within_10s("left asleep", || written(&dir, 1, r#""text":"{}""#));
         let s = rec.finish();
         assert_eq!((s.written, s.dropped), (1, 0));
@@ -1381,15 +1396,15 @@ mod tests {
     #[test]
     fn a_stalled_writer_is_given_up_at_the_limit_and_its_records_counted_dropped() {
         let dir = scratch("stalled");
-        let rec = recording(&dir, DEFAULT_RECORD_MAX);
-        rec.stall.store(true, Ordering::Relaxed);
+        let (rec, probe) = steered(&dir, DEFAULT_RECORD_MAX);
+        probe.stall.store(true, Ordering::Relaxed);
         let t = Instant::now();
         for n in 0..1_000 {
             rec.input(t, Origin(1), n, r#"{"emergency_stop":false}"#);
         }
         // The disk answers again only after the limit: past it, nothing
         // more is written.
-        let stall = Arc::clone(&rec.stall);
+        let stall = Arc::clone(&probe.stall);
         let unstall = thread::spawn(move || {
             thread::sleep(Duration::from_millis(300));
             stall.store(false, Ordering::Relaxed);
@@ -1413,11 +1428,11 @@ mod tests {
     #[test]
     fn a_writer_blocked_past_the_grace_is_left_behind() {
         let dir = scratch("blocked");
-        let rec = recording(&dir, DEFAULT_RECORD_MAX);
-        rec.stall.store(true, Ordering::Relaxed);
+        let (rec, probe) = steered(&dir, DEFAULT_RECORD_MAX);
+        probe.stall.store(true, Ordering::Relaxed);
         rec.input(Instant::now(), Origin(1), 1, r#"{"emergency_stop":false}"#);
         rec.input(Instant::now(), Origin(1), 2, r#"{"emergency_stop":false}"#);
-        let stall = Arc::clone(&rec.stall);
+        let stall = Arc::clone(&probe.stall);
         let begun = Instant::now();
         assert_eq!(rec.finish_within(Duration::from_millis(50)), None);
         let waited = begun.elapsed();
@@ -1784,15 +1799,15 @@ mod tests {
     #[test]
     fn the_first_record_dropped_is_in_session_json_at_once() {
         let dir = scratch("first-drop");
-        let rec = recording(&dir, DEFAULT_RECORD_MAX);
-        rec.stall.store(true, Ordering::Relaxed);
+        let (rec, probe) = steered(&dir, DEFAULT_RECORD_MAX);
+        probe.stall.store(true, Ordering::Relaxed);
         let t = Instant::now();
         // The queue full, and 10 more: dropped on the bridge's side.
         for n in 0..(RECORD_QUEUE as u64 + 10) {
             rec.input(t + Duration::from_micros(n), Origin(1), n, "{}");
         }
         assert_eq!(rec.dropped(), 10);
-        rec.stall.store(false, Ordering::Relaxed);
+        probe.stall.store(false, Ordering::Relaxed);
         within_10s("the drop never reached session.json", || {
             session_of(&dir)["dropped"].as_u64() == Some(10)
         });
