@@ -77,7 +77,7 @@ pub struct ServoFaults {
 
 /// Bytes a servo sends back, after `delay` from the write that asked.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Answer {
+pub struct ServoAnswer {
     /// The status packet (or a corrupted one).
     pub bytes: Vec<u8>,
     /// How long after the instruction it is sent.
@@ -515,7 +515,7 @@ impl ServoBus {
 
     /// Takes `bytes` the host wrote at `now` (a packet may come in pieces);
     /// the answers to every whole instruction among them, in order.
-    pub fn write(&mut self, now: Duration, bytes: &[u8]) -> Vec<Answer> {
+    pub fn write(&mut self, now: Duration, bytes: &[u8]) -> Vec<ServoAnswer> {
         self.advance_to(now);
         // A packet's bytes come together: what was left of one that stopped
         // coming is let go (a servo restarts its reading after a gap), so
@@ -554,7 +554,7 @@ impl ServoBus {
     }
 
     /// The servos take `i`; their answers are added to `out`.
-    fn take(&mut self, i: &Instruction, out: &mut Vec<Answer>) {
+    fn take(&mut self, i: &Instruction, out: &mut Vec<ServoAnswer>) {
         let addressed = |s: &SimServo, id: u8| id == BROADCAST_ID || s.id() == id;
         match i {
             Instruction::Ping { id } => {
@@ -652,7 +652,7 @@ impl ServoBus {
         &mut self,
         i: &Instruction,
         id: u8,
-        out: &mut Vec<Answer>,
+        out: &mut Vec<ServoAnswer>,
         mut f: impl FnMut(&mut SimServo) -> u8,
     ) {
         for k in 0..self.servos.len() {
@@ -677,7 +677,7 @@ impl ServoBus {
         i: &Instruction,
         address: u16,
         length: u16,
-        out: &mut Vec<Answer>,
+        out: &mut Vec<ServoAnswer>,
     ) {
         if let Some(k) = self.index(id) {
             let data = self
@@ -716,7 +716,7 @@ impl ServoBus {
         i: &Instruction,
         error: u8,
         params: Vec<u8>,
-        out: &mut Vec<Answer>,
+        out: &mut Vec<ServoAnswer>,
     ) {
         let Some(s) = self.servos.get(k) else {
             return;
@@ -745,7 +745,7 @@ impl ServoBus {
         if self.chance(self.faults.late) {
             delay += self.faults.late_by;
         }
-        out.push(Answer { bytes, delay });
+        out.push(ServoAnswer { bytes, delay });
     }
 
     fn next(&mut self) -> u64 {
