@@ -22,10 +22,9 @@ use alloc::vec::Vec;
 
 use crc::{CRC_16_UMTS, Crc};
 
-use crate::feetech::{Reader, any, byte_at, one};
 use crate::{
-    BROADCAST_ID, DecodeError, Decoded, EncodeError, Instruction, InstructionError, MAX_ID, Status,
-    instruction_of,
+    BROADCAST_ID, DecodeError, Decoded, EncodeError, Instruction, InstructionError, MAX_ID, Reader,
+    Status, any, byte_at, check_lists, instruction_of, one, with_entries,
 };
 
 /// The longest packet, instruction or status (bytes).
@@ -67,6 +66,7 @@ const BULK_WRITE: u8 = 0x93;
 /// length, an empty list, a bulk write's data longer than a length field
 /// holds, or a packet over [`MAX_PACKET`] bytes once stuffed.
 pub fn encode(instruction: &Instruction) -> Result<Vec<u8>, EncodeError> {
+    check_lists(instruction)?;
     let name = instruction.name();
     let (id, inst, params) = match instruction {
         Instruction::Ping { id } => (any(*id, name)?, PING, Vec::new()),
@@ -93,11 +93,8 @@ pub fn encode(instruction: &Instruction) -> Result<Vec<u8>, EncodeError> {
             length,
             ids,
         } => {
-            not_empty(ids, name)?;
             let mut p = words(&[*address, *length]);
-            for id in ids {
-                p.push(one(*id, name)?);
-            }
+            p.extend_from_slice(ids);
             (BROADCAST_ID, SYNC_READ, p)
         }
         Instruction::SyncWrite {
@@ -107,13 +104,12 @@ pub fn encode(instruction: &Instruction) -> Result<Vec<u8>, EncodeError> {
         } => (
             BROADCAST_ID,
             SYNC_WRITE,
-            sync_write(*address, *length, entries)?,
+            with_entries(words(&[*address, *length]), entries),
         ),
         Instruction::BulkRead { reads } => {
-            not_empty(reads, name)?;
             let mut p = Vec::with_capacity(reads.len() * 5);
             for (id, address, length) in reads {
-                p.push(one(*id, name)?);
+                p.push(*id);
                 p.extend_from_slice(&words(&[*address, *length]));
             }
             (BROADCAST_ID, BULK_READ, p)
@@ -121,14 +117,6 @@ pub fn encode(instruction: &Instruction) -> Result<Vec<u8>, EncodeError> {
         Instruction::BulkWrite { writes } => (BROADCAST_ID, BULK_WRITE, bulk_write(writes)?),
     };
     packet(id, inst, &params)
-}
-
-fn not_empty<T>(list: &[T], instruction: &'static str) -> Result<(), EncodeError> {
-    if list.is_empty() {
-        Err(EncodeError::Empty { instruction })
-    } else {
-        Ok(())
-    }
 }
 
 /// Each of `values` little-endian.
@@ -143,29 +131,7 @@ fn with_data(head: &[u8], data: &[u8]) -> Vec<u8> {
     p
 }
 
-fn sync_write(
-    address: u16,
-    length: u16,
-    entries: &[(u8, Vec<u8>)],
-) -> Result<Vec<u8>, EncodeError> {
-    not_empty(entries, "sync_write")?;
-    let mut p = words(&[address, length]);
-    for (id, data) in entries {
-        if data.len() != usize::from(length) {
-            return Err(EncodeError::EntryLength {
-                id: *id,
-                got: data.len(),
-                length,
-            });
-        }
-        p.push(one(*id, "sync_write")?);
-        p.extend_from_slice(data);
-    }
-    Ok(p)
-}
-
 fn bulk_write(writes: &[(u8, u16, Vec<u8>)]) -> Result<Vec<u8>, EncodeError> {
-    not_empty(writes, "bulk_write")?;
     let mut p = Vec::new();
     for (id, address, data) in writes {
         let length = u16::try_from(data.len()).map_err(|_| EncodeError::Field {
@@ -173,7 +139,7 @@ fn bulk_write(writes: &[(u8, u16, Vec<u8>)]) -> Result<Vec<u8>, EncodeError> {
             value: u32::try_from(data.len()).unwrap_or(u32::MAX),
             bits: 16,
         })?;
-        p.push(one(*id, "bulk_write")?);
+        p.push(*id);
         p.extend_from_slice(&words(&[*address, length]));
         p.extend_from_slice(data);
     }

@@ -13,8 +13,8 @@
 use alloc::vec::Vec;
 
 use crate::{
-    BROADCAST_ID, DecodeError, Decoded, EncodeError, Instruction, InstructionError, MAX_ID, Status,
-    instruction_of,
+    BROADCAST_ID, DecodeError, Decoded, EncodeError, Instruction, InstructionError, Reader, Status,
+    any, byte_at, check_lists, instruction_of, one, with_entries,
 };
 
 /// The longest packet, instruction or status (bytes).
@@ -50,6 +50,17 @@ pub mod error_bits {
 /// beyond the protocol's, or a packet over [`MAX_PACKET`] bytes.
 pub fn encode(instruction: &Instruction) -> Result<Vec<u8>, EncodeError> {
     let name = instruction.name();
+    // An instruction Feetech has not is refused as such, before its list
+    // is looked at.
+    if !matches!(
+        instruction,
+        Instruction::Reboot { .. }
+            | Instruction::FactoryReset { .. }
+            | Instruction::BulkRead { .. }
+            | Instruction::BulkWrite { .. }
+    ) {
+        check_lists(instruction)?;
+    }
     let (id, inst, params) = match instruction {
         Instruction::Ping { id } => (any(*id, name)?, PING, Vec::new()),
         Instruction::Read {
@@ -73,13 +84,8 @@ pub fn encode(instruction: &Instruction) -> Result<Vec<u8>, EncodeError> {
             length,
             ids,
         } => {
-            if ids.is_empty() {
-                return Err(EncodeError::Empty { instruction: name });
-            }
             let mut p = alloc::vec![byte("address", *address)?, byte("length", *length)?];
-            for id in ids {
-                p.push(one(*id, name)?);
-            }
+            p.extend_from_slice(ids);
             (BROADCAST_ID, SYNC_READ, p)
         }
         Instruction::SyncWrite {
@@ -146,24 +152,8 @@ fn sync_write(
     length: u16,
     entries: &[(u8, Vec<u8>)],
 ) -> Result<Vec<u8>, EncodeError> {
-    if entries.is_empty() {
-        return Err(EncodeError::Empty {
-            instruction: "sync_write",
-        });
-    }
-    let mut p = alloc::vec![byte("address", address)?, byte("length", length)?];
-    for (id, data) in entries {
-        if data.len() != usize::from(length) {
-            return Err(EncodeError::EntryLength {
-                id: *id,
-                got: data.len(),
-                length,
-            });
-        }
-        p.push(one(*id, "sync_write")?);
-        p.extend_from_slice(data);
-    }
-    Ok(p)
+    let head = alloc::vec![byte("address", address)?, byte("length", length)?];
+    Ok(with_entries(head, entries))
 }
 
 /// A one-byte field.
@@ -173,24 +163,6 @@ fn byte(field: &'static str, value: u16) -> Result<u8, EncodeError> {
         value: u32::from(value),
         bits: 8,
     })
-}
-
-/// One servo's id (not the broadcast).
-pub(crate) fn one(id: u8, instruction: &'static str) -> Result<u8, EncodeError> {
-    if id <= MAX_ID {
-        Ok(id)
-    } else {
-        Err(EncodeError::Id { id, instruction })
-    }
-}
-
-/// A servo's id or the broadcast.
-pub(crate) fn any(id: u8, instruction: &'static str) -> Result<u8, EncodeError> {
-    if id == BROADCAST_ID {
-        Ok(id)
-    } else {
-        one(id, instruction)
-    }
 }
 
 /// The first status packet in `stream`, read as the SDK's `rxPacket` reads
@@ -291,54 +263,6 @@ pub fn read_instruction(stream: &[u8]) -> Result<(Instruction, usize), Instructi
     let params = p.get(5..need - 1).unwrap_or(&[]);
     let i = instruction_of(byte_at(p, 2), byte_at(p, 4), params, false, consumed)?;
     Ok((i, consumed))
-}
-
-/// The byte at `i` of `w` (0 past its end: never read where the caller
-/// has not made sure it is there).
-pub(crate) fn byte_at(w: &[u8], i: usize) -> u8 {
-    w.get(i).copied().unwrap_or(0)
-}
-
-/// A window on a byte stream that is read as the SDKs read their port:
-/// only as many bytes as the packet so far needs.
-pub(crate) struct Reader<'a> {
-    stream: &'a [u8],
-    /// Bytes taken from the stream.
-    pub(crate) read: usize,
-    pub(crate) window: Vec<u8>,
-}
-
-impl<'a> Reader<'a> {
-    pub(crate) fn new(stream: &'a [u8]) -> Self {
-        Self {
-            stream,
-            read: 0,
-            window: Vec::new(),
-        }
-    }
-
-    /// Reads from the stream until the window holds `wait` bytes, or the
-    /// stream ends.
-    pub(crate) fn fill(&mut self, wait: usize) {
-        let want = wait.saturating_sub(self.window.len());
-        let rest = self.stream.get(self.read..).unwrap_or(&[]);
-        let take = want.min(rest.len());
-        self.window
-            .extend_from_slice(rest.get(..take).unwrap_or(&[]));
-        self.read += take;
-    }
-
-    /// The stream ended with `wait` bytes wanted.
-    pub(crate) fn ended(&self, wait: usize) -> DecodeError {
-        if self.window.is_empty() {
-            DecodeError::Timeout
-        } else {
-            DecodeError::Incomplete {
-                have: self.window.len(),
-                need: wait,
-            }
-        }
-    }
 }
 
 #[cfg(test)]

@@ -402,7 +402,6 @@ impl DecodeError {
 /// address or length out of range, a sync write entry of another length,
 /// an empty list, or a packet longer than the protocol takes.
 pub fn encode(protocol: Protocol, instruction: &Instruction) -> Result<Vec<u8>, EncodeError> {
-    check_lists(instruction)?;
     match protocol {
         Protocol::Scs0 | Protocol::Scs1 => feetech::encode(instruction),
         Protocol::Dxl2 => dynamixel::encode(instruction),
@@ -599,8 +598,11 @@ pub fn encode_status(protocol: Protocol, status: &Status) -> Result<Vec<u8>, Enc
     }
 }
 
-/// A sync or bulk instruction's servos each once, a sync one's length not 0.
-fn check_lists(instruction: &Instruction) -> Result<(), EncodeError> {
+/// A sync or bulk instruction's list, checked once for every protocol
+/// (the encoders only lay its bytes out): not empty, each servo a servo's
+/// id and listed once, a sync instruction's length not 0, each sync write
+/// entry that length.
+pub(crate) fn check_lists(instruction: &Instruction) -> Result<(), EncodeError> {
     let name = instruction.name();
     let ids: Vec<u8> = match instruction {
         Instruction::SyncRead { ids, length, .. } => {
@@ -615,13 +617,27 @@ fn check_lists(instruction: &Instruction) -> Result<(), EncodeError> {
             if *length == 0 {
                 return Err(EncodeError::ZeroLength { instruction: name });
             }
+            if let Some((id, data)) = entries
+                .iter()
+                .find(|(_, d)| d.len() != usize::from(*length))
+            {
+                return Err(EncodeError::EntryLength {
+                    id: *id,
+                    got: data.len(),
+                    length: *length,
+                });
+            }
             entries.iter().map(|(id, _)| *id).collect()
         }
         Instruction::BulkRead { reads } => reads.iter().map(|(id, ..)| *id).collect(),
         Instruction::BulkWrite { writes } => writes.iter().map(|(id, ..)| *id).collect(),
         _ => return Ok(()),
     };
+    if ids.is_empty() {
+        return Err(EncodeError::Empty { instruction: name });
+    }
     for (k, id) in ids.iter().enumerate() {
+        one(*id, name)?;
         if ids.get(..k).is_some_and(|before| before.contains(id)) {
             return Err(EncodeError::Duplicate {
                 id: *id,
@@ -630,6 +646,82 @@ fn check_lists(instruction: &Instruction) -> Result<(), EncodeError> {
         }
     }
     Ok(())
+}
+
+/// One servo's id (not the broadcast).
+pub(crate) fn one(id: u8, instruction: &'static str) -> Result<u8, EncodeError> {
+    if id <= MAX_ID {
+        Ok(id)
+    } else {
+        Err(EncodeError::Id { id, instruction })
+    }
+}
+
+/// A servo's id or the broadcast.
+pub(crate) fn any(id: u8, instruction: &'static str) -> Result<u8, EncodeError> {
+    if id == BROADCAST_ID {
+        Ok(id)
+    } else {
+        one(id, instruction)
+    }
+}
+
+/// A sync write's entries laid out after `head`: each servo's id, then its
+/// bytes (checked by [`check_lists`]).
+pub(crate) fn with_entries(mut head: Vec<u8>, entries: &[(u8, Vec<u8>)]) -> Vec<u8> {
+    for (id, data) in entries {
+        head.push(*id);
+        head.extend_from_slice(data);
+    }
+    head
+}
+
+/// The byte at `i` of `w` (0 past its end: never read where the caller
+/// has not made sure it is there).
+pub(crate) fn byte_at(w: &[u8], i: usize) -> u8 {
+    w.get(i).copied().unwrap_or(0)
+}
+
+/// A window on a byte stream that is read as the SDKs read their port:
+/// only as many bytes as the packet so far needs.
+pub(crate) struct Reader<'a> {
+    stream: &'a [u8],
+    /// Bytes taken from the stream.
+    pub(crate) read: usize,
+    pub(crate) window: Vec<u8>,
+}
+
+impl<'a> Reader<'a> {
+    pub(crate) fn new(stream: &'a [u8]) -> Self {
+        Self {
+            stream,
+            read: 0,
+            window: Vec::new(),
+        }
+    }
+
+    /// Reads from the stream until the window holds `wait` bytes, or the
+    /// stream ends.
+    pub(crate) fn fill(&mut self, wait: usize) {
+        let want = wait.saturating_sub(self.window.len());
+        let rest = self.stream.get(self.read..).unwrap_or(&[]);
+        let take = want.min(rest.len());
+        self.window
+            .extend_from_slice(rest.get(..take).unwrap_or(&[]));
+        self.read += take;
+    }
+
+    /// The stream ended with `wait` bytes wanted.
+    pub(crate) fn ended(&self, wait: usize) -> DecodeError {
+        if self.window.is_empty() {
+            DecodeError::Timeout
+        } else {
+            DecodeError::Incomplete {
+                have: self.window.len(),
+                need: wait,
+            }
+        }
+    }
 }
 
 /// The first status packet in `stream`, read as the vendor's SDK reads
