@@ -34,6 +34,10 @@ pub enum BridgeError {
     #[cfg(feature = "sim")]
     #[error("simulated joint: {0}")]
     Sim(#[from] motorwire_sim::SimError),
+    /// The simulated servos of a serial port could not be made.
+    #[cfg(feature = "sim")]
+    #[error("simulated servos: {0}")]
+    SimServos(String),
     /// The simulated arm found work due at one instant again and again
     /// without the bridge's clock moving on (a timer that stays due after
     /// it was handled): given up rather than spun on forever.

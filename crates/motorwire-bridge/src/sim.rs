@@ -522,6 +522,37 @@ impl Hub {
     }
 }
 
+/// The simulated servos of one serial port, and their answers on their
+/// way to the bridge (each at its time, in order).
+#[derive(Debug)]
+struct SimServoPort {
+    bus: motorwire_sim::servo::ServoBus,
+    answers: std::collections::VecDeque<(Duration, Vec<u8>)>,
+}
+
+/// The simulated servos of `map`'s serial ports, one bus each.
+fn servo_buses(map: &BusMap) -> Result<Vec<SimServoPort>, BridgeError> {
+    map.servo_ports()
+        .iter()
+        .enumerate()
+        .map(|(k, port)| {
+            let servos: Vec<(&'static motorwire_servo::table::Model, u8)> = map
+                .motors()
+                .filter_map(|m| match m.target {
+                    Target::Servo(t) if usize::from(t.port) == k => Some((t.table()?, t.id)),
+                    _ => None,
+                })
+                .collect();
+            let bus = motorwire_sim::servo::ServoBus::mixed(&servos)
+                .map_err(|e| BridgeError::SimServos(format!("servo port {}: {e}", port.path)))?;
+            Ok(SimServoPort {
+                bus,
+                answers: std::collections::VecDeque::new(),
+            })
+        })
+        .collect()
+}
+
 /// A line the bridge wrote to the simulated Orion arm controller of a
 /// [`SimulatedArm`], and what the controller made of it.
 #[derive(Debug, Clone, PartialEq)]
@@ -582,6 +613,8 @@ pub struct SimulatedArm {
     compact: Vec<(SimCompactDevice, SimPort)>,
     moteus: Vec<(SimMoteus, SimPort)>,
     orion: Option<SimOrion>,
+    /// The simulated servos of each of the map's serial ports.
+    servos: Vec<SimServoPort>,
     /// Every frame the bridge sent, with when, once asked for.
     sent: Option<Vec<(Duration, motorwire_can::Frame)>>,
     outputs: Vec<Output>,
@@ -794,6 +827,7 @@ impl SimulatedArm {
         for c in bridge.map().motors().filter_map(moteus_config) {
             moteus.push((SimMoteus::new(c)?, bus.port()));
         }
+        let servos = servo_buses(bridge.map())?;
         bridge.start(Duration::ZERO);
         let orion = bridge.config().line_link.then(SimOrion::default);
         Ok(Self {
@@ -804,6 +838,7 @@ impl SimulatedArm {
             compact,
             moteus,
             orion,
+            servos,
             sent: None,
             outputs: Vec::new(),
             holding: None,
@@ -1032,6 +1067,10 @@ impl SimulatedArm {
                 .iter()
                 .filter_map(|(d, _)| d.poll_timeout())
                 .min(),
+            self.servos
+                .iter()
+                .filter_map(|p| p.answers.front().map(|(t, _)| *t))
+                .min(),
         ]
         .into_iter()
         .flatten()
@@ -1071,6 +1110,7 @@ impl SimulatedArm {
             }
             let sent = self.send_frames(now)?;
             let mut busy = self.serve_orion(now);
+            busy |= self.serve_servos(now);
             if sent {
                 self.bridge.flushed(now);
                 busy = true;
@@ -1139,6 +1179,52 @@ impl SimulatedArm {
             self.bridge.handle_link_line(now, &a);
         }
         answered
+    }
+
+    /// The bridge's bytes to the simulated servos, and their answers back
+    /// once due. Whether any came back.
+    fn serve_servos(&mut self, now: Duration) -> bool {
+        let mut wrote = false;
+        while let Some((port, bytes)) = self.bridge.poll_serial() {
+            wrote = true;
+            if let Some(p) = self.servos.get_mut(usize::from(port)) {
+                for a in p.bus.write(now, &bytes) {
+                    let at = now.saturating_add(a.delay);
+                    // In the order they are sent (a late one behind).
+                    let k = p.answers.partition_point(|(t, _)| *t <= at);
+                    p.answers.insert(k, (at, a.bytes));
+                }
+            }
+        }
+        if wrote {
+            self.bridge.flushed(now);
+        }
+        let mut answered = false;
+        for (k, p) in self.servos.iter_mut().enumerate() {
+            while p.answers.front().is_some_and(|(t, _)| *t <= now) {
+                if let Some((_, bytes)) = p.answers.pop_front() {
+                    self.bridge
+                        .handle_serial(now, u8::try_from(k).unwrap_or(u8::MAX), &bytes);
+                    answered = true;
+                }
+            }
+        }
+        answered
+    }
+
+    /// The simulated servo `id` of serial port `port` (its index among the
+    /// map's servo ports).
+    pub fn servo(&self, port: u8, id: u8) -> Option<&motorwire_sim::servo::SimServo> {
+        self.servos.get(usize::from(port))?.bus.servo(id)
+    }
+
+    /// Faults on serial port `port` from now on (answers dropped,
+    /// corrupted, late), drawn from `seed`.
+    pub fn servo_faults(&mut self, port: u8, faults: motorwire_sim::servo::ServoFaults, seed: u64) {
+        if let Some(p) = self.servos.get_mut(usize::from(port)) {
+            let bus = p.bus.clone();
+            p.bus = bus.with_faults(faults, seed);
+        }
     }
 
     /// Each simulated device takes what came for it and answers. Whether

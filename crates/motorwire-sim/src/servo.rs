@@ -60,6 +60,9 @@ pub enum ServoSimError {
     /// No servo at all.
     #[error("a servo bus needs at least one servo")]
     Empty,
+    /// Two models that speak different protocols on one bus.
+    #[error("a {0} and a {1} speak different protocols: one bus, one protocol")]
+    Protocols(&'static str, &'static str),
 }
 
 /// Faults of the simulated bus, each a probability for each status packet.
@@ -454,19 +457,34 @@ impl ServoBus {
     /// # Errors
     /// [`ServoSimError`]: no servo, an id above 252 or given twice.
     pub fn new(model: &'static Model, ids: &[u8]) -> Result<Self, ServoSimError> {
-        if ids.is_empty() {
+        let servos: Vec<(&'static Model, u8)> = ids.iter().map(|&id| (model, id)).collect();
+        Self::mixed(&servos)
+    }
+
+    /// Servos of several models of one protocol (a Koch arm's XL430-W250
+    /// and XL330-M288), each `(model, id)`, at their middle position,
+    /// torque off, factory settings.
+    ///
+    /// # Errors
+    /// [`ServoSimError`]: no servo, an id above 252 or given twice, models
+    /// of different protocols.
+    pub fn mixed(servos: &[(&'static Model, u8)]) -> Result<Self, ServoSimError> {
+        let Some((first, _)) = servos.first() else {
             return Err(ServoSimError::Empty);
-        }
+        };
         let mut seen = Vec::new();
-        for &id in ids {
+        for &(model, id) in servos {
             if id > 252 || seen.contains(&id) {
                 return Err(ServoSimError::Id(id));
+            }
+            if model.protocol != first.protocol {
+                return Err(ServoSimError::Protocols(first.name, model.name));
             }
             seen.push(id);
         }
         Ok(Self {
-            protocol: model.protocol,
-            servos: ids.iter().map(|&id| SimServo::new(model, id)).collect(),
+            protocol: first.protocol,
+            servos: servos.iter().map(|&(m, id)| SimServo::new(m, id)).collect(),
             faults: ServoFaults::default(),
             rng: 0x9E37_79B9_7F4A_7C15,
             now: Duration::ZERO,

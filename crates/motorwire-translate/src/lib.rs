@@ -8,6 +8,7 @@ mod map;
 mod moteus;
 mod path;
 mod report;
+mod servo;
 mod sync;
 mod trajectory;
 
@@ -28,6 +29,10 @@ pub use path::{JointState, PathExtent, check_path, check_path_from, check_trajec
 /// also `motorwire_wia::ValidationReport`): the same type.
 pub use report::Report as TranslationReport;
 pub use report::{Loss, LossKind, LossText, Report, Translated};
+pub use servo::{
+    Calibration, GoalBlock, ServoCommand, ServoPort, ServoTarget, ServoVendor, TORQUE_ON,
+    calibrated_range, goal_block, goal_steps, is_servo, to_servo, torque_address,
+};
 pub use sync::{MultiAxisMove, SYNC_TOLERANCE_S, multi_axis_to_irpc, multi_axis_to_irpc_from};
 pub use trajectory::{
     MAX_TRAJECTORY_SEGMENTS, TRAJECTORY_LEAD_S, TrajectoryPlan, TrajectorySegment,

@@ -138,6 +138,9 @@ pub enum Target {
         /// default `stop = "stop"`).
         brake: bool,
     },
+    /// A serial bus servo (Feetech or Dynamixel) on one of the map's
+    /// serial ports ([`BusMap::servo_ports`]).
+    Servo(crate::servo::ServoTarget),
 }
 
 impl Target {
@@ -148,6 +151,7 @@ impl Target {
             Target::Compact { .. } => "compact",
             Target::Orion { .. } => "orion",
             Target::Moteus { .. } => "moteus",
+            Target::Servo(s) => s.vendor.name(),
         }
     }
 }
@@ -227,7 +231,10 @@ pub struct MappedMotor {
 /// # Ok::<(), motorwire_translate::MapError>(())
 /// ```
 ///
-/// Per motor: `dialect` (`irpc`, `compact`, `orion` or `moteus`); for iRPC `node`
+/// Per motor: `dialect` (`irpc`, `compact`, `orion`, `moteus`, `feetech` or
+/// `dynamixel`); for a serial bus servo `port`, `id`, `model` and optionally
+/// `baud`, `calibration` and `stop` (`torque_off` or `hold`), its position
+/// limits by default its calibrated range; for iRPC `node`
 /// and optionally `wire` (`v1`, `v2.0` the default, `v2.1`, `v2.2`) and
 /// `profile` (`trapezoidal`, `scurve` the default, `adaptive`); for a
 /// compact device `node` (the CAN id of its commands, 0x001..=0x7FF) and
@@ -254,6 +261,9 @@ pub struct BusMap {
     /// The iRPC motors' names by node id ([`BusMap::irpc_node`], asked
     /// for every frame a joint sends).
     irpc: BTreeMap<u16, String>,
+    /// The serial ports of its servos, each once, in the order the map
+    /// names them first (by motor name).
+    servo_ports: Vec<crate::servo::ServoPort>,
 }
 
 #[derive(Deserialize)]
@@ -279,8 +289,22 @@ struct RawMotor {
     bus: Option<i64>,
     query_rate_hz: Option<i64>,
     stop: Option<String>,
+    port: Option<String>,
+    baud: Option<i64>,
+    model: Option<String>,
+    calibration: Option<RawCalibration>,
     #[serde(default)]
     limits: RawLimits,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCalibration {
+    homing_offset: i64,
+    range_min: i64,
+    range_max: i64,
+    #[serde(default)]
+    drive_mode: i64,
 }
 
 #[derive(Deserialize, Default)]
@@ -418,6 +442,233 @@ fn moteus_target(
     })
 }
 
+/// The bus map's spelling of a dialect other than a servo's.
+fn static_dialect(dialect: &str) -> &'static str {
+    match dialect {
+        "irpc" => "irpc",
+        "compact" => "compact",
+        "moteus" => "moteus",
+        _ => "orion",
+    }
+}
+
+/// A serial bus servo's entry: `port` (its serial port), `id` (0..=252)
+/// and `model` required; `baud` (1,000,000 by default; one per port),
+/// `calibration` (`homing_offset`, `range_min`, `range_max` in raw steps,
+/// `drive_mode` 0 or 1; by default the whole turn) and `stop`
+/// (`torque_off`, the default, or `hold`) optional. The servos of one port
+/// speak one protocol at one baud rate.
+fn servo_target(
+    name: &str,
+    m: &RawMotor,
+    not_for: impl Fn(&'static str, &'static str) -> MapError,
+    ports: &mut Vec<crate::servo::ServoPort>,
+) -> Result<Target, MapError> {
+    use crate::servo::{Calibration, ServoPort, ServoTarget, ServoVendor};
+    let (vendor, dialect) = if m.dialect == "feetech" {
+        (ServoVendor::Feetech, "feetech")
+    } else {
+        (ServoVendor::Dynamixel, "dynamixel")
+    };
+    for (field, present) in [
+        ("node", m.node.is_some()),
+        ("feedback_node", m.feedback_node.is_some()),
+        ("wire", m.wire.is_some()),
+        ("key", m.key.is_some()),
+        ("profile", m.profile.is_some()),
+        ("bus", m.bus.is_some()),
+        ("query_rate_hz", m.query_rate_hz.is_some()),
+    ] {
+        if present {
+            return Err(not_for(field, dialect));
+        }
+    }
+    let missing = |field| MapError::Missing {
+        motor: name.to_owned(),
+        dialect,
+        field,
+    };
+    let port = m.port.clone().ok_or_else(|| missing("port"))?;
+    if port.is_empty() {
+        return Err(invalid(name, "port", "an empty path is no serial port"));
+    }
+    let id = m.id.ok_or_else(|| missing("id"))?;
+    let id = u8::try_from(id)
+        .ok()
+        .filter(|i| *i <= motorwire_servo::MAX_ID)
+        .ok_or_else(|| invalid(name, "id", format!("{id} is not a servo id in 0..=252")))?;
+    let model_name = m.model.as_deref().ok_or_else(|| missing("model"))?;
+    let models: &[&str] = match vendor {
+        ServoVendor::Feetech => &["sts3215"],
+        ServoVendor::Dynamixel => &["xl330-m288", "xl430-w250", "xm430-w350"],
+    };
+    let Some(model) =
+        motorwire_servo::table::model(model_name).filter(|t| models.contains(&t.name))
+    else {
+        return Err(invalid(
+            name,
+            "model",
+            format!(
+                "{model_name:?} is not a {dialect} model the bridge drives ({})",
+                models.join(", ")
+            ),
+        ));
+    };
+    let baud = match m.baud {
+        None => 1_000_000,
+        Some(b) => u32::try_from(b)
+            .ok()
+            .filter(|b| (9600..=4_500_000).contains(b))
+            .ok_or_else(|| {
+                invalid(
+                    name,
+                    "baud",
+                    format!("{b} is not a baud rate in 9600..=4500000"),
+                )
+            })?,
+    };
+    let top = i64::from(model.resolution) - 1;
+    let calibration = match &m.calibration {
+        None => Calibration::whole_turn(model.resolution),
+        Some(c) => {
+            let step = |field: &'static str, v: i64| {
+                u32::try_from(v)
+                    .ok()
+                    .filter(|v| i64::from(*v) <= top)
+                    .ok_or_else(|| {
+                        invalid(
+                            name,
+                            field,
+                            format!("{v} is not a step of a {model_name} (0..={top})"),
+                        )
+                    })
+            };
+            let range_min = step("calibration.range_min", c.range_min)?;
+            let range_max = step("calibration.range_max", c.range_max)?;
+            if range_min >= range_max {
+                return Err(invalid(
+                    name,
+                    "calibration",
+                    format!("range_min {range_min} is not below range_max {range_max}"),
+                ));
+            }
+            let offset = model
+                .register("Homing_Offset")
+                .ok_or_else(|| invalid(name, "model", "no Homing_Offset register"))?;
+            if offset.to_raw(c.homing_offset).is_err() {
+                return Err(invalid(
+                    name,
+                    "calibration.homing_offset",
+                    format!(
+                        "{} does not fit the servo's Homing_Offset register",
+                        c.homing_offset
+                    ),
+                ));
+            }
+            let drive_mode = u8::try_from(c.drive_mode)
+                .ok()
+                .filter(|d| *d <= 1)
+                .ok_or_else(|| {
+                    invalid(
+                        name,
+                        "calibration.drive_mode",
+                        format!("{} is not 0 or 1", c.drive_mode),
+                    )
+                })?;
+            Calibration {
+                homing_offset: i32::try_from(c.homing_offset).unwrap_or(0),
+                range_min,
+                range_max,
+                drive_mode,
+            }
+        }
+    };
+    let stop_holds = match m.stop.as_deref() {
+        None | Some("torque_off") => false,
+        Some("hold") => true,
+        Some(other) => {
+            return Err(invalid(
+                name,
+                "stop",
+                format!("{other:?} is not torque_off or hold"),
+            ));
+        }
+    };
+    let index = match ports.iter().position(|p| p.path == port) {
+        Some(k) => {
+            let p = ports.get(k).ok_or_else(|| invalid(name, "port", "lost"))?;
+            if p.baud != baud {
+                return Err(invalid(
+                    name,
+                    "baud",
+                    format!(
+                        "{baud}, where another servo of {port} says {}: one bus, one baud rate",
+                        p.baud
+                    ),
+                ));
+            }
+            if p.protocol != model.protocol {
+                return Err(invalid(
+                    name,
+                    "model",
+                    format!(
+                        "a {model_name} speaks {}, where another servo of {port} speaks {}: one bus, one protocol",
+                        model.protocol.name(),
+                        p.protocol.name()
+                    ),
+                ));
+            }
+            k
+        }
+        None => {
+            ports.push(ServoPort {
+                path: port.clone(),
+                baud,
+                protocol: model.protocol,
+            });
+            ports.len() - 1
+        }
+    };
+    let port = u8::try_from(index)
+        .map_err(|_| invalid(name, "port", "more than 255 serial ports in one map"))?;
+    Ok(Target::Servo(ServoTarget {
+        vendor,
+        port,
+        id,
+        model: model.name,
+        calibration,
+        stop_holds,
+    }))
+}
+
+/// A servo's position limits: within its calibrated range, which they
+/// are by default.
+fn servo_limits(
+    name: &str,
+    t: &crate::servo::ServoTarget,
+    unit: AngleUnit,
+    l: &mut RawLimits,
+) -> Result<(), MapError> {
+    let (lo, hi) = crate::servo::calibrated_range(t, unit);
+    for (field, value, bound) in [
+        ("limits.min_position", &mut l.min_position, lo),
+        ("limits.max_position", &mut l.max_position, hi),
+    ] {
+        match *value {
+            None => *value = Some(bound),
+            Some(v) if v.is_finite() && (v < lo - 1e-9 || v > hi + 1e-9) => {
+                return Err(invalid(
+                    name,
+                    field,
+                    format!("{v} is outside the servo's calibrated range {lo}..={hi}"),
+                ));
+            }
+            Some(_) => {}
+        }
+    }
+    Ok(())
+}
+
 fn valid_name(name: &str) -> bool {
     !name.is_empty()
         && name.len() <= 64
@@ -490,11 +741,12 @@ impl BusMap {
             message: e.to_string().trim_end().to_owned(),
         })?;
         let mut motors = BTreeMap::new();
+        let mut servo_ports = Vec::new();
         for (name, m) in raw.motors {
             if !valid_name(&name) {
                 return Err(MapError::BadName { name });
             }
-            let motor = Self::motor_from(&name, m)?;
+            let motor = Self::motor_from(&name, m, &mut servo_ports)?;
             motors.insert(name, motor);
         }
         let irpc = motors
@@ -504,18 +756,39 @@ impl BusMap {
                 _ => None,
             })
             .collect();
-        let map = BusMap { motors, irpc };
+        let map = BusMap {
+            motors,
+            irpc,
+            servo_ports,
+        };
         map.check_addresses()?;
         Ok(map)
     }
 
-    fn motor_from(name: &str, m: RawMotor) -> Result<MappedMotor, MapError> {
+    fn motor_from(
+        name: &str,
+        m: RawMotor,
+        ports: &mut Vec<crate::servo::ServoPort>,
+    ) -> Result<MappedMotor, MapError> {
         let not_for = |field: &'static str, dialect: &'static str| MapError::NotForDialect {
             motor: name.to_owned(),
             dialect,
             field,
         };
-        if m.dialect != "moteus" {
+        if !matches!(m.dialect.as_str(), "feetech" | "dynamixel") {
+            for (field, present) in [
+                ("port", m.port.is_some()),
+                ("baud", m.baud.is_some()),
+                ("model", m.model.is_some()),
+                ("calibration", m.calibration.is_some()),
+            ] {
+                if present && matches!(m.dialect.as_str(), "irpc" | "compact" | "orion" | "moteus")
+                {
+                    return Err(not_for(field, static_dialect(&m.dialect)));
+                }
+            }
+        }
+        if !matches!(m.dialect.as_str(), "moteus" | "feetech" | "dynamixel") {
             let dialect = match m.dialect.as_str() {
                 "irpc" => "irpc",
                 "compact" => "compact",
@@ -534,6 +807,7 @@ impl BusMap {
         }
         let target = match m.dialect.as_str() {
             "moteus" => moteus_target(name, &m, not_for)?,
+            "feetech" | "dynamixel" => servo_target(name, &m, not_for, ports)?,
             "irpc" => {
                 let node = m.node.ok_or(MapError::Missing {
                     motor: name.to_owned(),
@@ -598,7 +872,7 @@ impl BusMap {
                 return Err(invalid(
                     name,
                     "dialect",
-                    format!("{other:?} is not irpc, compact, orion or moteus"),
+                    format!("{other:?} is not irpc, compact, orion, moteus, feetech or dynamixel"),
                 ));
             }
         };
@@ -625,7 +899,10 @@ impl BusMap {
                 ));
             }
         };
-        let l = m.limits;
+        let mut l = m.limits;
+        if let Target::Servo(t) = &target {
+            servo_limits(name, t, unit, &mut l)?;
+        }
         for (field, value, positive) in [
             ("limits.min_position", l.min_position, false),
             ("limits.max_position", l.max_position, false),
@@ -670,7 +947,7 @@ impl BusMap {
             }
         };
         let command_timeout = match (m.command_timeout_ms, &target) {
-            (Some(0), _) | (None, Target::Irpc { .. }) => None,
+            (Some(0), _) | (None, Target::Irpc { .. } | Target::Servo(_)) => None,
             (Some(ms), _) => Some(std::time::Duration::from_millis(ms)),
             (None, _) => Some(std::time::Duration::from_millis(200)),
         };
@@ -704,6 +981,7 @@ impl BusMap {
             Can(u16),
             Orion(&'static str),
             Moteus(u16, u8),
+            Servo(u8, u8),
         }
         // Each address with the first motor there and whether it is an iRPC joint.
         let mut seen: BTreeMap<Address, (&str, bool)> = BTreeMap::new();
@@ -723,6 +1001,23 @@ impl BusMap {
                         });
                     }
                     seen.insert(Address::Moteus(bus, id), (&m.name, false));
+                    continue;
+                }
+                Target::Servo(t) => {
+                    if let Some((first, _)) = seen.get(&Address::Servo(t.port, t.id)) {
+                        return Err(MapError::SharedAddress {
+                            first: (*first).to_owned(),
+                            second: m.name.clone(),
+                            address: format!(
+                                "servo id {} on {}",
+                                t.id,
+                                self.servo_ports
+                                    .get(usize::from(t.port))
+                                    .map_or("its port", |p| p.path.as_str())
+                            ),
+                        });
+                    }
+                    seen.insert(Address::Servo(t.port, t.id), (&m.name, false));
                     continue;
                 }
                 Target::Orion { motor } => {
@@ -753,6 +1048,13 @@ impl BusMap {
             }
         }
         Ok(())
+    }
+
+    /// The serial ports of the map's servos, each once: a servo's
+    /// [`crate::ServoTarget::port`] is its index here.
+    #[must_use]
+    pub fn servo_ports(&self) -> &[crate::servo::ServoPort] {
+        &self.servo_ports
     }
 
     /// The motor named `name`.

@@ -2,6 +2,14 @@
 
 use super::*;
 
+/// What the servo driver is made with: the map's serial ports, and how
+/// often each is read.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ServoSetup<'a> {
+    pub(crate) ports: &'a [motorwire_translate::ServoPort],
+    pub(crate) period: Duration,
+}
+
 /// The drivers, one per dialect: a closed set, each operation one match.
 /// Every driver's news reaches the engine as [`Happened`], through
 /// [`Drivers::poll`].
@@ -11,6 +19,7 @@ pub(crate) struct Drivers {
     pub(super) compact: compact::CompactDriver,
     pub(super) orion: orion::OrionDriver,
     pub(super) moteus: moteus::MoteusDriver,
+    pub(super) servo: servo::ServoDriver,
     pub(super) queued: VecDeque<Queued>,
     /// The Unix ms of the bridge's zero (feedback timestamps).
     pub(super) epoch: f64,
@@ -40,6 +49,7 @@ impl Drivers {
         arm_command_timeout: Duration,
         epoch: f64,
         devices: &dyn Registry,
+        servos: ServoSetup<'_>,
     ) -> Result<Self, motorwire_can::Error> {
         let mut irpc = irpc::IrpcDriver::new(client)?;
         let mut moteus = moteus::MoteusDriver::new(client.timeout, client.retries);
@@ -49,9 +59,19 @@ impl Drivers {
                 Device::Moteus {
                     id, bus, period_ms, ..
                 } => moteus.poll_every(j.id, id, bus, Duration::from_millis(u64::from(period_ms))),
-                Device::Compact { .. } | Device::Orion(_) => {}
+                Device::Compact { .. } | Device::Orion(_) | Device::Servo(_) => {}
             }
         }
+        let servo = servo::ServoDriver::new(
+            servos.ports,
+            devices.iter().filter_map(|j| match j.device {
+                Device::Servo(t) => Some((j.id, t)),
+                _ => None,
+            }),
+            servos.period,
+            client.timeout.min(servos.period),
+            client.retries,
+        );
         let mut by_node = HashMap::new();
         for j in devices.iter() {
             by_node.entry(j.node).or_insert(j.id);
@@ -61,6 +81,7 @@ impl Drivers {
             compact: compact::CompactDriver::new(client.timeout, client.retries),
             orion: orion::OrionDriver::new(client.timeout, client.retries, arm_command_timeout),
             moteus,
+            servo,
             queued: VecDeque::new(),
             epoch,
             router: Router::new(devices.iter().map(|j| (j.id, j.node, j.device))),
@@ -89,6 +110,7 @@ impl Drivers {
             }
             Order::Orion(o) => self.send_together(now, &[(device, Order::Orion(o))]),
             Order::Moteus(c) => self.moteus.send(now, device, &c),
+            Order::Servo(c) => Ok(self.servo.send(now, device, c)),
         }
     }
 
@@ -97,7 +119,7 @@ impl Drivers {
     pub(crate) fn refuses(&self, order: &Order) -> Option<DeviceError> {
         match order {
             Order::Orion(o) => self.orion.refuses(*o),
-            Order::Irpc(_) | Order::Compact(_) | Order::Moteus(_) => None,
+            Order::Irpc(_) | Order::Compact(_) | Order::Moteus(_) | Order::Servo(_) => None,
         }
     }
 
@@ -118,7 +140,7 @@ impl Drivers {
             .iter()
             .filter_map(|(d, o)| match o {
                 Order::Orion(o) => Some((*d, *o)),
-                Order::Irpc(_) | Order::Compact(_) | Order::Moteus(_) => None,
+                Order::Irpc(_) | Order::Compact(_) | Order::Moteus(_) | Order::Servo(_) => None,
             })
             .collect();
         if orion.len() != orders.len() || orion.is_empty() {
@@ -133,7 +155,8 @@ impl Drivers {
     pub(crate) const fn link_free(&self, order: Option<&Order>) -> bool {
         match order {
             Some(Order::Orion(_)) => self.orion.lost() || self.orion.free(),
-            Some(Order::Irpc(_) | Order::Compact(_) | Order::Moteus(_)) | None => true,
+            Some(Order::Irpc(_) | Order::Compact(_) | Order::Moteus(_) | Order::Servo(_))
+            | None => true,
         }
     }
 
@@ -153,6 +176,7 @@ impl Drivers {
             Order::Compact(_) => self.compact.forget(device),
             Order::Orion(_) => self.orion.forget(device),
             Order::Moteus(_) => self.moteus.forget(device),
+            Order::Servo(_) => self.servo.forget(device),
         }
     }
 
@@ -165,7 +189,11 @@ impl Drivers {
         let mut unsent: BTreeSet<DeviceId> = picked
             .iter()
             .copied()
-            .filter(|&d| self.compact.take_back_unsent(d) || self.moteus.take_back_unsent(d))
+            .filter(|&d| {
+                self.compact.take_back_unsent(d)
+                    || self.moteus.take_back_unsent(d)
+                    || self.servo.take_back_unsent(d)
+            })
             .collect();
         if let Some(devices) = self.orion.take_back_unsent(|d| picked.contains(&d)) {
             unsent.extend(devices);
@@ -202,7 +230,10 @@ impl Drivers {
     /// it came back).
     pub(crate) fn offline_reason(&self, device: Device) -> Option<&'static str> {
         match device {
-            Device::Irpc { .. } | Device::Compact { .. } | Device::Moteus { .. } => None,
+            Device::Irpc { .. }
+            | Device::Compact { .. }
+            | Device::Moteus { .. }
+            | Device::Servo(_) => None,
             Device::Orion(_) => self.orion.offline_reason(),
         }
     }
@@ -226,10 +257,14 @@ impl Drivers {
     /// poll, a moteus controller's poll ([`Drivers::link_timeouts`] and
     /// [`Drivers::link_housekeeping`]).
     pub(crate) fn link_deadline(&self) -> Option<Duration> {
-        [self.orion.deadline(), self.moteus.polls_deadline()]
-            .into_iter()
-            .flatten()
-            .min()
+        [
+            self.orion.deadline(),
+            self.moteus.polls_deadline(),
+            self.servo.deadline(),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
     }
 
     /// A frame from the bus at `now`, for whichever of `devices` it is.
@@ -294,7 +329,7 @@ impl Drivers {
     pub(crate) fn resend_due(&self, msg_id: u32, order: &Order, now: Duration) -> bool {
         match order {
             Order::Irpc(_) => self.irpc.resend_due(msg_id, now),
-            Order::Compact(_) | Order::Orion(_) | Order::Moteus(_) => false,
+            Order::Compact(_) | Order::Orion(_) | Order::Moteus(_) | Order::Servo(_) => false,
         }
     }
 
@@ -314,6 +349,71 @@ impl Drivers {
     pub(crate) fn link_timeouts(&mut self, now: Duration, devices: &dyn Registry) {
         if let Some(done) = self.orion.expire(now) {
             self.orion_done(&done, now, devices);
+        }
+        self.servo.expire(now);
+        self.take_servo_news(devices);
+    }
+
+    /// The next bytes for a servo port, and the port (its index in the
+    /// map's servo ports).
+    pub(crate) fn poll_serial(&mut self) -> Option<(u8, Vec<u8>)> {
+        self.servo.poll_transmit()
+    }
+
+    /// Bytes from servo port `port`, received at `now`.
+    pub(crate) fn handle_serial(
+        &mut self,
+        now: Duration,
+        port: u8,
+        bytes: &[u8],
+        devices: &dyn Registry,
+    ) {
+        self.servo.handle_bytes(now, port, bytes);
+        self.take_servo_news(devices);
+    }
+
+    /// What the servo driver has to tell, told.
+    pub(super) fn take_servo_news(&mut self, devices: &dyn Registry) {
+        while let Some(news) = self.servo.poll() {
+            match news {
+                servo::ServoNews::Heard { device, at } => self.tell(Happened::Heard {
+                    device,
+                    at,
+                    up: true,
+                }),
+                servo::ServoNews::Reading {
+                    device,
+                    at,
+                    reading,
+                } => {
+                    let Some(j) = devices.get(device) else {
+                        continue;
+                    };
+                    let Device::Servo(t) = j.device else { continue };
+                    let ts = unix_ms(self.epoch, at);
+                    let feedback = servo::feedback_to_wia(j.name, ts, j.unit, &reading, t.vendor);
+                    self.tell(Happened::Reading {
+                        device,
+                        at,
+                        motion: Some((reading.position, reading.velocity)),
+                        feedback: Some(Box::new(feedback)),
+                    });
+                }
+                servo::ServoNews::Ended { device, ended } => {
+                    self.tell(Happened::Ended { device, ended });
+                }
+                servo::ServoNews::Bad {
+                    port,
+                    error,
+                    report,
+                } => self.tell(Happened::Bad {
+                    report: report.map(|suppressed| Event::BadServoPacket {
+                        port,
+                        error,
+                        suppressed,
+                    }),
+                }),
+            }
         }
     }
 
@@ -458,6 +558,7 @@ impl Drivers {
     /// engine's, as they are now (an iRPC joint's feedback builds on its
     /// last).
     pub(crate) fn poll(&mut self, map: &BusMap, devices: &dyn Registry) -> Option<Happened> {
+        self.take_servo_news(devices);
         loop {
             match self.queued.pop_front() {
                 Some(Queued::Tell(h)) => return Some(h),

@@ -99,8 +99,8 @@ use motorwire_compact::{CompactCommand, ControlMode as CompactMode, Flags, Motor
 use motorwire_irpc::{Payload, PayloadKind, WireVersion};
 use motorwire_orion::{ArmCommand, Motor, Quantity};
 use motorwire_translate::{
-    AngleUnit, BusMap, MoteusCommand, Refusal, Report, Target, to_compact, to_moteus,
-    to_orion_motor,
+    AngleUnit, BusMap, MoteusCommand, Refusal, Report, ServoCommand, Target, to_compact, to_moteus,
+    to_orion_motor, to_servo,
 };
 use motorwire_wia::{MotorCommand, MotorFeedback};
 use serde_json::Value;
@@ -213,6 +213,7 @@ mod moteus_bounds;
 mod order;
 pub(crate) mod orion;
 pub(crate) mod plan;
+pub(crate) mod servo;
 
 pub(crate) use drivers::*;
 
@@ -247,6 +248,9 @@ pub(crate) enum Device {
         /// Whether a stop puts it in brake mode.
         brake: bool,
     },
+    /// A serial bus servo (Feetech or Dynamixel) on one of the map's
+    /// serial ports.
+    Servo(motorwire_translate::ServoTarget),
 }
 
 /// What a device can be asked to do beyond a motor command.
@@ -280,7 +284,7 @@ impl Device {
             // trajectory's segments are its position-mode moves
             // ([`Device::segment_order`]).
             Self::Moteus { .. } => matches!(what, Capability::Reset | Capability::Trajectory),
-            Self::Compact { .. } | Self::Orion(_) => false,
+            Self::Compact { .. } | Self::Orion(_) | Self::Servo(_) => false,
         }
     }
 
@@ -290,7 +294,7 @@ impl Device {
         match self {
             Self::Irpc { wire } => wire.tag_of(needs.0).is_some(),
             Self::Moteus { .. } => needs == Needs::RESET,
-            Self::Compact { .. } | Self::Orion(_) => false,
+            Self::Compact { .. } | Self::Orion(_) | Self::Servo(_) => false,
         }
     }
 
@@ -348,6 +352,7 @@ impl Device {
             Self::Moteus { brake, .. } => {
                 stops().map(|_| Order::Moteus(moteus_stop(brake))).collect()
             }
+            Self::Servo(t) => stops().map(|_| Order::Servo(servo_stop(t))).collect(),
         }
     }
 
@@ -369,6 +374,9 @@ impl Device {
             Self::Orion(m) => Some(Order::Orion(OrionOrder::Set(m, 0.0))),
             // Its stop (or brake), as the map says.
             Self::Moteus { brake, .. } => Some(Order::Moteus(moteus_stop(brake))),
+            // A servo holds no velocity or torque setpoint (it takes
+            // position goals alone).
+            Self::Servo(_) => None,
         }
     }
 
@@ -450,6 +458,9 @@ impl Device {
             }
             (Self::Moteus { .. }, Free) => Order::Moteus(MoteusCommand::Stop),
             (Self::Moteus { brake, .. }, Stop) => Order::Moteus(moteus_stop(brake)),
+            (Self::Servo(_), Hold) => Order::Servo(ServoCommand::Hold),
+            (Self::Servo(_), Free) => Order::Servo(ServoCommand::TorqueOff),
+            (Self::Servo(t), Stop) => Order::Servo(servo_stop(t)),
             (Self::Orion(m), _) if m.quantity() != Quantity::PositionDegrees => {
                 let loss = (action == Free).then(|| {
                     "the Orion arm controller has no torque off: the motor was brought to 0"
@@ -530,6 +541,14 @@ impl Device {
                 },
                 report: t.report,
             })),
+            Self::Servo(_) => Some(to_servo(map, cmd).map(|t| Single {
+                order: Order::Servo(t.value),
+                target: match t.value {
+                    ServoCommand::Goal { position, .. } => Some(position),
+                    ServoCommand::Hold | ServoCommand::TorqueOff => None,
+                },
+                report: t.report,
+            })),
         }
     }
 
@@ -561,7 +580,7 @@ impl Device {
                     ..motorwire_moteus::PositionArgs::default()
                 },
             ))),
-            Self::Compact { .. } | Self::Orion(_) => None,
+            Self::Compact { .. } | Self::Orion(_) | Self::Servo(_) => None,
         }
     }
 
@@ -571,6 +590,7 @@ impl Device {
             Self::Irpc { .. } | Self::Compact { .. } => format!("node 0x{node:02X}"),
             Self::Orion(_) => orion::LABEL.to_owned(),
             Self::Moteus { id, bus, .. } => format!("moteus id {id} on bus {bus}"),
+            Self::Servo(t) => format!("{} servo id {} on port {}", t.vendor.name(), t.id, t.port),
         }
     }
 }
@@ -584,7 +604,7 @@ impl Device {
     pub(crate) const fn version(self) -> Option<&'static str> {
         match self {
             Self::Irpc { wire } => Some(wire.name()),
-            Self::Compact { .. } | Self::Orion(_) | Self::Moteus { .. } => None,
+            Self::Compact { .. } | Self::Orion(_) | Self::Moteus { .. } | Self::Servo(_) => None,
         }
     }
 
@@ -594,7 +614,21 @@ impl Device {
             Self::Compact { .. } => "compact",
             Self::Orion(_) => "Orion",
             Self::Moteus { .. } => "moteus",
+            Self::Servo(t) => match t.vendor {
+                motorwire_translate::ServoVendor::Feetech => "Feetech",
+                motorwire_translate::ServoVendor::Dynamixel => "Dynamixel",
+            },
         }
+    }
+}
+
+/// A servo's stop: its torque off, or a hold where the map says `stop =
+/// "hold"`.
+const fn servo_stop(t: motorwire_translate::ServoTarget) -> ServoCommand {
+    if t.stop_holds {
+        ServoCommand::Hold
+    } else {
+        ServoCommand::TorqueOff
     }
 }
 
@@ -639,6 +673,7 @@ pub(crate) enum Order {
     Compact(CompactCommand),
     Orion(OrionOrder),
     Moteus(MoteusCommand),
+    Servo(ServoCommand),
 }
 
 /// One Orion motor's part of a line to the arm controller.
@@ -747,7 +782,7 @@ impl Order {
     pub(crate) fn lifecycle(&self) -> Option<Lifecycle> {
         match self {
             Self::Irpc(p) => Lifecycle::of(p),
-            Self::Compact(_) | Self::Orion(_) | Self::Moteus(_) => None,
+            Self::Compact(_) | Self::Orion(_) | Self::Moteus(_) | Self::Servo(_) => None,
         }
     }
 }
@@ -927,7 +962,7 @@ impl Router {
                 Device::Moteus { id, bus, .. } => {
                     router.moteus.entry((bus, id)).or_insert(k);
                 }
-                Device::Irpc { .. } | Device::Orion(_) => {}
+                Device::Irpc { .. } | Device::Orion(_) | Device::Servo(_) => {}
             }
         }
         router
@@ -1139,13 +1174,16 @@ impl Device {
                     brake,
                 },
             ),
+            Target::Servo(t) => (u16::from(t.id), Self::Servo(t)),
         })
     }
 
     /// The link it is reached over.
     pub(crate) const fn link(self) -> Link {
         match self {
-            Self::Irpc { .. } | Self::Compact { .. } | Self::Moteus { .. } => Link::Bus,
+            Self::Irpc { .. } | Self::Compact { .. } | Self::Moteus { .. } | Self::Servo(_) => {
+                Link::Bus
+            }
             Self::Orion(_) => Link::Controller,
         }
     }
@@ -1154,7 +1192,7 @@ impl Device {
     pub(crate) const fn arm_order(self, command: ArmCommand) -> Option<Order> {
         match self {
             Self::Orion(_) => Some(Order::Orion(OrionOrder::Command(command))),
-            Self::Irpc { .. } | Self::Compact { .. } | Self::Moteus { .. } => None,
+            Self::Irpc { .. } | Self::Compact { .. } | Self::Moteus { .. } | Self::Servo(_) => None,
         }
     }
 }

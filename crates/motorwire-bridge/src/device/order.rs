@@ -13,6 +13,7 @@ impl Order {
             Self::Orion(OrionOrder::Command(_)) => false,
             Self::Moteus(MoteusCommand::Position(a)) => a.position.is_some_and(f64::is_finite),
             Self::Moteus(_) => false,
+            Self::Servo(c) => matches!(c, ServoCommand::Goal { .. }),
         }
     }
 
@@ -32,6 +33,7 @@ impl Order {
             Self::Orion(OrionOrder::Set(..)) => true,
             Self::Orion(OrionOrder::Command(_)) => false,
             Self::Moteus(c) => matches!(c, MoteusCommand::Position(_)),
+            Self::Servo(c) => matches!(c, ServoCommand::Goal { .. }),
         }
     }
 
@@ -40,7 +42,7 @@ impl Order {
     /// value, other than 0): what the deadman watches.
     pub(crate) fn holds_setpoint(&self) -> bool {
         match self {
-            Self::Irpc(_) => false,
+            Self::Irpc(_) | Self::Servo(_) => false,
             Self::Compact(c) => {
                 matches!(c.control_mode, CompactMode::Velocity | CompactMode::Torque)
                     && c.setpoint != 0.0
@@ -96,6 +98,7 @@ impl Order {
                     && a.velocity == Some(0.0)
                     && a.feedforward_torque.is_none_or(|t| t == 0.0)
             }
+            Self::Servo(c) => !matches!(c, ServoCommand::Goal { .. }),
         }
     }
 
@@ -148,6 +151,8 @@ impl Order {
             Self::Moteus(MoteusCommand::Position(a)) => {
                 a.position.filter(|p| p.is_finite()).map(|p| p * 360.0)
             }
+            // Degrees, through the servo's calibration.
+            Self::Servo(ServoCommand::Goal { position, .. }) => Some(*position),
             _ => None,
         }
     }
@@ -246,6 +251,12 @@ impl Order {
                     },
                 }
             }
+            Self::Servo(ServoCommand::Goal {
+                position, velocity, ..
+            }) => Reach {
+                target: Some(*position),
+                speed: velocity.map(f64::abs),
+            },
             _ => Reach::default(),
         }
     }
@@ -298,6 +309,26 @@ impl Order {
                     None => self.holding(cx),
                 }
             }
+            Self::Servo(ServoCommand::Goal {
+                position,
+                velocity,
+                acceleration,
+            }) => {
+                // Without a limit the servo moves at its own top speed
+                // (an STS3215's is about 300°/s).
+                let v = velocity.or(cx.max_velocity).unwrap_or(300.0).max(1e-3);
+                let a = acceleration
+                    .or(cx.max_acceleration)
+                    .unwrap_or(3000.0)
+                    .max(1e-3);
+                trapezoid(cx, position, v, a)
+            }
+            // Held where it stands, or its torque off: the move abandoned.
+            Self::Servo(ServoCommand::Hold | ServoCommand::TorqueOff) => Effect {
+                target: Some(None),
+                moving: Moving::AtMost(at),
+                ..Effect::NONE
+            },
         }
     }
 

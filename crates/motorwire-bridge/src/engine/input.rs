@@ -123,6 +123,14 @@ pub enum Input<'a> {
     Flushed,
     /// A line from a device's own link (the Orion arm controller's).
     LinkLine(&'a str),
+    /// Bytes from a serial servo port (its index among the bus map's
+    /// [`motorwire_translate::BusMap::servo_ports`]).
+    SerialBytes {
+        /// The port.
+        port: u8,
+        /// What came, as it came (a packet may come in pieces).
+        bytes: &'a [u8],
+    },
     /// A line from a device's own link that could not be read.
     LinkUnreadable(&'a str),
     /// A device's own link is lost (why).
@@ -208,6 +216,7 @@ impl Bridge {
             Input::Frame(frame) => self.on_frame(frame),
             Input::Flushed => self.on_flushed(now),
             Input::LinkLine(line) => self.on_link_line(line),
+            Input::SerialBytes { port, bytes } => self.on_serial_bytes(port, bytes),
             Input::LinkUnreadable(reason) => self.on_link_unreadable(reason),
             Input::LinkLost(error) => self.on_link_lost(now, error),
             Input::Greet(origin) => self.on_greet(origin),
@@ -333,6 +342,12 @@ impl Bridge {
         self.handle(now, Input::LinkLine(line));
     }
 
+    /// [`Input::SerialBytes`]: bytes from serial servo port `port`,
+    /// received at `now`.
+    pub fn handle_serial(&mut self, now: Duration, port: u8, bytes: &[u8]) {
+        self.handle(now, Input::SerialBytes { port, bytes });
+    }
+
     /// [`Input::LinkUnreadable`].
     pub fn handle_link_unreadable(&mut self, now: Duration, reason: &str) {
         self.handle(now, Input::LinkUnreadable(reason));
@@ -379,5 +394,15 @@ impl Bridge {
         let line = self.drivers.poll_line()?;
         self.changed();
         Some(line)
+    }
+
+    /// The next bytes to write on a serial servo port, and the port (its
+    /// index among the bus map's
+    /// [`motorwire_translate::BusMap::servo_ports`]). Each port is one
+    /// half-duplex bus: write the bytes in the order given.
+    pub fn poll_serial(&mut self) -> Option<(u8, Vec<u8>)> {
+        let out = self.drivers.poll_serial()?;
+        self.changed();
+        Some(out)
     }
 }

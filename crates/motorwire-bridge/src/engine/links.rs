@@ -28,6 +28,13 @@ impl Bridge {
         self.drain_drivers();
     }
 
+    /// Bytes from serial servo port `port`, received at `now`.
+    pub(super) fn on_serial_bytes(&mut self, port: u8, bytes: &[u8]) {
+        self.drivers
+            .handle_serial(self.now, port, bytes, &self.joints);
+        self.drain_drivers();
+    }
+
     /// A line from the Orion controller that could not be read (too long,
     /// not UTF-8), at `now`: counted, and reported at most
     /// [`crate::MAX_BAD_LINE_EVENTS`] times a second.

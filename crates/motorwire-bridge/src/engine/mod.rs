@@ -539,6 +539,10 @@ impl Bridge {
             config.arm_command_timeout,
             config.epoch_unix_ms.unwrap_or(0.0),
             &joints,
+            crate::device::ServoSetup {
+                ports: map.servo_ports(),
+                period: config.feedback_period.unwrap_or(Duration::from_millis(100)),
+            },
         )?;
         // The map's limits are in force from the start: a driver that
         // sends by itself, and a device that holds bounds of its own,

@@ -806,6 +806,19 @@ pub enum Event {
         #[serde(skip_serializing_if = "is_zero")]
         suppressed: u64,
     },
+    /// Bytes on a serial servo port that were no status packet the bridge
+    /// waited for (noise, a wrong check, a servo it did not ask, a late
+    /// answer): reported and skipped, never acted on.
+    BadServoPacket {
+        /// The port (its index among the map's servo ports).
+        port: u8,
+        /// Why.
+        error: String,
+        /// Bad packets before this one that were not reported (at most ten
+        /// are a second).
+        #[serde(skip_serializing_if = "is_zero")]
+        suppressed: u64,
+    },
     /// The Orion arm controller sent its boot beacon (`{"ID":32}`):
     /// `first` when it is the first heard, otherwise the controller
     /// started again (every motor of it at rest, its values forgotten).
