@@ -20,9 +20,12 @@ pub(crate) struct Args {
     /// The bus map (TOML): which motor is which joint, and its limits.
     #[arg(long, value_name = "FILE")]
     map: String,
-    /// `sim` (the map's iRPC joints simulated on an in-memory bus, in real
-    /// time), `socketcan:IFACE` (a Linux CAN-FD interface, e.g. vcan0) or
-    /// `fdcanusb:PATH` (mjbots' fdcanusb adapter, e.g. /dev/ttyACM0).
+    /// `sim` (the map's devices simulated in this process, in real time:
+    /// CAN devices on an in-memory bus, serial servos on in-memory ports),
+    /// `socketcan:IFACE` (a Linux CAN-FD interface, e.g. vcan0),
+    /// `fdcanusb:PATH` (mjbots' fdcanusb adapter, e.g. /dev/ttyACM0) or
+    /// `none` (no CAN bus: a map of serial servos alone). Except with
+    /// `sim`, the map's serial servos are on the serial ports it names.
     #[arg(long, value_name = "BUS")]
     bus: String,
     /// Where lines come from: `-` (stdin; the bridge stops at its end),
@@ -559,6 +562,28 @@ fn bridge(args: &Args) -> Result<u8, String> {
             }
         }
     };
+    if args.bus == "none"
+        && let Some(m) = bridge.map().motors().find(|m| {
+            !matches!(
+                m.target,
+                motorwire_translate::Target::Servo(_) | motorwire_translate::Target::Orion { .. }
+            )
+        })
+    {
+        return Err(format!(
+            "--bus none: motors.{} is a {} device on a CAN bus; give its bus (socketcan:IFACE, fdcanusb:PATH or sim)",
+            m.name,
+            m.target.dialect()
+        ));
+    }
+    if !bridge.map().servo_ports().is_empty() {
+        let links = if args.bus == "sim" {
+            motorwire_bridge::sim::servo_links(bridge.map()).map_err(|e| e.to_string())?
+        } else {
+            crate::bus::servo_links(bridge.map())?
+        };
+        runner = runner.with_servo_links(links);
+    }
     let result = match args.bus.as_str() {
         "sim" => {
             let arm = RealTimeArm::start_with(bridge.map(), sim_config, sim_log)

@@ -20,6 +20,9 @@ pub(crate) enum Bus {
     #[cfg(target_os = "linux")]
     SocketCan(motorwire_can::socketcan::SocketCanBus),
     Fdcanusb(FdcanusbBus<Box<dyn Read + Send>, Box<dyn Write + Send>>),
+    /// No CAN bus (`--bus none`): a map of serial servos alone. Nothing is
+    /// ever heard; a frame to send is refused.
+    None,
 }
 
 impl CanBus for Bus {
@@ -28,6 +31,11 @@ impl CanBus for Bus {
             #[cfg(target_os = "linux")]
             Self::SocketCan(b) => b.send(frame),
             Self::Fdcanusb(b) => b.send(frame),
+            Self::None => Err(Error::Io {
+                op: "--bus none",
+                kind: std::io::ErrorKind::Unsupported,
+                message: "there is no CAN bus to send on".to_owned(),
+            }),
         }
     }
 
@@ -36,13 +44,17 @@ impl CanBus for Bus {
             #[cfg(target_os = "linux")]
             Self::SocketCan(b) => b.recv(timeout),
             Self::Fdcanusb(b) => b.recv(timeout),
+            Self::None => {
+                std::thread::sleep(timeout);
+                Err(Error::Timeout(timeout))
+            }
         }
     }
 }
 
 fn usage(spec: &str) -> String {
     format!(
-        "--bus {spec:?}: expected socketcan:IFACE (for example socketcan:vcan0) or fdcanusb:PATH (for example fdcanusb:/dev/ttyACM0)"
+        "--bus {spec:?}: expected socketcan:IFACE (for example socketcan:vcan0), fdcanusb:PATH (for example fdcanusb:/dev/ttyACM0), sim, or none (serial servos alone)"
     )
 }
 
@@ -75,6 +87,7 @@ pub(crate) fn open(spec: &str) -> Result<Bus, String> {
             let (reader, writer) = serial(path)?;
             Ok(Bus::Fdcanusb(FdcanusbBus::new(reader, writer)))
         }
+        None if spec == "none" => Ok(Bus::None),
         _ => Err(usage(spec)),
     }
 }
@@ -92,4 +105,31 @@ pub(crate) fn open_pair(spec: &str) -> Result<(Bus, Bus), String> {
         }
         _ => Ok((open(spec)?, open(spec)?)),
     }
+}
+
+/// How long a read of a servo port waits before its reader's loop tries
+/// again.
+const SERVO_READ_TIMEOUT: Duration = Duration::from_millis(50);
+
+/// Each of `map`'s serial servo ports opened at its baud rate (8N1, no
+/// flow control), in the map's order.
+pub(crate) fn servo_links(
+    map: &motorwire_translate::BusMap,
+) -> Result<Vec<motorwire_bridge::ServoLink>, String> {
+    map.servo_ports()
+        .iter()
+        .map(|p| {
+            let port = serialport::new(&p.path, p.baud)
+                .timeout(SERVO_READ_TIMEOUT)
+                .open()
+                .map_err(|e| format!("servo port {} at {} baud: {e}", p.path, p.baud))?;
+            let writer = port
+                .try_clone()
+                .map_err(|e| format!("servo port {}: {e}", p.path))?;
+            Ok(motorwire_bridge::ServoLink {
+                reader: Box::new(port),
+                writer: Box::new(writer),
+            })
+        })
+        .collect()
 }

@@ -541,7 +541,13 @@ impl Bridge {
             &joints,
             crate::device::ServoSetup {
                 ports: map.servo_ports(),
-                period: config.feedback_period.unwrap_or(Duration::from_millis(100)),
+                // At the feedback rate, and often enough that a servo that
+                // answers is never taken offline between two reads.
+                period: config
+                    .feedback_period
+                    .unwrap_or(Duration::from_millis(100))
+                    .min(config.offline_after / 4)
+                    .max(Duration::from_millis(1)),
             },
         )?;
         // The map's limits are in force from the start: a driver that

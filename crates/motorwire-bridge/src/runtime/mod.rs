@@ -23,6 +23,9 @@ mod bus_errors;
 mod orion;
 mod read;
 mod run;
+mod serial;
+
+pub use serial::MAX_SERIAL_QUEUED;
 
 pub use read::*;
 
@@ -160,6 +163,12 @@ enum Msg {
     OrionUnreadable(String),
     /// The Orion controller's stream ended or failed.
     OrionLost(String),
+    /// Bytes from a serial servo port.
+    Serial {
+        port: u8,
+        bytes: Vec<u8>,
+        at: Instant,
+    },
 }
 
 /// The byte stream to the Orion arm controller (WIRE-FACTS §4.1): one
@@ -172,6 +181,25 @@ pub struct OrionPort {
     pub reader: Box<dyn io::Read + Send>,
     /// Where the bridge's lines go.
     pub writer: Box<dyn io::Write + Send>,
+}
+
+/// The byte stream of one serial servo port (the bus map's
+/// [`motorwire_translate::BusMap::servo_ports`], in their order): the
+/// servos' status packets are read from `reader` on a thread of their own;
+/// the bridge's instruction packets are written to `writer` on another.
+/// A serial port opened at the map's baud rate, or
+/// `crate::sim::servo_links`'s simulated servos.
+pub struct ServoLink {
+    /// Where the servos' bytes come from.
+    pub reader: Box<dyn io::Read + Send>,
+    /// Where the bridge's packets go.
+    pub writer: Box<dyn io::Write + Send>,
+}
+
+impl std::fmt::Debug for ServoLink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("ServoLink")
+    }
 }
 
 impl std::fmt::Debug for OrionPort {
@@ -442,6 +470,7 @@ pub struct Runner {
     numbers: Arc<Mutex<BTreeMap<Origin, u64>>>,
     budget: Arc<Budget>,
     orion: Option<OrionPort>,
+    servo_links: Vec<ServoLink>,
     max_line: usize,
     taps: Vec<Arc<dyn Tap>>,
     validator: Arc<OnceLock<motorwire_wia::Validator>>,
@@ -469,6 +498,7 @@ impl Runner {
             numbers: Arc::default(),
             budget: Arc::default(),
             orion: None,
+            servo_links: Vec::new(),
             max_line: DEFAULT_MAX_LINE,
             taps: Vec::new(),
             validator: Arc::default(),
@@ -489,6 +519,14 @@ impl Runner {
     #[must_use]
     pub fn with_orion(mut self, port: OrionPort) -> Self {
         self.orion = Some(port);
+        self
+    }
+
+    /// Attaches the serial servo ports, one link for each of the bus map's
+    /// [`motorwire_translate::BusMap::servo_ports`], in their order.
+    #[must_use]
+    pub fn with_servo_links(mut self, links: Vec<ServoLink>) -> Self {
+        self.servo_links = links;
         self
     }
 
@@ -636,6 +674,7 @@ impl Runner {
             stop_waiting: Arc::clone(&self.urgent_tx.waiting),
             budget: self.budget,
             orion: self.orion,
+            servo_links: self.servo_links,
             taps: self.taps,
         };
         run::Loop::new(bridge, (tx, rx), channels, (render, sink), start)?.run()
@@ -711,7 +750,7 @@ fn record_input(r: &dyn Tap, msg: &Msg) {
         Msg::Interrupt => r.mark(Instant::now(), Mark::Interrupt),
         Msg::OrionUnreadable(e) => r.mark(Instant::now(), Mark::OrionUnreadable(e.clone())),
         Msg::OrionLost(e) => r.mark(Instant::now(), Mark::OrionLost(e.clone())),
-        Msg::Wake | Msg::BusError(_) => {}
+        Msg::Wake | Msg::BusError(_) | Msg::Serial { .. } => {}
     }
 }
 

@@ -153,6 +153,7 @@ pub(super) struct Channels {
     pub(super) stop_waiting: Arc<AtomicBool>,
     pub(super) budget: Arc<Budget>,
     pub(super) orion: Option<OrionPort>,
+    pub(super) servo_links: Vec<super::ServoLink>,
     pub(super) taps: Vec<Arc<dyn Tap>>,
 }
 
@@ -170,6 +171,8 @@ pub(super) struct Loop<T, R, S> {
     frames_waiting: Arc<AtomicBool>,
     orion: Option<(Sender<String>, Receiver<()>)>,
     orion_queued: Arc<AtomicUsize>,
+    /// The serial servo ports, in the map's order.
+    servo_ports: Vec<super::serial::SerialPort>,
     /// The taps, when there are any.
     taps: Option<Taps>,
     render: bool,
@@ -229,6 +232,8 @@ where
             Some(port) => Some(spawn_orion(port, ahead.clone(), Arc::clone(&orion_queued))?),
             None => None,
         };
+        let servo_ports =
+            super::serial::spawn_servo_links(std::mem::take(&mut ch.servo_links), &ahead)?;
         let bus = Some(BusIn::start(rx, &ahead)?);
         let taps = std::mem::take(&mut ch.taps);
         let taps = (!taps.is_empty()).then_some(Taps(taps));
@@ -241,6 +246,7 @@ where
             frames_waiting,
             orion,
             orion_queued,
+            servo_ports,
             taps,
             render,
             sink,
@@ -358,6 +364,11 @@ where
             }
             if let Some((to_orion, _)) = &self.orion {
                 let _ = to_orion.send(line);
+            }
+        }
+        while let Some((port, bytes)) = self.bridge.poll_serial() {
+            if let Some(p) = self.servo_ports.get(usize::from(port)) {
+                let _ = p.writer.send(bytes);
             }
         }
         let now = self.now();
@@ -551,6 +562,13 @@ where
                 let now = self.now();
                 self.bridge.handle_link_lost(now, &e);
             }
+            Msg::Serial { port, bytes, at } => {
+                if let Some(p) = self.servo_ports.get(usize::from(port)) {
+                    p.queued.fetch_sub(1, Ordering::SeqCst);
+                }
+                let at = self.since(at);
+                self.bridge.handle_serial(at, port, &bytes);
+            }
             Msg::BusError(e) => self.give(Output::Event(Event::BusError { error: e })),
             _ => {}
         }
@@ -632,7 +650,8 @@ where
             | Msg::BusError(_)
             | Msg::OrionLine { .. }
             | Msg::OrionUnreadable(_)
-            | Msg::OrionLost(_) => self.take_device(msg),
+            | Msg::OrionLost(_)
+            | Msg::Serial { .. } => self.take_device(msg),
         }
     }
 
@@ -651,6 +670,12 @@ where
         if let Some((to_orion, written)) = self.orion.take() {
             drop(to_orion);
             let _ = written.recv_timeout(Duration::from_secs(1));
+        }
+        // The servo ports' last packets (the stop's) written, a second at
+        // most each.
+        for p in std::mem::take(&mut self.servo_ports) {
+            drop(p.writer);
+            let _ = p.done.recv_timeout(Duration::from_secs(1));
         }
         result.map(|()| self.bridge)
     }
