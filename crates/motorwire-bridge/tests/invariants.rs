@@ -253,11 +253,24 @@ fn check(arm: &SimulatedArm, tally: &Tally) {
 #[test]
 fn four_clients_bursts_stops_and_faults_keep_every_invariant() {
     let mut arm = every_dialect_arm_with(faults(), 11);
+    // The servos' status packets lost, corrupted and late too.
+    for port in [0, 1] {
+        arm.servo_faults(
+            port,
+            motorwire_sim::servo::ServoFaults {
+                drop: 0.05,
+                corrupt: 0.05,
+                late: 0.05,
+                late_by: Duration::from_millis(2),
+            },
+            11 + u64::from(port),
+        );
+    }
     let mut t = MixedTally::default();
     let mut ops = Vec::new();
     for round in 0..12u64 {
         for i in 0..60u64 {
-            let motor = ((i + round) % 6) as usize;
+            let motor = ((i + round) % 8) as usize;
             let (_, lo, hi) = EVERY_DIALECT[motor];
             // Now and then a setpoint outside the limits: refused, never sent.
             let setpoint = if i % 17 == 0 {
@@ -348,7 +361,8 @@ fn four_clients_bursts_stops_and_faults_keep_every_invariant() {
     }
     arm.run_until(arm.now() + Duration::from_secs(1)).unwrap();
     // Invariant 5: one last move per motor, then at rest on its target.
-    let last = [12.5, -7.5, 33.0, 20.0, 15.0, -25.0];
+    // (40° is a whole number of a servo's steps: 455 of 4095 a turn.)
+    let last = [12.5, -7.5, 33.0, 20.0, 15.0, -25.0, 40.0, -40.0];
     for (m, (motor, ..)) in EVERY_DIALECT.iter().enumerate() {
         arm.line(Origin(9), &common::command(motor, last[m]));
     }
@@ -593,14 +607,25 @@ proptest! {
 
 /// The demo map's motors the every-dialect scenarios command: (name,
 /// map min, map max); the first three are iRPC joints, then the compact
-/// gripper, then the Orion arm's servo.
-const EVERY_DIALECT: [(&str, f64, f64); 6] = [
+/// gripper, then the Orion arm's servo, the moteus wrist, a Feetech
+/// STS3215 and a Dynamixel XL330.
+const EVERY_DIALECT: [(&str, f64, f64); 8] = [
     ("shoulder_pitch", -90.0, 90.0),
     ("shoulder_roll", -45.0, 45.0),
     ("elbow", 0.0, 150.0),
     ("gripper_axis", 0.0, 90.0),
     ("grasper_horizontal_servo", -90.0, 90.0),
     ("wrist", -90.0, 90.0),
+    ("finger", -80.0, 80.0),
+    ("thumb", -60.0, 70.0),
+];
+
+/// The serial servos of the every-dialect map: (motor of
+/// [`EVERY_DIALECT`], port, id, protocol, the middle of its calibrated
+/// range).
+const SERVOS: [(usize, u8, u8, motorwire_servo::Protocol, f64); 2] = [
+    (6, 0, 1, motorwire_servo::Protocol::Scs0, 2048.0),
+    (7, 1, 2, motorwire_servo::Protocol::Dxl2, 2048.0),
 ];
 
 /// How far past a limit in force a motor driven at a velocity may be seen
@@ -609,12 +634,63 @@ const EVERY_DIALECT: [(&str, f64, f64); 6] = [
 /// time-out (100 ms) at 60 units a second.
 const LIMIT_SLACK: f64 = 6.0;
 
-/// The every-dialect scenarios' map: the demo arm and a moteus controller.
+/// The every-dialect scenarios' map: the demo arm, a moteus controller,
+/// a Feetech and a Dynamixel servo each on a serial port of its own.
 fn every_dialect_map() -> String {
     format!(
         "{MAP}\n[motors.wrist]\ndialect = \"moteus\"\nid = 1\n\
-         limits = {{ min_position = -90, max_position = 90, max_velocity = 180, max_acceleration = 720, max_torque = 2 }}\n"
+         limits = {{ min_position = -90, max_position = 90, max_velocity = 180, max_acceleration = 720, max_torque = 2 }}\n\
+         [motors.finger]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nid = 1\nmodel = \"sts3215\"\n\
+         calibration = {{ homing_offset = 0, range_min = 1048, range_max = 3048, drive_mode = 0 }}\n\
+         limits = {{ min_position = -80, max_position = 80, max_velocity = 180, max_acceleration = 900 }}\n\
+         [motors.thumb]\ndialect = \"dynamixel\"\nport = \"/dev/ttyUSB0\"\nid = 2\nmodel = \"xl330-m288\"\n\
+         calibration = {{ homing_offset = 0, range_min = 1048, range_max = 3048, drive_mode = 0 }}\n\
+         limits = {{ min_position = -60, max_position = 70, max_velocity = 180, max_acceleration = 900 }}\n"
     )
+}
+
+/// The goals each servo packet the bridge wrote sets: (motor of
+/// [`EVERY_DIALECT`], degrees, whether it is a hold: no speed or
+/// acceleration of its own).
+fn servo_goals(port: u8, bytes: &[u8]) -> Vec<(usize, f64, bool)> {
+    let Some(&(_, _, _, protocol, _)) = SERVOS.iter().find(|s| s.1 == port) else {
+        return Vec::new();
+    };
+    let Ok((
+        motorwire_servo::Instruction::SyncWrite {
+            address, entries, ..
+        },
+        _,
+    )) = motorwire_servo::decode_instruction(protocol, bytes)
+    else {
+        return Vec::new();
+    };
+    let value = |b: &[u8]| {
+        b.iter()
+            .rev()
+            .fold(0u32, |acc, x| (acc << 8) | u32::from(*x))
+    };
+    entries
+        .iter()
+        .filter_map(|(id, data)| {
+            let (motor, .., mid) = SERVOS.iter().find(|s| s.1 == port && s.2 == *id)?;
+            let (raw, v, a) = match address {
+                40 => (
+                    value(data.get(2..4)?),
+                    value(data.get(5..7)?),
+                    value(data.get(1..2)?),
+                ),
+                108 => (
+                    value(data.get(8..12)?),
+                    value(data.get(4..8)?),
+                    value(data.get(0..4)?),
+                ),
+                _ => return None,
+            };
+            let degrees = (f64::from(raw) - mid) * 360.0 / 4095.0;
+            Some((*motor, degrees, v == 0 && a == 0))
+        })
+        .collect()
 }
 
 /// The moteus wrist's frames as sent: the mode each writes (`None`: a
@@ -696,7 +772,7 @@ enum Mixed {
 
 fn mixed_op() -> impl Strategy<Value = Mixed> {
     prop_oneof![
-        6 => (0u64..3, 0usize..6, -100.0f64..160.0).prop_map(|(client, motor, s)| Mixed::Move { client, motor, setpoint: s.round() }),
+        6 => (0u64..3, 0usize..8, -100.0f64..160.0).prop_map(|(client, motor, s)| Mixed::Move { client, motor, setpoint: s.round() }),
         1 => (0u64..3, -450.0f64..450.0).prop_map(|(client, s)| Mixed::Spin { client, speed: s.round() }),
         3 => (0u64..3, any::<bool>(), -20.0f64..60.0).prop_map(|(client, wrist, s)| Mixed::Drive { client, motor: if wrist { 5 } else { 3 }, speed: s.round() }),
         // The gripper's or the wrist's range narrowed near where a drive
@@ -706,9 +782,9 @@ fn mixed_op() -> impl Strategy<Value = Mixed> {
             Mixed::Limits { client, motor, max: (EVERY_DIALECT[motor].1.max(0.0) + max).round() }
         }),
         1 => (0u64..3, 0.0f64..140.0, any::<bool>()).prop_map(|(client, s, sequential)| Mixed::Multi { client, setpoints: [s.round(), (s / 2.0).round(), (s - 60.0).round()], sequential }),
-        2 => (0u64..3, 0usize..6, prop::sample::select(vec!["hold", "free", "stop"])).prop_map(|(client, motor, action)| Mixed::Motor { client, motor, action }),
+        2 => (0u64..3, 0usize..8, prop::sample::select(vec!["hold", "free", "stop"])).prop_map(|(client, motor, action)| Mixed::Motor { client, motor, action }),
         2 => (0u64..3, 0.0f64..140.0, -20.0f64..40.0).prop_map(|(client, p, v)| Mixed::Tick { client, setpoints: [p.round(), v.round(), (v / 2.0).round(), (v * 5.0).round()] }),
-        2 => (0u64..3, 2usize..6, 0.0f64..1.0).prop_map(|(client, motor, f)| {
+        2 => (0u64..3, 2usize..8, 0.0f64..1.0).prop_map(|(client, motor, f)| {
             let (_, lo, hi) = EVERY_DIALECT[motor];
             Mixed::Limits { client, motor, max: (lo + 1.0 + f * (hi - lo - 1.0)).round() }
         }),
@@ -728,12 +804,12 @@ struct MixedTally {
     stops: Vec<(Duration, u64, u64)>,
     releases: Vec<(Duration, u64, u64)>,
     /// The gripper's and the wrist's positions at the last sample.
-    last: [Option<f64>; 6],
+    last: [Option<f64>; 8],
     /// (when, motor, where it stood) as each SafetyLimits line was sent.
     stood: Vec<(Duration, usize, f64)>,
     /// Whether the last line for each motor was a velocity (a position
     /// move, a multi-axis line or a stop ends it).
-    driving: [bool; 6],
+    driving: [bool; 8],
     /// (when, motor, position, max in force) of each sample where a motor
     /// driven at a velocity moved on past the limit in force.
     past: Vec<(Duration, usize, f64, f64)>,
@@ -873,7 +949,7 @@ fn play_mixed(arm: &mut SimulatedArm, ops: &[Mixed], t: &mut MixedTally) {
                 t.driving[3] = true;
                 t.driving[5] = true;
             }
-            Mixed::Multi { .. } | Mixed::Other(Op::Stop { .. }) => t.driving = [false; 6],
+            Mixed::Multi { .. } | Mixed::Other(Op::Stop { .. }) => t.driving = [false; 8],
             _ => {}
         }
         match op {
@@ -986,6 +1062,28 @@ fn check_mixed(arm: &SimulatedArm, t: &MixedTally) {
             );
         }
     }
+    // The serial servos: every goal written within the limits in force
+    // (the map's, then each SafetyLimits line taken; half a step of
+    // rounding), and while latched, nothing but holds.
+    for (at, port, bytes) in arm.serial_sent() {
+        for (motor, degrees, hold) in servo_goals(*port, bytes) {
+            if hold {
+                continue;
+            }
+            assert!(
+                !latched_at(t, *at),
+                "at {at:?}, latched: {} was sent to {degrees}",
+                EVERY_DIALECT[motor].0
+            );
+            let max = max_in_force(t, motor, *at);
+            assert!(
+                degrees <= max + 0.05 && degrees >= EVERY_DIALECT[motor].1 - 0.05,
+                "at {at:?}: {} was sent {degrees} outside {}..={max}",
+                EVERY_DIALECT[motor].0,
+                EVERY_DIALECT[motor].1
+            );
+        }
+    }
     // The Orion arm: what the controller holds after each line.
     let servo = motorwire_orion::Motor::ALL
         .iter()
@@ -1061,6 +1159,15 @@ fn position_of(arm: &SimulatedArm, m: usize) -> f64 {
         0..=2 => arm.joint(JOINTS[m].1).unwrap().position(),
         3 => arm.compact_device(0x20).unwrap().position(),
         5 => arm.moteus(1).unwrap().position() * 360.0,
+        6 | 7 => {
+            let (_, port, id, _, mid) = SERVOS.iter().find(|s| s.0 == m).unwrap();
+            let raw = arm
+                .servo(*port, *id)
+                .unwrap()
+                .get("Present_Position")
+                .unwrap();
+            (raw as f64 - mid) * 360.0 / 4095.0
+        }
         _ => {
             let servo = motorwire_orion::Motor::ALL
                 .iter()

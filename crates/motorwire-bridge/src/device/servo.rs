@@ -346,15 +346,15 @@ impl ServoDriver {
         })
     }
 
-    /// Sends `cmd` to servo `device`: written with the next cycle's writes
-    /// (at once when its port is free); its number.
+    /// Sends `cmd` to servo `device`: written with its port's next writes
+    /// (built when the bytes are asked for, [`ServoDriver::poll_transmit`]:
+    /// until then it can be taken back); its number.
     pub(crate) fn send(&mut self, now: Duration, device: DeviceId, cmd: ServoCommand) -> u32 {
         self.now = now;
         let msg = self.next_msg;
         self.next_msg = self.next_msg.wrapping_add(1).max(1);
-        if let Some((k, s)) = self.servo_mut(device) {
+        if let Some((_, s)) = self.servo_mut(device) {
             s.waiting = Some((msg, cmd, 0));
-            self.pump(now, k);
         }
         msg
     }
@@ -375,8 +375,14 @@ impl ServoDriver {
     }
 
     /// The next bytes to write, and the port (its index in the map's
-    /// servo ports) to write them on.
+    /// servo ports) to write them on: each free port's next transaction is
+    /// built now, from what waits for it at the time of the last call.
     pub(crate) fn poll_transmit(&mut self) -> Option<(u8, Vec<u8>)> {
+        if self.out.is_empty() {
+            for k in 0..self.ports.len() {
+                self.pump(self.now, k);
+            }
+        }
         self.out.pop_front()
     }
 
@@ -386,7 +392,8 @@ impl ServoDriver {
     }
 
     /// When the driver next has work: a read's wait ending, or a port's
-    /// next read.
+    /// next read (what is due is built at the next
+    /// [`ServoDriver::poll_transmit`]).
     pub(crate) fn deadline(&self) -> Option<Duration> {
         self.ports
             .iter()
@@ -406,7 +413,6 @@ impl ServoDriver {
             if p.awaiting.as_ref().is_some_and(|a| a.deadline <= now) {
                 self.read_timed_out(now, k);
             }
-            self.pump(now, k);
         }
     }
 
@@ -442,7 +448,6 @@ impl ServoDriver {
                 }
             }
         }
-        self.pump(now, k);
     }
 
     /// A status on port `k`.
@@ -945,6 +950,33 @@ mod tests {
         assert_eq!(
             reads.last().unwrap(),
             &("FFFFFE0682380F0102".to_owned() + "2F")
+        );
+    }
+
+    /// A goal and the stop that follows it at the same instant: the goal,
+    /// taken back before its bytes were asked for, is never written; the
+    /// stop (torque off) is.
+    #[test]
+    fn a_goal_taken_back_before_its_bytes_are_built_is_never_written() {
+        let mut d = driver(&[1]);
+        let goal = ServoCommand::Goal {
+            position: 10.0,
+            velocity: Some(90.0),
+            acceleration: None,
+        };
+        d.send(Duration::ZERO, DeviceId::at(0), goal);
+        assert!(d.take_back_unsent(DeviceId::at(0)));
+        d.send(Duration::ZERO, DeviceId::at(0), ServoCommand::TorqueOff);
+        let sent: Vec<String> = std::iter::from_fn(|| d.poll_transmit())
+            .map(|(_, b)| hex(&b))
+            .collect();
+        // Torque_Enable (40) 0 for servo 1, then the read.
+        assert_eq!(
+            sent,
+            [
+                "FFFFFE0683280101".to_owned() + "004E",
+                "FFFFFE0582380F0132".to_owned()
+            ]
         );
     }
 }

@@ -20,6 +20,11 @@ use crate::engine::Bridge;
 use crate::error::BridgeError;
 use crate::output::{Origin, Output};
 
+mod servos;
+
+pub use servos::servo_links;
+use servos::{SimServoPort, servo_buses};
+
 /// Rounds of work at one simulated instant, at most: each answers what
 /// the round before it sent (a frame and its answer, a line and its
 /// frames), so a chain this long is a timer that stays due once handled.
@@ -522,37 +527,6 @@ impl Hub {
     }
 }
 
-/// The simulated servos of one serial port, and their answers on their
-/// way to the bridge (each at its time, in order).
-#[derive(Debug)]
-struct SimServoPort {
-    bus: motorwire_sim::servo::ServoBus,
-    answers: std::collections::VecDeque<(Duration, Vec<u8>)>,
-}
-
-/// The simulated servos of `map`'s serial ports, one bus each.
-fn servo_buses(map: &BusMap) -> Result<Vec<SimServoPort>, BridgeError> {
-    map.servo_ports()
-        .iter()
-        .enumerate()
-        .map(|(k, port)| {
-            let servos: Vec<(&'static motorwire_servo::table::Model, u8)> = map
-                .motors()
-                .filter_map(|m| match m.target {
-                    Target::Servo(t) if usize::from(t.port) == k => Some((t.table()?, t.id)),
-                    _ => None,
-                })
-                .collect();
-            let bus = motorwire_sim::servo::ServoBus::mixed(&servos)
-                .map_err(|e| BridgeError::SimServos(format!("servo port {}: {e}", port.path)))?;
-            Ok(SimServoPort {
-                bus,
-                answers: std::collections::VecDeque::new(),
-            })
-        })
-        .collect()
-}
-
 /// A line the bridge wrote to the simulated Orion arm controller of a
 /// [`SimulatedArm`], and what the controller made of it.
 #[derive(Debug, Clone, PartialEq)]
@@ -615,6 +589,9 @@ pub struct SimulatedArm {
     orion: Option<SimOrion>,
     /// The simulated servos of each of the map's serial ports.
     servos: Vec<SimServoPort>,
+    /// Every packet the bridge wrote to a servo port, with when and the
+    /// port, once asked for ([`SimulatedArm::keep_sent`]).
+    serial_sent: Vec<(Duration, u8, Vec<u8>)>,
     /// Every frame the bridge sent, with when, once asked for.
     sent: Option<Vec<(Duration, motorwire_can::Frame)>>,
     outputs: Vec<Output>,
@@ -839,6 +816,7 @@ impl SimulatedArm {
             moteus,
             orion,
             servos,
+            serial_sent: Vec::new(),
             sent: None,
             outputs: Vec::new(),
             holding: None,
@@ -933,6 +911,13 @@ impl SimulatedArm {
     /// From now on, keep every frame the bridge sends ([`SimulatedArm::sent`]).
     pub fn keep_sent(&mut self) {
         self.sent.get_or_insert_with(Vec::new);
+    }
+
+    /// Every packet the bridge wrote to a servo port since
+    /// [`SimulatedArm::keep_sent`], with when and the port (its index among
+    /// the map's servo ports).
+    pub fn serial_sent(&self) -> &[(Duration, u8, Vec<u8>)] {
+        &self.serial_sent
     }
 
     /// Every frame the bridge sent since [`SimulatedArm::keep_sent`], with
@@ -1187,6 +1172,9 @@ impl SimulatedArm {
         let mut wrote = false;
         while let Some((port, bytes)) = self.bridge.poll_serial() {
             wrote = true;
+            if self.sent.is_some() {
+                self.serial_sent.push((now, port, bytes.clone()));
+            }
             if let Some(p) = self.servos.get_mut(usize::from(port)) {
                 for a in p.bus.write(now, &bytes) {
                     let at = now.saturating_add(a.delay);
@@ -1359,148 +1347,5 @@ mod tests {
         assert_eq!(result_at(Some(55)), ms(55));
         // Held to a time already past: at once.
         assert_eq!(result_at(Some(10)), ms(50));
-    }
-}
-
-/// The simulated servos of `map`'s serial ports as links a
-/// [`crate::Runner`] drives in real time ([`crate::Runner::with_servo_links`]):
-/// each port's servos in this process, its bytes paced at the port's baud
-/// rate (10 bits a byte, each way one packet after another) and each
-/// answer sent after its servo's return delay, as on the wire.
-///
-/// # Errors
-/// [`BridgeError::SimServos`]: a port whose servos cannot share one bus.
-pub fn servo_links(map: &BusMap) -> Result<Vec<crate::ServoLink>, BridgeError> {
-    servo_buses(map)?
-        .into_iter()
-        .zip(map.servo_ports())
-        .map(|(p, port)| {
-            let wire = Arc::new(SimWire {
-                state: std::sync::Mutex::new(WireState {
-                    bus: p.bus,
-                    answers: std::collections::VecDeque::new(),
-                    start: Instant::now(),
-                    tx_free: Duration::ZERO,
-                    rx_free: Duration::ZERO,
-                    closed: false,
-                }),
-                ready: std::sync::Condvar::new(),
-                baud: port.baud.max(1),
-            });
-            Ok(crate::ServoLink {
-                reader: Box::new(WireReader(Arc::clone(&wire))),
-                writer: Box::new(WireWriter(wire)),
-            })
-        })
-        .collect()
-}
-
-/// One simulated serial port in real time.
-#[derive(Debug)]
-struct SimWire {
-    state: std::sync::Mutex<WireState>,
-    ready: std::sync::Condvar,
-    baud: u32,
-}
-
-#[derive(Debug)]
-struct WireState {
-    bus: motorwire_sim::servo::ServoBus,
-    /// Answers on their way, each with when its last byte is in.
-    answers: std::collections::VecDeque<(Instant, Vec<u8>)>,
-    start: Instant,
-    /// When the host's line and the servos' line are next free (since
-    /// `start`).
-    tx_free: Duration,
-    rx_free: Duration,
-    closed: bool,
-}
-
-impl SimWire {
-    /// How long `n` bytes take on the wire.
-    fn wire_time(&self, n: usize) -> Duration {
-        let bits = u64::try_from(n).unwrap_or(u64::MAX).saturating_mul(10);
-        Duration::from_nanos(bits.saturating_mul(1_000_000_000) / u64::from(self.baud))
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, WireState> {
-        self.state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-    }
-}
-
-struct WireWriter(Arc<SimWire>);
-
-impl std::io::Write for WireWriter {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        let wire = &self.0;
-        let mut s = wire.lock();
-        let now = s.start.elapsed();
-        let sent = now.max(s.tx_free) + wire.wire_time(buf.len());
-        s.tx_free = sent;
-        for a in s.bus.write(sent, buf) {
-            let at = (sent + a.delay).max(s.rx_free) + wire.wire_time(a.bytes.len());
-            s.rx_free = at;
-            let due = s.start + at;
-            s.answers.push_back((due, a.bytes));
-        }
-        drop(s);
-        wire.ready.notify_all();
-        Ok(buf.len())
-    }
-
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
-
-impl Drop for WireWriter {
-    fn drop(&mut self) {
-        self.0.lock().closed = true;
-        self.0.ready.notify_all();
-    }
-}
-
-struct WireReader(Arc<SimWire>);
-
-impl std::io::Read for WireReader {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let wire = &self.0;
-        let mut s = wire.lock();
-        loop {
-            let now = Instant::now();
-            match s.answers.front().map(|(t, _)| *t) {
-                Some(due) if due <= now => {
-                    let Some((_, mut bytes)) = s.answers.pop_front() else {
-                        continue;
-                    };
-                    let n = bytes.len().min(buf.len());
-                    if let (Some(to), Some(from)) = (buf.get_mut(..n), bytes.get(..n)) {
-                        to.copy_from_slice(from);
-                    }
-                    if n < bytes.len() {
-                        bytes.drain(..n);
-                        s.answers.push_front((due, bytes));
-                    }
-                    return Ok(n);
-                }
-                _ if s.closed => return Ok(0),
-                Some(due) => {
-                    s = wire
-                        .ready
-                        .wait_timeout(s, due - now)
-                        .map(|(g, _)| g)
-                        .unwrap_or_else(|e| e.into_inner().0);
-                }
-                None => {
-                    s = wire
-                        .ready
-                        .wait_timeout(s, Duration::from_millis(100))
-                        .map(|(g, _)| g)
-                        .unwrap_or_else(|e| e.into_inner().0);
-                }
-            }
-        }
     }
 }
