@@ -1,6 +1,7 @@
 //! `motorwire translate`: WIA command lines in, one line out per input
 //! with what the command becomes in one target dialect: iRPC CAN-FD frames,
-//! compact-command frames, moteus frames, or Orion direct-control JSON,
+//! compact-command frames, moteus frames, serial servo instruction packets
+//! (Feetech, Dynamixel), or Orion direct-control JSON,
 //! and the translation's loss report; or the refusal, with its rule.
 //!
 //! Every step is motorwire-translate's, as the bridge uses it: the gate,
@@ -82,6 +83,12 @@ enum To {
     /// mjbots moteus position-mode frames on CAN-FD, as the bridge sends
     /// them (with its query; mjbots' `moteus-protocol` builds them).
     Moteus,
+    /// Feetech STS servo instruction packets on their serial bus, as the
+    /// bridge writes them (a goal's sync write, the torque in it).
+    Feetech,
+    /// Dynamixel Protocol 2.0 instruction packets on their serial bus, as
+    /// the bridge writes them (the goal, the torque on, the goal again).
+    Dynamixel,
 }
 
 impl To {
@@ -91,7 +98,7 @@ impl To {
             Self::IrpcV2_0 => Some(WireVersion::V2_0),
             Self::IrpcV2_1 => Some(WireVersion::V2_1),
             Self::IrpcV2_2 => Some(WireVersion::V2_2),
-            Self::Compact | Self::Orion | Self::Moteus => None,
+            Self::Compact | Self::Orion | Self::Moteus | Self::Feetech | Self::Dynamixel => None,
         }
     }
 
@@ -101,6 +108,8 @@ impl To {
             Self::Compact => "compact",
             Self::Orion => "orion",
             Self::Moteus => "moteus",
+            Self::Feetech => "feetech",
+            Self::Dynamixel => "dynamixel",
             _ => "irpc",
         }
     }
@@ -121,6 +130,8 @@ struct Translation {
     frames: Option<Vec<FrameLine>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     orion: Option<Box<RawValue>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    packets: Option<Vec<PacketLine>>,
     /// Each loss as the bridge prints its `losses`: `field: kind: detail`.
     report: Vec<String>,
 }
@@ -153,6 +164,17 @@ impl FrameLine {
             data: to_hex(data),
         }
     }
+}
+
+/// One instruction packet for a serial servo's bus.
+#[derive(Serialize)]
+struct PacketLine {
+    /// The motor it is for.
+    motor_id: String,
+    /// The serial port of its bus, as the map names it.
+    port: String,
+    /// The packet, lowercase hex.
+    bytes: String,
 }
 
 /// `{"ok":false,"line":N,"error":{"rule":...,"message":...}}`.
@@ -207,6 +229,7 @@ impl From<Refusal> for ErrorLine {
 enum Produced {
     Frames(Vec<FrameLine>),
     Orion(String),
+    Packets(Vec<PacketLine>),
 }
 
 struct Translator {
@@ -327,8 +350,40 @@ impl Translator {
         Ok(FrameLine::extended(motor, can_id, &data))
     }
 
+    /// A servo's packets for `command`, as the bridge writes them.
+    fn servo_packets(
+        &self,
+        motor: &str,
+        command: &motorwire_translate::ServoCommand,
+    ) -> Result<Vec<PacketLine>, ErrorLine> {
+        let Some(Target::Servo(target)) = self.map.motor(motor).map(|m| m.target) else {
+            return Err(ErrorLine::new(
+                "dialect_mismatch",
+                format!("{motor}: not a serial servo in the bus map"),
+            ));
+        };
+        let port = self
+            .map
+            .servo_ports()
+            .get(usize::from(target.port))
+            .map_or_else(String::new, |p| p.path.clone());
+        Ok(motorwire_translate::servo_packets(motor, &target, command)?
+            .iter()
+            .map(|b| PacketLine {
+                motor_id: motor.to_owned(),
+                port: port.clone(),
+                bytes: to_hex(b),
+            })
+            .collect())
+    }
+
     fn motor_command(&mut self, cmd: &MotorCommand) -> Result<(Produced, Report), ErrorLine> {
         match self.to {
+            To::Feetech | To::Dynamixel => {
+                let t = motorwire_translate::to_servo(&self.map, cmd)?;
+                let packets = self.servo_packets(&cmd.motor_id, &t.value)?;
+                Ok((Produced::Packets(packets), t.report))
+            }
             To::Moteus => {
                 let t = to_moteus(&self.map, cmd)?;
                 let frame = self.moteus_frame(&cmd.motor_id, &t.value)?;
@@ -357,6 +412,14 @@ impl Translator {
 
     fn multi_axis(&mut self, cmd: &MultiAxisCommand) -> Result<(Produced, Report), ErrorLine> {
         match self.to {
+            To::Feetech | To::Dynamixel => {
+                let t = motorwire_translate::multi_axis_to_servo(&self.map, cmd)?;
+                let mut packets = Vec::new();
+                for (axis, c) in cmd.motors.iter().zip(&t.value) {
+                    packets.extend(self.servo_packets(&axis.motor_id, c)?);
+                }
+                Ok((Produced::Packets(packets), t.report))
+            }
             To::Moteus => {
                 let t = multi_axis_to_moteus(&self.map, cmd)?;
                 let frames = cmd
@@ -427,10 +490,11 @@ fn line_for(line: usize, outcome: Result<(Produced, Report), ErrorLine>) -> (Str
     let (json, ok) = match outcome {
         Ok((produced, report)) => {
             let report = report.losses.iter().map(ToString::to_string).collect();
-            let (frames, orion) = match produced {
-                Produced::Frames(f) => (Some(f), None),
+            let (frames, orion, packets) = match produced {
+                Produced::Frames(f) => (Some(f), None, None),
+                Produced::Packets(p) => (None, None, Some(p)),
                 Produced::Orion(json) => match RawValue::from_string(json) {
-                    Ok(raw) => (None, Some(raw)),
+                    Ok(raw) => (None, Some(raw), None),
                     Err(e) => {
                         return line_for(
                             line,
@@ -447,6 +511,7 @@ fn line_for(line: usize, outcome: Result<(Produced, Report), ErrorLine>) -> (Str
                 line,
                 frames,
                 orion,
+                packets,
                 report,
             };
             (serde_json::to_string(&t), true)

@@ -592,3 +592,82 @@ fn translate_and_the_bridge_agree_on_every_limit() {
     assert_eq!(child.wait().unwrap().code(), Some(0));
     assert_eq!(agreed, lines.len());
 }
+
+/// `--to feetech` and `--to dynamixel` on the SO-101 and Koch maps: each
+/// packet written out field by field from the vendors' protocol manuals
+/// (the codec itself is held to the vendors' SDKs in `.ci/run`).
+#[test]
+fn servo_goals_are_the_packets_the_bridge_writes() {
+    let so101 = common::run(
+        &[
+            "translate",
+            "--map",
+            "fixtures/maps/so101.toml",
+            "--to",
+            "feetech",
+        ],
+        &input(&[
+            r#"{"motor_id":"shoulder_pan","timestamp":0,"control_mode":"position","setpoint":10}"#,
+            r#"{"motor_id":"gripper","timestamp":0,"control_mode":"disabled","setpoint":0}"#,
+            r#"{"motor_id":"shoulder_pan","timestamp":0,"control_mode":"position","setpoint":120}"#,
+        ]),
+    );
+    let out: Vec<serde_json::Value> = lines(&so101)
+        .iter()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    // Sync write (0x83) to the broadcast id from Torque_Enable (40), 8
+    // bytes for servo 1: torque 1, acceleration 102 (900°/s² in 100
+    // steps/s²), goal step 2139 (10° from the middle 2025 of 758..=3292,
+    // 4095 steps a turn: 2025 + 113.75, rounded) little-endian, goal time
+    // 0, 2048 steps/s (180°/s); the checksum is the inverted sum from the id.
+    let body = [
+        0xFE, 0x0D, 0x83, 40, 8, 1, 1, 102, 0x5B, 0x08, 0, 0, 0x00, 0x08,
+    ];
+    let check = !body.iter().fold(0u8, |a, b| a.wrapping_add(*b));
+    let mut packet = vec![0xFF, 0xFF];
+    packet.extend(body);
+    packet.push(check);
+    assert_eq!(
+        out[0]["packets"][0]["bytes"],
+        motorwire_moteus::hex(&packet)
+    );
+    assert_eq!(out[0]["packets"][0]["port"], "/dev/ttyACM0");
+    // Disabled: Torque_Enable 0, one byte for servo 6.
+    assert_eq!(out[1]["packets"][0]["bytes"], "fffffe06832801060049");
+    // 120° is beyond the calibrated range (±111.4°): refused with the
+    // gate's rule.
+    assert_eq!(out[2]["error"]["rule"], "outside_limit");
+    let koch = common::run(
+        &[
+            "translate",
+            "--map",
+            "fixtures/maps/koch.toml",
+            "--to",
+            "dynamixel",
+        ],
+        &input(&[
+            r#"{"motor_id":"elbow_flex","timestamp":0,"control_mode":"position","setpoint":10}"#,
+        ]),
+    );
+    let out: serde_json::Value = serde_json::from_str(&lines(&koch)[0]).unwrap();
+    let packets: Vec<&str> = out["packets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["bytes"].as_str().unwrap())
+        .collect();
+    // Protocol 2.0 sync write from Profile_Acceleration (108 = 0x6C), 12
+    // bytes for servo 3: 41 (900°/s² in 214.577 rev/min²), 131 (180°/s in
+    // 0.229 rpm), goal step 2114 (10° from the middle 2000 of 1000..=3000:
+    // 2000 + 113.75, rounded), each 4 bytes little-endian; then Torque_Enable
+    // (64) 1; then the goal again.
+    assert_eq!(packets.len(), 3);
+    assert!(
+        packets[0].starts_with("fffffd00fe1400836c000c0003290000008300000042080000"),
+        "{}",
+        packets[0]
+    );
+    assert!(packets[1].starts_with("fffffd00fe0900834000010003".to_owned().as_str()));
+    assert_eq!(packets[0], packets[2]);
+}

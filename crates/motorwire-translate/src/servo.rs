@@ -13,9 +13,9 @@
 use motorwire_core::ControlMode;
 use motorwire_servo::Protocol;
 use motorwire_servo::table::{self, Model};
-use motorwire_wia::MotorCommand;
+use motorwire_wia::{MotorCommand, MultiAxisCommand};
 
-use crate::command::{emergency, gate_unless_emergency, own_or_default, report_unused};
+use crate::command::{each_axis, emergency, gate_unless_emergency, own_or_default, report_unused};
 use crate::gate::Refusal;
 use crate::map::{AngleUnit, BusMap, MappedMotor, Target};
 use crate::report::{LossKind, Report, Translated};
@@ -466,6 +466,75 @@ pub fn to_servo(map: &BusMap, cmd: &MotorCommand) -> Result<Translated<ServoComm
             mode: mode.name(),
             dialect: "a serial bus servo (position and disabled only: its wheel mode turns past its calibrated range unwatched)",
         }),
+    }
+}
+
+/// A WIA multi-axis command for serial bus servos: each axis as
+/// [`to_servo`] translates it (behind the gate), in the command's order,
+/// each axis's losses named `motor_id.field`. Each servo moves to its own
+/// goal: `sync_mode`, `coordination` and `metadata` are reported dropped.
+///
+/// # Errors
+/// The first axis's refusal, naming it.
+pub fn multi_axis_to_servo(
+    map: &BusMap,
+    cmd: &MultiAxisCommand,
+) -> Result<Translated<Vec<ServoCommand>>, Refusal> {
+    each_axis(map, cmd, to_servo, "a servo's goal position")
+}
+
+/// The instruction packets the bridge writes a servo of `target` (its
+/// torque off) for `cmd`, in order: a goal's sync write (Feetech: the
+/// torque in the same write; Dynamixel: the goal, the torque on, and the
+/// goal again, which a servo may have taken its present position for as
+/// its torque came on), or the torque off. A hold has none here: its goal
+/// is the servo's present position, which the bridge reads first.
+///
+/// # Errors
+/// [`Refusal::NotRepresentable`]: a goal or limit the registers cannot
+/// hold, or a packet the protocol cannot carry.
+pub fn servo_packets(
+    motor: &str,
+    target: &ServoTarget,
+    cmd: &ServoCommand,
+) -> Result<Vec<Vec<u8>>, Refusal> {
+    use motorwire_servo::{Instruction, encode};
+    let protocol = target.table().map_or(Protocol::Scs0, |m| m.protocol);
+    let packet = |address: u16, data: Vec<u8>| {
+        let length = u16::try_from(data.len()).unwrap_or(u16::MAX);
+        encode(
+            protocol,
+            &Instruction::SyncWrite {
+                address,
+                length,
+                entries: vec![(target.id, data)],
+            },
+        )
+        .map_err(|e| Refusal::NotRepresentable {
+            motor: motor.to_owned(),
+            field: "packet",
+            problem: e.to_string(),
+        })
+    };
+    match *cmd {
+        ServoCommand::Goal {
+            position,
+            velocity,
+            acceleration,
+        } => {
+            let b = goal_block(motor, target, position, velocity, acceleration)?;
+            if b.torque_included {
+                Ok(vec![packet(b.address, b.data)?])
+            } else {
+                Ok(vec![
+                    packet(b.address, b.data.clone())?,
+                    packet(torque_address(target.vendor), vec![TORQUE_ON])?,
+                    packet(b.address, b.data)?,
+                ])
+            }
+        }
+        ServoCommand::TorqueOff => Ok(vec![packet(torque_address(target.vendor), vec![0])?]),
+        ServoCommand::Hold => Ok(Vec::new()),
     }
 }
 
