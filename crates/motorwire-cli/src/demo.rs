@@ -29,6 +29,8 @@ pub(crate) struct Args {
 }
 
 const MAP: &str = include_str!("../demo/demo-arm.toml");
+/// The SO-101 arm's six Feetech servos, beside the demo arm.
+const SO101: &str = include_str!("../demo/so101.toml");
 const MULTI: &str = include_str!("../demo/doc-3.2-multi-axis-command.json");
 const ORIGIN: Origin = Origin(1);
 /// How close a joint must come to its target (degrees).
@@ -92,6 +94,16 @@ fn script() -> Vec<Step> {
             expect: Expect::Arrive(&[("gripper_axis", 45.0)]),
         },
         Step {
+            title: "SO-101: elbow_flex to 40° (a Feetech STS3215 on a serial bus: one sync write, read back by one sync read)",
+            line: r#"{"motor_id":"elbow_flex","timestamp":0,"control_mode":"position","setpoint":40}"#.to_owned(),
+            expect: Expect::Arrive(&[("elbow_flex", 40.0)]),
+        },
+        Step {
+            title: "unsafe: SO-101 wrist_flex to 120° (its calibrated range ends at 102.4°)",
+            line: r#"{"motor_id":"wrist_flex","timestamp":0,"control_mode":"position","setpoint":120}"#.to_owned(),
+            expect: Expect::Refused("refused"),
+        },
+        Step {
             title: "Orion: turn the turntable at 150 (its controller over a line link), then send nothing more",
             line: r#"{"motor_id":"turntable","timestamp":0,"control_mode":"velocity","setpoint":150}"#.to_owned(),
             expect: Expect::Deadman("turntable", 150.0),
@@ -100,6 +112,11 @@ fn script() -> Vec<Step> {
             title: "unsafe: elbow to 170° (its limit is 150°)",
             line: command("elbow", 170.0, 60.0),
             expect: Expect::Refused("refused"),
+        },
+        Step {
+            title: "SO-101: shoulder_lift to 60°, under way...",
+            line: r#"{"motor_id":"shoulder_lift","timestamp":0,"control_mode":"position","setpoint":60,"velocity_limit":90}"#.to_owned(),
+            expect: Expect::AckedThenWait(Duration::from_millis(100)),
         },
         Step {
             title: "move: shoulder_pitch to 80°, interrupted...",
@@ -125,6 +142,11 @@ fn script() -> Vec<Step> {
             title: "move: shoulder_pitch back to 0°",
             line: command("shoulder_pitch", 0.0, 120.0),
             expect: Expect::Arrive(&[("shoulder_pitch", 0.0)]),
+        },
+        Step {
+            title: "SO-101: shoulder_lift, stopped with its torque off, back to 0°",
+            line: r#"{"motor_id":"shoulder_lift","timestamp":0,"control_mode":"position","setpoint":0,"velocity_limit":120}"#.to_owned(),
+            expect: Expect::Arrive(&[("shoulder_lift", 0.0)]),
         },
         Step {
             title: "compact command: open the gripper to 0°",
@@ -243,7 +265,7 @@ fn stdout_closed(e: std::io::Error) -> String {
 #[allow(clippy::too_many_lines)]
 fn demo(args: &Args) -> Result<bool, String> {
     let started = Instant::now();
-    let map = BusMap::from_toml(MAP).map_err(|e| e.to_string())?;
+    let map = BusMap::from_toml(&format!("{MAP}\n{SO101}")).map_err(|e| e.to_string())?;
     let epoch_ms = crate::bridge::unix_ms();
     let config = BridgeConfig {
         feedback_period: Some(Duration::from_millis(20)),
@@ -254,21 +276,27 @@ fn demo(args: &Args) -> Result<bool, String> {
     let plot_map = map.clone();
     let unplotted: Vec<String> = map
         .motors()
-        .filter(|m| {
-            matches!(m.target, motorwire_translate::Target::Orion { .. }) && m.name != "turntable"
+        .filter(|m| match m.target {
+            motorwire_translate::Target::Orion { .. } => m.name != "turntable",
+            // The SO-101's joints the demo does not move.
+            motorwire_translate::Target::Servo(_) => {
+                !matches!(m.name.as_str(), "elbow_flex" | "shoulder_lift")
+            }
+            _ => false,
         })
         .map(|m| m.name.clone())
         .collect();
     let devices = map.motors().count();
     let bridge = Bridge::new(map, config).map_err(|e| e.to_string())?;
     let arm = RealTimeArm::start(bridge.map()).map_err(|e| e.to_string())?;
-    say!("motorwire demo: the bridge on a simulated 3-joint arm, its gripper and the Orion rover arm (fixtures/maps/demo-arm.toml)")
+    say!("motorwire demo: the bridge on a simulated 3-joint arm, its gripper, the Orion rover arm and an SO-101 arm\n  (fixtures/maps/demo-arm.toml and fixtures/maps/so101.toml)")
         .map_err(stdout_closed)?;
     say!(
-        "  shoulder_pitch 0x10, shoulder_roll 0x11, elbow 0x12: iRPC v2.0; gripper_axis 0x20: the WIA compact command;\n  over an in-memory CAN-FD bus, in real time; the Orion arm's seven motors through its simulated controller\n  (one JSON line each way, as over its serial link)\n"
+        "  shoulder_pitch 0x10, shoulder_roll 0x11, elbow 0x12: iRPC v2.0; gripper_axis 0x20: the WIA compact command;\n  over an in-memory CAN-FD bus, in real time; the Orion arm's seven motors through its simulated controller\n  (one JSON line each way, as over its serial link); the SO-101's six Feetech STS3215 servos on a simulated\n  serial bus at 1 Mbit/s, all under one emergency stop\n"
     ).map_err(stdout_closed)?;
     let orion = crate::orion_link::open(&crate::orion_link::OrionSpec::Sim)?;
-    let runner = Runner::new().with_orion(orion);
+    let servos = motorwire_bridge::sim::servo_links(bridge.map()).map_err(|e| e.to_string())?;
+    let runner = Runner::new().with_orion(orion).with_servo_links(servos);
     let input = runner.input();
     let (tx, rx) = mpsc::channel();
     let handle = arm.spawn(runner, bridge, move |o| {

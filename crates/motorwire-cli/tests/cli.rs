@@ -252,7 +252,12 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
     let out = motorwire(&["demo", "--svg", svg.to_str().unwrap()], None);
     let text = String::from_utf8(out.stdout).unwrap();
     assert_eq!(out.status.code(), Some(0), "{text}");
-    assert_eq!(text.matches("] ok   ").count(), 13, "{text}");
+    assert_eq!(text.matches("] ok   ").count(), 17, "{text}");
+    assert!(
+        text.contains("refused (refused): wrist_flex: setpoint 120 is outside max_position"),
+        "{text}"
+    );
+    assert!(text.contains("SO-101: elbow_flex to 40°"), "{text}");
     assert!(text.contains("trajectory: the elbow"), "{text}");
     assert!(
         text.contains(
@@ -287,6 +292,8 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
         "elbow: position (°)",
         "elbow: velocity (°/s)",
         "gripper_axis: position (°)",
+        "elbow_flex: position (°)",
+        "shoulder_lift: position (°)",
         "turntable: speed (controller units, ±400)",
         "time (s)",
         "measured (feedback)",
@@ -301,7 +308,8 @@ fn demo_holds_every_expectation_and_plots_the_feedback() {
     );
     for mark in [
         "s  step 1: WIA §3.2 multi-axis example",
-        "s  step 13: compact command: open the gripper to 0°",
+        "s  step 17: compact command: open the gripper to 0°",
+        "wrist_flex refused: outside_limit",
         "s  emergency stop (input)",
         "s  released",
         "s  deadman: turntable stopped, no command within its timeout",

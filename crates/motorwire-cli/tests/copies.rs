@@ -46,6 +46,7 @@ fn demo_files_are_identical_to_the_workspace_fixtures() {
     let Some(root) = workspace() else { return };
     for (copy, original) in [
         ("demo/demo-arm.toml", "fixtures/maps/demo-arm.toml"),
+        ("demo/so101.toml", "fixtures/maps/so101.toml"),
         (
             "demo/doc-3.2-multi-axis-command.json",
             "fixtures/wia/valid/doc-3.2-multi-axis-command.json",

@@ -463,7 +463,7 @@ fn usage_errors_exit_2() {
     let err = String::from_utf8(o.stderr).unwrap();
     assert!(
         err.contains(
-            "[possible values: irpc-v1, irpc-v2.0, irpc-v2.1, irpc-v2.2, compact, orion, moteus]"
+            "[possible values: irpc-v1, irpc-v2.0, irpc-v2.1, irpc-v2.2, compact, orion, moteus, feetech, dynamixel]"
         ),
         "{err}"
     );
