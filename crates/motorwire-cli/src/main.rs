@@ -24,6 +24,8 @@ mod plot;
 mod replay;
 mod serve;
 mod servo;
+mod servo_calibrate;
+mod servo_import;
 mod sim;
 mod sim_servos;
 mod translate;

@@ -35,6 +35,16 @@ enum Command {
     /// "params":"hex"}`, or why there is none (`timeout`, `incomplete`,
     /// `check`, `short`).
     Decode(Which),
+    /// Print a bus map (TOML) from a LeRobot calibration file: each
+    /// motor's id and calibration as the file has them, on `--port`, its
+    /// model from `--robot` (so100, so101, koch) or `--model`. The bridge
+    /// then reads and gates the arm as LeRobot calibrated it.
+    ImportLerobot(crate::servo_import::ImportArgs),
+    /// Calibrate a bus map's serial servos as LeRobot does (torque off,
+    /// the arm in the middle of its range, each joint swept through its
+    /// range; ENTER after each), writing each servo's homing offset and
+    /// position limits into it and its calibration into the map.
+    Calibrate(crate::servo_calibrate::CalibrateArgs),
 }
 
 #[derive(Debug, ClapArgs)]
@@ -75,6 +85,17 @@ pub(crate) fn run(args: &Args) -> u8 {
             let p = w.protocol.protocol();
             filter(|line| decode_line(p, line))
         }
+        Command::Calibrate(a) => crate::servo_calibrate::calibrate(a),
+        Command::ImportLerobot(a) => match crate::servo_import::import(a) {
+            Ok(map) => match crate::console::say!("{}", map.trim_end()) {
+                Ok(()) => 0,
+                Err(_) => 1,
+            },
+            Err(e) => {
+                crate::console::note!("motorwire servo import-lerobot: {e}");
+                1
+            }
+        },
     }
 }
 

@@ -39,6 +39,14 @@ pub(crate) struct ServosArgs {
     /// The faults' seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// A hand that sweeps every servo whose torque is off this many
+    /// degrees each way from its middle, once every `--sweep-period-ms`,
+    /// as a person does to calibrate an arm (`motorwire servo calibrate`).
+    #[arg(long, value_name = "DEG")]
+    sweep: Option<f64>,
+    /// The hand's period.
+    #[arg(long, value_name = "MS", default_value_t = 1000)]
+    sweep_period_ms: u64,
 }
 
 fn faults(spec: &str) -> Result<ServoFaults, String> {
@@ -116,6 +124,14 @@ fn serve(args: &ServosArgs) -> Result<(), String> {
     let mut bus = ServoBus::new(model, &args.ids)
         .map_err(|e| e.to_string())?
         .with_faults(faults, args.seed);
+    if let Some(degrees) = args.sweep {
+        if !(degrees.is_finite() && (0.0..=180.0).contains(&degrees)) || args.sweep_period_ms == 0 {
+            return Err(format!(
+                "--sweep {degrees}: degrees in 0..=180, with a --sweep-period-ms above 0"
+            ));
+        }
+        bus = bus.with_hand(degrees, Duration::from_millis(args.sweep_period_ms));
+    }
     let (mut master, slave) = TTYPort::pair().map_err(|e| format!("a pseudo-terminal: {e}"))?;
     let pts = slave
         .name()

@@ -156,3 +156,228 @@ fn the_bridge_drives_servos_on_a_pseudo_terminal() {
     assert!(err.contains("--bus none: motors."), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Spawns `motorwire sim servos ARGS --pty DIR/NAME` and waits for its
+/// link; the child and the link's path.
+fn sim_servos(dir: &std::path::Path, name: &str, args: &[&str]) -> (std::process::Child, String) {
+    let link = dir.join(name);
+    let link_s = link.to_str().unwrap().to_owned();
+    let mut all = vec!["sim", "servos"];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["--pty", &link_s]);
+    let child = common::spawn(&all);
+    let start = Instant::now();
+    while !link.exists() && start.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    (child, link_s)
+}
+
+/// Register `address` (`length` bytes, little-endian) of Feetech servo
+/// `id` on the port at `path`, read as the SDK reads it.
+fn read_register(path: &str, id: u8, address: u16, length: u16) -> i64 {
+    use std::io::Read;
+    let mut port = serialport::new(path, 1_000_000)
+        .timeout(Duration::from_millis(500))
+        .open_native()
+        .unwrap();
+    let ask = motorwire_servo::encode(
+        motorwire_servo::Protocol::Scs0,
+        &motorwire_servo::Instruction::Read {
+            id,
+            address,
+            length,
+        },
+    )
+    .unwrap();
+    port.write_all(&ask).unwrap();
+    let mut answer = vec![0; 6 + usize::from(length)];
+    port.read_exact(&mut answer).unwrap();
+    let status = motorwire_servo::decode_status(
+        motorwire_servo::Protocol::Scs0,
+        &answer,
+        Some(usize::from(length)),
+    )
+    .unwrap()
+    .status;
+    status
+        .params
+        .iter()
+        .rev()
+        .fold(0i64, |acc, b| (acc << 8) | i64::from(*b))
+}
+
+/// `motorwire servo calibrate` on servos a simulated hand sweeps 60° each
+/// way: the swept range and the homing offset are written into the map
+/// (its comments kept) and into the servos' registers, a whole-turn joint
+/// gets the whole turn, and the bridge then refuses a goal beyond the
+/// calibrated range.
+#[test]
+fn calibrate_writes_the_swept_ranges_into_the_map_and_the_servos() {
+    let dir = std::env::temp_dir().join(format!("mw-servo-calibrate-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (mut servos, link) = sim_servos(
+        &dir,
+        "ttyARM",
+        &[
+            "--protocol",
+            "scs0",
+            "--model",
+            "sts3215",
+            "--ids",
+            "1,2",
+            "--sweep",
+            "60",
+            "--sweep-period-ms",
+            "200",
+        ],
+    );
+    let map = dir.join("arm.toml");
+    std::fs::write(
+        &map,
+        format!(
+            "# my arm\n[motors.pan]\ndialect = \"feetech\" # the base\nport = \"{link}\"\nid = 1\nmodel = \"sts3215\"\n\n\
+             [motors.roll]\ndialect = \"feetech\"\nport = \"{link}\"\nid = 2\nmodel = \"sts3215\"\n"
+        ),
+    )
+    .unwrap();
+    let map_s = map.to_str().unwrap();
+    let mut child = common::spawn(&["servo", "calibrate", "--map", map_s, "--full-turn", "roll"]);
+    let mut stdin = child.stdin.take().unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    stdin.write_all(b"\n").unwrap();
+    // Seven sweeps of the hand.
+    std::thread::sleep(Duration::from_millis(1400));
+    stdin.write_all(b"\n").unwrap();
+    drop(stdin);
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let told: Vec<Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let pan = told.iter().find(|v| v["motor_id"] == "pan").unwrap();
+    let (min, max) = (
+        pan["range_min"].as_i64().unwrap(),
+        pan["range_max"].as_i64().unwrap(),
+    );
+    // 60° each way is 682.5 steps of 4096 (1365 in all): read every 10
+    // ms or so, the peaks are caught within a few steps (a loaded machine
+    // reads less often: 88 % at least).
+    assert!((1200..=1366).contains(&(max - min)), "{pan}");
+    let roll = told.iter().find(|v| v["motor_id"] == "roll").unwrap();
+    assert_eq!(
+        (roll["range_min"].clone(), roll["range_max"].clone()),
+        (0.into(), 4095.into())
+    );
+    let text = std::fs::read_to_string(&map).unwrap();
+    assert!(
+        text.starts_with("# my arm\n") && text.contains("# the base"),
+        "{text}"
+    );
+    let expected = format!(
+        "calibration = {{ homing_offset = {}, range_min = {min}, range_max = {max}, drive_mode = 0 }}",
+        pan["homing_offset"]
+    );
+    assert!(text.contains(&expected), "{text}");
+    // The servo holds them too: Min_Position_Limit (9), Max (11),
+    // Homing_Offset (31, sign-magnitude bit 11).
+    assert_eq!(read_register(&link, 1, 9, 2), min);
+    assert_eq!(read_register(&link, 1, 11, 2), max);
+    let offset = read_register(&link, 1, 31, 2);
+    let offset = if offset & 0x800 != 0 {
+        -(offset & 0x7FF)
+    } else {
+        offset
+    };
+    assert_eq!(offset, pan["homing_offset"].as_i64().unwrap());
+    // The bridge then holds the pan inside its calibrated range.
+    let beyond = 360.0 * ((max - min) as f64 / 2.0 + 20.0) / 4095.0;
+    let o = common::run(
+        &["bridge", "--map", map_s, "--bus", "none", "--max-age", "0"],
+        format!(
+            "{{\"motor_id\":\"pan\",\"timestamp\":0,\"control_mode\":\"position\",\"setpoint\":{beyond}}}\n"
+        )
+        .as_bytes(),
+    );
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert!(text.contains("\"rule\":\"outside_limit\""), "{text}");
+    servos.kill().unwrap();
+    let _ = servos.wait();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A LeRobot calibration file is the same arm as a bus map: each motor's
+/// id and calibration as LeRobot wrote them, its model from the robot,
+/// and the bridge's goals read through them (10° from the middle of
+/// 758..=3292 is step 2139).
+#[test]
+fn a_lerobot_calibration_file_imports_as_the_same_arm() {
+    let dir = std::env::temp_dir().join(format!("mw-servo-import-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("so101_follower.json");
+    std::fs::write(
+        &file,
+        r#"{"shoulder_pan": {"id": 1, "drive_mode": 0, "homing_offset": -1470, "range_min": 758, "range_max": 3292},
+            "gripper": {"id": 6, "drive_mode": 0, "homing_offset": 1441, "range_min": 1980, "range_max": 3390}}"#,
+    )
+    .unwrap();
+    let o = common::run(
+        &[
+            "servo",
+            "import-lerobot",
+            file.to_str().unwrap(),
+            "--port",
+            "/dev/ttyACM0",
+            "--robot",
+            "so101",
+        ],
+        b"",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let map = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        map.contains("calibration = { homing_offset = -1470, range_min = 758, range_max = 3292, drive_mode = 0 }"),
+        "{map}"
+    );
+    let path = dir.join("so101.toml");
+    std::fs::write(&path, &map).unwrap();
+    let t = common::run(
+        &[
+            "translate",
+            "--map",
+            path.to_str().unwrap(),
+            "--to",
+            "feetech",
+        ],
+        br#"{"motor_id":"shoulder_pan","timestamp":0,"control_mode":"position","setpoint":10}
+"#,
+    );
+    let v: Value = serde_json::from_str(String::from_utf8(t.stdout).unwrap().trim()).unwrap();
+    // Goal_Position 2139 = 0x085B, little-endian, after the torque and the
+    // acceleration (0: no limit in the map).
+    let bytes = v["packets"][0]["bytes"].as_str().unwrap();
+    assert!(
+        bytes.starts_with("fffffe0d83280801010".to_owned().as_str()) && bytes.contains("5b08"),
+        "{v}"
+    );
+    // A file that is not LeRobot's is refused, naming it.
+    std::fs::write(&file, r#"{"pan": {"id": 1}}"#).unwrap();
+    let o = common::run(
+        &[
+            "servo",
+            "import-lerobot",
+            file.to_str().unwrap(),
+            "--port",
+            "/dev/ttyACM0",
+            "--model",
+            "sts3215",
+        ],
+        b"",
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not a LeRobot calibration file"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -448,6 +448,9 @@ pub struct ServoBus {
     /// Instruction packets that were corrupt or malformed (ignored, as a
     /// servo ignores them).
     bad: u64,
+    /// A hand that sweeps every servo whose torque is off: how far each
+    /// way from where it started (steps) and the sweep's period.
+    hand: Option<(f64, Duration)>,
 }
 
 impl ServoBus {
@@ -491,6 +494,7 @@ impl ServoBus {
             pending: Vec::new(),
             pending_at: Duration::ZERO,
             bad: 0,
+            hand: None,
         })
     }
 
@@ -499,6 +503,15 @@ impl ServoBus {
     pub fn with_faults(mut self, faults: ServoFaults, seed: u64) -> Self {
         self.faults = faults;
         self.rng = seed | 1;
+        self
+    }
+
+    /// With a hand that moves every servo whose torque is off through
+    /// `degrees` each way from where it started (its middle), once every
+    /// `period`, as a person sweeps an arm's joints to calibrate it.
+    #[must_use]
+    pub fn with_hand(mut self, degrees: f64, period: Duration) -> Self {
+        self.hand = Some((degrees, period));
         self
     }
 
@@ -525,8 +538,19 @@ impl ServoBus {
     pub fn advance_to(&mut self, now: Duration) {
         let dt = now.saturating_sub(self.now);
         self.now = self.now.max(now);
+        let phase = self.hand.map(|(degrees, period)| {
+            let t = self.now.as_secs_f64() / period.as_secs_f64().max(1e-3);
+            (degrees, (t * std::f64::consts::TAU).sin())
+        });
         for s in &mut self.servos {
             s.advance(dt);
+            if let Some((degrees, sin)) = phase
+                && !s.torque_on()
+            {
+                let turn = s.turn();
+                s.actual = turn / 2.0 + degrees / 360.0 * turn * sin;
+                s.speed = 0.0;
+            }
             s.refresh();
         }
     }
