@@ -92,6 +92,6 @@ pub use output::{
 pub use runtime::{
     DEFAULT_MAX_LINE, Gate, InputSender, MAX_ORION_LINES_PER_S, MAX_ORION_QUEUED,
     MAX_QUEUED_BYTES_PER_ORIGIN, MAX_QUEUED_PER_ORIGIN, MAX_READ_AHEAD, MAX_SERIAL_QUEUED,
-    MAX_SKIP, OrionPort, ReadLine, Runner, Secret, ServoLink, Stamped, UNREADABLE_HEAD, feed,
-    feed_gated, feed_withholding, read_line,
+    MAX_SKIP, OrionPort, ReadLine, Reopen, Runner, Secret, ServoLink, Stamped, UNREADABLE_HEAD,
+    feed, feed_gated, feed_withholding, read_line,
 };

@@ -578,7 +578,18 @@ fn bridge(args: &Args) -> Result<u8, String> {
     }
     if !bridge.map().servo_ports().is_empty() {
         let links = if args.bus == "sim" {
-            motorwire_bridge::sim::servo_links(bridge.map()).map_err(|e| e.to_string())?
+            // The bus's faults on the servos' answers too: a frame dropped,
+            // corrupted or delayed is a status packet dropped, corrupted or
+            // late.
+            let f = &sim_config.faults;
+            let faults = motorwire_sim::servo::ServoFaults {
+                drop: f.drop,
+                corrupt: f.corrupt,
+                late: f.delay,
+                late_by: f.max_delay,
+            };
+            motorwire_bridge::sim::servo_links_with(bridge.map(), faults, sim_config.seed)
+                .map_err(|e| e.to_string())?
         } else {
             crate::bus::servo_links(bridge.map())?
         };

@@ -119,17 +119,24 @@ pub(crate) fn servo_links(
     map.servo_ports()
         .iter()
         .map(|p| {
-            let port = serialport::new(&p.path, p.baud)
-                .timeout(SERVO_READ_TIMEOUT)
-                .open()
+            let (reader, writer) = open_servo_port(&p.path, p.baud)
                 .map_err(|e| format!("servo port {} at {} baud: {e}", p.path, p.baud))?;
-            let writer = port
-                .try_clone()
-                .map_err(|e| format!("servo port {}: {e}", p.path))?;
+            let (path, baud) = (p.path.clone(), p.baud);
             Ok(motorwire_bridge::ServoLink {
-                reader: Box::new(port),
-                writer: Box::new(writer),
+                reader,
+                writer,
+                reopen: Some(Box::new(move || open_servo_port(&path, baud))),
             })
         })
         .collect()
+}
+
+/// A servo port opened at `baud`: its reader and its writer.
+fn open_servo_port(path: &str, baud: u32) -> std::io::Result<Halves> {
+    let port = serialport::new(path, baud)
+        .timeout(SERVO_READ_TIMEOUT)
+        .open()
+        .map_err(std::io::Error::from)?;
+    let writer = port.try_clone().map_err(std::io::Error::from)?;
+    Ok((Box::new(port), Box::new(writer)))
 }

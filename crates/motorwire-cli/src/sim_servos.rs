@@ -190,9 +190,16 @@ fn serve(args: &ServosArgs) -> Result<(), String> {
             if due > now {
                 std::thread::sleep(due - now);
             }
-            master
-                .write_all(&a.bytes)
-                .map_err(|e| format!("writing the pseudo-terminal: {e}"))?;
+            match master.write_all(&a.bytes) {
+                Ok(()) => {}
+                // The client closed the port before the answer went (a
+                // late answer): it is lost, as on a bus nobody listens to,
+                // and the servos wait for the next client.
+                Err(e)
+                    if e.kind() == std::io::ErrorKind::BrokenPipe
+                        || e.raw_os_error() == Some(5) => {}
+                Err(e) => return Err(format!("writing the pseudo-terminal: {e}")),
+            }
         }
     }
 }

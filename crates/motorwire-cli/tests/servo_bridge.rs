@@ -381,3 +381,64 @@ fn a_lerobot_calibration_file_imports_as_the_same_arm() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("not a LeRobot calibration file"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The servos' port fails (the simulated servos' process killed, as a USB
+/// adapter pulled out) and comes back (started again on the same path):
+/// the bridge says so, takes its servos offline, opens the port again and
+/// drives them once they answer.
+#[test]
+fn a_servo_port_that_fails_is_opened_again() {
+    let dir = std::env::temp_dir().join(format!("mw-servo-reopen-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let args = ["--protocol", "scs0", "--model", "sts3215", "--ids", "1"];
+    let (mut servos, link) = sim_servos(&dir, "ttyREOPEN", &args);
+    let map = dir.join("map.toml");
+    std::fs::write(
+        &map,
+        format!(
+            "[motors.pan]\ndialect = \"feetech\"\nport = \"{link}\"\nid = 1\nmodel = \"sts3215\"\n"
+        ),
+    )
+    .unwrap();
+    let mut child = common::spawn(&[
+        "bridge",
+        "--map",
+        map.to_str().unwrap(),
+        "--bus",
+        "none",
+        "--feedback-hz",
+        "0",
+    ]);
+    let mut stdin = child.stdin.take().unwrap();
+    let mut out = common::Lines::of(child.stdout.take().unwrap());
+    out.until("ready", Duration::from_secs(20), |l| {
+        l.contains("\"ready\"")
+    });
+    servos.kill().unwrap();
+    let _ = servos.wait();
+    out.until("offline", Duration::from_secs(20), |l| {
+        l.contains("\"offline\"")
+    });
+    let (mut servos, _) = sim_servos(&dir, "ttyREOPEN", &args);
+    out.until("online", Duration::from_secs(20), |l| {
+        l.contains("\"online\"")
+    });
+    stdin.write_all(command("pan", 20.0).as_bytes()).unwrap();
+    out.until("arrival", Duration::from_secs(20), |l| {
+        l.contains("\"arrived\"")
+    });
+    drop(stdin);
+    let _ = child.wait();
+    servos.kill().unwrap();
+    let _ = servos.wait();
+    let seen = out.finish();
+    assert!(
+        seen.iter().any(|l| l.contains("servo port 0: open again")),
+        "{seen:?}"
+    );
+    assert!(
+        seen.iter().any(|l| l.contains("\"arrived\":true")),
+        "{seen:?}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

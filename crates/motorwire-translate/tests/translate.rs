@@ -68,7 +68,7 @@ fn bad_maps_are_refused_naming_motor_and_field() {
     let cases = [
         (
             "[motors.a]\ndialect = \"canopen\"",
-            "bus map: motors.a.dialect: \"canopen\" is not irpc, compact, orion or moteus",
+            "bus map: motors.a.dialect: \"canopen\" is not irpc, compact, orion, moteus, feetech or dynamixel",
         ),
         (
             "[motors.a]\ndialect = \"irpc\"",
@@ -165,6 +165,58 @@ fn bad_maps_are_refused_naming_motor_and_field() {
         (
             "[motors.a]\ndialect = \"moteus\"\nid = 3\n[motors.b]\ndialect = \"moteus\"\nid = 3",
             "bus map: motors.a and motors.b are both moteus id 3 on bus 0",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"",
+            "bus map: motors.a speaks feetech and needs id",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 253",
+            "bus map: motors.a.id: 253 is not a servo id in 0..=252",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nid = 1\nmodel = \"xl330-m288\"",
+            "bus map: motors.a.model: \"xl330-m288\" is not a feetech model the bridge drives (sts3215)",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 1\ncalibration = { homing_offset = 0, range_min = 3000, range_max = 1000 }",
+            "bus map: motors.a.calibration: range_min 3000 is not below range_max 1000",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 1\ncalibration = { homing_offset = 0, range_min = 0, range_max = 4096 }",
+            "bus map: motors.a.calibration.range_max: 4096 is not a step of a sts3215 (0..=4095)",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 1\ncalibration = { homing_offset = 5000, range_min = 0, range_max = 4095 }",
+            "bus map: motors.a.calibration.homing_offset: 5000 does not fit the servo's Homing_Offset register",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 1\ncalibration = { homing_offset = 0, range_min = 1048, range_max = 3048 }\nlimits = { max_position = 90 }",
+            "bus map: motors.a.limits.max_position: 90 is outside the servo's calibrated range -87.91208791208791..=87.91208791208791",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 1\n[motors.b]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 1",
+            "bus map: motors.a and motors.b are both servo id 1 on /dev/ttyACM0",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 1\n[motors.b]\ndialect = \"dynamixel\"\nport = \"/dev/ttyACM0\"\nmodel = \"xl330-m288\"\nid = 2",
+            "bus map: motors.b.model: a xl330-m288 speaks dxl2, where another servo of /dev/ttyACM0 speaks scs0: one bus, one protocol",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 1\n[motors.b]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 2\nbaud = 115200",
+            "bus map: motors.b.baud: 115200, where another servo of /dev/ttyACM0 says 1000000: one bus, one baud rate",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 1\nnode = 3",
+            "bus map: motors.a.node means nothing for a feetech motor",
+        ),
+        (
+            "[motors.a]\ndialect = \"moteus\"\nid = 1\nport = \"/dev/ttyACM0\"",
+            "bus map: motors.a.port means nothing for a moteus motor",
+        ),
+        (
+            "[motors.a]\ndialect = \"feetech\"\nport = \"/dev/ttyACM0\"\nmodel = \"sts3215\"\nid = 1\nstop = \"brake\"",
+            "bus map: motors.a.stop: \"brake\" is not torque_off or hold",
         ),
         (
             "[motors.\"a b\"]\ndialect = \"compact\"",

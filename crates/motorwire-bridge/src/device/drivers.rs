@@ -69,7 +69,6 @@ impl Drivers {
                 _ => None,
             }),
             servos.period,
-            client.timeout.min(servos.period),
             client.retries,
         );
         let mut by_node = HashMap::new();

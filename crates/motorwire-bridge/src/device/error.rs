@@ -53,4 +53,9 @@ pub(crate) enum DeviceError {
         "the Orion arm controller has no torque off for its servo {0}: it holds it where it was sent (hold or stop it where it stands)"
     )]
     NoTorqueOff(&'static str),
+    /// A servo's write the bridge cannot build: the servo codec's refusal,
+    /// a goal its registers cannot hold, or a hold of a servo whose
+    /// position is not known.
+    #[error("{0}")]
+    ServoWrite(String),
 }

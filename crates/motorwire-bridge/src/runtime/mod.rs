@@ -194,7 +194,15 @@ pub struct ServoLink {
     pub reader: Box<dyn io::Read + Send>,
     /// Where the bridge's packets go.
     pub writer: Box<dyn io::Write + Send>,
+    /// How to open the port again when it fails (a USB adapter unplugged
+    /// and plugged back): tried every half second until it opens; `None`:
+    /// a failed port stays failed (its servos go offline).
+    pub reopen: Option<Reopen>,
 }
+
+/// Opens a serial servo port again: its reader and its writer.
+pub type Reopen =
+    Box<dyn FnMut() -> io::Result<(Box<dyn io::Read + Send>, Box<dyn io::Write + Send>)> + Send>;
 
 impl std::fmt::Debug for ServoLink {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

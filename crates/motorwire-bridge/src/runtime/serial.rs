@@ -3,7 +3,7 @@
 
 use std::io::{self, Read, Write};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::thread;
 use std::time::Instant;
@@ -38,15 +38,30 @@ pub(super) fn spawn_servo_links(
         .map(|(k, link)| {
             let port = u8::try_from(k).unwrap_or(u8::MAX);
             let queued = Arc::new(AtomicUsize::new(0));
-            let ServoLink { reader, writer } = link;
+            let ServoLink {
+                reader,
+                writer,
+                reopen,
+            } = link;
+            // A port opened again hands its new writer to the writer.
+            let (swap_tx, swap_rx) = mpsc::channel::<Box<dyn Write + Send>>();
+            let ended = Arc::new(AtomicBool::new(false));
             {
                 let ahead = ahead.clone();
                 let queued = Arc::clone(&queued);
+                let ended = Arc::clone(&ended);
+                let mut reader = Some(reader);
+                let mut reopen = reopen;
                 // Not joined: a blocking read cannot be interrupted, and
                 // the thread ends with its stream or the process.
                 thread::Builder::new()
                     .name(format!("mw-servo-reader-{port}"))
-                    .spawn(move || read_port(port, reader, &ahead, &queued))
+                    .spawn(move || {
+                        while let Some(r) = reader.take() {
+                            read_port(port, r, &ahead, &queued);
+                            reader = open_again(port, reopen.as_mut(), &swap_tx, &ahead, &ended);
+                        }
+                    })
                     .map_err(|e| BridgeError::Thread("servo port reader", e))?;
             }
             let (tx, rx) = mpsc::channel::<Vec<u8>>();
@@ -55,7 +70,8 @@ pub(super) fn spawn_servo_links(
             thread::Builder::new()
                 .name(format!("mw-servo-writer-{port}"))
                 .spawn(move || {
-                    write_port(port, &rx, writer, &ahead);
+                    write_port(port, &rx, writer, &swap_rx, &ahead);
+                    ended.store(true, Ordering::SeqCst);
                     let _ = done_tx.send(());
                 })
                 .map_err(|e| BridgeError::Thread("servo port writer", e))?;
@@ -118,17 +134,51 @@ fn read_port(port: u8, mut reader: Box<dyn Read + Send>, ahead: &Ahead, queued: 
     }
 }
 
+/// How often a failed port is opened again.
+const REOPEN_EVERY: std::time::Duration = std::time::Duration::from_millis(500);
+
+/// Port `port`, failed, opened again with `reopen` every
+/// [`REOPEN_EVERY`] until it opens (its writer handed over on `swap`, its
+/// reader returned) or the runner is done (`ended`); `None` without a way
+/// to open it.
+fn open_again(
+    port: u8,
+    reopen: Option<&mut crate::runtime::Reopen>,
+    swap: &mpsc::Sender<Box<dyn Write + Send>>,
+    ahead: &Ahead,
+    ended: &AtomicBool,
+) -> Option<Box<dyn Read + Send>> {
+    let reopen = reopen?;
+    loop {
+        thread::sleep(REOPEN_EVERY);
+        if ended.load(Ordering::SeqCst) {
+            return None;
+        }
+        if let Ok((reader, writer)) = reopen() {
+            swap.send(writer).ok()?;
+            ahead.bus_error(format!("servo port {port}: open again"));
+            return Some(reader);
+        }
+    }
+}
+
 /// Writes the bridge's packets to port `port`, each whole and flushed, in
-/// order, until the runner is done; a failed write is said (the servos'
-/// missing answers say the rest).
+/// order, until the runner is done (on the port's new writer once it is
+/// opened again, `swap`); a failed write is said (the servos' missing
+/// answers say the rest).
 fn write_port(
     port: u8,
     packets: &Receiver<Vec<u8>>,
     mut writer: Box<dyn Write + Send>,
+    swap: &Receiver<Box<dyn Write + Send>>,
     ahead: &Ahead,
 ) {
     let mut failing = false;
     while let Ok(bytes) = packets.recv() {
+        while let Ok(w) = swap.try_recv() {
+            writer = w;
+            failing = false;
+        }
         match writer.write_all(&bytes).and_then(|()| writer.flush()) {
             Ok(()) => failing = false,
             Err(e) if !failing => {

@@ -22,8 +22,8 @@ use crate::output::{Origin, Output};
 
 mod servos;
 
-pub use servos::servo_links;
 use servos::{SimServoPort, servo_buses};
+pub use servos::{servo_links, servo_links_with};
 
 /// Rounds of work at one simulated instant, at most: each answers what
 /// the round before it sent (a frame and its answer, a line and its

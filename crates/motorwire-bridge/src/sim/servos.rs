@@ -48,8 +48,26 @@ pub(super) fn servo_buses(map: &BusMap) -> Result<Vec<SimServoPort>, BridgeError
 /// # Errors
 /// [`BridgeError::SimServos`]: a port whose servos cannot share one bus.
 pub fn servo_links(map: &BusMap) -> Result<Vec<crate::runtime::ServoLink>, BridgeError> {
+    servo_links_with(map, motorwire_sim::servo::ServoFaults::default(), 1)
+}
+
+/// [`servo_links`] whose servos' answers are dropped, corrupted or late as
+/// `faults` says, drawn from `seed` (each port from its own).
+///
+/// # Errors
+/// As [`servo_links`].
+pub fn servo_links_with(
+    map: &BusMap,
+    faults: motorwire_sim::servo::ServoFaults,
+    seed: u64,
+) -> Result<Vec<crate::runtime::ServoLink>, BridgeError> {
     servo_buses(map)?
         .into_iter()
+        .enumerate()
+        .map(|(k, mut p)| {
+            p.bus = p.bus.with_faults(faults, seed.wrapping_add(k as u64));
+            p
+        })
         .zip(map.servo_ports())
         .map(|(p, port)| {
             let wire = Arc::new(SimWire {
@@ -67,6 +85,7 @@ pub fn servo_links(map: &BusMap) -> Result<Vec<crate::runtime::ServoLink>, Bridg
             Ok(crate::runtime::ServoLink {
                 reader: Box::new(WireReader(Arc::clone(&wire))),
                 writer: Box::new(WireWriter(wire)),
+                reopen: None,
             })
         })
         .collect()
