@@ -212,6 +212,14 @@ struct Servo {
     present: Option<i64>,
     /// Its torque, as last written or read.
     torque: Option<bool>,
+    /// A stop its servo never answered: written again every cycle until
+    /// it is, or until the servo's next order.
+    sticky: Option<ServoCommand>,
+    /// When the sticky stop is written again next.
+    sticky_next: Duration,
+    /// The stop (its number) whose torque off went out in the port's
+    /// sync write of every servo's torque off, ahead of its answered write.
+    blasted: Option<u32>,
 }
 
 /// A goal written by a sync write and not yet read back.
@@ -242,6 +250,8 @@ struct Steps {
     total: u8,
     torque_after: bool,
     deadline: Duration,
+    /// The order it writes.
+    cmd: ServoCommand,
 }
 
 /// What a port waits for.
@@ -359,6 +369,9 @@ impl ServoDriver {
                     written: None,
                     present: None,
                     torque: None,
+                    sticky: None,
+                    sticky_next: Duration::ZERO,
+                    blasted: None,
                 });
             }
         }
@@ -417,6 +430,7 @@ impl ServoDriver {
         self.next_msg = self.next_msg.wrapping_add(1).max(1);
         if let Some((_, s)) = self.servo_mut(device) {
             s.waiting = Some((msg, cmd, 0));
+            s.sticky = None;
         }
         msg
     }
@@ -439,8 +453,9 @@ impl ServoDriver {
 
     /// Takes back servo `device`'s order if it was not written yet.
     pub(crate) fn take_back_unsent(&mut self, device: DeviceId) -> bool {
+        // (A sticky stop's write again, number 0, is the driver's own.)
         self.servo_mut(device)
-            .is_some_and(|(_, s)| s.waiting.take().is_some())
+            .is_some_and(|(_, s)| s.waiting.take_if(|w| w.0 != 0).is_some())
     }
 
     /// The next bytes to write, and the port (its index in the map's
@@ -524,6 +539,10 @@ impl ServoDriver {
 
     /// Tells that `device`'s order `msg` ended at `now` so.
     fn ended(&mut self, device: DeviceId, msg_id: u32, outcome: Outcome, attempts: u8) {
+        // Number 0: a sticky stop's write again, the driver's own.
+        if msg_id == 0 {
+            return;
+        }
         self.news.push_back(ServoNews::Ended {
             device,
             ended: Ended {
@@ -749,8 +768,9 @@ mod tests {
         // Servo 2 is silent; the stop does not wait for the read's end.
         d.handle_bytes(ms(1), 0, &status(1, 1, 2047, 2047));
         let msg = d.send(ms(2), DeviceId::at(1), ServoCommand::TorqueOff);
-        // A write of Torque_Enable (40) 0 to servo 2, answered.
-        assert_eq!(sent(&mut d), ["FFFF02040328".to_owned() + "00CE"]);
+        // Torque_Enable (40) 0 for servo 2 in a sync write at once, then
+        // the same as a write its servo answers.
+        assert_eq!(sent(&mut d), ["FFFFFE0683280102004D", "FFFF0204032800CE"]);
         // Lost: sent again at its wait's end (the wire's time and 20 ms).
         let wait = d.deadline().unwrap();
         assert!(wait <= ms(2) + ms(21), "{wait:?}");
@@ -771,8 +791,11 @@ mod tests {
         sent(&mut d);
         d.handle_bytes(ms(1), 0, &status(1, 1, 2047, 2047));
         let msg = d.send(ms(2), DeviceId::at(0), ServoCommand::TorqueOff);
-        let mut writes = sent(&mut d).len();
-        for _ in 0..3 {
+        let mut writes = sent(&mut d)
+            .iter()
+            .filter(|p| p.starts_with("FFFF0104"))
+            .count();
+        for _ in 0..2 {
             let wait = d.deadline().unwrap();
             d.expire(wait);
             writes += sent(&mut d)
@@ -781,6 +804,8 @@ mod tests {
                 .count();
         }
         assert_eq!(writes, 3, "the first write and two retries");
+        let wait = d.deadline().unwrap();
+        d.expire(wait);
         let e = ended(&mut d);
         assert_eq!(
             (e[0].msg_id, &e[0].outcome, e[0].attempts),
@@ -822,6 +847,105 @@ mod tests {
         d.send(Duration::ZERO, DeviceId::at(0), goal);
         assert!(d.take_back_unsent(DeviceId::at(0)));
         d.send(Duration::ZERO, DeviceId::at(0), ServoCommand::TorqueOff);
-        assert_eq!(sent(&mut d), ["FFFF0104032800CF"]);
+        assert_eq!(sent(&mut d), ["FFFFFE0683280101004E", "FFFF0104032800CF"]);
+    }
+
+    /// A stop its servo never answers is told as timed out once, and
+    /// written again every cycle until the servo answers it.
+    #[test]
+    fn a_stop_never_answered_is_written_again_every_cycle_until_it_is() {
+        let mut d = driver(&[1]);
+        sent(&mut d);
+        d.handle_bytes(ms(1), 0, &status(1, 1, 2047, 2047));
+        let msg = d.send(ms(2), DeviceId::at(0), ServoCommand::TorqueOff);
+        sent(&mut d);
+        for _ in 0..3 {
+            let wait = d.deadline().unwrap();
+            d.expire(wait);
+            sent(&mut d);
+        }
+        let e = ended(&mut d);
+        assert_eq!((e[0].msg_id, &e[0].outcome), (msg, &Outcome::TimedOut));
+        // The next cycles: the torque off again, before each read.
+        let mut again = 0;
+        for _ in 0..12 {
+            let next = d.deadline().unwrap();
+            d.expire(next);
+            again += sent(&mut d)
+                .iter()
+                .filter(|p| *p == "FFFF0104032800CF")
+                .count();
+        }
+        assert!(again >= 2, "written again {again} times");
+        // Answered at last: written no more, and nothing more told.
+        let next = d.deadline().unwrap();
+        d.expire(next);
+        let out = sent(&mut d);
+        if out.iter().any(|p| p == "FFFF0104032800CF") {
+            d.handle_bytes(next, 0, &write_status(1));
+        }
+        for _ in 0..6 {
+            let next = d.deadline().unwrap();
+            d.expire(next);
+            let out = sent(&mut d);
+            if out.iter().any(|p| p.starts_with("FFFFFE")) {
+                d.handle_bytes(next, 0, &status(1, 0, 2047, 2047));
+            }
+            assert!(!out.iter().any(|p| p == "FFFF0104032800CF"), "{out:?}");
+        }
+        assert!(ended(&mut d).is_empty());
+    }
+
+    /// A Dynamixel goal written as answered writes (its torque off) waits
+    /// behind another servo's stop, which does not wait for the goal's
+    /// retries.
+    #[test]
+    fn a_stop_cuts_a_goals_answered_writes_short() {
+        let xl = |id| ServoTarget {
+            vendor: ServoVendor::Dynamixel,
+            model: "xl330-m288",
+            ..sts(id)
+        };
+        let ports = [ServoPort {
+            path: "/dev/ttyUSB0".to_owned(),
+            baud: 1_000_000,
+            protocol: Protocol::Dxl2,
+        }];
+        let mut d = ServoDriver::new(
+            &ports,
+            [(DeviceId::at(0), xl(1)), (DeviceId::at(1), xl(2))].into_iter(),
+            ms(20),
+            2,
+        );
+        let goal = ServoCommand::Goal {
+            position: 10.0,
+            velocity: Some(90.0),
+            acceleration: None,
+        };
+        d.send(Duration::ZERO, DeviceId::at(0), goal);
+        // Its goal block to servo 1 (Write, instruction 3, from 108).
+        let first = sent(&mut d);
+        assert_eq!(
+            first.len(),
+            1,
+            "{:?}",
+            std::iter::from_fn(|| d.poll()).collect::<Vec<_>>()
+        );
+        assert!(
+            first[0].starts_with("FFFFFD0001") && first[0].contains("036C00"),
+            "{first:?}"
+        );
+        // Unanswered; a stop of servo 2 comes: it goes now.
+        d.send(ms(1), DeviceId::at(1), ServoCommand::TorqueOff);
+        let out = sent(&mut d);
+        assert!(
+            out[0].starts_with("FFFFFD00FE") && out[0].contains("834000"),
+            "{out:?}"
+        );
+        assert!(
+            out[1].starts_with("FFFFFD0002") && out[1].contains("034000"),
+            "{out:?}"
+        );
+        assert_eq!(out.len(), 2, "{out:?}");
     }
 }

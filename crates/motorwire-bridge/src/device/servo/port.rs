@@ -15,22 +15,35 @@ impl ServoDriver {
     /// be written now: the stop does not wait for statuses, nor for their
     /// retries. (Its own writes are answered, and sent again until they
     /// are: a status cut by it on the wire costs a retry, never the stop.)
+    /// A goal's answered writes are cut short likewise, and dropped at once
+    /// when the engine gave the goal up.
     pub(super) fn preempt(&mut self, k: usize) {
         let Some(p) = self.ports.get_mut(k) else {
             return;
         };
-        if !matches!(p.awaiting, Some(Await::Read { .. })) {
-            return;
-        }
         let stop_ready = p.servos.iter().any(|s| match s.waiting {
             Some((_, ServoCommand::TorqueOff, _)) => true,
             Some((_, ServoCommand::Hold, _)) => s.present.is_some(),
             _ => false,
         });
-        if stop_ready {
-            p.awaiting = None;
-            p.rx.clear();
+        match &p.awaiting {
+            Some(Await::Read { .. }) if stop_ready => {}
+            Some(Await::Steps(st)) if !is_stop(&st.cmd) && (stop_ready || st.msg.is_none()) => {}
+            _ => return,
         }
+        // A goal's answered writes cut short wait again behind the stop
+        // (the servo's torque as it may now be); dropped when the engine
+        // gave the goal up.
+        if let Some(Await::Steps(st)) = p.awaiting.take()
+            && let Some(msg) = st.msg
+            && let Some(s) = p.servos.iter_mut().find(|s| s.device == st.device)
+            && s.waiting.is_none()
+        {
+            s.waiting = Some((msg, st.cmd, st.total));
+            s.torque = None;
+        }
+        p.awaiting = None;
+        p.rx.clear();
     }
 
     /// Port `k`'s next transaction, if it is free: a stop (or a goal that
@@ -45,6 +58,7 @@ impl ServoDriver {
         if !free {
             return;
         }
+        self.rearm_sticky(now, k);
         if self.start_steps(now, k) {
             return;
         }
@@ -59,6 +73,10 @@ impl ServoDriver {
             return false;
         };
         let protocol = p.protocol;
+        self.blast_torque_off(k);
+        let Some(p) = self.ports.get_mut(k) else {
+            return false;
+        };
         let needs_steps = |s: &Servo| match s.waiting {
             Some((_, ServoCommand::TorqueOff, _)) => true,
             Some((_, ServoCommand::Hold, _)) => s.present.is_some(),
@@ -80,6 +98,8 @@ impl ServoDriver {
         };
         s.written = None;
         let (device, id) = (s.device, s.target.id);
+        // A sticky stop's write again (number 0): nothing to tell of it.
+        let msg = (msg != 0).then_some(msg);
         match steps(s, protocol, cmd) {
             Ok((mut packets, torque_after)) => {
                 let Some(first) = packets.pop_front() else {
@@ -90,9 +110,10 @@ impl ServoDriver {
                 if let Some(p) = self.ports.get_mut(k) {
                     p.rx.clear();
                     p.awaiting = Some(Await::Steps(Steps {
+                        cmd,
                         device,
                         id,
-                        msg: Some(msg),
+                        msg,
                         current: first,
                         sends: 1,
                         rest: packets,
@@ -104,6 +125,9 @@ impl ServoDriver {
                 true
             }
             Err(why) => {
+                let Some(msg) = msg else {
+                    return self.start_steps(now, k);
+                };
                 self.ended(
                     device,
                     msg,
@@ -117,6 +141,55 @@ impl ServoDriver {
                 // The next order, if any.
                 self.start_steps(now, k)
             }
+        }
+    }
+
+    /// Each stop of port `k` never answered waits again, once a cycle, until
+    /// its servo answers it.
+    fn rearm_sticky(&mut self, now: Duration, k: usize) {
+        let Some(p) = self.ports.get_mut(k) else {
+            return;
+        };
+        let period = p.period;
+        for s in &mut p.servos {
+            if s.waiting.is_none()
+                && now >= s.sticky_next
+                && let Some(cmd) = s.sticky
+            {
+                s.waiting = Some((0, cmd, 0));
+                s.sticky_next = now.saturating_add(period);
+            }
+        }
+    }
+
+    /// Every torque off waiting on port `k`, not yet sent so, in one sync
+    /// write ahead of their answered writes: every servo's torque goes off
+    /// at once, not one after another behind a servo that does not answer.
+    fn blast_torque_off(&mut self, k: usize) {
+        let Some(p) = self.ports.get_mut(k) else {
+            return;
+        };
+        let mut entries = Vec::new();
+        for s in &mut p.servos {
+            if let Some((msg, ServoCommand::TorqueOff, _)) = s.waiting
+                && s.blasted != Some(msg)
+            {
+                s.blasted = Some(msg);
+                entries.push((s.target.id, vec![0]));
+            }
+        }
+        if entries.is_empty() {
+            return;
+        }
+        let address = motorwire_translate::torque_address(p.vendor);
+        let write = Instruction::SyncWrite {
+            address,
+            length: 1,
+            entries,
+        };
+        if let Ok(bytes) = encode(p.protocol, &write) {
+            self.out
+                .push_back((u8::try_from(k).unwrap_or(u8::MAX), bytes));
         }
     }
 
@@ -290,6 +363,9 @@ impl ServoDriver {
         }
         if !refused && let Some(s) = p.servos.iter_mut().find(|s| s.device == st.device) {
             s.torque = Some(st.torque_after);
+            if is_stop(&st.cmd) {
+                s.sticky = None;
+            }
         }
         let outcome = if refused {
             Outcome::Nacked {
@@ -408,9 +484,19 @@ impl ServoDriver {
                     self.out
                         .push_back((u8::try_from(k).unwrap_or(u8::MAX), st.current.clone()));
                     p.awaiting = Some(Await::Steps(st));
-                } else if let Some(msg) = st.msg {
+                } else {
                     self.missed += 1;
-                    self.ended(st.device, msg, Outcome::TimedOut, st.total);
+                    // A stop is never given up: written again every cycle
+                    // until its servo answers, or takes another order.
+                    if is_stop(&st.cmd)
+                        && let Some(s) = p.servos.iter_mut().find(|s| s.device == st.device)
+                        && s.waiting.is_none()
+                    {
+                        s.sticky = Some(st.cmd);
+                    }
+                    if let Some(msg) = st.msg {
+                        self.ended(st.device, msg, Outcome::TimedOut, st.total);
+                    }
                 }
             }
             Some(Await::Read { ids, attempts, .. }) => {
