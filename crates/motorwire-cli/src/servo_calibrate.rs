@@ -126,12 +126,12 @@ impl Link {
             id,
             Some(usize::from(r.size)),
         )?;
-        let fold = |acc: u32, b: &u8| (acc << 8) | u32::from(*b);
-        let value = if self.protocol.big_endian() {
-            status.params.iter().fold(0, fold)
-        } else {
-            status.params.iter().rev().fold(0, fold)
-        };
+        let value = self.protocol.value_of(&status.params).ok_or_else(|| {
+            format!(
+                "servo {id} answered {name} with {} bytes",
+                status.params.len()
+            )
+        })?;
         Ok(r.from_raw(value))
     }
 }

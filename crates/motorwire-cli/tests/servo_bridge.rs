@@ -7,7 +7,7 @@
 mod common;
 
 use std::io::Write;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde_json::Value;
 
@@ -94,24 +94,11 @@ fn the_so101_and_koch_maps_move_and_stop_on_the_simulated_servos() {
 fn the_bridge_drives_servos_on_a_pseudo_terminal() {
     let dir = std::env::temp_dir().join(format!("mw-servo-bridge-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let link = dir.join("ttyFEETECH");
-    let link_s = link.to_str().unwrap().to_owned();
-    let mut servos = common::spawn(&[
-        "sim",
-        "servos",
-        "--protocol",
-        "scs0",
-        "--model",
-        "sts3215",
-        "--ids",
-        "1,2",
-        "--pty",
-        &link_s,
-    ]);
-    let start = Instant::now();
-    while !link.exists() && start.elapsed() < Duration::from_secs(10) {
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let (mut servos, link_s) = common::sim_servos(
+        &dir,
+        "ttyFEETECH",
+        &["--protocol", "scs0", "--model", "sts3215", "--ids", "1,2"],
+    );
     let map = dir.join("map.toml");
     std::fs::write(
         &map,
@@ -157,24 +144,8 @@ fn the_bridge_drives_servos_on_a_pseudo_terminal() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Spawns `motorwire sim servos ARGS --pty DIR/NAME` and waits for its
-/// link; the child and the link's path.
-fn sim_servos(dir: &std::path::Path, name: &str, args: &[&str]) -> (std::process::Child, String) {
-    let link = dir.join(name);
-    let link_s = link.to_str().unwrap().to_owned();
-    let mut all = vec!["sim", "servos"];
-    all.extend_from_slice(args);
-    all.extend_from_slice(&["--pty", &link_s]);
-    let child = common::spawn(&all);
-    let start = Instant::now();
-    while !link.exists() && start.elapsed() < Duration::from_secs(10) {
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    (child, link_s)
-}
-
-/// Register `address` (`length` bytes, little-endian) of Feetech servo
-/// `id` on the port at `path`, read as the SDK reads it.
+/// Register `address` (`length` bytes) of Feetech servo `id` on the port
+/// at `path`, read as the SDK reads it.
 fn read_register(path: &str, id: u8, address: u16, length: u16) -> i64 {
     use std::io::Read;
     let mut port = serialport::new(path, 1_000_000)
@@ -200,11 +171,11 @@ fn read_register(path: &str, id: u8, address: u16, length: u16) -> i64 {
     )
     .unwrap()
     .status;
-    status
-        .params
-        .iter()
-        .rev()
-        .fold(0i64, |acc, b| (acc << 8) | i64::from(*b))
+    i64::from(
+        motorwire_servo::Protocol::Scs0
+            .value_of(&status.params)
+            .unwrap(),
+    )
 }
 
 /// `motorwire servo calibrate` on servos a simulated hand sweeps 60° each
@@ -216,7 +187,7 @@ fn read_register(path: &str, id: u8, address: u16, length: u16) -> i64 {
 fn calibrate_writes_the_swept_ranges_into_the_map_and_the_servos() {
     let dir = std::env::temp_dir().join(format!("mw-servo-calibrate-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let (mut servos, link) = sim_servos(
+    let (mut servos, link) = common::sim_servos(
         &dir,
         "ttyARM",
         &[
@@ -391,7 +362,7 @@ fn a_servo_port_that_fails_is_opened_again() {
     let dir = std::env::temp_dir().join(format!("mw-servo-reopen-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let args = ["--protocol", "scs0", "--model", "sts3215", "--ids", "1"];
-    let (mut servos, link) = sim_servos(&dir, "ttyREOPEN", &args);
+    let (mut servos, link) = common::sim_servos(&dir, "ttyREOPEN", &args);
     let map = dir.join("map.toml");
     std::fs::write(
         &map,
@@ -419,7 +390,7 @@ fn a_servo_port_that_fails_is_opened_again() {
     out.until("offline", Duration::from_secs(20), |l| {
         l.contains("\"offline\"")
     });
-    let (mut servos, _) = sim_servos(&dir, "ttyREOPEN", &args);
+    let (mut servos, _) = common::sim_servos(&dir, "ttyREOPEN", &args);
     out.until("online", Duration::from_secs(20), |l| {
         l.contains("\"online\"")
     });

@@ -194,24 +194,12 @@ fn sim_servos_answer_on_their_pseudo_terminal() {
     use std::io::Read;
     let dir = std::env::temp_dir().join(format!("mw-sim-servos-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let link = dir.join("so101");
-    let link_s = link.to_str().unwrap();
-    let mut child = common::spawn(&[
-        "sim",
-        "servos",
-        "--protocol",
-        "scs0",
-        "--model",
-        "sts3215",
-        "--ids",
-        "1,2",
-        "--pty",
-        link_s,
-    ]);
-    let start = Instant::now();
-    while !link.exists() && start.elapsed() < Duration::from_secs(10) {
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let (mut child, link_s) = common::sim_servos(
+        &dir,
+        "so101",
+        &["--protocol", "scs0", "--model", "sts3215", "--ids", "1,2"],
+    );
+    let link_s = link_s.as_str();
     let mut port = serialport::new(link_s, 1_000_000)
         .timeout(Duration::from_millis(500))
         .open_native()

@@ -107,6 +107,35 @@ impl Protocol {
             }
         })
     }
+
+    /// The value of 1, 2 or 4 `bytes` as this protocol writes them (the
+    /// inverse of [`Protocol::value_bytes`], as the SDKs' `read1ByteTxRx`,
+    /// `read2ByteTxRx` and `read4ByteTxRx` read them); `None` for another
+    /// length.
+    ///
+    /// ```
+    /// use motorwire_servo::Protocol;
+    /// assert_eq!(Protocol::Scs1.value_of(&[0x56, 0x78, 0x12, 0x34]), Some(0x1234_5678));
+    /// assert_eq!(Protocol::Dxl2.value_of(&[0x78, 0x56, 0x34, 0x12]), Some(0x1234_5678));
+    /// assert_eq!(Protocol::Scs0.value_of(&[0x00, 0x08]), Some(0x0800));
+    /// assert_eq!(Protocol::Scs0.value_of(&[1, 2, 3]), None);
+    /// ```
+    #[must_use]
+    pub fn value_of(self, bytes: &[u8]) -> Option<u32> {
+        let word = |a: u8, b: u8| -> u32 {
+            if self.big_endian() {
+                u32::from(a) << 8 | u32::from(b)
+            } else {
+                u32::from(b) << 8 | u32::from(a)
+            }
+        };
+        match *bytes {
+            [b] => Some(u32::from(b)),
+            [a, b] => Some(word(a, b)),
+            [a, b, c, d] => Some(word(a, b) | word(c, d) << 16),
+            _ => None,
+        }
+    }
 }
 
 /// One instruction to the servos of a bus. Each protocol takes the

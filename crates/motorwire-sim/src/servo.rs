@@ -204,19 +204,7 @@ impl SimServo {
     fn raw(&self, r: &Register) -> u32 {
         let at = usize::from(r.address);
         let bytes = self.memory.get(at..at + usize::from(r.size)).unwrap_or(&[]);
-        let word = |lo: u8, hi: u8| -> u32 {
-            if self.protocol.big_endian() {
-                u32::from(lo) << 8 | u32::from(hi)
-            } else {
-                u32::from(hi) << 8 | u32::from(lo)
-            }
-        };
-        match bytes {
-            [b] => u32::from(*b),
-            [a, b] => word(*a, *b),
-            [a, b, c, d] => word(*a, *b) | word(*c, *d) << 16,
-            _ => 0,
-        }
+        self.protocol.value_of(bytes).unwrap_or(0)
     }
 
     /// Sets register `name` to `value` (clamped to what it holds).

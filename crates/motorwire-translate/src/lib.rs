@@ -31,8 +31,8 @@ pub use report::Report as TranslationReport;
 pub use report::{Loss, LossKind, LossText, Report, Translated};
 pub use servo::{
     Calibration, GoalBlock, ServoCommand, ServoPort, ServoTarget, ServoVendor, TORQUE_ON,
-    calibrated_range, goal_block, goal_steps, is_servo, multi_axis_to_servo, servo_packets,
-    to_servo, torque_address,
+    calibrated_range, goal_block, goal_steps, hold_block, is_servo, multi_axis_to_servo,
+    servo_packets, to_servo, torque_address,
 };
 pub use sync::{MultiAxisMove, SYNC_TOLERANCE_S, multi_axis_to_irpc, multi_axis_to_irpc_from};
 pub use trajectory::{

@@ -198,6 +198,8 @@ pub struct GoalBlock {
     /// Whether the torque is turned on by this block itself (Feetech) or
     /// needs [`TORQUE_ON`] written after it (Dynamixel).
     pub torque_included: bool,
+    /// The goal step it writes (what the servo reads back once it took it).
+    pub position: u32,
 }
 
 /// The goal position raw steps of `degrees` for `target`, refused when
@@ -292,21 +294,42 @@ pub fn goal_block(
     let (v_unit, a_unit, v_max, a_max) = motion_units(target);
     let v = limit_steps(motor, "velocity_limit", velocity, v_unit)?.min(v_max);
     let a = limit_steps(motor, "acceleration_limit", acceleration, a_unit)?.min(a_max);
-    let protocol = target.table().map_or(Protocol::Scs0, |m| m.protocol);
-    let bytes = |value: u32, length: u8| {
-        protocol
-            .value_bytes(value, length)
-            .map_err(|e| Refusal::NotRepresentable {
-                motor: motor.to_owned(),
-                field: "setpoint",
-                problem: e.to_string(),
-            })
-    };
     let position = u32::try_from(raw).map_err(|_| Refusal::NotRepresentable {
         motor: motor.to_owned(),
         field: "setpoint",
         problem: format!("step {raw} is below 0"),
     })?;
+    layout(target, position, v, a).map_err(|e| Refusal::NotRepresentable {
+        motor: motor.to_owned(),
+        field: "setpoint",
+        problem: e.to_string(),
+    })
+}
+
+/// The goal registers that hold `target`'s servo at step `position` (where
+/// it stands, read from it), torque on, at its own speed and acceleration
+/// (it does not move): a hold. Not gated: a servo pushed past its
+/// calibrated range is held where it is.
+///
+/// # Errors
+/// A step the goal register cannot hold.
+pub fn hold_block(
+    target: &ServoTarget,
+    position: u32,
+) -> Result<GoalBlock, motorwire_servo::EncodeError> {
+    layout(target, position, 0, 0)
+}
+
+/// The goal block of `target`'s vendor: goal step `position`, speed `v`
+/// and acceleration `a` in the servo's own steps (0: its maximum).
+fn layout(
+    target: &ServoTarget,
+    position: u32,
+    v: u32,
+    a: u32,
+) -> Result<GoalBlock, motorwire_servo::EncodeError> {
+    let protocol = target.table().map_or(Protocol::Scs0, |m| m.protocol);
+    let bytes = |value: u32, length: u8| protocol.value_bytes(value, length);
     Ok(match target.vendor {
         ServoVendor::Feetech => {
             let mut data = vec![1, u8::try_from(a).unwrap_or(u8::MAX)];
@@ -317,6 +340,7 @@ pub fn goal_block(
                 address: 40,
                 data,
                 torque_included: true,
+                position,
             }
         }
         ServoVendor::Dynamixel => {
@@ -327,6 +351,7 @@ pub fn goal_block(
                 address: 108,
                 data,
                 torque_included: false,
+                position,
             }
         }
     })

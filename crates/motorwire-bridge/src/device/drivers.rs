@@ -6,7 +6,9 @@ use super::*;
 /// often each is read.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct ServoSetup<'a> {
-    pub(crate) ports: &'a [motorwire_translate::ServoPort],
+    /// The bus map: its servo ports, and each servo's model and
+    /// calibration.
+    pub(crate) map: &'a BusMap,
     pub(crate) period: Duration,
 }
 
@@ -63,11 +65,13 @@ impl Drivers {
             }
         }
         let servo = servo::ServoDriver::new(
-            servos.ports,
-            devices.iter().filter_map(|j| match j.device {
-                Device::Servo(t) => Some((j.id, t)),
-                _ => None,
-            }),
+            servos.map.servo_ports(),
+            devices
+                .iter()
+                .filter_map(|j| match servos.map.motor(j.name)?.target {
+                    Target::Servo(t) => Some((j.id, t)),
+                    _ => None,
+                }),
             servos.period,
             client.retries,
         );

@@ -250,7 +250,20 @@ pub(crate) enum Device {
     },
     /// A serial bus servo (Feetech or Dynamixel) on one of the map's
     /// serial ports.
-    Servo(motorwire_translate::ServoTarget),
+    Servo(ServoAddress),
+}
+
+/// What the engine's questions need of a servo (its driver keeps its
+/// model and calibration): who makes it, where it is, what its stop does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct ServoAddress {
+    pub(crate) vendor: motorwire_translate::ServoVendor,
+    /// Its port's index among the map's servo ports.
+    pub(crate) port: u8,
+    pub(crate) id: u8,
+    /// Whether its stop holds it (torque on) rather than turning its
+    /// torque off.
+    pub(crate) stop_holds: bool,
 }
 
 /// What a device can be asked to do beyond a motor command.
@@ -624,7 +637,7 @@ impl Device {
 
 /// A servo's stop: its torque off, or a hold where the map says `stop =
 /// "hold"`.
-const fn servo_stop(t: motorwire_translate::ServoTarget) -> ServoCommand {
+const fn servo_stop(t: ServoAddress) -> ServoCommand {
     if t.stop_holds {
         ServoCommand::Hold
     } else {
@@ -1174,7 +1187,15 @@ impl Device {
                     brake,
                 },
             ),
-            Target::Servo(t) => (u16::from(t.id), Self::Servo(t)),
+            Target::Servo(t) => (
+                u16::from(t.id),
+                Self::Servo(ServoAddress {
+                    vendor: t.vendor,
+                    port: t.port,
+                    id: t.id,
+                    stop_holds: t.stop_holds,
+                }),
+            ),
         })
     }
 

@@ -540,7 +540,7 @@ impl Bridge {
             config.epoch_unix_ms.unwrap_or(0.0),
             &joints,
             crate::device::ServoSetup {
-                ports: map.servo_ports(),
+                map: &map,
                 // At the feedback rate, and often enough that a servo that
                 // answers is never taken offline between two reads.
                 period: config

@@ -116,3 +116,19 @@ pub fn sim_bridge<'a>(extra: &[&'a str]) -> Vec<&'a str> {
     args.extend_from_slice(extra);
     args
 }
+
+/// Spawns `motorwire sim servos ARGS --pty DIR/NAME` and waits for its
+/// link: the child and the link's path.
+pub fn sim_servos(dir: &Path, name: &str, args: &[&str]) -> (Child, String) {
+    let link = dir.join(name);
+    let link_s = link.to_str().unwrap().to_owned();
+    let mut all = vec!["sim", "servos"];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["--pty", &link_s]);
+    let child = spawn(&all);
+    let start = std::time::Instant::now();
+    while !link.exists() && start.elapsed() < std::time::Duration::from_secs(10) {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    (child, link_s)
+}

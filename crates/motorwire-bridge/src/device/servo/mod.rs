@@ -100,16 +100,6 @@ const fn feedback_block(vendor: ServoVendor) -> (u16, u16) {
     }
 }
 
-/// `bytes` as one value of the protocol's byte order.
-fn value_of(protocol: Protocol, bytes: &[u8]) -> u32 {
-    let fold = |acc: u32, b: &u8| (acc << 8) | u32::from(*b);
-    if protocol.big_endian() {
-        bytes.iter().fold(0, fold)
-    } else {
-        bytes.iter().rev().fold(0, fold)
-    }
-}
-
 /// Register `name` of `model` read from `block` (read from `start`), in
 /// its signed steps; `None` when the model has no such register in the
 /// block.
@@ -117,7 +107,7 @@ fn field(model: &Model, start: u16, block: &[u8], name: &str) -> Option<(i64, Un
     let r = model.register(name)?;
     let from = usize::from(r.address.checked_sub(start)?);
     let bytes = block.get(from..from + usize::from(r.size))?;
-    Some((r.from_raw(value_of(model.protocol, bytes)), r.unit))
+    Some((r.from_raw(model.protocol.value_of(bytes)?), r.unit))
 }
 
 /// A feedback block of `target`'s servo, read.
@@ -553,43 +543,6 @@ impl ServoDriver {
             },
         });
     }
-}
-
-/// The goal block that holds `target`'s servo at `raw` (its present
-/// position), torque on, at the servo's own speed.
-fn hold_block(
-    target: &ServoTarget,
-    protocol: Protocol,
-    raw: i64,
-) -> Result<motorwire_translate::GoalBlock, DeviceError> {
-    let position = u32::try_from(raw)
-        .map_err(|_| DeviceError::ServoWrite(format!("step {raw} is below 0")))?;
-    let bytes = |v: u32, n: u8| {
-        protocol
-            .value_bytes(v, n)
-            .map_err(|e| DeviceError::ServoWrite(e.to_string()))
-    };
-    Ok(match target.vendor {
-        ServoVendor::Feetech => {
-            let mut data = vec![1, 0];
-            data.extend(bytes(position, 2)?);
-            data.extend([0; 4]);
-            motorwire_translate::GoalBlock {
-                address: 40,
-                data,
-                torque_included: true,
-            }
-        }
-        ServoVendor::Dynamixel => {
-            let mut data = vec![0; 8];
-            data.extend(bytes(position, 4)?);
-            motorwire_translate::GoalBlock {
-                address: 108,
-                data,
-                torque_included: false,
-            }
-        }
-    })
 }
 
 #[cfg(test)]

@@ -216,11 +216,10 @@ impl ServoDriver {
                 continue;
             };
             s.waiting = None;
-            let block = goal_block("", &s.target, position, velocity, acceleration);
-            let goal = s.target.calibration.raw(position, s.target.resolution());
-            match block {
+            match goal_block("", &s.target, position, velocity, acceleration) {
                 Ok(b) => {
                     address = b.address;
+                    let goal = i64::from(b.position);
                     entries.push((s.target.id, b.data));
                     s.written = Some(Written {
                         msg,
@@ -582,7 +581,10 @@ fn steps(
             let raw = s
                 .present
                 .ok_or_else(|| DeviceError::ServoWrite("its position is not known".to_owned()))?;
-            hold_block(&s.target, protocol, raw)?
+            let raw = u32::try_from(raw)
+                .map_err(|_| DeviceError::ServoWrite(format!("step {raw} is below 0")))?;
+            motorwire_translate::hold_block(&s.target, raw)
+                .map_err(|e| DeviceError::ServoWrite(e.to_string()))?
         }
         ServoCommand::Goal {
             position,
